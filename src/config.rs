@@ -1,0 +1,59 @@
+//! The TOML configuration. These serde types *are* its reference: every field's doc
+//! comment says what it means, its unit and its default. Unknown keys are errors.
+//!
+//! Errors name the file, the key and why (`Config::load`).
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+/// The whole configuration file (`config/dronewatt.toml` is a commented example).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// Vehicle profile: a path to a `config/vehicles/*.toml` file (relative paths are
+    /// resolved against the config file's folder). Default: the built-in M100 profile.
+    pub vehicle: Option<PathBuf>,
+    /// Mission facts the telemetry cannot tell: commanded speed, payload, altitude.
+    pub mission: crate::telemetry::MissionConfig,
+    /// Resampling rate, window length, staleness.
+    pub telemetry: crate::telemetry::TelemetryConfig,
+    /// Which models run.
+    pub models: crate::model::ModelsConfig,
+    /// Battery capacity, reserve, home-return assumptions.
+    pub energy: crate::energy::EnergyConfig,
+    /// Alert rules, `[[alerts]]` tables.
+    pub alerts: Vec<crate::alert::AlertRule>,
+    /// Publishers: terminal, jsonl, mavlink, web.
+    pub sinks: crate::sink::SinksConfig,
+}
+
+/// A configuration error that names the file, the key and why.
+#[derive(Debug, thiserror::Error)]
+#[error("{file}: {message}")]
+pub struct ConfigError {
+    pub file: PathBuf,
+    pub message: String,
+}
+
+impl Config {
+    /// Read and validate a configuration file.
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let err = |message: String| ConfigError { file: path.to_path_buf(), message };
+        let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
+        let mut cfg: Config = toml::from_str(&text).map_err(|e| err(e.to_string().trim_end().to_string()))?;
+        if let (Some(v), Some(dir)) = (cfg.vehicle.as_mut(), path.parent()) {
+            if v.is_relative() {
+                *v = dir.join(&*v);
+            }
+        }
+        cfg.validate().map_err(err)?;
+        Ok(cfg)
+    }
+
+    /// Checks serde cannot express (ranges, cross-field rules). The message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        self.telemetry.validate()?;
+        Ok(())
+    }
+}

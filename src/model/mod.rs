@@ -1,0 +1,87 @@
+//! Power models: a window (and the vehicle profile a model was built with) in, watts out.
+//! Pure: no I/O, no clocks. Owners: physics (issue 4), LSTM (issue 5).
+
+pub mod physics;
+
+use crate::telemetry::Sample;
+use crate::window::Window;
+
+/// One model's output for one window.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prediction {
+    /// Predicted electrical power, watts.
+    pub power_w: f32,
+    /// An uncertainty band (low, high), watts, where the model gives one.
+    pub band_w: Option<(f32, f32)>,
+}
+
+/// Anything that turns windows into watts. Implementations do no I/O.
+pub trait PowerModel: Send {
+    /// Stable name used in tables, JSON and MAVLink (`dandrea`, `tseng_cal`, `lstm` …).
+    fn name(&self) -> &str;
+    /// Predict every window of `windows` into `out` (cleared first), in order. Batching is
+    /// the model's business: the LSTM runs them as one batch, physics models one by one.
+    fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>);
+}
+
+/// One model's estimate, named.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ModelEstimate {
+    pub name: String,
+    pub power_w: f32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub band_w: Option<(f32, f32)>,
+}
+
+/// Every model's estimate for one window: what the inference stage sends on.
+#[derive(Debug, Clone)]
+pub struct Estimate {
+    /// Time of the window's newest sample, s.
+    pub t_s: f64,
+    /// The window's newest sample (features, measured power, home vector).
+    pub sample: Sample,
+    /// One entry per model that ran, in the ensemble's order.
+    pub models: Vec<ModelEstimate>,
+}
+
+/// The set of models the inference stage runs side by side.
+pub struct Ensemble {
+    models: Vec<Box<dyn PowerModel>>,
+    scratch: Vec<Prediction>,
+}
+
+impl Ensemble {
+    /// An ensemble of these models, run in this order.
+    pub fn new(models: Vec<Box<dyn PowerModel>>) -> Self {
+        Self { models, scratch: Vec::new() }
+    }
+    /// Names of the models, in order.
+    pub fn names(&self) -> Vec<String> {
+        self.models.iter().map(|m| m.name().to_string()).collect()
+    }
+    /// Run every model on every window (a batch when a replay runs flat out).
+    pub fn estimate(&mut self, windows: &[Window]) -> Vec<Estimate> {
+        let mut out: Vec<Estimate> = windows
+            .iter()
+            .map(|w| Estimate { t_s: w.t_s(), sample: w.last().clone(), models: Vec::with_capacity(self.models.len()) })
+            .collect();
+        for m in &mut self.models {
+            m.predict(windows, &mut self.scratch);
+            for (e, p) in out.iter_mut().zip(&self.scratch) {
+                e.models.push(ModelEstimate { name: m.name().to_string(), power_w: p.power_w, band_w: p.band_w });
+            }
+        }
+        out
+    }
+}
+
+/// Which models run (the `[models]` table).
+#[derive(Debug, Clone, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelsConfig {}
+
+/// The models a configuration asks for, built and checked (profiles loaded, cards matched).
+pub fn build_ensemble(cfg: &crate::config::Config) -> anyhow::Result<Ensemble> {
+    let _ = cfg;
+    Ok(Ensemble::new(Vec::new()))
+}

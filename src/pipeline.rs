@@ -1,0 +1,152 @@
+//! Wires the stages into tokio tasks joined by bounded channels and owns shutdown.
+//!
+//! ```text
+//! source task ─mpsc<TimedMessage>→ telemetry task ─mpsc<Window>→ inference task
+//!   ─mpsc<Estimate>→ energy+alerts task ─broadcast<Arc<Report>>→ one task per sink
+//! ```
+//!
+//! Shutdown is one path whatever starts it (Ctrl-C, the end of a replay, a fatal source
+//! error): the source stops and drops its sender, each stage drains what it holds and drops
+//! its own, and every sink sees its channel close, flushes and writes its summary. Nothing
+//! is lost on the way out.
+
+use std::sync::Arc;
+
+use anyhow::Result;
+use tokio::sync::{broadcast, mpsc};
+use tokio_util::sync::CancellationToken;
+
+use crate::config::Config;
+use crate::energy::Report;
+use crate::model::Estimate;
+use crate::source::{IngestStats, StatsSnapshot, TimedMessage};
+use crate::window::Window;
+
+/// Channel depth between stages. Deep enough to ride out a slow model for a few seconds
+/// at 10 Hz; a flat-out replay simply waits on the slowest stage (back-pressure).
+pub const CHANNEL_DEPTH: usize = 1024;
+/// Most windows the inference stage runs as one batch when they queue up.
+pub const MAX_BATCH: usize = 256;
+
+/// Everything a run of the pipeline needs.
+pub struct Pipeline {
+    pub config: Config,
+    pub source: crate::source::SourceSpec,
+    pub sinks: Vec<crate::sink::SinkSpec>,
+}
+
+/// Run the pipeline to the end of its source or until `shutdown` is cancelled. Returns the
+/// ingest counters (the summary line's numbers).
+pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
+    let stats = Arc::new(IngestStats::default());
+    let cfg = Arc::new(p.config);
+
+    // Built before any task starts, so a bad model or profile fails before we listen.
+    let mut telemetry = crate::telemetry::Telemetry::new(&cfg.telemetry, &cfg.mission);
+    let mut ensemble = crate::model::build_ensemble(&cfg)?;
+    let mut energy = crate::energy::EnergyTracker::new(&cfg)?;
+    let mut alerts = crate::alert::AlertEngine::new(&cfg.alerts)?;
+
+    let (msg_tx, mut msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
+    let (win_tx, mut win_rx) = mpsc::channel::<Window>(CHANNEL_DEPTH);
+    let (est_tx, mut est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
+    let (rep_tx, _) = broadcast::channel::<Arc<Report>>(CHANNEL_DEPTH);
+
+    // Sinks subscribe first so they see every report.
+    let mut sink_tasks = Vec::new();
+    let link = crate::source::LinkHandle::default();
+    for spec in p.sinks {
+        let rx = rep_tx.subscribe();
+        sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), link.clone(), cfg.clone())?);
+    }
+
+    let source = tokio::spawn(crate::source::run(p.source, msg_tx, stats.clone(), link, shutdown.clone()));
+
+    let tstats = stats.clone();
+    let telemetry_task = tokio::spawn(async move {
+        let mut out = Vec::new();
+        while let Some(m) = msg_rx.recv().await {
+            telemetry.push(&m, &mut out);
+            for w in out.drain(..) {
+                IngestStats::add(&tstats.windows, 1);
+                if win_tx.send(w).await.is_err() {
+                    return;
+                }
+            }
+        }
+        telemetry.finish(&mut out);
+        for w in out.drain(..) {
+            IngestStats::add(&tstats.windows, 1);
+            let _ = win_tx.send(w).await;
+        }
+    });
+
+    let inference_task = tokio::spawn(async move {
+        let mut batch = Vec::with_capacity(MAX_BATCH);
+        while win_rx.recv_many(&mut batch, MAX_BATCH).await > 0 {
+            // Model work is CPU-bound: keep it off the reactor threads.
+            let (ens, windows, estimates) = tokio::task::spawn_blocking(move || {
+                let e = ensemble.estimate(&batch);
+                (ensemble, batch, e)
+            })
+            .await
+            .expect("inference panicked");
+            ensemble = ens;
+            batch = windows;
+            batch.clear();
+            for e in estimates {
+                if est_tx.send(e).await.is_err() {
+                    return;
+                }
+            }
+        }
+    });
+
+    let energy_task = tokio::spawn(async move {
+        while let Some(est) = est_rx.recv().await {
+            let state = energy.update(&est);
+            let events = alerts.evaluate(&est, &state);
+            // No receivers is not an error: a run may have no sinks.
+            let _ = rep_tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events }));
+        }
+    });
+
+    let source_result = source.await?;
+    telemetry_task.await?;
+    inference_task.await?;
+    energy_task.await?;
+    for t in sink_tasks {
+        t.await??;
+    }
+    source_result?;
+    Ok(stats.snapshot())
+}
+
+/// A token cancelled on Ctrl-C (SIGINT) or SIGTERM.
+pub fn shutdown_on_signal() -> CancellationToken {
+    let token = CancellationToken::new();
+    let t = token.clone();
+    tokio::spawn(async move {
+        #[cfg(unix)]
+        {
+            use tokio::signal::unix::{signal, SignalKind};
+            let mut term = match signal(SignalKind::terminate()) {
+                Ok(s) => s,
+                Err(_) => {
+                    let _ = tokio::signal::ctrl_c().await;
+                    t.cancel();
+                    return;
+                }
+            };
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {},
+                _ = term.recv() => {},
+            }
+        }
+        #[cfg(not(unix))]
+        let _ = tokio::signal::ctrl_c().await;
+        tracing::info!("shutting down");
+        t.cancel();
+    });
+    token
+}
