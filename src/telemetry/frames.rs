@@ -1,0 +1,175 @@
+//! Frame and unit conversions between MAVLink (NED world, FRD body, SI units) and the M100
+//! data set's columns, which do not share one frame (`../shared/data/m100/SOURCE.md`).
+//!
+//! | data-set column | convention (checked on flights 100, 150, 276) | MAVLink source |
+//! |---|---|---|
+//! | `orientation_*` | quaternion (x, y, z, w) rotating body-FLU vectors into ENU, `w ≥ 0` | ATTITUDE_QUATERNION (FRD→NED, w x y z) or ATTITUDE Euler |
+//! | `velocity_x/_y` | ground velocity rotated by the heading only: x forward, y left | LOCAL_POSITION_NED / ODOMETRY / GLOBAL_POSITION_INT (NED) |
+//! | `velocity_z` | up | −v_down |
+//! | `angular_*` | body rates, FRD (same as MAVLink) | ATTITUDE / HIGHRES_IMU / SCALED_IMU / RAW_IMU |
+//! | `linear_acceleration_*` | specific force, FRD (z ≈ −9.81 at rest, as MAVLink IMUs) | HIGHRES_IMU / SCALED_IMU / RAW_IMU |
+//! | `wind_speed/_angle` | apparent wind at the anemometer: speed, and the direction it blows from, degrees clockwise from north | WIND or WIND_COV minus ground velocity; VFR_HUD airspeed + heading |
+//!
+//! The quaternion relation is `q_ned_frd = q_enu→ned ⊗ q_ds ⊗ q_frd→flu`, with
+//! `q_enu→ned = (w 0, x √½, y √½, z 0)` (swap x/y, negate z) and `q_frd→flu = (w 0, x 1, y 0, z 0)`
+//! (negate y and z): the same static rotations MAVROS and px4_ros_com use between ROS and
+//! MAVLink frames. The heading used for the body velocities is the yaw of `q_ned_frd`.
+
+/// A quaternion as `[w, x, y, z]`.
+pub type Quat = [f64; 4];
+
+const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
+/// Rotates ENU vectors into NED.
+const Q_ENU_NED: Quat = [0.0, H, H, 0.0];
+/// Rotates FRD vectors into FLU.
+const Q_FRD_FLU: Quat = [0.0, 1.0, 0.0, 0.0];
+
+/// Hamilton product `a ⊗ b`.
+pub fn qmul(a: Quat, b: Quat) -> Quat {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+fn qconj(q: Quat) -> Quat {
+    [q[0], -q[1], -q[2], -q[3]]
+}
+
+/// Data-set quaternion (FLU→ENU, `[w, x, y, z]`) → MAVLink attitude (FRD→NED, `[w, x, y, z]`).
+pub fn ds_to_ned(q_ds: Quat) -> Quat {
+    qmul(qmul(Q_ENU_NED, q_ds), Q_FRD_FLU)
+}
+
+/// MAVLink attitude (FRD→NED) → data-set quaternion (FLU→ENU), both `[w, x, y, z]`. Exact
+/// inverse of [`ds_to_ned`] (the static rotations are their own inverses up to sign).
+pub fn ned_to_ds(q_ned: Quat) -> Quat {
+    qmul(qmul(qconj(Q_ENU_NED), q_ned), qconj(Q_FRD_FLU))
+}
+
+/// Heading (yaw) of an FRD→NED quaternion, radians clockwise from north, in (−π, π].
+pub fn yaw_ned(q: Quat) -> f64 {
+    let [w, x, y, z] = q;
+    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
+}
+
+/// ZYX Euler angles (roll, pitch, yaw; radians, MAVLink ATTITUDE) of an FRD→NED quaternion.
+pub fn euler_ned(q: Quat) -> [f64; 3] {
+    let [w, x, y, z] = q;
+    let roll = (2.0 * (w * x + y * z)).atan2(1.0 - 2.0 * (x * x + y * y));
+    let pitch = (2.0 * (w * y - z * x)).clamp(-1.0, 1.0).asin();
+    [roll, pitch, yaw_ned(q)]
+}
+
+/// FRD→NED quaternion from MAVLink ATTITUDE's ZYX Euler angles (radians).
+pub fn quat_from_euler(roll: f64, pitch: f64, yaw: f64) -> Quat {
+    let (sr, cr) = (roll / 2.0).sin_cos();
+    let (sp, cp) = (pitch / 2.0).sin_cos();
+    let (sy, cy) = (yaw / 2.0).sin_cos();
+    [
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    ]
+}
+
+/// Rotate a vector by a quaternion (`q v q*`).
+pub fn rotate(q: Quat, v: [f64; 3]) -> [f64; 3] {
+    let r = qmul(qmul(q, [0.0, v[0], v[1], v[2]]), qconj(q));
+    [r[1], r[2], r[3]]
+}
+
+/// NED ground velocity → the data set's (forward, left, up) velocity for heading `yaw`
+/// (radians clockwise from north).
+pub fn ned_to_body_vel(v_ned: [f64; 3], yaw: f64) -> [f64; 3] {
+    let (s, c) = yaw.sin_cos();
+    [v_ned[0] * c + v_ned[1] * s, v_ned[0] * s - v_ned[1] * c, -v_ned[2]]
+}
+
+/// The data set's (forward, left, up) velocity → NED for heading `yaw`. Inverse of
+/// [`ned_to_body_vel`].
+pub fn body_to_ned_vel(v: [f64; 3], yaw: f64) -> [f64; 3] {
+    let (s, c) = yaw.sin_cos();
+    [v[0] * c + v[1] * s, v[0] * s - v[1] * c, -v[2]]
+}
+
+/// A horizontal wind given as (speed m/s, direction it blows FROM, degrees clockwise from
+/// north) → the air's velocity (north, east), m/s.
+pub fn wind_from_to_vec(speed: f64, from_deg: f64) -> [f64; 2] {
+    let (s, c) = from_deg.to_radians().sin_cos();
+    [-speed * c, -speed * s]
+}
+
+/// The air's velocity (north, east) → (speed m/s, direction it blows FROM in [0, 360) deg).
+pub fn wind_vec_to_from(v: [f64; 2]) -> [f64; 2] {
+    let speed = v[0].hypot(v[1]);
+    let from = (-v[1]).atan2(-v[0]).to_degrees().rem_euclid(360.0);
+    // rem_euclid can round up to exactly 360.0.
+    [speed, if from >= 360.0 { 0.0 } else { from }]
+}
+
+/// What an anemometer on the vehicle reads (the data set's `wind_speed`, `wind_angle`):
+/// the air's velocity relative to the vehicle, from the true wind (north, east) and the
+/// ground velocity (north, east).
+pub fn apparent_wind(true_wind_ne: [f64; 2], ground_ne: [f64; 2]) -> [f64; 2] {
+    wind_vec_to_from([true_wind_ne[0] - ground_ne[0], true_wind_ne[1] - ground_ne[1]])
+}
+
+/// Horizontal distance between two WGS84 points (degrees), metres: equirectangular, good to
+/// well under 0.1 % over the few kilometres a delivery drone flies.
+pub fn ground_distance_m(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> f64 {
+    let (dn, de) = ne_offset_m(lat1, lon1, lat2, lon2);
+    dn.hypot(de)
+}
+
+/// North and east offset (m) of point 2 from point 1 (equirectangular).
+pub fn ne_offset_m(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> (f64, f64) {
+    const R: f64 = 6_371_000.0;
+    let lat_m = ((lat1 + lat2) / 2.0).to_radians();
+    ((lat2 - lat1).to_radians() * R, (lon2 - lon1).to_radians() * R * lat_m.cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: &[f64], b: &[f64], tol: f64) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() < tol)
+    }
+
+    #[test]
+    fn quaternion_conversion_round_trips_and_maps_axes() {
+        let q = [0.2636, 0.0040, 0.0151, -0.9645];
+        assert!(close(&ned_to_ds(ds_to_ned(q)), &q, 1e-12));
+        // Identity in the data set = body forward along east, left along north.
+        let qn = ds_to_ned([1.0, 0.0, 0.0, 0.0]);
+        // FRD forward (x) lands on NED east, FRD down on NED down.
+        assert!(close(&rotate(qn, [1.0, 0.0, 0.0]), &[0.0, 1.0, 0.0], 1e-12));
+        assert!(close(&rotate(qn, [0.0, 0.0, 1.0]), &[0.0, 0.0, 1.0], 1e-12));
+        assert!((yaw_ned(qn) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn euler_round_trip() {
+        let q = quat_from_euler(0.1, -0.2, 2.5);
+        assert!(close(&euler_ned(q), &[0.1, -0.2, 2.5], 1e-12));
+    }
+
+    #[test]
+    fn body_velocity_and_wind() {
+        // Heading north, flying north at 5 m/s and climbing 1 m/s.
+        assert!(close(&ned_to_body_vel([5.0, 0.0, -1.0], 0.0), &[5.0, 0.0, 1.0], 1e-12));
+        // Heading east, moving north = moving to the left.
+        let v = ned_to_body_vel([1.0, 0.0, 0.0], std::f64::consts::FRAC_PI_2);
+        assert!(close(&v, &[0.0, 1.0, 0.0], 1e-12));
+        assert!(close(&body_to_ned_vel(v, std::f64::consts::FRAC_PI_2), &[1.0, 0.0, 0.0], 1e-12));
+        // Still air, flying north at 10 m/s: the apparent wind comes from the north.
+        assert!(close(&apparent_wind([0.0, 0.0], [10.0, 0.0]), &[10.0, 0.0], 1e-9));
+        // A 3 m/s wind from the west, hovering.
+        let w = wind_from_to_vec(3.0, 270.0);
+        assert!(close(&apparent_wind(w, [0.0, 0.0]), &[3.0, 270.0], 1e-9));
+    }
+}
