@@ -16,10 +16,10 @@
 //!
 //! | data-set columns | MAVLink message(s) |
 //! |---|---|
-//! | `orientation_*` (FLU→ENU) | ATTITUDE (ZYX Euler of the FRD→NED attitude) and ATTITUDE_QUATERNION (FRD→NED) |
+//! | `orientation_*` (body right-forward-up → ENU) | ATTITUDE (ZYX Euler of the FRD→NED attitude) and ATTITUDE_QUATERNION (FRD→NED) |
 //! | `angular_*` (FRD) | the rates of ATTITUDE/ATTITUDE_QUATERNION, and HIGHRES_IMU gyro |
 //! | `linear_acceleration_*` (FRD specific force) | HIGHRES_IMU acc, m/s² |
-//! | `velocity_*` (forward, left, up) | rotated to NED by the heading: LOCAL_POSITION_NED (float m/s), GLOBAL_POSITION_INT vx/vy/vz (cm/s) |
+//! | `velocity_*` (right, forward, up; heading frame) | rotated to NED by the heading: LOCAL_POSITION_NED (float m/s), GLOBAL_POSITION_INT vx/vy/vz (cm/s) |
 //! | `position_*` | GLOBAL_POSITION_INT (1e-7 deg, mm MSL), LOCAL_POSITION_NED x/y/z from home; HOME_POSITION once at the first non-zero fix |
 //! | `wind_speed`, `wind_angle` (apparent wind, from-direction) | WIND = the true wind (apparent + ground velocity), VFR_HUD.airspeed = `wind_speed` |
 //! | `battery_voltage`, `battery_current` | SYS_STATUS and BATTERY_STATUS (id 0, total in cell 0): mV and cA |
@@ -91,9 +91,9 @@ pub struct Row {
     pub lat_deg: f64,
     /// Altitude above sea level, m.
     pub alt_m: f64,
-    /// Quaternion `[x, y, z, w]` as in the file (FLU→ENU).
+    /// Quaternion `[x, y, z, w]` as in the file (body right-forward-up → ENU).
     pub q_xyzw: [f64; 4],
-    /// Velocity (forward, left, up), m/s.
+    /// Ground velocity in the heading frame (right, forward, up), m/s.
     pub vel: [f64; 3],
     /// Body rates (FRD), rad/s.
     pub ang: [f64; 3],

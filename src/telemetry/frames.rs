@@ -1,28 +1,49 @@
 //! Frame and unit conversions between MAVLink (NED world, FRD body, SI units) and the M100
 //! data set's columns, which do not share one frame (`../shared/data/m100/SOURCE.md`).
 //!
-//! | data-set column | convention (checked on flights 100, 150, 276) | MAVLink source |
-//! |---|---|---|
-//! | `orientation_*` | quaternion (x, y, z, w) rotating body-FLU vectors into ENU, `w ≥ 0` | ATTITUDE_QUATERNION (FRD→NED, w x y z) or ATTITUDE Euler |
-//! | `velocity_x/_y` | ground velocity rotated by the heading only: x forward, y left | LOCAL_POSITION_NED / ODOMETRY / GLOBAL_POSITION_INT (NED) |
-//! | `velocity_z` | up | −v_down |
-//! | `angular_*` | body rates, FRD (same as MAVLink) | ATTITUDE / HIGHRES_IMU / SCALED_IMU / RAW_IMU |
-//! | `linear_acceleration_*` | specific force, FRD (z ≈ −9.81 at rest, as MAVLink IMUs) | HIGHRES_IMU / SCALED_IMU / RAW_IMU |
-//! | `wind_speed/_angle` | apparent wind at the anemometer: speed, and the direction it blows from, degrees clockwise from north | WIND or WIND_COV minus ground velocity; VFR_HUD airspeed + heading |
+//! ## What the data show (flights 100, 150, 276; `tests/features_frames.rs` re-checks it)
 //!
-//! The quaternion relation is `q_ned_frd = q_enu→ned ⊗ q_ds ⊗ q_frd→flu`, with
-//! `q_enu→ned = (w 0, x √½, y √½, z 0)` (swap x/y, negate z) and `q_frd→flu = (w 0, x 1, y 0, z 0)`
-//! (negate y and z): the same static rotations MAVROS and px4_ros_com use between ROS and
-//! MAVLink frames. The heading used for the body velocities is the yaw of `q_ned_frd`.
+//! Write `q_v` for the vehicle's attitude as MAVLink has it (FRD body → NED) and derive it
+//! from the data-set quaternion by `q_v = Q ⊗ q_ds ⊗ Q`, `Q = (w 0, x √½, y √½, z 0)`, the
+//! rotation that swaps x/y and negates z (ENU ↔ NED, and body right-forward-up ↔ FRD).
+//! That is: **the data-set quaternion rotates a body frame x-right, y-forward, z-up into
+//! ENU.** With that reading, against body rates differentiated from the quaternion and the
+//! specific force `q_v* (a_gps − g) q_v` from GPS accelerations:
+//!
+//! | column | correlation with the FRD component (flights 100 / 150 / 276) |
+//! |---|---|
+//! | `angular_x/y/z` | 0.62 / 0.73 / 0.69, 0.89 / 0.86 / 0.86, 0.82 / 0.80 / 0.88 |
+//! | `linear_acceleration_x/y/z` | 0.90 / 0.93 / 0.88, 0.69 / 0.66 / 0.78, 0.65 / 0.66 / 0.58 (mean z −9.81) |
+//!
+//! so rates and accelerations are plain FRD (as MAVLink sends them), while reading the
+//! quaternion as FLU→ENU (SOURCE.md's "x forward, y left") puts the IMU's x and y 90° off
+//! (x/y correlations near 0, and −0.6…−0.9 across). In cruise the vehicle moves along
+//! `velocity_y` (mean |vy| 9.9 m/s, |vx| 0.3 m/s, flight 100), nose first: `velocity_*`
+//! is the ground velocity in the heading frame **x right, y forward, z up** (correlation
+//! with the rotated GPS velocity 0.84–0.97 for x, 1.00 for y, 0.55–0.80 for z; magnitude
+//! about 0.95 × GPS ground speed). SOURCE.md's "x forward, y left" is the same frame named
+//! after the quaternion's own axes.
+//!
+//! `wind_speed`/`wind_angle` are the apparent wind at the anemometer: in cruise (ground
+//! speed > 4 m/s) `cos(wind_angle − course)` averages 0.80 / 0.80 / 0.88 with `wind_speed`
+//! ≈ ground speed, so the angle is the direction the air comes FROM, degrees clockwise from
+//! north (WIND's convention).
+//!
+//! | data-set column | convention | MAVLink source |
+//! |---|---|---|
+//! | `orientation_*` | body RFU → ENU, `w ≥ 0` | ATTITUDE_QUATERNION or ATTITUDE (FRD→NED) |
+//! | `velocity_*` | heading frame: right, forward, up | NED velocity rotated by the heading |
+//! | `angular_*` | FRD body rates | ATTITUDE / HIGHRES_IMU / SCALED_IMU / RAW_IMU, as they are |
+//! | `linear_acceleration_*` | FRD specific force (z ≈ −9.81 at rest) | HIGHRES_IMU / SCALED_IMU / RAW_IMU, as they are |
+//! | `wind_speed/_angle` | apparent wind, from-direction, deg from north | (WIND or WIND_COV) − ground velocity; VFR_HUD airspeed + heading |
 
 /// A quaternion as `[w, x, y, z]`.
 pub type Quat = [f64; 4];
 
 const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
-/// Rotates ENU vectors into NED.
-const Q_ENU_NED: Quat = [0.0, H, H, 0.0];
-/// Rotates FRD vectors into FLU.
-const Q_FRD_FLU: Quat = [0.0, 1.0, 0.0, 0.0];
+/// Swaps x and y and negates z: ENU ↔ NED on the world side, right-forward-up ↔ FRD on the
+/// body side (its own inverse up to sign).
+const Q_SWAP: Quat = [0.0, H, H, 0.0];
 
 /// Hamilton product `a ⊗ b`.
 pub fn qmul(a: Quat, b: Quat) -> Quat {
@@ -38,15 +59,16 @@ fn qconj(q: Quat) -> Quat {
     [q[0], -q[1], -q[2], -q[3]]
 }
 
-/// Data-set quaternion (FLU→ENU, `[w, x, y, z]`) → MAVLink attitude (FRD→NED, `[w, x, y, z]`).
+/// Data-set quaternion (body RFU→ENU, `[w, x, y, z]`) → MAVLink attitude (FRD→NED,
+/// `[w, x, y, z]`).
 pub fn ds_to_ned(q_ds: Quat) -> Quat {
-    qmul(qmul(Q_ENU_NED, q_ds), Q_FRD_FLU)
+    qmul(qmul(Q_SWAP, q_ds), Q_SWAP)
 }
 
-/// MAVLink attitude (FRD→NED) → data-set quaternion (FLU→ENU), both `[w, x, y, z]`. Exact
-/// inverse of [`ds_to_ned`] (the static rotations are their own inverses up to sign).
+/// MAVLink attitude (FRD→NED) → data-set quaternion (body RFU→ENU), both `[w, x, y, z]`.
+/// Exact inverse of [`ds_to_ned`].
 pub fn ned_to_ds(q_ned: Quat) -> Quat {
-    qmul(qmul(qconj(Q_ENU_NED), q_ned), qconj(Q_FRD_FLU))
+    qmul(qmul(qconj(Q_SWAP), q_ned), qconj(Q_SWAP))
 }
 
 /// Heading (yaw) of an FRD→NED quaternion, radians clockwise from north, in (−π, π].
@@ -82,18 +104,18 @@ pub fn rotate(q: Quat, v: [f64; 3]) -> [f64; 3] {
     [r[1], r[2], r[3]]
 }
 
-/// NED ground velocity → the data set's (forward, left, up) velocity for heading `yaw`
+/// NED ground velocity → the data set's (right, forward, up) velocity for heading `yaw`
 /// (radians clockwise from north).
 pub fn ned_to_body_vel(v_ned: [f64; 3], yaw: f64) -> [f64; 3] {
     let (s, c) = yaw.sin_cos();
-    [v_ned[0] * c + v_ned[1] * s, v_ned[0] * s - v_ned[1] * c, -v_ned[2]]
+    [-v_ned[0] * s + v_ned[1] * c, v_ned[0] * c + v_ned[1] * s, -v_ned[2]]
 }
 
-/// The data set's (forward, left, up) velocity → NED for heading `yaw`. Inverse of
+/// The data set's (right, forward, up) velocity → NED for heading `yaw`. Inverse of
 /// [`ned_to_body_vel`].
 pub fn body_to_ned_vel(v: [f64; 3], yaw: f64) -> [f64; 3] {
     let (s, c) = yaw.sin_cos();
-    [v[0] * c + v[1] * s, v[0] * s - v[1] * c, -v[2]]
+    [-v[0] * s + v[1] * c, v[0] * c + v[1] * s, -v[2]]
 }
 
 /// A horizontal wind given as (speed m/s, direction it blows FROM, degrees clockwise from
@@ -144,12 +166,15 @@ mod tests {
     fn quaternion_conversion_round_trips_and_maps_axes() {
         let q = [0.2636, 0.0040, 0.0151, -0.9645];
         assert!(close(&ned_to_ds(ds_to_ned(q)), &q, 1e-12));
-        // Identity in the data set = body forward along east, left along north.
+        // The data set's identity: body right = east, forward = north, up = up, which is
+        // MAVLink's identity (level, nose north), up to the sign of the quaternion.
         let qn = ds_to_ned([1.0, 0.0, 0.0, 0.0]);
-        // FRD forward (x) lands on NED east, FRD down on NED down.
-        assert!(close(&rotate(qn, [1.0, 0.0, 0.0]), &[0.0, 1.0, 0.0], 1e-12));
-        assert!(close(&rotate(qn, [0.0, 0.0, 1.0]), &[0.0, 0.0, 1.0], 1e-12));
-        assert!((yaw_ned(qn) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!(close(&rotate(qn, [1.0, 0.0, 0.0]), &[1.0, 0.0, 0.0], 1e-12));
+        assert!(close(&rotate(qn, [0.0, 1.0, 0.0]), &[0.0, 1.0, 0.0], 1e-12));
+        // A data-set yaw of +90° (ENU, counter-clockwise) is a heading of 270° (west).
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let qw = ds_to_ned([h, 0.0, 0.0, h]);
+        assert!((yaw_ned(qw) + std::f64::consts::FRAC_PI_2).abs() < 1e-12);
     }
 
     #[test]
@@ -160,11 +185,11 @@ mod tests {
 
     #[test]
     fn body_velocity_and_wind() {
-        // Heading north, flying north at 5 m/s and climbing 1 m/s.
-        assert!(close(&ned_to_body_vel([5.0, 0.0, -1.0], 0.0), &[5.0, 0.0, 1.0], 1e-12));
-        // Heading east, moving north = moving to the left.
+        // Heading north, flying north at 5 m/s and climbing 1 m/s: forward is y.
+        assert!(close(&ned_to_body_vel([5.0, 0.0, -1.0], 0.0), &[0.0, 5.0, 1.0], 1e-12));
+        // Heading east, moving north = moving to the left (negative right).
         let v = ned_to_body_vel([1.0, 0.0, 0.0], std::f64::consts::FRAC_PI_2);
-        assert!(close(&v, &[0.0, 1.0, 0.0], 1e-12));
+        assert!(close(&v, &[-1.0, 0.0, 0.0], 1e-12));
         assert!(close(&body_to_ned_vel(v, std::f64::consts::FRAC_PI_2), &[1.0, 0.0, 0.0], 1e-12));
         // Still air, flying north at 10 m/s: the apparent wind comes from the north.
         assert!(close(&apparent_wind([0.0, 0.0], [10.0, 0.0]), &[10.0, 0.0], 1e-9));

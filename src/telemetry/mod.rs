@@ -60,17 +60,17 @@ pub const FEATURE_NAMES: [&str; N_FEATURES] = [
     "position_x",            // deg longitude
     "position_y",            // deg latitude
     "position_z",            // m above sea level
-    "orientation_x",         // quaternion, data-set convention
+    "orientation_x",         // quaternion: body (x right, y forward, z up) → ENU, w ≥ 0
     "orientation_y",
     "orientation_z",
     "orientation_w",
-    "velocity_x",            // m/s body forward
-    "velocity_y",            // m/s body left
+    "velocity_x",            // m/s ground velocity, heading frame: right
+    "velocity_y",            // m/s forward
     "velocity_z",            // m/s up
-    "angular_x",             // rad/s body rates (FRD-like)
+    "angular_x",             // rad/s body rates, FRD
     "angular_y",
     "angular_z",
-    "linear_acceleration_x", // m/s², specific force, z-down body (z ≈ −9.81 at rest)
+    "linear_acceleration_x", // m/s², specific force, FRD body (z ≈ −9.81 at rest)
     "linear_acceleration_y",
     "linear_acceleration_z",
     "speed",                 // m/s commanded cruise ground speed (mission)
@@ -110,7 +110,8 @@ pub mod idx {
 pub struct Sample {
     /// Grid time, seconds on the source clock.
     pub t_s: f64,
-    /// The 21 features, data-set units and frames, order of [`FEATURE_NAMES`].
+    /// The 21 features, data-set units and frames, order of [`FEATURE_NAMES`] (frames as
+/// verified on the data set: see [`frames`]).
     pub features: [f32; N_FEATURES],
     /// Measured electrical power V × I, watts, when voltage and current are present.
     pub measured_w: Option<f32>,
