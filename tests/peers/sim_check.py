@@ -7,6 +7,7 @@ Usage: sim_check.py FILE.tlog   (exit 1 with a message on the first violation)
 """
 import json
 import math
+import os
 import statistics
 import sys
 
@@ -19,7 +20,12 @@ def fail(msg):
 
 
 def main():
+    if len(sys.argv) != 2:
+        fail("usage: sim_check.py FILE.tlog")
     path = sys.argv[1]
+    if not path.endswith(".tlog") or not os.path.isfile(path):
+        # pymavlink would take any other name for a serial port.
+        fail(f"{path}: not an existing .tlog file")
     mlog = mavutil.mavlink_connection(path, dialect="ardupilotmega", robust_parsing=False)
     counts = {}
     bad = 0
