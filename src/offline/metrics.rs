@@ -1,10 +1,13 @@
 //! Scores of one model on one flight, in watts: what `dronewatt eval` reports.
 //!
-//! * MAE, RMSE, MSE over every window that carries a measured power (ground segments
-//!   included: an operator needs the estimate there too).
-//! * MAPE over in-flight windows only, measured > [`IN_FLIGHT_W`]: on the ground the power
-//!   falls to ~2 W and a percentage of it means nothing.
-//! * Energy error |∫P̂ dt − ∫P dt| / ∫P dt (%), trapezoids over the windows' times.
+//! Every score is over **in-flight windows** only: measured power > [`IN_FLIGHT_W`]. On the
+//! ground the power falls to ~2 W (motors off) or idles; no model of the comparative study
+//! describes that, a percentage of it means nothing, and on flight 276 the ground windows
+//! alone would put ~200 W into every model's MAE and hide every difference in flight.
+//!
+//! * MAE, RMSE, MSE (W, W, W²) and MAPE (%).
+//! * Energy error |∫P̂ dt − ∫P dt| / ∫P dt (%), trapezoids between consecutive in-flight
+//!   windows.
 //!
 //! Any model's predictions can be scored: the metrics see only (time, measured, predicted).
 
@@ -22,33 +25,34 @@ pub struct Scores {
     pub rmse_w: f64,
     /// Mean square error, W².
     pub mse_w2: f64,
-    /// Mean absolute percentage error over in-flight windows, %.
+    /// Mean absolute percentage error, %.
     pub mape_pct: f64,
     /// Flight energy error, %.
     pub energy_err_pct: f64,
 }
 
-/// Score `pred` against `measured` at times `t_s` (equal lengths; non-finite pairs are
-/// skipped). `None` when nothing can be scored.
+/// Score `pred` against `measured` at times `t_s` over the in-flight windows (equal
+/// lengths; non-finite pairs are skipped). `None` when no window is in flight.
 pub fn score(t_s: &[f64], measured: &[f64], pred: &[f64]) -> Option<Scores> {
-    let ok = |i: usize| measured[i].is_finite() && pred[i].is_finite() && t_s[i].is_finite();
+    let ok = |i: usize| measured[i].is_finite() && pred[i].is_finite() && t_s[i].is_finite() && measured[i] > IN_FLIGHT_W;
     let n = t_s.len().min(measured.len()).min(pred.len());
-    let (mut n_all, mut abs, mut sq, mut n_fl, mut pct) = (0usize, 0.0, 0.0, 0usize, 0.0);
+    let (mut n_all, mut abs, mut sq, mut pct) = (0usize, 0.0, 0.0, 0.0);
     for i in (0..n).filter(|&i| ok(i)) {
         let e = pred[i] - measured[i];
         n_all += 1;
         abs += e.abs();
         sq += e * e;
-        if measured[i] > IN_FLIGHT_W {
-            n_fl += 1;
-            pct += (e / measured[i]).abs();
-        }
+        pct += (e / measured[i]).abs();
     }
     if n_all == 0 {
         return None;
     }
     let (mut e_meas, mut e_pred, mut prev) = (0.0, 0.0, None::<usize>);
-    for i in (0..n).filter(|&i| ok(i)) {
+    for i in 0..n {
+        if !ok(i) {
+            prev = None;
+            continue;
+        }
         if let Some(j) = prev {
             let dt = t_s[i] - t_s[j];
             if dt > 0.0 {
@@ -63,7 +67,7 @@ pub fn score(t_s: &[f64], measured: &[f64], pred: &[f64]) -> Option<Scores> {
         mae_w: abs / n_all as f64,
         rmse_w: mse.sqrt(),
         mse_w2: mse,
-        mape_pct: if n_fl > 0 { 100.0 * pct / n_fl as f64 } else { f64::NAN },
+        mape_pct: 100.0 * pct / n_all as f64,
         energy_err_pct: if e_meas > 0.0 { 100.0 * (e_pred - e_meas).abs() / e_meas } else { f64::NAN },
     })
 }
@@ -96,19 +100,20 @@ mod tests {
 
     #[test]
     fn hand_computed() {
-        // Errors +10, −20, +30, 0 W; in flight (>100 W): samples 1, 2, 3.
+        // Sample 0 is on the ground (50 W): ignored. In flight: errors −20, +30, 0 W.
         let t = [0.0, 1.0, 2.0, 3.0];
         let m = [50.0, 200.0, 300.0, 400.0];
-        let p = [60.0, 180.0, 330.0, 400.0];
+        let p = [460.0, 180.0, 330.0, 400.0];
         let s = score(&t, &m, &p).unwrap();
-        assert!((s.mae_w - 15.0).abs() < 1e-12);
-        assert!((s.mse_w2 - 350.0).abs() < 1e-12);
-        assert!((s.rmse_w - 350f64.sqrt()).abs() < 1e-12);
+        assert!((s.mae_w - 50.0 / 3.0).abs() < 1e-12);
+        assert!((s.mse_w2 - 1300.0 / 3.0).abs() < 1e-9);
+        assert!((s.rmse_w - (1300.0f64 / 3.0).sqrt()).abs() < 1e-12);
         // (20/200 + 30/300 + 0)/3 = 6.667 %.
         assert!((s.mape_pct - 20.0 / 3.0).abs() < 1e-9);
-        // ∫meas = 125 + 250 + 350 = 725; ∫pred = 120 + 255 + 365 = 740 → 2.069 %.
-        assert!((s.energy_err_pct - 100.0 * 15.0 / 725.0).abs() < 1e-9);
+        // ∫meas = 250 + 350 = 600 W·s; ∫pred = 255 + 365 = 620 → 3.333 %.
+        assert!((s.energy_err_pct - 100.0 * 20.0 / 600.0).abs() < 1e-9);
         assert!(score(&[], &[], &[]).is_none());
+        assert!(score(&[0.0], &[50.0], &[50.0]).is_none());
         let m2 = mean(&[s, Scores { mae_w: 5.0, mape_pct: f64::NAN, ..s }]).unwrap();
         assert!((m2.mae_w - 10.0).abs() < 1e-12 && (m2.mape_pct - s.mape_pct).abs() < 1e-12);
     }

@@ -11,19 +11,22 @@
 //! Frames are those of `../shared/data/m100/SOURCE.md`, checked again on flights 100, 150,
 //! 200, 250 and 276 (see the physics helper's report):
 //!
-//! * **Attitude.** The quaternion `orientation_*` rotates body (x forward, y left, z up)
-//!   into the world ENU frame: the body-up axis R·ẑ tilts *along* the ground velocity in
-//!   cruise (mean projection +0.16, i.e. ≈ 9° nose-down at 10 m/s), as a multirotor must.
-//!   That axis is the thrust axis **n**. Yaw ψ = atan2(R₁₀, R₀₀) (ENU, from east).
-//! * **Ground velocity.** `velocity_x/y` are body forward/left on the heading: the world
-//!   ground velocity is their rotation by ψ, with `velocity_z` (up) as is.
+//! * **Attitude.** The quaternion `orientation_*` rotates the vehicle's body frame into
+//!   world ENU with body z up: the body-up axis R·ẑ tilts *along* the ground velocity in
+//!   cruise (mean projection +0.16, ≈ 9° nose-down at 10 m/s), as a multirotor's must. That
+//!   axis is the thrust axis **n**. ψ = atan2(R₁₀, R₀₀) is the ENU bearing of body x.
+//! * **Ground velocity.** `velocity_x/y` are the ground velocity along the quaternion's own
+//!   body x and y axes, levelled (the telemetry module names them right/forward, SOURCE.md
+//!   forward/left — only their being the quaternion's axes matters here): the world
+//!   ground velocity is (v_x, v_y) rotated by ψ, with `velocity_z` (up) as is.
 //! * **Airspeed.** `wind_speed` is the anemometer's airspeed (it grows with the drone's own
-//!   speed: ≈ 1.5 m/s hovering, ≈ 11 m/s at 10 m/s). `wind_angle` (deg from north,
-//!   clockwise) is the compass bearing the drone moves *through the air*, i.e. the bearing
-//!   the apparent wind comes from: the airspeed vector is u = s·(sin θ, cos θ, 0) + v_z·ẑ
-//!   (no vertical wind assumed). Of the four readings (to/from × north/heading-relative),
-//!   this one makes the implied ambient wind w = v_ground − u steadiest within a flight
-//!   (std 1–4 m/s against 5–15 m/s for the others).
+//!   speed: ≈ 1.5 m/s hovering, ≈ 11 m/s at 10 m/s). `wind_angle` (deg clockwise from
+//!   north) is the bearing the apparent wind comes *from*, i.e. the bearing the drone moves
+//!   through the air: the airspeed vector is u = s·(sin θ, cos θ, 0) + v_z·ẑ (no vertical
+//!   wind assumed). Of the four readings (from/to × north/heading-relative), this one makes
+//!   the implied ambient wind w = v_ground − u steadiest within a flight (std 1–4 m/s
+//!   against 5–15 m/s for the others, flights 100, 150, 200, 250, 276); the telemetry
+//!   module reached the same reading independently.
 //! * **Headwind** is −w·v̂_ground (positive when the wind opposes the track).
 //! * **Mass** = airframe + battery (profile) + `payload` feature (g → kg).
 //! * **Acceleration** (Tseng only) is the finite difference of the world ground velocity
@@ -284,8 +287,8 @@ pub(crate) mod testutil {
     use crate::telemetry::{idx, Sample, N_FEATURES};
     use crate::window::Window;
 
-    /// A level, north-facing sample: body velocity (fwd, left, up), anemometer speed and
-    /// bearing, payload g. Identity attitude = facing east in ENU; yaw 90° = north.
+    /// A level sample: velocity along body (x, y, up), anemometer speed and bearing (deg),
+    /// payload g, and yaw (deg, ENU bearing of body x from east: 90° = body x north).
     pub fn sample(t_s: f64, v_body: [f32; 3], wind_speed: f32, wind_angle_deg: f32, payload_g: f32, yaw_deg: f32) -> Sample {
         let mut f = [0.0f32; N_FEATURES];
         let h = (yaw_deg.to_radians() / 2.0) as f32;
@@ -341,7 +344,7 @@ mod tests {
     #[test]
     fn frames_airspeed_and_headwind() {
         let p = VehicleProfile::m100();
-        // Heading north (yaw 90° ENU), 10 m/s forward, anemometer 13 m/s bearing 0° (north):
+        // Body x north (yaw 90° ENU), 10 m/s along it, anemometer 13 m/s bearing 0° (north):
         // the air moves past at 13 m/s while the ground track is 10 m/s → 3 m/s headwind.
         let k = Kinematics::from_window(&window(sample(1.0, [10.0, 0.0, 0.0], 13.0, 0.0, 500.0, 90.0)), &p);
         assert!((k.ground_m_s - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-5);
