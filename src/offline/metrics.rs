@@ -115,6 +115,6 @@ mod tests {
         assert!(score(&[], &[], &[]).is_none());
         assert!(score(&[0.0], &[50.0], &[50.0]).is_none());
         let m2 = mean(&[s, Scores { mae_w: 5.0, mape_pct: f64::NAN, ..s }]).unwrap();
-        assert!((m2.mae_w - 10.0).abs() < 1e-12 && (m2.mape_pct - s.mape_pct).abs() < 1e-12);
+        assert!((m2.mae_w - (50.0 / 3.0 + 5.0) / 2.0).abs() < 1e-12 && (m2.mape_pct - s.mape_pct).abs() < 1e-12);
     }
 }
