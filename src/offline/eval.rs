@@ -155,9 +155,14 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(dir) = &args.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create plot folder", dir.display()))?;
         for s in &series {
-            let lines: Vec<plot::Series> = names.iter().zip(&s.pred_w).map(|(n, p)| plot::Series { label: n, power_w: p }).collect();
+            // Published parameters (and any non-physics model) on top, calibrated below.
+            let lines = |cal: bool| names.iter().zip(&s.pred_w).filter(|(n, _)| n.ends_with("_cal") == cal).map(|(n, p)| plot::Series { label: n, power_w: p }).collect();
+            let mut panels = vec![plot::Panel { caption: "as published".into(), series: lines(false) }];
+            if cal.is_some() {
+                panels.push(plot::Panel { caption: "calibrated on training flights".into(), series: lines(true) });
+            }
             let path = dir.join(format!("flight-{}.png", s.flight));
-            plot::power_over_flight(&path, &format!("Flight {}: models vs measured power", s.flight), &s.t_s, &s.measured_w, &lines)?;
+            plot::power_over_flight(&path, &format!("Flight {}: models vs measured power", s.flight), &s.t_s, &s.measured_w, &panels)?;
             eprintln!("wrote {}", path.display());
         }
     }
@@ -255,8 +260,11 @@ fn spearman(a: &[f64], b: &[f64]) -> f64 {
 /// 3. **The scale.** paper MAE / our MAE (W) per model: a constant ratio means a linear
 ///    change of unit. Candidates printed: joules per 0.1 s step (×0.1), amps (÷ battery
 ///    voltage, ≈ ×1/22).
-/// 4. **Ranking.** Spearman ρ between the paper's MAE and ours over the five physics
+/// 4. **Ranking.** Spearman ρ between the paper's MAE and ours over the six physics
 ///    models with both published and calibrated parameters.
+///
+/// 2–4 are computed twice: over all windows (ground included, as the paper presumably
+/// scored) and over in-flight windows (how `eval` scores).
 pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
     use std::fmt::Write;
     let mut s = String::new();
@@ -267,60 +275,63 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
         let _ = writeln!(s, "   {:<18} \"RMSE\"/MAE = {:>6.2}   √\"RMSE\"/MAE = {:.3}", n, r / m, r.sqrt() / m);
     }
     // Scores under candidate units, per model, mean over flights.
-    let _ = writeln!(s, "2./3. Per model: MSE/MAE² (scale-free; paper's in brackets), and MAE and MSE under candidate units (paper's MAE, \"RMSE\" in brackets)");
-    let _ = writeln!(s, "   {:<22} {:>14} {:>9} {:>9} {:>10} {:>9} {:>10}  {:>9}", "model", "MSE/MAE²", "MAE W", "MAE J/st", "MSE J²/st", "MAE A", "MSE A²", "paper/W");
-    let (mut ours_pub, mut ours_cal, mut paper_mae) = (Vec::new(), Vec::new(), Vec::new());
-    for (j, name) in names.iter().enumerate() {
-        let mut acc = [0.0f64; 6];
-        let mut nf = 0.0;
-        for f in series {
-            let (mut ae, mut se, mut aj, mut sj, mut aa, mut sa, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-            for i in 0..f.t_s.len() {
-                let e = f.pred_w[j][i] - f.measured_w[i];
-                let dt = if i > 0 { f.t_s[i] - f.t_s[i - 1] } else if f.t_s.len() > 1 { f.t_s[1] - f.t_s[0] } else { 0.1 };
-                let v = f.voltage_v[i];
-                if !(e.is_finite() && dt.is_finite() && v.is_finite() && v > 1.0) {
-                    continue;
+    for in_flight in [false, true] {
+        let what = if in_flight { "in-flight windows (measured > 100 W)" } else { "all windows, ground included (as the paper presumably scored)" };
+        let _ = writeln!(s, "2./3. Over {what}. Per model: MSE/MAE² (scale-free; paper's in brackets), MAE and MSE in candidate units: W, J per step (P·Δt), A (P/V); paper MAE / our MAE");
+        let _ = writeln!(s, "   {:<22} {:>14} {:>9} {:>9} {:>10} {:>9} {:>10}  {:>9}", "model", "MSE/MAE²", "MAE W", "MAE J/st", "MSE J²/st", "MAE A", "MSE A²", "paper/W");
+        let (mut ours_pub, mut ours_cal, mut paper_mae) = (Vec::new(), Vec::new(), Vec::new());
+        for (j, name) in names.iter().enumerate() {
+            let mut acc = [0.0f64; 6];
+            let mut nf = 0.0;
+            for f in series {
+                let (mut ae, mut se, mut aj, mut sj, mut aa, mut sa, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+                for i in 0..f.t_s.len() {
+                    let e = f.pred_w[j][i] - f.measured_w[i];
+                    let dt = if i > 0 { f.t_s[i] - f.t_s[i - 1] } else if f.t_s.len() > 1 { f.t_s[1] - f.t_s[0] } else { 0.1 };
+                    let v = f.voltage_v[i];
+                    if !(e.is_finite() && dt.is_finite() && v.is_finite() && v > 1.0) || (in_flight && f.measured_w[i] <= metrics::IN_FLIGHT_W) {
+                        continue;
+                    }
+                    ae += e.abs();
+                    se += e * e;
+                    aj += (e * dt).abs();
+                    sj += (e * dt).powi(2);
+                    aa += (e / v).abs();
+                    sa += (e / v).powi(2);
+                    n += 1.0;
                 }
-                ae += e.abs();
-                se += e * e;
-                aj += (e * dt).abs();
-                sj += (e * dt).powi(2);
-                aa += (e / v).abs();
-                sa += (e / v).powi(2);
-                n += 1.0;
-            }
-            if n > 0.0 {
-                for (a, x) in acc.iter_mut().zip([ae, se, aj, sj, aa, sa]) {
-                    *a += x / n;
+                if n > 0.0 {
+                    for (a, x) in acc.iter_mut().zip([ae, se, aj, sj, aa, sa]) {
+                        *a += x / n;
+                    }
+                    nf += 1.0;
                 }
-                nf += 1.0;
             }
-        }
-        if nf == 0.0 {
-            continue;
-        }
-        let [mae, mse, maej, msej, maea, msea] = acc.map(|a| a / nf);
-        let base = name.trim_end_matches("_cal");
-        let paper = paper_row(base);
-        let ratio = mse / (mae * mae);
-        let pr = paper.map_or(String::from("        "), |(r, m)| format!("({:.2})", r / (m * m)));
-        let _ = write!(s, "   {:<22} {:>5.2} {:>8} {:>9.1} {:>9.2} {:>10.1} {:>9.2} {:>10.2}", name, ratio, pr, mae, maej, msej, maea, msea);
-        if let Some((r, m)) = paper {
-            let _ = write!(s, "  {:>9.3}  [paper {m:.2}, \"RMSE\" {r:.1}]", m / mae);
-            if base != "lstm" && base != name.as_str() {
-                ours_cal.push(mae);
-            } else if base != "lstm" {
-                ours_pub.push(mae);
-                paper_mae.push(m);
+            if nf == 0.0 {
+                continue;
             }
+            let [mae, mse, maej, msej, maea, msea] = acc.map(|a| a / nf);
+            let base = name.trim_end_matches("_cal");
+            let paper = paper_row(base);
+            let ratio = mse / (mae * mae);
+            let pr = paper.map_or(String::from("        "), |(r, m)| format!("({:.2})", r / (m * m)));
+            let _ = write!(s, "   {:<22} {:>5.2} {:>8} {:>9.1} {:>9.2} {:>10.1} {:>9.2} {:>10.2}", name, ratio, pr, mae, maej, msej, maea, msea);
+            if let Some((r, m)) = paper {
+                let _ = write!(s, "  {:>9.3}  [paper {m:.2}, \"RMSE\" {r:.1}]", m / mae);
+                if base != "lstm" && base != name.as_str() {
+                    ours_cal.push(mae);
+                } else if base != "lstm" {
+                    ours_pub.push(mae);
+                    paper_mae.push(m);
+                }
+            }
+            let _ = writeln!(s);
         }
-        let _ = writeln!(s);
-    }
-    if ours_pub.len() == paper_mae.len() && paper_mae.len() > 2 {
-        let _ = writeln!(s, "4. Ranking by MAE, Spearman ρ(paper, ours published) = {:.2}", spearman(&paper_mae, &ours_pub));
-        if ours_cal.len() == paper_mae.len() {
-            let _ = writeln!(s, "   Spearman ρ(paper, ours calibrated) = {:.2}", spearman(&paper_mae, &ours_cal));
+        if ours_pub.len() == paper_mae.len() && paper_mae.len() > 2 {
+            let _ = writeln!(s, "4. Ranking by MAE ({what}), Spearman ρ(paper, ours published) = {:.2}", spearman(&paper_mae, &ours_pub));
+            if ours_cal.len() == paper_mae.len() {
+                let _ = writeln!(s, "   Spearman ρ(paper, ours calibrated) = {:.2}", spearman(&paper_mae, &ours_cal));
+            }
         }
     }
     s

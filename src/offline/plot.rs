@@ -31,54 +31,63 @@ pub struct Series<'a> {
     pub power_w: &'a [f64],
 }
 
-/// Write `path` (PNG): `measured` in black, each series in its own colour, time on x.
-pub fn power_over_flight(path: &Path, title: &str, t_s: &[f64], measured: &[f64], series: &[Series]) -> anyhow::Result<()> {
+/// One panel: a caption and its lines (each panel also shows the measured power).
+pub struct Panel<'a> {
+    /// Panel caption.
+    pub caption: String,
+    /// The model lines.
+    pub series: Vec<Series<'a>>,
+}
+
+/// Write `path` (PNG): one panel per entry of `panels`, stacked, each with `measured` in
+/// black and every series in its own colour, time on x, the same power scale throughout.
+pub fn power_over_flight(path: &Path, title: &str, t_s: &[f64], measured: &[f64], panels: &[Panel]) -> anyhow::Result<()> {
     register_font();
     let t0 = t_s.first().copied().unwrap_or(0.0);
     let t1 = t_s.last().copied().unwrap_or(1.0).max(t0 + 1.0);
-    let finite = |v: &&f64| v.is_finite();
-    let ymax = measured
-        .iter()
-        .chain(series.iter().flat_map(|s| s.power_w.iter()))
-        .filter(finite)
-        .fold(100.0f64, |a, &b| a.max(b))
-        * 1.05;
-    let ymin = measured.iter().chain(series.iter().flat_map(|s| s.power_w.iter())).filter(finite).fold(0.0f64, |a, &b| a.min(b));
-    let root = BitMapBackend::new(path, (1400, 800)).into_drawing_area();
+    let all = || measured.iter().chain(panels.iter().flat_map(|p| p.series.iter().flat_map(|s| s.power_w.iter()))).filter(|v| v.is_finite());
+    let ymax = all().fold(100.0f64, |a, &b| a.max(b)) * 1.05;
+    let ymin = all().fold(0.0f64, |a, &b| a.min(b));
+    let height = 120 + 520 * panels.len().max(1) as u32;
+    let root = BitMapBackend::new(path, (1400, height)).into_drawing_area();
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 26))
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(70)
-            .build_cartesian_2d(t0..t1, ymin..ymax)?;
-        chart
-            .configure_mesh()
-            .x_desc("time (s)")
-            .y_desc("electrical power (W)")
-            .label_style(("sans-serif", 16))
-            .axis_desc_style(("sans-serif", 18))
-            .draw()?;
+        let root = root.titled(title, ("sans-serif", 28))?;
+        let areas = root.split_evenly((panels.len().max(1), 1));
         let pts = |v: &[f64]| t_s.iter().zip(v).filter(|(t, p)| t.is_finite() && p.is_finite()).map(|(&t, &p)| (t, p)).collect::<Vec<_>>();
-        chart
-            .draw_series(LineSeries::new(pts(measured), BLACK.stroke_width(2)))?
-            .label("measured")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
-        for (i, s) in series.iter().enumerate() {
-            let c = Palette99::pick(i).to_rgba();
+        for (area, panel) in areas.iter().zip(panels) {
+            let mut chart = ChartBuilder::on(area)
+                .caption(&panel.caption, ("sans-serif", 20))
+                .margin(12)
+                .x_label_area_size(45)
+                .y_label_area_size(70)
+                .build_cartesian_2d(t0..t1, ymin..ymax)?;
             chart
-                .draw_series(LineSeries::new(pts(s.power_w), c.stroke_width(2)))?
-                .label(s.label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
+                .configure_mesh()
+                .x_desc("time (s)")
+                .y_desc("electrical power (W)")
+                .label_style(("sans-serif", 16))
+                .axis_desc_style(("sans-serif", 18))
+                .draw()?;
+            chart
+                .draw_series(LineSeries::new(pts(measured), BLACK.stroke_width(2)))?
+                .label("measured")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
+            for (i, s) in panel.series.iter().enumerate() {
+                let c = Palette99::pick(i).to_rgba();
+                chart
+                    .draw_series(LineSeries::new(pts(s.power_w), c.stroke_width(2)))?
+                    .label(s.label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 16))
+                .draw()?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 16))
-            .draw()?;
         root.present()?;
         Ok(())
     };
@@ -96,7 +105,8 @@ mod tests {
         let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
         let m: Vec<f64> = t.iter().map(|x| 400.0 + 50.0 * x.sin()).collect();
         let a = vec![420.0; 50];
-        power_over_flight(&p, "test", &t, &m, &[Series { label: "flat", power_w: &a }]).unwrap();
+        let panel = Panel { caption: "one".into(), series: vec![Series { label: "flat", power_w: &a }] };
+        power_over_flight(&p, "test", &t, &m, &[panel]).unwrap();
         let bytes = std::fs::read(&p).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
     }
