@@ -15,6 +15,9 @@ use dronewatt::window::{Window, WindowRing};
 fn csv_windows(f: &Flight, cfg: &TelemetryConfig) -> Vec<Window> {
     let mut rs = Resampler::new(cfg.rate_hz, cfg.stale_after_s, cfg.max_gap_s);
     rs.set_mission(f.speed_m_s as f32, f.payload_g as f32, f.altitude_m as f32);
+    if let Some(r) = f.rows.iter().find(|r| r.lat_deg != 0.0 || r.lon_deg != 0.0) {
+        rs.set_home([r.lat_deg, r.lon_deg, r.alt_m]);
+    }
     let mut ring = WindowRing::new(cfg.window);
     let (mut samples, mut out) = (Vec::new(), Vec::new());
     for r in &f.rows {
@@ -94,6 +97,9 @@ fn check_flight(flight: u32) -> (usize, usize) {
             assert!((pa - pb).abs() <= POWER_TOL_W, "flight {flight} t={:.2}: power {pa} vs {pb}", b.t_s);
             let (va, vb) = (a.voltage_v.expect("voltage"), b.voltage_v.expect("voltage"));
             assert!((va - vb).abs() <= VOLT_TOL_V, "flight {flight} t={:.2}: voltage {va} vs {vb}", b.t_s);
+            // Home: HOME_POSITION carries 1e-7° (≈ 1 cm) and 1 mm.
+            let (ha, hb) = (a.home.expect("home"), b.home.expect("home"));
+            assert!((ha.distance_m - hb.distance_m).abs() < 0.03 && (ha.height_m - hb.height_m).abs() < 2e-3, "{ha:?} vs {hb:?}");
             compared += 1;
         }
     }

@@ -191,3 +191,70 @@ impl Summary {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::alert::{AlertEvent, AlertState};
+    use crate::energy::EnergyState;
+    use crate::model::{Estimate, ModelEstimate};
+    use crate::telemetry::{Sample, N_FEATURES};
+
+    fn report() -> Report {
+        let mut features = [0.5f32; N_FEATURES];
+        features[0] = f32::NAN;
+        let sample =
+            Sample { t_s: 12.5, features, measured_w: Some(240.0), voltage_v: Some(22.8), home: None, stale_mask: 0 };
+        Report {
+            estimate: Estimate {
+                t_s: 12.5,
+                sample,
+                models: vec![
+                    ModelEstimate { name: "dandrea".into(), power_w: 230.0, band_w: None },
+                    ModelEstimate { name: "lstm".into(), power_w: f32::INFINITY, band_w: None },
+                ],
+            },
+            energy: EnergyState { energy_used_wh: 1.5, remaining_wh: Some(80.0), time_to_empty_s: None, home_margin_wh: None },
+            alerts: vec![AlertEvent {
+                t: 12.5,
+                rule: "low_margin".into(),
+                severity: "warning".into(),
+                state: AlertState::Raised,
+                message: "margin below 10 Wh".into(),
+            }],
+        }
+    }
+
+    #[test]
+    fn lines_have_exactly_the_documented_shapes_and_nan_is_null() {
+        let mut out = Vec::new();
+        write_report(&mut out, &report()).unwrap();
+        let lines: Vec<serde_json::Value> =
+            String::from_utf8(out).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        assert_eq!(lines.len(), 3);
+        let w = &lines[0];
+        assert_eq!((w["type"].as_str(), w["t"].as_f64(), w["measured_w"].as_f64()), (Some("window"), Some(12.5), Some(240.0)));
+        let f = w["features"].as_object().unwrap();
+        assert_eq!(f.len(), N_FEATURES);
+        assert!(f["wind_speed"].is_null(), "NaN is written as null");
+        assert_eq!(f["altitude"], 0.5);
+        let e = &lines[1];
+        assert_eq!(e["type"], "estimate");
+        assert_eq!(e["models"]["dandrea"], 230.0);
+        assert!(e["models"]["lstm"].is_null());
+        assert_eq!((e["energy_used_wh"].as_f64(), e["remaining_wh"].as_f64()), (Some(1.5), Some(80.0)));
+        assert!(e["time_to_empty_s"].is_null() && e["home_margin_wh"].is_null());
+        let a = &lines[2];
+        assert_eq!(
+            (a["type"].as_str(), a["rule"].as_str(), a["severity"].as_str(), a["state"].as_str()),
+            (Some("alert"), Some("low_margin"), Some("warning"), Some("raised"))
+        );
+        assert_eq!(a["message"], "margin below 10 Wh");
+    }
+
+    #[test]
+    fn the_summary_starts_with_the_contract_fields_in_order() {
+        let s = serde_json::to_string(&Summary::new(StatsSnapshot { frames_ok: 3, ..Default::default() }, 0, 0)).unwrap();
+        assert!(s.starts_with(r#"{"type":"summary","frames_ok":3,"frames_bad":0,"unknown":0,"gaps":0,"windows":0,"#), "{s}");
+    }
+}

@@ -145,3 +145,18 @@ pub fn alert_line(a: &AlertEvent, colour: bool) -> String {
         _ => line.cyan().to_string(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_status_line_shows_link_health_silence_and_survives_nan() {
+        let stats = IngestStats::default();
+        IngestStats::add(&stats.frames_ok, 120);
+        IngestStats::add(&stats.frames_bad, 2);
+        stats.silent.store(true, Relaxed);
+        let line = status_line(None, &stats, f64::NAN, false);
+        assert!(line.contains("ok 120 bad 2") && line.contains("SILENT") && line.contains("? msg/s"), "{line}");
+    }
+}

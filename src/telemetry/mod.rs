@@ -228,7 +228,8 @@ pub struct Telemetry {
     /// Latest raw attitude (FRD→NED) and ground velocity (NED), for conversions.
     q_ned: Option<frames::Quat>,
     vel_ned: Option<[f64; 3]>,
-    home: Option<[f64; 3]>,
+    /// Home was set (by HOME_POSITION or the first fix).
+    home_known: bool,
     /// Mission: values from NAMED_VALUE_FLOAT, the config, and the defaults.
     mission_msg: [Option<f32>; 3],
     mission_cfg: [Option<f32>; 3],
@@ -248,7 +249,7 @@ impl Telemetry {
             sysid: None,
             q_ned: None,
             vel_ned: None,
-            home: None,
+            home_known: false,
             mission_msg: [None; 3],
             mission_cfg: [mission.speed_m_s, mission.payload_g, mission.altitude_m],
             nonfinite: 0,
@@ -328,20 +329,7 @@ impl Telemetry {
     }
 
     fn windows_from(&mut self, samples: &mut Vec<Sample>, out: &mut Vec<Window>) {
-        for mut s in samples.drain(..) {
-            if let Some(h) = self.home {
-                let (lon, lat, alt) = (s.features[idx::POS_X] as f64, s.features[idx::POS_Y] as f64, s.features[idx::POS_Z] as f64);
-                if s.stale_mask & (1 << idx::POS_X) == 0 {
-                    s.home = Some(HomeVector {
-                        distance_m: frames::ground_distance_m(h[0], h[1], lat, lon) as f32,
-                        height_m: (alt - h[2]) as f32,
-                    });
-                }
-            }
-            if let Some(w) = self.ring.push(s) {
-                out.push(w);
-            }
-        }
+        out.extend(samples.drain(..).filter_map(|s| self.ring.push(s)));
     }
 
     fn from_vehicle(&mut self, m: &TimedMessage) -> bool {
@@ -433,8 +421,9 @@ impl Telemetry {
 
     fn position(&mut self, rank: usize, t_us: i64, lat_e7: i32, lon_e7: i32, alt_mm: i32) {
         let p = [lon_e7 as f64 * 1e-7, lat_e7 as f64 * 1e-7, alt_mm as f64 * 1e-3];
-        if self.home.is_none() && (lat_e7 != 0 || lon_e7 != 0) {
-            self.home = Some([p[1], p[0], p[2]]);
+        if !self.home_known && (lat_e7 != 0 || lon_e7 != 0) {
+            self.home_known = true;
+            self.resampler.set_home([p[1], p[0], p[2]]);
         }
         self.offer(Signal::Position, rank, t_us, &p);
     }
@@ -489,7 +478,8 @@ impl Telemetry {
                 }
             }
             MavMessage::HOME_POSITION(h) => {
-                self.home = Some([h.latitude as f64 * 1e-7, h.longitude as f64 * 1e-7, h.altitude as f64 * 1e-3]);
+                self.home_known = true;
+                self.resampler.set_home([h.latitude as f64 * 1e-7, h.longitude as f64 * 1e-7, h.altitude as f64 * 1e-3]);
             }
             MavMessage::WIND(w) => {
                 let v = frames::wind_from_to_vec(w.speed as f64, w.direction as f64);

@@ -10,7 +10,10 @@
 //!   emitted once every signal is *ready*: it has an update at or past `t_k`, or it is
 //!   *quiet* (no update for more than `stale_after_s`), in which case its last value is held
 //!   and its features are marked stale. Latency is therefore bounded by the slowest source's
-//!   period, and by `stale_after_s` when a source stops.
+//!   period (1 s behind real time when the battery comes at 1 Hz, as on PX4: power is
+//!   interpolated like the rest, since it is the models' target), and by `stale_after_s`
+//!   when a source stops. Silence is counted from the start of the stream or from the end
+//!   of the last gap, whichever is later.
 //! - **Interpolation.** Linear between the bracketing updates; `wind_angle` along the
 //!   shorter arc, in [0, 360); the quaternion by normalised lerp with sign continuity, then
 //!   put in the `w ≥ 0` hemisphere (as every data-set row is). Two updates of one signal
@@ -27,7 +30,7 @@
 
 use std::collections::VecDeque;
 
-use super::{idx, Sample, N_FEATURES};
+use super::{idx, HomeVector, Sample, N_FEATURES};
 
 /// The resampled signals; each maps onto a few features (or onto the measured power).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,6 +109,11 @@ pub struct Resampler {
     next_k: i64,
     /// Newest update time seen.
     now_us: i64,
+    /// Start of the current run of data (first update, or the first one after a gap):
+    /// silence is counted from here, so nothing is quiet just because of the gap.
+    epoch_us: i64,
+    /// Home (latitude deg, longitude deg, altitude m) for [`Sample::home`].
+    home: Option<[f64; 3]>,
     /// Mission features (speed, payload, altitude): held, never stale.
     mission: [f32; 3],
     restart: bool,
@@ -124,6 +132,8 @@ impl Resampler {
             t0_us: None,
             next_k: 0,
             now_us: i64::MIN,
+            epoch_us: i64::MIN,
+            home: None,
             mission: [0.0; 3],
             restart: false,
             restarts: 0,
@@ -140,6 +150,7 @@ impl Resampler {
     pub fn update(&mut self, sig: Signal, t_us: i64, v: &[f64]) {
         if self.t0_us.is_none() {
             self.t0_us = Some(t_us);
+            self.epoch_us = t_us;
         } else if t_us > self.now_us.saturating_add(self.gap_us) {
             self.restart_at(t_us);
         }
@@ -161,6 +172,7 @@ impl Resampler {
         }
         let t0 = self.t0_us.unwrap_or(t_us);
         self.next_k = (t_us - t0 + self.dt_us - 1).div_euclid(self.dt_us);
+        self.epoch_us = t_us;
         self.restart = true;
         self.restarts += 1;
         tracing::debug!(t_s = t_us as f64 / 1e6, "telemetry gap: restarting the window ring");
@@ -178,10 +190,14 @@ impl Resampler {
 
     /// Whether `sig` has been silent for more than the stale limit at the newest time seen.
     pub fn is_quiet(&self, sig: Signal) -> bool {
-        match self.tracks[sig as usize].last {
-            Some((t, _)) => self.now_us - t > self.stale_us,
-            None => self.t0_us.is_some_and(|t0| self.now_us - t0 > self.stale_us),
-        }
+        let last = self.tracks[sig as usize].last.map_or(i64::MIN, |u| u.0);
+        self.t0_us.is_some() && self.now_us - last.max(self.epoch_us) > self.stale_us
+    }
+
+    /// Set home (latitude deg, longitude deg, altitude m AMSL): samples then carry the
+    /// distance and height to it, computed from the f64 position (not the f32 features).
+    pub fn set_home(&mut self, home: [f64; 3]) {
+        self.home = Some(home);
     }
 
     /// Age of the newest update of `sig` at the newest time seen, seconds.
@@ -235,12 +251,19 @@ impl Resampler {
         let mut features = [0f32; N_FEATURES];
         let mut stale_mask = 0u32;
         let mut power = None;
+        let mut home = None;
         for sig in SIGNALS {
             let tr = &self.tracks[sig as usize];
             let (v, stale) = self.value_at(sig, tr, g);
             if sig == Signal::Power {
                 power = tr.last.map(|_| (v, stale));
                 continue;
+            }
+            if let (Signal::Position, Some(h), false, Some(_)) = (sig, self.home, stale, tr.last) {
+                home = Some(HomeVector {
+                    distance_m: super::frames::ground_distance_m(h[0], h[1], v[1], v[0]) as f32,
+                    height_m: (v[2] - h[2]) as f32,
+                });
             }
             for (k, &f) in sig.features().iter().enumerate() {
                 features[f] = v[k] as f32;
@@ -256,7 +279,7 @@ impl Resampler {
             Some((v, false)) => (Some(v[2] as f32), Some(v[0] as f32)),
             _ => (None, None),
         };
-        Sample { t_s: g as f64 / 1e6, features, measured_w, voltage_v, home: None, stale_mask }
+        Sample { t_s: g as f64 / 1e6, features, measured_w, voltage_v, home, stale_mask }
     }
 
     /// Value of one signal at grid time `g`, and whether it is stale there.
