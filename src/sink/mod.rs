@@ -1,10 +1,18 @@
 //! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web.
 //! Each sink is its own task fed by one broadcast of [`crate::energy::Report`]s.
 
+pub mod mavlink;
+pub mod web;
+
 /// Publishers (the `[sinks]` table).
 #[derive(Debug, Clone, Default, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct SinksConfig {}
+pub struct SinksConfig {
+    /// MAVLink back to the ground station (`[sinks.mavlink]`).
+    pub mavlink: mavlink::MavlinkSinkConfig,
+    /// The web dashboard (`[sinks.web]`).
+    pub web: web::WebSinkConfig,
+}
 
 use std::sync::Arc;
 
@@ -28,6 +36,10 @@ pub enum SinkSpec {
     Terminal,
     /// JSON lines.
     Json(JsonTarget),
+    /// STATUSTEXT and NAMED_VALUE_FLOAT back to the ground station.
+    Mavlink(mavlink::MavlinkSinkConfig),
+    /// The web dashboard.
+    Web(web::WebSinkConfig),
 }
 
 /// Start one sink as its own task. The task ends when the report channel closes, after
@@ -39,6 +51,11 @@ pub fn spawn(
     link: LinkHandle,
     cfg: Arc<crate::config::Config>,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
+    let spec = match spec {
+        SinkSpec::Mavlink(c) => return Ok(tokio::spawn(mavlink::run(c, rx, link))),
+        SinkSpec::Web(c) => return Ok(tokio::spawn(web::run(c, rx))),
+        other => other,
+    };
     let _ = (spec, stats, link, cfg);
     let mut rx = rx;
     Ok(tokio::spawn(async move {
