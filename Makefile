@@ -9,6 +9,7 @@ DEMO_SPEED ?= 10
 setup:
 	@scripts/setup-libtorch.sh
 	@scripts/setup-python.sh
+	@scripts/setup-chromium.sh
 
 build: setup
 	$(CARGO) build --release --locked
