@@ -9,7 +9,6 @@ DEMO_SPEED ?= 10
 setup:
 	@scripts/setup-libtorch.sh
 	@scripts/setup-python.sh
-	@scripts/setup-chromium.sh
 
 build: setup
 	$(CARGO) build --release --locked
@@ -18,6 +17,7 @@ run: build
 	./target/release/dronewatt replay replay/demo.tlog --speed $(DEMO_SPEED) --config config/demo.toml
 
 test: setup
+	@scripts/setup-chromium.sh
 	$(CARGO) test --locked --no-fail-fast
 
 bench: setup
