@@ -66,7 +66,6 @@ fn check_estimates(heard: &serde_json::Value) {
 }
 
 #[test]
-#[ignore = "needs the live-link source and the telemetry stage (issues 2 and 3)"]
 fn monitor_warns_once_when_energy_runs_low() {
     // 3 Wh at ~500 W: 1.5 Wh remain after ~11 s of the 15 s flight.
     let heard = fly(3.0);
@@ -80,7 +79,6 @@ fn monitor_warns_once_when_energy_runs_low() {
 }
 
 #[test]
-#[ignore = "needs the live-link source and the telemetry stage (issues 2 and 3)"]
 fn monitor_stays_quiet_above_the_threshold() {
     let heard = fly(100.0);
     check_estimates(&heard);

@@ -285,12 +285,12 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: broadcast::Receiver<std::sync::
     let mut next_values = Instant::now();
     let mut heartbeat = tokio::time::interval(Duration::from_secs(1));
     heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut dropped = 0u64;
+    let (mut dropped, mut missed) = (0u64, 0u64);
     loop {
         let frames = tokio::select! {
             _ = heartbeat.tick() => vec![enc.heartbeat()],
-            r = rx.recv() => match r {
-                Ok(report) => {
+            r = super::next_report(&mut rx, &mut missed) => match r {
+                Some(report) => {
                     let mut f = enc.alerts(&report);
                     let now = Instant::now();
                     if now >= next_values {
@@ -299,11 +299,7 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: broadcast::Receiver<std::sync::
                     }
                     f
                 }
-                Err(broadcast::error::RecvError::Lagged(n)) => {
-                    tracing::warn!("MAVLink sink fell {n} reports behind");
-                    continue;
-                }
-                Err(broadcast::error::RecvError::Closed) => break,
+                None => break,
             },
         };
         for f in frames {

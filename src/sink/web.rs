@@ -186,15 +186,10 @@ pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx
     let server = tokio::spawn(async move {
         axum::serve(listener, app).with_graceful_shutdown(async move { stop.cancelled().await }).await
     });
-    loop {
-        match rx.recv().await {
-            Ok(r) => {
-                if let Ok(mut d) = dash.lock() {
-                    d.add(&r, &cfg);
-                }
-            }
-            Err(broadcast::error::RecvError::Lagged(n)) => tracing::warn!("web dashboard fell {n} reports behind"),
-            Err(broadcast::error::RecvError::Closed) => break,
+    let mut missed = 0;
+    while let Some(r) = super::next_report(&mut rx, &mut missed).await {
+        if let Ok(mut d) = dash.lock() {
+            d.add(&r, &cfg);
         }
     }
     if cfg.linger_s > 0.0 {

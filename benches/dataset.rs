@@ -1,0 +1,31 @@
+//! The whole M100 data set through the live path: CSV (gzip) → MAVLink encoder → tlog bytes
+//! → decode → `Telemetry` (state, frames, resampler) → windows. Issue 3's goal: all
+//! 247,308 rows in under 20 s on the 2-core CI machine.
+//!
+//! `DRONEWATT_DATA=/path/flights.csv.gz cargo bench --bench dataset`
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use dronewatt::offline::data::load_flights;
+use dronewatt::telemetry::TelemetryConfig;
+
+fn whole_data_set(c: &mut Criterion) {
+    let path = dronewatt::default_data_path();
+    let cfg = TelemetryConfig::default();
+    let mut g = c.benchmark_group("dataset");
+    g.sample_size(10);
+    g.measurement_time(std::time::Duration::from_secs(60));
+    g.bench_function("flight_276", |b| {
+        b.iter(|| load_flights(&path, Some(&[276]), &cfg).expect("data set loads"))
+    });
+    g.bench_function("all_flights", |b| {
+        b.iter(|| {
+            let f = load_flights(&path, None, &cfg).expect("data set loads");
+            assert_eq!(f.len(), 200);
+            f
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, whole_data_set);
+criterion_main!(benches);

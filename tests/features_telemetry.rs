@@ -1,0 +1,364 @@
+//! The live telemetry stage on hand-made MAVLink streams: ArduPilot-style and PX4-style
+//! message mixes at their real rates, frame conversions on cases whose answer is known,
+//! staleness, source fallback, gaps, bad values and foreign senders.
+
+use dronewatt::dialect::*;
+use dronewatt::source::TimedMessage;
+use dronewatt::telemetry::{idx, MissionConfig, Telemetry, TelemetryConfig};
+use dronewatt::window::Window;
+use dronewatt::MavMessage;
+
+const LAT0: f64 = 40.459;
+const LON0: f64 = -79.78;
+const R: f64 = 6_371_000.0;
+
+/// A vehicle in steady flight: NED velocity, heading, level attitude.
+#[derive(Clone, Copy)]
+struct Flight {
+    v_ned: [f64; 3],
+    heading_deg: f64,
+}
+
+impl Flight {
+    fn lat_lon_alt(&self, t: f64) -> (f64, f64, f64) {
+        let lat = LAT0 + (self.v_ned[0] * t / R).to_degrees();
+        let lon = LON0 + (self.v_ned[1] * t / (R * LAT0.to_radians().cos())).to_degrees();
+        (lat, lon, 300.0 - self.v_ned[2] * t)
+    }
+}
+
+struct Mix {
+    msgs: Vec<(f64, u32, MavMessage)>,
+}
+
+impl Mix {
+    fn new() -> Self {
+        Self { msgs: Vec::new() }
+    }
+    /// `f(t)` every `1/hz` s over `[from, to)`.
+    fn every(&mut self, hz: f64, from: f64, to: f64, f: impl Fn(f64) -> MavMessage) {
+        let n = ((to - from) * hz).ceil() as usize;
+        for k in 0..n {
+            let t = from + k as f64 / hz;
+            if t < to {
+                self.msgs.push((t, 1, f(t)));
+            }
+        }
+    }
+    fn at(&mut self, t: f64, sys: u32, m: MavMessage) {
+        self.msgs.push((t, sys, m));
+    }
+    /// Run through a fresh stage; returns the stage and every window.
+    fn run(mut self, cfg: &TelemetryConfig, mission: &MissionConfig) -> (Telemetry, Vec<Window>) {
+        self.msgs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut tel = Telemetry::new(cfg, mission);
+        let mut out = Vec::new();
+        for (i, (t, sys, msg)) in self.msgs.into_iter().enumerate() {
+            let header = mavlink::MavHeader { system_id: sys, component_id: 1, sequence: i as u8 };
+            tel.push(&TimedMessage { t_s: 1000.0 + t, header, msg }, &mut out);
+        }
+        tel.finish(&mut out);
+        (tel, out)
+    }
+}
+
+fn heartbeat(ap: MavAutopilot) -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        autopilot: ap,
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+        ..Default::default()
+    })
+}
+
+fn gpi(f: Flight, t: f64) -> MavMessage {
+    let (lat, lon, alt) = f.lat_lon_alt(t);
+    MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+        lat: (lat * 1e7).round() as i32,
+        lon: (lon * 1e7).round() as i32,
+        alt: (alt * 1e3).round() as i32,
+        vx: (f.v_ned[0] * 100.0) as i16,
+        vy: (f.v_ned[1] * 100.0) as i16,
+        vz: (f.v_ned[2] * 100.0) as i16,
+        hdg: (f.heading_deg * 100.0) as u16,
+        ..Default::default()
+    })
+}
+
+fn battery(v: f64, a: f64) -> [MavMessage; 2] {
+    let mut cells = [u16::MAX; 10];
+    cells[0] = (v * 1e3) as u16;
+    [
+        MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+            voltage_battery: (v * 1e3) as u16,
+            current_battery: (a * 100.0) as i16,
+            battery_remaining: -1,
+            ..Default::default()
+        }),
+        MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA { voltages: cells, current_battery: (a * 100.0) as i16, ..Default::default() }),
+    ]
+}
+
+/// ArduPilot's default streams: ATTITUDE (Euler), RAW_IMU (mG, mrad/s), GLOBAL_POSITION_INT
+/// (cm/s velocity), WIND, VFR_HUD, SYS_STATUS, BATTERY_STATUS. No ATTITUDE_QUATERNION, no
+/// HIGHRES_IMU (and here no LOCAL_POSITION_NED: no EKF origin).
+fn ardupilot(f: Flight, until: f64) -> Mix {
+    let mut m = Mix::new();
+    m.every(1.0, 0.0, until, |_| heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA));
+    let yaw = f.heading_deg.to_radians() as f32;
+    m.every(10.0, 0.0, until, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw, ..Default::default() }));
+    m.every(10.0, 0.02, until, |_| MavMessage::RAW_IMU(RAW_IMU_DATA { zacc: -1000, ..Default::default() }));
+    m.every(5.0, 0.04, until, |t| gpi(f, t));
+    // True wind: 3 m/s from the west.
+    m.every(3.0, 0.06, until, |_| MavMessage::WIND(WIND_DATA { direction: 270.0, speed: 3.0, speed_z: 0.0 }));
+    m.every(4.0, 0.08, until, |_| MavMessage::VFR_HUD(VFR_HUD_DATA { airspeed: 8.5, heading: f.heading_deg as i16, ..Default::default() }));
+    m.every(2.0, 0.1, until, |_| battery(23.0, 20.0)[0].clone());
+    m.every(2.0, 0.1, until, |_| battery(23.0, 20.0)[1].clone());
+    m
+}
+
+fn quat_yaw(yaw_deg: f64) -> [f32; 4] {
+    let h = yaw_deg.to_radians() / 2.0;
+    [h.cos() as f32, 0.0, 0.0, h.sin() as f32]
+}
+
+/// PX4's default streams: ATTITUDE_QUATERNION, HIGHRES_IMU (m/s²), LOCAL_POSITION_NED,
+/// GLOBAL_POSITION_INT, VFR_HUD, BATTERY_STATUS, SYS_STATUS, HOME_POSITION; no WIND.
+fn px4(f: Flight, from: f64, until: f64) -> Mix {
+    let mut m = Mix::new();
+    m.every(1.0, from, until, |_| heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4));
+    let q = quat_yaw(f.heading_deg);
+    m.every(50.0, from + 0.001, until, |_| {
+        MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA { q1: q[0], q2: q[1], q3: q[2], q4: q[3], ..Default::default() })
+    });
+    m.every(50.0, from + 0.002, until, |_| {
+        MavMessage::HIGHRES_IMU(HIGHRES_IMU_DATA {
+            zacc: -9.81,
+            fields_updated: HighresImuUpdatedFlags::all(),
+            ..Default::default()
+        })
+    });
+    let v = f.v_ned.map(|x| x as f32);
+    m.every(30.0, from + 0.003, until, |_| {
+        MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA { vx: v[0], vy: v[1], vz: v[2], ..Default::default() })
+    });
+    m.every(10.0, from + 0.004, until, |t| gpi(f, t));
+    m.every(4.0, from + 0.005, until, |_| {
+        MavMessage::VFR_HUD(VFR_HUD_DATA { airspeed: 5.0, heading: f.heading_deg as i16, ..Default::default() })
+    });
+    m.every(1.0, from + 0.006, until, |_| battery(22.0, 10.0)[1].clone());
+    m.every(1.0, from + 0.007, until, |_| battery(22.0, 10.0)[0].clone());
+    m.at(from + 0.5, 1, MavMessage::HOME_POSITION(HOME_POSITION_DATA {
+        latitude: (LAT0 * 1e7) as i32,
+        longitude: (LON0 * 1e7) as i32,
+        altitude: 300_000,
+        ..Default::default()
+    }));
+    m
+}
+
+fn source(tel: &Telemetry, signal: &str) -> Option<&'static str> {
+    tel.health().into_iter().find(|h| h.signal == signal).and_then(|h| h.source)
+}
+
+fn close(a: f32, b: f64, tol: f64) -> bool {
+    (a as f64 - b).abs() <= tol
+}
+
+#[test]
+fn ardupilot_mix_fills_every_feature_in_the_data_set_frames() {
+    // Nose north, flying north at 8 m/s, climbing 1 m/s.
+    let f = Flight { v_ned: [8.0, 0.0, -1.0], heading_deg: 0.0 };
+    let cfg = TelemetryConfig::default();
+    let (tel, out) = ardupilot(f, 10.0).run(&cfg, &MissionConfig::default());
+    assert!(out.len() > 80, "{} windows in 10 s at 10 Hz", out.len());
+    for w in &out {
+        let s = w.last();
+        assert_eq!(s.stale_mask, 0, "t={}: stale {:b}", s.t_s, s.stale_mask);
+        let x = &s.features;
+        assert!(x.iter().all(|v| v.is_finite()));
+        // Forward is velocity_y; climbing is velocity_z > 0.
+        assert!(close(x[idx::VX], 0.0, 0.02) && close(x[idx::VY], 8.0, 0.02) && close(x[idx::VZ], 1.0, 0.02), "{x:?}");
+        // At constant velocity the specific force is −g along body z.
+        assert!(close(x[idx::AZ], -9.80665, 1e-3) && close(x[idx::AX], 0.0, 1e-6));
+        // Level, nose north: the data set's identity quaternion.
+        assert!(close(x[idx::QW], 1.0, 1e-6) && close(x[idx::QZ], 0.0, 1e-6));
+        // Anemometer: air from the west at 3 m/s seen from a vehicle going north at 8 m/s
+        // comes at √73 m/s from 339.4°.
+        assert!(close(x[idx::WIND_SPEED], 73f64.sqrt(), 1e-3), "wind {}", x[idx::WIND_SPEED]);
+        assert!(close(x[idx::WIND_ANGLE], 360.0 - 3f64.atan2(8.0).to_degrees(), 0.01));
+        assert!(close(x[idx::POS_Y], LAT0, 1e-3) && close(x[idx::POS_X], LON0, 1e-3));
+        assert_eq!(s.measured_w, Some(460.0));
+        // Mission defaults.
+        assert_eq!((x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]), (10.0, 0.0, 25.0));
+        // Home is the first fix (t = 0.04 s): 8 m/s north, 1 m/s up. (Past the last fix,
+        // at the end of the stream, the position is held.)
+        let home = s.home.expect("home from the first fix");
+        let t = s.t_s - 1000.0 - 0.04;
+        assert!(t > 9.76 ||(home.distance_m as f64 - 8.0 * t).abs() < 0.1 && (home.height_m as f64 - t).abs() < 0.05, "{home:?} at {t}");
+    }
+    assert_eq!(source(&tel, "attitude"), Some("ATTITUDE"));
+    assert_eq!(source(&tel, "acceleration"), Some("RAW_IMU"));
+    assert_eq!(source(&tel, "velocity"), Some("GLOBAL_POSITION_INT"));
+    assert_eq!(source(&tel, "wind"), Some("WIND"));
+    assert_eq!(source(&tel, "power"), Some("BATTERY_STATUS"));
+    assert_eq!(source(&tel, "mission"), Some("default"));
+}
+
+#[test]
+fn px4_mix_without_wind_fills_every_feature() {
+    // Nose east, drifting north at 5 m/s (to its left), descending 0.5 m/s.
+    let f = Flight { v_ned: [5.0, 0.0, 0.5], heading_deg: 90.0 };
+    let cfg = TelemetryConfig::default();
+    let (tel, out) = px4(f, 0.0, 10.0).run(&cfg, &MissionConfig { speed_m_s: Some(6.0), payload_g: Some(250.0), altitude_m: None });
+    assert!(out.len() > 80);
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    for w in &out {
+        let s = w.last();
+        assert_eq!(s.stale_mask, 0, "t={}", s.t_s);
+        let x = &s.features;
+        assert!(close(x[idx::VX], -5.0, 1e-4) && close(x[idx::VY], 0.0, 1e-4) && close(x[idx::VZ], -0.5, 1e-4), "{x:?}");
+        assert!(close(x[idx::AZ], -9.81, 1e-5));
+        // Facing east: the data-set quaternion is a −90° (clockwise) turn about ENU up.
+        assert!(close(x[idx::QW], h, 1e-6) && close(x[idx::QZ], -h, 1e-6), "{x:?}");
+        // No WIND: airspeed from VFR_HUD, the angle from the heading.
+        assert!(close(x[idx::WIND_SPEED], 5.0, 1e-6) && close(x[idx::WIND_ANGLE], 90.0, 1e-6));
+        assert_eq!(s.measured_w, Some(220.0));
+        assert_eq!((x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]), (6.0, 250.0, 25.0));
+    }
+    assert!(out.last().unwrap().last().home.is_some());
+    assert_eq!(source(&tel, "attitude"), Some("ATTITUDE_QUATERNION"));
+    assert_eq!(source(&tel, "acceleration"), Some("HIGHRES_IMU"));
+    assert_eq!(source(&tel, "velocity"), Some("LOCAL_POSITION_NED"));
+    assert_eq!(source(&tel, "wind"), Some("VFR_HUD"));
+    assert_eq!(source(&tel, "mission"), Some("config"));
+}
+
+#[test]
+fn hover_at_rest_reads_minus_g_and_zero_velocity() {
+    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 0.0 };
+    let (_, out) = ardupilot(f, 4.0).run(&TelemetryConfig::default(), &MissionConfig::default());
+    let s = out.last().expect("windows").last();
+    assert!(close(s.features[idx::AZ], -9.80665, 1e-3));
+    for i in [idx::VX, idx::VY, idx::VZ] {
+        assert!(close(s.features[i], 0.0, 1e-6));
+    }
+    // Hovering in a 3 m/s westerly, the anemometer reads the wind itself.
+    assert!(close(s.features[idx::WIND_SPEED], 3.0, 1e-4) && close(s.features[idx::WIND_ANGLE], 270.0, 1e-3));
+}
+
+#[test]
+fn a_quiet_source_is_held_and_marked_stale_without_stalling_the_stream() {
+    let f = Flight { v_ned: [5.0, 0.0, 0.0], heading_deg: 0.0 };
+    let mut mix = px4(f, 0.0, 10.0);
+    // GLOBAL_POSITION_INT stops at 5 s; everything else goes on.
+    mix.msgs.retain(|(t, _, m)| !(matches!(m, MavMessage::GLOBAL_POSITION_INT(_)) && *t > 5.0));
+    let cfg = TelemetryConfig::default();
+    let mut tel = Telemetry::new(&cfg, &MissionConfig::default());
+    mix.msgs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out = Vec::new();
+    for (i, (t, sys, msg)) in mix.msgs.into_iter().enumerate() {
+        let header = mavlink::MavHeader { system_id: sys, component_id: 1, sequence: i as u8 };
+        tel.push(&TimedMessage { t_s: t, header, msg }, &mut out);
+    }
+    // Before finish(): the stream kept flowing (latency bounded by the stale limit).
+    // Power comes at 1 Hz here, and every signal gates the grid: at most 1 s behind.
+    let last_t = out.last().unwrap().t_s();
+    assert!(last_t > 10.0 - 1.0 - 0.11, "last sample at {last_t}");
+    let pos_bits = (1 << idx::POS_X) | (1 << idx::POS_Y) | (1 << idx::POS_Z);
+    let mut held = None;
+    for w in &out {
+        let s = w.last();
+        if s.t_s <= 5.0 {
+            assert_eq!(s.stale_mask, 0, "t={}", s.t_s);
+        } else if s.t_s > 5.0 + cfg.stale_after_s + 0.2 {
+            assert_eq!(s.stale_mask, pos_bits, "t={}", s.t_s);
+            let p = s.features[idx::POS_Y];
+            assert_eq!(*held.get_or_insert(p), p, "a stale value is held");
+            // Velocity still comes from LOCAL_POSITION_NED.
+            assert!(close(s.features[idx::VY], 5.0, 1e-4));
+        }
+    }
+    let h = tel.health();
+    assert!(h.iter().find(|x| x.signal == "position").unwrap().stale);
+    assert!(!h.iter().find(|x| x.signal == "velocity").unwrap().stale);
+}
+
+#[test]
+fn a_worse_source_takes_over_when_the_better_one_stops() {
+    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 90.0 };
+    let mut mix = px4(f, 0.0, 10.0);
+    mix.msgs.retain(|(t, _, m)| !(matches!(m, MavMessage::ATTITUDE_QUATERNION(_)) && *t > 4.0));
+    let yaw = std::f32::consts::FRAC_PI_2;
+    mix.every(10.0, 0.0, 10.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw, ..Default::default() }));
+    let (tel, out) = mix.run(&TelemetryConfig::default(), &MissionConfig::default());
+    assert_eq!(source(&tel, "attitude"), Some("ATTITUDE"));
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    for w in out.iter().filter(|w| w.t_s() > 1007.0) {
+        let s = w.last();
+        assert_eq!(s.stale_mask, 0);
+        assert!(close(s.features[idx::QZ], -h, 1e-6));
+    }
+}
+
+#[test]
+fn a_gap_restarts_the_window_ring() {
+    let f = Flight { v_ned: [5.0, 0.0, 0.0], heading_deg: 0.0 };
+    let mut mix = px4(f, 0.0, 5.0);
+    mix.msgs.extend(px4(f, 8.0, 13.0).msgs);
+    let cfg = TelemetryConfig::default();
+    let (tel, out) = mix.run(&cfg, &MissionConfig::default());
+    assert_eq!(tel.restarts(), 1);
+    let span = (cfg.window - 1) as f64 / cfg.rate_hz + 1e-6;
+    assert!(out.iter().all(|w| w.t_s() - w.samples[0].t_s <= span), "a window spans the gap");
+    assert!(out.iter().any(|w| w.samples[0].t_s > 1008.0), "windows resume after the gap");
+    for w in &out {
+        for s in &w.samples {
+            assert_eq!(s.stale_mask, 0, "t={}", s.t_s);
+        }
+    }
+}
+
+#[test]
+fn bad_values_and_other_systems_are_ignored() {
+    let f = Flight { v_ned: [8.0, 0.0, 0.0], heading_deg: 0.0 };
+    let mut mix = ardupilot(f, 5.0);
+    // A ground station's heartbeat first: it must not capture the stream.
+    mix.at(-0.5, 255, MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        ..Default::default()
+    }));
+    // Another vehicle flying south, and NaN attitude from ours.
+    mix.every(10.0, 0.05, 5.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw: 3.14, ..Default::default() }));
+    for (_, sys, m) in mix.msgs.iter_mut() {
+        if let MavMessage::ATTITUDE(a) = m {
+            if a.yaw == 3.14 {
+                *sys = 2;
+            }
+        }
+    }
+    mix.every(2.0, 0.01, 5.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { roll: f32::NAN, ..Default::default() }));
+    let (tel, out) = mix.run(&TelemetryConfig::default(), &MissionConfig::default());
+    assert!(tel.nonfinite() >= 9, "{}", tel.nonfinite());
+    assert!(tel.foreign() >= 45, "{}", tel.foreign());
+    for w in &out {
+        assert!(w.samples.iter().all(|s| s.features.iter().all(|v| v.is_finite())));
+        assert!(close(w.last().features[idx::QW], 1.0, 1e-6), "other system's attitude leaked in");
+    }
+}
+
+#[test]
+fn mission_from_named_values_beats_the_config() {
+    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 0.0 };
+    let mut mix = ardupilot(f, 3.0);
+    for (name, v) in [("cmd_speed", 12.0), ("payload_g", 500.0), ("cmd_alt", 50.0)] {
+        mix.at(0.0, 1, MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA { time_boot_ms: 0, value: v, name: name.into() }));
+    }
+    let mission = MissionConfig { speed_m_s: Some(4.0), payload_g: Some(0.0), altitude_m: Some(25.0) };
+    let (tel, out) = mix.run(&TelemetryConfig::default(), &mission);
+    let x = out.last().unwrap().last().features;
+    assert_eq!((x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]), (12.0, 500.0, 50.0));
+    assert_eq!(source(&tel, "mission"), Some("NAMED_VALUE_FLOAT"));
+}
