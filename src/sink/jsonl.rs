@@ -214,7 +214,7 @@ mod tests {
                     ModelEstimate { name: "lstm".into(), power_w: f32::INFINITY, band_w: None },
                 ],
             },
-            energy: EnergyState { energy_used_wh: 1.5, remaining_wh: Some(80.0), time_to_empty_s: None, home_margin_wh: None },
+            energy: EnergyState { energy_used_wh: 1.5, remaining_wh: Some(80.0), time_to_empty_s: None, home_margin_wh: None, ..Default::default() },
             alerts: vec![AlertEvent {
                 t: 12.5,
                 rule: "low_margin".into(),

@@ -9,10 +9,18 @@
 pub mod jsonl;
 pub mod terminal;
 
+pub mod mavlink;
+pub mod web;
+
 /// Publishers (the `[sinks]` table).
 #[derive(Debug, Clone, Default, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct SinksConfig {}
+pub struct SinksConfig {
+    /// MAVLink back to the ground station (`[sinks.mavlink]`).
+    pub mavlink: mavlink::MavlinkSinkConfig,
+    /// The web dashboard (`[sinks.web]`).
+    pub web: web::WebSinkConfig,
+}
 
 use std::sync::Arc;
 
@@ -36,6 +44,10 @@ pub enum SinkSpec {
     Terminal,
     /// JSON lines.
     Json(JsonTarget),
+    /// STATUSTEXT and NAMED_VALUE_FLOAT back to the ground station.
+    Mavlink(mavlink::MavlinkSinkConfig),
+    /// The web dashboard.
+    Web(web::WebSinkConfig),
 }
 
 /// Start one sink as its own task. The task ends when the report channel closes, after
@@ -48,10 +60,12 @@ pub fn spawn(
     link: LinkHandle,
     cfg: Arc<crate::config::Config>,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
-    let _ = (&link, &cfg);
+    let _ = &cfg;
     match spec {
         SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, stats))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, stats),
+        SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, link))),
+        SinkSpec::Web(c) => Ok(tokio::spawn(web::run(c, rx))),
     }
 }
 
