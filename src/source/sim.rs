@@ -80,8 +80,8 @@ pub struct SimulateArgs {
     /// Seed of the noise and gusts.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Pace: `real` (wall clock), `max` (flat out) or a factor such as `5` (five times real
-    /// time). Default: `real` for `--udp`, `max` for `--out`.
+    /// Pace of `--udp`: `real` (wall clock, the default), `max` (flat out) or a factor such
+    /// as `5` (five times real time). A `--out` tlog is always written at once.
     #[arg(long)]
     pub rate: Option<Rate>,
     /// Whose telemetry style to imitate.
