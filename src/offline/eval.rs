@@ -18,7 +18,7 @@ use crate::config::Config;
 use crate::model::physics;
 use crate::model::profile::VehicleProfile;
 use crate::model::{PowerModel, Prediction};
-use crate::offline::data::{load_flights, FlightWindows, TEST_FLIGHTS};
+use crate::offline::data::{list_flights, load_flights, FlightWindows, TEST_FLIGHTS};
 use crate::offline::metrics::{self, Scores};
 use crate::offline::plot;
 
@@ -138,7 +138,12 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let names: Vec<String> = models.iter().map(|m| m.name().to_string()).collect();
     let wanted: Option<Vec<u32>> = match (args.flight, args.split) {
         (Some(n), _) => Some(vec![n]),
-        (None, Some(Split::Cvar)) => Some(TEST_FLIGHTS.to_vec()),
+        (None, Some(Split::Cvar)) => {
+            let present = list_flights(&data)?;
+            let t: Vec<u32> = TEST_FLIGHTS.iter().copied().filter(|n| present.iter().any(|f| f.flight == *n)).collect();
+            tracing::info!(flights = ?t, "cvar split: the test flights present in the file");
+            Some(t)
+        }
         (None, None) => None,
     };
     let flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry).with_context(|| format!("{}: cannot load flights", data.display()))?;
