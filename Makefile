@@ -17,6 +17,7 @@ run: build
 	./target/release/dronewatt replay replay/demo.tlog --speed $(DEMO_SPEED) --config config/demo.toml
 
 test: setup
+	@scripts/setup-chromium.sh
 	$(CARGO) test --locked --no-fail-fast
 
 bench: setup

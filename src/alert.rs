@@ -1,12 +1,52 @@
 //! Alert rules from TOML: typed kinds, debounce, hysteresis, repeat. Owner: energy (issue 6).
+//!
+//! ```toml
+//! [[alerts]]
+//! name = "low_energy"          # unique, shown in every alert it raises
+//! kind = "remaining_below"     # what it watches (table below)
+//! below_pct = 25               # raise under 25 % …
+//! clear_pct = 27               # … clear only back above 27 % (hysteresis)
+//! severity = "warning"         # a MAV_SEVERITY name: emergency … debug
+//! for_s = 2                    # the condition must hold this long before it raises
+//! repeat_s = 60                # say it again every 60 s while raised (0: once)
+//! message = "Battery low"      # optional; default names the rule and the value
+//! ```
+//!
+//! | `kind` | level key (unit) | clear key | watches |
+//! |---|---|---|---|
+//! | `remaining_below` | `below_wh` or `below_pct` | `clear_wh` / `clear_pct` | remaining energy |
+//! | `time_to_empty_below` | `below_s` | `clear_s` | time to empty at the forecast power |
+//! | `home_margin_below` | `below_wh` | `clear_wh` | remaining − energy home − reserve |
+//! | `power_above` | `above_w` | `clear_w` | measured power |
+//! | `deviation_above` | `above_w`, optional `model` | `clear_w` | \|measured − predicted\| (a damaged propeller, a heavy payload) |
+//! | `models_disagree` | `above_w` | `clear_w` | spread (max − min) of the models' predictions |
+//! | `cell_voltage_below` | `below_v` | `clear_v` | battery voltage / `[energy] cell_count` |
+//! | `telemetry_lost` | — (`for_s` is the time) | — | every kinematic feature stale |
+//!
+//! A clear level defaults to the raise level (no hysteresis) and must lie on the safe side
+//! of it. A value that is unknown (no measured power, no home yet) neither raises nor
+//! clears: the rule keeps its state. Time is the estimates' own clock, so a replay at ×10
+//! debounces exactly like the live flight did.
+
+use std::fmt;
+
+use serde::Deserialize;
+
+use crate::energy::EnergyState;
+use crate::model::Estimate;
 
 /// An alert raised or cleared.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct AlertEvent {
+    /// Time of the estimate that raised or cleared it, s (source clock).
     pub t: f64,
+    /// The rule's name.
     pub rule: String,
+    /// The rule's severity, lower-case MAV_SEVERITY name (`warning`); parses back into a
+    /// [`Severity`].
     pub severity: String,
     pub state: AlertState,
+    /// A short human sentence with the value (a STATUSTEXT carries its first 50 bytes).
     pub message: String,
 }
 
@@ -18,26 +58,401 @@ pub enum AlertState {
     Cleared,
 }
 
-/// One `[[alerts]]` rule.
-#[derive(Debug, Clone, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+/// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML
+/// either the short lower-case name (`warning`) or the enum name (`MAV_SEVERITY_WARNING`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Severity {
+    Emergency,
+    Alert,
+    Critical,
+    Error,
+    Warning,
+    Notice,
+    Info,
+    Debug,
+}
+
+impl Severity {
+    const ALL: [Severity; 8] = [
+        Severity::Emergency,
+        Severity::Alert,
+        Severity::Critical,
+        Severity::Error,
+        Severity::Warning,
+        Severity::Notice,
+        Severity::Info,
+        Severity::Debug,
+    ];
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        ["emergency", "alert", "critical", "error", "warning", "notice", "info", "debug"][self as usize]
+    }
+    /// The MAVLink enum value.
+    pub fn to_mav(self) -> crate::dialect::MavSeverity {
+        use crate::dialect::MavSeverity as M;
+        match self {
+            Severity::Emergency => M::MAV_SEVERITY_EMERGENCY,
+            Severity::Alert => M::MAV_SEVERITY_ALERT,
+            Severity::Critical => M::MAV_SEVERITY_CRITICAL,
+            Severity::Error => M::MAV_SEVERITY_ERROR,
+            Severity::Warning => M::MAV_SEVERITY_WARNING,
+            Severity::Notice => M::MAV_SEVERITY_NOTICE,
+            Severity::Info => M::MAV_SEVERITY_INFO,
+            Severity::Debug => M::MAV_SEVERITY_DEBUG,
+        }
+    }
+}
+
+impl fmt::Display for Severity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Severity {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let short = s.trim().to_ascii_lowercase();
+        let short = short.strip_prefix("mav_severity_").unwrap_or(&short);
+        Self::ALL.into_iter().find(|v| v.name() == short).ok_or_else(|| {
+            format!("severity '{s}': expected one of emergency, alert, critical, error, warning, notice, info, debug")
+        })
+    }
+}
+
+impl<'de> Deserialize<'de> for Severity {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        String::deserialize(d)?.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// What a rule watches, with its levels. Units are in the key names.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum AlertKind {
+    /// Remaining energy under `below_wh` Wh or `below_pct` % of capacity (one of them).
+    RemainingBelow {
+        below_wh: Option<f64>,
+        below_pct: Option<f64>,
+        clear_wh: Option<f64>,
+        clear_pct: Option<f64>,
+    },
+    /// Time to empty at the forecast power under `below_s`.
+    TimeToEmptyBelow { below_s: f64, clear_s: Option<f64> },
+    /// Remaining − energy to get home − reserve under `below_wh`.
+    HomeMarginBelow { below_wh: f64, clear_wh: Option<f64> },
+    /// Measured electrical power over `above_w`.
+    PowerAbove { above_w: f64, clear_w: Option<f64> },
+    /// |measured − predicted| over `above_w`, predicted by `model` (default: the energy
+    /// forecast's model rule: `lstm`, else the first).
+    DeviationAbove { above_w: f64, clear_w: Option<f64>, model: Option<String> },
+    /// The models' predictions spread (max − min) wider than `above_w`.
+    ModelsDisagree { above_w: f64, clear_w: Option<f64> },
+    /// Battery voltage per cell under `below_v`.
+    CellVoltageBelow { below_v: f64, clear_v: Option<f64> },
+    /// Every kinematic feature (position, attitude, velocity, rates, acceleration) stale for
+    /// `for_s`.
+    TelemetryLost {},
+}
+
+/// One `[[alerts]]` rule: the keys every kind shares, and its [`AlertKind`].
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(try_from = "toml::Table")]
 pub struct AlertRule {
     /// Rule name, unique; shown in every alert it raises.
     pub name: String,
+    /// How loud: a MAV_SEVERITY name. Default `warning`.
+    pub severity: Severity,
+    /// Debounce: the condition must hold this long before the alert raises, s. Default 0.
+    pub for_s: f64,
+    /// While raised, say it again this often, s; 0 says it once. Default 0.
+    pub repeat_s: f64,
+    /// Text of the alert, default the rule name; the value is appended.
+    pub message: Option<String>,
+    /// What it watches.
+    pub kind: AlertKind,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Common {
+    name: String,
+    #[serde(default = "default_severity")]
+    severity: Severity,
+    #[serde(default)]
+    for_s: f64,
+    #[serde(default)]
+    repeat_s: f64,
+    message: Option<String>,
+}
+
+fn default_severity() -> Severity {
+    Severity::Warning
+}
+
+impl TryFrom<toml::Table> for AlertRule {
+    type Error = String;
+    /// The shared keys come off first, the rest must be exactly one kind's keys: serde's
+    /// `flatten` cannot do this and still reject unknown keys.
+    fn try_from(mut t: toml::Table) -> Result<Self, String> {
+        let mut common = toml::Table::new();
+        for k in ["name", "severity", "for_s", "repeat_s", "message"] {
+            if let Some(v) = t.remove(k) {
+                common.insert(k.to_string(), v);
+            }
+        }
+        let c = Common::deserialize(common).map_err(|e| format!("alert rule: {}", e.message()))?;
+        let kind = AlertKind::deserialize(t).map_err(|e| format!("alert rule '{}': {}", c.name, e.message()))?;
+        Ok(AlertRule { name: c.name, severity: c.severity, for_s: c.for_s, repeat_s: c.repeat_s, message: c.message, kind })
+    }
+}
+
+/// Which way a level points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Dir {
+    Below,
+    Above,
+}
+
+/// A rule reduced to a number, a direction, a raise level and a clear level.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Levels {
+    dir: Dir,
+    raise: f64,
+    clear: f64,
+    /// Unit shown in messages.
+    unit: &'static str,
+    /// Key of the raise level, for errors.
+    key: &'static str,
+}
+
+impl AlertRule {
+    fn levels(&self) -> Result<Levels, String> {
+        use AlertKind as K;
+        let lv = |dir, raise: f64, clear: Option<f64>, unit, key| Levels { dir, raise, clear: clear.unwrap_or(raise), unit, key };
+        Ok(match &self.kind {
+            K::RemainingBelow { below_wh, below_pct, clear_wh, clear_pct } => match (below_wh, below_pct) {
+                (Some(wh), None) => {
+                    if clear_pct.is_some() {
+                        return Err("clear_pct: with below_wh, give the clear level as clear_wh".into());
+                    }
+                    lv(Dir::Below, *wh, *clear_wh, "Wh", "below_wh")
+                }
+                (None, Some(pct)) => {
+                    if clear_wh.is_some() {
+                        return Err("clear_wh: with below_pct, give the clear level as clear_pct".into());
+                    }
+                    lv(Dir::Below, *pct, *clear_pct, "%", "below_pct")
+                }
+                _ => return Err("kind 'remaining_below' needs exactly one of below_wh, below_pct".into()),
+            },
+            K::TimeToEmptyBelow { below_s, clear_s } => lv(Dir::Below, *below_s, *clear_s, "s", "below_s"),
+            K::HomeMarginBelow { below_wh, clear_wh } => lv(Dir::Below, *below_wh, *clear_wh, "Wh", "below_wh"),
+            K::PowerAbove { above_w, clear_w } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
+            K::DeviationAbove { above_w, clear_w, .. } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
+            K::ModelsDisagree { above_w, clear_w } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
+            K::CellVoltageBelow { below_v, clear_v } => lv(Dir::Below, *below_v, *clear_v, "V", "below_v"),
+            K::TelemetryLost {} => lv(Dir::Above, 0.5, None, "", "for_s"),
+        })
+    }
+
+    /// Check one rule; the message names the key and why (the caller adds the file and
+    /// the rule's position).
+    pub fn validate(&self) -> Result<(), String> {
+        if self.name.trim().is_empty() {
+            return Err("name: must not be empty".into());
+        }
+        if !(self.for_s.is_finite() && self.for_s >= 0.0) {
+            return Err(format!("for_s = {}: must be ≥ 0 s", self.for_s));
+        }
+        if !(self.repeat_s.is_finite() && self.repeat_s >= 0.0) {
+            return Err(format!("repeat_s = {}: must be ≥ 0 s (0: say it once)", self.repeat_s));
+        }
+        if matches!(self.kind, AlertKind::TelemetryLost {}) && self.for_s <= 0.0 {
+            return Err("for_s: telemetry_lost needs for_s > 0 (how long before the link counts as lost)".into());
+        }
+        let l = self.levels()?;
+        if !l.raise.is_finite() || !l.clear.is_finite() {
+            return Err(format!("{}: levels must be finite numbers", l.key));
+        }
+        let clear_key = l.key.replace("below", "clear").replace("above", "clear");
+        match l.dir {
+            Dir::Below if l.clear < l.raise => {
+                return Err(format!("{clear_key} = {}: must be ≥ {} = {} (it clears above the level it raises under)", l.clear, l.key, l.raise))
+            }
+            Dir::Above if l.clear > l.raise => {
+                return Err(format!("{clear_key} = {}: must be ≤ {} = {} (it clears below the level it raises over)", l.clear, l.key, l.raise))
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// One line saying what the rule does, for `check-config`.
+    pub fn describe(&self) -> String {
+        let Ok(l) = self.levels() else { return format!("{}: invalid", self.name) };
+        let what = match &self.kind {
+            AlertKind::RemainingBelow { .. } => "remaining energy",
+            AlertKind::TimeToEmptyBelow { .. } => "time to empty",
+            AlertKind::HomeMarginBelow { .. } => "home-reserve margin",
+            AlertKind::PowerAbove { .. } => "measured power",
+            AlertKind::DeviationAbove { .. } => "|measured − predicted|",
+            AlertKind::ModelsDisagree { .. } => "model spread",
+            AlertKind::CellVoltageBelow { .. } => "cell voltage",
+            AlertKind::TelemetryLost {} => "telemetry",
+        };
+        let cond = if matches!(self.kind, AlertKind::TelemetryLost {}) {
+            "lost".to_string()
+        } else {
+            let (op, cop) = if l.dir == Dir::Below { ("<", "≥") } else { (">", "≤") };
+            format!("{op} {} {}, clears {cop} {} {}", l.raise, l.unit, l.clear, l.unit)
+        };
+        let repeat = if self.repeat_s > 0.0 { format!(", repeats every {} s", self.repeat_s) } else { String::new() };
+        format!("{} [{}]: {what} {cond}, for {} s{repeat}", self.name, self.severity, self.for_s)
+    }
+}
+
+/// Check a rule list: each rule, and names unique. Errors say `alerts[i] (name).key: why`.
+pub fn validate_rules(rules: &[AlertRule]) -> Result<(), String> {
+    for (i, r) in rules.iter().enumerate() {
+        r.validate().map_err(|e| format!("alerts[{i}] ({}).{e}", r.name))?;
+        if rules[..i].iter().any(|o| o.name == r.name) {
+            return Err(format!("alerts[{i}].name = '{}': another rule already has this name", r.name));
+        }
+    }
+    Ok(())
+}
+
+/// Bitmask of the kinematic features (position, attitude, velocity, rates, acceleration):
+/// all of them stale means the vehicle's telemetry is gone, whatever wind does.
+const KINEMATIC_MASK: u32 = {
+    let mut m = 0u32;
+    let mut i = crate::telemetry::idx::POS_X;
+    while i <= crate::telemetry::idx::AZ {
+        m |= 1 << i;
+        i += 1;
+    }
+    m
+};
+
+/// The rule's value at one estimate, in its level's unit; None when unknown.
+fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
+    use AlertKind as K;
+    let measured = est.sample.measured_w.map(f64::from).filter(|v| v.is_finite());
+    match &rule.kind {
+        K::RemainingBelow { below_wh: Some(_), .. } => en.remaining_wh,
+        K::RemainingBelow { .. } => en.remaining_pct,
+        K::TimeToEmptyBelow { .. } => en.time_to_empty_s,
+        K::HomeMarginBelow { .. } => en.home_margin_wh,
+        K::PowerAbove { .. } => measured,
+        K::DeviationAbove { model, .. } => {
+            let m = match model {
+                Some(n) => est.models.iter().find(|m| &m.name == n),
+                None => est.models.iter().find(|m| m.name == "lstm").or(est.models.first()),
+            }?;
+            Some((measured? - f64::from(m.power_w)).abs()).filter(|v| v.is_finite())
+        }
+        K::ModelsDisagree { .. } => {
+            let ps = est.models.iter().map(|m| f64::from(m.power_w)).filter(|p| p.is_finite());
+            let (lo, hi) = ps.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
+            (est.models.len() >= 2 && hi >= lo).then_some(hi - lo)
+        }
+        K::CellVoltageBelow { .. } => en.cell_voltage_v,
+        K::TelemetryLost {} => Some(if est.sample.stale_mask & KINEMATIC_MASK == KINEMATIC_MASK { 1.0 } else { 0.0 }),
+    }
+}
+
+/// Where one rule stands.
+#[derive(Debug, Clone, Copy, Default)]
+struct RuleState {
+    /// Since when the raise condition has held (debounce), while not raised.
+    pending_since: Option<f64>,
+    /// Raised, and when it last said so.
+    raised_at: Option<f64>,
+    /// Last estimate time seen, to notice clocks going backwards.
+    last_t: Option<f64>,
 }
 
 /// Evaluates every rule on every report.
-pub struct AlertEngine {}
+pub struct AlertEngine {
+    rules: Vec<(AlertRule, Levels, RuleState)>,
+}
 
 impl AlertEngine {
     /// Check and compile the rules.
     pub fn new(rules: &[AlertRule]) -> anyhow::Result<Self> {
-        let _ = rules;
-        Ok(Self {})
+        validate_rules(rules).map_err(anyhow::Error::msg)?;
+        let mut compiled = Vec::with_capacity(rules.len());
+        for r in rules {
+            let l = r.levels().map_err(anyhow::Error::msg)?;
+            compiled.push((r.clone(), l, RuleState::default()));
+        }
+        Ok(Self { rules: compiled })
     }
+
     /// Events raised or cleared by this estimate.
-    pub fn evaluate(&mut self, est: &crate::model::Estimate, energy: &crate::energy::EnergyState) -> Vec<AlertEvent> {
-        let _ = (est, energy);
-        Vec::new()
+    pub fn evaluate(&mut self, est: &Estimate, energy: &EnergyState) -> Vec<AlertEvent> {
+        let t = est.t_s;
+        let mut events = Vec::new();
+        if !t.is_finite() {
+            return events;
+        }
+        for (rule, l, st) in &mut self.rules {
+            if st.last_t.is_some_and(|t0| t < t0) {
+                // The clock went backwards (a new replay, a rebooted autopilot): restart the
+                // debounce and repeat timers; a raised alert stays raised until it clears.
+                st.pending_since = None;
+                st.raised_at = st.raised_at.map(|_| t);
+            }
+            st.last_t = Some(t);
+            let Some(v) = value(rule, est, energy) else { continue };
+            let (raising, clearing) = match l.dir {
+                Dir::Below => (v < l.raise, v >= l.clear),
+                Dir::Above => (v > l.raise, v <= l.clear),
+            };
+            let mut emit = |state, text: String| {
+                events.push(AlertEvent { t, rule: rule.name.clone(), severity: rule.severity.name().to_string(), state, message: text })
+            };
+            let text = |prefix: &str| {
+                let head = rule.message.as_deref().unwrap_or(&rule.name);
+                if matches!(rule.kind, AlertKind::TelemetryLost {}) {
+                    format!("{prefix}{head}")
+                } else {
+                    format!("{prefix}{head} {}{}", fmt_value(v), l.unit)
+                }
+            };
+            match st.raised_at {
+                None if raising => {
+                    let since = *st.pending_since.get_or_insert(t);
+                    if t - since >= rule.for_s {
+                        st.raised_at = Some(t);
+                        st.pending_since = None;
+                        emit(AlertState::Raised, text(""));
+                    }
+                }
+                None => st.pending_since = None,
+                Some(_) if clearing => {
+                    st.raised_at = None;
+                    emit(AlertState::Cleared, text("cleared: "));
+                }
+                Some(last) => {
+                    if rule.repeat_s > 0.0 && t - last >= rule.repeat_s {
+                        st.raised_at = Some(t);
+                        emit(AlertState::Raised, text(""));
+                    }
+                }
+            }
+        }
+        events
+    }
+}
+
+/// A value short enough for a 50-byte STATUSTEXT: integers above 100, one decimal below.
+fn fmt_value(v: f64) -> String {
+    if v.abs() >= 100.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{v:.1}")
     }
 }

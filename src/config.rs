@@ -54,6 +54,10 @@ impl Config {
     /// Checks serde cannot express (ranges, cross-field rules). The message names the key.
     pub fn validate(&self) -> Result<(), String> {
         self.telemetry.validate()?;
+        self.energy.validate()?;
+        crate::alert::validate_rules(&self.alerts)?;
+        self.sinks.mavlink.validate()?;
+        self.sinks.web.validate()?;
         Ok(())
     }
 }

@@ -1,18 +1,60 @@
 //! Energy used, remaining energy and time, energy to get home. Owner: energy (issue 6).
+//!
+//! The tracker turns a stream of [`Estimate`]s into an [`EnergyState`]:
+//!
+//! - **energy used** `E_used = ∫ P dt`, trapezoidal, Wh. `P` is the measured electrical power
+//!   V·I when the sample has it, else the predicted power of the *forecast model* (the one
+//!   `[energy] model` names, else `lstm`, else the first model that ran). Which one was
+//!   integrated is in [`EnergyState::power_source`]. A step longer than `max_dt_s` (a gap,
+//!   a lost link) is capped at `max_dt_s`, and a step backwards (a clock jump, a new
+//!   replay) integrates nothing: one bad timestamp cannot add or remove an hour.
+//! - **remaining** `E_rem = E_cap − E_used`, or `E_cap · pct / 100` when the autopilot reports
+//!   a battery percentage (BATTERY_STATUS `battery_remaining`). `E_cap` is `capacity_wh`,
+//!   default the DJI TB48D: 5700 mAh × 22.8 V = 129.96 Wh.
+//! - **forecast power** `P_f`: an exponential moving average (time constant `smoothing_s`)
+//!   of the forecast model's prediction, or of the measured power when no model runs.
+//! - **time to empty** `t_empty = 3600 · E_rem / P_f`, s.
+//! - **energy to get home** `E_home = P_cruise · d / v_cruise + P_hover · (h / v_descent + t_land)`,
+//!   Wh after dividing by 3600, where `d` and `h` are the horizontal distance to home and
+//!   the height above it (m, from the sample's home vector), `v_cruise` is `cruise_speed_m_s`
+//!   (default the mission's commanded speed, else 10 m/s), `P_cruise` the smoothed forecast
+//!   power while the vehicle moved at ≥ half the cruise speed (else `P_f`), `P_hover` the
+//!   smoothed forecast power while it moved slower (else `P_cruise`): descending and landing
+//!   cost about what hovering does on a multirotor.
+//! - **home margin** `E_rem − E_home − E_reserve`, `E_reserve = reserve_pct/100 · E_cap`.
 
 use crate::model::Estimate;
+use crate::telemetry::idx;
 
-/// Energy bookkeeping at one estimate.
+/// Energy bookkeeping at one estimate. Absent values mean "not known yet" (no power seen,
+/// no home), never zero.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct EnergyState {
     /// Energy drawn so far, Wh.
     pub energy_used_wh: f64,
+    /// What `energy_used_wh` integrated at this step: `"measured"`, a model's name, or
+    /// `"none"` when neither was available.
+    pub power_source: String,
     /// Remaining usable energy, Wh, when known.
     pub remaining_wh: Option<f64>,
+    /// Remaining energy as a percentage of the capacity.
+    pub remaining_pct: Option<f64>,
+    /// Where `remaining_wh` comes from: `"capacity"` (capacity minus used) or `"battery"`
+    /// (the autopilot's reported percentage).
+    pub remaining_source: String,
+    /// Smoothed power the forecasts assume, W.
+    pub forecast_w: Option<f64>,
+    /// The model whose prediction the forecast follows, when a model ran (else the
+    /// forecast follows measured power).
+    pub forecast_model: Option<String>,
     /// Time to empty at the forecast power, s.
     pub time_to_empty_s: Option<f64>,
+    /// Energy needed to fly home, descend and land, Wh (needs a home position).
+    pub home_energy_wh: Option<f64>,
     /// Remaining minus energy to get home minus reserve, Wh.
     pub home_margin_wh: Option<f64>,
+    /// Battery voltage per cell, V (voltage / `cell_count`), when the voltage is known.
+    pub cell_voltage_v: Option<f64>,
 }
 
 /// What the energy + alerts stage sends to every sink.
@@ -24,22 +66,312 @@ pub struct Report {
 }
 
 /// Battery and home-return assumptions (the `[energy]` table).
-#[derive(Debug, Clone, Default, serde::Deserialize)]
+#[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct EnergyConfig {}
+pub struct EnergyConfig {
+    /// Usable battery energy when full, Wh. Default 129.96 (DJI TB48D: 5700 mAh × 22.8 V).
+    pub capacity_wh: f64,
+    /// Cells in series, for per-cell voltage alerts. Default 6 (TB48D is 6S).
+    pub cell_count: u32,
+    /// Energy kept in reserve at landing, % of capacity. Default 20.
+    pub reserve_pct: f64,
+    /// Model whose prediction is the forecast (and is integrated when nothing is measured).
+    /// Default: `lstm` if it runs, else the first model that ran.
+    pub model: Option<String>,
+    /// Time constant of the forecast power's moving average, s. Default 10.
+    pub smoothing_s: f64,
+    /// Ground speed flying home, m/s. Default: `[mission] speed_m_s`, else 10.
+    pub cruise_speed_m_s: Option<f64>,
+    /// Descent rate for the final descent, m/s. Default 2 (the M100 allows 4).
+    pub descent_speed_m_s: f64,
+    /// Time for the final approach and touchdown, s, at hover power. Default 15.
+    pub landing_s: f64,
+    /// Longest step integrated as one, s; longer gaps are capped. Default 1.
+    pub max_dt_s: f64,
+}
+
+impl Default for EnergyConfig {
+    fn default() -> Self {
+        Self {
+            capacity_wh: 5.7 * 22.8,
+            cell_count: 6,
+            reserve_pct: 20.0,
+            model: None,
+            smoothing_s: 10.0,
+            cruise_speed_m_s: None,
+            descent_speed_m_s: 2.0,
+            landing_s: 15.0,
+            max_dt_s: 1.0,
+        }
+    }
+}
+
+impl EnergyConfig {
+    /// Range checks; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        let positive = |key: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("energy.{key} = {v}: must be a positive number"))
+            }
+        };
+        positive("capacity_wh", self.capacity_wh)?;
+        positive("smoothing_s", self.smoothing_s)?;
+        positive("descent_speed_m_s", self.descent_speed_m_s)?;
+        positive("max_dt_s", self.max_dt_s)?;
+        if let Some(v) = self.cruise_speed_m_s {
+            positive("cruise_speed_m_s", v)?;
+        }
+        if !(self.landing_s.is_finite() && self.landing_s >= 0.0) {
+            return Err(format!("energy.landing_s = {}: must be ≥ 0", self.landing_s));
+        }
+        if !(0.0..100.0).contains(&self.reserve_pct) {
+            return Err(format!("energy.reserve_pct = {}: must be in [0, 100)", self.reserve_pct));
+        }
+        if !(1..=24).contains(&self.cell_count) {
+            return Err(format!("energy.cell_count = {}: must be 1..=24 cells", self.cell_count));
+        }
+        Ok(())
+    }
+}
+
+/// An exponential moving average over irregular time steps.
+#[derive(Debug, Clone, Copy, Default)]
+struct Ema(Option<f64>);
+
+impl Ema {
+    fn update(&mut self, x: f64, dt_s: f64, tau_s: f64) -> f64 {
+        let v = match self.0 {
+            None => x,
+            Some(prev) => prev + (1.0 - (-dt_s / tau_s).exp()) * (x - prev),
+        };
+        self.0 = Some(v);
+        v
+    }
+}
 
 /// Integrates power into energy and forecasts what is left.
-pub struct EnergyTracker {}
+pub struct EnergyTracker {
+    cfg: EnergyConfig,
+    cruise_speed_m_s: f64,
+    last: Option<(f64, f64)>,
+    used_wh: f64,
+    forecast: Ema,
+    cruise: Ema,
+    hover: Ema,
+}
 
 impl EnergyTracker {
     /// A tracker for this configuration's battery and reserve.
     pub fn new(cfg: &crate::config::Config) -> anyhow::Result<Self> {
-        let _ = cfg;
-        Ok(Self {})
+        cfg.energy.validate().map_err(anyhow::Error::msg)?;
+        let cruise = cfg
+            .energy
+            .cruise_speed_m_s
+            .or(cfg.mission.speed_m_s.map(f64::from))
+            .filter(|v| *v > 0.0)
+            .unwrap_or(10.0);
+        Ok(Self {
+            cfg: cfg.energy.clone(),
+            cruise_speed_m_s: cruise,
+            last: None,
+            used_wh: 0.0,
+            forecast: Ema::default(),
+            cruise: Ema::default(),
+            hover: Ema::default(),
+        })
     }
+
     /// Account for one estimate.
     pub fn update(&mut self, est: &Estimate) -> EnergyState {
-        let _ = est;
-        EnergyState::default()
+        // BATTERY_STATUS' percentage is not carried by `Sample` yet (asked of telemetry).
+        self.update_with_battery(est, None)
+    }
+
+    /// Account for one estimate, with the autopilot's reported remaining charge (%,
+    /// BATTERY_STATUS `battery_remaining`) when it sends one.
+    pub fn update_with_battery(&mut self, est: &Estimate, battery_pct: Option<f64>) -> EnergyState {
+        let s = &est.sample;
+        let model = self.forecast_model(est);
+        let predicted = model.map(|m| f64::from(m.power_w)).filter(|p| p.is_finite());
+        let measured = s.measured_w.map(f64::from).filter(|p| p.is_finite());
+        let (power, power_source) = match (measured, predicted) {
+            (Some(p), _) => (Some(p), "measured".to_string()),
+            (None, Some(p)) => (Some(p), model.map_or_else(String::new, |m| m.name.clone())),
+            (None, None) => (None, "none".to_string()),
+        };
+
+        // Step length: capped on gaps, nothing on a backwards jump or the first estimate.
+        let t = est.t_s;
+        let dt = match self.last {
+            Some((t0, _)) if t.is_finite() && t > t0 => (t - t0).min(self.cfg.max_dt_s),
+            _ => 0.0,
+        };
+        if let Some(p) = power {
+            let p0 = self.last.map_or(p, |(_, p0)| p0);
+            self.used_wh += 0.5 * (p0 + p) * dt / 3600.0;
+            if t.is_finite() {
+                self.last = Some((t, p));
+            }
+        } else if t.is_finite() {
+            // Nothing to integrate: keep the previous power, move the clock on.
+            self.last = self.last.map(|(_, p0)| (t, p0));
+        }
+
+        let tau = self.cfg.smoothing_s;
+        let forecast_input = predicted.or(measured);
+        let forecast = forecast_input.map(|p| self.forecast.update(p, dt, tau));
+        if let Some(p) = forecast_input {
+            let vx = f64::from(s.features[idx::VX]);
+            let vy = f64::from(s.features[idx::VY]);
+            let ground_speed = vx.hypot(vy);
+            if ground_speed.is_finite() && ground_speed >= 0.5 * self.cruise_speed_m_s {
+                self.cruise.update(p, dt, tau);
+            } else if s.home.is_some_and(|h| h.height_m > 2.0) {
+                self.hover.update(p, dt, tau);
+            }
+        }
+
+        let cap = self.cfg.capacity_wh;
+        let (remaining, remaining_source) = match battery_pct.filter(|p| (0.0..=100.0).contains(p)) {
+            Some(pct) => (cap * pct / 100.0, "battery"),
+            None => ((cap - self.used_wh).max(0.0), "capacity"),
+        };
+        let time_to_empty_s = forecast.filter(|p| *p > 1.0).map(|p| 3600.0 * remaining / p);
+        let home_energy_wh = s.home.and_then(|h| {
+            let p_cruise = self.cruise.0.or(forecast)?;
+            let p_hover = self.hover.0.unwrap_or(p_cruise);
+            let d = f64::from(h.distance_m).max(0.0);
+            let height = f64::from(h.height_m).max(0.0);
+            let flight_s = d / self.cruise_speed_m_s;
+            let down_s = height / self.cfg.descent_speed_m_s + self.cfg.landing_s;
+            let wh = (p_cruise * flight_s + p_hover * down_s) / 3600.0;
+            wh.is_finite().then_some(wh)
+        });
+        let reserve = cap * self.cfg.reserve_pct / 100.0;
+        EnergyState {
+            energy_used_wh: self.used_wh,
+            power_source,
+            remaining_wh: Some(remaining),
+            remaining_pct: Some(100.0 * remaining / cap),
+            remaining_source: remaining_source.to_string(),
+            forecast_w: forecast,
+            forecast_model: predicted.and(model).map(|m| m.name.clone()),
+            time_to_empty_s,
+            home_energy_wh,
+            home_margin_wh: home_energy_wh.map(|e| remaining - e - reserve),
+            cell_voltage_v: s
+                .voltage_v
+                .map(f64::from)
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .map(|v| v / f64::from(self.cfg.cell_count)),
+        }
+    }
+
+    /// The model whose prediction is the forecast: the configured one, else `lstm`, else
+    /// the first that ran.
+    fn forecast_model<'a>(&self, est: &'a Estimate) -> Option<&'a crate::model::ModelEstimate> {
+        let by_name = |n: &str| est.models.iter().find(|m| m.name == n);
+        match &self.cfg.model {
+            Some(n) => by_name(n),
+            None => by_name("lstm").or(est.models.first()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ModelEstimate;
+    use crate::telemetry::{HomeVector, Sample, N_FEATURES};
+
+    fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
+        Estimate {
+            t_s,
+            sample: Sample {
+                t_s,
+                features: [0.0; N_FEATURES],
+                measured_w,
+                voltage_v: Some(22.8),
+                home: None,
+                stale_mask: 0,
+            },
+            models: models
+                .iter()
+                .map(|(n, p)| ModelEstimate { name: n.to_string(), power_w: *p, band_w: None })
+                .collect(),
+        }
+    }
+
+    fn tracker(energy: EnergyConfig) -> EnergyTracker {
+        let cfg = crate::config::Config { energy, ..Default::default() };
+        EnergyTracker::new(&cfg).unwrap()
+    }
+
+    #[test]
+    fn integrates_measured_power_and_caps_gaps() {
+        let mut tr = tracker(EnergyConfig::default());
+        // 360 W for 10 s at 10 Hz = 1 Wh.
+        let mut st = EnergyState::default();
+        for i in 0..=100 {
+            st = tr.update(&est(i as f64 * 0.1, Some(360.0), &[("tseng", 100.0)]));
+        }
+        assert!((st.energy_used_wh - 1.0).abs() < 1e-9, "{}", st.energy_used_wh);
+        assert_eq!(st.power_source, "measured");
+        // A 100 s gap counts as max_dt_s (1 s): 0.1 Wh, not 10 Wh.
+        let st = tr.update(&est(110.0, Some(360.0), &[]));
+        assert!((st.energy_used_wh - 1.1).abs() < 1e-9);
+        // A jump backwards integrates nothing.
+        let st = tr.update(&est(5.0, Some(360.0), &[]));
+        assert!((st.energy_used_wh - 1.1).abs() < 1e-9);
+        // Voltage per cell from the 6S default.
+        assert!((st.cell_voltage_v.unwrap() - 3.8).abs() < 1e-6);
+    }
+
+    #[test]
+    fn falls_back_to_the_preferred_model_and_says_so() {
+        let mut tr = tracker(EnergyConfig::default());
+        let mut st = EnergyState::default();
+        for i in 0..=10 {
+            st = tr.update(&est(i as f64, None, &[("tseng", 100.0), ("lstm", 720.0)]));
+        }
+        assert_eq!(st.power_source, "lstm");
+        assert!((st.energy_used_wh - 2.0).abs() < 1e-9);
+        // Nothing at all: nothing integrated, nothing forecast, and it says "none".
+        let mut tr = tracker(EnergyConfig::default());
+        let st = tr.update(&est(0.0, None, &[]));
+        assert_eq!(st.power_source, "none");
+        assert_eq!(st.time_to_empty_s, None);
+        assert_eq!(st.remaining_wh, Some(129.96));
+    }
+
+    #[test]
+    fn remaining_time_and_home_margin() {
+        let cfg = EnergyConfig { capacity_wh: 100.0, reserve_pct: 10.0, landing_s: 0.0, ..Default::default() };
+        let mut tr = tracker(cfg);
+        let mut e = est(0.0, Some(360.0), &[("m", 360.0)]);
+        e.sample.home = Some(HomeVector { distance_m: 1000.0, height_m: 20.0 });
+        e.sample.features[idx::VX] = 10.0;
+        let st = tr.update(&e);
+        // 100 Wh at 360 W: 1000 s.
+        assert!((st.time_to_empty_s.unwrap() - 1000.0).abs() < 1e-6);
+        // Home: 1000 m at 10 m/s = 100 s, 20 m at 2 m/s = 10 s, at 360 W: 11 Wh.
+        assert!((st.home_energy_wh.unwrap() - 11.0).abs() < 1e-9);
+        assert!((st.home_margin_wh.unwrap() - (100.0 - 11.0 - 10.0)).abs() < 1e-9);
+        // The autopilot's percentage wins over capacity − used.
+        let st = tr.update_with_battery(&e, Some(40.0));
+        assert_eq!(st.remaining_wh, Some(40.0));
+        assert_eq!(st.remaining_source, "battery");
+    }
+
+    #[test]
+    fn rejects_nonsense_config() {
+        let cfg = crate::config::Config {
+            energy: EnergyConfig { capacity_wh: -1.0, ..Default::default() },
+            ..Default::default()
+        };
+        let err = EnergyTracker::new(&cfg).err().unwrap().to_string();
+        assert!(err.contains("energy.capacity_wh"), "{err}");
     }
 }

@@ -83,6 +83,7 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "dronewatt=info,warn".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     match real_main(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
@@ -110,7 +111,11 @@ fn real_main(cli: Cli) -> Result<()> {
             };
             run_pipeline(source, run)
         }
-        Command::Monitor { address, run } => run_pipeline(SourceSpec::Link(address), run),
+        Command::Monitor { address, run } => {
+            // A malformed address fails here, before anything starts, with one line.
+            address.parse::<dronewatt::source::link::LinkAddress>()?;
+            run_pipeline(SourceSpec::Link(address), run)
+        }
         Command::Convert(a) => dronewatt::source::dataset::run(a),
         Command::Simulate(a) => dronewatt::source::sim::run(a),
         Command::Eval(a) => dronewatt::offline::eval::run(a),
@@ -119,10 +124,45 @@ fn real_main(cli: Cli) -> Result<()> {
         Command::Sensitivity(a) => dronewatt::offline::sensitivity::run(a),
         Command::CheckConfig { file } => {
             let cfg = Config::load(&file)?;
-            println!("{}: ok ({} alert rules)", file.display(), cfg.alerts.len());
+            print!("{}", describe_config(&file, &cfg));
             Ok(())
         }
     }
+}
+
+/// What `check-config` prints: what the file sets up, in words.
+fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
+    let e = &cfg.energy;
+    let mut out = format!("{}: ok\n", file.display());
+    out += &format!(
+        "energy: capacity {:.2} Wh, {} cells, reserve {}%, forecast model {}, smoothing {} s\n",
+        e.capacity_wh,
+        e.cell_count,
+        e.reserve_pct,
+        e.model.as_deref().unwrap_or("lstm, else the first"),
+        e.smoothing_s
+    );
+    out += &format!("alerts: {} rule(s)\n", cfg.alerts.len());
+    for r in &cfg.alerts {
+        out += &format!("  {}\n", r.describe());
+    }
+    let m = &cfg.sinks.mavlink;
+    let mav_on = match m.enabled {
+        Some(true) => "on",
+        Some(false) => "off",
+        None if m.address.is_some() => "on",
+        None => "on when monitoring a link",
+    };
+    out += &format!(
+        "sinks.mavlink: {mav_on}, to {}, as system {} component {}, estimates at {} Hz\n",
+        m.address.as_deref().unwrap_or("the monitored link"),
+        m.system_id,
+        m.component_id,
+        m.rate_hz
+    );
+    let w = &cfg.sinks.web;
+    out += &format!("sinks.web: {}\n", if w.enabled { format!("on, http://{}/", w.bind) } else { "off".into() });
+    out
 }
 
 fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
@@ -136,6 +176,17 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     }
     if let Some(j) = &run.json {
         sinks.push(SinkSpec::Json(if j == "-" { JsonTarget::Stdout } else { JsonTarget::File(j.into()) }));
+    }
+    // MAVLink back to the ground station: on by default when watching a live link (so
+    // `monitor udpin:…` answers the ground station with no config at all), or wherever
+    // the config gives an address.
+    let mav = &config.sinks.mavlink;
+    let live = matches!(source, SourceSpec::Link(_));
+    if mav.enabled.unwrap_or(live || mav.address.is_some()) {
+        sinks.push(SinkSpec::Mavlink(mav.clone()));
+    }
+    if config.sinks.web.enabled {
+        sinks.push(SinkSpec::Web(config.sinks.web.clone()));
     }
     let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     rt.block_on(async move {

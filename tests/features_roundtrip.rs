@@ -6,7 +6,7 @@
 //! Needs the data set (`DRONEWATT_DATA`, default `../shared/data/m100/flights.csv.gz`).
 
 use dronewatt::offline::data::flight_windows;
-use dronewatt::source::dataset::{epoch_base_us, read_flights, Flight};
+use dronewatt::source::dataset::{read_flights, Flight};
 use dronewatt::telemetry::resample::{Resampler, Signal};
 use dronewatt::telemetry::{idx, TelemetryConfig, FEATURE_NAMES, N_FEATURES};
 use dronewatt::window::{Window, WindowRing};
@@ -73,7 +73,8 @@ fn check_flight(flight: u32) -> (usize, usize) {
     let got = flight_windows(f, &cfg).windows;
     assert_eq!(got.len(), want.len(), "flight {flight}: window count");
     assert!(!got.is_empty());
-    let base_s = epoch_base_us(f) as f64 / 1e6;
+    // decode_tlog counts t_s from the first record, which is the first row.
+    let base_s = -f.rows[0].time_s;
     let row_t: Vec<f64> = f.rows.iter().map(|r| r.time_s).collect();
     let mut compared = 0;
     for (wi, (g, w)) in got.iter().zip(&want).enumerate() {

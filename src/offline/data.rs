@@ -78,47 +78,11 @@ pub fn flight_windows(f: &dataset::Flight, cfg: &TelemetryConfig) -> FlightWindo
     let stats = crate::source::IngestStats::default();
     let mut tel = Telemetry::new(cfg, &MissionConfig::default());
     let mut windows = Vec::new();
-    for m in decode_tlog_bytes(&bytes, &stats) {
+    for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);
     FlightWindows { flight: f.flight, route: f.route.clone(), windows }
-}
-
-// TODO(merge): use source::tlog::decode_tlog
-/// Stand-in for `source::tlog::decode_tlog` until it lands: reads the tlogs our own encoder
-/// writes (8-byte big-endian µs stamp, then one MAVLink 2 frame, unsigned).
-fn decode_tlog_bytes(bytes: &[u8], stats: &crate::source::IngestStats) -> Vec<crate::source::TimedMessage> {
-    use mavlink::Message;
-    let mut out = Vec::with_capacity(bytes.len() / 40);
-    let mut i = 0;
-    while i + 8 + 12 <= bytes.len() {
-        let mut ts = [0u8; 8];
-        ts.copy_from_slice(&bytes[i..i + 8]);
-        let t_us = u64::from_be_bytes(ts);
-        let f = &bytes[i + 8..];
-        if f[0] != 0xFD {
-            crate::source::IngestStats::add(&stats.frames_bad, 1);
-            break;
-        }
-        let len = f[1] as usize;
-        let total = 10 + len + 2;
-        if f.len() < total {
-            crate::source::IngestStats::add(&stats.frames_bad, 1);
-            break;
-        }
-        let header = mavlink::MavHeader { sequence: f[4], system_id: f[5] as u32, component_id: f[6] };
-        let msgid = u32::from_le_bytes([f[7], f[8], f[9], 0]);
-        match crate::MavMessage::parse(mavlink::MavlinkVersion::V2, msgid, &f[10..10 + len]) {
-            Ok(msg) => {
-                crate::source::IngestStats::add(&stats.frames_ok, 1);
-                out.push(crate::source::TimedMessage { t_s: t_us as f64 / 1e6, header, msg });
-            }
-            Err(_) => crate::source::IngestStats::add(&stats.frames_bad, 1),
-        }
-        i += 8 + total;
-    }
-    out
 }
 
 /// A data-set flight's mission facts, as [`list_flights`] reports them.

@@ -1,0 +1,222 @@
+//! Alert rules on synthetic estimate sequences: debounce, hysteresis, repeat, every kind's
+//! value, and configuration errors that name the file, the key and why.
+
+use dronewatt::alert::{AlertEngine, AlertEvent, AlertState};
+use dronewatt::config::Config;
+use dronewatt::energy::EnergyState;
+use dronewatt::model::{Estimate, ModelEstimate};
+use dronewatt::telemetry::{Sample, N_FEATURES};
+
+fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
+    Estimate {
+        t_s,
+        sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w, voltage_v: None, home: None, stale_mask: 0 },
+        models: models.iter().map(|(n, p)| ModelEstimate { name: n.to_string(), power_w: *p, band_w: None }).collect(),
+    }
+}
+
+fn energy(remaining_wh: f64) -> EnergyState {
+    EnergyState { remaining_wh: Some(remaining_wh), remaining_pct: Some(remaining_wh / 129.96 * 100.0), ..Default::default() }
+}
+
+fn parse(toml_text: &str) -> Config {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("alerts.toml");
+    std::fs::write(&p, toml_text).unwrap();
+    Config::load(&p).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn load_err(toml_text: &str) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad.toml");
+    std::fs::write(&p, toml_text).unwrap();
+    match Config::load(&p) {
+        Ok(_) => panic!("accepted:\n{toml_text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// Feed `(t, remaining_wh)` pairs; collect the events.
+fn run(engine: &mut AlertEngine, seq: &[(f64, f64)]) -> Vec<AlertEvent> {
+    seq.iter().flat_map(|&(t, wh)| engine.evaluate(&est(t, Some(300.0), &[]), &energy(wh))).collect()
+}
+
+#[test]
+fn hysteresis_raises_once_on_a_noisy_crossing() {
+    let cfg = parse(
+        r#"
+        [[alerts]]
+        name = "low"
+        kind = "remaining_below"
+        below_wh = 30
+        clear_wh = 33
+        "#,
+    );
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    // Remaining falls through 30 Wh with ±1.5 Wh noise: it crosses 30 many times.
+    let seq: Vec<(f64, f64)> =
+        (0..200).map(|i| (i as f64 * 0.1, 35.0 - i as f64 * 0.05 + if i % 2 == 0 { 1.5 } else { -1.5 })).collect();
+    let crossings = seq.windows(2).filter(|w| (w[0].1 < 30.0) != (w[1].1 < 30.0)).count();
+    assert!(crossings > 5, "the sequence must be noisy around the level ({crossings})");
+    let ev = run(&mut eng, &seq);
+    assert_eq!(ev.len(), 1, "{ev:?}");
+    assert_eq!(ev[0].state, AlertState::Raised);
+    assert_eq!(ev[0].severity, "warning");
+    assert!(ev[0].message.starts_with("low "), "{}", ev[0].message);
+    // It clears only above 33 Wh (a charged battery swapped in), once.
+    let ev = run(&mut eng, &[(21.0, 32.0), (21.1, 33.5), (21.2, 34.0)]);
+    assert_eq!(ev.len(), 1);
+    assert_eq!(ev[0].state, AlertState::Cleared);
+    assert_eq!(ev[0].t, 21.1);
+}
+
+#[test]
+fn without_hysteresis_the_same_crossing_flaps() {
+    // The control for the test above: the clear level at the raise level flaps on noise.
+    let cfg = parse("[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\n");
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let seq: Vec<(f64, f64)> = (0..40).map(|i| (i as f64 * 0.1, if i % 2 == 0 { 31.0 } else { 29.0 })).collect();
+    let ev = run(&mut eng, &seq);
+    // The first step is above the level; every one after it raises or clears.
+    assert_eq!(ev.len(), 39, "raise and clear on every step");
+}
+
+#[test]
+fn debounce_needs_the_condition_to_hold_for_for_s() {
+    let cfg = parse(
+        r#"
+        [[alerts]]
+        name = "spike"
+        kind = "power_above"
+        above_w = 800
+        clear_w = 700
+        for_s = 2
+        severity = "MAV_SEVERITY_CRITICAL"
+        "#,
+    );
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let e0 = EnergyState::default();
+    // A 1.5 s spike (t 1.0..=2.5) does not raise.
+    let mut ev = Vec::new();
+    for i in 0..50 {
+        let t = i as f64 * 0.1;
+        let p = if (1.0..=2.5).contains(&t) { 900.0 } else { 500.0 };
+        ev.extend(eng.evaluate(&est(t, Some(p), &[]), &e0));
+    }
+    assert!(ev.is_empty(), "{ev:?}");
+    // A sustained one raises exactly for_s after it began.
+    for i in 50..100 {
+        let t = i as f64 * 0.1;
+        ev.extend(eng.evaluate(&est(t, Some(900.0), &[]), &e0));
+    }
+    assert_eq!(ev.len(), 1, "{ev:?}");
+    assert!((ev[0].t - 7.0).abs() < 1e-9, "raised at {}", ev[0].t);
+    assert_eq!(ev[0].severity, "critical");
+    // Unknown measured power neither raises nor clears.
+    assert!(eng.evaluate(&est(10.0, None, &[]), &e0).is_empty());
+}
+
+#[test]
+fn repeat_says_it_again_while_raised() {
+    let cfg = parse(
+        r#"
+        [[alerts]]
+        name = "low"
+        kind = "remaining_below"
+        below_pct = 20
+        repeat_s = 10
+        message = "Battery low"
+        "#,
+    );
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let seq: Vec<(f64, f64)> = (0..=350).map(|i| (i as f64 * 0.1, 10.0)).collect();
+    let ev = run(&mut eng, &seq);
+    let ts: Vec<f64> = ev.iter().map(|e| e.t).collect();
+    assert_eq!(ts, vec![0.0, 10.0, 20.0, 30.0], "{ev:?}");
+    assert!(ev.iter().all(|e| e.state == AlertState::Raised && e.message.starts_with("Battery low 7.7%")), "{ev:?}");
+}
+
+#[test]
+fn every_kind_watches_its_own_value() {
+    let cfg = parse(
+        r#"
+        [energy]
+        cell_count = 6
+
+        [[alerts]]
+        name = "tte"
+        kind = "time_to_empty_below"
+        below_s = 300
+        [[alerts]]
+        name = "home"
+        kind = "home_margin_below"
+        below_wh = 0
+        severity = "critical"
+        [[alerts]]
+        name = "dev"
+        kind = "deviation_above"
+        above_w = 100
+        model = "tseng"
+        [[alerts]]
+        name = "spread"
+        kind = "models_disagree"
+        above_w = 200
+        [[alerts]]
+        name = "cell"
+        kind = "cell_voltage_below"
+        below_v = 3.5
+        [[alerts]]
+        name = "lost"
+        kind = "telemetry_lost"
+        for_s = 1
+        "#,
+    );
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let calm = EnergyState {
+        time_to_empty_s: Some(900.0),
+        home_margin_wh: Some(20.0),
+        cell_voltage_v: Some(3.9),
+        ..Default::default()
+    };
+    let e = est(0.0, Some(500.0), &[("tseng", 480.0), ("lstm", 510.0)]);
+    assert!(eng.evaluate(&e, &calm).is_empty());
+    let bad = EnergyState {
+        time_to_empty_s: Some(200.0),
+        home_margin_wh: Some(-1.0),
+        cell_voltage_v: Some(3.4),
+        ..Default::default()
+    };
+    let mut e = est(1.0, Some(500.0), &[("tseng", 350.0), ("lstm", 600.0)]);
+    e.sample.stale_mask = u32::MAX;
+    let mut names: Vec<String> = eng.evaluate(&e, &bad).into_iter().map(|a| a.rule).collect();
+    // Telemetry lost needs for_s = 1 of staleness: not yet.
+    names.sort();
+    assert_eq!(names, ["cell", "dev", "home", "spread", "tte"]);
+    e.t_s = 2.0;
+    let ev = eng.evaluate(&e, &bad);
+    assert_eq!(ev.len(), 1);
+    assert_eq!(ev[0].rule, "lost");
+}
+
+#[test]
+fn bad_rules_name_the_file_the_key_and_why() {
+    let cases = [
+        ("[[alerts]]\nname = \"a\"\nkind = \"remaining_below\"\nbelow_wh = 30\nclear_wh = 20\n", "clear_wh = 20"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"remaining_below\"\n", "exactly one of below_wh, below_pct"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"power_above\"\nabove_w = 800\nclear_w = 900\n", "clear_w = 900"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"power_above\"\nabove_w = 800\nbelow_wh = 3\n", "below_wh"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"volcano\"\n", "volcano"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"power_above\"\nabove_w = 800\nseverity = \"loud\"\n", "severity 'loud'"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"telemetry_lost\"\n", "telemetry_lost needs for_s > 0"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"power_above\"\nabove_w = 1\n[[alerts]]\nname = \"a\"\nkind = \"power_above\"\nabove_w = 2\n", "alerts[1].name = 'a'"),
+        ("[[alerts]]\nname = \"a\"\nkind = \"power_above\"\nabove_w = 800\nfor_s = -1\n", "alerts[0] (a).for_s = -1"),
+        ("[energy]\ncapacity_wh = 0\n", "energy.capacity_wh = 0"),
+        ("[sinks.mavlink]\ncomponent_id = 1\n", "sinks.mavlink.component_id = 1"),
+        ("[sinks.web]\nbind = \"localhost\"\n", "sinks.web.bind = 'localhost'"),
+    ];
+    for (text, want) in cases {
+        let err = load_err(text);
+        assert!(err.contains("bad.toml"), "no file name in: {err}");
+        assert!(err.contains(want), "expected '{want}' in: {err}");
+    }
+}

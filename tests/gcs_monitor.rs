@@ -1,0 +1,86 @@
+//! End to end against an independent ground station: pymavlink
+//! (`tests/peers/gcs_flight.py`) streams a synthetic flight to `dronewatt monitor
+//! udpin:127.0.0.1:PORT` and listens on the same socket. With no `[sinks.mavlink]` table at
+//! all dronewatt must answer on that link: NAMED_VALUE_FLOAT estimates, exactly one
+//! STATUSTEXT warning when the remaining energy crosses the configured threshold (one, not
+//! a storm), none on a flight that stays above it.
+
+use std::process::{Command, Stdio};
+
+fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// Stream 15 s at ~500 W to dronewatt with a `capacity_wh` battery and a 1.5 Wh warning.
+fn fly(capacity_wh: f64) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("gcs.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[energy]\ncapacity_wh = {capacity_wh}\n\n[[alerts]]\nname = \"energy_low\"\nkind = \"remaining_below\"\n\
+             below_wh = 1.5\nclear_wh = 1.7\nmessage = \"Battery low\"\n"
+        ),
+    )
+    .unwrap();
+    let port = free_udp_port();
+    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q", "--config"])
+        .arg(&cfg)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/gcs_flight.py"))
+        .args(["--port", &port.to_string(), "--seconds", "15", "--power-w", "500"])
+        .output()
+        .expect("run .venv-py/bin/python (make setup creates it)");
+    // SIGTERM: the pipeline's own shutdown path.
+    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let status = dw.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
+    assert!(status.success(), "dronewatt exited with {status}: {err}");
+    let out = String::from_utf8_lossy(&peer.stdout);
+    serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {err}"))
+}
+
+fn check_estimates(heard: &serde_json::Value) {
+    let values = heard["values"].as_object().unwrap();
+    for name in ["dw_meas_w", "dw_used_wh", "dw_rem_wh", "dw_tte_s"] {
+        assert!(values.get(name).is_some_and(|v| v.as_array().unwrap().len() >= 10), "no {name} in {heard}");
+    }
+    let meas: Vec<f64> = values["dw_meas_w"].as_array().unwrap().iter().filter_map(|v| v.as_f64()).collect();
+    assert!(meas.iter().all(|w| (440.0..=560.0).contains(w)), "measured power off the profile: {meas:?}");
+    // Our own ids alongside nothing that claims to be the autopilot (component 1).
+    assert!(heard["senders"].as_array().unwrap().contains(&serde_json::json!([1, 191])), "{heard}");
+    assert!(!heard["senders"].as_array().unwrap().contains(&serde_json::json!([1, 1])), "{heard}");
+    assert!(heard["heartbeats"].as_u64().unwrap() >= 5, "{heard}");
+    eprintln!(
+        "SYS_STATUS → dw_meas_w delay over the link: p50 {} ms, p99 {} ms ({} samples)",
+        heard["delay_p50_ms"], heard["delay_p99_ms"], heard["delays"]
+    );
+}
+
+#[test]
+fn monitor_warns_once_when_energy_runs_low() {
+    // 3 Wh at ~500 W: 1.5 Wh remain after ~11 s of the 15 s flight.
+    let heard = fly(3.0);
+    check_estimates(&heard);
+    let texts = heard["statustexts"].as_array().unwrap();
+    assert_eq!(texts.len(), 1, "exactly one warning: {texts:?}");
+    assert_eq!(texts[0]["severity"], 4, "MAV_SEVERITY_WARNING");
+    assert!(texts[0]["text"].as_str().unwrap().starts_with("Battery low 1."), "{texts:?}");
+    let at = texts[0]["t"].as_f64().unwrap();
+    assert!((9.0..=14.0).contains(&at), "warned at {at} s of the flight, expected ~11 s");
+}
+
+#[test]
+fn monitor_stays_quiet_above_the_threshold() {
+    let heard = fly(100.0);
+    check_estimates(&heard);
+    assert_eq!(heard["statustexts"], serde_json::json!([]));
+}

@@ -1,0 +1,124 @@
+//! The web dashboard in headless Chromium (Debian's `chromium`, installed by
+//! `scripts/setup-chromium.sh`, which `make test` runs): the page polls the JSON endpoint,
+//! draws its charts and shows the numbers and the alert log. Asserts on the DOM Chromium
+//! dumps after the page has polled, and leaves a screenshot in
+//! `target/test-artifacts/web_dashboard.png` for a person to look at.
+
+use std::process::Command;
+use std::sync::Arc;
+
+use dronewatt::alert::AlertEngine;
+use dronewatt::config::Config;
+use dronewatt::energy::{EnergyTracker, Report};
+use dronewatt::model::{Estimate, ModelEstimate};
+use dronewatt::sink::web;
+use dronewatt::telemetry::{HomeVector, Sample, N_FEATURES};
+
+fn chromium() -> Option<&'static str> {
+    ["chromium", "chromium-browser"].into_iter().find(|c| Command::new(c).arg("--version").output().is_ok_and(|o| o.status.success()))
+}
+
+fn headless(browser: &str, url: &str, extra: &[&str]) -> std::process::Output {
+    Command::new(browser)
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars"])
+        .args(["--window-size=1280,1100", "--virtual-time-budget=4000"])
+        .args(extra)
+        .arg(url)
+        .output()
+        .expect("run chromium")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn dashboard_shows_estimates_and_alerts_in_chromium() {
+    let Some(browser) = chromium() else {
+        eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine (scripts/setup-chromium.sh could not install it); the web dashboard is NOT tested !!!!!!!!\n");
+        return;
+    };
+    let cfg: Config = toml::from_str(
+        r#"
+        [energy]
+        capacity_wh = 18
+        [[alerts]]
+        name = "energy_low"
+        kind = "remaining_below"
+        below_pct = 40
+        clear_pct = 42
+        message = "Battery low"
+        "#,
+    )
+    .unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let url = format!("http://{}/", listener.local_addr().unwrap());
+    let (tx, rx) = tokio::sync::broadcast::channel(4096);
+    let wcfg = web::WebSinkConfig { enabled: true, min_step_s: 0.2, ..Default::default() };
+    let server = tokio::spawn(web::serve(wcfg, listener, rx));
+
+    // A 90 s flight: take-off surge, cruise with a gentle oscillation, a last reading of
+    // exactly 512 W so the page's number can be asserted.
+    let mut energy = EnergyTracker::new(&cfg).unwrap();
+    let mut alerts = AlertEngine::new(&cfg.alerts).unwrap();
+    let mut raised = 0;
+    for i in 0..=900 {
+        let t_s = i as f64 * 0.1;
+        let w = if i == 900 { 512.0 } else { 450.0 + 120.0 * (-(t_s as f32) / 8.0).exp() + 30.0 * ((t_s as f32) / 6.0).sin() };
+        let est = Estimate {
+            t_s,
+            sample: Sample {
+                t_s,
+                features: [0.0; N_FEATURES],
+                measured_w: Some(w),
+                voltage_v: Some(22.5),
+                home: Some(HomeVector { distance_m: 10.0 * t_s as f32, height_m: 25.0 }),
+                stale_mask: 0,
+            },
+            models: vec![
+                ModelEstimate { name: "tseng".into(), power_w: 470.0, band_w: None },
+                ModelEstimate { name: "dandrea".into(), power_w: w * 0.8, band_w: None },
+                ModelEstimate { name: "lstm".into(), power_w: w + 8.0, band_w: None },
+            ],
+        };
+        let state = energy.update(&est);
+        let events = alerts.evaluate(&est, &state);
+        raised += events.len();
+        tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events })).unwrap();
+    }
+    assert_eq!(raised, 1, "the flight is built to raise one alert");
+
+    let dom = tokio::task::spawn_blocking({
+        let (b, u) = (browser, url.clone());
+        move || headless(b, &u, &["--dump-dom"])
+    })
+    .await
+    .unwrap();
+    let html = String::from_utf8_lossy(&dom.stdout);
+    assert!(dom.status.success(), "chromium failed: {}", String::from_utf8_lossy(&dom.stderr));
+    let text_of = |id: &str| -> String {
+        let start = html.find(&format!("id=\"{id}\"")).unwrap_or_else(|| panic!("no #{id} in the DOM:\n{html}"));
+        let rest = &html[start..];
+        let open = rest.find('>').unwrap() + 1;
+        let close = rest.find('<').unwrap_or(rest.len());
+        rest[open..close.max(open)].to_string()
+    };
+    assert_eq!(text_of("v-measured"), "512 W");
+    let remaining = text_of("v-remaining");
+    assert!(remaining.ends_with("%)") && remaining.contains("Wh"), "{remaining}");
+    assert!(text_of("status").starts_with("t = 90.0 s"), "{}", text_of("status"));
+    // Every model in the table, and the alert in the log with its severity class.
+    for m in ["tseng", "dandrea", "lstm"] {
+        assert!(html.contains(&format!("</span>{m}</td>")), "model {m} missing:\n{html}");
+    }
+    assert!(html.contains("class=\"alert sev-warning\"") && html.contains("WARNING  Battery low"), "alert missing:\n{html}");
+
+    let shots = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-artifacts");
+    std::fs::create_dir_all(&shots).unwrap();
+    let png = shots.join("web_dashboard.png");
+    let _ = std::fs::remove_file(&png);
+    let arg = format!("--screenshot={}", png.display());
+    let shot = tokio::task::spawn_blocking(move || headless(browser, &url, &[&arg])).await.unwrap();
+    assert!(shot.status.success(), "{}", String::from_utf8_lossy(&shot.stderr));
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000, "screenshot too small to hold charts");
+
+    drop(tx);
+    server.await.unwrap().unwrap();
+}
