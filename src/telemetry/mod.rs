@@ -36,6 +36,12 @@
 //! ([`Telemetry::nonfinite`]), never propagated. The time of a message is its
 //! [`TimedMessage::t_s`] (the tlog stamp or the arrival time), rounded to the microsecond.
 //!
+//! Conversions that need another signal use its newest value at message time: body
+//! velocities need the heading (a velocity before any attitude is dropped), the
+//! anemometer reading needs the ground velocity. The data-set encoder sends the attitude
+//! first and the velocity before the wind in every row, so each row converts back with
+//! its own values. Resampling, staleness, gaps and latency: [`resample`].
+//!
 //! ## Frames, as verified on the data set
 //!
 //! See [`frames`] for the per-column conventions and the checks behind them.
