@@ -152,7 +152,9 @@ pub enum AlertKind {
     /// Battery voltage per cell under `below_v`.
     CellVoltageBelow { below_v: f64, clear_v: Option<f64> },
     /// Every kinematic feature (position, attitude, velocity, rates, acceleration) stale for
-    /// `for_s`.
+    /// `for_s`: the vehicle's state stopped arriving while the link still carries something
+    /// (battery, heartbeats). A link gone wholly silent yields no estimates at all, so no
+    /// rule runs; the source reports that silence itself.
     TelemetryLost {},
 }
 

@@ -73,6 +73,9 @@ pub struct EnergyConfig {
     pub capacity_wh: f64,
     /// Cells in series, for per-cell voltage alerts. Default 6 (TB48D is 6S).
     pub cell_count: u32,
+    /// Take remaining energy from the autopilot's battery percentage when it reports one
+    /// (`capacity_wh` × %), rather than `capacity_wh` − energy used. Default true.
+    pub use_battery_pct: bool,
     /// Energy kept in reserve at landing, % of capacity. Default 20.
     pub reserve_pct: f64,
     /// Model whose prediction is the forecast (and is integrated when nothing is measured).
@@ -95,6 +98,7 @@ impl Default for EnergyConfig {
         Self {
             capacity_wh: 5.7 * 22.8,
             cell_count: 6,
+            use_battery_pct: true,
             reserve_pct: 20.0,
             model: None,
             smoothing_s: 10.0,
@@ -234,7 +238,7 @@ impl EnergyTracker {
         }
 
         let cap = self.cfg.capacity_wh;
-        let (remaining, remaining_source) = match battery_pct.filter(|p| (0.0..=100.0).contains(p)) {
+        let (remaining, remaining_source) = match battery_pct.filter(|p| self.cfg.use_battery_pct && (0.0..=100.0).contains(p)) {
             Some(pct) => (cap * pct / 100.0, "battery"),
             None => ((cap - self.used_wh).max(0.0), "capacity"),
         };
@@ -363,6 +367,9 @@ mod tests {
         let st = tr.update_with_battery(&e, Some(40.0));
         assert_eq!(st.remaining_wh, Some(40.0));
         assert_eq!(st.remaining_source, "battery");
+        // Unless the configuration says not to trust it.
+        tr.cfg.use_battery_pct = false;
+        assert_eq!(tr.update_with_battery(&e, Some(40.0)).remaining_source, "capacity");
     }
 
     #[test]
