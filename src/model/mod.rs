@@ -2,6 +2,7 @@
 //! Pure: no I/O, no clocks. Owners: physics (issue 4), LSTM (issue 5).
 
 pub mod physics;
+pub mod profile;
 
 use crate::telemetry::Sample;
 use crate::window::Window;
@@ -82,6 +83,19 @@ pub struct ModelsConfig {}
 
 /// The models a configuration asks for, built and checked (profiles loaded, cards matched).
 pub fn build_ensemble(cfg: &crate::config::Config) -> anyhow::Result<Ensemble> {
-    let _ = cfg;
-    Ok(Ensemble::new(Vec::new()))
+    Ok(Ensemble::new(build_models(cfg)?))
+}
+
+/// Every model a configuration runs, in table order: the one place models are listed, so
+/// the live ensemble and `dronewatt eval` score exactly the same set.
+pub fn build_models(cfg: &crate::config::Config) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
+    let mut models: Vec<Box<dyn PowerModel>> = Vec::new();
+    // physics (issue 4): the six models (+ Tseng's Solo form) on the configured vehicle profile.
+    let profile = match &cfg.vehicle {
+        Some(path) => profile::VehicleProfile::load(path)?,
+        None => profile::VehicleProfile::m100(),
+    };
+    models.extend(physics::models(&profile));
+    // end physics
+    Ok(models)
 }

@@ -1,11 +1,296 @@
-//! Calibration: fit the physics models' free parameters to training flights by least squares.
+//! Calibration: fit the physics models' free parameters to training flights by
+//! (bounded Levenberg–Marquardt) least squares with nalgebra, and write a calibrated
+//! vehicle profile whose models are named `<model>_cal`.
+//!
+//! Only training flights are used: the test flights of Choudhry et al.
+//! ([`TEST_FLIGHTS`]) are dropped before anything is fitted, and so are the ground tests
+//! (routes A1–A3, flights 211–219: motors running on the ground, no lift to model). The
+//! fit sees in-flight windows only (measured > 100 W): the physics models describe flight,
+//! and the ground segments would otherwise pull every constant toward 0 W.
+//!
+//! What is free per model (the rest stays as published, because it is not identifiable
+//! beside what is fitted — e.g. η and r enter D'Andrea only as their product):
+//!
+//! | model | free parameters |
+//! |---|---|
+//! | dandrea, dandrea_headwind | lift_drag (r), p_avio_w |
+//! | dorling | eta, p_avio_w |
+//! | stolaroff | eta, drag_area_m2, p_avio_w |
+//! | kirschstein | kappa, kappa2, kappa3, drag_area_m2, p_avio_w |
+//! | tseng | β₁…β₉ |
+//! | tseng_solo | c₁…c₃ |
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use nalgebra::{DMatrix, DVector};
+
+use crate::model::physics::{Kind, Kinematics};
+use crate::model::profile::{Calibration, VehicleProfile};
+use crate::offline::data::{load_flights, FlightWindows, TEST_FLIGHTS};
+use crate::offline::metrics::IN_FLIGHT_W;
+use crate::telemetry::TelemetryConfig;
 
 /// Arguments of `dronewatt calibrate`.
 #[derive(Debug, Clone, clap::Args)]
-pub struct CalibrateArgs {}
+pub struct CalibrateArgs {
+    /// The data set (`flights.csv` or `.csv.gz`). Default: `DRONEWATT_DATA` or `../shared/data/m100/flights.csv.gz`.
+    #[arg(long, value_name = "FILE")]
+    pub data: Option<PathBuf>,
+    /// Where to write the calibrated profile.
+    #[arg(long, short = 'o', value_name = "FILE", default_value = "config/vehicles/m100-calibrated.toml")]
+    pub output: PathBuf,
+    /// Profile to start from (airframe facts and published parameters). Default: built-in M100.
+    #[arg(long, value_name = "FILE")]
+    pub vehicle: Option<PathBuf>,
+    /// Fit on these training flights only (comma-separated). Default: every training flight.
+    #[arg(long, value_delimiter = ',', value_name = "N,N,…")]
+    pub flights: Option<Vec<u32>>,
+    /// Most in-flight windows to fit on (evenly thinned beyond that), to bound the time.
+    #[arg(long, default_value_t = 40_000)]
+    pub max_windows: usize,
+}
 
 /// Run `dronewatt calibrate`.
 pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
-    let _ = args;
-    anyhow::bail!("`dronewatt calibrate` is not implemented yet")
+    let data = args.data.clone().unwrap_or_else(crate::default_data_path);
+    let base = match &args.vehicle {
+        Some(p) => VehicleProfile::load(p)?,
+        None => VehicleProfile::m100(),
+    };
+    if let Some(f) = &args.flights {
+        if let Some(t) = f.iter().find(|n| TEST_FLIGHTS.contains(n)) {
+            anyhow::bail!("--flights: {t} is a test flight (Choudhry et al.); calibration never fits on test flights");
+        }
+    }
+    let flights = load_flights(&data, args.flights.as_deref(), &TelemetryConfig::default())
+        .with_context(|| format!("{}: cannot load flights for calibration", data.display()))?;
+    let sha = crate::offline::data::sha256_file(&data)?;
+    let (cal, report) = fit(&flights, &base, sha, args.max_windows)?;
+    let mut text = String::from("# Written by `dronewatt calibrate`: the physics models' free parameters fitted by least squares\n");
+    text.push_str("# on in-flight windows (measured > 100 W) of training flights only. Training RMSE, W (published → calibrated):\n");
+    for r in &report {
+        text.push_str(&format!("#   {:<18} {:>8.1} → {:>6.1}\n", r.model, r.rmse_before_w, r.rmse_after_w));
+    }
+    text.push_str(&toml::to_string(&cal).context("cannot serialise the calibrated profile")?);
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    }
+    std::fs::write(&args.output, text).with_context(|| format!("{}: cannot write", args.output.display()))?;
+    println!("{:<18} {:>14} {:>14}", "model", "RMSE pub (W)", "RMSE cal (W)");
+    for r in &report {
+        println!("{:<18} {:>14.1} {:>14.1}", r.model, r.rmse_before_w, r.rmse_after_w);
+    }
+    println!("calibrated profile: {} ({} flights, {} windows)", args.output.display(), cal.calibration.as_ref().map_or(0, |c| c.flights.len()), cal.calibration.as_ref().map_or(0, |c| c.windows));
+    Ok(())
+}
+
+/// Training fit of one model.
+#[derive(Debug, Clone)]
+pub struct FitReport {
+    /// Model base name.
+    pub model: &'static str,
+    /// Training RMSE with the published parameters, W.
+    pub rmse_before_w: f64,
+    /// Training RMSE with the fitted parameters, W.
+    pub rmse_after_w: f64,
+}
+
+/// Which parameters of a model are free, their bounds, and how to read/write them.
+struct Spec {
+    kind: Kind,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    get: fn(&VehicleProfile) -> Vec<f64>,
+    set: fn(&mut VehicleProfile, &[f64]),
+}
+
+const INF: f64 = f64::INFINITY;
+
+fn specs() -> Vec<Spec> {
+    vec![
+        Spec {
+            kind: Kind::DAndrea,
+            lo: vec![0.05, 0.0],
+            hi: vec![1e4, 5e3],
+            get: |p| vec![p.dandrea.lift_drag, p.dandrea.p_avio_w],
+            set: |p, x| (p.dandrea.lift_drag, p.dandrea.p_avio_w) = (x[0], x[1]),
+        },
+        Spec {
+            kind: Kind::DAndreaHeadwind,
+            lo: vec![0.05, 0.0],
+            hi: vec![1e4, 5e3],
+            get: |p| vec![p.dandrea_headwind.lift_drag, p.dandrea_headwind.p_avio_w],
+            set: |p, x| (p.dandrea_headwind.lift_drag, p.dandrea_headwind.p_avio_w) = (x[0], x[1]),
+        },
+        Spec {
+            kind: Kind::Dorling,
+            lo: vec![0.05, 0.0],
+            hi: vec![5.0, 5e3],
+            get: |p| vec![p.dorling.eta, p.dorling.p_avio_w],
+            set: |p, x| (p.dorling.eta, p.dorling.p_avio_w) = (x[0], x[1]),
+        },
+        Spec {
+            kind: Kind::Stolaroff,
+            lo: vec![0.05, 0.0, 0.0],
+            hi: vec![5.0, 5.0, 5e3],
+            get: |p| vec![p.stolaroff.eta, p.stolaroff.drag_area_m2, p.stolaroff.p_avio_w],
+            set: |p, x| (p.stolaroff.eta, p.stolaroff.drag_area_m2, p.stolaroff.p_avio_w) = (x[0], x[1], x[2]),
+        },
+        Spec {
+            kind: Kind::Kirschstein,
+            lo: vec![0.1, 0.0, 0.0, 0.0, 0.0],
+            hi: vec![20.0, 50.0, 10.0, 5.0, 5e3],
+            get: |p| {
+                let k = &p.kirschstein;
+                vec![k.kappa, k.kappa2, k.kappa3, k.drag_area_m2, k.p_avio_w]
+            },
+            set: |p, x| {
+                let k = &mut p.kirschstein;
+                (k.kappa, k.kappa2, k.kappa3, k.drag_area_m2, k.p_avio_w) = (x[0], x[1], x[2], x[3], x[4]);
+            },
+        },
+        Spec { kind: Kind::Tseng, lo: vec![-INF; 9], hi: vec![INF; 9], get: |p| p.tseng.beta.to_vec(), set: |p, x| p.tseng.beta.copy_from_slice(x) },
+        Spec {
+            kind: Kind::TsengSolo,
+            lo: vec![-INF; 3],
+            hi: vec![INF; 3],
+            get: |p| p.tseng_solo.coef.to_vec(),
+            set: |p, x| p.tseng_solo.coef.copy_from_slice(x),
+        },
+    ]
+}
+
+/// Fit every physics model on these flights (test flights and ground tests are dropped
+/// here, whatever the caller passed) and return the calibrated profile and the training
+/// RMSE before and after.
+pub fn fit(flights: &[FlightWindows], base: &VehicleProfile, data_sha256: String, max_windows: usize) -> anyhow::Result<(VehicleProfile, Vec<FitReport>)> {
+    let train: Vec<&FlightWindows> = flights.iter().filter(|f| !TEST_FLIGHTS.contains(&f.flight) && !f.route.starts_with('A')).collect();
+    let mut states: Vec<(Kinematics, f64)> = Vec::new();
+    for f in &train {
+        for w in &f.windows {
+            if let Some(m) = w.last().measured_w.map(f64::from).filter(|m| m.is_finite() && *m > IN_FLIGHT_W) {
+                states.push((Kinematics::from_window(w, base), m));
+            }
+        }
+    }
+    if states.len() < 50 {
+        anyhow::bail!("only {} in-flight windows in {} training flights: too few to calibrate", states.len(), train.len());
+    }
+    let stride = states.len().div_ceil(max_windows.max(50));
+    let states: Vec<(Kinematics, f64)> = states.into_iter().step_by(stride).collect();
+    tracing::info!(flights = train.len(), windows = states.len(), "calibrating physics models");
+    let bar = indicatif::ProgressBar::new(specs().len() as u64).with_style(
+        indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut cal = base.clone();
+    let mut report = Vec::new();
+    for spec in specs() {
+        bar.set_message(spec.kind.name());
+        let rmse = |p: &VehicleProfile| {
+            let se: f64 = states.iter().map(|(k, m)| (spec.kind.power_w(k, p) - m).powi(2)).sum();
+            (se / states.len() as f64).sqrt()
+        };
+        let before = rmse(base);
+        let mut scratch = base.clone();
+        let x = levenberg_marquardt((spec.get)(base), &spec.lo, &spec.hi, states.len(), |x, r| {
+            (spec.set)(&mut scratch, x);
+            for (ri, (k, m)) in r.iter_mut().zip(&states) {
+                *ri = spec.kind.power_w(k, &scratch) - m;
+            }
+        });
+        (spec.set)(&mut cal, &x);
+        let after = rmse(&cal);
+        report.push(FitReport { model: spec.kind.name(), rmse_before_w: before, rmse_after_w: after });
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    cal.name = format!("{} (calibrated)", base.name);
+    cal.calibration = Some(Calibration { data_sha256, flights: train.iter().map(|f| f.flight).collect(), windows: states.len() });
+    cal.validate().map_err(|e| anyhow::anyhow!("calibration produced an invalid profile: {e}"))?;
+    Ok((cal, report))
+}
+
+/// Minimise Σ rᵢ(x)² over the box [lo, hi] by Levenberg–Marquardt with Marquardt's
+/// diagonal scaling and a forward-difference Jacobian; steps are projected onto the box.
+/// `resid(x, r)` fills the `n` residuals. Returns the best x seen.
+pub fn levenberg_marquardt(x0: Vec<f64>, lo: &[f64], hi: &[f64], n: usize, mut resid: impl FnMut(&[f64], &mut [f64])) -> Vec<f64> {
+    let k = x0.len();
+    let clamp = |x: &mut [f64]| {
+        for i in 0..k {
+            x[i] = x[i].clamp(lo[i], hi[i]);
+        }
+    };
+    let mut x = x0;
+    clamp(&mut x);
+    let mut r = vec![0.0; n];
+    let mut r2 = vec![0.0; n];
+    resid(&x, &mut r);
+    let cost = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+    let mut c = cost(&r);
+    let mut lambda = 1e-3;
+    let mut jac = DMatrix::<f64>::zeros(n, k);
+    for _ in 0..200 {
+        for j in 0..k {
+            let h = 1e-6 * x[j].abs().max(1e-3);
+            let mut xh = x.clone();
+            xh[j] += h;
+            resid(&xh, &mut r2);
+            for i in 0..n {
+                jac[(i, j)] = (r2[i] - r[i]) / h;
+            }
+        }
+        let jtj = jac.transpose() * &jac;
+        let jtr = jac.transpose() * DVector::from_column_slice(&r);
+        let mut improved = false;
+        while lambda < 1e12 {
+            let mut a = jtj.clone();
+            for d in 0..k {
+                a[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
+            }
+            let Some(step) = a.cholesky().map(|ch| ch.solve(&(-&jtr))) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+            clamp(&mut xn);
+            resid(&xn, &mut r2);
+            let cn = cost(&r2);
+            if cn.is_finite() && cn < c {
+                let rel = (c - cn) / c.max(1e-300);
+                x = xn;
+                std::mem::swap(&mut r, &mut r2);
+                c = cn;
+                lambda = (lambda / 3.0).max(1e-12);
+                improved = rel > 1e-10;
+                break;
+            }
+            lambda *= 4.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lm_recovers_a_nonlinear_fit_and_respects_bounds() {
+        // y = a·exp(b·t) + c with a = 2, b = −0.7, c = 1.
+        let t: Vec<f64> = (0..40).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.7 * t).exp() + 1.0).collect();
+        let f = |x: &[f64], r: &mut [f64]| {
+            for ((ri, t), y) in r.iter_mut().zip(&t).zip(&y) {
+                *ri = x[0] * (x[1] * t).exp() + x[2] - y;
+            }
+        };
+        let x = levenberg_marquardt(vec![1.0, -0.1, 0.0], &[-INF; 3], &[INF; 3], t.len(), f);
+        assert!((x[0] - 2.0).abs() < 1e-5 && (x[1] + 0.7).abs() < 1e-5 && (x[2] - 1.0).abs() < 1e-5, "{x:?}");
+        let x = levenberg_marquardt(vec![1.0, -0.1, 0.0], &[-INF, -INF, 0.0], &[1.5, INF, INF], t.len(), f);
+        assert!(x[0] <= 1.5 && x[2] >= 0.0, "{x:?}");
+    }
 }

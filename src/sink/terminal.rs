@@ -40,7 +40,7 @@ pub async fn run(mut rx: broadcast::Receiver<Arc<Report>>, stats: Arc<IngestStat
             },
             _ = tick.tick() => {
                 let ok = stats.frames_ok.load(Relaxed);
-                let rate = (ok - last.1) as f64 / last.0.elapsed().as_secs_f64().max(1e-3);
+                let rate = ok.saturating_sub(last.1) as f64 / last.0.elapsed().as_secs_f64().max(1e-3);
                 last = (Instant::now(), ok);
                 let line = status_line(latest.as_deref(), &stats, rate, colour);
                 let mut e = std::io::stderr().lock();

@@ -119,8 +119,8 @@ impl std::str::FromStr for Speed {
             return Ok(Speed::Max);
         }
         match s.trim_end_matches(['x', 'X']).parse::<f64>() {
-            Ok(f) if f > 0.0 && f.is_finite() => Ok(Speed::Factor(f)),
-            _ => Err(format!("speed '{s}': expected a positive number (1 = real time) or 'max'")),
+            Ok(f) if (0.001..=1e6).contains(&f) => Ok(Speed::Factor(f)),
+            _ => Err(format!("speed '{s}': expected a number from 0.001 to 1000000 (1 = real time) or 'max'")),
         }
     }
 }
@@ -221,7 +221,8 @@ async fn replay<R: AsyncRead + Unpin>(
     loop {
         while let Some(m) = reader.next_message(stats) {
             if let Speed::Factor(f) = speed {
-                let due = start + Duration::from_secs_f64(m.t_s / f);
+                // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
+                let due = start + Duration::try_from_secs_f64(m.t_s / f).unwrap_or(Duration::ZERO);
                 if due > tokio::time::Instant::now() + Duration::from_millis(1) {
                     tokio::select! {
                         _ = shutdown.cancelled() => return Ok(()),

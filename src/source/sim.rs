@@ -80,8 +80,8 @@ pub struct SimulateArgs {
     /// Seed of the noise and gusts.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Pace: `real` (wall clock), `max` (flat out) or a factor such as `5` (five times real
-    /// time). Default: `real` for `--udp`, `max` for `--out`.
+    /// Pace of `--udp`: `real` (wall clock, the default), `max` (flat out) or a factor such
+    /// as `5` (five times real time). A `--out` tlog is always written at once.
     #[arg(long)]
     pub rate: Option<Rate>,
     /// Whose telemetry style to imitate.
@@ -572,7 +572,7 @@ pub fn simulate(mission: &Mission) -> anyhow::Result<SimFlight> {
         Vector3::new(0.0, 0.0, h),
     ];
     let mean_wind = mission.wind_ned();
-    let gust_sigma = 0.15 * mission.wind_mps + 0.2;
+    let gust_sigma = 0.1 * mission.wind_mps + 0.2;
     let mut gust = [Markov { x: 0.0, sigma: gust_sigma, tau: 4.0 }; 3];
     gust[2].sigma = 0.3 * gust_sigma;
     let mut gps_err = [
@@ -833,10 +833,12 @@ impl Emitter {
                 }),
             );
         }
-        // Battery: measured voltage and current carry sensor noise.
+        // Battery: measured voltage and current carry sensor noise. σ_I = 0.1 A + 7 % of
+        // the current (≈ 1.6 A in cruise) matches the sample-to-sample scatter of the data
+        // set's V·I in steady cruise (≈ 35–40 W) and its ±0.3 A offsets at rest.
         if (Every { period_ms: 500, offset_ms: 50 }).due(t_ms) {
-            let v_meas = (st.voltage_v + n(rng, 0.03)).max(0.0);
-            let i_meas = st.current_a + n(rng, 0.25);
+            let v_meas = (st.voltage_v + n(rng, 0.05)).max(0.0);
+            let i_meas = st.current_a + n(rng, 0.1 + 0.07 * st.current_a);
             let mv = (v_meas * 1000.0).round().clamp(0.0, 65534.0) as u16;
             let ca = (i_meas * 100.0).round().clamp(-32768.0, 32767.0) as i16;
             let remaining = (bat.soc * 100.0).round().clamp(0.0, 100.0) as i8;
@@ -956,7 +958,7 @@ impl Emitter {
         // IMU: specific force in the body frame (FRD), f = Rᵀ(a − g); ≈ (0, 0, −9.81) at
         // rest. Vibration noise grows when the props spin.
         if (Every { period_ms: 100, offset_ms: 40 }).due(t_ms) {
-            let vib = if st.in_air { 0.35 } else if st.armed { 0.2 } else { 0.03 };
+            let vib = if st.in_air { 0.3 } else if st.armed { 0.2 } else { 0.03 };
             let f = st.rot.inverse() * (st.acc - Vector3::new(0.0, 0.0, G)) + Vector3::new(n(rng, vib), n(rng, vib), n(rng, vib));
             let w = rate_meas;
             // Earth field near Pittsburgh ≈ (0.19, −0.03, 0.47) gauss NED.

@@ -1,2 +1,356 @@
-//! The five physics power models of the paper (D'Andrea with and without headwind,
-//! Dorling, Stolaroff, Kirschstein, Tseng). Owner: physics (issue 4).
+//! The five physics power models of the comparative study, six model names plus Tseng's
+//! simplified 3DR Solo form: `dandrea`, `dandrea_headwind`, `dorling`, `stolaroff`,
+//! `kirschstein`, `tseng`, `tseng_solo` (calibrated variants suffixed `_cal`).
+//! Owner: physics (issue 4).
+//!
+//! Every model is a pure function of a [`Kinematics`] (derived from the window's newest
+//! sample, and the window for accelerations), the [`VehicleProfile`] and its own parameters.
+//!
+//! ## How the data set's columns become airspeed, wind and attitude
+//!
+//! Frames are those of `../shared/data/m100/SOURCE.md`, checked again on flights 100, 150,
+//! 200, 250 and 276 (see the physics helper's report):
+//!
+//! * **Attitude.** The quaternion `orientation_*` rotates the vehicle's body frame into
+//!   world ENU with body z up: the body-up axis R·ẑ tilts *along* the ground velocity in
+//!   cruise (mean projection +0.16, ≈ 9° nose-down at 10 m/s), as a multirotor's must. That
+//!   axis is the thrust axis **n**. ψ = atan2(R₁₀, R₀₀) is the ENU bearing of body x.
+//! * **Ground velocity.** `velocity_x/y` are the ground velocity along the quaternion's own
+//!   body x and y axes, levelled (the telemetry module names them right/forward, SOURCE.md
+//!   forward/left — only their being the quaternion's axes matters here): the world
+//!   ground velocity is (v_x, v_y) rotated by ψ, with `velocity_z` (up) as is.
+//! * **Airspeed.** `wind_speed` is the anemometer's airspeed (it grows with the drone's own
+//!   speed: ≈ 1.5 m/s hovering, ≈ 11 m/s at 10 m/s). `wind_angle` (deg clockwise from
+//!   north) is the bearing the apparent wind comes *from*, i.e. the bearing the drone moves
+//!   through the air: the airspeed vector is u = s·(sin θ, cos θ, 0) + v_z·ẑ (no vertical
+//!   wind assumed). Of the four readings (from/to × north/heading-relative), this one makes
+//!   the implied ambient wind w = v_ground − u steadiest within a flight (std 1–4 m/s
+//!   against 5–15 m/s for the others, flights 100, 150, 200, 250, 276); the telemetry
+//!   module reached the same reading independently.
+//! * **Headwind** is −w·v̂_ground (positive when the wind opposes the track).
+//! * **Mass** = airframe + battery (profile) + `payload` feature (g → kg).
+//! * **Acceleration** (Tseng only) is the finite difference of the world ground velocity
+//!   across the window (first to last sample): the IMU's specific force carries vibration
+//!   noise of several m/s², and Tseng's regressors are motion, not vibration.
+//!
+//! Non-finite feature values are read as 0, so no model can emit NaN or infinity.
+
+pub mod dandrea;
+pub mod dorling;
+pub mod kirschstein;
+pub mod stolaroff;
+pub mod tseng;
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+
+use super::profile::VehicleProfile;
+use super::{PowerModel, Prediction};
+use crate::telemetry::{idx, Sample};
+use crate::window::Window;
+
+/// The physical state every model reads, derived once per window. SI units, world ENU.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Kinematics {
+    /// Total mass (airframe + battery + payload), kg.
+    pub mass_kg: f64,
+    /// Payload, g.
+    pub payload_g: f64,
+    /// Ground velocity, m/s, ENU.
+    pub ground_m_s: Vector3<f64>,
+    /// Airspeed vector (vehicle relative to air), m/s, ENU.
+    pub air_m_s: Vector3<f64>,
+    /// Ambient wind (air relative to ground) = ground − air, m/s, ENU (horizontal).
+    pub wind_m_s: Vector3<f64>,
+    /// Thrust axis (body up) in ENU, unit vector.
+    pub thrust_axis: Vector3<f64>,
+    /// Ground acceleration over the window, m/s², ENU.
+    pub accel_m_s2: Vector3<f64>,
+}
+
+fn feat(s: &Sample, i: usize) -> f64 {
+    let v = f64::from(s.features[i]);
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
+}
+
+fn attitude(s: &Sample) -> UnitQuaternion<f64> {
+    let q = Quaternion::new(feat(s, idx::QW), feat(s, idx::QX), feat(s, idx::QY), feat(s, idx::QZ));
+    if q.norm() > 1e-6 {
+        UnitQuaternion::from_quaternion(q)
+    } else {
+        UnitQuaternion::identity()
+    }
+}
+
+fn ground_velocity(s: &Sample, q: &UnitQuaternion<f64>) -> Vector3<f64> {
+    let r = q.to_rotation_matrix();
+    let m = r.matrix();
+    let yaw = m[(1, 0)].atan2(m[(0, 0)]);
+    let (sn, cs) = yaw.sin_cos();
+    let (vx, vy) = (feat(s, idx::VX), feat(s, idx::VY));
+    Vector3::new(vx * cs - vy * sn, vx * sn + vy * cs, feat(s, idx::VZ))
+}
+
+impl Kinematics {
+    /// Derive the state at the window's newest sample (see the module docs for the frames).
+    pub fn from_window(w: &Window, profile: &VehicleProfile) -> Self {
+        let s = w.last();
+        let q = attitude(s);
+        let ground = ground_velocity(s, &q);
+        let speed = feat(s, idx::WIND_SPEED).max(0.0);
+        let bearing = feat(s, idx::WIND_ANGLE).to_radians();
+        let air = Vector3::new(speed * bearing.sin(), speed * bearing.cos(), ground.z);
+        let first = &w.samples[0];
+        let dt = s.t_s - first.t_s;
+        let accel = if dt.is_finite() && dt > 0.05 {
+            (ground - ground_velocity(first, &attitude(first))) / dt
+        } else {
+            Vector3::zeros()
+        };
+        let payload_g = feat(s, idx::PAYLOAD).max(0.0);
+        Kinematics {
+            mass_kg: profile.mass_kg(payload_g / 1000.0),
+            payload_g,
+            ground_m_s: ground,
+            air_m_s: air,
+            wind_m_s: ground - air,
+            thrust_axis: q * Vector3::z(),
+            accel_m_s2: accel,
+        }
+    }
+
+    /// Horizontal airspeed, m/s.
+    pub fn airspeed_h(&self) -> f64 {
+        self.air_m_s.xy().norm()
+    }
+
+    /// Headwind: the wind component against the ground track, m/s (positive = head-on).
+    /// With no track to speak of (ground speed < 0.5 m/s) the whole horizontal wind is
+    /// taken as head-on, the conservative reading.
+    pub fn headwind(&self) -> f64 {
+        let g = self.ground_m_s.xy();
+        let w = self.wind_m_s.xy();
+        let gs = g.norm();
+        if gs < 0.5 {
+            w.norm()
+        } else {
+            -w.dot(&g) / gs
+        }
+    }
+
+    /// Weight m·g, N.
+    pub fn weight_n(&self, p: &VehicleProfile) -> f64 {
+        self.mass_kg * p.air.g_m_s2
+    }
+
+    /// Steady-flight thrust, N: the vector sum of weight and parasite drag
+    /// D = ½ρ·C_D A·|u|·u (drag opposes the airspeed u, so thrust supplies +D along u).
+    /// The paper prints the scalar sum W + D, an upper bound that ignores that the two act
+    /// at right angles in level flight; the vector sum is the physical form.
+    pub fn thrust_n(&self, p: &VehicleProfile, drag_area_m2: f64) -> f64 {
+        let drag = 0.5 * p.air.rho_kg_m3 * drag_area_m2.max(0.0) * self.air_m_s.norm() * self.air_m_s;
+        (Vector3::new(0.0, 0.0, self.weight_n(p)) + drag).norm()
+    }
+}
+
+/// Induced velocity v_i (m/s) of an actuator disk of total area `area_m2` (m²) giving
+/// thrust `thrust_n` (N) in a stream with components `v_t` along the disk and `v_n`
+/// through it (m/s, positive when air flows down through the disk as in forward flight
+/// with the disk tilted into the motion or in a climb):
+///
+/// v_i = T / (2ρA·√(v_t² + (v_n + v_i)²))   (Glauert; Leishman, *Principles of Helicopter
+/// Aerodynamics*, 2006, §2.14), i.e. the quartic
+/// v_i⁴ + 2v_n·v_i³ + (v_t² + v_n²)·v_i² − v_h⁴ = 0 with v_h = √(T/(2ρA)) (hover, closed form).
+///
+/// Solved on its bracket [0, v_h + max(0, −v_n)], where g(v) = v·√(v_t² + (v_n+v)²) − v_h²
+/// changes sign, by Newton steps kept inside the bracket (bisection when a step leaves it),
+/// so it converges for every input; in steep descent (vortex-ring state, where momentum
+/// theory is invalid anyway) it returns one root of the bracket.
+pub fn induced_velocity(thrust_n: f64, rho: f64, area_m2: f64, v_t: f64, v_n: f64) -> f64 {
+    if !(thrust_n > 0.0 && rho > 0.0 && area_m2 > 0.0) {
+        return 0.0;
+    }
+    let vh2 = thrust_n / (2.0 * rho * area_m2);
+    let (v_t, v_n) = (if v_t.is_finite() { v_t } else { 0.0 }, if v_n.is_finite() { v_n } else { 0.0 });
+    let g = |v: f64| {
+        let s = (v_t * v_t + (v_n + v) * (v_n + v)).sqrt();
+        (v * s - vh2, if s > 0.0 { s + v * (v_n + v) / s } else { 0.0 })
+    };
+    let (mut lo, mut hi) = (0.0, vh2.sqrt() + (-v_n).max(0.0));
+    let mut v = hi;
+    for _ in 0..60 {
+        let (f, df) = g(v);
+        if f.abs() <= 1e-12 * vh2 {
+            break;
+        }
+        if f > 0.0 {
+            hi = v;
+        } else {
+            lo = v;
+        }
+        let newton = v - f / df;
+        v = if df > 0.0 && newton > lo && newton < hi { newton } else { 0.5 * (lo + hi) };
+        if hi - lo < 1e-12 * (1.0 + hi) {
+            break;
+        }
+    }
+    v
+}
+
+/// Which physics model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    DAndrea,
+    DAndreaHeadwind,
+    Dorling,
+    Stolaroff,
+    Kirschstein,
+    Tseng,
+    TsengSolo,
+}
+
+impl Kind {
+    /// Every physics model, in the order tables show them (the paper's order).
+    pub const ALL: [Kind; 7] =
+        [Kind::DAndrea, Kind::DAndreaHeadwind, Kind::Dorling, Kind::Stolaroff, Kind::Kirschstein, Kind::Tseng, Kind::TsengSolo];
+
+    /// The model's base name (without `_cal`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::DAndrea => "dandrea",
+            Kind::DAndreaHeadwind => "dandrea_headwind",
+            Kind::Dorling => "dorling",
+            Kind::Stolaroff => "stolaroff",
+            Kind::Kirschstein => "kirschstein",
+            Kind::Tseng => "tseng",
+            Kind::TsengSolo => "tseng_solo",
+        }
+    }
+
+    /// Predicted electrical power, W, for this state under this profile.
+    pub fn power_w(self, k: &Kinematics, p: &VehicleProfile) -> f64 {
+        let w = match self {
+            Kind::DAndrea => dandrea::power_w(k, p, &p.dandrea, false),
+            Kind::DAndreaHeadwind => dandrea::power_w(k, p, &p.dandrea_headwind, true),
+            Kind::Dorling => dorling::power_w(k, p, &p.dorling),
+            Kind::Stolaroff => stolaroff::power_w(k, p, &p.stolaroff),
+            Kind::Kirschstein => kirschstein::power_w(k, p, &p.kirschstein),
+            Kind::Tseng => tseng::power_w(k, &p.tseng),
+            Kind::TsengSolo => tseng::solo_power_w(k, &p.tseng_solo),
+        };
+        if w.is_finite() {
+            w
+        } else {
+            0.0
+        }
+    }
+}
+
+/// One physics model bound to a profile: what the ensemble runs.
+pub struct PhysicsModel {
+    kind: Kind,
+    name: String,
+    profile: VehicleProfile,
+}
+
+impl PhysicsModel {
+    /// This model with this profile; named `kind.name()` plus `_cal` for a calibrated profile.
+    pub fn new(kind: Kind, profile: VehicleProfile) -> Self {
+        Self { kind, name: format!("{}{}", kind.name(), profile.name_suffix()), profile }
+    }
+    /// Power for one window, W.
+    pub fn power_w(&self, w: &Window) -> f64 {
+        self.kind.power_w(&Kinematics::from_window(w, &self.profile), &self.profile)
+    }
+}
+
+impl PowerModel for PhysicsModel {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
+        out.clear();
+        out.extend(windows.iter().map(|w| Prediction { power_w: self.power_w(w) as f32, band_w: None }));
+    }
+}
+
+/// Every physics model for this profile, in [`Kind::ALL`] order.
+pub fn models(profile: &VehicleProfile) -> Vec<Box<dyn PowerModel>> {
+    Kind::ALL.iter().map(|&k| Box::new(PhysicsModel::new(k, profile.clone())) as Box<dyn PowerModel>).collect()
+}
+
+#[cfg(test)]
+pub(crate) mod testutil {
+    use crate::telemetry::{idx, Sample, N_FEATURES};
+    use crate::window::Window;
+
+    /// A level sample: velocity along body (x, y, up), anemometer speed and bearing (deg),
+    /// payload g, and yaw (deg, ENU bearing of body x from east: 90° = body x north).
+    pub fn sample(t_s: f64, v_body: [f32; 3], wind_speed: f32, wind_angle_deg: f32, payload_g: f32, yaw_deg: f32) -> Sample {
+        let mut f = [0.0f32; N_FEATURES];
+        let h = (yaw_deg.to_radians() / 2.0) as f32;
+        f[idx::QW] = h.cos();
+        f[idx::QZ] = h.sin();
+        f[idx::VX] = v_body[0];
+        f[idx::VY] = v_body[1];
+        f[idx::VZ] = v_body[2];
+        f[idx::WIND_SPEED] = wind_speed;
+        f[idx::WIND_ANGLE] = wind_angle_deg;
+        f[idx::PAYLOAD] = payload_g;
+        f[idx::AZ] = -9.81;
+        Sample { t_s, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0 }
+    }
+
+    pub fn window(s: Sample) -> Window {
+        let mut a = s.clone();
+        a.t_s -= 0.9;
+        Window { samples: vec![a, s] }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testutil::*;
+    use super::*;
+
+    #[test]
+    fn hover_closed_form() {
+        for t in [5.0, 30.0, 300.0] {
+            let v = induced_velocity(t, 1.225, 0.3425, 0.0, 0.0);
+            let vh = (t / (2.0 * 1.225 * 0.3425f64)).sqrt();
+            assert!((v - vh).abs() < 1e-9 * vh, "{v} vs {vh}");
+        }
+    }
+
+    #[test]
+    fn climb_closed_form_and_forward_flight_root() {
+        // Axial climb: v_i = −v_c/2 + √((v_c/2)² + v_h²).
+        let (t, rho, a, vc): (f64, f64, f64, f64) = (30.0, 1.225, 0.3425, 3.0);
+        let vh2 = t / (2.0 * rho * a);
+        let exact = -vc / 2.0 + (vc * vc / 4.0 + vh2).sqrt();
+        assert!((induced_velocity(t, rho, a, 0.0, vc) - exact).abs() < 1e-9);
+        // Forward flight: the root satisfies the quartic, and is below hover's.
+        for (vt, vn) in [(10.0, 1.5), (20.0, 3.0), (3.0, -2.0), (0.0, -12.0), (1e-9, 0.0)] {
+            let v = induced_velocity(t, rho, a, vt, vn);
+            let q = v.powi(4) + 2.0 * vn * v.powi(3) + (vt * vt + vn * vn) * v * v - vh2 * vh2;
+            assert!(q.abs() < 1e-7 * vh2 * vh2, "({vt},{vn}) → {v}: residual {q}");
+            assert!(v.is_finite() && v >= 0.0);
+        }
+    }
+
+    #[test]
+    fn frames_airspeed_and_headwind() {
+        let p = VehicleProfile::m100();
+        // Body x north (yaw 90° ENU), 10 m/s along it, anemometer 13 m/s bearing 0° (north):
+        // the air moves past at 13 m/s while the ground track is 10 m/s → 3 m/s headwind.
+        let k = Kinematics::from_window(&window(sample(1.0, [10.0, 0.0, 0.0], 13.0, 0.0, 500.0, 90.0)), &p);
+        assert!((k.ground_m_s - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-5);
+        assert!((k.air_m_s - Vector3::new(0.0, 13.0, 0.0)).norm() < 1e-5);
+        assert!((k.headwind() - 3.0).abs() < 1e-5);
+        assert!((k.mass_kg - 2.931).abs() < 1e-9);
+        assert!((k.thrust_axis - Vector3::z()).norm() < 1e-9);
+    }
+}

@@ -1,0 +1,42 @@
+//! All physics models on one window: the live inference stage runs them on every window.
+//! Goal: the six models (plus Tseng's Solo form) together in under 5 µs.
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use dronewatt::model::physics::{Kind, PhysicsModel};
+use dronewatt::model::profile::VehicleProfile;
+use dronewatt::telemetry::{idx, Sample, N_FEATURES};
+use dronewatt::window::Window;
+
+fn cruise_window() -> Window {
+    let samples = (0..10)
+        .map(|i| {
+            let mut f = [0.0f32; N_FEATURES];
+            // Cruise at ~10 m/s, 9° nose-down about body x, heading 30°, 500 g payload.
+            let (h, p) = (0.26f32, 0.078f32);
+            f[idx::QW] = h.cos() * p.cos();
+            f[idx::QX] = h.cos() * p.sin();
+            f[idx::QY] = h.sin() * p.sin();
+            f[idx::QZ] = h.sin() * p.cos();
+            f[idx::VX] = 0.3;
+            f[idx::VY] = 9.8 + 0.02 * i as f32;
+            f[idx::VZ] = 0.1;
+            f[idx::WIND_SPEED] = 11.2;
+            f[idx::WIND_ANGLE] = 312.0;
+            f[idx::PAYLOAD] = 500.0;
+            f[idx::AZ] = -9.8;
+            Sample { t_s: 0.1 * i as f64, features: f, measured_w: Some(500.0), voltage_v: Some(22.0), home: None, stale_mask: 0 }
+        })
+        .collect();
+    Window { samples }
+}
+
+fn bench(c: &mut Criterion) {
+    let w = cruise_window();
+    let models: Vec<PhysicsModel> = Kind::ALL.iter().map(|&k| PhysicsModel::new(k, VehicleProfile::m100())).collect();
+    c.bench_function("physics: all models, one window", |b| {
+        b.iter(|| models.iter().map(|m| m.power_w(black_box(&w))).sum::<f64>())
+    });
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

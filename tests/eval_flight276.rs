@@ -1,0 +1,60 @@
+//! Flight 276 (the comparative study's test flight), through the live ingest path: the
+//! physics models calibrated on training flights beat the published parameters, both when
+//! fitted here on a handful of training flights and with the committed calibrated profile.
+
+use dronewatt::model::physics;
+use dronewatt::model::profile::VehicleProfile;
+use dronewatt::model::PowerModel;
+use dronewatt::offline::calibrate;
+use dronewatt::offline::data::{load_flights, TEST_FLIGHTS};
+use dronewatt::offline::eval::run_flight;
+use dronewatt::offline::metrics::score;
+use dronewatt::telemetry::TelemetryConfig;
+
+/// Route R1 training flights (10 m/s, mixed payloads): few enough to fit in seconds.
+const TRAIN: [u32; 8] = [100, 101, 102, 105, 106, 107, 150, 151];
+
+fn mae_by_model(models: &mut Vec<Box<dyn PowerModel>>, f: &dronewatt::offline::data::FlightWindows) -> Vec<(String, f64, f64)> {
+    let s = run_flight(models, f);
+    models
+        .iter()
+        .zip(&s.pred_w)
+        .map(|(m, p)| {
+            let sc = score(&s.t_s, &s.measured_w, p).expect("flight 276 has in-flight windows");
+            (m.name().to_string(), sc.mae_w, sc.rmse_w)
+        })
+        .collect()
+}
+
+fn assert_beats(published: &[(String, f64, f64)], calibrated: &[(String, f64, f64)]) {
+    for ((pn, pm, pr), (cn, cm, cr)) in published.iter().zip(calibrated) {
+        assert_eq!(format!("{pn}_cal"), *cn);
+        eprintln!("{pn:<18} MAE {pm:7.1} → {cm:7.1} W   RMSE {pr:7.1} → {cr:7.1} W");
+        assert!(cm < pm, "{cn}: MAE {cm:.1} W not below published {pm:.1} W");
+        assert!(cr < pr, "{cn}: RMSE {cr:.1} W not below published {pr:.1} W");
+    }
+}
+
+#[test]
+fn calibrated_beats_published_on_flight_276() {
+    assert!(TRAIN.iter().all(|f| !TEST_FLIGHTS.contains(f)));
+    let path = dronewatt::default_data_path();
+    let mut wanted = TRAIN.to_vec();
+    wanted.push(276);
+    let flights = load_flights(&path, Some(&wanted), &TelemetryConfig::default()).expect("the data set (set DRONEWATT_DATA)");
+    let f276 = flights.iter().find(|f| f.flight == 276).expect("flight 276");
+    let base = VehicleProfile::m100();
+    // `fit` drops test flights itself: handing it 276 too must not change the result.
+    let (cal, report) = calibrate::fit(&flights, &base, "test".into(), 4_000).expect("fit");
+    let used = &cal.calibration.as_ref().expect("calibration table").flights;
+    assert!(!used.contains(&276) && used.len() == TRAIN.len(), "{used:?}");
+    for r in &report {
+        assert!(r.rmse_after_w <= r.rmse_before_w + 1e-9, "{}: training RMSE rose", r.model);
+    }
+    let published = mae_by_model(&mut physics::models(&base), f276);
+    assert_beats(&published, &mae_by_model(&mut physics::models(&cal), f276));
+    let committed = VehicleProfile::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/vehicles/m100-calibrated.toml"))
+        .expect("committed calibrated profile");
+    assert!(!committed.calibration.as_ref().expect("calibration table").flights.iter().any(|f| TEST_FLIGHTS.contains(f)));
+    assert_beats(&published, &mae_by_model(&mut physics::models(&committed), f276));
+}
