@@ -11,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DUR=${1:-60}
-BIN=target/release/dronewatt
+BIN=${DRONEWATT_BIN:-target/release/dronewatt}   # DRONEWATT_BIN=target/debug/dronewatt for a debug build
 [ -x "$BIN" ] || cargo build --release --locked
 PORT=$(.venv-py/bin/python -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 TMP=$(mktemp -d)
@@ -39,5 +39,8 @@ rss, peak, hwm, dur = (int(x) for x in sys.argv[2:6])
 n = len(r["values"].get("dw_meas_w", []))
 print(f"dronewatt monitor, {dur} s at 10 Hz: {n} estimates published back")
 print(f"resident memory: {rss/1024:.1f} MiB at the end, {peak/1024:.1f} MiB highest sampled, VmHWM {hwm/1024:.1f} MiB")
-print(f"SYS_STATUS -> dw_meas_w over UDP: p50 {r['delay_p50_ms']} ms, p99 {r['delay_p99_ms']} ms ({r['delays']} samples)")
+print(f"SYS_STATUS -> dw_meas_w over UDP: p50 {r['delay_p50_ms']:.2f} ms, p99 {r['delay_p99_ms']:.2f} ms ({r['delays']} samples)")
+print(f"  of which the peer spends sending the tick's 11 messages: p50 {r['tick_send_p50_ms']:.2f} ms")
+if r['after_tick_end_p50_ms'] is not None:
+    print(f"last message of the tick sent -> dw_meas_w back: p50 {r['after_tick_end_p50_ms']:.2f} ms, p99 {r['after_tick_end_p99_ms']:.2f} ms")
 PY

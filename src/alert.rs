@@ -144,15 +144,17 @@ pub enum AlertKind {
     HomeMarginBelow { below_wh: f64, clear_wh: Option<f64> },
     /// Measured electrical power over `above_w`.
     PowerAbove { above_w: f64, clear_w: Option<f64> },
-    /// |measured − predicted| over `above_w`, predicted by `model` (default: the energy
-    /// forecast's model rule: `lstm`, else the first).
+    /// |measured − predicted| over `above_w`, predicted by `model` (default `lstm`, else the
+    /// first model that ran).
     DeviationAbove { above_w: f64, clear_w: Option<f64>, model: Option<String> },
     /// The models' predictions spread (max − min) wider than `above_w`.
     ModelsDisagree { above_w: f64, clear_w: Option<f64> },
     /// Battery voltage per cell under `below_v`.
     CellVoltageBelow { below_v: f64, clear_v: Option<f64> },
     /// Every kinematic feature (position, attitude, velocity, rates, acceleration) stale for
-    /// `for_s`.
+    /// `for_s`: the vehicle's state stopped arriving while the link still carries something
+    /// (battery, heartbeats). A link gone wholly silent yields no estimates at all, so no
+    /// rule runs; the source reports that silence itself.
     TelemetryLost {},
 }
 

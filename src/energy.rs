@@ -4,7 +4,7 @@
 //!
 //! - **energy used** `E_used = ∫ P dt`, trapezoidal, Wh. `P` is the measured electrical power
 //!   V·I when the sample has it, else the predicted power of the *forecast model* (the one
-//!   `[energy] model` names, else `lstm`, else the first model that ran). Which one was
+//!   `[energy] model` names, else `lstm`), else of the first model that ran. Which one was
 //!   integrated is in [`EnergyState::power_source`]. A step longer than `max_dt_s` (a gap,
 //!   a lost link) is capped at `max_dt_s`, and a step backwards (a clock jump, a new
 //!   replay) integrates nothing: one bad timestamp cannot add or remove an hour.
@@ -12,7 +12,9 @@
 //!   a battery percentage (BATTERY_STATUS `battery_remaining`). `E_cap` is `capacity_wh`,
 //!   default the DJI TB48D: 5700 mAh × 22.8 V = 129.96 Wh.
 //! - **forecast power** `P_f`: an exponential moving average (time constant `smoothing_s`)
-//!   of the forecast model's prediction, or of the measured power when no model runs.
+//!   of the forecast model's prediction; without one, of the measured power (a physics
+//!   model is a worse guess of the next minutes than the power actually drawn); without
+//!   either, of the first model that ran. [`EnergyState::forecast_model`] says which.
 //! - **time to empty** `t_empty = 3600 · E_rem / P_f`, s.
 //! - **energy to get home** `E_home = P_cruise · d / v_cruise + P_hover · (h / v_descent + t_land)`,
 //!   Wh after dividing by 3600, where `d` and `h` are the horizontal distance to home and
@@ -73,10 +75,13 @@ pub struct EnergyConfig {
     pub capacity_wh: f64,
     /// Cells in series, for per-cell voltage alerts. Default 6 (TB48D is 6S).
     pub cell_count: u32,
+    /// Take remaining energy from the autopilot's battery percentage when it reports one
+    /// (`capacity_wh` × %), rather than `capacity_wh` − energy used. Default true.
+    pub use_battery_pct: bool,
     /// Energy kept in reserve at landing, % of capacity. Default 20.
     pub reserve_pct: f64,
     /// Model whose prediction is the forecast (and is integrated when nothing is measured).
-    /// Default: `lstm` if it runs, else the first model that ran.
+    /// Default: `lstm` if it runs; else the forecast follows measured power.
     pub model: Option<String>,
     /// Time constant of the forecast power's moving average, s. Default 10.
     pub smoothing_s: f64,
@@ -95,6 +100,7 @@ impl Default for EnergyConfig {
         Self {
             capacity_wh: 5.7 * 22.8,
             cell_count: 6,
+            use_battery_pct: true,
             reserve_pct: 20.0,
             model: None,
             smoothing_s: 10.0,
@@ -193,13 +199,20 @@ impl EnergyTracker {
     /// BATTERY_STATUS `battery_remaining`) when it sends one.
     pub fn update_with_battery(&mut self, est: &Estimate, battery_pct: Option<f64>) -> EnergyState {
         let s = &est.sample;
-        let model = self.forecast_model(est);
-        let predicted = model.map(|m| f64::from(m.power_w)).filter(|p| p.is_finite());
+        let watts = |m: &crate::model::ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
+        let preferred = self.forecast_model(est).and_then(|m| Some((m, watts(m)?)));
+        let first = est.models.iter().find_map(|m| Some((m, watts(m)?)));
         let measured = s.measured_w.map(f64::from).filter(|p| p.is_finite());
-        let (power, power_source) = match (measured, predicted) {
+        let (power, power_source) = match (measured, preferred.or(first)) {
             (Some(p), _) => (Some(p), "measured".to_string()),
-            (None, Some(p)) => (Some(p), model.map_or_else(String::new, |m| m.name.clone())),
+            (None, Some((m, p))) => (Some(p), m.name.clone()),
             (None, None) => (None, "none".to_string()),
+        };
+        // Forecast from: the preferred model, else measured power, else the first model.
+        let forecast_from = match (preferred, measured) {
+            (Some((m, p)), _) => Some((Some(m), p)),
+            (None, Some(p)) => Some((None, p)),
+            (None, None) => first.map(|(m, p)| (Some(m), p)),
         };
 
         // Step length: capped on gaps, nothing on a backwards jump or the first estimate.
@@ -220,7 +233,7 @@ impl EnergyTracker {
         }
 
         let tau = self.cfg.smoothing_s;
-        let forecast_input = predicted.or(measured);
+        let forecast_input = forecast_from.map(|(_, p)| p);
         let forecast = forecast_input.map(|p| self.forecast.update(p, dt, tau));
         if let Some(p) = forecast_input {
             let vx = f64::from(s.features[idx::VX]);
@@ -234,7 +247,7 @@ impl EnergyTracker {
         }
 
         let cap = self.cfg.capacity_wh;
-        let (remaining, remaining_source) = match battery_pct.filter(|p| (0.0..=100.0).contains(p)) {
+        let (remaining, remaining_source) = match battery_pct.filter(|p| self.cfg.use_battery_pct && (0.0..=100.0).contains(p)) {
             Some(pct) => (cap * pct / 100.0, "battery"),
             None => ((cap - self.used_wh).max(0.0), "capacity"),
         };
@@ -257,7 +270,7 @@ impl EnergyTracker {
             remaining_pct: Some(100.0 * remaining / cap),
             remaining_source: remaining_source.to_string(),
             forecast_w: forecast,
-            forecast_model: predicted.and(model).map(|m| m.name.clone()),
+            forecast_model: forecast_from.and_then(|(m, _)| m).map(|m| m.name.clone()),
             time_to_empty_s,
             home_energy_wh,
             home_margin_wh: home_energy_wh.map(|e| remaining - e - reserve),
@@ -269,14 +282,10 @@ impl EnergyTracker {
         }
     }
 
-    /// The model whose prediction is the forecast: the configured one, else `lstm`, else
-    /// the first that ran.
+    /// The model whose prediction is the forecast: the configured one, else `lstm`.
     fn forecast_model<'a>(&self, est: &'a Estimate) -> Option<&'a crate::model::ModelEstimate> {
-        let by_name = |n: &str| est.models.iter().find(|m| m.name == n);
-        match &self.cfg.model {
-            Some(n) => by_name(n),
-            None => by_name("lstm").or(est.models.first()),
-        }
+        let name = self.cfg.model.as_deref().unwrap_or("lstm");
+        est.models.iter().find(|m| m.name == name)
     }
 }
 
@@ -337,7 +346,15 @@ mod tests {
             st = tr.update(&est(i as f64, None, &[("tseng", 100.0), ("lstm", 720.0)]));
         }
         assert_eq!(st.power_source, "lstm");
+        assert_eq!(st.forecast_model.as_deref(), Some("lstm"));
         assert!((st.energy_used_wh - 2.0).abs() < 1e-9);
+        // Physics models only: measured power is the forecast, the first model is what is
+        // integrated when nothing is measured.
+        let mut tr = tracker(EnergyConfig::default());
+        let st = tr.update(&est(0.0, Some(300.0), &[("dandrea", 100.0), ("tseng", 500.0)]));
+        assert_eq!((st.forecast_model, st.forecast_w), (None, Some(300.0)));
+        let st = tr.update(&est(1.0, None, &[("dandrea", 100.0), ("tseng", 500.0)]));
+        assert_eq!(st.power_source, "dandrea");
         // Nothing at all: nothing integrated, nothing forecast, and it says "none".
         let mut tr = tracker(EnergyConfig::default());
         let st = tr.update(&est(0.0, None, &[]));
@@ -363,6 +380,9 @@ mod tests {
         let st = tr.update_with_battery(&e, Some(40.0));
         assert_eq!(st.remaining_wh, Some(40.0));
         assert_eq!(st.remaining_source, "battery");
+        // Unless the configuration says not to trust it.
+        tr.cfg.use_battery_pct = false;
+        assert_eq!(tr.update_with_battery(&e, Some(40.0)).remaining_source, "capacity");
     }
 
     #[test]

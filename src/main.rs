@@ -139,7 +139,7 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
         e.capacity_wh,
         e.cell_count,
         e.reserve_pct,
-        e.model.as_deref().unwrap_or("lstm, else the first"),
+        e.model.as_deref().unwrap_or("lstm, else measured power"),
         e.smoothing_s
     );
     out += &format!("alerts: {} rule(s)\n", cfg.alerts.len());

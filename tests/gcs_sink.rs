@@ -68,7 +68,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         let est = Estimate {
             t_s,
             sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w: Some(measured), voltage_v: Some(22.0), home: None, stale_mask: 0 },
-            models: vec![ModelEstimate { name: "tseng".into(), power_w: 480.0, band_w: None }],
+            models: vec![ModelEstimate { name: "lstm".into(), power_w: 480.0, band_w: None }],
         };
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);
@@ -85,7 +85,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
 
 fn check_estimates(heard: &serde_json::Value) {
     let values = heard["values"].as_object().unwrap();
-    for name in ["dw_meas_w", "dw_pred_w", "dw_fcst_w", "dw_used_wh", "dw_rem_wh", "dw_rem_pct", "dw_tte_s"] {
+    for name in ["dw_meas_w", "dw_pred_w", "dw_lstm_w", "dw_fcst_w", "dw_used_wh", "dw_rem_wh", "dw_rem_pct", "dw_tte_s"] {
         assert!(values.get(name).is_some_and(|v| v.as_array().unwrap().len() >= 5), "no {name} in {values:?}");
     }
     assert!(values.keys().all(|k| k.len() <= 10));

@@ -8,7 +8,7 @@
 //! | name | value | unit |
 //! |---|---|---|
 //! | `dw_meas_w` | measured electrical power V·I | W |
-//! | `dw_pred_w` | the forecast model's prediction (`[energy] model`, else `lstm`, else the first) | W |
+//! | `dw_pred_w` | the forecast model's prediction (`[energy] model`, else `lstm`; absent when the forecast follows measured power) | W |
 //! | `dw_lstm_w` | the LSTM's prediction, when the LSTM runs | W |
 //! | `dw_fcst_w` | smoothed forecast power the energy figures assume | W |
 //! | `dw_used_wh` | energy used since the start | Wh |

@@ -65,7 +65,7 @@ pub fn spawn(
         SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, stats))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, stats),
         SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, link))),
-        SinkSpec::Web(c) => Ok(tokio::spawn(web::run(c, rx))),
+        SinkSpec::Web(c) => web::spawn(c, rx),
     }
 }
 

@@ -166,14 +166,32 @@ async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoR
     Json(body)
 }
 
-/// Bind the configured address, then serve (see [`serve`]).
-pub async fn run(cfg: WebSinkConfig, rx: broadcast::Receiver<Arc<Report>>) -> Result<()> {
+/// Bind the configured address now (so a taken port fails the run before it starts),
+/// then serve on a task (see [`serve`]).
+pub fn spawn(cfg: WebSinkConfig, rx: broadcast::Receiver<Arc<Report>>) -> Result<tokio::task::JoinHandle<Result<()>>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
-    let listener = tokio::net::TcpListener::bind(&cfg.bind)
-        .await
-        .with_context(|| format!("web dashboard: cannot listen on {} (sinks.web.bind)", cfg.bind))?;
+    let bind_err = || format!("web dashboard: cannot listen on {} (sinks.web.bind)", cfg.bind);
+    let std_listener = std::net::TcpListener::bind(&cfg.bind).with_context(bind_err)?;
+    std_listener.set_nonblocking(true).with_context(bind_err)?;
+    let listener = tokio::net::TcpListener::from_std(std_listener).with_context(bind_err)?;
     tracing::info!("web dashboard on http://{}/", listener.local_addr().map_or(cfg.bind.clone(), |a| a.to_string()));
-    serve(cfg, listener, rx).await
+    Ok(tokio::spawn(serve(cfg, listener, rx)))
+}
+
+/// Ctrl-C or SIGTERM: what ends a lingering dashboard early.
+async fn stop_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => {}
+            }
+            return;
+        }
+    }
+    let _ = tokio::signal::ctrl_c().await;
 }
 
 /// Serve the dashboard on `listener`, fed by `rx`, until the report channel closes and
@@ -193,8 +211,11 @@ pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx
         }
     }
     if cfg.linger_s > 0.0 {
-        tracing::info!("web dashboard: source ended; serving {} s more", cfg.linger_s);
-        tokio::time::sleep(std::time::Duration::from_secs_f64(cfg.linger_s)).await;
+        tracing::info!("web dashboard: source ended; serving {} s more (Ctrl-C ends it)", cfg.linger_s);
+        tokio::select! {
+            _ = tokio::time::sleep(std::time::Duration::from_secs_f64(cfg.linger_s)) => {}
+            _ = stop_signal() => {}
+        }
     }
     done.cancel();
     // A browser holding a connection open must not keep the run from ending.

@@ -12,11 +12,13 @@ HOME_POSITION) plus ATTITUDE_QUATERNION and HIGHRES_IMU. battery_remaining is -1
 
 Prints one JSON summary line at the end: what it heard, and for each NAMED_VALUE_FLOAT
 `dw_meas_w` the delay since the latest SYS_STATUS was sent (an upper bound on ingest →
-publish latency plus the resampler's grid wait).
+publish latency plus the resampler's grid wait), the time this script takes to send one
+tick's messages, and the delay since the tick's last message was sent.
 """
 import argparse
 import json
 import math
+import select
 import time
 
 from pymavlink import mavutil
@@ -34,7 +36,8 @@ def main():
     conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{a.port}", source_system=1, source_component=1)
     m = conn.mav
     lat0, lon0 = 47.3977419, 8.5455938
-    values, texts, heartbeats, senders, delays = {}, [], 0, set(), []
+    values, texts, heartbeats, senders, delays, send_ms, end_delays = {}, [], 0, set(), [], [], []
+    last_tick_end = None
     last_sys_status = None
     volts = 22.2
     start = time.monotonic()
@@ -55,6 +58,8 @@ def main():
                 values.setdefault(name, []).append(r.value)
                 if name == "dw_meas_w" and last_sys_status is not None:
                     delays.append(time.monotonic() - last_sys_status)
+                    if last_tick_end is not None and last_tick_end > last_sys_status:
+                        end_delays.append(time.monotonic() - last_tick_end)
             elif t == "STATUSTEXT":
                 text = r.text.rstrip("\x00") if isinstance(r.text, str) else r.text.decode().rstrip("\x00")
                 texts.append({"severity": r.severity, "text": text, "t": time.monotonic() - start})
@@ -68,7 +73,8 @@ def main():
         target = start + t
         while time.monotonic() < target:
             drain()
-            time.sleep(min(0.005, max(0.0, target - time.monotonic())))
+            # Wake the moment a frame arrives, so the delays below are not our polling.
+            select.select([conn.port], [], [], max(0.0, target - time.monotonic()))
         boot_ms = int(t * 1000)
         climb = min(t / 5.0, 1.0)
         alt = 25.0 * climb
@@ -96,13 +102,17 @@ def main():
         m.scaled_imu2_send(boot_ms, 0, 0, -1000, 0, 0, 0, 0, 0, 0)
         m.highres_imu_send(boot_ms * 1000, 0.0, 0.0, -9.81, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1013.0, 0.0, 0.0, 20.0, 0x1FF)
         m.wind_send(180.0, 2.0, 0.0)
+        last_tick_end = time.monotonic()
+        send_ms.append(1000 * (last_tick_end - last_sys_status))
         n += 1
 
     end = time.monotonic() + a.listen_after_s
     while time.monotonic() < end:
         drain()
-        time.sleep(0.01)
+        select.select([conn.port], [], [], max(0.0, end - time.monotonic()))
     delays.sort()
+    end_delays.sort()
+    send_ms.sort()
     print(json.dumps({
         "values": values,
         "statustexts": texts,
@@ -111,6 +121,9 @@ def main():
         "delay_p50_ms": 1000 * delays[len(delays) // 2] if delays else None,
         "delay_p99_ms": 1000 * delays[int(len(delays) * 0.99)] if delays else None,
         "delays": len(delays),
+        "tick_send_p50_ms": send_ms[len(send_ms) // 2] if send_ms else None,
+        "after_tick_end_p50_ms": 1000 * end_delays[len(end_delays) // 2] if end_delays else None,
+        "after_tick_end_p99_ms": 1000 * end_delays[int(len(end_delays) * 0.99)] if end_delays else None,
     }), flush=True)
 
 

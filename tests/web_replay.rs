@@ -1,0 +1,75 @@
+//! The dashboard against a replay, end to end: `dronewatt replay replay/demo.tlog` with the
+//! demo config and the dashboard on a free loopback port; once the replay has ended (the
+//! dashboard lingers), headless Chromium loads the page and the DOM must show the last
+//! estimate's measured power and the demo's energy warning. Skips loudly without chromium.
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn chromium() -> Option<&'static str> {
+    ["chromium", "chromium-browser"].into_iter().find(|c| Command::new(c).arg("--version").output().is_ok_and(|o| o.status.success()))
+}
+
+#[test]
+fn dashboard_of_the_demo_replay_in_chromium() {
+    let Some(browser) = chromium() else {
+        eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine (scripts/setup-chromium.sh could not install it); the web dashboard is NOT tested !!!!!!!!\n");
+        return;
+    };
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let dir = tempfile::tempdir().unwrap();
+    let demo = std::fs::read_to_string(root.join("config/demo.toml")).unwrap();
+    let cfg = dir.path().join("demo.toml");
+    let web = format!("enabled = true\nbind = \"127.0.0.1:{port}\"\nlinger_s = 60\n");
+    std::fs::write(&cfg, demo.replace("enabled = true", &web)).unwrap();
+    let json = dir.path().join("out.jsonl");
+    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["replay", "--speed", "max", "-q", "--config"])
+        .arg(&cfg)
+        .arg("--json")
+        .arg(&json)
+        .arg(root.join("replay/demo.tlog"))
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // The JSON summary line means the replay is over and every report reached the sinks.
+    let start = Instant::now();
+    let text = loop {
+        let t = std::fs::read_to_string(&json).unwrap_or_default();
+        if t.contains("\"type\":\"summary\"") {
+            break t;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "the replay did not finish");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let last = text
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v["type"] == "estimate")
+        .last()
+        .unwrap();
+    let measured = format!("{:.0} W", last["measured_w"].as_f64().unwrap());
+
+    let url = format!("http://127.0.0.1:{port}/");
+    let shot = root.join("target/test-artifacts/web_replay.png");
+    std::fs::create_dir_all(shot.parent().unwrap()).unwrap();
+    let run = |extra: &str| {
+        Command::new(browser)
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars"])
+            .args(["--window-size=1280,1100", "--virtual-time-budget=4000", extra, &url])
+            .output()
+            .unwrap()
+    };
+    let dom = run("--dump-dom");
+    let shot_out = run(&format!("--screenshot={}", shot.display()));
+    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let status = dw.wait().unwrap();
+    let html = String::from_utf8_lossy(&dom.stdout);
+    assert!(dom.status.success() && shot_out.status.success(), "{}", String::from_utf8_lossy(&dom.stderr));
+    assert!(html.contains(&format!("id=\"v-measured\">{measured}<")), "expected {measured} in:\n{html}");
+    assert!(html.contains("WARNING  Battery low 40.0%"), "no warning in:\n{html}");
+    assert!(html.contains("t = 209."), "the page did not reach the end of the flight:\n{html}");
+    assert!(status.success(), "dronewatt ended with {status} on SIGTERM while lingering");
+    assert!(start.elapsed() < Duration::from_secs(50), "SIGTERM must end the linger");
+}
