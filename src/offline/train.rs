@@ -62,8 +62,11 @@ pub struct TrainArgs {
     /// Stop a run after this many optimiser steps.
     #[arg(long)]
     pub max_steps: Option<usize>,
+    /// Stop a run (after validating its last, partial epoch) once it has trained this long, s.
+    #[arg(long)]
+    pub time_budget_s: Option<f64>,
     /// Use every N-th window of each training flight (windows overlap by T−1 samples, so
-    /// neighbours are nearly duplicates); validation and test use every window.
+    /// neighbours are nearly duplicates); validation uses every 2nd, test every window.
     #[arg(long, default_value_t = 4)]
     pub stride: usize,
     /// Dropout after the second LSTM layer.
@@ -150,15 +153,17 @@ struct Scaling {
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let data_path = args.data.clone().unwrap_or_else(crate::default_data_path);
     let tcfg = TelemetryConfig::default();
-    tracing::info!("loading flights from {} through the ingest path", data_path.display());
+    let how = if args.direct_csv { "directly (provisional loader)" } else { "through the ingest path" };
+    tracing::info!("loading flights from {} {how}", data_path.display());
     tch::set_num_threads(args.threads);
+    let wanted: Option<Vec<u32>> = args.flights.as_ref().map(|k| k.iter().chain(&TEST_FLIGHTS).copied().collect());
     let mut flights = if args.direct_csv {
         load_csv_direct(&data_path, &tcfg)?
     } else {
-        load_flights(&data_path, None, &tcfg).with_context(|| format!("{}: loading flights", data_path.display()))?
+        load_flights(&data_path, wanted.as_deref(), &tcfg).with_context(|| format!("{}: loading flights", data_path.display()))?
     };
-    if let Some(keep) = &args.flights {
-        flights.retain(|f| keep.contains(&f.flight) || TEST_FLIGHTS.contains(&f.flight));
+    if let Some(keep) = &wanted {
+        flights.retain(|f| keep.contains(&f.flight));
     }
     if let Some(csv) = &args.export_csv {
         return export_csv(&flights, csv, tcfg.window);
@@ -402,7 +407,7 @@ fn train_split(
     label: &str,
 ) -> anyhow::Result<(Scaling, RunOutcome, usize)> {
     let (xr, yr) = gather(train, per_flight, t, args.stride);
-    let (xv, yv) = gather(val, per_flight, t, 1);
+    let (xv, yv) = gather(val, per_flight, t, 2);
     anyhow::ensure!(!yr.is_empty() && !yv.is_empty(), "{label}: no training or validation windows");
     let scaling = fit_scaling(&xr, &yr);
     let (x, y) = to_tensors(&xr, &yr, &scaling, t, device);
@@ -425,11 +430,13 @@ fn train_split(
     let mut curve = Vec::new();
     let mut best: Option<(f64, f64, usize, Vec<Tensor>)> = None;
     let mut steps = 0;
+    let started = Instant::now();
+    let out_of_time = || args.time_budget_s.is_some_and(|b| started.elapsed().as_secs_f64() > b);
     'epochs: for epoch in 1..=args.epochs {
         order.shuffle(&mut rng);
         let (mut sum, mut count) = (0.0, 0usize);
         for chunk in order.chunks(hp.batch) {
-            if steps >= max_steps {
+            if steps >= max_steps || out_of_time() {
                 break;
             }
             let ix = Tensor::from_slice(chunk).to_device(device);
@@ -445,14 +452,14 @@ fn train_split(
         let train_loss = sum / count.max(1) as f64;
         curve.push(CurvePoint { epoch, step: steps, train_loss, val_loss, val_mae_w: mae });
         pb.set_message(format!("epoch {epoch}: train {train_loss:.4} val {val_loss:.4} val MAE {mae:.1} W"));
-        tracing::debug!("{label} epoch {epoch}: train loss {train_loss:.5} val loss {val_loss:.5} val MAE {mae:.2} W");
+        tracing::info!("{label} epoch {epoch}: train loss {train_loss:.5} val loss {val_loss:.5} val MAE {mae:.2} W");
         if best.as_ref().is_none_or(|b| mae < b.0) {
             let snapshot = vs.trainable_variables().iter().map(|v| v.detach().copy()).collect();
             best = Some((mae, rmse, epoch, snapshot));
         } else if best.as_ref().is_some_and(|b| epoch - b.2 >= args.patience) {
             break 'epochs;
         }
-        if steps >= max_steps {
+        if steps >= max_steps || out_of_time() {
             break;
         }
     }
