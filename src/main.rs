@@ -110,7 +110,11 @@ fn real_main(cli: Cli) -> Result<()> {
             };
             run_pipeline(source, run)
         }
-        Command::Monitor { address, run } => run_pipeline(SourceSpec::Link(address), run),
+        Command::Monitor { address, run } => {
+            // A malformed address fails here, before anything starts, with one line.
+            address.parse::<dronewatt::source::link::LinkAddress>()?;
+            run_pipeline(SourceSpec::Link(address), run)
+        }
         Command::Convert(a) => dronewatt::source::dataset::run(a),
         Command::Simulate(a) => dronewatt::source::sim::run(a),
         Command::Eval(a) => dronewatt::offline::eval::run(a),

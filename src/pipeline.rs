@@ -27,6 +27,9 @@ use crate::window::Window;
 pub const CHANNEL_DEPTH: usize = 1024;
 /// Most windows the inference stage runs as one batch when they queue up.
 pub const MAX_BATCH: usize = 256;
+/// How long the energy stage waits for a sink that is far behind before it sends anyway
+/// (that sink then misses reports, and counts them).
+pub const SINK_PATIENCE: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Everything a run of the pipeline needs.
 pub struct Pipeline {
@@ -106,6 +109,14 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         while let Some(est) = est_rx.recv().await {
             let state = energy.update(&est);
             let events = alerts.evaluate(&est, &state);
+            // A broadcast never waits: hold back while the slowest sink is far behind, so a
+            // flat-out replay loses nothing. A sink stuck for longer than SINK_PATIENCE
+            // loses reports instead of stalling everyone (it counts them).
+            let mut waited = std::time::Duration::ZERO;
+            while rep_tx.len() >= CHANNEL_DEPTH * 3 / 4 && waited < SINK_PATIENCE {
+                tokio::time::sleep(std::time::Duration::from_millis(2)).await;
+                waited += std::time::Duration::from_millis(2);
+            }
             // No receivers is not an error: a run may have no sinks.
             let _ = rep_tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events }));
         }

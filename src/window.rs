@@ -24,3 +24,32 @@ impl Window {
         self.last().t_s
     }
 }
+
+/// Builds sliding windows: after each new sample, once `T` samples are held, the last `T`
+/// as one [`Window`] (stride 1). [`WindowRing::clear`] starts over, so no window spans a
+/// telemetry gap.
+#[derive(Debug, Clone)]
+pub struct WindowRing {
+    t: usize,
+    ring: std::collections::VecDeque<Sample>,
+}
+
+impl WindowRing {
+    /// A ring of `t` samples (at least 1).
+    pub fn new(t: usize) -> Self {
+        let t = t.max(1);
+        Self { t, ring: std::collections::VecDeque::with_capacity(t + 1) }
+    }
+    /// Add a sample; returns the window it completes, if the ring is full.
+    pub fn push(&mut self, s: Sample) -> Option<Window> {
+        if self.ring.len() == self.t {
+            self.ring.pop_front();
+        }
+        self.ring.push_back(s);
+        (self.ring.len() == self.t).then(|| Window { samples: self.ring.iter().cloned().collect() })
+    }
+    /// Forget the held samples (after a gap).
+    pub fn clear(&mut self) {
+        self.ring.clear();
+    }
+}

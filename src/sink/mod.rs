@@ -1,5 +1,13 @@
 //! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web.
 //! Each sink is its own task fed by one broadcast of [`crate::energy::Report`]s.
+//!
+//! A broadcast never waits for a slow receiver: one that falls more than the channel's
+//! depth behind loses the oldest reports. The energy stage holds back while a sink is
+//! far behind (see [`crate::pipeline`]), so this only happens to a sink that is stuck;
+//! every sink counts what it missed ([`next_report`]) and says so, never silently.
+
+pub mod jsonl;
+pub mod terminal;
 
 /// Publishers (the `[sinks]` table).
 #[derive(Debug, Clone, Default, serde::Deserialize)]
@@ -31,7 +39,8 @@ pub enum SinkSpec {
 }
 
 /// Start one sink as its own task. The task ends when the report channel closes, after
-/// flushing (and, for JSON, writing the summary line).
+/// flushing (and, for JSON, writing the summary line). Fails before anything runs when
+/// the sink cannot start (a JSON file that cannot be created).
 pub fn spawn(
     spec: SinkSpec,
     rx: broadcast::Receiver<Arc<Report>>,
@@ -39,10 +48,37 @@ pub fn spawn(
     link: LinkHandle,
     cfg: Arc<crate::config::Config>,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
-    let _ = (spec, stats, link, cfg);
-    let mut rx = rx;
-    Ok(tokio::spawn(async move {
-        while let Ok(()) | Err(broadcast::error::RecvError::Lagged(_)) = rx.recv().await.map(|_| ()) {}
-        Ok(())
-    }))
+    let _ = (&link, &cfg);
+    match spec {
+        SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, stats))),
+        SinkSpec::Json(target) => jsonl::spawn(target, rx, stats),
+    }
+}
+
+/// The next report for a sink, adding to `missed` the reports it lost by lagging (and
+/// logging it). `None` when the channel has closed: the run is over.
+pub async fn next_report(rx: &mut broadcast::Receiver<Arc<Report>>, missed: &mut u64) -> Option<Arc<Report>> {
+    loop {
+        match rx.recv().await {
+            Ok(r) => return Some(r),
+            Err(broadcast::error::RecvError::Lagged(n)) => lagged(missed, n),
+            Err(broadcast::error::RecvError::Closed) => return None,
+        }
+    }
+}
+
+/// [`next_report`] for a sink that runs on its own thread.
+pub fn next_report_blocking(rx: &mut broadcast::Receiver<Arc<Report>>, missed: &mut u64) -> Option<Arc<Report>> {
+    loop {
+        match rx.blocking_recv() {
+            Ok(r) => return Some(r),
+            Err(broadcast::error::RecvError::Lagged(n)) => lagged(missed, n),
+            Err(broadcast::error::RecvError::Closed) => return None,
+        }
+    }
+}
+
+fn lagged(missed: &mut u64, n: u64) {
+    *missed += n;
+    tracing::warn!("a sink fell behind and missed {n} reports ({missed} so far)");
 }

@@ -1,14 +1,33 @@
 //! Where MAVLink comes from. Every source yields [`TimedMessage`]s on a bounded channel
 //! and counts what it could not use in a shared [`IngestStats`].
 //!
-//! Owner: foundation (issue 2) for frame/tlog/raw/link; features (issue 3) for dataset
-//! and sim.
+//! ```text
+//!  bytes ─▶ frame::FrameDecoder ─Frame─▶ timed::TimedReader ─TimedMessage─▶ channel
+//!  (link.rs: udp/tcp/serial,   (CRC, resync,     (t_s: tlog stamp, time_boot_ms,
+//!   tlog / raw files, dataset)  counters)         or arrival; clock jumps)
+//! ```
+//!
+//! Owner: foundation (issue 2) for frame/timed/tlog/raw/link; features (issue 3) for
+//! dataset and sim.
 
 pub mod dataset;
-pub mod tlog;
+pub mod frame;
+pub mod link;
+pub mod raw;
 pub mod sim;
+pub mod timed;
+pub mod tlog;
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use tokio::io::{AsyncRead, AsyncReadExt};
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+use timed::TimedReader;
 
 use crate::MavMessage;
 
@@ -34,12 +53,21 @@ pub struct IngestStats {
     pub frames_bad: AtomicU64,
     /// Frames with a valid layout whose message id this dialect does not know.
     pub unknown: AtomicU64,
-    /// Discontinuities: sequence-number gaps (lost frames) and clock jumps.
+    /// Discontinuities: sequence-number gaps (one per break in a sender's sequence,
+    /// however many frames it lost; see [`frame`]) plus clock jumps (see
+    /// [`timed::Clock`]).
     pub gaps: AtomicU64,
+    /// The clock jumps among `gaps`: a tlog stamp or `time_boot_ms` that went backwards,
+    /// leapt ahead or was absurd.
+    pub clock_jumps: AtomicU64,
     /// Bytes that were not part of any frame (line noise, garbage between frames).
     pub junk_bytes: AtomicU64,
     /// Windows built by the telemetry stage.
     pub windows: AtomicU64,
+    /// Times a live link went silent (no good frame for [`link::SILENCE`]).
+    pub silences: AtomicU64,
+    /// Whether the live link is silent right now (the terminal view shows it).
+    pub silent: AtomicBool,
 }
 
 impl IngestStats {
@@ -56,6 +84,8 @@ impl IngestStats {
             gaps: self.gaps.load(Ordering::Relaxed),
             junk_bytes: self.junk_bytes.load(Ordering::Relaxed),
             windows: self.windows.load(Ordering::Relaxed),
+            clock_jumps: self.clock_jumps.load(Ordering::Relaxed),
+            silences: self.silences.load(Ordering::Relaxed),
         }
     }
 }
@@ -69,6 +99,8 @@ pub struct StatsSnapshot {
     pub gaps: u64,
     pub junk_bytes: u64,
     pub windows: u64,
+    pub clock_jumps: u64,
+    pub silences: u64,
 }
 
 /// How fast a recorded source plays.
@@ -107,7 +139,10 @@ pub enum SourceSpec {
 }
 
 /// A way for sinks to send frames back out on the live link the source reads (MAVLink
-/// publishing "on the same link"). Empty unless the source is a live link.
+/// publishing "on the same link"). Empty unless the source is a live link. Where a frame
+/// goes is the link's business (see [`link`]): the last UDP peer heard (`udpin:`), the
+/// target (`udpout:`), every TCP client (`tcpin:`), the open connection (`tcpout:`,
+/// `serial:`). Frames are whole encoded MAVLink frames.
 #[derive(Debug, Clone, Default)]
 pub struct LinkHandle(std::sync::Arc<std::sync::Mutex<Option<tokio::sync::mpsc::Sender<Vec<u8>>>>>);
 
@@ -132,14 +167,101 @@ impl LinkHandle {
 }
 
 /// Read `spec` until it ends or `shutdown` is cancelled, sending every decoded message.
-/// Returns an error only for what makes the source unusable (missing file, bad address).
+/// Returns an error only for what makes the source unusable (missing file, bad address,
+/// a port that cannot be bound); everything else is counted in `stats` and logged.
+///
+/// Recorded sources are paced by their `t_s`: [`Speed::Factor`]`(f)` sends a message at
+/// `t_s / f` after the start, [`Speed::Max`] as fast as the bounded channel takes them.
 pub async fn run(
     spec: SourceSpec,
-    tx: tokio::sync::mpsc::Sender<TimedMessage>,
-    stats: std::sync::Arc<IngestStats>,
+    tx: mpsc::Sender<TimedMessage>,
+    stats: Arc<IngestStats>,
     link: LinkHandle,
-    shutdown: tokio_util::sync::CancellationToken,
+    shutdown: CancellationToken,
 ) -> anyhow::Result<()> {
-    let _ = (spec, tx, stats, link, shutdown);
-    anyhow::bail!("sources are not implemented yet")
+    match spec {
+        SourceSpec::Link(address) => {
+            let addr: link::LinkAddress = address.parse()?;
+            link::run(addr, tx, stats, link, shutdown).await
+        }
+        SourceSpec::Tlog { path, speed } => {
+            let f = open(&path).await?;
+            replay(f, &path.display().to_string(), TimedReader::tlog(), speed, tx, &stats, shutdown).await
+        }
+        SourceSpec::Raw { path, speed } => {
+            let f = open(&path).await?;
+            replay(f, &path.display().to_string(), TimedReader::raw(), speed, tx, &stats, shutdown).await
+        }
+        SourceSpec::Dataset { path, flight, speed } => {
+            let name = format!("{} flight {flight}", path.display());
+            let bytes = tokio::task::spawn_blocking(move || dataset::flight_tlog(&path, flight)).await??;
+            replay(&bytes[..], &name, TimedReader::tlog(), speed, tx, &stats, shutdown).await
+        }
+    }
+}
+
+async fn open(path: &std::path::Path) -> anyhow::Result<tokio::fs::File> {
+    tokio::fs::File::open(path).await.with_context(|| format!("{}: cannot open", path.display()))
+}
+
+/// Feed `input` through `reader`, pacing by `t_s` at `speed`, until the input ends, the
+/// receiver goes away or `shutdown` is cancelled.
+async fn replay<R: AsyncRead + Unpin>(
+    mut input: R,
+    name: &str,
+    mut reader: TimedReader,
+    speed: Speed,
+    tx: mpsc::Sender<TimedMessage>,
+    stats: &IngestStats,
+    shutdown: CancellationToken,
+) -> anyhow::Result<()> {
+    let mut buf = vec![0u8; 64 * 1024];
+    let start = tokio::time::Instant::now();
+    let mut eof = false;
+    loop {
+        while let Some(m) = reader.next_message(stats) {
+            if let Speed::Factor(f) = speed {
+                let due = start + Duration::from_secs_f64(m.t_s / f);
+                if due > tokio::time::Instant::now() + Duration::from_millis(1) {
+                    tokio::select! {
+                        _ = shutdown.cancelled() => return Ok(()),
+                        _ = tokio::time::sleep_until(due) => {}
+                    }
+                }
+            }
+            if !send(&tx, m, &shutdown).await {
+                return Ok(());
+            }
+        }
+        if eof {
+            tracing::debug!("{name}: end of input");
+            return Ok(());
+        }
+        let n = tokio::select! {
+            _ = shutdown.cancelled() => return Ok(()),
+            r = input.read(&mut buf) => r.with_context(|| format!("{name}: read failed"))?,
+        };
+        if n == 0 {
+            reader.finish();
+            eof = true;
+        } else {
+            reader.push(&buf[..n]);
+        }
+    }
+}
+
+/// Send one message, waiting for room (back-pressure) unless shutdown comes first.
+/// False when the run is over (shutdown, or nobody listens any more).
+async fn send(tx: &mpsc::Sender<TimedMessage>, m: TimedMessage, shutdown: &CancellationToken) -> bool {
+    if shutdown.is_cancelled() {
+        return false;
+    }
+    match tx.try_send(m) {
+        Ok(()) => true,
+        Err(mpsc::error::TrySendError::Closed(_)) => false,
+        Err(mpsc::error::TrySendError::Full(m)) => tokio::select! {
+            _ = shutdown.cancelled() => false,
+            r = tx.send(m) => r.is_ok(),
+        },
+    }
 }

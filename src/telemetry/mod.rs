@@ -1,5 +1,52 @@
 //! Vehicle state, frame conversion, fixed-rate resampling and the feature vector the
 //! models see. Owner: features (issue 3).
+//!
+//! [`Telemetry`] is the live stage: MAVLink messages in, [`Window`]s out. It tracks the
+//! vehicle state from whatever messages the autopilot sends, converts each signal to the
+//! data set's frame and units at message time ([`frames`]), hands it to the fixed-rate
+//! [`resample::Resampler`], and slides a ring of T samples over the result
+//! ([`crate::window::WindowRing`]). Training and evaluation walk the same stage over the
+//! data set encoded as MAVLink ([`crate::offline::data`]), so live and offline features
+//! cannot drift apart.
+//!
+//! ## Sources, best first
+//!
+//! | signal | features | sources (best first) |
+//! |---|---|---|
+//! | attitude | `orientation_*` | ATTITUDE_QUATERNION, ATTITUDE (Euler → quaternion) |
+//! | angular rate | `angular_*` | ATTITUDE_QUATERNION, ATTITUDE, HIGHRES_IMU, SCALED_IMU (mrad/s), RAW_IMU (read as ArduPilot sends it: mrad/s) |
+//! | acceleration | `linear_acceleration_*` | HIGHRES_IMU (m/s²), SCALED_IMU (mG), RAW_IMU (mG, ArduPilot's scaling) |
+//! | velocity | `velocity_*` | LOCAL_POSITION_NED, ODOMETRY (child frame LOCAL_NED or BODY_FRD), GLOBAL_POSITION_INT (cm/s) |
+//! | position | `position_*` | GLOBAL_POSITION_INT, GPS_RAW_INT |
+//! | wind | `wind_speed`, `wind_angle` | WIND, WIND_COV (true wind minus ground velocity = what the anemometer reads), VFR_HUD (airspeed, with the heading as the angle) |
+//! | power | `measured_w`, `voltage_v` | BATTERY_STATUS (battery id 0; cell voltages summed), SYS_STATUS |
+//! | mission | `speed`, `payload`, `altitude` | NAMED_VALUE_FLOAT `cmd_speed` (m/s), `payload_g` (g), `cmd_alt` (m) — the data-set encoder sends these — then `[mission]` config, then defaults 10 m/s, 0 g, 25 m |
+//! | home | [`Sample::home`] | HOME_POSITION, else the first GPS fix (non-zero latitude/longitude) |
+//!
+//! A worse source is used only while every better one is quiet (no update for
+//! `stale_after_s`). ArduPilot's default streams (ATTITUDE, RAW_IMU/SCALED_IMU,
+//! GLOBAL_POSITION_INT, LOCAL_POSITION_NED, WIND, VFR_HUD, SYS_STATUS, BATTERY_STATUS) and
+//! PX4's (ATTITUDE_QUATERNION, HIGHRES_IMU, LOCAL_POSITION_NED, GLOBAL_POSITION_INT,
+//! VFR_HUD, BATTERY_STATUS, no WIND) both fill every feature. [`Telemetry::health`] says
+//! which source feeds each signal and what is stale (the terminal view shows it).
+//!
+//! Messages are taken from one vehicle: the system id of the first autopilot HEARTBEAT
+//! (or of the first telemetry message, if that comes first); others are counted and
+//! ignored. A non-finite value makes its whole update be dropped and counted
+//! ([`Telemetry::nonfinite`]), never propagated. The time of a message is its
+//! [`TimedMessage::t_s`] (the tlog stamp or the arrival time), rounded to the microsecond.
+//!
+//! ## Frames, as verified on the data set
+//!
+//! See [`frames`] for the per-column conventions and the checks behind them.
+
+pub mod frames;
+pub mod resample;
+
+use crate::source::TimedMessage;
+use crate::window::{Window, WindowRing};
+use crate::MavMessage;
+use resample::{Resampler, Signal, N_SIGNALS, SIGNALS};
 
 /// Number of model input features (the paper's 21).
 pub const N_FEATURES: usize = 21;
@@ -13,17 +60,17 @@ pub const FEATURE_NAMES: [&str; N_FEATURES] = [
     "position_x",            // deg longitude
     "position_y",            // deg latitude
     "position_z",            // m above sea level
-    "orientation_x",         // quaternion, data-set convention
+    "orientation_x",         // quaternion: body (x right, y forward, z up) → ENU, w ≥ 0
     "orientation_y",
     "orientation_z",
     "orientation_w",
-    "velocity_x",            // m/s body forward
-    "velocity_y",            // m/s body left
+    "velocity_x",            // m/s ground velocity, heading frame: right
+    "velocity_y",            // m/s forward
     "velocity_z",            // m/s up
-    "angular_x",             // rad/s body rates (FRD-like)
+    "angular_x",             // rad/s body rates, FRD
     "angular_y",
     "angular_z",
-    "linear_acceleration_x", // m/s², specific force, z-down body (z ≈ −9.81 at rest)
+    "linear_acceleration_x", // m/s², specific force, FRD body (z ≈ −9.81 at rest)
     "linear_acceleration_y",
     "linear_acceleration_z",
     "speed",                 // m/s commanded cruise ground speed (mission)
@@ -63,7 +110,8 @@ pub mod idx {
 pub struct Sample {
     /// Grid time, seconds on the source clock.
     pub t_s: f64,
-    /// The 21 features, data-set units and frames, order of [`FEATURE_NAMES`].
+    /// The 21 features, data-set units and frames, order of [`FEATURE_NAMES`] (frames as
+/// verified on the data set: see [`frames`]).
     pub features: [f32; N_FEATURES],
     /// Measured electrical power V × I, watts, when voltage and current are present.
     pub measured_w: Option<f32>,
@@ -106,11 +154,15 @@ pub struct TelemetryConfig {
     pub window: usize,
     /// A signal with no update for this long is marked stale, s. Default 1.5.
     pub stale_after_s: f64,
+    /// When the whole stream is silent for longer than this, s, nothing is interpolated
+    /// across the silence: the window ring restarts after it. Default 1.0 (the data set's
+    /// rows come every 0.1–0.21 s; it has ten gaps over 1 s, the longest 5.28 s).
+    pub max_gap_s: f64,
 }
 
 impl Default for TelemetryConfig {
     fn default() -> Self {
-        Self { rate_hz: 10.0, window: crate::window::DEFAULT_T, stale_after_s: 1.5 }
+        Self { rate_hz: 10.0, window: crate::window::DEFAULT_T, stale_after_s: 1.5, max_gap_s: 1.0 }
     }
 }
 
@@ -123,30 +175,374 @@ impl TelemetryConfig {
         if !(1..=1000).contains(&self.window) {
             return Err(format!("telemetry.window = {}: must be 1..=1000 samples", self.window));
         }
-        if !(self.stale_after_s > 0.0) {
+        if !(self.stale_after_s > 0.0 && self.stale_after_s.is_finite()) {
             return Err(format!("telemetry.stale_after_s = {}: must be > 0", self.stale_after_s));
+        }
+        if !(self.max_gap_s > 1.0 / self.rate_hz && self.max_gap_s.is_finite()) {
+            return Err(format!(
+                "telemetry.max_gap_s = {}: must be longer than one sample period (1/rate_hz)",
+                self.max_gap_s
+            ));
         }
         Ok(())
     }
 }
 
-/// The telemetry stage: messages in, windows out. (Placeholder until the features work
-/// lands: emits a one-sample window of measured power per SYS_STATUS.)
+/// Which source feeds one signal and whether it is stale: what the terminal view shows.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SignalHealth {
+    /// Signal name (`attitude`, `velocity`, …; `mission` for speed/payload/altitude).
+    pub signal: &'static str,
+    /// Indices into [`FEATURE_NAMES`] this signal fills (empty for power).
+    pub features: Vec<usize>,
+    /// MAVLink message currently feeding it (`config`/`default` for the mission); `None`
+    /// when nothing has arrived yet.
+    pub source: Option<&'static str>,
+    /// Seconds since its last update, on the source clock.
+    pub age_s: Option<f64>,
+    /// No update for more than `stale_after_s`: its features are held and stale-marked.
+    pub stale: bool,
+}
+
+/// Source names per signal, best first (index = rank).
+const SOURCES: [&[&str]; N_SIGNALS] = [
+    &["WIND", "WIND_COV", "VFR_HUD"],
+    &["GLOBAL_POSITION_INT", "GPS_RAW_INT"],
+    &["ATTITUDE_QUATERNION", "ATTITUDE"],
+    &["LOCAL_POSITION_NED", "ODOMETRY", "GLOBAL_POSITION_INT"],
+    &["ATTITUDE_QUATERNION", "ATTITUDE", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU"],
+    &["HIGHRES_IMU", "SCALED_IMU", "RAW_IMU"],
+    &["BATTERY_STATUS", "SYS_STATUS"],
+];
+
+const G: f64 = 9.80665;
+
+/// The telemetry stage: messages in, windows out (see the module docs).
 pub struct Telemetry {
-    window: usize,
+    stale_us: i64,
+    resampler: Resampler,
+    ring: WindowRing,
+    /// Per signal: (rank, time µs) of the source in use.
+    active: [Option<(usize, i64)>; N_SIGNALS],
+    sysid: Option<u32>,
+    /// Latest raw attitude (FRD→NED) and ground velocity (NED), for conversions.
+    q_ned: Option<frames::Quat>,
+    vel_ned: Option<[f64; 3]>,
+    home: Option<[f64; 3]>,
+    /// Mission: values from NAMED_VALUE_FLOAT, the config, and the defaults.
+    mission_msg: [Option<f32>; 3],
+    mission_cfg: [Option<f32>; 3],
+    nonfinite: u64,
+    foreign: u64,
+    samples: Vec<Sample>,
 }
 
 impl Telemetry {
     /// A stage for this rate, window and mission.
-    pub fn new(cfg: &TelemetryConfig, _mission: &MissionConfig) -> Self {
-        Self { window: cfg.window }
+    pub fn new(cfg: &TelemetryConfig, mission: &MissionConfig) -> Self {
+        let mut t = Self {
+            stale_us: (cfg.stale_after_s * 1e6).round() as i64,
+            resampler: Resampler::new(cfg.rate_hz, cfg.stale_after_s, cfg.max_gap_s),
+            ring: WindowRing::new(cfg.window),
+            active: [None; N_SIGNALS],
+            sysid: None,
+            q_ned: None,
+            vel_ned: None,
+            home: None,
+            mission_msg: [None; 3],
+            mission_cfg: [mission.speed_m_s, mission.payload_g, mission.altitude_m],
+            nonfinite: 0,
+            foreign: 0,
+            samples: Vec::new(),
+        };
+        t.refresh_mission();
+        t
     }
+
     /// Feed one message; push any windows it completes onto `out`.
-    pub fn push(&mut self, m: &crate::source::TimedMessage, out: &mut Vec<crate::window::Window>) {
-        let _ = (m, out, self.window);
+    pub fn push(&mut self, m: &TimedMessage, out: &mut Vec<Window>) {
+        if !m.t_s.is_finite() || !self.from_vehicle(m) {
+            return;
+        }
+        let t_us = (m.t_s * 1e6).round() as i64;
+        self.ingest(t_us, &m.msg);
+        if self.resampler.take_restart() {
+            self.ring.clear();
+        }
+        let mut samples = std::mem::take(&mut self.samples);
+        self.resampler.poll(&mut samples);
+        self.windows_from(&mut samples, out);
+        self.samples = samples;
     }
+
     /// End of stream: flush what can still be emitted.
-    pub fn finish(&mut self, out: &mut Vec<crate::window::Window>) {
-        let _ = out;
+    pub fn finish(&mut self, out: &mut Vec<Window>) {
+        let mut samples = std::mem::take(&mut self.samples);
+        self.resampler.finish(&mut samples);
+        self.windows_from(&mut samples, out);
+        self.samples = samples;
+    }
+
+    /// Per signal: which message feeds it, its age and whether it is stale.
+    pub fn health(&self) -> Vec<SignalHealth> {
+        let mut v: Vec<SignalHealth> = SIGNALS
+            .iter()
+            .map(|&sig| SignalHealth {
+                signal: sig.name(),
+                features: sig.features().to_vec(),
+                source: self.active[sig as usize].map(|(r, _)| SOURCES[sig as usize][r]),
+                age_s: self.resampler.age_s(sig),
+                stale: self.resampler.is_quiet(sig),
+            })
+            .collect();
+        let src = if self.mission_msg.iter().any(Option::is_some) {
+            "NAMED_VALUE_FLOAT"
+        } else if self.mission_cfg.iter().any(Option::is_some) {
+            "config"
+        } else {
+            "default"
+        };
+        v.push(SignalHealth {
+            signal: "mission",
+            features: vec![idx::SPEED, idx::PAYLOAD, idx::ALTITUDE],
+            source: Some(src),
+            age_s: None,
+            stale: false,
+        });
+        v
+    }
+
+    /// Updates dropped because a field was NaN or infinite.
+    pub fn nonfinite(&self) -> u64 {
+        self.nonfinite
+    }
+
+    /// Messages ignored because another system sent them.
+    pub fn foreign(&self) -> u64 {
+        self.foreign
+    }
+
+    /// Whole-stream gaps after which the window ring restarted.
+    pub fn restarts(&self) -> u64 {
+        self.resampler.restarts()
+    }
+
+    fn windows_from(&mut self, samples: &mut Vec<Sample>, out: &mut Vec<Window>) {
+        for mut s in samples.drain(..) {
+            if let Some(h) = self.home {
+                let (lon, lat, alt) = (s.features[idx::POS_X] as f64, s.features[idx::POS_Y] as f64, s.features[idx::POS_Z] as f64);
+                if s.stale_mask & (1 << idx::POS_X) == 0 {
+                    s.home = Some(HomeVector {
+                        distance_m: frames::ground_distance_m(h[0], h[1], lat, lon) as f32,
+                        height_m: (alt - h[2]) as f32,
+                    });
+                }
+            }
+            if let Some(w) = self.ring.push(s) {
+                out.push(w);
+            }
+        }
+    }
+
+    fn from_vehicle(&mut self, m: &TimedMessage) -> bool {
+        let sys = m.header.system_id;
+        match (self.sysid, &m.msg) {
+            (Some(id), _) if id == sys => true,
+            (Some(_), _) => {
+                self.foreign += 1;
+                false
+            }
+            (None, MavMessage::HEARTBEAT(h)) => {
+                let autopilot = h.autopilot != crate::dialect::MavAutopilot::MAV_AUTOPILOT_INVALID
+                    && h.mavtype != crate::dialect::MavType::MAV_TYPE_GCS;
+                if autopilot {
+                    self.sysid = Some(sys);
+                }
+                autopilot
+            }
+            (None, MavMessage::PARAM_VALUE(_) | MavMessage::STATUSTEXT(_)) => false,
+            (None, _) => {
+                self.sysid = Some(sys);
+                true
+            }
+        }
+    }
+
+    /// Record `v` for `sig` from source `rank` if no better source is live.
+    fn offer(&mut self, sig: Signal, rank: usize, t_us: i64, v: &[f64]) {
+        if v.iter().any(|x| !x.is_finite()) {
+            self.nonfinite += 1;
+            if self.nonfinite == 1 {
+                tracing::warn!(signal = sig.name(), source = SOURCES[sig as usize][rank], "non-finite telemetry value ignored (further ones are counted)");
+            }
+            return;
+        }
+        if self.takes(sig, rank, t_us) {
+            self.active[sig as usize] = Some((rank, t_us));
+            self.resampler.update(sig, t_us, v);
+        }
+    }
+
+    /// Whether an update from source `rank` is used: no better source is live.
+    fn takes(&self, sig: Signal, rank: usize, t_us: i64) -> bool {
+        match self.active[sig as usize] {
+            None => true,
+            Some((r, t)) => rank <= r || t_us - t > self.stale_us,
+        }
+    }
+
+    fn refresh_mission(&mut self) {
+        let d = [10.0, 0.0, 25.0];
+        let m: Vec<f32> = (0..3).map(|i| self.mission_msg[i].or(self.mission_cfg[i]).unwrap_or(d[i])).collect();
+        self.resampler.set_mission(m[0], m[1], m[2]);
+    }
+
+    fn attitude(&mut self, rank: usize, t_us: i64, q_ned: frames::Quat, rates: [f32; 3]) {
+        if !(q_ned.iter().all(|x| x.is_finite()) && q_ned.iter().any(|&x| x != 0.0)) {
+            self.nonfinite += 1;
+        } else if self.takes(Signal::Attitude, rank, t_us) {
+            self.q_ned = Some(q_ned);
+            let q = frames::ned_to_ds(q_ned);
+            self.offer(Signal::Attitude, rank, t_us, &q);
+        }
+        self.offer(Signal::Rates, rank, t_us, &rates.map(f64::from));
+    }
+
+    fn velocity(&mut self, rank: usize, t_us: i64, v_ned: [f64; 3]) {
+        if !v_ned.iter().all(|x| x.is_finite()) {
+            self.nonfinite += 1;
+            return;
+        }
+        if !self.takes(Signal::Velocity, rank, t_us) {
+            return;
+        }
+        self.vel_ned = Some(v_ned);
+        // Body velocities need the heading: wait for the first attitude.
+        if let Some(q) = self.q_ned {
+            let v = frames::ned_to_body_vel(v_ned, frames::yaw_ned(q));
+            self.offer(Signal::Velocity, rank, t_us, &v);
+        }
+    }
+
+    fn true_wind(&mut self, rank: usize, t_us: i64, wind_ne: [f64; 2]) {
+        if let Some(v) = self.vel_ned {
+            let w = frames::apparent_wind(wind_ne, [v[0], v[1]]);
+            self.offer(Signal::Wind, rank, t_us, &w);
+        }
+    }
+
+    fn position(&mut self, rank: usize, t_us: i64, lat_e7: i32, lon_e7: i32, alt_mm: i32) {
+        let p = [lon_e7 as f64 * 1e-7, lat_e7 as f64 * 1e-7, alt_mm as f64 * 1e-3];
+        if self.home.is_none() && (lat_e7 != 0 || lon_e7 != 0) {
+            self.home = Some([p[1], p[0], p[2]]);
+        }
+        self.offer(Signal::Position, rank, t_us, &p);
+    }
+
+    fn ingest(&mut self, t: i64, msg: &MavMessage) {
+        use crate::dialect::{HighresImuUpdatedFlags as F, MavFrame};
+        match msg {
+            MavMessage::ATTITUDE_QUATERNION(a) => {
+                let q = [a.q1, a.q2, a.q3, a.q4].map(f64::from);
+                self.attitude(0, t, q, [a.rollspeed, a.pitchspeed, a.yawspeed]);
+            }
+            MavMessage::ATTITUDE(a) => {
+                let q = frames::quat_from_euler(a.roll as f64, a.pitch as f64, a.yaw as f64);
+                self.attitude(1, t, q, [a.rollspeed, a.pitchspeed, a.yawspeed]);
+            }
+            MavMessage::HIGHRES_IMU(m) => {
+                let f = m.fields_updated;
+                if f.is_empty() || f.contains(F::HIGHRES_IMU_UPDATED_XGYRO | F::HIGHRES_IMU_UPDATED_YGYRO | F::HIGHRES_IMU_UPDATED_ZGYRO) {
+                    self.offer(Signal::Rates, 2, t, &[m.xgyro, m.ygyro, m.zgyro].map(f64::from));
+                }
+                if f.is_empty() || f.contains(F::HIGHRES_IMU_UPDATED_XACC | F::HIGHRES_IMU_UPDATED_YACC | F::HIGHRES_IMU_UPDATED_ZACC) {
+                    self.offer(Signal::Accel, 0, t, &[m.xacc, m.yacc, m.zacc].map(f64::from));
+                }
+            }
+            MavMessage::SCALED_IMU(m) => {
+                self.offer(Signal::Rates, 3, t, &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3));
+                self.offer(Signal::Accel, 1, t, &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G));
+            }
+            MavMessage::RAW_IMU(m) => {
+                self.offer(Signal::Rates, 4, t, &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3));
+                self.offer(Signal::Accel, 2, t, &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G));
+            }
+            MavMessage::LOCAL_POSITION_NED(m) => self.velocity(0, t, [m.vx, m.vy, m.vz].map(f64::from)),
+            MavMessage::ODOMETRY(m) => {
+                let v = [m.vx, m.vy, m.vz].map(f64::from);
+                let q = m.q.map(f64::from);
+                match m.child_frame_id {
+                    MavFrame::MAV_FRAME_LOCAL_NED => self.velocity(1, t, v),
+                    MavFrame::MAV_FRAME_BODY_FRD if q.iter().any(|&x| x != 0.0) => {
+                        self.velocity(1, t, frames::rotate(q, v))
+                    }
+                    _ => {}
+                }
+            }
+            MavMessage::GLOBAL_POSITION_INT(m) => {
+                self.velocity(2, t, [m.vx, m.vy, m.vz].map(|x| x as f64 * 0.01));
+                self.position(0, t, m.lat, m.lon, m.alt);
+            }
+            MavMessage::GPS_RAW_INT(m) => {
+                if m.fix_type as u8 >= crate::dialect::GpsFixType::GPS_FIX_TYPE_3D_FIX as u8 {
+                    self.position(1, t, m.lat, m.lon, m.alt);
+                }
+            }
+            MavMessage::HOME_POSITION(h) => {
+                self.home = Some([h.latitude as f64 * 1e-7, h.longitude as f64 * 1e-7, h.altitude as f64 * 1e-3]);
+            }
+            MavMessage::WIND(w) => {
+                let v = frames::wind_from_to_vec(w.speed as f64, w.direction as f64);
+                if v.iter().all(|x| x.is_finite()) {
+                    self.true_wind(0, t, v);
+                } else {
+                    self.nonfinite += 1;
+                }
+            }
+            MavMessage::WIND_COV(w) => {
+                let v = [w.wind_x as f64, w.wind_y as f64];
+                if v.iter().all(|x| x.is_finite()) {
+                    self.true_wind(1, t, v);
+                } else {
+                    self.nonfinite += 1;
+                }
+            }
+            MavMessage::VFR_HUD(h) => {
+                let heading = (h.heading as f64).rem_euclid(360.0);
+                self.offer(Signal::Wind, 2, t, &[h.airspeed as f64, heading]);
+            }
+            MavMessage::BATTERY_STATUS(b) if b.id == 0 => {
+                let mv: f64 = b.voltages.iter().filter(|&&c| c != u16::MAX).map(|&c| c as f64).sum::<f64>()
+                    + b.voltages_ext.iter().filter(|&&c| c != 0).map(|&c| c as f64).sum::<f64>();
+                if b.current_battery != -1 && mv > 0.0 {
+                    self.power(0, t, mv * 1e-3, b.current_battery as f64 * 0.01);
+                }
+            }
+            MavMessage::SYS_STATUS(s) => {
+                if s.voltage_battery != u16::MAX && s.current_battery != -1 {
+                    self.power(1, t, s.voltage_battery as f64 * 1e-3, s.current_battery as f64 * 0.01);
+                }
+            }
+            MavMessage::NAMED_VALUE_FLOAT(n) => {
+                let name = n.name.to_str().unwrap_or("").trim_end_matches('\0');
+                let i = match name {
+                    "cmd_speed" => 0,
+                    "payload_g" => 1,
+                    "cmd_alt" => 2,
+                    _ => return,
+                };
+                if n.value.is_finite() {
+                    self.mission_msg[i] = Some(n.value);
+                    self.refresh_mission();
+                } else {
+                    self.nonfinite += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn power(&mut self, rank: usize, t: i64, v: f64, i: f64) {
+        self.offer(Signal::Power, rank, t, &[v, i, v * i]);
     }
 }

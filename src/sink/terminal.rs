@@ -1,0 +1,147 @@
+//! The live terminal view: one status line a second on stderr (measured power, the models'
+//! estimates, energy, link health, stale features), alert events the moment they come,
+//! and a closing line with the run's counters. Colour when stderr is a terminal.
+//!
+//! ```text
+//! t 312.4 s  measured 241.7 W  dandrea 236.0  lstm 244.1 W  used 12.80 Wh  left 88.1 Wh (21 min)  home +31.2 Wh  link 52 msg/s ok 16211 bad 2 unk 0 gaps 3  stale: wind_speed
+//! ```
+
+use std::io::{IsTerminal, Write};
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crossterm::style::Stylize;
+use tokio::sync::broadcast;
+
+use crate::alert::{AlertEvent, AlertState};
+use crate::energy::Report;
+use crate::source::IngestStats;
+use crate::telemetry::FEATURE_NAMES;
+
+/// Run the view until the report channel closes.
+pub async fn run(mut rx: broadcast::Receiver<Arc<Report>>, stats: Arc<IngestStats>) -> anyhow::Result<()> {
+    let colour = std::io::stderr().is_terminal();
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    tick.tick().await; // the first tick is immediate: nothing to show yet
+    let mut latest: Option<Arc<Report>> = None;
+    let mut missed = 0;
+    let mut last = (Instant::now(), 0u64);
+    loop {
+        tokio::select! {
+            r = super::next_report(&mut rx, &mut missed) => match r {
+                Some(r) => {
+                    for a in &r.alerts {
+                        eprintln!("{}", alert_line(a, colour));
+                    }
+                    latest = Some(r);
+                }
+                None => break,
+            },
+            _ = tick.tick() => {
+                let ok = stats.frames_ok.load(Relaxed);
+                let rate = (ok - last.1) as f64 / last.0.elapsed().as_secs_f64().max(1e-3);
+                last = (Instant::now(), ok);
+                let line = status_line(latest.as_deref(), &stats, rate, colour);
+                let mut e = std::io::stderr().lock();
+                let _ = writeln!(e, "{line}");
+            }
+        }
+    }
+    let s = stats.snapshot();
+    eprintln!(
+        "done: frames ok {} bad {} unknown {} gaps {} (clock jumps {}) junk bytes {} windows {}{}",
+        s.frames_ok,
+        s.frames_bad,
+        s.unknown,
+        s.gaps,
+        s.clock_jumps,
+        s.junk_bytes,
+        s.windows,
+        if missed > 0 { format!(", {missed} reports missed by the terminal view") } else { String::new() }
+    );
+    Ok(())
+}
+
+/// A number, or `?` for NaN/infinity (a sensor glitch must not look like a value).
+fn num(v: f64, decimals: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.decimals$}")
+    } else {
+        "?".into()
+    }
+}
+
+/// The once-a-second status line.
+pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: bool) -> String {
+    let mut s = String::new();
+    match r {
+        None => s.push_str("waiting for the first window  "),
+        Some(r) => {
+            let e = &r.estimate;
+            s.push_str(&format!("t {} s  ", num(e.t_s, 1)));
+            match e.sample.measured_w {
+                Some(w) => s.push_str(&format!("measured {} W  ", num(w as f64, 1))),
+                None => s.push_str("measured — W  "),
+            }
+            for m in &e.models {
+                s.push_str(&format!("{} {}  ", m.name, num(m.power_w as f64, 1)));
+            }
+            let en = &r.energy;
+            if en.energy_used_wh != 0.0 || en.remaining_wh.is_some() {
+                s.push_str(&format!("used {} Wh  ", num(en.energy_used_wh, 2)));
+            }
+            if let Some(left) = en.remaining_wh {
+                s.push_str(&format!("left {} Wh", num(left, 1)));
+                if let Some(t) = en.time_to_empty_s {
+                    s.push_str(&format!(" ({} min)", num(t / 60.0, 0)));
+                }
+                s.push_str("  ");
+            }
+            if let Some(h) = en.home_margin_wh {
+                let txt = format!("home {}{} Wh  ", if h >= 0.0 { "+" } else { "" }, num(h, 1));
+                s.push_str(&if colour && h < 0.0 { txt.red().to_string() } else { txt });
+            }
+        }
+    }
+    let n = stats.snapshot();
+    s.push_str(&format!(
+        "link {} msg/s ok {} bad {} unk {} gaps {}",
+        num(rate, 0),
+        n.frames_ok,
+        n.frames_bad,
+        n.unknown,
+        n.gaps
+    ));
+    if stats.silent.load(Relaxed) {
+        let txt = "  SILENT (no valid frame for 5 s)";
+        s.push_str(&if colour { txt.red().bold().to_string() } else { txt.to_string() });
+    }
+    if let Some(r) = r {
+        let stale: Vec<&str> =
+            FEATURE_NAMES.iter().enumerate().filter(|(i, _)| r.estimate.sample.stale_mask & (1 << i) != 0).map(|(_, n)| *n).collect();
+        if !stale.is_empty() {
+            let txt = format!("  stale: {}", stale.join(","));
+            s.push_str(&if colour { txt.yellow().to_string() } else { txt });
+        }
+    }
+    s
+}
+
+/// One alert event, coloured by severity (cleared alerts green).
+pub fn alert_line(a: &AlertEvent, colour: bool) -> String {
+    let (tag, txt) = match a.state {
+        AlertState::Raised => ("ALERT", format!("[{}] {} at t {} s: {}", a.severity, a.rule, num(a.t, 1), a.message)),
+        AlertState::Cleared => ("clear", format!("{} cleared at t {} s: {}", a.rule, num(a.t, 1), a.message)),
+    };
+    let line = format!("{tag} {txt}");
+    if !colour {
+        return line;
+    }
+    match (a.state, a.severity.as_str()) {
+        (AlertState::Cleared, _) => line.green().to_string(),
+        (_, "critical" | "emergency" | "error") => line.red().bold().to_string(),
+        (_, "warning") => line.yellow().to_string(),
+        _ => line.cyan().to_string(),
+    }
+}

@@ -1,0 +1,503 @@
+//! Our own MAVLink frame decoder, used by every source (links, `.tlog`, raw streams).
+//!
+//! Why not rust-mavlink's readers: they drop frames with a bad CRC without a word, ignore
+//! MAVLink 1 unless told otherwise and drop `.tlog` timestamps. Here every byte is
+//! accounted for in [`IngestStats`]: a frame is *ok* (CRC checked, payload decoded), *bad*
+//! (bad CRC, truncated, payload that does not decode), *unknown* (a plausible frame whose
+//! message id this dialect does not know, so its CRC cannot be checked) or its bytes are
+//! *junk*. Decoding itself is rust-mavlink's: `MavMessage::parse(version, id, payload)`
+//! with the payload exactly as sent (MAVLink 2 trims trailing zeros; the generated
+//! `deser` pads a short payload with zeros itself).
+//!
+//! ## Framings
+//!
+//! - [`Framing::Stream`] (serial, TCP, UDP datagrams, raw files): frames back to back with
+//!   anything in between. The decoder scans for a start byte (`0xFE` v1, `0xFD` v2).
+//! - [`Framing::Tlog`]: each frame preceded by an 8-byte big-endian µs timestamp; the
+//!   timestamp comes out with the frame.
+//!
+//! ## Resynchronisation
+//!
+//! A frame whose CRC fails is counted bad once, and the decoder then looks for the next
+//! frame from the byte after its start byte, not after its declared end: its length byte
+//! may be the corrupted one, and skipping the declared length could swallow the next good
+//! frame. Candidates that start inside a frame already counted bad are not counted again
+//! (a false start byte in a corrupted payload is not a second bad frame). A frame with an
+//! unknown id is counted when a frame that checks out (or another unknown one, or the end
+//! of input) follows it, and its bytes are then accounted for exactly by its length; the
+//! scan still steps into it, so a stray start byte in garbage that merely looks like an
+//! unknown frame can never swallow a good frame behind it.
+//!
+//! ## Gaps
+//!
+//! `gaps` counts discontinuities. The decoder counts *sequence gaps*: per (system,
+//! component), a frame (ok or unknown) whose sequence number is neither the previous one
+//! plus one (mod 256) nor a repeat of it. One gap per discontinuity, however many frames
+//! it lost; a frame counted bad therefore usually shows as one gap too. Clock jumps are
+//! counted by the time bases in [`super::timed`].
+
+use std::sync::OnceLock;
+
+use mavlink::{MavHeader, MavlinkVersion, Message};
+
+use super::IngestStats;
+use crate::MavMessage;
+
+/// Start byte of a MAVLink 1 frame.
+pub const STX_V1: u8 = 0xFE;
+/// Start byte of a MAVLink 2 frame.
+pub const STX_V2: u8 = 0xFD;
+/// MAVLink 2 incompatibility flag: the frame carries a 13-byte signature after its CRC.
+pub const IFLAG_SIGNED: u8 = 0x01;
+const SIGNATURE_LEN: usize = 13;
+const V1_HEADER: usize = 6; // STX len seq sys comp id
+const V2_HEADER: usize = 10; // STX len incompat compat seq sys comp id(3)
+/// Bytes of a tlog record's timestamp.
+pub const TLOG_STAMP_LEN: usize = 8;
+/// During tlog resynchronisation a frame that fails its CRC is only taken as the next
+/// record if the 8 bytes before it are a timestamp within this of the last good one.
+const TLOG_PLAUSIBLE_US: u64 = 600_000_000;
+
+/// How frames are laid out in the input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Framing {
+    /// Frames back to back, possibly with garbage in between (links, raw files).
+    Stream,
+    /// `.tlog`: an 8-byte big-endian µs timestamp before each frame.
+    Tlog,
+}
+
+/// One good frame.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Sender system/component and sequence.
+    pub header: MavHeader,
+    /// Which protocol version the frame was.
+    pub version: MavlinkVersion,
+    /// The decoded message.
+    pub msg: MavMessage,
+    /// The tlog record's timestamp, µs ([`Framing::Tlog`] only).
+    pub stamp_us: Option<u64>,
+}
+
+/// The MAVLink checksum (CRC-16/MCRF4XX, "X.25") over `data` then the message's
+/// `crc_extra`. Public so tests and tools can build frames by hand.
+#[inline]
+pub fn crc16(data: &[u8], extra: u8) -> u16 {
+    #[inline(always)]
+    fn acc(crc: u16, b: u8) -> u16 {
+        let mut t = b ^ (crc as u8);
+        t ^= t << 4;
+        let t = t as u16;
+        (crc >> 8) ^ (t << 8) ^ (t << 3) ^ (t >> 4)
+    }
+    let mut crc = 0xFFFF;
+    for &b in data {
+        crc = acc(crc, b);
+    }
+    acc(crc, extra)
+}
+
+/// `crc_extra` of every message id below 65536 that the dialect knows (bit 8 set = known).
+/// Built once: `MavMessage::extra_crc` answers 0 for an unknown id, which a known message
+/// may also have, so knowing is asked of `default_message_from_id`.
+fn id_table() -> &'static [u16] {
+    static TABLE: OnceLock<Vec<u16>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        (0..=u16::MAX as u32)
+            .map(|id| match MavMessage::default_message_from_id(id) {
+                Some(_) => 0x100 | MavMessage::extra_crc(id) as u16,
+                None => 0,
+            })
+            .collect()
+    })
+}
+
+/// The `crc_extra` of `id`, or `None` when this dialect does not know the message.
+#[inline]
+fn crc_extra(id: u32) -> Option<u8> {
+    match id_table().get(id as usize) {
+        Some(&e) if e & 0x100 != 0 => Some(e as u8),
+        Some(_) => None,
+        None => MavMessage::default_message_from_id(id).map(|_| MavMessage::extra_crc(id)),
+    }
+}
+
+/// What the bytes at one position turned out to be.
+enum At {
+    /// A frame of `len` bytes whose CRC checked and whose payload decoded.
+    Good { len: usize, header: MavHeader, version: MavlinkVersion, msg: MavMessage },
+    /// A frame layout of `len` bytes with an unknown message id.
+    Unknown { len: usize, header: MavHeader },
+    /// A frame layout of `len` bytes with a bad CRC or a payload that did not decode.
+    Bad { len: usize },
+    /// Not a frame start (wrong start byte, impossible flags).
+    NotFrame,
+    /// Could be a frame, but the input ends first.
+    NeedMore,
+}
+
+/// Decode the frame that starts at `b[0]`.
+#[inline]
+fn decode_at(b: &[u8]) -> At {
+    let (version, hdr, id, incompat) = match b.first() {
+        Some(&STX_V1) => {
+            if b.len() < V1_HEADER {
+                return At::NeedMore;
+            }
+            (MavlinkVersion::V1, V1_HEADER, b[5] as u32, 0)
+        }
+        Some(&STX_V2) => {
+            if b.len() < 3 {
+                return At::NeedMore;
+            }
+            // Any incompatibility flag but signing means we cannot read the frame:
+            // treat it as a false start byte.
+            if b[2] & !IFLAG_SIGNED != 0 {
+                return At::NotFrame;
+            }
+            if b.len() < V2_HEADER {
+                return At::NeedMore;
+            }
+            (MavlinkVersion::V2, V2_HEADER, u32::from_le_bytes([b[7], b[8], b[9], 0]), b[2])
+        }
+        _ => return At::NotFrame,
+    };
+    let payload_len = b[1] as usize;
+    let sig = if incompat & IFLAG_SIGNED != 0 { SIGNATURE_LEN } else { 0 };
+    let len = hdr + payload_len + 2 + sig;
+    if b.len() < len {
+        return At::NeedMore;
+    }
+    let (sequence, system_id, component_id) = match version {
+        MavlinkVersion::V1 => (b[2], b[3], b[4]),
+        MavlinkVersion::V2 => (b[4], b[5], b[6]),
+    };
+    let header = MavHeader { system_id: system_id as u32, component_id, sequence };
+    let Some(extra) = crc_extra(id) else {
+        return At::Unknown { len, header };
+    };
+    let crc_at = hdr + payload_len;
+    let sent = u16::from_le_bytes([b[crc_at], b[crc_at + 1]]);
+    if crc16(&b[1..crc_at], extra) != sent {
+        return At::Bad { len };
+    }
+    match MavMessage::parse(version, id, &b[hdr..crc_at]) {
+        Ok(msg) => At::Good { len, header, version, msg },
+        Err(_) => At::Bad { len },
+    }
+}
+
+/// Incremental decoder: [`push`](Self::push) bytes as they come (a stream chunk, a
+/// datagram, a whole file), then take frames with [`next_frame`](Self::next_frame) until
+/// it says `None`. [`finish`](Self::finish) at the end of input so a truncated last frame
+/// is counted. Allocation-free per frame beyond the returned message.
+pub struct FrameDecoder {
+    framing: Framing,
+    buf: Vec<u8>,
+    /// Next unread byte of `buf`.
+    pos: usize,
+    /// Bytes before this index belong to a frame already counted (bad, or unknown):
+    /// they are not junk, and false frames inside are not counted again.
+    counted_until: usize,
+    /// Tlog: whether `pos` is believed to be the start of a record.
+    aligned: bool,
+    /// Tlog: the last good record's timestamp (resync plausibility).
+    last_stamp_us: Option<u64>,
+    eof: bool,
+    /// Last sequence number per (system, component): `(sys, comp, seq)`. A handful of
+    /// components per link, so a linear scan beats hashing.
+    seqs: Vec<(u32, u8, u8)>,
+}
+
+impl FrameDecoder {
+    /// An empty decoder for this framing.
+    pub fn new(framing: Framing) -> Self {
+        Self {
+            framing,
+            buf: Vec::new(),
+            pos: 0,
+            counted_until: 0,
+            aligned: true,
+            last_stamp_us: None,
+            eof: false,
+            seqs: Vec::new(),
+        }
+    }
+
+    /// Append input. Consumed bytes are dropped first, so the buffer holds at most one
+    /// partial frame plus the new bytes.
+    pub fn push(&mut self, bytes: &[u8]) {
+        if self.pos > 0 {
+            self.buf.drain(..self.pos);
+            self.counted_until = self.counted_until.saturating_sub(self.pos);
+            self.pos = 0;
+        }
+        self.buf.extend_from_slice(bytes);
+    }
+
+    /// No more input will come: what is left is decoded as far as it goes and a
+    /// truncated last frame is counted bad.
+    pub fn finish(&mut self) {
+        self.eof = true;
+    }
+
+    /// Forget a partial frame and sequence history (a TCP reconnect: the new stream shares
+    /// nothing with the old one). Counts nothing.
+    pub fn reset(&mut self) {
+        self.buf.clear();
+        self.pos = 0;
+        self.counted_until = 0;
+        self.aligned = true;
+        self.eof = false;
+        self.seqs.clear();
+    }
+
+    /// The next good frame, counting everything skipped on the way into `stats`. `None`
+    /// when the buffered input is used up (push more, or it has ended).
+    pub fn next_frame(&mut self, stats: &IngestStats) -> Option<Frame> {
+        match self.framing {
+            Framing::Stream => self.next_stream(stats),
+            Framing::Tlog => self.next_tlog(stats),
+        }
+    }
+
+    /// Count the bytes in `[from, to)` that are not part of a frame counted bad as junk.
+    #[inline]
+    fn junk(&self, stats: &IngestStats, from: usize, to: usize) {
+        let n = to.saturating_sub(from.max(self.counted_until));
+        if n > 0 {
+            IngestStats::add(&stats.junk_bytes, n as u64);
+        }
+    }
+
+    /// Count a sequence gap if `h` does not follow its sender's previous frame.
+    #[inline]
+    fn track_seq(&mut self, h: &MavHeader, stats: &IngestStats) {
+        for e in self.seqs.iter_mut() {
+            if e.0 == h.system_id && e.1 == h.component_id {
+                if h.sequence != e.2.wrapping_add(1) && h.sequence != e.2 {
+                    IngestStats::add(&stats.gaps, 1);
+                }
+                e.2 = h.sequence;
+                return;
+            }
+        }
+        self.seqs.push((h.system_id, h.component_id, h.sequence));
+    }
+
+    /// Whether a frame (one that checks out, or an unknown one itself followed by a start
+    /// byte) or the end of input begins at `end`: the test an unknown frame must pass to
+    /// be skipped whole. `None`: the input does not reach far enough to tell yet.
+    fn followed_by_frame(&self, end: usize) -> Option<bool> {
+        if end >= self.buf.len() {
+            return if self.eof { Some(true) } else { None };
+        }
+        match decode_at(&self.buf[end..]) {
+            At::Good { .. } => Some(true),
+            At::Unknown { len, .. } => match self.buf.get(end + len) {
+                Some(&b) => Some(b == STX_V1 || b == STX_V2),
+                None => if self.eof { Some(true) } else { None },
+            },
+            At::NeedMore => if self.eof { Some(true) } else { None },
+            At::Bad { .. } | At::NotFrame => Some(false),
+        }
+    }
+
+    fn next_stream(&mut self, stats: &IngestStats) -> Option<Frame> {
+        loop {
+            let rest = &self.buf[self.pos..];
+            let Some(off) = rest.iter().position(|&b| b == STX_V2 || b == STX_V1) else {
+                self.junk(stats, self.pos, self.buf.len());
+                self.pos = self.buf.len();
+                return None;
+            };
+            let q = self.pos + off;
+            self.junk(stats, self.pos, q);
+            self.pos = q;
+            match decode_at(&self.buf[q..]) {
+                At::Good { len, header, version, msg } => {
+                    self.pos = q + len;
+                    self.counted_until = self.counted_until.min(q);
+                    IngestStats::add(&stats.frames_ok, 1);
+                    self.track_seq(&header, stats);
+                    return Some(Frame { header, version, msg, stamp_us: None });
+                }
+                At::Unknown { len, header } => {
+                    if q >= self.counted_until {
+                        let Some(followed) = self.followed_by_frame(q + len) else {
+                            return None; // cannot tell yet: wait for more input
+                        };
+                        if followed {
+                            IngestStats::add(&stats.unknown, 1);
+                            self.track_seq(&header, stats);
+                            self.counted_until = q + len;
+                        } else {
+                            self.junk(stats, q, q + 1);
+                        }
+                    }
+                    // Step in, not over: if this was a stray start byte, the good frame
+                    // it pretends to cover is still found (and ends the claimed span).
+                    self.pos = q + 1;
+                }
+                At::Bad { len } => {
+                    if q >= self.counted_until {
+                        IngestStats::add(&stats.frames_bad, 1);
+                        self.counted_until = q + len;
+                    }
+                    self.pos = q + 1;
+                }
+                At::NotFrame => {
+                    self.junk(stats, q, q + 1);
+                    self.pos = q + 1;
+                }
+                At::NeedMore => {
+                    if !self.eof {
+                        return None;
+                    }
+                    // Truncated by the end of input; frames may still start inside it.
+                    if q >= self.counted_until {
+                        IngestStats::add(&stats.frames_bad, 1);
+                        self.counted_until = self.buf.len();
+                    }
+                    self.pos = q + 1;
+                }
+            }
+        }
+    }
+
+    fn stamp_at(&self, i: usize) -> u64 {
+        let mut s = [0u8; 8];
+        s.copy_from_slice(&self.buf[i..i + TLOG_STAMP_LEN]);
+        u64::from_be_bytes(s)
+    }
+
+    fn next_tlog(&mut self, stats: &IngestStats) -> Option<Frame> {
+        loop {
+            let avail = self.buf.len() - self.pos;
+            if self.aligned {
+                if avail <= TLOG_STAMP_LEN {
+                    if self.eof && avail > 0 {
+                        IngestStats::add(&stats.frames_bad, 1); // a record cut inside its stamp
+                        self.pos = self.buf.len();
+                    }
+                    return None;
+                }
+                let rec = self.pos;
+                match decode_at(&self.buf[rec + TLOG_STAMP_LEN..]) {
+                    At::Good { len, header, version, msg } => {
+                        let stamp = self.stamp_at(rec);
+                        self.pos = rec + TLOG_STAMP_LEN + len;
+                        self.last_stamp_us = Some(stamp);
+                        IngestStats::add(&stats.frames_ok, 1);
+                        self.track_seq(&header, stats);
+                        return Some(Frame { header, version, msg, stamp_us: Some(stamp) });
+                    }
+                    At::Unknown { len, header } => {
+                        IngestStats::add(&stats.unknown, 1);
+                        self.track_seq(&header, stats);
+                        self.pos = rec + TLOG_STAMP_LEN + len;
+                    }
+                    At::Bad { len } => {
+                        IngestStats::add(&stats.frames_bad, 1);
+                        self.counted_until = rec + TLOG_STAMP_LEN + len;
+                        self.aligned = false;
+                        self.pos = rec + 1;
+                    }
+                    At::NotFrame => {
+                        self.aligned = false;
+                    }
+                    At::NeedMore => {
+                        if !self.eof {
+                            return None;
+                        }
+                        IngestStats::add(&stats.frames_bad, 1); // truncated last record
+                        self.pos = self.buf.len();
+                        return None;
+                    }
+                }
+            } else if let Some(f) = self.resync_tlog(stats) {
+                return Some(f);
+            } else if !self.aligned {
+                return None;
+            }
+        }
+    }
+
+    /// Look for the next record start after corruption: a start byte at `q` (with 8 bytes
+    /// of stamp before it) whose frame checks out, or whose frame is bad/unknown but
+    /// whose stamp is plausible. Returns the frame when it is good; leaves `aligned` set
+    /// when a record start was found; returns `None` with `aligned` unset when the input
+    /// ran out first.
+    fn resync_tlog(&mut self, stats: &IngestStats) -> Option<Frame> {
+        let mut q = self.pos + TLOG_STAMP_LEN;
+        while q < self.buf.len() {
+            let b = self.buf[q];
+            if b == STX_V1 || b == STX_V2 {
+                match decode_at(&self.buf[q..]) {
+                    At::Good { len, header, version, msg } => {
+                        let rec = q - TLOG_STAMP_LEN;
+                        self.junk(stats, self.pos, rec);
+                        let stamp = self.stamp_at(rec);
+                        self.pos = q + len;
+                        self.counted_until = self.counted_until.min(rec);
+                        self.aligned = true;
+                        self.last_stamp_us = Some(stamp);
+                        IngestStats::add(&stats.frames_ok, 1);
+                        self.track_seq(&header, stats);
+                        return Some(Frame { header, version, msg, stamp_us: Some(stamp) });
+                    }
+                    At::Unknown { .. } | At::Bad { .. } if q >= self.counted_until => {
+                        let stamp = self.stamp_at(q - TLOG_STAMP_LEN);
+                        let plausible = match self.last_stamp_us {
+                            Some(last) => stamp.abs_diff(last) <= TLOG_PLAUSIBLE_US,
+                            None => false,
+                        };
+                        if plausible {
+                            let rec = q - TLOG_STAMP_LEN;
+                            self.junk(stats, self.pos, rec);
+                            self.pos = rec;
+                            self.aligned = true;
+                            return None;
+                        }
+                    }
+                    At::NeedMore if !self.eof => {
+                        // Cannot tell yet; keep the bytes before it for the stamp.
+                        let rec = q - TLOG_STAMP_LEN;
+                        self.junk(stats, self.pos, rec);
+                        self.pos = rec;
+                        return None;
+                    }
+                    _ => {}
+                }
+            }
+            q += 1;
+        }
+        // Nothing yet: all but the last 8 bytes (a possible stamp) are junk.
+        let keep_from = if self.eof { self.buf.len() } else { self.buf.len().saturating_sub(TLOG_STAMP_LEN) };
+        if keep_from > self.pos {
+            self.junk(stats, self.pos, keep_from);
+            self.pos = keep_from;
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc_matches_rust_mavlink() {
+        let data = [1u8, 2, 3, 250, 251, 0, 7];
+        assert_eq!(crc16(&data, 50), mavlink::calculate_crc(&data, 50));
+    }
+
+    #[test]
+    fn unknown_ids_are_unknown_and_known_ones_known() {
+        assert!(crc_extra(0).is_some()); // HEARTBEAT
+        assert!(crc_extra(147).is_some()); // BATTERY_STATUS
+        assert!(crc_extra(60_000).is_none());
+        assert!(crc_extra(0xFF_FFFF).is_none());
+    }
+}
