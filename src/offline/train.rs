@@ -93,6 +93,10 @@ pub struct TrainArgs {
     /// Hidden cells per LSTM direction and layer (the paper: 128).
     #[arg(long, default_value_t = 128)]
     pub hidden: i64,
+    /// Only score the model already in `--out` on the test flights (through the ingest
+    /// path) and record the metrics in its card.
+    #[arg(long, hide = true)]
+    pub score_only: bool,
     /// Provisional: read the CSV directly (linear resampling to the grid) instead of the
     /// ingest path, while `offline::data::load_flights` is not available. The card records
     /// it (`training.loader`); models trained this way should be retrained on the ingest path.
@@ -156,7 +160,15 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let how = if args.direct_csv { "directly (provisional loader)" } else { "through the ingest path" };
     tracing::info!("loading flights from {} {how}", data_path.display());
     tch::set_num_threads(args.threads);
-    let wanted: Option<Vec<u32>> = args.flights.as_ref().map(|k| k.iter().chain(&TEST_FLIGHTS).copied().collect());
+    // The chosen flights plus whichever test flights the file holds (273 is withheld from
+    // the shared copy, and a file may hold none of them).
+    let wanted: Option<Vec<u32>> = match &args.flights {
+        Some(k) => {
+            let held: Vec<u32> = crate::offline::data::list_flights(&data_path)?.iter().map(|f| f.flight).collect();
+            Some(k.iter().copied().chain(TEST_FLIGHTS.into_iter().filter(|t| held.contains(t))).collect())
+        }
+        None => None,
+    };
     let mut flights = if args.direct_csv {
         load_csv_direct(&data_path, &tcfg)?
     } else {
@@ -164,6 +176,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     };
     if let Some(keep) = &wanted {
         flights.retain(|f| keep.contains(&f.flight));
+    }
+    if args.score_only {
+        return score_model_dir(&args.out, &data_path, &tcfg).map(|_| ());
     }
     if let Some(csv) = &args.export_csv {
         return export_csv(&flights, csv, tcfg.window);
@@ -203,7 +218,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     write_curve(&args.out, &outcome.curve)?;
     let weights = "model.safetensors";
     outcome.vs.save(args.out.join(weights)).with_context(|| format!("{}: cannot save weights", args.out.display()))?;
-    let mut card = ModelCard {
+    let card = ModelCard {
         format: 1,
         name: "lstm".into(),
         weights: weights.into(),
@@ -241,29 +256,39 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let card_path = args.out.join("card.toml");
     card.save(&card_path)?;
 
-    // Score the saved model, loaded the way the binary loads it, on the test flights.
-    let mut model = LstmModel::load(&args.out, &tcfg)?;
-    let tests: Vec<&FlightWindows> = flights.iter().filter(|f| TEST_FLIGHTS.contains(&f.flight)).collect();
-    if !tests.is_empty() {
-        let (metrics, per) = score(&mut model, &tests)?;
-        write_test_table(&args.out, &per)?;
-        if let Some(f276) = tests.iter().find(|f| f.flight == 276) {
-            plot_flight(&mut model, f276, &args.out.join("flight276.png"))?;
-        }
-        println!(
-            "test flights: MAE {:.1} W, RMSE {:.1} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} %, flight 276 MAE {}",
-            metrics.mae_w,
-            metrics.rmse_w,
-            metrics.mape_in_flight_pct,
-            metrics.energy_error_pct,
-            metrics.band_coverage_pct,
-            metrics.flight_276_mae_w.map(|m| format!("{m:.1} W")).unwrap_or_else(|| "n/a".into())
-        );
-        card.metrics = Some(metrics);
-        card.save(&card_path)?;
-    }
+    score_model_dir(&args.out, &data_path, &tcfg)?;
     println!("model written to {} (training took {:.0} s)", args.out.display(), train_time_s);
     Ok(())
+}
+
+/// Score the model in `dir`, loaded the way the binary loads it, on the test flights the
+/// data file holds (through the ingest path); write `test_flights.csv` and
+/// `flight276.png` there and record the metrics in its card.
+pub fn score_model_dir(dir: &Path, data_path: &Path, tcfg: &TelemetryConfig) -> anyhow::Result<Metrics> {
+    let mut model = LstmModel::load(dir, tcfg)?;
+    let held: Vec<u32> = crate::offline::data::list_flights(data_path)?.iter().map(|f| f.flight).collect();
+    let tests: Vec<u32> = TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)).collect();
+    anyhow::ensure!(!tests.is_empty(), "{}: holds none of the test flights {TEST_FLIGHTS:?}", data_path.display());
+    let flights = load_flights(data_path, Some(&tests), tcfg)?;
+    let refs: Vec<&FlightWindows> = flights.iter().collect();
+    let (metrics, per) = score(&mut model, &refs)?;
+    write_test_table(dir, &per)?;
+    if let Some(f276) = flights.iter().find(|f| f.flight == 276) {
+        plot_flight(&mut model, f276, &dir.join("flight276.png"))?;
+    }
+    println!(
+        "test flights {tests:?}: MAE {:.1} W, RMSE {:.1} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} %, flight 276 MAE {}",
+        metrics.mae_w,
+        metrics.rmse_w,
+        metrics.mape_in_flight_pct,
+        metrics.energy_error_pct,
+        metrics.band_coverage_pct,
+        metrics.flight_276_mae_w.map(|m| format!("{m:.1} W")).unwrap_or_else(|| "n/a".into())
+    );
+    let mut card = model.card().clone();
+    card.metrics = Some(metrics.clone());
+    card.save(&dir.join("card.toml"))?;
+    Ok(metrics)
 }
 
 /// The raw inputs and targets of one flight's windows that carry a measured power.
@@ -703,7 +728,7 @@ fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> anyhow::Resul
 
 /// Provisional loader (`--direct-csv`): each flight of the official CSV resampled to the
 /// grid by linear interpolation between rows (a gap over 1 s restarts the window ring),
-/// mission inputs from the `speed`/`payload`/`altitude` columns (first altitude of a
+/// mission inputs from the `speed`/`payload`/`altitude` columns (highest stage of a
 /// multi-altitude mission such as `25-50-100-25`), home at the first sample
 /// with GPS. Not the ingest path: used only while that path is not available.
 fn load_csv_direct(path: &Path, cfg: &TelemetryConfig) -> anyhow::Result<Vec<FlightWindows>> {
@@ -733,9 +758,13 @@ fn load_csv_direct(path: &Path, cfg: &TelemetryConfig) -> anyhow::Result<Vec<Fli
             let mut f = [0f32; N_FEATURES];
             for (i, col) in COL.iter().enumerate() {
                 let cell = c.get(*col)?.trim();
-                // Multi-altitude missions read `25-50-100-25`: take the first altitude.
-                let cell = if *col == 24 { cell.split('-').next()? } else { cell };
-                f[i] = cell.parse().ok()?;
+                // Multi-altitude missions read `25-50-100-25`: the highest stage, as the
+                // ingest path's data-set source does.
+                f[i] = if *col == 24 {
+                    cell.split('-').map(|x| x.parse::<f32>().ok()).collect::<Option<Vec<_>>>()?.into_iter().fold(f32::MIN, f32::max)
+                } else {
+                    cell.parse().ok()?
+                };
             }
             let v: f32 = c.get(4)?.parse().ok()?;
             let a: f32 = c.get(5)?.parse().ok()?;
