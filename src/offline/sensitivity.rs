@@ -1,8 +1,8 @@
 //! Sensitivity analysis of the trained LSTM (the paper's Table 3 and its diverging bar
 //! chart).
 //!
-//! Method: the base windows are every window with measured power of the chosen flights
-//! (default: the test flights, never trained on), built by the ingest path. For one
+//! Method: the base windows are the in-flight windows (measured power ≥ 100 W) of the
+//! chosen flights (default: the test flights, never trained on), built by the ingest path. For one
 //! mission input at a time (commanded altitude, payload, commanded speed) the input is set
 //! to each of the paper's five steps (minimum, half step, middle, half step, maximum) in
 //! every sample of every base window, all other inputs kept as flown, and the mean
@@ -16,7 +16,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use crate::model::lstm::{resolve_model_path, LstmModel};
-use crate::offline::data::{load_flights, TEST_FLIGHTS};
+use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
+use crate::offline::train::IN_FLIGHT_W;
 use crate::telemetry::{idx, TelemetryConfig};
 use crate::window::Window;
 
@@ -65,13 +66,20 @@ fn mean_power(model: &mut LstmModel, windows: &[Window], feature: usize, value: 
 /// Run `dronewatt sensitivity`.
 pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
     let tcfg = TelemetryConfig::default();
+    tch::set_num_threads(1);
     let model_path = resolve_model_path(args.model.as_deref()).context("no model found: pass --model")?;
     let mut model = LstmModel::load(&model_path, &tcfg)?;
     let data = args.data.clone().unwrap_or_else(crate::default_data_path);
-    let flights = args.flights.clone().unwrap_or_else(|| TEST_FLIGHTS.to_vec());
+    let flights = match args.flights.clone() {
+        Some(f) => f,
+        None => {
+            let held: Vec<u32> = list_flights(&data)?.iter().map(|f| f.flight).collect();
+            TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)).collect()
+        }
+    };
     let loaded = load_flights(&data, Some(&flights), &tcfg)?;
     let windows: Vec<Window> =
-        loaded.iter().flat_map(|f| f.windows.iter().filter(|w| w.last().measured_w.is_some()).cloned()).collect();
+        loaded.iter().flat_map(|f| f.windows.iter().filter(|w| w.last().measured_w.is_some_and(|p| p >= IN_FLIGHT_W)).cloned()).collect();
     anyhow::ensure!(!windows.is_empty(), "{}: no windows with measured power in flights {flights:?}", data.display());
     std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
 
@@ -118,20 +126,24 @@ fn diverging_bars(path: &std::path::Path, bars: &[(String, f64)]) -> anyhow::Res
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(130)
-        .build_cartesian_2d(-m..m, 0..n)
+        .build_cartesian_2d(-m..m, (0..n).into_segmented())
         .map_err(|e| err(e.to_string()))?;
     let labels: Vec<String> = bars.iter().map(|b| b.0.clone()).collect();
     chart
         .configure_mesh()
         .y_labels(bars.len() + 1)
-        .y_label_formatter(&|i| labels.get(*i as usize).cloned().unwrap_or_default())
+        .y_label_formatter(&|v| match v {
+            SegmentValue::CenterOf(i) => labels.get(*i as usize).cloned().unwrap_or_default(),
+            _ => String::new(),
+        })
         .x_desc("change in mean predicted power vs step 0 (W)")
         .draw()
         .map_err(|e| err(e.to_string()))?;
     chart
         .draw_series(bars.iter().enumerate().map(|(i, (_, v))| {
             let color = if *v >= 0.0 { RED.mix(0.7) } else { BLUE.mix(0.7) };
-            Rectangle::new([(0.0, i as i32), (*v, i as i32 + 1)], color.filled())
+            let (a, b) = (SegmentValue::Exact(i as i32), SegmentValue::Exact(i as i32 + 1));
+            Rectangle::new([(0.0, a), (*v, b)], color.filled())
         }))
         .map_err(|e| err(e.to_string()))?;
     root.present().map_err(|e| err(e.to_string()))?;
