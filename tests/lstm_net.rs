@@ -60,6 +60,7 @@ impl TapSave for ModelCard {
 
 #[test]
 fn network_learns_saves_and_reloads() {
+    tch::set_num_threads(1);
     tch::manual_seed(1);
     let windows: Vec<Window> = (0..256).map(synthetic_window).collect();
     let mut x = Vec::new();
