@@ -31,6 +31,10 @@ struct RunArgs {
     /// No live terminal view.
     #[arg(long, short = 'q')]
     quiet: bool,
+    /// Run this LSTM instead of the shipped one: a model folder, its card.toml, or a
+    /// weights file (.safetensors, or a TorchScript .pt) with card.toml beside it.
+    #[arg(long, value_name = "FILE")]
+    model: Option<PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -166,10 +170,13 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
 }
 
 fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
-    let config = match &run.config {
+    let mut config = match &run.config {
         Some(p) => Config::load(p)?,
         None => Config::default(),
     };
+    if let Some(m) = &run.model {
+        config.models.lstm.path = Some(m.clone());
+    }
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {
         sinks.push(SinkSpec::Terminal);

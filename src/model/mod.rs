@@ -1,6 +1,8 @@
 //! Power models: a window (and the vehicle profile a model was built with) in, watts out.
 //! Pure: no I/O, no clocks. Owners: physics (issue 4), LSTM (issue 5).
 
+pub mod card;
+pub mod lstm;
 pub mod physics;
 pub mod profile;
 
@@ -79,7 +81,10 @@ impl Ensemble {
 /// Which models run (the `[models]` table).
 #[derive(Debug, Clone, Default, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct ModelsConfig {}
+pub struct ModelsConfig {
+    /// The LSTM (`[models.lstm]`): on by default, with the shipped model.
+    pub lstm: lstm::LstmConfig,
+}
 
 /// The models a configuration asks for, built and checked (profiles loaded, cards matched).
 pub fn build_ensemble(cfg: &crate::config::Config) -> anyhow::Result<Ensemble> {
@@ -96,6 +101,9 @@ pub fn build_models(cfg: &crate::config::Config) -> anyhow::Result<Vec<Box<dyn P
         None => profile::VehicleProfile::m100(),
     };
     models.extend(physics::models(&profile));
-    // end physics
+    // lstm (issue 5): after the physics models, when enabled and found.
+    if let Some(m) = lstm::from_config(&cfg.models.lstm, &cfg.telemetry)? {
+        models.push(Box::new(m));
+    }
     Ok(models)
 }

@@ -1,0 +1,205 @@
+//! The model card: everything needed to feed a trained network exactly the inputs it was
+//! trained on, and to say how good it is. It lives beside the weights as `card.toml`.
+//!
+//! A network is only meaningful with the features, their order, their scaling, the
+//! resample rate and the window it was trained with; the card records all of them, and
+//! [`ModelCard::check`] refuses to run a model whose card disagrees with what the ingest
+//! path produces (so a retuned `[telemetry]` never silently feeds a model wrong inputs).
+
+use std::path::Path;
+
+use anyhow::Context;
+use serde::{Deserialize, Serialize};
+
+use crate::telemetry::{TelemetryConfig, FEATURE_NAMES, N_FEATURES};
+
+/// Which inputs the network sees in the three position slots (2, 3, 4 of
+/// [`FEATURE_NAMES`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum FeatureSet {
+    /// The paper's 21 features as they are: longitude, latitude, altitude above sea level.
+    Paper,
+    /// Location-invariant: horizontal distance to home (m), height above home (m) and the
+    /// climb since the window's first sample (m) replace longitude, latitude and ASL
+    /// altitude, which cannot transfer to another site.
+    Home,
+}
+
+/// Names of the home feature set's three position inputs.
+pub const HOME_POSITION_NAMES: [&str; 3] = ["home_distance_m", "home_height_m", "climb_in_window_m"];
+
+impl FeatureSet {
+    /// The input names, in order, that this feature set feeds the network.
+    pub fn names(self) -> Vec<String> {
+        let mut names: Vec<String> = FEATURE_NAMES.iter().map(|s| s.to_string()).collect();
+        if self == FeatureSet::Home {
+            for (i, n) in HOME_POSITION_NAMES.iter().enumerate() {
+                names[crate::telemetry::idx::POS_X + i] = n.to_string();
+            }
+        }
+        names
+    }
+}
+
+/// Where the network's weights are and what they are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WeightsFormat {
+    /// A tch `VarStore` of the built-in BiLSTM (`.safetensors`, PyTorch `nn.LSTM` names).
+    Safetensors,
+    /// A TorchScript module exported from PyTorch (`torch.jit.save`): input
+    /// `[batch, window, features]` standardised, output `[batch, 3]` or `[batch]` of
+    /// tanh-scaled power (columns point, low, high).
+    Torchscript,
+}
+
+/// The model card, `card.toml` beside the weights.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelCard {
+    /// Card format version (1).
+    pub format: u32,
+    /// Model name shown in tables and JSON (`lstm`).
+    pub name: String,
+    /// Weights file, relative to the card's folder.
+    pub weights: String,
+    /// What the weights file is.
+    pub weights_format: WeightsFormat,
+    /// Which inputs fill the position slots.
+    pub feature_set: FeatureSet,
+    /// Input names in the order the network sees them (checked against `feature_set`).
+    pub feature_names: Vec<String>,
+    /// Resample rate the network was trained at, Hz (must equal `telemetry.rate_hz`).
+    pub rate_hz: f64,
+    /// Window length T, samples (must equal `telemetry.window`).
+    pub window: usize,
+    /// Training-set mean of each input (standardisation x' = (x − mean) / std).
+    pub feature_mean: Vec<f32>,
+    /// Training-set standard deviation of each input (1 where an input was constant).
+    pub feature_std: Vec<f32>,
+    /// Target scale, W: the network's tanh output times this is power. Chosen as 1.2 × the
+    /// largest training power so tanh's range covers the data without saturating.
+    pub power_scale_w: f32,
+    /// Nominal quantiles of the band heads (low, high), e.g. (0.05, 0.95).
+    pub band_quantiles: (f32, f32),
+    /// LSTM hidden cells per direction and layer (built-in network only).
+    pub hidden: i64,
+    /// Stacked bidirectional LSTM layers (built-in network only).
+    pub layers: i64,
+    /// How it was trained.
+    pub training: TrainingInfo,
+    /// How well it does on flights never trained or validated on.
+    pub metrics: Option<Metrics>,
+}
+
+/// How a model was trained: enough to repeat it.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainingInfo {
+    /// Data file name (not path) and its sha256.
+    pub data_file: String,
+    pub data_sha256: String,
+    /// How windows were built: `ingest` (the live path, `offline::data::load_flights`) or
+    /// `direct-csv` (provisional linear resampling of the CSV).
+    pub loader: String,
+    /// Random seed (weights init and batch order).
+    pub seed: u64,
+    pub dropout: f64,
+    pub learning_rate: f64,
+    pub batch_size: usize,
+    /// Epochs run and the epoch whose weights were kept (best validation MAE).
+    pub epochs_run: usize,
+    pub best_epoch: usize,
+    /// Optimiser steps taken.
+    pub steps: usize,
+    /// Every `stride`-th window of each training flight was used.
+    pub stride: usize,
+    pub train_windows: usize,
+    pub train_flights: Vec<u32>,
+    pub validation_flights: Vec<u32>,
+    /// Wall time of the training run, s, and where it ran.
+    pub train_time_s: f64,
+    pub device: String,
+}
+
+/// Scores on held-out flights, in watts and percent.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Metrics {
+    /// Flights scored (never trained or validated on).
+    pub test_flights: Vec<u32>,
+    /// Mean absolute error over all test windows, W.
+    pub mae_w: f64,
+    pub rmse_w: f64,
+    /// Mean absolute percentage error over in-flight windows (measured power ≥ 100 W), %.
+    pub mape_in_flight_pct: f64,
+    /// Mean over test flights of |∫P̂ − ∫P| / ∫P, %.
+    pub energy_error_pct: f64,
+    /// Flight 276's MAE, W (the paper's evaluation flight).
+    pub flight_276_mae_w: Option<f64>,
+    /// Share of test windows whose measured power lies inside the band, %.
+    pub band_coverage_pct: f64,
+}
+
+impl ModelCard {
+    /// Read a card; the error names the file and the key.
+    pub fn load(path: &Path) -> anyhow::Result<ModelCard> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read model card", path.display()))?;
+        let card: ModelCard = toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        card.self_check().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Ok(card)
+    }
+
+    /// Write the card as TOML.
+    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        let text = toml::to_string_pretty(self).context("serialising the model card")?;
+        std::fs::write(path, text).with_context(|| format!("{}: cannot write model card", path.display()))
+    }
+
+    /// Internal consistency: lengths and scales.
+    fn self_check(&self) -> Result<(), String> {
+        if self.format != 1 {
+            return Err(format!("format = {}: this dronewatt reads model card format 1", self.format));
+        }
+        for (key, len) in [("feature_names", self.feature_names.len()), ("feature_mean", self.feature_mean.len()), ("feature_std", self.feature_std.len())] {
+            if len != N_FEATURES {
+                return Err(format!("{key} has {len} entries, expected {N_FEATURES}"));
+            }
+        }
+        if let Some(i) = self.feature_std.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(format!("feature_std[{i}] = {}: must be a positive number", self.feature_std[i]));
+        }
+        if !(self.power_scale_w.is_finite() && self.power_scale_w > 0.0) {
+            return Err(format!("power_scale_w = {}: must be positive", self.power_scale_w));
+        }
+        Ok(())
+    }
+
+    /// Does this card fit what the ingest path produces? The error names the mismatch.
+    pub fn check(&self, cfg: &TelemetryConfig) -> Result<(), String> {
+        let expected = self.feature_set.names();
+        if self.feature_names != expected {
+            let i = self.feature_names.iter().zip(&expected).position(|(a, b)| a != b).unwrap_or(0);
+            return Err(format!(
+                "feature_names[{i}] is '{}' but dronewatt's {:?} feature set has '{}' there: the model was trained on other inputs",
+                self.feature_names.get(i).map(String::as_str).unwrap_or("?"),
+                self.feature_set,
+                expected[i]
+            ));
+        }
+        if (self.rate_hz - cfg.rate_hz).abs() > 1e-9 {
+            return Err(format!(
+                "rate_hz = {} but telemetry.rate_hz = {}: the model was trained at another resample rate",
+                self.rate_hz, cfg.rate_hz
+            ));
+        }
+        if self.window != cfg.window {
+            return Err(format!(
+                "window = {} but telemetry.window = {}: the model was trained on windows of another length",
+                self.window, cfg.window
+            ));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,51 @@
+//! Training and the shipped weights on the real data set (`DRONEWATT_DATA`), through the
+//! ingest path (`offline::data::load_flights`).
+
+use dronewatt::model::card::ModelCard;
+use dronewatt::model::lstm::{LstmModel, DEFAULT_MODEL_DIR};
+use dronewatt::model::PowerModel;
+use dronewatt::offline::data::load_flights;
+use dronewatt::telemetry::TelemetryConfig;
+
+/// A smoke-sized run (three flights, a few hundred steps, small network): the loss falls,
+/// and the card, weights and curves are written.
+#[test]
+fn smoke_training_loss_falls() {
+    let out = tempfile::tempdir().unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["train", "--flights", "100,150,200", "--stride", "1", "--epochs", "8", "--patience", "8"])
+        .args(["--max-steps", "300", "--hidden", "32", "--batch", "64", "--lr", "3e-3", "--seed", "3"])
+        .arg("--data")
+        .arg(dronewatt::default_data_path())
+        .arg("--out")
+        .arg(out.path())
+        .status()
+        .unwrap();
+    assert!(status.success(), "dronewatt train failed");
+    let curve = std::fs::read_to_string(out.path().join("loss.csv")).unwrap();
+    let losses: Vec<f64> = curve.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().parse().unwrap()).collect();
+    assert!(losses.len() >= 3, "{curve}");
+    assert!(losses.last().unwrap() < &(losses[0] * 0.7), "training loss did not fall: {losses:?}");
+    let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
+    assert_eq!(card.training.train_flights.len() + card.training.validation_flights.len(), 3);
+    assert!(out.path().join("loss.png").is_file() && out.path().join("model.safetensors").is_file());
+}
+
+/// The committed weights, loaded as the binary loads them, score flight 276 (never
+/// trained on) within 35 W MAE.
+#[test]
+fn shipped_weights_flight_276() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_MODEL_DIR);
+    let cfg = TelemetryConfig::default();
+    let mut model = LstmModel::load(&dir, &cfg).unwrap();
+    assert!(!model.card().training.train_flights.contains(&276));
+    assert!(!model.card().training.validation_flights.contains(&276));
+    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg).unwrap();
+    let windows: Vec<_> = flights[0].windows.iter().filter(|w| w.last().measured_w.is_some()).cloned().collect();
+    assert!(windows.len() > 1000);
+    let mut out = Vec::new();
+    model.predict(&windows, &mut out);
+    let mae = windows.iter().zip(&out).map(|(w, p)| (p.power_w - w.last().measured_w.unwrap()).abs() as f64).sum::<f64>()
+        / windows.len() as f64;
+    assert!(mae <= 35.0, "flight 276 MAE {mae:.1} W");
+}
