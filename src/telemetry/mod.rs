@@ -119,11 +119,13 @@ pub struct Sample {
     /// The 21 features, data-set units and frames, order of [`FEATURE_NAMES`] (frames as
 /// verified on the data set: see [`frames`]).
     pub features: [f32; N_FEATURES],
-    /// Measured electrical power V × I, watts, when voltage and current are present.
+    /// Measured electrical power V × I, watts, when voltage and current are present
+    /// (interpolated like the features; `None` while the battery source is stale).
     pub measured_w: Option<f32>,
-    /// Battery voltage, volts, when present.
+    /// Battery voltage, volts, when present (`None` while stale).
     pub voltage_v: Option<f32>,
-    /// Distance to home (horizontal, m) and height above home (m), when a home is known.
+    /// Distance to home (horizontal, m) and height above home (m), when a home is known
+    /// (HOME_POSITION, else the first GPS fix) and the position is not stale.
     pub home: Option<HomeVector>,
     /// Bit i set: feature i is stale (its source went quiet; the value is held).
     pub stale_mask: u32,
