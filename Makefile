@@ -10,11 +10,13 @@ setup:
 	@scripts/setup-libtorch.sh
 	@scripts/setup-python.sh
 
+# The dev profile builds dependencies at opt-level 2 (Cargo.toml), so the demo shares
+# `make test`'s build instead of compiling libtorch bindings and MAVLink twice.
 build: setup
-	$(CARGO) build --release --locked
+	$(CARGO) build --locked
 
 run: build
-	./target/release/dronewatt replay replay/demo.tlog --speed $(DEMO_SPEED) --config config/demo.toml
+	./target/debug/dronewatt replay replay/demo.tlog --speed $(DEMO_SPEED) --config config/demo.toml
 
 test: setup
 	@scripts/setup-chromium.sh

@@ -30,6 +30,9 @@ pub const MAX_BATCH: usize = 256;
 /// How long the energy stage waits for a sink that is far behind before it sends anyway
 /// (that sink then misses reports, and counts them).
 pub const SINK_PATIENCE: std::time::Duration = std::time::Duration::from_secs(1);
+/// On a live link, with no estimate for this long the alert rules are still evaluated, on a
+/// "nothing heard" estimate, so `telemetry_lost` fires when the link goes wholly silent.
+pub const SILENT_TICK: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Everything a run of the pipeline needs.
 pub struct Pipeline {
@@ -63,6 +66,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), link.clone(), cfg.clone())?);
     }
 
+    let live = matches!(p.source, crate::source::SourceSpec::Link(_));
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, stats.clone(), link, shutdown.clone()));
 
     let tstats = stats.clone();
@@ -106,9 +110,41 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     });
 
     let energy_task = tokio::spawn(async move {
-        while let Some(est) = est_rx.recv().await {
-            let state = energy.update(&est);
-            let events = alerts.evaluate(&est, &state);
+        // The last real estimate and when it came: the base of a silent tick.
+        let mut last: Option<(Estimate, crate::energy::EnergyState, tokio::time::Instant)> = None;
+        loop {
+            let next = if live {
+                tokio::time::timeout(SILENT_TICK, est_rx.recv()).await
+            } else {
+                Ok(est_rx.recv().await)
+            };
+            let report = match next {
+                Ok(Some(est)) => {
+                    let state = energy.update(&est);
+                    let events = alerts.evaluate(&est, &state);
+                    if live {
+                        last = Some((est.clone(), state.clone(), tokio::time::Instant::now()));
+                    }
+                    Report { estimate: est, energy: state, alerts: events }
+                }
+                Ok(None) => break,
+                Err(_) => {
+                    // Nothing heard for SILENT_TICK: every feature is stale, nothing is
+                    // measured or predicted. Energy is left as it stood; only the alert rules
+                    // run, and a report goes out only if one of them changes state.
+                    let Some((est, state, at)) = &last else { continue };
+                    let mut quiet = est.clone();
+                    quiet.t_s += at.elapsed().as_secs_f64();
+                    quiet.sample.stale_mask = u32::MAX;
+                    quiet.sample.measured_w = None;
+                    quiet.models.clear();
+                    let events = alerts.evaluate(&quiet, state);
+                    if events.is_empty() {
+                        continue;
+                    }
+                    Report { estimate: quiet, energy: state.clone(), alerts: events }
+                }
+            };
             // A broadcast never waits: hold back while the slowest sink is far behind, so a
             // flat-out replay loses nothing. A sink stuck for longer than SINK_PATIENCE
             // loses reports instead of stalling everyone (it counts them).
@@ -118,7 +154,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
                 waited += std::time::Duration::from_millis(2);
             }
             // No receivers is not an error: a run may have no sinks.
-            let _ = rep_tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events }));
+            let _ = rep_tx.send(Arc::new(report));
         }
     });
 

@@ -13,16 +13,18 @@ fn free_udp_port() -> u16 {
 
 /// Stream 15 s at ~500 W to dronewatt with a `capacity_wh` battery and a 1.5 Wh warning.
 fn fly(capacity_wh: f64) -> serde_json::Value {
+    let config = format!(
+        "[energy]\ncapacity_wh = {capacity_wh}\n\n[[alerts]]\nname = \"energy_low\"\nkind = \"remaining_below\"\n\
+         below_wh = 1.5\nclear_wh = 1.7\nmessage = \"Battery low\"\n"
+    );
+    fly_with(&config, &["--seconds", "15"])
+}
+
+/// Stream a flight (peer arguments `peer_args`) to `dronewatt monitor` with this config.
+fn fly_with(config: &str, peer_args: &[&str]) -> serde_json::Value {
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("gcs.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "[energy]\ncapacity_wh = {capacity_wh}\n\n[[alerts]]\nname = \"energy_low\"\nkind = \"remaining_below\"\n\
-             below_wh = 1.5\nclear_wh = 1.7\nmessage = \"Battery low\"\n"
-        ),
-    )
-    .unwrap();
+    std::fs::write(&cfg, config).unwrap();
     let port = free_udp_port();
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q", "--config"])
@@ -34,7 +36,8 @@ fn fly(capacity_wh: f64) -> serde_json::Value {
     std::thread::sleep(std::time::Duration::from_millis(500));
     let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/gcs_flight.py"))
-        .args(["--port", &port.to_string(), "--seconds", "15", "--power-w", "500"])
+        .args(["--port", &port.to_string(), "--power-w", "500"])
+        .args(peer_args)
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
     // SIGTERM: the pipeline's own shutdown path.
@@ -83,4 +86,17 @@ fn monitor_stays_quiet_above_the_threshold() {
     let heard = fly(100.0);
     check_estimates(&heard);
     assert_eq!(heard["statustexts"], serde_json::json!([]));
+}
+
+#[test]
+fn monitor_warns_when_the_link_goes_silent() {
+    // 6 s of telemetry, then nothing while the peer listens on for 6 s: with no estimate
+    // at all, the telemetry_lost rule must still fire (once) after its 2 s.
+    let config = "[[alerts]]\nname = \"lost\"\nkind = \"telemetry_lost\"\nfor_s = 2\nseverity = \"critical\"\n\
+                  message = \"Telemetry lost\"\n";
+    let heard = fly_with(config, &["--seconds", "6", "--listen-after-s", "6"]);
+    let texts = heard["statustexts"].as_array().unwrap();
+    assert_eq!(texts.len(), 1, "exactly one alert: {texts:?}");
+    assert_eq!(texts[0]["severity"], 2, "MAV_SEVERITY_CRITICAL");
+    assert!(texts[0]["text"].as_str().unwrap().starts_with("Telemetry lost"), "{texts:?}");
 }
