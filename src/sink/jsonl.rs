@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! {"type":"window","t":…,"measured_w":…,"features":{"wind_speed":…,…}}
-//! {"type":"estimate","t":…,"measured_w":…,"models":{"<name>":watts,…},"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…}
+//! {"type":"estimate","t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…}
 //! {"type":"alert","t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
 //! ```
 //!
@@ -75,6 +75,7 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             t: e.t_s,
             measured_w: s.measured_w,
             models: Models(&e.models),
+            bands: Bands(&e.models),
             energy_used_wh: r.energy.energy_used_wh,
             remaining_wh: r.energy.remaining_wh,
             time_to_empty_s: r.energy.time_to_empty_s,
@@ -124,10 +125,35 @@ struct EstimateLine<'a> {
     t: f64,
     measured_w: Option<f32>,
     models: Models<'a>,
+    /// `{"<name>": [low_w, high_w]}` for the models that give an uncertainty band (the LSTM's
+    /// 5 %/95 % quantiles); absent when none does.
+    #[serde(skip_serializing_if = "Bands::is_empty")]
+    bands: Bands<'a>,
     energy_used_wh: f64,
     remaining_wh: Option<f64>,
     time_to_empty_s: Option<f64>,
     home_margin_wh: Option<f64>,
+}
+
+/// Uncertainty bands as a name → [low, high] watts object.
+struct Bands<'a>(&'a [crate::model::ModelEstimate]);
+
+impl Bands<'_> {
+    fn is_empty(&self) -> bool {
+        self.0.iter().all(|e| e.band_w.is_none())
+    }
+}
+
+impl Serialize for Bands<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(None)?;
+        for e in self.0 {
+            if let Some((lo, hi)) = e.band_w {
+                m.serialize_entry(&e.name, &[lo, hi])?;
+            }
+        }
+        m.end()
+    }
 }
 
 /// Model estimates as a name → watts object.
