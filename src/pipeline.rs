@@ -59,21 +59,30 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let (rep_tx, _) = broadcast::channel::<Arc<Report>>(CHANNEL_DEPTH);
 
     // Sinks subscribe first so they see every report.
+    let health = crate::telemetry::HealthHandle::default();
     let mut sink_tasks = Vec::new();
     let link = crate::source::LinkHandle::default();
     for spec in p.sinks {
         let rx = rep_tx.subscribe();
-        sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), link.clone(), cfg.clone())?);
+        sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), health.clone(), link.clone(), cfg.clone())?);
     }
 
     let live = matches!(p.source, crate::source::SourceSpec::Link(_));
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, stats.clone(), link, shutdown.clone()));
 
     let tstats = stats.clone();
+    let thealth = health.clone();
     let telemetry_task = tokio::spawn(async move {
         let mut out = Vec::new();
+        let mut shown = tokio::time::Instant::now();
         while let Some(m) = msg_rx.recv().await {
             telemetry.push(&m, &mut out);
+            if shown.elapsed() >= std::time::Duration::from_secs(1) {
+                shown = tokio::time::Instant::now();
+                if let Ok(mut h) = thealth.lock() {
+                    *h = telemetry.health();
+                }
+            }
             for w in out.drain(..) {
                 IngestStats::add(&tstats.windows, 1);
                 if win_tx.send(w).await.is_err() {

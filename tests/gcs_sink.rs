@@ -56,6 +56,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         SinkSpec::Mavlink(cfg.sinks.mavlink.clone()),
         rx,
         Arc::new(IngestStats::default()),
+        Default::default(),
         LinkHandle::default(),
         cfg.clone(),
     )

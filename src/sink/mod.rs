@@ -57,12 +57,13 @@ pub fn spawn(
     spec: SinkSpec,
     rx: broadcast::Receiver<Arc<Report>>,
     stats: Arc<IngestStats>,
+    health: crate::telemetry::HealthHandle,
     link: LinkHandle,
     cfg: Arc<crate::config::Config>,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
     let _ = &cfg;
     match spec {
-        SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, stats))),
+        SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, stats, health))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, stats),
         SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, link))),
         SinkSpec::Web(c) => web::spawn(c, rx),

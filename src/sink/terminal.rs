@@ -20,13 +20,18 @@ use crate::source::IngestStats;
 use crate::telemetry::FEATURE_NAMES;
 
 /// Run the view until the report channel closes.
-pub async fn run(mut rx: broadcast::Receiver<Arc<Report>>, stats: Arc<IngestStats>) -> anyhow::Result<()> {
+pub async fn run(
+    mut rx: broadcast::Receiver<Arc<Report>>,
+    stats: Arc<IngestStats>,
+    health: crate::telemetry::HealthHandle,
+) -> anyhow::Result<()> {
     let colour = std::io::stderr().is_terminal();
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     tick.tick().await; // the first tick is immediate: nothing to show yet
     let mut latest: Option<Arc<Report>> = None;
     let mut missed = 0;
     let mut last = (Instant::now(), 0u64);
+    let mut feeds_shown = String::new();
     loop {
         tokio::select! {
             r = super::next_report(&mut rx, &mut missed) => match r {
@@ -44,6 +49,13 @@ pub async fn run(mut rx: broadcast::Receiver<Arc<Report>>, stats: Arc<IngestStat
                 last = (Instant::now(), ok);
                 let line = status_line(latest.as_deref(), &stats, rate, colour);
                 let mut e = std::io::stderr().lock();
+                // Which message feeds each signal: said once, and again whenever it changes
+                // (a better source appeared, or one went quiet and a fallback took over).
+                let feeds = health.lock().map(|h| feeds_line(&h)).unwrap_or_default();
+                if !feeds.is_empty() && feeds != feeds_shown {
+                    let _ = writeln!(e, "{feeds}");
+                    feeds_shown = feeds;
+                }
                 let _ = writeln!(e, "{line}");
             }
         }
@@ -128,6 +140,21 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
     s
 }
 
+/// `feeds: attitude←ATTITUDE velocity←GLOBAL_POSITION_INT … (stale: wind)`: which message
+/// feeds each signal, and which signals are stale.
+pub fn feeds_line(health: &[crate::telemetry::SignalHealth]) -> String {
+    if health.is_empty() {
+        return String::new();
+    }
+    let feeds: Vec<String> = health.iter().map(|h| format!("{}←{}", h.signal, h.source.unwrap_or("none"))).collect();
+    let stale: Vec<&str> = health.iter().filter(|h| h.stale).map(|h| h.signal).collect();
+    let mut s = format!("feeds: {}", feeds.join(" "));
+    if !stale.is_empty() {
+        s.push_str(&format!(" (stale: {})", stale.join(", ")));
+    }
+    s
+}
+
 /// One alert event, coloured by severity (cleared alerts green).
 pub fn alert_line(a: &AlertEvent, colour: bool) -> String {
     let (tag, txt) = match a.state {
@@ -158,5 +185,19 @@ mod tests {
         stats.silent.store(true, Relaxed);
         let line = status_line(None, &stats, f64::NAN, false);
         assert!(line.contains("ok 120 bad 2") && line.contains("SILENT") && line.contains("? msg/s"), "{line}");
+    }
+}
+
+#[cfg(test)]
+mod feeds_tests {
+    use super::feeds_line;
+    use crate::telemetry::SignalHealth;
+
+    #[test]
+    fn feeds_name_each_source_and_the_stale_signals() {
+        let h = |signal, source, stale| SignalHealth { signal, features: vec![], source, age_s: None, stale };
+        let line = feeds_line(&[h("attitude", Some("ATTITUDE"), false), h("wind", None, true)]);
+        assert_eq!(line, "feeds: attitude←ATTITUDE wind←none (stale: wind)");
+        assert_eq!(feeds_line(&[]), "");
     }
 }

@@ -196,6 +196,10 @@ impl TelemetryConfig {
     }
 }
 
+/// The telemetry stage's latest [`Telemetry::health`], shared with the terminal view (the
+/// pipeline refreshes it about once a second; a reader only ever copies it).
+pub type HealthHandle = std::sync::Arc<std::sync::Mutex<Vec<SignalHealth>>>;
+
 /// Which source feeds one signal and whether it is stale: what the terminal view shows.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct SignalHealth {
