@@ -16,7 +16,7 @@ BIN=${DRONEWATT_BIN:-target/release/dronewatt}   # DRONEWATT_BIN=target/debug/dr
 PORT=$(.venv-py/bin/python -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
-printf '[sinks.mavlink]\nrate_hz = 50\n' > "$TMP/bench.toml"
+printf '[sinks.mavlink]\nrate_hz = 50\n%s' "${BENCH_EXTRA:-}" > "$TMP/bench.toml"
 "$BIN" monitor "udpin:127.0.0.1:$PORT" -q --config "$TMP/bench.toml" 2> "$TMP/dw.log" &
 DW=$!
 sleep 1

@@ -97,24 +97,27 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         }
     });
 
-    let inference_task = tokio::spawn(async move {
+    // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
+    // One thread, not one per batch: libtorch's thread settings are per OS thread, and a
+    // fresh thread's defaults (an intra-op team as wide as the machine) cost ~10 ms a window.
+    let inference_task = tokio::task::spawn_blocking(move || {
+        crate::model::pin_inference_thread();
         let mut batch = Vec::with_capacity(MAX_BATCH);
-        while win_rx.recv_many(&mut batch, MAX_BATCH).await > 0 {
-            // Model work is CPU-bound: keep it off the reactor threads.
-            let (ens, windows, estimates) = tokio::task::spawn_blocking(move || {
-                let e = ensemble.estimate(&batch);
-                (ensemble, batch, e)
-            })
-            .await
-            .expect("inference panicked");
-            ensemble = ens;
-            batch = windows;
-            batch.clear();
-            for e in estimates {
-                if est_tx.send(e).await.is_err() {
+        while let Some(w) = win_rx.blocking_recv() {
+            batch.push(w);
+            // Windows that queued up meanwhile (a flat-out replay) run as one batch.
+            while batch.len() < MAX_BATCH {
+                match win_rx.try_recv() {
+                    Ok(w) => batch.push(w),
+                    Err(_) => break,
+                }
+            }
+            for e in ensemble.estimate(&batch) {
+                if est_tx.blocking_send(e).is_err() {
                     return;
                 }
             }
+            batch.clear();
         }
     });
 

@@ -86,6 +86,13 @@ pub struct ModelsConfig {
     pub lstm: lstm::LstmConfig,
 }
 
+/// Set up the calling thread to run models: one libtorch intra-op thread (the LSTM is
+/// small; at batch 1 a thread team costs more than it gains). Per thread, so the thread that
+/// runs inference calls it.
+pub fn pin_inference_thread() {
+    tch::set_num_threads(1);
+}
+
 /// The models a configuration asks for, built and checked (profiles loaded, cards matched).
 pub fn build_ensemble(cfg: &crate::config::Config) -> anyhow::Result<Ensemble> {
     Ok(Ensemble::new(build_models(cfg)?))
