@@ -149,6 +149,7 @@ fn main() {
             voltage_v: Some(22.2),
             home: Some(dronewatt::telemetry::HomeVector { distance_m: 300.0, height_m: 25.0 }),
             stale_mask: 0,
+            battery_remaining_pct: None,
         },
         models: vec![],
     };

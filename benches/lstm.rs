@@ -23,7 +23,7 @@ fn window(i: usize) -> Window {
             f[18] = 10.0;
             f[19] = 250.0;
             f[20] = 50.0;
-            Sample { t_s: (i * 10 + k) as f64 * 0.1, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0 }
+            Sample { t_s: (i * 10 + k) as f64 * 0.1, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
         })
         .collect();
     Window { samples }

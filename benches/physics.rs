@@ -24,7 +24,7 @@ fn cruise_window() -> Window {
             f[idx::WIND_ANGLE] = 312.0;
             f[idx::PAYLOAD] = 500.0;
             f[idx::AZ] = -9.8;
-            Sample { t_s: 0.1 * i as f64, features: f, measured_w: Some(500.0), voltage_v: Some(22.0), home: None, stale_mask: 0 }
+            Sample { t_s: 0.1 * i as f64, features: f, measured_w: Some(500.0), voltage_v: Some(22.0), home: None, stale_mask: 0, battery_remaining_pct: None }
         })
         .collect();
     Window { samples }

@@ -191,8 +191,8 @@ impl EnergyTracker {
 
     /// Account for one estimate.
     pub fn update(&mut self, est: &Estimate) -> EnergyState {
-        // BATTERY_STATUS' percentage is not carried by `Sample` yet (asked of telemetry).
-        self.update_with_battery(est, None)
+        // The autopilot's own state of charge, when it reports one (used if `use_battery_pct`).
+        self.update_with_battery(est, est.sample.battery_remaining_pct.map(f64::from))
     }
 
     /// Account for one estimate, with the autopilot's reported remaining charge (%,
@@ -305,6 +305,7 @@ mod tests {
                 voltage_v: Some(22.8),
                 home: None,
                 stale_mask: 0,
+                battery_remaining_pct: None,
             },
             models: models
                 .iter()

@@ -96,7 +96,12 @@ fn battery(v: f64, a: f64) -> [MavMessage; 2] {
             battery_remaining: -1,
             ..Default::default()
         }),
-        MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA { voltages: cells, current_battery: (a * 100.0) as i16, ..Default::default() }),
+        MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
+            voltages: cells,
+            current_battery: (a * 100.0) as i16,
+            battery_remaining: -1,
+            ..Default::default()
+        }),
     ]
 }
 
@@ -361,4 +366,18 @@ fn mission_from_named_values_beats_the_config() {
     let x = out.last().unwrap().last().features;
     assert_eq!((x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]), (12.0, 500.0, 50.0));
     assert_eq!(source(&tel, "mission"), Some("NAMED_VALUE_FLOAT"));
+}
+
+#[test]
+fn the_autopilots_state_of_charge_rides_along_when_it_reports_one() {
+    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 0.0 };
+    // The helper's SYS_STATUS says −1 (unknown): no percentage.
+    let (_, out) = ardupilot(f, 3.0).run(&TelemetryConfig::default(), &MissionConfig::default());
+    assert!(out.iter().all(|w| w.last().battery_remaining_pct.is_none()));
+    // A BATTERY_STATUS with 57 % from t = 2 s on (after the mix's own, which say −1, and
+    // which must not erase it): later samples carry it.
+    let mut m = ardupilot(f, 4.0);
+    m.every(2.0, 2.15, 4.0, |_| MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA { battery_remaining: 57, ..Default::default() }));
+    let (_, out) = m.run(&TelemetryConfig::default(), &MissionConfig::default());
+    assert_eq!(out.last().expect("windows").last().battery_remaining_pct, Some(57.0));
 }

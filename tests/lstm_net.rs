@@ -20,7 +20,7 @@ fn synthetic_window(i: usize) -> Window {
             f[19] = payload;
             f[17] = -9.81;
             let p = 200.0 + 0.1 * payload + 3.0 * f[9];
-            Sample { t_s: k as f64 * 0.1, features: f, measured_w: Some(p), voltage_v: None, home: None, stale_mask: 0 }
+            Sample { t_s: k as f64 * 0.1, features: f, measured_w: Some(p), voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
         })
         .collect();
     Window { samples }

@@ -71,6 +71,7 @@ fn torchscript_module_loads_with_its_card() {
                     voltage_v: None,
                     home: None,
                     stale_mask: 0,
+                    battery_remaining_pct: None,
                 })
                 .collect(),
         })

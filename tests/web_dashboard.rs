@@ -70,6 +70,7 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
                 voltage_v: Some(22.5),
                 home: Some(HomeVector { distance_m: 10.0 * t_s as f32, height_m: 25.0 }),
                 stale_mask: 0,
+                battery_remaining_pct: None,
             },
             models: vec![
                 ModelEstimate { name: "tseng".into(), power_w: 470.0, band_w: None },

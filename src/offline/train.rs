@@ -811,6 +811,7 @@ fn load_csv_direct(path: &Path, cfg: &TelemetryConfig) -> anyhow::Result<Vec<Fli
                 voltage_v: None,
                 home: home_v,
                 stale_mask: 0,
+                battery_remaining_pct: None,
             });
             if ring.len() > cfg.window {
                 ring.pop_front();

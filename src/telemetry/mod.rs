@@ -129,6 +129,10 @@ pub struct Sample {
     pub home: Option<HomeVector>,
     /// Bit i set: feature i is stale (its source went quiet; the value is held).
     pub stale_mask: u32,
+    /// The autopilot's own state of charge, %, when it reports one (BATTERY_STATUS or
+    /// SYS_STATUS `battery_remaining`; −1 there means unknown and gives `None`). The latest
+    /// value, not interpolated.
+    pub battery_remaining_pct: Option<f32>,
 }
 
 /// Where home is from the vehicle.
@@ -248,6 +252,8 @@ pub struct Telemetry {
     nonfinite: u64,
     foreign: u64,
     samples: Vec<Sample>,
+    /// The autopilot's latest `battery_remaining`, %, if it reports one.
+    battery_pct: Option<f32>,
 }
 
 impl Telemetry {
@@ -267,6 +273,7 @@ impl Telemetry {
             nonfinite: 0,
             foreign: 0,
             samples: Vec::new(),
+            battery_pct: None,
         };
         t.refresh_mission();
         t
@@ -341,7 +348,11 @@ impl Telemetry {
     }
 
     fn windows_from(&mut self, samples: &mut Vec<Sample>, out: &mut Vec<Window>) {
-        out.extend(samples.drain(..).filter_map(|s| self.ring.push(s)));
+        let pct = self.battery_pct;
+        out.extend(samples.drain(..).filter_map(|mut s| {
+            s.battery_remaining_pct = pct;
+            self.ring.push(s)
+        }));
     }
 
     fn from_vehicle(&mut self, m: &TimedMessage) -> bool {
@@ -514,6 +525,7 @@ impl Telemetry {
                 self.offer(Signal::Wind, 2, t, &[h.airspeed as f64, heading]);
             }
             MavMessage::BATTERY_STATUS(b) if b.id == 0 => {
+                self.battery_remaining(b.battery_remaining);
                 let mv: f64 = b.voltages.iter().filter(|&&c| c != u16::MAX).map(|&c| c as f64).sum::<f64>()
                     + b.voltages_ext.iter().filter(|&&c| c != 0).map(|&c| c as f64).sum::<f64>();
                 if b.current_battery != -1 && mv > 0.0 {
@@ -521,6 +533,7 @@ impl Telemetry {
                 }
             }
             MavMessage::SYS_STATUS(s) => {
+                self.battery_remaining(s.battery_remaining);
                 if s.voltage_battery != u16::MAX && s.current_battery != -1 {
                     self.power(1, t, s.voltage_battery as f64 * 1e-3, s.current_battery as f64 * 0.01);
                 }
@@ -541,6 +554,13 @@ impl Telemetry {
                 }
             }
             _ => {}
+        }
+    }
+
+    /// MAVLink's `battery_remaining`: 0–100 %, −1 unknown.
+    fn battery_remaining(&mut self, pct: i8) {
+        if (0..=100).contains(&pct) {
+            self.battery_pct = Some(f32::from(pct));
         }
     }
 

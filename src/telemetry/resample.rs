@@ -279,7 +279,7 @@ impl Resampler {
             Some((v, false)) => (Some(v[2] as f32), Some(v[0] as f32)),
             _ => (None, None),
         };
-        Sample { t_s: g as f64 / 1e6, features, measured_w, voltage_v, home, stale_mask }
+        Sample { t_s: g as f64 / 1e6, features, measured_w, voltage_v, home, stale_mask, battery_remaining_pct: None }
     }
 
     /// Value of one signal at grid time `g`, and whether it is stale there.

@@ -301,7 +301,7 @@ pub(crate) mod testutil {
         f[idx::WIND_ANGLE] = wind_angle_deg;
         f[idx::PAYLOAD] = payload_g;
         f[idx::AZ] = -9.81;
-        Sample { t_s, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0 }
+        Sample { t_s, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
     }
 
     pub fn window(s: Sample) -> Window {
