@@ -7,7 +7,7 @@ copies lagged 1, 3 and 9 samples, built by the same loader the LSTM trains on), 
 test flights (268-273, 276-279) are only scored, ground tests (routes A*) are left out.
 
     python3 -m venv /tmp/venv-lgbm && /tmp/venv-lgbm/bin/pip install lightgbm pandas
-    target/debug/dronewatt train --export-csv /tmp/windows.csv [--direct-csv]
+    target/debug/dronewatt train --export-csv /tmp/windows.csv
     /tmp/venv-lgbm/bin/python scripts/lgbm_baseline.py /tmp/windows.csv
 
 The CSV is cut from the data set: write it to a temp dir, never commit it.

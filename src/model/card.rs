@@ -100,8 +100,8 @@ pub struct TrainingInfo {
     /// Data file name (not path) and its sha256.
     pub data_file: String,
     pub data_sha256: String,
-    /// How windows were built: `ingest` (the live path, `offline::data::load_flights`) or
-    /// `direct-csv` (provisional linear resampling of the CSV).
+    /// How windows were built: `ingest` (the live path, `offline::data::load_flights`, the
+    /// only loader `train` has).
     pub loader: String,
     /// Random seed (weights init and batch order).
     pub seed: u64,

@@ -97,11 +97,6 @@ pub struct TrainArgs {
     /// path) and record the metrics in its card.
     #[arg(long, hide = true)]
     pub score_only: bool,
-    /// Provisional: read the CSV directly (linear resampling to the grid) instead of the
-    /// ingest path, while `offline::data::load_flights` is not available. The card records
-    /// it (`training.loader`); models trained this way should be retrained on the ingest path.
-    #[arg(long, hide = true)]
-    pub direct_csv: bool,
     /// Write every window (newest sample + lagged copies) to this CSV and stop: the
     /// LightGBM baseline reads features exactly as the models do.
     #[arg(long, hide = true, value_name = "FILE")]
@@ -157,8 +152,7 @@ struct Scaling {
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let data_path = args.data.clone().unwrap_or_else(crate::default_data_path);
     let tcfg = TelemetryConfig::default();
-    let how = if args.direct_csv { "directly (provisional loader)" } else { "through the ingest path" };
-    tracing::info!("loading flights from {} {how}", data_path.display());
+    tracing::info!("loading flights from {} through the ingest path", data_path.display());
     tch::set_num_threads(args.threads);
     // The chosen flights plus whichever test flights the file holds (273 is withheld from
     // the shared copy, and a file may hold none of them).
@@ -169,11 +163,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let mut flights = if args.direct_csv {
-        load_csv_direct(&data_path, &tcfg)?
-    } else {
-        load_flights(&data_path, wanted.as_deref(), &tcfg).with_context(|| format!("{}: loading flights", data_path.display()))?
-    };
+    let mut flights =
+        load_flights(&data_path, wanted.as_deref(), &tcfg).with_context(|| format!("{}: loading flights", data_path.display()))?;
     if let Some(keep) = &wanted {
         flights.retain(|f| keep.contains(&f.flight));
     }
@@ -236,7 +227,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         training: TrainingInfo {
             data_file: data_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
             data_sha256: sha256_file(&data_path)?,
-            loader: if args.direct_csv { "direct-csv" } else { "ingest" }.into(),
+            loader: "ingest".into(),
             seed: args.seed,
             dropout: chosen.dropout,
             learning_rate: chosen.lr,
@@ -726,102 +717,3 @@ fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> anyhow::Resul
     Ok(())
 }
 
-/// Provisional loader (`--direct-csv`): each flight of the official CSV resampled to the
-/// grid by linear interpolation between rows (a gap over 1 s restarts the window ring),
-/// mission inputs from the `speed`/`payload`/`altitude` columns (highest stage of a
-/// multi-altitude mission such as `25-50-100-25`), home at the first sample
-/// with GPS. Not the ingest path: used only while that path is not available.
-fn load_csv_direct(path: &Path, cfg: &TelemetryConfig) -> anyhow::Result<Vec<FlightWindows>> {
-    use crate::telemetry::{HomeVector, Sample};
-    use crate::window::Window;
-    use std::io::BufRead;
-    let file = std::fs::File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
-    let reader: Box<dyn std::io::Read> =
-        if path.extension().is_some_and(|e| e == "gz") { Box::new(flate2::read::GzDecoder::new(file)) } else { Box::new(file) };
-    // Feature i comes from CSV column COL[i] (official column order).
-    const COL: [usize; N_FEATURES] = [2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24];
-    struct Row {
-        t: f64,
-        f: [f32; N_FEATURES],
-        p: f32,
-    }
-    let mut by_flight: BTreeMap<u32, (String, Vec<Row>)> = BTreeMap::new();
-    let (mut bad, mut line_no) = (0usize, 0usize);
-    for line in std::io::BufReader::new(reader).lines() {
-        let line = line.with_context(|| format!("{}: read error", path.display()))?;
-        line_no += 1;
-        if line_no == 1 {
-            continue;
-        }
-        let c: Vec<&str> = line.trim_end().split(',').collect();
-        let parsed = (|| -> Option<(u32, String, Row)> {
-            let mut f = [0f32; N_FEATURES];
-            for (i, col) in COL.iter().enumerate() {
-                let cell = c.get(*col)?.trim();
-                // Multi-altitude missions read `25-50-100-25`: the highest stage, as the
-                // ingest path's data-set source does.
-                f[i] = if *col == 24 {
-                    cell.split('-').map(|x| x.parse::<f32>().ok()).collect::<Option<Vec<_>>>()?.into_iter().fold(f32::MIN, f32::max)
-                } else {
-                    cell.parse().ok()?
-                };
-            }
-            let v: f32 = c.get(4)?.parse().ok()?;
-            let a: f32 = c.get(5)?.parse().ok()?;
-            Some((c.first()?.parse().ok()?, c.get(27)?.to_string(), Row { t: c.get(1)?.parse().ok()?, f, p: v * a }))
-        })();
-        match parsed {
-            Some((flight, route, row)) => by_flight.entry(flight).or_insert_with(|| (route, Vec::new())).1.push(row),
-            None => bad += 1,
-        }
-    }
-    if bad > 0 {
-        tracing::warn!("{}: {bad} rows skipped (unparsable)", path.display());
-    }
-    let dt = 1.0 / cfg.rate_hz;
-    let mut out = Vec::new();
-    for (flight, (route, rows)) in by_flight {
-        let home = rows.iter().find(|r| r.f[2] != 0.0 || r.f[3] != 0.0).map(|r| (r.f[2], r.f[3], r.f[4]));
-        let mut windows = Vec::new();
-        let mut ring: std::collections::VecDeque<Sample> = std::collections::VecDeque::new();
-        let (mut j, mut t) = (0usize, rows.first().map(|r| r.t).unwrap_or(0.0));
-        let t_end = rows.last().map(|r| r.t).unwrap_or(0.0);
-        while t <= t_end && rows.len() >= 2 {
-            while j + 2 < rows.len() && rows[j + 1].t < t {
-                j += 1;
-            }
-            let (a, b) = (&rows[j], &rows[j + 1]);
-            if b.t - a.t > 1.0 {
-                ring.clear();
-            }
-            let w = if b.t > a.t { ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0) as f32 } else { 0.0 };
-            let mut f = [0f32; N_FEATURES];
-            for (i, v) in f.iter_mut().enumerate() {
-                *v = a.f[i] + w * (b.f[i] - a.f[i]);
-            }
-            let home_v = home.map(|(lon0, lat0, z0)| {
-                let east = (f[2] - lon0) as f64 * (lat0 as f64).to_radians().cos() * 111_320.0;
-                let north = (f[3] - lat0) as f64 * 110_540.0;
-                HomeVector { distance_m: east.hypot(north) as f32, height_m: f[4] - z0 }
-            });
-            ring.push_back(Sample {
-                t_s: t,
-                features: f,
-                measured_w: Some(a.p + w * (b.p - a.p)),
-                voltage_v: None,
-                home: home_v,
-                stale_mask: 0,
-                battery_remaining_pct: None,
-            });
-            if ring.len() > cfg.window {
-                ring.pop_front();
-            }
-            if ring.len() == cfg.window {
-                windows.push(Window { samples: ring.iter().cloned().collect() });
-            }
-            t += dt;
-        }
-        out.push(FlightWindows { flight, route, windows });
-    }
-    Ok(out)
-}
