@@ -45,7 +45,7 @@ pub struct Pipeline {
 /// ingest counters (the summary line's numbers).
 pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
     let stats = Arc::new(IngestStats::default());
-    let cfg = Arc::new(p.config);
+    let cfg = p.config;
 
     // Built before any task starts, so a bad model or profile fails before we listen.
     let mut telemetry = crate::telemetry::Telemetry::new(&cfg.telemetry, &cfg.mission);
@@ -64,7 +64,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let link = crate::source::LinkHandle::default();
     for spec in p.sinks {
         let rx = rep_tx.subscribe();
-        sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), health.clone(), link.clone(), cfg.clone())?);
+        sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), health.clone(), link.clone())?);
     }
 
     let live = matches!(p.source, crate::source::SourceSpec::Link(_));

@@ -58,7 +58,6 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         Arc::new(IngestStats::default()),
         Default::default(),
         LinkHandle::default(),
-        cfg.clone(),
     )
     .unwrap();
     let mut energy = EnergyTracker::new(&cfg).unwrap();

@@ -59,9 +59,7 @@ pub fn spawn(
     stats: Arc<IngestStats>,
     health: crate::telemetry::HealthHandle,
     link: LinkHandle,
-    cfg: Arc<crate::config::Config>,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
-    let _ = &cfg;
     match spec {
         SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, stats, health))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, stats),
