@@ -1,6 +1,6 @@
-//! LSTM inference speed: one window (the live case) and a batch of 256 (a replay flat
-//! out), on the shipped model, libtorch CPU with one thread (`DRONEWATT_BENCH_THREADS`
-//! to change). Compare with `scripts/bench_torch.py` (PyTorch eager, same weights).
+//! LSTM inference speed: one window (the live case: the hand-written forward, and libtorch
+//! for comparison) and a batch of 256 (a replay flat out: libtorch), on the shipped model,
+//! one thread (`DRONEWATT_BENCH_THREADS` to change libtorch's). Compare with `scripts/bench_torch.py` (PyTorch eager, same weights).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dronewatt::model::lstm::{resolve_model_path, LstmModel};
@@ -38,6 +38,17 @@ fn bench(c: &mut Criterion) {
     let batch: Vec<Window> = (0..256).map(window).collect();
     let mut out = Vec::new();
     c.bench_function("lstm_single_window", |b| b.iter(|| model.predict(&one, &mut out)));
+    model.set_libtorch_only(true);
+    c.bench_function("lstm_single_window_libtorch", |b| b.iter(|| model.predict(&one, &mut out)));
+    model.set_libtorch_only(false);
+    let four: Vec<Window> = (0..4).map(window).collect();
+    let mut g = c.benchmark_group("lstm_batch_4");
+    g.throughput(Throughput::Elements(4));
+    g.bench_function("hand_written", |b| b.iter(|| model.predict(&four, &mut out)));
+    model.set_libtorch_only(true);
+    g.bench_function("libtorch", |b| b.iter(|| model.predict(&four, &mut out)));
+    model.set_libtorch_only(false);
+    g.finish();
     let mut g = c.benchmark_group("lstm_batch");
     g.throughput(Throughput::Elements(256));
     g.bench_function("256_windows", |b| b.iter(|| model.predict(&batch, &mut out)));

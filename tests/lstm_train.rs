@@ -49,3 +49,27 @@ fn shipped_weights_flight_276() {
         / windows.len() as f64;
     assert!(mae <= 35.0, "flight 276 MAE {mae:.1} W");
 }
+
+/// The live path (one window at a time: the hand-written forward) and the batched path
+/// (libtorch) give the same estimates and bands on the shipped weights over flight 276.
+#[test]
+fn live_forward_matches_libtorch_on_shipped_weights() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_MODEL_DIR);
+    let cfg = TelemetryConfig::default();
+    let mut model = LstmModel::load(&dir, &cfg).unwrap();
+    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg).unwrap();
+    let windows: Vec<_> = flights[0].windows.iter().step_by(7).cloned().collect();
+    assert!(windows.len() > 100);
+    let mut batched = Vec::new();
+    model.set_libtorch_only(true);
+    model.predict(&windows, &mut batched);
+    model.set_libtorch_only(false);
+    let mut one = Vec::new();
+    for (w, want) in windows.iter().zip(&batched) {
+        model.predict(std::slice::from_ref(w), &mut one);
+        let got = &one[0];
+        assert!((got.power_w - want.power_w).abs() < 0.05, "t = {}: {} W vs libtorch {} W", w.last().t_s, got.power_w, want.power_w);
+        let (gb, wb) = (got.band_w.unwrap(), want.band_w.unwrap());
+        assert!((gb.0 - wb.0).abs() < 0.05 && (gb.1 - wb.1).abs() < 0.05, "band {gb:?} vs {wb:?}");
+    }
+}

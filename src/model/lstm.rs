@@ -26,6 +26,7 @@ use tch::nn::{self, Module, RNN};
 use tch::{Device, Kind, Tensor};
 
 use super::card::{FeatureSet, ModelCard, WeightsFormat};
+use super::lstm_cpu::CpuLstm;
 use super::{PowerModel, Prediction};
 use crate::telemetry::{idx, TelemetryConfig, N_FEATURES};
 use crate::window::Window;
@@ -105,9 +106,15 @@ pub fn push_inputs(w: &Window, set: FeatureSet, t: usize, out: &mut Vec<f32>) {
 }
 
 enum Backend {
-    Native { _vs: nn::VarStore, net: Net },
+    /// Our own network: libtorch for batches, and the hand-written forward
+    /// ([`CpuLstm`]) for the live case of a few windows on the CPU.
+    Native { _vs: nn::VarStore, net: Net, cpu: Option<CpuLstm> },
     Script(tch::CModule),
 }
+
+/// Batches up to this many windows run on the hand-written forward (when on the CPU);
+/// larger ones on libtorch, whose batched kernels win there (`cargo bench --bench lstm`).
+pub const CPU_FORWARD_MAX_BATCH: usize = 4;
 
 /// The LSTM as a [`PowerModel`]: a card, weights, and a scratch buffer.
 pub struct LstmModel {
@@ -115,6 +122,8 @@ pub struct LstmModel {
     backend: Backend,
     device: Device,
     buf: Vec<f32>,
+    out: Vec<f32>,
+    libtorch_only: bool,
     warned: bool,
 }
 
@@ -139,7 +148,8 @@ impl LstmModel {
                 let mut vs = nn::VarStore::new(device);
                 let net = Net::new(&vs.root(), card.hidden, card.layers, card.training.dropout);
                 vs.load(&weights).with_context(|| format!("{}: cannot load LSTM weights", weights.display()))?;
-                Backend::Native { _vs: vs, net }
+                let cpu = if device == Device::Cpu { CpuLstm::from_var_store(&vs, card.layers as usize, card.hidden as usize) } else { None };
+                Backend::Native { _vs: vs, net, cpu }
             }
             WeightsFormat::Torchscript => {
                 let mut m = tch::CModule::load_on_device(&weights, device)
@@ -148,7 +158,12 @@ impl LstmModel {
                 Backend::Script(m)
             }
         };
-        Ok(LstmModel { card, backend, device, buf: Vec::new(), warned: false })
+        Ok(LstmModel { card, backend, device, buf: Vec::new(), out: Vec::new(), libtorch_only: false, warned: false })
+    }
+
+    /// Run every batch on libtorch, never the hand-written forward (benchmarks, checks).
+    pub fn set_libtorch_only(&mut self, on: bool) {
+        self.libtorch_only = on;
     }
 
     /// The card this model was loaded with.
@@ -168,18 +183,33 @@ impl LstmModel {
                 *v = (*v - self.card.feature_mean[f]) / self.card.feature_std[f];
             }
         }
-        let b = windows.len() as i64;
-        let x = Tensor::from_slice(&self.buf).view([b, t as i64, N_FEATURES as i64]).to_device(self.device);
-        let y = tch::no_grad(|| match &self.backend {
-            Backend::Native { net, .. } => Ok(net.forward_t(&x, false)),
-            Backend::Script(m) => m.forward_ts(&[&x]),
-        })?;
-        let y = y.to_device(Device::Cpu).to_kind(Kind::Float).contiguous();
-        let cols = if y.dim() == 2 { y.size()[1] } else { 1 };
-        let flat = Vec::<f32>::try_from(y.view([-1]))?;
+        let b = windows.len();
+        self.out.clear();
+        let cols = match &mut self.backend {
+            Backend::Native { cpu: Some(cpu), .. } if b <= CPU_FORWARD_MAX_BATCH && !self.libtorch_only => {
+                let n = t * N_FEATURES;
+                let mut row = [0.0f32; 3];
+                for w in 0..b {
+                    cpu.forward(&self.buf[w * n..(w + 1) * n], t, &mut row);
+                    self.out.extend_from_slice(&row);
+                }
+                3
+            }
+            backend => {
+                let x = Tensor::from_slice(&self.buf).view([b as i64, t as i64, N_FEATURES as i64]).to_device(self.device);
+                let y = tch::no_grad(|| match backend {
+                    Backend::Native { net, .. } => Ok(net.forward_t(&x, false)),
+                    Backend::Script(m) => m.forward_ts(&[&x]),
+                })?;
+                let y = y.to_device(Device::Cpu).to_kind(Kind::Float).contiguous();
+                self.out = Vec::<f32>::try_from(y.view([-1]))?;
+                if y.dim() == 2 { y.size()[1] as usize } else { 1 }
+            }
+        };
         let s = self.card.power_scale_w;
-        Ok(flat
-            .chunks(cols as usize)
+        Ok(self
+            .out
+            .chunks(cols)
             .map(|r| {
                 let p = r[0] * s;
                 if r.len() >= 3 {

@@ -3,6 +3,7 @@
 
 pub mod card;
 pub mod lstm;
+pub mod lstm_cpu;
 pub mod physics;
 pub mod profile;
 
