@@ -8,7 +8,11 @@ test flights (268-273, 276-279) are only scored, ground tests (routes A*) are le
 
     python3 -m venv /tmp/venv-lgbm && /tmp/venv-lgbm/bin/pip install lightgbm pandas
     target/debug/dronewatt train --export-csv /tmp/windows.csv
-    /tmp/venv-lgbm/bin/python scripts/lgbm_baseline.py /tmp/windows.csv
+    /tmp/venv-lgbm/bin/python scripts/lgbm_baseline.py /tmp/windows.csv [TARGET_LAG]
+
+TARGET_LAG (samples, default 0) scores the estimate against the measured power that many
+samples before each window's newest, as `dronewatt train --target-lag` does for the LSTM
+(rows whose lagged sample lies across a telemetry gap are dropped).
 
 The CSV is cut from the data set: write it to a temp dir, never commit it.
 """
@@ -21,9 +25,14 @@ import pandas as pd
 IN_FLIGHT_W = 100.0  # same threshold as the LSTM's in-flight MAPE
 
 
-def main(path):
+def main(path, lag=0):
     df = pd.read_csv(path)
     feats = [c for c in df.columns if c not in ("flight", "route", "test", "t_s", "measured_w")]
+    if lag:
+        g = df.groupby("flight")
+        target, t_back = g.measured_w.shift(lag), g.t_s.shift(lag)
+        ok = (np.abs(df.t_s - t_back - 0.1 * lag) < 1e-3) & target.notna()
+        df = df.assign(measured_w=target)[ok]
     pool = df[(df.test == 0) & (~df.route.str.startswith("A"))]
     flights = np.array(sorted(pool.flight.unique()))
     rng = np.random.default_rng(7)
@@ -45,12 +54,12 @@ def main(path):
                              "energy_error_pct": 100 * abs(g.pred.sum() - g.measured_w.sum()) / g.measured_w.sum()}))
     print(per.round(2).to_string())
     f276 = per.mae_w.get(276, float("nan"))
-    print(f"LightGBM ({model.best_iteration_} trees): test MAE {np.mean(np.abs(err)):.1f} W, "
+    print(f"LightGBM ({model.best_iteration_} trees, target lag {lag}): test MAE {np.mean(np.abs(err)):.1f} W, "
           f"flight 276 MAE {f276:.1f} W, in-flight MAPE {mape:.2f} %, "
           f"energy error {per.energy_error_pct.mean():.2f} %")
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
+    if len(sys.argv) not in (2, 3):
         sys.exit(__doc__)
-    main(sys.argv[1])
+    main(sys.argv[1], int(sys.argv[2]) if len(sys.argv) == 3 else 0)

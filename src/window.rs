@@ -19,6 +19,11 @@ impl Window {
         // A Window is never built empty (the builder only emits full rings).
         &self.samples[self.samples.len() - 1]
     }
+    /// The sample `lag` steps before the newest (`back(0)` = [`Window::last`]); the oldest
+    /// when the window is shorter. A model trained with a target lag estimates this one.
+    pub fn back(&self, lag: usize) -> &Sample {
+        &self.samples[self.samples.len().saturating_sub(1 + lag)]
+    }
     /// Grid time of the newest sample.
     pub fn t_s(&self) -> f64 {
         self.last().t_s

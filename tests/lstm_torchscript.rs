@@ -51,6 +51,7 @@ fn torchscript_module_loads_with_its_card() {
         feature_mean: vec![0.0; N_FEATURES],
         feature_std: vec![1.0; N_FEATURES],
         power_scale_w: 100.0,
+        target_lag: 0,
         band_quantiles: (0.05, 0.95),
         hidden: 0,
         layers: 0,

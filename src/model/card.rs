@@ -81,6 +81,10 @@ pub struct ModelCard {
     /// Target scale, W: the network's tanh output times this is power. Chosen as 1.2 × the
     /// largest training power so tanh's range covers the data without saturating.
     pub power_scale_w: f32,
+    /// Samples between a window's newest and the instant the estimate is for (0: the
+    /// newest, as in the paper). Absent in older cards: 0.
+    #[serde(default)]
+    pub target_lag: usize,
     /// Nominal quantiles of the band heads (low, high), e.g. (0.05, 0.95).
     pub band_quantiles: (f32, f32),
     /// LSTM hidden cells per direction and layer (built-in network only).

@@ -7,7 +7,12 @@
 //! band's low and high quantiles (beyond the paper: quantile heads trained with the
 //! pinball loss, so the band costs nothing at inference). Power P = tanh(·) × P_scale, with
 //! P_scale from the model card (1.2 × the largest training power, so tanh's range covers
-//! the data). Trained with Adam on MSE of the scaled point + pinball loss of the quantiles.
+//! the data). Trained with Adam on the pinball loss of all three heads (the point head's,
+//! at 0.5, is the MAE). A card may set a target lag L: the estimate is then for the sample
+//! L steps before the window's newest ([`crate::window::Window::back`]).
+//!
+//! One to [`CPU_FORWARD_MAX_BATCH`] windows on the CPU (the live case) run through the
+//! hand-written forward of [`super::lstm_cpu`]; larger batches and CUDA through libtorch.
 //!
 //! Variable names follow PyTorch's `nn.LSTM` (`lstm.weight_ih_l0_reverse` …) and
 //! `nn.Linear` (`head.weight`), so the same `.safetensors` loads in PyTorch.
@@ -225,6 +230,10 @@ impl LstmModel {
 impl PowerModel for LstmModel {
     fn name(&self) -> &str {
         &self.card.name
+    }
+
+    fn target_lag(&self) -> usize {
+        self.card.target_lag
     }
 
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {

@@ -26,6 +26,14 @@ pub trait PowerModel: Send {
     /// Predict every window of `windows` into `out` (cleared first), in order. Batching is
     /// the model's business: the LSTM runs them as one batch, physics models one by one.
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>);
+    /// Samples between a window's newest and the instant its estimate is for
+    /// ([`Window::back`]): 0 for the physics models; the LSTM's card may set a fixed lag
+    /// (fixed-lag smoothing: power leads the motion it causes, so a window that also sees
+    /// the 0.3 s after an instant estimates that instant better). `eval` scores each
+    /// model against the measured power at its own instant.
+    fn target_lag(&self) -> usize {
+        0
+    }
 }
 
 /// One model's estimate, named.

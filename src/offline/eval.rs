@@ -96,7 +96,15 @@ pub fn run_flight(models: &mut [Box<dyn PowerModel>], f: &FlightWindows) -> Flig
         .iter_mut()
         .map(|m| {
             m.predict(&f.windows, &mut out);
-            keep.iter().map(|&i| out.get(i).map_or(f64::NAN, |p| f64::from(p.power_w))).collect()
+            // A model with a target lag L estimates window i + L's sample L back, which is
+            // window i's newest when no gap lies between (else NaN, as at a flight's end).
+            let lag = m.target_lag();
+            keep.iter()
+                .map(|&i| match (f.windows.get(i + lag), out.get(i + lag)) {
+                    (Some(w), Some(p)) if w.back(lag).t_s == last(i).t_s => f64::from(p.power_w),
+                    _ => f64::NAN,
+                })
+                .collect()
         })
         .collect();
     FlightSeries {
@@ -345,6 +353,48 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::telemetry::Sample;
+    use crate::window::Window;
+
+    /// A model that knows the measured power `lag` samples back: perfect when aligned.
+    struct Oracle(usize);
+    impl PowerModel for Oracle {
+        fn name(&self) -> &str {
+            "oracle"
+        }
+        fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
+            out.clear();
+            out.extend(windows.iter().map(|w| Prediction { power_w: w.back(self.0).measured_w.unwrap_or(f32::NAN), band_w: None }));
+        }
+        fn target_lag(&self) -> usize {
+            self.0
+        }
+    }
+
+    #[test]
+    fn a_lagged_model_is_scored_at_its_own_instant() {
+        let sample = |i: usize| Sample {
+            t_s: i as f64 * 0.1,
+            features: [0.0; crate::telemetry::N_FEATURES],
+            measured_w: Some(300.0 + (i * i % 97) as f32),
+            voltage_v: None,
+            home: None,
+            stale_mask: 0,
+            battery_remaining_pct: None,
+        };
+        let all: Vec<Sample> = (0..60).map(sample).collect();
+        let windows = (9..60).map(|e| Window { samples: all[e - 9..=e].to_vec() }).collect();
+        let f = FlightWindows { flight: 1, route: "R1".into(), windows };
+        let mut models: Vec<Box<dyn PowerModel>> = vec![Box::new(Oracle(0)), Box::new(Oracle(3))];
+        let s = run_flight(&mut models, &f);
+        for pred in &s.pred_w {
+            let scored: Vec<_> = pred.iter().zip(&s.measured_w).filter(|(p, _)| p.is_finite()).collect();
+            assert!(scored.len() >= s.measured_w.len() - 3);
+            assert!(scored.iter().all(|(p, m)| p == m), "a perfect model scored imperfectly");
+        }
+        // The last three windows have no lagged estimate yet (as live).
+        assert!(s.pred_w[1].iter().rev().take(3).all(|p| p.is_nan()));
+    }
 
     #[test]
     fn paper_rmse_column_breaks_the_rmse_bound_but_fits_mse() {

@@ -90,6 +90,10 @@ pub struct TrainArgs {
     /// Input features: the paper's, or location-invariant (relative to home).
     #[arg(long, value_enum, default_value_t = FeatureSet::Paper)]
     pub features: FeatureSet,
+    /// Train the estimate for the sample this many steps before each window's newest
+    /// (fixed-lag smoothing; 0: the newest, as in the paper). Recorded in the card.
+    #[arg(long, default_value_t = 0)]
+    pub target_lag: usize,
     /// Hidden cells per LSTM direction and layer (the paper: 128).
     #[arg(long, default_value_t = 128)]
     pub hidden: i64,
@@ -176,12 +180,13 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     let t = tcfg.window;
     let per_flight: BTreeMap<u32, FlightData> =
-        flights.iter().map(|f| (f.flight, flight_data(f, args.features, t))).collect();
+        flights.iter().map(|f| (f.flight, flight_data(f, args.features, t, args.target_lag))).collect();
     let pool: Vec<u32> = flights
         .iter()
         .filter(|f| !TEST_FLIGHTS.contains(&f.flight) && !f.route.starts_with('A') && !per_flight[&f.flight].y.is_empty())
         .map(|f| f.flight)
         .collect();
+    anyhow::ensure!(args.target_lag < t, "--target-lag {} must be below the window length {t}", args.target_lag);
     anyhow::ensure!(pool.len() >= 2, "{}: need at least two non-test flights with measured power to train, found {}", data_path.display(), pool.len());
     std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create output folder", args.out.display()))?;
     let device = Device::cuda_if_available();
@@ -221,6 +226,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         feature_mean: scaling.mean,
         feature_std: scaling.std,
         power_scale_w: scaling.power_scale_w,
+        target_lag: args.target_lag,
         band_quantiles: BAND_Q,
         hidden: args.hidden,
         layers: 2,
@@ -282,11 +288,12 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, tcfg: &TelemetryConfig) -> 
     Ok(metrics)
 }
 
-/// The raw inputs and targets of one flight's windows that carry a measured power.
-fn flight_data(f: &FlightWindows, set: FeatureSet, t: usize) -> FlightData {
+/// The raw inputs and targets of one flight's windows whose target sample (`lag` before
+/// the newest) carries a measured power.
+fn flight_data(f: &FlightWindows, set: FeatureSet, t: usize, lag: usize) -> FlightData {
     let mut d = FlightData::default();
     for w in &f.windows {
-        if let Some(p) = w.last().measured_w.filter(|p| p.is_finite()) {
+        if let Some(p) = w.back(lag).measured_w.filter(|p| p.is_finite()) {
             push_inputs(w, set, t, &mut d.x);
             d.y.push(p);
         }
@@ -523,13 +530,15 @@ pub struct FlightScore {
     pub band_coverage_pct: f64,
 }
 
-/// Score a model on these flights (every window with a measured power).
+/// Score a model on these flights: every window whose target sample (the card's lag
+/// before the newest) has a measured power, against that power.
 pub fn score(model: &mut LstmModel, flights: &[&FlightWindows]) -> anyhow::Result<(Metrics, Vec<FlightScore>)> {
+    let lag = model.card().target_lag;
     let (mut abs, mut sq, mut n) = (0.0, 0.0, 0usize);
     let (mut ape, mut n_ape, mut inside) = (0.0, 0usize, 0usize);
     let mut per = Vec::new();
     for f in flights {
-        let windows: Vec<_> = f.windows.iter().filter(|w| w.last().measured_w.is_some_and(f32::is_finite)).cloned().collect();
+        let windows: Vec<_> = f.windows.iter().filter(|w| w.back(lag).measured_w.is_some_and(f32::is_finite)).cloned().collect();
         if windows.is_empty() {
             continue;
         }
@@ -539,7 +548,7 @@ pub fn score(model: &mut LstmModel, flights: &[&FlightWindows]) -> anyhow::Resul
         }
         let (mut fa, mut fape, mut fn_ape, mut fin, mut e_pred, mut e_meas) = (0.0, 0.0, 0usize, 0usize, 0.0, 0.0);
         for (w, r) in windows.iter().zip(&rows) {
-            let m = w.last().measured_w.unwrap_or(0.0) as f64;
+            let m = w.back(lag).measured_w.unwrap_or(0.0) as f64;
             let e = r[0] as f64 - m;
             fa += e.abs();
             sq += e * e;
@@ -606,13 +615,16 @@ fn write_curve(out: &Path, curve: &[CurvePoint]) -> anyhow::Result<()> {
 
 /// Plot the model against measured power over one flight.
 fn plot_flight(model: &mut LstmModel, f: &FlightWindows, path: &Path) -> anyhow::Result<()> {
-    let windows: Vec<_> = f.windows.iter().filter(|w| w.last().measured_w.is_some()).cloned().collect();
+    // Each estimate is drawn at the instant it is for (the card's lag before the newest).
+    let lag = model.card().target_lag;
+    let windows: Vec<_> = f.windows.iter().filter(|w| w.back(lag).measured_w.is_some()).cloned().collect();
     let rows = model.forward_w(&windows)?;
-    let t0 = windows.first().map(|w| w.t_s()).unwrap_or(0.0);
-    let meas: Vec<(f64, f64)> = windows.iter().map(|w| (w.t_s() - t0, w.last().measured_w.unwrap_or(0.0) as f64)).collect();
-    let pred: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (w.t_s() - t0, r[0] as f64)).collect();
-    let lo: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (w.t_s() - t0, r[1] as f64)).collect();
-    let hi: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (w.t_s() - t0, r[2] as f64)).collect();
+    let t0 = windows.first().map(|w| w.back(lag).t_s).unwrap_or(0.0);
+    let at = |w: &crate::window::Window| w.back(lag).t_s - t0;
+    let meas: Vec<(f64, f64)> = windows.iter().map(|w| (at(w), w.back(lag).measured_w.unwrap_or(0.0) as f64)).collect();
+    let pred: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (at(w), r[0] as f64)).collect();
+    let lo: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (at(w), r[1] as f64)).collect();
+    let hi: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (at(w), r[2] as f64)).collect();
     plot_lines(
         path,
         &format!("Flight {}: LSTM vs measured power", f.flight),
