@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Live-monitoring benchmark (issue 6): `dronewatt monitor` (release build) fed a 10 Hz
+# Live-monitoring benchmark (issue 6): `dronewatt monitor` (the dev build `make run` ships) fed a 10 Hz
 # flight by pymavlink over UDP on 127.0.0.1 (tests/peers/gcs_flight.py), publishing every
 # estimate back as NAMED_VALUE_FLOAT. Prints
 #   - resident memory of dronewatt from /proc: VmRSS at the end, VmHWM (peak);
@@ -11,8 +11,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DUR=${1:-60}
-BIN=${DRONEWATT_BIN:-target/release/dronewatt}   # DRONEWATT_BIN=target/debug/dronewatt for a debug build
-[ -x "$BIN" ] || cargo build --release --locked
+BIN=${DRONEWATT_BIN:-target/debug/dronewatt}   # DRONEWATT_BIN=target/release/dronewatt for a release build
+[ -x "$BIN" ] || cargo build --locked
 PORT=$(.venv-py/bin/python -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT

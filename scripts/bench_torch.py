@@ -7,9 +7,11 @@ dropout, nn.Linear(256, 3), tanh), loads config/models/lstm-m100/model.safetenso
 variable names), checks it is the same network, then times one window and a batch of 256
 (medians of 200 and 50 runs, one thread unless BENCH_THREADS says otherwise).
 
-    .venv-torch/bin/python scripts/bench_torch.py [MODEL_DIR]
+    scripts/setup-torch-bench.sh && .venv-bench/bin/python scripts/bench_torch.py [MODEL_DIR]
 
-Needs a PyTorch that imports (the CPU wheel is enough) and numpy.
+Needs a PyTorch that imports, and numpy: `.venv-bench` (PyPI's torch 2.13.0 with its CUDA
+libraries; it runs on the CPU). `.venv-torch` holds only the libtorch dronewatt links and
+cannot `import torch`.
 """
 import json
 import os

@@ -7,14 +7,14 @@ use dronewatt::model::PowerModel;
 use dronewatt::offline::data::load_flights;
 use dronewatt::telemetry::TelemetryConfig;
 
-/// A smoke-sized run (three flights, a few hundred steps, small network): the loss falls,
-/// and the card, weights and curves are written.
+/// A smoke-sized run (three flights, a few hundred steps, small network, target lag 2): the
+/// loss falls, and the card (with its lag), weights and curves are written.
 #[test]
 fn smoke_training_loss_falls() {
     let out = tempfile::tempdir().unwrap();
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["train", "--flights", "100,150,200", "--stride", "1", "--epochs", "8", "--patience", "8"])
-        .args(["--max-steps", "300", "--hidden", "32", "--batch", "64", "--lr", "3e-3", "--seed", "3"])
+        .args(["--max-steps", "300", "--hidden", "32", "--batch", "64", "--lr", "3e-3", "--seed", "3", "--target-lag", "2"])
         .arg("--data")
         .arg(dronewatt::default_data_path())
         .arg("--out")
@@ -28,6 +28,7 @@ fn smoke_training_loss_falls() {
     assert!(losses.last().unwrap() < &(losses[0] * 0.7), "training loss did not fall: {losses:?}");
     let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
     assert_eq!(card.training.train_flights.len() + card.training.validation_flights.len(), 3);
+    assert_eq!(card.target_lag, 2, "the card records the target lag the model was trained for");
     assert!(out.path().join("loss.png").is_file() && out.path().join("model.safetensors").is_file());
 }
 
