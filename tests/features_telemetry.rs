@@ -336,10 +336,10 @@ fn bad_values_and_other_systems_are_ignored() {
         ..Default::default()
     }));
     // Another vehicle flying south, and NaN attitude from ours.
-    mix.every(10.0, 0.05, 5.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw: 3.14, ..Default::default() }));
+    mix.every(10.0, 0.05, 5.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw: 3.1, ..Default::default() }));
     for (_, sys, m) in mix.msgs.iter_mut() {
         if let MavMessage::ATTITUDE(a) = m {
-            if a.yaw == 3.14 {
+            if a.yaw == 3.1 {
                 *sys = 2;
             }
         }

@@ -86,7 +86,7 @@ impl CpuLstm {
                 let (b_ih, _) = get(&format!("lstm.bias_ih_l{l}{suffix}"))?;
                 let (b_hh, _) = get(&format!("lstm.bias_hh_l{l}{suffix}"))?;
                 let input = *s_ih.get(1)? as usize;
-                let ok = g % BW == 0 && s_ih[0] as usize == g && s_hh == [g as i64, hidden as i64] && b_ih.len() == g && b_hh.len() == g;
+                let ok = g.is_multiple_of(BW) && s_ih[0] as usize == g && s_hh == [g as i64, hidden as i64] && b_ih.len() == g && b_hh.len() == g;
                 ok.then(|| Direction {
                     input,
                     w_ih: pack(&w_ih, g, input),
@@ -181,7 +181,7 @@ fn simd_available() -> bool {
 fn gemm(simd: bool, w: &[f32], k: usize, xs: &[f32], ys: &mut [f32]) {
     let rows = xs.len() / k;
     let n = ys.len() / rows;
-    assert!(w.len() == n * k && xs.len() == rows * k && ys.len() == rows * n && n % BW == 0);
+    assert!(w.len() == n * k && xs.len() == rows * k && ys.len() == rows * n && n.is_multiple_of(BW));
     #[cfg(target_arch = "x86_64")]
     if simd {
         // SAFETY: AVX2 and FMA were detected at run time; the sizes are checked above.
@@ -207,7 +207,7 @@ fn gemm(simd: bool, w: &[f32], k: usize, xs: &[f32], ys: &mut [f32]) {
 fn cell(simd: bool, gates: &mut [f32], c: &mut [f32], h: &mut [f32]) {
     let hd = h.len();
     #[cfg(target_arch = "x86_64")]
-    if simd && hd % 8 == 0 {
+    if simd && hd.is_multiple_of(8) {
         // SAFETY: AVX2 and FMA were detected at run time.
         unsafe { avx::cell(gates, c, h) };
         return;
@@ -230,6 +230,7 @@ mod avx {
     /// share each load of a weight block: eight accumulators, four per row; a single row
     /// splits its inputs into even and odd halves instead, so there are still eight
     /// independent chains for the two FMA units.
+    #[allow(clippy::needless_range_loop)] // a[q], a[4 + q]: registers, clearer indexed
     #[target_feature(enable = "avx2,fma")]
     pub unsafe fn gemm(w: &[f32], k: usize, xs: &[f32], ys: &mut [f32], rows: usize, n: usize) {
         let (x, y) = (xs.as_ptr(), ys.as_mut_ptr());
@@ -295,7 +296,7 @@ mod avx {
         let r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693_359_4), x);
         let r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-2.121_944_4e-4), r);
         let mut p = _mm256_set1_ps(1.987_569_1e-4);
-        for c in [1.398_199_9e-3, 8.333_452e-3, 4.166_579_6e-2, 1.666_666_5e-1, 5.000_000_1e-1] {
+        for c in [1.398_199_9e-3, 8.333_452e-3, 4.166_579_6e-2, 1.666_666_5e-1, 0.5] {
             p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(c));
         }
         let p = _mm256_add_ps(_mm256_fmadd_ps(_mm256_mul_ps(p, r), r, r), _mm256_set1_ps(1.0));

@@ -537,7 +537,7 @@ struct Every {
 
 impl Every {
     fn due(&self, t_ms: u64) -> bool {
-        t_ms >= self.offset_ms && (t_ms - self.offset_ms) % self.period_ms == 0
+        t_ms >= self.offset_ms && (t_ms - self.offset_ms).is_multiple_of(self.period_ms)
     }
 }
 
@@ -716,7 +716,7 @@ pub fn simulate(mission: &Mission) -> anyhow::Result<SimFlight> {
         st.throttle = if st.in_air { (50.0 * (power / hover_p).sqrt()).clamp(0.0, 100.0) } else if st.armed { 8.0 } else { 0.0 };
 
         let gps = Vector3::new(gps_err[0].step(&mut rng, DT), gps_err[1].step(&mut rng, DT), gps_err[2].step(&mut rng, DT));
-        if t_ms % 100 == 0 {
+        if t_ms.is_multiple_of(100) {
             truth.push(TruthSample {
                 t_s: t,
                 phase,

@@ -314,6 +314,7 @@ fn canonical(sig: Signal, v: [f64; 4]) -> [f64; 4] {
     }
 }
 
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(n > 0)` also catches NaN, on purpose
 fn normalise_q(q: [f64; 4]) -> [f64; 4] {
     let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
     if !(n > 0.0) {

@@ -28,7 +28,7 @@ pub fn flight(n: usize) -> Vec<Rec> {
                 time_boot_ms: t_ms,
                 roll: 0.05 * (t * 0.7).sin(),
                 pitch: -0.1 + 0.02 * (t * 0.3).cos(),
-                yaw: (t * 0.05) % 6.28,
+                yaw: (t * 0.05) % std::f32::consts::TAU,
                 rollspeed: 0.01 * t.sin(),
                 pitchspeed: 0.01 * t.cos(),
                 yawspeed: 0.002,
@@ -75,7 +75,7 @@ pub fn flight(n: usize) -> Vec<Rec> {
                 ..Default::default()
             }),
         ];
-        if tick % 2 == 0 {
+        if tick.is_multiple_of(2) {
             msgs.push(MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
                 time_usec: T0_US + tick * 100_000,
                 lat: 404_433_000 + (tick as i32) * 7,
@@ -90,7 +90,7 @@ pub fn flight(n: usize) -> Vec<Rec> {
                 ..Default::default()
             }));
         }
-        if tick % 5 == 0 {
+        if tick.is_multiple_of(5) {
             msgs.push(MavMessage::VFR_HUD(VFR_HUD_DATA {
                 airspeed: 8.3,
                 groundspeed: 8.1,

@@ -291,7 +291,7 @@ pub(crate) mod testutil {
     /// payload g, and yaw (deg, ENU bearing of body x from east: 90° = body x north).
     pub fn sample(t_s: f64, v_body: [f32; 3], wind_speed: f32, wind_angle_deg: f32, payload_g: f32, yaw_deg: f32) -> Sample {
         let mut f = [0.0f32; N_FEATURES];
-        let h = (yaw_deg.to_radians() / 2.0) as f32;
+        let h = yaw_deg.to_radians() / 2.0;
         f[idx::QW] = h.cos();
         f[idx::QZ] = h.sin();
         f[idx::VX] = v_body[0];
