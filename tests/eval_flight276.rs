@@ -58,3 +58,25 @@ fn calibrated_beats_published_on_flight_276() {
     assert!(!committed.calibration.as_ref().expect("calibration table").flights.iter().any(|f| TEST_FLIGHTS.contains(f)));
     assert_beats(&published, &mae_by_model(&mut physics::models(&committed), f276));
 }
+
+/// Issue 5's flight 276 target through `dronewatt eval` itself: the committed LSTM scores
+/// MAE ≤ 22 W over every window (`--all-windows`, the reading of the LightGBM yardsticks),
+/// and energy error ≤ 2 %; the JSON says what it scored over.
+#[test]
+fn eval_cli_lstm_meets_the_flight_276_target() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["eval", "--flight", "276", "--all-windows", "--json", "-", "--data"])
+        .arg(dronewatt::default_data_path())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text[text.find('{').unwrap()..]).unwrap();
+    assert_eq!(json["scored_over"], "all_windows");
+    let lstm = &json["models"]["lstm"];
+    let (mae, energy) = (lstm["mae_w"].as_f64().unwrap(), lstm["energy_err_pct"].as_f64().unwrap());
+    eprintln!("lstm on flight 276, all windows: MAE {mae:.1} W, energy error {energy:.2} %");
+    assert!(mae <= 22.0, "flight 276 MAE {mae:.1} W");
+    assert!(energy <= 2.0, "flight 276 energy error {energy:.2} %");
+}

@@ -1,9 +1,12 @@
 //! Scores of one model on one flight, in watts: what `dronewatt eval` reports.
 //!
-//! Every score is over **in-flight windows** only: measured power > [`IN_FLIGHT_W`]. On the
-//! ground the power falls to ~2 W (motors off) or idles; no model of the comparative study
-//! describes that, a percentage of it means nothing, and on flight 276 the ground windows
-//! alone would put ~200 W into every model's MAE and hide every difference in flight.
+//! By default every score is over **in-flight windows** only: measured power >
+//! [`IN_FLIGHT_W`]. On the ground the power falls to ~2 W (motors off) or idles; no model of
+//! the comparative study describes that, a percentage of it means nothing, and on flight 276
+//! the ground windows alone would put ~200 W into every model's MAE and hide every
+//! difference in flight. [`score_over`] with `all_windows` scores MAE, RMSE, MSE and energy
+//! over every window instead (the LSTM card's and the LightGBM baseline's reading); MAPE
+//! stays in flight.
 //!
 //! * MAE, RMSE, MSE (W, W, W²) and MAPE (%).
 //! * Energy error |∫P̂ dt − ∫P dt| / ∫P dt (%), trapezoids between consecutive in-flight
@@ -34,17 +37,28 @@ pub struct Scores {
 /// Score `pred` against `measured` at times `t_s` over the in-flight windows (equal
 /// lengths; non-finite pairs are skipped). `None` when no window is in flight.
 pub fn score(t_s: &[f64], measured: &[f64], pred: &[f64]) -> Option<Scores> {
-    let ok = |i: usize| measured[i].is_finite() && pred[i].is_finite() && t_s[i].is_finite() && measured[i] > IN_FLIGHT_W;
+    score_over(t_s, measured, pred, false)
+}
+
+/// [`score`], with MAE, RMSE, MSE and energy error over every window when `all_windows`
+/// (MAPE always over the in-flight ones).
+pub fn score_over(t_s: &[f64], measured: &[f64], pred: &[f64], all_windows: bool) -> Option<Scores> {
+    let finite = |i: usize| measured[i].is_finite() && pred[i].is_finite() && t_s[i].is_finite();
+    let flying = |i: usize| finite(i) && measured[i] > IN_FLIGHT_W;
+    let ok = |i: usize| if all_windows { finite(i) } else { flying(i) };
     let n = t_s.len().min(measured.len()).min(pred.len());
-    let (mut n_all, mut abs, mut sq, mut pct) = (0usize, 0.0, 0.0, 0.0);
+    let (mut n_all, mut abs, mut sq, mut pct, mut n_pct) = (0usize, 0.0, 0.0, 0.0, 0usize);
     for i in (0..n).filter(|&i| ok(i)) {
         let e = pred[i] - measured[i];
         n_all += 1;
         abs += e.abs();
         sq += e * e;
-        pct += (e / measured[i]).abs();
+        if flying(i) {
+            pct += (e / measured[i]).abs();
+            n_pct += 1;
+        }
     }
-    if n_all == 0 {
+    if n_pct == 0 {
         return None;
     }
     let (mut e_meas, mut e_pred, mut prev) = (0.0, 0.0, None::<usize>);
@@ -67,7 +81,7 @@ pub fn score(t_s: &[f64], measured: &[f64], pred: &[f64]) -> Option<Scores> {
         mae_w: abs / n_all as f64,
         rmse_w: mse.sqrt(),
         mse_w2: mse,
-        mape_pct: 100.0 * pct / n_all as f64,
+        mape_pct: 100.0 * pct / n_pct as f64,
         energy_err_pct: if e_meas > 0.0 { 100.0 * (e_pred - e_meas).abs() / e_meas } else { f64::NAN },
     })
 }
@@ -114,6 +128,12 @@ mod tests {
         assert!((s.energy_err_pct - 100.0 * 20.0 / 600.0).abs() < 1e-9);
         assert!(score(&[], &[], &[]).is_none());
         assert!(score(&[0.0], &[50.0], &[50.0]).is_none());
+        // All windows: the ground sample's +410 W joins MAE and energy, not MAPE.
+        let a = score_over(&t, &m, &p, true).unwrap();
+        assert!((a.mae_w - 460.0 / 4.0).abs() < 1e-12);
+        assert!((a.mape_pct - s.mape_pct).abs() < 1e-12);
+        // ∫meas = 125 + 600 = 725 W·s; ∫pred = 320 + 620 = 940.
+        assert!((a.energy_err_pct - 100.0 * 215.0 / 725.0).abs() < 1e-9);
         let m2 = mean(&[s, Scores { mae_w: 5.0, mape_pct: f64::NAN, ..s }]).unwrap();
         assert!((m2.mae_w - (50.0 / 3.0 + 5.0) / 2.0).abs() < 1e-12 && (m2.mape_pct - s.mape_pct).abs() < 1e-12);
     }
