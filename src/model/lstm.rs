@@ -113,7 +113,7 @@ pub fn push_inputs(w: &Window, set: FeatureSet, t: usize, out: &mut Vec<f32>) {
 enum Backend {
     /// Our own network: libtorch for batches, and the hand-written forward
     /// ([`CpuLstm`]) for the live case of a few windows on the CPU.
-    Native { _vs: nn::VarStore, net: Net, cpu: Option<CpuLstm> },
+    Native { _vs: nn::VarStore, net: Net, cpu: Option<Box<CpuLstm>> },
     Script(tch::CModule),
 }
 
@@ -153,7 +153,7 @@ impl LstmModel {
                 let mut vs = nn::VarStore::new(device);
                 let net = Net::new(&vs.root(), card.hidden, card.layers, card.training.dropout);
                 vs.load(&weights).with_context(|| format!("{}: cannot load LSTM weights", weights.display()))?;
-                let cpu = if device == Device::Cpu { CpuLstm::from_var_store(&vs, card.layers as usize, card.hidden as usize) } else { None };
+                let cpu = if device == Device::Cpu { CpuLstm::from_var_store(&vs, card.layers as usize, card.hidden as usize).map(Box::new) } else { None };
                 Backend::Native { _vs: vs, net, cpu }
             }
             WeightsFormat::Torchscript => {

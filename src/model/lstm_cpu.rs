@@ -131,9 +131,12 @@ impl CpuLstm {
         self.seq[0].extend_from_slice(x);
         for l in 0..n_layers {
             let top = l + 1 == n_layers;
+            // The next layer's input; the top layer keeps only its final states (`last`).
             let mut next = std::mem::take(&mut self.seq[(l + 1) % 2]);
             next.clear();
-            next.resize(t * 2 * hd, 0.0);
+            if !top {
+                next.resize(t * 2 * hd, 0.0);
+            }
             for (d, dir) in self.layers[l].iter().enumerate() {
                 // Input projections of every step at once: pre[s] = b + W_ih x_s.
                 self.pre.clear();
