@@ -11,14 +11,12 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::Criterion;
-use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
 use dronewatt::dialect as d;
-use dronewatt::energy::{EnergyTracker, Report};
-use dronewatt::model::{build_ensemble, Ensemble};
+use dronewatt::pipeline::{account, VehicleChain};
+use dronewatt::report::Report;
 use dronewatt::sink::mavlink::Encoder;
 use dronewatt::source::TimedMessage;
-use dronewatt::telemetry::Telemetry;
 use dronewatt::MavMessage;
 
 /// The messages one 10 Hz tick of an ArduPilot-like stream carries, at time `t_s`.
@@ -53,12 +51,9 @@ fn tick(t_s: f64) -> Vec<TimedMessage> {
 }
 
 struct Chain {
-    telemetry: Telemetry,
-    ensemble: Ensemble,
-    energy: EnergyTracker,
-    alerts: AlertEngine,
+    chain: VehicleChain,
     enc: Encoder,
-    windows: Vec<dronewatt::window::Window>,
+    reports: Vec<Report>,
 }
 
 impl Chain {
@@ -66,12 +61,9 @@ impl Chain {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/dronewatt.toml");
         let cfg = Config::load(&path).unwrap_or_else(|e| panic!("{e}"));
         Chain {
-            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
-            ensemble: build_ensemble(&cfg).unwrap_or_else(|e| panic!("{e:#}")),
-            energy: EnergyTracker::new(&cfg).unwrap(),
-            alerts: AlertEngine::new(&cfg.alerts).unwrap(),
+            chain: VehicleChain::build(&cfg).unwrap_or_else(|e| panic!("{e:#}")),
             enc: Encoder::new(1, 191),
-            windows: Vec::new(),
+            reports: Vec::new(),
         }
     }
 
@@ -79,18 +71,11 @@ impl Chain {
     fn run(&mut self, msgs: &[TimedMessage]) -> usize {
         let mut frames = 0;
         for m in msgs {
-            self.telemetry.push(m, &mut self.windows);
+            self.chain.push(Some(m), &mut self.reports);
         }
-        if self.windows.is_empty() {
-            return 0;
-        }
-        for est in self.ensemble.estimate(&self.windows) {
-            let energy = self.energy.update(&est);
-            let alerts = self.alerts.evaluate(&est, &energy);
-            let r = Report { estimate: est, energy, alerts };
+        for r in self.reports.drain(..) {
             frames += self.enc.estimates(&r).len() + self.enc.alerts(&r).len();
         }
-        self.windows.clear();
         frames
     }
 }
@@ -113,7 +98,7 @@ fn percentiles() {
     let q = |p: f64| ns[((ns.len() as f64 - 1.0) * p) as usize] as f64 / 1000.0;
     println!(
         "live chain per 10 Hz tick (models: {:?}): p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs over {} ticks, {} frames encoded",
-        chain.ensemble.names(),
+        chain.chain.models.names(),
         q(0.5),
         q(0.99),
         q(1.0),
@@ -140,14 +125,14 @@ fn main() {
     });
     // The energy + alert + encode stage alone, on a fixed estimate.
     let mut chain = Chain::new();
-    let est = dronewatt::model::Estimate {
+    let est = dronewatt::report::Estimate {
         t_s: 0.0,
-        sample: dronewatt::telemetry::Sample {
+        sample: dronewatt::features::Sample {
             t_s: 0.0,
-            features: [0.0; dronewatt::telemetry::N_FEATURES],
+            features: [0.0; dronewatt::features::N_FEATURES],
             measured_w: Some(500.0),
             voltage_v: Some(22.2),
-            home: Some(dronewatt::telemetry::HomeVector { distance_m: 300.0, height_m: 25.0 }),
+            home: Some(dronewatt::features::HomeVector { distance_m: 300.0, height_m: 25.0 }),
             stale_mask: 0,
             battery_remaining_pct: None,
         },
@@ -159,9 +144,7 @@ fn main() {
             t += 0.1;
             let mut e = est.clone();
             e.t_s = t;
-            let energy = chain.energy.update(&e);
-            let alerts = chain.alerts.evaluate(&e, &energy);
-            let r = Report { estimate: e, energy, alerts };
+            let r = account(&mut chain.chain.energy, &mut chain.chain.alerts, e);
             black_box(chain.enc.estimates(&r).len() + chain.enc.alerts(&r).len())
         })
     });

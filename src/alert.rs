@@ -1,4 +1,4 @@
-//! Alert rules from TOML: typed kinds, debounce, hysteresis, repeat. Owner: energy (issue 6).
+//! Alert rules from TOML: typed kinds, debounce, hysteresis, repeat.
 //!
 //! ```toml
 //! [[alerts]]
@@ -28,104 +28,11 @@
 //! clears: the rule keeps its state. Time is the estimates' own clock, so a replay at ×10
 //! debounces exactly like the live flight did.
 
-use std::fmt;
 
 use serde::Deserialize;
 
-use crate::energy::EnergyState;
-use crate::model::Estimate;
-
-/// An alert raised or cleared.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct AlertEvent {
-    /// Time of the estimate that raised or cleared it, s (source clock).
-    pub t: f64,
-    /// The rule's name.
-    pub rule: String,
-    /// The rule's severity, lower-case MAV_SEVERITY name (`warning`); parses back into a
-    /// [`Severity`].
-    pub severity: String,
-    pub state: AlertState,
-    /// A short human sentence with the value (a STATUSTEXT carries its first 50 bytes).
-    pub message: String,
-}
-
-/// Whether an alert began or ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum AlertState {
-    Raised,
-    Cleared,
-}
-
-/// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML
-/// either the short lower-case name (`warning`) or the enum name (`MAV_SEVERITY_WARNING`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Severity {
-    Emergency,
-    Alert,
-    Critical,
-    Error,
-    Warning,
-    Notice,
-    Info,
-    Debug,
-}
-
-impl Severity {
-    const ALL: [Severity; 8] = [
-        Severity::Emergency,
-        Severity::Alert,
-        Severity::Critical,
-        Severity::Error,
-        Severity::Warning,
-        Severity::Notice,
-        Severity::Info,
-        Severity::Debug,
-    ];
-    /// Lower-case name.
-    pub fn name(self) -> &'static str {
-        ["emergency", "alert", "critical", "error", "warning", "notice", "info", "debug"][self as usize]
-    }
-    /// The MAVLink enum value.
-    pub fn to_mav(self) -> crate::dialect::MavSeverity {
-        use crate::dialect::MavSeverity as M;
-        match self {
-            Severity::Emergency => M::MAV_SEVERITY_EMERGENCY,
-            Severity::Alert => M::MAV_SEVERITY_ALERT,
-            Severity::Critical => M::MAV_SEVERITY_CRITICAL,
-            Severity::Error => M::MAV_SEVERITY_ERROR,
-            Severity::Warning => M::MAV_SEVERITY_WARNING,
-            Severity::Notice => M::MAV_SEVERITY_NOTICE,
-            Severity::Info => M::MAV_SEVERITY_INFO,
-            Severity::Debug => M::MAV_SEVERITY_DEBUG,
-        }
-    }
-}
-
-impl fmt::Display for Severity {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for Severity {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        let short = s.trim().to_ascii_lowercase();
-        let short = short.strip_prefix("mav_severity_").unwrap_or(&short);
-        Self::ALL.into_iter().find(|v| v.name() == short).ok_or_else(|| {
-            format!("severity '{s}': expected one of emergency, alert, critical, error, warning, notice, info, debug")
-        })
-    }
-}
-
-impl<'de> Deserialize<'de> for Severity {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        String::deserialize(d)?.parse().map_err(serde::de::Error::custom)
-    }
-}
+pub use crate::report::{AlertEvent, AlertState, Severity};
+use crate::report::{EnergyState, Estimate};
 
 /// What a rule watches, with its levels. Units are in the key names.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -330,8 +237,8 @@ pub fn validate_rules(rules: &[AlertRule]) -> Result<(), String> {
 /// all of them stale means the vehicle's telemetry is gone, whatever wind does.
 const KINEMATIC_MASK: u32 = {
     let mut m = 0u32;
-    let mut i = crate::telemetry::idx::POS_X;
-    while i <= crate::telemetry::idx::AZ {
+    let mut i = crate::features::idx::POS_X;
+    while i <= crate::features::idx::AZ {
         m |= 1 << i;
         i += 1;
     }
@@ -414,7 +321,7 @@ impl AlertEngine {
                 Dir::Above => (v > l.raise, v <= l.clear),
             };
             let mut emit = |state, text: String| {
-                events.push(AlertEvent { t, rule: rule.name.clone(), severity: rule.severity.name().to_string(), state, message: text })
+                events.push(AlertEvent { t, rule: rule.name.clone(), severity: rule.severity, state, message: text })
             };
             let text = |prefix: &str| {
                 let head = rule.message.as_deref().unwrap_or(&rule.name);

@@ -1,4 +1,4 @@
-//! Energy used, remaining energy and time, energy to get home. Owner: energy (issue 6).
+//! Energy used, remaining energy and time, energy to get home.
 //!
 //! The tracker turns a stream of [`Estimate`]s into an [`EnergyState`]:
 //!
@@ -25,47 +25,9 @@
 //!   cost about what hovering does on a multirotor.
 //! - **home margin** `E_rem − E_home − E_reserve`, `E_reserve = reserve_pct/100 · E_cap`.
 
-use crate::model::Estimate;
-use crate::telemetry::idx;
-
-/// Energy bookkeeping at one estimate. Absent values mean "not known yet" (no power seen,
-/// no home), never zero.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct EnergyState {
-    /// Energy drawn so far, Wh.
-    pub energy_used_wh: f64,
-    /// What `energy_used_wh` integrated at this step: `"measured"`, a model's name, or
-    /// `"none"` when neither was available.
-    pub power_source: String,
-    /// Remaining usable energy, Wh, when known.
-    pub remaining_wh: Option<f64>,
-    /// Remaining energy as a percentage of the capacity.
-    pub remaining_pct: Option<f64>,
-    /// Where `remaining_wh` comes from: `"capacity"` (capacity minus used) or `"battery"`
-    /// (the autopilot's reported percentage).
-    pub remaining_source: String,
-    /// Smoothed power the forecasts assume, W.
-    pub forecast_w: Option<f64>,
-    /// The model whose prediction the forecast follows, when a model ran (else the
-    /// forecast follows measured power).
-    pub forecast_model: Option<String>,
-    /// Time to empty at the forecast power, s.
-    pub time_to_empty_s: Option<f64>,
-    /// Energy needed to fly home, descend and land, Wh (needs a home position).
-    pub home_energy_wh: Option<f64>,
-    /// Remaining minus energy to get home minus reserve, Wh.
-    pub home_margin_wh: Option<f64>,
-    /// Battery voltage per cell, V (voltage / `cell_count`), when the voltage is known.
-    pub cell_voltage_v: Option<f64>,
-}
-
-/// What the energy + alerts stage sends to every sink.
-#[derive(Debug, Clone)]
-pub struct Report {
-    pub estimate: Estimate,
-    pub energy: EnergyState,
-    pub alerts: Vec<crate::alert::AlertEvent>,
-}
+use crate::features::idx;
+pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
+use crate::report::{Estimate, ModelEstimate};
 
 /// Battery and home-return assumptions (the `[energy]` table).
 #[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
@@ -170,16 +132,17 @@ pub struct EnergyTracker {
 
 impl EnergyTracker {
     /// A tracker for this configuration's battery and reserve.
-    pub fn new(cfg: &crate::config::Config) -> anyhow::Result<Self> {
-        cfg.energy.validate().map_err(anyhow::Error::msg)?;
+    /// `mission_speed_m_s` is the mission's commanded speed (`[mission] speed_m_s`), the
+    /// default cruise speed home.
+    pub fn new(cfg: &EnergyConfig, mission_speed_m_s: Option<f32>) -> anyhow::Result<Self> {
+        cfg.validate().map_err(anyhow::Error::msg)?;
         let cruise = cfg
-            .energy
             .cruise_speed_m_s
-            .or(cfg.mission.speed_m_s.map(f64::from))
+            .or(mission_speed_m_s.map(f64::from))
             .filter(|v| *v > 0.0)
             .unwrap_or(10.0);
         Ok(Self {
-            cfg: cfg.energy.clone(),
+            cfg: cfg.clone(),
             cruise_speed_m_s: cruise,
             last: None,
             used_wh: 0.0,
@@ -199,14 +162,14 @@ impl EnergyTracker {
     /// BATTERY_STATUS `battery_remaining`) when it sends one.
     pub fn update_with_battery(&mut self, est: &Estimate, battery_pct: Option<f64>) -> EnergyState {
         let s = &est.sample;
-        let watts = |m: &crate::model::ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
+        let watts = |m: &ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
         let preferred = self.forecast_model(est).and_then(|m| Some((m, watts(m)?)));
         let first = est.models.iter().find_map(|m| Some((m, watts(m)?)));
         let measured = s.measured_w.map(f64::from).filter(|p| p.is_finite());
         let (power, power_source) = match (measured, preferred.or(first)) {
-            (Some(p), _) => (Some(p), "measured".to_string()),
-            (None, Some((m, p))) => (Some(p), m.name.clone()),
-            (None, None) => (None, "none".to_string()),
+            (Some(p), _) => (Some(p), PowerSource::Measured),
+            (None, Some((m, p))) => (Some(p), PowerSource::Model(m.name.clone())),
+            (None, None) => (None, PowerSource::None),
         };
         // Forecast from: the preferred model, else measured power, else the first model.
         let forecast_from = match (preferred, measured) {
@@ -248,8 +211,8 @@ impl EnergyTracker {
 
         let cap = self.cfg.capacity_wh;
         let (remaining, remaining_source) = match battery_pct.filter(|p| self.cfg.use_battery_pct && (0.0..=100.0).contains(p)) {
-            Some(pct) => (cap * pct / 100.0, "battery"),
-            None => ((cap - self.used_wh).max(0.0), "capacity"),
+            Some(pct) => (cap * pct / 100.0, RemainingSource::Battery),
+            None => ((cap - self.used_wh).max(0.0), RemainingSource::Capacity),
         };
         let time_to_empty_s = forecast.filter(|p| *p > 1.0).map(|p| 3600.0 * remaining / p);
         let home_energy_wh = s.home.and_then(|h| {
@@ -268,7 +231,7 @@ impl EnergyTracker {
             power_source,
             remaining_wh: Some(remaining),
             remaining_pct: Some(100.0 * remaining / cap),
-            remaining_source: remaining_source.to_string(),
+            remaining_source,
             forecast_w: forecast,
             forecast_model: forecast_from.and_then(|(m, _)| m).map(|m| m.name.clone()),
             time_to_empty_s,
@@ -283,7 +246,7 @@ impl EnergyTracker {
     }
 
     /// The model whose prediction is the forecast: the configured one, else `lstm`.
-    fn forecast_model<'a>(&self, est: &'a Estimate) -> Option<&'a crate::model::ModelEstimate> {
+    fn forecast_model<'a>(&self, est: &'a Estimate) -> Option<&'a ModelEstimate> {
         let name = self.cfg.model.as_deref().unwrap_or("lstm");
         est.models.iter().find(|m| m.name == name)
     }
@@ -292,8 +255,7 @@ impl EnergyTracker {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::ModelEstimate;
-    use crate::telemetry::{HomeVector, Sample, N_FEATURES};
+    use crate::features::{HomeVector, Sample, N_FEATURES};
 
     fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
         Estimate {
@@ -315,8 +277,7 @@ mod tests {
     }
 
     fn tracker(energy: EnergyConfig) -> EnergyTracker {
-        let cfg = crate::config::Config { energy, ..Default::default() };
-        EnergyTracker::new(&cfg).unwrap()
+        EnergyTracker::new(&energy, None).unwrap()
     }
 
     #[test]
@@ -388,11 +349,8 @@ mod tests {
 
     #[test]
     fn rejects_nonsense_config() {
-        let cfg = crate::config::Config {
-            energy: EnergyConfig { capacity_wh: -1.0, ..Default::default() },
-            ..Default::default()
-        };
-        let err = EnergyTracker::new(&cfg).err().unwrap().to_string();
+        let cfg = EnergyConfig { capacity_wh: -1.0, ..Default::default() };
+        let err = EnergyTracker::new(&cfg, None).err().unwrap().to_string();
         assert!(err.contains("energy.capacity_wh"), "{err}");
     }
 }

@@ -12,18 +12,26 @@
 //!                             ring of T → Window)
 //! ```
 //!
-//! Live monitoring, replay, evaluation and training all walk this same path: `eval` is a
-//! replay of a data-set flight at full speed whose estimates are scored, and `train` reads
-//! the windows the same code builds, so live and offline features cannot drift apart.
-//! Each arrow is one typed value on a bounded tokio channel ([`pipeline`]), or a plain
-//! iterator when offline work runs flat out. Nothing flows backwards; the only fan-out is
+//! Live monitoring, replay and evaluation walk this same path: [`pipeline::VehicleChain`]
+//! is one vehicle's stages, run as tasks live ([`pipeline::run`]) or in one loop offline
+//! ([`pipeline::VehicleChain::push`]), so live and offline cannot drift apart. Each arrow is
+//! one typed value on a bounded tokio channel. Nothing flows backwards; the only fan-out is
 //! to the sinks. Model code ([`model`]) is pure: a window and a vehicle profile in, watts
 //! out, no I/O and no clocks.
 //!
 //! ## Modules
 //!
+//! The floor (imports nothing of ours but the floor): [`features`], [`report`], [`status`],
+//! [`address`]. Each stage imports the floor and the stages before it, never one after it;
+//! [`config`] gathers each part's own config and no part imports it
+//! (`python3 ../shared/tools/module-cycles.py src` checks there is no cycle).
+//!
 //! | module | what it owns |
 //! |---|---|
+//! | [`features`] | the floor: [`features::Sample`], the 21 feature names and indices, the home vector, frame conversions |
+//! | [`report`] | the floor: the messages from the models on ([`report::Estimate`], [`report::EnergyState`], [`report::AlertEvent`], [`report::Report`]) |
+//! | [`status`] | the floor: what a chain says beside the data (ingest counters, signal health, the uplink, the stop signal) |
+//! | [`address`] | the floor: the one link address grammar (`udpin:`, `udpout:`, `tcpin:`, `tcpout:`, `serial:`) |
 //! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV, the simulator; frame decoding and its counters |
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
@@ -31,18 +39,22 @@
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard |
-//! | [`pipeline`] | wires the tasks together and owns shutdown |
+//! | [`pipeline`] | one vehicle's chain as named stages, the run that wires source → chain → sinks, shutdown |
 //! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
 
+pub mod address;
 pub mod alert;
 pub mod config;
 pub mod energy;
+pub mod features;
 pub mod model;
 pub mod offline;
 pub mod pipeline;
+pub mod report;
 pub mod sink;
 pub mod source;
+pub mod status;
 pub mod telemetry;
 pub mod window;
 

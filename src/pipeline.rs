@@ -1,25 +1,38 @@
-//! Wires the stages into tokio tasks joined by bounded channels and owns shutdown.
+//! One vehicle's chain as named stages, the run that feeds it from a source and fans its
+//! reports out to the sinks, and shutdown.
 //!
 //! ```text
-//! source task ─mpsc<TimedMessage>→ telemetry task ─mpsc<Window>→ inference task
-//!   ─mpsc<Estimate>→ energy+alerts task ─broadcast<Arc<Report>>→ one task per sink
+//! source ─TimedMessage→ telemetry_stage ─Window→ inference_stage ─Estimate→ energy_stage ─Report→ Fanout → one task per sink
 //! ```
 //!
-//! Shutdown is one path whatever starts it (Ctrl-C, the end of a replay, a fatal source
-//! error): the source stops and drops its sender, each stage drains what it holds and drops
-//! its own, and every sink sees its channel close, flushes and writes its summary. Nothing
-//! is lost on the way out.
-
-use std::sync::Arc;
+//! Every arrow is a bounded channel carrying one typed value; a full channel holds the
+//! stage before it back, so a flat-out replay loses nothing. [`VehicleChain`] is one
+//! vehicle's state (telemetry, models, energy, alert rules), built and checked before
+//! anything listens; [`VehicleChain::spawn`] runs its stages. What the chain says about
+//! itself beside the reports (counters, signal health, the uplink, the stop signal) is one
+//! [`ChainStatus`] every sink gets.
+//!
+//! Shutdown is one path whatever starts it (Ctrl-C or SIGTERM through
+//! [`shutdown_on_signal`], the end of a replay, a fatal source error): the source stops and
+//! drops its sender, each stage drains what it holds and drops its own, and every sink
+//! sees its queue close, flushes and writes its summary. Nothing is lost on the way out.
 
 use anyhow::Result;
-use tokio::sync::{broadcast, mpsc};
+use tokio::sync::mpsc;
+use tokio::task::JoinHandle;
+use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 
+use crate::alert::AlertEngine;
 use crate::config::Config;
-use crate::energy::Report;
-use crate::model::Estimate;
-use crate::source::{IngestStats, StatsSnapshot, TimedMessage};
+use crate::energy::EnergyTracker;
+use crate::model::Ensemble;
+use crate::report::{EnergyState, Estimate, Report};
+use crate::sink::mavlink::MavlinkSinkConfig;
+use crate::sink::{Fanout, SinkSpec};
+use crate::source::{SourceSpec, TimedMessage};
+use crate::status::{ChainStatus, IngestStats, LinkHandle, StatsSnapshot};
+use crate::telemetry::Telemetry;
 use crate::window::Window;
 
 /// Channel depth between stages. Deep enough to ride out a slow model for a few seconds
@@ -27,161 +40,268 @@ use crate::window::Window;
 pub const CHANNEL_DEPTH: usize = 1024;
 /// Most windows the inference stage runs as one batch when they queue up.
 pub const MAX_BATCH: usize = 256;
-/// How long the energy stage waits for a sink that is far behind before it sends anyway
-/// (that sink then misses reports, and counts them).
-pub const SINK_PATIENCE: std::time::Duration = std::time::Duration::from_secs(1);
-/// On a live link, with no estimate for this long the alert rules are still evaluated, on a
-/// "nothing heard" estimate, so `telemetry_lost` fires when the link goes wholly silent.
+/// On a live link, with no estimate for this long the alert rules are still evaluated, on
+/// [`Estimate::silent`], so `telemetry_lost` fires when the link goes wholly silent.
 pub const SILENT_TICK: std::time::Duration = std::time::Duration::from_secs(1);
+/// How long the end of a run waits for an uplink to write what its sink queued last.
+const UPLINK_FLUSH: std::time::Duration = std::time::Duration::from_secs(2);
+/// How often the telemetry stage refreshes the signal health the terminal view shows.
+const HEALTH_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Everything a run of the pipeline needs.
 pub struct Pipeline {
     pub config: Config,
-    pub source: crate::source::SourceSpec,
-    pub sinks: Vec<crate::sink::SinkSpec>,
+    pub source: SourceSpec,
+    pub sinks: Vec<SinkSpec>,
 }
 
 /// Run the pipeline to the end of its source or until `shutdown` is cancelled. Returns the
 /// ingest counters (the summary line's numbers).
 pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
-    let stats = Arc::new(IngestStats::default());
-    let cfg = p.config;
-
     // Built before any task starts, so a bad model or profile fails before we listen.
-    let mut telemetry = crate::telemetry::Telemetry::new(&cfg.telemetry, &cfg.mission);
-    let mut ensemble = crate::model::build_ensemble(&cfg)?;
-    let mut energy = crate::energy::EnergyTracker::new(&cfg)?;
-    let mut alerts = crate::alert::AlertEngine::new(&cfg.alerts)?;
+    let chain = VehicleChain::build(&p.config)?;
+    let status = ChainStatus { shutdown: shutdown.clone(), ..ChainStatus::default() };
 
-    let (msg_tx, mut msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
-    let (win_tx, mut win_rx) = mpsc::channel::<Window>(CHANNEL_DEPTH);
-    let (est_tx, mut est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
-    let (rep_tx, _) = broadcast::channel::<Arc<Report>>(CHANNEL_DEPTH);
+    // Sinks start first so they see every report.
+    let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
-    // Sinks subscribe first so they see every report.
-    let health = crate::telemetry::HealthHandle::default();
-    let mut sink_tasks = Vec::new();
-    let link = crate::source::LinkHandle::default();
-    for spec in p.sinks {
-        let rx = rep_tx.subscribe();
-        sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), health.clone(), link.clone())?);
-    }
-
-    let live = matches!(p.source, crate::source::SourceSpec::Link(_));
-    let source = tokio::spawn(crate::source::run(p.source, msg_tx, stats.clone(), link, shutdown.clone()));
-
-    let tstats = stats.clone();
-    let thealth = health.clone();
-    let telemetry_task = tokio::spawn(async move {
-        let mut out = Vec::new();
-        let mut shown = tokio::time::Instant::now();
-        while let Some(m) = msg_rx.recv().await {
-            telemetry.push(&m, &mut out);
-            if shown.elapsed() >= std::time::Duration::from_secs(1) {
-                shown = tokio::time::Instant::now();
-                if let Ok(mut h) = thealth.lock() {
-                    *h = telemetry.health();
-                }
-            }
-            for w in out.drain(..) {
-                IngestStats::add(&tstats.windows, 1);
-                if win_tx.send(w).await.is_err() {
-                    return;
-                }
-            }
-        }
-        telemetry.finish(&mut out);
-        for w in out.drain(..) {
-            IngestStats::add(&tstats.windows, 1);
-            let _ = win_tx.send(w).await;
-        }
-    });
-
-    // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
-    // One thread, not one per batch: libtorch's thread settings are per OS thread, and a
-    // fresh thread's defaults (an intra-op team as wide as the machine) cost ~10 ms a window.
-    let inference_task = tokio::task::spawn_blocking(move || {
-        crate::model::pin_inference_thread();
-        let mut batch = Vec::with_capacity(MAX_BATCH);
-        while let Some(w) = win_rx.blocking_recv() {
-            batch.push(w);
-            // Windows that queued up meanwhile (a flat-out replay) run as one batch.
-            while batch.len() < MAX_BATCH {
-                match win_rx.try_recv() {
-                    Ok(w) => batch.push(w),
-                    Err(_) => break,
-                }
-            }
-            for e in ensemble.estimate(&batch) {
-                if est_tx.blocking_send(e).is_err() {
-                    return;
-                }
-            }
-            batch.clear();
-        }
-    });
-
-    let energy_task = tokio::spawn(async move {
-        // The last real estimate and when it came: the base of a silent tick.
-        let mut last: Option<(Estimate, crate::energy::EnergyState, tokio::time::Instant)> = None;
-        loop {
-            let next = if live {
-                tokio::time::timeout(SILENT_TICK, est_rx.recv()).await
-            } else {
-                Ok(est_rx.recv().await)
-            };
-            let report = match next {
-                Ok(Some(est)) => {
-                    let state = energy.update(&est);
-                    let events = alerts.evaluate(&est, &state);
-                    if live {
-                        last = Some((est.clone(), state.clone(), tokio::time::Instant::now()));
-                    }
-                    Report { estimate: est, energy: state, alerts: events }
-                }
-                Ok(None) => break,
-                Err(_) => {
-                    // Nothing heard for SILENT_TICK: every feature is stale, nothing is
-                    // measured or predicted. Energy is left as it stood; only the alert rules
-                    // run, and a report goes out only if one of them changes state.
-                    let Some((est, state, at)) = &last else { continue };
-                    let mut quiet = est.clone();
-                    quiet.t_s += at.elapsed().as_secs_f64();
-                    quiet.sample.stale_mask = u32::MAX;
-                    quiet.sample.measured_w = None;
-                    quiet.models.clear();
-                    let events = alerts.evaluate(&quiet, state);
-                    if events.is_empty() {
-                        continue;
-                    }
-                    Report { estimate: quiet, energy: state.clone(), alerts: events }
-                }
-            };
-            // A broadcast never waits: hold back while the slowest sink is far behind, so a
-            // flat-out replay loses nothing. A sink stuck for longer than SINK_PATIENCE
-            // loses reports instead of stalling everyone (it counts them).
-            let mut waited = std::time::Duration::ZERO;
-            while rep_tx.len() >= CHANNEL_DEPTH * 3 / 4 && waited < SINK_PATIENCE {
-                tokio::time::sleep(std::time::Duration::from_millis(2)).await;
-                waited += std::time::Duration::from_millis(2);
-            }
-            // No receivers is not an error: a run may have no sinks.
-            let _ = rep_tx.send(Arc::new(report));
-        }
-    });
+    let live = matches!(p.source, SourceSpec::Link(_));
+    let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
+    let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), shutdown));
+    let chain = chain.spawn(msg_rx, fanout, &status, live);
 
     let source_result = source.await?;
-    telemetry_task.await?;
-    inference_task.await?;
-    energy_task.await?;
-    for t in sink_tasks {
-        t.await??;
-    }
+    chain.join().await?;
+    sinks.join().await?;
     source_result?;
-    Ok(stats.snapshot())
+    Ok(status.stats.snapshot())
 }
 
-/// A token cancelled on Ctrl-C (SIGINT) or SIGTERM.
+/// Start every sink: each gets its own queue on the returned [`Fanout`] and the chain's
+/// status. A MAVLink sink with an `address` of its own writes through an uplink opened
+/// here (the same transports as the monitored link, `source::link`). Fails before anything
+/// runs when a sink cannot start.
+pub fn start_sinks(specs: Vec<SinkSpec>, status: &ChainStatus) -> Result<(Fanout, SinkTasks)> {
+    let mut fanout = Fanout::default();
+    let mut tasks = SinkTasks { sinks: Vec::with_capacity(specs.len()), uplinks: Vec::new(), uplink_stop: status.shutdown.child_token() };
+    for spec in specs {
+        let mut sink_status = status.clone();
+        if let SinkSpec::Mavlink(MavlinkSinkConfig { address: Some(a), .. }) = &spec {
+            let (link, task) = crate::source::link::spawn_uplink(a.parse()?, tasks.uplink_stop.clone());
+            sink_status.link = link.clone();
+            tasks.uplinks.push((link, task));
+        }
+        tasks.sinks.push(crate::sink::spawn(spec, fanout.subscribe(), sink_status)?);
+    }
+    Ok((fanout, tasks))
+}
+
+/// The running sinks (and the uplinks they write to).
+pub struct SinkTasks {
+    sinks: Vec<JoinHandle<Result<()>>>,
+    uplinks: Vec<(LinkHandle, JoinHandle<Result<()>>)>,
+    uplink_stop: CancellationToken,
+}
+
+impl SinkTasks {
+    /// Wait for every sink to finish (after the [`Fanout`] was dropped), let the uplinks
+    /// write what the sinks queued last (a final alert), then close them.
+    pub async fn join(self) -> Result<()> {
+        for t in self.sinks {
+            t.await??;
+        }
+        for (link, _) in &self.uplinks {
+            let flush_by = Instant::now() + UPLINK_FLUSH;
+            while link.pending() > 0 && Instant::now() < flush_by {
+                tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+            }
+        }
+        self.uplink_stop.cancel();
+        for (_, t) in self.uplinks {
+            t.await??;
+        }
+        Ok(())
+    }
+}
+
+/// One vehicle's chain: telemetry → windows → inference → energy + alerts, each stage's
+/// state built from its own slice of the configuration.
+pub struct VehicleChain {
+    pub telemetry: Telemetry,
+    pub models: Ensemble,
+    pub energy: EnergyTracker,
+    pub alerts: AlertEngine,
+}
+
+/// The running stages of one [`VehicleChain`].
+pub struct ChainTasks {
+    telemetry: JoinHandle<()>,
+    inference: JoinHandle<()>,
+    energy: JoinHandle<()>,
+}
+
+impl ChainTasks {
+    /// Wait for every stage to drain and end (after its input closed).
+    pub async fn join(self) -> Result<()> {
+        self.telemetry.await?;
+        self.inference.await?;
+        self.energy.await?;
+        Ok(())
+    }
+}
+
+impl VehicleChain {
+    /// Build and check every stage (profiles loaded, model cards matched, rules compiled).
+    pub fn build(cfg: &Config) -> Result<Self> {
+        Ok(Self {
+            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
+            models: crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?,
+            energy: EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?,
+            alerts: AlertEngine::new(&cfg.alerts)?,
+        })
+    }
+
+    /// Every message through every stage in order, on the calling thread: what offline work
+    /// (eval, benchmarks) runs flat out. The same steps as the spawned stages, in one loop:
+    /// the windows a message completes are estimated as one batch, each estimate then
+    /// accounted ([`account`]). Reports are appended to `out`; `None` ends the input
+    /// (flushes what the resampler holds).
+    pub fn push(&mut self, m: Option<&TimedMessage>, out: &mut Vec<Report>) {
+        let mut windows = Vec::new();
+        match m {
+            Some(m) => self.telemetry.push(m, &mut windows),
+            None => self.telemetry.finish(&mut windows),
+        }
+        if windows.is_empty() {
+            return;
+        }
+        for est in self.models.estimate(&windows) {
+            out.push(account(&mut self.energy, &mut self.alerts, est));
+        }
+    }
+
+    /// Run the stages: messages in from `msgs`, reports out through `fanout`. `live` turns
+    /// on the silent-link tick.
+    pub fn spawn(self, msgs: mpsc::Receiver<TimedMessage>, fanout: Fanout, status: &ChainStatus, live: bool) -> ChainTasks {
+        let (win_tx, win_rx) = mpsc::channel::<Window>(CHANNEL_DEPTH);
+        let (est_tx, est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
+        ChainTasks {
+            telemetry: tokio::spawn(telemetry_stage(self.telemetry, msgs, win_tx, status.clone())),
+            // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
+            inference: tokio::task::spawn_blocking(move || inference_stage(self.models, win_rx, est_tx)),
+            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, fanout, live)),
+        }
+    }
+}
+
+/// Messages → fixed-rate samples → windows; refreshes the signal health about once a second.
+async fn telemetry_stage(
+    mut telemetry: Telemetry,
+    mut msgs: mpsc::Receiver<TimedMessage>,
+    windows: mpsc::Sender<Window>,
+    status: ChainStatus,
+) {
+    let mut out = Vec::new();
+    let mut shown = Instant::now();
+    let mut open = true;
+    while open {
+        match msgs.recv().await {
+            Some(m) => telemetry.push(&m, &mut out),
+            None => {
+                telemetry.finish(&mut out);
+                open = false;
+            }
+        }
+        if shown.elapsed() >= HEALTH_EVERY || !open {
+            shown = Instant::now();
+            if let Ok(mut h) = status.health.lock() {
+                *h = telemetry.health();
+            }
+        }
+        for w in out.drain(..) {
+            IngestStats::add(&status.stats.windows, 1);
+            if windows.send(w).await.is_err() {
+                return;
+            }
+        }
+    }
+}
+
+/// Windows → every model's estimate. Runs on one thread for the whole run, not one per
+/// batch: libtorch's thread settings are per OS thread, and a fresh thread's defaults (an
+/// intra-op team as wide as the machine) cost ~10 ms a window. Windows that queued up
+/// meanwhile (a flat-out replay) run as one batch.
+fn inference_stage(mut models: Ensemble, mut windows: mpsc::Receiver<Window>, estimates: mpsc::Sender<Estimate>) {
+    crate::model::pin_inference_thread();
+    let mut batch = Vec::with_capacity(MAX_BATCH);
+    while let Some(w) = windows.blocking_recv() {
+        batch.push(w);
+        while batch.len() < MAX_BATCH {
+            match windows.try_recv() {
+                Ok(w) => batch.push(w),
+                Err(_) => break,
+            }
+        }
+        for e in models.estimate(&batch) {
+            if estimates.blocking_send(e).is_err() {
+                return;
+            }
+        }
+        batch.clear();
+    }
+}
+
+/// Estimates → energy bookkeeping and alert events → one [`Report`] each, to every sink.
+/// On a live link, a silence of [`SILENT_TICK`] still runs the alert rules (on
+/// [`Estimate::silent`]); such a tick reports only when a rule changes state, and leaves
+/// the energy as it stood.
+async fn energy_stage(
+    mut energy: EnergyTracker,
+    mut alerts: AlertEngine,
+    mut estimates: mpsc::Receiver<Estimate>,
+    mut fanout: Fanout,
+    live: bool,
+) {
+    // The last real estimate, its energy, and when it came: the base of a silent tick.
+    let mut last: Option<(Estimate, EnergyState, Instant)> = None;
+    loop {
+        let next = if live {
+            tokio::time::timeout(SILENT_TICK, estimates.recv()).await
+        } else {
+            Ok(estimates.recv().await)
+        };
+        let report = match next {
+            Ok(Some(est)) => {
+                let report = account(&mut energy, &mut alerts, est);
+                if live {
+                    last = Some((report.estimate.clone(), report.energy.clone(), Instant::now()));
+                }
+                report
+            }
+            Ok(None) => break,
+            Err(_silence) => {
+                let Some((est, state, at)) = &last else { continue };
+                let quiet = est.silent(est.t_s + at.elapsed().as_secs_f64());
+                let events = alerts.evaluate(&quiet, state);
+                if events.is_empty() {
+                    continue;
+                }
+                Report { estimate: quiet, energy: state.clone(), alerts: events }
+            }
+        };
+        fanout.send(report).await;
+    }
+}
+
+/// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on
+/// it, into the report every sink gets.
+pub fn account(energy: &mut EnergyTracker, alerts: &mut AlertEngine, estimate: Estimate) -> Report {
+    let state = energy.update(&estimate);
+    let events = alerts.evaluate(&estimate, &state);
+    Report { estimate, energy: state, alerts: events }
+}
+
+/// A token cancelled on Ctrl-C (SIGINT) or SIGTERM: the run's one stop signal.
 pub fn shutdown_on_signal() -> CancellationToken {
     let token = CancellationToken::new();
     let t = token.clone();
@@ -189,17 +309,14 @@ pub fn shutdown_on_signal() -> CancellationToken {
         #[cfg(unix)]
         {
             use tokio::signal::unix::{signal, SignalKind};
-            let mut term = match signal(SignalKind::terminate()) {
-                Ok(s) => s,
+            match signal(SignalKind::terminate()) {
+                Ok(mut term) => tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {},
+                    _ = term.recv() => {},
+                },
                 Err(_) => {
                     let _ = tokio::signal::ctrl_c().await;
-                    t.cancel();
-                    return;
                 }
-            };
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {},
-                _ = term.recv() => {},
             }
         }
         #[cfg(not(unix))]

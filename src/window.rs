@@ -1,6 +1,6 @@
-//! Rolling windows of T fixed-rate samples: what every model sees. Owner: features (issue 3).
+//! Rolling windows of T fixed-rate samples: what every model sees.
 
-use crate::telemetry::Sample;
+use crate::features::Sample;
 
 /// The paper's window length.
 pub const DEFAULT_T: usize = 10;

@@ -11,8 +11,8 @@ use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
 use dronewatt::energy::{EnergyTracker, Report};
 use dronewatt::model::{Estimate, ModelEstimate};
-use dronewatt::sink::{self, SinkSpec};
-use dronewatt::source::{IngestStats, LinkHandle};
+use dronewatt::pipeline::start_sinks;
+use dronewatt::sink::SinkSpec;
 use dronewatt::telemetry::{Sample, N_FEATURES};
 
 fn python() -> std::path::PathBuf {
@@ -51,16 +51,8 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
     .unwrap();
     cfg.validate().unwrap();
     let cfg = Arc::new(cfg);
-    let (tx, rx) = tokio::sync::broadcast::channel(64);
-    let task = sink::spawn(
-        SinkSpec::Mavlink(cfg.sinks.mavlink.clone()),
-        rx,
-        Arc::new(IngestStats::default()),
-        Default::default(),
-        LinkHandle::default(),
-    )
-    .unwrap();
-    let mut energy = EnergyTracker::new(&cfg).unwrap();
+    let (mut fanout, sinks) = start_sinks(vec![SinkSpec::Mavlink(cfg.sinks.mavlink.clone())], &Default::default()).unwrap();
+    let mut energy = EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s).unwrap();
     let mut alerts = AlertEngine::new(&cfg.alerts).unwrap();
     for i in 0..600 {
         let t_s = i as f64 * 0.1;
@@ -72,11 +64,11 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         };
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);
-        tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events })).unwrap();
+        fanout.send(Report { estimate: est, energy: state, alerts: events }).await;
         tokio::time::sleep(std::time::Duration::from_millis(2)).await;
     }
-    drop(tx);
-    task.await.unwrap().unwrap();
+    drop(fanout);
+    sinks.join().await.unwrap();
     let mut summary = String::new();
     out.read_line(&mut summary).unwrap();
     let _ = peer.wait();

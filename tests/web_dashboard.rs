@@ -5,7 +5,6 @@
 //! `target/test-artifacts/web_dashboard.png` for a person to look at.
 
 use std::process::Command;
-use std::sync::Arc;
 
 use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
@@ -49,13 +48,14 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
     .unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let url = format!("http://{}/", listener.local_addr().unwrap());
-    let (tx, rx) = tokio::sync::broadcast::channel(4096);
+    let mut fanout = dronewatt::sink::Fanout::default();
+    let rx = fanout.subscribe();
     let wcfg = web::WebSinkConfig { enabled: true, min_step_s: 0.2, ..Default::default() };
-    let server = tokio::spawn(web::serve(wcfg, listener, rx));
+    let server = tokio::spawn(web::serve(wcfg, listener, rx, Default::default()));
 
     // A 90 s flight: take-off surge, cruise with a gentle oscillation, a last reading of
     // exactly 512 W so the page's number can be asserted.
-    let mut energy = EnergyTracker::new(&cfg).unwrap();
+    let mut energy = EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s).unwrap();
     let mut alerts = AlertEngine::new(&cfg.alerts).unwrap();
     let mut raised = 0;
     for i in 0..=900 {
@@ -81,7 +81,7 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);
         raised += events.len();
-        tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events })).unwrap();
+        fanout.send(Report { estimate: est, energy: state, alerts: events }).await;
     }
     assert_eq!(raised, 1, "the flight is built to raise one alert");
 
@@ -120,6 +120,6 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
     let bytes = std::fs::read(&png).unwrap();
     assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000, "screenshot too small to hold charts");
 
-    drop(tx);
+    drop(fanout);
     server.await.unwrap().unwrap();
 }

@@ -11,7 +11,8 @@ use std::path::Path;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
-use crate::telemetry::{TelemetryConfig, FEATURE_NAMES, N_FEATURES};
+use crate::features::{FEATURE_NAMES, N_FEATURES};
+use crate::telemetry::TelemetryConfig;
 
 /// Which inputs the network sees in the three position slots (2, 3, 4 of
 /// [`FEATURE_NAMES`]).
@@ -35,7 +36,7 @@ impl FeatureSet {
         let mut names: Vec<String> = FEATURE_NAMES.iter().map(|s| s.to_string()).collect();
         if self == FeatureSet::Home {
             for (i, n) in HOME_POSITION_NAMES.iter().enumerate() {
-                names[crate::telemetry::idx::POS_X + i] = n.to_string();
+                names[crate::features::idx::POS_X + i] = n.to_string();
             }
         }
         names

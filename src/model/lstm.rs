@@ -33,7 +33,8 @@ use tch::{Device, Kind, Tensor};
 use super::card::{FeatureSet, ModelCard, WeightsFormat};
 use super::lstm_cpu::CpuLstm;
 use super::{PowerModel, Prediction};
-use crate::telemetry::{idx, TelemetryConfig, N_FEATURES};
+use crate::features::{idx, N_FEATURES};
+use crate::telemetry::TelemetryConfig;
 use crate::window::Window;
 
 /// The default model's folder, relative to a checkout or install root.

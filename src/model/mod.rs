@@ -1,5 +1,5 @@
 //! Power models: a window (and the vehicle profile a model was built with) in, watts out.
-//! Pure: no I/O, no clocks. Owners: physics (issue 4), LSTM (issue 5).
+//! Pure: no I/O, no clocks.
 
 pub mod card;
 pub mod lstm;
@@ -7,7 +7,7 @@ pub mod lstm_cpu;
 pub mod physics;
 pub mod profile;
 
-use crate::telemetry::Sample;
+pub use crate::report::{Estimate, ModelEstimate};
 use crate::window::Window;
 
 /// One model's output for one window.
@@ -34,26 +34,6 @@ pub trait PowerModel: Send {
     fn target_lag(&self) -> usize {
         0
     }
-}
-
-/// One model's estimate, named.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct ModelEstimate {
-    pub name: String,
-    pub power_w: f32,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub band_w: Option<(f32, f32)>,
-}
-
-/// Every model's estimate for one window: what the inference stage sends on.
-#[derive(Debug, Clone)]
-pub struct Estimate {
-    /// Time of the window's newest sample, s.
-    pub t_s: f64,
-    /// The window's newest sample (features, measured power, home vector).
-    pub sample: Sample,
-    /// One entry per model that ran, in the ensemble's order.
-    pub models: Vec<ModelEstimate>,
 }
 
 /// The set of models the inference stage runs side by side.
@@ -103,23 +83,33 @@ pub fn pin_inference_thread() {
 }
 
 /// The models a configuration asks for, built and checked (profiles loaded, cards matched).
-pub fn build_ensemble(cfg: &crate::config::Config) -> anyhow::Result<Ensemble> {
-    Ok(Ensemble::new(build_models(cfg)?))
+pub fn build_ensemble(
+    models: &ModelsConfig,
+    vehicle: Option<&std::path::Path>,
+    telemetry: &crate::telemetry::TelemetryConfig,
+) -> anyhow::Result<Ensemble> {
+    Ok(Ensemble::new(build_models(models, vehicle, telemetry)?))
 }
 
 /// Every model a configuration runs, in table order: the one place models are listed, so
-/// the live ensemble and `dronewatt eval` score exactly the same set.
-pub fn build_models(cfg: &crate::config::Config) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
-    let mut models: Vec<Box<dyn PowerModel>> = Vec::new();
-    // physics (issue 4): the six models (+ Tseng's Solo form) on the configured vehicle profile.
-    let profile = match &cfg.vehicle {
+/// the live ensemble and `dronewatt eval` score exactly the same set. `vehicle` is the
+/// profile file (`vehicle` in the TOML; the built-in M100 without one); `telemetry` is
+/// checked against the LSTM's card (rate and window must match what it was trained on).
+pub fn build_models(
+    models: &ModelsConfig,
+    vehicle: Option<&std::path::Path>,
+    telemetry: &crate::telemetry::TelemetryConfig,
+) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
+    let mut out: Vec<Box<dyn PowerModel>> = Vec::new();
+    // The physics models (+ Tseng's Solo form) on the configured vehicle profile.
+    let profile = match vehicle {
         Some(path) => profile::VehicleProfile::load(path)?,
         None => profile::VehicleProfile::m100(),
     };
-    models.extend(physics::models(&profile));
-    // lstm (issue 5): after the physics models, when enabled and found.
-    if let Some(m) = lstm::from_config(&cfg.models.lstm, &cfg.telemetry)? {
-        models.push(Box::new(m));
+    out.extend(physics::models(&profile));
+    // The LSTM after the physics models, when enabled and found.
+    if let Some(m) = lstm::from_config(&models.lstm, telemetry)? {
+        out.push(Box::new(m));
     }
-    Ok(models)
+    Ok(out)
 }

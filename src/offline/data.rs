@@ -1,7 +1,6 @@
 //! Data-set flights as the models see them: each flight of `flights.csv[.gz]` walked
 //! through the same encoder → MAVLink → ingest → resample → window path as live telemetry,
 //! so training, evaluation and live monitoring see identical features.
-//! Owner: features (issue 3).
 
 use std::path::Path;
 

@@ -122,7 +122,7 @@ pub fn run_flight(models: &mut [Box<dyn PowerModel>], f: &FlightWindows) -> Flig
 
 /// The models `eval` scores: the configured set, then the calibrated physics models.
 pub fn eval_models(cfg: &Config, calibrated: Option<&VehicleProfile>) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
-    let mut models = crate::model::build_models(cfg)?;
+    let mut models = crate::model::build_models(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?;
     if let Some(cal) = calibrated {
         models.extend(physics::models(cal));
     }
@@ -358,7 +358,7 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::telemetry::Sample;
+    use crate::features::Sample;
     use crate::window::Window;
 
     /// A model that knows the measured power `lag` samples back: perfect when aligned.
@@ -380,7 +380,7 @@ mod tests {
     fn a_lagged_model_is_scored_at_its_own_instant() {
         let sample = |i: usize| Sample {
             t_s: i as f64 * 0.1,
-            features: [0.0; crate::telemetry::N_FEATURES],
+            features: [0.0; crate::features::N_FEATURES],
             measured_w: Some(300.0 + (i * i % 97) as f32),
             voltage_v: None,
             home: None,

@@ -18,7 +18,8 @@ use anyhow::Context;
 use crate::model::lstm::{resolve_model_path, LstmModel};
 use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
 use crate::offline::train::IN_FLIGHT_W;
-use crate::telemetry::{idx, TelemetryConfig};
+use crate::features::idx;
+use crate::telemetry::TelemetryConfig;
 use crate::window::Window;
 
 /// The paper's Table 3: input index, label, and the five steps (−1, −½, 0, +½, +1).

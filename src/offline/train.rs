@@ -25,7 +25,8 @@ use tch::{Device, Kind, Tensor};
 use crate::model::card::{FeatureSet, Metrics, ModelCard, TrainingInfo, WeightsFormat};
 use crate::model::lstm::{push_inputs, LstmModel, Net};
 use crate::offline::data::{load_flights, sha256_file, FlightWindows, TEST_FLIGHTS};
-use crate::telemetry::{TelemetryConfig, N_FEATURES};
+use crate::features::N_FEATURES;
+use crate::telemetry::TelemetryConfig;
 
 /// Band quantiles of the low and high heads.
 pub const BAND_Q: (f32, f32) = (0.05, 0.95);
@@ -700,7 +701,7 @@ fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> anyhow::Resul
     let mut w = std::io::BufWriter::new(file);
     let mut header = vec!["flight".to_string(), "route".into(), "test".into(), "t_s".into(), "measured_w".into()];
     for lag in std::iter::once(0).chain(EXPORT_LAGS) {
-        for n in crate::telemetry::FEATURE_NAMES {
+        for n in crate::features::FEATURE_NAMES {
             header.push(if lag == 0 { n.to_string() } else { format!("{n}_lag{lag}") });
         }
     }

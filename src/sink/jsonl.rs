@@ -14,28 +14,26 @@
 //! ```
 //!
 //! `null` stands for unknown, and for any NaN or infinity (JSON has neither). Feature
-//! names are [`crate::telemetry::FEATURE_NAMES`]; `t` is the source's `t_s`. The writer runs
+//! names are [`crate::features::FEATURE_NAMES`]; `t` is the source's `t_s`. The writer runs
 //! on its own thread so a slow disk or pipe never stalls the runtime.
 
 use std::io::Write;
-use std::sync::Arc;
 
 use anyhow::Context;
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
-use tokio::sync::broadcast;
 use tokio::task::JoinHandle;
 
-use super::JsonTarget;
-use crate::energy::Report;
-use crate::source::{IngestStats, StatsSnapshot};
-use crate::telemetry::FEATURE_NAMES;
+use super::{JsonTarget, ReportRx};
+use crate::features::FEATURE_NAMES;
+use crate::report::Report;
+use crate::status::{ChainStatus, StatsSnapshot};
 
 /// Open the target now (so a bad path fails before the run) and write on a blocking thread.
 pub fn spawn(
     target: JsonTarget,
-    mut rx: broadcast::Receiver<Arc<Report>>,
-    stats: Arc<IngestStats>,
+    mut rx: ReportRx,
+    status: ChainStatus,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
     let (out, name): (Box<dyn Write + Send>, String) = match &target {
         JsonTarget::Stdout => (Box::new(std::io::stdout()), "standard output".into()),
@@ -46,17 +44,16 @@ pub fn spawn(
     };
     Ok(tokio::task::spawn_blocking(move || {
         let mut w = std::io::BufWriter::new(out);
-        let mut missed = 0;
         let mut reports = 0u64;
         let run = (|| -> std::io::Result<()> {
-            while let Some(r) = super::next_report_blocking(&mut rx, &mut missed) {
+            while let Some(r) = rx.blocking_next() {
                 reports += 1;
                 write_report(&mut w, &r)?;
                 if rx.is_empty() {
                     w.flush()?; // live: each report shows up as it happens
                 }
             }
-            write_line(&mut w, &Summary::new(stats.snapshot(), reports, missed))?;
+            write_line(&mut w, &Summary::new(status.stats.snapshot(), reports, rx.missed()))?;
             w.flush()
         })();
         run.with_context(|| format!("{name}: cannot write JSON lines"))
@@ -85,7 +82,7 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     for a in &r.alerts {
         write_line(
             w,
-            &AlertLine { kind: "alert", t: a.t, rule: &a.rule, severity: &a.severity, state: a.state, message: &a.message },
+            &AlertLine { kind: "alert", t: a.t, rule: &a.rule, severity: a.severity, state: a.state, message: &a.message },
         )?;
     }
     Ok(())
@@ -106,7 +103,7 @@ struct WindowLine<'a> {
 }
 
 /// The feature vector as a name → value object.
-struct Features<'a>(&'a [f32; crate::telemetry::N_FEATURES]);
+struct Features<'a>(&'a [f32; crate::features::N_FEATURES]);
 
 impl Serialize for Features<'_> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
@@ -136,7 +133,7 @@ struct EstimateLine<'a> {
 }
 
 /// Uncertainty bands as a name → [low, high] watts object.
-struct Bands<'a>(&'a [crate::model::ModelEstimate]);
+struct Bands<'a>(&'a [crate::report::ModelEstimate]);
 
 impl Bands<'_> {
     fn is_empty(&self) -> bool {
@@ -157,7 +154,7 @@ impl Serialize for Bands<'_> {
 }
 
 /// Model estimates as a name → watts object.
-struct Models<'a>(&'a [crate::model::ModelEstimate]);
+struct Models<'a>(&'a [crate::report::ModelEstimate]);
 
 impl Serialize for Models<'_> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
@@ -175,8 +172,8 @@ struct AlertLine<'a> {
     kind: &'static str,
     t: f64,
     rule: &'a str,
-    severity: &'a str,
-    state: crate::alert::AlertState,
+    severity: crate::report::Severity,
+    state: crate::report::AlertState,
     message: &'a str,
 }
 
@@ -185,46 +182,29 @@ struct AlertLine<'a> {
 pub struct Summary {
     #[serde(rename = "type")]
     kind: &'static str,
-    pub frames_ok: u64,
-    pub frames_bad: u64,
-    pub unknown: u64,
-    pub gaps: u64,
-    pub windows: u64,
-    pub junk_bytes: u64,
-    pub clock_jumps: u64,
-    pub silences: u64,
+    /// The source's counters at the end of the run.
+    #[serde(flatten)]
+    pub ingest: StatsSnapshot,
     /// Reports this sink wrote.
     pub reports: u64,
-    /// Reports this sink lost by lagging behind the broadcast.
+    /// Reports this sink missed while it was stuck (see [`super::SINK_PATIENCE`]).
     pub missed_reports: u64,
 }
 
 impl Summary {
     /// The summary for these counters.
     pub fn new(s: StatsSnapshot, reports: u64, missed_reports: u64) -> Self {
-        Self {
-            kind: "summary",
-            frames_ok: s.frames_ok,
-            frames_bad: s.frames_bad,
-            unknown: s.unknown,
-            gaps: s.gaps,
-            windows: s.windows,
-            junk_bytes: s.junk_bytes,
-            clock_jumps: s.clock_jumps,
-            silences: s.silences,
-            reports,
-            missed_reports,
-        }
+        Self { kind: "summary", ingest: s, reports, missed_reports }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::alert::{AlertEvent, AlertState};
-    use crate::energy::EnergyState;
-    use crate::model::{Estimate, ModelEstimate};
-    use crate::telemetry::{Sample, N_FEATURES};
+    use crate::report::{AlertEvent, AlertState};
+    use crate::report::EnergyState;
+    use crate::report::{Estimate, ModelEstimate};
+    use crate::features::{Sample, N_FEATURES};
 
     fn report() -> Report {
         let mut features = [0.5f32; N_FEATURES];
@@ -244,7 +224,7 @@ mod tests {
             alerts: vec![AlertEvent {
                 t: 12.5,
                 rule: "low_margin".into(),
-                severity: "warning".into(),
+                severity: crate::report::Severity::Warning,
                 state: AlertState::Raised,
                 message: "margin below 10 Wh".into(),
             }],

@@ -38,13 +38,11 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use ::mavlink::{MavHeader, MavlinkVersion};
-use tokio::io::AsyncWriteExt;
-use tokio::sync::broadcast;
 
 use crate::dialect::{self, MavSeverity};
-use crate::energy::Report;
+use crate::report::Report;
 use crate::source::LinkHandle;
 use crate::MavMessage;
 
@@ -55,7 +53,9 @@ pub struct MavlinkSinkConfig {
     /// On or off. Default: on when `monitor` watches a live link, off for a replay unless
     /// `address` is set.
     pub enabled: Option<bool>,
-    /// `udpout:HOST:PORT` or `tcpout:HOST:PORT`; absent: the link `monitor` reads.
+    /// A link address of its own (`udpout:HOST:PORT`, `tcpout:HOST:PORT`, or any form
+    /// `monitor` takes: the grammar is one, see `crate::address`); absent: the link
+    /// `monitor` reads.
     pub address: Option<String>,
     /// System id dronewatt sends with. Default 1 (the vehicle's; see the module docs).
     pub system_id: u8,
@@ -87,31 +87,9 @@ impl MavlinkSinkConfig {
             ));
         }
         if let Some(a) = &self.address {
-            Target::parse(a).map_err(|e| format!("sinks.mavlink.address = '{a}': {e}"))?;
+            a.parse::<crate::address::LinkAddress>().map_err(|e| format!("sinks.mavlink.address: {e}"))?;
         }
         Ok(())
-    }
-}
-
-/// A parsed `address`.
-#[derive(Debug, Clone, PartialEq)]
-enum Target {
-    Udp(String),
-    Tcp(String),
-}
-
-impl Target {
-    fn parse(a: &str) -> Result<Self, String> {
-        let (scheme, rest) = a.split_once(':').ok_or("expected udpout:HOST:PORT or tcpout:HOST:PORT")?;
-        let port_ok = rest.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok());
-        if !port_ok {
-            return Err("expected HOST:PORT after the scheme".into());
-        }
-        match scheme {
-            "udpout" | "udp" => Ok(Target::Udp(rest.to_string())),
-            "tcpout" | "tcp" => Ok(Target::Tcp(rest.to_string())),
-            _ => Err(format!("scheme '{scheme}': expected udpout or tcpout")),
-        }
     }
 }
 
@@ -204,14 +182,27 @@ impl Encoder {
             .iter()
             .map(|a| {
                 let sev = match a.state {
-                    crate::alert::AlertState::Raised => {
-                        a.severity.parse::<crate::alert::Severity>().map_or(MavSeverity::MAV_SEVERITY_WARNING, |s| s.to_mav())
-                    }
-                    crate::alert::AlertState::Cleared => MavSeverity::MAV_SEVERITY_INFO,
+                    crate::report::AlertState::Raised => mav_severity(a.severity),
+                    crate::report::AlertState::Cleared => MavSeverity::MAV_SEVERITY_INFO,
                 };
                 self.statustext(sev, &a.message)
             })
             .collect()
+    }
+}
+
+/// A rule's severity as MAVLink's enum (same scale, same order).
+fn mav_severity(s: crate::report::Severity) -> MavSeverity {
+    use crate::report::Severity as S;
+    match s {
+        S::Emergency => MavSeverity::MAV_SEVERITY_EMERGENCY,
+        S::Alert => MavSeverity::MAV_SEVERITY_ALERT,
+        S::Critical => MavSeverity::MAV_SEVERITY_CRITICAL,
+        S::Error => MavSeverity::MAV_SEVERITY_ERROR,
+        S::Warning => MavSeverity::MAV_SEVERITY_WARNING,
+        S::Notice => MavSeverity::MAV_SEVERITY_NOTICE,
+        S::Info => MavSeverity::MAV_SEVERITY_INFO,
+        S::Debug => MavSeverity::MAV_SEVERITY_DEBUG,
     }
 }
 
@@ -226,70 +217,23 @@ fn truncate_bytes(s: &str, max: usize) -> &str {
     &s[..end]
 }
 
-/// Where frames go.
-enum Out {
-    Link(LinkHandle),
-    Udp(tokio::net::UdpSocket),
-    Tcp { addr: String, stream: Option<tokio::net::TcpStream>, retry_at: Instant },
-}
-
-impl Out {
-    async fn open(cfg: &MavlinkSinkConfig, link: LinkHandle) -> Result<Self> {
-        Ok(match cfg.address.as_deref() {
-            None => Out::Link(link),
-            Some(a) => match Target::parse(a).map_err(anyhow::Error::msg).with_context(|| format!("sinks.mavlink.address = '{a}'"))? {
-                Target::Udp(hp) => {
-                    let sock = tokio::net::UdpSocket::bind(if hp.starts_with('[') { "[::]:0" } else { "0.0.0.0:0" })
-                        .await
-                        .context("MAVLink sink: cannot open a UDP socket")?;
-                    sock.connect(&hp).await.with_context(|| format!("MAVLink sink: cannot resolve udpout:{hp}"))?;
-                    Out::Udp(sock)
-                }
-                Target::Tcp(hp) => Out::Tcp { addr: hp, stream: None, retry_at: Instant::now() },
-            },
-        })
-    }
-
-    /// Send one frame; false when it had to be dropped.
-    async fn send(&mut self, frame: Vec<u8>) -> bool {
-        match self {
-            Out::Link(l) => l.try_send(frame),
-            // ECONNREFUSED on a connected UDP socket only means nobody listens yet.
-            Out::Udp(s) => s.send(&frame).await.is_ok(),
-            Out::Tcp { addr, stream, retry_at } => {
-                if stream.is_none() && Instant::now() >= *retry_at {
-                    match tokio::time::timeout(Duration::from_secs(1), tokio::net::TcpStream::connect(&*addr)).await {
-                        Ok(Ok(s)) => *stream = Some(s),
-                        _ => *retry_at = Instant::now() + Duration::from_secs(2),
-                    }
-                }
-                let Some(s) = stream else { return false };
-                if s.write_all(&frame).await.is_err() {
-                    *stream = None;
-                    return false;
-                }
-                true
-            }
-        }
-    }
-}
-
 /// Run the sink until the report channel closes.
-pub async fn run(cfg: MavlinkSinkConfig, mut rx: broadcast::Receiver<std::sync::Arc<Report>>, link: LinkHandle) -> Result<()> {
+/// Frames go out through `link`: the monitored link, or the uplink the pipeline opened
+/// for `address` (both run by `source::link`, so one set of transports serves both).
+pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHandle) -> Result<()> {
     if let Err(e) = cfg.validate() {
         bail!("{e}");
     }
-    let mut out = Out::open(&cfg, link).await?;
     let mut enc = Encoder::new(cfg.system_id, cfg.component_id);
     let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
     let mut next_values = Instant::now();
     let mut heartbeat = tokio::time::interval(Duration::from_secs(1));
     heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let (mut dropped, mut missed) = (0u64, 0u64);
+    let mut dropped = 0u64;
     loop {
         let frames = tokio::select! {
             _ = heartbeat.tick() => vec![enc.heartbeat()],
-            r = super::next_report(&mut rx, &mut missed) => match r {
+            r = rx.next() => match r {
                 Some(report) => {
                     let mut f = enc.alerts(&report);
                     let now = Instant::now();
@@ -303,7 +247,7 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: broadcast::Receiver<std::sync::
             },
         };
         for f in frames {
-            if !out.send(f).await {
+            if !link.try_send(f) {
                 dropped += 1;
             }
         }
@@ -320,10 +264,15 @@ mod tests {
 
     #[test]
     fn addresses_and_ids_are_checked() {
-        assert_eq!(Target::parse("udpout:127.0.0.1:14550"), Ok(Target::Udp("127.0.0.1:14550".into())));
-        assert_eq!(Target::parse("tcpout:gcs.local:5760"), Ok(Target::Tcp("gcs.local:5760".into())));
-        assert!(Target::parse("udpin:0.0.0.0:14550").is_err());
-        assert!(Target::parse("udpout:nohost").is_err());
+        for ok in ["udpout:127.0.0.1:14550", "tcpout:gcs.local:5760", "udpin:0.0.0.0:14550"] {
+            let c = MavlinkSinkConfig { address: Some(ok.into()), ..Default::default() };
+            assert_eq!(c.validate(), Ok(()), "{ok}");
+        }
+        for bad in ["udpout:nohost", "quic:host:1"] {
+            let c = MavlinkSinkConfig { address: Some(bad.into()), ..Default::default() };
+            let e = c.validate().unwrap_err();
+            assert!(e.contains("sinks.mavlink.address") && e.contains(bad), "{e}");
+        }
         let bad = MavlinkSinkConfig { component_id: 1, ..Default::default() };
         assert!(bad.validate().unwrap_err().contains("component_id"));
     }

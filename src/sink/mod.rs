@@ -1,5 +1,5 @@
 //! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web.
-//! Each sink is its own task fed by one broadcast of [`crate::energy::Report`]s.
+//! Each sink is its own task fed by one broadcast of [`crate::report::Report`]s.
 //!
 //! A broadcast never waits for a slow receiver: one that falls more than the channel's
 //! depth behind loses the oldest reports. The energy stage holds back while a sink is
@@ -22,13 +22,22 @@ pub struct SinksConfig {
     pub web: web::WebSinkConfig,
 }
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::Duration;
 
-use tokio::sync::broadcast;
+use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
-use crate::energy::Report;
-use crate::source::{IngestStats, LinkHandle};
+use crate::report::Report;
+use crate::status::ChainStatus;
+
+/// Reports a sink's queue holds before the energy stage waits for it.
+pub const SINK_DEPTH: usize = 1024;
+/// How long the energy stage waits for a sink whose queue is full before it gives up on
+/// that sink: from then on the sink misses reports (counted) until it has drained half its
+/// queue, and the rest of the chain goes on.
+pub const SINK_PATIENCE: Duration = Duration::from_secs(1);
 
 /// Where `--json` writes.
 #[derive(Debug, Clone)]
@@ -50,48 +59,88 @@ pub enum SinkSpec {
     Web(web::WebSinkConfig),
 }
 
-/// Start one sink as its own task. The task ends when the report channel closes, after
-/// flushing (and, for JSON, writing the summary line). Fails before anything runs when
-/// the sink cannot start (a JSON file that cannot be created).
-pub fn spawn(
-    spec: SinkSpec,
-    rx: broadcast::Receiver<Arc<Report>>,
-    stats: Arc<IngestStats>,
-    health: crate::telemetry::HealthHandle,
-    link: LinkHandle,
-) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
+/// Start one sink as its own task, reading `rx`. The task ends when the chain closes its
+/// queue, after flushing (and, for JSON, writing the summary line). Fails before anything
+/// runs when the sink cannot start (a JSON file that cannot be created, a port in use).
+pub fn spawn(spec: SinkSpec, rx: ReportRx, status: ChainStatus) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
     match spec {
-        SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, stats, health))),
-        SinkSpec::Json(target) => jsonl::spawn(target, rx, stats),
-        SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, link))),
-        SinkSpec::Web(c) => web::spawn(c, rx),
+        SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, status))),
+        SinkSpec::Json(target) => jsonl::spawn(target, rx, status),
+        SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, status.link))),
+        SinkSpec::Web(c) => web::spawn(c, rx, status.shutdown),
     }
 }
 
-/// The next report for a sink, adding to `missed` the reports it lost by lagging (and
-/// logging it). `None` when the channel has closed: the run is over.
-pub async fn next_report(rx: &mut broadcast::Receiver<Arc<Report>>, missed: &mut u64) -> Option<Arc<Report>> {
-    loop {
-        match rx.recv().await {
-            Ok(r) => return Some(r),
-            Err(broadcast::error::RecvError::Lagged(n)) => lagged(missed, n),
-            Err(broadcast::error::RecvError::Closed) => return None,
+/// One sink's inbox: the reports in order, and a count of those it missed.
+pub struct ReportRx {
+    rx: mpsc::Receiver<Arc<Report>>,
+    missed: Arc<AtomicU64>,
+}
+
+impl ReportRx {
+    /// The next report; `None` once the chain has ended (every report before that came).
+    pub async fn next(&mut self) -> Option<Arc<Report>> {
+        self.rx.recv().await
+    }
+    /// [`ReportRx::next`] for a sink that runs on its own thread.
+    pub fn blocking_next(&mut self) -> Option<Arc<Report>> {
+        self.rx.blocking_recv()
+    }
+    /// Whether no report waits right now (a writer flushes then: live, each report shows
+    /// up as it happens).
+    pub fn is_empty(&self) -> bool {
+        self.rx.is_empty()
+    }
+    /// Reports this sink missed because it was stuck for longer than [`SINK_PATIENCE`].
+    pub fn missed(&self) -> u64 {
+        self.missed.load(Ordering::Relaxed)
+    }
+}
+
+/// The energy stage's side of the sinks: one bounded queue per sink. A full queue holds
+/// the chain back (a flat-out replay loses nothing to a slower sink); a sink stuck for
+/// longer than [`SINK_PATIENCE`] loses reports instead, and counts them, until it catches up.
+#[derive(Default)]
+pub struct Fanout {
+    outs: Vec<Outlet>,
+}
+
+struct Outlet {
+    tx: mpsc::Sender<Arc<Report>>,
+    missed: Arc<AtomicU64>,
+    stuck: bool,
+}
+
+impl Fanout {
+    /// A new sink's queue.
+    pub fn subscribe(&mut self) -> ReportRx {
+        let (tx, rx) = mpsc::channel(SINK_DEPTH);
+        let missed = Arc::new(AtomicU64::new(0));
+        self.outs.push(Outlet { tx, missed: missed.clone(), stuck: false });
+        ReportRx { rx, missed }
+    }
+
+    /// Hand one report to every sink (see [`Fanout`] for who waits and who misses it).
+    pub async fn send(&mut self, report: Report) {
+        let report = Arc::new(report);
+        for o in &mut self.outs {
+            if o.stuck && o.tx.capacity() >= SINK_DEPTH / 2 {
+                o.stuck = false;
+                tracing::info!("a sink caught up after missing {} reports", o.missed.load(Ordering::Relaxed));
+            }
+            match o.tx.try_send(report.clone()) {
+                Ok(()) | Err(mpsc::error::TrySendError::Closed(_)) => {}
+                Err(mpsc::error::TrySendError::Full(r)) if !o.stuck => {
+                    if tokio::time::timeout(SINK_PATIENCE, o.tx.send(r)).await.is_err() {
+                        o.stuck = true;
+                        o.missed.fetch_add(1, Ordering::Relaxed);
+                        tracing::warn!("a sink is stuck (no room for {} s): it misses reports until it catches up", SINK_PATIENCE.as_secs_f64());
+                    }
+                }
+                Err(mpsc::error::TrySendError::Full(_)) => {
+                    o.missed.fetch_add(1, Ordering::Relaxed);
+                }
+            }
         }
     }
-}
-
-/// [`next_report`] for a sink that runs on its own thread.
-pub fn next_report_blocking(rx: &mut broadcast::Receiver<Arc<Report>>, missed: &mut u64) -> Option<Arc<Report>> {
-    loop {
-        match rx.blocking_recv() {
-            Ok(r) => return Some(r),
-            Err(broadcast::error::RecvError::Lagged(n)) => lagged(missed, n),
-            Err(broadcast::error::RecvError::Closed) => return None,
-        }
-    }
-}
-
-fn lagged(missed: &mut u64, n: u64) {
-    *missed += n;
-    tracing::warn!("a sink fell behind and missed {n} reports ({missed} so far)");
 }

@@ -12,29 +12,23 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crossterm::style::Stylize;
-use tokio::sync::broadcast;
-
-use crate::alert::{AlertEvent, AlertState};
-use crate::energy::Report;
-use crate::source::IngestStats;
-use crate::telemetry::FEATURE_NAMES;
+use super::ReportRx;
+use crate::features::FEATURE_NAMES;
+use crate::report::{AlertEvent, AlertState, Report};
+use crate::status::{ChainStatus, IngestStats, SignalHealth};
 
 /// Run the view until the report channel closes.
-pub async fn run(
-    mut rx: broadcast::Receiver<Arc<Report>>,
-    stats: Arc<IngestStats>,
-    health: crate::telemetry::HealthHandle,
-) -> anyhow::Result<()> {
+pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
+    let ChainStatus { stats, health, .. } = status;
     let colour = std::io::stderr().is_terminal();
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     tick.tick().await; // the first tick is immediate: nothing to show yet
     let mut latest: Option<Arc<Report>> = None;
-    let mut missed = 0;
     let mut last = (Instant::now(), 0u64);
     let mut feeds_shown = String::new();
     loop {
         tokio::select! {
-            r = super::next_report(&mut rx, &mut missed) => match r {
+            r = rx.next() => match r {
                 Some(r) => {
                     for a in &r.alerts {
                         eprintln!("{}", alert_line(a, colour));
@@ -61,6 +55,7 @@ pub async fn run(
         }
     }
     let s = stats.snapshot();
+    let missed = rx.missed();
     eprintln!(
         "done: frames ok {} bad {} unknown {} gaps {} (clock jumps {}) junk bytes {} windows {}{}",
         s.frames_ok,
@@ -142,7 +137,7 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
 
 /// `feeds: attitude←ATTITUDE velocity←GLOBAL_POSITION_INT … (stale: wind)`: which message
 /// feeds each signal, and which signals are stale.
-pub fn feeds_line(health: &[crate::telemetry::SignalHealth]) -> String {
+pub fn feeds_line(health: &[SignalHealth]) -> String {
     if health.is_empty() {
         return String::new();
     }
@@ -165,7 +160,7 @@ pub fn alert_line(a: &AlertEvent, colour: bool) -> String {
     if !colour {
         return line;
     }
-    match (a.state, a.severity.as_str()) {
+    match (a.state, a.severity.name()) {
         (AlertState::Cleared, _) => line.green().to_string(),
         (_, "critical" | "emergency" | "error") => line.red().bold().to_string(),
         (_, "warning") => line.yellow().to_string(),

@@ -20,10 +20,10 @@ use axum::extract::{Query, State};
 use axum::response::{Html, IntoResponse};
 use axum::routing::get;
 use axum::{Json, Router};
-use tokio::sync::broadcast;
+use tokio_util::sync::CancellationToken;
 
-use crate::alert::AlertEvent;
-use crate::energy::{EnergyState, Report};
+use crate::report::AlertEvent;
+use crate::report::{EnergyState, Report};
 
 /// The `[sinks.web]` table.
 #[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
@@ -93,7 +93,7 @@ struct Dash {
 struct Latest {
     t: f64,
     measured_w: Option<f32>,
-    models: Vec<crate::model::ModelEstimate>,
+    models: Vec<crate::report::ModelEstimate>,
     energy: EnergyState,
 }
 
@@ -168,35 +168,19 @@ async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoR
 
 /// Bind the configured address now (so a taken port fails the run before it starts),
 /// then serve on a task (see [`serve`]).
-pub fn spawn(cfg: WebSinkConfig, rx: broadcast::Receiver<Arc<Report>>) -> Result<tokio::task::JoinHandle<Result<()>>> {
+pub fn spawn(cfg: WebSinkConfig, rx: super::ReportRx, shutdown: CancellationToken) -> Result<tokio::task::JoinHandle<Result<()>>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     let bind_err = || format!("web dashboard: cannot listen on {} (sinks.web.bind)", cfg.bind);
     let std_listener = std::net::TcpListener::bind(&cfg.bind).with_context(bind_err)?;
     std_listener.set_nonblocking(true).with_context(bind_err)?;
     let listener = tokio::net::TcpListener::from_std(std_listener).with_context(bind_err)?;
     tracing::info!("web dashboard on http://{}/", listener.local_addr().map_or(cfg.bind.clone(), |a| a.to_string()));
-    Ok(tokio::spawn(serve(cfg, listener, rx)))
-}
-
-/// Ctrl-C or SIGTERM: what ends a lingering dashboard early.
-async fn stop_signal() {
-    #[cfg(unix)]
-    {
-        use tokio::signal::unix::{signal, SignalKind};
-        if let Ok(mut term) = signal(SignalKind::terminate()) {
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {}
-                _ = term.recv() => {}
-            }
-            return;
-        }
-    }
-    let _ = tokio::signal::ctrl_c().await;
+    Ok(tokio::spawn(serve(cfg, listener, rx, shutdown)))
 }
 
 /// Serve the dashboard on `listener`, fed by `rx`, until the report channel closes and
-/// `linger_s` has passed.
-pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx: broadcast::Receiver<Arc<Report>>) -> Result<()> {
+/// `linger_s` has passed, or the run's `shutdown` (Ctrl-C, SIGTERM) ends the lingering.
+pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx: super::ReportRx, shutdown: CancellationToken) -> Result<()> {
     let dash: Shared = Arc::default();
     let app = Router::new().route("/", get(index)).route("/api/state", get(state)).with_state(dash.clone());
     let done = tokio_util::sync::CancellationToken::new();
@@ -204,8 +188,7 @@ pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx
     let server = tokio::spawn(async move {
         axum::serve(listener, app).with_graceful_shutdown(async move { stop.cancelled().await }).await
     });
-    let mut missed = 0;
-    while let Some(r) = super::next_report(&mut rx, &mut missed).await {
+    while let Some(r) = rx.next().await {
         if let Ok(mut d) = dash.lock() {
             d.add(&r, &cfg);
         }
@@ -214,7 +197,7 @@ pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx
         tracing::info!("web dashboard: source ended; serving {} s more (Ctrl-C ends it)", cfg.linger_s);
         tokio::select! {
             _ = tokio::time::sleep(std::time::Duration::from_secs_f64(cfg.linger_s)) => {}
-            _ = stop_signal() => {}
+            _ = shutdown.cancelled() => {}
         }
     }
     done.cancel();

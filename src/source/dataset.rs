@@ -44,7 +44,7 @@ use anyhow::{bail, Context, Result};
 use mavlink::{MavHeader, MavlinkVersion};
 
 use crate::dialect::*;
-use crate::telemetry::frames;
+use crate::features::frames;
 use crate::MavMessage;
 
 /// Columns read from the file, in [`Row`] order after `flight` and `time`.
@@ -524,7 +524,7 @@ impl Encoder {
 
 /// One flight of the official `flights.csv[.gz]` encoded as an in-memory `.tlog`: every row
 /// becomes the MAVLink messages an autopilot would send, stamped with the row's time.
-/// (Owner: features. Used by the `Dataset` source, `convert` and `offline::data`.)
+/// (Used by the `Dataset` source, `convert` and `offline::data`.)
 pub fn flight_tlog(path: &Path, flight: u32) -> Result<Vec<u8>> {
     let ds = read_flights(path, Some(&[flight]))?;
     match ds.flights.first() {

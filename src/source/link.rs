@@ -41,68 +41,7 @@ pub const GCS_SYSTEM_ID: u8 = 255;
 /// Component id dronewatt uses on a link: `MAV_COMP_ID_MISSIONPLANNER` (190).
 pub const GCS_COMPONENT_ID: u8 = 190;
 
-const ACCEPTED: &str = "udpin:HOST:PORT, udpout:HOST:PORT, tcpin:HOST:PORT, tcpout:HOST:PORT or serial:DEVICE:BAUD";
-
-/// A parsed link address.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum LinkAddress {
-    /// Bind `HOST:PORT` and listen for datagrams; answer the last sender.
-    UdpIn(String),
-    /// Send to `HOST:PORT` (a heartbeat once a second so routers learn us) and read replies.
-    UdpOut(String),
-    /// Listen on `HOST:PORT` and accept any number of clients.
-    TcpIn(String),
-    /// Connect to `HOST:PORT`; reconnect with back-off.
-    TcpOut(String),
-    /// A serial device at a baud rate.
-    Serial { device: String, baud: u32 },
-}
-
-impl std::str::FromStr for LinkAddress {
-    type Err = anyhow::Error;
-    /// Errors name the address and list the accepted forms.
-    fn from_str(s: &str) -> Result<Self> {
-        let fail = |why: &str| anyhow::anyhow!("link address '{s}': {why}; expected {ACCEPTED}");
-        let Some((kind, rest)) = s.split_once(':') else {
-            return Err(fail("no transport"));
-        };
-        let Some((host, port)) = rest.rsplit_once(':') else {
-            return Err(fail("no port (or baud rate) after the host (or device)"));
-        };
-        if host.is_empty() {
-            return Err(fail("empty host (or device)"));
-        }
-        if kind == "serial" {
-            return match port.parse::<u32>() {
-                Ok(baud) if baud > 0 => Ok(Self::Serial { device: host.to_string(), baud }),
-                _ => Err(fail(&format!("baud rate '{port}' is not a positive number"))),
-            };
-        }
-        if port.parse::<u16>().is_err() {
-            return Err(fail(&format!("port '{port}' is not a number 0–65535")));
-        }
-        let hp = rest.to_string();
-        match kind {
-            "udpin" | "udp" => Ok(Self::UdpIn(hp)),
-            "udpout" => Ok(Self::UdpOut(hp)),
-            "tcpin" => Ok(Self::TcpIn(hp)),
-            "tcpout" | "tcp" => Ok(Self::TcpOut(hp)),
-            _ => Err(fail(&format!("unknown transport '{kind}'"))),
-        }
-    }
-}
-
-impl std::fmt::Display for LinkAddress {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::UdpIn(a) => write!(f, "udpin:{a}"),
-            Self::UdpOut(a) => write!(f, "udpout:{a}"),
-            Self::TcpIn(a) => write!(f, "tcpin:{a}"),
-            Self::TcpOut(a) => write!(f, "tcpout:{a}"),
-            Self::Serial { device, baud } => write!(f, "serial:{device}:{baud}"),
-        }
-    }
-}
+pub use crate::address::LinkAddress;
 
 /// Run one live link until `shutdown`. Fails only when the link cannot be set up at all
 /// (a port that cannot be bound, a name that does not resolve, a serial device that
@@ -114,8 +53,43 @@ pub async fn run(
     link: LinkHandle,
     shutdown: CancellationToken,
 ) -> Result<()> {
-    let (wtx, wrx) = mpsc::channel::<Vec<u8>>(256);
+    let (wtx, wrx) = mpsc::channel::<Vec<u8>>(WRITE_QUEUE);
     link.attach(wtx);
+    serve(addr, tx, stats, wrx, shutdown, true).await
+}
+
+/// Frames queued for a link's writer before [`LinkHandle::try_send`] drops them.
+const WRITE_QUEUE: usize = 256;
+
+/// Open `addr` as an uplink: a link only written to (the MAVLink sink's own `address`).
+/// The returned handle is attached before this returns, so no frame sent on it is lost
+/// to a start-up race. What the other side sends is read and dropped; no ground-station
+/// heartbeat goes out (the sink sends its own). Runs until `stop`.
+pub fn spawn_uplink(addr: LinkAddress, stop: CancellationToken) -> (LinkHandle, tokio::task::JoinHandle<Result<()>>) {
+    let (wtx, wrx) = mpsc::channel::<Vec<u8>>(WRITE_QUEUE);
+    let link = LinkHandle::default();
+    link.attach(wtx);
+    let task = tokio::spawn(async move {
+        let (tx, mut rx) = mpsc::channel::<TimedMessage>(64);
+        let drain = tokio::spawn(async move { while rx.recv().await.is_some() {} });
+        let r = serve(addr, tx, Arc::new(IngestStats::default()), wrx, stop, false).await;
+        let _ = drain.await;
+        r
+    });
+    (link, task)
+}
+
+/// Run one link's transport. A `monitored` link (the one the chain reads) watches for
+/// silence and, on `udpout:`, sends a ground-station heartbeat each second so routers
+/// learn where to send; an uplink does neither.
+async fn serve(
+    addr: LinkAddress,
+    tx: mpsc::Sender<TimedMessage>,
+    stats: Arc<IngestStats>,
+    wrx: mpsc::Receiver<Vec<u8>>,
+    shutdown: CancellationToken,
+    monitored: bool,
+) -> Result<()> {
     let mut ctx = Ctx {
         label: addr.to_string(),
         tx,
@@ -123,6 +97,7 @@ pub async fn run(
         shutdown,
         start: Instant::now(),
         watchdog: Watchdog { last_count: 0, last_change: Instant::now(), silent: false },
+        monitored,
     };
     match addr {
         LinkAddress::UdpIn(a) => udp(&mut ctx, &a, false, wrx).await,
@@ -141,6 +116,7 @@ struct Ctx {
     shutdown: CancellationToken,
     start: Instant,
     watchdog: Watchdog,
+    monitored: bool,
 }
 
 impl Ctx {
@@ -149,7 +125,9 @@ impl Ctx {
         deliver(reader, &self.tx, &self.stats, &self.shutdown).await
     }
     fn tick(&mut self) {
-        self.watchdog.tick(&self.label, &self.stats);
+        if self.monitored {
+            self.watchdog.tick(&self.label, &self.stats);
+        }
     }
 }
 
@@ -261,7 +239,7 @@ async fn udp(ctx: &mut Ctx, hostport: &str, out: bool, mut wrx: mpsc::Receiver<V
             }
             _ = tick.tick() => {
                 ctx.tick();
-                if out {
+                if out && ctx.monitored {
                     let _ = sock.send_to(&heartbeat(seq), there).await;
                     seq = seq.wrapping_add(1);
                 }

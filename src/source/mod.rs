@@ -6,9 +6,6 @@
 //!  (link.rs: udp/tcp/serial,   (CRC, resync,     (t_s: tlog stamp, time_boot_ms,
 //!   tlog / raw files, dataset)  counters)         or arrival; clock jumps)
 //! ```
-//!
-//! Owner: foundation (issue 2) for frame/timed/tlog/raw/link; features (issue 3) for
-//! dataset and sim.
 
 pub mod dataset;
 pub mod frame;
@@ -18,7 +15,6 @@ pub mod sim;
 pub mod timed;
 pub mod tlog;
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -29,6 +25,7 @@ use tokio_util::sync::CancellationToken;
 
 use timed::TimedReader;
 
+pub use crate::status::{IngestStats, LinkHandle, StatsSnapshot};
 use crate::MavMessage;
 
 /// One decoded MAVLink message with the time it belongs to.
@@ -41,66 +38,6 @@ pub struct TimedMessage {
     pub header: mavlink::MavHeader,
     /// The message.
     pub msg: MavMessage,
-}
-
-/// Counters a source keeps of what it read and what it had to skip. Shared (Arc) so the
-/// terminal view and the final summary can read them without a channel running backwards.
-#[derive(Debug, Default)]
-pub struct IngestStats {
-    /// Frames whose CRC checked and whose payload decoded.
-    pub frames_ok: AtomicU64,
-    /// Frames with a bad CRC, a truncated body, or a payload that failed to decode.
-    pub frames_bad: AtomicU64,
-    /// Frames with a valid layout whose message id this dialect does not know.
-    pub unknown: AtomicU64,
-    /// Discontinuities: sequence-number gaps (one per break in a sender's sequence,
-    /// however many frames it lost; see [`frame`]) plus clock jumps (see
-    /// [`timed::Clock`]).
-    pub gaps: AtomicU64,
-    /// The clock jumps among `gaps`: a tlog stamp or `time_boot_ms` that went backwards,
-    /// leapt ahead or was absurd.
-    pub clock_jumps: AtomicU64,
-    /// Bytes that were not part of any frame (line noise, garbage between frames).
-    pub junk_bytes: AtomicU64,
-    /// Windows built by the telemetry stage.
-    pub windows: AtomicU64,
-    /// Times a live link went silent (no good frame for [`link::SILENCE`]).
-    pub silences: AtomicU64,
-    /// Whether the live link is silent right now (the terminal view shows it).
-    pub silent: AtomicBool,
-}
-
-impl IngestStats {
-    /// Add `n` to one counter.
-    pub fn add(counter: &AtomicU64, n: u64) {
-        counter.fetch_add(n, Ordering::Relaxed);
-    }
-    /// A plain copy of the counters.
-    pub fn snapshot(&self) -> StatsSnapshot {
-        StatsSnapshot {
-            frames_ok: self.frames_ok.load(Ordering::Relaxed),
-            frames_bad: self.frames_bad.load(Ordering::Relaxed),
-            unknown: self.unknown.load(Ordering::Relaxed),
-            gaps: self.gaps.load(Ordering::Relaxed),
-            junk_bytes: self.junk_bytes.load(Ordering::Relaxed),
-            windows: self.windows.load(Ordering::Relaxed),
-            clock_jumps: self.clock_jumps.load(Ordering::Relaxed),
-            silences: self.silences.load(Ordering::Relaxed),
-        }
-    }
-}
-
-/// A plain copy of [`IngestStats`], as the summary line prints it.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
-pub struct StatsSnapshot {
-    pub frames_ok: u64,
-    pub frames_bad: u64,
-    pub unknown: u64,
-    pub gaps: u64,
-    pub junk_bytes: u64,
-    pub windows: u64,
-    pub clock_jumps: u64,
-    pub silences: u64,
 }
 
 /// How fast a recorded source plays.
@@ -136,34 +73,6 @@ pub enum SourceSpec {
     Raw { path: std::path::PathBuf, speed: Speed },
     /// One flight of the M100 data set's `flights.csv[.gz]`, encoded as MAVLink.
     Dataset { path: std::path::PathBuf, flight: u32, speed: Speed },
-}
-
-/// A way for sinks to send frames back out on the live link the source reads (MAVLink
-/// publishing "on the same link"). Empty unless the source is a live link. Where a frame
-/// goes is the link's business (see [`link`]): the last UDP peer heard (`udpin:`), the
-/// target (`udpout:`), every TCP client (`tcpin:`), the open connection (`tcpout:`,
-/// `serial:`). Frames are whole encoded MAVLink frames.
-#[derive(Debug, Clone, Default)]
-pub struct LinkHandle(std::sync::Arc<std::sync::Mutex<Option<tokio::sync::mpsc::Sender<Vec<u8>>>>>);
-
-impl LinkHandle {
-    /// Called by a live-link source once it can write.
-    pub fn attach(&self, tx: tokio::sync::mpsc::Sender<Vec<u8>>) {
-        if let Ok(mut g) = self.0.lock() {
-            *g = Some(tx);
-        }
-    }
-    /// Queue one encoded frame for the link; false if there is no link or it is full.
-    pub fn try_send(&self, frame: Vec<u8>) -> bool {
-        match self.0.lock() {
-            Ok(g) => g.as_ref().is_some_and(|tx| tx.try_send(frame).is_ok()),
-            Err(_) => false,
-        }
-    }
-    /// Whether a live link is attached.
-    pub fn is_attached(&self) -> bool {
-        self.0.lock().map(|g| g.is_some()).unwrap_or(false)
-    }
 }
 
 /// Read `spec` until it ends or `shutdown` is cancelled, sending every decoded message.

@@ -30,7 +30,7 @@
 
 use std::collections::VecDeque;
 
-use super::{idx, HomeVector, Sample, N_FEATURES};
+use crate::features::{idx, HomeVector, Sample, N_FEATURES};
 
 /// The resampled signals; each maps onto a few features (or onto the measured power).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,7 +1,6 @@
 //! The five physics power models of the comparative study, six model names plus Tseng's
 //! simplified 3DR Solo form: `dandrea`, `dandrea_headwind`, `dorling`, `stolaroff`,
 //! `kirschstein`, `tseng`, `tseng_solo` (calibrated variants suffixed `_cal`).
-//! Owner: physics (issue 4).
 //!
 //! Every model is a pure function of a [`Kinematics`] (derived from the window's newest
 //! sample, and the window for accelerations), the [`VehicleProfile`] and its own parameters.
@@ -45,7 +44,7 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use super::profile::VehicleProfile;
 use super::{PowerModel, Prediction};
-use crate::telemetry::{idx, Sample};
+use crate::features::{idx, Sample};
 use crate::window::Window;
 
 /// The physical state every model reads, derived once per window. SI units, world ENU.
@@ -284,7 +283,7 @@ pub fn models(profile: &VehicleProfile) -> Vec<Box<dyn PowerModel>> {
 
 #[cfg(test)]
 pub(crate) mod testutil {
-    use crate::telemetry::{idx, Sample, N_FEATURES};
+    use crate::features::{idx, Sample, N_FEATURES};
     use crate::window::Window;
 
     /// A level sample: velocity along body (x, y, up), anemometer speed and bearing (deg),

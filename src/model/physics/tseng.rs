@@ -82,7 +82,7 @@ mod tests {
         assert!((solo_power_w(&k, &p.tseng_solo) - 319.06).abs() < 1e-3);
         // Acceleration 1 m/s² forward over the window adds β₂·1 + β₃·10·1 = 3.934 + 9.68.
         let mut w = window(sample(1.0, [10.0, 0.0, 0.0], 12.0, 0.0, 500.0, 90.0));
-        w.samples[0].features[crate::telemetry::idx::VX] = 9.1;
+        w.samples[0].features[crate::features::idx::VX] = 9.1;
         let k = Kinematics::from_window(&w, &p);
         assert!((power_w(&k, &p.tseng) - (502.0 + 3.934 + 9.68)).abs() < 1e-3);
     }

@@ -1,0 +1,240 @@
+//! The floor the later stages stand on: the typed messages that flow from the models to
+//! the sinks. [`Estimate`] is what inference hands the energy + alerts stage; [`Report`]
+//! (the estimate, the [`EnergyState`] and the [`AlertEvent`]s it raised) is what that stage
+//! hands every sink. They live here, not in the stages that make them, so a stage depends
+//! only on what it reads, never on the stage that wrote it (no import loops), and a sink
+//! never needs the energy or alert code to read a report. Imports nothing of ours but the
+//! feature floor.
+
+use std::fmt;
+
+use serde::{Serialize, Serializer};
+
+use crate::features::Sample;
+
+/// One model's estimate, named.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelEstimate {
+    /// The model's stable name (`dandrea`, `tseng_cal`, `lstm`, …).
+    pub name: String,
+    /// Predicted electrical power, W.
+    pub power_w: f32,
+    /// The model's uncertainty band (low, high), W, where it gives one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub band_w: Option<(f32, f32)>,
+}
+
+/// Every model's estimate for one window: what the inference stage sends on.
+#[derive(Debug, Clone)]
+pub struct Estimate {
+    /// Time of the window's newest sample, s.
+    pub t_s: f64,
+    /// The window's newest sample (features, measured power, home vector).
+    pub sample: Sample,
+    /// One entry per model that ran, in the model set's order.
+    pub models: Vec<ModelEstimate>,
+}
+
+impl Estimate {
+    /// What is known at `t_s` when nothing has been heard since `self`: every feature
+    /// stale, nothing measured, no model ran. The chain evaluates its alert rules on it
+    /// while a live link is silent, so `telemetry_lost` fires on a link gone quiet.
+    pub fn silent(&self, t_s: f64) -> Estimate {
+        let mut sample = self.sample.clone();
+        sample.t_s = t_s;
+        sample.stale_mask = u32::MAX;
+        sample.measured_w = None;
+        Estimate { t_s, sample, models: Vec::new() }
+    }
+}
+
+/// What `energy_used_wh` integrated at one step.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum PowerSource {
+    /// The measured electrical power V·I.
+    Measured,
+    /// The named model's prediction (nothing was measured).
+    Model(String),
+    /// Neither: nothing was integrated.
+    #[default]
+    None,
+}
+
+impl PowerSource {
+    /// As JSON and the terminal say it: `measured`, the model's name, or `none`.
+    pub fn as_str(&self) -> &str {
+        match self {
+            PowerSource::Measured => "measured",
+            PowerSource::Model(name) => name,
+            PowerSource::None => "none",
+        }
+    }
+}
+
+/// Where `remaining_wh` comes from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RemainingSource {
+    /// The capacity minus the energy used.
+    #[default]
+    Capacity,
+    /// The autopilot's reported state of charge × the capacity.
+    Battery,
+}
+
+impl RemainingSource {
+    /// As JSON and the terminal say it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RemainingSource::Capacity => "capacity",
+            RemainingSource::Battery => "battery",
+        }
+    }
+}
+
+/// Energy bookkeeping at one estimate (see [`crate::energy`] for the formulas). Absent
+/// values mean "not known yet" (no power seen, no home), never zero.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct EnergyState {
+    /// Energy drawn so far, Wh.
+    pub energy_used_wh: f64,
+    /// What `energy_used_wh` integrated at this step.
+    pub power_source: PowerSource,
+    /// Remaining usable energy, Wh, when known.
+    pub remaining_wh: Option<f64>,
+    /// Remaining energy as a percentage of the capacity.
+    pub remaining_pct: Option<f64>,
+    /// Where `remaining_wh` comes from.
+    pub remaining_source: RemainingSource,
+    /// Smoothed power the forecasts assume, W.
+    pub forecast_w: Option<f64>,
+    /// The model whose prediction the forecast follows, when a model ran (else the
+    /// forecast follows measured power).
+    pub forecast_model: Option<String>,
+    /// Time to empty at the forecast power, s.
+    pub time_to_empty_s: Option<f64>,
+    /// Energy needed to fly home, descend and land, Wh (needs a home position).
+    pub home_energy_wh: Option<f64>,
+    /// Remaining minus energy to get home minus reserve, Wh.
+    pub home_margin_wh: Option<f64>,
+    /// Battery voltage per cell, V (voltage / cell count), when the voltage is known.
+    pub cell_voltage_v: Option<f64>,
+}
+
+/// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML
+/// either the short lower-case name (`warning`) or the enum name (`MAV_SEVERITY_WARNING`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Severity {
+    Emergency,
+    Alert,
+    Critical,
+    Error,
+    Warning,
+    Notice,
+    Info,
+    Debug,
+}
+
+impl Severity {
+    /// Every severity, most severe first (MAV_SEVERITY's order and values).
+    pub const ALL: [Severity; 8] = [
+        Severity::Emergency,
+        Severity::Alert,
+        Severity::Critical,
+        Severity::Error,
+        Severity::Warning,
+        Severity::Notice,
+        Severity::Info,
+        Severity::Debug,
+    ];
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        ["emergency", "alert", "critical", "error", "warning", "notice", "info", "debug"][self as usize]
+    }
+}
+
+impl fmt::Display for Severity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Severity {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let short = s.trim().to_ascii_lowercase();
+        let short = short.strip_prefix("mav_severity_").unwrap_or(&short);
+        Self::ALL.into_iter().find(|v| v.name() == short).ok_or_else(|| {
+            format!("severity '{s}': expected one of emergency, alert, critical, error, warning, notice, info, debug")
+        })
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Severity {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        String::deserialize(d)?.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// An alert raised or cleared.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AlertEvent {
+    /// Time of the estimate that raised or cleared it, s (source clock).
+    pub t: f64,
+    /// The rule's name.
+    pub rule: String,
+    /// The rule's severity (serialised as its lower-case MAV_SEVERITY name, `warning`).
+    pub severity: Severity,
+    pub state: AlertState,
+    /// A short human sentence with the value (a STATUSTEXT carries its first 50 bytes).
+    pub message: String,
+}
+
+/// Whether an alert began or ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AlertState {
+    Raised,
+    Cleared,
+}
+
+/// What the energy + alerts stage sends to every sink.
+#[derive(Debug, Clone)]
+pub struct Report {
+    pub estimate: Estimate,
+    pub energy: EnergyState,
+    pub alerts: Vec<AlertEvent>,
+}
+
+// The enums read as the strings JSON has always carried, in code and in tests.
+impl Serialize for PowerSource {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+impl fmt::Display for PowerSource {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+impl fmt::Display for RemainingSource {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+impl PartialEq<&str> for PowerSource {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+impl PartialEq<&str> for RemainingSource {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+impl PartialEq<&str> for Severity {
+    fn eq(&self, other: &&str) -> bool {
+        self.name() == *other
+    }
+}

@@ -1,0 +1,135 @@
+//! The floor for what the chain's stages say about themselves beside the data: the
+//! source's ingest counters ([`IngestStats`]), the telemetry stage's signal health
+//! ([`SignalHealth`]) and the uplink a sink may send frames back on ([`LinkHandle`]). A
+//! sink gets all three as one typed handle, [`ChainStatus`], and never imports the stages
+//! that fill it. Imports nothing of ours.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+
+/// What one vehicle chain publishes about itself, shared by every sink of that chain.
+#[derive(Debug, Clone, Default)]
+pub struct ChainStatus {
+    /// The source's counters (frames, junk, gaps, windows, silences).
+    pub stats: Arc<IngestStats>,
+    /// Which message feeds each signal and what is stale (refreshed about once a second).
+    pub health: HealthHandle,
+    /// Frames a sink sends back on the live link the source reads.
+    pub link: LinkHandle,
+    /// Cancelled when the run is asked to stop (Ctrl-C, SIGTERM): the one stop signal, so
+    /// a sink that outlives its reports (the dashboard lingering) ends with everyone else.
+    pub shutdown: tokio_util::sync::CancellationToken,
+}
+
+/// Counters a source keeps of what it read and what it had to skip. Shared (Arc) so the
+/// terminal view and the final summary can read them without a channel running backwards.
+#[derive(Debug, Default)]
+pub struct IngestStats {
+    /// Frames whose CRC checked and whose payload decoded.
+    pub frames_ok: AtomicU64,
+    /// Frames with a bad CRC, a truncated body, or a payload that failed to decode.
+    pub frames_bad: AtomicU64,
+    /// Frames with a valid layout whose message id this dialect does not know.
+    pub unknown: AtomicU64,
+    /// Discontinuities: sequence-number gaps (one per break in a sender's sequence,
+    /// however many frames it lost; see `source::frame`) plus clock jumps (see
+    /// `source::timed::Clock`).
+    pub gaps: AtomicU64,
+    /// The clock jumps among `gaps`: a tlog stamp or `time_boot_ms` that went backwards,
+    /// leapt ahead or was absurd.
+    pub clock_jumps: AtomicU64,
+    /// Bytes that were not part of any frame (line noise, garbage between frames).
+    pub junk_bytes: AtomicU64,
+    /// Windows built by the telemetry stage.
+    pub windows: AtomicU64,
+    /// Times a live link went silent (no good frame for the link's silence limit (`source::link::SILENCE`)).
+    pub silences: AtomicU64,
+    /// Whether the live link is silent right now (the terminal view shows it).
+    pub silent: AtomicBool,
+}
+
+impl IngestStats {
+    /// Add `n` to one counter.
+    pub fn add(counter: &AtomicU64, n: u64) {
+        counter.fetch_add(n, Ordering::Relaxed);
+    }
+    /// A plain copy of the counters.
+    pub fn snapshot(&self) -> StatsSnapshot {
+        StatsSnapshot {
+            frames_ok: self.frames_ok.load(Ordering::Relaxed),
+            frames_bad: self.frames_bad.load(Ordering::Relaxed),
+            unknown: self.unknown.load(Ordering::Relaxed),
+            gaps: self.gaps.load(Ordering::Relaxed),
+            junk_bytes: self.junk_bytes.load(Ordering::Relaxed),
+            windows: self.windows.load(Ordering::Relaxed),
+            clock_jumps: self.clock_jumps.load(Ordering::Relaxed),
+            silences: self.silences.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// A plain copy of [`IngestStats`], as the summary line prints it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+/// Field order is the JSON summary line's contract (`sink::jsonl`).
+pub struct StatsSnapshot {
+    pub frames_ok: u64,
+    pub frames_bad: u64,
+    pub unknown: u64,
+    pub gaps: u64,
+    pub windows: u64,
+    pub junk_bytes: u64,
+    pub clock_jumps: u64,
+    pub silences: u64,
+}
+
+/// The telemetry stage's latest `Telemetry::health`, shared with the terminal view (the
+/// pipeline refreshes it about once a second; a reader only ever copies it).
+pub type HealthHandle = std::sync::Arc<std::sync::Mutex<Vec<SignalHealth>>>;
+
+/// Which source feeds one signal and whether it is stale: what the terminal view shows.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SignalHealth {
+    /// Signal name (`attitude`, `velocity`, …; `mission` for speed/payload/altitude).
+    pub signal: &'static str,
+    /// Indices into [`crate::features::FEATURE_NAMES`] this signal fills (empty for power).
+    pub features: Vec<usize>,
+    /// MAVLink message currently feeding it (`config`/`default` for the mission); `None`
+    /// when nothing has arrived yet.
+    pub source: Option<&'static str>,
+    /// Seconds since its last update, on the source clock.
+    pub age_s: Option<f64>,
+    /// No update for more than `stale_after_s`: its features are held and stale-marked.
+    pub stale: bool,
+}
+
+/// A way for sinks to send frames back out on the live link the source reads (MAVLink
+/// publishing "on the same link"). Empty unless the source is a live link. Where a frame
+/// goes is the link's business (see `source::link`): the last UDP peer heard (`udpin:`), the
+/// target (`udpout:`), every TCP client (`tcpin:`), the open connection (`tcpout:`,
+/// `serial:`). Frames are whole encoded MAVLink frames.
+#[derive(Debug, Clone, Default)]
+pub struct LinkHandle(std::sync::Arc<std::sync::Mutex<Option<tokio::sync::mpsc::Sender<Vec<u8>>>>>);
+
+impl LinkHandle {
+    /// Called by a live-link source once it can write.
+    pub fn attach(&self, tx: tokio::sync::mpsc::Sender<Vec<u8>>) {
+        if let Ok(mut g) = self.0.lock() {
+            *g = Some(tx);
+        }
+    }
+    /// Queue one encoded frame for the link; false if there is no link or it is full.
+    pub fn try_send(&self, frame: Vec<u8>) -> bool {
+        match self.0.lock() {
+            Ok(g) => g.as_ref().is_some_and(|tx| tx.try_send(frame).is_ok()),
+            Err(_) => false,
+        }
+    }
+    /// Frames queued and not yet written (0 without a link).
+    pub fn pending(&self) -> usize {
+        self.0.lock().ok().and_then(|g| g.as_ref().map(|tx| tx.max_capacity() - tx.capacity())).unwrap_or(0)
+    }
+    /// Whether a live link is attached.
+    pub fn is_attached(&self) -> bool {
+        self.0.lock().map(|g| g.is_some()).unwrap_or(false)
+    }
+}
