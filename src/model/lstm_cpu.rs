@@ -20,20 +20,25 @@
 //!   dense head, `tanh(W_head h + b_head)`.
 //!
 //! Each product runs through one GEMM (`gemm`): weights packed once into column blocks of
-//! 16 gate outputs (`pack`, `[k][16]` contiguous, two AVX registers wide), and a 6-row ×
-//! 16-column register tile (12 accumulators, the classic Haswell/Zen micro-kernel shape:
-//! 12 FMAs for 2 weight loads and 6 broadcasts per input), so each weight block is read
-//! once from L1 for every 6 rows. Rows are taken in chunks of `MC` so the chunk's
-//! inputs stay in L2 while every weight block passes over them. Fewer than 6 rows left
-//! (the live case of one window is 1 row in the recurrence) use a tile over several
-//! column blocks instead, keeping eight or more independent accumulator chains for the
-//! two FMA pipes. Windows go through the network `CHUNK_WINDOWS` at a time, which bounds
-//! the scratch space.
+//! 16 gate outputs (`pack`, `[k][16]` contiguous: two AVX registers, one AVX-512 register),
+//! and a register tile of accumulators that each weight load feeds several rows of:
+//!
+//! - AVX2 + FMA: 6 rows × 1 block (12 accumulators, the classic Haswell/Zen micro-kernel:
+//!   12 FMAs for 2 weight loads and 6 broadcasts per input);
+//! - AVX-512: 8 rows × 2 blocks (16 of the 32 registers; 16 FMAs of 16 lanes for 2 weight
+//!   loads and 8 broadcasts), twice the arithmetic a cycle where the core has 512-bit FMA
+//!   units (Zen 5, recent Xeons; measured here in `benches/lstm.rs`).
+//!
+//! Rows are taken in chunks of `MC` so the chunk's inputs stay in L2 while every weight
+//! block passes over them. Fewer rows than a tile left (the live case of one window is 1
+//! row in the recurrence) use a tile over several column blocks instead, keeping eight or
+//! more independent accumulator chains for the two FMA pipes. Windows go through the
+//! network `CHUNK_WINDOWS` at a time, which bounds the scratch space.
 //!
 //! Same maths as `nn.LSTM`, checked against libtorch to 1e-5 in the tests (every batch
-//! size 1..=67, vector and scalar paths). x86-64 with AVX2 + FMA uses the vector path
-//! (detected at run time); other CPUs a plain scalar path with the same results to
-//! rounding.
+//! size 1..=67, every instruction set the CPU has). The instruction set is detected at
+//! run time ([`Isa`]): AVX-512F, else AVX2 + FMA, else (any other CPU) a plain scalar path
+//! with the same results to rounding.
 
 use tch::nn::VarStore;
 
@@ -68,7 +73,7 @@ pub struct CpuLstm {
     /// `[outputs][2H]`.
     head_w: Vec<f32>,
     head_b: Vec<f32>,
-    simd: bool,
+    isa: Isa,
     // Scratch, sized for up to CHUNK_WINDOWS windows: gate pre-activations [B·T][4H];
     // the next layer's input [B·T][2H]; states h and c [B][H]; the top layer's final
     // states [B][2H].
@@ -133,7 +138,7 @@ impl CpuLstm {
             layers: ls,
             head_w,
             head_b,
-            simd: simd_available(),
+            isa: Isa::detect(),
             pre: Vec::new(),
             seq: Vec::new(),
             h: Vec::new(),
@@ -142,9 +147,9 @@ impl CpuLstm {
         })
     }
 
-    /// Whether the AVX2 + FMA path is in use.
-    pub fn simd(&self) -> bool {
-        self.simd
+    /// The instruction set the forward runs on.
+    pub fn isa(&self) -> Isa {
+        self.isa
     }
 
     /// Inputs per step (the first layer's width).
@@ -180,7 +185,7 @@ impl CpuLstm {
     fn forward_chunk(&mut self, xs: &[f32], t: usize, b: usize, out: &mut [f32]) {
         let (hd, g) = (self.hidden, 4 * self.hidden);
         let n_layers = self.layers.len();
-        let simd = self.simd;
+        let isa = self.isa;
         self.pre.resize(b * t * g, 0.0);
         self.h.resize(b * hd, 0.0);
         self.c.resize(b * hd, 0.0);
@@ -201,17 +206,17 @@ impl CpuLstm {
                 for row in self.pre[..rows * g].chunks_exact_mut(g) {
                     row.copy_from_slice(&dir.bias);
                 }
-                gemm(simd, &dir.w_ih, dir.input, input, dir.input, rows, &mut self.pre, g);
+                gemm(isa, &dir.w_ih, dir.input, input, dir.input, rows, &mut self.pre, g);
                 self.h.iter_mut().for_each(|v| *v = 0.0);
                 self.c.iter_mut().for_each(|v| *v = 0.0);
                 for k in 0..t {
                     let s = if d == 0 { k } else { t - 1 - k };
                     // pre_s += H W_hhᵀ: the rows of step s are T rows apart.
-                    gemm(simd, &dir.w_hh, hd, &self.h, hd, b, &mut self.pre[s * g..], t * g);
+                    gemm(isa, &dir.w_hh, hd, &self.h, hd, b, &mut self.pre[s * g..], t * g);
                     for w in 0..b {
                         let gates = &self.pre[(w * t + s) * g..(w * t + s + 1) * g];
                         let (c, h) = (&mut self.c[w * hd..(w + 1) * hd], &mut self.h[w * hd..(w + 1) * hd]);
-                        cell(simd, gates, c, h);
+                        cell(isa, gates, c, h);
                         if !top {
                             let at = (w * t + s) * 2 * hd + d * hd;
                             next[at..at + hd].copy_from_slice(h);
@@ -239,32 +244,54 @@ impl CpuLstm {
     }
 }
 
-fn simd_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+/// The instruction set the kernel runs on, best first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Isa {
+    /// Plain Rust, any CPU.
+    Scalar,
+    /// x86-64 AVX2 + FMA: 8 lanes.
+    Avx2,
+    /// x86-64 AVX-512F (with AVX2 + FMA for the cell): 16 lanes.
+    Avx512,
+}
+
+impl Isa {
+    /// The best this CPU has.
+    pub fn detect() -> Isa {
+        Isa::available().into_iter().max().unwrap_or(Isa::Scalar)
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
+
+    /// Every instruction set this CPU runs (the tests try each).
+    pub fn available() -> Vec<Isa> {
+        let mut v = vec![Isa::Scalar];
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            v.push(Isa::Avx2);
+            if is_x86_feature_detected!("avx512f") {
+                v.push(Isa::Avx512);
+            }
+        }
+        v
     }
 }
 
 /// `y[r] += W x[r]` for rows `r < rows`: `w` packed `[n][k]` (see [`pack`]), row r of x at
 /// `x[r·ldx ..][..k]`, of y at `y[r·ldy ..][..n]` (`n = w.len() / k`).
 #[allow(clippy::too_many_arguments)] // a BLAS-shaped call: the names are the contract
-fn gemm(simd: bool, w: &[f32], k: usize, x: &[f32], ldx: usize, rows: usize, y: &mut [f32], ldy: usize) {
+fn gemm(isa: Isa, w: &[f32], k: usize, x: &[f32], ldx: usize, rows: usize, y: &mut [f32], ldy: usize) {
     let n = w.len() / k;
     assert!(
         rows > 0 && n.is_multiple_of(NR) && w.len() == n * k && ldx >= k && ldy >= n && x.len() >= (rows - 1) * ldx + k && y.len() >= (rows - 1) * ldy + n
     );
     #[cfg(target_arch = "x86_64")]
-    if simd {
-        // SAFETY: AVX2 and FMA were detected at run time; the sizes are checked above.
-        unsafe { avx::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy) };
-        return;
+    match isa {
+        // SAFETY: the instruction sets were detected at run time (`Isa::available`); the
+        // sizes are checked above.
+        Isa::Avx512 => return unsafe { avx512::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy) },
+        Isa::Avx2 => return unsafe { avx::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy) },
+        Isa::Scalar => {}
     }
-    let _ = simd;
+    let _ = isa;
     for (b, wb) in w.chunks_exact(k * NR).enumerate() {
         for r in 0..rows {
             let yr = &mut y[r * ldy + b * NR..r * ldy + (b + 1) * NR];
@@ -280,15 +307,15 @@ fn gemm(simd: bool, w: &[f32], k: usize, x: &[f32], ldx: usize, rows: usize, y: 
 
 /// The LSTM cell on pre-activations `gates` = [i, f, g, o] (each H): c ← σ(f)c + σ(i)tanh(g),
 /// h ← σ(o) tanh(c).
-fn cell(simd: bool, gates: &[f32], c: &mut [f32], h: &mut [f32]) {
+fn cell(isa: Isa, gates: &[f32], c: &mut [f32], h: &mut [f32]) {
     let hd = h.len();
     #[cfg(target_arch = "x86_64")]
-    if simd && hd.is_multiple_of(8) {
-        // SAFETY: AVX2 and FMA were detected at run time.
+    if isa >= Isa::Avx2 && hd.is_multiple_of(8) {
+        // SAFETY: AVX2 and FMA were detected at run time (every Isa above Avx2 has them).
         unsafe { avx::cell(gates, c, h) };
         return;
     }
-    let _ = simd;
+    let _ = isa;
     let sig = |v: f32| 1.0 / (1.0 + (-v).exp());
     for j in 0..hd {
         let (i, f, g, o) = (sig(gates[j]), sig(gates[hd + j]), gates[2 * hd + j].tanh(), sig(gates[3 * hd + j]));
@@ -439,6 +466,100 @@ mod avx {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::{MC, NR};
+    use std::arch::x86_64::*;
+
+    /// Rows of the full tile (8 rows × 2 blocks: 16 accumulators).
+    const MR: usize = 8;
+
+    /// `y[r] += W x[r]` (see `super::gemm`; sizes checked there), the AVX2 driver's shape
+    /// with 16-lane registers: one register per packed row of a block.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn gemm(w: *const f32, k: usize, n: usize, x: *const f32, ldx: usize, rows: usize, y: *mut f32, ldy: usize) {
+        let nb = n / NR;
+        let step = k * NR;
+        let mut r0 = 0;
+        while r0 < rows {
+            let mc = MC.min(rows - r0);
+            let full = mc / MR * MR;
+            if full > 0 {
+                blocks::<MR, 2>(w, step, nb, k, full, x.add(r0 * ldx), ldx, y.add(r0 * ldy), ldy);
+            }
+            let (r, rest) = (r0 + full, mc - full);
+            let (xr, yr) = (x.add(r * ldx), y.add(r * ldy));
+            match rest {
+                0 => {}
+                1 => blocks::<1, 8>(w, step, nb, k, 1, xr, ldx, yr, ldy),
+                2 => blocks::<2, 4>(w, step, nb, k, 2, xr, ldx, yr, ldy),
+                3 => blocks::<3, 4>(w, step, nb, k, 3, xr, ldx, yr, ldy),
+                4 => blocks::<4, 2>(w, step, nb, k, 4, xr, ldx, yr, ldy),
+                5 => blocks::<5, 2>(w, step, nb, k, 5, xr, ldx, yr, ldy),
+                6 => blocks::<6, 2>(w, step, nb, k, 6, xr, ldx, yr, ldy),
+                _ => blocks::<7, 2>(w, step, nb, k, 7, xr, ldx, yr, ldy),
+            }
+            r0 += mc;
+        }
+    }
+
+    /// `rows` rows (a multiple of `R`) over every column block, `B` blocks a tile (one
+    /// block a tile at the end); each group of blocks passes over all the rows while its
+    /// weights stay in L1.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn blocks<const R: usize, const B: usize>(w: *const f32, step: usize, nb: usize, k: usize, rows: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+        let mut b = 0;
+        while b < nb {
+            let wide = b + B <= nb;
+            let mut r = 0;
+            while r < rows {
+                let (xr, yr) = (x.add(r * ldx), y.add(r * ldy + b * NR));
+                if wide {
+                    tile::<R, B>(w.add(b * step), step, k, xr, ldx, yr, ldy);
+                } else {
+                    tile::<R, 1>(w.add(b * step), step, k, xr, ldx, yr, ldy);
+                }
+                r += R;
+            }
+            b += if wide { B } else { 1 };
+        }
+    }
+
+    /// The register tile: `R` rows × `B` packed blocks of 16 outputs, `R·B` accumulators
+    /// loaded from y, `k` rank-1 updates, stored back.
+    #[allow(clippy::too_many_arguments, clippy::needless_range_loop)] // acc[r][b]: registers, clearer indexed
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn tile<const R: usize, const B: usize>(w: *const f32, step: usize, k: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+        let mut acc = [[_mm512_setzero_ps(); B]; R];
+        for r in 0..R {
+            for b in 0..B {
+                acc[r][b] = _mm512_loadu_ps(y.add(r * ldy + b * NR));
+            }
+        }
+        for kk in 0..k {
+            let mut wv = [_mm512_setzero_ps(); B];
+            for b in 0..B {
+                wv[b] = _mm512_loadu_ps(w.add(b * step + kk * NR));
+            }
+            for r in 0..R {
+                let xv = _mm512_set1_ps(*x.add(r * ldx + kk));
+                for b in 0..B {
+                    acc[r][b] = _mm512_fmadd_ps(wv[b], xv, acc[r][b]);
+                }
+            }
+        }
+        for r in 0..R {
+            for b in 0..B {
+                _mm512_storeu_ps(y.add(r * ldy + b * NR), acc[r][b]);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -476,16 +597,16 @@ mod tests {
 
     /// The paper's network (2 layers, 128 hidden) equals libtorch at every batch size from
     /// 1 to 67 (full 6-row tiles and every remainder, one and several row chunks), and at
-    /// 131 (more than one pass of `CHUNK_WINDOWS`), on the vector and the scalar path.
+    /// 131 (more than one pass of `CHUNK_WINDOWS`), on every instruction set this CPU has.
     #[test]
     fn matches_libtorch_at_every_batch_size() {
         let (vs, want, xs) = random_net(3, 128, 2, 131);
-        for simd in [true, false] {
+        for isa in Isa::available() {
             let mut m = CpuLstm::from_var_store(&vs, 2, 128).expect("weights");
-            m.simd = simd && m.simd;
-            let what = if m.simd { "avx2" } else { "scalar" };
+            m.isa = isa;
+            let what = format!("{isa:?}");
             for b in (1..=67).chain([131]) {
-                check_batch(&mut m, &xs, &want, b, what);
+                check_batch(&mut m, &xs, &want, b, &what);
             }
             // The single-window entry point is the same forward.
             let mut out = [0.0f32; 3];
@@ -503,19 +624,19 @@ mod tests {
     #[test]
     fn matches_libtorch_on_another_shape() {
         let (vs, want, xs) = random_net(11, 24, 3, 40);
-        for simd in [true, false] {
+        for isa in Isa::available() {
             let mut m = CpuLstm::from_var_store(&vs, 3, 24).expect("weights");
-            m.simd = simd && m.simd;
-            let what = if m.simd { "avx2" } else { "scalar" };
-            for b in [1, 2, 3, 4, 5, 6, 7, 13, 40] {
-                check_batch(&mut m, &xs, &want, b, what);
+            m.isa = isa;
+            let what = format!("{isa:?}");
+            for b in [1, 2, 3, 4, 5, 6, 7, 8, 9, 13, 40] {
+                check_batch(&mut m, &xs, &want, b, &what);
             }
         }
     }
 
     #[test]
     fn vector_exp_is_accurate() {
-        if !simd_available() {
+        if Isa::detect() < Isa::Avx2 {
             return;
         }
         let xs: Vec<f32> = (0..2000).map(|i| -40.0 + i as f32 * 0.04).collect();
