@@ -87,7 +87,7 @@ impl Chain {
         for est in self.ensemble.estimate(&self.windows) {
             let energy = self.energy.update(&est);
             let alerts = self.alerts.evaluate(&est, &energy);
-            let r = Report { estimate: est, energy, alerts };
+            let r = Report { estimate: est, energy, alerts, system_id: 1 };
             frames += self.enc.estimates(&r).len() + self.enc.alerts(&r).len();
         }
         self.windows.clear();
@@ -161,7 +161,7 @@ fn main() {
             e.t_s = t;
             let energy = chain.energy.update(&e);
             let alerts = chain.alerts.evaluate(&e, &energy);
-            let r = Report { estimate: e, energy, alerts };
+            let r = Report { estimate: e, energy, alerts, system_id: 1 };
             black_box(chain.enc.estimates(&r).len() + chain.enc.alerts(&r).len())
         })
     });

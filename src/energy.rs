@@ -65,6 +65,9 @@ pub struct Report {
     pub estimate: Estimate,
     pub energy: EnergyState,
     pub alerts: Vec<crate::alert::AlertEvent>,
+    /// The vehicle this is about: the MAVLink system id the telemetry stage locked onto
+    /// (1 when the source has none, e.g. a data-set replay, or before one is heard).
+    pub system_id: u8,
 }
 
 /// Battery and home-return assumptions (the `[energy]` table).

@@ -8,7 +8,7 @@
 //! ```text
 //!  source ──TimedMessage──▶ telemetry ──Window──▶ inference ──Estimate──▶ energy + alerts ──Report──▶ sinks
 //!  (link, tlog, raw,         (state, frames,        (physics ×6,            (used, remaining,          (terminal, jsonl,
-//!   dataset csv, sim)         resample → Sample,      lstm, byo model)        home margin, rules)        mavlink, web)
+//!   dataset csv, sim)         resample → Sample,      lstm, byo model)        home margin, rules)        mavlink, web, mqtt)
 //!                             ring of T → Window)
 //! ```
 //!
@@ -30,7 +30,7 @@
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
-//! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard |
+//! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |
 //! | [`pipeline`] | wires the tasks together and owns shutdown |
 //! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
 //! | [`config`] | the TOML configuration; its serde types are the reference |

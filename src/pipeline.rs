@@ -70,6 +70,10 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let live = matches!(p.source, crate::source::SourceSpec::Link(_));
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, stats.clone(), link, shutdown.clone()));
 
+    // The vehicle's system id, set by the telemetry stage once it locks on, read by the
+    // energy stage into every report (1 until then, and for sources without one).
+    let vehicle = Arc::new(std::sync::atomic::AtomicU8::new(1));
+    let tvehicle = vehicle.clone();
     let tstats = stats.clone();
     let thealth = health.clone();
     let telemetry_task = tokio::spawn(async move {
@@ -77,6 +81,9 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         let mut shown = tokio::time::Instant::now();
         while let Some(m) = msg_rx.recv().await {
             telemetry.push(&m, &mut out);
+            if let Some(id) = telemetry.system_id() {
+                tvehicle.store(id, std::sync::atomic::Ordering::Relaxed);
+            }
             if shown.elapsed() >= std::time::Duration::from_secs(1) {
                 shown = tokio::time::Instant::now();
                 if let Ok(mut h) = thealth.lock() {
@@ -137,7 +144,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
                     if live {
                         last = Some((est.clone(), state.clone(), tokio::time::Instant::now()));
                     }
-                    Report { estimate: est, energy: state, alerts: events }
+                    Report { estimate: est, energy: state, alerts: events, system_id: vehicle.load(std::sync::atomic::Ordering::Relaxed) }
                 }
                 Ok(None) => break,
                 Err(_) => {
@@ -154,7 +161,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
                     if events.is_empty() {
                         continue;
                     }
-                    Report { estimate: quiet, energy: state.clone(), alerts: events }
+                    Report { estimate: quiet, energy: state.clone(), alerts: events, system_id: vehicle.load(std::sync::atomic::Ordering::Relaxed) }
                 }
             };
             // A broadcast never waits: hold back while the slowest sink is far behind, so a

@@ -72,7 +72,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         };
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);
-        tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events })).unwrap();
+        tx.send(Arc::new(Report { estimate: est, energy: state, alerts: events, system_id: 1 })).unwrap();
         tokio::time::sleep(std::time::Duration::from_millis(2)).await;
     }
     drop(tx);

@@ -1,4 +1,4 @@
-//! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web.
+//! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web, MQTT.
 //! Each sink is its own task fed by one broadcast of [`crate::energy::Report`]s.
 //!
 //! A broadcast never waits for a slow receiver: one that falls more than the channel's
@@ -10,6 +10,7 @@ pub mod jsonl;
 pub mod terminal;
 
 pub mod mavlink;
+pub mod mqtt;
 pub mod web;
 
 /// Publishers (the `[sinks]` table).
@@ -20,6 +21,8 @@ pub struct SinksConfig {
     pub mavlink: mavlink::MavlinkSinkConfig,
     /// The web dashboard (`[sinks.web]`).
     pub web: web::WebSinkConfig,
+    /// An MQTT broker (`[sinks.mqtt]`).
+    pub mqtt: mqtt::MqttSinkConfig,
 }
 
 use std::sync::Arc;
@@ -48,6 +51,8 @@ pub enum SinkSpec {
     Mavlink(mavlink::MavlinkSinkConfig),
     /// The web dashboard.
     Web(web::WebSinkConfig),
+    /// An MQTT broker.
+    Mqtt(mqtt::MqttSinkConfig),
 }
 
 /// Start one sink as its own task. The task ends when the report channel closes, after
@@ -65,6 +70,7 @@ pub fn spawn(
         SinkSpec::Json(target) => jsonl::spawn(target, rx, stats),
         SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, link))),
         SinkSpec::Web(c) => web::spawn(c, rx),
+        SinkSpec::Mqtt(c) => mqtt::spawn(c, rx),
     }
 }
 
