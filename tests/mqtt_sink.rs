@@ -29,6 +29,8 @@ fn find(name: &str) -> Option<PathBuf> {
 struct Broker {
     child: Child,
     port: u16,
+    /// What `mosquitto_sub` and `mosquitto_pub` need beyond host and port (TLS, login).
+    client_args: Vec<String>,
     _dir: tempfile::TempDir,
 }
 
@@ -42,25 +44,44 @@ impl Drop for Broker {
 /// Start a broker, or `None` (the test skips) when Mosquitto is not installed and CI is
 /// not set.
 fn broker() -> Option<Broker> {
-    let (Some(mosquitto), Some(_)) = (find("mosquitto"), find("mosquitto_sub")) else {
-        let why = "mosquitto / mosquitto_sub not installed (run scripts/setup-mosquitto.sh)";
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("{why}");
-        }
-        eprintln!("SKIPPED: {why}");
+    broker_with(|_, _| (String::new(), Vec::new()))
+}
+
+/// Skip (or under CI=true, fail) when one of these programs is missing.
+fn have(programs: &[&str]) -> bool {
+    let missing: Vec<&str> = programs.iter().copied().filter(|p| find(p).is_none()).collect();
+    if missing.is_empty() {
+        return true;
+    }
+    let why = format!("{} not installed (run scripts/setup-mosquitto.sh)", missing.join(", "));
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{why}");
+    }
+    eprintln!("SKIPPED: {why}");
+    false
+}
+
+/// A broker whose listener gets the config lines `listener(dir, port)` returns, with the
+/// client arguments it returns too.
+fn broker_with(listener: impl FnOnce(&Path, u16) -> (String, Vec<String>)) -> Option<Broker> {
+    if !have(&["mosquitto", "mosquitto_sub", "mosquitto_pub"]) {
         return None;
-    };
+    }
     let dir = tempfile::tempdir().unwrap();
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let (extra, client_args) = listener(dir.path(), port);
     let conf = dir.path().join("mosquitto.conf");
     // No queue limits: a subscriber that falls behind a flat-out replay must get everything.
+    // `user root` keeps a broker started as root able to read the test's files (no effect
+    // otherwise); `allow_anonymous` may be overridden by `extra`.
+    let anonymous = if extra.contains("allow_anonymous") { "" } else { "allow_anonymous true\n" };
     std::fs::write(
         &conf,
-        format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\nmax_queued_messages 0\nmax_inflight_messages 0\n"),
+        format!("user root\nper_listener_settings false\npersistence false\nmax_queued_messages 0\nmax_inflight_messages 0\n{anonymous}listener {port} 127.0.0.1\n{extra}"),
     )
     .unwrap();
-    let child = Command::new(mosquitto).arg("-c").arg(&conf).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
-    let b = Broker { child, port, _dir: dir };
+    let child = Command::new(find("mosquitto").unwrap()).arg("-c").arg(&conf).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let b = Broker { child, port, client_args, _dir: dir };
     let until = Instant::now() + Duration::from_secs(10);
     while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
         assert!(Instant::now() < until, "mosquitto did not listen on {port}");
@@ -95,6 +116,7 @@ impl Subscriber {
     fn start(b: &Broker, topic: &str) -> Subscriber {
         let mut child = Command::new(find("mosquitto_sub").unwrap())
             .args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-q", "1", "-F", "%r %q %t %p", "-t", topic])
+            .args(&b.client_args)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -144,6 +166,7 @@ impl Drop for Subscriber {
 fn pub_once(b: &Broker, topic: &str, payload: &str) {
     let ok = Command::new(find("mosquitto_pub").expect("mosquitto_pub"))
         .args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-t", topic, "-m", payload])
+        .args(&b.client_args)
         .status()
         .unwrap();
     assert!(ok.success());
@@ -153,7 +176,7 @@ fn pub_once(b: &Broker, topic: &str, payload: &str) {
 /// to at once.
 fn retained(b: &Broker, topics: &[&str]) -> Vec<Msg> {
     let mut cmd = Command::new(find("mosquitto_sub").unwrap());
-    cmd.args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-F", "%r %q %t %p", "--retained-only", "-W", "2"]);
+    cmd.args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-F", "%r %q %t %p", "--retained-only", "-W", "2"]).args(&b.client_args);
     for t in topics {
         cmd.args(["-t", t]);
     }
@@ -169,6 +192,10 @@ fn config(dir: &Path, b: &Broker, instance: &str, extra: &str) -> PathBuf {
 }
 
 fn replay(cfg: &Path, file: &Path, json: &Path) -> (std::process::Output, Duration) {
+    replay_env(cfg, file, json, &[])
+}
+
+fn replay_env(cfg: &Path, file: &Path, json: &Path, env: &[(&str, &str)]) -> (std::process::Output, Duration) {
     let t0 = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["replay", "--speed", "max", "-q", "--json"])
@@ -176,6 +203,7 @@ fn replay(cfg: &Path, file: &Path, json: &Path) -> (std::process::Output, Durati
         .arg("--config")
         .arg(cfg)
         .arg(file)
+        .envs(env.iter().copied())
         .output()
         .unwrap();
     let took = t0.elapsed();
@@ -305,4 +333,72 @@ fn a_long_flight_flat_out_is_published_without_drops() {
         took.as_secs_f64(),
         published as f64 / took.as_secs_f64()
     );
+}
+
+/// Run a command in `dir`, asserting it succeeds.
+fn sh(dir: &Path, program: &str, args: &[&str]) {
+    let out = Command::new(find(program).unwrap()).args(args).current_dir(dir).output().unwrap();
+    assert!(out.status.success(), "{program} {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// A test CA and a server certificate for 127.0.0.1 signed by it (rustls wants the IP in
+/// subjectAltName), and a password file with user `dronewatt`, password `s3cret`.
+fn tls_and_login(dir: &Path) {
+    let ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"];
+    sh(dir, "openssl", &[&["req", "-x509"][..], &ec, &["-keyout", "ca.key", "-out", "ca.pem", "-days", "2", "-subj", "/CN=dronewatt test CA"]].concat());
+    sh(dir, "openssl", &[&["req"][..], &ec, &["-keyout", "server.key", "-out", "server.csr", "-subj", "/CN=127.0.0.1"]].concat());
+    std::fs::write(dir.join("san.ext"), "subjectAltName=IP:127.0.0.1\n").unwrap();
+    sh(
+        dir,
+        "openssl",
+        &["x509", "-req", "-in", "server.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-out", "server.pem", "-days", "2", "-extfile", "san.ext"],
+    );
+    sh(dir, "mosquitto_passwd", &["-b", "-c", "passwords", "dronewatt", "s3cret"]);
+}
+
+#[test]
+fn tls_with_a_password_from_the_environment_and_a_wrong_password_never_stalls_the_run() {
+    if !have(&["openssl", "mosquitto_passwd"]) {
+        return;
+    }
+    let Some(b) = broker_with(|dir, _| {
+        tls_and_login(dir);
+        let d = dir.display();
+        (
+            format!("cafile {d}/ca.pem\ncertfile {d}/server.pem\nkeyfile {d}/server.key\nallow_anonymous false\npassword_file {d}/passwords\n"),
+            ["--cafile", &format!("{d}/ca.pem"), "-u", "dronewatt", "-P", "s3cret"].map(String::from).to_vec(),
+        )
+    }) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let ca = b._dir.path().join("ca.pem");
+    let login = format!("[sinks.mqtt]\ntls = true\nca_file = \"{}\"\nusername = \"dronewatt\"\npassword_env = \"DW_TEST_MQTT_PW\"\n", ca.display());
+    let cfg = dir.path().join("tls.toml");
+    let demo = std::fs::read_to_string(config(dir.path(), &b, "tls", "")).unwrap().replace("[sinks.mqtt]\n", &login);
+    std::fs::write(&cfg, demo).unwrap();
+    let sub = Subscriber::start(&b, "dw/#");
+    let json = dir.path().join("out.jsonl");
+    let tlog = root().join("replay/demo.tlog");
+
+    // The right password: everything arrives over TLS.
+    let (out, _) = replay_env(&cfg, &tlog, &json, &[("DW_TEST_MQTT_PW", "s3cret")]);
+    let estimates = lines_of(&json, "estimate").len();
+    let seen = sub.wait_for(Duration::from_secs(20), |s| on(s, "dw/1/estimate").len() >= estimates);
+    assert_eq!(on(&seen, "dw/1/estimate").len(), estimates, "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(" 0 dropped (queue full), 0 undelivered at exit"));
+
+    // A wrong one: refused, retried with back-off, the small queue overflows and counts its
+    // drops, and the run still ends with every JSON line written.
+    let small = dir.path().join("small-queue.toml");
+    std::fs::write(&small, std::fs::read_to_string(&cfg).unwrap().replace("[sinks.mqtt]\n", "[sinks.mqtt]\nqueue = 100\n")).unwrap();
+    let json2 = dir.path().join("refused.jsonl");
+    let (out, took) = replay_env(&small, &tlog, &json2, &[("DW_TEST_MQTT_PW", "wrong")]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(lines_of(&json2, "estimate").len(), estimates, "the other sinks lose nothing");
+    assert!(stderr.contains("mqtt summary: 0 messages published"), "{stderr}");
+    let dropped: u64 = stderr.split("published, ").nth(1).and_then(|r| r.split(' ').next()).and_then(|n| n.parse().ok()).expect("a summary");
+    assert!(dropped > estimates as u64 / 2, "a 100-message queue drops most of {estimates} reports: {dropped}");
+    assert!(stderr.contains("retrying in"), "{stderr}");
+    eprintln!("refused broker: run ended after {:.1} s (flush timeout included)", took.as_secs_f64());
 }
