@@ -20,6 +20,7 @@ run: build
 
 test: setup
 	@scripts/setup-chromium.sh
+	@scripts/setup-mosquitto.sh
 	$(CARGO) test --locked --no-fail-fast
 
 bench: setup

@@ -1,8 +1,14 @@
-//! LSTM inference speed: one window (the live case: the hand-written forward, and libtorch
-//! for comparison) and a batch of 256 (a replay flat out: libtorch), on the shipped model,
-//! one thread (`DRONEWATT_BENCH_THREADS` to change libtorch's). Compare with `scripts/bench_torch.py` (PyTorch eager, same weights).
+//! LSTM inference speed on the shipped model, one thread (`DRONEWATT_BENCH_THREADS` to
+//! change libtorch's): the hand-written batched forward (src/model/lstm_cpu.rs, the CPU
+//! path for every batch size) against libtorch on the same weights, per window at batch
+//! 1 (the live case), 4, 32, 256 and 1024 (a fleet's windows falling due together, a
+//! replay flat out). Criterion's throughput is windows, so it prints windows/s; the time
+//! per window is the iteration time over the batch size. Compare with
+//! `scripts/bench_torch.py` (PyTorch eager, same weights).
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use dronewatt::model::lstm::{resolve_model_path, LstmModel};
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
@@ -34,24 +40,17 @@ fn bench(c: &mut Criterion) {
     tch::set_num_threads(threads);
     let path = resolve_model_path(None).expect("no shipped model under config/models/lstm-m100");
     let mut model = LstmModel::load(&path, &TelemetryConfig::default()).expect("load the shipped model");
-    let one = vec![window(0)];
-    let batch: Vec<Window> = (0..256).map(window).collect();
+    let windows: Vec<Window> = (0..1024).map(window).collect();
     let mut out = Vec::new();
-    c.bench_function("lstm_single_window", |b| b.iter(|| model.predict(&one, &mut out)));
-    model.set_libtorch_only(true);
-    c.bench_function("lstm_single_window_libtorch", |b| b.iter(|| model.predict(&one, &mut out)));
-    model.set_libtorch_only(false);
-    let four: Vec<Window> = (0..4).map(window).collect();
-    let mut g = c.benchmark_group("lstm_batch_4");
-    g.throughput(Throughput::Elements(4));
-    g.bench_function("hand_written", |b| b.iter(|| model.predict(&four, &mut out)));
-    model.set_libtorch_only(true);
-    g.bench_function("libtorch", |b| b.iter(|| model.predict(&four, &mut out)));
-    model.set_libtorch_only(false);
-    g.finish();
     let mut g = c.benchmark_group("lstm_batch");
-    g.throughput(Throughput::Elements(256));
-    g.bench_function("256_windows", |b| b.iter(|| model.predict(&batch, &mut out)));
+    g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
+    for b in [1usize, 4, 32, 256, 1024] {
+        g.throughput(Throughput::Elements(b as u64));
+        for (name, libtorch) in [("hand_written", false), ("libtorch", true)] {
+            model.set_libtorch_only(libtorch);
+            g.bench_with_input(BenchmarkId::new(name, b), &windows[..b], |bch, ws| bch.iter(|| model.predict(ws, &mut out)));
+        }
+    }
     g.finish();
 }
 

@@ -24,7 +24,7 @@ pub struct Config {
     pub energy: crate::energy::EnergyConfig,
     /// Alert rules, `[[alerts]]` tables.
     pub alerts: Vec<crate::alert::AlertRule>,
-    /// Publishers: terminal, jsonl, mavlink, web.
+    /// Publishers: terminal, jsonl, mavlink, web, mqtt.
     pub sinks: crate::sink::SinksConfig,
 }
 
@@ -58,6 +58,7 @@ impl Config {
         crate::alert::validate_rules(&self.alerts)?;
         self.sinks.mavlink.validate()?;
         self.sinks.web.validate()?;
+        self.sinks.mqtt.validate()?;
         Ok(())
     }
 }

@@ -166,6 +166,23 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     );
     let w = &cfg.sinks.web;
     out += &format!("sinks.web: {}\n", if w.enabled { format!("on, http://{}/", w.bind) } else { "off".into() });
+    let q = &cfg.sinks.mqtt;
+    out += &format!(
+        "sinks.mqtt: {}\n",
+        if q.enabled {
+            format!(
+                "on, {}://{}:{}/ under {}/ as instance {}{}",
+                if q.tls { "mqtts" } else { "mqtt" },
+                q.host,
+                q.port(),
+                q.prefix,
+                q.instance(),
+                q.username.as_ref().map(|u| format!(", user {u}")).unwrap_or_default()
+            )
+        } else {
+            "off".into()
+        }
+    );
     out
 }
 
@@ -194,6 +211,9 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     }
     if config.sinks.web.enabled {
         sinks.push(SinkSpec::Web(config.sinks.web.clone()));
+    }
+    if config.sinks.mqtt.enabled {
+        sinks.push(SinkSpec::Mqtt(config.sinks.mqtt.clone()));
     }
     let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     rt.block_on(async move {

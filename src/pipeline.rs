@@ -175,8 +175,9 @@ impl VehicleChain {
         if windows.is_empty() {
             return;
         }
+        let system_id = self.telemetry.system_id().unwrap_or(1);
         for est in self.models.estimate(&windows) {
-            out.push(account(&mut self.energy, &mut self.alerts, est));
+            out.push(account(&mut self.energy, &mut self.alerts, est, system_id));
         }
     }
 
@@ -189,7 +190,7 @@ impl VehicleChain {
             telemetry: tokio::spawn(telemetry_stage(self.telemetry, msgs, win_tx, status.clone())),
             // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
             inference: tokio::task::spawn_blocking(move || inference_stage(self.models, win_rx, est_tx)),
-            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, fanout, live)),
+            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, fanout, status.clone(), live)),
         }
     }
 }
@@ -206,7 +207,12 @@ async fn telemetry_stage(
     let mut open = true;
     while open {
         match msgs.recv().await {
-            Some(m) => telemetry.push(&m, &mut out),
+            Some(m) => {
+                telemetry.push(&m, &mut out);
+                if let Some(id) = telemetry.system_id() {
+                    status.system_id.store(id, std::sync::atomic::Ordering::Relaxed);
+                }
+            }
             None => {
                 telemetry.finish(&mut out);
                 open = false;
@@ -260,8 +266,13 @@ async fn energy_stage(
     mut alerts: AlertEngine,
     mut estimates: mpsc::Receiver<Estimate>,
     mut fanout: Fanout,
+    status: ChainStatus,
     live: bool,
 ) {
+    let vehicle = || match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => 1,
+        id => id,
+    };
     // The last real estimate, its energy, and when it came: the base of a silent tick.
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
     loop {
@@ -272,7 +283,7 @@ async fn energy_stage(
         };
         let report = match next {
             Ok(Some(est)) => {
-                let report = account(&mut energy, &mut alerts, est);
+                let report = account(&mut energy, &mut alerts, est, vehicle());
                 if live {
                     last = Some((report.estimate.clone(), report.energy.clone(), Instant::now()));
                 }
@@ -286,7 +297,7 @@ async fn energy_stage(
                 if events.is_empty() {
                     continue;
                 }
-                Report { estimate: quiet, energy: state.clone(), alerts: events }
+                Report { estimate: quiet, energy: state.clone(), alerts: events, system_id: vehicle() }
             }
         };
         fanout.send(report).await;
@@ -295,10 +306,10 @@ async fn energy_stage(
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on
 /// it, into the report every sink gets.
-pub fn account(energy: &mut EnergyTracker, alerts: &mut AlertEngine, estimate: Estimate) -> Report {
+pub fn account(energy: &mut EnergyTracker, alerts: &mut AlertEngine, estimate: Estimate, system_id: u8) -> Report {
     let state = energy.update(&estimate);
     let events = alerts.evaluate(&estimate, &state);
-    Report { estimate, energy: state, alerts: events }
+    Report { estimate, energy: state, alerts: events, system_id }
 }
 
 /// A token cancelled on Ctrl-C (SIGINT) or SIGTERM: the run's one stop signal.

@@ -205,6 +205,9 @@ pub struct Report {
     pub estimate: Estimate,
     pub energy: EnergyState,
     pub alerts: Vec<AlertEvent>,
+    /// The vehicle this is about: the MAVLink system id the telemetry stage locked onto
+    /// (1 when the source has none, e.g. a data-set replay, or before one is heard).
+    pub system_id: u8,
 }
 
 // The enums read as the strings JSON has always carried, in code and in tests.

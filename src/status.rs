@@ -19,6 +19,9 @@ pub struct ChainStatus {
     /// Cancelled when the run is asked to stop (Ctrl-C, SIGTERM): the one stop signal, so
     /// a sink that outlives its reports (the dashboard lingering) ends with everyone else.
     pub shutdown: tokio_util::sync::CancellationToken,
+    /// The MAVLink system id of the vehicle the chain follows, once the telemetry stage has
+    /// locked onto one (0 until then).
+    pub system_id: Arc<std::sync::atomic::AtomicU8>,
 }
 
 /// Counters a source keeps of what it read and what it had to skip. Shared (Arc) so the

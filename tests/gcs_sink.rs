@@ -64,7 +64,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         };
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);
-        fanout.send(Report { estimate: est, energy: state, alerts: events }).await;
+        fanout.send(Report { estimate: est, energy: state, alerts: events, system_id: 1 }).await;
         tokio::time::sleep(std::time::Duration::from_millis(2)).await;
     }
     drop(fanout);

@@ -81,7 +81,7 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);
         raised += events.len();
-        fanout.send(Report { estimate: est, energy: state, alerts: events }).await;
+        fanout.send(Report { estimate: est, energy: state, alerts: events, system_id: 1 }).await;
     }
     assert_eq!(raised, 1, "the flight is built to raise one alert");
 

@@ -11,8 +11,9 @@
 //! at 0.5, is the MAE). A card may set a target lag L: the estimate is then for the sample
 //! L steps before the window's newest ([`crate::window::Window::back`]).
 //!
-//! One to [`CPU_FORWARD_MAX_BATCH`] windows on the CPU (the live case) run through the
-//! hand-written forward of [`super::lstm_cpu`]; larger batches and CUDA through libtorch.
+//! On the CPU every batch, one window (the live case) or thousands (a replay flat out,
+//! `eval`), runs through the batched hand-written forward of [`super::lstm_cpu`]; libtorch
+//! runs CUDA and TorchScript models (and is the reference the tests compare against).
 //!
 //! Variable names follow PyTorch's `nn.LSTM` (`lstm.weight_ih_l0_reverse` …) and
 //! `nn.Linear` (`head.weight`), so the same `.safetensors` loads in PyTorch.
@@ -112,15 +113,11 @@ pub fn push_inputs(w: &Window, set: FeatureSet, t: usize, out: &mut Vec<f32>) {
 }
 
 enum Backend {
-    /// Our own network: libtorch for batches, and the hand-written forward
-    /// ([`CpuLstm`]) for the live case of a few windows on the CPU.
+    /// Our own network: on the CPU the hand-written forward ([`CpuLstm`]) for every batch;
+    /// libtorch on CUDA (or when asked, [`LstmModel::set_libtorch_only`]).
     Native { _vs: nn::VarStore, net: Net, cpu: Option<Box<CpuLstm>> },
     Script(tch::CModule),
 }
-
-/// Batches up to this many windows run on the hand-written forward (when on the CPU);
-/// larger ones on libtorch, whose batched kernels win there (`cargo bench --bench lstm`).
-pub const CPU_FORWARD_MAX_BATCH: usize = 4;
 
 /// The LSTM as a [`PowerModel`]: a card, weights, and a scratch buffer.
 pub struct LstmModel {
@@ -192,14 +189,11 @@ impl LstmModel {
         let b = windows.len();
         self.out.clear();
         let cols = match &mut self.backend {
-            Backend::Native { cpu: Some(cpu), .. } if b <= CPU_FORWARD_MAX_BATCH && !self.libtorch_only => {
-                let n = t * N_FEATURES;
-                let mut row = [0.0f32; 3];
-                for w in 0..b {
-                    cpu.forward(&self.buf[w * n..(w + 1) * n], t, &mut row);
-                    self.out.extend_from_slice(&row);
-                }
-                3
+            Backend::Native { cpu: Some(cpu), .. } if !self.libtorch_only => {
+                let cols = cpu.outputs();
+                self.out.resize(b * cols, 0.0);
+                cpu.forward_batch(&self.buf, t, &mut self.out);
+                cols
             }
             backend => {
                 let x = Tensor::from_slice(&self.buf).view([b as i64, t as i64, N_FEATURES as i64]).to_device(self.device);

@@ -1,25 +1,57 @@
-//! A hand-written f32 forward pass of the shipped LSTM for the live case: one window, one
-//! thread, no allocation, no libtorch dispatch.
+//! A hand-written f32 forward pass of the shipped LSTM on the CPU, for any number of
+//! windows at once: no allocation after warm-up, no libtorch dispatch.
 //!
-//! libtorch runs this network in ~480 µs a window on one core, most of it per-operator
-//! overhead (each of the 40 recurrent steps is a dozen small operators). The arithmetic is
-//! 5.5 M multiply-adds; done here over weights packed in blocks of 32 gate outputs
-//! (`pack`): the input projections of all T steps at once, two steps sharing each weight
-//! load while the block stays in L1, then the recurrent products step by step (`gemm`),
-//! and the gates with a vectorised `exp`. Same maths as
-//! `nn.LSTM` (gate order i, f, g, o; zero initial state; the top layer's final forward and
-//! backward hidden states into the dense head), checked against libtorch in the tests to
-//! 1e-5. Batches of many windows (a replay flat out, `eval`) still go to libtorch, which is
-//! faster per window there.
+//! The network (see [`super::lstm`]) costs, for T steps, input width `I`, hidden `H` and
+//! gates `G = 4H`, per window and direction: `T·I·G` multiply-adds for the input
+//! projections and `T·H·G` for the recurrence. The paper's network (T = 10, I = 21 then
+//! 2H = 256, H = 128, two layers, two directions) is 5.5 M multiply-adds a window; one
+//! core's AVX2 FMA peak (2 × 8 lanes × 2 flops a cycle, ~96 GFLOP/s here) puts the floor at
+//! ~113 µs a window.
 //!
-//! x86-64 with AVX2 + FMA uses the vector path (detected at run time); other CPUs a plain
-//! scalar path with the same results to rounding.
+//! A batch of B windows is one sequence of small matrix products:
+//!
+//! - input projections of every step of every window at once: `pre = b + X W_ihᵀ`,
+//!   X `[B·T][I]` (row `w·T + s` is window w's step s), `pre` `[B·T][G]`;
+//! - then step by step the recurrent product of the whole batch, `pre_s += H W_hhᵀ`
+//!   (H `[B][H]`, the rows of `pre` for step s at a stride of T rows), and the cell
+//!   `c ← σ(f)c + σ(i)tanh(g)`, `h ← σ(o)tanh(c)` (gate order i, f, g, o as `nn.LSTM`;
+//!   zero initial state; the backward direction walks s = T−1 … 0);
+//! - the top layer keeps only its final forward and backward states, `[B][2H]`, for the
+//!   dense head, `tanh(W_head h + b_head)`.
+//!
+//! Each product runs through one GEMM (`gemm`): weights packed once into column blocks of
+//! 16 gate outputs (`pack`, `[k][16]` contiguous: two AVX registers, one AVX-512 register),
+//! and a register tile of accumulators that each weight load feeds several rows of:
+//!
+//! - AVX2 + FMA: 6 rows × 1 block (12 accumulators, the classic Haswell/Zen micro-kernel:
+//!   12 FMAs for 2 weight loads and 6 broadcasts per input);
+//! - AVX-512: 8 rows × 2 blocks (16 of the 32 registers; 16 FMAs of 16 lanes for 2 weight
+//!   loads and 8 broadcasts), twice the arithmetic a cycle where the core has 512-bit FMA
+//!   units (Zen 5, recent Xeons; measured here in `benches/lstm.rs`).
+//!
+//! Rows are taken in chunks of `MC` so the chunk's inputs stay in L2 while every weight
+//! block passes over them. Fewer rows than a tile left (the live case of one window is 1
+//! row in the recurrence) use a tile over several column blocks instead, keeping eight or
+//! more independent accumulator chains for the two FMA pipes. Windows go through the
+//! network `CHUNK_WINDOWS` at a time, which bounds the scratch space.
+//!
+//! Same maths as `nn.LSTM`, checked against libtorch to 1e-5 in the tests (every batch
+//! size 1..=67, every instruction set the CPU has). The instruction set is detected at
+//! run time ([`Isa`]): AVX-512F, else AVX2 + FMA, else (any other CPU) a plain scalar path
+//! with the same results to rounding.
 
 use tch::nn::VarStore;
 
-/// Outputs per packed weight block: four AVX registers. A block of `W_ih` of the second
-/// layer (256 inputs × 32 outputs, 32 KiB) stays in L1 while all T steps use it.
-const BW: usize = 32;
+/// Gate outputs per packed weight block: two AVX registers.
+const NR: usize = 16;
+/// Rows of the register tile.
+const MR: usize = 6;
+/// Rows per GEMM pass: the chunk of inputs (≤ 96 × 256 × 4 B = 96 KiB) stays in L2 while
+/// every weight block streams over it. A multiple of [`MR`].
+const MC: usize = 96;
+/// Windows per pass through the whole network: bounds the scratch space (the gate
+/// pre-activations are `CHUNK_WINDOWS · T · 4H` floats, 2.5 MiB for the paper's network).
+const CHUNK_WINDOWS: usize = 128;
 
 /// One direction of one LSTM layer.
 struct Direction {
@@ -33,7 +65,7 @@ struct Direction {
     bias: Vec<f32>,
 }
 
-/// The weights of a stacked bidirectional LSTM with a dense head, laid out for one-window
+/// The weights of a stacked bidirectional LSTM with a dense head, laid out for batched
 /// inference, and the scratch space it runs in.
 pub struct CpuLstm {
     hidden: usize,
@@ -41,25 +73,25 @@ pub struct CpuLstm {
     /// `[outputs][2H]`.
     head_w: Vec<f32>,
     head_b: Vec<f32>,
-    simd: bool,
-    // Scratch: gate pre-activations [T][4H], layer outputs [T][2H] (two, ping-pong),
-    // state h and c [H], gates [4H].
+    isa: Isa,
+    // Scratch, sized for up to CHUNK_WINDOWS windows: gate pre-activations [B·T][4H];
+    // the next layer's input [B·T][2H]; states h and c [B][H]; the top layer's final
+    // states [B][2H].
     pre: Vec<f32>,
-    seq: [Vec<f32>; 2],
+    seq: Vec<f32>,
     h: Vec<f32>,
     c: Vec<f32>,
-    gates: Vec<f32>,
     last: Vec<f32>,
 }
 
-/// Pack `w` (`[n][k]`, PyTorch's layout, `n` a multiple of [`BW`]) into blocks of `BW`
-/// outputs, each `[k][BW]` contiguous, so `y += W x` reads every block front to back.
+/// Pack `w` (`[n][k]`, PyTorch's layout, `n` a multiple of [`NR`]) into blocks of `NR`
+/// outputs, each `[k][NR]` contiguous, so a product reads every block front to back.
 fn pack(w: &[f32], n: usize, k: usize) -> Vec<f32> {
     let mut p = vec![0.0; n * k];
-    for b in 0..n / BW {
+    for b in 0..n / NR {
         for kk in 0..k {
-            for j in 0..BW {
-                p[(b * k + kk) * BW + j] = w[(b * BW + j) * k + kk];
+            for j in 0..NR {
+                p[(b * k + kk) * NR + j] = w[(b * NR + j) * k + kk];
             }
         }
     }
@@ -69,7 +101,7 @@ fn pack(w: &[f32], n: usize, k: usize) -> Vec<f32> {
 impl CpuLstm {
     /// Copy the weights of a [`super::lstm::Net`] built under `vs`'s root (`lstm.*`,
     /// `head.*`, PyTorch's names). `None` when a tensor is missing or has an unexpected
-    /// shape, or 4H is not a multiple of 32.
+    /// shape, or 4H is not a multiple of 16.
     pub fn from_var_store(vs: &VarStore, layers: usize, hidden: usize) -> Option<CpuLstm> {
         let vars = vs.variables();
         let get = |name: &str| -> Option<(Vec<f32>, Vec<i64>)> {
@@ -86,7 +118,7 @@ impl CpuLstm {
                 let (b_ih, _) = get(&format!("lstm.bias_ih_l{l}{suffix}"))?;
                 let (b_hh, _) = get(&format!("lstm.bias_hh_l{l}{suffix}"))?;
                 let input = *s_ih.get(1)? as usize;
-                let ok = g.is_multiple_of(BW) && s_ih[0] as usize == g && s_hh == [g as i64, hidden as i64] && b_ih.len() == g && b_hh.len() == g;
+                let ok = g.is_multiple_of(NR) && s_ih[0] as usize == g && s_hh == [g as i64, hidden as i64] && b_ih.len() == g && b_hh.len() == g;
                 ok.then(|| Direction {
                     input,
                     w_ih: pack(&w_ih, g, input),
@@ -106,99 +138,167 @@ impl CpuLstm {
             layers: ls,
             head_w,
             head_b,
-            simd: simd_available(),
+            isa: Isa::detect(),
             pre: Vec::new(),
-            seq: [Vec::new(), Vec::new()],
-            h: vec![0.0; hidden],
-            c: vec![0.0; hidden],
-            gates: vec![0.0; g],
-            last: vec![0.0; 2 * hidden],
+            seq: Vec::new(),
+            h: Vec::new(),
+            c: Vec::new(),
+            last: Vec::new(),
         })
     }
 
-    /// Whether the AVX2 + FMA path is in use.
-    pub fn simd(&self) -> bool {
-        self.simd
+    /// The instruction set the forward runs on.
+    pub fn isa(&self) -> Isa {
+        self.isa
     }
 
-    /// Forward one standardised window `x` (`[T][input]`, row-major, `T × input` values)
-    /// into `out` (`tanh` of the dense head, one value per output).
+    /// Inputs per step (the first layer's width).
+    pub fn inputs(&self) -> usize {
+        self.layers[0][0].input
+    }
+
+    /// Outputs of the dense head.
+    pub fn outputs(&self) -> usize {
+        self.head_b.len()
+    }
+
+    /// Forward one standardised window `x` (`[T][inputs]`, row-major) into `out` (`tanh`
+    /// of the dense head, [`Self::outputs`] values).
     pub fn forward(&mut self, x: &[f32], t: usize, out: &mut [f32]) {
+        self.forward_batch(x, t, out);
+    }
+
+    /// Forward a batch of standardised windows `xs` (`[B][T][inputs]`, row-major; B is
+    /// `xs.len() / (T · inputs)`) into `out` (`[B][outputs]`).
+    pub fn forward_batch(&mut self, xs: &[f32], t: usize, out: &mut [f32]) {
+        let per_window = t * self.inputs();
+        assert!(per_window > 0 && xs.len().is_multiple_of(per_window), "windows of the wrong size");
+        let b = xs.len() / per_window;
+        let o = self.outputs();
+        assert_eq!(out.len(), b * o, "output of the wrong size");
+        for (xc, oc) in xs.chunks(CHUNK_WINDOWS * per_window).zip(out.chunks_mut(CHUNK_WINDOWS * o)) {
+            self.forward_chunk(xc, t, xc.len() / per_window, oc);
+        }
+    }
+
+    /// [`Self::forward_batch`] for at most [`CHUNK_WINDOWS`] windows.
+    fn forward_chunk(&mut self, xs: &[f32], t: usize, b: usize, out: &mut [f32]) {
         let (hd, g) = (self.hidden, 4 * self.hidden);
-        assert_eq!(x.len(), t * self.layers[0][0].input, "window of the wrong size");
         let n_layers = self.layers.len();
-        self.seq[0].clear();
-        self.seq[0].extend_from_slice(x);
+        let isa = self.isa;
+        self.pre.resize(b * t * g, 0.0);
+        self.h.resize(b * hd, 0.0);
+        self.c.resize(b * hd, 0.0);
+        self.last.resize(b * 2 * hd, 0.0);
+        // The layer below's output; layer 0 reads the windows themselves.
+        let mut below = std::mem::take(&mut self.seq);
+        let mut next = Vec::new();
         for l in 0..n_layers {
             let top = l + 1 == n_layers;
-            // The next layer's input; the top layer keeps only its final states (`last`).
-            let mut next = std::mem::take(&mut self.seq[(l + 1) % 2]);
             next.clear();
             if !top {
-                next.resize(t * 2 * hd, 0.0);
+                next.resize(b * t * 2 * hd, 0.0);
             }
+            let input: &[f32] = if l == 0 { xs } else { &below };
             for (d, dir) in self.layers[l].iter().enumerate() {
-                // Input projections of every step at once: pre[s] = b + W_ih x_s.
-                self.pre.clear();
-                for _ in 0..t {
-                    self.pre.extend_from_slice(&dir.bias);
+                let rows = b * t;
+                // Input projections of every step of every window: pre = bias + X W_ihᵀ.
+                for row in self.pre[..rows * g].chunks_exact_mut(g) {
+                    row.copy_from_slice(&dir.bias);
                 }
-                gemm(self.simd, &dir.w_ih, dir.input, &self.seq[l % 2][..t * dir.input], &mut self.pre);
+                gemm(isa, &dir.w_ih, dir.input, input, dir.input, rows, &mut self.pre, g);
                 self.h.iter_mut().for_each(|v| *v = 0.0);
                 self.c.iter_mut().for_each(|v| *v = 0.0);
                 for k in 0..t {
                     let s = if d == 0 { k } else { t - 1 - k };
-                    self.gates.copy_from_slice(&self.pre[s * g..(s + 1) * g]);
-                    gemm(self.simd, &dir.w_hh, hd, &self.h, &mut self.gates);
-                    cell(self.simd, &mut self.gates, &mut self.c, &mut self.h);
-                    if !top {
-                        next[s * 2 * hd + d * hd..s * 2 * hd + (d + 1) * hd].copy_from_slice(&self.h);
+                    // pre_s += H W_hhᵀ: the rows of step s are T rows apart.
+                    gemm(isa, &dir.w_hh, hd, &self.h, hd, b, &mut self.pre[s * g..], t * g);
+                    for w in 0..b {
+                        let gates = &self.pre[(w * t + s) * g..(w * t + s + 1) * g];
+                        let (c, h) = (&mut self.c[w * hd..(w + 1) * hd], &mut self.h[w * hd..(w + 1) * hd]);
+                        cell(isa, gates, c, h);
+                        if !top {
+                            let at = (w * t + s) * 2 * hd + d * hd;
+                            next[at..at + hd].copy_from_slice(h);
+                        }
                     }
                 }
                 if top {
-                    self.last[d * hd..(d + 1) * hd].copy_from_slice(&self.h);
+                    for w in 0..b {
+                        self.last[w * 2 * hd + d * hd..w * 2 * hd + (d + 1) * hd].copy_from_slice(&self.h[w * hd..(w + 1) * hd]);
+                    }
                 }
             }
-            self.seq[(l + 1) % 2] = next;
+            std::mem::swap(&mut below, &mut next);
         }
-        for (o, v) in out.iter_mut().enumerate() {
-            let w = &self.head_w[o * 2 * hd..(o + 1) * 2 * hd];
-            let z: f32 = self.head_b[o] + w.iter().zip(&self.last).map(|(a, b)| a * b).sum::<f32>();
-            *v = z.tanh();
+        self.seq = below;
+        let o = self.outputs();
+        for w in 0..b {
+            let last = &self.last[w * 2 * hd..(w + 1) * 2 * hd];
+            for (j, v) in out[w * o..(w + 1) * o].iter_mut().enumerate() {
+                let hw = &self.head_w[j * 2 * hd..(j + 1) * 2 * hd];
+                let z: f32 = self.head_b[j] + hw.iter().zip(last).map(|(a, b)| a * b).sum::<f32>();
+                *v = z.tanh();
+            }
         }
     }
 }
 
-fn simd_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+/// The instruction set the kernel runs on, best first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Isa {
+    /// Plain Rust, any CPU.
+    Scalar,
+    /// x86-64 AVX2 + FMA: 8 lanes.
+    Avx2,
+    /// x86-64 AVX-512F (with AVX2 + FMA for the cell): 16 lanes.
+    Avx512,
+}
+
+impl Isa {
+    /// The best this CPU has.
+    pub fn detect() -> Isa {
+        Isa::available().into_iter().max().unwrap_or(Isa::Scalar)
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
+
+    /// Every instruction set this CPU runs (the tests try each).
+    pub fn available() -> Vec<Isa> {
+        let mut v = vec![Isa::Scalar];
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            v.push(Isa::Avx2);
+            if is_x86_feature_detected!("avx512f") {
+                v.push(Isa::Avx512);
+            }
+        }
+        v
     }
 }
 
-/// `ys[r] += W xs[r]` for every row r: `w` packed `[n][k]`, `xs` `[rows][k]`, `ys` `[rows][n]`.
-fn gemm(simd: bool, w: &[f32], k: usize, xs: &[f32], ys: &mut [f32]) {
-    let rows = xs.len() / k;
-    let n = ys.len() / rows;
-    assert!(w.len() == n * k && xs.len() == rows * k && ys.len() == rows * n && n.is_multiple_of(BW));
+/// `y[r] += W x[r]` for rows `r < rows`: `w` packed `[n][k]` (see [`pack`]), row r of x at
+/// `x[r·ldx ..][..k]`, of y at `y[r·ldy ..][..n]` (`n = w.len() / k`).
+#[allow(clippy::too_many_arguments)] // a BLAS-shaped call: the names are the contract
+fn gemm(isa: Isa, w: &[f32], k: usize, x: &[f32], ldx: usize, rows: usize, y: &mut [f32], ldy: usize) {
+    let n = w.len() / k;
+    assert!(
+        rows > 0 && n.is_multiple_of(NR) && w.len() == n * k && ldx >= k && ldy >= n && x.len() >= (rows - 1) * ldx + k && y.len() >= (rows - 1) * ldy + n
+    );
     #[cfg(target_arch = "x86_64")]
-    if simd {
-        // SAFETY: AVX2 and FMA were detected at run time; the sizes are checked above.
-        unsafe { avx::gemm(w, k, xs, ys, rows, n) };
-        return;
+    match isa {
+        // SAFETY: the instruction sets were detected at run time (`Isa::available`); the
+        // sizes are checked above.
+        Isa::Avx512 => return unsafe { avx512::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy) },
+        Isa::Avx2 => return unsafe { avx::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy) },
+        Isa::Scalar => {}
     }
-    let _ = simd;
-    for (b, wb) in w.chunks_exact(k * BW).enumerate() {
+    let _ = isa;
+    for (b, wb) in w.chunks_exact(k * NR).enumerate() {
         for r in 0..rows {
-            let y = &mut ys[r * n + b * BW..r * n + (b + 1) * BW];
-            for (kk, wk) in wb.chunks_exact(BW).enumerate() {
-                let x = xs[r * k + kk];
-                for (yj, wj) in y.iter_mut().zip(wk) {
-                    *yj += x * wj;
+            let yr = &mut y[r * ldy + b * NR..r * ldy + (b + 1) * NR];
+            for (kk, wk) in wb.chunks_exact(NR).enumerate() {
+                let xv = x[r * ldx + kk];
+                for (yj, wj) in yr.iter_mut().zip(wk) {
+                    *yj += xv * wj;
                 }
             }
         }
@@ -207,15 +307,15 @@ fn gemm(simd: bool, w: &[f32], k: usize, xs: &[f32], ys: &mut [f32]) {
 
 /// The LSTM cell on pre-activations `gates` = [i, f, g, o] (each H): c ← σ(f)c + σ(i)tanh(g),
 /// h ← σ(o) tanh(c).
-fn cell(simd: bool, gates: &mut [f32], c: &mut [f32], h: &mut [f32]) {
+fn cell(isa: Isa, gates: &[f32], c: &mut [f32], h: &mut [f32]) {
     let hd = h.len();
     #[cfg(target_arch = "x86_64")]
-    if simd && hd.is_multiple_of(8) {
-        // SAFETY: AVX2 and FMA were detected at run time.
+    if isa >= Isa::Avx2 && hd.is_multiple_of(8) {
+        // SAFETY: AVX2 and FMA were detected at run time (every Isa above Avx2 has them).
         unsafe { avx::cell(gates, c, h) };
         return;
     }
-    let _ = simd;
+    let _ = isa;
     let sig = |v: f32| 1.0 / (1.0 + (-v).exp());
     for j in 0..hd {
         let (i, f, g, o) = (sig(gates[j]), sig(gates[hd + j]), gates[2 * hd + j].tanh(), sig(gates[3 * hd + j]));
@@ -226,66 +326,93 @@ fn cell(simd: bool, gates: &mut [f32], c: &mut [f32], h: &mut [f32]) {
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
-    use super::BW;
+    use super::{MC, MR, NR};
     use std::arch::x86_64::*;
 
-    /// `ys[r] += W xs[r]` (see `super::gemm`; sizes checked there). Two rows at a time
-    /// share each load of a weight block: eight accumulators, four per row; a single row
-    /// splits its inputs into even and odd halves instead, so there are still eight
-    /// independent chains for the two FMA units.
-    #[allow(clippy::needless_range_loop)] // a[q], a[4 + q]: registers, clearer indexed
+    /// `y[r] += W x[r]` (see `super::gemm`; sizes checked there). Rows in chunks of `MC`;
+    /// in each, every column block runs over the chunk's full 6-row tiles, then the rows
+    /// left over (fewer than 6) over several blocks at a time.
+    #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn gemm(w: &[f32], k: usize, xs: &[f32], ys: &mut [f32], rows: usize, n: usize) {
-        let (x, y) = (xs.as_ptr(), ys.as_mut_ptr());
-        for b in 0..n / BW {
-            let wb = w.as_ptr().add(b * k * BW);
-            let mut r = 0;
-            while r < rows {
-                let two = r + 1 < rows;
-                // a[0..4]: row r (inputs kk even when alone); a[4..8]: row r + 1 (or r, kk odd).
-                let mut a = [_mm256_setzero_ps(); 8];
-                if two {
-                    for kk in 0..k {
-                        let wk = wb.add(kk * BW);
-                        let (x0, x1) = (_mm256_set1_ps(*x.add(r * k + kk)), _mm256_set1_ps(*x.add((r + 1) * k + kk)));
-                        for q in 0..4 {
-                            let wq = _mm256_loadu_ps(wk.add(8 * q));
-                            a[q] = _mm256_fmadd_ps(wq, x0, a[q]);
-                            a[4 + q] = _mm256_fmadd_ps(wq, x1, a[4 + q]);
-                        }
-                    }
-                } else {
-                    let mut kk = 0;
-                    while kk + 1 < k {
-                        let (x0, x1) = (_mm256_set1_ps(*x.add(r * k + kk)), _mm256_set1_ps(*x.add(r * k + kk + 1)));
-                        let (w0, w1) = (wb.add(kk * BW), wb.add((kk + 1) * BW));
-                        for q in 0..4 {
-                            a[q] = _mm256_fmadd_ps(_mm256_loadu_ps(w0.add(8 * q)), x0, a[q]);
-                            a[4 + q] = _mm256_fmadd_ps(_mm256_loadu_ps(w1.add(8 * q)), x1, a[4 + q]);
-                        }
-                        kk += 2;
-                    }
-                    if kk < k {
-                        let x0 = _mm256_set1_ps(*x.add(r * k + kk));
-                        for q in 0..4 {
-                            a[q] = _mm256_fmadd_ps(_mm256_loadu_ps(wb.add(kk * BW + 8 * q)), x0, a[q]);
-                        }
-                    }
-                    for q in 0..4 {
-                        a[q] = _mm256_add_ps(a[q], a[4 + q]);
+    pub unsafe fn gemm(w: *const f32, k: usize, n: usize, x: *const f32, ldx: usize, rows: usize, y: *mut f32, ldy: usize) {
+        let nb = n / NR;
+        let step = k * NR; // floats from one packed block to the next
+        let mut r0 = 0;
+        while r0 < rows {
+            let mc = MC.min(rows - r0);
+            let full = mc / MR * MR;
+            for b in 0..nb {
+                let (wb, mut r) = (w.add(b * step), r0);
+                while r < r0 + full {
+                    tile::<MR, 1>(wb, step, k, x.add(r * ldx), ldx, y.add(r * ldy + b * NR), ldy);
+                    r += MR;
+                }
+            }
+            let (r, rest) = (r0 + full, mc - full);
+            let (xr, yr) = (x.add(r * ldx), y.add(r * ldy));
+            match rest {
+                0 => {}
+                1 => blocks::<1, 4>(w, step, nb, k, xr, ldx, yr, ldy),
+                2 => blocks::<2, 2>(w, step, nb, k, xr, ldx, yr, ldy),
+                3 => blocks::<3, 2>(w, step, nb, k, xr, ldx, yr, ldy),
+                4 => blocks::<4, 1>(w, step, nb, k, xr, ldx, yr, ldy),
+                _ => blocks::<5, 1>(w, step, nb, k, xr, ldx, yr, ldy),
+            }
+            r0 += mc;
+        }
+    }
+
+    /// `R` rows over every column block, `B` blocks a tile (one block a tile at the end).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn blocks<const R: usize, const B: usize>(w: *const f32, step: usize, nb: usize, k: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+        let mut b = 0;
+        while b + B <= nb {
+            tile::<R, B>(w.add(b * step), step, k, x, ldx, y.add(b * NR), ldy);
+            b += B;
+        }
+        while b < nb {
+            tile::<R, 1>(w.add(b * step), step, k, x, ldx, y.add(b * NR), ldy);
+            b += 1;
+        }
+    }
+
+    /// The register tile: `R` rows × `B` packed blocks of 16 outputs, `2·R·B` accumulators
+    /// loaded from y, `k` rank-1 updates, stored back.
+    #[allow(clippy::too_many_arguments, clippy::needless_range_loop)] // acc[r][b][q]: registers, clearer indexed
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn tile<const R: usize, const B: usize>(w: *const f32, step: usize, k: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+        let mut acc = [[[_mm256_setzero_ps(); 2]; B]; R];
+        for r in 0..R {
+            for b in 0..B {
+                for q in 0..2 {
+                    acc[r][b][q] = _mm256_loadu_ps(y.add(r * ldy + b * NR + 8 * q));
+                }
+            }
+        }
+        for kk in 0..k {
+            let mut wv = [[_mm256_setzero_ps(); 2]; B];
+            for b in 0..B {
+                for q in 0..2 {
+                    wv[b][q] = _mm256_loadu_ps(w.add(b * step + kk * NR + 8 * q));
+                }
+            }
+            for r in 0..R {
+                let xv = _mm256_set1_ps(*x.add(r * ldx + kk));
+                for b in 0..B {
+                    for q in 0..2 {
+                        acc[r][b][q] = _mm256_fmadd_ps(wv[b][q], xv, acc[r][b][q]);
                     }
                 }
-                let y0 = y.add(r * n + b * BW);
-                for q in 0..4 {
-                    _mm256_storeu_ps(y0.add(8 * q), _mm256_add_ps(_mm256_loadu_ps(y0.add(8 * q)), a[q]));
+            }
+        }
+        for r in 0..R {
+            for b in 0..B {
+                for q in 0..2 {
+                    _mm256_storeu_ps(y.add(r * ldy + b * NR + 8 * q), acc[r][b][q]);
                 }
-                if two {
-                    let y1 = y.add((r + 1) * n + b * BW);
-                    for q in 0..4 {
-                        _mm256_storeu_ps(y1.add(8 * q), _mm256_add_ps(_mm256_loadu_ps(y1.add(8 * q)), a[4 + q]));
-                    }
-                }
-                r += if two { 2 } else { 1 };
             }
         }
     }
@@ -339,20 +466,112 @@ mod avx {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::{MC, NR};
+    use std::arch::x86_64::*;
+
+    /// Rows of the full tile (8 rows × 2 blocks: 16 accumulators).
+    const MR: usize = 8;
+
+    /// `y[r] += W x[r]` (see `super::gemm`; sizes checked there), the AVX2 driver's shape
+    /// with 16-lane registers: one register per packed row of a block.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn gemm(w: *const f32, k: usize, n: usize, x: *const f32, ldx: usize, rows: usize, y: *mut f32, ldy: usize) {
+        let nb = n / NR;
+        let step = k * NR;
+        let mut r0 = 0;
+        while r0 < rows {
+            let mc = MC.min(rows - r0);
+            let full = mc / MR * MR;
+            if full > 0 {
+                blocks::<MR, 2>(w, step, nb, k, full, x.add(r0 * ldx), ldx, y.add(r0 * ldy), ldy);
+            }
+            let (r, rest) = (r0 + full, mc - full);
+            let (xr, yr) = (x.add(r * ldx), y.add(r * ldy));
+            match rest {
+                0 => {}
+                1 => blocks::<1, 8>(w, step, nb, k, 1, xr, ldx, yr, ldy),
+                2 => blocks::<2, 4>(w, step, nb, k, 2, xr, ldx, yr, ldy),
+                3 => blocks::<3, 4>(w, step, nb, k, 3, xr, ldx, yr, ldy),
+                4 => blocks::<4, 2>(w, step, nb, k, 4, xr, ldx, yr, ldy),
+                5 => blocks::<5, 2>(w, step, nb, k, 5, xr, ldx, yr, ldy),
+                6 => blocks::<6, 2>(w, step, nb, k, 6, xr, ldx, yr, ldy),
+                _ => blocks::<7, 2>(w, step, nb, k, 7, xr, ldx, yr, ldy),
+            }
+            r0 += mc;
+        }
+    }
+
+    /// `rows` rows (a multiple of `R`) over every column block, `B` blocks a tile (one
+    /// block a tile at the end); each group of blocks passes over all the rows while its
+    /// weights stay in L1.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn blocks<const R: usize, const B: usize>(w: *const f32, step: usize, nb: usize, k: usize, rows: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+        let mut b = 0;
+        while b < nb {
+            let wide = b + B <= nb;
+            let mut r = 0;
+            while r < rows {
+                let (xr, yr) = (x.add(r * ldx), y.add(r * ldy + b * NR));
+                if wide {
+                    tile::<R, B>(w.add(b * step), step, k, xr, ldx, yr, ldy);
+                } else {
+                    tile::<R, 1>(w.add(b * step), step, k, xr, ldx, yr, ldy);
+                }
+                r += R;
+            }
+            b += if wide { B } else { 1 };
+        }
+    }
+
+    /// The register tile: `R` rows × `B` packed blocks of 16 outputs, `R·B` accumulators
+    /// loaded from y, `k` rank-1 updates, stored back.
+    #[allow(clippy::too_many_arguments, clippy::needless_range_loop)] // acc[r][b]: registers, clearer indexed
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn tile<const R: usize, const B: usize>(w: *const f32, step: usize, k: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+        let mut acc = [[_mm512_setzero_ps(); B]; R];
+        for r in 0..R {
+            for b in 0..B {
+                acc[r][b] = _mm512_loadu_ps(y.add(r * ldy + b * NR));
+            }
+        }
+        for kk in 0..k {
+            let mut wv = [_mm512_setzero_ps(); B];
+            for b in 0..B {
+                wv[b] = _mm512_loadu_ps(w.add(b * step + kk * NR));
+            }
+            for r in 0..R {
+                let xv = _mm512_set1_ps(*x.add(r * ldx + kk));
+                for b in 0..B {
+                    acc[r][b] = _mm512_fmadd_ps(wv[b], xv, acc[r][b]);
+                }
+            }
+        }
+        for r in 0..R {
+            for b in 0..B {
+                _mm512_storeu_ps(y.add(r * ldy + b * NR), acc[r][b]);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::model::lstm::Net;
     use tch::{Device, Kind, Tensor};
 
-    /// The hand-written forward equals libtorch's on a randomly initialised network, on
-    /// both the vector and the scalar path.
-    #[test]
-    fn matches_libtorch() {
-        tch::manual_seed(3);
+    /// A randomly initialised network (non-zero biases, so their sum is exercised), its
+    /// libtorch outputs for `windows` random windows of T = 10, and those windows' inputs.
+    fn random_net(seed: i64, hidden: i64, layers: i64, windows: i64) -> (VarStore, Vec<f32>, Vec<f32>) {
+        tch::manual_seed(seed);
         let vs = VarStore::new(Device::Cpu);
-        let net = Net::new(&vs.root(), 128, 2, 0.2);
-        // Non-zero biases so their sum is exercised.
+        let net = Net::new(&vs.root(), hidden, layers, 0.2);
         tch::no_grad(|| {
             for (name, mut v) in vs.variables() {
                 if name.contains("bias") {
@@ -360,27 +579,64 @@ mod tests {
                 }
             }
         });
-        let (b, t) = (5i64, 10usize);
-        let x = Tensor::randn([b, t as i64, 21], (Kind::Float, Device::Cpu)) * 1.5;
+        let x = Tensor::randn([windows, 10, 21], (Kind::Float, Device::Cpu)) * 1.5;
         let want = Vec::<f32>::try_from(tch::no_grad(|| net.forward_t(&x, false)).view([-1])).expect("libtorch output");
         let xs = Vec::<f32>::try_from(x.view([-1])).expect("input");
-        for simd in [true, false] {
+        (vs, want, xs)
+    }
+
+    /// Run the first `b` windows as one batch and compare every output with libtorch's.
+    fn check_batch(m: &mut CpuLstm, xs: &[f32], want: &[f32], b: usize, what: &str) {
+        let (per, o) = (10 * 21, 3);
+        let mut out = vec![f32::NAN; b * o];
+        m.forward_batch(&xs[..b * per], 10, &mut out);
+        for (i, (got, exp)) in out.iter().zip(&want[..b * o]).enumerate() {
+            assert!((got - exp).abs() < 1e-5, "{what}, batch {b}: window {} output {}: {got} vs libtorch {exp}", i / o, i % o);
+        }
+    }
+
+    /// The paper's network (2 layers, 128 hidden) equals libtorch at every batch size from
+    /// 1 to 67 (full 6-row tiles and every remainder, one and several row chunks), and at
+    /// 131 (more than one pass of `CHUNK_WINDOWS`), on every instruction set this CPU has.
+    #[test]
+    fn matches_libtorch_at_every_batch_size() {
+        let (vs, want, xs) = random_net(3, 128, 2, 131);
+        for isa in Isa::available() {
             let mut m = CpuLstm::from_var_store(&vs, 2, 128).expect("weights");
-            m.simd = simd && m.simd;
+            m.isa = isa;
+            let what = format!("{isa:?}");
+            for b in (1..=67).chain([131]) {
+                check_batch(&mut m, &xs, &want, b, &what);
+            }
+            // The single-window entry point is the same forward.
             let mut out = [0.0f32; 3];
-            for w in 0..b as usize {
-                m.forward(&xs[w * t * 21..(w + 1) * t * 21], t, &mut out);
-                for o in 0..3 {
-                    let (got, exp) = (out[o], want[w * 3 + o]);
-                    assert!((got - exp).abs() < 1e-5, "simd {simd} window {w} output {o}: {got} vs libtorch {exp}");
-                }
+            m.forward(&xs[5 * 210..6 * 210], 10, &mut out);
+            assert_eq!(out.to_vec(), {
+                let mut six = vec![0.0f32; 18];
+                m.forward_batch(&xs[..6 * 210], 10, &mut six);
+                six[15..18].to_vec()
+            });
+        }
+    }
+
+    /// Another shape: three layers of 24 hidden (4H = 96: six column blocks, so the
+    /// few-row tiles end on a lone block).
+    #[test]
+    fn matches_libtorch_on_another_shape() {
+        let (vs, want, xs) = random_net(11, 24, 3, 40);
+        for isa in Isa::available() {
+            let mut m = CpuLstm::from_var_store(&vs, 3, 24).expect("weights");
+            m.isa = isa;
+            let what = format!("{isa:?}");
+            for b in [1, 2, 3, 4, 5, 6, 7, 8, 9, 13, 40] {
+                check_batch(&mut m, &xs, &want, b, &what);
             }
         }
     }
 
     #[test]
     fn vector_exp_is_accurate() {
-        if !simd_available() {
+        if Isa::detect() < Isa::Avx2 {
             return;
         }
         let xs: Vec<f32> = (0..2000).map(|i| -40.0 + i as f32 * 0.04).collect();

@@ -13,6 +13,17 @@
 //!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…}
 //! ```
 //!
+//! The MQTT sink ([`super::mqtt`]) publishes the same `estimate` and `alert` objects, and
+//! its retained per-vehicle state as one more kind, never written to the file:
+//!
+//! ```text
+//! {"type":"state","t":…,"energy_used_wh":…,"power_source":…,"remaining_wh":…,"remaining_pct":…,
+//!  "remaining_source":…,"forecast_w":…,"forecast_model":…,"time_to_empty_s":…,"home_energy_wh":…,
+//!  "home_margin_wh":…,"cell_voltage_v":…,"active_alerts":["<rule>",…]}
+//! ```
+//!
+//! (the fields of [`crate::report::EnergyState`], and the rules raised and not yet cleared).
+//!
 //! `null` stands for unknown, and for any NaN or infinity (JSON has neither). Feature
 //! names are [`crate::features::FEATURE_NAMES`]; `t` is the source's `t_s`. The writer runs
 //! on its own thread so a slow disk or pipe never stalls the runtime.
@@ -65,6 +76,17 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     let e = &r.estimate;
     let s = &e.sample;
     write_line(w, &WindowLine { kind: "window", t: e.t_s, measured_w: s.measured_w, features: Features(&s.features) })?;
+    write_estimate(w, r)?;
+    for a in &r.alerts {
+        write_alert(w, a)?;
+    }
+    Ok(())
+}
+
+/// Write a report's `estimate` line.
+pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
+    let e = &r.estimate;
+    let s = &e.sample;
     write_line(
         w,
         &EstimateLine {
@@ -78,14 +100,18 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
         },
-    )?;
-    for a in &r.alerts {
-        write_line(
-            w,
-            &AlertLine { kind: "alert", t: a.t, rule: &a.rule, severity: a.severity, state: a.state, message: &a.message },
-        )?;
-    }
-    Ok(())
+    )
+}
+
+/// Write one `alert` line.
+pub fn write_alert(w: &mut impl Write, a: &crate::report::AlertEvent) -> std::io::Result<()> {
+    write_line(w, &AlertLine { kind: "alert", t: a.t, rule: &a.rule, severity: a.severity, state: a.state, message: &a.message })
+}
+
+/// Write one `state` line (the MQTT sink's retained state): the energy at report time `t`
+/// and the alert rules currently raised.
+pub fn write_state(w: &mut impl Write, t: f64, energy: &crate::report::EnergyState, active_alerts: &[String]) -> std::io::Result<()> {
+    write_line(w, &StateLine { kind: "state", t, energy, active_alerts })
 }
 
 fn write_line(w: &mut impl Write, v: &impl Serialize) -> std::io::Result<()> {
@@ -167,6 +193,16 @@ impl Serialize for Models<'_> {
 }
 
 #[derive(Serialize)]
+struct StateLine<'a> {
+    #[serde(rename = "type")]
+    kind: &'static str,
+    t: f64,
+    #[serde(flatten)]
+    energy: &'a crate::report::EnergyState,
+    active_alerts: &'a [String],
+}
+
+#[derive(Serialize)]
 struct AlertLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
@@ -228,6 +264,7 @@ mod tests {
                 state: AlertState::Raised,
                 message: "margin below 10 Wh".into(),
             }],
+            system_id: 1,
         }
     }
 
@@ -256,6 +293,22 @@ mod tests {
             (Some("alert"), Some("low_margin"), Some("warning"), Some("raised"))
         );
         assert_eq!(a["message"], "margin below 10 Wh");
+    }
+
+    #[test]
+    fn the_state_line_is_the_energy_state_flat_with_the_active_alerts() {
+        let r = report();
+        let mut out = Vec::new();
+        write_state(&mut out, 12.5, &r.energy, &["low_margin".to_string()]).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        assert!(text.ends_with('\n') && text.lines().count() == 1, "{text}");
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!((v["type"].as_str(), v["t"].as_f64()), (Some("state"), Some(12.5)));
+        assert_eq!((v["energy_used_wh"].as_f64(), v["remaining_wh"].as_f64()), (Some(1.5), Some(80.0)));
+        assert!(v["time_to_empty_s"].is_null() && v["home_margin_wh"].is_null());
+        assert_eq!(v["active_alerts"], serde_json::json!(["low_margin"]));
+        let energy_keys = serde_json::to_value(&r.energy).unwrap().as_object().unwrap().len();
+        assert_eq!(v.as_object().unwrap().len(), energy_keys + 3, "type, t, the energy fields, active_alerts: {v}");
     }
 
     #[test]

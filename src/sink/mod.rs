@@ -1,15 +1,18 @@
-//! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web.
-//! Each sink is its own task fed by one broadcast of [`crate::report::Report`]s.
+//! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web, MQTT.
+//! Each sink is its own task with its own bounded queue of [`Report`]s ([`Fanout`],
+//! [`ReportRx`]), and one typed handle, [`ChainStatus`], for what the chain says about
+//! itself beside the reports (ingest counters, signal health, the uplink). Sinks read
+//! reports, never sources.
 //!
-//! A broadcast never waits for a slow receiver: one that falls more than the channel's
-//! depth behind loses the oldest reports. The energy stage holds back while a sink is
-//! far behind (see [`crate::pipeline`]), so this only happens to a sink that is stuck;
-//! every sink counts what it missed ([`next_report`]) and says so, never silently.
+//! The energy stage waits for a sink whose queue is full, so a flat-out replay loses
+//! nothing; only a sink stuck for longer than [`SINK_PATIENCE`] misses reports, and it
+//! counts them ([`ReportRx::missed`]) and says so, never silently.
 
 pub mod jsonl;
 pub mod terminal;
 
 pub mod mavlink;
+pub mod mqtt;
 pub mod web;
 
 /// Publishers (the `[sinks]` table).
@@ -20,6 +23,8 @@ pub struct SinksConfig {
     pub mavlink: mavlink::MavlinkSinkConfig,
     /// The web dashboard (`[sinks.web]`).
     pub web: web::WebSinkConfig,
+    /// An MQTT broker (`[sinks.mqtt]`).
+    pub mqtt: mqtt::MqttSinkConfig,
 }
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -57,6 +62,8 @@ pub enum SinkSpec {
     Mavlink(mavlink::MavlinkSinkConfig),
     /// The web dashboard.
     Web(web::WebSinkConfig),
+    /// An MQTT broker.
+    Mqtt(mqtt::MqttSinkConfig),
 }
 
 /// Start one sink as its own task, reading `rx`. The task ends when the chain closes its
@@ -68,6 +75,7 @@ pub fn spawn(spec: SinkSpec, rx: ReportRx, status: ChainStatus) -> anyhow::Resul
         SinkSpec::Json(target) => jsonl::spawn(target, rx, status),
         SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, status.link))),
         SinkSpec::Web(c) => web::spawn(c, rx, status.shutdown),
+        SinkSpec::Mqtt(c) => mqtt::spawn(c, rx),
     }
 }
 

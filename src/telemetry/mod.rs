@@ -188,6 +188,12 @@ impl Telemetry {
         self.samples = samples;
     }
 
+    /// The MAVLink system id of the vehicle this stage locked onto (its first autopilot
+    /// HEARTBEAT, or the first sender of telemetry), `None` before one is heard.
+    pub fn system_id(&self) -> Option<u8> {
+        self.sysid.and_then(|s| u8::try_from(s).ok())
+    }
+
     /// End of stream: flush what can still be emitted.
     pub fn finish(&mut self, out: &mut Vec<Window>) {
         let mut samples = std::mem::take(&mut self.samples);

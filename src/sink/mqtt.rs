@@ -1,0 +1,519 @@
+//! MQTT (`[sinks.mqtt]`): every report to a broker, where a fleet's dashboards, rule engines
+//! and databases already listen. Any MQTT 3.1.1 broker (Mosquitto, EMQX, HiveMQ, VerneMQ …);
+//! the client is rumqttc (pure Rust, on tokio).
+//!
+//! Topics, under `prefix` (default `dronewatt`); `<vehicle>` is the vehicle's MAVLink
+//! system id ([`Report::system_id`]), so several instances watching different vehicles can
+//! share one broker:
+//!
+//! | topic | payload | QoS | retained | when |
+//! |---|---|---|---|---|
+//! | `<prefix>/<vehicle>/estimate` | the JSON-lines `estimate` object | 0 | no | every report (the window rate, 10 Hz) |
+//! | `<prefix>/<vehicle>/state` | the `state` object: energy, margins, raised alerts | 1 | yes | at most once per `state_interval_s` of flight time; at once when an alert is raised or cleared; the last one at the end |
+//! | `<prefix>/<vehicle>/alert` | the JSON-lines `alert` object | 1 | no | each raised or cleared event |
+//! | `<prefix>/status/<instance>` | `online` / `offline` | 1 | yes | `online` on every (re)connect; `offline` on a clean exit, and as the Last Will when the process dies or its connection drops |
+//!
+//! Payloads are one JSON object each, serialised by [`super::jsonl`] (the same bytes as the
+//! `--json` lines, without the newline).
+//!
+//! **Never a stalled pipeline.** Messages go into rumqttc's bounded request queue (`queue`
+//! messages). While the broker is connected and merely slower than the reports, the sink
+//! waits up to [`CONNECTED_PATIENCE`] for room (back-pressure, like a slow disk: a
+//! flat-out replay loses nothing); while it is not connected, a full queue drops the
+//! message at once. Either way a dropped message is counted. The connection is retried
+//! with exponential back-off, [`RECONNECT_MIN`] doubling to `reconnect_max_s`. At the end
+//! of a run the sink publishes the last state and `offline`, waits for the broker to
+//! acknowledge `offline` (so it has read everything before it), disconnects cleanly, and
+//! logs its summary: messages published, dropped, and undelivered at exit.
+//!
+//! Credentials: `username`, and the password from the environment (`password_env` names
+//! the variable) or a file (`password_file`, first line), never the command line or the
+//! configuration itself. TLS (`tls = true`): rustls with the `ca_file` roots (PEM; default
+//! the system bundle), port 8883 unless set.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use rumqttc::{AsyncClient, ConnectionError, Event, EventLoop, LastWill, MqttOptions, Outgoing, Packet, QoS, Transport};
+use tokio::task::JoinHandle;
+
+use crate::alert::AlertState;
+
+/// First wait before reconnecting; doubles per failure up to `reconnect_max_s`.
+pub const RECONNECT_MIN: Duration = Duration::from_millis(500);
+/// Longest wait for room in a full queue while the broker is connected.
+pub const CONNECTED_PATIENCE: Duration = Duration::from_secs(1);
+/// Longest wait at the end of a run for the queue to drain and the clean disconnect.
+pub const FLUSH_TIMEOUT: Duration = Duration::from_secs(10);
+/// The system-wide CA bundle (Debian, Ubuntu, Alpine): TLS roots when `ca_file` is unset.
+pub const SYSTEM_CA_FILE: &str = "/etc/ssl/certs/ca-certificates.crt";
+
+/// The `[sinks.mqtt]` table.
+#[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MqttSinkConfig {
+    /// On or off. Default off.
+    pub enabled: bool,
+    /// Broker host name or IP address. Default `127.0.0.1`.
+    pub host: String,
+    /// Broker port. Default 1883, or 8883 with `tls`.
+    pub port: Option<u16>,
+    /// Topic prefix, one or more levels (`fleet/dronewatt`), no wildcards. Default `dronewatt`.
+    pub prefix: String,
+    /// This instance's name: `<prefix>/status/<instance>`, and the MQTT client id
+    /// `dronewatt-<instance>` (unique per broker). Default: the host name.
+    pub instance: Option<String>,
+    /// User name. Default none (anonymous).
+    pub username: Option<String>,
+    /// Name of the environment variable holding the password.
+    pub password_env: Option<String>,
+    /// File whose first line is the password (keep it mode 0600).
+    pub password_file: Option<PathBuf>,
+    /// Connect with TLS (rustls). Default false.
+    pub tls: bool,
+    /// CA certificates to trust for TLS, PEM. Default the system bundle
+    /// (`/etc/ssl/certs/ca-certificates.crt`).
+    pub ca_file: Option<PathBuf>,
+    /// MQTT keep-alive, s: how soon the broker notices a dead connection (and publishes
+    /// the Last Will) when no TCP close reaches it. Default 15.
+    pub keep_alive_s: u64,
+    /// Messages the queue to the broker holds (about 0.5 KiB each). Default 10000.
+    pub queue: usize,
+    /// Least flight time between two retained `state` messages, s. Default 1.
+    pub state_interval_s: f64,
+    /// Longest wait between reconnection attempts, s. Default 30.
+    pub reconnect_max_s: f64,
+}
+
+impl Default for MqttSinkConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            host: "127.0.0.1".into(),
+            port: None,
+            prefix: "dronewatt".into(),
+            instance: None,
+            username: None,
+            password_env: None,
+            password_file: None,
+            tls: false,
+            ca_file: None,
+            keep_alive_s: 15,
+            queue: 10_000,
+            state_interval_s: 1.0,
+            reconnect_max_s: 30.0,
+        }
+    }
+}
+
+/// Whether `s` may stand in a topic: no wildcards, no NUL.
+fn topic_safe(s: &str) -> bool {
+    !s.contains(['+', '#', '\0'])
+}
+
+impl MqttSinkConfig {
+    /// Range and shape checks; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.host.trim().is_empty() {
+            return Err("sinks.mqtt.host: must not be empty".into());
+        }
+        if self.port == Some(0) {
+            return Err("sinks.mqtt.port = 0: must be 1..=65535".into());
+        }
+        let p = &self.prefix;
+        if p.is_empty() || p.starts_with('/') || p.ends_with('/') || p.contains("//") || !topic_safe(p) {
+            return Err(format!("sinks.mqtt.prefix = '{p}': must be topic levels like 'dronewatt' or 'fleet/dronewatt' (no leading, trailing or double '/', no '+' or '#')"));
+        }
+        if let Some(i) = &self.instance {
+            if i.is_empty() || i.contains('/') || !topic_safe(i) {
+                return Err(format!("sinks.mqtt.instance = '{i}': must be one non-empty topic level (no '/', '+' or '#')"));
+            }
+        }
+        if self.password_env.is_some() && self.password_file.is_some() {
+            return Err("sinks.mqtt: set password_env or password_file, not both".into());
+        }
+        if self.username.is_none() && (self.password_env.is_some() || self.password_file.is_some()) {
+            return Err("sinks.mqtt.username: required when a password is given (password_env or password_file)".into());
+        }
+        if self.ca_file.is_some() && !self.tls {
+            return Err("sinks.mqtt.ca_file: set, but tls = false (set tls = true to use it)".into());
+        }
+        if !(1..=65_535).contains(&self.keep_alive_s) {
+            return Err(format!("sinks.mqtt.keep_alive_s = {}: must be 1..=65535 s", self.keep_alive_s));
+        }
+        if !(10..=10_000_000).contains(&self.queue) {
+            return Err(format!("sinks.mqtt.queue = {}: must be 10..=10000000 messages", self.queue));
+        }
+        if !(self.state_interval_s.is_finite() && self.state_interval_s >= 0.0) {
+            return Err(format!("sinks.mqtt.state_interval_s = {}: must be ≥ 0", self.state_interval_s));
+        }
+        if !(self.reconnect_max_s.is_finite() && self.reconnect_max_s >= RECONNECT_MIN.as_secs_f64()) {
+            return Err(format!("sinks.mqtt.reconnect_max_s = {}: must be ≥ {}", self.reconnect_max_s, RECONNECT_MIN.as_secs_f64()));
+        }
+        Ok(())
+    }
+
+    /// The port to connect to.
+    pub fn port(&self) -> u16 {
+        self.port.unwrap_or(if self.tls { 8883 } else { 1883 })
+    }
+
+    /// The instance name: configured, else the host name, else `dronewatt`.
+    pub fn instance(&self) -> String {
+        if let Some(i) = &self.instance {
+            return i.clone();
+        }
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").ok().or_else(|| std::env::var("HOSTNAME").ok()).unwrap_or_default();
+        let host: String = host.trim().chars().filter(|c| !matches!(c, '/' | '+' | '#' | '\0')).collect();
+        if host.is_empty() {
+            "dronewatt".into()
+        } else {
+            host
+        }
+    }
+
+    /// The password, from the environment or the file; `None` when neither is set.
+    fn password(&self) -> Result<Option<String>> {
+        if let Some(var) = &self.password_env {
+            let v = std::env::var(var).with_context(|| format!("sinks.mqtt.password_env: environment variable {var} is not set (or not UTF-8)"))?;
+            return Ok(Some(v));
+        }
+        if let Some(file) = &self.password_file {
+            let text = std::fs::read_to_string(file).with_context(|| format!("sinks.mqtt.password_file: cannot read {}", file.display()))?;
+            return Ok(Some(text.lines().next().unwrap_or("").to_string()));
+        }
+        Ok(None)
+    }
+
+    /// The rustls transport: the CA file's certificates as the only roots.
+    fn tls_transport(&self) -> Result<Transport> {
+        use rustls::pki_types::pem::PemObject;
+        use rustls::pki_types::CertificateDer;
+        let ca = self.ca_file.clone().unwrap_or_else(|| SYSTEM_CA_FILE.into());
+        let what = || format!("sinks.mqtt.ca_file: {}", ca.display());
+        let mut roots = rustls::RootCertStore::empty();
+        for cert in CertificateDer::pem_file_iter(&ca).with_context(|| format!("{}: cannot read", what()))? {
+            let cert = cert.with_context(|| format!("{}: not a PEM certificate file", what()))?;
+            roots.add(cert).with_context(|| format!("{}: a certificate rustls cannot use", what()))?;
+        }
+        anyhow::ensure!(!roots.is_empty(), "{}: no certificates in it", what());
+        let provider = Arc::new(rustls::crypto::ring::default_provider());
+        let config = rustls::ClientConfig::builder_with_provider(provider)
+            .with_safe_default_protocol_versions()
+            .context("sinks.mqtt: TLS set-up")?
+            .with_root_certificates(roots)
+            .with_no_client_auth();
+        Ok(Transport::tls_with_config(rumqttc::TlsConfiguration::Rustls(Arc::new(config))))
+    }
+
+    /// The client's options: id, credentials, keep-alive, Last Will, transport.
+    fn options(&self, instance: &str) -> Result<MqttOptions> {
+        let mut o = MqttOptions::new(format!("dronewatt-{instance}"), self.host.clone(), self.port());
+        o.set_keep_alive(Duration::from_secs(self.keep_alive_s));
+        o.set_clean_session(true);
+        // A report's estimate line is ~0.5 KiB; leave room for many models.
+        o.set_max_packet_size(256 * 1024, 256 * 1024);
+        o.set_last_will(LastWill::new(status_topic(&self.prefix, instance), "offline", QoS::AtLeastOnce, true));
+        if let Some(user) = &self.username {
+            o.set_credentials(user.clone(), self.password()?.unwrap_or_default());
+        }
+        if self.tls {
+            o.set_transport(self.tls_transport()?);
+        }
+        Ok(o)
+    }
+}
+
+/// `<prefix>/status/<instance>`.
+pub fn status_topic(prefix: &str, instance: &str) -> String {
+    format!("{prefix}/status/{instance}")
+}
+
+/// `<prefix>/<vehicle>/<kind>`, kind one of `estimate`, `state`, `alert`.
+pub fn vehicle_topic(prefix: &str, system_id: u8, kind: &str) -> String {
+    format!("{prefix}/{system_id}/{kind}")
+}
+
+/// What the sink counted, shared with its connection task.
+#[derive(Debug, Default)]
+struct Counters {
+    /// Messages handed to the queue.
+    queued: AtomicU64,
+    /// Of those, QoS 1 (acknowledged by the broker).
+    queued_qos1: AtomicU64,
+    /// Acknowledgements received (PUBACK).
+    acked: AtomicU64,
+    /// Messages written to the broker's connection.
+    published: AtomicU64,
+    /// Messages dropped at a full queue.
+    dropped: AtomicU64,
+    /// `online` announcements queued by the connection task (one per connect).
+    announced: AtomicU64,
+    /// The broker is connected now.
+    connected: AtomicBool,
+}
+
+/// Check the configuration, read credentials and TLS roots now (so a bad file fails the
+/// run before it starts), then publish on a task until the report channel closes.
+pub fn spawn(cfg: MqttSinkConfig, rx: super::ReportRx) -> Result<JoinHandle<Result<()>>> {
+    cfg.validate().map_err(anyhow::Error::msg)?;
+    let instance = cfg.instance();
+    let options = cfg.options(&instance)?;
+    let (client, events) = AsyncClient::new(options, cfg.queue);
+    let counters = Arc::new(Counters::default());
+    let connection = tokio::spawn(drive(events, client.clone(), cfg.clone(), instance.clone(), counters.clone()));
+    tracing::info!("mqtt: publishing to {}:{} under {}/ as instance {instance}", cfg.host, cfg.port(), cfg.prefix);
+    Ok(tokio::spawn(publish(cfg, instance, client, connection, counters, rx)))
+}
+
+/// Per vehicle: what the state topic last said and which alerts are raised.
+#[derive(Default)]
+struct VehicleState {
+    last_state_t: Option<f64>,
+    active: Vec<String>,
+    /// The latest report's state was not published yet.
+    pending: Option<(f64, crate::report::EnergyState)>,
+}
+
+/// The report loop: turn each report into messages and queue them.
+async fn publish(
+    cfg: MqttSinkConfig,
+    instance: String,
+    client: AsyncClient,
+    connection: JoinHandle<()>,
+    counters: Arc<Counters>,
+    mut rx: super::ReportRx,
+) -> Result<()> {
+    let queue = Queue { client: client.clone(), counters: counters.clone() };
+    let mut vehicles: std::collections::BTreeMap<u8, VehicleState> = Default::default();
+    let mut buf = Vec::with_capacity(1024);
+    while let Some(r) = rx.next().await {
+        let v = vehicles.entry(r.system_id).or_default();
+        buf.clear();
+        super::jsonl::write_estimate(&mut buf, &r)?;
+        queue.put(vehicle_topic(&cfg.prefix, r.system_id, "estimate"), QoS::AtMostOnce, false, line(&buf)).await;
+        for a in &r.alerts {
+            buf.clear();
+            super::jsonl::write_alert(&mut buf, a)?;
+            queue.put(vehicle_topic(&cfg.prefix, r.system_id, "alert"), QoS::AtLeastOnce, false, line(&buf)).await;
+            v.active.retain(|rule| rule != &a.rule);
+            if a.state == AlertState::Raised {
+                v.active.push(a.rule.clone());
+            }
+        }
+        let t = r.estimate.t_s;
+        let due = match v.last_state_t {
+            None => true,
+            Some(last) => !r.alerts.is_empty() || t - last >= cfg.state_interval_s || t < last,
+        };
+        if due {
+            v.last_state_t = Some(t);
+            v.pending = None;
+            put_state(&queue, &cfg.prefix, r.system_id, t, &r.energy, &v.active, &mut buf).await?;
+        } else {
+            v.pending = Some((t, r.energy.clone()));
+        }
+    }
+    // The run is over: the last state of every vehicle, then `offline`, then a clean
+    // disconnect (after everything queued before it).
+    for (id, v) in &vehicles {
+        if let Some((t, energy)) = &v.pending {
+            put_state(&queue, &cfg.prefix, *id, *t, energy, &v.active, &mut buf).await?;
+        }
+    }
+    queue.put(status_topic(&cfg.prefix, &instance), QoS::AtLeastOnce, true, b"offline".to_vec()).await;
+    // Disconnect only once the broker has acknowledged the last QoS 1 message (`offline`,
+    // so everything before it too): closing a socket with acknowledgements still unread
+    // resets the connection, and the broker then discards what it had not yet read.
+    let load = |c: &AtomicU64| c.load(Ordering::Relaxed);
+    let flushed = tokio::time::timeout(FLUSH_TIMEOUT, async {
+        while load(&counters.acked) < load(&counters.queued_qos1) + load(&counters.announced) {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        let _ = client.disconnect().await;
+        connection.await
+    })
+    .await;
+    if flushed.is_err() {
+        tracing::warn!("mqtt: {}:{}: could not deliver everything within {FLUSH_TIMEOUT:?} of the end; giving up", cfg.host, cfg.port());
+    }
+    let (published, dropped) = (load(&counters.published), load(&counters.dropped));
+    let undelivered = (load(&counters.queued) + load(&counters.announced)).saturating_sub(published);
+    tracing::info!(
+        "mqtt summary: {published} messages published, {dropped} dropped (queue full), {undelivered} undelivered at exit, {} reports missed",
+        rx.missed()
+    );
+    Ok(())
+}
+
+/// A payload: a JSON line without its newline.
+fn line(buf: &[u8]) -> Vec<u8> {
+    buf.strip_suffix(b"\n").unwrap_or(buf).to_vec()
+}
+
+async fn put_state(queue: &Queue, prefix: &str, id: u8, t: f64, energy: &crate::report::EnergyState, active: &[String], buf: &mut Vec<u8>) -> Result<()> {
+    buf.clear();
+    super::jsonl::write_state(buf, t, energy, active)?;
+    queue.put(vehicle_topic(prefix, id, "state"), QoS::AtLeastOnce, true, line(buf)).await;
+    Ok(())
+}
+
+/// The bounded queue to the broker, with the drop rule of the module docs.
+struct Queue {
+    client: AsyncClient,
+    counters: Arc<Counters>,
+}
+
+impl Queue {
+    async fn put(&self, topic: String, qos: QoS, retain: bool, payload: Vec<u8>) {
+        let c = &self.counters;
+        let sent = match self.client.try_publish(topic.clone(), qos, retain, payload.clone()) {
+            Ok(()) => true,
+            // Full while connected: the broker is draining it, wait a little for room.
+            Err(rumqttc::ClientError::TryRequest(_)) if c.connected.load(Ordering::Relaxed) => {
+                matches!(tokio::time::timeout(CONNECTED_PATIENCE, self.client.publish(topic, qos, retain, payload)).await, Ok(Ok(())))
+            }
+            Err(_) => false,
+        };
+        if sent {
+            c.queued.fetch_add(1, Ordering::Relaxed);
+            if qos == QoS::AtLeastOnce {
+                c.queued_qos1.fetch_add(1, Ordering::Relaxed);
+            }
+        } else {
+            let n = c.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+            if n.is_power_of_two() {
+                tracing::warn!("mqtt: queue full, message dropped ({n} so far)");
+            }
+        }
+    }
+}
+
+/// The connection task: polls rumqttc's event loop (which connects, reconnects on the
+/// next poll after an error, and writes the queue out), announces `online` on every
+/// connect, counts what it writes, and backs off between failed attempts. Ends after the
+/// clean disconnect, or when every client handle is gone.
+async fn drive(mut events: EventLoop, client: AsyncClient, cfg: MqttSinkConfig, instance: String, counters: Arc<Counters>) {
+    let status = status_topic(&cfg.prefix, &instance);
+    let max = Duration::from_secs_f64(cfg.reconnect_max_s);
+    let mut backoff = RECONNECT_MIN;
+    let mut failures = 0u64;
+    loop {
+        match events.poll().await {
+            Ok(Event::Incoming(Packet::ConnAck(_))) => {
+                counters.connected.store(true, Ordering::Relaxed);
+                if failures > 0 {
+                    tracing::info!("mqtt: reconnected to {}:{} after {failures} failed attempt(s)", cfg.host, cfg.port());
+                }
+                backoff = RECONNECT_MIN;
+                failures = 0;
+                // After every (re)connect: a dropped connection set it `offline` (the Will).
+                if client.try_publish(status.clone(), QoS::AtLeastOnce, true, "online").is_ok() {
+                    counters.announced.fetch_add(1, Ordering::Relaxed);
+                } else {
+                    // The queue is full: announce as soon as there is room.
+                    let (c, s, n) = (client.clone(), status.clone(), counters.clone());
+                    tokio::spawn(async move {
+                        if c.publish(s, QoS::AtLeastOnce, true, "online").await.is_ok() {
+                            n.announced.fetch_add(1, Ordering::Relaxed);
+                        }
+                    });
+                }
+            }
+            Ok(Event::Outgoing(Outgoing::Publish(_))) => {
+                counters.published.fetch_add(1, Ordering::Relaxed);
+            }
+            Ok(Event::Incoming(Packet::PubAck(_))) => {
+                counters.acked.fetch_add(1, Ordering::Relaxed);
+            }
+            Ok(Event::Outgoing(Outgoing::Disconnect)) => break,
+            Ok(_) => {}
+            Err(ConnectionError::RequestsDone) => break,
+            Err(e) => {
+                counters.connected.store(false, Ordering::Relaxed);
+                failures += 1;
+                // The first failure and then every tenth: a broker down for an hour should
+                // not fill the log.
+                if failures == 1 || failures.is_multiple_of(10) {
+                    tracing::warn!("mqtt: {}:{}: {e} (attempt {failures}); retrying in {backoff:?}", cfg.host, cfg.port());
+                }
+                tokio::time::sleep(backoff).await;
+                backoff = (backoff * 2).min(max);
+            }
+        }
+    }
+    counters.connected.store(false, Ordering::Relaxed);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validate_names_the_key() {
+        let ok = MqttSinkConfig { enabled: true, ..Default::default() };
+        assert_eq!(ok.validate(), Ok(()));
+        let bad = |f: fn(&mut MqttSinkConfig), key: &str| {
+            let mut c = ok.clone();
+            f(&mut c);
+            let e = c.validate().unwrap_err();
+            assert!(e.contains(key), "{e} should name {key}");
+        };
+        bad(|c| c.prefix = "a/#".into(), "sinks.mqtt.prefix");
+        bad(|c| c.prefix = "/a".into(), "sinks.mqtt.prefix");
+        bad(|c| c.instance = Some("x/y".into()), "sinks.mqtt.instance");
+        bad(|c| c.password_env = Some("P".into()), "sinks.mqtt.username");
+        bad(
+            |c| {
+                c.username = Some("u".into());
+                c.password_env = Some("P".into());
+                c.password_file = Some("p".into());
+            },
+            "password_env or password_file",
+        );
+        bad(|c| c.ca_file = Some("ca.pem".into()), "sinks.mqtt.ca_file");
+        bad(|c| c.queue = 0, "sinks.mqtt.queue");
+        bad(|c| c.keep_alive_s = 0, "sinks.mqtt.keep_alive_s");
+        bad(|c| c.state_interval_s = f64::NAN, "sinks.mqtt.state_interval_s");
+        bad(|c| c.reconnect_max_s = 0.1, "sinks.mqtt.reconnect_max_s");
+    }
+
+    #[test]
+    fn unknown_keys_are_errors() {
+        let e = toml::from_str::<MqttSinkConfig>("prefx = \"a\"").unwrap_err().to_string();
+        assert!(e.contains("prefx"), "{e}");
+    }
+
+    #[test]
+    fn credentials_come_from_the_environment_or_a_file_and_a_missing_one_names_the_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("pw");
+        std::fs::write(&file, "s3cret\nignored\n").unwrap();
+        let c = MqttSinkConfig { username: Some("u".into()), password_file: Some(file), ..Default::default() };
+        assert_eq!(c.password().unwrap().as_deref(), Some("s3cret"));
+        let c = MqttSinkConfig { username: Some("u".into()), password_file: Some(dir.path().join("none")), ..Default::default() };
+        assert!(format!("{:#}", c.password().unwrap_err()).contains("sinks.mqtt.password_file"));
+        let c = MqttSinkConfig { username: Some("u".into()), password_env: Some("DRONEWATT_TEST_SURELY_UNSET_PW".into()), ..Default::default() };
+        assert!(format!("{:#}", c.password().unwrap_err()).contains("DRONEWATT_TEST_SURELY_UNSET_PW"));
+    }
+
+    #[test]
+    fn a_ca_file_that_is_not_pem_is_an_error_naming_the_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let ca = dir.path().join("ca.pem");
+        std::fs::write(&ca, "not a certificate").unwrap();
+        let c = MqttSinkConfig { tls: true, ca_file: Some(ca), ..Default::default() };
+        let e = format!("{:#}", c.tls_transport().err().expect("no certificates"));
+        assert!(e.contains("sinks.mqtt.ca_file"), "{e}");
+        assert_eq!(c.port(), 8883);
+    }
+
+    #[test]
+    fn topics() {
+        assert_eq!(vehicle_topic("fleet/dw", 42, "estimate"), "fleet/dw/42/estimate");
+        assert_eq!(status_topic("dronewatt", "gcs-1"), "dronewatt/status/gcs-1");
+    }
+}

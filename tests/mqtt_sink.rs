@@ -1,0 +1,404 @@
+//! The MQTT sink against a real broker: Debian's Mosquitto (installed by
+//! `scripts/setup-mosquitto.sh`), started per test on a free loopback port with a throwaway
+//! config, and its own `mosquitto_sub` as the independent subscriber.
+//!
+//! - a replay flat out: every estimate and alert arrives, byte for byte the `--json` lines;
+//!   the retained state is the last report's and the retained status `offline`;
+//! - SIGKILL: the broker publishes the Last Will, retained `offline`;
+//! - a long flight replayed flat out: every message arrives, none dropped (prints messages/s).
+//!
+//! Without the broker the tests skip with a message, except under `CI=true`, where they fail.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A binary on PATH or in /usr/sbin (where Debian puts `mosquitto`).
+fn find(name: &str) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    std::env::split_paths(&path).chain([PathBuf::from("/usr/sbin")]).map(|d| d.join(name)).find(|p| p.is_file())
+}
+
+/// A Mosquitto broker of our own on 127.0.0.1, killed when dropped.
+struct Broker {
+    child: Child,
+    port: u16,
+    /// What `mosquitto_sub` and `mosquitto_pub` need beyond host and port (TLS, login).
+    client_args: Vec<String>,
+    _dir: tempfile::TempDir,
+}
+
+impl Drop for Broker {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Start a broker, or `None` (the test skips) when Mosquitto is not installed and CI is
+/// not set.
+fn broker() -> Option<Broker> {
+    broker_with(|_, _| (String::new(), Vec::new()))
+}
+
+/// Skip (or under CI=true, fail) when one of these programs is missing.
+fn have(programs: &[&str]) -> bool {
+    let missing: Vec<&str> = programs.iter().copied().filter(|p| find(p).is_none()).collect();
+    if missing.is_empty() {
+        return true;
+    }
+    let why = format!("{} not installed (run scripts/setup-mosquitto.sh)", missing.join(", "));
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{why}");
+    }
+    eprintln!("SKIPPED: {why}");
+    false
+}
+
+/// A broker whose listener gets the config lines `listener(dir, port)` returns, with the
+/// client arguments it returns too.
+fn broker_with(listener: impl FnOnce(&Path, u16) -> (String, Vec<String>)) -> Option<Broker> {
+    if !have(&["mosquitto", "mosquitto_sub", "mosquitto_pub"]) {
+        return None;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let (extra, client_args) = listener(dir.path(), port);
+    let conf = dir.path().join("mosquitto.conf");
+    // No queue limits: a subscriber that falls behind a flat-out replay must get everything.
+    // `user root` keeps a broker started as root able to read the test's files (no effect
+    // otherwise); `allow_anonymous` may be overridden by `extra`.
+    let anonymous = if extra.contains("allow_anonymous") { "" } else { "allow_anonymous true\n" };
+    std::fs::write(
+        &conf,
+        format!("user root\nper_listener_settings false\npersistence false\nmax_queued_messages 0\nmax_inflight_messages 0\n{anonymous}listener {port} 127.0.0.1\n{extra}"),
+    )
+    .unwrap();
+    let child = Command::new(find("mosquitto").unwrap()).arg("-c").arg(&conf).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let b = Broker { child, port, client_args, _dir: dir };
+    let until = Instant::now() + Duration::from_secs(10);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(Instant::now() < until, "mosquitto did not listen on {port}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Some(b)
+}
+
+/// One message a subscriber saw.
+#[derive(Debug, Clone)]
+struct Msg {
+    retained: bool,
+    qos: u8,
+    topic: String,
+    payload: String,
+}
+
+fn parse(line: &str) -> Option<Msg> {
+    let mut it = line.splitn(4, ' ');
+    let retained = it.next()? == "1";
+    let qos = it.next()?.parse().ok()?;
+    Some(Msg { retained, qos, topic: it.next()?.to_string(), payload: it.next().unwrap_or("").to_string() })
+}
+
+/// `mosquitto_sub` on `topic`, every message collected as it comes.
+struct Subscriber {
+    child: Child,
+    seen: Arc<Mutex<Vec<Msg>>>,
+}
+
+impl Subscriber {
+    fn start(b: &Broker, topic: &str) -> Subscriber {
+        let mut child = Command::new(find("mosquitto_sub").unwrap())
+            .args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-q", "1", "-F", "%r %q %t %p", "-t", topic])
+            .args(&b.client_args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let out = child.stdout.take().unwrap();
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let s = seen.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                if let Some(m) = parse(&line) {
+                    s.lock().unwrap().push(m);
+                }
+            }
+        });
+        let sub = Subscriber { child, seen };
+        // Subscribed once a probe published after the start comes back.
+        let probe = format!("{}/probe", topic.trim_end_matches("/#"));
+        let until = Instant::now() + Duration::from_secs(10);
+        while !sub.seen.lock().unwrap().iter().any(|m| m.topic == probe) {
+            assert!(Instant::now() < until, "mosquitto_sub never subscribed");
+            pub_once(b, &probe, "ready");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        sub
+    }
+
+    /// Wait (at most `limit`) until `done` holds for what was seen; return it all.
+    fn wait_for(&self, limit: Duration, done: impl Fn(&[Msg]) -> bool) -> Vec<Msg> {
+        let until = Instant::now() + limit;
+        loop {
+            let seen = self.seen.lock().unwrap().clone();
+            if done(&seen) || Instant::now() > until {
+                return seen;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for Subscriber {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn pub_once(b: &Broker, topic: &str, payload: &str) {
+    let ok = Command::new(find("mosquitto_pub").expect("mosquitto_pub"))
+        .args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-t", topic, "-m", payload])
+        .args(&b.client_args)
+        .status()
+        .unwrap();
+    assert!(ok.success());
+}
+
+/// The retained messages on `topics` now: a fresh subscriber, which the broker sends them
+/// to at once.
+fn retained(b: &Broker, topics: &[&str]) -> Vec<Msg> {
+    let mut cmd = Command::new(find("mosquitto_sub").unwrap());
+    cmd.args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-F", "%r %q %t %p", "--retained-only", "-W", "2"]).args(&b.client_args);
+    for t in topics {
+        cmd.args(["-t", t]);
+    }
+    let out = cmd.output().unwrap();
+    String::from_utf8_lossy(&out.stdout).lines().filter_map(parse).collect()
+}
+
+/// A config with the MQTT sink on, to this broker, under prefix `dw`.
+fn config(dir: &Path, b: &Broker, instance: &str, extra: &str) -> PathBuf {
+    let path = dir.join("mqtt.toml");
+    std::fs::write(&path, format!("{extra}\n[sinks.mqtt]\nenabled = true\nport = {}\nprefix = \"dw\"\ninstance = \"{instance}\"\n", b.port)).unwrap();
+    path
+}
+
+fn replay(cfg: &Path, file: &Path, json: &Path) -> (std::process::Output, Duration) {
+    replay_env(cfg, file, json, &[])
+}
+
+fn replay_env(cfg: &Path, file: &Path, json: &Path, env: &[(&str, &str)]) -> (std::process::Output, Duration) {
+    let t0 = Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["replay", "--speed", "max", "-q", "--json"])
+        .arg(json)
+        .arg("--config")
+        .arg(cfg)
+        .arg(file)
+        .envs(env.iter().copied())
+        .output()
+        .unwrap();
+    let took = t0.elapsed();
+    assert!(out.status.success(), "dronewatt failed: {}", String::from_utf8_lossy(&out.stderr));
+    (out, took)
+}
+
+/// The `--json` lines of one type, as written.
+fn lines_of(json: &Path, kind: &str) -> Vec<String> {
+    let tag = format!("{{\"type\":\"{kind}\"");
+    std::fs::read_to_string(json).unwrap().lines().filter(|l| l.starts_with(&tag)).map(str::to_string).collect()
+}
+
+fn on(seen: &[Msg], topic: &str) -> Vec<Msg> {
+    seen.iter().filter(|m| m.topic == topic).cloned().collect()
+}
+
+#[test]
+fn a_replay_publishes_every_estimate_and_alert_the_retained_state_and_status() {
+    let Some(b) = broker() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // The demo (its pack crosses the 40 % warning once) without its dashboard.
+    let demo = std::fs::read_to_string(root().join("config/demo.toml")).unwrap().replace("enabled = true", "enabled = false");
+    let cfg = config(dir.path(), &b, "test", &demo);
+    let sub = Subscriber::start(&b, "dw/#");
+    let json = dir.path().join("out.jsonl");
+    let (out, _) = replay(&cfg, &root().join("replay/demo.tlog"), &json);
+    let estimates = lines_of(&json, "estimate");
+    let alerts = lines_of(&json, "alert");
+    assert!(estimates.len() > 100 && !alerts.is_empty(), "{} estimates, {} alerts", estimates.len(), alerts.len());
+
+    let seen = sub.wait_for(Duration::from_secs(20), |s| {
+        on(s, "dw/1/estimate").len() >= estimates.len() && on(s, "dw/status/test").last().is_some_and(|m| m.payload == "offline")
+    });
+    // Every estimate, in order, byte for byte the JSON line; QoS 0, not retained.
+    let got = on(&seen, "dw/1/estimate");
+    assert_eq!(got.len(), estimates.len(), "estimates received vs written");
+    for (i, (m, line)) in got.iter().zip(&estimates).enumerate() {
+        assert_eq!(&m.payload, line, "estimate {i}");
+        assert_eq!((m.qos, m.retained), (0, false), "estimate {i}");
+    }
+    // Every alert event, QoS 1.
+    let got = on(&seen, "dw/1/alert");
+    assert_eq!(got.iter().map(|m| &m.payload).collect::<Vec<_>>(), alerts.iter().collect::<Vec<_>>());
+    assert!(got.iter().all(|m| m.qos == 1));
+    // Nothing under any other vehicle: the tlog's vehicle is system 1.
+    assert!(seen.iter().all(|m| !m.topic.starts_with("dw/") || m.topic.starts_with("dw/1/") || m.topic.starts_with("dw/status/") || m.topic == "dw/probe"));
+    // State: about once per second of flight (10 reports), plus the alert's.
+    let states = on(&seen, "dw/1/state");
+    assert!(states.len() >= estimates.len() / 12 && states.len() <= estimates.len() / 10 + alerts.len() + 2, "{} states for {} estimates", states.len(), estimates.len());
+    // Status: online, then offline on the clean exit.
+    let status: Vec<String> = on(&seen, "dw/status/test").into_iter().map(|m| m.payload).collect();
+    assert_eq!(status, ["online", "offline"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("0 dropped (queue full), 0 undelivered at exit, 0 reports missed"), "{stderr}");
+
+    // What a dashboard starting now sees: the last state and `offline`, retained.
+    let r = retained(&b, &["dw/1/state", "dw/status/test"]);
+    let state = r.iter().find(|m| m.topic == "dw/1/state").expect("a retained state");
+    let status = r.iter().find(|m| m.topic == "dw/status/test").expect("a retained status");
+    assert!(state.retained && status.retained && status.payload == "offline");
+    let state: serde_json::Value = serde_json::from_str(&state.payload).unwrap();
+    let last: serde_json::Value = serde_json::from_str(estimates.last().unwrap()).unwrap();
+    assert_eq!(state["type"], "state");
+    assert_eq!(state["t"], last["t"], "the retained state is the last report's");
+    assert_eq!(state["energy_used_wh"], last["energy_used_wh"]);
+    assert_eq!(state["remaining_wh"], last["remaining_wh"]);
+    // The demo's warning is raised and never cleared: the state says so.
+    assert_eq!(state["active_alerts"], serde_json::json!(["energy_low"]));
+}
+
+#[test]
+fn the_last_will_says_offline_when_dronewatt_is_killed() {
+    let Some(b) = broker() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(dir.path(), &b, "victim", "");
+    let udp = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["monitor", &format!("udpin:127.0.0.1:{udp}"), "-q", "--config"])
+        .arg(&cfg)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let until = Instant::now() + Duration::from_secs(20);
+    let status = || retained(&b, &["dw/status/victim"]).into_iter().next().map(|m| (m.retained, m.payload));
+    while status() != Some((true, "online".into())) {
+        assert!(Instant::now() < until, "dronewatt never announced itself online");
+    }
+    dw.kill().unwrap(); // SIGKILL: no chance to say goodbye
+    dw.wait().unwrap();
+    let until = Instant::now() + Duration::from_secs(20);
+    loop {
+        match status() {
+            Some((true, p)) if p == "offline" => break,
+            s => assert!(Instant::now() < until, "no Last Will: status {s:?}"),
+        }
+    }
+}
+
+#[test]
+fn a_long_flight_flat_out_is_published_without_drops() {
+    let Some(b) = broker() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let tlog = dir.path().join("long.tlog");
+    let sim = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["simulate", "--out"])
+        .arg(&tlog)
+        .args(["--leg-m", "4000", "--hover-s", "120"])
+        .output()
+        .unwrap();
+    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    let cfg = config(dir.path(), &b, "long", "");
+    let sub = Subscriber::start(&b, "dw/#");
+    let json = dir.path().join("out.jsonl");
+    let (out, took) = replay(&cfg, &tlog, &json);
+    let estimates = lines_of(&json, "estimate").len();
+    let seen = sub.wait_for(Duration::from_secs(60), |s| on(s, "dw/1/estimate").len() >= estimates);
+    let got = on(&seen, "dw/1/estimate").len();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(estimates > 3000, "a long flight: {estimates} estimates");
+    assert_eq!(got, estimates, "every estimate of the flight arrives");
+    assert!(stderr.contains(" 0 dropped (queue full), 0 undelivered at exit"), "{stderr}");
+    let published = seen.iter().filter(|m| m.topic.starts_with("dw/1/")).count();
+    eprintln!(
+        "long flight: {estimates} reports, {published} messages in {:.2} s whole-process flat out: {:.0} messages/s",
+        took.as_secs_f64(),
+        published as f64 / took.as_secs_f64()
+    );
+}
+
+/// Run a command in `dir`, asserting it succeeds.
+fn sh(dir: &Path, program: &str, args: &[&str]) {
+    let out = Command::new(find(program).unwrap()).args(args).current_dir(dir).output().unwrap();
+    assert!(out.status.success(), "{program} {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// A test CA and a server certificate for 127.0.0.1 signed by it (rustls wants the IP in
+/// subjectAltName), and a password file with user `dronewatt`, password `s3cret`.
+fn tls_and_login(dir: &Path) {
+    let ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"];
+    sh(dir, "openssl", &[&["req", "-x509"][..], &ec, &["-keyout", "ca.key", "-out", "ca.pem", "-days", "2", "-subj", "/CN=dronewatt test CA"]].concat());
+    sh(dir, "openssl", &[&["req"][..], &ec, &["-keyout", "server.key", "-out", "server.csr", "-subj", "/CN=127.0.0.1"]].concat());
+    std::fs::write(dir.join("san.ext"), "subjectAltName=IP:127.0.0.1\n").unwrap();
+    sh(
+        dir,
+        "openssl",
+        &["x509", "-req", "-in", "server.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-out", "server.pem", "-days", "2", "-extfile", "san.ext"],
+    );
+    sh(dir, "mosquitto_passwd", &["-b", "-c", "passwords", "dronewatt", "s3cret"]);
+}
+
+#[test]
+fn tls_with_a_password_from_the_environment_and_a_wrong_password_never_stalls_the_run() {
+    if !have(&["openssl", "mosquitto_passwd"]) {
+        return;
+    }
+    let Some(b) = broker_with(|dir, _| {
+        tls_and_login(dir);
+        let d = dir.display();
+        (
+            format!("cafile {d}/ca.pem\ncertfile {d}/server.pem\nkeyfile {d}/server.key\nallow_anonymous false\npassword_file {d}/passwords\n"),
+            ["--cafile", &format!("{d}/ca.pem"), "-u", "dronewatt", "-P", "s3cret"].map(String::from).to_vec(),
+        )
+    }) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let ca = b._dir.path().join("ca.pem");
+    let login = format!("[sinks.mqtt]\ntls = true\nca_file = \"{}\"\nusername = \"dronewatt\"\npassword_env = \"DW_TEST_MQTT_PW\"\n", ca.display());
+    let cfg = dir.path().join("tls.toml");
+    let demo = std::fs::read_to_string(config(dir.path(), &b, "tls", "")).unwrap().replace("[sinks.mqtt]\n", &login);
+    std::fs::write(&cfg, demo).unwrap();
+    let sub = Subscriber::start(&b, "dw/#");
+    let json = dir.path().join("out.jsonl");
+    let tlog = root().join("replay/demo.tlog");
+
+    // The right password: everything arrives over TLS.
+    let (out, _) = replay_env(&cfg, &tlog, &json, &[("DW_TEST_MQTT_PW", "s3cret")]);
+    let estimates = lines_of(&json, "estimate").len();
+    let seen = sub.wait_for(Duration::from_secs(20), |s| on(s, "dw/1/estimate").len() >= estimates);
+    assert_eq!(on(&seen, "dw/1/estimate").len(), estimates, "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(" 0 dropped (queue full), 0 undelivered at exit"));
+
+    // A wrong one: refused, retried with back-off, the small queue overflows and counts its
+    // drops, and the run still ends with every JSON line written.
+    let small = dir.path().join("small-queue.toml");
+    std::fs::write(&small, std::fs::read_to_string(&cfg).unwrap().replace("[sinks.mqtt]\n", "[sinks.mqtt]\nqueue = 100\n")).unwrap();
+    let json2 = dir.path().join("refused.jsonl");
+    let (out, took) = replay_env(&small, &tlog, &json2, &[("DW_TEST_MQTT_PW", "wrong")]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(lines_of(&json2, "estimate").len(), estimates, "the other sinks lose nothing");
+    assert!(stderr.contains("mqtt summary: 0 messages published"), "{stderr}");
+    let dropped: u64 = stderr.split("published, ").nth(1).and_then(|r| r.split(' ').next()).and_then(|n| n.parse().ok()).expect("a summary");
+    assert!(dropped > estimates as u64 / 2, "a 100-message queue drops most of {estimates} reports: {dropped}");
+    assert!(stderr.contains("retrying in"), "{stderr}");
+    eprintln!("refused broker: run ended after {:.1} s (flush timeout included)", took.as_secs_f64());
+}
