@@ -13,6 +13,7 @@ use std::path::Path;
 use std::sync::Once;
 
 use anyhow::Context;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
 static FONT: &[u8] = include_bytes!("../../config/fonts/DejaVuSans.ttf");
@@ -26,6 +27,23 @@ pub fn register_font() {
             tracing::warn!("embedded font rejected: plots will have no text");
         }
     });
+}
+
+/// What a drawing step returns: plotters' errors, boxed.
+type Drawn = Result<(), Box<dyn std::error::Error>>;
+
+/// Write a PNG of `size` pixels to `path`: the font registered, a white background,
+/// `draw` on it, saved. A failure (no such folder, a full disk) is an error naming the file.
+fn png(path: &Path, size: (u32, u32), draw: impl FnOnce(&DrawingArea<BitMapBackend, Shift>) -> Drawn) -> anyhow::Result<()> {
+    register_font();
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    let drawn = (|| -> Drawn {
+        root.fill(&WHITE)?;
+        draw(&root)?;
+        root.present()?;
+        Ok(())
+    })();
+    drawn.map_err(|e| anyhow::anyhow!("{e}")).with_context(|| format!("{}: cannot write plot", path.display()))
 }
 
 /// One line on a plot.
@@ -47,16 +65,13 @@ pub struct Panel<'a> {
 /// Write `path` (PNG): one panel per entry of `panels`, stacked, each with `measured` in
 /// black and every series in its own colour, time on x, the same power scale throughout.
 pub fn power_over_flight(path: &Path, title: &str, t_s: &[f64], measured: &[f64], panels: &[Panel]) -> anyhow::Result<()> {
-    register_font();
     let t0 = t_s.first().copied().unwrap_or(0.0);
     let t1 = t_s.last().copied().unwrap_or(1.0).max(t0 + 1.0);
     let all = || measured.iter().chain(panels.iter().flat_map(|p| p.series.iter().flat_map(|s| s.power_w.iter()))).filter(|v| v.is_finite());
     let ymax = all().fold(100.0f64, |a, &b| a.max(b)) * 1.05;
     let ymin = all().fold(0.0f64, |a, &b| a.min(b));
     let height = 120 + 520 * panels.len().max(1) as u32;
-    let root = BitMapBackend::new(path, (1400, height)).into_drawing_area();
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        root.fill(&WHITE)?;
+    png(path, (1400, height), |root| {
         let root = root.titled(title, ("sans-serif", 28))?;
         let areas = root.split_evenly((panels.len().max(1), 1));
         let pts = |v: &[f64]| t_s.iter().zip(v).filter(|(t, p)| t.is_finite() && p.is_finite()).map(|(&t, &p)| (t, p)).collect::<Vec<_>>();
@@ -93,16 +108,13 @@ pub fn power_over_flight(path: &Path, title: &str, t_s: &[f64], measured: &[f64]
                 .label_font(("sans-serif", 16))
                 .draw()?;
         }
-        root.present()?;
         Ok(())
-    };
-    draw().map_err(|e| anyhow::anyhow!("{e}")).with_context(|| format!("{}: cannot write plot", path.display()))
+    })
 }
 
 /// Write `path` (PNG, 900 × 500): a line chart of named series of (x, y) points, the
 /// first two drawn thicker.
 pub fn lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)]) -> anyhow::Result<()> {
-    register_font();
     let finite = || series.iter().flat_map(|s| s.1.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for (x, y) in finite() {
@@ -112,10 +124,8 @@ pub fn lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(
         (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
     }
     let pad = ((y1 - y0) * 0.05).max(1e-9);
-    let root = BitMapBackend::new(path, (900, 500)).into_drawing_area();
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
+    png(path, (900, 500), |root| {
+        let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(40)
@@ -130,21 +140,16 @@ pub fn lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
         }
         chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
-        root.present()?;
         Ok(())
-    };
-    draw().map_err(|e| anyhow::anyhow!("{e}")).with_context(|| format!("{}: cannot write plot", path.display()))
+    })
 }
 
 /// Write `path` (PNG, 900 × 520): one horizontal bar per (label, value) around zero, red
 /// above and blue below, with `x_label` under the axis.
 pub fn diverging_bars(path: &Path, title: &str, x_label: &str, bars: &[(String, f64)]) -> anyhow::Result<()> {
-    register_font();
     let m = bars.iter().map(|b| b.1.abs()).fold(1.0, f64::max) * 1.1;
-    let root = BitMapBackend::new(path, (900, 520)).into_drawing_area();
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
+    png(path, (900, 520), |root| {
+        let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(40)
@@ -164,10 +169,8 @@ pub fn diverging_bars(path: &Path, title: &str, x_label: &str, bars: &[(String, 
             let (a, b) = (SegmentValue::Exact(i as i32), SegmentValue::Exact(i as i32 + 1));
             Rectangle::new([(0.0, a), (*v, b)], color.filled())
         }))?;
-        root.present()?;
         Ok(())
-    };
-    draw().map_err(|e| anyhow::anyhow!("{e}")).with_context(|| format!("{}: cannot write plot", path.display()))
+    })
 }
 
 #[cfg(test)]
