@@ -51,6 +51,11 @@ impl Config {
         Ok(cfg)
     }
 
+    /// [`Config::load`] when a file is given (`--config FILE`), else the built-in defaults.
+    pub fn load_or_default(path: Option<&Path>) -> Result<Config, ConfigError> {
+        path.map_or_else(|| Ok(Config::default()), Config::load)
+    }
+
     /// Checks serde cannot express (ranges, cross-field rules). The message names the key.
     pub fn validate(&self) -> Result<(), String> {
         self.telemetry.validate()?;

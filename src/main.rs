@@ -187,10 +187,7 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
 }
 
 fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
-    let mut config = match &run.config {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
-    };
+    let mut config = Config::load_or_default(run.config.as_deref())?;
     if let Some(m) = &run.model {
         config.models.lstm.path = Some(m.clone());
     }

@@ -2,26 +2,27 @@
 //! physics models calibrated on training flights beat the published parameters, both when
 //! fitted here on a handful of training flights and with the committed calibrated profile.
 
+use dronewatt::config::Config;
 use dronewatt::model::physics;
 use dronewatt::model::profile::VehicleProfile;
-use dronewatt::model::PowerModel;
+use dronewatt::model::{Ensemble, PowerModel};
 use dronewatt::offline::calibrate;
+use dronewatt::offline::chain::Chain;
 use dronewatt::offline::data::{load_flights, TEST_FLIGHTS};
-use dronewatt::offline::eval::run_flight;
 use dronewatt::offline::metrics::score;
-use dronewatt::telemetry::TelemetryConfig;
+use dronewatt::telemetry::{MissionConfig, TelemetryConfig};
 
 /// Route R1 training flights (10 m/s, mixed payloads): few enough to fit in seconds.
 const TRAIN: [u32; 8] = [100, 101, 102, 105, 106, 107, 150, 151];
 
-fn mae_by_model(models: &mut Vec<Box<dyn PowerModel>>, f: &dronewatt::offline::data::FlightWindows) -> Vec<(String, f64, f64)> {
-    let s = run_flight(models, f);
-    models
-        .iter()
-        .zip(&s.pred_w)
-        .map(|(m, p)| {
-            let sc = score(&s.t_s, &s.measured_w, p).expect("flight 276 has in-flight windows");
-            (m.name().to_string(), sc.mae_w, sc.rmse_w)
+/// Each model's in-flight MAE and RMSE on the flight, through the live chain as `eval` runs it.
+fn mae_by_model(models: Vec<Box<dyn PowerModel>>, f: &dronewatt::offline::data::FlightWindows) -> Vec<(String, f64, f64)> {
+    let mut chain = Chain::new(&Config::default(), Ensemble::new(models)).expect("default chain");
+    let s = chain.run_flight(f).expect("flight 276 runs through the chain");
+    (0..s.names.len())
+        .map(|j| {
+            let sc = score(&s.aligned(j)).expect("flight 276 has in-flight windows");
+            (s.names[j].clone(), sc.mae_w, sc.rmse_w)
         })
         .collect()
 }
@@ -41,7 +42,7 @@ fn calibrated_beats_published_on_flight_276() {
     let path = dronewatt::default_data_path();
     let mut wanted = TRAIN.to_vec();
     wanted.push(276);
-    let flights = load_flights(&path, Some(&wanted), &TelemetryConfig::default()).expect("the data set (set DRONEWATT_DATA)");
+    let flights = load_flights(&path, Some(&wanted), &TelemetryConfig::default(), &MissionConfig::default()).expect("the data set (set DRONEWATT_DATA)");
     let f276 = flights.iter().find(|f| f.flight == 276).expect("flight 276");
     let base = VehicleProfile::m100();
     // `fit` drops test flights itself: handing it 276 too must not change the result.
@@ -51,12 +52,12 @@ fn calibrated_beats_published_on_flight_276() {
     for r in &report {
         assert!(r.rmse_after_w <= r.rmse_before_w + 1e-9, "{}: training RMSE rose", r.model);
     }
-    let published = mae_by_model(&mut physics::models(&base), f276);
-    assert_beats(&published, &mae_by_model(&mut physics::models(&cal), f276));
+    let published = mae_by_model(physics::models(&base), f276);
+    assert_beats(&published, &mae_by_model(physics::models(&cal), f276));
     let committed = VehicleProfile::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/vehicles/m100-calibrated.toml"))
         .expect("committed calibrated profile");
     assert!(!committed.calibration.as_ref().expect("calibration table").flights.iter().any(|f| TEST_FLIGHTS.contains(f)));
-    assert_beats(&published, &mae_by_model(&mut physics::models(&committed), f276));
+    assert_beats(&published, &mae_by_model(physics::models(&committed), f276));
 }
 
 /// Issue 5's flight 276 target through `dronewatt eval` itself: the committed LSTM scores

@@ -8,7 +8,7 @@
 use dronewatt::offline::data::flight_windows;
 use dronewatt::source::dataset::{read_flights, Flight};
 use dronewatt::telemetry::resample::{Resampler, Signal};
-use dronewatt::telemetry::{idx, TelemetryConfig, FEATURE_NAMES, N_FEATURES};
+use dronewatt::telemetry::{idx, MissionConfig, TelemetryConfig, FEATURE_NAMES, N_FEATURES};
 use dronewatt::window::{Window, WindowRing};
 
 /// The CSV columns resampled directly, windowed the way `Telemetry` windows.
@@ -70,7 +70,7 @@ fn check_flight(flight: u32) -> (usize, usize) {
     let f = &ds.flights[0];
     let cfg = TelemetryConfig::default();
     let want = csv_windows(f, &cfg);
-    let got = flight_windows(f, &cfg).windows;
+    let got = flight_windows(f, &cfg, &MissionConfig::default()).windows;
     assert_eq!(got.len(), want.len(), "flight {flight}: window count");
     assert!(!got.is_empty());
     // decode_tlog counts t_s from the first record, which is the first row.
@@ -120,7 +120,7 @@ fn flight_278_with_a_5_s_gap_matches_and_no_window_spans_the_gap() {
     let path = dronewatt::default_data_path();
     let ds = read_flights(&path, Some(&[278])).expect("data set readable");
     let cfg = TelemetryConfig::default();
-    let fw = flight_windows(&ds.flights[0], &cfg);
+    let fw = flight_windows(&ds.flights[0], &cfg, &MissionConfig::default());
     let span = (cfg.window - 1) as f64 / cfg.rate_hz + 1e-6;
     for w in &fw.windows {
         assert!(w.samples.last().unwrap().t_s - w.samples[0].t_s <= span, "a window spans a gap");

@@ -5,7 +5,7 @@ use dronewatt::model::card::ModelCard;
 use dronewatt::model::lstm::{LstmModel, DEFAULT_MODEL_DIR};
 use dronewatt::model::PowerModel;
 use dronewatt::offline::data::load_flights;
-use dronewatt::telemetry::TelemetryConfig;
+use dronewatt::telemetry::{MissionConfig, TelemetryConfig};
 
 /// A smoke-sized run (three flights, a few hundred steps, small network, target lag 2): the
 /// loss falls, and the card (with its lag), weights and curves are written.
@@ -41,7 +41,7 @@ fn shipped_weights_flight_276() {
     let mut model = LstmModel::load(&dir, &cfg).unwrap();
     assert!(!model.card().training.train_flights.contains(&276));
     assert!(!model.card().training.validation_flights.contains(&276));
-    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg).unwrap();
+    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg, &MissionConfig::default()).unwrap();
     // Each estimate is for the sample the card's target lag before the window's newest.
     let lag = model.card().target_lag;
     let windows: Vec<_> = flights[0].windows.iter().filter(|w| w.back(lag).measured_w.is_some()).cloned().collect();
@@ -61,7 +61,7 @@ fn live_forward_matches_libtorch_on_shipped_weights() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_MODEL_DIR);
     let cfg = TelemetryConfig::default();
     let mut model = LstmModel::load(&dir, &cfg).unwrap();
-    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg).unwrap();
+    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg, &MissionConfig::default()).unwrap();
     let windows: Vec<_> = flights[0].windows.iter().step_by(7).cloned().collect();
     assert!(windows.len() > 100);
     let mut batched = Vec::new();

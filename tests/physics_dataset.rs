@@ -5,12 +5,12 @@
 use dronewatt::model::physics;
 use dronewatt::model::profile::VehicleProfile;
 use dronewatt::offline::data::load_flights;
-use dronewatt::telemetry::TelemetryConfig;
+use dronewatt::telemetry::{MissionConfig, TelemetryConfig};
 
 #[test]
 fn every_model_finite_on_every_window() {
     let path = dronewatt::default_data_path();
-    let flights = load_flights(&path, None, &TelemetryConfig::default()).expect("the data set (set DRONEWATT_DATA)");
+    let flights = load_flights(&path, None, &TelemetryConfig::default(), &MissionConfig::default()).expect("the data set (set DRONEWATT_DATA)");
     assert!(flights.len() >= 200, "{} flights", flights.len());
     for g in 211..=219 {
         assert!(flights.iter().any(|f| f.flight == g && !f.windows.is_empty()), "ground test {g} missing");

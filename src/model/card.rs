@@ -128,7 +128,8 @@ pub struct TrainingInfo {
     pub device: String,
 }
 
-/// Scores on held-out flights, in watts and percent.
+/// Scores on held-out flights, in watts and percent: what `eval --all-windows` scores for
+/// this model (`offline::metrics::score_over`), pooled over the test flights.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Metrics {
@@ -137,7 +138,8 @@ pub struct Metrics {
     /// Mean absolute error over all test windows, W.
     pub mae_w: f64,
     pub rmse_w: f64,
-    /// Mean absolute percentage error over in-flight windows (measured power ≥ 100 W), %.
+    /// Mean absolute percentage error over in-flight windows (measured power > 100 W,
+    /// `offline::metrics::IN_FLIGHT_W`), %.
     pub mape_in_flight_pct: f64,
     /// Mean over test flights of |∫P̂ − ∫P| / ∫P, %.
     pub energy_error_pct: f64,

@@ -51,6 +51,11 @@ impl Ensemble {
     pub fn names(&self) -> Vec<String> {
         self.models.iter().map(|m| m.name().to_string()).collect()
     }
+    /// Each model's [`PowerModel::target_lag`], in order: the estimate a window yields is
+    /// for the sample this many steps before its newest.
+    pub fn target_lags(&self) -> Vec<usize> {
+        self.models.iter().map(|m| m.target_lag()).collect()
+    }
     /// Run every model on every window (a batch when a replay runs flat out).
     pub fn estimate(&mut self, windows: &[Window]) -> Vec<Estimate> {
         let mut out: Vec<Estimate> = windows

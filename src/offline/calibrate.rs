@@ -5,8 +5,9 @@
 //! Only training flights are used: the test flights of Choudhry et al.
 //! ([`TEST_FLIGHTS`]) are dropped before anything is fitted, and so are the ground tests
 //! (routes A1–A3, flights 211–219: motors running on the ground, no lift to model). The
-//! fit sees in-flight windows only (measured > 100 W): the physics models describe flight,
-//! and the ground segments would otherwise pull every constant toward 0 W.
+//! fit sees in-flight windows only ([`in_flight`]): the physics models describe flight,
+//! and the ground segments would otherwise pull every constant toward 0 W. Windows come
+//! from the ingest path with the configuration's `[telemetry]` and `[mission]`.
 //!
 //! What is free per model (the rest stays as published, because it is not identifiable
 //! beside what is fitted — e.g. η and r enter D'Andrea only as their product):
@@ -28,8 +29,8 @@ use nalgebra::{DMatrix, DVector};
 use crate::model::physics::{Kind, Kinematics};
 use crate::model::profile::{Calibration, VehicleProfile};
 use crate::offline::data::{load_flights, FlightWindows, TEST_FLIGHTS};
-use crate::offline::metrics::IN_FLIGHT_W;
-use crate::telemetry::TelemetryConfig;
+use crate::config::Config;
+use crate::offline::metrics::{in_flight, IN_FLIGHT_W};
 
 /// Arguments of `dronewatt calibrate`.
 #[derive(Debug, Clone, clap::Args)]
@@ -40,9 +41,13 @@ pub struct CalibrateArgs {
     /// Where to write the calibrated profile.
     #[arg(long, short = 'o', value_name = "FILE", default_value = "config/vehicles/m100-calibrated.toml")]
     pub output: PathBuf,
-    /// Profile to start from (airframe facts and published parameters). Default: built-in M100.
+    /// Profile to start from (airframe facts and published parameters). Default: the
+    /// configuration's `vehicle`, else the built-in M100.
     #[arg(long, value_name = "FILE")]
     pub vehicle: Option<PathBuf>,
+    /// Configuration file (`vehicle`, `[telemetry]`, `[mission]`). Default: built-in defaults.
+    #[arg(long, short = 'c', value_name = "FILE")]
+    pub config: Option<PathBuf>,
     /// Fit on these training flights only (comma-separated). Default: every training flight.
     #[arg(long, value_delimiter = ',', value_name = "N,N,…")]
     pub flights: Option<Vec<u32>>,
@@ -54,7 +59,8 @@ pub struct CalibrateArgs {
 /// Run `dronewatt calibrate`.
 pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     let data = args.data.clone().unwrap_or_else(crate::default_data_path);
-    let base = match &args.vehicle {
+    let cfg = Config::load_or_default(args.config.as_deref())?;
+    let base = match args.vehicle.as_ref().or(cfg.vehicle.as_ref()) {
         Some(p) => VehicleProfile::load(p)?,
         None => VehicleProfile::m100(),
     };
@@ -63,12 +69,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             anyhow::bail!("--flights: {t} is a test flight (Choudhry et al.); calibration never fits on test flights");
         }
     }
-    let flights = load_flights(&data, args.flights.as_deref(), &TelemetryConfig::default())
+    let flights = load_flights(&data, args.flights.as_deref(), &cfg.telemetry, &cfg.mission)
         .with_context(|| format!("{}: cannot load flights for calibration", data.display()))?;
     let sha = crate::offline::data::sha256_file(&data)?;
     let (cal, report) = fit(&flights, &base, sha, args.max_windows)?;
     let mut text = String::from("# Written by `dronewatt calibrate`: the physics models' free parameters fitted by least squares\n");
-    text.push_str("# on in-flight windows (measured > 100 W) of training flights only. Training RMSE, W (published → calibrated):\n");
+    text.push_str(&format!("# on in-flight windows (measured > {IN_FLIGHT_W} W) of training flights only. Training RMSE, W (published → calibrated):\n"));
     for r in &report {
         text.push_str(&format!("#   {:<18} {:>8.1} → {:>6.1}\n", r.model, r.rmse_before_w, r.rmse_after_w));
     }
@@ -169,7 +175,7 @@ pub fn fit(flights: &[FlightWindows], base: &VehicleProfile, data_sha256: String
     let mut states: Vec<(Kinematics, f64)> = Vec::new();
     for f in &train {
         for w in &f.windows {
-            if let Some(m) = w.last().measured_w.map(f64::from).filter(|m| m.is_finite() && *m > IN_FLIGHT_W) {
+            if let Some(m) = w.last().measured_w.map(f64::from).filter(|m| in_flight(*m)) {
                 states.push((Kinematics::from_window(w, base), m));
             }
         }

@@ -1,6 +1,7 @@
 //! Data-set flights as the models see them: each flight of `flights.csv[.gz]` walked
 //! through the same encoder → MAVLink → ingest → resample → window path as live telemetry,
-//! so training, evaluation and live monitoring see identical features.
+//! so training, evaluation and live monitoring see identical features. The telemetry
+//! stage is built from the configuration's `[telemetry]` and `[mission]`, as live.
 
 use std::path::Path;
 
@@ -30,7 +31,7 @@ pub struct FlightWindows {
 ///
 /// Memory: every window owns its T samples (~130 bytes each), so the whole data set at
 /// 10 Hz and T = 10 is about 0.5 GB.
-pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig) -> anyhow::Result<Vec<FlightWindows>> {
+pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig, mission: &MissionConfig) -> anyhow::Result<Vec<FlightWindows>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     let ds = dataset::read_flights(path, flights)?;
     if let Some(want) = flights {
@@ -57,7 +58,7 @@ pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig)
                     loop {
                         let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         let Some(f) = ds.flights.get(i) else { break };
-                        done.push((i, flight_windows(f, cfg)));
+                        done.push((i, flight_windows(f, cfg, mission)));
                         bar.inc(1);
                     }
                     done
@@ -72,10 +73,11 @@ pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig)
 }
 
 /// One data-set flight through encoder → tlog bytes → decode → [`Telemetry`] → windows.
-pub fn flight_windows(f: &dataset::Flight, cfg: &TelemetryConfig) -> FlightWindows {
+/// The flight's own mission facts (NAMED_VALUE_FLOAT) override `mission` once they arrive.
+pub fn flight_windows(f: &dataset::Flight, cfg: &TelemetryConfig, mission: &MissionConfig) -> FlightWindows {
     let bytes = dataset::encode_flight(f);
     let stats = crate::source::IngestStats::default();
-    let mut tel = Telemetry::new(cfg, &MissionConfig::default());
+    let mut tel = Telemetry::new(cfg, mission);
     let mut windows = Vec::new();
     for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
         tel.push(&m, &mut windows);

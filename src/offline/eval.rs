@@ -1,6 +1,12 @@
-//! Evaluation: every model over data-set flights through the live ingest path
-//! ([`load_flights`]), scored by flight in watts ([`metrics`]), beside the comparative
-//! study's Table 2.
+//! Evaluation: a replay of data-set flights through the live path, scored by flight in
+//! watts ([`metrics`]), beside the comparative study's Table 2.
+//!
+//! Each flight's windows come from the live ingest path ([`load_flights`], the
+//! configuration's `[telemetry]` and `[mission]`) and go through the live chain
+//! ([`Chain`]: the model set, the energy tracker, the alert rules, with the
+//! configuration's `[energy]` and `[[alerts]]`). The power scores are the chain's
+//! estimates against the measured power, each model at its own instant; the energy scores
+//! are the chain's energy tracker's ([`crate::offline::chain`]).
 //!
 //! The model list is [`crate::model::build_models`] (the same set the live ensemble runs,
 //! LSTM included when configured) plus the physics models of the calibrated profile, so
@@ -17,9 +23,10 @@ use anyhow::Context;
 use crate::config::Config;
 use crate::model::physics;
 use crate::model::profile::VehicleProfile;
-use crate::model::{PowerModel, Prediction};
-use crate::offline::data::{list_flights, load_flights, FlightWindows, TEST_FLIGHTS};
-use crate::offline::metrics::{self, Scores};
+use crate::model::{Ensemble, PowerModel};
+use crate::offline::chain::{Chain, FlightSeries};
+use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
+use crate::offline::metrics::{self, Scores, IN_FLIGHT_W};
 use crate::offline::plot;
 
 /// Arguments of `dronewatt eval`.
@@ -77,49 +84,6 @@ pub const PAPER_TABLE2: [(&str, f64, f64); 7] = [
     ("lstm", 36.2770, 4.9080),
 ];
 
-/// One flight's scored series: times, measured power, and each model's predictions, W.
-pub struct FlightSeries {
-    /// Flight number.
-    pub flight: u32,
-    /// Window times, s (windows with a measured power only).
-    pub t_s: Vec<f64>,
-    /// Measured power, W.
-    pub measured_w: Vec<f64>,
-    /// Battery voltage, V (NaN where absent).
-    pub voltage_v: Vec<f64>,
-    /// Per model (in model order): predictions, W.
-    pub pred_w: Vec<Vec<f64>>,
-}
-
-/// Run every model on every window of the flight; keep the windows with a measured power.
-pub fn run_flight(models: &mut [Box<dyn PowerModel>], f: &FlightWindows) -> FlightSeries {
-    let keep: Vec<usize> = (0..f.windows.len()).filter(|&i| f.windows[i].last().measured_w.is_some()).collect();
-    let last = |i: usize| f.windows[i].last();
-    let mut out: Vec<Prediction> = Vec::new();
-    let pred_w = models
-        .iter_mut()
-        .map(|m| {
-            m.predict(&f.windows, &mut out);
-            // A model with a target lag L estimates window i + L's sample L back, which is
-            // window i's newest when no gap lies between (else NaN, as at a flight's end).
-            let lag = m.target_lag();
-            keep.iter()
-                .map(|&i| match (f.windows.get(i + lag), out.get(i + lag)) {
-                    (Some(w), Some(p)) if w.back(lag).t_s == last(i).t_s => f64::from(p.power_w),
-                    _ => f64::NAN,
-                })
-                .collect()
-        })
-        .collect();
-    FlightSeries {
-        flight: f.flight,
-        t_s: keep.iter().map(|&i| last(i).t_s).collect(),
-        measured_w: keep.iter().map(|&i| last(i).measured_w.map_or(f64::NAN, f64::from)).collect(),
-        voltage_v: keep.iter().map(|&i| last(i).voltage_v.map_or(f64::NAN, f64::from)).collect(),
-        pred_w,
-    }
-}
-
 /// The models `eval` scores: the configured set, then the calibrated physics models.
 pub fn eval_models(cfg: &Config, calibrated: Option<&VehicleProfile>) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
     let mut models = crate::model::build_models(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?;
@@ -132,10 +96,7 @@ pub fn eval_models(cfg: &Config, calibrated: Option<&VehicleProfile>) -> anyhow:
 /// Run `dronewatt eval`.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let data = args.data.clone().unwrap_or_else(crate::default_data_path);
-    let cfg = match &args.config {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
-    };
+    let cfg = Config::load_or_default(args.config.as_deref())?;
     let cal = if args.calibrated.exists() {
         let p = VehicleProfile::load(&args.calibrated)?;
         if p.calibration.is_none() {
@@ -146,8 +107,8 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         tracing::warn!("{}: no calibrated profile; scoring published parameters only (run `dronewatt calibrate`)", args.calibrated.display());
         None
     };
-    let mut models = eval_models(&cfg, cal.as_ref())?;
-    let names: Vec<String> = models.iter().map(|m| m.name().to_string()).collect();
+    let mut chain = Chain::new(&cfg, Ensemble::new(eval_models(&cfg, cal.as_ref())?))?;
+    let names = chain.names().to_vec();
     let wanted: Option<Vec<u32>> = match (args.flight, args.split) {
         (Some(n), _) => Some(vec![n]),
         (None, Some(Split::Cvar)) => {
@@ -158,14 +119,18 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         }
         (None, None) => None,
     };
-    let flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry).with_context(|| format!("{}: cannot load flights", data.display()))?;
+    let flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry, &cfg.mission).with_context(|| format!("{}: cannot load flights", data.display()))?;
     if flights.is_empty() {
         anyhow::bail!("{}: none of the requested flights is in the file", data.display());
     }
     let bar = indicatif::ProgressBar::new(flights.len() as u64);
     let mut series = Vec::new();
     for f in &flights {
-        series.push(run_flight(&mut models, f));
+        let s = chain.run_flight(f)?;
+        if s.alerts_raised > 0 {
+            tracing::info!(flight = f.flight, alerts = s.alerts_raised, "alert rules raised");
+        }
+        series.push(s);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -183,7 +148,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             eprintln!("wrote {}", path.display());
         }
     }
-    let per_flight: Vec<Vec<Option<Scores>>> = series.iter().map(|s| s.pred_w.iter().map(|p| metrics::score_over(&s.t_s, &s.measured_w, p, args.all_windows)).collect()).collect();
+    let per_flight: Vec<Vec<Option<Scores>>> = series.iter().map(|s| s.scores(args.all_windows)).collect();
     let mut avg: BTreeMap<&str, Scores> = BTreeMap::new();
     let mut ordered: Vec<(&str, Scores)> = Vec::new();
     for (j, n) in names.iter().enumerate() {
@@ -220,7 +185,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         }
     }
     let what = if flight_ids.len() == 1 { format!("flight {}", flight_ids[0]) } else { format!("mean over {} flights", flight_ids.len()) };
-    let over = if args.all_windows { "every window, ground included (MAPE in flight)" } else { "in-flight windows (measured > 100 W)" };
+    let over = if args.all_windows { "every window, ground included (MAPE in flight)".to_string() } else { format!("in-flight windows (measured > {IN_FLIGHT_W} W)") };
     println!("{what}: our scores in watts over {over}, beside the paper's Table 2 (flight 276)");
     print_table(&ordered, true);
     if args.paper_scales {
@@ -294,7 +259,7 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
     }
     // Scores under candidate units, per model, mean over flights.
     for in_flight in [false, true] {
-        let what = if in_flight { "in-flight windows (measured > 100 W)" } else { "all windows, ground included (as the paper presumably scored)" };
+        let what = if in_flight { format!("in-flight windows (measured > {IN_FLIGHT_W} W)") } else { "all windows, ground included (as the paper presumably scored)".to_string() };
         let _ = writeln!(s, "2./3. Over {what}. Per model: MSE/MAE² (scale-free; paper's in brackets), MAE and MSE in candidate units: W, J per step (P·Δt), A (P/V); paper MAE / our MAE");
         let _ = writeln!(s, "   {:<22} {:>14} {:>9} {:>9} {:>10} {:>9} {:>10}  {:>9}", "model", "MSE/MAE²", "MAE W", "MAE J/st", "MSE J²/st", "MAE A", "MSE A²", "paper/W");
         let (mut ours_pub, mut ours_cal, mut paper_mae) = (Vec::new(), Vec::new(), Vec::new());
@@ -307,7 +272,7 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
                     let e = f.pred_w[j][i] - f.measured_w[i];
                     let dt = if i > 0 { f.t_s[i] - f.t_s[i - 1] } else if f.t_s.len() > 1 { f.t_s[1] - f.t_s[0] } else { 0.1 };
                     let v = f.voltage_v[i];
-                    if !(e.is_finite() && dt.is_finite() && v.is_finite() && v > 1.0) || (in_flight && f.measured_w[i] <= metrics::IN_FLIGHT_W) {
+                    if !(e.is_finite() && dt.is_finite() && v.is_finite() && v > 1.0) || (in_flight && !metrics::in_flight(f.measured_w[i])) {
                         continue;
                     }
                     ae += e.abs();
@@ -358,48 +323,6 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::features::Sample;
-    use crate::window::Window;
-
-    /// A model that knows the measured power `lag` samples back: perfect when aligned.
-    struct Oracle(usize);
-    impl PowerModel for Oracle {
-        fn name(&self) -> &str {
-            "oracle"
-        }
-        fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
-            out.clear();
-            out.extend(windows.iter().map(|w| Prediction { power_w: w.back(self.0).measured_w.unwrap_or(f32::NAN), band_w: None }));
-        }
-        fn target_lag(&self) -> usize {
-            self.0
-        }
-    }
-
-    #[test]
-    fn a_lagged_model_is_scored_at_its_own_instant() {
-        let sample = |i: usize| Sample {
-            t_s: i as f64 * 0.1,
-            features: [0.0; crate::features::N_FEATURES],
-            measured_w: Some(300.0 + (i * i % 97) as f32),
-            voltage_v: None,
-            home: None,
-            stale_mask: 0,
-            battery_remaining_pct: None,
-        };
-        let all: Vec<Sample> = (0..60).map(sample).collect();
-        let windows = (9..60).map(|e| Window { samples: all[e - 9..=e].to_vec() }).collect();
-        let f = FlightWindows { flight: 1, route: "R1".into(), windows };
-        let mut models: Vec<Box<dyn PowerModel>> = vec![Box::new(Oracle(0)), Box::new(Oracle(3))];
-        let s = run_flight(&mut models, &f);
-        for pred in &s.pred_w {
-            let scored: Vec<_> = pred.iter().zip(&s.measured_w).filter(|(p, _)| p.is_finite()).collect();
-            assert!(scored.len() >= s.measured_w.len() - 3);
-            assert!(scored.iter().all(|(p, m)| p == m), "a perfect model scored imperfectly");
-        }
-        // The last three windows have no lagged estimate yet (as live).
-        assert!(s.pred_w[1].iter().rev().take(3).all(|p| p.is_nan()));
-    }
 
     #[test]
     fn paper_rmse_column_breaks_the_rmse_bound_but_fits_mse() {

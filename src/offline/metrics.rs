@@ -1,7 +1,9 @@
-//! Scores of one model on one flight, in watts: what `dronewatt eval` reports.
+//! Scores of one model on one flight, in watts: what `dronewatt eval` reports and what
+//! `dronewatt train` records in the model card. One function ([`score_over`]) scores
+//! both.
 //!
-//! By default every score is over **in-flight windows** only: measured power >
-//! [`IN_FLIGHT_W`]. On the ground the power falls to ~2 W (motors off) or idles; no model of
+//! By default every score is over **in-flight windows** only ([`in_flight`]: measured power
+//! > [`IN_FLIGHT_W`]). On the ground the power falls to ~2 W (motors off) or idles; no model of
 //! the comparative study describes that, a percentage of it means nothing, and on flight 276
 //! the ground windows alone would put ~200 W into every model's MAE and hide every
 //! difference in flight. [`score_over`] with `all_windows` scores MAE, RMSE, MSE and energy
@@ -9,15 +11,27 @@
 //! stays in flight.
 //!
 //! * MAE, RMSE, MSE (W, W, W²) and MAPE (%).
-//! * Energy error |∫P̂ dt − ∫P dt| / ∫P dt (%), trapezoids between consecutive in-flight
-//!   windows.
+//! * Energy error |ΔÊ − ΔE| / ΔE (%), where E is the energy used so far as the live energy
+//!   tracker ([`crate::energy::EnergyTracker`]) counts it, integrating the measured power,
+//!   and Ê the same tracker integrating the model's estimates instead; Δ sums the tracker's
+//!   steps between consecutive scored windows (see [`crate::offline::chain`]). So the
+//!   energy a model is scored on is the energy the live chain would have reported with it.
 //!
-//! Any model's predictions can be scored: the metrics see only (time, measured, predicted).
+//! Any model's estimates can be scored: the metrics see only aligned series ([`Aligned`]).
 
 use serde::Serialize;
 
-/// Measured power above which a window counts as in flight, W.
+/// Measured power above which a window counts as in flight, W: the motors lift the
+/// vehicle (the M100 idles on the ground at well under this, and hovers at ~400 W). The
+/// one threshold behind every "in flight" in `eval`, `train`, `calibrate` and
+/// `sensitivity`; compare through [`in_flight`].
 pub const IN_FLIGHT_W: f64 = 100.0;
+
+/// Is a window with this measured power in flight (measured > [`IN_FLIGHT_W`])? False for
+/// a non-finite reading.
+pub fn in_flight(measured_w: f64) -> bool {
+    measured_w.is_finite() && measured_w > IN_FLIGHT_W
+}
 
 /// One model's scores on one flight (or the mean over flights).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -32,22 +46,46 @@ pub struct Scores {
     pub mape_pct: f64,
     /// Flight energy error, %.
     pub energy_err_pct: f64,
+    /// Windows MAE, RMSE and MSE are over (summed when pooled or averaged).
+    #[serde(skip)]
+    pub windows: usize,
+    /// In-flight windows MAPE is over.
+    #[serde(skip)]
+    pub in_flight_windows: usize,
 }
 
-/// Score `pred` against `measured` at times `t_s` over the in-flight windows (equal
-/// lengths; non-finite pairs are skipped). `None` when no window is in flight.
-pub fn score(t_s: &[f64], measured: &[f64], pred: &[f64]) -> Option<Scores> {
-    score_over(t_s, measured, pred, false)
+/// One model's series over one flight, aligned at the instants its estimates are for
+/// (equal lengths). Non-finite entries are not scored.
+#[derive(Debug, Clone, Copy)]
+pub struct Aligned<'a> {
+    /// Measured power at each instant, W.
+    pub measured_w: &'a [f64],
+    /// The model's estimate for each instant, W.
+    pub pred_w: &'a [f64],
+    /// Energy used since the start as the energy tracker counts it from the measured
+    /// power, at each instant, Wh.
+    pub measured_wh: &'a [f64],
+    /// Energy used since the start as the energy tracker counts it from this model's
+    /// estimates, at each instant, Wh.
+    pub pred_wh: &'a [f64],
+}
+
+/// Score over the in-flight windows. `None` when no window is in flight.
+pub fn score(s: &Aligned) -> Option<Scores> {
+    score_over(s, false)
 }
 
 /// [`score`], with MAE, RMSE, MSE and energy error over every window when `all_windows`
-/// (MAPE always over the in-flight ones).
-pub fn score_over(t_s: &[f64], measured: &[f64], pred: &[f64], all_windows: bool) -> Option<Scores> {
-    let finite = |i: usize| measured[i].is_finite() && pred[i].is_finite() && t_s[i].is_finite();
-    let flying = |i: usize| finite(i) && measured[i] > IN_FLIGHT_W;
+/// (MAPE always over the in-flight ones). The energy sums take the tracker's step into a
+/// scored window from the scored window just before it (none across an unscored one).
+pub fn score_over(s: &Aligned, all_windows: bool) -> Option<Scores> {
+    let (measured, pred) = (s.measured_w, s.pred_w);
+    let finite = |i: usize| measured[i].is_finite() && pred[i].is_finite() && s.measured_wh[i].is_finite() && s.pred_wh[i].is_finite();
+    let flying = |i: usize| finite(i) && in_flight(measured[i]);
     let ok = |i: usize| if all_windows { finite(i) } else { flying(i) };
-    let n = t_s.len().min(measured.len()).min(pred.len());
+    let n = measured.len().min(pred.len()).min(s.measured_wh.len()).min(s.pred_wh.len());
     let (mut n_all, mut abs, mut sq, mut pct, mut n_pct) = (0usize, 0.0, 0.0, 0.0, 0usize);
+    let (mut e_meas, mut e_pred) = (0.0, 0.0);
     for i in (0..n).filter(|&i| ok(i)) {
         let e = pred[i] - measured[i];
         n_all += 1;
@@ -57,24 +95,13 @@ pub fn score_over(t_s: &[f64], measured: &[f64], pred: &[f64], all_windows: bool
             pct += (e / measured[i]).abs();
             n_pct += 1;
         }
+        if i > 0 && ok(i - 1) {
+            e_meas += s.measured_wh[i] - s.measured_wh[i - 1];
+            e_pred += s.pred_wh[i] - s.pred_wh[i - 1];
+        }
     }
     if n_pct == 0 {
         return None;
-    }
-    let (mut e_meas, mut e_pred, mut prev) = (0.0, 0.0, None::<usize>);
-    for i in 0..n {
-        if !ok(i) {
-            prev = None;
-            continue;
-        }
-        if let Some(j) = prev {
-            let dt = t_s[i] - t_s[j];
-            if dt > 0.0 {
-                e_meas += 0.5 * dt * (measured[i] + measured[j]);
-                e_pred += 0.5 * dt * (pred[i] + pred[j]);
-            }
-        }
-        prev = Some(i);
     }
     let mse = sq / n_all as f64;
     Some(Scores {
@@ -83,6 +110,28 @@ pub fn score_over(t_s: &[f64], measured: &[f64], pred: &[f64], all_windows: bool
         mse_w2: mse,
         mape_pct: 100.0 * pct / n_pct as f64,
         energy_err_pct: if e_meas > 0.0 { 100.0 * (e_pred - e_meas).abs() / e_meas } else { f64::NAN },
+        windows: n_all,
+        in_flight_windows: n_pct,
+    })
+}
+
+/// Scores over the windows of several flights together: MAE, MSE, RMSE and MAPE as if
+/// one series (each flight weighted by its windows), energy error the mean over flights.
+pub fn pooled(scores: &[Scores]) -> Option<Scores> {
+    let n: usize = scores.iter().map(|s| s.windows).sum();
+    let n_pct: usize = scores.iter().map(|s| s.in_flight_windows).sum();
+    if n == 0 || n_pct == 0 {
+        return None;
+    }
+    let mse = scores.iter().map(|s| s.mse_w2 * s.windows as f64).sum::<f64>() / n as f64;
+    Some(Scores {
+        mae_w: scores.iter().map(|s| s.mae_w * s.windows as f64).sum::<f64>() / n as f64,
+        rmse_w: mse.sqrt(),
+        mse_w2: mse,
+        mape_pct: scores.iter().map(|s| s.mape_pct * s.in_flight_windows as f64).sum::<f64>() / n_pct as f64,
+        energy_err_pct: mean(scores)?.energy_err_pct,
+        windows: n,
+        in_flight_windows: n_pct,
     })
 }
 
@@ -105,6 +154,8 @@ pub fn mean(scores: &[Scores]) -> Option<Scores> {
         mse_w2: avg(|s| s.mse_w2),
         mape_pct: avg(|s| s.mape_pct),
         energy_err_pct: avg(|s| s.energy_err_pct),
+        windows: scores.iter().map(|s| s.windows).sum(),
+        in_flight_windows: scores.iter().map(|s| s.in_flight_windows).sum(),
     })
 }
 
@@ -112,13 +163,27 @@ pub fn mean(scores: &[Scores]) -> Option<Scores> {
 mod tests {
     use super::*;
 
+    /// Energy used so far at each time, Wh: trapezoids, as the tracker integrates steps
+    /// no longer than its cap.
+    fn used_wh(t: &[f64], p: &[f64]) -> Vec<f64> {
+        let mut e = vec![0.0];
+        for i in 1..t.len() {
+            e.push(e[i - 1] + 0.5 * (t[i] - t[i - 1]) * (p[i] + p[i - 1]) / 3600.0);
+        }
+        e
+    }
+
     #[test]
     fn hand_computed() {
         // Sample 0 is on the ground (50 W): ignored. In flight: errors −20, +30, 0 W.
         let t = [0.0, 1.0, 2.0, 3.0];
         let m = [50.0, 200.0, 300.0, 400.0];
         let p = [460.0, 180.0, 330.0, 400.0];
-        let s = score(&t, &m, &p).unwrap();
+        let (mw, pw) = (used_wh(&t, &m), used_wh(&t, &p));
+        fn series<'a>(m: &'a [f64], p: &'a [f64], mw: &'a [f64], pw: &'a [f64]) -> Aligned<'a> {
+            Aligned { measured_w: m, pred_w: p, measured_wh: mw, pred_wh: pw }
+        }
+        let s = score(&series(&m, &p, &mw, &pw)).unwrap();
         assert!((s.mae_w - 50.0 / 3.0).abs() < 1e-12);
         assert!((s.mse_w2 - 1300.0 / 3.0).abs() < 1e-9);
         assert!((s.rmse_w - (1300.0f64 / 3.0).sqrt()).abs() < 1e-12);
@@ -126,15 +191,28 @@ mod tests {
         assert!((s.mape_pct - 20.0 / 3.0).abs() < 1e-9);
         // ∫meas = 250 + 350 = 600 W·s; ∫pred = 255 + 365 = 620 → 3.333 %.
         assert!((s.energy_err_pct - 100.0 * 20.0 / 600.0).abs() < 1e-9);
-        assert!(score(&[], &[], &[]).is_none());
-        assert!(score(&[0.0], &[50.0], &[50.0]).is_none());
+        assert!(score(&series(&[], &[], &[], &[])).is_none());
+        assert!(score(&series(&[50.0], &[50.0], &[0.0], &[0.0])).is_none());
         // All windows: the ground sample's +410 W joins MAE and energy, not MAPE.
-        let a = score_over(&t, &m, &p, true).unwrap();
+        let a = score_over(&series(&m, &p, &mw, &pw), true).unwrap();
         assert!((a.mae_w - 460.0 / 4.0).abs() < 1e-12);
         assert!((a.mape_pct - s.mape_pct).abs() < 1e-12);
         // ∫meas = 125 + 600 = 725 W·s; ∫pred = 320 + 620 = 940.
         assert!((a.energy_err_pct - 100.0 * 215.0 / 725.0).abs() < 1e-9);
         let m2 = mean(&[s, Scores { mae_w: 5.0, mape_pct: f64::NAN, ..s }]).unwrap();
         assert!((m2.mae_w - (50.0 / 3.0 + 5.0) / 2.0).abs() < 1e-12 && (m2.mape_pct - s.mape_pct).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_threshold_is_strict_and_pooling_weights_by_windows() {
+        assert!(!in_flight(IN_FLIGHT_W) && in_flight(IN_FLIGHT_W + 0.01) && !in_flight(f64::NAN) && !in_flight(f64::INFINITY));
+        // Two flights: 1 window with error 10 W, 3 windows with error 2 W.
+        let a = Scores { mae_w: 10.0, rmse_w: 10.0, mse_w2: 100.0, mape_pct: 5.0, energy_err_pct: 1.0, windows: 1, in_flight_windows: 1 };
+        let b = Scores { mae_w: 2.0, rmse_w: 2.0, mse_w2: 4.0, mape_pct: 1.0, energy_err_pct: 3.0, windows: 3, in_flight_windows: 3 };
+        let p = pooled(&[a, b]).unwrap();
+        assert!((p.mae_w - 16.0 / 4.0).abs() < 1e-12 && (p.mse_w2 - 112.0 / 4.0).abs() < 1e-12);
+        assert!((p.mape_pct - 8.0 / 4.0).abs() < 1e-12 && (p.energy_err_pct - 2.0).abs() < 1e-12);
+        assert_eq!((p.windows, p.in_flight_windows), (4, 4));
+        assert!(pooled(&[]).is_none());
     }
 }

@@ -1,6 +1,9 @@
-//! Offline work: train, cross-validate, evaluate, calibrate, sensitivity, plots.
+//! Offline work: train, cross-validate, evaluate, calibrate, sensitivity, plots — through
+//! the live stages: windows from the ingest path ([`data`]), estimates, energy and alerts
+//! from the live chain ([`chain`]), each with the user's configuration (`--config`).
 
 pub mod calibrate;
+pub mod chain;
 pub mod data;
 pub mod eval;
 pub mod metrics;

@@ -1,8 +1,9 @@
 //! Sensitivity analysis of the trained LSTM (the paper's Table 3 and its diverging bar
 //! chart).
 //!
-//! Method: the base windows are the in-flight windows (measured power ≥ 100 W) of the
-//! chosen flights (default: the test flights, never trained on), built by the ingest path. For one
+//! Method: the base windows are the in-flight windows ([`in_flight`]) of the chosen flights
+//! (default: the test flights, never trained on), built by the ingest path from the
+//! configuration's `[telemetry]` and `[mission]`. For one
 //! mission input at a time (commanded altitude, payload, commanded speed) the input is set
 //! to each of the paper's five steps (minimum, half step, middle, half step, maximum) in
 //! every sample of every base window, all other inputs kept as flown, and the mean
@@ -16,10 +17,11 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use crate::model::lstm::{resolve_model_path, LstmModel};
+use crate::config::Config;
 use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
-use crate::offline::train::IN_FLIGHT_W;
+use crate::offline::metrics::in_flight;
+use crate::offline::plot;
 use crate::features::idx;
-use crate::telemetry::TelemetryConfig;
 use crate::window::Window;
 
 /// The paper's Table 3: input index, label, and the five steps (−1, −½, 0, +½, +1).
@@ -35,9 +37,13 @@ pub struct SensitivityArgs {
     /// The data set (official `flights.csv[.gz]`). Default: `DRONEWATT_DATA` or the shared copy.
     #[arg(long, value_name = "FILE")]
     pub data: Option<PathBuf>,
-    /// Model folder, card or weights file. Default: the shipped model.
+    /// Model folder, card or weights file. Default: `[models.lstm] path` of the
+    /// configuration, else the shipped model.
     #[arg(long, value_name = "PATH")]
     pub model: Option<PathBuf>,
+    /// Configuration file (`[telemetry]`, `[mission]`, `[models.lstm]`). Default: built-in defaults.
+    #[arg(long, short = 'c', value_name = "FILE")]
+    pub config: Option<PathBuf>,
     /// Base flights (comma-separated). Default: the test flights.
     #[arg(long, value_delimiter = ',')]
     pub flights: Option<Vec<u32>>,
@@ -66,10 +72,10 @@ fn mean_power(model: &mut LstmModel, windows: &[Window], feature: usize, value: 
 
 /// Run `dronewatt sensitivity`.
 pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
-    let tcfg = TelemetryConfig::default();
+    let cfg = Config::load_or_default(args.config.as_deref())?;
     tch::set_num_threads(1);
-    let model_path = resolve_model_path(args.model.as_deref()).context("no model found: pass --model")?;
-    let mut model = LstmModel::load(&model_path, &tcfg)?;
+    let model_path = resolve_model_path(args.model.as_deref().or(cfg.models.lstm.path.as_deref())).context("no model found: pass --model")?;
+    let mut model = LstmModel::load(&model_path, &cfg.telemetry)?;
     let data = args.data.clone().unwrap_or_else(crate::default_data_path);
     let flights = match args.flights.clone() {
         Some(f) => f,
@@ -78,9 +84,9 @@ pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
             TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)).collect()
         }
     };
-    let loaded = load_flights(&data, Some(&flights), &tcfg)?;
+    let loaded = load_flights(&data, Some(&flights), &cfg.telemetry, &cfg.mission)?;
     let windows: Vec<Window> =
-        loaded.iter().flat_map(|f| f.windows.iter().filter(|w| w.last().measured_w.is_some_and(|p| p >= IN_FLIGHT_W)).cloned()).collect();
+        loaded.iter().flat_map(|f| f.windows.iter().filter(|w| w.last().measured_w.is_some_and(|p| in_flight(p.into()))).cloned()).collect();
     anyhow::ensure!(!windows.is_empty(), "{}: no windows with measured power in flights {flights:?}", data.display());
     std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
 
@@ -103,50 +109,17 @@ pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
     }
     let path = args.out.join("sensitivity.csv");
     std::fs::write(&path, csv).with_context(|| format!("{}: cannot write", path.display()))?;
-    diverging_bars(&args.out.join("sensitivity.png"), &bars)?;
+    plot::diverging_bars(
+        &args.out.join("sensitivity.png"),
+        "Sensitivity of predicted power to mission inputs",
+        "change in mean predicted power vs step 0 (W)",
+        &bars,
+    )?;
     println!(
         "base: {} windows of flights {flights:?}; model {}; wrote {} and sensitivity.png",
         windows.len(),
         model_path.display(),
         path.display()
     );
-    Ok(())
-}
-
-/// Horizontal bars around zero: the change in mean predicted power at each step.
-fn diverging_bars(path: &std::path::Path, bars: &[(String, f64)]) -> anyhow::Result<()> {
-    use plotters::prelude::*;
-    crate::offline::train::register_font();
-    let err = |e: String| anyhow::anyhow!("{}: cannot draw plot: {e}", path.display());
-    let m = bars.iter().map(|b| b.1.abs()).fold(1.0, f64::max) * 1.1;
-    let root = BitMapBackend::new(path, (900, 520)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-    let n = bars.len() as i32;
-    let mut chart = ChartBuilder::on(&root)
-        .caption("Sensitivity of predicted power to mission inputs", ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(130)
-        .build_cartesian_2d(-m..m, (0..n).into_segmented())
-        .map_err(|e| err(e.to_string()))?;
-    let labels: Vec<String> = bars.iter().map(|b| b.0.clone()).collect();
-    chart
-        .configure_mesh()
-        .y_labels(bars.len() + 1)
-        .y_label_formatter(&|v| match v {
-            SegmentValue::CenterOf(i) => labels.get(*i as usize).cloned().unwrap_or_default(),
-            _ => String::new(),
-        })
-        .x_desc("change in mean predicted power vs step 0 (W)")
-        .draw()
-        .map_err(|e| err(e.to_string()))?;
-    chart
-        .draw_series(bars.iter().enumerate().map(|(i, (_, v))| {
-            let color = if *v >= 0.0 { RED.mix(0.7) } else { BLUE.mix(0.7) };
-            let (a, b) = (SegmentValue::Exact(i as i32), SegmentValue::Exact(i as i32 + 1));
-            Rectangle::new([(0.0, a), (*v, b)], color.filled())
-        }))
-        .map_err(|e| err(e.to_string()))?;
-    root.present().map_err(|e| err(e.to_string()))?;
     Ok(())
 }

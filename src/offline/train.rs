@@ -22,16 +22,17 @@ use rand::SeedableRng;
 use tch::nn::{self, OptimizerConfig};
 use tch::{Device, Kind, Tensor};
 
+use crate::config::Config;
 use crate::model::card::{FeatureSet, Metrics, ModelCard, TrainingInfo, WeightsFormat};
 use crate::model::lstm::{push_inputs, LstmModel, Net};
+use crate::model::Ensemble;
+use crate::offline::chain::{Chain, FlightSeries};
 use crate::offline::data::{load_flights, sha256_file, FlightWindows, TEST_FLIGHTS};
+use crate::offline::{metrics, plot};
 use crate::features::N_FEATURES;
-use crate::telemetry::TelemetryConfig;
 
 /// Band quantiles of the low and high heads.
 pub const BAND_Q: (f32, f32) = (0.05, 0.95);
-/// Measured power at or above which a window counts as in flight (MAPE), W.
-pub const IN_FLIGHT_W: f32 = 100.0;
 
 /// Arguments of `dronewatt train`.
 #[derive(Debug, Clone, clap::Args)]
@@ -40,6 +41,10 @@ pub struct TrainArgs {
     /// `../shared/data/m100/flights.csv.gz`.
     #[arg(long, value_name = "FILE")]
     pub data: Option<PathBuf>,
+    /// Configuration file (`[telemetry]` and `[mission]` build the windows; `[energy]` and
+    /// `[[alerts]]` the chain the test flights are scored through). Default: built-in defaults.
+    #[arg(long, short = 'c', value_name = "FILE")]
+    pub config: Option<PathBuf>,
     /// Folder for weights, card, loss curves and test plots.
     #[arg(long, value_name = "DIR", default_value = crate::model::lstm::DEFAULT_MODEL_DIR)]
     pub out: PathBuf,
@@ -156,7 +161,8 @@ struct Scaling {
 /// Run `dronewatt train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let data_path = args.data.clone().unwrap_or_else(crate::default_data_path);
-    let tcfg = TelemetryConfig::default();
+    let cfg = Config::load_or_default(args.config.as_deref())?;
+    let tcfg = &cfg.telemetry;
     tracing::info!("loading flights from {} through the ingest path", data_path.display());
     tch::set_num_threads(args.threads);
     // The chosen flights plus whichever test flights the file holds (273 is withheld from
@@ -169,12 +175,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         None => None,
     };
     let mut flights =
-        load_flights(&data_path, wanted.as_deref(), &tcfg).with_context(|| format!("{}: loading flights", data_path.display()))?;
+        load_flights(&data_path, wanted.as_deref(), tcfg, &cfg.mission).with_context(|| format!("{}: loading flights", data_path.display()))?;
     if let Some(keep) = &wanted {
         flights.retain(|f| keep.contains(&f.flight));
     }
     if args.score_only {
-        return score_model_dir(&args.out, &data_path, &tcfg).map(|_| ());
+        return score_model_dir(&args.out, &data_path, &cfg).map(|_| ());
     }
     if let Some(csv) = &args.export_csv {
         return export_csv(&flights, csv, tcfg.window);
@@ -254,25 +260,28 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let card_path = args.out.join("card.toml");
     card.save(&card_path)?;
 
-    score_model_dir(&args.out, &data_path, &tcfg)?;
+    score_model_dir(&args.out, &data_path, &cfg)?;
     println!("model written to {} (training took {:.0} s)", args.out.display(), train_time_s);
     Ok(())
 }
 
 /// Score the model in `dir`, loaded the way the binary loads it, on the test flights the
-/// data file holds (through the ingest path); write `test_flights.csv` and
-/// `flight276.png` there and record the metrics in its card.
-pub fn score_model_dir(dir: &Path, data_path: &Path, tcfg: &TelemetryConfig) -> anyhow::Result<Metrics> {
-    let mut model = LstmModel::load(dir, tcfg)?;
+/// data file holds, through the ingest path and the live chain ([`Chain`], with `cfg`'s
+/// `[energy]` and `[[alerts]]`); write `test_flights.csv` and `flight276.png` there and
+/// record the metrics in its card.
+pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Result<Metrics> {
+    let model = LstmModel::load(dir, &cfg.telemetry)?;
+    let mut card = model.card().clone();
     let held: Vec<u32> = crate::offline::data::list_flights(data_path)?.iter().map(|f| f.flight).collect();
     let tests: Vec<u32> = TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)).collect();
     anyhow::ensure!(!tests.is_empty(), "{}: holds none of the test flights {TEST_FLIGHTS:?}", data_path.display());
-    let flights = load_flights(data_path, Some(&tests), tcfg)?;
-    let refs: Vec<&FlightWindows> = flights.iter().collect();
-    let (metrics, per) = score(&mut model, &refs)?;
+    let flights = load_flights(data_path, Some(&tests), &cfg.telemetry, &cfg.mission)?;
+    let mut chain = Chain::new(cfg, Ensemble::new(vec![Box::new(model)]))?;
+    let series = flights.iter().map(|f| chain.run_flight(f)).collect::<anyhow::Result<Vec<_>>>()?;
+    let (metrics, per) = score(&series)?;
     write_test_table(dir, &per)?;
-    if let Some(f276) = flights.iter().find(|f| f.flight == 276) {
-        plot_flight(&mut model, f276, &dir.join("flight276.png"))?;
+    if let Some(f276) = series.iter().find(|s| s.flight == 276) {
+        plot_flight(f276, &dir.join("flight276.png"))?;
     }
     println!(
         "test flights {tests:?}: MAE {:.1} W, RMSE {:.1} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} %, flight 276 MAE {}",
@@ -283,7 +292,6 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, tcfg: &TelemetryConfig) -> 
         metrics.band_coverage_pct,
         metrics.flight_276_mae_w.map(|m| format!("{m:.1} W")).unwrap_or_else(|| "n/a".into())
     );
-    let mut card = model.card().clone();
     card.metrics = Some(metrics.clone());
     card.save(&dir.join("card.toml"))?;
     Ok(metrics)
@@ -531,61 +539,42 @@ pub struct FlightScore {
     pub band_coverage_pct: f64,
 }
 
-/// Score a model on these flights: every window whose target sample (the card's lag
-/// before the newest) has a measured power, against that power.
-pub fn score(model: &mut LstmModel, flights: &[&FlightWindows]) -> anyhow::Result<(Metrics, Vec<FlightScore>)> {
-    let lag = model.card().target_lag;
-    let (mut abs, mut sq, mut n) = (0.0, 0.0, 0usize);
-    let (mut ape, mut n_ape, mut inside) = (0.0, 0usize, 0usize);
-    let mut per = Vec::new();
-    for f in flights {
-        let windows: Vec<_> = f.windows.iter().filter(|w| w.back(lag).measured_w.is_some_and(f32::is_finite)).cloned().collect();
-        if windows.is_empty() {
-            continue;
-        }
-        let mut rows = Vec::with_capacity(windows.len());
-        for chunk in windows.chunks(1024) {
-            rows.extend(model.forward_w(chunk)?);
-        }
-        let (mut fa, mut fape, mut fn_ape, mut fin, mut e_pred, mut e_meas) = (0.0, 0.0, 0usize, 0usize, 0.0, 0.0);
-        for (w, r) in windows.iter().zip(&rows) {
-            let m = w.back(lag).measured_w.unwrap_or(0.0) as f64;
-            let e = r[0] as f64 - m;
-            fa += e.abs();
-            sq += e * e;
-            if m >= IN_FLIGHT_W as f64 {
-                fape += (e / m).abs();
-                fn_ape += 1;
+/// Score the first model of each flight's series (the LSTM, alone in its chain) the way
+/// `eval --all-windows` scores it ([`metrics::score_over`]: every window with a measured
+/// power at the model's instant, MAPE in flight, energy from the energy tracker), pooled
+/// over the flights ([`metrics::pooled`]), with the share of windows inside its band.
+pub fn score(series: &[FlightSeries]) -> anyhow::Result<(Metrics, Vec<FlightScore>)> {
+    let (mut per, mut scores, mut inside, mut banded) = (Vec::new(), Vec::new(), 0usize, 0usize);
+    for s in series.iter().filter(|s| !s.pred_w.is_empty()) {
+        let Some(sc) = metrics::score_over(&s.aligned(0), true) else { continue };
+        let (mut fin, mut n) = (0usize, 0usize);
+        for ((p, m), band) in s.pred_w[0].iter().zip(&s.measured_w).zip(&s.band_w[0]) {
+            if p.is_finite() && m.is_finite() {
+                n += 1;
+                fin += usize::from(band.is_some_and(|(lo, hi)| lo <= *m && *m <= hi));
             }
-            if (r[1] as f64) <= m && m <= r[2] as f64 {
-                fin += 1;
-            }
-            e_pred += r[0] as f64;
-            e_meas += m;
         }
-        abs += fa;
-        n += windows.len();
-        ape += fape;
-        n_ape += fn_ape;
         inside += fin;
+        banded += n;
+        scores.push(sc);
         per.push(FlightScore {
-            flight: f.flight,
-            windows: windows.len(),
-            mae_w: fa / windows.len() as f64,
-            mape_in_flight_pct: 100.0 * fape / fn_ape.max(1) as f64,
-            energy_error_pct: 100.0 * ((e_pred - e_meas) / e_meas.max(1e-9)).abs(),
-            band_coverage_pct: 100.0 * fin as f64 / windows.len() as f64,
+            flight: s.flight,
+            windows: sc.windows,
+            mae_w: sc.mae_w,
+            mape_in_flight_pct: sc.mape_pct,
+            energy_error_pct: sc.energy_err_pct,
+            band_coverage_pct: 100.0 * fin as f64 / n.max(1) as f64,
         });
     }
-    anyhow::ensure!(n > 0, "no scorable windows in the test flights");
+    let pooled = metrics::pooled(&scores).context("no scorable windows in the test flights")?;
     let metrics = Metrics {
         test_flights: per.iter().map(|p| p.flight).collect(),
-        mae_w: abs / n as f64,
-        rmse_w: (sq / n as f64).sqrt(),
-        mape_in_flight_pct: 100.0 * ape / n_ape.max(1) as f64,
-        energy_error_pct: per.iter().map(|p| p.energy_error_pct).sum::<f64>() / per.len() as f64,
+        mae_w: pooled.mae_w,
+        rmse_w: pooled.rmse_w,
+        mape_in_flight_pct: pooled.mape_pct,
+        energy_error_pct: pooled.energy_err_pct,
         flight_276_mae_w: per.iter().find(|p| p.flight == 276).map(|p| p.mae_w),
-        band_coverage_pct: 100.0 * inside as f64 / n as f64,
+        band_coverage_pct: 100.0 * inside as f64 / banded.max(1) as f64,
     };
     Ok((metrics, per))
 }
@@ -611,84 +600,24 @@ fn write_curve(out: &Path, curve: &[CurvePoint]) -> anyhow::Result<()> {
     std::fs::write(&path, s).with_context(|| format!("{}: cannot write", path.display()))?;
     let train: Vec<(f64, f64)> = curve.iter().map(|c| (c.epoch as f64, c.train_loss)).collect();
     let val: Vec<(f64, f64)> = curve.iter().map(|c| (c.epoch as f64, c.val_loss)).collect();
-    plot_lines(&out.join("loss.png"), "Training and validation loss", "epoch", "loss (scaled)", &[("training", train), ("validation", val)])
+    plot::lines(&out.join("loss.png"), "Training and validation loss", "epoch", "loss (scaled)", &[("training", train), ("validation", val)])
 }
 
-/// Plot the model against measured power over one flight.
-fn plot_flight(model: &mut LstmModel, f: &FlightWindows, path: &Path) -> anyhow::Result<()> {
-    // Each estimate is drawn at the instant it is for (the card's lag before the newest).
-    let lag = model.card().target_lag;
-    let windows: Vec<_> = f.windows.iter().filter(|w| w.back(lag).measured_w.is_some()).cloned().collect();
-    let rows = model.forward_w(&windows)?;
-    let t0 = windows.first().map(|w| w.back(lag).t_s).unwrap_or(0.0);
-    let at = |w: &crate::window::Window| w.back(lag).t_s - t0;
-    let meas: Vec<(f64, f64)> = windows.iter().map(|w| (at(w), w.back(lag).measured_w.unwrap_or(0.0) as f64)).collect();
-    let pred: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (at(w), r[0] as f64)).collect();
-    let lo: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (at(w), r[1] as f64)).collect();
-    let hi: Vec<(f64, f64)> = windows.iter().zip(&rows).map(|(w, r)| (at(w), r[2] as f64)).collect();
-    plot_lines(
+/// Plot the first model of `s` (its estimate and band) against measured power, each
+/// estimate at the instant it is for.
+fn plot_flight(s: &FlightSeries, path: &Path) -> anyhow::Result<()> {
+    let t0 = s.t_s.first().copied().unwrap_or(0.0);
+    let points = |v: &mut dyn Iterator<Item = f64>| -> Vec<(f64, f64)> {
+        s.t_s.iter().zip(v).filter(|(_, y)| y.is_finite()).map(|(t, y)| (t - t0, y)).collect()
+    };
+    let band = |hi: bool| points(&mut s.band_w[0].iter().map(|b| b.map_or(f64::NAN, |(lo, h)| if hi { h } else { lo })));
+    plot::lines(
         path,
-        &format!("Flight {}: LSTM vs measured power", f.flight),
+        &format!("Flight {}: LSTM vs measured power", s.flight),
         "time (s)",
         "power (W)",
-        &[("measured", meas), ("LSTM", pred), ("band low", lo), ("band high", hi)],
+        &[("measured", points(&mut s.measured_w.iter().copied())), ("LSTM", points(&mut s.pred_w[0].iter().copied())), ("band low", band(false)), ("band high", band(true))],
     )
-}
-
-/// The bundled font (DejaVu Sans, see `config/fonts/DejaVuSans.LICENSE`), registered once.
-pub(crate) fn register_font() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        let bytes: &'static [u8] = include_bytes!("../../config/fonts/DejaVuSans.ttf");
-        if plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes).is_err() {
-            tracing::warn!("bundled font did not load; plots will have no text");
-        }
-    });
-}
-
-/// A line chart of named series to a PNG.
-pub(crate) fn plot_lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)]) -> anyhow::Result<()> {
-    use plotters::prelude::*;
-    register_font();
-    let pts = series.iter().flat_map(|s| s.1.iter());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for (x, y) in pts.filter(|p| p.0.is_finite() && p.1.is_finite()) {
-        x0 = x0.min(*x);
-        x1 = x1.max(*x);
-        y0 = y0.min(*y);
-        y1 = y1.max(*y);
-    }
-    if x0 > x1 {
-        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
-    }
-    let pad = ((y1 - y0) * 0.05).max(1e-9);
-    let err = |e: String| anyhow::anyhow!("{}: cannot draw plot: {e}", path.display());
-    let root = BitMapBackend::new(path, (900, 500)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1.max(x0 + 1e-9), (y0 - pad)..(y1 + pad))
-        .map_err(|e| err(e.to_string()))?;
-    chart.configure_mesh().x_desc(x_label).y_desc(y_label).draw().map_err(|e| err(e.to_string()))?;
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        chart
-            .draw_series(LineSeries::new(pts.iter().cloned(), color.stroke_width(if i < 2 { 2 } else { 1 })))
-            .map_err(|e| err(e.to_string()))?
-            .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| err(e.to_string()))?;
-    root.present().map_err(|e| err(e.to_string()))?;
-    Ok(())
 }
 
 /// Lags (in samples before the newest) exported beside the newest sample.

@@ -40,7 +40,7 @@ use anyhow::{Context, Result};
 use rumqttc::{AsyncClient, ConnectionError, Event, EventLoop, LastWill, MqttOptions, Outgoing, Packet, QoS, Transport};
 use tokio::task::JoinHandle;
 
-use crate::alert::AlertState;
+use crate::report::AlertState;
 
 /// First wait before reconnecting; doubles per failure up to `reconnect_max_s`.
 pub const RECONNECT_MIN: Duration = Duration::from_millis(500);
