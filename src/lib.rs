@@ -24,7 +24,7 @@
 //!
 //! | module | what it owns |
 //! |---|---|
-//! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV, the simulator; frame decoding and its counters |
+//! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV; frame decoding and its counters |
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
@@ -33,14 +33,18 @@
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard |
 //! | [`pipeline`] | wires the tasks together and owns shutdown |
 //! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
+//! | [`mission`] | routes: waypoint guidance (take-off, legs, holds, landing) |
+//! | [`sim`] | the simulator: a vehicle profile flying a route, sent as ArduPilot or PX4 telemetry (`.tlog` or UDP); outside the flow, it makes what sources read |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
 
 pub mod alert;
 pub mod config;
 pub mod energy;
+pub mod mission;
 pub mod model;
 pub mod offline;
 pub mod pipeline;
+pub mod sim;
 pub mod sink;
 pub mod source;
 pub mod telemetry;

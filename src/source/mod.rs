@@ -8,13 +8,12 @@
 //! ```
 //!
 //! Owner: foundation (issue 2) for frame/timed/tlog/raw/link; features (issue 3) for
-//! dataset and sim.
+//! dataset. The simulator that writes tlogs is [`crate::sim`].
 
 pub mod dataset;
 pub mod frame;
 pub mod link;
 pub mod raw;
-pub mod sim;
 pub mod timed;
 pub mod tlog;
 
@@ -103,7 +102,7 @@ pub struct StatsSnapshot {
     pub silences: u64,
 }
 
-/// How fast a recorded source plays.
+/// How fast a recorded source plays (replay), or a simulated one is sent (`simulate --udp`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Speed {
     /// Honour the recorded timestamps, scaled: 1.0 is real time, 10.0 ten times faster.
@@ -114,13 +113,18 @@ pub enum Speed {
 
 impl std::str::FromStr for Speed {
     type Err = String;
+    /// `max`, `real` (= 1), or a factor from 0.001 to 1000000, optionally with an `x`
+    /// (`10`, `10x`), all case-insensitive.
     fn from_str(s: &str) -> Result<Self, String> {
         if s.eq_ignore_ascii_case("max") {
             return Ok(Speed::Max);
         }
+        if s.eq_ignore_ascii_case("real") {
+            return Ok(Speed::Factor(1.0));
+        }
         match s.trim_end_matches(['x', 'X']).parse::<f64>() {
             Ok(f) if (0.001..=1e6).contains(&f) => Ok(Speed::Factor(f)),
-            _ => Err(format!("speed '{s}': expected a number from 0.001 to 1000000 (1 = real time) or 'max'")),
+            _ => Err(format!("speed '{s}': expected a number from 0.001 to 1000000 (1 = real time), 'real' or 'max'")),
         }
     }
 }
