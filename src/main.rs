@@ -176,6 +176,10 @@ struct SimulateArgs {
     /// Whose telemetry style to imitate.
     #[arg(long, value_enum, default_value_t = Autopilot::Ardupilot)]
     autopilot: Autopilot,
+    /// The airframe and battery: a built-in profile (m100, x500, quad-3s) or a vehicle
+    /// profile file with the simulator's sections ([rotor], [body], [powertrain], [battery]).
+    #[arg(long, value_name = "PROFILE", default_value = "m100")]
+    vehicle: String,
 }
 
 impl SimulateArgs {
@@ -185,7 +189,7 @@ impl SimulateArgs {
         let triangle = Triangle { leg_m: self.leg_m, altitude_m: self.altitude_m, speed_mps: self.speed_mps, hover_s: self.hover_s };
         triangle.validate().map_err(flag)?;
         let opts = SimOptions {
-            vehicle: dronewatt::model::profile::VehicleProfile::m100(),
+            vehicle: dronewatt::model::profile::VehicleProfile::named_or_file(&self.vehicle)?,
             route: triangle.route(),
             payload_g: self.payload_g,
             wind_mps: self.wind_mps,

@@ -178,3 +178,22 @@ fn bad_arguments_are_refused_with_a_reason() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent-dir/x.tlog"));
 }
+
+#[test]
+fn the_demo_tlog_is_what_the_command_in_its_readme_makes() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tlog = dir.path().join("demo.tlog");
+    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["simulate", "--out"])
+        .arg(&tlog)
+        .args(["--speed-mps", "10", "--altitude-m", "25", "--payload-g", "500", "--wind-mps", "4", "--wind-dir-deg", "250"])
+        .args(["--leg-m", "400", "--hover-s", "30", "--seed", "42"])
+        .output()
+        .expect("run dronewatt simulate");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let readme = std::fs::read_to_string(root.join("replay/README.md")).expect("replay/README.md");
+    assert!(readme.contains("--wind-mps 4 --wind-dir-deg 250 --leg-m 400 --hover-s 30 --seed 42"), "the README's command changed: update this test");
+    let (made, shipped) = (std::fs::read(&tlog).expect("made"), std::fs::read(root.join("replay/demo.tlog")).expect("shipped"));
+    assert!(made == shipped, "replay/demo.tlog is not what its README's command makes ({} vs {} bytes): regenerate it", made.len(), shipped.len());
+}

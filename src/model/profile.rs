@@ -26,6 +26,14 @@ use super::physics::{dandrea, dorling, kirschstein, stolaroff, tseng};
 /// The M100 profile as shipped (`config/vehicles/m100.toml`).
 pub const M100_TOML: &str = include_str!("../../config/vehicles/m100.toml");
 
+/// The profiles compiled in, by the name `--vehicle` takes: the M100, a Holybro X500 V2
+/// class 4S quad, a 1 kg 3S quad (`config/vehicles/NAME.toml`).
+pub const BUILT_IN: [(&str, &str); 3] = [
+    ("m100", M100_TOML),
+    ("x500", include_str!("../../config/vehicles/x500.toml")),
+    ("quad-3s", include_str!("../../config/vehicles/quad-3s.toml")),
+];
+
 /// One vehicle: airframe, air, and each physics model's parameters.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -226,6 +234,18 @@ impl VehicleProfile {
         Ok(p)
     }
 
+    /// A built-in profile by name ([`BUILT_IN`]), else a profile file at that path.
+    pub fn named_or_file(name_or_path: &str) -> anyhow::Result<Self> {
+        match BUILT_IN.iter().find(|(n, _)| *n == name_or_path) {
+            Some((n, text)) => Self::from_toml(text, &format!("built-in {n}.toml")),
+            None if Path::new(name_or_path).exists() => Self::load(Path::new(name_or_path)),
+            None => {
+                let names: Vec<&str> = BUILT_IN.iter().map(|b| b.0).collect();
+                anyhow::bail!("vehicle '{name_or_path}': neither a built-in profile ({}) nor a file", names.join(", "))
+            }
+        }
+    }
+
     /// Read a profile file.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read vehicle profile", path.display()))?;
@@ -336,6 +356,18 @@ mod tests {
         assert!(format!("{e:#}").contains("bad.toml"));
         let neg = text.replace("rho_kg_m3 = 1.225", "rho_kg_m3 = -1.0");
         assert!(format!("{:#}", VehicleProfile::from_toml(&neg, "n").unwrap_err()).contains("rho_kg_m3"));
+    }
+
+    #[test]
+    fn every_built_in_profile_parses_and_matches_its_file() {
+        for (name, text) in BUILT_IN {
+            let p = VehicleProfile::named_or_file(name).unwrap_or_else(|e| panic!("{e:#}"));
+            let file = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("config/vehicles/{name}.toml"));
+            assert_eq!(std::fs::read_to_string(&file).unwrap(), text, "{name}: the compiled-in text is the file");
+            assert!(p.rotor.is_some() && p.body.is_some() && p.powertrain.is_some() && p.battery.is_some(), "{name}");
+        }
+        let e = VehicleProfile::named_or_file("no-such-vehicle").unwrap_err().to_string();
+        assert!(e.contains("no-such-vehicle") && e.contains("x500"), "{e}");
     }
 
     #[test]

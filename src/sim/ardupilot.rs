@@ -1,11 +1,13 @@
 //! ArduPilot Copter's way: ArduCopter flight modes in HEARTBEAT, ATTITUDE (Euler) at
 //! 10 Hz, RAW_IMU in ArduPilot's scaling (mG, mrad/s, mgauss), WIND at 2 Hz, no
-//! quaternion, no landed state.
+//! quaternion, no landed state; parameters `BATT_*`, `MOT_THST_HOVER`, `FRAME_CLASS`, the
+//! integer ones cast to the float (ArduPilot's encoding).
 
 use nalgebra::Vector3;
 
-use super::emit::{Every, Instant, Style};
+use super::emit::{param, Every, Instant, Style};
 use super::physics::G;
+use super::SimOptions;
 use crate::dialect as d;
 use crate::mission::guidance::Phase;
 use crate::MavMessage;
@@ -26,6 +28,26 @@ impl Style for ArduPilot {
             Phase::Descent | Phase::Landed => 9,
             _ => 3,
         }
+    }
+
+    /// From the profile's `[battery]`: `BATT_CAPACITY` (mAh, INT32), `BATT_LOW_VOLT` and
+    /// `BATT_CRT_VOLT` (3.6 and 3.5 V a cell, Mission Planner's initial-setup values for
+    /// LiPo), `BATT_LOW_MAH` and `BATT_CRT_MAH` (20 % and 10 % of the capacity left);
+    /// `MOT_THST_HOVER` 0.5 (the simulator's VFR_HUD throttle in the hover is 50 %);
+    /// `FRAME_CLASS` 1 (quad, INT8).
+    fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA> {
+        use d::MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_INT8 as INT8, MAV_PARAM_TYPE_REAL32 as REAL32};
+        let Some(b) = &opts.vehicle.battery else { return Vec::new() };
+        let (mah, cells) = (b.capacity_mah, f64::from(b.cells));
+        vec![
+            param("BATT_CAPACITY", mah.round() as i32 as f32, INT32),
+            param("BATT_LOW_VOLT", (3.6 * cells) as f32, REAL32),
+            param("BATT_CRT_VOLT", (3.5 * cells) as f32, REAL32),
+            param("BATT_LOW_MAH", (0.2 * mah) as f32, REAL32),
+            param("BATT_CRT_MAH", (0.1 * mah) as f32, REAL32),
+            param("MOT_THST_HOVER", 0.5, REAL32),
+            param("FRAME_CLASS", 1.0, INT8),
+        ]
     }
 
     fn landed_state(&self, _now: &Instant) -> Option<MavMessage> {

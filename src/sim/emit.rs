@@ -6,6 +6,7 @@
 //! |---|---|---|
 //! | HEARTBEAT | 1 Hz, and at once on each phase change | — |
 //! | NAMED_VALUE_FLOAT `cmd_speed`, `payload_g`, `cmd_alt` | 1 Hz | — |
+//! | PARAM_VALUE: battery capacity, cells or voltage thresholds, … ([`Style::parameters`]) | once, at start | — |
 //! | SYS_STATUS, BATTERY_STATUS | 2 Hz | σ_V = 0.05 V; σ_I = 0.1 A + 7 % of the current |
 //! | GLOBAL_POSITION_INT, GPS_RAW_INT | 5 Hz | Gauss–Markov position error; σ_v = 8/8/5 cm/s |
 //! | attitude ([`Style::attitude`]) | 10 Hz | σ = 0.004/0.004/0.006 rad; rates 0.015/0.015/0.01 rad/s |
@@ -78,6 +79,9 @@ pub trait Style {
     fn autopilot(&self) -> d::MavAutopilot;
     /// HEARTBEAT's `custom_mode` for a phase.
     fn custom_mode(&self, phase: Phase) -> u32;
+    /// The battery and frame parameters a ground station reads at connection, as
+    /// PARAM_VALUE payloads (index and count are filled in by the emitter).
+    fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA>;
     /// Landed state (PX4's EXTENDED_SYS_STATE); before the battery messages.
     fn landed_state(&self, now: &Instant) -> Option<MavMessage>;
     /// Attitude messages, given the measured roll, pitch, yaw (rad) and body rates (rad/s),
@@ -103,6 +107,7 @@ pub struct Emitter {
     style: Box<dyn Style>,
     route: Route,
     payload_g: f64,
+    params: Vec<d::PARAM_VALUE_DATA>,
     seq: u8,
     records: Vec<SimRecord>,
     home_sent: bool,
@@ -112,10 +117,17 @@ pub struct Emitter {
 impl Emitter {
     /// An emitter for `opts`' autopilot style.
     pub fn new(opts: &SimOptions) -> Self {
+        let style = style(opts.autopilot);
+        let mut params = style.parameters(opts);
+        let count = params.len() as u16;
+        for (i, p) in params.iter_mut().enumerate() {
+            (p.param_index, p.param_count) = (i as u16, count);
+        }
         Self {
-            style: style(opts.autopilot),
+            style,
             route: opts.route.clone(),
             payload_g: opts.payload_g,
+            params,
             seq: 0,
             records: Vec::new(),
             home_sent: false,
@@ -174,6 +186,11 @@ impl Emitter {
                     MavMessage::NAMED_VALUE_FLOAT(d::NAMED_VALUE_FLOAT_DATA { time_boot_ms: boot_ms, value: value as f32, name: name.into() }),
                 );
             }
+        }
+        // The parameters, once, right after the first heartbeat: what a ground station
+        // logs when it reads the parameter list at connection.
+        for p in std::mem::take(&mut self.params) {
+            self.push(t_ms, MavMessage::PARAM_VALUE(p));
         }
         if let Some(m) = self.style.landed_state(now) {
             self.push(t_ms, m);
@@ -328,6 +345,11 @@ impl Emitter {
             }),
         );
     }
+}
+
+/// A PARAM_VALUE payload (index and count left for the emitter).
+pub fn param(name: &str, value: f32, kind: d::MavParamType) -> d::PARAM_VALUE_DATA {
+    d::PARAM_VALUE_DATA { param_value: value, param_count: 0, param_index: 0, param_id: name.into(), param_type: kind }
 }
 
 /// ISA static pressure at an altitude, Pa.

@@ -1,11 +1,12 @@
 //! PX4's way: PX4 main/sub modes in HEARTBEAT, ATTITUDE_QUATERNION at 10 Hz (and ATTITUDE
 //! at 5 Hz), HIGHRES_IMU in SI units, EXTENDED_SYS_STATE (landed state) at 1 Hz, ALTITUDE
-//! at 5 Hz, no WIND.
+//! at 5 Hz, no WIND; parameters `BAT1_*`, the integer ones packed bytewise into the float
+//! (PX4's encoding).
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::emit::{pressure_pa, Every, Instant, Style};
-use super::HOME;
+use super::emit::{param, pressure_pa, Every, Instant, Style};
+use super::{SimOptions, HOME};
 use crate::dialect as d;
 use crate::mission::guidance::Phase;
 use crate::MavMessage;
@@ -29,6 +30,20 @@ impl Style for Px4 {
             Phase::PreArm | Phase::Done => (3, 0),
         };
         (main << 16) | (sub << 24)
+    }
+
+    /// From the profile's `[battery]`: `BAT1_CAPACITY` (mAh, REAL32), `BAT1_N_CELLS`
+    /// (INT32, its bytes in the float), `BAT1_V_CHARGED` 4.05 V and `BAT1_V_EMPTY` 3.6 V a
+    /// cell (PX4 1.14's defaults).
+    fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA> {
+        use d::MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_REAL32 as REAL32};
+        let Some(b) = &opts.vehicle.battery else { return Vec::new() };
+        vec![
+            param("BAT1_CAPACITY", b.capacity_mah as f32, REAL32),
+            param("BAT1_N_CELLS", f32::from_bits(b.cells), INT32),
+            param("BAT1_V_CHARGED", 4.05, REAL32),
+            param("BAT1_V_EMPTY", 3.6, REAL32),
+        ]
     }
 
     fn landed_state(&self, now: &Instant) -> Option<MavMessage> {
