@@ -270,3 +270,24 @@ async fn send(tx: &mpsc::Sender<TimedMessage>, m: TimedMessage, shutdown: &Cance
         },
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Speed;
+
+    #[test]
+    fn speed_takes_what_replay_speed_and_simulate_rate_both_took() {
+        let ok = |s: &str| s.parse::<Speed>().unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(ok("max"), Speed::Max);
+        assert_eq!(ok("MAX"), Speed::Max);
+        assert_eq!(ok("real"), Speed::Factor(1.0));
+        assert_eq!(ok("Real"), Speed::Factor(1.0));
+        assert_eq!(ok("40"), Speed::Factor(40.0));
+        assert_eq!(ok("5x"), Speed::Factor(5.0));
+        assert_eq!(ok("0.5X"), Speed::Factor(0.5));
+        for bad in ["0", "-2", "fast", "nan", "inf", "2e6"] {
+            let e = bad.parse::<Speed>().unwrap_err();
+            assert!(e.contains(bad) && e.contains("real"), "{e}");
+        }
+    }
+}
