@@ -32,15 +32,17 @@
 //! | [`report`] | the floor: the messages from the models on ([`report::Estimate`], [`report::EnergyState`], [`report::AlertEvent`], [`report::Report`]) |
 //! | [`status`] | the floor: what a chain says beside the data (ingest counters, signal health, the uplink, the stop signal) |
 //! | [`address`] | the floor: the one link address grammar (`udpin:`, `udpout:`, `tcpin:`, `tcpout:`, `serial:`) |
-//! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV, the simulator; frame decoding and its counters |
+//! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV; frame decoding and its counters |
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
-//! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard |
+//! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |
 //! | [`pipeline`] | one vehicle's chain as named stages, the run that wires source → chain → sinks, shutdown |
 //! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
+//! | [`mission`] | routes: waypoint guidance (take-off, legs, holds, landing) |
+//! | [`sim`] | the simulator: a vehicle profile flying a route, sent as ArduPilot or PX4 telemetry (`.tlog` or UDP); outside the flow, it makes what sources read |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
 
 pub mod address;
@@ -48,10 +50,12 @@ pub mod alert;
 pub mod config;
 pub mod energy;
 pub mod features;
+pub mod mission;
 pub mod model;
 pub mod offline;
 pub mod pipeline;
 pub mod report;
+pub mod sim;
 pub mod sink;
 pub mod source;
 pub mod status;

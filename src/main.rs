@@ -7,6 +7,8 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
 use dronewatt::config::Config;
+use dronewatt::mission::guidance::{InvalidOption, Triangle};
+use dronewatt::sim::{self, Autopilot, SimOptions};
 use dronewatt::pipeline::{self, Pipeline};
 use dronewatt::sink::{JsonTarget, SinkSpec};
 use dronewatt::source::{SourceSpec, Speed};
@@ -65,7 +67,7 @@ enum Command {
     /// Write one data-set flight as a .tlog.
     Convert(dronewatt::source::dataset::ConvertArgs),
     /// Fly the built-in simulator to a UDP address or a .tlog.
-    Simulate(dronewatt::source::sim::SimulateArgs),
+    Simulate(SimulateArgs),
     /// Score every model on data-set flights (the paper's tables, in watts).
     Eval(dronewatt::offline::eval::EvalArgs),
     /// Fit the physics models' free parameters to training flights.
@@ -121,7 +123,7 @@ fn real_main(cli: Cli) -> Result<()> {
             run_pipeline(SourceSpec::Link(address), run)
         }
         Command::Convert(a) => dronewatt::source::dataset::run(a),
-        Command::Simulate(a) => dronewatt::source::sim::run(a),
+        Command::Simulate(a) => simulate(a),
         Command::Eval(a) => dronewatt::offline::eval::run(a),
         Command::Calibrate(a) => dronewatt::offline::calibrate::run(a),
         Command::Train(a) => dronewatt::offline::train::run(a),
@@ -132,6 +134,99 @@ fn real_main(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Arguments of `dronewatt simulate`: a triangle mission (the default route) for a vehicle.
+#[derive(Debug, Clone, clap::Args)]
+struct SimulateArgs {
+    /// Write the flight to this `.tlog` file.
+    #[arg(long, value_name = "FILE.tlog", conflicts_with = "udp", required_unless_present = "udp")]
+    out: Option<PathBuf>,
+    /// Stream the flight's MAVLink frames to this UDP address (`dronewatt monitor udpin:…`).
+    #[arg(long, value_name = "HOST:PORT")]
+    udp: Option<String>,
+    /// Commanded cruise ground speed, m/s.
+    #[arg(long, default_value_t = 10.0)]
+    speed_mps: f64,
+    /// Cruise altitude above home, m.
+    #[arg(long, default_value_t = 25.0)]
+    altitude_m: f64,
+    /// Payload, g.
+    #[arg(long, default_value_t = 500.0)]
+    payload_g: f64,
+    /// Mean wind speed, m/s.
+    #[arg(long, default_value_t = 3.0)]
+    wind_mps: f64,
+    /// Direction the wind comes FROM, degrees clockwise from north (meteorological).
+    #[arg(long, default_value_t = 270.0)]
+    wind_dir_deg: f64,
+    /// Side of the triangle, m.
+    #[arg(long, default_value_t = 300.0)]
+    leg_m: f64,
+    /// Hover time over home after the triangle (the delivery), s.
+    #[arg(long, default_value_t = 20.0)]
+    hover_s: f64,
+    /// Seed of the noise and gusts.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Pace of `--udp`: `real` (wall clock, the default), `max` (flat out) or a factor such
+    /// as `5` (five times real time). A `--out` tlog is always written at once.
+    #[arg(long)]
+    rate: Option<Speed>,
+    /// Whose telemetry style to imitate.
+    #[arg(long, value_enum, default_value_t = Autopilot::Ardupilot)]
+    autopilot: Autopilot,
+    /// The airframe and battery: a built-in profile (m100, x500, quad-3s) or a vehicle
+    /// profile file with the simulator's sections ([rotor], [body], [powertrain], [battery]).
+    #[arg(long, value_name = "PROFILE", default_value = "m100")]
+    vehicle: String,
+}
+
+impl SimulateArgs {
+    /// The library's options; an out-of-range value is named by its flag.
+    fn options(&self) -> Result<SimOptions> {
+        let flag = |e: InvalidOption| anyhow::anyhow!("--{} {}", e.key.replace('_', "-"), e.reason);
+        let triangle = Triangle { leg_m: self.leg_m, altitude_m: self.altitude_m, speed_mps: self.speed_mps, hover_s: self.hover_s };
+        triangle.validate().map_err(flag)?;
+        let opts = SimOptions {
+            vehicle: dronewatt::model::profile::VehicleProfile::named_or_file(&self.vehicle)?,
+            route: triangle.route(),
+            payload_g: self.payload_g,
+            wind_mps: self.wind_mps,
+            wind_dir_deg: self.wind_dir_deg,
+            seed: self.seed,
+            autopilot: self.autopilot,
+        };
+        opts.validate().map_err(|e| match e.downcast::<InvalidOption>() {
+            Ok(e) => flag(e),
+            Err(e) => e,
+        })?;
+        Ok(opts)
+    }
+}
+
+/// `dronewatt simulate`: fly, then write the `.tlog` or stream to UDP.
+fn simulate(args: SimulateArgs) -> Result<()> {
+    let flight = sim::simulate(&args.options()?)?;
+    let (duration_s, energy_wh) = (flight.duration_s(), flight.energy_wh());
+    tracing::info!(messages = flight.records.len(), duration_s, energy_wh, "simulated mission");
+    if let Some(path) = &args.out {
+        let bytes = sim::output::write_tlog(path, &flight)?;
+        let n = flight.records.len();
+        eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.1} Wh drawn, {bytes} bytes", path.display());
+        return Ok(());
+    }
+    let addr = args.udp.as_deref().context("give --out FILE.tlog or --udp HOST:PORT")?;
+    let speed = args.rate.unwrap_or(Speed::Factor(1.0));
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("cannot start the tokio runtime")?;
+    let sent = rt.block_on(async {
+        tokio::select! {
+            r = sim::output::stream_udp(&flight.records, addr, speed) => r,
+            _ = tokio::signal::ctrl_c() => Ok(0),
+        }
+    })?;
+    eprintln!("sent {sent} frames to udp {addr}");
+    Ok(())
 }
 
 /// What `check-config` prints: what the file sets up, in words.

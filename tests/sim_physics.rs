@@ -1,16 +1,24 @@
-//! The simulator's power model and battery: hover power in the data set's range, power
-//! rising with payload and, beyond the minimum-power speed, with speed; the battery's
-//! V·I = P; a whole mission's energy use.
+//! The simulator's power model and battery (the M100 of `config/vehicles/m100.toml`): hover
+//! power in the data set's range, power rising with payload and, beyond the minimum-power
+//! speed, with speed; the battery's V·I = P; a whole mission's energy use.
 
-use dronewatt::source::sim::{simulate, Battery, Mission, Phase, M100};
+use dronewatt::mission::guidance::{Phase, Triangle};
+use dronewatt::model::profile::VehicleProfile;
+use dronewatt::sim::physics::{Airframe, Battery};
+use dronewatt::sim::{simulate, SimFlight, SimOptions};
 use nalgebra::Vector3;
 
+/// The M100 the simulator flies: the built-in profile, the one the models read too.
+fn m100() -> Airframe {
+    Airframe::from_profile(&VehicleProfile::m100()).expect("the M100 profile has the simulator's sections")
+}
+
 fn mass(payload_g: f64) -> f64 {
-    Mission { payload_g, ..Default::default() }.mass_kg()
+    m100().mass_kg(payload_g / 1000.0)
 }
 
 fn level_w(payload_g: f64, airspeed: f64) -> f64 {
-    M100.power(mass(payload_g), Vector3::new(airspeed, 0.0, 0.0), Vector3::zeros()).electrical_w
+    m100().power(mass(payload_g), Vector3::new(airspeed, 0.0, 0.0), Vector3::zeros()).electrical_w
 }
 
 #[test]
@@ -22,13 +30,14 @@ fn hover_power_lands_in_the_data_sets_range() {
     assert!((480.0..=570.0).contains(&p500), "500 g hover {p500:.0} W");
     assert!((360.0..=500.0).contains(&p0), "0 g hover {p0:.0} W");
     // The breakdown adds up: (induced + profile) / η + avionics.
-    let b = M100.power(mass(500.0), Vector3::zeros(), Vector3::zeros());
-    let sum = (b.induced_w + b.profile_w + b.parasitic_w + b.climb_w) / M100.efficiency + M100.avionics_w;
+    let frame = m100();
+    let b = frame.power(mass(500.0), Vector3::zeros(), Vector3::zeros());
+    let sum = (b.induced_w + b.profile_w + b.parasitic_w + b.climb_w) / frame.efficiency + frame.avionics_w;
     assert!((sum - b.electrical_w).abs() < 1e-6);
     // In hover thrust equals weight and v_i is the momentum-theory value √(T/(2ρA_total)).
     let w = mass(500.0) * 9.80665;
     assert!((b.thrust_n - w).abs() < 1e-6);
-    let vh = (w / (2.0 * M100.rho * 4.0 * M100.disk_area_m2())).sqrt();
+    let vh = (w / (2.0 * frame.rho * 4.0 * frame.disk_area_m2())).sqrt();
     assert!((b.induced_velocity_mps - vh).abs() < 1e-3, "v_i {} vs v_h {vh}", b.induced_velocity_mps);
 }
 
@@ -57,11 +66,12 @@ fn power_has_a_bucket_and_rises_beyond_the_minimum_power_speed() {
 
 #[test]
 fn climbing_and_accelerating_cost_more_than_hover() {
+    let frame = m100();
     let m = mass(500.0);
-    let hover = M100.power(m, Vector3::zeros(), Vector3::zeros()).electrical_w;
-    let climb = M100.power(m, Vector3::new(0.0, 0.0, -2.5), Vector3::zeros()).electrical_w;
-    let descend = M100.power(m, Vector3::new(0.0, 0.0, 1.5), Vector3::zeros()).electrical_w;
-    let accel = M100.power(m, Vector3::zeros(), Vector3::new(2.0, 0.0, 0.0)).electrical_w;
+    let hover = frame.power(m, Vector3::zeros(), Vector3::zeros()).electrical_w;
+    let climb = frame.power(m, Vector3::new(0.0, 0.0, -2.5), Vector3::zeros()).electrical_w;
+    let descend = frame.power(m, Vector3::new(0.0, 0.0, 1.5), Vector3::zeros()).electrical_w;
+    let accel = frame.power(m, Vector3::zeros(), Vector3::new(2.0, 0.0, 0.0)).electrical_w;
     assert!(climb > hover + 50.0, "climb {climb:.0} vs hover {hover:.0}");
     assert!(descend < hover, "descent {descend:.0} vs hover {hover:.0}");
     assert!(accel > hover, "accelerating {accel:.0} vs hover {hover:.0}");
@@ -69,7 +79,7 @@ fn climbing_and_accelerating_cost_more_than_hover() {
 
 #[test]
 fn battery_voltage_times_current_is_the_power_and_sags_under_load() {
-    let mut b = Battery::tb48d(0.9);
+    let mut b = Battery::from_profile(&VehicleProfile::m100(), 0.9).expect("TB48D");
     let ocv = b.ocv_v();
     assert!((24.0..=26.1).contains(&ocv), "OCV at 90 % {ocv}");
     for p in [0.0, 100.0, 500.0, 900.0] {
@@ -91,17 +101,18 @@ fn battery_voltage_times_current_is_the_power_and_sags_under_load() {
 
 #[test]
 fn a_mission_flies_every_phase_and_payload_costs_energy() {
-    let short = Mission { leg_m: 150.0, hover_s: 10.0, ..Default::default() };
+    let route = Triangle { leg_m: 150.0, altitude_m: 25.0, speed_mps: 10.0, hover_s: 10.0 }.route();
+    let short = SimOptions { route, ..Default::default() };
     let heavy = simulate(&short).expect("simulate");
-    let light = simulate(&Mission { payload_g: 0.0, ..short.clone() }).expect("simulate");
-    for ph in [Phase::PreArm, Phase::Spinup, Phase::Climb, Phase::Leg(0), Phase::Leg(1), Phase::Leg(2), Phase::Hover, Phase::Descent, Phase::Landed, Phase::Done] {
+    let light = simulate(&SimOptions { payload_g: 0.0, ..short.clone() }).expect("simulate");
+    for ph in [Phase::PreArm, Phase::Spinup, Phase::Climb, Phase::Leg(0), Phase::Leg(1), Phase::Leg(2), Phase::Hold(2), Phase::Descent, Phase::Landed, Phase::Done] {
         assert!(heavy.truth.iter().any(|s| s.phase == ph), "phase {ph:?} never flown");
     }
     let max_h = heavy.truth.iter().map(|s| s.height_m).fold(0.0, f64::max);
     assert!((24.0..=26.5).contains(&max_h), "cruise height {max_h}");
     let last = heavy.truth.last().expect("truth");
     assert!(last.height_m.abs() < 0.05, "must end on the ground: {}", last.height_m);
-    let cruise = |f: &dronewatt::source::sim::SimFlight| {
+    let cruise = |f: &SimFlight| {
         let mut v: Vec<f64> = f.truth.iter().filter(|s| matches!(s.phase, Phase::Leg(_)) && s.ground_speed_mps > 9.0).map(|s| s.power_w).collect();
         v.sort_by(|a, b| a.total_cmp(b));
         v[v.len() / 2]
@@ -110,6 +121,6 @@ fn a_mission_flies_every_phase_and_payload_costs_energy() {
     assert!(ch > cl + 40.0, "cruise 500 g {ch:.0} W vs 0 g {cl:.0} W");
     let peak = heavy.truth.iter().filter(|s| s.phase == Phase::Leg(0)).map(|s| s.ground_speed_mps).fold(0.0, f64::max);
     assert!((9.5..=10.5).contains(&peak), "leg speed {peak}");
-    let e = |f: &dronewatt::source::sim::SimFlight| f.truth.iter().map(|s| s.power_w * 0.1 / 3600.0).sum::<f64>();
+    let e = |f: &SimFlight| f.truth.iter().map(|s| s.power_w * 0.1 / 3600.0).sum::<f64>();
     assert!(e(&heavy) > e(&light) * 1.1, "energy 500 g {} vs 0 g {}", e(&heavy), e(&light));
 }

@@ -6,11 +6,12 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use dronewatt::source::sim::{simulate, Autopilot, Mission, EPOCH_START_US};
+use dronewatt::mission::guidance::Triangle;
+use dronewatt::sim::{simulate, Autopilot, SimOptions, EPOCH_START_US};
 use dronewatt::MavMessage;
 
-fn short() -> Mission {
-    Mission { leg_m: 120.0, hover_s: 8.0, ..Default::default() }
+fn short() -> SimOptions {
+    SimOptions { route: Triangle { leg_m: 120.0, altitude_m: 25.0, speed_mps: 10.0, hover_s: 8.0 }.route(), ..Default::default() }
 }
 
 fn python() -> PathBuf {
@@ -88,7 +89,7 @@ fn cli_tlog_decodes_with_pymavlink_as_ardupilot_telemetry() {
 fn px4_style_sends_quaternion_highres_imu_and_no_wind() {
     let dir = tempfile::tempdir().expect("tempdir");
     let tlog = dir.path().join("px4.tlog");
-    let flight = simulate(&Mission { autopilot: Autopilot::Px4, ..short() }).expect("simulate");
+    let flight = simulate(&SimOptions { autopilot: Autopilot::Px4, ..short() }).expect("simulate");
     std::fs::write(&tlog, flight.to_tlog()).expect("write");
     let v = peer(&tlog);
     let counts = v["counts"].as_object().expect("counts");
@@ -157,7 +158,7 @@ fn rust_mavlink_decodes_every_frame_with_mavlink_units() {
 fn same_seed_same_bytes_other_seed_other_noise() {
     let a = simulate(&short()).expect("simulate").to_tlog();
     let b = simulate(&short()).expect("simulate").to_tlog();
-    let c = simulate(&Mission { seed: 2, ..short() }).expect("simulate").to_tlog();
+    let c = simulate(&SimOptions { seed: 2, ..short() }).expect("simulate").to_tlog();
     assert!(a == b, "same seed must give identical tlogs");
     assert!(a != c, "another seed must change the noise");
 }
@@ -176,4 +177,23 @@ fn bad_arguments_are_refused_with_a_reason() {
         .expect("run dronewatt simulate");
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent-dir/x.tlog"));
+}
+
+#[test]
+fn the_demo_tlog_is_what_the_command_in_its_readme_makes() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tlog = dir.path().join("demo.tlog");
+    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["simulate", "--out"])
+        .arg(&tlog)
+        .args(["--speed-mps", "10", "--altitude-m", "25", "--payload-g", "500", "--wind-mps", "4", "--wind-dir-deg", "250"])
+        .args(["--leg-m", "400", "--hover-s", "30", "--seed", "42"])
+        .output()
+        .expect("run dronewatt simulate");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let readme = std::fs::read_to_string(root.join("replay/README.md")).expect("replay/README.md");
+    assert!(readme.contains("--wind-mps 4 --wind-dir-deg 250 --leg-m 400 --hover-s 30 --seed 42"), "the README's command changed: update this test");
+    let (made, shipped) = (std::fs::read(&tlog).expect("made"), std::fs::read(root.join("replay/demo.tlog")).expect("shipped"));
+    assert!(made == shipped, "replay/demo.tlog is not what its README's command makes ({} vs {} bytes): regenerate it", made.len(), shipped.len());
 }

@@ -4,6 +4,17 @@
 //!
 //! The built-in default ([`VehicleProfile::m100`]) is `config/vehicles/m100.toml`, compiled
 //! in, so a fresh install without the config folder still gets the DJI Matrice 100.
+//!
+//! ## What the simulator reads
+//!
+//! `dronewatt simulate` flies the same profile: `[vehicle]` (masses, rotor count and
+//! diameter), `[air]` (density) and four sections the physics models do not read —
+//! `[rotor]` (induced-power factor, solidity, blade drag, thrust coefficient), `[body]`
+//! (flat-plate drag area), `[powertrain]` (efficiency, avionics and idle power) and
+//! `[battery]` (cells, capacity, internal resistance, open-circuit voltage curve). They are
+//! optional, so a profile written for the models alone still loads; the simulator refuses
+//! one that lacks them, naming the section. One airframe, one file: the M100 the models
+//! assume is the M100 the simulator flies.
 
 use std::path::Path;
 
@@ -14,6 +25,14 @@ use super::physics::{dandrea, dorling, kirschstein, stolaroff, tseng};
 
 /// The M100 profile as shipped (`config/vehicles/m100.toml`).
 pub const M100_TOML: &str = include_str!("../../config/vehicles/m100.toml");
+
+/// The profiles compiled in, by the name `--vehicle` takes: the M100, a Holybro X500 V2
+/// class 4S quad, a 1 kg 3S quad (`config/vehicles/NAME.toml`).
+pub const BUILT_IN: [(&str, &str); 3] = [
+    ("m100", M100_TOML),
+    ("x500", include_str!("../../config/vehicles/x500.toml")),
+    ("quad-3s", include_str!("../../config/vehicles/quad-3s.toml")),
+];
 
 /// One vehicle: airframe, air, and each physics model's parameters.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -39,6 +58,18 @@ pub struct VehicleProfile {
     pub tseng: tseng::Params,
     /// Tseng et al., simplified 3DR Solo form as printed in the paper: `[tseng_solo]`.
     pub tseng_solo: tseng::SoloParams,
+    /// `[rotor]`: the simulator's rotor aerodynamics (optional; see the module docs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotor: Option<Rotor>,
+    /// `[body]`: the simulator's body drag (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body: Option<Body>,
+    /// `[powertrain]`: the simulator's motor/ESC efficiency and constant loads (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub powertrain: Option<Powertrain>,
+    /// `[battery]`: the pack (optional; the simulator needs it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub battery: Option<Battery>,
     /// Present only in a profile written by `dronewatt calibrate`: models built from it
     /// are named with a `_cal` suffix.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -59,7 +90,8 @@ pub struct Airframe {
     pub prop_diameter_m: f64,
     /// Motor-to-motor diagonal, m (documentation; no model uses it).
     pub diagonal_m: f64,
-    /// Maximum take-off mass, kg (documentation; no model uses it).
+    /// Maximum take-off mass, kg (no model uses it; the simulator's payload limit is
+    /// `mtow_kg − airframe_kg − battery_kg`).
     pub mtow_kg: f64,
 }
 
@@ -71,6 +103,109 @@ pub struct Air {
     pub rho_kg_m3: f64,
     /// Gravitational acceleration, m/s².
     pub g_m_s2: f64,
+}
+
+/// `[rotor]`: momentum theory with a blade-element profile term, per rotor of diameter
+/// `vehicle.prop_diameter_m`:
+/// `P_induced = kappa·T·v_i`, `P_profile = N·(solidity·blade_cd0/8)·ρ·A·(ΩR)³·(1 + 4.65 μ²)`
+/// with the tip speed `ΩR = √(T_r / (thrust_coefficient·ρ·A))`. Their ratio to the ideal
+/// hover power `T^1.5/√(2ρA_total)` is the rotor's figure of merit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rotor {
+    /// Induced-power factor κ (non-uniform inflow, tip loss), 1; usually 1.1–1.2.
+    pub kappa: f64,
+    /// Rotor solidity σ = blades·chord / (π·R), 1.
+    pub solidity: f64,
+    /// Blade section profile drag coefficient C_d0, 1.
+    pub blade_cd0: f64,
+    /// Hover thrust coefficient C_T = T / (ρ·A·(ΩR)²), 1: sets the tip speed for a thrust.
+    pub thrust_coefficient: f64,
+}
+
+/// `[body]`: parasitic drag `D = ½ρ·drag_area_m2·|v_a|²` against the air-relative velocity.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Body {
+    /// Flat-plate drag area C_D·A of body, arms, battery and payload, m².
+    pub drag_area_m2: f64,
+}
+
+/// `[powertrain]`: `P_elec = P_mech / efficiency + avionics_w` in the air; `idle_w` on the
+/// ground with the motors armed and idling.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Powertrain {
+    /// Rotor mechanical power (momentum theory) → battery power efficiency, 1, in (0, 1]:
+    /// motors × ESCs × what momentum theory leaves out.
+    pub efficiency: f64,
+    /// Constant electrical draw of flight controller, GNSS, radios and sensors, W.
+    pub avionics_w: f64,
+    /// Draw on the ground, armed, props idling (avionics included), W.
+    pub idle_w: f64,
+}
+
+/// `[battery]`: a pack of `cells` in series behind an internal resistance. Terminal voltage
+/// `V = OCV(SoC)·cells − I·R`; a power draw P gives the current that solves `V·I = P`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Battery {
+    /// Cells in series.
+    pub cells: u32,
+    /// Rated capacity, mAh (what ArduPilot's `BATT_CAPACITY` and PX4's `BAT1_CAPACITY` hold).
+    pub capacity_mah: f64,
+    /// Pack internal resistance including wiring and connectors, Ω.
+    pub internal_resistance_ohm: f64,
+    /// Cell open-circuit voltage against state of charge: `[[soc, volts], …]`, soc from 0
+    /// to 1 strictly rising, volts rising; linear in between.
+    pub ocv_cell_v: Vec<[f64; 2]>,
+}
+
+impl Battery {
+    /// Rated energy at the mean of the OCV curve, Wh (capacity × cells × mean cell OCV).
+    pub fn energy_wh(&self) -> f64 {
+        let area: f64 = self.ocv_cell_v.windows(2).map(|w| (w[1][0] - w[0][0]) * (w[0][1] + w[1][1]) / 2.0).sum();
+        self.capacity_mah / 1000.0 * f64::from(self.cells) * area
+    }
+
+    /// Cell open-circuit voltage at state of charge `soc` (clamped to 0..1), V.
+    pub fn ocv_cell_at(&self, soc: f64) -> f64 {
+        let s = soc.clamp(0.0, 1.0);
+        let curve = &self.ocv_cell_v;
+        let mut cell = curve.last().map_or(0.0, |p| p[1]);
+        for w in curve.windows(2) {
+            let ([s0, v0], [s1, v1]) = (w[0], w[1]);
+            if s <= s1 {
+                cell = v0 + (v1 - v0) * (s - s0) / (s1 - s0);
+                break;
+            }
+        }
+        cell
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        if self.cells == 0 {
+            return Err("battery.cells = 0: must be ≥ 1".into());
+        }
+        if !(self.capacity_mah.is_finite() && self.capacity_mah > 0.0) {
+            return Err(format!("battery.capacity_mah = {}: must be > 0", self.capacity_mah));
+        }
+        let r = self.internal_resistance_ohm;
+        if !(r.is_finite() && r > 0.0) {
+            return Err(format!("battery.internal_resistance_ohm = {r}: must be > 0"));
+        }
+        let c = &self.ocv_cell_v;
+        let ends = c.first().map(|p| p[0]) == Some(0.0) && c.last().map(|p| p[0]) == Some(1.0);
+        if c.len() < 2 || !ends {
+            return Err("battery.ocv_cell_v: needs at least two [soc, volts] points, from soc 0 to soc 1".into());
+        }
+        for (i, w) in c.windows(2).enumerate() {
+            if !(w[1][0] > w[0][0] && w[1][1] > w[0][1] && w[0][1] > 0.0) {
+                return Err(format!("battery.ocv_cell_v[{}]: soc and volts must both rise (and volts be > 0)", i + 1));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Where a calibrated profile's numbers came from.
@@ -97,6 +232,18 @@ impl VehicleProfile {
         let p: VehicleProfile = toml::from_str(text).with_context(|| format!("{origin}: not a valid vehicle profile"))?;
         p.validate().map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
         Ok(p)
+    }
+
+    /// A built-in profile by name ([`BUILT_IN`]), else a profile file at that path.
+    pub fn named_or_file(name_or_path: &str) -> anyhow::Result<Self> {
+        match BUILT_IN.iter().find(|(n, _)| *n == name_or_path) {
+            Some((n, text)) => Self::from_toml(text, &format!("built-in {n}.toml")),
+            None if Path::new(name_or_path).exists() => Self::load(Path::new(name_or_path)),
+            None => {
+                let names: Vec<&str> = BUILT_IN.iter().map(|b| b.0).collect();
+                anyhow::bail!("vehicle '{name_or_path}': neither a built-in profile ({}) nor a file", names.join(", "))
+            }
+        }
     }
 
     /// Read a profile file.
@@ -142,6 +289,30 @@ impl VehicleProfile {
         for (i, b) in self.tseng_solo.coef.iter().enumerate() {
             fin(&format!("tseng_solo.coef[{i}]"), *b)?;
         }
+        if let Some(r) = &self.rotor {
+            pos("rotor.kappa", r.kappa)?;
+            pos("rotor.solidity", r.solidity)?;
+            pos("rotor.blade_cd0", r.blade_cd0)?;
+            pos("rotor.thrust_coefficient", r.thrust_coefficient)?;
+        }
+        if let Some(b) = &self.body {
+            if !(b.drag_area_m2.is_finite() && b.drag_area_m2 >= 0.0) {
+                return Err(format!("body.drag_area_m2 = {}: must be ≥ 0", b.drag_area_m2));
+            }
+        }
+        if let Some(p) = &self.powertrain {
+            if !(p.efficiency > 0.0 && p.efficiency <= 1.0) {
+                return Err(format!("powertrain.efficiency = {}: must be in (0, 1]", p.efficiency));
+            }
+            for (k, v) in [("powertrain.avionics_w", p.avionics_w), ("powertrain.idle_w", p.idle_w)] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(format!("{k} = {v}: must be ≥ 0"));
+                }
+            }
+        }
+        if let Some(b) = &self.battery {
+            b.validate()?;
+        }
         Ok(())
     }
 
@@ -185,5 +356,48 @@ mod tests {
         assert!(format!("{e:#}").contains("bad.toml"));
         let neg = text.replace("rho_kg_m3 = 1.225", "rho_kg_m3 = -1.0");
         assert!(format!("{:#}", VehicleProfile::from_toml(&neg, "n").unwrap_err()).contains("rho_kg_m3"));
+    }
+
+    #[test]
+    fn every_built_in_profile_parses_and_matches_its_file() {
+        for (name, text) in BUILT_IN {
+            let p = VehicleProfile::named_or_file(name).unwrap_or_else(|e| panic!("{e:#}"));
+            let file = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("config/vehicles/{name}.toml"));
+            assert_eq!(std::fs::read_to_string(&file).unwrap(), text, "{name}: the compiled-in text is the file");
+            assert!(p.rotor.is_some() && p.body.is_some() && p.powertrain.is_some() && p.battery.is_some(), "{name}");
+        }
+        let e = VehicleProfile::named_or_file("no-such-vehicle").unwrap_err().to_string();
+        assert!(e.contains("no-such-vehicle") && e.contains("x500"), "{e}");
+    }
+
+    #[test]
+    fn the_simulators_sections_are_optional_checked_and_the_tb48d_holds_its_rating() {
+        let p = VehicleProfile::m100();
+        let b = p.battery.as_ref().expect("m100.toml has [battery]");
+        // DJI rates the TB48D at 129.96 Wh (5.7 Ah × 22.8 V); the OCV curve's mean gives the same within 3 %.
+        assert!((b.energy_wh() / 129.96 - 1.0).abs() < 0.03, "{} Wh", b.energy_wh());
+        assert!((b.ocv_cell_at(1.0) * 6.0 - 26.1).abs() < 1e-9, "charges to 26.1 V");
+        assert!((b.ocv_cell_at(0.55) - 3.90).abs() < 1e-9, "linear between points");
+        // A profile for the models alone (no simulator sections) still loads.
+        let bare = VehicleProfile { rotor: None, body: None, powertrain: None, battery: None, ..p.clone() };
+        let text = toml::to_string(&bare).unwrap();
+        assert!(!text.contains("[battery]"));
+        assert_eq!(VehicleProfile::from_toml(&text, "bare").unwrap(), bare);
+        // A falling OCV curve or a zero resistance is refused, naming the key.
+        let mut bad = p.clone();
+        if let Some(b) = bad.battery.as_mut() {
+            b.ocv_cell_v[3][1] = 3.0;
+        }
+        assert!(bad.validate().unwrap_err().contains("battery.ocv_cell_v[3]"));
+        let mut bad = p.clone();
+        if let Some(b) = bad.battery.as_mut() {
+            b.internal_resistance_ohm = 0.0;
+        }
+        assert!(bad.validate().unwrap_err().contains("battery.internal_resistance_ohm"));
+        let mut bad = p;
+        if let Some(w) = bad.powertrain.as_mut() {
+            w.efficiency = 1.5;
+        }
+        assert!(bad.validate().unwrap_err().contains("powertrain.efficiency"));
     }
 }

@@ -6,12 +6,13 @@
 //!  (link.rs: udp/tcp/serial,   (CRC, resync,     (t_s: tlog stamp, time_boot_ms,
 //!   tlog / raw files, dataset)  counters)         or arrival; clock jumps)
 //! ```
+//!
+//! The simulator that writes tlogs is [`crate::sim`].
 
 pub mod dataset;
 pub mod frame;
 pub mod link;
 pub mod raw;
-pub mod sim;
 pub mod timed;
 pub mod tlog;
 
@@ -40,7 +41,7 @@ pub struct TimedMessage {
     pub msg: MavMessage,
 }
 
-/// How fast a recorded source plays.
+/// How fast a recorded source plays (replay), or a simulated one is sent (`simulate --udp`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Speed {
     /// Honour the recorded timestamps, scaled: 1.0 is real time, 10.0 ten times faster.
@@ -51,13 +52,18 @@ pub enum Speed {
 
 impl std::str::FromStr for Speed {
     type Err = String;
+    /// `max`, `real` (= 1), or a factor from 0.001 to 1000000, optionally with an `x`
+    /// (`10`, `10x`), all case-insensitive.
     fn from_str(s: &str) -> Result<Self, String> {
         if s.eq_ignore_ascii_case("max") {
             return Ok(Speed::Max);
         }
+        if s.eq_ignore_ascii_case("real") {
+            return Ok(Speed::Factor(1.0));
+        }
         match s.trim_end_matches(['x', 'X']).parse::<f64>() {
             Ok(f) if (0.001..=1e6).contains(&f) => Ok(Speed::Factor(f)),
-            _ => Err(format!("speed '{s}': expected a number from 0.001 to 1000000 (1 = real time) or 'max'")),
+            _ => Err(format!("speed '{s}': expected a number from 0.001 to 1000000 (1 = real time), 'real' or 'max'")),
         }
     }
 }
@@ -173,5 +179,26 @@ async fn send(tx: &mpsc::Sender<TimedMessage>, m: TimedMessage, shutdown: &Cance
             _ = shutdown.cancelled() => false,
             r = tx.send(m) => r.is_ok(),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Speed;
+
+    #[test]
+    fn speed_takes_what_replay_speed_and_simulate_rate_both_took() {
+        let ok = |s: &str| s.parse::<Speed>().unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(ok("max"), Speed::Max);
+        assert_eq!(ok("MAX"), Speed::Max);
+        assert_eq!(ok("real"), Speed::Factor(1.0));
+        assert_eq!(ok("Real"), Speed::Factor(1.0));
+        assert_eq!(ok("40"), Speed::Factor(40.0));
+        assert_eq!(ok("5x"), Speed::Factor(5.0));
+        assert_eq!(ok("0.5X"), Speed::Factor(0.5));
+        for bad in ["0", "-2", "fast", "nan", "inf", "2e6"] {
+            let e = bad.parse::<Speed>().unwrap_err();
+            assert!(e.contains(bad) && e.contains("real"), "{e}");
+        }
     }
 }

@@ -1,0 +1,103 @@
+//! ArduPilot Copter's way: ArduCopter flight modes in HEARTBEAT, ATTITUDE (Euler) at
+//! 10 Hz, RAW_IMU in ArduPilot's scaling (mG, mrad/s, mgauss), WIND at 2 Hz, no
+//! quaternion, no landed state; parameters `BATT_*`, `MOT_THST_HOVER`, `FRAME_CLASS`, the
+//! integer ones cast to the float (ArduPilot's encoding).
+
+use nalgebra::Vector3;
+
+use super::emit::{param, Every, Instant, Style};
+use super::physics::G;
+use super::SimOptions;
+use crate::dialect as d;
+use crate::mission::guidance::Phase;
+use crate::MavMessage;
+
+/// ArduPilot Copter's telemetry style.
+#[derive(Debug, Clone, Copy)]
+pub struct ArduPilot;
+
+impl Style for ArduPilot {
+    fn autopilot(&self) -> d::MavAutopilot {
+        d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA
+    }
+
+    /// ArduCopter: STABILIZE 0 on the ground, AUTO 3 flying the mission, LAND 9.
+    fn custom_mode(&self, phase: Phase) -> u32 {
+        match phase {
+            Phase::PreArm | Phase::Done => 0,
+            Phase::Descent | Phase::Landed => 9,
+            _ => 3,
+        }
+    }
+
+    /// From the profile's `[battery]`: `BATT_CAPACITY` (mAh, INT32), `BATT_LOW_VOLT` and
+    /// `BATT_CRT_VOLT` (3.6 and 3.5 V a cell, Mission Planner's initial-setup values for
+    /// LiPo), `BATT_LOW_MAH` and `BATT_CRT_MAH` (20 % and 10 % of the capacity left);
+    /// `MOT_THST_HOVER` 0.5 (the simulator's VFR_HUD throttle in the hover is 50 %);
+    /// `FRAME_CLASS` 1 (quad, INT8).
+    fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA> {
+        use d::MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_INT8 as INT8, MAV_PARAM_TYPE_REAL32 as REAL32};
+        let Some(b) = &opts.vehicle.battery else { return Vec::new() };
+        let (mah, cells) = (b.capacity_mah, f64::from(b.cells));
+        vec![
+            param("BATT_CAPACITY", mah.round() as i32 as f32, INT32),
+            param("BATT_LOW_VOLT", (3.6 * cells) as f32, REAL32),
+            param("BATT_CRT_VOLT", (3.5 * cells) as f32, REAL32),
+            param("BATT_LOW_MAH", (0.2 * mah) as f32, REAL32),
+            param("BATT_CRT_MAH", (0.1 * mah) as f32, REAL32),
+            param("MOT_THST_HOVER", 0.5, REAL32),
+            param("FRAME_CLASS", 1.0, INT8),
+        ]
+    }
+
+    fn landed_state(&self, _now: &Instant) -> Option<MavMessage> {
+        None
+    }
+
+    fn attitude(&self, now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vector3<f64>, out: &mut Vec<MavMessage>) {
+        out.push(MavMessage::ATTITUDE(d::ATTITUDE_DATA {
+            time_boot_ms: now.boot_ms(),
+            roll: roll as f32,
+            pitch: pitch as f32,
+            yaw: yaw as f32,
+            rollspeed: rates.x as f32,
+            pitchspeed: rates.y as f32,
+            yawspeed: rates.z as f32,
+        }));
+    }
+
+    /// RAW_IMU carries acceleration in mG, rates in mrad/s and the field in mgauss
+    /// (ArduPilot's send_raw_imu scales by 1000/GRAVITY_MSS).
+    fn imu(&self, now: &Instant, f: &Vector3<f64>, w: &Vector3<f64>, mag: &Vector3<f64>) -> MavMessage {
+        let mg = |x: f64| (x * 1000.0 / G).round().clamp(-32768.0, 32767.0) as i16;
+        let milli = |x: f64| (x * 1000.0).round().clamp(-32768.0, 32767.0) as i16;
+        MavMessage::RAW_IMU(d::RAW_IMU_DATA {
+            time_usec: now.t_ms * 1000,
+            xacc: mg(f.x),
+            yacc: mg(f.y),
+            zacc: mg(f.z),
+            xgyro: milli(w.x),
+            ygyro: milli(w.y),
+            zgyro: milli(w.z),
+            xmag: milli(mag.x),
+            ymag: milli(mag.y),
+            zmag: milli(mag.z),
+            id: 0,
+            temperature: 2500,
+        })
+    }
+
+    /// WIND at 2 Hz: ArduPilot's direction is degrees(atan2(−wind.y, −wind.x)), where the
+    /// wind comes from.
+    fn air_data(&self, now: &Instant) -> Option<MavMessage> {
+        if !(Every { period_ms: 500, offset_ms: 70 }).due(now.t_ms) {
+            return None;
+        }
+        let w = now.wind_est;
+        Some(MavMessage::WIND(d::WIND_DATA {
+            direction: (-w.y).atan2(-w.x).to_degrees() as f32,
+            speed: (w.x.powi(2) + w.y.powi(2)).sqrt() as f32,
+            speed_z: w.z as f32,
+        }))
+    }
+}

@@ -1,0 +1,389 @@
+//! The simulator: a vehicle profile flying a waypoint route in wind, with a physically
+//! plausible power draw, sent as the telemetry a real autopilot would send.
+//!
+//! Why: the project must run end to end without a drone. The M100 data set replays what was
+//! flown; the simulator flies what was never flown (other payloads, speeds, winds, other
+//! airframes) and exercises the live path with an autopilot's message mix — ArduPilot's
+//! ([`ardupilot`]) or PX4's ([`px4`]).
+//!
+//! ## Parts
+//! | part | job |
+//! |---|---|
+//! | [`crate::mission::guidance`] | the route: take-off, waypoints, holds, landing → desired velocity |
+//! | this module | the loop: wind and gusts, the velocity loop and its lag, attitude, sensor errors |
+//! | [`physics`] | rotor power by momentum theory and the battery, from the [`VehicleProfile`] |
+//! | [`emit`] | the state → MAVLink at an autopilot's rates, with sensor noise |
+//! | [`ardupilot`], [`px4`] | what differs between the two: modes, attitude and IMU messages, parameters |
+//! | [`output`] | `.tlog` bytes and the paced UDP stream |
+//!
+//! ## Flight model (point mass, kinematic)
+//! The guidance's desired velocity becomes the commanded acceleration `K_v·(v_des − v)`,
+//! clipped (3 m/s² horizontal, 2 m/s² vertical), which passes a first-order lag
+//! (τ = 0.25 s) and is integrated into velocity and position (NED, m, relative to home),
+//! every 10 ms. Wind (mean plus a Gauss–Markov gust) changes the air-relative velocity
+//! `v_a = v − w` and hence drag, tilt and power, not the track (the position controller
+//! holds it). The body z axis opposes the thrust vector ([`physics`]), the yaw follows the
+//! track (45°/s at most), and body rates come from successive attitudes.
+//!
+//! Everything random (sensor noise, gusts) comes from one RNG seeded by [`SimOptions::seed`]:
+//! the same options give a byte-identical `.tlog`.
+
+pub mod ardupilot;
+pub mod emit;
+pub mod output;
+pub mod physics;
+pub mod px4;
+
+use std::f64::consts::PI;
+
+use mavlink::MavHeader;
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+use crate::mission::guidance::{self, Guidance, Home, InvalidOption, Phase, Route};
+use crate::model::profile::VehicleProfile;
+use crate::MavMessage;
+use physics::{Airframe, Battery};
+
+/// Whose message set and conventions the output follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Autopilot {
+    /// ArduPilot Copter: ATTITUDE, RAW_IMU (mG, mrad/s), WIND, VFR_HUD, no quaternion.
+    Ardupilot,
+    /// PX4: ATTITUDE_QUATERNION, HIGHRES_IMU (SI), ALTITUDE, EXTENDED_SYS_STATE, no WIND.
+    Px4,
+}
+
+/// What to simulate: a vehicle, a route, the payload and the weather.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOptions {
+    /// The airframe and battery (needs the profile's simulator sections).
+    pub vehicle: VehicleProfile,
+    /// The route flown.
+    pub route: Route,
+    /// Payload, g.
+    pub payload_g: f64,
+    /// Mean wind speed, m/s.
+    pub wind_mps: f64,
+    /// Direction the wind comes FROM, degrees clockwise from north (meteorological).
+    pub wind_dir_deg: f64,
+    /// Seed of the noise and gusts.
+    pub seed: u64,
+    /// Telemetry style.
+    pub autopilot: Autopilot,
+}
+
+impl Default for SimOptions {
+    /// The M100 with 500 g on a 300 m triangle at 10 m/s and 25 m, 20 s hover, 3 m/s wind
+    /// from the west, seed 1, ArduPilot style.
+    fn default() -> Self {
+        Self {
+            vehicle: VehicleProfile::m100(),
+            route: guidance::Triangle { leg_m: 300.0, altitude_m: 25.0, speed_mps: 10.0, hover_s: 20.0 }.route(),
+            payload_g: 500.0,
+            wind_mps: 3.0,
+            wind_dir_deg: 270.0,
+            seed: 1,
+            autopilot: Autopilot::Ardupilot,
+        }
+    }
+}
+
+impl SimOptions {
+    /// Range checks; the error names the option (`payload_g`, `waypoints[1].speed_mps`).
+    pub fn validate(&self) -> anyhow::Result<()> {
+        self.route.validate()?;
+        let frame = Airframe::from_profile(&self.vehicle)?;
+        Battery::from_profile(&self.vehicle, START_SOC)?;
+        let max_g = (frame.max_payload_kg() * 1000.0).floor().max(0.0);
+        guidance::in_range("payload_g", self.payload_g, 0.0, max_g, false).map_err(|e| InvalidOption {
+            reason: format!("{} ({}: {} kg MTOW − {:.3} kg empty)", e.reason, self.vehicle.name, frame.mtow_kg, frame.mass_kg(0.0)),
+            ..e
+        })?;
+        guidance::in_range("wind_mps", self.wind_mps, 0.0, 15.0, false)?;
+        if !self.wind_dir_deg.is_finite() {
+            return Err(InvalidOption { key: "wind_dir_deg".into(), reason: format!("= {}: must be a number", self.wind_dir_deg) }.into());
+        }
+        Ok(())
+    }
+
+    /// Mean wind velocity (where the air moves TO), NED, m/s.
+    fn wind_ned(&self) -> Vector3<f64> {
+        let from = self.wind_dir_deg.to_radians();
+        Vector3::new(-self.wind_mps * from.cos(), -self.wind_mps * from.sin(), 0.0)
+    }
+}
+
+/// One emitted message: tlog timestamp (µs since the Unix epoch), header, message.
+#[derive(Debug, Clone)]
+pub struct SimRecord {
+    /// µs since the Unix epoch.
+    pub t_us: u64,
+    /// System 1, component 1, running sequence.
+    pub header: MavHeader,
+    /// The message.
+    pub msg: MavMessage,
+}
+
+/// The simulator's ground truth at 10 Hz, for tests and the report: what the sensors saw
+/// before noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthSample {
+    /// s since the start of the simulation.
+    pub t_s: f64,
+    /// Mission phase.
+    pub phase: Phase,
+    /// Electrical power, W.
+    pub power_w: f64,
+    /// Terminal voltage, V.
+    pub voltage_v: f64,
+    /// Ground speed (horizontal), m/s.
+    pub ground_speed_mps: f64,
+    /// Height above home, m.
+    pub height_m: f64,
+}
+
+/// A simulated flight: every message in time order, plus the ground truth.
+#[derive(Debug, Clone)]
+pub struct SimFlight {
+    /// Messages, in time order.
+    pub records: Vec<SimRecord>,
+    /// Ground truth at 10 Hz.
+    pub truth: Vec<TruthSample>,
+}
+
+impl SimFlight {
+    /// Flight time from the first step to the last truth sample, s.
+    pub fn duration_s(&self) -> f64 {
+        self.truth.last().map_or(0.0, |s| s.t_s)
+    }
+
+    /// Energy drawn over the flight by the truth samples (10 Hz rectangles), Wh.
+    pub fn energy_wh(&self) -> f64 {
+        self.truth.iter().map(|s| s.power_w * 0.1 / 3600.0).sum()
+    }
+}
+
+/// Start of every simulated flight: 2019-10-24 13:32:00 UTC (09:32 local at the data set's
+/// site, the start of flight 276), so timestamps look like a real log.
+pub const EPOCH_START_US: u64 = 1_571_923_920_000_000;
+
+/// Home: the data set's site near Pittsburgh (flight 276 starts at 40.459060 N,
+/// −79.782820 E, 268.7 m above sea level).
+pub const HOME: Home = Home { lat_deg: 40.459_060, lon_deg: -79.782_820, alt_amsl_m: 268.7 };
+
+/// Initial state of charge of the battery.
+pub const START_SOC: f64 = 0.9;
+/// Simulation step, s.
+const DT: f64 = 0.01;
+/// Horizontal and vertical acceleration limits of the velocity loop, m/s².
+const A_MAX_H: f64 = 3.0;
+const A_MAX_V: f64 = 2.0;
+/// Lag of the achieved acceleration behind the commanded one, s.
+const TAU_A: f64 = 0.25;
+const YAW_RATE_MAX: f64 = 45.0 * PI / 180.0;
+
+/// Gauss–Markov (first-order) noise: `x ← x·e^{−dt/τ} + σ·√(1−e^{−2dt/τ})·N(0,1)`.
+#[derive(Debug, Clone, Copy)]
+struct Markov {
+    x: f64,
+    sigma: f64,
+    tau: f64,
+}
+
+impl Markov {
+    fn step(&mut self, rng: &mut StdRng, dt: f64) -> f64 {
+        let a = (-dt / self.tau).exp();
+        self.x = self.x * a + self.sigma * (1.0 - a * a).sqrt() * std_normal(rng);
+        self.x
+    }
+}
+
+/// One draw of N(0, 1).
+pub(crate) fn std_normal(rng: &mut StdRng) -> f64 {
+    // Normal::new(0, 1) cannot fail.
+    Normal::new(0.0, 1.0).map(|n| n.sample(rng)).unwrap_or(0.0)
+}
+
+/// The full vehicle state the telemetry is made from.
+pub struct State {
+    /// Position, NED m from home.
+    pub pos: Vector3<f64>,
+    /// Velocity, NED m/s.
+    pub vel: Vector3<f64>,
+    /// Acceleration, NED m/s².
+    pub acc: Vector3<f64>,
+    /// Heading, rad.
+    pub yaw: f64,
+    /// Body (FRD) → NED.
+    pub rot: Rotation3<f64>,
+    /// Body rates, rad/s.
+    pub rates: Vector3<f64>,
+    /// True wind, NED m/s (where the air moves to).
+    pub wind: Vector3<f64>,
+    /// Electrical power, W.
+    pub power_w: f64,
+    /// Terminal voltage, V.
+    pub voltage_v: f64,
+    /// Current, A.
+    pub current_a: f64,
+    /// Motors armed.
+    pub armed: bool,
+    /// Off the ground.
+    pub in_air: bool,
+    /// Throttle, %.
+    pub throttle: f64,
+}
+
+/// Fly `opts` and return every message and the ground truth. Pure computation.
+pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
+    opts.validate()?;
+    let frame = Airframe::from_profile(&opts.vehicle)?;
+    let mut battery = Battery::from_profile(&opts.vehicle, START_SOC)?;
+    let mut rng = StdRng::seed_from_u64(opts.seed);
+    let mass = frame.mass_kg(opts.payload_g / 1000.0);
+    let mut guide = Guidance::new(opts.route.clone());
+    let mean_wind = opts.wind_ned();
+    let gust_sigma = 0.1 * opts.wind_mps + 0.2;
+    let mut gust = [Markov { x: 0.0, sigma: gust_sigma, tau: 4.0 }; 3];
+    gust[2].sigma = 0.3 * gust_sigma;
+    let mut gps_err = [
+        Markov { x: 0.0, sigma: 0.6, tau: 20.0 },
+        Markov { x: 0.0, sigma: 0.6, tau: 20.0 },
+        Markov { x: 0.0, sigma: 0.4, tau: 10.0 },
+    ];
+    let mut wind_est = mean_wind;
+    let hover_p = frame.power(mass, Vector3::zeros(), Vector3::zeros()).electrical_w;
+
+    let mut st = State {
+        pos: Vector3::zeros(),
+        vel: Vector3::zeros(),
+        acc: Vector3::zeros(),
+        yaw: 0.0,
+        rot: Rotation3::identity(),
+        rates: Vector3::zeros(),
+        wind: mean_wind,
+        power_w: frame.avionics_w,
+        voltage_v: battery.ocv_v(),
+        current_a: 0.0,
+        armed: false,
+        in_air: false,
+        throttle: 0.0,
+    };
+    let mut emitter = emit::Emitter::new(opts);
+    let mut truth = Vec::new();
+    let mut step: u64 = 0;
+    let max_steps = (4.0 * 3600.0 / DT) as u64;
+
+    loop {
+        let t = step as f64 * DT;
+        let t_ms = step * 10;
+        // Wind with gusts.
+        let g = Vector3::new(gust[0].step(&mut rng, DT), gust[1].step(&mut rng, DT), gust[2].step(&mut rng, DT));
+        st.wind = mean_wind + g;
+        // The autopilot's wind estimate: a slow filter of the true wind.
+        wind_est += (st.wind - wind_est) * (DT / 3.0);
+
+        let cmd = guide.step(&st.pos, &st.vel, DT);
+        if cmd.finished {
+            break;
+        }
+        if cmd.touchdown {
+            st.pos.z = 0.0;
+        }
+        let phase = cmd.phase;
+        st.armed = phase.armed();
+        st.in_air = phase.in_air();
+
+        // Kinematics: lagged acceleration toward the commanded one.
+        if let (true, Some(vd)) = (st.in_air, cmd.velocity_ned) {
+            let mut a_cmd = (vd - st.vel) * guidance::VELOCITY_GAIN_PER_S;
+            let ah = (a_cmd.x * a_cmd.x + a_cmd.y * a_cmd.y).sqrt();
+            if ah > A_MAX_H {
+                a_cmd.x *= A_MAX_H / ah;
+                a_cmd.y *= A_MAX_H / ah;
+            }
+            a_cmd.z = a_cmd.z.clamp(-A_MAX_V, A_MAX_V);
+            st.acc += (a_cmd - st.acc) * (DT / TAU_A);
+            st.vel += st.acc * DT;
+            st.pos += st.vel * DT;
+            if st.pos.z > 0.0 {
+                st.pos.z = 0.0;
+                st.vel.z = st.vel.z.min(0.0);
+            }
+            // Yaw follows the desired track when moving.
+            let vh = (vd.x * vd.x + vd.y * vd.y).sqrt();
+            if vh > 1.0 {
+                let want = vd.y.atan2(vd.x);
+                let err = wrap_pi(want - st.yaw);
+                st.yaw = wrap_pi(st.yaw + err.clamp(-YAW_RATE_MAX * DT, YAW_RATE_MAX * DT));
+            }
+        } else {
+            st.acc = Vector3::zeros();
+            st.vel = Vector3::zeros();
+        }
+
+        // Attitude from the thrust direction (in the air) or level (on the ground).
+        let v_air = st.vel - st.wind;
+        let (rot, power) = if st.in_air {
+            let t_vec = frame.thrust_ned(mass, v_air, st.acc);
+            let p = frame.power(mass, v_air, st.acc);
+            (attitude_from_thrust(&t_vec, st.yaw), p.electrical_w)
+        } else {
+            let p = match phase {
+                Phase::Spinup | Phase::Landed => frame.idle_w,
+                _ => frame.avionics_w,
+            };
+            (Rotation3::from_euler_angles(0.0, 0.0, st.yaw), p)
+        };
+        let d_rot = st.rot.inverse() * rot;
+        let m = d_rot.matrix();
+        st.rates = Vector3::new(m[(2, 1)] - m[(1, 2)], m[(0, 2)] - m[(2, 0)], m[(1, 0)] - m[(0, 1)]) / (2.0 * DT);
+        st.rot = rot;
+        st.power_w = power;
+        let (v, i) = battery.load(power);
+        st.voltage_v = v;
+        st.current_a = i;
+        battery.step(power, DT);
+        st.throttle = if st.in_air { (50.0 * (power / hover_p).sqrt()).clamp(0.0, 100.0) } else if st.armed { 8.0 } else { 0.0 };
+
+        let gps = Vector3::new(gps_err[0].step(&mut rng, DT), gps_err[1].step(&mut rng, DT), gps_err[2].step(&mut rng, DT));
+        if t_ms.is_multiple_of(100) {
+            truth.push(TruthSample {
+                t_s: t,
+                phase,
+                power_w: power,
+                voltage_v: v,
+                ground_speed_mps: (st.vel.x * st.vel.x + st.vel.y * st.vel.y).sqrt(),
+                height_m: -st.pos.z,
+            });
+        }
+        emitter.emit(&emit::Instant { t_ms, st: &st, battery: &battery, gps_err: &gps, wind_est: &wind_est, phase }, &mut rng);
+
+        step += 1;
+        if step > max_steps {
+            anyhow::bail!("the simulated mission did not finish within 4 hours of flight ({} waypoints)", opts.route.waypoints.len());
+        }
+    }
+    Ok(SimFlight { records: emitter.into_records(), truth })
+}
+
+fn wrap_pi(a: f64) -> f64 {
+    let mut a = (a + PI) % (2.0 * PI);
+    if a < 0.0 {
+        a += 2.0 * PI;
+    }
+    a - PI
+}
+
+/// Body-to-NED rotation whose body z axis (down, FRD) opposes the thrust and whose heading
+/// is `yaw`.
+fn attitude_from_thrust(t_ned: &Vector3<f64>, yaw: f64) -> Rotation3<f64> {
+    let b3 = -t_ned.normalize();
+    let heading = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
+    let b2 = b3.cross(&heading).normalize();
+    let b1 = b2.cross(&b3);
+    Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[b1, b2, b3]))
+}

@@ -1,0 +1,61 @@
+//! Where a simulated flight goes: `.tlog` bytes (MAVLink 2 frames behind 8-byte µs
+//! timestamps, [`crate::source::tlog`]'s format) or a UDP stream paced like a live vehicle.
+
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::Context;
+use mavlink::MavlinkVersion;
+
+use super::{SimFlight, SimRecord};
+use crate::source::Speed;
+
+impl SimFlight {
+    /// The flight as `.tlog` bytes.
+    pub fn to_tlog(&self) -> Vec<u8> {
+        let mut buf = Vec::with_capacity(self.records.len() * 48);
+        for r in &self.records {
+            crate::source::tlog::write_record(&mut buf, r.t_us, r.header, &r.msg, MavlinkVersion::V2);
+        }
+        buf
+    }
+}
+
+/// Write `flight` as a `.tlog` at `path`; returns the bytes written. Errors name the file.
+pub fn write_tlog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
+    let bytes = flight.to_tlog();
+    let mut f = std::fs::File::create(path).with_context(|| format!("{}: cannot create the tlog", path.display()))?;
+    f.write_all(&bytes).with_context(|| format!("{}: cannot write the tlog", path.display()))?;
+    Ok(bytes.len())
+}
+
+/// Send `records` as MAVLink 2 frames, one datagram each, to `addr` (`HOST:PORT`), paced
+/// by `speed` on the records' timestamps. Returns the number of frames sent.
+pub async fn stream_udp(records: &[SimRecord], addr: &str, speed: Speed) -> anyhow::Result<u64> {
+    let target = tokio::net::lookup_host(addr)
+        .await
+        .with_context(|| format!("--udp {addr}: cannot resolve (expected HOST:PORT)"))?
+        .next()
+        .with_context(|| format!("--udp {addr}: no address"))?;
+    let bind = if target.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" };
+    let sock = tokio::net::UdpSocket::bind(bind).await.context("cannot open a UDP socket")?;
+    let start = tokio::time::Instant::now();
+    let t0 = records.first().map(|r| r.t_us).unwrap_or(0);
+    let mut sent = 0;
+    let mut frame = Vec::with_capacity(300);
+    for r in records {
+        if let Speed::Factor(f) = speed {
+            let due = start + std::time::Duration::from_secs_f64((r.t_us - t0) as f64 / 1e6 / f);
+            tokio::time::sleep_until(due).await;
+        }
+        frame.clear();
+        mavlink::write_versioned_msg(&mut frame, MavlinkVersion::V2, r.header, &r.msg).context("cannot encode a MAVLink frame")?;
+        match sock.send_to(&frame, target).await {
+            Ok(_) => sent += 1,
+            // Nobody listening yet (ICMP port unreachable): keep flying, as a drone would.
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
+            Err(e) => return Err(e).with_context(|| format!("--udp {addr}: send failed")),
+        }
+    }
+    Ok(sent)
+}

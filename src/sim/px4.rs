@@ -1,0 +1,130 @@
+//! PX4's way: PX4 main/sub modes in HEARTBEAT, ATTITUDE_QUATERNION at 10 Hz (and ATTITUDE
+//! at 5 Hz), HIGHRES_IMU in SI units, EXTENDED_SYS_STATE (landed state) at 1 Hz, ALTITUDE
+//! at 5 Hz, no WIND; parameters `BAT1_*`, the integer ones packed bytewise into the float
+//! (PX4's encoding).
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::emit::{param, pressure_pa, Every, Instant, Style};
+use super::{SimOptions, HOME};
+use crate::dialect as d;
+use crate::mission::guidance::Phase;
+use crate::MavMessage;
+
+/// PX4's telemetry style.
+#[derive(Debug, Clone, Copy)]
+pub struct Px4;
+
+impl Style for Px4 {
+    fn autopilot(&self) -> d::MavAutopilot {
+        d::MavAutopilot::MAV_AUTOPILOT_PX4
+    }
+
+    /// PX4: main mode in bits 16..24, sub mode in 24..32. AUTO = 4; sub: TAKEOFF 2,
+    /// MISSION 4, LAND 6. Disarmed: POSCTL (3).
+    fn custom_mode(&self, phase: Phase) -> u32 {
+        let (main, sub) = match phase {
+            Phase::Spinup | Phase::Climb => (4u32, 2u32),
+            Phase::Descent | Phase::Landed => (4, 6),
+            Phase::Leg(_) | Phase::Hold(_) => (4, 4),
+            Phase::PreArm | Phase::Done => (3, 0),
+        };
+        (main << 16) | (sub << 24)
+    }
+
+    /// From the profile's `[battery]`: `BAT1_CAPACITY` (mAh, REAL32), `BAT1_N_CELLS`
+    /// (INT32, its bytes in the float), `BAT1_V_CHARGED` 4.05 V and `BAT1_V_EMPTY` 3.6 V a
+    /// cell (PX4 1.14's defaults).
+    fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA> {
+        use d::MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_REAL32 as REAL32};
+        let Some(b) = &opts.vehicle.battery else { return Vec::new() };
+        vec![
+            param("BAT1_CAPACITY", b.capacity_mah as f32, REAL32),
+            param("BAT1_N_CELLS", f32::from_bits(b.cells), INT32),
+            param("BAT1_V_CHARGED", 4.05, REAL32),
+            param("BAT1_V_EMPTY", 3.6, REAL32),
+        ]
+    }
+
+    fn landed_state(&self, now: &Instant) -> Option<MavMessage> {
+        if !(Every { period_ms: 1000, offset_ms: 500 }).due(now.t_ms) {
+            return None;
+        }
+        let landed = match now.phase {
+            Phase::Climb => d::MavLandedState::MAV_LANDED_STATE_TAKEOFF,
+            Phase::Descent => d::MavLandedState::MAV_LANDED_STATE_LANDING,
+            _ if now.st.in_air => d::MavLandedState::MAV_LANDED_STATE_IN_AIR,
+            _ => d::MavLandedState::MAV_LANDED_STATE_ON_GROUND,
+        };
+        Some(MavMessage::EXTENDED_SYS_STATE(d::EXTENDED_SYS_STATE_DATA {
+            vtol_state: d::MavVtolState::MAV_VTOL_STATE_UNDEFINED,
+            landed_state: landed,
+        }))
+    }
+
+    fn attitude(&self, now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vector3<f64>, out: &mut Vec<MavMessage>) {
+        let q = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+        out.push(MavMessage::ATTITUDE_QUATERNION(d::ATTITUDE_QUATERNION_DATA {
+            time_boot_ms: now.boot_ms(),
+            q1: q.w as f32,
+            q2: q.i as f32,
+            q3: q.j as f32,
+            q4: q.k as f32,
+            rollspeed: rates.x as f32,
+            pitchspeed: rates.y as f32,
+            yawspeed: rates.z as f32,
+            repr_offset_q: [0.0; 4],
+        }));
+        if (Every { period_ms: 200, offset_ms: 30 }).due(now.t_ms) {
+            out.push(MavMessage::ATTITUDE(d::ATTITUDE_DATA {
+                time_boot_ms: now.boot_ms(),
+                roll: roll as f32,
+                pitch: pitch as f32,
+                yaw: yaw as f32,
+                rollspeed: rates.x as f32,
+                pitchspeed: rates.y as f32,
+                yawspeed: rates.z as f32,
+            }));
+        }
+    }
+
+    fn imu(&self, now: &Instant, f: &Vector3<f64>, w: &Vector3<f64>, mag: &Vector3<f64>) -> MavMessage {
+        let alt = now.alt_amsl_m();
+        MavMessage::HIGHRES_IMU(d::HIGHRES_IMU_DATA {
+            time_usec: now.t_ms * 1000,
+            xacc: f.x as f32,
+            yacc: f.y as f32,
+            zacc: f.z as f32,
+            xgyro: w.x as f32,
+            ygyro: w.y as f32,
+            zgyro: w.z as f32,
+            xmag: mag.x as f32,
+            ymag: mag.y as f32,
+            zmag: mag.z as f32,
+            abs_pressure: (pressure_pa(alt) / 100.0) as f32,
+            diff_pressure: 0.0,
+            pressure_alt: alt as f32,
+            temperature: 25.0,
+            fields_updated: d::HighresImuUpdatedFlags::all(),
+            id: 0,
+        })
+    }
+
+    /// ALTITUDE at 5 Hz: the barometric altitude carries 30 % of the GNSS vertical error.
+    fn air_data(&self, now: &Instant) -> Option<MavMessage> {
+        if !(Every { period_ms: 200, offset_ms: 80 }).due(now.t_ms) {
+            return None;
+        }
+        let amsl = (now.alt_amsl_m() + now.gps_err.z * 0.3) as f32;
+        let home = HOME.alt_amsl_m as f32;
+        Some(MavMessage::ALTITUDE(d::ALTITUDE_DATA {
+            time_usec: now.t_ms * 1000,
+            altitude_monotonic: amsl,
+            altitude_amsl: amsl,
+            altitude_local: amsl - home,
+            altitude_relative: amsl - home,
+            altitude_terrain: f32::NAN,
+            bottom_clearance: f32::NAN,
+        }))
+    }
+}
