@@ -61,7 +61,9 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     // Sinks subscribe first so they see every report.
     let health = crate::telemetry::HealthHandle::default();
     let mut sink_tasks = Vec::new();
-    let link = crate::source::LinkHandle::default();
+    // The signing key is read now: a missing or world-readable key fails before we listen.
+    let signing = cfg.link.load().map_err(anyhow::Error::msg)?;
+    let link = crate::source::LinkHandle::with_signing(signing);
     for spec in p.sinks {
         let rx = rep_tx.subscribe();
         sink_tasks.push(crate::sink::spawn(spec, rx, stats.clone(), health.clone(), link.clone())?);

@@ -10,7 +10,8 @@
 //!
 //! ```text
 //! {"type":"summary","frames_ok":…,"frames_bad":…,"unknown":…,"gaps":…,"windows":…,
-//!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…}
+//!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…,
+//!  "signed_ok":…,"signature_bad":…,"signature_replay":…,"unsigned_refused":…}
 //! ```
 //!
 //! `null` stands for unknown, and for any NaN or infinity (JSON has neither). Feature
@@ -197,6 +198,12 @@ pub struct Summary {
     pub reports: u64,
     /// Reports this sink lost by lagging behind the broadcast.
     pub missed_reports: u64,
+    /// MAVLink 2 signing on a live link with a key (`[link]`): frames whose signature
+    /// checked, and frames dropped for a bad signature, as replays, or unsigned.
+    pub signed_ok: u64,
+    pub signature_bad: u64,
+    pub signature_replay: u64,
+    pub unsigned_refused: u64,
 }
 
 impl Summary {
@@ -214,6 +221,10 @@ impl Summary {
             silences: s.silences,
             reports,
             missed_reports,
+            signed_ok: s.signed_ok,
+            signature_bad: s.signature_bad,
+            signature_replay: s.signature_replay,
+            unsigned_refused: s.unsigned_refused,
         }
     }
 }

@@ -35,6 +35,8 @@
 //! With no `address`, on the link `monitor` reads (udpin answers whoever sent last, the
 //! usual ground-station arrangement); or to `udpout:HOST:PORT` / `tcpout:HOST:PORT`.
 //! Sending never blocks the pipeline: a full or absent link drops the frame and counts it.
+//! With a `[link] signing_key_file`, every frame is MAVLink 2 signed
+//! ([`crate::source::signing`]), whichever way it goes out.
 
 use std::time::{Duration, Instant};
 
@@ -279,6 +281,8 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: broadcast::Receiver<std::sync::
     if let Err(e) = cfg.validate() {
         bail!("{e}");
     }
+    // Frames are signed here whatever their way out (the link's key, see `[link]`).
+    let signer = link.clone();
     let mut out = Out::open(&cfg, link).await?;
     let mut enc = Encoder::new(cfg.system_id, cfg.component_id);
     let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
@@ -302,7 +306,8 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: broadcast::Receiver<std::sync::
                 None => break,
             },
         };
-        for f in frames {
+        for mut f in frames {
+            signer.sign(&mut f);
             if !out.send(f).await {
                 dropped += 1;
             }

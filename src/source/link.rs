@@ -117,6 +117,7 @@ pub async fn run(
     let (wtx, wrx) = mpsc::channel::<Vec<u8>>(256);
     link.attach(wtx);
     let mut ctx = Ctx {
+        link: link.clone(),
         label: addr.to_string(),
         tx,
         stats,
@@ -135,6 +136,8 @@ pub async fn run(
 
 /// What every transport shares.
 struct Ctx {
+    /// Signing: the verifier every reader gets, the signer for our heartbeat.
+    link: LinkHandle,
     label: String,
     tx: mpsc::Sender<TimedMessage>,
     stats: Arc<IngestStats>,
@@ -144,6 +147,10 @@ struct Ctx {
 }
 
 impl Ctx {
+    /// A reader timed by arrival that checks signatures when the link has a key.
+    fn reader(&self) -> TimedReader {
+        reader(self.start, &self.link)
+    }
     /// Send everything `reader` has decoded. False when the run is over.
     async fn deliver(&self, reader: &mut TimedReader) -> bool {
         deliver(reader, &self.tx, &self.stats, &self.shutdown).await
@@ -151,6 +158,14 @@ impl Ctx {
     fn tick(&mut self) {
         self.watchdog.tick(&self.label, &self.stats);
     }
+}
+
+fn reader(start: Instant, link: &LinkHandle) -> TimedReader {
+    let mut r = TimedReader::arrival(start);
+    if let Some(v) = link.verifier() {
+        r.set_verifier(v);
+    }
+    r
 }
 
 async fn deliver(
@@ -232,7 +247,7 @@ async fn udp(ctx: &mut Ctx, hostport: &str, out: bool, mut wrx: mpsc::Receiver<V
         (UdpSocket::bind(there).await.with_context(|| format!("{label}: cannot bind {there}"))?, None)
     };
     info!("{label}: {}", if out { format!("sending to {there}") } else { format!("listening on {there}") });
-    let mut reader = TimedReader::arrival(ctx.start);
+    let mut reader = ctx.reader();
     let mut buf = vec![0u8; 65_536];
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     let mut seq = 0u8;
@@ -262,7 +277,9 @@ async fn udp(ctx: &mut Ctx, hostport: &str, out: bool, mut wrx: mpsc::Receiver<V
             _ = tick.tick() => {
                 ctx.tick();
                 if out {
-                    let _ = sock.send_to(&heartbeat(seq), there).await;
+                    let mut hb = heartbeat(seq);
+                    ctx.link.sign(&mut hb);
+                    let _ = sock.send_to(&hb, there).await;
                     seq = seq.wrapping_add(1);
                 }
             }
@@ -286,11 +303,10 @@ async fn tcp_in(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>)
                     info!("{label}: client {peer} connected");
                     let (ctx_tx, ctx_rx) = mpsc::channel(256);
                     clients.push(ctx_tx);
-                    let (tx, stats, shutdown, start) =
-                        (ctx.tx.clone(), ctx.stats.clone(), ctx.shutdown.clone(), ctx.start);
+                    let (tx, stats, shutdown) = (ctx.tx.clone(), ctx.stats.clone(), ctx.shutdown.clone());
+                    let mut reader = ctx.reader();
                     let label = label.clone();
                     tasks.spawn(async move {
-                        let mut reader = TimedReader::arrival(start);
                         let why = pump(stream, &mut reader, ctx_rx, &tx, &stats, &shutdown).await;
                         info!("{label}: client {peer} {why}");
                     });
@@ -315,7 +331,7 @@ async fn tcp_in(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>)
 async fn tcp_out(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>) -> Result<()> {
     let label = ctx.label.clone();
     let mut backoff = BACKOFF_MIN;
-    let mut reader = TimedReader::arrival(ctx.start);
+    let mut reader = ctx.reader();
     loop {
         let conn = tokio::select! {
             _ = ctx.shutdown.cancelled() => return Ok(()),
@@ -345,7 +361,7 @@ async fn serial(ctx: &mut Ctx, device: &str, baud: u32, mut wrx: mpsc::Receiver<
     let open = || tokio_serial::new(device, baud).open_native_async();
     let mut port = Some(open().with_context(|| format!("{label}: cannot open"))?);
     let mut backoff = BACKOFF_MIN;
-    let mut reader = TimedReader::arrival(ctx.start);
+    let mut reader = ctx.reader();
     loop {
         if let Some(p) = port.take() {
             info!("{label}: open");

@@ -14,6 +14,7 @@ pub mod dataset;
 pub mod frame;
 pub mod link;
 pub mod raw;
+pub mod signing;
 pub mod sim;
 pub mod timed;
 pub mod tlog;
@@ -68,6 +69,15 @@ pub struct IngestStats {
     pub silences: AtomicU64,
     /// Whether the live link is silent right now (the terminal view shows it).
     pub silent: AtomicBool,
+    /// Frames whose MAVLink 2 signature checked against the link's key (among `frames_ok`).
+    pub signed_ok: AtomicU64,
+    /// Frames dropped because their signature did not match the key ([`signing`]).
+    pub signature_bad: AtomicU64,
+    /// Signed frames dropped as replays: a timestamp not newer than the stream's last, or
+    /// a new stream over a minute behind.
+    pub signature_replay: AtomicU64,
+    /// Unsigned frames dropped because `[link] require_signing` is set.
+    pub unsigned_refused: AtomicU64,
 }
 
 impl IngestStats {
@@ -86,6 +96,10 @@ impl IngestStats {
             windows: self.windows.load(Ordering::Relaxed),
             clock_jumps: self.clock_jumps.load(Ordering::Relaxed),
             silences: self.silences.load(Ordering::Relaxed),
+            signed_ok: self.signed_ok.load(Ordering::Relaxed),
+            signature_bad: self.signature_bad.load(Ordering::Relaxed),
+            signature_replay: self.signature_replay.load(Ordering::Relaxed),
+            unsigned_refused: self.unsigned_refused.load(Ordering::Relaxed),
         }
     }
 }
@@ -101,6 +115,10 @@ pub struct StatsSnapshot {
     pub windows: u64,
     pub clock_jumps: u64,
     pub silences: u64,
+    pub signed_ok: u64,
+    pub signature_bad: u64,
+    pub signature_replay: u64,
+    pub unsigned_refused: u64,
 }
 
 /// How fast a recorded source plays.
@@ -138,31 +156,72 @@ pub enum SourceSpec {
     Dataset { path: std::path::PathBuf, flight: u32, speed: Speed },
 }
 
-/// A way for sinks to send frames back out on the live link the source reads (MAVLink
-/// publishing "on the same link"). Empty unless the source is a live link. Where a frame
-/// goes is the link's business (see [`link`]): the last UDP peer heard (`udpin:`), the
-/// target (`udpout:`), every TCP client (`tcpin:`), the open connection (`tcpout:`,
-/// `serial:`). Frames are whole encoded MAVLink frames.
+/// The live link's shared side: a way for sinks to send frames back out on the link the
+/// source reads (MAVLink publishing "on the same link"), and the link's signing set-up.
+/// Empty unless the source is a live link. Where a frame goes is the link's business (see
+/// [`link`]): the last UDP peer heard (`udpin:`), the target (`udpout:`), every TCP client
+/// (`tcpin:`), the open connection (`tcpout:`, `serial:`). Frames are whole encoded
+/// MAVLink frames; with a signing key ([`signing`]) every MAVLink 2 frame is signed on the
+/// way out and every incoming one verified.
 #[derive(Debug, Clone, Default)]
-pub struct LinkHandle(std::sync::Arc<std::sync::Mutex<Option<tokio::sync::mpsc::Sender<Vec<u8>>>>>);
+pub struct LinkHandle {
+    writer: Arc<std::sync::Mutex<Option<mpsc::Sender<Vec<u8>>>>>,
+    signing: Option<LinkSigning>,
+}
+
+/// The signer and the verifier a link with a key shares between its tasks.
+#[derive(Clone)]
+struct LinkSigning {
+    signer: Arc<std::sync::Mutex<signing::Signer>>,
+    verifier: frame::SharedVerifier,
+}
+
+impl std::fmt::Debug for LinkSigning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("LinkSigning")
+    }
+}
 
 impl LinkHandle {
+    /// A handle for a link that signs and verifies with `signing` (none: neither).
+    pub fn with_signing(signing: Option<signing::Signing>) -> Self {
+        let signing = signing.map(|s| LinkSigning {
+            signer: Arc::new(std::sync::Mutex::new(signing::Signer::new(&s))),
+            verifier: Arc::new(std::sync::Mutex::new(signing::Verifier::new(s))),
+        });
+        Self { writer: Arc::default(), signing }
+    }
     /// Called by a live-link source once it can write.
-    pub fn attach(&self, tx: tokio::sync::mpsc::Sender<Vec<u8>>) {
-        if let Ok(mut g) = self.0.lock() {
+    pub fn attach(&self, tx: mpsc::Sender<Vec<u8>>) {
+        if let Ok(mut g) = self.writer.lock() {
             *g = Some(tx);
         }
     }
-    /// Queue one encoded frame for the link; false if there is no link or it is full.
-    pub fn try_send(&self, frame: Vec<u8>) -> bool {
-        match self.0.lock() {
+    /// Queue one encoded frame for the link (signed first when the link has a key); false
+    /// if there is no link or it is full.
+    pub fn try_send(&self, mut frame: Vec<u8>) -> bool {
+        self.sign(&mut frame);
+        match self.writer.lock() {
             Ok(g) => g.as_ref().is_some_and(|tx| tx.try_send(frame).is_ok()),
             Err(_) => false,
         }
     }
+    /// Sign one unsigned MAVLink 2 frame in place when the link has a key (else, or for
+    /// a MAVLink 1 or already signed frame, leave it).
+    pub fn sign(&self, frame: &mut Vec<u8>) {
+        if let Some(s) = &self.signing {
+            if let Ok(mut signer) = s.signer.lock() {
+                signer.sign(frame);
+            }
+        }
+    }
+    /// The verifier incoming frames must pass, when the link has a key.
+    pub fn verifier(&self) -> Option<frame::SharedVerifier> {
+        self.signing.as_ref().map(|s| s.verifier.clone())
+    }
     /// Whether a live link is attached.
     pub fn is_attached(&self) -> bool {
-        self.0.lock().map(|g| g.is_some()).unwrap_or(false)
+        self.writer.lock().map(|g| g.is_some()).unwrap_or(false)
     }
 }
 
