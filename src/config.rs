@@ -26,6 +26,8 @@ pub struct Config {
     pub alerts: Vec<crate::alert::AlertRule>,
     /// Publishers: terminal, jsonl, mavlink, web, mqtt.
     pub sinks: crate::sink::SinksConfig,
+    /// The live link: MAVLink 2 signing key file, whether unsigned frames are refused.
+    pub link: crate::source::signing::LinkConfig,
 }
 
 /// A configuration error that names the file, the key and why.
@@ -47,6 +49,12 @@ impl Config {
                 *v = dir.join(&*v);
             }
         }
+        let dir = path.parent().unwrap_or(Path::new(""));
+        for p in [cfg.link.signing_key_file.as_mut(), cfg.sinks.web.token_file.as_mut()].into_iter().flatten() {
+            if p.is_relative() {
+                *p = dir.join(&*p);
+            }
+        }
         cfg.validate().map_err(err)?;
         Ok(cfg)
     }
@@ -64,6 +72,7 @@ impl Config {
         self.sinks.mavlink.validate()?;
         self.sinks.web.validate()?;
         self.sinks.mqtt.validate()?;
+        self.link.validate()?;
         Ok(())
     }
 }

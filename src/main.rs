@@ -130,6 +130,12 @@ fn real_main(cli: Cli) -> Result<()> {
         Command::Sensitivity(a) => dronewatt::offline::sensitivity::run(a),
         Command::CheckConfig { file } => {
             let cfg = Config::load(&file)?;
+            // The secrets' files too: missing, unreadable or readable by others fails here.
+            let err = |e: String| anyhow::anyhow!("{}: {e}", file.display());
+            cfg.link.load().map_err(err)?;
+            if cfg.sinks.web.enabled {
+                cfg.sinks.web.token().map_err(err)?;
+            }
             print!("{}", describe_config(&file, &cfg));
             Ok(())
         }
@@ -260,7 +266,18 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
         m.rate_hz
     );
     let w = &cfg.sinks.web;
-    out += &format!("sinks.web: {}\n", if w.enabled { format!("on, http://{}/", w.bind) } else { "off".into() });
+    let guarded = if w.token_file.is_some() || std::env::var_os(dronewatt::sink::web::TOKEN_ENV).is_some() { ", token required" } else { "" };
+    out += &format!("sinks.web: {}\n", if w.enabled { format!("on, http://{}/{guarded}", w.bind) } else { "off".into() });
+    let l = &cfg.link;
+    out += &match &l.signing_key_file {
+        Some(k) => format!(
+            "link: MAVLink 2 signing with the key in {}, link id {}, unsigned frames {}\n",
+            k.display(),
+            l.signing_link_id,
+            if l.require_signing { "refused" } else { "accepted" }
+        ),
+        None => "link: no signing\n".into(),
+    };
     let q = &cfg.sinks.mqtt;
     out += &format!(
         "sinks.mqtt: {}\n",

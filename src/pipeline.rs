@@ -17,6 +17,8 @@
 //! drops its sender, each stage drains what it holds and drops its own, and every sink
 //! sees its queue close, flushes and writes its summary. Nothing is lost on the way out.
 
+use std::sync::Arc;
+
 use anyhow::Result;
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
@@ -30,7 +32,7 @@ use crate::model::Ensemble;
 use crate::report::{EnergyState, Estimate, Report};
 use crate::sink::mavlink::MavlinkSinkConfig;
 use crate::sink::{Fanout, SinkSpec};
-use crate::source::{SourceSpec, TimedMessage};
+use crate::source::{LinkSigning, SourceSpec, TimedMessage};
 use crate::status::{ChainStatus, IngestStats, LinkHandle, StatsSnapshot};
 use crate::telemetry::Telemetry;
 use crate::window::Window;
@@ -60,14 +62,17 @@ pub struct Pipeline {
 pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
     // Built before any task starts, so a bad model or profile fails before we listen.
     let chain = VehicleChain::build(&p.config)?;
-    let status = ChainStatus { shutdown: shutdown.clone(), ..ChainStatus::default() };
+    // The signing key is read now: a missing or world-readable key fails before we listen.
+    let signing = p.config.link.load().map_err(anyhow::Error::msg)?.map(|s| Arc::new(LinkSigning::new(s)));
+    let signer = signing.clone().map(|s| s as Arc<dyn crate::status::FrameSigner>);
+    let status = ChainStatus { shutdown: shutdown.clone(), link: LinkHandle::with_signer(signer), ..ChainStatus::default() };
 
     // Sinks start first so they see every report.
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
     let live = matches!(p.source, SourceSpec::Link(_));
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
-    let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), shutdown));
+    let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
     let chain = chain.spawn(msg_rx, fanout, &status, live);
 
     let source_result = source.await?;
@@ -87,7 +92,7 @@ pub fn start_sinks(specs: Vec<SinkSpec>, status: &ChainStatus) -> Result<(Fanout
     for spec in specs {
         let mut sink_status = status.clone();
         if let SinkSpec::Mavlink(MavlinkSinkConfig { address: Some(a), .. }) = &spec {
-            let (link, task) = crate::source::link::spawn_uplink(a.parse()?, tasks.uplink_stop.clone());
+            let (link, task) = crate::source::link::spawn_uplink(a.parse()?, &status.link, tasks.uplink_stop.clone());
             sink_status.link = link.clone();
             tasks.uplinks.push((link, task));
         }

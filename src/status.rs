@@ -49,6 +49,15 @@ pub struct IngestStats {
     pub silences: AtomicU64,
     /// Whether the live link is silent right now (the terminal view shows it).
     pub silent: AtomicBool,
+    /// Frames whose MAVLink 2 signature checked against the link's key (among `frames_ok`).
+    pub signed_ok: AtomicU64,
+    /// Frames dropped because their signature did not match the key (`source::signing`).
+    pub signature_bad: AtomicU64,
+    /// Signed frames dropped as replays: a timestamp not newer than the stream's last, or
+    /// a new stream over a minute behind.
+    pub signature_replay: AtomicU64,
+    /// Unsigned frames dropped because `[link] require_signing` is set.
+    pub unsigned_refused: AtomicU64,
 }
 
 impl IngestStats {
@@ -67,6 +76,10 @@ impl IngestStats {
             windows: self.windows.load(Ordering::Relaxed),
             clock_jumps: self.clock_jumps.load(Ordering::Relaxed),
             silences: self.silences.load(Ordering::Relaxed),
+            signed_ok: self.signed_ok.load(Ordering::Relaxed),
+            signature_bad: self.signature_bad.load(Ordering::Relaxed),
+            signature_replay: self.signature_replay.load(Ordering::Relaxed),
+            unsigned_refused: self.unsigned_refused.load(Ordering::Relaxed),
         }
     }
 }
@@ -83,6 +96,10 @@ pub struct StatsSnapshot {
     pub junk_bytes: u64,
     pub clock_jumps: u64,
     pub silences: u64,
+    pub signed_ok: u64,
+    pub signature_bad: u64,
+    pub signature_replay: u64,
+    pub unsigned_refused: u64,
 }
 
 /// The telemetry stage's latest `Telemetry::health`, shared with the terminal view (the
@@ -111,28 +128,53 @@ pub struct SignalHealth {
 /// target (`udpout:`), every TCP client (`tcpin:`), the open connection (`tcpout:`,
 /// `serial:`). Frames are whole encoded MAVLink frames.
 #[derive(Debug, Clone, Default)]
-pub struct LinkHandle(std::sync::Arc<std::sync::Mutex<Option<tokio::sync::mpsc::Sender<Vec<u8>>>>>);
+pub struct LinkHandle {
+    writer: Arc<std::sync::Mutex<Option<tokio::sync::mpsc::Sender<Vec<u8>>>>>,
+    signer: Option<Arc<dyn FrameSigner>>,
+}
+
+/// Signs outgoing MAVLink 2 frames with a link's key (MAVLink 1 or already signed frames
+/// are left as they are). The link's own signing (`source::LinkSigning`) implements it.
+pub trait FrameSigner: Send + Sync + std::fmt::Debug {
+    fn sign(&self, frame: &mut Vec<u8>);
+}
 
 impl LinkHandle {
+    /// A handle whose frames are signed by `signer` (none: sent as they are).
+    pub fn with_signer(signer: Option<Arc<dyn FrameSigner>>) -> Self {
+        Self { writer: Arc::default(), signer }
+    }
+    /// The signer this handle signs with.
+    pub fn signer(&self) -> Option<Arc<dyn FrameSigner>> {
+        self.signer.clone()
+    }
+    /// Sign one frame in place when the link has a key.
+    pub fn sign(&self, frame: &mut Vec<u8>) {
+        if let Some(s) = &self.signer {
+            s.sign(frame);
+        }
+    }
     /// Called by a live-link source once it can write.
     pub fn attach(&self, tx: tokio::sync::mpsc::Sender<Vec<u8>>) {
-        if let Ok(mut g) = self.0.lock() {
+        if let Ok(mut g) = self.writer.lock() {
             *g = Some(tx);
         }
     }
-    /// Queue one encoded frame for the link; false if there is no link or it is full.
-    pub fn try_send(&self, frame: Vec<u8>) -> bool {
-        match self.0.lock() {
+    /// Queue one encoded frame for the link (signed first when the link has a key); false
+    /// if there is no link or it is full.
+    pub fn try_send(&self, mut frame: Vec<u8>) -> bool {
+        self.sign(&mut frame);
+        match self.writer.lock() {
             Ok(g) => g.as_ref().is_some_and(|tx| tx.try_send(frame).is_ok()),
             Err(_) => false,
         }
     }
     /// Frames queued and not yet written (0 without a link).
     pub fn pending(&self) -> usize {
-        self.0.lock().ok().and_then(|g| g.as_ref().map(|tx| tx.max_capacity() - tx.capacity())).unwrap_or(0)
+        self.writer.lock().ok().and_then(|g| g.as_ref().map(|tx| tx.max_capacity() - tx.capacity())).unwrap_or(0)
     }
     /// Whether a live link is attached.
     pub fn is_attached(&self) -> bool {
-        self.0.lock().map(|g| g.is_some()).unwrap_or(false)
+        self.writer.lock().map(|g| g.is_some()).unwrap_or(false)
     }
 }

@@ -27,7 +27,7 @@ fn start(address: String) -> Running {
     let stats = Arc::new(IngestStats::default());
     let link = LinkHandle::default();
     let shutdown = CancellationToken::new();
-    let task = tokio::spawn(dronewatt::source::run(SourceSpec::Link(address), tx, stats.clone(), link.clone(), shutdown.clone()));
+    let task = tokio::spawn(dronewatt::source::run(SourceSpec::Link(address), tx, stats.clone(), link.clone(), None, shutdown.clone()));
     Running { rx, stats, link, shutdown, task }
 }
 

@@ -26,6 +26,7 @@ async fn serial_reads_frames_and_writes_back_on_a_pty() {
         tx,
         stats.clone(),
         link.clone(),
+        None,
         shutdown.clone(),
     ));
     tokio::time::sleep(Duration::from_millis(300)).await;

@@ -10,7 +10,8 @@
 //!
 //! ```text
 //! {"type":"summary","frames_ok":…,"frames_bad":…,"unknown":…,"gaps":…,"windows":…,
-//!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…}
+//!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…,
+//!  "signed_ok":…,"signature_bad":…,"signature_replay":…,"unsigned_refused":…}
 //! ```
 //!
 //! The MQTT sink ([`super::mqtt`]) publishes the same `estimate` and `alert` objects, and
@@ -218,7 +219,8 @@ struct AlertLine<'a> {
 pub struct Summary {
     #[serde(rename = "type")]
     kind: &'static str,
-    /// The source's counters at the end of the run.
+    /// The source's counters at the end of the run (with MAVLink 2 signing on a live link:
+    /// `signed_ok`, and the frames dropped for a bad signature, as replays, or unsigned).
     #[serde(flatten)]
     pub ingest: StatsSnapshot,
     /// Reports this sink wrote.

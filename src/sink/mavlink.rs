@@ -35,6 +35,8 @@
 //! With no `address`, on the link `monitor` reads (udpin answers whoever sent last, the
 //! usual ground-station arrangement); or to `udpout:HOST:PORT` / `tcpout:HOST:PORT`.
 //! Sending never blocks the pipeline: a full or absent link drops the frame and counts it.
+//! With a `[link] signing_key_file`, every frame is MAVLink 2 signed
+//! ([`crate::source::signing`]), whichever way it goes out.
 
 use std::time::{Duration, Instant};
 

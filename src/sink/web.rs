@@ -11,6 +11,26 @@
 //! vehicle's battery is nobody else's business until you choose so. The history keeps one
 //! point per `min_step_s` of flight time, at most `history` points, so memory stays flat on
 //! a long flight.
+//!
+//! ## Guarded ([`guard`])
+//!
+//! - **A token beyond loopback.** Bound to anything but a loopback address, the dashboard
+//!   refuses to start without an access token: `DRONEWATT_WEB_TOKEN` from the environment,
+//!   else the file `[sinks.web] token_file` names (mode 600, whitespace trimmed; never the
+//!   command line, where `ps` shows it to every user). At least [`MIN_TOKEN_LEN`]
+//!   characters. With a token (on loopback too, if one is set) `/api/*` answers 401 unless
+//!   the request carries `Authorization: Bearer TOKEN`; the page itself holds no data. Open
+//!   the dashboard as `http://HOST:PORT/#token=TOKEN`: the fragment never leaves the
+//!   browser, and the page sends it as that header.
+//! - **Read only.** There is no write endpoint: every route is GET (HEAD), anything else is
+//!   405, and a request with a body is 413.
+//! - **Headers.** Every response: a Content-Security-Policy that allows only this page's own
+//!   script and style (by SHA-256 hash) and fetches from its own origin, no framing,
+//!   `X-Content-Type-Options: nosniff`, `Referrer-Policy: no-referrer`, `Cache-Control:
+//!   no-store`.
+//! - **Limits.** At most `max_connections` open connections (more wait in the kernel's
+//!   backlog until one closes); a connection idle (nothing read or written) for
+//!   [`IDLE_TIMEOUT`] is closed; request line plus headers over `max_request_bytes` is 431.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
@@ -21,6 +41,8 @@ use axum::response::{Html, IntoResponse};
 use axum::routing::get;
 use axum::{Json, Router};
 use tokio_util::sync::CancellationToken;
+
+pub mod guard;
 
 use crate::report::AlertEvent;
 use crate::report::{EnergyState, Report};
@@ -40,11 +62,28 @@ pub struct WebSinkConfig {
     /// Keep serving this long after the source ends (a replay), s, so the page can still
     /// be read. Default 0.
     pub linger_s: f64,
+    /// File holding the access token (mode 600; a relative path is resolved against the
+    /// config file's folder). `DRONEWATT_WEB_TOKEN` in the environment takes precedence.
+    /// Required when `bind` is not a loopback address. Default: none.
+    pub token_file: Option<std::path::PathBuf>,
+    /// Most connections open at once. Default 16.
+    pub max_connections: usize,
+    /// Largest request line plus headers, bytes. Default 8192.
+    pub max_request_bytes: usize,
 }
 
 impl Default for WebSinkConfig {
     fn default() -> Self {
-        Self { enabled: false, bind: "127.0.0.1:8787".into(), history: 3600, min_step_s: 0.5, linger_s: 0.0 }
+        Self {
+            enabled: false,
+            bind: "127.0.0.1:8787".into(),
+            history: 3600,
+            min_step_s: 0.5,
+            linger_s: 0.0,
+            token_file: None,
+            max_connections: 16,
+            max_request_bytes: 8192,
+        }
     }
 }
 
@@ -63,9 +102,50 @@ impl WebSinkConfig {
         if !(self.linger_s.is_finite() && self.linger_s >= 0.0) {
             return Err(format!("sinks.web.linger_s = {}: must be ≥ 0", self.linger_s));
         }
+        if !(1..=10_000).contains(&self.max_connections) {
+            return Err(format!("sinks.web.max_connections = {}: must be 1..=10000", self.max_connections));
+        }
+        if !(1024..=1_048_576).contains(&self.max_request_bytes) {
+            return Err(format!("sinks.web.max_request_bytes = {}: must be 1024..=1048576", self.max_request_bytes));
+        }
         Ok(())
     }
+
+    /// The access token: `DRONEWATT_WEB_TOKEN`, else `token_file`, else none. Refuses to
+    /// go without one when `bind` is beyond loopback. Errors name the variable or key.
+    pub fn token(&self) -> Result<Option<String>, String> {
+        let token = match std::env::var(TOKEN_ENV) {
+            Ok(t) if !t.trim().is_empty() => Some((t.trim().to_string(), TOKEN_ENV.to_string())),
+            _ => match &self.token_file {
+                Some(p) => {
+                    let key = format!("sinks.web.token_file = '{}'", p.display());
+                    Some((guard::read_private(p).map_err(|e| format!("{key}: {e}"))?, key))
+                }
+                None => None,
+            },
+        };
+        if let Some((t, from)) = &token {
+            if t.chars().count() < MIN_TOKEN_LEN || t.chars().any(|c| c.is_control() || c == ' ') {
+                return Err(format!("{from}: the dashboard token must be at least {MIN_TOKEN_LEN} characters, no spaces"));
+            }
+        }
+        let loopback = self.bind.parse::<std::net::SocketAddr>().is_ok_and(|a| a.ip().is_loopback());
+        if token.is_none() && !loopback {
+            return Err(format!(
+                "sinks.web.bind = '{}' is beyond loopback: the dashboard needs an access token ({TOKEN_ENV} in the environment, or sinks.web.token_file)",
+                self.bind
+            ));
+        }
+        Ok(token.map(|(t, _)| t))
+    }
 }
+
+/// Environment variable holding the dashboard's access token.
+pub const TOKEN_ENV: &str = "DRONEWATT_WEB_TOKEN";
+/// Shortest token accepted, characters.
+pub const MIN_TOKEN_LEN: usize = 16;
+/// A connection with nothing read or written for this long is closed.
+pub const IDLE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// One chart point.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -170,6 +250,8 @@ async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoR
 /// then serve on a task (see [`serve`]).
 pub fn spawn(cfg: WebSinkConfig, rx: super::ReportRx, shutdown: CancellationToken) -> Result<tokio::task::JoinHandle<Result<()>>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
+    // Before binding: a public dashboard without a token never listens at all.
+    cfg.token().map_err(anyhow::Error::msg)?;
     let bind_err = || format!("web dashboard: cannot listen on {} (sinks.web.bind)", cfg.bind);
     let std_listener = std::net::TcpListener::bind(&cfg.bind).with_context(bind_err)?;
     std_listener.set_nonblocking(true).with_context(bind_err)?;
@@ -181,8 +263,15 @@ pub fn spawn(cfg: WebSinkConfig, rx: super::ReportRx, shutdown: CancellationToke
 /// Serve the dashboard on `listener`, fed by `rx`, until the report channel closes and
 /// `linger_s` has passed, or the run's `shutdown` (Ctrl-C, SIGTERM) ends the lingering.
 pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx: super::ReportRx, shutdown: CancellationToken) -> Result<()> {
+    let token = cfg.token().map_err(anyhow::Error::msg)?;
     let dash: Shared = Arc::default();
-    let app = Router::new().route("/", get(index)).route("/api/state", get(state)).with_state(dash.clone());
+    let rules = Arc::new(guard::Rules::new(token, cfg.max_request_bytes, include_str!("web/index.html")));
+    let app = Router::new()
+        .route("/", get(index))
+        .route("/api/state", get(state))
+        .with_state(dash.clone())
+        .layer(axum::middleware::from_fn_with_state(rules, guard::check));
+    let listener = guard::Limited::new(listener, cfg.max_connections);
     let done = tokio_util::sync::CancellationToken::new();
     let stop = done.clone();
     let server = tokio::spawn(async move {

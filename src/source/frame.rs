@@ -40,8 +40,13 @@ use std::sync::OnceLock;
 
 use mavlink::{MavHeader, MavlinkVersion, Message};
 
+use super::signing::{Verdict, Verifier};
 use super::IngestStats;
 use crate::MavMessage;
+
+/// A link's signature verifier, shared by every connection of the link (a replay through
+/// a second TCP client is still a replay).
+pub type SharedVerifier = std::sync::Arc<std::sync::Mutex<Verifier>>;
 
 /// Start byte of a MAVLink 1 frame.
 pub const STX_V1: u8 = 0xFE;
@@ -115,7 +120,7 @@ fn id_table() -> &'static [u16] {
 
 /// The `crc_extra` of `id`, or `None` when this dialect does not know the message.
 #[inline]
-fn crc_extra(id: u32) -> Option<u8> {
+pub(crate) fn crc_extra(id: u32) -> Option<u8> {
     match id_table().get(id as usize) {
         Some(&e) if e & 0x100 != 0 => Some(e as u8),
         Some(_) => None,
@@ -208,6 +213,9 @@ pub struct FrameDecoder {
     /// Last sequence number per (system, component): `(sys, comp, seq)`. A handful of
     /// components per link, so a linear scan beats hashing.
     seqs: Vec<(u32, u8, u8)>,
+    /// MAVLink 2 signature checks ([`super::signing`]), [`Framing::Stream`] only: frames
+    /// it rejects are counted in their own counters and never returned.
+    verifier: Option<SharedVerifier>,
 }
 
 impl FrameDecoder {
@@ -222,7 +230,34 @@ impl FrameDecoder {
             last_stamp_us: None,
             eof: false,
             seqs: Vec::new(),
+            verifier: None,
         }
+    }
+
+    /// Check every frame's signature from now on (a live link with a signing key).
+    pub fn set_verifier(&mut self, verifier: SharedVerifier) {
+        self.verifier = Some(verifier);
+    }
+
+    /// Whether the signing rules let the frame `b` through, counting it either way.
+    fn admitted(&self, b: &[u8], stats: &IngestStats) -> bool {
+        let Some(v) = &self.verifier else { return true };
+        let verdict = match v.lock() {
+            Ok(mut v) => v.check(b),
+            Err(_) => Verdict::BadSignature, // a verifier that panicked admits nothing
+        };
+        let counter = match verdict {
+            Verdict::Unsigned => return true,
+            Verdict::Signed => {
+                IngestStats::add(&stats.signed_ok, 1);
+                return true;
+            }
+            Verdict::BadSignature => &stats.signature_bad,
+            Verdict::Replay => &stats.signature_replay,
+            Verdict::UnsignedRefused => &stats.unsigned_refused,
+        };
+        IngestStats::add(counter, 1);
+        false
     }
 
     /// Append input. Consumed bytes are dropped first, so the buffer holds at most one
@@ -319,6 +354,9 @@ impl FrameDecoder {
                 At::Good { len, header, version, msg } => {
                     self.pos = q + len;
                     self.counted_until = self.counted_until.min(q);
+                    if !self.admitted(&self.buf[q..q + len], stats) {
+                        continue; // dropped whole: counted as a signing failure, not junk
+                    }
                     IngestStats::add(&stats.frames_ok, 1);
                     self.track_seq(&header, stats);
                     return Some(Frame { header, version, msg, stamp_us: None });

@@ -26,6 +26,7 @@ use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
 use super::timed::TimedReader;
+use super::frame::SharedVerifier;
 use super::{IngestStats, LinkHandle, TimedMessage};
 use crate::dialect::{MavAutopilot, MavModeFlag, MavState, MavType, HEARTBEAT_DATA};
 use crate::MavMessage;
@@ -51,11 +52,12 @@ pub async fn run(
     tx: mpsc::Sender<TimedMessage>,
     stats: Arc<IngestStats>,
     link: LinkHandle,
+    verifier: Option<SharedVerifier>,
     shutdown: CancellationToken,
 ) -> Result<()> {
     let (wtx, wrx) = mpsc::channel::<Vec<u8>>(WRITE_QUEUE);
     link.attach(wtx);
-    serve(addr, tx, stats, wrx, shutdown, true).await
+    serve(addr, tx, stats, link, verifier, wrx, shutdown, true).await
 }
 
 /// Frames queued for a link's writer before [`LinkHandle::try_send`] drops them.
@@ -64,15 +66,17 @@ const WRITE_QUEUE: usize = 256;
 /// Open `addr` as an uplink: a link only written to (the MAVLink sink's own `address`).
 /// The returned handle is attached before this returns, so no frame sent on it is lost
 /// to a start-up race. What the other side sends is read and dropped; no ground-station
-/// heartbeat goes out (the sink sends its own). Runs until `stop`.
-pub fn spawn_uplink(addr: LinkAddress, stop: CancellationToken) -> (LinkHandle, tokio::task::JoinHandle<Result<()>>) {
+/// heartbeat goes out (the sink sends its own). Frames are signed as `base` signs them (the
+/// monitored link's key). Runs until `stop`.
+pub fn spawn_uplink(addr: LinkAddress, base: &LinkHandle, stop: CancellationToken) -> (LinkHandle, tokio::task::JoinHandle<Result<()>>) {
     let (wtx, wrx) = mpsc::channel::<Vec<u8>>(WRITE_QUEUE);
-    let link = LinkHandle::default();
+    let link = LinkHandle::with_signer(base.signer());
     link.attach(wtx);
+    let writer = link.clone();
     let task = tokio::spawn(async move {
         let (tx, mut rx) = mpsc::channel::<TimedMessage>(64);
         let drain = tokio::spawn(async move { while rx.recv().await.is_some() {} });
-        let r = serve(addr, tx, Arc::new(IngestStats::default()), wrx, stop, false).await;
+        let r = serve(addr, tx, Arc::new(IngestStats::default()), writer, None, wrx, stop, false).await;
         let _ = drain.await;
         r
     });
@@ -86,11 +90,15 @@ async fn serve(
     addr: LinkAddress,
     tx: mpsc::Sender<TimedMessage>,
     stats: Arc<IngestStats>,
+    link: LinkHandle,
+    verifier: Option<SharedVerifier>,
     wrx: mpsc::Receiver<Vec<u8>>,
     shutdown: CancellationToken,
     monitored: bool,
 ) -> Result<()> {
     let mut ctx = Ctx {
+        link,
+        verifier,
         label: addr.to_string(),
         tx,
         stats,
@@ -110,6 +118,10 @@ async fn serve(
 
 /// What every transport shares.
 struct Ctx {
+    /// Signs our heartbeat when the link has a key.
+    link: LinkHandle,
+    /// What every reader checks signatures with, when the link has a key.
+    verifier: Option<SharedVerifier>,
     label: String,
     tx: mpsc::Sender<TimedMessage>,
     stats: Arc<IngestStats>,
@@ -120,6 +132,10 @@ struct Ctx {
 }
 
 impl Ctx {
+    /// A reader timed by arrival that checks signatures when the link has a key.
+    fn reader(&self) -> TimedReader {
+        reader(self.start, self.verifier.clone())
+    }
     /// Send everything `reader` has decoded. False when the run is over.
     async fn deliver(&self, reader: &mut TimedReader) -> bool {
         deliver(reader, &self.tx, &self.stats, &self.shutdown).await
@@ -129,6 +145,14 @@ impl Ctx {
             self.watchdog.tick(&self.label, &self.stats);
         }
     }
+}
+
+fn reader(start: Instant, verifier: Option<SharedVerifier>) -> TimedReader {
+    let mut r = TimedReader::arrival(start);
+    if let Some(v) = verifier {
+        r.set_verifier(v);
+    }
+    r
 }
 
 async fn deliver(
@@ -210,7 +234,7 @@ async fn udp(ctx: &mut Ctx, hostport: &str, out: bool, mut wrx: mpsc::Receiver<V
         (UdpSocket::bind(there).await.with_context(|| format!("{label}: cannot bind {there}"))?, None)
     };
     info!("{label}: {}", if out { format!("sending to {there}") } else { format!("listening on {there}") });
-    let mut reader = TimedReader::arrival(ctx.start);
+    let mut reader = ctx.reader();
     let mut buf = vec![0u8; 65_536];
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     let mut seq = 0u8;
@@ -240,7 +264,9 @@ async fn udp(ctx: &mut Ctx, hostport: &str, out: bool, mut wrx: mpsc::Receiver<V
             _ = tick.tick() => {
                 ctx.tick();
                 if out && ctx.monitored {
-                    let _ = sock.send_to(&heartbeat(seq), there).await;
+                    let mut hb = heartbeat(seq);
+                    ctx.link.sign(&mut hb);
+                    let _ = sock.send_to(&hb, there).await;
                     seq = seq.wrapping_add(1);
                 }
             }
@@ -264,11 +290,10 @@ async fn tcp_in(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>)
                     info!("{label}: client {peer} connected");
                     let (ctx_tx, ctx_rx) = mpsc::channel(256);
                     clients.push(ctx_tx);
-                    let (tx, stats, shutdown, start) =
-                        (ctx.tx.clone(), ctx.stats.clone(), ctx.shutdown.clone(), ctx.start);
+                    let (tx, stats, shutdown) = (ctx.tx.clone(), ctx.stats.clone(), ctx.shutdown.clone());
+                    let mut reader = ctx.reader();
                     let label = label.clone();
                     tasks.spawn(async move {
-                        let mut reader = TimedReader::arrival(start);
                         let why = pump(stream, &mut reader, ctx_rx, &tx, &stats, &shutdown).await;
                         info!("{label}: client {peer} {why}");
                     });
@@ -293,7 +318,7 @@ async fn tcp_in(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>)
 async fn tcp_out(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>) -> Result<()> {
     let label = ctx.label.clone();
     let mut backoff = BACKOFF_MIN;
-    let mut reader = TimedReader::arrival(ctx.start);
+    let mut reader = ctx.reader();
     loop {
         let conn = tokio::select! {
             _ = ctx.shutdown.cancelled() => return Ok(()),
@@ -323,7 +348,7 @@ async fn serial(ctx: &mut Ctx, device: &str, baud: u32, mut wrx: mpsc::Receiver<
     let open = || tokio_serial::new(device, baud).open_native_async();
     let mut port = Some(open().with_context(|| format!("{label}: cannot open"))?);
     let mut backoff = BACKOFF_MIN;
-    let mut reader = TimedReader::arrival(ctx.start);
+    let mut reader = ctx.reader();
     loop {
         if let Some(p) = port.take() {
             info!("{label}: open");

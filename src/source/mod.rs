@@ -13,6 +13,7 @@ pub mod dataset;
 pub mod frame;
 pub mod link;
 pub mod raw;
+pub mod signing;
 pub mod timed;
 pub mod tlog;
 
@@ -81,7 +82,45 @@ pub enum SourceSpec {
     Dataset { path: std::path::PathBuf, flight: u32, speed: Speed },
 }
 
+/// A live link's signing set-up (`[link] signing_key_file`): the signer for what
+/// dronewatt sends and the verifier every incoming frame must pass, shared by every task
+/// of the link. The sinks see only its signing side ([`crate::status::FrameSigner`]).
+pub struct LinkSigning {
+    signer: std::sync::Mutex<signing::Signer>,
+    verifier: frame::SharedVerifier,
+}
+
+impl LinkSigning {
+    /// Signer and verifier for this key.
+    pub fn new(s: signing::Signing) -> Self {
+        Self {
+            signer: std::sync::Mutex::new(signing::Signer::new(&s)),
+            verifier: Arc::new(std::sync::Mutex::new(signing::Verifier::new(s))),
+        }
+    }
+    /// The verifier incoming frames must pass.
+    pub fn verifier(&self) -> frame::SharedVerifier {
+        self.verifier.clone()
+    }
+}
+
+impl crate::status::FrameSigner for LinkSigning {
+    fn sign(&self, frame: &mut Vec<u8>) {
+        if let Ok(mut signer) = self.signer.lock() {
+            signer.sign(frame);
+        }
+    }
+}
+
+impl std::fmt::Debug for LinkSigning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("LinkSigning")
+    }
+}
+
 /// Read `spec` until it ends or `shutdown` is cancelled, sending every decoded message.
+/// A live link with `signing` verifies what it reads (recorded files are read as they were
+/// recorded).
 /// Returns an error only for what makes the source unusable (missing file, bad address,
 /// a port that cannot be bound); everything else is counted in `stats` and logged.
 ///
@@ -92,12 +131,13 @@ pub async fn run(
     tx: mpsc::Sender<TimedMessage>,
     stats: Arc<IngestStats>,
     link: LinkHandle,
+    signing: Option<Arc<LinkSigning>>,
     shutdown: CancellationToken,
 ) -> anyhow::Result<()> {
     match spec {
         SourceSpec::Link(address) => {
             let addr: link::LinkAddress = address.parse()?;
-            link::run(addr, tx, stats, link, shutdown).await
+            link::run(addr, tx, stats, link, signing.map(|s| s.verifier()), shutdown).await
         }
         SourceSpec::Tlog { path, speed } => {
             let f = open(&path).await?;

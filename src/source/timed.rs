@@ -109,6 +109,10 @@ impl TimedReader {
     pub fn finish(&mut self) {
         self.decoder.finish();
     }
+    /// Check MAVLink 2 signatures (see [`super::signing`]) from now on.
+    pub fn set_verifier(&mut self, verifier: super::frame::SharedVerifier) {
+        self.decoder.set_verifier(verifier);
+    }
     /// Drop a partial frame and sequence history (a new connection).
     pub fn reset(&mut self) {
         self.decoder.reset();

@@ -1,0 +1,150 @@
+//! Shared by the link-fault and link-security tests: run `dronewatt monitor` on a free
+//! loopback port with `--json`, fly `tests/peers/vehicle.py` (pymavlink) at it with a plan of
+//! phases, stop dronewatt with SIGTERM (its own shutdown path) and read what the operator
+//! saw.
+#![allow(dead_code)]
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// What one run showed: dronewatt's JSON lines and the peer's own report.
+pub struct Run {
+    /// Every `estimate` line that carries model output (a real estimate, not the
+    /// "nothing heard" report a silent link's alert rides on).
+    pub estimates: Vec<Value>,
+    /// Every `alert` line.
+    pub alerts: Vec<Value>,
+    /// The `summary` line.
+    pub summary: Value,
+    /// Every `estimate` line, real or not.
+    pub estimate_lines: usize,
+    /// What `vehicle.py` printed.
+    pub peer: Value,
+    /// dronewatt's standard error.
+    pub stderr: String,
+}
+
+impl Run {
+    /// The `t` of every real estimate.
+    pub fn times(&self) -> Vec<f64> {
+        self.estimates.iter().map(|e| e["t"].as_f64().unwrap()).collect()
+    }
+    /// A summary counter.
+    pub fn count(&self, key: &str) -> u64 {
+        self.summary[key].as_u64().unwrap_or_else(|| panic!("no {key} in the summary {}", self.summary))
+    }
+    /// Gaps between consecutive real estimates longer than `s`.
+    pub fn holes_over(&self, s: f64) -> Vec<(f64, f64)> {
+        self.times().windows(2).filter(|w| w[1] - w[0] > s).map(|w| (w[0], w[1])).collect()
+    }
+}
+
+pub fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+pub fn free_tcp_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// Wait until dronewatt holds `port` (UDP: our bind fails; TCP: a connect succeeds), so no
+/// frame the peer sends is lost to a socket not bound yet.
+fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
+    let start = Instant::now();
+    loop {
+        let up = if tcp {
+            std::net::TcpStream::connect(("127.0.0.1", port)).is_ok()
+        } else {
+            std::net::UdpSocket::bind(("127.0.0.1", port)).is_err()
+        };
+        if up {
+            return;
+        }
+        if let Ok(Some(status)) = dw.try_wait() {
+            let mut err = String::new();
+            let _ = std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err);
+            panic!("dronewatt exited with {status} before listening: {err}");
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "dronewatt never listened on port {port}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Monitor `udpin:` (or `tcpin:` with `tcp`) with `config`, fly `plan` with the extra peer
+/// arguments, and collect the run.
+pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("dw.toml");
+    std::fs::write(&cfg, config).unwrap();
+    let json = dir.path().join("out.jsonl");
+    let port = if tcp { free_tcp_port() } else { free_udp_port() };
+    let address = format!("{}:127.0.0.1:{port}", if tcp { "tcpin" } else { "udpin" });
+    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["monitor", &address, "-q", "--config"])
+        .arg(&cfg)
+        .arg("--json")
+        .arg(&json)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_listening(port, tcp, &mut dw);
+    let to = format!("{}:127.0.0.1:{port}", if tcp { "tcp" } else { "udpout" });
+    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/vehicle.py"))
+        .args(["--to", &to, "--plan", plan])
+        .args(peer_args)
+        .output()
+        .expect("run .venv-py/bin/python (make setup creates it)");
+    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let status = dw.wait().unwrap();
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
+    assert!(status.success(), "dronewatt exited with {status}: {stderr}");
+    let out = String::from_utf8_lossy(&peer.stdout);
+    let peer: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {stderr}"));
+    let text = std::fs::read_to_string(&json).unwrap();
+    let (mut estimates, mut alerts, mut summary, mut estimate_lines) = (Vec::new(), Vec::new(), Value::Null, 0);
+    for line in text.lines() {
+        let v: Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("bad JSON line {line:?}: {e}"));
+        match v["type"].as_str() {
+            Some("estimate") => {
+                estimate_lines += 1;
+                if v["models"].as_object().is_some_and(|m| !m.is_empty()) {
+                    estimates.push(v);
+                }
+            }
+            Some("alert") => alerts.push(v),
+            Some("summary") => summary = v,
+            _ => {}
+        }
+    }
+    assert!(summary.is_object(), "no summary line; dronewatt: {stderr}");
+    Run { estimates, alerts, summary, estimate_lines, peer, stderr }
+}
+
+/// What every run must show: every report written and none missed, real estimates in
+/// strictly increasing time, and every measured power on the flown profile (500 ± 40 W at
+/// 22.2 V, rounded to the centiamp): nothing from another vehicle, nothing made up.
+pub fn check_consistent(r: &Run) {
+    assert_eq!(r.count("missed_reports"), 0, "{}", r.summary);
+    assert_eq!(r.count("reports") as usize, r.estimate_lines, "every report is one estimate line");
+    let t = r.times();
+    assert!(t.windows(2).all(|w| w[1] > w[0]), "estimate times must strictly increase");
+    for e in &r.estimates {
+        if let Some(w) = e["measured_w"].as_f64() {
+            assert!((455.0..=545.0).contains(&w), "measured {w} W is not on the flown profile: {e}");
+        }
+    }
+}
+
+/// Real estimates expected from `seconds` of telemetry in `segments` unbroken stretches at
+/// 10 Hz with a 10-sample window: one per sample once the window is full.
+pub fn expected_estimates(seconds: f64, segments: usize) -> std::ops::RangeInclusive<usize> {
+    let full = (seconds * 10.0).round() as usize;
+    let lo = full.saturating_sub(segments * 10 + 5 * segments);
+    lo..=full + 2 * segments
+}
