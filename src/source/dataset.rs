@@ -185,6 +185,14 @@ fn summarise(v: &[u32]) -> String {
 /// The file's bytes, gunzipped when they start with the gzip magic.
 fn read_maybe_gz(path: &Path) -> Result<Vec<u8>> {
     use std::io::Read;
+    if !path.exists() {
+        bail!(
+            "{}: no such file. The M100 data set (flights.csv or flights.csv.gz) is read from the \
+             path given, else from the environment variable DRONEWATT_DATA, else from \
+             ../shared/data/m100/flights.csv.gz beside the project",
+            path.display()
+        );
+    }
     let raw = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     if raw.starts_with(&[0x1f, 0x8b]) {
         let mut out = Vec::with_capacity(raw.len() * 4);
@@ -205,7 +213,14 @@ fn parse_altitude(s: &str) -> Option<f64> {
 /// module docs for what is checked and what is skipped.
 pub fn read_flights(path: &Path, want: Option<&[u32]>) -> Result<DataSet> {
     let bytes = read_maybe_gz(path)?;
-    let text = std::str::from_utf8(&bytes).with_context(|| format!("{}: not UTF-8 text", path.display()))?;
+    parse_flights(&bytes, &path.display().to_string(), want)
+}
+
+/// [`read_flights`] on the file's (decompressed) bytes; `origin` names the file in errors
+/// and warnings. Separate so the fuzz targets can feed it bytes without a file.
+pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result<DataSet> {
+    let path = std::path::Path::new(origin);
+    let text = std::str::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", path.display()))?;
     let mut lines = text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
     let header = lines.next().unwrap_or("");
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
