@@ -239,11 +239,12 @@ async fn replay<R: AsyncRead + Unpin>(
         if eof {
             tracing::debug!("{name}: end of input");
             let s = stats.snapshot();
-            if bytes_read > 0 && s.frames_ok == 0 && s.unknown == 0 {
+            if bytes_read > 0 && s.frames_ok == 0 {
                 tracing::warn!(
-                    "{name}: no MAVLink in this file: {bytes_read} bytes and not one valid frame ({} bad, {} junk bytes). \
-                     Expected {}",
+                    "{name}: no MAVLink in this file: {bytes_read} bytes and not one valid frame \
+                     ({} bad, {} of unknown id, {} junk bytes). Expected {}",
                     s.frames_bad,
+                    s.unknown,
                     s.junk_bytes,
                     reader.expected_format()
                 );
