@@ -348,7 +348,9 @@ pub fn epoch_base_us(f: &Flight) -> u64 {
     let d: Vec<i64> = f.date.split('-').filter_map(|x| x.parse().ok()).collect();
     let t: Vec<i64> = f.time_day.split(':').filter_map(|x| x.parse().ok()).collect();
     match (d.as_slice(), t.as_slice()) {
-        ([y, m, dd], [hh, mm, ..]) if (1..=12).contains(m) && (1..=31).contains(dd) && *y >= 1970 => {
+        ([y, m, dd], [hh, mm, ..])
+            if (1..=12).contains(m) && (1..=31).contains(dd) && (1970..=9999).contains(y) && (0..24).contains(hh) && (0..60).contains(mm) =>
+        {
             let s = days_from_civil(*y, *m, *dd) * 86_400 + hh * 3600 + mm * 60;
             (s.max(0) as u64) * 1_000_000
         }
@@ -363,7 +365,8 @@ pub fn encode_flight(f: &Flight) -> Vec<u8> {
     let mut last_hb: Option<f64> = None;
     let mut home: Option<[f64; 3]> = None;
     for r in &f.rows {
-        enc.t_us = base + (r.time_s * 1e6).round().max(0.0) as u64;
+        // Saturating: a CSV may hold any finite time (found by fuzzing: 1e300 s overflowed).
+        enc.t_us = base.saturating_add((r.time_s * 1e6).round().max(0.0) as u64);
         enc.boot_ms = (r.time_s * 1e3).round().max(0.0) as u32;
         if last_hb.is_none_or(|t| r.time_s - t >= 1.0) {
             last_hb = Some(r.time_s);
