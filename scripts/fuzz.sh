@@ -7,7 +7,7 @@
 # Works on the stable toolchain (RUSTC_BOOTSTRAP=1 lets cargo fuzz use -Z flags). Builds
 # without a sanitizer (-s none): the readers are safe Rust, so AddressSanitizer would find
 # nothing the bounds checks do not, at several times the cost; the targets' property checks
-# (src/source/props.rs) and debug assertions do the catching. libFuzzer works on a scratch
+# (src/props.rs) and debug assertions do the catching. libFuzzer works on a scratch
 # copy of the committed seeds (fuzz/corpus/TARGET, git-ignored); a crash lands in
 # fuzz/artifacts/TARGET/. Copy it to fuzz/regressions/TARGET/ once fixed, and
 # `cargo test --test fuzz_corpus` replays it for ever after.
@@ -40,6 +40,11 @@ if [[ -z "${LIBTORCH:-}" && -d .libtorch ]]; then
   export LIBTORCH="$PWD/.libtorch"
 fi
 export RUSTC_BOOTSTRAP=1
+# The fuzz binaries link libtorch dynamically (through the dronewatt crate) and, unlike
+# `cargo run`/`cargo test`, cargo fuzz does not put it on the library path.
+if [[ -n "${LIBTORCH:-}" ]]; then
+  export LD_LIBRARY_PATH="$LIBTORCH/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+fi
 
 corpus=fuzz/corpus/$target
 mkdir -p "$corpus" fuzz/artifacts/"$target"

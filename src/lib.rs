@@ -34,6 +34,7 @@
 //! | [`pipeline`] | wires the tasks together and owns shutdown |
 //! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
+//! | [`props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_corpus.rs` |
 
 pub mod alert;
 pub mod config;
@@ -41,6 +42,7 @@ pub mod energy;
 pub mod model;
 pub mod offline;
 pub mod pipeline;
+pub mod props;
 pub mod sink;
 pub mod source;
 pub mod telemetry;

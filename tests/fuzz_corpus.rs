@@ -1,5 +1,5 @@
 //! Replays the fuzz corpus through the fuzz targets' own property checks
-//! (`dronewatt::source::props`), on plain stable `cargo test`: no nightly, no sanitizer.
+//! (`dronewatt::props`), on plain stable `cargo test`: no nightly, no sanitizer.
 //! Every committed seed (`fuzz/seeds/TARGET/`) and every input that once broke a property
 //! or crashed (`fuzz/regressions/TARGET/`) must pass, so a fixed crash stays fixed.
 //!
@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use dronewatt::dialect::*;
-use dronewatt::source::props;
+use dronewatt::props;
 use dronewatt::MavMessage;
 use mavlink::{MavHeader, MavlinkVersion};
 

@@ -13,7 +13,6 @@
 pub mod dataset;
 pub mod frame;
 pub mod link;
-pub mod props;
 pub mod raw;
 pub mod sim;
 pub mod timed;

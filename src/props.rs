@@ -7,19 +7,22 @@
 //! the file; a panic inside a reader is a failure too (the fuzzer reports it, the replay
 //! test fails on it).
 //!
+//! A top-level module, not part of [`crate::source`]: it checks the config and builds the
+//! energy and alert stages, which the sources must not import. Nothing imports it.
+//!
 //! | check | reader | properties |
 //! |---|---|---|
-//! | [`check_decoder`] | [`super::frame::FrameDecoder`], stream and tlog framing | every byte accounted for (ok + bad + unknown + junk = input); the same frames and counts whatever the chunking; at most about two frames buffered; a valid v1/v2/signed frame behind garbage is found |
-//! | [`check_tlog`] | [`super::timed::TimedReader::tlog`] | bytes accounted for; `t_s` starts at 0, finite, never decreasing; one message per good frame; clock jumps among the gaps |
-//! | [`check_raw`] | [`super::timed::TimedReader::raw`] | the same, timed by `time_boot_ms` |
-//! | [`check_csv`] | [`super::dataset::parse_flights`] | every non-empty line a row or a counted skip; rows finite with increasing time; small flights encode to a tlog that decodes without a bad byte |
+//! | [`check_decoder`] | [`crate::source::frame::FrameDecoder`], stream and tlog framing | every byte accounted for (ok + bad + unknown + junk = input); the same frames and counts whatever the chunking; at most about two frames buffered; a valid v1/v2/signed frame behind garbage is found |
+//! | [`check_tlog`] | [`crate::source::timed::TimedReader::tlog`] | bytes accounted for; `t_s` starts at 0, finite, never decreasing; one message per good frame; clock jumps among the gaps |
+//! | [`check_raw`] | [`crate::source::timed::TimedReader::raw`] | the same, timed by `time_boot_ms` |
+//! | [`check_csv`] | [`crate::source::dataset::parse_flights`] | every non-empty line a row or a counted skip; rows finite with increasing time; small flights encode to a tlog that decodes without a bad byte |
 //! | [`check_config`] | [`crate::config::Config`] (TOML + `validate`) | every validation message names a key; a config that validates builds its energy tracker, alert engine and telemetry stage |
 
 use mavlink::{MavHeader, MavlinkVersion, Message};
 
-use super::frame::{self, ByteTally, FrameDecoder, Framing, MAX_FRAME_LEN, TLOG_STAMP_LEN};
-use super::timed::TimedReader;
-use super::{IngestStats, StatsSnapshot};
+use crate::source::frame::{self, ByteTally, FrameDecoder, Framing, MAX_FRAME_LEN, TLOG_STAMP_LEN};
+use crate::source::timed::TimedReader;
+use crate::source::{IngestStats, StatsSnapshot};
 use crate::MavMessage;
 
 /// Most bytes the decoder may hold undecoded between pushes: an unknown frame waiting to
@@ -239,7 +242,7 @@ pub fn check_raw(data: &[u8]) -> Result<(), String> {
 
 /// The M100 CSV reader (bytes as the file would hold them, after gunzip).
 pub fn check_csv(data: &[u8]) -> Result<(), String> {
-    let Ok(ds) = super::dataset::parse_flights(data, "fuzz.csv", None) else {
+    let Ok(ds) = crate::source::dataset::parse_flights(data, "fuzz.csv", None) else {
         return Ok(()); // not UTF-8, or a header without the data set's columns: an error, fine
     };
     let Ok(text) = std::str::from_utf8(data) else {
@@ -269,9 +272,9 @@ pub fn check_csv(data: &[u8]) -> Result<(), String> {
     }
     if rows <= CSV_ENCODE_MAX_ROWS {
         for f in ds.flights.iter().filter(|f| !f.rows.is_empty()) {
-            let bytes = super::dataset::encode_flight(f);
+            let bytes = crate::source::dataset::encode_flight(f);
             let stats = IngestStats::default();
-            let msgs = super::tlog::decode_tlog(&bytes, &stats);
+            let msgs = crate::source::tlog::decode_tlog(&bytes, &stats);
             let s = stats.snapshot();
             if s.frames_bad != 0 || s.unknown != 0 || s.junk_bytes != 0 || msgs.is_empty() {
                 return Err(format!("flight {}: its own encoding decodes with {s:?}", f.flight));
