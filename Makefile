@@ -5,7 +5,7 @@ SHELL := /bin/bash
 CARGO ?= cargo
 DEMO_SPEED ?= 10
 
-.PHONY: setup run test build bench clean-setup
+.PHONY: setup run test build bench fuzz clean-setup
 setup:
 	@scripts/setup-libtorch.sh
 	@scripts/setup-python.sh
@@ -25,6 +25,11 @@ test: setup
 
 bench: setup
 	$(CARGO) bench --locked
+
+# Fuzz every reader for FUZZ_SECONDS each (cargo fuzz, libFuzzer; see scripts/fuzz.sh).
+FUZZ_SECONDS ?= 60
+fuzz: setup
+	scripts/fuzz.sh all $(FUZZ_SECONDS)
 
 clean-setup:
 	rm -rf .venv-torch .libtorch .venv-py

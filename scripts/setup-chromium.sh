@@ -1,20 +1,31 @@
 #!/usr/bin/env bash
 # Idempotent: headless Chromium for the web dashboard test (tests/web_dashboard.rs).
 # Debian's `chromium` package. Without root or network this fails and the test says so
-# loudly and skips; everything else still runs.
+# loudly and skips; everything else still runs. Under CI (CI=true) a missing chromium is
+# an error here and in the tests: CI must not go green with the dashboard untested.
 set -uo pipefail
+fail() {
+  echo "setup-chromium: $1" >&2
+  if [ "${CI:-}" = true ] || [ "${CI:-}" = 1 ]; then
+    echo "setup-chromium: CI=${CI}: the web dashboard tests need chromium; failing" >&2
+    exit 1
+  fi
+  exit 0
+}
 for c in chromium chromium-browser; do
   if command -v "$c" >/dev/null 2>&1; then exit 0; fi
 done
 SUDO=""
 if [ "$(id -u)" != 0 ]; then
   if command -v sudo >/dev/null 2>&1; then SUDO="sudo -n"; else
-    echo "setup-chromium: not root and no sudo: cannot install chromium (the web test will skip)" >&2
-    exit 0
+    fail "not root and no sudo: cannot install chromium (the web test will skip)"
   fi
 fi
 export DEBIAN_FRONTEND=noninteractive
 if ! { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq --no-install-recommends chromium; } >&2; then
-  echo "setup-chromium: apt-get install chromium failed (the web test will skip)" >&2
+  fail "apt-get install chromium failed (the web test will skip)"
 fi
-exit 0
+for c in chromium chromium-browser; do
+  if command -v "$c" >/dev/null 2>&1; then exit 0; fi
+done
+fail "chromium installed but not on PATH (the web test will skip)"

@@ -222,15 +222,19 @@ impl AlertRule {
     }
 }
 
-/// Check a rule list: each rule, and names unique. Errors say `alerts[i] (name).key: why`.
+/// Check a rule list: each rule, and names unique. Errors say `alerts[i] (name).key: why`,
+/// one line per broken rule (a rule's first error; fixing it shows the next).
 pub fn validate_rules(rules: &[AlertRule]) -> Result<(), String> {
+    let mut errs = Vec::new();
     for (i, r) in rules.iter().enumerate() {
-        r.validate().map_err(|e| format!("alerts[{i}] ({}).{e}", r.name))?;
+        if let Err(e) = r.validate() {
+            errs.push(format!("alerts[{i}] ({}).{e}", r.name.escape_debug()));
+        }
         if rules[..i].iter().any(|o| o.name == r.name) {
-            return Err(format!("alerts[{i}].name = '{}': another rule already has this name", r.name));
+            errs.push(format!("alerts[{i}].name = '{}': another rule already has this name", r.name.escape_debug()));
         }
     }
-    Ok(())
+    if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
 }
 
 /// Bitmask of the kinematic features (position, attitude, velocity, rates, acceleration):

@@ -64,15 +64,32 @@ impl Config {
         path.map_or_else(|| Ok(Config::default()), Config::load)
     }
 
-    /// Checks serde cannot express (ranges, cross-field rules). The message names the key.
+    /// Checks serde cannot express (ranges, cross-field rules): every error in the file,
+    /// not just the first, so one edit can fix them all. One error is its own message;
+    /// several read `N errors:` and one per line. Each names its key.
     pub fn validate(&self) -> Result<(), String> {
-        self.telemetry.validate()?;
-        self.energy.validate()?;
-        crate::alert::validate_rules(&self.alerts)?;
-        self.sinks.mavlink.validate()?;
-        self.sinks.web.validate()?;
-        self.sinks.mqtt.validate()?;
-        self.link.validate()?;
-        Ok(())
+        match self.errors().as_slice() {
+            [] => Ok(()),
+            [one] => Err(one.clone()),
+            many => Err(format!("{} errors:\n  {}", many.len(), many.join("\n  "))),
+        }
+    }
+
+    /// Every validation error, one message per broken key, in file order of the sections.
+    pub fn errors(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let checks = [
+            self.telemetry.validate(),
+            self.energy.validate(),
+            crate::alert::validate_rules(&self.alerts),
+            self.sinks.mavlink.validate(),
+            self.sinks.web.validate(),
+            self.sinks.mqtt.validate(),
+            self.link.validate(),
+        ];
+        for e in checks.into_iter().filter_map(Result::err) {
+            out.extend(e.lines().map(str::to_string));
+        }
+        out
     }
 }

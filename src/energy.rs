@@ -75,32 +75,31 @@ impl Default for EnergyConfig {
 }
 
 impl EnergyConfig {
-    /// Range checks; the message names the key.
+    /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let positive = |key: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(format!("energy.{key} = {v}: must be a positive number"))
+        let mut errs = Vec::new();
+        let mut positive = |key: &str, v: f64| {
+            if !(v.is_finite() && v > 0.0) {
+                errs.push(format!("energy.{key} = {v}: must be a positive number"));
             }
         };
-        positive("capacity_wh", self.capacity_wh)?;
-        positive("smoothing_s", self.smoothing_s)?;
-        positive("descent_speed_m_s", self.descent_speed_m_s)?;
-        positive("max_dt_s", self.max_dt_s)?;
+        positive("capacity_wh", self.capacity_wh);
+        positive("smoothing_s", self.smoothing_s);
+        positive("descent_speed_m_s", self.descent_speed_m_s);
+        positive("max_dt_s", self.max_dt_s);
         if let Some(v) = self.cruise_speed_m_s {
-            positive("cruise_speed_m_s", v)?;
+            positive("cruise_speed_m_s", v);
         }
         if !(self.landing_s.is_finite() && self.landing_s >= 0.0) {
-            return Err(format!("energy.landing_s = {}: must be ≥ 0", self.landing_s));
+            errs.push(format!("energy.landing_s = {}: must be ≥ 0", self.landing_s));
         }
         if !(0.0..100.0).contains(&self.reserve_pct) {
-            return Err(format!("energy.reserve_pct = {}: must be in [0, 100)", self.reserve_pct));
+            errs.push(format!("energy.reserve_pct = {}: must be in [0, 100)", self.reserve_pct));
         }
         if !(1..=24).contains(&self.cell_count) {
-            return Err(format!("energy.cell_count = {}: must be 1..=24 cells", self.cell_count));
+            errs.push(format!("energy.cell_count = {}: must be 1..=24 cells", self.cell_count));
         }
-        Ok(())
+        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
     }
 }
 

@@ -44,6 +44,7 @@
 //! | [`mission`] | routes: waypoint guidance (take-off, legs, holds, landing) |
 //! | [`sim`] | the simulator: a vehicle profile flying a route, sent as ArduPilot or PX4 telemetry (`.tlog` or UDP); outside the flow, it makes what sources read |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
+//! | [`props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_corpus.rs` |
 
 pub mod address;
 pub mod alert;
@@ -54,6 +55,7 @@ pub mod mission;
 pub mod model;
 pub mod offline;
 pub mod pipeline;
+pub mod props;
 pub mod report;
 pub mod sim;
 pub mod sink;

@@ -157,8 +157,20 @@ async fn tcpout_reconnects_after_the_server_drops_it() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn tcpout_to_nobody_keeps_retrying_and_stops_on_shutdown() {
     let port = free_tcp_port(); // nothing listens there
-    let run = start(format!("tcpout:127.0.0.1:{port}"));
+    let mut run = start(format!("tcpout:127.0.0.1:{port}"));
     tokio::time::sleep(Duration::from_millis(1200)).await;
     assert!(!run.task.is_finished(), "a refused connection is not fatal");
-    run.stop().await;
+    // Refused at 0 s and 0.5 s; the vehicle comes up now, and the next retry (1.5 s, the
+    // back-off doubling from 0.5 s) must find it: frames sent on it arrive.
+    let listener = tokio::net::TcpListener::bind(("127.0.0.1", port)).await.unwrap();
+    let accept = tokio::time::timeout(dronewatt::source::link::BACKOFF_MAX, listener.accept()).await;
+    let (mut conn, _) = accept.expect("no retry reached the vehicle once it listened").unwrap();
+    let recs = flight(5);
+    for (_, h, m) in &recs {
+        conn.write_all(&frame(*h, m, V2)).await.unwrap();
+    }
+    let got = run.take(5, 5, |_| true).await;
+    assert_eq!(got.len(), 5, "frames over the retried connection");
+    let stats = run.stop().await;
+    assert_eq!(stats.frames_ok.load(Relaxed), 5);
 }

@@ -27,6 +27,7 @@ fn every_model_finite_on_every_window() {
             assert_eq!(out.len(), f.windows.len());
             for (i, p) in out.iter().enumerate() {
                 assert!(p.power_w.is_finite(), "{} on flight {} window {i}: {}", m.name(), f.flight, p.power_w);
+                assert!(p.power_w >= 0.0, "{} on flight {} window {i}: negative power {} W", m.name(), f.flight, p.power_w);
             }
             n += out.len();
         }

@@ -74,24 +74,27 @@ impl Default for MavlinkSinkConfig {
 }
 
 impl MavlinkSinkConfig {
-    /// Range checks; the message names the key.
+    /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
+        let mut errs = Vec::new();
         if !(self.rate_hz > 0.0 && self.rate_hz <= 50.0) {
-            return Err(format!("sinks.mavlink.rate_hz = {}: must be in (0, 50] per second", self.rate_hz));
+            errs.push(format!("sinks.mavlink.rate_hz = {}: must be in (0, 50] per second", self.rate_hz));
         }
         if self.system_id == 0 {
-            return Err("sinks.mavlink.system_id = 0: 0 is the broadcast id; use 1..=255".into());
+            errs.push("sinks.mavlink.system_id = 0: 0 is the broadcast id; use 1..=255".into());
         }
         if self.component_id == 0 || self.component_id == 1 {
-            return Err(format!(
+            errs.push(format!(
                 "sinks.mavlink.component_id = {}: 0 is broadcast and 1 is the autopilot's; use e.g. 191 (MAV_COMP_ID_ONBOARD_COMPUTER)",
                 self.component_id
             ));
         }
         if let Some(a) = &self.address {
-            a.parse::<crate::address::LinkAddress>().map_err(|e| format!("sinks.mavlink.address: {e}"))?;
+            if let Err(e) = a.parse::<crate::address::LinkAddress>() {
+                errs.push(format!("sinks.mavlink.address: {e}"));
+            }
         }
-        Ok(())
+        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
     }
 }
 

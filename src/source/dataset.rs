@@ -185,6 +185,14 @@ fn summarise(v: &[u32]) -> String {
 /// The file's bytes, gunzipped when they start with the gzip magic.
 fn read_maybe_gz(path: &Path) -> Result<Vec<u8>> {
     use std::io::Read;
+    if !path.exists() {
+        bail!(
+            "{}: no such file. The M100 data set (flights.csv or flights.csv.gz) is read from the \
+             path given, else from the environment variable DRONEWATT_DATA, else from \
+             ../shared/data/m100/flights.csv.gz beside the project",
+            path.display()
+        );
+    }
     let raw = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     if raw.starts_with(&[0x1f, 0x8b]) {
         let mut out = Vec::with_capacity(raw.len() * 4);
@@ -205,7 +213,14 @@ fn parse_altitude(s: &str) -> Option<f64> {
 /// module docs for what is checked and what is skipped.
 pub fn read_flights(path: &Path, want: Option<&[u32]>) -> Result<DataSet> {
     let bytes = read_maybe_gz(path)?;
-    let text = std::str::from_utf8(&bytes).with_context(|| format!("{}: not UTF-8 text", path.display()))?;
+    parse_flights(&bytes, &path.display().to_string(), want)
+}
+
+/// [`read_flights`] on the file's (decompressed) bytes; `origin` names the file in errors
+/// and warnings. Separate so the fuzz targets can feed it bytes without a file.
+pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result<DataSet> {
+    let path = std::path::Path::new(origin);
+    let text = std::str::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", path.display()))?;
     let mut lines = text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
     let header = lines.next().unwrap_or("");
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
@@ -333,7 +348,9 @@ pub fn epoch_base_us(f: &Flight) -> u64 {
     let d: Vec<i64> = f.date.split('-').filter_map(|x| x.parse().ok()).collect();
     let t: Vec<i64> = f.time_day.split(':').filter_map(|x| x.parse().ok()).collect();
     match (d.as_slice(), t.as_slice()) {
-        ([y, m, dd], [hh, mm, ..]) if (1..=12).contains(m) && (1..=31).contains(dd) && *y >= 1970 => {
+        ([y, m, dd], [hh, mm, ..])
+            if (1..=12).contains(m) && (1..=31).contains(dd) && (1970..=9999).contains(y) && (0..24).contains(hh) && (0..60).contains(mm) =>
+        {
             let s = days_from_civil(*y, *m, *dd) * 86_400 + hh * 3600 + mm * 60;
             (s.max(0) as u64) * 1_000_000
         }
@@ -348,7 +365,8 @@ pub fn encode_flight(f: &Flight) -> Vec<u8> {
     let mut last_hb: Option<f64> = None;
     let mut home: Option<[f64; 3]> = None;
     for r in &f.rows {
-        enc.t_us = base + (r.time_s * 1e6).round().max(0.0) as u64;
+        // Saturating: a CSV may hold any finite time (found by fuzzing: 1e300 s overflowed).
+        enc.t_us = base.saturating_add((r.time_s * 1e6).round().max(0.0) as u64);
         enc.boot_ms = (r.time_s * 1e3).round().max(0.0) as u32;
         if last_hb.is_none_or(|t| r.time_s - t >= 1.0) {
             last_hb = Some(r.time_s);

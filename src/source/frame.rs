@@ -28,6 +28,16 @@
 //! scan still steps into it, so a stray start byte in garbage that merely looks like an
 //! unknown frame can never swallow a good frame behind it.
 //!
+//! ## Every byte accounted for
+//!
+//! Besides the frame counters, the decoder keeps a [`ByteTally`]: how many input bytes
+//! belonged to good frames, to frames counted bad and to unknown frames (tlog stamps
+//! included with their record). With `junk_bytes` these account for every byte pushed:
+//! once the input is finished and drained, `ok + bad + unknown + junk == bytes pushed`.
+//! A bad or unknown frame's span ends where a good frame found inside it begins (the
+//! resynchronisation above), so no byte is counted twice. The fuzz targets and
+//! `tests/fuzz_corpus.rs` check this on every input (`crate::props`).
+//!
 //! ## Gaps
 //!
 //! `gaps` counts discontinuities. The decoder counts *sequence gaps*: per (system,
@@ -55,6 +65,8 @@ pub const STX_V2: u8 = 0xFD;
 /// MAVLink 2 incompatibility flag: the frame carries a 13-byte signature after its CRC.
 pub const IFLAG_SIGNED: u8 = 0x01;
 const SIGNATURE_LEN: usize = 13;
+/// The longest frame there is: a signed MAVLink 2 frame with a 255-byte payload.
+pub const MAX_FRAME_LEN: usize = V2_HEADER + 255 + 2 + SIGNATURE_LEN;
 const V1_HEADER: usize = 6; // STX len seq sys comp id
 const V2_HEADER: usize = 10; // STX len incompat compat seq sys comp id(3)
 /// Bytes of a tlog record's timestamp.
@@ -128,6 +140,26 @@ pub(crate) fn crc_extra(id: u32) -> Option<u8> {
     }
 }
 
+/// Input bytes by what they turned out to be (see the module docs): with `junk_bytes`
+/// they add up to every byte pushed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ByteTally {
+    /// Bytes of good frames (tlog: with their 8-byte stamps).
+    pub ok: u64,
+    /// Bytes of frames counted bad, and of a truncated last frame or record.
+    pub bad: u64,
+    /// Bytes of frames counted unknown (tlog: with their stamps).
+    pub unknown: u64,
+}
+
+/// The open span of a frame counted bad or unknown: from `start` to the decoder's
+/// `counted_until`, or to the start of a good frame found inside it.
+#[derive(Debug, Clone, Copy)]
+struct Claim {
+    start: usize,
+    unknown: bool,
+}
+
 /// What the bytes at one position turned out to be.
 enum At {
     /// A frame of `len` bytes whose CRC checked and whose payload decoded.
@@ -193,6 +225,16 @@ fn decode_at(b: &[u8]) -> At {
     }
 }
 
+/// The length of the frame starting at `b[0]` if it is one that checks out (CRC and
+/// payload), else `None`. The fuzz properties use it to tell a frame that garbage happens
+/// to hold from one the decoder missed.
+pub fn good_frame_len(b: &[u8]) -> Option<usize> {
+    match decode_at(b) {
+        At::Good { len, .. } => Some(len),
+        _ => None,
+    }
+}
+
 /// Incremental decoder: [`push`](Self::push) bytes as they come (a stream chunk, a
 /// datagram, a whole file), then take frames with [`next_frame`](Self::next_frame) until
 /// it says `None`. [`finish`](Self::finish) at the end of input so a truncated last frame
@@ -216,6 +258,10 @@ pub struct FrameDecoder {
     /// MAVLink 2 signature checks ([`super::signing`]), [`Framing::Stream`] only: frames
     /// it rejects are counted in their own counters and never returned.
     verifier: Option<SharedVerifier>,
+    /// Bytes settled as ok, bad or unknown so far.
+    tally: ByteTally,
+    /// The bad or unknown frame whose span is still open (ends at `counted_until`).
+    claim: Option<Claim>,
 }
 
 impl FrameDecoder {
@@ -231,6 +277,8 @@ impl FrameDecoder {
             eof: false,
             seqs: Vec::new(),
             verifier: None,
+            tally: ByteTally::default(),
+            claim: None,
         }
     }
 
@@ -260,10 +308,68 @@ impl FrameDecoder {
         false
     }
 
+    /// Bytes so far by what they were (the open bad/unknown span included as it stands).
+    /// After [`finish`](Self::finish) and draining [`next_frame`](Self::next_frame),
+    /// `ok + bad + unknown` plus the `junk_bytes` counted is every byte pushed.
+    pub fn byte_tally(&self) -> ByteTally {
+        let mut t = self.tally;
+        if let Some(c) = self.claim {
+            let n = self.counted_until.saturating_sub(c.start) as u64;
+            if c.unknown {
+                t.unknown += n;
+            } else {
+                t.bad += n;
+            }
+        }
+        t
+    }
+
+    /// Bytes pushed but not yet decoded or counted: at most about two frames whatever the
+    /// input (the decoder never buffers without bound).
+    pub fn pending_len(&self) -> usize {
+        self.buf.len() - self.pos
+    }
+
+    /// Close the open bad/unknown span at `at` (a good frame or a new record starts there):
+    /// its bytes up to there are settled, and nothing before `at` is claimed any more.
+    fn close_claim(&mut self, at: usize) {
+        if let Some(c) = self.claim.take() {
+            let n = self.counted_until.min(at).saturating_sub(c.start) as u64;
+            if c.unknown {
+                self.tally.unknown += n;
+            } else {
+                self.tally.bad += n;
+            }
+        }
+        self.counted_until = self.counted_until.min(at);
+    }
+
+    /// A frame counted bad or unknown spans `[start, end)`: close the previous span at
+    /// `start` and open this one.
+    fn open_claim(&mut self, start: usize, end: usize, unknown: bool) {
+        self.close_claim(start);
+        self.claim = Some(Claim { start, unknown });
+        self.counted_until = end;
+    }
+
     /// Append input. Consumed bytes are dropped first, so the buffer holds at most one
     /// partial frame plus the new bytes.
     pub fn push(&mut self, bytes: &[u8]) {
         if self.pos > 0 {
+            // No good frame can start before `pos` any more: settle the open span's bytes
+            // up to there, so the span survives the shift.
+            if let Some(c) = self.claim.as_mut() {
+                let settled = self.counted_until.min(self.pos).saturating_sub(c.start) as u64;
+                if c.unknown {
+                    self.tally.unknown += settled;
+                } else {
+                    self.tally.bad += settled;
+                }
+                c.start = c.start.max(self.pos) - self.pos;
+                if self.counted_until <= self.pos {
+                    self.claim = None;
+                }
+            }
             self.buf.drain(..self.pos);
             self.counted_until = self.counted_until.saturating_sub(self.pos);
             self.pos = 0;
@@ -280,6 +386,7 @@ impl FrameDecoder {
     /// Forget a partial frame and sequence history (a TCP reconnect: the new stream shares
     /// nothing with the old one). Counts nothing.
     pub fn reset(&mut self) {
+        self.close_claim(self.counted_until);
         self.buf.clear();
         self.pos = 0;
         self.counted_until = 0;
@@ -353,7 +460,8 @@ impl FrameDecoder {
             match decode_at(&self.buf[q..]) {
                 At::Good { len, header, version, msg } => {
                     self.pos = q + len;
-                    self.counted_until = self.counted_until.min(q);
+                    self.close_claim(q);
+                    self.tally.ok += len as u64;
                     if !self.admitted(&self.buf[q..q + len], stats) {
                         continue; // dropped whole: counted as a signing failure, not junk
                     }
@@ -369,7 +477,7 @@ impl FrameDecoder {
                         if followed {
                             IngestStats::add(&stats.unknown, 1);
                             self.track_seq(&header, stats);
-                            self.counted_until = q + len;
+                            self.open_claim(q, q + len, true);
                         } else {
                             self.junk(stats, q, q + 1);
                         }
@@ -381,7 +489,7 @@ impl FrameDecoder {
                 At::Bad { len } => {
                     if q >= self.counted_until {
                         IngestStats::add(&stats.frames_bad, 1);
-                        self.counted_until = q + len;
+                        self.open_claim(q, q + len, false);
                     }
                     self.pos = q + 1;
                 }
@@ -396,7 +504,7 @@ impl FrameDecoder {
                     // Truncated by the end of input; frames may still start inside it.
                     if q >= self.counted_until {
                         IngestStats::add(&stats.frames_bad, 1);
-                        self.counted_until = self.buf.len();
+                        self.open_claim(q, self.buf.len(), false);
                     }
                     self.pos = q + 1;
                 }
@@ -417,6 +525,7 @@ impl FrameDecoder {
                 if avail <= TLOG_STAMP_LEN {
                     if self.eof && avail > 0 {
                         IngestStats::add(&stats.frames_bad, 1); // a record cut inside its stamp
+                        self.open_claim(self.pos, self.buf.len(), false);
                         self.pos = self.buf.len();
                     }
                     return None;
@@ -426,6 +535,8 @@ impl FrameDecoder {
                     At::Good { len, header, version, msg } => {
                         let stamp = self.stamp_at(rec);
                         self.pos = rec + TLOG_STAMP_LEN + len;
+                        self.close_claim(rec);
+                        self.tally.ok += (TLOG_STAMP_LEN + len) as u64;
                         self.last_stamp_us = Some(stamp);
                         IngestStats::add(&stats.frames_ok, 1);
                         self.track_seq(&header, stats);
@@ -434,11 +545,13 @@ impl FrameDecoder {
                     At::Unknown { len, header } => {
                         IngestStats::add(&stats.unknown, 1);
                         self.track_seq(&header, stats);
+                        self.close_claim(rec);
+                        self.tally.unknown += (TLOG_STAMP_LEN + len) as u64;
                         self.pos = rec + TLOG_STAMP_LEN + len;
                     }
                     At::Bad { len } => {
                         IngestStats::add(&stats.frames_bad, 1);
-                        self.counted_until = rec + TLOG_STAMP_LEN + len;
+                        self.open_claim(rec, rec + TLOG_STAMP_LEN + len, false);
                         self.aligned = false;
                         self.pos = rec + 1;
                     }
@@ -450,6 +563,7 @@ impl FrameDecoder {
                             return None;
                         }
                         IngestStats::add(&stats.frames_bad, 1); // truncated last record
+                        self.open_claim(rec, self.buf.len(), false);
                         self.pos = self.buf.len();
                         return None;
                     }
@@ -478,7 +592,8 @@ impl FrameDecoder {
                         self.junk(stats, self.pos, rec);
                         let stamp = self.stamp_at(rec);
                         self.pos = q + len;
-                        self.counted_until = self.counted_until.min(rec);
+                        self.close_claim(rec);
+                        self.tally.ok += (TLOG_STAMP_LEN + len) as u64;
                         self.aligned = true;
                         self.last_stamp_us = Some(stamp);
                         IngestStats::add(&stats.frames_ok, 1);
@@ -529,6 +644,32 @@ mod tests {
     fn crc_matches_rust_mavlink() {
         let data = [1u8, 2, 3, 250, 251, 0, 7];
         assert_eq!(crc16(&data, 50), mavlink::calculate_crc(&data, 50));
+    }
+
+    #[test]
+    fn crc_is_mcrf4xx_and_crc_extra_is_the_published_table() {
+        // CRC-16/MCRF4XX check value: "123456789" → 0x6F91 (the last byte rides as `extra`).
+        assert_eq!(crc16(b"12345678", b'9'), 0x6F91);
+        // CRC_EXTRA of the messages dronewatt reads, as common.xml / ardupilotmega.xml
+        // generate them (pymavlink's mavlink_map and the C headers agree).
+        for (id, extra) in [
+            (0, 50),    // HEARTBEAT
+            (1, 124),   // SYS_STATUS
+            (24, 24),   // GPS_RAW_INT
+            (27, 144),  // RAW_IMU
+            (30, 39),   // ATTITUDE
+            (32, 185),  // LOCAL_POSITION_NED
+            (33, 104),  // GLOBAL_POSITION_INT
+            (36, 222),  // SERVO_OUTPUT_RAW
+            (74, 20),   // VFR_HUD
+            (147, 154), // BATTERY_STATUS
+            (168, 1),   // WIND (ardupilotmega)
+            (242, 104), // HOME_POSITION
+            (251, 170), // NAMED_VALUE_FLOAT
+            (253, 83),  // STATUSTEXT
+        ] {
+            assert_eq!(crc_extra(id), Some(extra), "message id {id}");
+        }
     }
 
     #[test]

@@ -173,6 +173,7 @@ async fn replay<R: AsyncRead + Unpin>(
     let mut buf = vec![0u8; 64 * 1024];
     let start = tokio::time::Instant::now();
     let mut eof = false;
+    let mut bytes_read = 0u64;
     loop {
         while let Some(m) = reader.next_message(stats) {
             if let Speed::Factor(f) = speed {
@@ -191,6 +192,17 @@ async fn replay<R: AsyncRead + Unpin>(
         }
         if eof {
             tracing::debug!("{name}: end of input");
+            let s = stats.snapshot();
+            if bytes_read > 0 && s.frames_ok == 0 {
+                tracing::warn!(
+                    "{name}: no MAVLink in this file: {bytes_read} bytes and not one valid frame \
+                     ({} bad, {} of unknown id, {} junk bytes). Expected {}",
+                    s.frames_bad,
+                    s.unknown,
+                    s.junk_bytes,
+                    reader.expected_format()
+                );
+            }
             return Ok(());
         }
         let n = tokio::select! {
@@ -202,6 +214,7 @@ async fn replay<R: AsyncRead + Unpin>(
             eof = true;
         } else {
             reader.push(&buf[..n]);
+            bytes_read += n as u64;
         }
     }
 }

@@ -101,6 +101,15 @@ impl TimedReader {
     pub fn arrival(start: Instant) -> Self {
         Self { decoder: FrameDecoder::new(Framing::Stream), base: TimeBase::Arrival { start } }
     }
+    /// The input format this reader expects, in words (for "no MAVLink in this file").
+    pub fn expected_format(&self) -> &'static str {
+        match self.base {
+            TimeBase::TlogStamp(_) => {
+                "a .tlog: an 8-byte big-endian microsecond timestamp before each MAVLink frame (start byte 0xFE or 0xFD)"
+            }
+            _ => "a raw MAVLink byte stream: frames starting with 0xFE (v1) or 0xFD (v2)",
+        }
+    }
     /// Append input.
     pub fn push(&mut self, bytes: &[u8]) {
         self.decoder.push(bytes);
@@ -112,6 +121,11 @@ impl TimedReader {
     /// Check MAVLink 2 signatures (see [`super::signing`]) from now on.
     pub fn set_verifier(&mut self, verifier: super::frame::SharedVerifier) {
         self.decoder.set_verifier(verifier);
+    }
+
+    /// Input bytes by what they turned out to be (see [`super::frame::ByteTally`]).
+    pub fn byte_tally(&self) -> super::frame::ByteTally {
+        self.decoder.byte_tally()
     }
     /// Drop a partial frame and sequence history (a new connection).
     pub fn reset(&mut self) {

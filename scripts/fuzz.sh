@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# Coverage-guided fuzzing of one of dronewatt's readers with cargo fuzz (libFuzzer).
+#
+#   scripts/fuzz.sh TARGET [SECONDS]     TARGET: decoder | tlog | raw | csv | config
+#   scripts/fuzz.sh all [SECONDS]        each target in turn
+#
+# Works on the stable toolchain (RUSTC_BOOTSTRAP=1 lets cargo fuzz use -Z flags). Builds
+# without a sanitizer (-s none): the readers are safe Rust, so AddressSanitizer would find
+# nothing the bounds checks do not, at several times the cost; the targets' property checks
+# (src/props.rs) and debug assertions do the catching. libFuzzer works on a scratch
+# copy of the committed seeds (fuzz/corpus/TARGET, git-ignored); a crash lands in
+# fuzz/artifacts/TARGET/. Copy it to fuzz/regressions/TARGET/ once fixed, and
+# `cargo test --test fuzz_corpus` replays it for ever after.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+targets=(decoder tlog raw csv config)
+target=${1:-}
+seconds=${2:-60}
+if [[ -z "$target" ]]; then
+  echo "usage: $0 TARGET|all [SECONDS]   (targets: ${targets[*]})" >&2
+  exit 2
+fi
+if [[ "$target" == all ]]; then
+  for t in "${targets[@]}"; do "$0" "$t" "$seconds"; done
+  exit 0
+fi
+if [[ ! " ${targets[*]} " == *" $target "* ]]; then
+  echo "$0: unknown target '$target' (targets: ${targets[*]})" >&2
+  exit 2
+fi
+
+if ! cargo fuzz --version >/dev/null 2>&1; then
+  echo "installing cargo-fuzz (once)…" >&2
+  cargo install cargo-fuzz --locked
+fi
+
+# The same libtorch as the main build, so torch-sys's C++ is not rebuilt.
+if [[ -z "${LIBTORCH:-}" && -d .libtorch ]]; then
+  export LIBTORCH="$PWD/.libtorch"
+fi
+export RUSTC_BOOTSTRAP=1
+# The fuzz binaries link libtorch dynamically (through the dronewatt crate) and, unlike
+# `cargo run`/`cargo test`, cargo fuzz does not put it on the library path.
+if [[ -n "${LIBTORCH:-}" ]]; then
+  export LD_LIBRARY_PATH="$LIBTORCH/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+fi
+
+corpus=fuzz/corpus/$target
+mkdir -p "$corpus" fuzz/artifacts/"$target"
+cp -n fuzz/seeds/"$target"/* "$corpus"/ 2>/dev/null || true
+cd fuzz
+nice -n 10 cargo fuzz run -s none "$target" "corpus/$target" -- \
+  -max_total_time="$seconds" -max_len=4096 -rss_limit_mb=2048 -print_final_stats=1
