@@ -28,6 +28,7 @@
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
+//! | [`mission`] | plans (.plan, .waypoints), the plan flown on paper, its energy forecast (P50/P90, per leg, live re-forecast) |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard |
@@ -38,6 +39,7 @@
 pub mod alert;
 pub mod config;
 pub mod energy;
+pub mod mission;
 pub mod model;
 pub mod offline;
 pub mod pipeline;
