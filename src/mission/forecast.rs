@@ -12,6 +12,9 @@
 //!   `dronewatt plan-eval` as the median of measured ∫V·I over the model's forecast of the
 //!   flight's plan: what the model misses systematically (the plan's own simplifications —
 //!   stop-and-go legs, the rotors' spin-up — and the model's bias) is removed, by flight.
+//!   The power is also weighted by phase (`phase_scale`: vertical climb, vertical
+//!   descent, the rest), fitted on the training flights' halves, so that what is left at
+//!   any point of the plan, not only the whole, is right.
 //! - **P90 energy** `E90 = r90 · E50` with `r90` (`p90_ratio`) the 90th percentile of
 //!   measured/forecast over the same training flights after the correction: the by-flight
 //!   residual spread, which holds the day-to-day wind, battery temperature and pilot
@@ -28,6 +31,7 @@
 //! Pure: no I/O.
 
 use super::trajectory::Trajectory;
+use crate::telemetry::idx;
 use crate::model::{PowerModel, Prediction};
 use crate::window::Window;
 
@@ -47,12 +51,48 @@ pub struct Calibration {
     /// Weight of the flight's own measured/forecast ratio in a live re-forecast, 0..1.
     /// Default: `plan-eval`'s choice on the training flights.
     pub live_weight: f64,
+    /// How many recent training flights `plan-eval` fits `scale` on, before each flight
+    /// (0 = all); informational here, `scale` is what the forecast uses.
+    pub recent_flights: usize,
+    /// Weights on the forecast model's power by phase: vertical climb, vertical descent,
+    /// anything else ([`phase_of`]), fitted by `plan-eval` on the training flights' two
+    /// halves. Default: `plan-eval`'s fit.
+    pub phase_scale: [f64; 3],
+}
+
+impl Calibration {
+    /// No correction: the model's own power (what `plan-eval` fits from).
+    pub fn uncorrected() -> Self {
+        Self { model: String::new(), scale: 1.0, p90_ratio: 1.0, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3] }
+    }
+}
+
+/// Phase of a trajectory sample for [`Calibration::phase_scale`]: 0 vertical climb, 1
+/// vertical descent (|v_z| > 0.5 m/s with under 1 m/s horizontal), 2 anything else.
+pub fn phase_of(s: &crate::telemetry::Sample) -> usize {
+    let f = &s.features;
+    let vh = f[idx::VX].hypot(f[idx::VY]);
+    if vh < 1.0 && f[idx::VZ] > 0.5 {
+        0
+    } else if vh < 1.0 && f[idx::VZ] < -0.5 {
+        1
+    } else {
+        2
+    }
 }
 
 impl Default for Calibration {
     fn default() -> Self {
-        // Fitted by `dronewatt plan-eval` on the M100 training flights (see the README).
-        Self { model: "tseng_cal".into(), scale: 1.0, p90_ratio: 1.05, live_weight: 1.0 }
+        // Fitted by `dronewatt plan-eval` on the M100 training flights (178 route flights, test
+        // flights excluded), with the calibrated profile's physics models.
+        Self {
+            model: "tseng_solo_cal".into(),
+            scale: 0.9992,
+            p90_ratio: 1.0288,
+            live_weight: 0.00,
+            recent_flights: 20,
+            phase_scale: [1.3111, 0.9514, 0.9654],
+        }
     }
 }
 
@@ -173,8 +213,8 @@ fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration
     };
     let mut cum = Vec::with_capacity(p.len());
     let mut e = 0.0;
-    for &w in p {
-        e += cal.scale * f64::from(w) * dt_h;
+    for (s, &w) in traj.samples.iter().zip(p) {
+        e += cal.scale * cal.phase_scale[phase_of(s)] * f64::from(w) * dt_h;
         cum.push(e);
     }
     let at = |i: usize| if i == 0 { 0.0 } else { cum.get(i - 1).copied().unwrap_or(e) };
@@ -279,7 +319,7 @@ mod tests {
 
     #[test]
     fn energy_adds_up_and_grows_with_payload_and_wind() {
-        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 0.0 };
+        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3] };
         let f = run(0.0, Wind::default(), &cal);
         assert_eq!(f.model, "dandrea");
         let legs: f64 = f.legs.iter().map(|l| l.energy_p50_wh).sum();
@@ -297,7 +337,7 @@ mod tests {
 
     #[test]
     fn the_live_reforecast_reads_what_is_left() {
-        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 1.0 };
+        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 1.0, recent_flights: 0, phase_scale: [1.0; 3] };
         let f = run(0.0, Wind::default(), &cal);
         let n = f.cum_p50_wh.len();
         let r0 = f.remaining_from(0, None, 1.0);
