@@ -482,13 +482,18 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
         leg_of.push(seg.leg as u32);
     }
     // leg times and sample ranges
-    for (li, leg) in legs.iter_mut().enumerate() {
-        let first = leg_of.iter().position(|&l| l as usize == li);
-        let last = leg_of.iter().rposition(|&l| l as usize == li);
-        if let (Some(a), Some(b)) = (first, last) {
-            leg.samples = a..b + 1;
+    // one pass: samples are in leg order
+    let mut j = 0;
+    while j < leg_of.len() {
+        let li = leg_of[j] as usize;
+        let a = j;
+        while j < leg_of.len() && leg_of[j] as usize == li {
+            j += 1;
+        }
+        if let Some(leg) = legs.get_mut(li) {
+            leg.samples = a..j;
             leg.t_start_s = a as f64 * dt;
-            leg.t_end_s = (b + 1) as f64 * dt;
+            leg.t_end_s = j as f64 * dt;
         }
     }
     Trajectory { samples, enu_m, leg_of, legs, dt_s: dt }
