@@ -22,6 +22,8 @@ pub struct Config {
     pub models: crate::model::ModelsConfig,
     /// Battery capacity, reserve, home-return assumptions.
     pub energy: crate::energy::EnergyConfig,
+    /// Mission energy forecast: kinematics of flying a plan, the forecast's correction.
+    pub forecast: crate::mission::ForecastConfig,
     /// Alert rules, `[[alerts]]` tables.
     pub alerts: Vec<crate::alert::AlertRule>,
     /// Publishers: terminal, jsonl, mavlink, web, mqtt.
@@ -81,6 +83,7 @@ impl Config {
         let checks = [
             self.telemetry.validate(),
             self.energy.validate(),
+            self.forecast.validate(),
             crate::alert::validate_rules(&self.alerts),
             self.sinks.mavlink.validate(),
             self.sinks.web.validate(),

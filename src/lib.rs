@@ -36,6 +36,7 @@
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
+//! | [`mission`] | plans (.plan, .waypoints), the plan flown on paper, its energy forecast (P50/P90, per leg, live re-forecast) |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |

@@ -76,6 +76,10 @@ enum Command {
     Train(dronewatt::offline::train::TrainArgs),
     /// Sensitivity of the LSTM to altitude, payload and speed (the paper's Table 3).
     Sensitivity(dronewatt::offline::sensitivity::SensitivityArgs),
+    /// Forecast a mission plan's energy before flight: per leg and in all, P50/P90, margin over reserve.
+    Plan(dronewatt::offline::mission::PlanArgs),
+    /// Judge the mission forecast on the data set's route flights (pre-flight and live at 50 %, vs the autopilots' rule).
+    PlanEval(dronewatt::offline::mission::PlanEvalArgs),
     /// Validate a configuration file and say what it sets up.
     CheckConfig {
         /// The TOML file.
@@ -128,6 +132,8 @@ fn real_main(cli: Cli) -> Result<()> {
         Command::Calibrate(a) => dronewatt::offline::calibrate::run(a),
         Command::Train(a) => dronewatt::offline::train::run(a),
         Command::Sensitivity(a) => dronewatt::offline::sensitivity::run(a),
+        Command::Plan(a) => dronewatt::offline::mission::run_plan(a),
+        Command::PlanEval(a) => dronewatt::offline::mission::run_plan_eval(a),
         Command::CheckConfig { file } => {
             let cfg = Config::load(&file)?;
             // The secrets' files too: missing, unreadable or readable by others fails here.

@@ -7,6 +7,7 @@ pub mod chain;
 pub mod data;
 pub mod eval;
 pub mod metrics;
+pub mod mission;
 pub mod plot;
 pub mod sensitivity;
 pub mod train;

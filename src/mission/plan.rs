@@ -1,0 +1,580 @@
+//! The plan model and its readers: QGroundControl `.plan` JSON and `QGC WPL 110`
+//! `.waypoints` text.
+//!
+//! A [`Plan`] is a home position and a list of [`Item`]s in mission order. Every item read
+//! is kept, the ones the trajectory model does not model too ([`ItemKind::NotModelled`],
+//! listed by [`Plan::not_modelled`]), so nothing is silently dropped.
+//!
+//! ## Items and what is done with them
+//!
+//! | MAV_CMD | kind | parameters used |
+//! |---|---|---|
+//! | 22 NAV_TAKEOFF | [`ItemKind::Takeoff`] | altitude (climbed to vertically; latitude/longitude 0 = here) |
+//! | 16 NAV_WAYPOINT, 82 NAV_SPLINE_WAYPOINT | [`ItemKind::Waypoint`] | p1 hold time (s); position (a spline is flown straight) |
+//! | 19 NAV_LOITER_TIME | [`ItemKind::LoiterTime`] | p1 time (s), hovered at the position |
+//! | 178 DO_CHANGE_SPEED | [`ItemKind::ChangeSpeed`] | p2 speed (m/s; −1 or 0 = no change) |
+//! | 21 NAV_LAND | [`ItemKind::Land`] | position (fly there, then descend to the ground) |
+//! | 20 NAV_RETURN_TO_LAUNCH | [`ItemKind::ReturnToLaunch`] | fly home at the current altitude, then land |
+//! | any other MAV_CMD | [`ItemKind::NotModelled`] | a NAV command (id < 100) with a position is flown through as a plain waypoint; others fly nothing |
+//!
+//! A number that is no MAV_CMD of the ArduPilot dialect at all is an error.
+//!
+//! ## Altitude frames
+//!
+//! Altitudes are kept as the trajectory needs them: metres above home.
+//! - relative (MAV_FRAME 3 GLOBAL_RELATIVE_ALT, 6 GLOBAL_RELATIVE_ALT_INT): as is;
+//! - absolute (0 GLOBAL, 5 GLOBAL_INT, metres above mean sea level): minus the home's AMSL
+//!   altitude (a plan without a home altitude cannot use this frame: an error);
+//! - terrain (10 GLOBAL_TERRAIN_ALT, 11 GLOBAL_TERRAIN_ALT_INT): read as above home, i.e.
+//!   flat terrain at the home's height (there is no terrain model); the item says so in
+//!   [`Item::frame`] and the `plan` command lists it;
+//! - mission (2): the item has no position (DO_ and CONDITION_ commands).
+//!
+//! ## Errors
+//!
+//! A bad plan is a [`PlanError`] naming the file, the item (index, and the line or JSON
+//! path) and why: malformed JSON, a missing field, an unknown command, latitude or
+//! longitude out of range, a non-finite number, no items at all.
+
+use std::path::Path;
+
+/// Where an item came from in its file, for messages: `line 4` or `mission.items[2]`.
+pub type ItemOrigin = String;
+
+/// A position: WGS-84 latitude/longitude (deg) and altitude.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct GeoPoint {
+    /// Latitude, deg, −90..90.
+    pub lat_deg: f64,
+    /// Longitude, deg, −180..180.
+    pub lon_deg: f64,
+    /// Altitude, m: above mean sea level for the home, above home for items.
+    pub alt_m: f64,
+}
+
+/// How an item's altitude was given (see the module docs for what is done with each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AltFrame {
+    /// Above home.
+    Relative,
+    /// Above mean sea level (converted to above home on reading).
+    Absolute,
+    /// Above terrain, read as above home (flat terrain assumed).
+    Terrain,
+    /// No position (DO_/CONDITION_ commands).
+    None,
+}
+
+/// What an item makes the vehicle do, as far as energy goes.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum ItemKind {
+    /// Climb vertically over the current position (or `position`, when given) to
+    /// `alt_m` above home.
+    Takeoff { alt_m: f64 },
+    /// Fly to `position`, then hover `hold_s`.
+    Waypoint { hold_s: f64 },
+    /// Fly to `position`, then hover `time_s`.
+    LoiterTime { time_s: f64 },
+    /// Cruise ground speed from here on, m/s.
+    ChangeSpeed { speed_m_s: f64 },
+    /// Fly to `position` (when given), descend and land.
+    Land,
+    /// Fly home at the current altitude, descend and land.
+    ReturnToLaunch,
+    /// A command the trajectory model does not model; kept and listed. `flown_through`:
+    /// its position is flown to like a waypoint's.
+    NotModelled { command: u16, flown_through: bool },
+}
+
+/// One mission item.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Item {
+    /// Index in the plan's item list (0-based, after expanding complex items).
+    pub index: usize,
+    /// Where it was read: `line N` or a JSON path.
+    pub origin: ItemOrigin,
+    /// The MAV_CMD number.
+    pub command: u16,
+    /// What it does.
+    #[serde(flatten)]
+    pub kind: ItemKind,
+    /// Target position, altitude above home (m), when the item has one.
+    pub position: Option<GeoPoint>,
+    /// How the altitude was given.
+    pub frame: AltFrame,
+}
+
+/// A mission plan: home, items, default speeds.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Plan {
+    /// Where it was read from (for messages).
+    pub source: String,
+    /// Home (take-off and return point), altitude above mean sea level (m; 0 when the
+    /// file gives none).
+    pub home: GeoPoint,
+    /// Items in mission order.
+    pub items: Vec<Item>,
+    /// Default cruise ground speed for multirotors, m/s (QGC `hoverSpeed`), when given.
+    pub hover_speed_m_s: Option<f64>,
+    /// Default cruise speed for fixed-wing (QGC `cruiseSpeed`), m/s, when given; kept for
+    /// the record, a multirotor flies `hover_speed_m_s`.
+    pub cruise_speed_m_s: Option<f64>,
+}
+
+/// A plan that cannot be read: the file, the item and why.
+#[derive(Debug, thiserror::Error)]
+#[error("{file}: {at}: {why}")]
+pub struct PlanError {
+    /// The file.
+    pub file: String,
+    /// The item: `item 3 (line 5)`, `mission.items[2]`, or `file` for the whole.
+    pub at: String,
+    /// Why.
+    pub why: String,
+}
+
+impl Plan {
+    /// Read a plan file, by content: `QGC WPL 110` text, else QGroundControl JSON.
+    pub fn load(path: &Path) -> Result<Plan, PlanError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| PlanError { file: file.clone(), at: "file".into(), why: format!("cannot read: {e}") })?;
+        if text.trim_start().starts_with("QGC WPL") {
+            parse_waypoints(&text, &file)
+        } else {
+            parse_qgc_plan(&text, &file)
+        }
+    }
+
+    /// Items the trajectory model does not model, for listing.
+    pub fn not_modelled(&self) -> Vec<&Item> {
+        self.items.iter().filter(|i| matches!(i.kind, ItemKind::NotModelled { .. })).collect()
+    }
+
+    /// Items whose altitude was given above terrain (flown as above home).
+    pub fn terrain_items(&self) -> Vec<&Item> {
+        self.items.iter().filter(|i| i.frame == AltFrame::Terrain).collect()
+    }
+
+    /// A plan from a home and waypoints (altitudes above home), flown at `speed_m_s`:
+    /// take-off to the first waypoint's altitude, the waypoints, return to launch. What
+    /// the evaluation builds from the data set's routes, and what tests and benches fly.
+    pub fn from_waypoints(source: &str, home: GeoPoint, waypoints: &[GeoPoint], speed_m_s: f64) -> Plan {
+        let mut items = Vec::with_capacity(waypoints.len() + 3);
+        let mut push = |command: u16, kind: ItemKind, position: Option<GeoPoint>| {
+            let index = items.len();
+            let frame = if position.is_some() { AltFrame::Relative } else { AltFrame::None };
+            items.push(Item { index, origin: format!("waypoint {index}"), command, kind, position, frame });
+        };
+        push(178, ItemKind::ChangeSpeed { speed_m_s }, None);
+        let first_alt = waypoints.first().map_or(25.0, |w| w.alt_m);
+        push(22, ItemKind::Takeoff { alt_m: first_alt }, None);
+        for w in waypoints {
+            push(16, ItemKind::Waypoint { hold_s: 0.0 }, Some(*w));
+        }
+        push(20, ItemKind::ReturnToLaunch, None);
+        Plan { source: source.to_string(), home, items, hover_speed_m_s: Some(speed_m_s), cruise_speed_m_s: None }
+    }
+}
+
+/// Is `command` a MAV_CMD of the ArduPilot dialect (which includes common)?
+fn is_mav_cmd(command: u32) -> bool {
+    <crate::dialect::MavCmd as num_traits::FromPrimitive>::from_u32(command).is_some()
+}
+
+/// One raw item as both formats give it: command, frame, p1..p4, lat, lon, alt.
+struct RawItem {
+    command: u32,
+    frame: u32,
+    params: [f64; 4],
+    lat: f64,
+    lon: f64,
+    alt: f64,
+}
+
+/// Turn a raw item into an [`Item`], checking it. `home_amsl` converts absolute altitudes.
+fn build_item(raw: &RawItem, index: usize, origin: ItemOrigin, home_amsl: Option<f64>) -> Result<Item, String> {
+    if !is_mav_cmd(raw.command) {
+        return Err(format!("command {} is not a MAV_CMD", raw.command));
+    }
+    let command = u16::try_from(raw.command).map_err(|_| format!("command {} is out of range", raw.command))?;
+    let p = raw.params;
+    let nonneg = |name: &str, v: f64| -> Result<f64, String> {
+        if v.is_nan() {
+            return Ok(0.0); // QGC writes null (NaN) for "unused"
+        }
+        if !v.is_finite() || v < 0.0 {
+            return Err(format!("{name} = {v}: must be a finite number ≥ 0"));
+        }
+        Ok(v)
+    };
+    let mut kind = match command {
+        22 => ItemKind::Takeoff { alt_m: 0.0 },
+        16 | 82 => ItemKind::Waypoint { hold_s: nonneg("hold time (param1)", p[0])? },
+        19 => ItemKind::LoiterTime { time_s: nonneg("loiter time (param1)", p[0])? },
+        178 => {
+            if !p[1].is_finite() {
+                return Err(format!("speed (param2) = {}: must be a number", p[1]));
+            }
+            ItemKind::ChangeSpeed { speed_m_s: p[1] }
+        }
+        21 => ItemKind::Land,
+        20 => ItemKind::ReturnToLaunch,
+        c => ItemKind::NotModelled { command: c, flown_through: false },
+    };
+    // Does this item carry a position? NAV commands (< 100) do, except RTL. TAKEOFF and
+    // LAND may leave latitude/longitude 0 or unset: "here".
+    let nav = command < 100 && command != 20;
+    let here_ok = matches!(kind, ItemKind::Takeoff { .. } | ItemKind::Land);
+    let mut frame = AltFrame::None;
+    let mut position = None;
+    if nav {
+        if !raw.alt.is_finite() {
+            return Err(format!("altitude {} is not finite", raw.alt));
+        }
+        let alt_above_home = match raw.frame {
+            3 | 6 => {
+                frame = AltFrame::Relative;
+                raw.alt
+            }
+            0 | 5 => {
+                frame = AltFrame::Absolute;
+                let h = home_amsl.ok_or("an absolute (AMSL) altitude needs a home altitude, and the plan gives none")?;
+                raw.alt - h
+            }
+            10 | 11 => {
+                frame = AltFrame::Terrain;
+                raw.alt
+            }
+            f => return Err(format!("frame {f} is not a global frame (0, 3, 5, 6, 10, 11)")),
+        };
+        let here = (raw.lat == 0.0 && raw.lon == 0.0) || (raw.lat.is_nan() && raw.lon.is_nan());
+        if !(here && here_ok) {
+            if !raw.lat.is_finite() || !raw.lon.is_finite() {
+                return Err(format!("position ({}, {}) is not finite", raw.lat, raw.lon));
+            }
+            if here {
+                return Err("latitude and longitude are both 0: no position".to_string());
+            }
+            if !(-90.0..=90.0).contains(&raw.lat) {
+                return Err(format!("latitude {} is out of range [-90, 90]", raw.lat));
+            }
+            if !(-180.0..=180.0).contains(&raw.lon) {
+                return Err(format!("longitude {} is out of range [-180, 180]", raw.lon));
+            }
+            position = Some(GeoPoint { lat_deg: raw.lat, lon_deg: raw.lon, alt_m: alt_above_home });
+        }
+        if matches!(kind, ItemKind::Takeoff { .. }) {
+            kind = ItemKind::Takeoff { alt_m: alt_above_home };
+        }
+    }
+    if let ItemKind::NotModelled { command, .. } = kind {
+        kind = ItemKind::NotModelled { command, flown_through: position.is_some() };
+    }
+    Ok(Item { index, origin, command, kind, position, frame })
+}
+
+/// Parse `QGC WPL 110` text: a header line, then one tab-separated row per item: index,
+/// current, frame, command, p1, p2, p3, p4, lat, lon, alt, autocontinue. Row 0 is home
+/// (ArduPilot's convention; its altitude is AMSL).
+pub fn parse_waypoints(text: &str, file: &str) -> Result<Plan, PlanError> {
+    let err = |at: String, why: String| PlanError { file: file.to_string(), at, why };
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    match lines.next() {
+        Some((_, h)) if h.trim().starts_with("QGC WPL 110") => {}
+        Some((_, h)) => return Err(err("line 1".into(), format!("header {:?}: expected \"QGC WPL 110\"", h.trim()))),
+        None => return Err(err("file".into(), "empty file: no header and no items".into())),
+    }
+    let mut rows = Vec::new();
+    for (n, line) in lines {
+        let lineno = n + 1;
+        let cols: Vec<&str> = line.split('\t').map(str::trim).collect();
+        if cols.len() < 12 {
+            return Err(err(format!("line {lineno}"), format!("{} tab-separated columns: expected 12 (index, current, frame, command, p1..p4, lat, lon, alt, autocontinue)", cols.len())));
+        }
+        let num = |i: usize, name: &str| -> Result<f64, PlanError> {
+            cols[i].parse::<f64>().map_err(|_| err(format!("line {lineno}"), format!("{name} {:?} is not a number", cols[i])))
+        };
+        let int = |i: usize, name: &str| -> Result<u32, PlanError> {
+            cols[i].parse::<u32>().map_err(|_| err(format!("line {lineno}"), format!("{name} {:?} is not a non-negative integer", cols[i])))
+        };
+        let raw = RawItem {
+            command: int(3, "command")?,
+            frame: int(2, "frame")?,
+            params: [num(4, "param1")?, num(5, "param2")?, num(6, "param3")?, num(7, "param4")?],
+            lat: num(8, "latitude")?,
+            lon: num(9, "longitude")?,
+            alt: num(10, "altitude")?,
+        };
+        rows.push((lineno, int(0, "index")?, raw));
+    }
+    let Some((home_line, _, home_raw)) = rows.first() else {
+        return Err(err("file".into(), "no items: a .waypoints file needs at least the home row and one item".into()));
+    };
+    if !(home_raw.lat.is_finite() && home_raw.lon.is_finite() && home_raw.alt.is_finite())
+        || !(-90.0..=90.0).contains(&home_raw.lat)
+        || !(-180.0..=180.0).contains(&home_raw.lon)
+    {
+        return Err(err(format!("item 0 (line {home_line}, home)"), format!("home position ({}, {}, {}) is not a valid position", home_raw.lat, home_raw.lon, home_raw.alt)));
+    }
+    let home = GeoPoint { lat_deg: home_raw.lat, lon_deg: home_raw.lon, alt_m: home_raw.alt };
+    let mut items = Vec::new();
+    for (lineno, idx, raw) in rows.iter().skip(1) {
+        let at = format!("item {idx} (line {lineno})");
+        let it = build_item(raw, items.len(), format!("line {lineno}"), Some(home.alt_m)).map_err(|why| err(at, why))?;
+        items.push(it);
+    }
+    if items.is_empty() {
+        return Err(err("file".into(), "no mission items after the home row".into()));
+    }
+    Ok(Plan { source: file.to_string(), home, items, hover_speed_m_s: None, cruise_speed_m_s: None })
+}
+
+/// Parse a QGroundControl `.plan` (JSON, `fileType` "Plan"): `mission.items` of
+/// `SimpleItem`s (`command`, `frame`, `params` [p1..p7] with p5..p7 = lat, lon, alt;
+/// `null` = unused) and `ComplexItem`s (survey, corridor scan, structure scan), whose
+/// flown items are `TransectStyleComplexItem.Items` (SimpleItems as above) or, when a file
+/// has only the drawing, `TransectStyleComplexItem.VisualTransectPoints` ([lat, lon]
+/// pairs, flown at the item's `Altitude`, else `CameraCalc.DistanceToSurface`, relative);
+/// `mission.plannedHomePosition` [lat, lon, alt AMSL]; `mission.hoverSpeed` and
+/// `mission.cruiseSpeed`, m/s.
+pub fn parse_qgc_plan(text: &str, file: &str) -> Result<Plan, PlanError> {
+    use serde_json::Value;
+    let err = |at: &str, why: String| PlanError { file: file.to_string(), at: at.to_string(), why };
+    let doc: Value = serde_json::from_str(text).map_err(|e| err("file", format!("malformed JSON: {e}")))?;
+    if doc.get("fileType").and_then(Value::as_str) != Some("Plan") {
+        return Err(err("fileType", "expected \"Plan\" (a QGroundControl plan file)".into()));
+    }
+    let mission = doc.get("mission").ok_or_else(|| err("mission", "missing".into()))?;
+    let speed = |key: &str| -> Result<Option<f64>, PlanError> {
+        match mission.get(key) {
+            None | Some(Value::Null) => Ok(None),
+            Some(v) => match v.as_f64() {
+                Some(s) if s.is_finite() && s > 0.0 => Ok(Some(s)),
+                _ => Err(err(&format!("mission.{key}"), format!("{v}: must be a speed > 0, m/s"))),
+            },
+        }
+    };
+    let hover_speed_m_s = speed("hoverSpeed")?;
+    let cruise_speed_m_s = speed("cruiseSpeed")?;
+    let home = match mission.get("plannedHomePosition") {
+        Some(Value::Array(a)) if a.len() >= 2 => {
+            let n = |i: usize| a.get(i).and_then(Value::as_f64);
+            let (lat, lon) = (n(0).unwrap_or(f64::NAN), n(1).unwrap_or(f64::NAN));
+            if !(lat.is_finite() && lon.is_finite()) || !(-90.0..=90.0).contains(&lat) || !(-180.0..=180.0).contains(&lon) {
+                return Err(err("mission.plannedHomePosition", format!("({lat}, {lon}) is not a valid latitude/longitude")));
+            }
+            Some(GeoPoint { lat_deg: lat, lon_deg: lon, alt_m: n(2).filter(|v| v.is_finite()).unwrap_or(0.0) })
+        }
+        None | Some(Value::Null) => None,
+        Some(v) => return Err(err("mission.plannedHomePosition", format!("{v}: expected [lat, lon, alt]"))),
+    };
+    let list = mission.get("items").and_then(Value::as_array).ok_or_else(|| err("mission.items", "missing or not a list".into()))?;
+    let mut items = Vec::new();
+    let home_amsl = home.map(|h| h.alt_m);
+    for (i, v) in list.iter().enumerate() {
+        let path = format!("mission.items[{i}]");
+        match v.get("type").and_then(Value::as_str) {
+            Some("SimpleItem") => {
+                let raw = simple_item(v).map_err(|why| err(&path, why))?;
+                let it = build_item(&raw, items.len(), path.clone(), home_amsl).map_err(|why| err(&format!("item {} ({path})", items.len()), why))?;
+                items.push(it);
+            }
+            Some("ComplexItem") => {
+                let kind = v.get("complexItemType").and_then(Value::as_str).unwrap_or("?");
+                let tsc = v.get("TransectStyleComplexItem").ok_or_else(|| err(&path, format!("complex item {kind:?} without TransectStyleComplexItem: cannot expand its waypoints")))?;
+                if let Some(sub) = tsc.get("Items").and_then(Value::as_array).filter(|s| !s.is_empty()) {
+                    for (j, s) in sub.iter().enumerate() {
+                        let sp = format!("{path}.TransectStyleComplexItem.Items[{j}]");
+                        let raw = simple_item(s).map_err(|why| err(&sp, why))?;
+                        let it = build_item(&raw, items.len(), sp.clone(), home_amsl).map_err(|why| err(&format!("item {} ({sp})", items.len()), why))?;
+                        items.push(it);
+                    }
+                } else if let Some(pts) = tsc.get("VisualTransectPoints").and_then(Value::as_array) {
+                    let alt = v
+                        .get("Altitude")
+                        .and_then(Value::as_f64)
+                        .or_else(|| tsc.get("CameraCalc").and_then(|c| c.get("DistanceToSurface")).and_then(Value::as_f64))
+                        .ok_or_else(|| err(&path, "VisualTransectPoints without Altitude or CameraCalc.DistanceToSurface: no altitude to fly them at".into()))?;
+                    for (j, p) in pts.iter().enumerate() {
+                        let sp = format!("{path}.TransectStyleComplexItem.VisualTransectPoints[{j}]");
+                        let ll = p.as_array().filter(|a| a.len() >= 2).ok_or_else(|| err(&sp, "expected [lat, lon]".into()))?;
+                        let raw = RawItem {
+                            command: 16,
+                            frame: 3,
+                            params: [0.0; 4],
+                            lat: ll[0].as_f64().unwrap_or(f64::NAN),
+                            lon: ll[1].as_f64().unwrap_or(f64::NAN),
+                            alt,
+                        };
+                        let it = build_item(&raw, items.len(), sp.clone(), home_amsl).map_err(|why| err(&format!("item {} ({sp})", items.len()), why))?;
+                        items.push(it);
+                    }
+                } else {
+                    return Err(err(&path, format!("complex item {kind:?} has neither TransectStyleComplexItem.Items nor VisualTransectPoints")));
+                }
+            }
+            other => return Err(err(&path, format!("type {other:?}: expected \"SimpleItem\" or \"ComplexItem\""))),
+        }
+    }
+    if items.is_empty() {
+        return Err(err("mission.items", "the plan has no mission items".into()));
+    }
+    // Without a planned home, the first positioned item's point is home (at 0 m AMSL).
+    let home = match home {
+        Some(h) => h,
+        None => {
+            let first = items.iter().find_map(|i| i.position);
+            let p = first.ok_or_else(|| err("mission.plannedHomePosition", "missing, and no item has a position to start from".into()))?;
+            GeoPoint { lat_deg: p.lat_deg, lon_deg: p.lon_deg, alt_m: 0.0 }
+        }
+    };
+    Ok(Plan { source: file.to_string(), home, items, hover_speed_m_s, cruise_speed_m_s })
+}
+
+/// A `SimpleItem`'s command, frame and seven params (`null` → NaN, "unused").
+fn simple_item(v: &serde_json::Value) -> Result<RawItem, String> {
+    use serde_json::Value;
+    let command = v.get("command").and_then(Value::as_u64).ok_or("missing or non-integer \"command\"")?;
+    let frame = v.get("frame").and_then(Value::as_u64).ok_or("missing or non-integer \"frame\"")?;
+    let params = v.get("params").and_then(Value::as_array).ok_or("missing \"params\" list")?;
+    if params.len() != 7 {
+        return Err(format!("\"params\" has {} values: expected 7", params.len()));
+    }
+    let mut p = [0.0f64; 7];
+    for (k, x) in params.iter().enumerate() {
+        p[k] = match x {
+            Value::Null => f64::NAN,
+            x => x.as_f64().ok_or_else(|| format!("params[{k}] = {x}: not a number"))?,
+        };
+    }
+    let command = u32::try_from(command).map_err(|_| format!("command {command} is out of range"))?;
+    let frame = u32::try_from(frame).map_err(|_| format!("frame {frame} is out of range"))?;
+    Ok(RawItem { command, frame, params: [p[0], p[1], p[2], p[3]], lat: p[4], lon: p[5], alt: p[6] })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const WPL: &str = "QGC WPL 110\n\
+0\t1\t0\t16\t0\t0\t0\t0\t40.4400\t-79.9400\t300.0\t1\n\
+1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t25\t1\n\
+2\t0\t3\t178\t1\t8\t-1\t0\t0\t0\t0\t1\n\
+3\t0\t3\t16\t5\t0\t0\t0\t40.4410\t-79.9400\t25\t1\n\
+4\t0\t0\t19\t10\t0\t0\t0\t40.4410\t-79.9390\t350\t1\n\
+5\t0\t3\t206\t25\t0\t1\t0\t0\t0\t0\t1\n\
+6\t0\t10\t16\t0\t0\t0\t0\t40.4400\t-79.9390\t30\t1\n\
+7\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n";
+
+    #[test]
+    fn waypoints_file_reads_home_items_frames_and_not_modelled() {
+        let p = parse_waypoints(WPL, "t.waypoints").unwrap();
+        assert_eq!(p.home, GeoPoint { lat_deg: 40.44, lon_deg: -79.94, alt_m: 300.0 });
+        assert_eq!(p.items.len(), 7, "row 0 is home, every other row an item");
+        assert_eq!(p.items[0].kind, ItemKind::Takeoff { alt_m: 25.0 });
+        assert_eq!(p.items[1].kind, ItemKind::ChangeSpeed { speed_m_s: 8.0 });
+        assert_eq!(p.items[2].kind, ItemKind::Waypoint { hold_s: 5.0 });
+        // absolute 350 m AMSL over a 300 m home = 50 m above home
+        assert_eq!(p.items[3].kind, ItemKind::LoiterTime { time_s: 10.0 });
+        assert_eq!(p.items[3].frame, AltFrame::Absolute);
+        assert!((p.items[3].position.unwrap().alt_m - 50.0).abs() < 1e-9);
+        // DO_SET_CAM_TRIGG_DIST: kept, listed, flies nothing
+        assert_eq!(p.items[4].kind, ItemKind::NotModelled { command: 206, flown_through: false });
+        assert_eq!(p.not_modelled().len(), 1);
+        assert_eq!(p.items[5].frame, AltFrame::Terrain);
+        assert_eq!(p.terrain_items().len(), 1);
+        assert_eq!(p.items[6].kind, ItemKind::ReturnToLaunch);
+        assert_eq!(p.items[6].origin, "line 9");
+    }
+
+    fn bad(text: &str) -> String {
+        parse_waypoints(text, "bad.waypoints").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn bad_waypoints_files_name_the_item_and_why() {
+        let home = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t40.44\t-79.94\t300\t1\n";
+        let e = bad(&format!("{home}1\t0\t3\t9999\t0\t0\t0\t0\t40.44\t-79.94\t25\t1\n"));
+        assert!(e.contains("bad.waypoints") && e.contains("item 1 (line 3)") && e.contains("command 9999 is not a MAV_CMD"), "{e}");
+        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\t95.0\t-79.94\t25\t1\n"));
+        assert!(e.contains("item 1 (line 3)") && e.contains("latitude 95 is out of range"), "{e}");
+        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\t40.0\t-190\t25\t1\n"));
+        assert!(e.contains("longitude -190 is out of range"), "{e}");
+        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\tNaN\t-79.94\t25\t1\n"));
+        assert!(e.contains("item 1 (line 3)") && e.contains("not finite"), "{e}");
+        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\tabc\t-79.94\t25\t1\n"));
+        assert!(e.contains("line 3") && e.contains("latitude \"abc\" is not a number"), "{e}");
+        let e = bad(home);
+        assert!(e.contains("no mission items"), "{e}");
+        let e = bad("");
+        assert!(e.contains("empty file"), "{e}");
+        let e = bad("QGC WPL 120\n");
+        assert!(e.contains("line 1") && e.contains("QGC WPL 110"), "{e}");
+        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\n"));
+        assert!(e.contains("line 3") && e.contains("expected 12"), "{e}");
+    }
+
+    const PLAN: &str = r#"{
+      "fileType": "Plan", "groundStation": "QGroundControl", "version": 1,
+      "geoFence": {"circles": [], "polygons": [], "version": 2},
+      "rallyPoints": {"points": [], "version": 2},
+      "mission": {
+        "cruiseSpeed": 15, "firmwareType": 3, "globalPlanAltitudeMode": 1, "hoverSpeed": 6,
+        "plannedHomePosition": [47.3977419, 8.545594, 487.989], "vehicleType": 2, "version": 2,
+        "items": [
+          {"AMSLAltAboveTerrain": null, "Altitude": 30, "AltitudeMode": 1, "autoContinue": true,
+           "command": 22, "doJumpId": 1, "frame": 3, "params": [15, 0, 0, null, 47.3977419, 8.545594, 30],
+           "type": "SimpleItem"},
+          {"autoContinue": true, "command": 16, "doJumpId": 2, "frame": 3,
+           "params": [3, 0, 0, null, 47.3985, 8.5456, 30], "type": "SimpleItem"},
+          {"type": "ComplexItem", "complexItemType": "survey", "version": 5, "angle": 0,
+           "polygon": [[47.398, 8.546], [47.398, 8.547], [47.399, 8.547]],
+           "TransectStyleComplexItem": {
+             "CameraCalc": {"DistanceToSurface": 40, "version": 2},
+             "Items": [
+               {"autoContinue": true, "command": 16, "doJumpId": 3, "frame": 3, "params": [0, 0, 0, null, 47.3981, 8.5461, 40], "type": "SimpleItem"},
+               {"autoContinue": true, "command": 206, "doJumpId": 4, "frame": 2, "params": [25, 0, 1, 0, 0, 0, 0], "type": "SimpleItem"},
+               {"autoContinue": true, "command": 16, "doJumpId": 5, "frame": 3, "params": [0, 0, 0, null, 47.3989, 8.5469, 40], "type": "SimpleItem"}
+             ],
+             "VisualTransectPoints": [[47.3981, 8.5461], [47.3989, 8.5469]]
+           }},
+          {"type": "ComplexItem", "complexItemType": "CorridorScan", "Altitude": 35,
+           "TransectStyleComplexItem": {"VisualTransectPoints": [[47.3990, 8.5470], [47.3995, 8.5470]]}},
+          {"autoContinue": true, "command": 20, "doJumpId": 9, "frame": 2, "params": [0, 0, 0, 0, 0, 0, 0], "type": "SimpleItem"}
+        ]
+      }
+    }"#;
+
+    #[test]
+    fn qgc_plan_reads_simple_and_complex_items_home_and_speeds() {
+        let p = parse_qgc_plan(PLAN, "t.plan").unwrap();
+        assert_eq!(p.home.alt_m, 487.989);
+        assert_eq!(p.hover_speed_m_s, Some(6.0));
+        assert_eq!(p.cruise_speed_m_s, Some(15.0));
+        let cmds: Vec<u16> = p.items.iter().map(|i| i.command).collect();
+        assert_eq!(cmds, [22, 16, 16, 206, 16, 16, 16, 20], "survey Items expanded; corridor from VisualTransectPoints");
+        assert_eq!(p.items[1].kind, ItemKind::Waypoint { hold_s: 3.0 });
+        assert_eq!(p.items[2].origin, "mission.items[2].TransectStyleComplexItem.Items[0]");
+        assert_eq!(p.items[2].position.unwrap().alt_m, 40.0);
+        assert_eq!(p.items[5].position.unwrap().alt_m, 35.0, "corridor points at the item's Altitude");
+        assert_eq!(p.not_modelled().len(), 1);
+    }
+
+    #[test]
+    fn bad_qgc_plans_name_the_item_and_why() {
+        let e = parse_qgc_plan("{\"fileType\": \"Plan\", ", "x.plan").unwrap_err().to_string();
+        assert!(e.contains("x.plan") && e.contains("malformed JSON"), "{e}");
+        let e = parse_qgc_plan(&PLAN.replace("\"command\": 16, \"doJumpId\": 2", "\"command\": 31337, \"doJumpId\": 2"), "x.plan").unwrap_err().to_string();
+        assert!(e.contains("item 1 (mission.items[1])") && e.contains("31337 is not a MAV_CMD"), "{e}");
+        let e = parse_qgc_plan(&PLAN.replace("47.3985, 8.5456", "47.3985, 181.0"), "x.plan").unwrap_err().to_string();
+        assert!(e.contains("mission.items[1]") && e.contains("longitude 181 is out of range"), "{e}");
+        let p = parse_qgc_plan(&PLAN.replace("[47.3981, 8.5461], [47.3989", "[97.3981, 8.5461], [47.3989"), "x.plan");
+        assert_eq!(p.map(|p| p.items.len()).ok(), Some(8), "the saved Items win over the drawing");
+        let e = parse_qgc_plan(r#"{"fileType": "Plan", "mission": {"items": []}}"#, "x.plan").unwrap_err().to_string();
+        assert!(e.contains("no mission items"), "{e}");
+        let e = parse_qgc_plan(r#"{"fileType": "Plan", "mission": {"items": [{"type": "SimpleItem", "command": 16, "frame": 3, "params": [0, 0, 0]}]}}"#, "x.plan").unwrap_err().to_string();
+        assert!(e.contains("mission.items[0]") && e.contains("expected 7"), "{e}");
+    }
+}

@@ -1,0 +1,605 @@
+//! Fly a plan on paper: a kinematic model of how a multirotor flies a waypoint mission,
+//! sampled at the models' rate into the 21 features they read.
+//!
+//! ## The flight
+//!
+//! The plan becomes a list of segments, each a closed-form function of time:
+//! - **climb** (TAKEOFF): vertical, at `climb_m_s`;
+//! - **legs** (WAYPOINT, LOITER_TIME, LAND's and RTL's approach, a not-modelled NAV item
+//!   with a position): a straight line, stop to stop (the M100's waypoint missions stop at
+//!   every waypoint): accelerate at `accel_m_s2` to the cruise speed, cruise, decelerate,
+//!   a trapezoidal speed profile over the horizontal distance (triangular when too short to
+//!   reach the speed). A height change on a leg is spread evenly over it, and the leg lasts
+//!   at least as long as the climb or descent needs at `climb_m_s` / `descent_m_s`;
+//! - **pauses** of `waypoint_pause_s` at every stop, during which the vehicle turns to the
+//!   next leg's heading (the turn is the yaw rate `angular_z`), plus the item's hold or
+//!   loiter time;
+//! - **descent** (LAND, RTL): vertical, at `descent_m_s` down to `slow_below_m` above
+//!   home, then `land_m_s` to the ground.
+//!
+//! The defaults are the M100's, measured on the data set's training flights (R1–R5, test
+//! flights excluded): climb ≈ 3 m/s; vertical descent 19 s from 25 m, 42 s from 100 m
+//! (≈ 3 m/s high, ≈ 1 m/s in the last 20 m); the extra time per leg over distance/speed
+//! grows with the speed as 2.1 s + v / 1.8 m/s² (trapezoid with a = 1.8 m/s² and a 2.1 s
+//! stop).
+//!
+//! ## Features (the data set's frames and units, see [`crate::telemetry`])
+//!
+//! Positions are a flat-earth offset (east, north, up; metres) from home, turned into
+//! longitude/latitude (deg) and altitude above sea level. The vehicle's forward axis (body
+//! y of the data set's quaternion) points along the leg; its thrust axis tilts toward the
+//! horizontal force it needs, `tan θ = |a_h / g + c·|u|·u|`, with `u` the airspeed and
+//! `c = tilt_per_airspeed2` (≈ 9° nose-down at 10 m/s, as the data set shows). From that:
+//! the quaternion, the heading-frame ground velocity (`velocity_x` right, `velocity_y`
+//! forward, `velocity_z` up), the body rates (FRD; only the yaw rate is non-zero), the
+//! specific force (FRD, `z ≈ −9.81` at rest), the anemometer airspeed and its bearing
+//! (`wind_speed`, `wind_angle`: the airspeed vector is ground velocity minus wind), and the
+//! mission features (`speed` the current commanded speed, `payload`, `altitude` the
+//! plan's highest altitude above home, as the data set records multi-stage altitudes).
+//!
+//! Pure: no I/O.
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::plan::{GeoPoint, ItemKind, Plan};
+use crate::telemetry::{idx, HomeVector, Sample, N_FEATURES};
+
+/// Standard gravity, m/s².
+const G_M_S2: f64 = 9.81;
+/// Metres per degree of latitude (WGS-84 mean).
+const M_PER_DEG: f64 = 111_320.0;
+
+/// How the vehicle flies a mission (`[forecast.kinematics]`).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct KinematicsConfig {
+    /// Vertical climb rate on take-off and on climbing legs, m/s. Default 3.0.
+    pub climb_m_s: f64,
+    /// Vertical descent rate above `slow_below_m`, m/s. Default 3.0.
+    pub descent_m_s: f64,
+    /// Descent rate below `slow_below_m` (the landing), m/s. Default 1.0.
+    pub land_m_s: f64,
+    /// Height above home under which the descent slows to `land_m_s`, m. Default 20.
+    pub slow_below_m: f64,
+    /// Horizontal acceleration and deceleration, m/s². Default 1.8.
+    pub accel_m_s2: f64,
+    /// Pause at every stop (after take-off, at each waypoint, before landing), s. Default 2.1.
+    pub waypoint_pause_s: f64,
+    /// Cruise speed when neither the plan nor the command line gives one, m/s. Default 10.
+    pub default_speed_m_s: f64,
+    /// Thrust tilt per airspeed², 1/m: tan θ = c·|u|². Default 0.0016 (9° at 10 m/s).
+    pub tilt_per_airspeed2: f64,
+}
+
+impl Default for KinematicsConfig {
+    fn default() -> Self {
+        Self {
+            climb_m_s: 3.0,
+            descent_m_s: 3.0,
+            land_m_s: 1.0,
+            slow_below_m: 20.0,
+            accel_m_s2: 1.8,
+            waypoint_pause_s: 2.1,
+            default_speed_m_s: 10.0,
+            tilt_per_airspeed2: 0.0016,
+        }
+    }
+}
+
+impl KinematicsConfig {
+    /// Range checks; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        let pos = |k: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("forecast.kinematics.{k} = {v}: must be > 0"))
+            }
+        };
+        pos("climb_m_s", self.climb_m_s)?;
+        pos("descent_m_s", self.descent_m_s)?;
+        pos("land_m_s", self.land_m_s)?;
+        pos("accel_m_s2", self.accel_m_s2)?;
+        pos("default_speed_m_s", self.default_speed_m_s)?;
+        for (k, v) in [("slow_below_m", self.slow_below_m), ("waypoint_pause_s", self.waypoint_pause_s), ("tilt_per_airspeed2", self.tilt_per_airspeed2)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("forecast.kinematics.{k} = {v}: must be ≥ 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Ambient wind: speed and the bearing it blows from (meteorological convention).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Wind {
+    /// m/s.
+    pub speed_m_s: f64,
+    /// Bearing the wind comes from, deg clockwise from north.
+    pub from_deg: f64,
+}
+
+impl Wind {
+    /// The air's velocity over the ground, ENU m/s (it blows *toward* `from_deg + 180°`).
+    pub fn velocity_enu(&self) -> Vector3<f64> {
+        let b = self.from_deg.to_radians();
+        Vector3::new(-self.speed_m_s * b.sin(), -self.speed_m_s * b.cos(), 0.0)
+    }
+}
+
+impl std::str::FromStr for Wind {
+    type Err = String;
+    /// `SPEED@FROM_DEG`, e.g. `5@270` (5 m/s from the west).
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (a, b) = s.split_once('@').ok_or_else(|| format!("wind {s:?}: expected SPEED@FROM_DEG, e.g. 5@270"))?;
+        let speed_m_s: f64 = a.trim().parse().map_err(|_| format!("wind {s:?}: speed {a:?} is not a number"))?;
+        let from_deg: f64 = b.trim().parse().map_err(|_| format!("wind {s:?}: bearing {b:?} is not a number"))?;
+        if !(speed_m_s.is_finite() && (0.0..=40.0).contains(&speed_m_s)) {
+            return Err(format!("wind {s:?}: speed must be 0..40 m/s"));
+        }
+        if !from_deg.is_finite() {
+            return Err(format!("wind {s:?}: bearing must be a number of degrees"));
+        }
+        Ok(Wind { speed_m_s, from_deg: from_deg.rem_euclid(360.0) })
+    }
+}
+
+/// What the trajectory needs besides the plan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Conditions {
+    /// Ambient wind.
+    pub wind: Wind,
+    /// Payload, g.
+    pub payload_g: f64,
+    /// Cruise speed until a DO_CHANGE_SPEED, m/s (overrides the plan's `hoverSpeed`).
+    pub speed_m_s: Option<f64>,
+    /// Sample rate, Hz (the models' rate).
+    pub rate_hz: f64,
+}
+
+/// One leg: the part of the flight that serves one plan item (climb, flight to a
+/// waypoint and the stop there, descent).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Leg {
+    /// The plan item it serves (index into [`Plan::items`]).
+    pub item: usize,
+    /// What it is, for tables: `takeoff`, `waypoint`, `loiter`, `land`, `rtl`, `not modelled 31`.
+    pub label: String,
+    /// Start and end time from take-off, s.
+    pub t_start_s: f64,
+    pub t_end_s: f64,
+    /// Horizontal distance flown, m.
+    pub distance_m: f64,
+    /// First sample and one past the last, indices into [`Trajectory::samples`].
+    pub samples: std::ops::Range<usize>,
+}
+
+/// A plan flown on paper.
+#[derive(Debug, Clone)]
+pub struct Trajectory {
+    /// One sample per 1/rate_hz from the start of the climb to touchdown.
+    pub samples: Vec<Sample>,
+    /// East, north, up from home, m, per sample.
+    pub enu_m: Vec<[f32; 3]>,
+    /// Index into `legs` per sample.
+    pub leg_of: Vec<u32>,
+    /// The legs in order.
+    pub legs: Vec<Leg>,
+    /// Sample period, s.
+    pub dt_s: f64,
+}
+
+/// A piece of motion, closed form in its local time.
+#[derive(Debug, Clone, Copy)]
+enum Motion {
+    /// Stay at `at`, turning from heading `yaw0` to `yaw1` (rad, ENU bearing of forward).
+    Hover { at: Vector3<f64>, yaw0: f64, yaw1: f64 },
+    /// Vertical from `from` to height `z1` at `rate` m/s.
+    Vertical { from: Vector3<f64>, z1: f64 },
+    /// Straight leg, trapezoidal horizontal speed (`v` cruise, `a` accel), height linear in time.
+    Line { from: Vector3<f64>, to: Vector3<f64>, v: f64, a: f64 },
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    motion: Motion,
+    duration_s: f64,
+    yaw: f64,
+    leg: usize,
+}
+
+/// Position, velocity, acceleration (ENU) and heading at local time `t` of a segment.
+fn state(seg: &Segment, t: f64) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>, f64, f64) {
+    let d = seg.duration_s.max(1e-9);
+    match seg.motion {
+        Motion::Hover { at, yaw0, yaw1 } => {
+            let dy = wrap_pi(yaw1 - yaw0);
+            let f = (t / d).clamp(0.0, 1.0);
+            (at, Vector3::zeros(), Vector3::zeros(), yaw0 + dy * f, dy / d)
+        }
+        Motion::Vertical { from, z1 } => {
+            let rate = (z1 - from.z) / d;
+            (Vector3::new(from.x, from.y, from.z + rate * t), Vector3::new(0.0, 0.0, rate), Vector3::zeros(), seg.yaw, 0.0)
+        }
+        Motion::Line { from, to, v, a } => {
+            let dh = (to - from).xy();
+            let len = dh.norm();
+            let dir = if len > 1e-9 { dh / len } else { nalgebra::Vector2::zeros() };
+            let (s, sp, acc) = trapezoid(len, v, a, t);
+            let vz = (to.z - from.z) / d;
+            let p = Vector3::new(from.x + dir.x * s, from.y + dir.y * s, from.z + vz * t);
+            (p, Vector3::new(dir.x * sp, dir.y * sp, vz), Vector3::new(dir.x * acc, dir.y * acc, 0.0), seg.yaw, 0.0)
+        }
+    }
+}
+
+/// Distance, speed and acceleration at time `t` of a stop-to-stop move over `len` m at
+/// top speed `v` and acceleration `a`.
+fn trapezoid(len: f64, v: f64, a: f64, t: f64) -> (f64, f64, f64) {
+    let v_top = v.min((len * a).sqrt());
+    let t_acc = v_top / a;
+    let d_acc = 0.5 * a * t_acc * t_acc;
+    let t_cruise = ((len - 2.0 * d_acc) / v_top.max(1e-9)).max(0.0);
+    let total = 2.0 * t_acc + t_cruise;
+    let t = t.clamp(0.0, total);
+    if t < t_acc {
+        (0.5 * a * t * t, a * t, a)
+    } else if t < t_acc + t_cruise {
+        (d_acc + v_top * (t - t_acc), v_top, 0.0)
+    } else {
+        let r = total - t;
+        (len - 0.5 * a * r * r, a * r, -a)
+    }
+}
+
+fn trapezoid_time(len: f64, v: f64, a: f64) -> f64 {
+    if len <= 0.0 {
+        return 0.0;
+    }
+    let v_top = v.min((len * a).sqrt());
+    let t_acc = v_top / a;
+    2.0 * t_acc + ((len - a * t_acc * t_acc) / v_top).max(0.0)
+}
+
+fn wrap_pi(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+/// East/north offset of `p` from `home`, m (flat earth: fine over a mission's kilometres).
+pub fn enu_of(home: &GeoPoint, lat_deg: f64, lon_deg: f64) -> (f64, f64) {
+    let n = (lat_deg - home.lat_deg) * M_PER_DEG;
+    let e = (lon_deg - home.lon_deg) * M_PER_DEG * home.lat_deg.to_radians().cos();
+    (e, n)
+}
+
+/// Build the segments of a plan; `speed0` is the cruise speed at the start.
+fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>) -> Vec<Segment> {
+    let mut segs: Vec<Segment> = Vec::new();
+    let mut pos = Vector3::zeros();
+    let mut yaw = std::f64::consts::FRAC_PI_2; // facing north until the first leg
+    let mut speed = speed0;
+    let mut airborne = false;
+    let pause = |segs: &mut Vec<Segment>, at: Vector3<f64>, yaw0: f64, yaw1: f64, d: f64, leg: usize| {
+        if d > 0.0 {
+            segs.push(Segment { motion: Motion::Hover { at, yaw0, yaw1 }, duration_s: d, yaw: yaw1, leg });
+        }
+    };
+    let descend = |segs: &mut Vec<Segment>, pos: &mut Vector3<f64>, yaw: f64, leg: usize| {
+        let slow = k.slow_below_m.max(0.0);
+        if pos.z > slow {
+            let d = (pos.z - slow) / k.descent_m_s;
+            segs.push(Segment { motion: Motion::Vertical { from: *pos, z1: slow }, duration_s: d, yaw, leg });
+            pos.z = slow;
+        }
+        if pos.z > 0.0 {
+            let d = pos.z / k.land_m_s;
+            segs.push(Segment { motion: Motion::Vertical { from: *pos, z1: 0.0 }, duration_s: d, yaw, leg });
+            pos.z = 0.0;
+        }
+    };
+    let fly_to = |segs: &mut Vec<Segment>, pos: &mut Vector3<f64>, yaw: &mut f64, to: Vector3<f64>, speed: f64, leg: usize| -> f64 {
+        let dh = (to - *pos).xy();
+        let len = dh.norm();
+        let heading = if len > 0.5 { dh.y.atan2(dh.x) } else { *yaw };
+        // turn toward the leg during the stop before it
+        pause(segs, *pos, *yaw, heading, k.waypoint_pause_s, leg);
+        let t_h = trapezoid_time(len, speed, k.accel_m_s2);
+        let dz = to.z - pos.z;
+        let t_v = if dz >= 0.0 { dz / k.climb_m_s } else { -dz / k.descent_m_s };
+        let d = t_h.max(t_v);
+        if d > 0.0 {
+            segs.push(Segment { motion: Motion::Line { from: *pos, to, v: speed, a: k.accel_m_s2 }, duration_s: d, yaw: heading, leg });
+        }
+        *pos = to;
+        *yaw = heading;
+        len
+    };
+    for (i, item) in plan.items.iter().enumerate() {
+        let target = item.position.map(|p| {
+            let (e, n) = enu_of(&plan.home, p.lat_deg, p.lon_deg);
+            Vector3::new(e, n, p.alt_m)
+        });
+        let leg = legs.len();
+        let first = segs.len();
+        let mut distance_m = 0.0;
+        let label: String = match item.kind {
+            ItemKind::ChangeSpeed { speed_m_s } => {
+                if speed_m_s > 0.0 {
+                    speed = speed_m_s;
+                }
+                continue;
+            }
+            ItemKind::Takeoff { alt_m } => {
+                if let Some(t) = target {
+                    if !airborne {
+                        pos = Vector3::new(t.x, t.y, 0.0);
+                    }
+                }
+                if alt_m > pos.z {
+                    let d = (alt_m - pos.z) / k.climb_m_s;
+                    segs.push(Segment { motion: Motion::Vertical { from: pos, z1: alt_m }, duration_s: d, yaw, leg });
+                    pos.z = alt_m;
+                }
+                airborne = true;
+                "takeoff".into()
+            }
+            ItemKind::Waypoint { hold_s } => match target {
+                Some(t) => {
+                    distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
+                    pause(&mut segs, pos, yaw, yaw, hold_s, leg);
+                    "waypoint".into()
+                }
+                None => continue,
+            },
+            ItemKind::LoiterTime { time_s } => {
+                if let Some(t) = target {
+                    distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
+                }
+                pause(&mut segs, pos, yaw, yaw, time_s, leg);
+                "loiter".into()
+            }
+            ItemKind::Land | ItemKind::ReturnToLaunch => {
+                let to = match (item.kind, target) {
+                    (ItemKind::ReturnToLaunch, _) => Some(Vector3::new(0.0, 0.0, pos.z)),
+                    (_, Some(t)) => Some(Vector3::new(t.x, t.y, pos.z)),
+                    _ => None,
+                };
+                if let Some(to) = to {
+                    distance_m = fly_to(&mut segs, &mut pos, &mut yaw, to, speed, leg);
+                }
+                pause(&mut segs, pos, yaw, yaw, k.waypoint_pause_s, leg);
+                descend(&mut segs, &mut pos, yaw, leg);
+                airborne = false;
+                if matches!(item.kind, ItemKind::Land) { "land".into() } else { "rtl".into() }
+            }
+            ItemKind::NotModelled { command, flown_through } => match (flown_through, target) {
+                (true, Some(t)) => {
+                    distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
+                    format!("not modelled {command}")
+                }
+                _ => continue,
+            },
+        };
+        if segs.len() > first || distance_m > 0.0 {
+            legs.push(Leg { item: i, label, t_start_s: 0.0, t_end_s: 0.0, distance_m, samples: 0..0 });
+        }
+    }
+    // A plan that ends in the air lands where it is.
+    if pos.z > 0.0 {
+        let leg = legs.len();
+        pause(&mut segs, pos, yaw, yaw, k.waypoint_pause_s, leg);
+        descend(&mut segs, &mut pos, yaw, leg);
+        legs.push(Leg { item: plan.items.len().saturating_sub(1), label: "land (end of plan)".into(), t_start_s: 0.0, t_end_s: 0.0, distance_m: 0.0, samples: 0..0 });
+    }
+    segs
+}
+
+/// Fly `plan` on paper. Never fails: a plan with no motion gives no samples.
+pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
+    let speed0 = c.speed_m_s.or(plan.hover_speed_m_s).unwrap_or(k.default_speed_m_s);
+    let mut legs = Vec::new();
+    let segs = segments(plan, k, speed0, &mut legs);
+    let dt = 1.0 / c.rate_hz;
+    let total: f64 = segs.iter().map(|s| s.duration_s).sum();
+    let n = (total / dt).floor() as usize + 1;
+    let cmd_alt = plan.items.iter().filter_map(|i| match i.kind {
+        ItemKind::Takeoff { alt_m } => Some(alt_m),
+        _ => i.position.map(|p| p.alt_m),
+    });
+    let cmd_alt = cmd_alt.fold(0.0f64, f64::max);
+    let wind = c.wind.velocity_enu();
+    let mut samples = Vec::with_capacity(n);
+    let mut enu_m = Vec::with_capacity(n);
+    let mut leg_of = Vec::with_capacity(n);
+    // Commanded speed feature per segment: the speed in force (changes are rare; the
+    // segment's own top speed where it has one).
+    let mut seg_i = 0usize;
+    let mut seg_t0 = 0.0f64;
+    let mut cur_speed = speed0;
+    let coslat = plan.home.lat_deg.to_radians().cos().max(1e-6);
+    for j in 0..n {
+        let t = j as f64 * dt;
+        while seg_i + 1 < segs.len() && t >= seg_t0 + segs[seg_i].duration_s {
+            seg_t0 += segs[seg_i].duration_s;
+            seg_i += 1;
+        }
+        let Some(seg) = segs.get(seg_i) else { break };
+        if let Motion::Line { v, .. } = seg.motion {
+            cur_speed = v;
+        }
+        let (p, v, a, heading, yaw_rate) = state(seg, t - seg_t0);
+        let air = v - wind;
+        // thrust axis: tilt toward the horizontal force per unit mass
+        let f_h = a.xy() + G_M_S2 * k.tilt_per_airspeed2 * air.xy().norm() * air.xy();
+        let tilt = (f_h.norm() / G_M_S2).atan();
+        let yaw_body_x = heading - std::f64::consts::FRAC_PI_2; // body y is forward
+        let q_yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_body_x);
+        let q = if tilt > 1e-6 {
+            let axis = Vector3::z().cross(&Vector3::new(f_h.x, f_h.y, 0.0));
+            UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(axis), tilt) * q_yaw
+        } else {
+            q_yaw
+        };
+        let r = q.to_rotation_matrix();
+        let psi = r.matrix()[(1, 0)].atan2(r.matrix()[(0, 0)]);
+        let (sn, cs) = psi.sin_cos();
+        let vx = v.x * cs + v.y * sn;
+        let vy = -v.x * sn + v.y * cs;
+        let fwd = nalgebra::Vector2::new(heading.cos(), heading.sin());
+        let right = nalgebra::Vector2::new(fwd.y, -fwd.x);
+        let mut f = [0.0f32; N_FEATURES];
+        let qq = q.quaternion();
+        let sign = if qq.w < 0.0 { -1.0 } else { 1.0 };
+        f[idx::WIND_SPEED] = air.xy().norm() as f32;
+        f[idx::WIND_ANGLE] = air.x.atan2(air.y).to_degrees().rem_euclid(360.0) as f32;
+        f[idx::POS_X] = (plan.home.lon_deg + p.x / (M_PER_DEG * coslat)) as f32;
+        f[idx::POS_Y] = (plan.home.lat_deg + p.y / M_PER_DEG) as f32;
+        f[idx::POS_Z] = (plan.home.alt_m + p.z) as f32;
+        f[idx::QX] = (sign * qq.i) as f32;
+        f[idx::QY] = (sign * qq.j) as f32;
+        f[idx::QZ] = (sign * qq.k) as f32;
+        f[idx::QW] = (sign * qq.w) as f32;
+        f[idx::VX] = vx as f32;
+        f[idx::VY] = vy as f32;
+        f[idx::VZ] = v.z as f32;
+        f[idx::WZ] = -yaw_rate as f32;
+        f[idx::AX] = a.xy().dot(&fwd) as f32;
+        f[idx::AY] = a.xy().dot(&right) as f32;
+        f[idx::AZ] = -(G_M_S2 + a.z) as f32;
+        f[idx::SPEED] = cur_speed as f32;
+        f[idx::PAYLOAD] = c.payload_g as f32;
+        f[idx::ALTITUDE] = cmd_alt as f32;
+        samples.push(Sample {
+            t_s: t,
+            features: f,
+            measured_w: None,
+            voltage_v: None,
+            home: Some(HomeVector { distance_m: p.xy().norm() as f32, height_m: p.z as f32 }),
+            stale_mask: 0,
+            battery_remaining_pct: None,
+        });
+        enu_m.push([p.x as f32, p.y as f32, p.z as f32]);
+        leg_of.push(seg.leg as u32);
+    }
+    // leg times and sample ranges
+    // one pass: samples are in leg order
+    let mut j = 0;
+    while j < leg_of.len() {
+        let li = leg_of[j] as usize;
+        let a = j;
+        while j < leg_of.len() && leg_of[j] as usize == li {
+            j += 1;
+        }
+        if let Some(leg) = legs.get_mut(li) {
+            leg.samples = a..j;
+            leg.t_start_s = a as f64 * dt;
+            leg.t_end_s = j as f64 * dt;
+        }
+    }
+    Trajectory { samples, enu_m, leg_of, legs, dt_s: dt }
+}
+
+impl Trajectory {
+    /// Duration from the start of the climb to touchdown, s.
+    pub fn duration_s(&self) -> f64 {
+        self.samples.len() as f64 * self.dt_s
+    }
+
+    /// The sample nearest (3-D) to `enu_m` among samples `from..from + horizon`: how a
+    /// live re-forecast finds where on the plan the vehicle is, searching forward from
+    /// where it was (or from the first sample of the leg toward the current item), so a
+    /// route that crosses itself cannot send it back or far ahead.
+    pub fn locate(&self, from: usize, horizon: usize, enu_m: [f32; 3]) -> usize {
+        let end = (from + horizon).min(self.enu_m.len());
+        let d2 = |p: &[f32; 3]| (p[0] - enu_m[0]).powi(2) + (p[1] - enu_m[1]).powi(2) + (p[2] - enu_m[2]).powi(2);
+        let mut best = from.min(self.enu_m.len().saturating_sub(1));
+        let mut best_d = f32::INFINITY;
+        for (i, p) in self.enu_m.iter().enumerate().take(end).skip(from) {
+            let d = d2(p);
+            if d < best_d {
+                best_d = d;
+                best = i;
+            }
+        }
+        best
+    }
+
+    /// First sample of the first leg that serves plan item `item` or a later one (the
+    /// vehicle is flying toward `item`): where [`Trajectory::locate`] starts for a
+    /// MISSION_CURRENT of `item`.
+    pub fn first_sample_of_item(&self, item: usize) -> usize {
+        self.legs.iter().find(|l| l.item >= item).map_or(self.samples.len(), |l| l.samples.start)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mission::plan::{GeoPoint, Plan};
+
+    fn square(speed: f64) -> Plan {
+        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
+        let d = 200.0 / M_PER_DEG;
+        let wps = [
+            GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0, alt_m: 25.0 },
+            GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0 + d / 40f64.to_radians().cos(), alt_m: 25.0 },
+        ];
+        Plan::from_waypoints("square", home, &wps, speed)
+    }
+
+    fn cond() -> Conditions {
+        Conditions { wind: Wind::default(), payload_g: 250.0, speed_m_s: None, rate_hz: 10.0 }
+    }
+
+    #[test]
+    fn a_plan_flies_takeoff_legs_and_landing_with_the_right_times() {
+        let k = KinematicsConfig::default();
+        let tr = fly(&square(10.0), &k, &cond());
+        let labels: Vec<&str> = tr.legs.iter().map(|l| l.label.as_str()).collect();
+        assert_eq!(labels, ["takeoff", "waypoint", "waypoint", "rtl"]);
+        // 200 m north, 200 m east, 283 m home: three stop-to-stop legs at 10 m/s, a = 1.8
+        let legs_s: f64 = [200.0, 200.0, 200.0 * 2f64.sqrt()].iter().map(|&l| trapezoid_time(l, 10.0, 1.8)).sum();
+        let expect = 25.0 / 3.0 + legs_s + 4.0 * 2.1 + 5.0 / 3.0 + 20.0 / 1.0;
+        assert!((tr.duration_s() - expect).abs() < 0.2, "{} vs {expect}", tr.duration_s());
+        let dist: f64 = tr.legs.iter().map(|l| l.distance_m).sum();
+        assert!((dist - (400.0 + 200.0 * 2f64.sqrt())).abs() < 1.0, "{dist}");
+        // cruising north at 10 m/s: forward velocity 10, ~9° tilt, anemometer 10 m/s from the north bearing
+        let mid = &tr.samples[tr.legs[1].samples.start + 120];
+        assert!((mid.features[idx::VY] - 10.0).abs() < 0.05 && mid.features[idx::VX].abs() < 0.05, "{:?}", mid.features);
+        assert!((mid.features[idx::WIND_SPEED] - 10.0).abs() < 0.05);
+        assert!(mid.features[idx::WIND_ANGLE] < 0.5 || mid.features[idx::WIND_ANGLE] > 359.5);
+        assert_eq!(mid.features[idx::PAYLOAD], 250.0);
+        assert_eq!(mid.features[idx::ALTITUDE], 25.0);
+        let last = tr.samples.last().unwrap();
+        assert!(last.home.unwrap().distance_m < 0.5 && last.home.unwrap().height_m.abs() < 0.2, "lands at home");
+    }
+
+    #[test]
+    fn the_models_read_the_trajectory_as_the_motion_it_is() {
+        // The physics models' own reading of the features must give back the motion.
+        let tr = fly(&square(8.0), &KinematicsConfig::default(), &Conditions { wind: "4@90".parse().unwrap(), ..cond() });
+        let profile = crate::model::profile::VehicleProfile::m100();
+        let j = tr.legs[2].samples.start + 100; // cruising east at 8 m/s, wind 4 m/s from the east
+        let w = crate::window::Window { samples: tr.samples[j - 9..=j].to_vec() };
+        let kin = crate::model::physics::Kinematics::from_window(&w, &profile);
+        assert!((kin.ground_m_s - Vector3::new(8.0, 0.0, 0.0)).norm() < 0.1, "{:?}", kin.ground_m_s);
+        assert!((kin.wind_m_s - Vector3::new(-4.0, 0.0, 0.0)).norm() < 0.1, "{:?}", kin.wind_m_s);
+        assert!((kin.headwind() - 4.0).abs() < 0.1);
+        assert!(kin.thrust_axis.x > 0.1, "nose down toward the airspeed: {:?}", kin.thrust_axis);
+    }
+
+    #[test]
+    fn wind_parses_and_points_downwind() {
+        let w: Wind = "5@270".parse().unwrap();
+        assert!((w.velocity_enu() - Vector3::new(5.0, 0.0, 0.0)).norm() < 1e-9, "from the west blows east");
+        assert!("5".parse::<Wind>().is_err() && "x@1".parse::<Wind>().is_err() && "99@0".parse::<Wind>().is_err());
+    }
+
+    #[test]
+    fn locate_finds_the_vehicle_on_the_route() {
+        let tr = fly(&square(10.0), &KinematicsConfig::default(), &cond());
+        let j = tr.legs[2].samples.start + 50;
+        let p = tr.enu_m[j];
+        assert_eq!(tr.locate(tr.first_sample_of_item(2), 2000, p), j);
+    }
+}
