@@ -27,7 +27,8 @@
 //! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV, the simulator; frame decoding and its counters |
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
-//! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
+//! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card, online adaptation to measured power |
+//! | [`vehicle`] | who the vehicle is: its identity and battery parameters over MAVLink, battery facts with their provenance |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard |
@@ -44,6 +45,7 @@ pub mod pipeline;
 pub mod sink;
 pub mod source;
 pub mod telemetry;
+pub mod vehicle;
 pub mod window;
 
 /// The MAVLink dialect dronewatt speaks: ArduPilot's, which includes `common`.

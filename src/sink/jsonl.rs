@@ -236,8 +236,8 @@ mod tests {
                 t_s: 12.5,
                 sample,
                 models: vec![
-                    ModelEstimate { name: "dandrea".into(), power_w: 230.0, band_w: None },
-                    ModelEstimate { name: "lstm".into(), power_w: f32::INFINITY, band_w: None },
+                    ModelEstimate::new("dandrea", 230.0, None),
+                    ModelEstimate::new("lstm", f32::INFINITY, None),
                 ],
             },
             energy: EnergyState { energy_used_wh: 1.5, remaining_wh: Some(80.0), time_to_empty_s: None, home_margin_wh: None, ..Default::default() },
