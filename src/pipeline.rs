@@ -68,6 +68,12 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     }
 
     let live = matches!(p.source, crate::source::SourceSpec::Link(_));
+    // vehicle (issue 11): who the vehicle is and its battery parameters — asked for on a
+    // live link, taken from the logged PARAM_VALUEs in a replay — on to the energy stage.
+    let reader = if live { crate::vehicle::params::ParamReader::live() } else { crate::vehicle::params::ParamReader::passive() };
+    let mav_ids = (cfg.sinks.mavlink.system_id, cfg.sinks.mavlink.component_id);
+    let mut vehicle = crate::vehicle::params::Driver::new(reader, link.clone(), mav_ids.0, mav_ids.1);
+    let (vehicle_tx, mut vehicle_rx) = tokio::sync::watch::channel(crate::vehicle::params::VehicleParams::default());
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, stats.clone(), link, shutdown.clone()));
 
     let tstats = stats.clone();
@@ -76,6 +82,9 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         let mut out = Vec::new();
         let mut shown = tokio::time::Instant::now();
         while let Some(m) = msg_rx.recv().await {
+            if let Some(params) = vehicle.on_message(&m) {
+                let _ = vehicle_tx.send(params);
+            }
             telemetry.push(&m, &mut out);
             if shown.elapsed() >= std::time::Duration::from_secs(1) {
                 shown = tokio::time::Instant::now();
@@ -124,12 +133,20 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let energy_task = tokio::spawn(async move {
         // The last real estimate and when it came: the base of a silent tick.
         let mut last: Option<(Estimate, crate::energy::EnergyState, tokio::time::Instant)> = None;
+        let mut vehicle_final = false;
         loop {
             let next = if live {
                 tokio::time::timeout(SILENT_TICK, est_rx.recv()).await
             } else {
                 Ok(est_rx.recv().await)
             };
+            // vehicle (issue 11): capacity and cells from the vehicle where the config is silent.
+            // A closed channel (the telemetry stage done: a fast replay) still holds the last word.
+            let (changed, closed) = vehicle_rx.has_changed().map_or((true, true), |c| (c, false));
+            if changed && !vehicle_final {
+                energy.set_vehicle(vehicle_rx.borrow_and_update().clone());
+                vehicle_final = closed;
+            }
             let report = match next {
                 Ok(Some(est)) => {
                     let state = energy.update(&est);

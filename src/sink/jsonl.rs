@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! {"type":"window","t":…,"measured_w":…,"features":{"wind_speed":…,…}}
-//! {"type":"estimate","t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…}
+//! {"type":"estimate","t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,
+//!  ["adapted":{"<name>":watts,…},]"capacity_wh":…,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"default"|…,"cell_count":…,"cell_count_source":…}
 //! {"type":"alert","t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
 //! ```
 //!
@@ -80,6 +81,11 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             remaining_wh: r.energy.remaining_wh,
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
+            adapted: Adapted(&e.models),
+            capacity_wh: r.energy.capacity_wh,
+            capacity_source: &r.energy.capacity_source,
+            cell_count: r.energy.cell_count,
+            cell_count_source: &r.energy.cell_count_source,
         },
     )?;
     for a in &r.alerts {
@@ -133,6 +139,38 @@ struct EstimateLine<'a> {
     remaining_wh: Option<f64>,
     time_to_empty_s: Option<f64>,
     home_margin_wh: Option<f64>,
+    /// `{"<name>": watts}`: each model adapted to measured power ([`crate::model::adapt`]);
+    /// absent when adaptation is off.
+    #[serde(skip_serializing_if = "Adapted::is_empty")]
+    adapted: Adapted<'a>,
+    /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
+    /// `vehicle parameter BATT_CAPACITY`, `default` …).
+    capacity_wh: f64,
+    capacity_source: &'a str,
+    /// Cells in series, and where that came from.
+    cell_count: u32,
+    cell_count_source: &'a str,
+}
+
+/// Adapted estimates as a name → watts object.
+struct Adapted<'a>(&'a [crate::model::ModelEstimate]);
+
+impl Adapted<'_> {
+    fn is_empty(&self) -> bool {
+        self.0.iter().all(|m| m.adapted_w.is_none())
+    }
+}
+
+impl Serialize for Adapted<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(None)?;
+        for e in self.0 {
+            if let Some(w) = e.adapted_w {
+                m.serialize_entry(&e.name, &w)?;
+            }
+        }
+        m.end()
+    }
 }
 
 /// Uncertainty bands as a name → [low, high] watts object.
