@@ -57,6 +57,16 @@ pub struct EvalArgs {
     /// card's and the LightGBM baseline's reading), not only in flight; MAPE stays in flight.
     #[arg(long)]
     pub all_windows: bool,
+    /// Also score every model adapted online to the measured power
+    /// ([`crate::model::adapt`], the `[models.adapt]` settings) as `<model>~`: each flight
+    /// starts from the model as it is, as a new vehicle's first flight would.
+    #[arg(long)]
+    pub adapt: bool,
+    /// Tell the models this payload, g, whatever the flight carried (the payload input of
+    /// every window): `--payload-g 0 --adapt` on the 500 g flights is a vehicle heavier than
+    /// the models think, and adaptation has to find the difference.
+    #[arg(long, value_name = "G")]
+    pub payload_g: Option<f32>,
 }
 
 /// Named flight splits.
@@ -120,6 +130,28 @@ pub fn run_flight(models: &mut [Box<dyn PowerModel>], f: &FlightWindows) -> Flig
     }
 }
 
+/// Append to `s` each model's predictions adapted online to the flight's measured power,
+/// window by window in time order, from a fresh [`crate::model::adapt::Adaptation`] (what a
+/// live run does; the LSTM's training-range gate is not applied here: every window with a
+/// measured power above the motors-off threshold teaches).
+pub fn adapt_series(cfg: &Config, names: &[String], s: &mut FlightSeries) -> anyhow::Result<()> {
+    let mut ad = crate::model::build_adaptation(cfg, names)?;
+    let mut adapted = Vec::with_capacity(names.len());
+    for (i, pred) in s.pred_w.iter().enumerate() {
+        let out: Vec<f64> = pred
+            .iter()
+            .zip(&s.measured_w)
+            .map(|(&p, &m)| {
+                let measured = m.is_finite().then_some(m as f32);
+                ad.step(i, p as f32, measured, true).map_or(f64::NAN, |a| f64::from(a.adapted_w))
+            })
+            .collect();
+        adapted.push(out);
+    }
+    s.pred_w.extend(adapted);
+    Ok(())
+}
+
 /// The models `eval` scores: the configured set, then the calibrated physics models.
 pub fn eval_models(cfg: &Config, calibrated: Option<&VehicleProfile>) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
     let mut models = crate::model::build_models(cfg)?;
@@ -147,7 +179,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         None
     };
     let mut models = eval_models(&cfg, cal.as_ref())?;
-    let names: Vec<String> = models.iter().map(|m| m.name().to_string()).collect();
+    let mut names: Vec<String> = models.iter().map(|m| m.name().to_string()).collect();
     let wanted: Option<Vec<u32>> = match (args.flight, args.split) {
         (Some(n), _) => Some(vec![n]),
         (None, Some(Split::Cvar)) => {
@@ -158,7 +190,12 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         }
         (None, None) => None,
     };
-    let flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry).with_context(|| format!("{}: cannot load flights", data.display()))?;
+    let mut flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry).with_context(|| format!("{}: cannot load flights", data.display()))?;
+    if let Some(g) = args.payload_g {
+        for s in flights.iter_mut().flat_map(|f| f.windows.iter_mut()).flat_map(|w| w.samples.iter_mut()) {
+            s.features[crate::telemetry::idx::PAYLOAD] = g;
+        }
+    }
     if flights.is_empty() {
         anyhow::bail!("{}: none of the requested flights is in the file", data.display());
     }
@@ -169,6 +206,14 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    if args.adapt {
+        cfg.models.adapt.validate().map_err(anyhow::Error::msg)?;
+        let raw = names.clone();
+        for s in &mut series {
+            adapt_series(&cfg, &raw, s)?;
+        }
+        names.extend(raw.iter().map(|n| format!("{n}~")));
+    }
     if let Some(dir) = &args.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create plot folder", dir.display()))?;
         for s in &series {
