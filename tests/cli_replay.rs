@@ -126,12 +126,24 @@ fn a_bad_address_is_one_clear_error_line() {
 fn ctrl_c_on_a_live_link_still_writes_the_summary() {
     let port = free_udp_port();
     let mut child = dronewatt()
+        .env("RUST_LOG", "dronewatt=info")
         .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "--json", "-"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(Duration::from_millis(800));
+    // Send only once it listens (its log says so): a fixed sleep loses the frames when a
+    // loaded machine starts it slowly. The rest of its log drains on a thread.
+    let stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let (said, listening) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufRead::lines(stderr).map_while(Result::ok) {
+            if line.contains("listening on") {
+                let _ = said.send(());
+            }
+        }
+    });
+    listening.recv_timeout(Duration::from_secs(30)).expect("monitor never said it was listening");
     let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     for (_, h, m) in flight(25) {
         sock.send_to(&frame(h, &m, V2), ("127.0.0.1", port)).unwrap();
