@@ -192,16 +192,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if let Some(png) = &a.plot {
         plot_plan(png, &plan.source, &tr, &f, cfg.energy.capacity_wh, cfg.energy.reserve_pct)?;
     }
-    match a.json.as_deref() {
-        Some("-") => println!("{}", serde_json::to_string_pretty(&report)?),
-        other => {
-            print!("{}", plan_table(&report));
-            if let Some(p) = other {
-                std::fs::write(p, serde_json::to_string_pretty(&report)?).with_context(|| format!("{p}: cannot write"))?;
-            }
-        }
-    }
-    Ok(())
+    publish(a.json.as_deref(), &report, || plan_table(&report))
 }
 
 fn plan_table(r: &PlanReport) -> String {
@@ -924,12 +915,18 @@ pub fn run_plan_eval(a: PlanEvalArgs) -> anyhow::Result<()> {
     let mut models = models_for(&cfg, &a.calibrated)?;
     let opt = PlanEvalOptions { test: a.flights.clone(), train: a.train.clone(), ground_wind: !a.no_ground_wind };
     let r = plan_eval(&data, &cfg, &mut models, &opt)?;
-    match a.json.as_deref() {
-        Some("-") => println!("{}", serde_json::to_string_pretty(&r)?),
+    publish(a.json.as_deref(), &r, || eval_table(&r))
+}
+
+/// `--json -`: the JSON on standard output instead of the table; `--json PATH`: the table,
+/// and the JSON written to PATH; no `--json`: the table alone.
+fn publish(json: Option<&str>, report: &impl serde::Serialize, table: impl FnOnce() -> String) -> anyhow::Result<()> {
+    match json {
+        Some("-") => println!("{}", serde_json::to_string_pretty(report)?),
         other => {
-            print!("{}", eval_table(&r));
+            print!("{}", table());
             if let Some(p) = other {
-                std::fs::write(p, serde_json::to_string_pretty(&r)?).with_context(|| format!("{p}: cannot write"))?;
+                std::fs::write(p, serde_json::to_string_pretty(report)?).with_context(|| format!("{p}: cannot write"))?;
             }
         }
     }

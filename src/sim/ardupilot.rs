@@ -55,15 +55,7 @@ impl Style for ArduPilot {
     }
 
     fn attitude(&self, now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vector3<f64>, out: &mut Vec<MavMessage>) {
-        out.push(MavMessage::ATTITUDE(d::ATTITUDE_DATA {
-            time_boot_ms: now.boot_ms(),
-            roll: roll as f32,
-            pitch: pitch as f32,
-            yaw: yaw as f32,
-            rollspeed: rates.x as f32,
-            pitchspeed: rates.y as f32,
-            yawspeed: rates.z as f32,
-        }));
+        out.push(super::emit::attitude(now, (roll, pitch, yaw), rates));
     }
 
     /// RAW_IMU carries acceleration in mG, rates in mrad/s and the field in mgauss

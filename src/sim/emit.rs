@@ -348,6 +348,19 @@ impl Emitter {
 }
 
 /// A PARAM_VALUE payload (index and count left for the emitter).
+/// ATTITUDE at `now`: Euler angles (rad) and body rates (rad/s), as both autopilots send it.
+pub fn attitude(now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vector3<f64>) -> MavMessage {
+    MavMessage::ATTITUDE(d::ATTITUDE_DATA {
+        time_boot_ms: now.boot_ms(),
+        roll: roll as f32,
+        pitch: pitch as f32,
+        yaw: yaw as f32,
+        rollspeed: rates.x as f32,
+        pitchspeed: rates.y as f32,
+        yawspeed: rates.z as f32,
+    })
+}
+
 pub fn param(name: &str, value: f32, kind: d::MavParamType) -> d::PARAM_VALUE_DATA {
     d::PARAM_VALUE_DATA { param_value: value, param_count: 0, param_index: 0, param_id: name.into(), param_type: kind }
 }

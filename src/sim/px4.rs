@@ -76,15 +76,7 @@ impl Style for Px4 {
             repr_offset_q: [0.0; 4],
         }));
         if (Every { period_ms: 200, offset_ms: 30 }).due(now.t_ms) {
-            out.push(MavMessage::ATTITUDE(d::ATTITUDE_DATA {
-                time_boot_ms: now.boot_ms(),
-                roll: roll as f32,
-                pitch: pitch as f32,
-                yaw: yaw as f32,
-                rollspeed: rates.x as f32,
-                pitchspeed: rates.y as f32,
-                yawspeed: rates.z as f32,
-            }));
+            out.push(super::emit::attitude(now, (roll, pitch, yaw), rates));
         }
     }
 
