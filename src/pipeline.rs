@@ -243,7 +243,6 @@ async fn telemetry_stage(
 /// intra-op team as wide as the machine) cost ~10 ms a window. Windows that queued up
 /// meanwhile (a flat-out replay) run as one batch.
 fn inference_stage(mut models: Ensemble, mut windows: mpsc::Receiver<Window>, estimates: mpsc::Sender<Estimate>) {
-    crate::model::pin_inference_thread();
     let mut batch = Vec::with_capacity(MAX_BATCH);
     while let Some(w) = windows.blocking_recv() {
         batch.push(w);
