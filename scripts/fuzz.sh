@@ -11,6 +11,9 @@
 # copy of the committed seeds (fuzz/corpus/TARGET, git-ignored); a crash lands in
 # fuzz/artifacts/TARGET/. Copy it to fuzz/regressions/TARGET/ once fixed, and
 # `cargo test --test fuzz_corpus` replays it for ever after.
+#
+# FUZZ_RUNS=N stops a target after N executions (whichever comes first with SECONDS):
+#   FUZZ_RUNS=10000000 scripts/fuzz.sh decoder 1800
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -44,4 +47,4 @@ mkdir -p "$corpus" fuzz/artifacts/"$target"
 cp -n fuzz/seeds/"$target"/* "$corpus"/ 2>/dev/null || true
 cd fuzz
 nice -n 10 cargo fuzz run -s none "$target" "corpus/$target" -- \
-  -max_total_time="$seconds" -max_len=4096 -rss_limit_mb=2048 -print_final_stats=1
+  -max_total_time="$seconds" ${FUZZ_RUNS:+-runs=$FUZZ_RUNS} -max_len=4096 -rss_limit_mb=2048 -print_final_stats=1
