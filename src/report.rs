@@ -119,6 +119,34 @@ pub struct EnergyState {
     pub home_margin_wh: Option<f64>,
     /// Battery voltage per cell, V (voltage / cell count), when the voltage is known.
     pub cell_voltage_v: Option<f64>,
+    /// Energy the rest of the planned mission, the return and the landing need (P50), Wh,
+    /// while a mission is known (`crate::mission::live`).
+    pub mission_energy_wh: Option<f64>,
+    /// Remaining − mission energy − reserve, Wh: below 0, the mission cannot finish with
+    /// the reserve left.
+    pub mission_margin_wh: Option<f64>,
+    /// Where the vehicle stands in its mission, while one is known.
+    pub mission: Option<MissionStatus>,
+}
+
+/// The live mission forecast at one moment: what the mission task
+/// (`crate::mission::live`) hands the energy stage, in source-time order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MissionStatus {
+    /// Source time of the message it was computed on, s.
+    pub t_s: f64,
+    /// MISSION_CURRENT's `seq`: the item being flown to.
+    pub current_seq: u16,
+    /// Items in the mission as the vehicle holds it (ArduPilot's home item included).
+    pub items: u16,
+    /// Planned time left, s (rest of the mission, return, landing).
+    pub time_left_s: f64,
+    /// Energy left, P50, Wh.
+    pub energy_p50_wh: f64,
+    /// Energy left, P90, Wh.
+    pub energy_p90_wh: f64,
+    /// How far along the planned trajectory, % of its time.
+    pub progress_pct: f64,
 }
 
 /// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML

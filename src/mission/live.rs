@@ -1,0 +1,278 @@
+//! The live mission forecast: a task between the source and the telemetry stage that
+//! passes every message on unchanged, takes the mission from the link (downloading it
+//! with [`super::protocol`] on a live link, overhearing it in a replayed `.tlog`), flies
+//! it on paper once per mission ([`super::trajectory`], [`super::forecast`]), and on each
+//! MISSION_CURRENT and vehicle position re-forecasts what is left (the rest of the
+//! mission, the return and the landing) in microseconds.
+//!
+//! ```text
+//! source ─TimedMessage→ mission tap ─TimedMessage→ telemetry_stage …
+//!                           │ MissionStatus (source time order)
+//!                           └──────────────→ energy_stage (mission_energy_wh, mission_margin_wh, alerts)
+//! ```
+//!
+//! The energy stage takes each [`MissionStatus`] once its estimates reach the status's
+//! source time, so a flat-out replay accounts it exactly when the flight did. The only
+//! I/O here: frames sent on the live link through the [`LinkHandle`] (requests, the ACK).
+//!
+//! Where the vehicle is on the plan: MISSION_CURRENT's `seq` (minus ArduPilot's home item)
+//! is the item it flies to; the nearest trajectory sample (3-D, GLOBAL_POSITION_INT's
+//! latitude, longitude and height above home) among that item's legs is where it is
+//! ([`super::trajectory::Trajectory::locate`]). Home is ArduPilot's item 0, else
+//! HOME_POSITION, else the first position heard.
+
+use std::time::Duration;
+
+use tokio::sync::mpsc;
+use tokio::task::JoinHandle;
+
+use super::forecast::{forecast, MissionForecast};
+use super::plan::{GeoPoint, Plan};
+use super::protocol::{Event, MissionClient};
+use super::trajectory::{enu_of, fly, Conditions, Trajectory, Wind};
+use crate::model::PowerModel;
+use crate::report::MissionStatus;
+use crate::status::LinkHandle;
+use crate::source::TimedMessage;
+use crate::MavMessage;
+
+/// How often (source time) the re-forecast is published while nothing else changes, s.
+const PUBLISH_EVERY_S: f64 = 1.0;
+/// How often the download's timeouts are checked (live link), wall clock.
+const TICK: Duration = Duration::from_millis(250);
+/// Depth of the channel from the tap to the telemetry stage (the pipeline's stage depth).
+const TAP_DEPTH: usize = 1024;
+/// Depth of the status channel to the energy stage (at ~1 Hz: many minutes of lead).
+pub const STATUS_DEPTH: usize = 1024;
+
+/// What the live forecast needs, gathered from the configuration by the pipeline.
+pub struct LiveSetup {
+    /// `[forecast]`: kinematics and calibration.
+    pub forecast: super::ForecastConfig,
+    /// The power models the forecast runs (the calibration's model among them for the
+    /// fitted P50; else the first one's power, uncorrected, and a warning).
+    pub models: Vec<Box<dyn PowerModel>>,
+    /// Sample rate, Hz, and window length T of the models.
+    pub rate_hz: f64,
+    pub window: usize,
+    /// Payload, g, and commanded speed, m/s (`[mission]`).
+    pub payload_g: f64,
+    pub speed_m_s: Option<f64>,
+    /// Download over the link (a live link); else only overhear (a replay).
+    pub active: bool,
+    /// Ids dronewatt sends the protocol with (the MAVLink sink's).
+    pub system_id: u8,
+    pub component_id: u8,
+}
+
+/// A mission flown on paper.
+struct Flown {
+    plan: Plan,
+    seq_offset: u16,
+    items: u16,
+    traj: Trajectory,
+    forecast: MissionForecast,
+}
+
+/// The tap's state: the protocol client, the mission in hand, where the vehicle is.
+pub struct LiveMission {
+    setup: LiveSetup,
+    client: MissionClient,
+    flown: Option<Flown>,
+    home: Option<GeoPoint>,
+    /// GLOBAL_POSITION_INT: latitude, longitude (deg), height above home (m).
+    position: Option<(f64, f64, f64)>,
+    current_seq: Option<u16>,
+    last_sample: usize,
+    last_published: Option<(f64, u16)>,
+}
+
+impl LiveMission {
+    /// The state for a run.
+    pub fn new(setup: LiveSetup) -> Self {
+        let client = MissionClient::new(setup.active, setup.system_id, setup.component_id);
+        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_sample: 0, last_published: None }
+    }
+
+    /// The protocol client (its counters).
+    pub fn client(&self) -> &MissionClient {
+        &self.client
+    }
+
+    /// One message at `now_s` (the client's clock: wall time live, the message's time in a
+    /// replay) with its source time `t_s`. Frames to send go to `out`; a status to publish
+    /// is returned.
+    pub fn on_message(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionStatus> {
+        if let Some(ev) = self.client.on_message(now_s, &m.header, &m.msg, out) {
+            self.on_event(ev);
+            return self.status(m.t_s, true);
+        }
+        match &m.msg {
+            MavMessage::MISSION_CURRENT(c) => {
+                let changed = self.current_seq != Some(c.seq);
+                self.current_seq = Some(c.seq);
+                self.status(m.t_s, changed)
+            }
+            MavMessage::GLOBAL_POSITION_INT(p) if p.lat != 0 || p.lon != 0 => {
+                let (lat, lon) = (f64::from(p.lat) * 1e-7, f64::from(p.lon) * 1e-7);
+                if self.home.is_none() {
+                    self.home = Some(GeoPoint { lat_deg: lat, lon_deg: lon, alt_m: f64::from(p.alt) * 1e-3 - f64::from(p.relative_alt) * 1e-3 });
+                }
+                self.position = Some((lat, lon, f64::from(p.relative_alt) * 1e-3));
+                self.status(m.t_s, false)
+            }
+            MavMessage::HOME_POSITION(h) if h.latitude != 0 || h.longitude != 0 => {
+                self.home = Some(GeoPoint { lat_deg: f64::from(h.latitude) * 1e-7, lon_deg: f64::from(h.longitude) * 1e-7, alt_m: f64::from(h.altitude) * 1e-3 });
+                None
+            }
+            _ => None,
+        }
+    }
+
+    /// Timeouts of a download under way.
+    pub fn tick(&mut self, now_s: f64, out: &mut Vec<MavMessage>) {
+        if let Some(ev) = self.client.tick(now_s, out) {
+            self.on_event(ev);
+        }
+    }
+
+    fn on_event(&mut self, ev: Event) {
+        let m = match ev {
+            Event::Failed(why) => {
+                tracing::warn!("mission download failed ({why}); trying again later");
+                return;
+            }
+            Event::Mission(m) => m,
+        };
+        let source = format!("mission ({:?}, id {})", m.origin, m.mission_id).to_lowercase();
+        if m.items.is_empty() {
+            tracing::info!("{source}: the vehicle holds no mission");
+            self.flown = None;
+            return;
+        }
+        let (plan, seq_offset) = match Plan::from_mission(&source, &m, self.home) {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::warn!("{e}; no mission forecast");
+                self.flown = None;
+                return;
+            }
+        };
+        for i in plan.not_modelled() {
+            tracing::info!("{source}: item {} ({}): MAV_CMD {} not modelled (flown through: {})", i.index, i.origin, i.command, i.command < 100);
+        }
+        let s = &self.setup;
+        let cond = Conditions { wind: Wind::default(), payload_g: s.payload_g, speed_m_s: s.speed_m_s, rate_hz: s.rate_hz };
+        let traj = fly(&plan, &s.forecast.kinematics, &cond);
+        if traj.samples.is_empty() {
+            tracing::warn!("{source}: the mission flies nowhere (no take-off, no waypoint); no mission forecast");
+            self.flown = None;
+            return;
+        }
+        let f = forecast(&traj, &mut self.setup.models, &self.setup.forecast.calibration, self.setup.window, super::MODEL_STRIDE);
+        if f.model != self.setup.forecast.calibration.model {
+            tracing::warn!("mission forecast: model {:?} did not run; the P50 follows {:?} uncorrected", self.setup.forecast.calibration.model, f.model);
+        }
+        tracing::info!(
+            "{source}: {} items, {:.0} m, {:.0} s, {:.1} Wh (P50), {:.1} Wh (P90) with the return and landing",
+            m.items.len(),
+            f.distance_m,
+            f.duration_s,
+            f.energy_p50_wh,
+            f.energy_p90_wh
+        );
+        self.flown = Some(Flown { plan, seq_offset, items: u16::try_from(m.items.len()).unwrap_or(u16::MAX), traj, forecast: f });
+        self.last_sample = 0;
+        self.last_published = None;
+    }
+
+    /// The re-forecast at source time `t_s`; None when there is no mission or it was
+    /// published less than [`PUBLISH_EVERY_S`] ago (unless `now`).
+    fn status(&mut self, t_s: f64, now: bool) -> Option<MissionStatus> {
+        let fl = self.flown.as_ref()?;
+        let seq = self.current_seq.unwrap_or(fl.seq_offset);
+        if !now && self.last_published.is_some_and(|(t, s)| s == seq && t_s - t < PUBLISH_EVERY_S && t_s >= t) {
+            return None;
+        }
+        let k = locate(fl, seq, self.position);
+        self.last_sample = k;
+        self.last_published = Some((t_s, seq));
+        let r = fl.forecast.remaining_from(k, None, 0.0);
+        let n = fl.traj.samples.len().max(1);
+        Some(MissionStatus {
+            t_s,
+            current_seq: seq,
+            items: fl.items,
+            time_left_s: r.time_s,
+            energy_p50_wh: r.energy_p50_wh,
+            energy_p90_wh: r.energy_p90_wh,
+            progress_pct: 100.0 * (k + 1) as f64 / n as f64,
+        })
+    }
+}
+
+/// The trajectory sample the vehicle is at: among the legs of the item it flies to
+/// (MISSION_CURRENT), nearest its position; the item's first sample without a position;
+/// the end once past the last item.
+fn locate(fl: &Flown, seq: u16, position: Option<(f64, f64, f64)>) -> usize {
+    let n = fl.traj.samples.len();
+    let item = usize::from(seq.saturating_sub(fl.seq_offset));
+    if item >= fl.plan.items.len() {
+        return n.saturating_sub(1);
+    }
+    let from = fl.traj.first_sample_of_item(item).min(n.saturating_sub(1));
+    let to = fl.traj.first_sample_of_item(item + 1).max(from + 1);
+    match position {
+        Some((lat, lon, up)) => {
+            let (e, nn) = enu_of(&fl.plan.home, lat, lon);
+            fl.traj.locate(from, to - from, [e as f32, nn as f32, up as f32])
+        }
+        None => from,
+    }
+}
+
+/// Run the tap: every message from `msgs` on to the returned receiver, unchanged and in
+/// order; mission statuses to `statuses`; protocol frames out on `link` when active.
+pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: LinkHandle, statuses: mpsc::Sender<MissionStatus>) -> (mpsc::Receiver<TimedMessage>, JoinHandle<()>) {
+    let (tx, rx) = mpsc::channel(TAP_DEPTH);
+    let active = setup.active;
+    let (sys, comp) = (setup.system_id, setup.component_id);
+    let task = tokio::spawn(async move {
+        let mut live = LiveMission::new(setup);
+        let start = tokio::time::Instant::now();
+        let mut tick = tokio::time::interval(TICK);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut out = Vec::new();
+        let mut seq = 0u8;
+        loop {
+            tokio::select! {
+                m = msgs.recv() => {
+                    let Some(m) = m else { break };
+                    let now = if active { start.elapsed().as_secs_f64() } else { m.t_s };
+                    if let Some(s) = live.on_message(now, &m, &mut out) {
+                        if statuses.try_send(s).is_err() {
+                            tracing::debug!("mission status dropped (the energy stage is far behind)");
+                        }
+                    }
+                    if tx.send(m).await.is_err() {
+                        break;
+                    }
+                }
+                _ = tick.tick(), if active => live.tick(start.elapsed().as_secs_f64(), &mut out),
+            }
+            for msg in out.drain(..) {
+                let header = mavlink::MavHeader { system_id: sys.into(), component_id: comp, sequence: seq };
+                seq = seq.wrapping_add(1);
+                let mut buf = Vec::with_capacity(64);
+                // Writing into a Vec cannot fail.
+                let _ = mavlink::write_versioned_msg(&mut buf, mavlink::MavlinkVersion::V2, header, &msg);
+                if !link.try_send(buf) {
+                    tracing::debug!("mission protocol frame not sent (no link or link full)");
+                }
+            }
+        }
+        let st = live.client().stats;
+        tracing::debug!(downloads = st.downloads, resends = st.resends, failures = st.failures, "mission protocol");
+    });
+    (rx, task)
+}
