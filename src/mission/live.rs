@@ -169,10 +169,17 @@ impl LiveMission {
             self.flown = None;
             return;
         }
-        let f = forecast(&traj, &mut self.setup.models, &self.setup.forecast.calibration, self.setup.window, super::MODEL_STRIDE);
-        if f.model != self.setup.forecast.calibration.model {
-            tracing::warn!("mission forecast: model {:?} did not run; the P50 follows {:?} uncorrected", self.setup.forecast.calibration.model, f.model);
-        }
+        // The fitted correction belongs to its model: without that model, none (the P90
+        // ratio, the by-flight spread, still applies).
+        let fitted = &self.setup.forecast.calibration;
+        let cal = if self.setup.models.iter().any(|m| m.name() == fitted.model) {
+            fitted.clone()
+        } else {
+            let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
+            tracing::warn!("mission forecast: model {:?} does not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected", fitted.model);
+            super::forecast::Calibration { model: first, p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected() }
+        };
+        let f = forecast(&traj, &mut self.setup.models, &cal, self.setup.window, super::MODEL_STRIDE);
         tracing::info!(
             "{source}: {} items, {:.0} m, {:.0} s, {:.1} Wh (P50), {:.1} Wh (P90) with the return and landing",
             m.items.len(),

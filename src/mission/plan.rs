@@ -609,6 +609,39 @@ mod tests {
         assert!(e.contains("line 3") && e.contains("expected 12"), "{e}");
     }
 
+    #[test]
+    fn a_mission_list_with_ardupilots_home_item_becomes_a_plan_that_returns_home() {
+        let p = parse_waypoints(WPL, "t.waypoints").unwrap();
+        // round trip through the protocol's items (home first), minus its RTL
+        let mut items = p.to_mission_items();
+        assert_eq!(items.len(), p.items.len() + 1);
+        assert_eq!((items[0].lat_deg, items[0].alt_m, items[0].frame), (40.44, 300.0, 0));
+        items.pop();
+        let m = crate::mission::protocol::Mission { items, mission_id: 7, origin: crate::mission::protocol::Origin::Downloaded, home_is_item0: true };
+        let (back, offset) = Plan::from_mission("vehicle", &m, None).unwrap();
+        assert_eq!(offset, 1);
+        assert_eq!(back.home, p.home);
+        assert_eq!(back.items.len(), p.items.len(), "the RTL it lost is added back");
+        assert_eq!(back.items.last().unwrap().kind, ItemKind::ReturnToLaunch);
+        assert_eq!(back.items.last().unwrap().origin, "added: return and land");
+        for (a, b) in p.items.iter().zip(&back.items).take(p.items.len() - 1) {
+            assert_eq!(a.kind, b.kind, "{} vs {}", a.origin, b.origin);
+            let (pa, pb) = (a.position.map(|q| (q.lat_deg, q.lon_deg)), b.position.map(|q| (q.lat_deg, q.lon_deg)));
+            assert_eq!(pa, pb);
+        }
+        assert_eq!(back.not_modelled().len(), 1, "the DO_ command is kept and listed");
+        // a bad item names its seq; no home item and no home heard: an error
+        let mut bad = m.clone();
+        bad.items[3].lat_deg = 95.0;
+        let e = Plan::from_mission("vehicle", &bad, None).unwrap_err().to_string();
+        assert!(e.contains("item 2 (seq 3)") && e.contains("latitude 95"), "{e}");
+        let px4 = crate::mission::protocol::Mission { home_is_item0: false, ..m };
+        let e = Plan::from_mission("vehicle", &px4, None).unwrap_err().to_string();
+        assert!(e.contains("no home"), "{e}");
+        let (flown, offset) = Plan::from_mission("vehicle", &px4, Some(p.home)).unwrap();
+        assert_eq!((offset, flown.items[0].command), (0, 16), "without a home item, item 0 is flown");
+    }
+
     const PLAN: &str = r#"{
       "fileType": "Plan", "groundStation": "QGroundControl", "version": 1,
       "geoFence": {"circles": [], "polygons": [], "version": 2},
