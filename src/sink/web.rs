@@ -2,7 +2,8 @@
 //! drawn on a canvas, nothing fetched from anywhere else) that polls a JSON endpoint.
 //!
 //! - `GET /` — the page: measured power against every model, remaining energy and time to
-//!   empty, the home margin, and the alert log.
+//!   empty, the home margin, the mission (energy left, item, progress, margin) when one is
+//!   known, and the alert log.
 //! - `GET /api/state?since=N` — `{"seq", "models", "latest", "points", "alerts"}`: the
 //!   points with sequence number above `N` (so a poll sends only what is new), the last
 //!   report's numbers and the whole alert log.
@@ -159,6 +160,8 @@ struct Point {
     remaining_wh: Option<f64>,
     time_to_empty_s: Option<f64>,
     home_margin_wh: Option<f64>,
+    /// Remaining − rest of the mission − reserve, while a mission is known.
+    mission_margin_wh: Option<f64>,
 }
 
 #[derive(Debug, Default)]
@@ -217,6 +220,7 @@ impl Dash {
             remaining_wh: r.energy.remaining_wh,
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
+            mission_margin_wh: r.energy.mission_margin_wh,
         });
     }
 }
