@@ -177,16 +177,17 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
         let mut j = 0;
         while j < n {
             let end = (j + lag).min(n - 1);
-            let samples: Vec<_> = (0..t)
-                .map(|i| {
-                    let k = (end + i + 1).saturating_sub(t);
-                    let mut s = traj.samples[k].clone();
-                    if end + i + 1 < t {
+            let samples: Vec<_> = if end + 1 >= t {
+                traj.samples[end + 1 - t..=end].to_vec()
+            } else {
+                (0..t)
+                    .map(|i| {
+                        let mut s = traj.samples[(end + i + 1).saturating_sub(t)].clone();
                         s.t_s = (end as f64 + i as f64 + 1.0 - t as f64) * traj.dt_s;
-                    }
-                    s
-                })
-                .collect();
+                        s
+                    })
+                    .collect()
+            };
             windows.push(Window { samples });
             at.push(j);
             j += stride;
