@@ -38,6 +38,11 @@ use crate::MavMessage;
 
 /// How often (source time) the re-forecast is published while nothing else changes, s.
 const PUBLISH_EVERY_S: f64 = 1.0;
+/// The mission is flown on paper again when the live wind estimate differs from the wind
+/// it was flown in by more than this (vector difference, m/s) …
+const REFLY_WIND_M_S: f64 = 1.5;
+/// … at most this often (source time), s.
+const REFLY_EVERY_S: f64 = 30.0;
 /// How often the download's timeouts are checked (live link), wall clock.
 const TICK: Duration = Duration::from_millis(250);
 /// Depth of the channel from the tap to the telemetry stage (the pipeline's stage depth).
@@ -72,6 +77,9 @@ struct Flown {
     items: u16,
     traj: Trajectory,
     forecast: MissionForecast,
+    /// The wind it was flown in, and when (source time).
+    wind: Wind,
+    flown_at: f64,
 }
 
 /// The tap's state: the protocol client, the mission in hand, where the vehicle is.
@@ -85,13 +93,15 @@ pub struct LiveMission {
     current_seq: Option<u16>,
     last_sample: usize,
     last_published: Option<(f64, u16)>,
+    /// The autopilot's latest wind estimate (WIND, WIND_COV).
+    wind: Wind,
 }
 
 impl LiveMission {
     /// The state for a run.
     pub fn new(setup: LiveSetup) -> Self {
         let client = MissionClient::new(setup.active, setup.system_id, setup.component_id);
-        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_sample: 0, last_published: None }
+        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_sample: 0, last_published: None, wind: Wind::default() }
     }
 
     /// The protocol client (its counters).
@@ -104,7 +114,7 @@ impl LiveMission {
     /// is returned.
     pub fn on_message(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionStatus> {
         if let Some(ev) = self.client.on_message(now_s, &m.header, &m.msg, out) {
-            self.on_event(ev);
+            self.on_event(ev, m.t_s);
             return self.status(m.t_s, true);
         }
         match &m.msg {
@@ -121,6 +131,16 @@ impl LiveMission {
                 self.position = Some((lat, lon, f64::from(p.relative_alt) * 1e-3));
                 self.status(m.t_s, false)
             }
+            // ArduPilot: the bearing it blows from; PX4: the NED vector it blows toward.
+            MavMessage::WIND(w) if w.speed.is_finite() && w.direction.is_finite() => {
+                self.wind = Wind { speed_m_s: f64::from(w.speed).max(0.0), from_deg: f64::from(w.direction).rem_euclid(360.0) };
+                self.refly_in_wind(m.t_s)
+            }
+            MavMessage::WIND_COV(w) if w.wind_x.is_finite() && w.wind_y.is_finite() => {
+                let (n, e) = (f64::from(w.wind_x), f64::from(w.wind_y));
+                self.wind = Wind { speed_m_s: n.hypot(e), from_deg: (e.atan2(n).to_degrees() + 180.0).rem_euclid(360.0) };
+                self.refly_in_wind(m.t_s)
+            }
             MavMessage::HOME_POSITION(h) if h.latitude != 0 || h.longitude != 0 => {
                 self.home = Some(GeoPoint { lat_deg: f64::from(h.latitude) * 1e-7, lon_deg: f64::from(h.longitude) * 1e-7, alt_m: f64::from(h.altitude) * 1e-3 });
                 None
@@ -132,11 +152,58 @@ impl LiveMission {
     /// Timeouts of a download under way.
     pub fn tick(&mut self, now_s: f64, out: &mut Vec<MavMessage>) {
         if let Some(ev) = self.client.tick(now_s, out) {
-            self.on_event(ev);
+            let t = self.last_published.map_or(0.0, |p| p.0);
+            self.on_event(ev, t);
         }
     }
 
-    fn on_event(&mut self, ev: Event) {
+    /// Fly the mission in hand again when the wind estimate has moved away from the wind it
+    /// was flown in (see [`REFLY_WIND_M_S`]); the status after it, when it did.
+    fn refly_in_wind(&mut self, t_s: f64) -> Option<MissionStatus> {
+        let fl = self.flown.as_ref()?;
+        let (a, b) = (self.wind.velocity_enu(), fl.wind.velocity_enu());
+        if (a - b).norm() <= REFLY_WIND_M_S || t_s - fl.flown_at < REFLY_EVERY_S {
+            return None;
+        }
+        let (plan, seq_offset, items) = (fl.plan.clone(), fl.seq_offset, fl.items);
+        let source = plan.source.clone();
+        self.flown = self.fly(&source, plan, seq_offset, items, t_s);
+        self.status(t_s, true)
+    }
+
+    /// Fly `plan` on paper in the current wind and forecast it.
+    fn fly(&mut self, source: &str, plan: Plan, seq_offset: u16, items: u16, t_s: f64) -> Option<Flown> {
+        let s = &self.setup;
+        let cond = Conditions { wind: self.wind, payload_g: s.payload_g, speed_m_s: s.speed_m_s, rate_hz: s.rate_hz };
+        let traj = fly(&plan, &s.forecast.kinematics, &cond);
+        if traj.samples.is_empty() {
+            tracing::warn!("{source}: the mission flies nowhere (no take-off, no waypoint); no mission forecast");
+            return None;
+        }
+        // The fitted correction belongs to its model: without that model, none (the P90
+        // ratio, the by-flight spread, still applies).
+        let fitted = &self.setup.forecast.calibration;
+        let cal = if self.setup.models.iter().any(|m| m.name() == fitted.model) {
+            fitted.clone()
+        } else {
+            let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
+            tracing::warn!("mission forecast: model {:?} does not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected", fitted.model);
+            super::forecast::Calibration { model: first, p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected() }
+        };
+        let f = forecast(&traj, &mut self.setup.models, &cal, self.setup.window, super::MODEL_STRIDE);
+        tracing::info!(
+            "{source}: {items} items, {:.0} m, {:.0} s, {:.1} Wh (P50), {:.1} Wh (P90) with the return and landing, wind {:.1} m/s from {:.0}°",
+            f.distance_m,
+            f.duration_s,
+            f.energy_p50_wh,
+            f.energy_p90_wh,
+            self.wind.speed_m_s,
+            self.wind.from_deg
+        );
+        Some(Flown { plan, seq_offset, items, traj, forecast: f, wind: self.wind, flown_at: t_s })
+    }
+
+    fn on_event(&mut self, ev: Event, t_s: f64) {
         let m = match ev {
             Event::Failed(why) => {
                 tracing::warn!("mission download failed ({why}); trying again later");
@@ -161,34 +228,8 @@ impl LiveMission {
         for i in plan.not_modelled() {
             tracing::info!("{source}: item {} ({}): MAV_CMD {} not modelled (flown through: {})", i.index, i.origin, i.command, i.command < 100);
         }
-        let s = &self.setup;
-        let cond = Conditions { wind: Wind::default(), payload_g: s.payload_g, speed_m_s: s.speed_m_s, rate_hz: s.rate_hz };
-        let traj = fly(&plan, &s.forecast.kinematics, &cond);
-        if traj.samples.is_empty() {
-            tracing::warn!("{source}: the mission flies nowhere (no take-off, no waypoint); no mission forecast");
-            self.flown = None;
-            return;
-        }
-        // The fitted correction belongs to its model: without that model, none (the P90
-        // ratio, the by-flight spread, still applies).
-        let fitted = &self.setup.forecast.calibration;
-        let cal = if self.setup.models.iter().any(|m| m.name() == fitted.model) {
-            fitted.clone()
-        } else {
-            let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
-            tracing::warn!("mission forecast: model {:?} does not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected", fitted.model);
-            super::forecast::Calibration { model: first, p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected() }
-        };
-        let f = forecast(&traj, &mut self.setup.models, &cal, self.setup.window, super::MODEL_STRIDE);
-        tracing::info!(
-            "{source}: {} items, {:.0} m, {:.0} s, {:.1} Wh (P50), {:.1} Wh (P90) with the return and landing",
-            m.items.len(),
-            f.distance_m,
-            f.duration_s,
-            f.energy_p50_wh,
-            f.energy_p90_wh
-        );
-        self.flown = Some(Flown { plan, seq_offset, items: u16::try_from(m.items.len()).unwrap_or(u16::MAX), traj, forecast: f });
+        let items = u16::try_from(m.items.len()).unwrap_or(u16::MAX);
+        self.flown = self.fly(&source, plan, seq_offset, items, t_s);
         self.last_sample = 0;
         self.last_published = None;
     }
@@ -282,4 +323,88 @@ pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: Lin
         tracing::debug!(downloads = st.downloads, resends = st.resends, failures = st.failures, "mission protocol");
     });
     (rx, task)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dialect as d;
+    use crate::mission::plan::GeoPoint;
+
+    fn msg(t_s: f64, msg: MavMessage) -> TimedMessage {
+        TimedMessage { t_s, header: mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 }, msg }
+    }
+
+    fn live() -> LiveMission {
+        LiveMission::new(LiveSetup {
+            forecast: Default::default(),
+            models: crate::model::physics::models(&crate::model::profile::VehicleProfile::m100()),
+            rate_hz: 10.0,
+            window: 10,
+            payload_g: 0.0,
+            speed_m_s: None,
+            active: false,
+            system_id: 1,
+            component_id: 191,
+        })
+    }
+
+    /// Feed a logged download of an out-and-back (1 km north) into `l`; the status after it.
+    fn download(l: &mut LiveMission) -> Option<MissionStatus> {
+        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
+        let wp = GeoPoint { lat_deg: 40.0 + 1000.0 / 111_320.0, lon_deg: -80.0, alt_m: 25.0 };
+        let items = Plan::from_waypoints("t", home, &[wp], 10.0).to_mission_items();
+        let mut out = Vec::new();
+        let hb = MavMessage::HEARTBEAT(d::HEARTBEAT_DATA { autopilot: d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA, ..Default::default() });
+        l.on_message(0.0, &msg(0.0, hb), &mut out);
+        l.on_message(0.0, &msg(0.0, MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA { count: items.len() as u16, ..Default::default() })), &mut out);
+        let mut last = None;
+        for it in &items {
+            let m = MavMessage::MISSION_ITEM_INT(d::MISSION_ITEM_INT_DATA {
+                seq: it.seq,
+                command: num_traits::FromPrimitive::from_u32(it.command).unwrap(),
+                frame: num_traits::FromPrimitive::from_u32(it.frame).unwrap(),
+                param2: it.params[1] as f32,
+                x: (it.lat_deg * 1e7) as i32,
+                y: (it.lon_deg * 1e7) as i32,
+                z: it.alt_m as f32,
+                ..Default::default()
+            });
+            last = l.on_message(0.0, &msg(0.0, m), &mut out);
+        }
+        assert!(out.is_empty(), "a replay sends nothing");
+        last
+    }
+
+    #[test]
+    fn a_logged_mission_is_forecast_located_and_flown_again_when_the_wind_changes() {
+        let mut l = live();
+        let start = download(&mut l).expect("a status once the mission is whole");
+        assert_eq!(start.items, 5, "home, speed, take-off, waypoint, RTL");
+        assert!(start.energy_p50_wh > 5.0 && start.progress_pct < 1.0, "{start:?}");
+        // Flying to the waypoint (seq 3), half way out: a quarter of the way, ~3/4 left.
+        let mut out = Vec::new();
+        let cur = |t, seq| msg(t, MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA { seq, ..Default::default() }));
+        l.on_message(1.0, &cur(1.0, 3), &mut out);
+        let pos = MavMessage::GLOBAL_POSITION_INT(d::GLOBAL_POSITION_INT_DATA {
+            lat: ((40.0 + 500.0 / 111_320.0) * 1e7) as i32,
+            lon: (-80.0 * 1e7) as i32,
+            relative_alt: 25_000,
+            ..Default::default()
+        });
+        let half = l.on_message(2.0, &msg(2.0, pos), &mut out).expect("a status a second later");
+        let share = half.energy_p50_wh / start.energy_p50_wh;
+        assert!((0.65..0.85).contains(&share) && (20.0..32.0).contains(&half.progress_pct), "half way out, {share} of the energy left: {half:?}");
+        assert_eq!(half.current_seq, 3);
+        // A wind estimate 8 m/s from the north: too early to fly again at 10 s, done at 40 s.
+        let wind = |t| msg(t, MavMessage::WIND(d::WIND_DATA { direction: 0.0, speed: 8.0, speed_z: 0.0 }));
+        assert_eq!(l.on_message(10.0, &wind(10.0), &mut out), None);
+        let windy = l.on_message(40.0, &wind(40.0), &mut out).expect("flown again in the wind");
+        // (which way depends on the model: D'Andrea's induced power falls with airspeed)
+        let change = windy.energy_p50_wh / half.energy_p50_wh - 1.0;
+        assert!(change.abs() > 0.02, "the forecast moved with the wind: {windy:?} vs {half:?}");
+        // Past the last item: nothing left.
+        let done = l.on_message(50.0, &cur(50.0, 9), &mut out).unwrap();
+        assert!(done.energy_p50_wh < 0.01 * start.energy_p50_wh, "{done:?}");
+    }
 }
