@@ -207,7 +207,7 @@ impl SimulateArgs {
         let (route, mission) = match &self.plan {
             Some(path) => {
                 let plan = dronewatt::mission::plan::Plan::load(path)?;
-                let (route, mission) = sim::SimMission::from_plan(&plan, self.speed_mps).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                let (route, mission) = sim::SimMission::from_plan(&plan, self.speed_mps, self.autopilot).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
                 (route, Some(mission))
             }
             None => {

@@ -100,7 +100,7 @@ fn a_battery_too_small_for_the_plan_raises_mission_margin_below_before_the_point
     // The same flight in-process, for the truth (the simulator is deterministic: the CLI's
     // tlog is byte for byte this one's).
     let plan = dronewatt::mission::plan::Plan::load(&plan_path).unwrap();
-    let (route, mission) = SimMission::from_plan(&plan, 10.0).unwrap();
+    let (route, mission) = SimMission::from_plan(&plan, 10.0, sim::Autopilot::Ardupilot).unwrap();
     let opts = SimOptions { route, mission: Some(mission), wind_mps: 0.0, payload_g: 500.0, ..Default::default() };
     let flight = sim::simulate(&opts).unwrap();
     let again = dir.path().join("again.tlog");
@@ -131,4 +131,30 @@ fn a_battery_too_small_for_the_plan_raises_mission_margin_below_before_the_point
     let (alerts, margins) = replay(&tlog, big);
     assert!(margins.iter().all(|m| *m > 0.0) && !margins.is_empty(), "positive margin throughout");
     assert!(alerts.is_empty(), "{alerts:?}");
+}
+
+#[test]
+fn a_px4_log_without_a_home_item_is_forecast_like_the_ardupilot_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan_path = dir.path().join("out-and-back.waypoints");
+    std::fs::write(&plan_path, PLAN).unwrap();
+    let mut first = Vec::new();
+    for ap in ["ardupilot", "px4"] {
+        let tlog = dir.path().join(format!("{ap}.tlog"));
+        let out = bin()
+            .arg("simulate")
+            .arg("--plan")
+            .arg(&plan_path)
+            .args(["--wind-mps", "0", "--autopilot", ap, "--out"])
+            .arg(&tlog)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "simulate --plan --autopilot {ap}: {}", String::from_utf8_lossy(&out.stderr));
+        let (alerts, margins) = replay(&tlog, 200.0);
+        assert!(alerts.is_empty(), "{ap}: {alerts:?}");
+        assert!(margins.len() > 100, "{ap}: the mission was forecast ({} estimates with it)", margins.len());
+        first.push(margins[margins.len() / 2]);
+    }
+    // The same mission at the same point of the flight: the same margin within 1.5 Wh.
+    assert!((first[0] - first[1]).abs() < 1.5, "ArduPilot vs PX4 margin half way: {first:?}");
 }

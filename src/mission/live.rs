@@ -95,13 +95,15 @@ pub struct LiveMission {
     last_published: Option<(f64, u16)>,
     /// The autopilot's latest wind estimate (WIND, WIND_COV).
     wind: Wind,
+    /// A mission heard before any home (PX4: no home item), flown once a home is known.
+    waiting_for_home: Option<super::protocol::Mission>,
 }
 
 impl LiveMission {
     /// The state for a run.
     pub fn new(setup: LiveSetup) -> Self {
         let client = MissionClient::new(setup.active, setup.system_id, setup.component_id);
-        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_sample: 0, last_published: None, wind: Wind::default() }
+        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_sample: 0, last_published: None, wind: Wind::default(), waiting_for_home: None }
     }
 
     /// The protocol client (its counters).
@@ -129,6 +131,10 @@ impl LiveMission {
                     self.home = Some(GeoPoint { lat_deg: lat, lon_deg: lon, alt_m: f64::from(p.alt) * 1e-3 - f64::from(p.relative_alt) * 1e-3 });
                 }
                 self.position = Some((lat, lon, f64::from(p.relative_alt) * 1e-3));
+                if let Some(waiting) = self.waiting_for_home.take() {
+                    self.on_event(Event::Mission(waiting), m.t_s);
+                    return self.status(m.t_s, true);
+                }
                 self.status(m.t_s, false)
             }
             // ArduPilot: the bearing it blows from; PX4: the NED vector it blows toward.
@@ -143,7 +149,9 @@ impl LiveMission {
             }
             MavMessage::HOME_POSITION(h) if h.latitude != 0 || h.longitude != 0 => {
                 self.home = Some(GeoPoint { lat_deg: f64::from(h.latitude) * 1e-7, lon_deg: f64::from(h.longitude) * 1e-7, alt_m: f64::from(h.altitude) * 1e-3 });
-                None
+                let waiting = self.waiting_for_home.take()?;
+                self.on_event(Event::Mission(waiting), m.t_s);
+                self.status(m.t_s, true)
             }
             _ => None,
         }
@@ -214,6 +222,12 @@ impl LiveMission {
         let source = format!("mission ({:?}, id {})", m.origin, m.mission_id).to_lowercase();
         if m.items.is_empty() {
             tracing::info!("{source}: the vehicle holds no mission");
+            self.flown = None;
+            return;
+        }
+        if !m.home_is_item0 && self.home.is_none() {
+            tracing::debug!("{source}: no home yet; flown once HOME_POSITION or a position is heard");
+            self.waiting_for_home = Some(m);
             self.flown = None;
             return;
         }

@@ -231,7 +231,9 @@ impl Emitter {
                 }
             }
             if (Every { period_ms: 1000, offset_ms: 0 }).due(t_ms) {
-                let total = u16::try_from(m.items.len().saturating_sub(1)).unwrap_or(u16::MAX);
+                // total: the items after ArduPilot's home item; PX4 has none
+                let home_item = usize::from(m.items.first().is_some_and(|i| i.command == 16 && i.frame == 0));
+                let total = u16::try_from(m.items.len() - home_item).unwrap_or(u16::MAX);
                 self.push(t_ms, MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA { seq: m.current_seq(phase), total, ..Default::default() }));
             }
         }

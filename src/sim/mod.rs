@@ -82,7 +82,7 @@ pub struct SimOptions {
 /// A mission as the simulated autopilot holds it, and which item each phase flies.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimMission {
-    /// The items, ArduPilot's layout (item 0 home), positions around [`HOME`].
+    /// The items (ArduPilot's layout with item 0 home, PX4's without), positions around [`HOME`].
     pub items: Vec<crate::mission::protocol::MissionItem>,
     /// Mission `seq` per route waypoint.
     pub waypoint_seq: Vec<u16>,
@@ -102,13 +102,22 @@ impl SimMission {
     }
 
     /// A plan flown by the simulator: the plan moved to [`HOME`] (offsets kept), its route
-    /// at `speed_mps` unless the plan says otherwise, and its items as ArduPilot holds them.
-    pub fn from_plan(plan: &crate::mission::plan::Plan, speed_mps: f64) -> Result<(Route, SimMission), InvalidOption> {
+    /// at `speed_mps` unless the plan says otherwise, and its items as the autopilot holds
+    /// them (ArduPilot: item 0 is home; PX4: no home item).
+    pub fn from_plan(plan: &crate::mission::plan::Plan, speed_mps: f64, autopilot: Autopilot) -> Result<(Route, SimMission), InvalidOption> {
         let plan = plan.relocated(crate::mission::plan::GeoPoint { lat_deg: HOME.lat_deg, lon_deg: HOME.lon_deg, alt_m: HOME.alt_amsl_m });
         let pr = Route::from_plan(&plan, speed_mps)?;
-        let seq = |i: usize| u16::try_from(i + 1).unwrap_or(u16::MAX);
+        let home_item = usize::from(autopilot == Autopilot::Ardupilot);
+        let seq = |i: usize| u16::try_from(i + home_item).unwrap_or(u16::MAX);
+        let mut items = plan.to_mission_items();
+        if home_item == 0 {
+            items.remove(0);
+            for (i, it) in items.iter_mut().enumerate() {
+                it.seq = u16::try_from(i).unwrap_or(u16::MAX);
+            }
+        }
         let mission = SimMission {
-            items: plan.to_mission_items(),
+            items,
             waypoint_seq: pr.waypoint_items.iter().map(|&i| seq(i)).collect(),
             takeoff_seq: seq(pr.takeoff_item),
             end_seq: seq(pr.end_item),
