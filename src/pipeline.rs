@@ -29,7 +29,7 @@ use crate::alert::AlertEngine;
 use crate::config::Config;
 use crate::energy::EnergyTracker;
 use crate::model::Ensemble;
-use crate::report::{EnergyState, Estimate, MissionStatus, Report};
+use crate::report::{EnergyState, Estimate, MissionUpdate, Report};
 use crate::sink::mavlink::MavlinkSinkConfig;
 use crate::sink::{Fanout, SinkSpec};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
@@ -152,7 +152,7 @@ pub struct VehicleChain {
     pub alerts: AlertEngine,
     /// The live mission forecast's statuses, in source-time order (`crate::mission::live`),
     /// when a mission tap runs.
-    pub mission: Option<mpsc::Receiver<MissionStatus>>,
+    pub mission: Option<mpsc::Receiver<MissionUpdate>>,
 }
 
 /// The running stages of one [`VehicleChain`].
@@ -288,7 +288,7 @@ async fn energy_stage(
     mut energy: EnergyTracker,
     mut alerts: AlertEngine,
     mut estimates: mpsc::Receiver<Estimate>,
-    mut mission: Option<mpsc::Receiver<MissionStatus>>,
+    mut mission: Option<mpsc::Receiver<MissionUpdate>>,
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
@@ -299,7 +299,7 @@ async fn energy_stage(
     };
     // The last real estimate, its energy, and when it came: the base of a silent tick.
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
-    let mut next_mission: Option<MissionStatus> = None;
+    let mut next_mission: Option<MissionUpdate> = None;
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
@@ -332,14 +332,14 @@ async fn energy_stage(
 
 /// The mission statuses due by source time `t_s` into the energy tracker (the latest one
 /// wins): the tap runs ahead of the estimates, so each status waits for its time.
-fn take_mission(energy: &mut EnergyTracker, rx: &mut Option<mpsc::Receiver<MissionStatus>>, next: &mut Option<MissionStatus>, t_s: f64) {
+fn take_mission(energy: &mut EnergyTracker, rx: &mut Option<mpsc::Receiver<MissionUpdate>>, next: &mut Option<MissionUpdate>, t_s: f64) {
     let Some(rx) = rx else { return };
     loop {
         if next.is_none() {
             *next = rx.try_recv().ok();
         }
         match next.take() {
-            Some(m) if m.t_s <= t_s => energy.set_mission(Some(m)),
+            Some(m) if m.t_s <= t_s => energy.set_mission(m.status),
             other => {
                 *next = other;
                 return;

@@ -129,6 +129,14 @@ pub struct EnergyState {
     pub mission: Option<MissionStatus>,
 }
 
+/// What the mission task hands the energy stage, in source-time order: from `t_s` on, this
+/// status, or none (the mission was cleared, or cannot be forecast).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MissionUpdate {
+    pub t_s: f64,
+    pub status: Option<MissionStatus>,
+}
+
 /// The live mission forecast at one moment: what the mission task
 /// (`crate::mission::live`) hands the energy stage, in source-time order.
 #[derive(Debug, Clone, PartialEq, Serialize)]

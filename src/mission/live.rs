@@ -31,7 +31,7 @@ use super::plan::{GeoPoint, Plan};
 use super::protocol::{Event, MissionClient};
 use super::trajectory::{enu_of, fly, Conditions, Trajectory, Wind};
 use crate::model::PowerModel;
-use crate::report::MissionStatus;
+use crate::report::{MissionStatus, MissionUpdate};
 use crate::status::LinkHandle;
 use crate::source::TimedMessage;
 use crate::MavMessage;
@@ -91,7 +91,6 @@ pub struct LiveMission {
     /// GLOBAL_POSITION_INT: latitude, longitude (deg), height above home (m).
     position: Option<(f64, f64, f64)>,
     current_seq: Option<u16>,
-    last_sample: usize,
     last_published: Option<(f64, u16)>,
     /// The autopilot's latest wind estimate (WIND, WIND_COV).
     wind: Wind,
@@ -103,7 +102,7 @@ impl LiveMission {
     /// The state for a run.
     pub fn new(setup: LiveSetup) -> Self {
         let client = MissionClient::new(setup.active, setup.system_id, setup.component_id);
-        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_sample: 0, last_published: None, wind: Wind::default(), waiting_for_home: None }
+        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_published: None, wind: Wind::default(), waiting_for_home: None }
     }
 
     /// The protocol client (its counters).
@@ -112,9 +111,18 @@ impl LiveMission {
     }
 
     /// One message at `now_s` (the client's clock: wall time live, the message's time in a
-    /// replay) with its source time `t_s`. Frames to send go to `out`; a status to publish
-    /// is returned.
-    pub fn on_message(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionStatus> {
+    /// replay) with its source time `t_s`. Frames to send go to `out`; an update to publish
+    /// is returned (a status, or none when the mission in hand went away).
+    pub fn on_message(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionUpdate> {
+        let had = self.flown.is_some();
+        match self.step(now_s, m, out) {
+            Some(s) => Some(MissionUpdate { t_s: s.t_s, status: Some(s) }),
+            None if had && self.flown.is_none() => Some(MissionUpdate { t_s: m.t_s, status: None }),
+            None => None,
+        }
+    }
+
+    fn step(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionStatus> {
         if let Some(ev) = self.client.on_message(now_s, &m.header, &m.msg, out) {
             self.on_event(ev, m.t_s);
             return self.status(m.t_s, true);
@@ -244,7 +252,6 @@ impl LiveMission {
         }
         let items = u16::try_from(m.items.len()).unwrap_or(u16::MAX);
         self.flown = self.fly(&source, plan, seq_offset, items, t_s);
-        self.last_sample = 0;
         self.last_published = None;
     }
 
@@ -257,7 +264,6 @@ impl LiveMission {
             return None;
         }
         let k = locate(fl, seq, self.position);
-        self.last_sample = k;
         self.last_published = Some((t_s, seq));
         let r = fl.forecast.remaining_from(k, None, 0.0);
         let n = fl.traj.samples.len().max(1);
@@ -295,7 +301,7 @@ fn locate(fl: &Flown, seq: u16, position: Option<(f64, f64, f64)>) -> usize {
 
 /// Run the tap: every message from `msgs` on to the returned receiver, unchanged and in
 /// order; mission statuses to `statuses`; protocol frames out on `link` when active.
-pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: LinkHandle, statuses: mpsc::Sender<MissionStatus>) -> (mpsc::Receiver<TimedMessage>, JoinHandle<()>) {
+pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: LinkHandle, statuses: mpsc::Sender<MissionUpdate>) -> (mpsc::Receiver<TimedMessage>, JoinHandle<()>) {
     let (tx, rx) = mpsc::channel(TAP_DEPTH);
     let active = setup.active;
     let (sys, comp) = (setup.system_id, setup.component_id);
@@ -364,7 +370,7 @@ mod tests {
     }
 
     /// Feed a logged download of an out-and-back (1 km north) into `l`; the status after it.
-    fn download(l: &mut LiveMission) -> Option<MissionStatus> {
+    fn download(l: &mut LiveMission) -> Option<MissionUpdate> {
         let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
         let wp = GeoPoint { lat_deg: 40.0 + 1000.0 / 111_320.0, lon_deg: -80.0, alt_m: 25.0 };
         let items = Plan::from_waypoints("t", home, &[wp], 10.0).to_mission_items();
@@ -393,7 +399,7 @@ mod tests {
     #[test]
     fn a_logged_mission_is_forecast_located_and_flown_again_when_the_wind_changes() {
         let mut l = live();
-        let start = download(&mut l).expect("a status once the mission is whole");
+        let start = download(&mut l).and_then(|u| u.status).expect("a status once the mission is whole");
         assert_eq!(start.items, 5, "home, speed, take-off, waypoint, RTL");
         assert!(start.energy_p50_wh > 5.0 && start.progress_pct < 1.0, "{start:?}");
         // Flying to the waypoint (seq 3), half way out: a quarter of the way, ~3/4 left.
@@ -406,19 +412,22 @@ mod tests {
             relative_alt: 25_000,
             ..Default::default()
         });
-        let half = l.on_message(2.0, &msg(2.0, pos), &mut out).expect("a status a second later");
+        let half = l.on_message(2.0, &msg(2.0, pos), &mut out).and_then(|u| u.status).expect("a status a second later");
         let share = half.energy_p50_wh / start.energy_p50_wh;
         assert!((0.65..0.85).contains(&share) && (20.0..32.0).contains(&half.progress_pct), "half way out, {share} of the energy left: {half:?}");
         assert_eq!(half.current_seq, 3);
         // A wind estimate 8 m/s from the north: too early to fly again at 10 s, done at 40 s.
         let wind = |t| msg(t, MavMessage::WIND(d::WIND_DATA { direction: 0.0, speed: 8.0, speed_z: 0.0 }));
         assert_eq!(l.on_message(10.0, &wind(10.0), &mut out), None);
-        let windy = l.on_message(40.0, &wind(40.0), &mut out).expect("flown again in the wind");
+        let windy = l.on_message(40.0, &wind(40.0), &mut out).and_then(|u| u.status).expect("flown again in the wind");
         // (which way depends on the model: D'Andrea's induced power falls with airspeed)
         let change = windy.energy_p50_wh / half.energy_p50_wh - 1.0;
         assert!(change.abs() > 0.02, "the forecast moved with the wind: {windy:?} vs {half:?}");
         // Past the last item: nothing left.
-        let done = l.on_message(50.0, &cur(50.0, 9), &mut out).unwrap();
+        let done = l.on_message(50.0, &cur(50.0, 9), &mut out).and_then(|u| u.status).unwrap();
         assert!(done.energy_p50_wh < 0.01 * start.energy_p50_wh, "{done:?}");
+        // The vehicle's mission cleared (a new, empty list overheard): the update says none.
+        let cleared = l.on_message(51.0, &msg(51.0, MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA { count: 0, ..Default::default() })), &mut out);
+        assert_eq!(cleared, Some(MissionUpdate { t_s: 51.0, status: None }));
     }
 }

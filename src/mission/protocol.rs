@@ -194,6 +194,11 @@ impl MissionClient {
                     return None;
                 }
                 if !self.busy() {
+                    if c.count == 0 {
+                        // an empty list overheard: the mission was cleared
+                        self.overheard = None;
+                        return Some(self.finish(Vec::new(), Origin::Overheard));
+                    }
                     self.overheard = Some(vec![None; usize::from(c.count)]);
                 }
                 None
