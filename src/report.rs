@@ -155,6 +155,19 @@ pub struct MissionStatus {
     pub energy_p90_wh: f64,
     /// How far along the planned trajectory, % of its time.
     pub progress_pct: f64,
+    /// The planned route, east/north of home (m), at most [`MissionStatus::ROUTE_POINTS`]
+    /// points (shared: one allocation per mission flown, not per status). Not serialised
+    /// with the energy (the dashboard sends it on its own).
+    #[serde(skip)]
+    pub route_en_m: std::sync::Arc<Vec<[f32; 2]>>,
+    /// Index into `route_en_m` nearest where the vehicle is.
+    #[serde(skip)]
+    pub route_at: usize,
+}
+
+impl MissionStatus {
+    /// Most points of [`MissionStatus::route_en_m`].
+    pub const ROUTE_POINTS: usize = 400;
 }
 
 /// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML

@@ -80,6 +80,9 @@ struct Flown {
     /// The wind it was flown in, and when (source time).
     wind: Wind,
     flown_at: f64,
+    /// The route for a map: every `route_stride`-th trajectory point, east/north.
+    route: std::sync::Arc<Vec<[f32; 2]>>,
+    route_stride: usize,
 }
 
 /// The tap's state: the protocol client, the mission in hand, where the vehicle is.
@@ -216,7 +219,9 @@ impl LiveMission {
             self.wind.speed_m_s,
             self.wind.from_deg
         );
-        Some(Flown { plan, seq_offset, items, traj, forecast: f, wind: self.wind, flown_at: t_s })
+        let route_stride = traj.enu_m.len().div_ceil(MissionStatus::ROUTE_POINTS).max(1);
+        let route = std::sync::Arc::new(traj.enu_m.iter().step_by(route_stride).map(|p| [p[0], p[1]]).collect());
+        Some(Flown { plan, seq_offset, items, traj, forecast: f, wind: self.wind, flown_at: t_s, route, route_stride })
     }
 
     fn on_event(&mut self, ev: Event, t_s: f64) {
@@ -275,6 +280,8 @@ impl LiveMission {
             energy_p50_wh: r.energy_p50_wh,
             energy_p90_wh: r.energy_p90_wh,
             progress_pct: 100.0 * (k + 1) as f64 / n as f64,
+            route_en_m: fl.route.clone(),
+            route_at: k / fl.route_stride,
         })
     }
 }
