@@ -201,15 +201,18 @@ impl LiveMission {
         }
         // The fitted correction belongs to its model: without that model, none (the P90
         // ratio, the by-flight spread, still applies).
+        // Only the P50's model runs: live, nothing reads the others.
         let fitted = &self.setup.forecast.calibration;
-        let cal = if self.setup.models.iter().any(|m| m.name() == fitted.model) {
-            fitted.clone()
-        } else {
-            let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
-            tracing::warn!("mission forecast: model {:?} does not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected", fitted.model);
-            super::forecast::Calibration { model: first, p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected() }
+        let (i, cal) = match self.setup.models.iter().position(|m| m.name() == fitted.model) {
+            Some(i) => (i, fitted.clone()),
+            None => {
+                let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
+                tracing::warn!("mission forecast: model {:?} does not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected", fitted.model);
+                (0, super::forecast::Calibration { model: first, p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected() })
+            }
         };
-        let f = forecast(&traj, &mut self.setup.models, &cal, self.setup.window, super::MODEL_STRIDE);
+        let model = self.setup.models.get_mut(i..=i).unwrap_or_default();
+        let f = forecast(&traj, model, &cal, self.setup.window, super::MODEL_STRIDE);
         tracing::info!(
             "{source}: {items} items, {:.0} m, {:.0} s, {:.1} Wh (P50), {:.1} Wh (P90) with the return and landing, wind {:.1} m/s from {:.0}°",
             f.distance_m,
