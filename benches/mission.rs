@@ -42,6 +42,11 @@ fn bench(c: &mut Criterion) {
             forecast(&tr, &mut models, &cal, 10, dronewatt::mission::MODEL_STRIDE).energy_p50_wh
         })
     });
+    // The two halves apart: where the time goes.
+    c.bench_function("mission: 500-waypoint plan, fly only", |b| b.iter(|| fly(black_box(&plan), &k, &cond).samples.len()));
+    c.bench_function("mission: 500-waypoint plan, forecast only", |b| {
+        b.iter(|| forecast(black_box(&tr), &mut models, &cal, 10, dronewatt::mission::MODEL_STRIDE).energy_p50_wh)
+    });
     let f = forecast(&tr, &mut models, &cal, 10, dronewatt::mission::MODEL_STRIDE);
     let item = 300;
     let pos = tr.enu_m[tr.first_sample_of_item(item) + 40];

@@ -17,6 +17,7 @@
 //! | `remaining_below` | `below_wh` or `below_pct` | `clear_wh` / `clear_pct` | remaining energy |
 //! | `time_to_empty_below` | `below_s` | `clear_s` | time to empty at the forecast power |
 //! | `home_margin_below` | `below_wh` | `clear_wh` | remaining − energy home − reserve |
+//! | `mission_margin_below` | `below_wh` | `clear_wh` | remaining − energy of the rest of the mission, its return and landing − reserve (needs a mission: downloaded on the live link or logged in a replayed `.tlog`) |
 //! | `power_above` | `above_w` | `clear_w` | measured power |
 //! | `deviation_above` | `above_w`, optional `model` | `clear_w` | \|measured − predicted\| (a damaged propeller, a heavy payload) |
 //! | `models_disagree` | `above_w` | `clear_w` | spread (max − min) of the models' predictions |
@@ -49,6 +50,9 @@ pub enum AlertKind {
     TimeToEmptyBelow { below_s: f64, clear_s: Option<f64> },
     /// Remaining − energy to get home − reserve under `below_wh`.
     HomeMarginBelow { below_wh: f64, clear_wh: Option<f64> },
+    /// Remaining − energy of the rest of the mission, the return and the landing − reserve
+    /// under `below_wh`: "mission cannot finish with reserve — return now".
+    MissionMarginBelow { below_wh: f64, clear_wh: Option<f64> },
     /// Measured electrical power over `above_w`.
     PowerAbove { above_w: f64, clear_w: Option<f64> },
     /// |measured − predicted| over `above_w`, predicted by `model` (default `lstm`, else the
@@ -158,6 +162,7 @@ impl AlertRule {
             },
             K::TimeToEmptyBelow { below_s, clear_s } => lv(Dir::Below, *below_s, *clear_s, "s", "below_s"),
             K::HomeMarginBelow { below_wh, clear_wh } => lv(Dir::Below, *below_wh, *clear_wh, "Wh", "below_wh"),
+            K::MissionMarginBelow { below_wh, clear_wh } => lv(Dir::Below, *below_wh, *clear_wh, "Wh", "below_wh"),
             K::PowerAbove { above_w, clear_w } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
             K::DeviationAbove { above_w, clear_w, .. } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
             K::ModelsDisagree { above_w, clear_w } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
@@ -205,6 +210,7 @@ impl AlertRule {
             AlertKind::RemainingBelow { .. } => "remaining energy",
             AlertKind::TimeToEmptyBelow { .. } => "time to empty",
             AlertKind::HomeMarginBelow { .. } => "home-reserve margin",
+            AlertKind::MissionMarginBelow { .. } => "mission-reserve margin",
             AlertKind::PowerAbove { .. } => "measured power",
             AlertKind::DeviationAbove { .. } => "|measured − predicted|",
             AlertKind::ModelsDisagree { .. } => "model spread",
@@ -258,6 +264,7 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
         K::RemainingBelow { .. } => en.remaining_pct,
         K::TimeToEmptyBelow { .. } => en.time_to_empty_s,
         K::HomeMarginBelow { .. } => en.home_margin_wh,
+        K::MissionMarginBelow { .. } => en.mission_margin_wh,
         K::PowerAbove { .. } => measured,
         K::DeviationAbove { model, .. } => {
             let m = match model {

@@ -52,7 +52,7 @@ impl Config {
             }
         }
         let dir = path.parent().unwrap_or(Path::new(""));
-        for p in [cfg.link.signing_key_file.as_mut(), cfg.sinks.web.token_file.as_mut()].into_iter().flatten() {
+        for p in [cfg.link.signing_key_file.as_mut(), cfg.sinks.web.token_file.as_mut(), cfg.forecast.live.calibrated_profile.as_mut()].into_iter().flatten() {
             if p.is_relative() {
                 *p = dir.join(&*p);
             }

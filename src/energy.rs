@@ -24,6 +24,9 @@
 //!   smoothed forecast power while it moved slower (else `P_cruise`): descending and landing
 //!   cost about what hovering does on a multirotor.
 //! - **home margin** `E_rem − E_home − E_reserve`, `E_reserve = reserve_pct/100 · E_cap`.
+//! - **mission margin** `E_rem − E_mission − E_reserve`, `E_mission` the live mission
+//!   forecast's P50 energy for the rest of the mission, the return and the landing
+//!   ([`crate::mission::live`], set with [`EnergyTracker::set_mission`]).
 
 use crate::features::idx;
 pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
@@ -127,9 +130,15 @@ pub struct EnergyTracker {
     forecast: Ema,
     cruise: Ema,
     hover: Ema,
+    mission: Option<crate::report::MissionStatus>,
 }
 
 impl EnergyTracker {
+    /// The live mission forecast the next updates account with (None: no mission known).
+    pub fn set_mission(&mut self, m: Option<crate::report::MissionStatus>) {
+        self.mission = m;
+    }
+
     /// A tracker for this configuration's battery and reserve.
     /// `mission_speed_m_s` is the mission's commanded speed (`[mission] speed_m_s`), the
     /// default cruise speed home.
@@ -148,6 +157,7 @@ impl EnergyTracker {
             forecast: Ema::default(),
             cruise: Ema::default(),
             hover: Ema::default(),
+            mission: None,
         })
     }
 
@@ -241,6 +251,9 @@ impl EnergyTracker {
                 .map(f64::from)
                 .filter(|v| v.is_finite() && *v > 0.0)
                 .map(|v| v / f64::from(self.cfg.cell_count)),
+            mission_energy_wh: self.mission.as_ref().map(|m| m.energy_p50_wh),
+            mission_margin_wh: self.mission.as_ref().map(|m| remaining - m.energy_p50_wh - reserve),
+            mission: self.mission.clone(),
         }
     }
 

@@ -207,6 +207,12 @@ struct SimulateArgs {
     /// Seed of the noise and gusts.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Fly this mission plan (QGroundControl `.plan` or `QGC WPL 110` `.waypoints`)
+    /// instead of the triangle, moved to the simulator's home (its offsets kept), at
+    /// `--speed-mps` until the plan sets a speed; the tlog logs the mission (MISSION_COUNT,
+    /// MISSION_ITEM_INT) and MISSION_CURRENT, as a ground station's log of ArduPilot does.
+    #[arg(long, value_name = "FILE")]
+    plan: Option<PathBuf>,
     /// Pace of `--udp`: `real` (wall clock, the default), `max` (flat out) or a factor such
     /// as `5` (five times real time). A `--out` tlog is always written at once.
     #[arg(long)]
@@ -224,11 +230,22 @@ impl SimulateArgs {
     /// The library's options; an out-of-range value is named by its flag.
     fn options(&self) -> Result<SimOptions> {
         let flag = |e: InvalidOption| anyhow::anyhow!("--{} {}", e.key.replace('_', "-"), e.reason);
-        let triangle = Triangle { leg_m: self.leg_m, altitude_m: self.altitude_m, speed_mps: self.speed_mps, hover_s: self.hover_s };
-        triangle.validate().map_err(flag)?;
+        let (route, mission) = match &self.plan {
+            Some(path) => {
+                let plan = dronewatt::mission::plan::Plan::load(path)?;
+                let (route, mission) = sim::SimMission::from_plan(&plan, self.speed_mps, self.autopilot).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                (route, Some(mission))
+            }
+            None => {
+                let triangle = Triangle { leg_m: self.leg_m, altitude_m: self.altitude_m, speed_mps: self.speed_mps, hover_s: self.hover_s };
+                triangle.validate().map_err(flag)?;
+                (triangle.route(), None)
+            }
+        };
         let opts = SimOptions {
             vehicle: dronewatt::model::profile::VehicleProfile::named_or_file(&self.vehicle)?,
-            route: triangle.route(),
+            route,
+            mission,
             payload_g: self.payload_g,
             wind_mps: self.wind_mps,
             wind_dir_deg: self.wind_dir_deg,

@@ -29,7 +29,7 @@ use crate::alert::AlertEngine;
 use crate::config::Config;
 use crate::energy::EnergyTracker;
 use crate::model::Ensemble;
-use crate::report::{EnergyState, Estimate, Report};
+use crate::report::{EnergyState, Estimate, MissionUpdate, Report};
 use crate::sink::mavlink::MavlinkSinkConfig;
 use crate::sink::{Fanout, SinkSpec};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
@@ -61,7 +61,7 @@ pub struct Pipeline {
 /// ingest counters (the summary line's numbers).
 pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
     // Built before any task starts, so a bad model or profile fails before we listen.
-    let chain = VehicleChain::build(&p.config)?;
+    let mut chain = VehicleChain::build(&p.config)?;
     // The signing key is read now: a missing or world-readable key fails before we listen.
     let signing = p.config.link.load().map_err(anyhow::Error::msg)?.map(|s| Arc::new(LinkSigning::new(s)));
     let signer = signing.clone().map(|s| s as Arc<dyn crate::status::FrameSigner>);
@@ -71,11 +71,25 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
     let live = matches!(p.source, SourceSpec::Link(_));
+    let mission = mission_setup(&p.config, &p.source)?;
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
+    // The mission tap between the source and the chain, when there is a mission to follow.
+    let (msg_rx, mission_task) = match mission {
+        Some(setup) => {
+            let (status_tx, status_rx) = mpsc::channel(crate::mission::live::STATUS_DEPTH);
+            let (rx, task) = crate::mission::live::spawn(msg_rx, setup, status.link.clone(), status_tx);
+            chain.mission = Some(status_rx);
+            (rx, Some(task))
+        }
+        None => (msg_rx, None),
+    };
     let chain = chain.spawn(msg_rx, fanout, &status, live);
 
     let source_result = source.await?;
+    if let Some(t) = mission_task {
+        t.await?;
+    }
     chain.join().await?;
     sinks.join().await?;
     source_result?;
@@ -136,6 +150,9 @@ pub struct VehicleChain {
     pub models: Ensemble,
     pub energy: EnergyTracker,
     pub alerts: AlertEngine,
+    /// The live mission forecast's statuses, in source-time order (`crate::mission::live`),
+    /// when a mission tap runs.
+    pub mission: Option<mpsc::Receiver<MissionUpdate>>,
 }
 
 /// The running stages of one [`VehicleChain`].
@@ -163,6 +180,7 @@ impl VehicleChain {
             models: crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?,
             energy: EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?,
             alerts: AlertEngine::new(&cfg.alerts)?,
+            mission: None,
         })
     }
 
@@ -195,7 +213,7 @@ impl VehicleChain {
             telemetry: tokio::spawn(telemetry_stage(self.telemetry, msgs, win_tx, status.clone())),
             // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
             inference: tokio::task::spawn_blocking(move || inference_stage(self.models, win_rx, est_tx)),
-            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, fanout, status.clone(), live)),
+            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, fanout, status.clone(), live)),
         }
     }
 }
@@ -269,6 +287,7 @@ async fn energy_stage(
     mut energy: EnergyTracker,
     mut alerts: AlertEngine,
     mut estimates: mpsc::Receiver<Estimate>,
+    mut mission: Option<mpsc::Receiver<MissionUpdate>>,
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
@@ -279,6 +298,7 @@ async fn energy_stage(
     };
     // The last real estimate, its energy, and when it came: the base of a silent tick.
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
+    let mut next_mission: Option<MissionUpdate> = None;
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
@@ -287,6 +307,7 @@ async fn energy_stage(
         };
         let report = match next {
             Ok(Some(est)) => {
+                take_mission(&mut energy, &mut mission, &mut next_mission, est.t_s);
                 let report = account(&mut energy, &mut alerts, est, vehicle());
                 if live {
                     last = Some((report.estimate.clone(), report.energy.clone(), Instant::now()));
@@ -306,6 +327,51 @@ async fn energy_stage(
         };
         fanout.send(report).await;
     }
+}
+
+/// The mission statuses due by source time `t_s` into the energy tracker (the latest one
+/// wins): the tap runs ahead of the estimates, so each status waits for its time.
+fn take_mission(energy: &mut EnergyTracker, rx: &mut Option<mpsc::Receiver<MissionUpdate>>, next: &mut Option<MissionUpdate>, t_s: f64) {
+    let Some(rx) = rx else { return };
+    loop {
+        if next.is_none() {
+            *next = rx.try_recv().ok();
+        }
+        match next.take() {
+            Some(m) if m.t_s <= t_s => energy.set_mission(m.status),
+            other => {
+                *next = other;
+                return;
+            }
+        }
+    }
+}
+
+/// What the live mission forecast needs, when the source can carry a mission (a live
+/// link, a `.tlog` or raw log; not the data set) and `[forecast.live] enabled`.
+fn mission_setup(cfg: &Config, source: &SourceSpec) -> Result<Option<crate::mission::live::LiveSetup>> {
+    if !cfg.forecast.live.enabled || matches!(source, SourceSpec::Dataset { .. }) {
+        return Ok(None);
+    }
+    let vehicle = match cfg.vehicle.as_deref() {
+        Some(p) => crate::model::profile::VehicleProfile::load(p)?,
+        None => crate::model::profile::VehicleProfile::m100(),
+    };
+    let mut models = crate::model::physics::models(&vehicle);
+    if let Some(p) = &cfg.forecast.live.calibrated_profile {
+        models.extend(crate::model::physics::models(&crate::model::profile::VehicleProfile::load(p)?));
+    }
+    Ok(Some(crate::mission::live::LiveSetup {
+        forecast: cfg.forecast.clone(),
+        models,
+        rate_hz: cfg.telemetry.rate_hz,
+        window: cfg.telemetry.window,
+        payload_g: cfg.mission.payload_g.map_or(0.0, f64::from),
+        speed_m_s: cfg.mission.speed_m_s.map(f64::from),
+        active: matches!(source, SourceSpec::Link(_)),
+        system_id: cfg.sinks.mavlink.system_id,
+        component_id: cfg.sinks.mavlink.component_id,
+    }))
 }
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on

@@ -119,6 +119,55 @@ pub struct EnergyState {
     pub home_margin_wh: Option<f64>,
     /// Battery voltage per cell, V (voltage / cell count), when the voltage is known.
     pub cell_voltage_v: Option<f64>,
+    /// Energy the rest of the planned mission, the return and the landing need (P50), Wh,
+    /// while a mission is known (`crate::mission::live`).
+    pub mission_energy_wh: Option<f64>,
+    /// Remaining − mission energy − reserve, Wh: below 0, the mission cannot finish with
+    /// the reserve left.
+    pub mission_margin_wh: Option<f64>,
+    /// Where the vehicle stands in its mission, while one is known.
+    pub mission: Option<MissionStatus>,
+}
+
+/// What the mission task hands the energy stage, in source-time order: from `t_s` on, this
+/// status, or none (the mission was cleared, or cannot be forecast).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MissionUpdate {
+    pub t_s: f64,
+    pub status: Option<MissionStatus>,
+}
+
+/// The live mission forecast at one moment: what the mission task
+/// (`crate::mission::live`) hands the energy stage, in source-time order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MissionStatus {
+    /// Source time of the message it was computed on, s.
+    pub t_s: f64,
+    /// MISSION_CURRENT's `seq`: the item being flown to.
+    pub current_seq: u16,
+    /// Items in the mission as the vehicle holds it (ArduPilot's home item included).
+    pub items: u16,
+    /// Planned time left, s (rest of the mission, return, landing).
+    pub time_left_s: f64,
+    /// Energy left, P50, Wh.
+    pub energy_p50_wh: f64,
+    /// Energy left, P90, Wh.
+    pub energy_p90_wh: f64,
+    /// How far along the planned trajectory, % of its time.
+    pub progress_pct: f64,
+    /// The planned route, east/north of home (m), at most [`MissionStatus::ROUTE_POINTS`]
+    /// points (shared: one allocation per mission flown, not per status). Not serialised
+    /// with the energy (the dashboard sends it on its own).
+    #[serde(skip)]
+    pub route_en_m: std::sync::Arc<Vec<[f32; 2]>>,
+    /// Index into `route_en_m` nearest where the vehicle is.
+    #[serde(skip)]
+    pub route_at: usize,
+}
+
+impl MissionStatus {
+    /// Most points of [`MissionStatus::route_en_m`].
+    pub const ROUTE_POINTS: usize = 400;
 }
 
 /// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML

@@ -10,13 +10,15 @@ fn check(path: &std::path::Path) -> std::process::Output {
 #[test]
 fn shipped_configs_pass() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    for (file, rules) in [("config/dronewatt.toml", 9), ("config/demo.toml", 3)] {
+    for (file, rules) in [("config/dronewatt.toml", 10), ("config/demo.toml", 3)] {
         let out = check(&root.join(file));
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success(), "{file}: {}", String::from_utf8_lossy(&out.stderr));
         assert!(text.contains(&format!("alerts: {rules} rule(s)")), "{file}:\n{text}");
         assert!(text.contains("sinks.mavlink: ") && text.contains("component 191"), "{file}:\n{text}");
     }
+    let text = String::from_utf8_lossy(&check(&root.join("config/dronewatt.toml")).stdout).to_string();
+    assert!(text.contains("mission_margin [critical]: mission-reserve margin < 0 Wh, clears ≥ 3 Wh"), "{text}");
 }
 
 #[test]

@@ -220,3 +220,43 @@ fn bad_rules_name_the_file_the_key_and_why() {
         assert!(err.contains(want), "expected '{want}' in: {err}");
     }
 }
+
+#[test]
+fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() {
+    let cfg = parse(
+        r#"
+        [[alerts]]
+        name = "mission_margin"
+        kind = "mission_margin_below"
+        below_wh = 0
+        clear_wh = 3
+        for_s = 2
+        severity = "critical"
+        message = "mission cannot finish with reserve - return now"
+        "#,
+    );
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let state = |m: Option<f64>| EnergyState { remaining_wh: Some(80.0), mission_margin_wh: m, ..Default::default() };
+    // No mission known: nothing, however long.
+    let none: Vec<_> = (0..50).flat_map(|i| eng.evaluate(&est(i as f64 * 0.1, Some(300.0), &[]), &state(None))).collect();
+    assert!(none.is_empty(), "{none:?}");
+    // The margin dips under 0 for 1 s (debounce: no alert); then under 0 for 3 s (raised
+    // once, after 2 s) and ±1.5 Wh for 17 s: never cleared (it must come back above 3 Wh).
+    let mut events = Vec::new();
+    for i in 0..10 {
+        events.extend(eng.evaluate(&est(5.0 + i as f64 * 0.1, Some(300.0), &[]), &state(Some(-1.0))));
+    }
+    events.extend(eng.evaluate(&est(6.0, Some(300.0), &[]), &state(Some(5.0))));
+    assert!(events.is_empty(), "a 1 s dip is debounced: {events:?}");
+    for i in 0..200 {
+        let m = if i < 30 { -1.0 } else if i % 2 == 0 { -1.5 } else { 1.5 };
+        events.extend(eng.evaluate(&est(7.0 + i as f64 * 0.1, Some(300.0), &[]), &state(Some(m))));
+    }
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].state, AlertState::Raised);
+    assert!((events[0].t - 9.0).abs() < 0.15, "raised 2 s after 7 s: {}", events[0].t);
+    assert!(events[0].message.starts_with("mission cannot finish with reserve"), "{}", events[0].message);
+    let cleared: Vec<_> = eng.evaluate(&est(30.0, Some(300.0), &[]), &state(Some(3.5)));
+    assert_eq!(cleared.len(), 1);
+    assert_eq!(cleared[0].state, AlertState::Cleared);
+}

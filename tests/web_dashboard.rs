@@ -9,6 +9,7 @@ use std::process::Command;
 use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
 use dronewatt::energy::{EnergyTracker, Report};
+use dronewatt::report::MissionStatus;
 use dronewatt::model::{Estimate, ModelEstimate};
 use dronewatt::sink::web;
 use dronewatt::telemetry::{HomeVector, Sample, N_FEATURES};
@@ -64,7 +65,30 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
     let mut energy = EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s).unwrap();
     let mut alerts = AlertEngine::new(&cfg.alerts).unwrap();
     let mut raised = 0;
+    let mut last_margin = None;
     for i in 0..=900 {
+        if i == 450 {
+            // a mission becomes known halfway: 5 Wh left, flying to item 3 of 6, 40 % along
+            // its route: a 200 m square, 40 points, the vehicle at the 17th
+            let route: Vec<[f32; 2]> = (0..40)
+                .map(|i| {
+                    let (side, f) = (i / 10, (i % 10) as f32 * 20.0);
+                    [[f, 0.0], [200.0, f], [200.0 - f, 200.0], [0.0, 200.0 - f]][side]
+                })
+                .collect();
+            let m = MissionStatus {
+                t_s: 45.0,
+                current_seq: 3,
+                items: 6,
+                time_left_s: 60.0,
+                energy_p50_wh: 5.0,
+                energy_p90_wh: 5.5,
+                progress_pct: 40.0,
+                route_en_m: std::sync::Arc::new(route),
+                route_at: 16,
+            };
+            energy.set_mission(Some(m));
+        }
         let t_s = i as f64 * 0.1;
         let w = if i == 900 { 512.0 } else { 450.0 + 120.0 * (-(t_s as f32) / 8.0).exp() + 30.0 * ((t_s as f32) / 6.0).sin() };
         let est = Estimate {
@@ -85,6 +109,7 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
             ],
         };
         let state = energy.update(&est);
+        last_margin = state.mission_margin_wh;
         let events = alerts.evaluate(&est, &state);
         raised += events.len();
         fanout.send(Report { estimate: est, energy: state, alerts: events, system_id: 1 }).await;
@@ -110,6 +135,26 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
     let remaining = text_of("v-remaining");
     assert!(remaining.ends_with("%)") && remaining.contains("Wh"), "{remaining}");
     assert!(text_of("status").starts_with("t = 90.0 s"), "{}", text_of("status"));
+    assert_eq!(text_of("v-mission"), "5.0 Wh · item 3/6 · 40%");
+    // The route the map draws, as the page gets it.
+    let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+    let body = tokio::task::spawn_blocking(move || {
+        use std::io::{Read, Write};
+        let mut c = std::net::TcpStream::connect(addr).unwrap();
+        c.write_all(b"GET /api/state HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").unwrap();
+        let mut r = String::new();
+        c.read_to_string(&mut r).unwrap();
+        r
+    })
+    .await
+    .unwrap();
+    let json: serde_json::Value = serde_json::from_str(&body[body.find("\r\n\r\n").unwrap() + 4..]).unwrap();
+    let route = &json["latest"]["route"];
+    assert_eq!(route["points"].as_array().map(Vec::len), Some(40), "{route}");
+    assert_eq!(route["points"][10], serde_json::json!([200.0, 0.0]));
+    assert_eq!(route["at"], 16);
+    let shown: f64 = text_of("v-mmargin").trim_end_matches(" Wh").parse().unwrap();
+    assert!((shown - last_margin.unwrap()).abs() < 0.051, "{shown} vs {last_margin:?}");
     // Every model in the table, and the alert in the log with its severity class.
     for m in ["tseng", "dandrea", "lstm"] {
         assert!(html.contains(&format!("</span>{m}</td>")), "model {m} missing:\n{html}");

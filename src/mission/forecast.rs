@@ -168,39 +168,54 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
     let mut powers: Vec<(String, Vec<f32>)> = Vec::with_capacity(models.len());
     let mut windows: Vec<Window> = Vec::new();
     let mut preds: Vec<Prediction> = Vec::new();
+    let mut at = Vec::new();
+    let mut built_for = None;
     for m in models.iter_mut() {
         let lag = m.target_lag();
         // windows ending at j + lag for j = 0, stride, 2·stride, …; clamped at both ends
-        // (before take-off and after touchdown the vehicle is still).
+        // (before take-off and after touchdown the vehicle is still). Models with the same
+        // lag share them.
+        if built_for == Some(lag) {
+            m.predict(&windows, &mut preds);
+            powers.push((m.name().to_string(), hold(&at, &preds, n)));
+            continue;
+        }
+        built_for = Some(lag);
         windows.clear();
-        let mut at = Vec::new();
+        at.clear();
         let mut j = 0;
         while j < n {
             let end = (j + lag).min(n - 1);
-            let samples: Vec<_> = (0..t)
-                .map(|i| {
-                    let k = (end + i + 1).saturating_sub(t);
-                    let mut s = traj.samples[k].clone();
-                    if end + i + 1 < t {
+            let samples: Vec<_> = if end + 1 >= t {
+                traj.samples[end + 1 - t..=end].to_vec()
+            } else {
+                (0..t)
+                    .map(|i| {
+                        let mut s = traj.samples[(end + i + 1).saturating_sub(t)].clone();
                         s.t_s = (end as f64 + i as f64 + 1.0 - t as f64) * traj.dt_s;
-                    }
-                    s
-                })
-                .collect();
+                        s
+                    })
+                    .collect()
+            };
             windows.push(Window { samples });
             at.push(j);
             j += stride;
         }
         m.predict(&windows, &mut preds);
-        let mut p = vec![0.0f32; n];
-        for (w, (&j0, pr)) in at.iter().zip(&preds).enumerate() {
-            let j1 = at.get(w + 1).copied().unwrap_or(n);
-            let v = if pr.power_w.is_finite() { pr.power_w.max(0.0) } else { 0.0 };
-            p[j0..j1].fill(v);
-        }
-        powers.push((m.name().to_string(), p));
+        powers.push((m.name().to_string(), hold(&at, &preds, n)));
     }
     integrate(traj, &powers, cal)
+}
+
+/// Per-sample power from predictions at samples `at`, each held until the next.
+fn hold(at: &[usize], preds: &[Prediction], n: usize) -> Vec<f32> {
+    let mut p = vec![0.0f32; n];
+    for (w, (&j0, pr)) in at.iter().zip(preds).enumerate() {
+        let j1 = at.get(w + 1).copied().unwrap_or(n);
+        let v = if pr.power_w.is_finite() { pr.power_w.max(0.0) } else { 0.0 };
+        p[j0..j1].fill(v);
+    }
+    p
 }
 
 fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration) -> MissionForecast {

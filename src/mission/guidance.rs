@@ -242,6 +242,79 @@ impl Route {
     }
 }
 
+/// A [`Route`] flown from a mission plan, and which plan item each waypoint serves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanRoute {
+    pub route: Route,
+    /// Plan item index per waypoint.
+    pub waypoint_items: Vec<usize>,
+    /// Plan item of the take-off (the first item before the first waypoint's).
+    pub takeoff_item: usize,
+    /// Plan item that ends the flight (LAND, RETURN_TO_LAUNCH, else the last).
+    pub end_item: usize,
+}
+
+impl Route {
+    /// A plan as the simulator flies it: take-off to the TAKEOFF item's altitude (else the
+    /// first waypoint's), every positioned item (waypoints, loiters, NAV commands it does
+    /// not model) as a waypoint at the speed then in force (`speed_mps` until a
+    /// DO_CHANGE_SPEED; the plan's `hoverSpeed` wins over it), hold and loiter times as
+    /// holds; LAND lands at its position (or where it is), RETURN_TO_LAUNCH flies home at
+    /// the altitude it is at and lands. Positions are NED from the plan's home.
+    pub fn from_plan(plan: &super::plan::Plan, speed_mps: f64) -> Result<PlanRoute, InvalidOption> {
+        use super::plan::ItemKind as K;
+        let mut speed = plan.hover_speed_m_s.unwrap_or(speed_mps);
+        let mut waypoints: Vec<Waypoint> = Vec::new();
+        let mut waypoint_items = Vec::new();
+        let mut takeoff: Option<(usize, f64)> = None;
+        let mut end_item = plan.items.len().saturating_sub(1);
+        let ned = |p: &super::plan::GeoPoint| super::trajectory::enu_of(&plan.home, p.lat_deg, p.lon_deg);
+        for it in &plan.items {
+            let hold_s = match it.kind {
+                K::ChangeSpeed { speed_m_s } => {
+                    if speed_m_s > 0.0 {
+                        speed = speed_m_s;
+                    }
+                    continue;
+                }
+                K::Takeoff { alt_m } => {
+                    takeoff.get_or_insert((it.index, alt_m));
+                    continue;
+                }
+                K::Waypoint { hold_s } => hold_s,
+                K::LoiterTime { time_s } => time_s,
+                K::NotModelled { flown_through, .. } if flown_through => 0.0,
+                K::NotModelled { .. } => continue,
+                K::Land => {
+                    if let Some(p) = &it.position {
+                        let (e, n) = ned(p);
+                        let alt = waypoints.last().map_or(p.alt_m, |w| w.alt_m);
+                        waypoints.push(Waypoint { north_m: n, east_m: e, alt_m: alt, speed_mps: speed, hold_s: 0.0 });
+                        waypoint_items.push(it.index);
+                    }
+                    end_item = it.index;
+                    break;
+                }
+                K::ReturnToLaunch => {
+                    let alt = waypoints.last().map_or(takeoff.map_or(ALT_RANGE_M.0, |t| t.1), |w| w.alt_m);
+                    waypoints.push(Waypoint { north_m: 0.0, east_m: 0.0, alt_m: alt, speed_mps: speed, hold_s: 0.0 });
+                    waypoint_items.push(it.index);
+                    end_item = it.index;
+                    break;
+                }
+            };
+            let Some(p) = &it.position else { continue };
+            let (e, n) = ned(p);
+            waypoints.push(Waypoint { north_m: n, east_m: e, alt_m: p.alt_m, speed_mps: speed, hold_s });
+            waypoint_items.push(it.index);
+        }
+        let first_alt = waypoints.first().map_or(ALT_RANGE_M.0, |w| w.alt_m);
+        let route = Route { takeoff_alt_m: takeoff.map_or(first_alt, |t| t.1), climb_mps: 2.5, waypoints, descent_mps: 1.5 };
+        route.validate()?;
+        Ok(PlanRoute { route, takeoff_item: takeoff.map_or(0, |t| t.0), waypoint_items, end_item })
+    }
+}
+
 /// What the guidance asks for in one step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Command {

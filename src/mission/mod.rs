@@ -9,15 +9,23 @@
 //! - [`trajectory`]: the plan flown on paper (climb, stop-to-stop legs, turns, holds,
 //!   descent, landing) into the 21 features the power models read, with wind and payload;
 //! - [`forecast`]: every power model along the trajectory, energy per leg, P50 and P90,
-//!   and the live re-forecast of what is left from the current item and position.
+//!   and the live re-forecast of what is left from the current item and position;
+//! - [`protocol`]: the MAVLink mission protocol's client as a pure state machine
+//!   (download with timeouts and resends, re-download on a changed mission, overheard
+//!   items of a replayed log);
+//! - [`live`]: the task that runs it on the link and re-forecasts the rest of the mission
+//!   as the vehicle flies it (the one part of this module that does I/O: it sends the
+//!   protocol's frames on the link).
 //!
-//! Pure apart from reading plan files: this module imports the models and the telemetry's
+//! Pure apart from reading plan files and [`live`]'s frames: this module imports the models and the telemetry's
 //! sample types, never energy, alerts, sinks or the pipeline. The `plan` and `plan-eval`
 //! commands live in [`crate::offline::mission`].
 
 pub mod forecast;
 pub mod guidance;
+pub mod live;
 pub mod plan;
+pub mod protocol;
 pub mod trajectory;
 
 /// The `[forecast]` table: how plans are flown on paper and how the forecast is corrected.
@@ -28,6 +36,30 @@ pub struct ForecastConfig {
     pub kinematics: trajectory::KinematicsConfig,
     /// `[forecast.calibration]`: forecast model, its correction, P90 ratio, live weight.
     pub calibration: forecast::Calibration,
+    /// `[forecast.live]`: the live mission forecast.
+    pub live: LiveForecastConfig,
+}
+
+/// The `[forecast.live]` table.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LiveForecastConfig {
+    /// Forecast the rest of the mission while `monitor` or `replay` runs: download the
+    /// mission over a live link (MAVLink mission protocol), take it from a replayed
+    /// `.tlog`'s logged items. Default true.
+    pub enabled: bool,
+    /// A calibrated vehicle profile (`dronewatt calibrate`'s output, e.g.
+    /// `vehicles/m100-calibrated.toml`; relative to the config file) whose `<model>_cal`
+    /// physics models run beside the vehicle's own, so that the calibration's `model`
+    /// gives the P50. Default none: then the vehicle's first physics model gives it,
+    /// uncorrected (a warning says so).
+    pub calibrated_profile: Option<std::path::PathBuf>,
+}
+
+impl Default for LiveForecastConfig {
+    fn default() -> Self {
+        Self { enabled: true, calibrated_profile: None }
+    }
 }
 
 impl ForecastConfig {

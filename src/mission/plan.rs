@@ -178,6 +178,99 @@ impl Plan {
     }
 }
 
+impl Plan {
+    /// A plan from a mission list the protocol carried ([`super::protocol`]). ArduPilot's
+    /// item 0 is home (its altitude AMSL, which absolute frames are taken against); else
+    /// `home` (HOME_POSITION, or where the vehicle was first heard) is home, and absolute
+    /// altitudes need its AMSL altitude. A mission that does not end by landing (its last
+    /// NAV item no LAND or RETURN_TO_LAUNCH) gets a RETURN_TO_LAUNCH appended (origin
+    /// `added: return and land`): the forecast is of the mission *and* the way home.
+    /// Plan item `i` is mission `seq` `i + seq_offset` (1 with a home item, else 0).
+    pub fn from_mission(source: &str, m: &super::protocol::Mission, home: Option<GeoPoint>) -> Result<(Plan, u16), PlanError> {
+        let err = |at: String, why: String| PlanError { file: source.to_string(), at, why };
+        let (home, rest, seq_offset) = match (m.home_is_item0, m.items.split_first()) {
+            (true, Some((h, rest))) => {
+                if !(h.lat_deg.is_finite() && h.lon_deg.is_finite() && h.alt_m.is_finite()) || !(-90.0..=90.0).contains(&h.lat_deg) || !(-180.0..=180.0).contains(&h.lon_deg) {
+                    return Err(err("item 0 (seq 0, home)".into(), format!("home position ({}, {}, {}) is not a valid position", h.lat_deg, h.lon_deg, h.alt_m)));
+                }
+                (GeoPoint { lat_deg: h.lat_deg, lon_deg: h.lon_deg, alt_m: h.alt_m }, rest, 1u16)
+            }
+            _ => (home.ok_or_else(|| err("file".into(), "no home: no home item, HOME_POSITION or vehicle position heard".into()))?, &m.items[..], 0u16),
+        };
+        let mut items = Vec::with_capacity(rest.len() + 1);
+        for it in rest {
+            let raw = RawItem { command: it.command, frame: it.frame, params: it.params, lat: it.lat_deg, lon: it.lon_deg, alt: it.alt_m };
+            let origin = format!("seq {}", it.seq);
+            let built = build_item(&raw, items.len(), origin.clone(), Some(home.alt_m)).map_err(|why| err(format!("item {} ({origin})", items.len()), why))?;
+            items.push(built);
+        }
+        if items.is_empty() {
+            return Err(err("file".into(), "the mission has no items".into()));
+        }
+        let lands = items
+            .iter()
+            .rev()
+            .find(|i| i.command < 100)
+            .is_some_and(|i| matches!(i.kind, ItemKind::Land | ItemKind::ReturnToLaunch));
+        if !lands {
+            let index = items.len();
+            items.push(Item { index, origin: "added: return and land".into(), command: 20, kind: ItemKind::ReturnToLaunch, position: None, frame: AltFrame::None });
+        }
+        Ok((Plan { source: source.to_string(), home, items, hover_speed_m_s: None, cruise_speed_m_s: None }, seq_offset))
+    }
+}
+
+impl Plan {
+    /// The plan as ArduPilot holds it, for the protocol (what the simulator logs): item 0
+    /// home (absolute altitude, frame 0), then every item in the relative frame (3) with
+    /// the parameters the trajectory reads (hold/loiter time p1, speed p2, take-off
+    /// altitude); items with no position in the mission frame (2).
+    pub fn to_mission_items(&self) -> Vec<super::protocol::MissionItem> {
+        use super::protocol::MissionItem;
+        let mut out = vec![MissionItem { seq: 0, frame: 0, command: 16, params: [0.0; 4], lat_deg: self.home.lat_deg, lon_deg: self.home.lon_deg, alt_m: self.home.alt_m }];
+        for it in &self.items {
+            let mut params = [0.0; 4];
+            let mut alt = it.position.map_or(0.0, |p| p.alt_m);
+            match it.kind {
+                ItemKind::Waypoint { hold_s } => params[0] = hold_s,
+                ItemKind::LoiterTime { time_s } => params[0] = time_s,
+                ItemKind::ChangeSpeed { speed_m_s } => params[1] = speed_m_s,
+                ItemKind::Takeoff { alt_m } => alt = alt_m,
+                _ => {}
+            }
+            let positioned = it.command < 100 && it.command != 20;
+            let (lat, lon) = it.position.map_or((0.0, 0.0), |p| (p.lat_deg, p.lon_deg));
+            out.push(MissionItem {
+                seq: u16::try_from(out.len()).unwrap_or(u16::MAX),
+                frame: if positioned { 3 } else { 2 },
+                command: u32::from(it.command),
+                params,
+                lat_deg: lat,
+                lon_deg: lon,
+                alt_m: alt,
+            });
+        }
+        out
+    }
+
+    /// The same plan moved to another home: every position keeps its east/north offset
+    /// from home (flat earth, as the trajectory flies it).
+    pub fn relocated(&self, home: GeoPoint) -> Plan {
+        let mut p = self.clone();
+        let (m_lat, m_lon_old, m_lon_new) = (111_320.0, 111_320.0 * self.home.lat_deg.to_radians().cos(), 111_320.0 * home.lat_deg.to_radians().cos());
+        for it in &mut p.items {
+            if let Some(pos) = &mut it.position {
+                let n = (pos.lat_deg - self.home.lat_deg) * m_lat;
+                let e = (pos.lon_deg - self.home.lon_deg) * m_lon_old;
+                pos.lat_deg = home.lat_deg + n / m_lat;
+                pos.lon_deg = home.lon_deg + e / m_lon_new;
+            }
+        }
+        p.home = home;
+        p
+    }
+}
+
 /// Is `command` a MAV_CMD of the ArduPilot dialect (which includes common)?
 fn is_mav_cmd(command: u32) -> bool {
     <crate::dialect::MavCmd as num_traits::FromPrimitive>::from_u32(command).is_some()
@@ -514,6 +607,39 @@ mod tests {
         assert!(e.contains("line 1") && e.contains("QGC WPL 110"), "{e}");
         let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\n"));
         assert!(e.contains("line 3") && e.contains("expected 12"), "{e}");
+    }
+
+    #[test]
+    fn a_mission_list_with_ardupilots_home_item_becomes_a_plan_that_returns_home() {
+        let p = parse_waypoints(WPL, "t.waypoints").unwrap();
+        // round trip through the protocol's items (home first), minus its RTL
+        let mut items = p.to_mission_items();
+        assert_eq!(items.len(), p.items.len() + 1);
+        assert_eq!((items[0].lat_deg, items[0].alt_m, items[0].frame), (40.44, 300.0, 0));
+        items.pop();
+        let m = crate::mission::protocol::Mission { items, mission_id: 7, origin: crate::mission::protocol::Origin::Downloaded, home_is_item0: true };
+        let (back, offset) = Plan::from_mission("vehicle", &m, None).unwrap();
+        assert_eq!(offset, 1);
+        assert_eq!(back.home, p.home);
+        assert_eq!(back.items.len(), p.items.len(), "the RTL it lost is added back");
+        assert_eq!(back.items.last().unwrap().kind, ItemKind::ReturnToLaunch);
+        assert_eq!(back.items.last().unwrap().origin, "added: return and land");
+        for (a, b) in p.items.iter().zip(&back.items).take(p.items.len() - 1) {
+            assert_eq!(a.kind, b.kind, "{} vs {}", a.origin, b.origin);
+            let (pa, pb) = (a.position.map(|q| (q.lat_deg, q.lon_deg)), b.position.map(|q| (q.lat_deg, q.lon_deg)));
+            assert_eq!(pa, pb);
+        }
+        assert_eq!(back.not_modelled().len(), 1, "the DO_ command is kept and listed");
+        // a bad item names its seq; no home item and no home heard: an error
+        let mut bad = m.clone();
+        bad.items[3].lat_deg = 95.0;
+        let e = Plan::from_mission("vehicle", &bad, None).unwrap_err().to_string();
+        assert!(e.contains("item 2 (seq 3)") && e.contains("latitude 95"), "{e}");
+        let px4 = crate::mission::protocol::Mission { home_is_item0: false, ..m };
+        let e = Plan::from_mission("vehicle", &px4, None).unwrap_err().to_string();
+        assert!(e.contains("no home"), "{e}");
+        let (flown, offset) = Plan::from_mission("vehicle", &px4, Some(p.home)).unwrap();
+        assert_eq!((offset, flown.items[0].command), (0, 16), "without a home item, item 0 is flown");
     }
 
     const PLAN: &str = r#"{

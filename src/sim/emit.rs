@@ -29,6 +29,32 @@ use crate::dialect as d;
 use crate::mission::guidance::{Phase, Route};
 use crate::MavMessage;
 
+/// The vehicle's side of a mission download: MISSION_COUNT, then every MISSION_ITEM_INT.
+fn mission_download(m: &super::SimMission) -> Vec<MavMessage> {
+    use num_traits::FromPrimitive;
+    let count = u16::try_from(m.items.len()).unwrap_or(u16::MAX);
+    let mut out = vec![MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA { count, target_system: 255, target_component: 190, ..Default::default() })];
+    for it in &m.items {
+        out.push(MavMessage::MISSION_ITEM_INT(d::MISSION_ITEM_INT_DATA {
+            param1: it.params[0] as f32,
+            param2: it.params[1] as f32,
+            param3: it.params[2] as f32,
+            param4: it.params[3] as f32,
+            x: (it.lat_deg * 1e7).round() as i32,
+            y: (it.lon_deg * 1e7).round() as i32,
+            z: it.alt_m as f32,
+            seq: it.seq,
+            command: d::MavCmd::from_u32(it.command).unwrap_or_default(),
+            target_system: 255,
+            target_component: 190,
+            frame: d::MavFrame::from_u32(it.frame).unwrap_or_default(),
+            autocontinue: 1,
+            ..Default::default()
+        }));
+    }
+    out
+}
+
 /// Periodic emission schedule: period and phase offset, in ms of simulated time.
 #[derive(Debug, Clone, Copy)]
 pub struct Every {
@@ -112,6 +138,8 @@ pub struct Emitter {
     records: Vec<SimRecord>,
     home_sent: bool,
     last_phase: Option<Phase>,
+    mission: Option<super::SimMission>,
+    mission_logged: bool,
 }
 
 impl Emitter {
@@ -132,6 +160,8 @@ impl Emitter {
             records: Vec::new(),
             home_sent: false,
             last_phase: None,
+            mission: opts.mission.clone(),
+            mission_logged: false,
         }
     }
 
@@ -191,6 +221,21 @@ impl Emitter {
         // logs when it reads the parameter list at connection.
         for p in std::mem::take(&mut self.params) {
             self.push(t_ms, MavMessage::PARAM_VALUE(p));
+        }
+        // The mission, once, as a ground station logs its download; then where it is, 1 Hz.
+        if let Some(m) = self.mission.clone() {
+            if !self.mission_logged {
+                self.mission_logged = true;
+                for msg in mission_download(&m) {
+                    self.push(t_ms, msg);
+                }
+            }
+            if (Every { period_ms: 1000, offset_ms: 0 }).due(t_ms) {
+                // total: the items after ArduPilot's home item; PX4 has none
+                let home_item = usize::from(m.items.first().is_some_and(|i| i.command == 16 && i.frame == 0));
+                let total = u16::try_from(m.items.len() - home_item).unwrap_or(u16::MAX);
+                self.push(t_ms, MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA { seq: m.current_seq(phase), total, ..Default::default() }));
+            }
         }
         if let Some(m) = self.style.landed_state(now) {
             self.push(t_ms, m);

@@ -73,6 +73,57 @@ pub struct SimOptions {
     pub seed: u64,
     /// Telemetry style.
     pub autopilot: Autopilot,
+    /// The mission the route was made from (`simulate --plan`), logged as a ground station
+    /// logs a download (MISSION_COUNT, MISSION_ITEM_INT at the start) with MISSION_CURRENT
+    /// at 1 Hz; None for the built-in triangle (no mission messages).
+    pub mission: Option<SimMission>,
+}
+
+/// A mission as the simulated autopilot holds it, and which item each phase flies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimMission {
+    /// The items (ArduPilot's layout with item 0 home, PX4's without), positions around [`HOME`].
+    pub items: Vec<crate::mission::protocol::MissionItem>,
+    /// Mission `seq` per route waypoint.
+    pub waypoint_seq: Vec<u16>,
+    /// `seq` of the take-off, and of the item that ends the flight.
+    pub takeoff_seq: u16,
+    pub end_seq: u16,
+}
+
+impl SimMission {
+    /// MISSION_CURRENT's `seq` in `phase`.
+    pub fn current_seq(&self, phase: Phase) -> u16 {
+        match phase {
+            Phase::PreArm | Phase::Spinup | Phase::Climb => self.takeoff_seq,
+            Phase::Leg(i) | Phase::Hold(i) => self.waypoint_seq.get(i).copied().unwrap_or(self.end_seq),
+            Phase::Descent | Phase::Landed | Phase::Done => self.end_seq,
+        }
+    }
+
+    /// A plan flown by the simulator: the plan moved to [`HOME`] (offsets kept), its route
+    /// at `speed_mps` unless the plan says otherwise, and its items as the autopilot holds
+    /// them (ArduPilot: item 0 is home; PX4: no home item).
+    pub fn from_plan(plan: &crate::mission::plan::Plan, speed_mps: f64, autopilot: Autopilot) -> Result<(Route, SimMission), InvalidOption> {
+        let plan = plan.relocated(crate::mission::plan::GeoPoint { lat_deg: HOME.lat_deg, lon_deg: HOME.lon_deg, alt_m: HOME.alt_amsl_m });
+        let pr = Route::from_plan(&plan, speed_mps)?;
+        let home_item = usize::from(autopilot == Autopilot::Ardupilot);
+        let seq = |i: usize| u16::try_from(i + home_item).unwrap_or(u16::MAX);
+        let mut items = plan.to_mission_items();
+        if home_item == 0 {
+            items.remove(0);
+            for (i, it) in items.iter_mut().enumerate() {
+                it.seq = u16::try_from(i).unwrap_or(u16::MAX);
+            }
+        }
+        let mission = SimMission {
+            items,
+            waypoint_seq: pr.waypoint_items.iter().map(|&i| seq(i)).collect(),
+            takeoff_seq: seq(pr.takeoff_item),
+            end_seq: seq(pr.end_item),
+        };
+        Ok((pr.route, mission))
+    }
 }
 
 impl Default for SimOptions {
@@ -87,6 +138,7 @@ impl Default for SimOptions {
             wind_dir_deg: 270.0,
             seed: 1,
             autopilot: Autopilot::Ardupilot,
+            mission: None,
         }
     }
 }
@@ -141,6 +193,9 @@ pub struct TruthSample {
     pub voltage_v: f64,
     /// Ground speed (horizontal), m/s.
     pub ground_speed_mps: f64,
+    /// North and east of home, m.
+    pub north_m: f64,
+    pub east_m: f64,
     /// Height above home, m.
     pub height_m: f64,
 }
@@ -358,6 +413,8 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
                 voltage_v: v,
                 ground_speed_mps: (st.vel.x * st.vel.x + st.vel.y * st.vel.y).sqrt(),
                 height_m: -st.pos.z,
+                north_m: st.pos.x,
+                east_m: st.pos.y,
             });
         }
         emitter.emit(&emit::Instant { t_ms, st: &st, battery: &battery, gps_err: &gps, wind_est: &wind_est, phase }, &mut rng);

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! {"type":"window","t":…,"measured_w":…,"features":{"wind_speed":…,…}}
-//! {"type":"estimate","t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…}
+//! {"type":"estimate","t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,"mission_energy_wh":…,"mission_margin_wh":…}
 //! {"type":"alert","t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
 //! ```
 //!
@@ -100,6 +100,8 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             remaining_wh: r.energy.remaining_wh,
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
+            mission_energy_wh: r.energy.mission_energy_wh,
+            mission_margin_wh: r.energy.mission_margin_wh,
         },
     )
 }
@@ -157,6 +159,11 @@ struct EstimateLine<'a> {
     remaining_wh: Option<f64>,
     time_to_empty_s: Option<f64>,
     home_margin_wh: Option<f64>,
+    /// While a mission is known (`crate::mission::live`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mission_energy_wh: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mission_margin_wh: Option<f64>,
 }
 
 /// Uncertainty bands as a name → [low, high] watts object.

@@ -17,8 +17,20 @@
 //! | `dw_tte_s` | time to empty at the forecast power | s |
 //! | `dw_home_wh` | energy to fly home, descend and land | Wh |
 //! | `dw_marg_wh` | remaining − energy home − reserve | Wh |
+//! | `dw_mis_wh` | energy of the rest of the mission, its return and landing (P50; while a mission is known) | Wh |
+//! | `dw_mis_mrg` | remaining − mission energy − reserve | Wh |
+//! | `dw_mis_pct` | progress along the planned mission | % |
 //!
 //! A value that is not known yet (no measured power, no home) is not sent.
+//!
+//! ## Its own BATTERY_STATUS
+//!
+//! With the NAMED_VALUE_FLOATs, a BATTERY_STATUS of dronewatt's own (`battery_id`, default
+//! 9, so it is not taken for the autopilot's battery 0): `battery_remaining` the remaining
+//! energy in % of the capacity, `time_remaining` dronewatt's time to empty (s),
+//! `energy_consumed` the energy used (hJ), voltages and currents "unknown". A time to empty
+//! not known yet is sent as 0, MAVLink's "not provided"; a known one is never below 1 s,
+//! so a 0 never reads as a real estimate. `battery_id = 255` turns it off.
 //!
 //! ## Who it says it is
 //!
@@ -65,11 +77,14 @@ pub struct MavlinkSinkConfig {
     pub component_id: u8,
     /// NAMED_VALUE_FLOAT sets per second (wall clock). Default 2. Alerts are never held back.
     pub rate_hz: f64,
+    /// Battery id of dronewatt's own BATTERY_STATUS (sent with the values; see the module
+    /// docs). Default 9; 255 sends none.
+    pub battery_id: u8,
 }
 
 impl Default for MavlinkSinkConfig {
     fn default() -> Self {
-        Self { enabled: None, address: None, system_id: 1, component_id: 191, rate_hz: 2.0 }
+        Self { enabled: None, address: None, system_id: 1, component_id: 191, rate_hz: 2.0, battery_id: 9 }
     }
 }
 
@@ -173,11 +188,34 @@ impl Encoder {
             ("dw_tte_s", e.time_to_empty_s),
             ("dw_home_wh", e.home_energy_wh),
             ("dw_marg_wh", e.home_margin_wh),
+            ("dw_mis_wh", e.mission_energy_wh),
+            ("dw_mis_mrg", e.mission_margin_wh),
+            ("dw_mis_pct", e.mission.as_ref().map(|m| m.progress_pct)),
         ];
         values
             .into_iter()
             .filter_map(|(n, v)| v.filter(|v| v.is_finite()).map(|v| self.named_value(n, v as f32)))
             .collect()
+    }
+
+    /// dronewatt's own BATTERY_STATUS for one report (see the module docs).
+    pub fn battery_status(&mut self, battery_id: u8, r: &Report) -> Vec<u8> {
+        let e = &r.energy;
+        let pct = e.remaining_pct.filter(|p| p.is_finite()).map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
+        let time_remaining = e.time_to_empty_s.filter(|t| t.is_finite() && *t >= 0.0).map_or(0, |t| t.round().clamp(1.0, f64::from(i32::MAX)) as i32);
+        let energy_consumed = if e.energy_used_wh.is_finite() { (e.energy_used_wh * 36.0).round().clamp(0.0, f64::from(i32::MAX)) as i32 } else { -1 };
+        self.frame(&MavMessage::BATTERY_STATUS(dialect::BATTERY_STATUS_DATA {
+            id: battery_id,
+            battery_remaining: pct,
+            time_remaining,
+            energy_consumed,
+            current_consumed: -1,
+            current_battery: -1,
+            temperature: i16::MAX,
+            voltages: [u16::MAX; 10],
+            voltages_ext: [0; 4],
+            ..Default::default()
+        }))
     }
 
     /// The STATUSTEXTs of one report's alerts: raised ones at the rule's severity, cleared
@@ -245,6 +283,9 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
                     if now >= next_values {
                         next_values = (next_values + period).max(now);
                         f.extend(enc.estimates(&report));
+                        if cfg.battery_id != 255 {
+                            f.push(enc.battery_status(cfg.battery_id, &report));
+                        }
                     }
                     f
                 }

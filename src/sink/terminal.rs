@@ -109,6 +109,10 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                 let txt = format!("home {}{} Wh  ", if h >= 0.0 { "+" } else { "" }, num(h, 1));
                 s.push_str(&if colour && h < 0.0 { txt.red().to_string() } else { txt });
             }
+            if let (Some(m), Some(mm)) = (&en.mission, en.mission_margin_wh) {
+                let txt = format!("mission item {}/{} {}% needs {} Wh margin {}{} Wh  ", m.current_seq, m.items, num(m.progress_pct, 0), num(m.energy_p50_wh, 1), if mm >= 0.0 { "+" } else { "" }, num(mm, 1));
+                s.push_str(&if colour && mm < 0.0 { txt.red().to_string() } else { txt });
+            }
         }
     }
     let n = stats.snapshot();

@@ -2,7 +2,8 @@
 //! drawn on a canvas, nothing fetched from anywhere else) that polls a JSON endpoint.
 //!
 //! - `GET /` — the page: measured power against every model, remaining energy and time to
-//!   empty, the home margin, and the alert log.
+//!   empty, the home margin, the mission (energy left, item, progress, margin, and a map of
+//!   the planned route with the part flown) when one is known, and the alert log.
 //! - `GET /api/state?since=N` — `{"seq", "models", "latest", "points", "alerts"}`: the
 //!   points with sequence number above `N` (so a poll sends only what is new), the last
 //!   report's numbers and the whole alert log.
@@ -159,6 +160,8 @@ struct Point {
     remaining_wh: Option<f64>,
     time_to_empty_s: Option<f64>,
     home_margin_wh: Option<f64>,
+    /// Remaining − rest of the mission − reserve, while a mission is known.
+    mission_margin_wh: Option<f64>,
 }
 
 #[derive(Debug, Default)]
@@ -176,6 +179,15 @@ struct Latest {
     measured_w: Option<f32>,
     models: Vec<crate::report::ModelEstimate>,
     energy: EnergyState,
+    /// The planned route (east/north of home, m) and the point the vehicle is at, while a
+    /// mission is known.
+    route: Option<RouteView>,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+struct RouteView {
+    points: Vec<[f32; 2]>,
+    at: usize,
 }
 
 const MAX_ALERTS: usize = 500;
@@ -194,6 +206,7 @@ impl Dash {
             measured_w: est.sample.measured_w,
             models: est.models.clone(),
             energy: r.energy.clone(),
+            route: r.energy.mission.as_ref().map(|m| RouteView { points: m.route_en_m.to_vec(), at: m.route_at }),
         });
         let due = self.points.back().is_none_or(|p| est.t_s - p.t >= cfg.min_step_s || est.t_s < p.t);
         if !due && r.alerts.is_empty() {
@@ -217,6 +230,7 @@ impl Dash {
             remaining_wh: r.energy.remaining_wh,
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
+            mission_margin_wh: r.energy.mission_margin_wh,
         });
     }
 }
