@@ -33,11 +33,19 @@ pub struct FleetConfig {
     /// `"3,7,10-20"` (`monitor --vehicles` overrides it). Others are ignored and counted, so
     /// several instances can split one link's vehicles. Default: all (1-255).
     pub vehicles: Option<String>,
+    /// With more than one vehicle, the longest a window waits for other vehicles' windows
+    /// to join its batch before the models run, ms (one vehicle never waits). Default 2;
+    /// 0 runs whatever is queued at once.
+    pub batch_wait_ms: f64,
+    /// How often each vehicle's LSTM estimate is computed, Hz; the windows in between
+    /// carry the vehicle's latest one (held). Default: every window (`telemetry.rate_hz`).
+    /// The physics models, energy and alerts always run on every window.
+    pub lstm_rate_hz: Option<f64>,
 }
 
 impl Default for FleetConfig {
     fn default() -> Self {
-        Self { lost_after_s: 10.0, drop_after_s: 60.0, vehicles: None }
+        Self { lost_after_s: 10.0, drop_after_s: 60.0, vehicles: None, batch_wait_ms: 2.0, lstm_rate_hz: None }
     }
 }
 
@@ -50,6 +58,14 @@ impl FleetConfig {
         }
         if !(self.drop_after_s > self.lost_after_s && self.drop_after_s.is_finite()) {
             errs.push(format!("fleet.drop_after_s = {}: must be longer than fleet.lost_after_s ({})", self.drop_after_s, self.lost_after_s));
+        }
+        if !(0.0..=100.0).contains(&self.batch_wait_ms) {
+            errs.push(format!("fleet.batch_wait_ms = {}: must be 0..=100 ms", self.batch_wait_ms));
+        }
+        if let Some(r) = self.lstm_rate_hz {
+            if !(r > 0.0 && r <= 100.0) {
+                errs.push(format!("fleet.lstm_rate_hz = {r}: must be in (0, 100] Hz"));
+            }
         }
         if let Some(v) = &self.vehicles {
             if let Err(e) = VehicleFilter::parse(v) {

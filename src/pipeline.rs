@@ -81,7 +81,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let live = matches!(p.source, SourceSpec::Link(_));
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
-    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())));
+    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config));
     let fleet = Fleet { config: p.config, demux, first: Some(chain), inference, fanout, status: status.clone(), live };
     let demux = tokio::spawn(fleet.run(msg_rx));
 
@@ -167,10 +167,28 @@ impl ChainTasks {
     }
 }
 
-/// One window for the shared inference stage, and where its estimate goes.
+/// One window for the shared inference stage, whose it is, and where its estimate goes.
 pub struct Job {
     pub window: Window,
+    pub vehicle: u8,
     pub reply: mpsc::Sender<Estimate>,
+}
+
+/// How the shared inference stage batches (`[fleet] batch_wait_ms`, `lstm_rate_hz`).
+#[derive(Debug, Clone, Copy)]
+pub struct Batching {
+    /// With more than one vehicle heard, the longest a window waits for others to join.
+    pub wait: std::time::Duration,
+    /// The heavy models (the LSTM) run on every `heavy_every`-th window of each vehicle.
+    pub heavy_every: u64,
+}
+
+impl Batching {
+    /// From the configuration: the wait, and the LSTM's period in windows.
+    pub fn from_config(cfg: &Config) -> Self {
+        let every = cfg.fleet.lstm_rate_hz.map_or(1.0, |r| (cfg.telemetry.rate_hz / r).round());
+        Self { wait: std::time::Duration::from_secs_f64(cfg.fleet.batch_wait_ms / 1e3), heavy_every: (every as u64).max(1) }
+    }
 }
 
 /// The inference stage every vehicle's chain sends its windows to: one for the whole run,
@@ -181,11 +199,13 @@ pub struct Inference {
 }
 
 impl Inference {
-    /// Start the stage on its own thread with these models.
-    pub fn spawn(models: Ensemble) -> Self {
+    /// Start the stage on its own thread with these models (on the tokio runtime it is
+    /// called from).
+    pub fn spawn(models: Ensemble, batching: Batching) -> Self {
         let (jobs, rx) = mpsc::channel::<Job>(CHANNEL_DEPTH);
+        let rt = tokio::runtime::Handle::current();
         // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
-        Self { jobs, task: tokio::task::spawn_blocking(move || inference_stage(models, rx)) }
+        Self { jobs, task: tokio::task::spawn_blocking(move || inference_stage(models, rx, batching, rt)) }
     }
     /// Wait for it to drain and end, once every chain sending to it has ended.
     pub async fn join(self) -> Result<()> {
@@ -248,13 +268,14 @@ impl VehicleChain {
         let (est_tx, est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
         let (ev_tx, ev_rx) = mpsc::unbounded_channel();
         let jobs = inference.jobs.clone();
+        let vehicle = status.system_id.load(std::sync::atomic::Ordering::Relaxed);
         let mut own = Fanout::default();
         let reports = own.subscribe();
         let tasks = ChainTasks {
             telemetry: tokio::spawn(telemetry_stage(self.telemetry, msgs, win_tx, status.clone())),
             windows: tokio::spawn(async move {
                 while let Some(window) = win_rx.recv().await {
-                    if jobs.send(Job { window, reply: est_tx.clone() }).await.is_err() {
+                    if jobs.send(Job { window, vehicle, reply: est_tx.clone() }).await.is_err() {
                         return;
                     }
                 }
@@ -467,28 +488,65 @@ async fn telemetry_stage(
 /// thread for the whole run, not one per batch: libtorch's thread settings are per OS
 /// thread, and a fresh thread's defaults (an intra-op team as wide as the machine) cost
 /// ~10 ms a window. Windows that queued up meanwhile (a flat-out replay, or every vehicle
-/// of a fleet whose windows fell due together) run as one batch.
-fn inference_stage(mut models: Ensemble, mut jobs: mpsc::Receiver<Job>) {
+/// of a fleet whose windows fell due together) run as one batch; once more than one
+/// vehicle has been heard, a batch waits up to [`Batching::wait`] for more. The heavy
+/// models (the LSTM) run on every [`Batching::heavy_every`]-th window of a vehicle; the
+/// windows between carry that vehicle's latest heavy estimates.
+fn inference_stage(mut models: Ensemble, mut jobs: mpsc::Receiver<Job>, batching: Batching, rt: tokio::runtime::Handle) {
     crate::model::pin_inference_thread();
-    let mut batch = Vec::with_capacity(MAX_BATCH);
-    let mut replies = Vec::with_capacity(MAX_BATCH);
+    let heavy_names = models.heavy_names();
+    let mut b = Batch::default();
+    // Per vehicle: windows seen, and the heavy models' latest estimates.
+    let mut seen: std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)> = Default::default();
     while let Some(j) = jobs.blocking_recv() {
-        batch.push(j.window);
-        replies.push(j.reply);
-        while batch.len() < MAX_BATCH {
+        let deadline = tokio::time::Instant::now() + batching.wait;
+        b.take(j, &mut seen, batching.heavy_every);
+        let wait = seen.len() > 1 && !batching.wait.is_zero();
+        while b.windows.len() < MAX_BATCH {
             match jobs.try_recv() {
-                Ok(j) => {
-                    batch.push(j.window);
-                    replies.push(j.reply);
-                }
+                Ok(j) => b.take(j, &mut seen, batching.heavy_every),
+                // Wait a little for the other vehicles' windows of this tick.
+                Err(mpsc::error::TryRecvError::Empty) if wait => match rt.block_on(tokio::time::timeout_at(deadline, jobs.recv())) {
+                    Ok(Some(j)) => b.take(j, &mut seen, batching.heavy_every),
+                    _ => break,
+                },
                 Err(_) => break,
             }
         }
-        for (e, reply) in models.estimate(&batch).into_iter().zip(replies.drain(..)) {
+        let estimates = models.estimate_some(&b.windows, &b.heavy);
+        for (mut e, (vehicle, full, reply)) in estimates.into_iter().zip(b.meta.drain(..)) {
+            if let (true, Some((_, held))) = (batching.heavy_every > 1, seen.get_mut(&vehicle)) {
+                if full {
+                    *held = e.models.iter().filter(|m| heavy_names.contains(&m.name)).cloned().collect();
+                } else {
+                    e.models.extend(held.iter().cloned());
+                }
+            }
             // A vehicle dropped meanwhile no longer wants its estimate.
             let _ = reply.blocking_send(e);
         }
-        batch.clear();
+        b.windows.clear();
+        b.heavy.clear();
+    }
+}
+
+/// The batch the inference stage is gathering: windows, whether the heavy models run on
+/// each, and whose each is (vehicle, heavy, reply).
+#[derive(Default)]
+struct Batch {
+    windows: Vec<Window>,
+    heavy: Vec<bool>,
+    meta: Vec<(u8, bool, mpsc::Sender<Estimate>)>,
+}
+
+impl Batch {
+    fn take(&mut self, j: Job, seen: &mut std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)>, every: u64) {
+        let n = &mut seen.entry(j.vehicle).or_default().0;
+        let full = *n % every == 0;
+        *n += 1;
+        self.windows.push(j.window);
+        self.heavy.push(full);
+        self.meta.push((j.vehicle, full, j.reply));
     }
 }
 

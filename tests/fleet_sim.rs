@@ -74,3 +74,46 @@ fn a_fleet_of_zero_is_refused_with_the_flag_named() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("--vehicles 0"), "{err}");
 }
+
+#[test]
+fn lstm_rate_hz_runs_the_lstm_on_every_fifth_window_and_holds_it_between() {
+    let dir = tempfile::tempdir().unwrap();
+    let tlog = dir.path().join("f.tlog");
+    assert!(simulate(&tlog, "2", "3").status.success());
+    let cfg = dir.path().join("c.toml");
+    // 2 Hz of LSTM on 10 Hz windows: every fifth window.
+    std::fs::write(&cfg, "[fleet]\nlstm_rate_hz = 2\n").unwrap();
+    let runs = |extra: &[&str]| -> BTreeMap<u64, Vec<(f64, f64)>> {
+        let mut args = vec!["replay", tlog.to_str().unwrap(), "--speed", "max", "--json", "-"];
+        args.extend_from_slice(extra);
+        let o = dronewatt(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let mut per: BTreeMap<u64, Vec<(f64, f64)>> = BTreeMap::new();
+        for line in String::from_utf8_lossy(&o.stdout).lines() {
+            let v: serde_json::Value = serde_json::from_str(line).unwrap();
+            if v["type"] == "estimate" && v["models"].as_object().is_some_and(|m| !m.is_empty()) {
+                let m = &v["models"];
+                let lstm = m["lstm"].as_f64().unwrap_or_else(|| panic!("every estimate carries the LSTM: {v}"));
+                per.entry(v["system_id"].as_u64().unwrap()).or_default().push((lstm, m["dandrea"].as_f64().unwrap()));
+            }
+        }
+        per
+    };
+    let changes = |xs: &[f64]| xs.windows(2).filter(|w| w[0] != w[1]).count();
+    let every = runs(&[]);
+    let fifth = runs(&["--config", cfg.to_str().unwrap()]);
+    assert_eq!(every.keys().collect::<Vec<_>>(), fifth.keys().collect::<Vec<_>>());
+    for (id, est) in &fifth {
+        let n = est.len();
+        let lstm: Vec<f64> = est.iter().map(|e| e.0).collect();
+        let physics: Vec<f64> = est.iter().map(|e| e.1).collect();
+        assert_eq!(n, every[id].len(), "the same windows either way");
+        assert!(changes(&lstm) <= n / 5 + 1 && changes(&lstm) >= n / 5 - 5, "vehicle {id}: LSTM changed {} times in {n} windows", changes(&lstm));
+        assert!(changes(&physics) > n * 4 / 5, "vehicle {id}: the physics models still run on every window");
+        // Where the LSTM ran, it says what it says at full rate (same window, same network).
+        let full: Vec<f64> = every[id].iter().map(|e| e.0).collect();
+        for i in (0..n).step_by(5) {
+            assert!((lstm[i] - full[i]).abs() < 1e-3, "vehicle {id}, window {i}: {} vs {}", lstm[i], full[i]);
+        }
+    }
+}
