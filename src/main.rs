@@ -198,7 +198,7 @@ struct SimulateArgs {
     #[arg(long, value_name = "PROFILE", default_value = "m100")]
     vehicle: String,
     /// Fly this many vehicles at once on the one link or tlog: system ids 1..=N, each its own
-    /// heading (the route turned about home), seed (seed + i) and take-off (0.25 s apart).
+    /// heading (the route turned about home), seed (seed + i) and start (within the first second).
     #[arg(long, value_name = "N", default_value_t = 1)]
     vehicles: u8,
 }

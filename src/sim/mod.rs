@@ -394,8 +394,8 @@ pub const MAX_FLEET: u8 = 254;
 
 /// Fly `n` vehicles of `opts` at once, as one link carries them: vehicle `i` (0-based) is
 /// MAVLink system `i + 1`, flies the route turned by `i` × 137.5° about home (the golden
-/// angle: no two headings alike) with seed `opts.seed + i`, and takes off `i` × 0.25 s after
-/// the first. Returns one flight per vehicle, in system-id order; [`merge`] interleaves
+/// angle: no two headings alike) with seed `opts.seed + i`, and starts `i` × 37 ms (mod 1 s)
+/// after the first, so the vehicles' 10 Hz ticks do not all fall together. Returns one flight per vehicle, in system-id order; [`merge`] interleaves
 /// their messages. Pure computation, deterministic per seed.
 pub fn simulate_fleet(opts: &SimOptions, n: u8) -> anyhow::Result<Vec<SimFlight>> {
     if !(1..=MAX_FLEET).contains(&n) {
@@ -411,7 +411,7 @@ pub fn simulate_fleet(opts: &SimOptions, n: u8) -> anyhow::Result<Vec<SimFlight>
                 (w.north_m, w.east_m) = (c * w.north_m - s * w.east_m, s * w.north_m + c * w.east_m);
             }
             let mut f = simulate(&o)?;
-            let delay_us = u64::from(i) * 250_000;
+            let delay_us = (u64::from(i) * 37_000) % 1_000_000;
             for r in &mut f.records {
                 r.header.system_id = u32::from(i) + 1;
                 r.t_us += delay_us;
