@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing of one of dronewatt's readers with cargo fuzz (libFuzzer).
 #
-#   scripts/fuzz.sh TARGET [SECONDS]     TARGET: decoder | tlog | raw | csv | config
+#   scripts/fuzz.sh TARGET [SECONDS]     TARGET: decoder | tlog | raw | csv | config | plan
 #   scripts/fuzz.sh all [SECONDS]        each target in turn
 #
 # Works on the stable toolchain (RUSTC_BOOTSTRAP=1 lets cargo fuzz use -Z flags). Builds
@@ -14,7 +14,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-targets=(decoder tlog raw csv config)
+targets=(decoder tlog raw csv config plan)
 target=${1:-}
 seconds=${2:-60}
 if [[ -z "$target" ]]; then
@@ -35,16 +35,9 @@ if ! cargo fuzz --version >/dev/null 2>&1; then
   cargo install cargo-fuzz --locked
 fi
 
-# The same libtorch as the main build, so torch-sys's C++ is not rebuilt.
-if [[ -z "${LIBTORCH:-}" && -d .libtorch ]]; then
-  export LIBTORCH="$PWD/.libtorch"
-fi
+# The dronewatt crate does not link libtorch (that is dronewatt-torch), so neither do
+# the fuzz binaries.
 export RUSTC_BOOTSTRAP=1
-# The fuzz binaries link libtorch dynamically (through the dronewatt crate) and, unlike
-# `cargo run`/`cargo test`, cargo fuzz does not put it on the library path.
-if [[ -n "${LIBTORCH:-}" ]]; then
-  export LD_LIBRARY_PATH="$LIBTORCH/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
-fi
 
 corpus=fuzz/corpus/$target
 mkdir -p "$corpus" fuzz/artifacts/"$target"

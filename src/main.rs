@@ -1,4 +1,9 @@
 //! The `dronewatt` command line: parse, load config, run one command.
+//!
+//! This binary does not load libtorch (it starts in milliseconds; the LSTM runs on the
+//! hand-written kernel). A command that needs libtorch (training, a TorchScript model) fails
+//! with [`NeedsLibtorch`] and is handed, whole, to `dronewatt-torch` beside this executable
+//! ([`handoff`]), which compiles this same file with the libtorch parts registered.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -7,6 +12,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
 use dronewatt::config::Config;
+use dronewatt::model::NeedsLibtorch;
 use dronewatt::mission::guidance::{InvalidOption, Triangle};
 use dronewatt::sim::{self, Autopilot, SimOptions};
 use dronewatt::pipeline::{self, Pipeline};
@@ -92,7 +98,7 @@ enum Command {
     },
 }
 
-fn main() -> ExitCode {
+pub fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "dronewatt=info,warn".into()),
@@ -103,10 +109,30 @@ fn main() -> ExitCode {
     match real_main(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            if e.chain().any(|c| c.is::<NeedsLibtorch>()) {
+                handoff();
+            }
             eprintln!("dronewatt: error: {e:#}");
             ExitCode::FAILURE
         }
     }
+}
+
+/// Run this command line again as `dronewatt-torch` (beside this executable), replacing
+/// this process; returns only when there is none to run (the error then says how to build
+/// it). `DRONEWATT_HANDOFF` marks the child, so a hand-off happens at most once.
+fn handoff() {
+    use std::os::unix::process::CommandExt;
+    const MARK: &str = "DRONEWATT_HANDOFF";
+    if std::env::var_os(MARK).is_some() {
+        return;
+    }
+    let Some(torch) = std::env::current_exe().ok().map(|exe| exe.with_file_name("dronewatt-torch")).filter(|p| p.is_file()) else {
+        return;
+    };
+    tracing::info!("handing the command to {} (it loads libtorch)", torch.display());
+    let err = std::process::Command::new(&torch).args(std::env::args_os().skip(1)).env(MARK, "1").exec();
+    tracing::warn!("{}: cannot run: {err}", torch.display());
 }
 
 fn real_main(cli: Cli) -> Result<()> {

@@ -493,7 +493,6 @@ async fn telemetry_stage(
 /// models (the LSTM) run on every [`Batching::heavy_every`]-th window of a vehicle; the
 /// windows between carry that vehicle's latest heavy estimates.
 fn inference_stage(mut models: Ensemble, mut jobs: mpsc::Receiver<Job>, batching: Batching, rt: tokio::runtime::Handle) {
-    crate::model::pin_inference_thread();
     let heavy_names = models.heavy_names();
     let mut b = Batch::default();
     // Per vehicle: windows seen, and the heavy models' latest estimates.

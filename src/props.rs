@@ -311,3 +311,45 @@ pub fn check_config(data: &[u8]) -> Result<(), String> {
     }
     Ok(())
 }
+
+/// A mission plan, read as both formats the `plan` command takes: QGroundControl `.plan`
+/// JSON and `QGC WPL 110` `.waypoints` text. A plan that reads has items, a home and
+/// positions in range with finite numbers, and every item once, in order; one that does not
+/// names the file, the item or the whole file, and why. Reading is deterministic.
+pub fn check_plan(data: &[u8]) -> Result<(), String> {
+    use crate::mission::plan::{parse_qgc_plan, parse_waypoints, Plan, PlanError};
+    let Ok(text) = std::str::from_utf8(data) else { return Ok(()) };
+    let readers: [(&str, fn(&str, &str) -> Result<Plan, PlanError>); 2] = [("fuzz.plan", parse_qgc_plan), ("fuzz.waypoints", parse_waypoints)];
+    for (file, read) in readers {
+        let first = read(text, file);
+        let again = read(text, file);
+        match (&first, &again) {
+            (Err(a), Err(b)) if a.to_string() == b.to_string() => {
+                if a.file != file || a.at.is_empty() || a.why.is_empty() {
+                    return Err(format!("{file}: an error that does not say where and why: {a:?}"));
+                }
+            }
+            (Ok(a), Ok(b)) if a.items.len() == b.items.len() => {
+                if a.items.is_empty() {
+                    return Err(format!("{file}: read with no items"));
+                }
+                let in_range = |p: &crate::mission::plan::GeoPoint| {
+                    p.lat_deg.is_finite() && p.lon_deg.is_finite() && p.alt_m.is_finite() && p.lat_deg.abs() <= 90.0 && p.lon_deg.abs() <= 180.0
+                };
+                if !in_range(&a.home) {
+                    return Err(format!("{file}: home out of range: {:?}", a.home));
+                }
+                for (i, item) in a.items.iter().enumerate() {
+                    if item.index != i {
+                        return Err(format!("{file}: item {i} has index {}", item.index));
+                    }
+                    if let Some(p) = item.position.filter(|p| !in_range(p)) {
+                        return Err(format!("{file}: item {i} position out of range: {p:?}"));
+                    }
+                }
+            }
+            _ => return Err(format!("{file}: reading twice gave different results")),
+        }
+    }
+    Ok(())
+}

@@ -27,6 +27,28 @@ fn mae_by_model(models: Vec<Box<dyn PowerModel>>, f: &dronewatt::offline::data::
         .collect()
 }
 
+/// The README's Table 2 (flight 276, in-flight MAE / RMSE in W): the published parameters
+/// and the committed calibrated profile. Pinned to 0.1 W, so the README's figures cannot
+/// drift from what the code computes.
+const README_TABLE: [(&str, (f64, f64), (f64, f64)); 7] = [
+    ("dandrea", (322.2, 345.7), (56.8, 83.8)),
+    ("dandrea_headwind", (335.4, 357.6), (56.8, 83.8)),
+    ("dorling", (370.5, 379.1), (63.9, 87.8)),
+    ("stolaroff", (196.2, 223.4), (56.3, 83.3)),
+    ("kirschstein", (207.6, 222.2), (64.9, 88.0)),
+    ("tseng", (93.3, 126.0), (52.0, 74.8)),
+    ("tseng_solo", (208.1, 219.3), (62.7, 86.2)),
+];
+
+fn assert_table(got: &[(String, f64, f64)], column: impl Fn(&(&str, (f64, f64), (f64, f64))) -> (f64, f64), what: &str) {
+    assert_eq!(got.len(), README_TABLE.len(), "{what}: models {got:?}");
+    for ((name, mae, rmse), row) in got.iter().zip(&README_TABLE) {
+        assert!(name.trim_end_matches("_cal") == row.0, "{what}: model {name} where the README has {}", row.0);
+        let (want_mae, want_rmse) = column(row);
+        assert!((mae - want_mae).abs() < 0.051 && (rmse - want_rmse).abs() < 0.051, "{what} {name}: {mae:.2} / {rmse:.2} W, README {want_mae} / {want_rmse} W");
+    }
+}
+
 fn assert_beats(published: &[(String, f64, f64)], calibrated: &[(String, f64, f64)]) {
     for ((pn, pm, pr), (cn, cm, cr)) in published.iter().zip(calibrated) {
         assert_eq!(format!("{pn}_cal"), *cn);
@@ -57,7 +79,10 @@ fn calibrated_beats_published_on_flight_276() {
     let committed = VehicleProfile::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/vehicles/m100-calibrated.toml"))
         .expect("committed calibrated profile");
     assert!(!committed.calibration.as_ref().expect("calibration table").flights.iter().any(|f| TEST_FLIGHTS.contains(f)));
-    assert_beats(&published, &mae_by_model(physics::models(&committed), f276));
+    let committed = mae_by_model(physics::models(&committed), f276);
+    assert_beats(&published, &committed);
+    assert_table(&published, |r| r.1, "published");
+    assert_table(&committed, |r| r.2, "calibrated (committed profile)");
 }
 
 /// Issue 5's flight 276 target through `dronewatt eval` itself: the committed LSTM scores

@@ -15,12 +15,13 @@ use mavlink::{MavHeader, MavlinkVersion};
 
 type Check = fn(&[u8]) -> Result<(), String>;
 
-const TARGETS: [(&str, Check); 5] = [
+const TARGETS: [(&str, Check); 6] = [
     ("decoder", props::check_decoder),
     ("tlog", props::check_tlog),
     ("raw", props::check_raw),
     ("csv", props::check_csv),
     ("config", props::check_config),
+    ("plan", props::check_plan),
 ];
 
 fn fuzz_dir() -> PathBuf {
@@ -248,16 +249,58 @@ fn config_seeds() -> Vec<Vec<u8>> {
     v
 }
 
+/// Plans written by hand per the formats (QGroundControl's `.plan` JSON, `QGC WPL 110`),
+/// good and bad: each reader sees every seed.
+fn plan_seeds() -> Vec<Vec<u8>> {
+    let wpl = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t40.44\t-79.94\t290.0\t1\n1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t25\t1\n\
+2\t0\t3\t178\t1\t10\t-1\t0\t0\t0\t0\t1\n3\t0\t3\t16\t5\t0\t0\t0\t40.4405\t-79.9385\t25\t1\n4\t0\t3\t19\t10\t0\t0\t0\t40.4389\t-79.9396\t25\t1\n\
+5\t0\t3\t206\t25\t0\t1\t0\t0\t0\t0\t1\n6\t0\t0\t16\t0\t0\t0\t0\t40.4401\t-79.9401\t320\t1\n7\t0\t10\t16\t0\t0\t0\t0\t40.4402\t-79.9402\t30\t1\n\
+8\t0\t3\t21\t0\t0\t0\t0\t40.44\t-79.94\t0\t1\n9\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n";
+    let item = |cmd: u32, p: [f64; 7]| {
+        format!(r#"{{"type":"SimpleItem","command":{cmd},"frame":3,"params":[{},{},{},{},{},{},{}],"autoContinue":true,"doJumpId":1}}"#, p[0], p[1], p[2], p[3], p[4], p[5], p[6])
+    };
+    let plan = |items: &str| {
+        format!(
+            r#"{{"fileType":"Plan","version":1,"groundStation":"QGroundControl","mission":{{"version":2,"firmwareType":3,"vehicleType":2,"cruiseSpeed":10,"hoverSpeed":5,"plannedHomePosition":[40.44,-79.94,290],"items":[{items}]}},"geoFence":{{}},"rallyPoints":{{}}}}"#
+        )
+    };
+    let simple = [
+        item(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25.0]),
+        item(16, [5.0, 0.0, 0.0, 0.0, 40.4405, -79.9385, 25.0]),
+        item(178, [1.0, 8.0, -1.0, 0.0, 0.0, 0.0, 0.0]),
+        item(19, [10.0, 0.0, 0.0, 0.0, 40.4389, -79.9396, 25.0]),
+        item(20, [0.0; 7]),
+    ]
+    .join(",");
+    let survey = r#"{"type":"ComplexItem","complexItemType":"survey","TransectStyleComplexItem":{"Items":[{"type":"SimpleItem","command":16,"frame":3,"params":[0,0,0,0,40.441,-79.941,30],"autoContinue":true},{"type":"SimpleItem","command":16,"frame":3,"params":[0,0,0,0,40.442,-79.941,30],"autoContinue":true}]}}"#;
+    let mut v: Vec<Vec<u8>> = vec![
+        wpl.into(),
+        plan(&simple).into_bytes(),
+        plan(&format!("{},{survey}", item(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25.0]))).into_bytes(),
+        plan("").into_bytes(),
+        plan(&item(31337, [0.0; 7])).into_bytes(),
+        plan(&item(16, [0.0, 0.0, 0.0, 0.0, 95.0, 0.0, 10.0])).into_bytes(),
+        wpl.replace("40.4405", "140.4405").into_bytes(),
+        wpl.replace("\t206\t", "\t9999\t").into_bytes(),
+        b"QGC WPL 110\n".to_vec(),
+        b"QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\tnan\t0\t0\t1\n".to_vec(),
+        b"{\"fileType\":\"Plan\",\"mission\":".to_vec(),
+    ];
+    v.push(plan(&simple).replace("\"plannedHomePosition\":[40.44,-79.94,290]", "\"plannedHomePosition\":[40.44,-79.94]").into_bytes());
+    v
+}
+
 /// Rewrite `fuzz/seeds/` from the generators above (run by hand when they change).
 #[test]
 #[ignore]
 fn write_seeds() {
-    let sets: [(&str, Vec<Vec<u8>>); 5] = [
+    let sets: [(&str, Vec<Vec<u8>>); 6] = [
         ("decoder", decoder_seeds()),
         ("tlog", tlog_seeds()),
         ("raw", raw_seeds()),
         ("csv", csv_seeds()),
         ("config", config_seeds()),
+        ("plan", plan_seeds()),
     ];
     for (target, seeds) in sets {
         let dir = fuzz_dir().join("seeds").join(target);
@@ -266,4 +309,20 @@ fn write_seeds() {
             std::fs::write(dir.join(format!("seed-{i:02}")), s).unwrap();
         }
     }
+}
+
+/// The plan seeds reach past the readers' first error: the good ones read, in each format.
+#[test]
+fn the_good_plan_seeds_read() {
+    use dronewatt::mission::plan::{parse_qgc_plan, parse_waypoints};
+    let seeds = plan_seeds();
+    let text = |i: usize| String::from_utf8(seeds[i].clone()).expect("utf-8 seed");
+    let wpl = parse_waypoints(&text(0), "seed-00").expect("the .waypoints seed reads");
+    assert_eq!(wpl.items.len(), 9, "home is line 0; nine items follow");
+    assert_eq!(wpl.not_modelled().len(), 1, "the camera trigger (206) is listed");
+    let plan = parse_qgc_plan(&text(1), "seed-01").expect("the .plan seed reads");
+    assert_eq!(plan.items.len(), 5);
+    assert_eq!(plan.cruise_speed_m_s, Some(10.0));
+    let survey = parse_qgc_plan(&text(2), "seed-02").expect("the survey seed reads");
+    assert_eq!(survey.items.len(), 3, "takeoff and the survey's two waypoints");
 }

@@ -1,4 +1,4 @@
-//! The stacked bidirectional LSTM power model of the paper (Section 3), in tch/libtorch.
+//! The stacked bidirectional LSTM power model of the paper (Section 3).
 //!
 //! Network: x ∈ ℝ^{T×21} (standardised with the training set's mean and std, T = 10 at
 //! 10 Hz) → BiLSTM(128) → BiLSTM(128) → the last layer's final forward and backward
@@ -11,9 +11,13 @@
 //! at 0.5, is the MAE). A card may set a target lag L: the estimate is then for the sample
 //! L steps before the window's newest ([`crate::window::Window::back`]).
 //!
-//! On the CPU every batch, one window (the live case) or thousands (a replay flat out,
-//! `eval`), runs through the batched hand-written forward of [`super::lstm_cpu`]; libtorch
-//! runs CUDA and TorchScript models (and is the reference the tests compare against).
+//! Every batch, one window (the live case) or thousands (a replay flat out, `eval`), runs
+//! through the batched hand-written forward of [`super::lstm_cpu`], with no libtorch in
+//! the process: `dronewatt` starts in milliseconds. TorchScript models, CUDA and training
+//! need libtorch: the `dronewatt-torch` binary (crate `torch/`) registers an
+//! [`ExternalLoader`] for them ([`set_external_loader`]), and `dronewatt` hands such work
+//! to it ([`super::NeedsLibtorch`]). The network itself, in tch, is `dronewatt_torch::Net` (the
+//! reference the kernel is tested against).
 //!
 //! Variable names follow PyTorch's `nn.LSTM` (`lstm.weight_ih_l0_reverse` …) and
 //! `nn.Linear` (`head.weight`), so the same `.safetensors` loads in PyTorch.
@@ -26,10 +30,7 @@
 //!    (`CARGO_MANIFEST_DIR`).
 
 use std::path::{Path, PathBuf};
-
-use anyhow::Context;
-use tch::nn::{self, Module, RNN};
-use tch::{Device, Kind, Tensor};
+use std::sync::OnceLock;
 
 use super::card::{FeatureSet, ModelCard, WeightsFormat};
 use super::lstm_cpu::CpuLstm;
@@ -59,34 +60,6 @@ impl Default for LstmConfig {
     }
 }
 
-/// The paper's network: two stacked bidirectional LSTM layers, dropout, dense, tanh.
-#[derive(Debug)]
-pub struct Net {
-    lstm: nn::LSTM,
-    head: nn::Linear,
-    dropout: f64,
-}
-
-impl Net {
-    /// Build the network's variables under `p` (`p/lstm`, `p/head`).
-    pub fn new(p: &nn::Path, hidden: i64, layers: i64, dropout: f64) -> Net {
-        let cfg = nn::RNNConfig { num_layers: layers, bidirectional: true, batch_first: true, ..Default::default() };
-        let lstm = nn::lstm(p / "lstm", N_FEATURES as i64, hidden, cfg);
-        let head = nn::linear(p / "head", 2 * hidden, 3, Default::default());
-        Net { lstm, head, dropout }
-    }
-
-    /// `x`: `[batch, T, 21]` standardised → `[batch, 3]` tanh-scaled (point, low, high).
-    /// `train` turns dropout on.
-    pub fn forward_t(&self, x: &Tensor, train: bool) -> Tensor {
-        let (_, nn::LSTMState((h, _))) = self.lstm.seq(x);
-        let n = h.size()[0];
-        // h: [layers × 2, batch, hidden]; the last two are the top layer's forward/backward.
-        let last = Tensor::cat(&[h.get(n - 2), h.get(n - 1)], 1);
-        self.head.forward(&last.dropout(self.dropout, train)).tanh()
-    }
-}
-
 /// Append window `w`'s raw (unstandardised) inputs for `set` to `out`: T × 21 values,
 /// oldest sample first. A window shorter than `t` is padded with its oldest sample, a
 /// longer one keeps its newest `t` samples. Shared by training and inference so the two
@@ -112,28 +85,54 @@ pub fn push_inputs(w: &Window, set: FeatureSet, t: usize, out: &mut Vec<f32>) {
     }
 }
 
+/// A network run outside the hand-written kernel (libtorch: TorchScript, CUDA), supplied
+/// by `dronewatt-torch`.
+pub trait ExternalNet: Send {
+    /// Forward `b` standardised windows (`x`: `[b][t][21]`, row-major) → the outputs,
+    /// row-major, and the number of columns (3: point, low, high; 1: point only).
+    fn forward(&mut self, x: &[f32], b: usize, t: usize) -> anyhow::Result<(Vec<f32>, usize)>;
+    /// What runs it, for the log (e.g. "libtorch TorchScript on Cpu").
+    fn describe(&self) -> String;
+}
+
+/// Loads a model the kernel cannot run (TorchScript), or claims one it could (CUDA);
+/// `Ok(None)` leaves it to the kernel.
+pub type ExternalLoader = fn(weights: &Path, card: &ModelCard) -> anyhow::Result<Option<Box<dyn ExternalNet>>>;
+
+static EXTERNAL: OnceLock<ExternalLoader> = OnceLock::new();
+
+/// Register the loader of external networks (once per process; `dronewatt-torch` calls it
+/// at start). Later calls are ignored.
+pub fn set_external_loader(loader: ExternalLoader) {
+    let _ = EXTERNAL.set(loader);
+}
+
 enum Backend {
-    /// Our own network: on the CPU the hand-written forward ([`CpuLstm`]) for every batch;
-    /// libtorch on CUDA (or when asked, [`LstmModel::set_libtorch_only`]).
-    Native { _vs: nn::VarStore, net: Net, cpu: Option<Box<CpuLstm>> },
-    Script(tch::CModule),
+    /// The hand-written batched forward ([`CpuLstm`]).
+    Kernel(Box<CpuLstm>),
+    /// A network on libtorch.
+    External(Box<dyn ExternalNet>),
 }
 
 /// The LSTM as a [`PowerModel`]: a card, weights, and a scratch buffer.
 pub struct LstmModel {
     card: ModelCard,
     backend: Backend,
-    device: Device,
     buf: Vec<f32>,
     out: Vec<f32>,
-    libtorch_only: bool,
     warned: bool,
 }
 
 impl LstmModel {
     /// Load a model from a folder holding `card.toml`, a card file, or a weights file with
-    /// `card.toml` beside it, and check the card against the ingest path's settings.
+    /// `card.toml` beside it, and check the card against the ingest path's settings. A
+    /// registered [`ExternalLoader`] gets the first say.
     pub fn load(path: &Path, cfg: &TelemetryConfig) -> anyhow::Result<LstmModel> {
+        Self::load_with(path, cfg, EXTERNAL.get().copied())
+    }
+
+    /// [`Self::load`] with this loader (or none: the kernel only).
+    pub fn load_with(path: &Path, cfg: &TelemetryConfig, external: Option<ExternalLoader>) -> anyhow::Result<LstmModel> {
         let (card_path, weights_override) = if path.is_dir() {
             (path.join("card.toml"), None)
         } else if path.extension().is_some_and(|e| e == "toml") {
@@ -145,28 +144,29 @@ impl LstmModel {
         card.check(cfg).map_err(|e| anyhow::anyhow!("{}: model card does not match the ingest path: {e}", card_path.display()))?;
         let dir = card_path.parent().unwrap_or(Path::new("."));
         let weights = weights_override.unwrap_or_else(|| dir.join(&card.weights));
-        let device = Device::cuda_if_available();
-        let backend = match card.weights_format {
-            WeightsFormat::Safetensors => {
-                let mut vs = nn::VarStore::new(device);
-                let net = Net::new(&vs.root(), card.hidden, card.layers, card.training.dropout);
-                vs.load(&weights).with_context(|| format!("{}: cannot load LSTM weights", weights.display()))?;
-                let cpu = if device == Device::Cpu { CpuLstm::from_var_store(&vs, card.layers as usize, card.hidden as usize).map(Box::new) } else { None };
-                Backend::Native { _vs: vs, net, cpu }
+        let claimed = match external {
+            Some(load) => load(&weights, &card)?,
+            None => None,
+        };
+        let backend = match (claimed, card.weights_format) {
+            (Some(net), _) => {
+                tracing::info!("lstm: {} runs on {}", weights.display(), net.describe());
+                Backend::External(net)
             }
-            WeightsFormat::Torchscript => {
-                let mut m = tch::CModule::load_on_device(&weights, device)
-                    .with_context(|| format!("{}: cannot load TorchScript module", weights.display()))?;
-                m.set_eval();
-                Backend::Script(m)
+            (None, WeightsFormat::Safetensors) => {
+                let (layers, hidden) = (usize::try_from(card.layers)?, usize::try_from(card.hidden)?);
+                Backend::Kernel(Box::new(CpuLstm::from_safetensors(&weights, layers, hidden)?))
+            }
+            (None, WeightsFormat::Torchscript) => {
+                return Err(super::NeedsLibtorch { what: format!("{}: a TorchScript model", weights.display()) }.into())
             }
         };
-        Ok(LstmModel { card, backend, device, buf: Vec::new(), out: Vec::new(), libtorch_only: false, warned: false })
+        Ok(LstmModel { card, backend, buf: Vec::new(), out: Vec::new(), warned: false })
     }
 
-    /// Run every batch on libtorch, never the hand-written forward (benchmarks, checks).
-    pub fn set_libtorch_only(&mut self, on: bool) {
-        self.libtorch_only = on;
+    /// Whether the hand-written kernel runs this model (not libtorch).
+    pub fn on_kernel(&self) -> bool {
+        matches!(self.backend, Backend::Kernel(_))
     }
 
     /// The card this model was loaded with.
@@ -189,21 +189,17 @@ impl LstmModel {
         let b = windows.len();
         self.out.clear();
         let cols = match &mut self.backend {
-            Backend::Native { cpu: Some(cpu), .. } if !self.libtorch_only => {
+            Backend::Kernel(cpu) => {
                 let cols = cpu.outputs();
                 self.out.resize(b * cols, 0.0);
                 cpu.forward_batch(&self.buf, t, &mut self.out);
                 cols
             }
-            backend => {
-                let x = Tensor::from_slice(&self.buf).view([b as i64, t as i64, N_FEATURES as i64]).to_device(self.device);
-                let y = tch::no_grad(|| match backend {
-                    Backend::Native { net, .. } => Ok(net.forward_t(&x, false)),
-                    Backend::Script(m) => m.forward_ts(&[&x]),
-                })?;
-                let y = y.to_device(Device::Cpu).to_kind(Kind::Float).contiguous();
-                self.out = Vec::<f32>::try_from(y.view([-1]))?;
-                if y.dim() == 2 { y.size()[1] as usize } else { 1 }
+            Backend::External(net) => {
+                let (out, cols) = net.forward(&self.buf, b, t)?;
+                anyhow::ensure!(cols > 0 && out.len() == b * cols, "{}: {} outputs for {b} windows", net.describe(), out.len());
+                self.out = out;
+                cols
             }
         };
         let s = self.card.power_scale_w;
@@ -280,9 +276,6 @@ pub fn from_config(cfg: &LstmConfig, telemetry: &TelemetryConfig) -> anyhow::Res
     if !cfg.enabled {
         return Ok(None);
     }
-    // One intra-op thread: this network is small, and at batch 1 libtorch's thread pool
-    // costs more than it gains (20× slower measured on a busy 2-core machine).
-    tch::set_num_threads(1);
     match resolve_model_path(cfg.path.as_deref()) {
         Some(p) => Ok(Some(LstmModel::load(&p, telemetry)?)),
         None => {

@@ -40,8 +40,6 @@
 //! run time ([`Isa`]): AVX-512F, else AVX2 + FMA, else (any other CPU) a plain scalar path
 //! with the same results to rounding.
 
-use tch::nn::VarStore;
-
 /// Gate outputs per packed weight block: two AVX registers.
 const NR: usize = 16;
 /// Rows of the register tile.
@@ -99,16 +97,32 @@ fn pack(w: &[f32], n: usize, k: usize) -> Vec<f32> {
 }
 
 impl CpuLstm {
-    /// Copy the weights of a [`super::lstm::Net`] built under `vs`'s root (`lstm.*`,
-    /// `head.*`, PyTorch's names). `None` when a tensor is missing or has an unexpected
-    /// shape, or 4H is not a multiple of 16.
-    pub fn from_var_store(vs: &VarStore, layers: usize, hidden: usize) -> Option<CpuLstm> {
-        let vars = vs.variables();
-        let get = |name: &str| -> Option<(Vec<f32>, Vec<i64>)> {
-            let t = vars.get(name)?.to_device(tch::Device::Cpu).to_kind(tch::Kind::Float).contiguous();
-            let shape = t.size();
-            Some((Vec::<f32>::try_from(t.view([-1])).ok()?, shape))
+    /// Read the weights of the network from a `.safetensors` file (PyTorch's `nn.LSTM`
+    /// and `nn.Linear` names under `lstm.` and `head.`, float32 or float64).
+    pub fn from_safetensors(path: &std::path::Path, layers: usize, hidden: usize) -> anyhow::Result<CpuLstm> {
+        use anyhow::Context;
+        use safetensors::{Dtype, SafeTensors};
+        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read LSTM weights", path.display()))?;
+        let st = SafeTensors::deserialize(&bytes).with_context(|| format!("{}: not a safetensors file", path.display()))?;
+        let get = |name: &str| -> Option<(Vec<f32>, Vec<usize>)> {
+            let t = st.tensor(name).ok()?;
+            let data = t.data();
+            let values: Vec<f32> = match t.dtype() {
+                Dtype::F32 => data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
+                Dtype::F64 => data.chunks_exact(8).map(|b| f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) as f32).collect(),
+                _ => return None,
+            };
+            Some((values, t.shape().to_vec()))
         };
+        CpuLstm::from_tensors(get, layers, hidden).with_context(|| {
+            format!("{}: weights do not fit a {layers}-layer bidirectional LSTM of {hidden} cells with a dense head (a tensor is missing, of another type or shape)", path.display())
+        })
+    }
+
+    /// Build from named tensors (`get(name)` → values, row-major, and shape), PyTorch's
+    /// names (`lstm.weight_ih_l0_reverse`, `head.bias`, …). `None` when a tensor is missing
+    /// or has an unexpected shape, or 4H is not a multiple of 16.
+    pub fn from_tensors(get: impl Fn(&str) -> Option<(Vec<f32>, Vec<usize>)>, layers: usize, hidden: usize) -> Option<CpuLstm> {
         let g = 4 * hidden;
         let mut ls = Vec::new();
         for l in 0..layers {
@@ -117,8 +131,8 @@ impl CpuLstm {
                 let (w_hh, s_hh) = get(&format!("lstm.weight_hh_l{l}{suffix}"))?;
                 let (b_ih, _) = get(&format!("lstm.bias_ih_l{l}{suffix}"))?;
                 let (b_hh, _) = get(&format!("lstm.bias_hh_l{l}{suffix}"))?;
-                let input = *s_ih.get(1)? as usize;
-                let ok = g.is_multiple_of(NR) && s_ih[0] as usize == g && s_hh == [g as i64, hidden as i64] && b_ih.len() == g && b_hh.len() == g;
+                let input = *s_ih.get(1)?;
+                let ok = g.is_multiple_of(NR) && s_ih[0] == g && s_hh == [g, hidden] && w_hh.len() == g * hidden && w_ih.len() == g * input && b_ih.len() == g && b_hh.len() == g;
                 ok.then(|| Direction {
                     input,
                     w_ih: pack(&w_ih, g, input),
@@ -130,7 +144,7 @@ impl CpuLstm {
         }
         let (head_w, hs) = get("head.weight")?;
         let (head_b, _) = get("head.bias")?;
-        if hs.get(1).copied()? as usize != 2 * hidden || head_b.len() != hs[0] as usize {
+        if hs.get(1).copied()? != 2 * hidden || head_b.len() != hs[0] || head_w.len() != hs[0] * 2 * hidden {
             return None;
         }
         Some(CpuLstm {
@@ -150,6 +164,14 @@ impl CpuLstm {
     /// The instruction set the forward runs on.
     pub fn isa(&self) -> Isa {
         self.isa
+    }
+
+    /// Run on `isa` instead of the best detected (tests compare every path; an
+    /// instruction set the CPU lacks is ignored).
+    pub fn set_isa(&mut self, isa: Isa) {
+        if Isa::available().contains(&isa) {
+            self.isa = isa;
+        }
     }
 
     /// Inputs per step (the first layer's width).
@@ -563,76 +585,6 @@ mod avx512 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::lstm::Net;
-    use tch::{Device, Kind, Tensor};
-
-    /// A randomly initialised network (non-zero biases, so their sum is exercised), its
-    /// libtorch outputs for `windows` random windows of T = 10, and those windows' inputs.
-    fn random_net(seed: i64, hidden: i64, layers: i64, windows: i64) -> (VarStore, Vec<f32>, Vec<f32>) {
-        tch::manual_seed(seed);
-        let vs = VarStore::new(Device::Cpu);
-        let net = Net::new(&vs.root(), hidden, layers, 0.2);
-        tch::no_grad(|| {
-            for (name, mut v) in vs.variables() {
-                if name.contains("bias") {
-                    let _ = v.uniform_(-0.3, 0.3);
-                }
-            }
-        });
-        let x = Tensor::randn([windows, 10, 21], (Kind::Float, Device::Cpu)) * 1.5;
-        let want = Vec::<f32>::try_from(tch::no_grad(|| net.forward_t(&x, false)).view([-1])).expect("libtorch output");
-        let xs = Vec::<f32>::try_from(x.view([-1])).expect("input");
-        (vs, want, xs)
-    }
-
-    /// Run the first `b` windows as one batch and compare every output with libtorch's.
-    fn check_batch(m: &mut CpuLstm, xs: &[f32], want: &[f32], b: usize, what: &str) {
-        let (per, o) = (10 * 21, 3);
-        let mut out = vec![f32::NAN; b * o];
-        m.forward_batch(&xs[..b * per], 10, &mut out);
-        for (i, (got, exp)) in out.iter().zip(&want[..b * o]).enumerate() {
-            assert!((got - exp).abs() < 1e-5, "{what}, batch {b}: window {} output {}: {got} vs libtorch {exp}", i / o, i % o);
-        }
-    }
-
-    /// The paper's network (2 layers, 128 hidden) equals libtorch at every batch size from
-    /// 1 to 67 (full 6-row tiles and every remainder, one and several row chunks), and at
-    /// 131 (more than one pass of `CHUNK_WINDOWS`), on every instruction set this CPU has.
-    #[test]
-    fn matches_libtorch_at_every_batch_size() {
-        let (vs, want, xs) = random_net(3, 128, 2, 131);
-        for isa in Isa::available() {
-            let mut m = CpuLstm::from_var_store(&vs, 2, 128).expect("weights");
-            m.isa = isa;
-            let what = format!("{isa:?}");
-            for b in (1..=67).chain([131]) {
-                check_batch(&mut m, &xs, &want, b, &what);
-            }
-            // The single-window entry point is the same forward.
-            let mut out = [0.0f32; 3];
-            m.forward(&xs[5 * 210..6 * 210], 10, &mut out);
-            assert_eq!(out.to_vec(), {
-                let mut six = vec![0.0f32; 18];
-                m.forward_batch(&xs[..6 * 210], 10, &mut six);
-                six[15..18].to_vec()
-            });
-        }
-    }
-
-    /// Another shape: three layers of 24 hidden (4H = 96: six column blocks, so the
-    /// few-row tiles end on a lone block).
-    #[test]
-    fn matches_libtorch_on_another_shape() {
-        let (vs, want, xs) = random_net(11, 24, 3, 40);
-        for isa in Isa::available() {
-            let mut m = CpuLstm::from_var_store(&vs, 3, 24).expect("weights");
-            m.isa = isa;
-            let what = format!("{isa:?}");
-            for b in [1, 2, 3, 4, 5, 6, 7, 8, 9, 13, 40] {
-                check_batch(&mut m, &xs, &want, b, &what);
-            }
-        }
-    }
 
     #[test]
     fn vector_exp_is_accurate() {

@@ -115,11 +115,14 @@ pub struct ModelsConfig {
     pub lstm: lstm::LstmConfig,
 }
 
-/// Set up the calling thread to run models: one libtorch intra-op thread (the LSTM is
-/// small; at batch 1 a thread team costs more than it gains). Per thread, so the thread that
-/// runs inference calls it.
-pub fn pin_inference_thread() {
-    tch::set_num_threads(1);
+/// Work that needs libtorch (training, TorchScript models), asked of `dronewatt`, which
+/// does not load it. The command line answers it by handing the whole command to
+/// `dronewatt-torch` (crate `torch/`), which registers the libtorch parts at start.
+#[derive(Debug, thiserror::Error)]
+#[error("{what} needs libtorch, which `dronewatt` does not load: run the command with `dronewatt-torch` (`cargo build --workspace` builds it beside `dronewatt`)")]
+pub struct NeedsLibtorch {
+    /// What asked for it.
+    pub what: String,
 }
 
 /// The models a configuration asks for, built and checked (profiles loaded, cards matched).

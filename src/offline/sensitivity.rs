@@ -73,7 +73,6 @@ fn mean_power(model: &mut LstmModel, windows: &[Window], feature: usize, value: 
 /// Run `dronewatt sensitivity`.
 pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
     let cfg = Config::load_or_default(args.config.as_deref())?;
-    tch::set_num_threads(1);
     let model_path = resolve_model_path(args.model.as_deref().or(cfg.models.lstm.path.as_deref())).context("no model found: pass --model")?;
     let mut model = LstmModel::load(&model_path, &cfg.telemetry)?;
     let data = args.data.clone().unwrap_or_else(crate::default_data_path);

@@ -23,7 +23,7 @@ m.save(sys.argv[1])
 
 #[test]
 fn torchscript_module_loads_with_its_card() {
-    let python = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv-bench/bin/python");
+    let python = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../.venv-bench/bin/python");
     let dir = tempfile::tempdir().unwrap();
     let pt = dir.path().join("tiny.pt");
     // From a file: TorchScript compiles from the module's source.
@@ -65,8 +65,14 @@ fn torchscript_module_loads_with_its_card() {
         metrics: None,
     };
     card.save(&dir.path().join("card.toml")).unwrap();
-    // Load through the weights file path, as `--model tiny.pt` does.
-    let mut model = LstmModel::load(&pt, &TelemetryConfig::default()).unwrap();
+    // Without libtorch (the `dronewatt` binary) the module is refused with the error that
+    // hands the command to `dronewatt-torch`.
+    let err = LstmModel::load_with(&pt, &TelemetryConfig::default(), None).err().expect("TorchScript needs libtorch");
+    assert!(err.is::<dronewatt::model::NeedsLibtorch>(), "{err:#}");
+    assert!(format!("{err:#}").contains("dronewatt-torch"), "{err:#}");
+    // Load through the weights file path, as `--model tiny.pt` does, with libtorch's loader.
+    let mut model = LstmModel::load_with(&pt, &TelemetryConfig::default(), Some(dronewatt_torch::load)).unwrap();
+    assert!(!model.on_kernel());
     assert_eq!(model.name(), "byo");
     let windows: Vec<Window> = (0..3)
         .map(|i| Window {
@@ -95,4 +101,23 @@ fn torchscript_module_loads_with_its_card() {
         assert!((lo - (want - 10.0)).abs() < 1e-3, "window {i}: band low {lo} W, want {} W", want - 10.0);
         assert!((hi - (want + 10.0)).abs() < 1e-3, "window {i}: band high {hi} W, want {} W", want + 10.0);
     }
+
+    // End to end: `dronewatt` itself (no libtorch) is asked to replay with this module; it
+    // hands the whole command to `dronewatt-torch`, whose estimates carry the module's name.
+    let lean = std::path::Path::new(env!("CARGO_BIN_EXE_dronewatt-torch")).with_file_name("dronewatt");
+    assert!(lean.is_file(), "{}: not built (cargo test --workspace builds it)", lean.display());
+    let demo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../replay/demo.tlog");
+    let out = Command::new(&lean)
+        .arg("replay")
+        .arg(&demo)
+        .args(["--speed", "max", "-q", "--json", "-", "--model"])
+        .arg(&pt)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "replay with a TorchScript model failed: {stderr}");
+    assert!(stderr.contains("dronewatt-torch"), "the hand-off is logged: {stderr}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let byo = stdout.lines().filter(|l| l.contains("\"estimate\"") && l.contains("\"byo\"")).count();
+    assert!(byo > 1000, "{byo} estimates from the TorchScript model");
 }

@@ -3,7 +3,8 @@
 //! these run without the data set.
 
 use dronewatt::model::card::{FeatureSet, ModelCard, TrainingInfo, WeightsFormat};
-use dronewatt::model::lstm::{push_inputs, LstmModel, Net};
+use dronewatt::model::lstm::{push_inputs, LstmModel};
+use dronewatt_torch::Net;
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
 use dronewatt::window::Window;

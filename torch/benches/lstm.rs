@@ -39,16 +39,17 @@ fn bench(c: &mut Criterion) {
     let threads = std::env::var("DRONEWATT_BENCH_THREADS").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
     tch::set_num_threads(threads);
     let path = resolve_model_path(None).expect("no shipped model under config/models/lstm-m100");
-    let mut model = LstmModel::load(&path, &TelemetryConfig::default()).expect("load the shipped model");
+    let kernel = LstmModel::load(&path, &TelemetryConfig::default()).expect("load the shipped model");
+    let torch = LstmModel::load_with(&path, &TelemetryConfig::default(), Some(dronewatt_torch::load_on_libtorch)).expect("load the shipped model on libtorch");
+    let mut models = [("hand_written", kernel), ("libtorch", torch)];
     let windows: Vec<Window> = (0..1024).map(window).collect();
     let mut out = Vec::new();
     let mut g = c.benchmark_group("lstm_batch");
     g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
     for b in [1usize, 4, 32, 256, 1024] {
         g.throughput(Throughput::Elements(b as u64));
-        for (name, libtorch) in [("hand_written", false), ("libtorch", true)] {
-            model.set_libtorch_only(libtorch);
-            g.bench_with_input(BenchmarkId::new(name, b), &windows[..b], |bch, ws| bch.iter(|| model.predict(ws, &mut out)));
+        for (name, model) in &mut models {
+            g.bench_with_input(BenchmarkId::new(*name, b), &windows[..b], |bch, ws| bch.iter(|| model.predict(ws, &mut out)));
         }
     }
     g.finish();
