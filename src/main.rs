@@ -331,6 +331,15 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
         ),
         None => "link: no signing\n".into(),
     };
+    let f = &cfg.fleet;
+    out += &format!(
+        "fleet: vehicles {}, lost after {} s, dropped after {} s, batches wait up to {} ms, LSTM {}\n",
+        f.vehicles.as_deref().unwrap_or("all"),
+        f.lost_after_s,
+        f.drop_after_s,
+        f.batch_wait_ms,
+        f.lstm_rate_hz.map_or("on every window".to_string(), |r| format!("at {r} Hz per vehicle"))
+    );
     let q = &cfg.sinks.mqtt;
     out += &format!(
         "sinks.mqtt: {}\n",

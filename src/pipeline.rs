@@ -541,7 +541,7 @@ struct Batch {
 impl Batch {
     fn take(&mut self, j: Job, seen: &mut std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)>, every: u64) {
         let n = &mut seen.entry(j.vehicle).or_default().0;
-        let full = *n % every == 0;
+        let full = n.is_multiple_of(every);
         *n += 1;
         self.windows.push(j.window);
         self.heavy.push(full);

@@ -117,3 +117,23 @@ fn lstm_rate_hz_runs_the_lstm_on_every_fifth_window_and_holds_it_between() {
         }
     }
 }
+
+#[test]
+fn check_config_says_what_fleet_sets_and_names_a_bad_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.toml");
+    std::fs::write(&good, "[fleet]\nvehicles = \"1-125\"\nlost_after_s = 3\nlstm_rate_hz = 2\n").unwrap();
+    let o = dronewatt(&["check-config", good.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("fleet: vehicles 1-125, lost after 3 s, dropped after 60 s") && out.contains("LSTM at 2 Hz per vehicle"), "{out}");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[fleet]\nvehicles = \"1-300\"\ndrop_after_s = 1\n").unwrap();
+    let o = dronewatt(&["check-config", bad.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("fleet.vehicles") && err.contains("\"300\"") && err.contains("fleet.drop_after_s"), "{err}");
+    let o = dronewatt(&["monitor", "udpin:127.0.0.1:9", "--vehicles", "7-3"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--vehicles 7-3") && err.contains("backwards"), "{err}");
+}
