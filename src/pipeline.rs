@@ -438,6 +438,13 @@ async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedReceiver<FleetE
             }
         }
     }
+    // The drop is told before the chain's input closes, so it is queued by now even if
+    // the reports ended before the loop above read it.
+    while let Ok(e) = events.try_recv() {
+        if matches!(e, FleetEvent::Dropped { .. }) {
+            dropped = Some(e);
+        }
+    }
     if let Some(FleetEvent::Dropped { id, t_s, silent_s }) = dropped {
         let msg = format!("vehicle {id} dropped: nothing heard for {silent_s:.0} s");
         if let Some(r) = event(&last, "vehicle_dropped", AlertState::Raised, Severity::Info, t_s, msg) {

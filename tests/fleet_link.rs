@@ -113,7 +113,7 @@ fn three_vehicles_get_three_chains_and_the_silent_one_is_lost_then_dropped() {
     let lost = r.alerts("vehicle_lost");
     let dropped = r.alerts("vehicle_dropped");
     assert_eq!(lost.len(), 1, "{lost:?}");
-    assert_eq!(dropped.len(), 1, "{dropped:?}");
+    assert_eq!(dropped.len(), 1, "{dropped:?}\n{}", r.stderr);
     assert_eq!((lost[0]["system_id"].as_u64(), lost[0]["state"].as_str()), (Some(3), Some("raised")));
     assert_eq!(dropped[0]["system_id"], 3);
     let last3 = est[&3].last().unwrap()["t"].as_f64().unwrap();
