@@ -30,6 +30,9 @@ pub struct Config {
     pub sinks: crate::sink::SinksConfig,
     /// The live link: MAVLink 2 signing key file, whether unsigned frames are refused.
     pub link: crate::source::signing::LinkConfig,
+    /// Many vehicles on one link: when a silent vehicle is lost and dropped, which system
+    /// ids this instance watches.
+    pub fleet: crate::fleet::FleetConfig,
 }
 
 /// A configuration error that names the file, the key and why.
@@ -89,6 +92,7 @@ impl Config {
             self.sinks.web.validate(),
             self.sinks.mqtt.validate(),
             self.link.validate(),
+            self.fleet.validate(),
         ];
         for e in checks.into_iter().filter_map(Result::err) {
             out.extend(e.lines().map(str::to_string));

@@ -40,7 +40,8 @@
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |
-//! | [`pipeline`] | one vehicle's chain as named stages, the run that wires source → chain → sinks, shutdown |
+//! | [`fleet`] | many vehicles on one link: which senders are vehicles, the `--vehicles` filter, lost and dropped vehicles |
+//! | [`pipeline`] | one vehicle's chain as named stages, the demultiplexer that runs one per vehicle, the run that wires source → chains → sinks, shutdown |
 //! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
 //! | [`mission`] | routes: waypoint guidance (take-off, legs, holds, landing) |
 //! | [`sim`] | the simulator: a vehicle profile flying a route, sent as ArduPilot or PX4 telemetry (`.tlog` or UDP); outside the flow, it makes what sources read |
@@ -52,6 +53,7 @@ pub mod alert;
 pub mod config;
 pub mod energy;
 pub mod features;
+pub mod fleet;
 pub mod mission;
 pub mod model;
 pub mod offline;

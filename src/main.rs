@@ -43,6 +43,11 @@ struct RunArgs {
     /// weights file (.safetensors, or a TorchScript .pt) with card.toml beside it.
     #[arg(long, value_name = "FILE")]
     model: Option<PathBuf>,
+    /// Watch only these vehicles (MAVLink system ids): ids and ranges such as `1-125` or
+    /// `3,7,10-20`; the others are ignored, so several instances can split one link's
+    /// fleet. Overrides `[fleet] vehicles`.
+    #[arg(long, value_name = "IDS")]
+    vehicles: Option<String>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -224,6 +229,10 @@ struct SimulateArgs {
     /// profile file with the simulator's sections ([rotor], [body], [powertrain], [battery]).
     #[arg(long, value_name = "PROFILE", default_value = "m100")]
     vehicle: String,
+    /// Fly this many vehicles at once on the one link or tlog: system ids 1..=N, each its own
+    /// heading (the route turned about home), seed (seed + i) and start (within the first second).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    vehicles: u8,
 }
 
 impl SimulateArgs {
@@ -262,13 +271,25 @@ impl SimulateArgs {
 
 /// `dronewatt simulate`: fly, then write the `.tlog` or stream to UDP.
 fn simulate(args: SimulateArgs) -> Result<()> {
-    let flight = sim::simulate(&args.options()?)?;
-    let (duration_s, energy_wh) = (flight.duration_s(), flight.energy_wh());
+    let opts = args.options()?;
+    let (flight, energy_wh) = if args.vehicles == 1 {
+        let f = sim::simulate(&opts)?;
+        let e = f.energy_wh();
+        (f, e)
+    } else {
+        // One stream; the longest flight's truth gives the duration, the energy is everyone's.
+        let flights = sim::simulate_fleet(&opts, args.vehicles)?;
+        let energy_wh: f64 = flights.iter().map(|f| f.energy_wh()).sum();
+        let truth = flights.iter().max_by(|a, b| a.duration_s().total_cmp(&b.duration_s())).map(|f| f.truth.clone()).unwrap_or_default();
+        (sim::SimFlight { records: sim::merge(&flights), truth }, energy_wh)
+    };
+    let duration_s = flight.duration_s();
     tracing::info!(messages = flight.records.len(), duration_s, energy_wh, "simulated mission");
     if let Some(path) = &args.out {
         let bytes = sim::output::write_tlog(path, &flight)?;
         let n = flight.records.len();
-        eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.1} Wh drawn, {bytes} bytes", path.display());
+        let who = if args.vehicles > 1 { format!(" by {} vehicles (system ids 1-{})", args.vehicles, args.vehicles) } else { String::new() };
+        eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.1} Wh drawn{who}, {bytes} bytes", path.display());
         return Ok(());
     }
     let addr = args.udp.as_deref().context("give --out FILE.tlog or --udp HOST:PORT")?;
@@ -310,7 +331,7 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     out += &format!(
         "sinks.mavlink: {mav_on}, to {}, as system {} component {}, estimates at {} Hz\n",
         m.address.as_deref().unwrap_or("the monitored link"),
-        m.system_id,
+        m.system_id.map_or("of each vehicle".to_string(), |id| id.to_string()),
         m.component_id,
         m.rate_hz
     );
@@ -327,6 +348,15 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
         ),
         None => "link: no signing\n".into(),
     };
+    let f = &cfg.fleet;
+    out += &format!(
+        "fleet: vehicles {}, lost after {} s, dropped after {} s, batches wait up to {} ms, LSTM {}\n",
+        f.vehicles.as_deref().unwrap_or("all"),
+        f.lost_after_s,
+        f.drop_after_s,
+        f.batch_wait_ms,
+        f.lstm_rate_hz.map_or("on every window".to_string(), |r| format!("at {r} Hz per vehicle"))
+    );
     let q = &cfg.sinks.mqtt;
     out += &format!(
         "sinks.mqtt: {}\n",
@@ -351,6 +381,10 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     let mut config = Config::load_or_default(run.config.as_deref())?;
     if let Some(m) = &run.model {
         config.models.lstm.path = Some(m.clone());
+    }
+    if let Some(v) = &run.vehicles {
+        dronewatt::fleet::VehicleFilter::parse(v).map_err(|e| anyhow::anyhow!("--vehicles {v}: {e}"))?;
+        config.fleet.vehicles = Some(v.clone());
     }
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {

@@ -1,16 +1,22 @@
-//! One vehicle's chain as named stages, the run that feeds it from a source and fans its
-//! reports out to the sinks, and shutdown.
+//! One vehicle's chain as named stages, the demultiplexer that runs one chain per vehicle
+//! of a link, the run that feeds them from a source and fans their reports out to the
+//! sinks, and shutdown.
 //!
 //! ```text
-//! source ─TimedMessage→ telemetry_stage ─Window→ inference_stage ─Estimate→ energy_stage ─Report→ Fanout → one task per sink
+//! source ─TimedMessage→ demux ─TimedMessage→ one chain per vehicle:
+//!     telemetry_stage ─Window→ inference_stage (one for all vehicles) ─Estimate→ energy_stage ─Report→ relay ─Report→ Fanout → one task per sink
 //! ```
 //!
 //! Every arrow is a bounded channel carrying one typed value; a full channel holds the
-//! stage before it back, so a flat-out replay loses nothing. [`VehicleChain`] is one
-//! vehicle's state (telemetry, models, energy, alert rules), built and checked before
-//! anything listens; [`VehicleChain::spawn`] runs its stages. What the chain says about
-//! itself beside the reports (counters, signal health, the uplink, the stop signal) is one
-//! [`ChainStatus`] every sink gets.
+//! stage before it back, so a flat-out replay loses nothing. The demultiplexer
+//! ([`crate::fleet::Demux`]) starts a [`VehicleChain`] for each vehicle it hears, ends it when
+//! the vehicle is dropped, and tells the vehicle's relay when it is lost (the relay then
+//! reports the `vehicle_lost` / `vehicle_dropped` alert after the vehicle's last report).
+//! [`VehicleChain`] is one vehicle's state (telemetry, models, energy, alert rules), built
+//! and checked before anything listens; [`VehicleChain::spawn`] runs its stages. The models
+//! run once for the fleet ([`Inference`]): each window goes with the channel its estimate
+//! goes back on. What the chain says about itself beside the reports (counters, signal
+//! health, the uplink, the stop signal) is one [`ChainStatus`] every sink gets.
 //!
 //! Shutdown is one path whatever starts it (Ctrl-C or SIGTERM through
 //! [`shutdown_on_signal`], the end of a replay, a fatal source error): the source stops and
@@ -28,10 +34,11 @@ use tokio_util::sync::CancellationToken;
 use crate::alert::AlertEngine;
 use crate::config::Config;
 use crate::energy::EnergyTracker;
+use crate::fleet::{Demux, FleetEvent, Route};
 use crate::model::Ensemble;
-use crate::report::{EnergyState, Estimate, MissionUpdate, Report};
+use crate::report::{AlertEvent, AlertState, EnergyState, Estimate, MissionUpdate, Report, Severity};
 use crate::sink::mavlink::MavlinkSinkConfig;
-use crate::sink::{Fanout, SinkSpec};
+use crate::sink::{Fanout, ReportRx, SinkSpec};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
 use crate::status::{ChainStatus, IngestStats, LinkHandle, StatsSnapshot};
 use crate::telemetry::Telemetry;
@@ -62,6 +69,7 @@ pub struct Pipeline {
 pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
     // Built before any task starts, so a bad model or profile fails before we listen.
     let mut chain = VehicleChain::build(&p.config)?;
+    let demux = Demux::new(&p.config.fleet, None).map_err(anyhow::Error::msg)?;
     // The signing key is read now: a missing or world-readable key fails before we listen.
     let signing = p.config.link.load().map_err(anyhow::Error::msg)?.map(|s| Arc::new(LinkSigning::new(s)));
     let signer = signing.clone().map(|s| s as Arc<dyn crate::status::FrameSigner>);
@@ -74,7 +82,8 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let mission = mission_setup(&p.config, &p.source)?;
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
-    // The mission tap between the source and the chain, when there is a mission to follow.
+    // The mission tap between the source and the demultiplexer, when there is a mission
+    // to follow: it follows the vehicle it first hears, whose chain (the first) gets it.
     let (msg_rx, mission_task) = match mission {
         Some(setup) => {
             let (status_tx, status_rx) = mpsc::channel(crate::mission::live::STATUS_DEPTH);
@@ -84,13 +93,15 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         }
         None => (msg_rx, None),
     };
-    let chain = chain.spawn(msg_rx, fanout, &status, live);
+    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config));
+    let fleet = Fleet { config: p.config, demux, first: Some(chain), inference, fanout, status: status.clone(), live };
+    let demux = tokio::spawn(fleet.run(msg_rx));
 
     let source_result = source.await?;
     if let Some(t) = mission_task {
         t.await?;
     }
-    chain.join().await?;
+    demux.await??;
     sinks.join().await?;
     source_result?;
     Ok(status.stats.snapshot())
@@ -158,26 +169,82 @@ pub struct VehicleChain {
 /// The running stages of one [`VehicleChain`].
 pub struct ChainTasks {
     telemetry: JoinHandle<()>,
-    inference: JoinHandle<()>,
+    windows: JoinHandle<()>,
     energy: JoinHandle<()>,
+    relay: JoinHandle<()>,
 }
 
 impl ChainTasks {
     /// Wait for every stage to drain and end (after its input closed).
     pub async fn join(self) -> Result<()> {
         self.telemetry.await?;
-        self.inference.await?;
+        self.windows.await?;
         self.energy.await?;
+        self.relay.await?;
         Ok(())
+    }
+}
+
+/// One window for the shared inference stage, whose it is, and where its estimate goes.
+pub struct Job {
+    pub window: Window,
+    pub vehicle: u8,
+    pub reply: mpsc::Sender<Estimate>,
+}
+
+/// How the shared inference stage batches (`[fleet] batch_wait_ms`, `lstm_rate_hz`).
+#[derive(Debug, Clone, Copy)]
+pub struct Batching {
+    /// With more than one vehicle heard, the longest a window waits for others to join.
+    pub wait: std::time::Duration,
+    /// The heavy models (the LSTM) run on every `heavy_every`-th window of each vehicle.
+    pub heavy_every: u64,
+}
+
+impl Batching {
+    /// From the configuration: the wait, and the LSTM's period in windows.
+    pub fn from_config(cfg: &Config) -> Self {
+        let every = cfg.fleet.lstm_rate_hz.map_or(1.0, |r| (cfg.telemetry.rate_hz / r).round());
+        Self { wait: std::time::Duration::from_secs_f64(cfg.fleet.batch_wait_ms / 1e3), heavy_every: (every as u64).max(1) }
+    }
+}
+
+/// The inference stage every vehicle's chain sends its windows to: one for the whole run,
+/// so the windows of all vehicles that queue up together run as one batch.
+pub struct Inference {
+    jobs: mpsc::Sender<Job>,
+    task: JoinHandle<()>,
+}
+
+impl Inference {
+    /// Start the stage on its own thread with these models (on the tokio runtime it is
+    /// called from).
+    pub fn spawn(models: Ensemble, batching: Batching) -> Self {
+        let (jobs, rx) = mpsc::channel::<Job>(CHANNEL_DEPTH);
+        let rt = tokio::runtime::Handle::current();
+        // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
+        Self { jobs, task: tokio::task::spawn_blocking(move || inference_stage(models, rx, batching, rt)) }
+    }
+    /// Wait for it to drain and end, once every chain sending to it has ended.
+    pub async fn join(self) -> Result<()> {
+        drop(self.jobs);
+        Ok(self.task.await?)
     }
 }
 
 impl VehicleChain {
     /// Build and check every stage (profiles loaded, model cards matched, rules compiled).
     pub fn build(cfg: &Config) -> Result<Self> {
+        let models = crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?;
+        Ok(Self { models, ..Self::another(cfg)? })
+    }
+
+    /// Another vehicle's chain on the same configuration: its own telemetry, energy and
+    /// alert state, no models (the fleet's vehicles share one [`Inference`] stage).
+    pub fn another(cfg: &Config) -> Result<Self> {
         Ok(Self {
             telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
-            models: crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?,
+            models: Ensemble::new(Vec::new()),
             energy: EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?,
             alerts: AlertEngine::new(&cfg.alerts)?,
             mission: None,
@@ -204,16 +271,203 @@ impl VehicleChain {
         }
     }
 
-    /// Run the stages: messages in from `msgs`, reports out through `fanout`. `live` turns
-    /// on the silent-link tick.
-    pub fn spawn(self, msgs: mpsc::Receiver<TimedMessage>, fanout: Fanout, status: &ChainStatus, live: bool) -> ChainTasks {
-        let (win_tx, win_rx) = mpsc::channel::<Window>(CHANNEL_DEPTH);
+    /// Run the stages: messages in from `msgs`, windows to `inference` (the run's shared
+    /// stage; this chain's own `models` are not used), reports out through `fanout`. `live`
+    /// turns on the silent-link tick. The returned sender tells the chain's relay that the
+    /// vehicle was lost or dropped.
+    pub fn spawn(
+        self,
+        msgs: mpsc::Receiver<TimedMessage>,
+        inference: &Inference,
+        fanout: Fanout,
+        status: &ChainStatus,
+        live: bool,
+    ) -> (mpsc::UnboundedSender<FleetEvent>, ChainTasks) {
+        let (win_tx, mut win_rx) = mpsc::channel::<Window>(CHANNEL_DEPTH);
         let (est_tx, est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
-        ChainTasks {
+        let (ev_tx, ev_rx) = mpsc::unbounded_channel();
+        let jobs = inference.jobs.clone();
+        let vehicle = status.system_id.load(std::sync::atomic::Ordering::Relaxed);
+        let mut own = Fanout::default();
+        let reports = own.subscribe();
+        let tasks = ChainTasks {
             telemetry: tokio::spawn(telemetry_stage(self.telemetry, msgs, win_tx, status.clone())),
-            // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
-            inference: tokio::task::spawn_blocking(move || inference_stage(self.models, win_rx, est_tx)),
-            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, fanout, status.clone(), live)),
+            windows: tokio::spawn(async move {
+                while let Some(window) = win_rx.recv().await {
+                    if jobs.send(Job { window, vehicle, reply: est_tx.clone() }).await.is_err() {
+                        return;
+                    }
+                }
+            }),
+            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, own, status.clone(), live)),
+            relay: tokio::spawn(relay(reports, ev_rx, fanout)),
+        };
+        (ev_tx, tasks)
+    }
+}
+
+/// The demultiplexer and what it starts chains with.
+struct Fleet {
+    config: Config,
+    demux: Demux,
+    /// The chain built (and checked) before the run: the first vehicle's.
+    first: Option<VehicleChain>,
+    inference: Inference,
+    fanout: Fanout,
+    status: ChainStatus,
+    live: bool,
+}
+
+/// One vehicle's running chain, as the demultiplexer holds it.
+struct Vehicle {
+    msgs: mpsc::Sender<TimedMessage>,
+    events: mpsc::UnboundedSender<FleetEvent>,
+    tasks: ChainTasks,
+}
+
+impl Fleet {
+    /// Route every message to its vehicle's chain (starting one for a vehicle newly heard),
+    /// report vehicles gone silent, and end dropped vehicles' chains. Ends when the source
+    /// does, after every chain and the inference stage have drained.
+    async fn run(mut self, mut msgs: mpsc::Receiver<TimedMessage>) -> Result<()> {
+        let mut chains: std::collections::HashMap<u8, Vehicle> = Default::default();
+        let mut ended = Vec::new();
+        let mut events = Vec::new();
+        // The source's clock: its newest time, and (live) the wall-clock instant it came.
+        let mut clock: Option<(f64, Instant)> = None;
+        let mut tick = tokio::time::interval(SILENT_TICK);
+        loop {
+            tokio::select! {
+                m = msgs.recv() => {
+                    let Some(m) = m else { break };
+                    if m.t_s.is_finite() && clock.is_none_or(|(t, _)| m.t_s >= t) {
+                        clock = Some((m.t_s, Instant::now()));
+                    }
+                    if let Route::Vehicle { id, new, back } = self.demux.route(&m) {
+                        if new {
+                            match self.start(id) {
+                                Ok(v) => { chains.insert(id, v); }
+                                Err(e) => tracing::error!(vehicle = id, "cannot start a chain for this vehicle: {e:#}"),
+                            }
+                        }
+                        if let Some(v) = chains.get(&id) {
+                            if back {
+                                tracing::info!(vehicle = id, "vehicle heard again");
+                                let _ = v.events.send(FleetEvent::Back { id, t_s: m.t_s });
+                            }
+                            // A chain that ended early (it cannot) would only lose this message.
+                            let _ = v.msgs.send(m).await;
+                        }
+                    }
+                    if !self.live {
+                        if let Some((t, _)) = clock { self.demux.advance(t, &mut events); }
+                    }
+                }
+                _ = tick.tick(), if self.live => {
+                    if let Some((t, at)) = clock { self.demux.advance(t + at.elapsed().as_secs_f64(), &mut events); }
+                }
+            }
+            for ev in events.drain(..) {
+                match ev {
+                    FleetEvent::Lost { id, silent_s, .. } => {
+                        tracing::warn!(vehicle = id, "vehicle lost: nothing heard for {silent_s:.1} s");
+                        if let Some(v) = chains.get(&id) {
+                            let _ = v.events.send(ev);
+                        }
+                    }
+                    FleetEvent::Back { .. } => {}
+                    FleetEvent::Dropped { id, silent_s, .. } => {
+                        tracing::warn!(vehicle = id, "vehicle dropped: nothing heard for {silent_s:.1} s");
+                        if let Some(v) = chains.remove(&id) {
+                            let _ = v.events.send(ev);
+                            // Its input closes: the chain drains, the relay says it was dropped.
+                            ended.push(v.tasks);
+                        }
+                    }
+                }
+            }
+        }
+        let filtered = self.demux.filtered();
+        if filtered > 0 {
+            tracing::info!("{filtered} messages from vehicles outside fleet.vehicles ignored");
+        }
+        ended.extend(chains.into_values().map(|v| v.tasks));
+        drop(self.fanout);
+        for t in ended {
+            t.join().await?;
+        }
+        self.inference.join().await
+    }
+
+    /// Start vehicle `id`'s chain: the chain built before the run for the first vehicle
+    /// (it reports the signal health the terminal shows), a fresh one for the others.
+    fn start(&mut self, id: u8) -> Result<Vehicle> {
+        let (chain, mut status) = match self.first.take() {
+            Some(c) => (c, self.status.clone()),
+            None => (VehicleChain::another(&self.config)?, ChainStatus { health: Default::default(), ..self.status.clone() }),
+        };
+        status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id));
+        tracing::info!(vehicle = id, "vehicle heard: following it");
+        let (tx, rx) = mpsc::channel(CHANNEL_DEPTH);
+        let (events, tasks) = chain.spawn(rx, &self.inference, self.fanout.clone(), &status, self.live);
+        Ok(Vehicle { msgs: tx, events, tasks })
+    }
+}
+
+/// One vehicle's reports on to every sink, and what the demultiplexer says about it in
+/// between: lost (alert `vehicle_lost` raised; cleared when the vehicle is heard again) and dropped (alert `vehicle_dropped`, after the
+/// vehicle's last report). Each is reported on the vehicle's last estimate and energy; a
+/// vehicle that never produced a report has nothing to report it on (it is logged).
+async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedReceiver<FleetEvent>, mut fanout: Fanout) {
+    let mut last: Option<Arc<Report>> = None;
+    let mut dropped = None;
+    let mut open = true;
+    let event = |last: &Option<Arc<Report>>, rule: &str, state, severity, t_s: f64, message: String| {
+        last.as_ref().map(|r| Report {
+            estimate: r.estimate.silent(t_s.max(r.estimate.t_s)),
+            energy: r.energy.clone(),
+            alerts: vec![AlertEvent { t: t_s, rule: rule.into(), severity, state, message }],
+            system_id: r.system_id,
+        })
+    };
+    loop {
+        tokio::select! {
+            biased;
+            r = reports.next() => match r {
+                Some(r) => {
+                    last = Some(r.clone());
+                    fanout.send_shared(r).await;
+                }
+                None => break,
+            },
+            e = events.recv(), if open => {
+                let report = match e {
+                    None => { open = false; None }
+                    Some(FleetEvent::Lost { id, t_s, silent_s }) => {
+                        event(&last, "vehicle_lost", AlertState::Raised, Severity::Warning, t_s, format!("vehicle {id}: nothing heard for {silent_s:.0} s"))
+                    }
+                    Some(FleetEvent::Back { id, t_s }) => {
+                        event(&last, "vehicle_lost", AlertState::Cleared, Severity::Warning, t_s, format!("vehicle {id} heard again"))
+                    }
+                    Some(d @ FleetEvent::Dropped { .. }) => { dropped = Some(d); None }
+                };
+                if let Some(r) = report {
+                    fanout.send(r).await;
+                }
+            }
+        }
+    }
+    // The drop is told before the chain's input closes, so it is queued by now even if
+    // the reports ended before the loop above read it.
+    while let Ok(e) = events.try_recv() {
+        if matches!(e, FleetEvent::Dropped { .. }) {
+            dropped = Some(e);
+        }
+    }
+    if let Some(FleetEvent::Dropped { id, t_s, silent_s }) = dropped {
+        let msg = format!("vehicle {id} dropped: nothing heard for {silent_s:.0} s");
+        if let Some(r) = event(&last, "vehicle_dropped", AlertState::Raised, Severity::Info, t_s, msg) {
+            fanout.send(r).await;
         }
     }
 }
@@ -256,26 +510,68 @@ async fn telemetry_stage(
     }
 }
 
-/// Windows → every model's estimate. Runs on one thread for the whole run, not one per
-/// batch: libtorch's thread settings are per OS thread, and a fresh thread's defaults (an
-/// intra-op team as wide as the machine) cost ~10 ms a window. Windows that queued up
-/// meanwhile (a flat-out replay) run as one batch.
-fn inference_stage(mut models: Ensemble, mut windows: mpsc::Receiver<Window>, estimates: mpsc::Sender<Estimate>) {
-    let mut batch = Vec::with_capacity(MAX_BATCH);
-    while let Some(w) = windows.blocking_recv() {
-        batch.push(w);
-        while batch.len() < MAX_BATCH {
-            match windows.try_recv() {
-                Ok(w) => batch.push(w),
+/// Windows → every model's estimate, each sent back to the chain it came from. Runs on one
+/// thread for the whole run, not one per batch: libtorch's thread settings are per OS
+/// thread, and a fresh thread's defaults (an intra-op team as wide as the machine) cost
+/// ~10 ms a window. Windows that queued up meanwhile (a flat-out replay, or every vehicle
+/// of a fleet whose windows fell due together) run as one batch; once more than one
+/// vehicle has been heard, a batch waits up to [`Batching::wait`] for more. The heavy
+/// models (the LSTM) run on every [`Batching::heavy_every`]-th window of a vehicle; the
+/// windows between carry that vehicle's latest heavy estimates.
+fn inference_stage(mut models: Ensemble, mut jobs: mpsc::Receiver<Job>, batching: Batching, rt: tokio::runtime::Handle) {
+    let heavy_names = models.heavy_names();
+    let mut b = Batch::default();
+    // Per vehicle: windows seen, and the heavy models' latest estimates.
+    let mut seen: std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)> = Default::default();
+    while let Some(j) = jobs.blocking_recv() {
+        let deadline = tokio::time::Instant::now() + batching.wait;
+        b.take(j, &mut seen, batching.heavy_every);
+        let wait = seen.len() > 1 && !batching.wait.is_zero();
+        while b.windows.len() < MAX_BATCH {
+            match jobs.try_recv() {
+                Ok(j) => b.take(j, &mut seen, batching.heavy_every),
+                // Wait a little for the other vehicles' windows of this tick.
+                Err(mpsc::error::TryRecvError::Empty) if wait => match rt.block_on(tokio::time::timeout_at(deadline, jobs.recv())) {
+                    Ok(Some(j)) => b.take(j, &mut seen, batching.heavy_every),
+                    _ => break,
+                },
                 Err(_) => break,
             }
         }
-        for e in models.estimate(&batch) {
-            if estimates.blocking_send(e).is_err() {
-                return;
+        let estimates = models.estimate_some(&b.windows, &b.heavy);
+        for (mut e, (vehicle, full, reply)) in estimates.into_iter().zip(b.meta.drain(..)) {
+            if let (true, Some((_, held))) = (batching.heavy_every > 1, seen.get_mut(&vehicle)) {
+                if full {
+                    *held = e.models.iter().filter(|m| heavy_names.contains(&m.name)).cloned().collect();
+                } else {
+                    e.models.extend(held.iter().cloned());
+                }
             }
+            // A vehicle dropped meanwhile no longer wants its estimate.
+            let _ = reply.blocking_send(e);
         }
-        batch.clear();
+        b.windows.clear();
+        b.heavy.clear();
+    }
+}
+
+/// The batch the inference stage is gathering: windows, whether the heavy models run on
+/// each, and whose each is (vehicle, heavy, reply).
+#[derive(Default)]
+struct Batch {
+    windows: Vec<Window>,
+    heavy: Vec<bool>,
+    meta: Vec<(u8, bool, mpsc::Sender<Estimate>)>,
+}
+
+impl Batch {
+    fn take(&mut self, j: Job, seen: &mut std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)>, every: u64) {
+        let n = &mut seen.entry(j.vehicle).or_default().0;
+        let full = n.is_multiple_of(every);
+        *n += 1;
+        self.windows.push(j.window);
+        self.heavy.push(full);
+        self.meta.push((j.vehicle, full, j.reply));
     }
 }
 
@@ -369,7 +665,8 @@ fn mission_setup(cfg: &Config, source: &SourceSpec) -> Result<Option<crate::miss
         payload_g: cfg.mission.payload_g.map_or(0.0, f64::from),
         speed_m_s: cfg.mission.speed_m_s.map(f64::from),
         active: matches!(source, SourceSpec::Link(_)),
-        system_id: cfg.sinks.mavlink.system_id,
+        // Requests go out as the configured id, else 1 (what a one-vehicle link expects).
+        system_id: cfg.sinks.mavlink.system_id.unwrap_or(1),
         component_id: cfg.sinks.mavlink.component_id,
     }))
 }

@@ -2,7 +2,7 @@
 //! as the vehicle and `dronewatt monitor` as the operator runs it: what the operator sees
 //! (`--json`) through a silent link, a reboot, a TCP reconnect, a UDP peer on a new port,
 //! bursts at ten times the rate, MAVLink 1 and 2 interleaved and another vehicle's stray
-//! messages. Every test also checks that no report is lost and no estimate invented
+//! messages (with `[fleet] vehicles` set to the one watched). Every test also checks that no report is lost and no estimate invented
 //! ([`link_common::check_consistent`]).
 
 mod link_common;
@@ -109,7 +109,9 @@ fn mavlink_1_and_2_interleaved_are_one_stream() {
 
 #[test]
 fn a_second_vehicles_stray_messages_are_counted_and_ignored() {
-    let r = fly("", false, r#"[{"send_s": 6, "stray": true}]"#, &[]);
+    // A second vehicle gets a chain of its own (tests/fleet_link.rs); an instance told to
+    // watch vehicle 1 only reads every frame and estimates nothing from the other's.
+    let r = fly("[fleet]\nvehicles = \"1\"\n", false, r#"[{"send_s": 6, "stray": true}]"#, &[]);
     // check_consistent asserts no measured power near the stray vehicle's 2000 W.
     check_consistent(&r);
     let sent = r.peer["frames"].as_u64().unwrap() + r.peer["stray_frames"].as_u64().unwrap();

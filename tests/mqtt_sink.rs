@@ -5,7 +5,9 @@
 //! - a replay flat out: every estimate and alert arrives, byte for byte the `--json` lines;
 //!   the retained state is the last report's and the retained status `offline`;
 //! - SIGKILL: the broker publishes the Last Will, retained `offline`;
-//! - a long flight replayed flat out: every message arrives, none dropped (prints messages/s).
+//! - a long flight replayed flat out: every message arrives, none dropped (prints messages/s);
+//! - two instances splitting one link's vehicles (`--vehicles`): each vehicle's topics come
+//!   from exactly one of them.
 //!
 //! Without the broker the tests skip with a message, except under `CI=true`, where they fail.
 
@@ -401,4 +403,74 @@ fn tls_with_a_password_from_the_environment_and_a_wrong_password_never_stalls_th
     assert!(dropped > estimates as u64 / 2, "a 100-message queue drops most of {estimates} reports: {dropped}");
     assert!(stderr.contains("retrying in"), "{stderr}");
     eprintln!("refused broker: run ended after {:.1} s (flush timeout included)", took.as_secs_f64());
+}
+
+/// `monitor` on a free UDP port with `--vehicles ids`, the MQTT sink on as `instance`.
+fn monitor_fleet(b: &Broker, dir: &Path, instance: &str, ids: &str) -> (Child, u16, PathBuf) {
+    let cfg = config(dir, b, instance, "");
+    let json = dir.join("out.jsonl");
+    let port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q", "--vehicles", ids, "--json"])
+        .arg(&json)
+        .arg("--config")
+        .arg(&cfg)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let until = Instant::now() + Duration::from_secs(60);
+    while std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok() {
+        assert!(Instant::now() < until, "dronewatt never listened on {port}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    (dw, port, json)
+}
+
+#[test]
+fn two_instances_split_one_links_vehicles_and_each_vehicle_is_published_by_one() {
+    let Some(b) = broker() else { return };
+    let (da, db) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let sub = Subscriber::start(&b, "dw/#");
+    // The topology of the README: one link fanned out (here by the peer itself, as
+    // mavlink-router would) to two instances, vehicles 1-2 and 3, one broker.
+    let (mut a, pa, ja) = monitor_fleet(&b, da.path(), "gcs-a", "1-2");
+    let (mut c, pc, jc) = monitor_fleet(&b, db.path(), "gcs-b", "3");
+    let vehicles = r#"[{"id": 1, "power_w": 300, "send_s": 6}, {"id": 2, "power_w": 500, "send_s": 6}, {"id": 3, "power_w": 700, "send_s": 6}]"#;
+    let peer = Command::new(root().join(".venv-py/bin/python"))
+        .arg(root().join("tests/peers/fleet.py"))
+        .args(["--to", &format!("udpout:127.0.0.1:{pa}"), "--to", &format!("udpout:127.0.0.1:{pc}"), "--vehicles", vehicles])
+        .output()
+        .expect("run .venv-py/bin/python (make setup creates it)");
+    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
+    for dw in [&mut a, &mut c] {
+        let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+        let status = dw.wait().unwrap();
+        let mut err = String::new();
+        std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
+        assert!(status.success(), "dronewatt exited with {status}: {err}");
+    }
+    let (ea, ec) = (lines_of(&ja, "estimate"), lines_of(&jc, "estimate"));
+    let seen = sub.wait_for(Duration::from_secs(20), |s| {
+        ["1", "2", "3"].iter().map(|v| on(s, &format!("dw/{v}/estimate")).len()).sum::<usize>() >= ea.len() + ec.len()
+            && ["gcs-a", "gcs-b"].iter().all(|i| on(s, &format!("dw/status/{i}")).last().is_some_and(|m| m.payload == "offline"))
+    });
+    let ids = |lines: &[String]| -> std::collections::BTreeSet<u64> {
+        lines.iter().map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["system_id"].as_u64().unwrap()).collect()
+    };
+    assert_eq!(ids(&ea).into_iter().collect::<Vec<_>>(), vec![1, 2], "instance a watches 1-2");
+    assert_eq!(ids(&ec).into_iter().collect::<Vec<_>>(), vec![3], "instance b watches 3");
+    // Each vehicle's estimate topic is exactly what its one instance wrote, byte for byte:
+    // nothing from the other instance, nothing twice.
+    for (v, mine) in [(1, &ea), (2, &ea), (3, &ec)] {
+        let want: Vec<String> = mine.iter().filter(|l| l.contains(&format!("\"system_id\":{v},"))).cloned().collect();
+        let got: Vec<String> = on(&seen, &format!("dw/{v}/estimate")).into_iter().map(|m| m.payload).collect();
+        assert!(want.len() > 30, "vehicle {v}: {} estimates", want.len());
+        assert_eq!(got, want, "vehicle {v}'s estimates on the broker are its instance's");
+        assert!(on(&seen, &format!("dw/{v}/state")).len() >= 3, "vehicle {v}: retained state published");
+    }
+    for i in ["gcs-a", "gcs-b"] {
+        let status: Vec<String> = on(&seen, &format!("dw/status/{i}")).into_iter().map(|m| m.payload).collect();
+        assert_eq!(status, ["online", "offline"], "instance {i}");
+    }
 }

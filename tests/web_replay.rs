@@ -79,3 +79,87 @@ fn dashboard_of_the_demo_replay_in_chromium() {
     assert!(status.success(), "dronewatt ended with {status} on SIGTERM while lingering");
     assert!(start.elapsed() < Duration::from_secs(50), "SIGTERM must end the linger");
 }
+
+/// GET `path` from the dashboard; the body as JSON.
+fn get_json(port: u16, path: &str) -> serde_json::Value {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n").unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).unwrap();
+    let body = text.split_once("\r\n\r\n").map_or("", |(_, b)| b);
+    serde_json::from_str(body).unwrap_or_else(|e| panic!("{path}: {e}: {text}"))
+}
+
+#[test]
+fn dashboard_of_a_fleet_lists_every_vehicle_and_shows_the_one_asked_for() {
+    let Some(browser) = chromium() else {
+        assert!(std::env::var("CI").map_or(true, |v| v != "true" && v != "1"), "CI must test the web dashboard");
+        eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine; the fleet dashboard is NOT tested !!!!!!!!\n");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let tlog = dir.path().join("fleet.tlog");
+    let sim = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["simulate", "--vehicles", "3", "--leg-m", "120", "--hover-s", "5", "--out"])
+        .arg(&tlog)
+        .output()
+        .unwrap();
+    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let cfg = dir.path().join("web.toml");
+    std::fs::write(&cfg, format!("[sinks.web]\nenabled = true\nbind = \"127.0.0.1:{port}\"\nlinger_s = 60\n")).unwrap();
+    let json = dir.path().join("out.jsonl");
+    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["replay", "--speed", "max", "-q", "--config"])
+        .arg(&cfg)
+        .arg("--json")
+        .arg(&json)
+        .arg(&tlog)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let text = loop {
+        let t = std::fs::read_to_string(&json).unwrap_or_default();
+        if t.contains("\"type\":\"summary\"") {
+            break t;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "the replay did not finish");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    // Each vehicle's last estimate time, from the JSON lines.
+    let mut last_t = std::collections::BTreeMap::new();
+    for v in text.lines().filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok()).filter(|v| v["type"] == "estimate") {
+        last_t.insert(v["system_id"].as_u64().unwrap(), v["t"].as_f64().unwrap());
+    }
+    assert_eq!(last_t.len(), 3);
+
+    // The API: every vehicle in `fleet`; the lowest by default; the one asked for otherwise.
+    let s = get_json(port, "/api/state");
+    let rows: Vec<u64> = s["fleet"].as_array().unwrap().iter().map(|r| r["system_id"].as_u64().unwrap()).collect();
+    assert_eq!(rows, vec![1, 2, 3], "{s}");
+    assert_eq!(s["vehicle"], 1);
+    let s2 = get_json(port, "/api/state?vehicle=2");
+    assert_eq!(s2["vehicle"], 2);
+    assert_eq!(s2["latest"]["t"].as_f64(), Some(last_t[&2]), "vehicle 2's own last report");
+    assert!(s2["points"].as_array().unwrap().len() > 50);
+
+    // The page: the fleet table shown, one clickable row per vehicle, the first selected.
+    let url = format!("http://127.0.0.1:{port}/");
+    let dom = Command::new(browser)
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars"])
+        .args(["--window-size=1280,1100", "--virtual-time-budget=4000", "--dump-dom", &url])
+        .output()
+        .unwrap();
+    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let status = dw.wait().unwrap();
+    let html = String::from_utf8_lossy(&dom.stdout);
+    assert!(html.contains("<div id=\"fleet-box\">"), "the fleet table is shown:\n{html}");
+    for v in 1..=3 {
+        assert!(html.contains(&format!("data-vehicle=\"{v}\"")), "row for vehicle {v}:\n{html}");
+    }
+    assert!(html.contains("<tr data-vehicle=\"1\" class=\"selected\">"), "vehicle 1 selected:\n{html}");
+    assert!(html.contains("vehicle 1, t = "), "the status names the vehicle shown:\n{html}");
+    assert!(status.success(), "dronewatt ended with {status}");
+}

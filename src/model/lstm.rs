@@ -227,6 +227,10 @@ impl PowerModel for LstmModel {
         self.card.target_lag
     }
 
+    fn heavy(&self) -> bool {
+        true
+    }
+
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
         out.clear();
         if windows.is_empty() {

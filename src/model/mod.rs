@@ -34,6 +34,11 @@ pub trait PowerModel: Send {
     fn target_lag(&self) -> usize {
         0
     }
+    /// Whether the model costs enough that a fleet may run it on fewer windows than every
+    /// one (`[fleet] lstm_rate_hz`, [`Ensemble::estimate_some`]): the LSTM. Default false.
+    fn heavy(&self) -> bool {
+        false
+    }
 }
 
 /// The set of models the inference stage runs side by side.
@@ -47,6 +52,10 @@ impl Ensemble {
     pub fn new(models: Vec<Box<dyn PowerModel>>) -> Self {
         Self { models, scratch: Vec::new() }
     }
+    /// Names of the [`PowerModel::heavy`] models, in order.
+    pub fn heavy_names(&self) -> Vec<String> {
+        self.models.iter().filter(|m| m.heavy()).map(|m| m.name().to_string()).collect()
+    }
     /// Names of the models, in order.
     pub fn names(&self) -> Vec<String> {
         self.models.iter().map(|m| m.name().to_string()).collect()
@@ -58,14 +67,40 @@ impl Ensemble {
     }
     /// Run every model on every window (a batch when a replay runs flat out).
     pub fn estimate(&mut self, windows: &[Window]) -> Vec<Estimate> {
+        self.estimate_some(windows, &[])
+    }
+
+    /// [`Ensemble::estimate`], but the [`PowerModel::heavy`] models run only on the windows
+    /// whose `heavy[i]` is true (all of them where `heavy` is shorter than `windows`); the
+    /// others' estimates lack those models.
+    pub fn estimate_some(&mut self, windows: &[Window], heavy: &[bool]) -> Vec<Estimate> {
         let mut out: Vec<Estimate> = windows
             .iter()
             .map(|w| Estimate { t_s: w.t_s(), sample: w.last().clone(), models: Vec::with_capacity(self.models.len()) })
             .collect();
+        let all = heavy.len() < windows.len() || heavy.iter().all(|&h| h);
+        let mut picked = Vec::new();
         for m in &mut self.models {
-            m.predict(windows, &mut self.scratch);
-            for (e, p) in out.iter_mut().zip(&self.scratch) {
-                e.models.push(ModelEstimate { name: m.name().to_string(), power_w: p.power_w, band_w: p.band_w });
+            let name = m.name().to_string();
+            let named = |p: &Prediction| ModelEstimate { name: name.clone(), power_w: p.power_w, band_w: p.band_w };
+            if !m.heavy() || all {
+                m.predict(windows, &mut self.scratch);
+                for (e, p) in out.iter_mut().zip(&self.scratch) {
+                    e.models.push(named(p));
+                }
+                continue;
+            }
+            picked.clear();
+            picked.extend(windows.iter().zip(heavy).filter(|(_, &h)| h).map(|(w, _)| w.clone()));
+            if picked.is_empty() {
+                continue;
+            }
+            m.predict(&picked, &mut self.scratch);
+            let mut preds = self.scratch.iter();
+            for (e, _) in out.iter_mut().zip(heavy).filter(|(_, &h)| h) {
+                if let Some(p) = preds.next() {
+                    e.models.push(named(p));
+                }
             }
         }
         out

@@ -1,10 +1,13 @@
 //! JSON lines (`--json PATH|-`): one object per line, four kinds, in this order per report:
 //!
 //! ```text
-//! {"type":"window","t":…,"measured_w":…,"features":{"wind_speed":…,…}}
-//! {"type":"estimate","t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,"mission_energy_wh":…,"mission_margin_wh":…}
-//! {"type":"alert","t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
+//! {"type":"window","system_id":…,"t":…,"measured_w":…,"features":{"wind_speed":…,…}}
+//! {"type":"estimate","system_id":…,"t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,"mission_energy_wh":…,"mission_margin_wh":…}
+//! {"type":"alert","system_id":…,"t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
 //! ```
+//!
+//! `system_id` is the MAVLink system id of the vehicle the line is about (a link may carry
+//! a fleet; see [`crate::fleet`]).
 //!
 //! and last, once the run is over (end of a replay, Ctrl-C, a source error):
 //!
@@ -76,10 +79,10 @@ pub fn spawn(
 pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     let e = &r.estimate;
     let s = &e.sample;
-    write_line(w, &WindowLine { kind: "window", t: e.t_s, measured_w: s.measured_w, features: Features(&s.features) })?;
+    write_line(w, &WindowLine { kind: "window", system_id: r.system_id, t: e.t_s, measured_w: s.measured_w, features: Features(&s.features) })?;
     write_estimate(w, r)?;
     for a in &r.alerts {
-        write_alert(w, a)?;
+        write_alert(w, r.system_id, a)?;
     }
     Ok(())
 }
@@ -92,6 +95,7 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
         w,
         &EstimateLine {
             kind: "estimate",
+            system_id: r.system_id,
             t: e.t_s,
             measured_w: s.measured_w,
             models: Models(&e.models),
@@ -106,9 +110,9 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     )
 }
 
-/// Write one `alert` line.
-pub fn write_alert(w: &mut impl Write, a: &crate::report::AlertEvent) -> std::io::Result<()> {
-    write_line(w, &AlertLine { kind: "alert", t: a.t, rule: &a.rule, severity: a.severity, state: a.state, message: &a.message })
+/// Write one `alert` line about vehicle `system_id`.
+pub fn write_alert(w: &mut impl Write, system_id: u8, a: &crate::report::AlertEvent) -> std::io::Result<()> {
+    write_line(w, &AlertLine { kind: "alert", system_id, t: a.t, rule: &a.rule, severity: a.severity, state: a.state, message: &a.message })
 }
 
 /// Write one `state` line (the MQTT sink's retained state): the energy at report time `t`
@@ -126,6 +130,7 @@ fn write_line(w: &mut impl Write, v: &impl Serialize) -> std::io::Result<()> {
 struct WindowLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
+    system_id: u8,
     t: f64,
     measured_w: Option<f32>,
     features: Features<'a>,
@@ -148,6 +153,7 @@ impl Serialize for Features<'_> {
 struct EstimateLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
+    system_id: u8,
     t: f64,
     measured_w: Option<f32>,
     models: Models<'a>,
@@ -214,6 +220,7 @@ struct StateLine<'a> {
 struct AlertLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
+    system_id: u8,
     t: f64,
     rule: &'a str,
     severity: crate::report::Severity,
@@ -273,7 +280,7 @@ mod tests {
                 state: AlertState::Raised,
                 message: "margin below 10 Wh".into(),
             }],
-            system_id: 1,
+            system_id: 7,
         }
     }
 
@@ -284,6 +291,7 @@ mod tests {
         let lines: Vec<serde_json::Value> =
             String::from_utf8(out).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
         assert_eq!(lines.len(), 3);
+        assert!(lines.iter().all(|l| l["system_id"] == 7), "every line names its vehicle: {lines:?}");
         let w = &lines[0];
         assert_eq!((w["type"].as_str(), w["t"].as_f64(), w["measured_w"].as_f64()), (Some("window"), Some(12.5), Some(240.0)));
         let f = w["features"].as_object().unwrap();

@@ -34,12 +34,13 @@
 //!
 //! ## Who it says it is
 //!
-//! Default system id 1, component id 191 (`MAV_COMP_ID_ONBOARD_COMPUTER`). Ground stations
-//! file STATUSTEXT under the *vehicle* whose system id sent it (QGroundControl drops
-//! messages from a system id it has no vehicle for), and 1 is the id ArduPilot and PX4 use
-//! out of the box; the component id is what tells the ground station this is not the
+//! System id: that of the vehicle each report is about (every vehicle of a fleet gets its
+//! own messages and its own 1 Hz heartbeat, from its first report on); component id
+//! 191 (`MAV_COMP_ID_ONBOARD_COMPUTER`). Ground stations file STATUSTEXT under the
+//! *vehicle* whose system id sent it (QGroundControl drops messages from a system id it has
+//! no vehicle for); the component id is what tells the ground station this is not the
 //! autopilot (component 1), so it never takes dronewatt's heartbeat for the autopilot's.
-//! Set `system_id` to your vehicle's `SYSID_THISMAV` / `MAV_SYS_ID` when that is not 1.
+//! Setting `system_id` sends everything as that one id instead.
 //! The heartbeat says `MAV_TYPE_ONBOARD_CONTROLLER`, `MAV_AUTOPILOT_INVALID`.
 //!
 //! ## Where it sends
@@ -71,8 +72,9 @@ pub struct MavlinkSinkConfig {
     /// `monitor` takes: the grammar is one, see `crate::address`); absent: the link
     /// `monitor` reads.
     pub address: Option<String>,
-    /// System id dronewatt sends with. Default 1 (the vehicle's; see the module docs).
-    pub system_id: u8,
+    /// System id dronewatt sends with. Default: the id of the vehicle each report is about
+    /// (see the module docs).
+    pub system_id: Option<u8>,
     /// Component id dronewatt sends with. Default 191, MAV_COMP_ID_ONBOARD_COMPUTER.
     pub component_id: u8,
     /// NAMED_VALUE_FLOAT sets per second (wall clock). Default 2. Alerts are never held back.
@@ -84,7 +86,7 @@ pub struct MavlinkSinkConfig {
 
 impl Default for MavlinkSinkConfig {
     fn default() -> Self {
-        Self { enabled: None, address: None, system_id: 1, component_id: 191, rate_hz: 2.0, battery_id: 9 }
+        Self { enabled: None, address: None, system_id: None, component_id: 191, rate_hz: 2.0, battery_id: 9 }
     }
 }
 
@@ -95,7 +97,7 @@ impl MavlinkSinkConfig {
         if !(self.rate_hz > 0.0 && self.rate_hz <= 50.0) {
             errs.push(format!("sinks.mavlink.rate_hz = {}: must be in (0, 50] per second", self.rate_hz));
         }
-        if self.system_id == 0 {
+        if self.system_id == Some(0) {
             errs.push("sinks.mavlink.system_id = 0: 0 is the broadcast id; use 1..=255".into());
         }
         if self.component_id == 0 || self.component_id == 1 {
@@ -267,25 +269,43 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
     if let Err(e) = cfg.validate() {
         bail!("{e}");
     }
-    let mut enc = Encoder::new(cfg.system_id, cfg.component_id);
+    // One encoder (its own sequence numbers) and one estimate clock per system id sent as.
+    let mut encs: std::collections::BTreeMap<u8, (Encoder, Instant)> = Default::default();
     let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
-    let mut next_values = Instant::now();
     let mut heartbeat = tokio::time::interval(Duration::from_secs(1));
     heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut dropped = 0u64;
+    let enc_for = |encs: &mut std::collections::BTreeMap<u8, (Encoder, Instant)>, id: u8| {
+        let id = cfg.system_id.unwrap_or(id);
+        encs.entry(id).or_insert_with(|| (Encoder::new(id, cfg.component_id), Instant::now()));
+        id
+    };
     loop {
         let frames = tokio::select! {
-            _ = heartbeat.tick() => vec![enc.heartbeat()],
+            // One per vehicle heard (none before the first: which id would it be?), or the
+            // configured id's from the start.
+            _ = heartbeat.tick() => {
+                if let Some(id) = cfg.system_id {
+                    enc_for(&mut encs, id);
+                }
+                encs.values_mut().map(|(e, _)| e.heartbeat()).collect()
+            }
             r = rx.next() => match r {
                 Some(report) => {
+                    let id = enc_for(&mut encs, report.system_id);
+                    let Some((enc, next_values)) = encs.get_mut(&id) else { continue };
                     let mut f = enc.alerts(&report);
                     let now = Instant::now();
-                    if now >= next_values {
-                        next_values = (next_values + period).max(now);
+                    if now >= *next_values {
+                        *next_values = (*next_values + period).max(now);
                         f.extend(enc.estimates(&report));
                         if cfg.battery_id != 255 {
                             f.push(enc.battery_status(cfg.battery_id, &report));
                         }
+                    }
+                    // A dropped vehicle gets no more heartbeats.
+                    if report.alerts.iter().any(|a| a.rule == "vehicle_dropped") && cfg.system_id.is_none() {
+                        encs.remove(&id);
                     }
                     f
                 }

@@ -108,11 +108,14 @@ impl ReportRx {
 /// The energy stage's side of the sinks: one bounded queue per sink. A full queue holds
 /// the chain back (a flat-out replay loses nothing to a slower sink); a sink stuck for
 /// longer than [`SINK_PATIENCE`] loses reports instead, and counts them, until it catches up.
-#[derive(Default)]
+/// A clone feeds the same sinks (each vehicle's chain holds one); a sink's queue closes
+/// when every clone is gone.
+#[derive(Default, Clone)]
 pub struct Fanout {
     outs: Vec<Outlet>,
 }
 
+#[derive(Clone)]
 struct Outlet {
     tx: mpsc::Sender<Arc<Report>>,
     missed: Arc<AtomicU64>,
@@ -130,7 +133,11 @@ impl Fanout {
 
     /// Hand one report to every sink (see [`Fanout`] for who waits and who misses it).
     pub async fn send(&mut self, report: Report) {
-        let report = Arc::new(report);
+        self.send_shared(Arc::new(report)).await
+    }
+
+    /// [`Fanout::send`] for a report already shared (passed on from another fanout).
+    pub async fn send_shared(&mut self, report: Arc<Report>) {
         for o in &mut self.outs {
             if o.stuck && o.tx.capacity() >= SINK_DEPTH / 2 {
                 o.stuck = false;

@@ -297,7 +297,7 @@ async fn publish(
         queue.put(vehicle_topic(&cfg.prefix, r.system_id, "estimate"), QoS::AtMostOnce, false, line(&buf)).await;
         for a in &r.alerts {
             buf.clear();
-            super::jsonl::write_alert(&mut buf, a)?;
+            super::jsonl::write_alert(&mut buf, r.system_id, a)?;
             queue.put(vehicle_topic(&cfg.prefix, r.system_id, "alert"), QoS::AtLeastOnce, false, line(&buf)).await;
             v.active.retain(|rule| rule != &a.rule);
             if a.state == AlertState::Raised {

@@ -5,7 +5,19 @@
 //! ```text
 //! t 312.4 s  measured 241.7 W  dandrea 236.0  lstm 244.1 W  used 12.80 Wh  left 88.1 Wh (21 min)  home +31.2 Wh  link 52 msg/s ok 16211 bad 2 unk 0 gaps 3  stale: wind_speed
 //! ```
+//!
+//! With more than one vehicle on the link, the status line becomes a fleet view: one row
+//! per vehicle (the newest report's power, remaining energy, time to empty, home margin
+//! and the most severe alert standing), under the link's line. Alert lines name the vehicle.
+//!
+//! ```text
+//! fleet: 2 vehicles  link 104 msg/s ok 9120 bad 0 unk 0 gaps 0
+//!  vehicle   power W  left Wh  to empty  home Wh  worst alert
+//!        1     241.7     88.1    21 min    +31.2  —
+//!        2     198.0     60.3    18 min     -2.1  home_margin (critical)
+//! ```
 
+use std::collections::BTreeMap;
 use std::io::{IsTerminal, Write};
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
@@ -14,7 +26,7 @@ use std::time::{Duration, Instant};
 use crossterm::style::Stylize;
 use super::ReportRx;
 use crate::features::FEATURE_NAMES;
-use crate::report::{AlertEvent, AlertState, Report};
+use crate::report::{AlertEvent, AlertState, Report, Severity};
 use crate::status::{ChainStatus, IngestStats, SignalHealth};
 
 /// Run the view until the report channel closes.
@@ -23,17 +35,31 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
     let colour = std::io::stderr().is_terminal();
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     tick.tick().await; // the first tick is immediate: nothing to show yet
-    let mut latest: Option<Arc<Report>> = None;
+    // The newest report and the alerts standing, per vehicle.
+    let mut fleet: BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)> = BTreeMap::new();
     let mut last = (Instant::now(), 0u64);
     let mut feeds_shown = String::new();
     loop {
         tokio::select! {
             r = rx.next() => match r {
                 Some(r) => {
+                    let many = fleet.len() > 1 || fleet.keys().any(|&id| id != r.system_id);
                     for a in &r.alerts {
-                        eprintln!("{}", alert_line(a, colour));
+                        let line = alert_line(a, colour);
+                        if many { eprintln!("vehicle {}: {line}", r.system_id) } else { eprintln!("{line}") }
                     }
-                    latest = Some(r);
+                    if r.alerts.iter().any(|a| a.rule == "vehicle_dropped" && a.state == AlertState::Raised) {
+                        fleet.remove(&r.system_id);
+                        continue;
+                    }
+                    let entry = fleet.entry(r.system_id).or_insert_with(|| (r.clone(), BTreeMap::new()));
+                    for a in &r.alerts {
+                        match a.state {
+                            AlertState::Raised => entry.1.insert(a.rule.clone(), a.severity),
+                            AlertState::Cleared => entry.1.remove(&a.rule),
+                        };
+                    }
+                    entry.0 = r;
                 }
                 None => break,
             },
@@ -41,8 +67,12 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
                 let ok = stats.frames_ok.load(Relaxed);
                 let rate = ok.saturating_sub(last.1) as f64 / last.0.elapsed().as_secs_f64().max(1e-3);
                 last = (Instant::now(), ok);
-                let line = status_line(latest.as_deref(), &stats, rate, colour);
                 let mut e = std::io::stderr().lock();
+                if fleet.len() > 1 {
+                    let _ = writeln!(e, "{}", fleet_view(&fleet, &stats, rate, colour));
+                    continue;
+                }
+                let line = status_line(fleet.values().next().map(|(r, _)| &**r), &stats, rate, colour);
                 // Which message feeds each signal: said once, and again whenever it changes
                 // (a better source appeared, or one went quiet and a fallback took over).
                 let feeds = health.lock().map(|h| feeds_line(&h)).unwrap_or_default();
@@ -135,6 +165,46 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
             let txt = format!("  stale: {}", stale.join(","));
             s.push_str(&if colour { txt.yellow().to_string() } else { txt });
         }
+    }
+    s
+}
+
+/// The fleet view: the link's line, then one row per vehicle (see the module docs).
+pub fn fleet_view(fleet: &BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)>, stats: &IngestStats, rate: f64, colour: bool) -> String {
+    let n = stats.snapshot();
+    let mut s = format!(
+        "fleet: {} vehicles  link {} msg/s ok {} bad {} unk {} gaps {}\n{:>8} {:>9} {:>8} {:>9} {:>8}  worst alert",
+        fleet.len(),
+        num(rate, 0),
+        n.frames_ok,
+        n.frames_bad,
+        n.unknown,
+        n.gaps,
+        "vehicle",
+        "power W",
+        "left Wh",
+        "to empty",
+        "home Wh"
+    );
+    let opt = |v: Option<f64>, d: usize| v.map_or("—".to_string(), |v| num(v, d));
+    for (id, (r, active)) in fleet {
+        let e = &r.energy;
+        let power = r.estimate.sample.measured_w.map(f64::from).or(e.forecast_w);
+        let tte = e.time_to_empty_s.map_or("—".to_string(), |t| format!("{} min", num(t / 60.0, 0)));
+        let home = e.home_margin_wh.map_or("—".to_string(), |h| format!("{}{}", if h >= 0.0 { "+" } else { "" }, num(h, 1)));
+        // Severity orders most severe first.
+        let worst = active.iter().min_by_key(|(_, &sev)| sev);
+        let alert = worst.map_or("—".to_string(), |(rule, sev)| format!("{rule} ({sev})"));
+        let alert = match worst {
+            Some((_, sev)) if colour && *sev <= Severity::Error => alert.red().bold().to_string(),
+            Some(_) if colour => alert.yellow().to_string(),
+            _ => alert,
+        };
+        s.push_str(&format!(
+            "\n{id:>8} {:>9} {:>8} {tte:>9} {home:>8}  {alert}",
+            opt(power, 1),
+            opt(e.remaining_wh, 1),
+        ));
     }
     s
 }

@@ -4,9 +4,13 @@
 //! - `GET /` — the page: measured power against every model, remaining energy and time to
 //!   empty, the home margin, the mission (energy left, item, progress, margin, and a map of
 //!   the planned route with the part flown) when one is known, and the alert log.
-//! - `GET /api/state?since=N` — `{"seq", "models", "latest", "points", "alerts"}`: the
-//!   points with sequence number above `N` (so a poll sends only what is new), the last
-//!   report's numbers and the whole alert log.
+//! - `GET /api/state?since=N&vehicle=V` — `{"vehicle", "seq", "models", "latest", "points",
+//!   "alerts", "fleet"}`: for vehicle `V` (MAVLink system id; default the lowest heard),
+//!   the points with sequence number above `N` (so a poll sends only what is new), the
+//!   last report's numbers and its whole alert log; and `fleet`, one row per vehicle
+//!   (`system_id`, `t`, `measured_w`, `forecast_w`, `remaining_wh`, `time_to_empty_s`,
+//!   `home_margin_wh`, `worst`: the most severe alert standing). With more than one
+//!   vehicle the page shows that table above the charts; a click selects the vehicle.
 //!
 //! Bound to `127.0.0.1:8787` unless `[sinks.web] bind` says otherwise: a dashboard of the
 //! vehicle's battery is nobody else's business until you choose so. The history keeps one
@@ -171,6 +175,59 @@ struct Dash {
     points: VecDeque<Point>,
     alerts: VecDeque<AlertEvent>,
     latest: Option<Latest>,
+    /// Alerts raised and not cleared: rule → severity.
+    active: std::collections::BTreeMap<String, crate::report::Severity>,
+}
+
+/// One vehicle's row of the fleet table.
+#[derive(Debug, Clone, serde::Serialize)]
+struct FleetRow {
+    system_id: u8,
+    t: f64,
+    measured_w: Option<f32>,
+    forecast_w: Option<f64>,
+    remaining_wh: Option<f64>,
+    time_to_empty_s: Option<f64>,
+    home_margin_wh: Option<f64>,
+    /// The most severe alert standing: (rule, severity).
+    worst: Option<(String, crate::report::Severity)>,
+}
+
+/// Every vehicle's dashboard, by system id.
+#[derive(Debug, Default)]
+struct Fleet {
+    vehicles: std::collections::BTreeMap<u8, Dash>,
+}
+
+impl Fleet {
+    fn add(&mut self, r: &Report, cfg: &WebSinkConfig) {
+        let dropped = r.alerts.iter().any(|a| a.rule == "vehicle_dropped" && a.state == crate::report::AlertState::Raised);
+        if dropped {
+            self.vehicles.remove(&r.system_id);
+        } else {
+            self.vehicles.entry(r.system_id).or_default().add(r, cfg);
+        }
+    }
+
+    fn rows(&self) -> Vec<FleetRow> {
+        self.vehicles
+            .iter()
+            .filter_map(|(&system_id, d)| {
+                let l = d.latest.as_ref()?;
+                Some(FleetRow {
+                    system_id,
+                    t: l.t,
+                    measured_w: l.measured_w,
+                    forecast_w: l.energy.forecast_w,
+                    remaining_wh: l.energy.remaining_wh,
+                    time_to_empty_s: l.energy.time_to_empty_s,
+                    home_margin_wh: l.energy.home_margin_wh,
+                    // Severity orders most severe first.
+                    worst: d.active.iter().min_by_key(|(_, &s)| s).map(|(r, &s)| (r.clone(), s)),
+                })
+            })
+            .collect()
+    }
 }
 
 #[derive(Debug, Clone, serde::Serialize)]
@@ -199,6 +256,10 @@ impl Dash {
                 self.alerts.pop_front();
             }
             self.alerts.push_back(a.clone());
+            match a.state {
+                crate::report::AlertState::Raised => self.active.insert(a.rule.clone(), a.severity),
+                crate::report::AlertState::Cleared => self.active.remove(&a.rule),
+            };
         }
         let est = &r.estimate;
         self.latest = Some(Latest {
@@ -235,11 +296,12 @@ impl Dash {
     }
 }
 
-type Shared = Arc<Mutex<Dash>>;
+type Shared = Arc<Mutex<Fleet>>;
 
 #[derive(serde::Deserialize)]
 struct Since {
     since: Option<u64>,
+    vehicle: Option<u8>,
 }
 
 async fn index() -> impl IntoResponse {
@@ -248,14 +310,25 @@ async fn index() -> impl IntoResponse {
 
 async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoResponse {
     let since = q.since.unwrap_or(0);
+    let empty = Dash::default();
     let body = match dash.lock() {
-        Ok(d) => serde_json::json!({
-            "seq": d.seq,
-            "models": d.models,
-            "latest": d.latest,
-            "points": d.points.iter().filter(|p| p.seq > since).collect::<Vec<_>>(),
-            "alerts": d.alerts,
-        }),
+        Ok(f) => {
+            // The vehicle asked for, else the lowest heard (a dropped one: the lowest left).
+            let (vehicle, d) = q
+                .vehicle
+                .and_then(|v| f.vehicles.get_key_value(&v))
+                .or_else(|| f.vehicles.iter().next())
+                .map_or((None, &empty), |(&v, d)| (Some(v), d));
+            serde_json::json!({
+                "vehicle": vehicle,
+                "seq": d.seq,
+                "models": d.models,
+                "latest": d.latest,
+                "points": d.points.iter().filter(|p| p.seq > since).collect::<Vec<_>>(),
+                "alerts": d.alerts,
+                "fleet": f.rows(),
+            })
+        }
         Err(_) => serde_json::json!({"error": "dashboard state unavailable"}),
     };
     Json(body)

@@ -264,8 +264,7 @@ impl Telemetry {
                 false
             }
             (None, MavMessage::HEARTBEAT(h)) => {
-                let autopilot = h.autopilot != crate::dialect::MavAutopilot::MAV_AUTOPILOT_INVALID
-                    && h.mavtype != crate::dialect::MavType::MAV_TYPE_GCS;
+                let autopilot = crate::fleet::is_vehicle_heartbeat(h);
                 if autopilot {
                     self.sysid = Some(sys);
                 }
