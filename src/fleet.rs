@@ -261,6 +261,11 @@ impl Demux {
         self.vehicles.keys().copied()
     }
 
+    /// The system ids followed.
+    pub fn filter(&self) -> &VehicleFilter {
+        &self.filter
+    }
+
     /// Messages ignored because their system id is outside the filter.
     pub fn filtered(&self) -> u64 {
         self.filtered

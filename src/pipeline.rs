@@ -79,7 +79,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
     let live = matches!(p.source, SourceSpec::Link(_));
-    let mission = mission_setup(&p.config, &p.source)?;
+    let mission = mission_setup(&p.config, &p.source, Some(demux.filter()))?;
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
     // The mission tap between the source and the demultiplexer, when there is a mission
@@ -645,7 +645,7 @@ fn take_mission(energy: &mut EnergyTracker, rx: &mut Option<mpsc::Receiver<Missi
 
 /// What the live mission forecast needs, when the source can carry a mission (a live
 /// link, a `.tlog` or raw log; not the data set) and `[forecast.live] enabled`.
-fn mission_setup(cfg: &Config, source: &SourceSpec) -> Result<Option<crate::mission::live::LiveSetup>> {
+fn mission_setup(cfg: &Config, source: &SourceSpec, follows: Option<&crate::fleet::VehicleFilter>) -> Result<Option<crate::mission::live::LiveSetup>> {
     if !cfg.forecast.live.enabled || matches!(source, SourceSpec::Dataset { .. }) {
         return Ok(None);
     }
@@ -665,9 +665,10 @@ fn mission_setup(cfg: &Config, source: &SourceSpec) -> Result<Option<crate::miss
         payload_g: cfg.mission.payload_g.map_or(0.0, f64::from),
         speed_m_s: cfg.mission.speed_m_s.map(f64::from),
         active: matches!(source, SourceSpec::Link(_)),
-        // Requests go out as the configured id, else 1 (what a one-vehicle link expects).
-        system_id: cfg.sinks.mavlink.system_id.unwrap_or(1),
+        // Requests go out as the configured id, else as the vehicle's companion computer.
+        system_id: cfg.sinks.mavlink.system_id,
         component_id: cfg.sinks.mavlink.component_id,
+        follows: follows.cloned().unwrap_or_default(),
     }))
 }
 

@@ -65,9 +65,14 @@ pub struct LiveSetup {
     pub speed_m_s: Option<f64>,
     /// Download over the link (a live link); else only overhear (a replay).
     pub active: bool,
-    /// Ids dronewatt sends the protocol with (the MAVLink sink's).
-    pub system_id: u8,
+    /// Ids dronewatt sends the protocol with (the MAVLink sink's; no system id: the
+    /// vehicle's own, as its companion computer).
+    pub system_id: Option<u8>,
     pub component_id: u8,
+    /// The vehicles it may follow (`[fleet] vehicles` / `--vehicles`): another vehicle's
+    /// heartbeat, position or MISSION_CURRENT is not looked at (a ground station's mission
+    /// messages still are: a logged upload).
+    pub follows: crate::fleet::VehicleFilter,
 }
 
 /// A mission flown on paper.
@@ -116,7 +121,16 @@ impl LiveMission {
     /// One message at `now_s` (the client's clock: wall time live, the message's time in a
     /// replay) with its source time `t_s`. Frames to send go to `out`; an update to publish
     /// is returned (a status, or none when the mission in hand went away).
+    // MISSION_ITEM is deprecated, and still what older ground stations log.
+    #[allow(deprecated)]
     pub fn on_message(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionUpdate> {
+        let mission_protocol = matches!(
+            m.msg,
+            MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_) | MavMessage::MISSION_ITEM(_) | MavMessage::MISSION_ACK(_)
+        );
+        if !mission_protocol && !self.setup.follows.contains(m.header.system_id.into()) {
+            return None;
+        }
         let had = self.flown.is_some();
         match self.step(now_s, m, out) {
             Some(s) => Some(MissionUpdate { t_s: s.t_s, status: Some(s) }),
@@ -314,7 +328,6 @@ fn locate(fl: &Flown, seq: u16, position: Option<(f64, f64, f64)>) -> usize {
 pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: LinkHandle, statuses: mpsc::Sender<MissionUpdate>) -> (mpsc::Receiver<TimedMessage>, JoinHandle<()>) {
     let (tx, rx) = mpsc::channel(TAP_DEPTH);
     let active = setup.active;
-    let (sys, comp) = (setup.system_id, setup.component_id);
     let task = tokio::spawn(async move {
         let mut live = LiveMission::new(setup);
         let start = tokio::time::Instant::now();
@@ -338,6 +351,10 @@ pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: Lin
                 }
                 _ = tick.tick(), if active => live.tick(start.elapsed().as_secs_f64(), &mut out),
             }
+            let Some((sys, comp)) = live.client().sender() else {
+                out.clear();
+                continue;
+            };
             for msg in out.drain(..) {
                 let header = mavlink::MavHeader { system_id: sys.into(), component_id: comp, sequence: seq };
                 seq = seq.wrapping_add(1);
@@ -367,6 +384,7 @@ mod tests {
 
     fn live() -> LiveMission {
         LiveMission::new(LiveSetup {
+            follows: Default::default(),
             forecast: Default::default(),
             models: crate::model::physics::models(&crate::model::profile::VehicleProfile::m100()),
             rate_hz: 10.0,
@@ -374,7 +392,7 @@ mod tests {
             payload_g: 0.0,
             speed_m_s: None,
             active: false,
-            system_id: 1,
+            system_id: Some(1),
             component_id: 191,
         })
     }

@@ -114,7 +114,9 @@ pub struct ClientStats {
 #[derive(Debug)]
 pub struct MissionClient {
     active: bool,
-    own: (u8, u8),
+    /// Its own system id (None: the target vehicle's, as a companion computer of it) and
+    /// component id.
+    own: (Option<u8>, u8),
     target: Option<(u8, u8)>,
     ardupilot: Option<bool>,
     state: State,
@@ -128,8 +130,9 @@ pub struct MissionClient {
 }
 
 impl MissionClient {
-    /// A client sending as `system_id`/`component_id` when `active`.
-    pub fn new(active: bool, system_id: u8, component_id: u8) -> Self {
+    /// A client sending as `system_id` (None: the vehicle's own, as its companion
+    /// computer would) and `component_id` when `active`.
+    pub fn new(active: bool, system_id: Option<u8>, component_id: u8) -> Self {
         Self {
             active,
             own: (system_id, component_id),
@@ -149,6 +152,12 @@ impl MissionClient {
         self.target
     }
 
+    /// Who it sends as (system, component); None while it has no system id (its own is not
+    /// set and no vehicle was heard yet: it sends nothing then).
+    pub fn sender(&self) -> Option<(u8, u8)> {
+        self.own.0.or(self.target.map(|t| t.0)).map(|sys| (sys, self.own.1))
+    }
+
     /// Whether a download is under way.
     pub fn busy(&self) -> bool {
         self.state != State::Idle
@@ -159,7 +168,7 @@ impl MissionClient {
     #[allow(deprecated)]
     pub fn on_message(&mut self, now_s: f64, header: &mavlink::MavHeader, msg: &MavMessage, out: &mut Vec<MavMessage>) -> Option<Event> {
         let from = (u8::try_from(header.system_id).unwrap_or(0), header.component_id);
-        if from == self.own {
+        if Some(from) == self.sender() {
             return None;
         }
         let from_target = self.target == Some(from);
@@ -416,7 +425,7 @@ mod tests {
     #[test]
     fn downloads_with_a_resend_acks_and_redownloads_on_a_new_mission_id() {
         let v = hdr(1, 1);
-        let mut c = MissionClient::new(true, 1, 191);
+        let mut c = MissionClient::new(true, Some(1), 191);
         let mut out = Vec::new();
         assert_eq!(c.on_message(0.0, &v, &heartbeat(), &mut out), None);
         assert!(matches!(out.as_slice(), [MavMessage::MISSION_REQUEST_LIST(_)]), "{out:?}");
@@ -454,7 +463,7 @@ mod tests {
     #[test]
     fn gives_up_after_max_tries_and_retries_later() {
         let v = hdr(1, 1);
-        let mut c = MissionClient::new(true, 1, 191);
+        let mut c = MissionClient::new(true, Some(1), 191);
         let mut out = Vec::new();
         c.on_message(0.0, &v, &heartbeat(), &mut out);
         let mut t = 0.0;
@@ -476,7 +485,7 @@ mod tests {
 
     #[test]
     fn a_passive_client_assembles_overheard_items_and_sends_nothing() {
-        let mut c = MissionClient::new(false, 1, 191);
+        let mut c = MissionClient::new(false, Some(1), 191);
         let mut out = Vec::new();
         c.on_message(0.0, &hdr(1, 1), &heartbeat(), &mut out);
         c.on_message(0.1, &hdr(1, 1), &count(2), &mut out);
