@@ -18,9 +18,9 @@
 //! | `time_to_empty_below` | `below_s` | `clear_s` | time to empty at the forecast power |
 //! | `home_margin_below` | `below_wh` | `clear_wh` | remaining − energy home − reserve |
 //! | `power_above` | `above_w` | `clear_w` | measured power |
-//! | `deviation_above` | `above_w`, optional `model` | `clear_w` | \|measured − predicted\| (a damaged propeller, a heavy payload) |
+//! | `deviation_above` | `above_w`, optional `model` | `clear_w` | \|measured − predicted\| (a damaged propeller, a heavy payload); predicted by the model's slowly adapting reference when adaptation runs |
 //! | `models_disagree` | `above_w` | `clear_w` | spread (max − min) of the models' predictions |
-//! | `cell_voltage_below` | `below_v` | `clear_v` | battery voltage / `[energy] cell_count` |
+//! | `cell_voltage_below` | `below_v` | `clear_v` | battery voltage / cells (`[energy] cell_count`, else the vehicle's) |
 //! | `telemetry_lost` | — (`for_s` is the time) | — | every kinematic feature stale |
 //!
 //! A clear level defaults to the raise level (no hysteresis) and must lie on the safe side
@@ -264,7 +264,10 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
                 Some(n) => est.models.iter().find(|m| &m.name == n),
                 None => est.models.iter().find(|m| m.name == "lstm").or(est.models.first()),
             }?;
-            Some((measured? - f64::from(m.power_w)).abs()).filter(|v| v.is_finite())
+            // Against the slowly adapting reference when adaptation runs (a fault is not
+            // learned away in seconds: see model::adapt), else the raw prediction.
+            let predicted = m.reference_w.unwrap_or(m.power_w);
+            Some((measured? - f64::from(predicted)).abs()).filter(|v| v.is_finite())
         }
         K::ModelsDisagree { .. } => {
             let ps = est.models.iter().map(|m| f64::from(m.power_w)).filter(|p| p.is_finite());

@@ -35,7 +35,8 @@
 //! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV; frame decoding and its counters |
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
-//! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
+//! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card, online adaptation to measured power |
+//! | [`vehicle`] | who the vehicle is: identity and battery parameters over MAVLink, battery facts with their provenance, the vehicle store |
 //! | [`mission`] | plans (.plan, .waypoints), the plan flown on paper, its energy forecast (P50/P90, per leg, live re-forecast) |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
@@ -63,6 +64,7 @@ pub mod sink;
 pub mod source;
 pub mod status;
 pub mod telemetry;
+pub mod vehicle;
 pub mod window;
 
 /// The MAVLink dialect dronewatt speaks: ArduPilot's, which includes `common`.

@@ -37,6 +37,11 @@ struct RunArgs {
     /// weights file (.safetensors, or a TorchScript .pt) with card.toml beside it.
     #[arg(long, value_name = "FILE")]
     model: Option<PathBuf>,
+    /// Keep the vehicle store (what was learned about each vehicle, its flights) in DIR;
+    /// `off`: none. Default: $DRONEWATT_HOME, else $XDG_DATA_HOME/dronewatt, else
+    /// ~/.local/share/dronewatt.
+    #[arg(long, value_name = "DIR")]
+    data_dir: Option<PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -80,6 +85,15 @@ enum Command {
     Plan(dronewatt::offline::mission::PlanArgs),
     /// Judge the mission forecast on the data set's route flights (pre-flight and live at 50 %, vs the autopilots' rule).
     PlanEval(dronewatt::offline::mission::PlanEvalArgs),
+    /// List the vehicles in the vehicle store: flights, energy per minute, the pack's capacity trend.
+    Vehicles {
+        /// The store's folder (as `monitor --data-dir`).
+        #[arg(long, value_name = "DIR")]
+        data_dir: Option<PathBuf>,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Validate a configuration file and say what it sets up.
     CheckConfig {
         /// The TOML file.
@@ -134,6 +148,12 @@ fn real_main(cli: Cli) -> Result<()> {
         Command::Sensitivity(a) => dronewatt::offline::sensitivity::run(a),
         Command::Plan(a) => dronewatt::offline::mission::run_plan(a),
         Command::PlanEval(a) => dronewatt::offline::mission::run_plan_eval(a),
+        Command::Vehicles { data_dir, json } => {
+            let dir = dronewatt::vehicle::store::data_dir_from_env(data_dir.as_deref())
+                .context("the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR")?;
+            print!("{}", dronewatt::vehicle::store::list(&dir, json)?);
+            Ok(())
+        }
         Command::CheckConfig { file } => {
             let cfg = Config::load(&file)?;
             // The secrets' files too: missing, unreadable or readable by others fails here.
@@ -246,9 +266,9 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     let e = &cfg.energy;
     let mut out = format!("{}: ok\n", file.display());
     out += &format!(
-        "energy: capacity {:.2} Wh, {} cells, reserve {}%, forecast model {}, smoothing {} s\n",
-        e.capacity_wh,
-        e.cell_count,
+        "energy: capacity {}, {} cells, reserve {}%, forecast model {}, smoothing {} s\n",
+        e.capacity_wh.map_or("from the vehicle, else 129.96 Wh".to_string(), |c| format!("{c:.2} Wh")),
+        e.cell_count.map_or("from the vehicle, else 6".to_string(), |n| n.to_string()),
         e.reserve_pct,
         e.model.as_deref().unwrap_or("lstm, else measured power"),
         e.smoothing_s
@@ -330,9 +350,10 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     if config.sinks.mqtt.enabled {
         sinks.push(SinkSpec::Mqtt(config.sinks.mqtt.clone()));
     }
+    let data_dir = dronewatt::vehicle::store::data_dir_from_env(run.data_dir.as_deref());
     let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     rt.block_on(async move {
         let shutdown = pipeline::shutdown_on_signal();
-        pipeline::run(Pipeline { config, source, sinks }, shutdown).await.map(|_| ())
+        pipeline::run(Pipeline { config, source, sinks, data_dir }, shutdown).await.map(|_| ())
     })
 }

@@ -3,7 +3,13 @@
 //!
 //! ```text
 //! source ─TimedMessage→ telemetry_stage ─Window→ inference_stage ─Estimate→ energy_stage ─Report→ Fanout → one task per sink
+//!                          └──── VehicleParams (watch: the latest word only) ────▶┘
 //! ```
+//!
+//! The telemetry stage also reads the vehicle ([`crate::vehicle::params`]): on a live link it
+//! asks for the battery parameters (PARAM_REQUEST_READ on the link, resent, bounded), in a
+//! replay it takes the logged PARAM_VALUEs; what it learns reaches the energy stage on a
+//! `tokio::sync::watch` (only the newest value matters, and it never holds a stage back).
 //!
 //! Every arrow is a bounded channel carrying one typed value; a full channel holds the
 //! stage before it back, so a flat-out replay loses nothing. [`VehicleChain`] is one
@@ -35,7 +41,10 @@ use crate::sink::{Fanout, SinkSpec};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
 use crate::status::{ChainStatus, IngestStats, LinkHandle, StatsSnapshot};
 use crate::telemetry::Telemetry;
+use crate::vehicle::params::{Driver, Identity, ParamReader, VehicleParams};
+use crate::vehicle::store::FlightLog;
 use crate::window::Window;
+use tokio::sync::watch;
 
 /// Channel depth between stages. Deep enough to ride out a slow model for a few seconds
 /// at 10 Hz; a flat-out replay simply waits on the slowest stage (back-pressure).
@@ -55,6 +64,8 @@ pub struct Pipeline {
     pub config: Config,
     pub source: SourceSpec,
     pub sinks: Vec<SinkSpec>,
+    /// The vehicle store's folder ([`crate::vehicle::store`]); `None`: nothing remembered.
+    pub data_dir: Option<std::path::PathBuf>,
 }
 
 /// Run the pipeline to the end of its source or until `shutdown` is cancelled. Returns the
@@ -73,10 +84,15 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let live = matches!(p.source, SourceSpec::Link(_));
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
-    let chain = chain.spawn(msg_rx, fanout, &status, live);
+    let chain = chain.with_memory(p.data_dir.clone()).spawn(msg_rx, fanout, &status, live);
 
     let source_result = source.await?;
-    chain.join().await?;
+    let end = chain.join().await?;
+    // The flight is over: remember the vehicle, off the reactor (a slow or locked database
+    // delays nothing but this write, and a failure is a warning).
+    if let Some(dir) = p.data_dir {
+        tokio::task::spawn_blocking(move || crate::vehicle::store::remember(&dir, end.identity.as_ref(), end.fits.as_deref(), &end.flight)).await?;
+    }
     sinks.join().await?;
     source_result?;
     Ok(status.stats.snapshot())
@@ -136,22 +152,39 @@ pub struct VehicleChain {
     pub models: Ensemble,
     pub energy: EnergyTracker,
     pub alerts: AlertEngine,
+    /// Who the vehicle is and its battery parameters (listening only until
+    /// [`VehicleChain::spawn`] runs it on a live link).
+    pub vehicle: ParamReader,
+    /// dronewatt's own MAVLink ids, for the parameter requests (`[sinks.mavlink]`).
+    mav_ids: (u8, u8),
+    /// The vehicle store's folder, for the warm start ([`VehicleChain::with_memory`]).
+    memory: Option<std::path::PathBuf>,
 }
 
 /// The running stages of one [`VehicleChain`].
 pub struct ChainTasks {
     telemetry: JoinHandle<()>,
-    inference: JoinHandle<()>,
-    energy: JoinHandle<()>,
+    inference: JoinHandle<Option<Fits>>,
+    energy: JoinHandle<(FlightLog, Option<Identity>)>,
+}
+
+/// What a chain leaves when its input is over: what the vehicle store keeps.
+pub struct ChainEnd {
+    /// The vehicle, when its heartbeat was heard.
+    pub identity: Option<Identity>,
+    /// Every model's adaptation fits at the end (adaptation on).
+    pub fits: Option<Fits>,
+    /// The run's reports, summed up.
+    pub flight: FlightLog,
 }
 
 impl ChainTasks {
     /// Wait for every stage to drain and end (after its input closed).
-    pub async fn join(self) -> Result<()> {
+    pub async fn join(self) -> Result<ChainEnd> {
         self.telemetry.await?;
-        self.inference.await?;
-        self.energy.await?;
-        Ok(())
+        let fits = self.inference.await?;
+        let (flight, identity) = self.energy.await?;
+        Ok(ChainEnd { identity, fits, flight })
     }
 }
 
@@ -160,10 +193,21 @@ impl VehicleChain {
     pub fn build(cfg: &Config) -> Result<Self> {
         Ok(Self {
             telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
-            models: crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?,
+            models: crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry, cfg.mission.payload_g)?,
             energy: EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?,
             alerts: AlertEngine::new(&cfg.alerts)?,
+            vehicle: ParamReader::passive(),
+            mav_ids: (cfg.sinks.mavlink.system_id, cfg.sinks.mavlink.component_id),
+            memory: None,
         })
+    }
+
+    /// Remember the vehicle in the store in `dir` ([`crate::vehicle::store`]): once its
+    /// identity is heard, what earlier flights taught the adaptation is looked up (on a
+    /// blocking thread) and the models start from it.
+    pub fn with_memory(mut self, dir: Option<std::path::PathBuf>) -> Self {
+        self.memory = dir;
+        self
     }
 
     /// Every message through every stage in order, on the calling thread: what offline work
@@ -174,7 +218,13 @@ impl VehicleChain {
     pub fn push(&mut self, m: Option<&TimedMessage>, out: &mut Vec<Report>) {
         let mut windows = Vec::new();
         match m {
-            Some(m) => self.telemetry.push(m, &mut windows),
+            Some(m) => {
+                self.vehicle.on_message(m);
+                if self.vehicle.take_changed() {
+                    self.energy.set_vehicle(self.vehicle.params());
+                }
+                self.telemetry.push(m, &mut windows)
+            }
             None => self.telemetry.finish(&mut windows),
         }
         if windows.is_empty() {
@@ -191,28 +241,53 @@ impl VehicleChain {
     pub fn spawn(self, msgs: mpsc::Receiver<TimedMessage>, fanout: Fanout, status: &ChainStatus, live: bool) -> ChainTasks {
         let (win_tx, win_rx) = mpsc::channel::<Window>(CHANNEL_DEPTH);
         let (est_tx, est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
+        // On a live link the reader asks; replaying, it listens to the logged fetch.
+        let reader = if live { ParamReader::live() } else { self.vehicle };
+        let driver = Driver::new(reader, status.link.clone(), self.mav_ids.0, self.mav_ids.1);
+        let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
+        let (warm_tx, warm_rx) = std::sync::mpsc::channel();
+        let memory = self.memory.filter(|_| self.models.adaptation().is_some()).map(|dir| (dir, warm_tx));
         ChainTasks {
-            telemetry: tokio::spawn(telemetry_stage(self.telemetry, msgs, win_tx, status.clone())),
+            telemetry: tokio::spawn(telemetry_stage(self.telemetry, driver, msgs, win_tx, vehicle_tx, memory, status.clone())),
             // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
-            inference: tokio::task::spawn_blocking(move || inference_stage(self.models, win_rx, est_tx)),
-            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, fanout, status.clone(), live)),
+            inference: tokio::task::spawn_blocking(move || inference_stage(self.models, win_rx, est_tx, warm_rx, live)),
+            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, vehicle_rx, fanout, status.clone(), live)),
         }
     }
 }
 
 /// Messages → fixed-rate samples → windows; refreshes the signal health about once a second.
+/// Reads the vehicle beside ([`Driver`]: asks on a live link) and publishes what it learns.
 async fn telemetry_stage(
     mut telemetry: Telemetry,
+    mut vehicle: Driver,
     mut msgs: mpsc::Receiver<TimedMessage>,
     windows: mpsc::Sender<Window>,
+    vehicle_tx: watch::Sender<VehicleParams>,
+    memory: Option<(std::path::PathBuf, std::sync::mpsc::Sender<WarmStart>)>,
     status: ChainStatus,
 ) {
+    let mut looked_up = false;
     let mut out = Vec::new();
     let mut shown = Instant::now();
     let mut open = true;
     while open {
         match msgs.recv().await {
             Some(m) => {
+                if let Some(params) = vehicle.on_message(&m) {
+                    // The vehicle is known: look up what earlier flights taught (off this task;
+                    // `Pending` goes first, so the windows after this message find it).
+                    if let (Some(id), Some((dir, warm)), false) = (&params.identity, &memory, looked_up) {
+                        looked_up = true;
+                        let _ = warm.send(WarmStart::Pending);
+                        let (dir, warm, id) = (dir.clone(), warm.clone(), id.clone());
+                        tokio::task::spawn_blocking(move || {
+                            let _ = warm.send(WarmStart::Ready(crate::vehicle::store::lookup(&dir, &id)));
+                        });
+                    }
+                    // Only the energy stage listens; it gone (shutting down) is no error.
+                    let _ = vehicle_tx.send(params);
+                }
                 telemetry.push(&m, &mut out);
                 if let Some(id) = telemetry.system_id() {
                     status.system_id.store(id, std::sync::atomic::Ordering::Relaxed);
@@ -242,10 +317,35 @@ async fn telemetry_stage(
 /// batch: libtorch's thread settings are per OS thread, and a fresh thread's defaults (an
 /// intra-op team as wide as the machine) cost ~10 ms a window. Windows that queued up
 /// meanwhile (a flat-out replay) run as one batch.
-fn inference_stage(mut models: Ensemble, mut windows: mpsc::Receiver<Window>, estimates: mpsc::Sender<Estimate>) {
+///
+/// What earlier flights of the vehicle taught the adaptation arrives on `warm` once the
+/// vehicle is known; a replay waits for it (at most [`WARM_WAIT`]) so a replay is
+/// reproducible, a live link never waits. Returns the adaptation's fits at the end.
+fn inference_stage(
+    mut models: Ensemble,
+    mut windows: mpsc::Receiver<Window>,
+    estimates: mpsc::Sender<Estimate>,
+    warm: std::sync::mpsc::Receiver<WarmStart>,
+    live: bool,
+) -> Option<Fits> {
     crate::model::pin_inference_thread();
     let mut batch = Vec::with_capacity(MAX_BATCH);
+    // The vehicle is known and its fits are being looked up.
+    let mut waiting = false;
+    let fits = |models: &Ensemble| models.adaptation().map(|a| a.fits().to_vec());
     while let Some(w) = windows.blocking_recv() {
+        for news in warm.try_iter() {
+            waiting = warm_start(&mut models, news);
+        }
+        if waiting && !live {
+            waiting = match warm.recv_timeout(WARM_WAIT) {
+                Ok(news) => warm_start(&mut models, news),
+                Err(_) => {
+                    tracing::warn!("vehicle store: no answer in {WARM_WAIT:?}; the replay goes on without a warm start");
+                    false
+                }
+            };
+        }
         batch.push(w);
         while batch.len() < MAX_BATCH {
             match windows.try_recv() {
@@ -255,12 +355,41 @@ fn inference_stage(mut models: Ensemble, mut windows: mpsc::Receiver<Window>, es
         }
         for e in models.estimate(&batch) {
             if estimates.blocking_send(e).is_err() {
-                return;
+                return fits(&models);
             }
         }
         batch.clear();
     }
+    fits(&models)
 }
+
+/// Take the warm start's news; whether the answer is still to come.
+fn warm_start(models: &mut Ensemble, news: WarmStart) -> bool {
+    match news {
+        WarmStart::Pending => true,
+        WarmStart::Ready(learned) => {
+            if let (Some(l), Some(ad)) = (learned, models.adaptation_mut()) {
+                let n = ad.restore(&l);
+                tracing::info!("warm start: {n} model(s) start from what earlier flights of this vehicle taught");
+            }
+            false
+        }
+    }
+}
+
+/// Adaptation fits by model name (what the vehicle store keeps).
+type Fits = Vec<(String, crate::model::adapt::ModelFit)>;
+
+/// The warm start's news to the inference stage.
+enum WarmStart {
+    /// The vehicle is known and its fits are being looked up.
+    Pending,
+    /// What earlier flights taught (none: a new vehicle, or no store).
+    Ready(Option<Fits>),
+}
+
+/// Longest a replay waits for the vehicle store's answer.
+const WARM_WAIT: std::time::Duration = std::time::Duration::from_secs(3);
 
 /// Estimates → energy bookkeeping and alert events → one [`Report`] each, to every sink.
 /// On a live link, a silence of [`SILENT_TICK`] still runs the alert rules (on
@@ -270,25 +399,37 @@ async fn energy_stage(
     mut energy: EnergyTracker,
     mut alerts: AlertEngine,
     mut estimates: mpsc::Receiver<Estimate>,
+    mut vehicle: watch::Receiver<VehicleParams>,
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
-) {
-    let vehicle = || match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
+) -> (FlightLog, Option<Identity>) {
+    let mut flight = FlightLog::default();
+    let vehicle_id = || match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
         0 => 1,
         id => id,
     };
     // The last real estimate, its energy, and when it came: the base of a silent tick.
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
+    // Whether the vehicle's last word (its sender gone: the telemetry stage done) was taken.
+    let mut vehicle_final = false;
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
         } else {
             Ok(estimates.recv().await)
         };
+        // Capacity and cells from the vehicle where the config is silent. A closed channel (a
+        // fast replay whose telemetry stage is done) still holds the last word: take it once.
+        let (changed, closed) = vehicle.has_changed().map_or((true, true), |c| (c, false));
+        if changed && !vehicle_final {
+            energy.set_vehicle(vehicle.borrow_and_update().clone());
+            vehicle_final = closed;
+        }
         let report = match next {
             Ok(Some(est)) => {
-                let report = account(&mut energy, &mut alerts, est, vehicle());
+                let report = account(&mut energy, &mut alerts, est, vehicle_id());
+                flight.observe(&report);
                 if live {
                     last = Some((report.estimate.clone(), report.energy.clone(), Instant::now()));
                 }
@@ -302,11 +443,13 @@ async fn energy_stage(
                 if events.is_empty() {
                     continue;
                 }
-                Report { estimate: quiet, energy: state.clone(), alerts: events, system_id: vehicle() }
+                Report { estimate: quiet, energy: state.clone(), alerts: events, system_id: vehicle_id() }
             }
         };
         fanout.send(report).await;
     }
+    let identity = vehicle.borrow().identity.clone();
+    (flight, identity)
 }
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on
