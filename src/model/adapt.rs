@@ -51,8 +51,8 @@
 //!   at most [`MAX_POWER_W`];
 //! - the motors turn: measured power ≥ `min_power_frac` × the vehicle's ideal hover power
 //!   (momentum theory, `(m·g)^1.5 / √(2·ρ·A)`, from the profile and the mission payload). A
-//!   vehicle on the ground with its motors off draws a few watts for its electronics, which
-//!   says nothing about how it flies. (The samples carry no armed flag; the power threshold
+//!   vehicle on the ground draws a few watts for its electronics while the physics models
+//!   still predict a hover, which says nothing about how it flies. (The samples carry no armed flag; the power threshold
 //!   stands in for "disarmed".)
 //! - the model says the window is inside what it was trained on
 //!   ([`super::PowerModel::in_training_range`]): the LSTM refuses windows with an input more
@@ -85,7 +85,8 @@ pub struct AdaptConfig {
     /// 900. Must be at least 5 × `memory_s`.
     pub reference_memory_s: f64,
     /// Windows teach only when measured power is at least this fraction of the vehicle's
-    /// ideal hover power (motors turning). Default 0.05.
+    /// ideal hover power (the motors lift; on the ground a vehicle draws a few watts for its
+    /// electronics, while the physics models still predict a hover). Default 0.3.
     pub min_power_frac: f64,
     /// Smallest gain a allowed. Default 0.2.
     pub gain_min: f64,
@@ -101,7 +102,7 @@ impl Default for AdaptConfig {
             enabled: true,
             memory_s: 30.0,
             reference_memory_s: 900.0,
-            min_power_frac: 0.05,
+            min_power_frac: 0.3,
             gain_min: 0.2,
             gain_max: 5.0,
             offset_max_w: 1000.0,
@@ -276,7 +277,10 @@ impl Adaptation {
         &self.fits
     }
 
-    /// Start from fits learned before (a previous flight of the same vehicle). Models not in
+    /// Start from fits learned before (a previous flight of the same vehicle): both fits
+    /// start from the stored *reference*, the long-memory fit over the whole flight, not from
+    /// the published fit, which at a flight's end has learned only its last half-minute
+    /// (descent, landing: a poor guess of the next take-off). Models not in
     /// `learned` keep their current fit; learned fits of models not running are ignored. A
     /// fit outside the configured bounds or with broken sums is ignored. Returns how
     /// many fits were taken.
@@ -286,7 +290,7 @@ impl Adaptation {
         for (name, fit) in &mut self.fits {
             if let Some((_, l)) = learned.iter().find(|(ln, _)| ln == name) {
                 if [l.adapted, l.reference].iter().all(|f| fit_ok(cfg, f)) {
-                    *fit = *l;
+                    *fit = ModelFit { adapted: l.reference, reference: l.reference };
                     n += 1;
                 }
             }
@@ -354,9 +358,10 @@ mod tests {
     #[test]
     fn motors_off_and_out_of_range_windows_do_not_teach() {
         let mut ad = adaptation();
-        // 130 W ideal hover × 5 %: 6.5 W. A vehicle on the ground drawing 2 W.
+        // 130 W ideal hover × 30 %: 39 W. A vehicle on the ground drawing 12 W for its
+        // electronics while the model predicts a hover.
         for k in 0..300 {
-            let a = ad.step(0, raw_at(k) as f32, Some(2.0), true).unwrap();
+            let a = ad.step(0, raw_at(k) as f32, Some(12.0), true).unwrap();
             assert!(!a.taught);
         }
         // Out of the training range, missing, NaN or absurd measured power: no teaching.
@@ -439,7 +444,9 @@ mod tests {
         let learned = ad.fits().to_vec();
         let mut next = adaptation();
         assert_eq!(next.restore(&learned), 1);
-        assert_eq!(next.step(0, 400.0, None, true).unwrap().adapted_w, ad.step(0, 400.0, None, true).unwrap().adapted_w);
+        // Both fits start from the stored reference (the whole flight, not its last 30 s).
+        let (a_next, a_then) = (next.step(0, 400.0, None, true).unwrap(), ad.step(0, 400.0, None, true).unwrap());
+        assert_eq!((a_next.adapted_w, a_next.reference_w), (a_then.reference_w, a_then.reference_w));
         // A fit outside the bounds (a stored database edited by hand, another config).
         let mut bad = learned.clone();
         bad[0].1.adapted.a = 50.0;

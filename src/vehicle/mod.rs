@@ -87,7 +87,7 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
 
 /// The facts with nothing from the vehicle: config, else defaults.
 pub fn battery_from_config(cfg: &BatteryConfig) -> BatteryFacts {
-resolve_battery(cfg, &params::VehicleParams::default(), None).0
+    resolve_battery(cfg, &params::VehicleParams::default(), None).0
 }
 
 #[cfg(test)]
