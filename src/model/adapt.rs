@@ -59,6 +59,14 @@
 //!   than 6 training standard deviations from the training mean.
 //!
 //! The correction is always *applied* (the last fitted a, b); only teaching is gated.
+//!
+//! ## Never worse than the model
+//!
+//! An affine fit of the last half-minute can extrapolate badly into the next regime (a model
+//! whose output is flat in cruise and jumps in a turn). Each window, before it teaches, the
+//! raw prediction and the published fit are both scored against the measured power, and the
+//! mean absolute errors forgotten like the fit ([`ModelFit::err_w`]). The published value
+//! is the fit while its error is no worse than the raw model's, else the raw prediction.
 
 use serde::{Deserialize, Serialize};
 
@@ -204,6 +212,11 @@ pub struct ModelFit {
     pub adapted: AffineFit,
     /// Slow reference for the deviation alert (`reference_memory_s`).
     pub reference: AffineFit,
+    /// Recent mean absolute error of the raw prediction and of the published fit, each
+    /// scored before the window taught (out of sample), W, forgotten like the published
+    /// fit: the fit is published only while it beats the raw model (module docs).
+    #[serde(default)]
+    pub err_w: [f64; 2],
 }
 
 /// What a model's estimate becomes after adaptation.
@@ -257,8 +270,12 @@ impl Adaptation {
         if !x.is_finite() {
             return None;
         }
+        let corrected = fit.adapted.apply(x).max(0.0);
+        // Published: the fit while its recent out-of-sample error is no worse than the raw
+        // model's, else the raw model (a fit that extrapolates badly never makes it worse).
+        let [err_raw, err_fit] = fit.err_w;
         let out = Adapted {
-            adapted_w: fit.adapted.apply(x).max(0.0) as f32,
+            adapted_w: if err_fit <= err_raw { corrected } else { x.max(0.0) } as f32,
             reference_w: fit.reference.apply(x).max(0.0) as f32,
             taught: false,
         };
@@ -267,6 +284,7 @@ impl Adaptation {
         if !in_range || x <= 0.0 || y < min_w {
             return Some(out);
         }
+        fit.err_w = [lambda * err_raw + (1.0 - lambda) * (x - y).abs(), lambda * err_fit + (1.0 - lambda) * (corrected - y).abs()];
         fit.adapted.teach(x, y, lambda, cfg);
         fit.reference.teach(x, y, lambda_ref, cfg);
         Some(Adapted { taught: true, ..out })
@@ -290,7 +308,7 @@ impl Adaptation {
         for (name, fit) in &mut self.fits {
             if let Some((_, l)) = learned.iter().find(|(ln, _)| ln == name) {
                 if [l.adapted, l.reference].iter().all(|f| fit_ok(cfg, f)) {
-                    *fit = ModelFit { adapted: l.reference, reference: l.reference };
+                    *fit = ModelFit { adapted: l.reference, reference: l.reference, err_w: [0.0; 2] };
                     n += 1;
                 }
             }
