@@ -211,7 +211,7 @@ impl EnergyTracker {
             }
         }
         if facts.capacity_wh != self.battery.capacity_wh || facts.cell_count != self.battery.cell_count {
-            tracing::info!(
+            tracing::debug!(
                 "battery: {:.1} Wh ({}), {} cells ({})",
                 facts.capacity_wh.value,
                 facts.capacity_wh.source,

@@ -37,6 +37,10 @@ struct RunArgs {
     /// weights file (.safetensors, or a TorchScript .pt) with card.toml beside it.
     #[arg(long, value_name = "FILE")]
     model: Option<PathBuf>,
+    /// Vehicle profile to run the physics models on (a `config/vehicles/*.toml` file, or the
+    /// `profile.toml` that `dronewatt learn` wrote); overrides the config's `vehicle`.
+    #[arg(long, value_name = "FILE")]
+    vehicle: Option<PathBuf>,
     /// Keep the vehicle store (what was learned about each vehicle, its flights) in DIR;
     /// `off`: none. Default: $DRONEWATT_HOME, else $XDG_DATA_HOME/dronewatt, else
     /// ~/.local/share/dronewatt.
@@ -75,6 +79,8 @@ enum Command {
     Simulate(SimulateArgs),
     /// Score every model on data-set flights (the paper's tables, in watts).
     Eval(dronewatt::offline::eval::EvalArgs),
+    /// Learn a vehicle from its .tlog logs: the physics models fitted, scored on held-out logs; writes a profile and a model card.
+    Learn(dronewatt::offline::learn::LearnArgs),
     /// Fit the physics models' free parameters to training flights.
     Calibrate(dronewatt::offline::calibrate::CalibrateArgs),
     /// Train the LSTM (by-flight cross-validation, grid search, early stopping).
@@ -144,6 +150,7 @@ fn real_main(cli: Cli) -> Result<()> {
         Command::Simulate(a) => simulate(a),
         Command::Eval(a) => dronewatt::offline::eval::run(a),
         Command::Calibrate(a) => dronewatt::offline::calibrate::run(a),
+        Command::Learn(a) => dronewatt::offline::learn::run(a),
         Command::Train(a) => dronewatt::offline::train::run(a),
         Command::Sensitivity(a) => dronewatt::offline::sensitivity::run(a),
         Command::Plan(a) => dronewatt::offline::mission::run_plan(a),
@@ -328,6 +335,9 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     let mut config = Config::load_or_default(run.config.as_deref())?;
     if let Some(m) = &run.model {
         config.models.lstm.path = Some(m.clone());
+    }
+    if let Some(v) = &run.vehicle {
+        config.vehicle = Some(v.clone());
     }
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {

@@ -6,6 +6,7 @@ pub mod calibrate;
 pub mod chain;
 pub mod data;
 pub mod eval;
+pub mod learn;
 pub mod metrics;
 pub mod mission;
 pub mod plot;
