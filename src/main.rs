@@ -273,9 +273,9 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     let e = &cfg.energy;
     let mut out = format!("{}: ok\n", file.display());
     out += &format!(
-        "energy: capacity {}, {} cells, reserve {}%, forecast model {}, smoothing {} s\n",
-        e.capacity_wh.map_or("from the vehicle, else 129.96 Wh".to_string(), |c| format!("{c:.2} Wh")),
-        e.cell_count.map_or("from the vehicle, else 6".to_string(), |n| n.to_string()),
+        "energy: capacity {}, cells {}, reserve {}%, forecast model {}, smoothing {} s\n",
+        e.capacity_wh.map_or("from the vehicle (else 129.96 Wh)".to_string(), |c| format!("{c:.2} Wh")),
+        e.cell_count.map_or("from the vehicle (else 6)".to_string(), |n| n.to_string()),
         e.reserve_pct,
         e.model.as_deref().unwrap_or("lstm, else measured power"),
         e.smoothing_s
