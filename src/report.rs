@@ -117,8 +117,6 @@ pub enum Provenance {
     Parameter(String),
     /// The first battery voltage seen (cell count = ceil(V / 4.2)).
     FirstVoltage,
-    /// Learned on earlier flights of this vehicle (the vehicle store).
-    Learned,
     /// dronewatt's built-in default (the M100's TB48D).
     #[default]
     Default,
@@ -130,7 +128,6 @@ impl fmt::Display for Provenance {
             Provenance::Config => f.write_str("config"),
             Provenance::Parameter(name) => write!(f, "vehicle parameter {name}"),
             Provenance::FirstVoltage => f.write_str("first battery voltage"),
-            Provenance::Learned => f.write_str("learned"),
             Provenance::Default => f.write_str("default"),
         }
     }
