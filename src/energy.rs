@@ -31,7 +31,7 @@
 
 use crate::features::idx;
 pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
-use crate::report::{BatteryFacts, Estimate, ModelEstimate};
+use crate::report::{BatteryFacts, Estimate, ModelEstimate, Provenance, Sourced};
 use crate::vehicle::params::VehicleParams;
 use crate::vehicle::BatteryConfig;
 
@@ -159,6 +159,8 @@ pub struct EnergyTracker {
     vehicle: VehicleParams,
     /// The first battery voltage seen, V (the cell count when nothing better says).
     first_voltage_v: Option<f64>,
+    /// The pack's effective capacity learned on earlier flights, Wh, and over how many.
+    learned_capacity: Option<(f64, usize)>,
     /// Messages already warned about (each parameter problem once).
     warned: Vec<String>,
 }
@@ -185,6 +187,7 @@ impl EnergyTracker {
             battery: crate::vehicle::battery_from_config(&cfg.battery()),
             vehicle: VehicleParams::default(),
             first_voltage_v: None,
+            learned_capacity: None,
             warned: Vec::new(),
         })
     }
@@ -197,13 +200,24 @@ impl EnergyTracker {
         self.resolve_battery();
     }
 
+    /// Take the pack's effective capacity learned on earlier flights of this vehicle (Wh,
+    /// over how many flights): it beats the vehicle's rated capacity, not the config.
+    pub fn set_learned_capacity(&mut self, learned: Option<(f64, usize)>) {
+        self.learned_capacity = learned.filter(|(wh, n)| wh.is_finite() && *wh > 0.0 && *n > 0);
+        self.resolve_battery();
+    }
+
     /// Capacity and cells as they stand, with their provenance.
     pub fn battery(&self) -> &BatteryFacts {
         &self.battery
     }
 
     fn resolve_battery(&mut self) {
-        let (facts, notes) = crate::vehicle::resolve_battery(&self.cfg.battery(), &self.vehicle, self.first_voltage_v);
+        let (mut facts, notes) = crate::vehicle::resolve_battery(&self.cfg.battery(), &self.vehicle, self.first_voltage_v);
+        if let (Some((wh, flights)), None) = (self.learned_capacity, self.cfg.capacity_wh) {
+            let rated = std::mem::replace(&mut facts.capacity_wh, Sourced::new(wh, Provenance::Learned { flights }));
+            facts.rated_capacity_wh = Some(rated);
+        }
         for n in notes {
             if !self.warned.contains(&n) {
                 tracing::warn!("{n}: using the config or the default instead");
@@ -426,6 +440,25 @@ mod tests {
         // Unless the configuration says not to trust it.
         tr.cfg.use_battery_pct = false;
         assert_eq!(tr.update_with_battery(&e, Some(40.0)).remaining_source, "capacity");
+    }
+
+    #[test]
+    fn learned_capacity_beats_the_vehicle_but_not_the_config() {
+        let mut tr = tracker(EnergyConfig::default());
+        tr.set_vehicle(VehicleParams::from_pairs(&[("BATT_CAPACITY", 5000.0)]));
+        tr.set_learned_capacity(Some((100.0, 2)));
+        let st = tr.update_with_battery(&est(0.0, Some(300.0), &[]), Some(50.0));
+        assert_eq!(st.battery.capacity_wh.source.to_string(), "learned over 2 flight(s)");
+        // remaining = the learned capacity × the gauge's %.
+        assert_eq!(st.remaining_wh, Some(50.0));
+        let rated = st.battery.rated_capacity_wh.expect("the rated capacity is kept beside");
+        assert_eq!(rated.source.to_string(), "vehicle parameter BATT_CAPACITY");
+        // Nonsense learned is ignored; the config always wins.
+        tr.set_learned_capacity(Some((f64::NAN, 1)));
+        assert_eq!(tr.battery().capacity_wh.source.to_string(), "vehicle parameter BATT_CAPACITY");
+        let mut tr = tracker(EnergyConfig { capacity_wh: Some(80.0), ..Default::default() });
+        tr.set_learned_capacity(Some((100.0, 2)));
+        assert_eq!((tr.battery().capacity_wh.value, tr.battery().capacity_wh.source.to_string()), (80.0, "config".to_string()));
     }
 
     #[test]

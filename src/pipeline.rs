@@ -246,14 +246,24 @@ impl VehicleChain {
         let driver = Driver::new(reader, status.link.clone(), self.mav_ids.0, self.mav_ids.1);
         let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
         let (warm_tx, warm_rx) = std::sync::mpsc::channel();
-        let memory = self.memory.filter(|_| self.models.adaptation().is_some()).map(|dir| (dir, warm_tx));
+        let (capacity_tx, capacity_rx) = watch::channel(None);
+        let memory = self.memory.map(|dir| Memory { dir, warm: warm_tx, capacity: Some(capacity_tx) });
         ChainTasks {
             telemetry: tokio::spawn(telemetry_stage(self.telemetry, driver, msgs, win_tx, vehicle_tx, memory, status.clone())),
             // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
             inference: tokio::task::spawn_blocking(move || inference_stage(self.models, win_rx, est_tx, warm_rx, live)),
-            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, vehicle_rx, fanout, status.clone(), live)),
+            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, vehicle_rx, capacity_rx, fanout, status.clone(), live)),
         }
     }
+}
+
+/// The vehicle store's side of a run: where it is, and where what it remembers goes (the
+/// fits to the inference stage, the pack's effective capacity to the energy stage).
+struct Memory {
+    dir: std::path::PathBuf,
+    warm: std::sync::mpsc::Sender<WarmStart>,
+    /// Taken by the one lookup.
+    capacity: Option<watch::Sender<Option<(f64, usize)>>>,
 }
 
 /// Messages → fixed-rate samples → windows; refreshes the signal health about once a second.
@@ -264,10 +274,9 @@ async fn telemetry_stage(
     mut msgs: mpsc::Receiver<TimedMessage>,
     windows: mpsc::Sender<Window>,
     vehicle_tx: watch::Sender<VehicleParams>,
-    memory: Option<(std::path::PathBuf, std::sync::mpsc::Sender<WarmStart>)>,
+    mut memory: Option<Memory>,
     status: ChainStatus,
 ) {
-    let mut looked_up = false;
     let mut out = Vec::new();
     let mut shown = Instant::now();
     let mut open = true;
@@ -277,13 +286,18 @@ async fn telemetry_stage(
                 if let Some(params) = vehicle.on_message(&m) {
                     // The vehicle is known: look up what earlier flights taught (off this task;
                     // `Pending` goes first, so the windows after this message find it).
-                    if let (Some(id), Some((dir, warm)), false) = (&params.identity, &memory, looked_up) {
-                        looked_up = true;
-                        let _ = warm.send(WarmStart::Pending);
-                        let (dir, warm, id) = (dir.clone(), warm.clone(), id.clone());
-                        tokio::task::spawn_blocking(move || {
-                            let _ = warm.send(WarmStart::Ready(crate::vehicle::store::lookup(&dir, &id)));
-                        });
+                    if let (Some(id), Some(mem)) = (&params.identity, &mut memory) {
+                        if let Some(capacity) = mem.capacity.take() {
+                            let _ = mem.warm.send(WarmStart::Pending);
+                            let (dir, warm, id) = (mem.dir.clone(), mem.warm.clone(), id.clone());
+                            tokio::task::spawn_blocking(move || {
+                                let learned = crate::vehicle::store::lookup(&dir, &id);
+                                // The capacity first: an estimate made with the warm fits
+                                // reaches the energy stage after it.
+                                let _ = capacity.send(learned.capacity_wh);
+                                let _ = warm.send(WarmStart::Ready(learned.fits));
+                            });
+                        }
                     }
                     // Only the energy stage listens; it gone (shutting down) is no error.
                     let _ = vehicle_tx.send(params);
@@ -400,6 +414,7 @@ async fn energy_stage(
     mut alerts: AlertEngine,
     mut estimates: mpsc::Receiver<Estimate>,
     mut vehicle: watch::Receiver<VehicleParams>,
+    mut learned_capacity: watch::Receiver<Option<(f64, usize)>>,
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
@@ -413,6 +428,7 @@ async fn energy_stage(
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
     // Whether the vehicle's last word (its sender gone: the telemetry stage done) was taken.
     let mut vehicle_final = false;
+    let mut capacity_final = false;
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
@@ -425,6 +441,12 @@ async fn energy_stage(
         if changed && !vehicle_final {
             energy.set_vehicle(vehicle.borrow_and_update().clone());
             vehicle_final = closed;
+        }
+        // The pack's effective capacity from earlier flights (the vehicle store), likewise.
+        let (changed, closed) = learned_capacity.has_changed().map_or((true, true), |c| (c, false));
+        if changed && !capacity_final {
+            energy.set_learned_capacity(*learned_capacity.borrow_and_update());
+            capacity_final = closed;
         }
         let report = match next {
             Ok(Some(est)) => {

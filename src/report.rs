@@ -117,6 +117,9 @@ pub enum Provenance {
     Parameter(String),
     /// The first battery voltage seen (cell count = ceil(V / 4.2)).
     FirstVoltage,
+    /// What the pack delivered on this many earlier flights of the vehicle (the vehicle
+    /// store's effective capacity).
+    Learned { flights: usize },
     /// dronewatt's built-in default (the M100's TB48D).
     #[default]
     Default,
@@ -128,6 +131,7 @@ impl fmt::Display for Provenance {
             Provenance::Config => f.write_str("config"),
             Provenance::Parameter(name) => write!(f, "vehicle parameter {name}"),
             Provenance::FirstVoltage => f.write_str("first battery voltage"),
+            Provenance::Learned { flights } => write!(f, "learned over {flights} flight(s)"),
             Provenance::Default => f.write_str("default"),
         }
     }
@@ -176,6 +180,10 @@ pub struct BatteryFacts {
     pub low_voltage_v: Option<Sourced<f64>>,
     /// The autopilot's critical-battery voltage (whole pack), V, when it has one.
     pub critical_voltage_v: Option<Sourced<f64>>,
+    /// When `capacity_wh` is learned from earlier flights: the rated capacity it replaced
+    /// (vehicle parameter or default).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rated_capacity_wh: Option<Sourced<f64>>,
 }
 
 impl Default for BatteryFacts {
@@ -186,6 +194,7 @@ impl Default for BatteryFacts {
             cell_count: Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
             low_voltage_v: None,
             critical_voltage_v: None,
+            rated_capacity_wh: None,
         }
     }
 }

@@ -90,6 +90,13 @@ fn the_second_flight_starts_from_what_the_first_learned() {
         assert!(f["airborne_s"].as_f64().unwrap() > 60.0, "{f}");
         assert_eq!(f["capacity_source"], "vehicle parameter BATT_CAPACITY", "{f}");
     }
+    // The second flight took the pack's capacity from what the first measured (energy used
+    // over the autopilot's % drop), not from the rated BATT_CAPACITY.
+    let effective = flights[0]["effective_capacity_wh"].as_f64().expect("the first flight measured no capacity");
+    let e = second.last().unwrap();
+    assert_eq!(e["capacity_source"], "learned over 1 flight(s)", "{e}");
+    assert!((e["capacity_wh"].as_f64().unwrap() - effective).abs() < 1e-9, "{e} vs {effective}");
+    assert_eq!(first.last().unwrap()["capacity_source"], "vehicle parameter BATT_CAPACITY");
     let table = String::from_utf8(dronewatt(&["vehicles", "--data-dir", data.to_str().unwrap()]).stdout).unwrap();
     assert!(table.contains("1 vehicle(s)") && table.contains("QUADROTOR"), "{table}");
 }

@@ -82,7 +82,7 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
     let critical_voltage_v = crt.or_else(|| {
         v_empty.map(|v| Sourced::new(v * f64::from(cell_count.value), Provenance::Parameter("BAT1_V_EMPTY".into())))
     });
-    (BatteryFacts { capacity_wh, cell_count, low_voltage_v: low, critical_voltage_v }, notes)
+    (BatteryFacts { capacity_wh, cell_count, low_voltage_v: low, critical_voltage_v, rated_capacity_wh: None }, notes)
 }
 
 /// The facts with nothing from the vehicle: config, else defaults.

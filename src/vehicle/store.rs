@@ -25,7 +25,10 @@
 //! | `flights` | run of the chain with power seen | end time, seconds with the motors turning, energy used (Wh), the autopilot's battery % at start and end, effective capacity, the rated capacity and where it came from |
 //!
 //! **Effective capacity** = energy used ÷ (battery % drop / 100): what the pack delivered
-//! per the autopilot's own gauge. Kept only when the gauge fell by at least
+//! per the autopilot's own gauge. The next flight of the vehicle takes the median of the last
+//! [`CAPACITY_FLIGHTS`] as its capacity unless the config sets one (it then beats the
+//! vehicle's rated `BATT_CAPACITY`: remaining = capacity × the gauge's % is then right for
+//! a pack that has aged). Kept only when the gauge fell by at least
 //! [`MIN_PCT_DROP`] % (a smaller drop is mostly the gauge's rounding). Beside the rated
 //! capacity it is the pack's health: a pack that delivers 85 % of its rating is one a pilot
 //! wants to know about.
@@ -135,7 +138,9 @@ impl FlightLog {
         if let Some(pct) = s.battery_remaining_pct.map(f64::from).filter(|p| (0.0..=100.0).contains(p)) {
             self.pct = Some((self.pct.map_or(pct, |(a, _)| a), pct));
         }
-        let c = &r.energy.battery.capacity_wh;
+        // The rated capacity (config, parameter or default), not one learned from this store.
+        let b = &r.energy.battery;
+        let c = b.rated_capacity_wh.as_ref().unwrap_or(&b.capacity_wh);
         self.capacity = Some((c.value, c.source.to_string()));
     }
 
@@ -286,6 +291,21 @@ impl Store {
         }
     }
 
+    /// The pack's effective capacity over its last [`CAPACITY_FLIGHTS`] flights that
+    /// measured one (the median), Wh, and how many there were.
+    pub fn learned_capacity(&self, key: &VehicleKey) -> Result<Option<(f64, usize)>> {
+        let mut st = self.conn.prepare(
+            "SELECT effective_capacity_wh FROM flights WHERE vehicle = ?1 AND effective_capacity_wh > 0 ORDER BY ended_at DESC, id DESC LIMIT ?2",
+        )?;
+        let mut v: Vec<f64> = st.query_map(params![key.key, CAPACITY_FLIGHTS as i64], |r| r.get(0))?.collect::<rusqlite::Result<_>>()?;
+        v.retain(|c| c.is_finite());
+        if v.is_empty() {
+            return Ok(None);
+        }
+        v.sort_by(f64::total_cmp);
+        Ok(Some((v[v.len() / 2], v.len())))
+    }
+
     /// Record a run of this vehicle: the vehicle (created or updated, with the fits learned
     /// when given) and, when it flew, its flight. One transaction.
     pub fn record(&mut self, id: &Identity, fits: Option<&[(String, ModelFit)]>, flight: Option<&FlightSummary>) -> Result<()> {
@@ -358,23 +378,36 @@ impl Store {
     }
 }
 
-/// What earlier flights taught about this vehicle's models, for the warm start; any store
-/// problem is a warning and no fits (the run goes on as a first flight).
-pub fn lookup(dir: &Path, id: &Identity) -> Option<Vec<(String, ModelFit)>> {
+/// What earlier flights taught about a vehicle.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Learned {
+    /// The models' adaptation fits.
+    pub fits: Option<Vec<(String, ModelFit)>>,
+    /// The pack's effective capacity, Wh: the median of the last [`CAPACITY_FLIGHTS`]
+    /// flights that measured one, and how many did.
+    pub capacity_wh: Option<(f64, usize)>,
+}
+
+/// Flights the learned capacity is the median of.
+pub const CAPACITY_FLIGHTS: usize = 3;
+
+/// What earlier flights taught about this vehicle, for the warm start; any store problem is
+/// a warning and nothing learned (the run goes on as a first flight).
+pub fn lookup(dir: &Path, id: &Identity) -> Learned {
     let key = VehicleKey::of(id);
-    let got = Store::open(dir).and_then(|s| s.learned_fits(&key));
+    let got = Store::open(dir).and_then(|s| Ok(Learned { fits: s.learned_fits(&key)?, capacity_wh: s.learned_capacity(&key)? }));
     match got {
-        Ok(Some(f)) => {
+        Ok(l) if l.fits.is_some() || l.capacity_wh.is_some() => {
             tracing::info!("vehicle {} ({}): found what earlier flights learned", key.key, key.kind);
-            Some(f)
+            l
         }
-        Ok(None) => {
+        Ok(l) => {
             tracing::info!("vehicle {} ({}): first flight in the store", key.key, key.kind);
-            None
+            l
         }
         Err(e) => {
             tracing::warn!("vehicle store: {e:#}; this run neither starts from nor keeps what was learned");
-            None
+            Learned::default()
         }
     }
 }
@@ -506,10 +539,15 @@ mod tests {
         assert_eq!(v[0].flights.len(), 2);
         assert_eq!(v[0].capacity_trend_pct(), vec![93.75, 85.0]);
         assert!((v[0].wh_per_min().unwrap() - 3.0).abs() < 1e-9);
-        // A record without fits keeps the ones learned before.
-        assert_eq!(st.learned_fits(&VehicleKey::of(&id(None))).unwrap(), Some(fits));
         let text = list(dir.path(), false).unwrap();
         assert!(text.contains("sys1-ardupilot-MAV_TYPE_QUADROTOR") && text.contains("94 % → 85 %"), "{text}");
+        // A record without fits keeps the ones learned before.
+        assert_eq!(st.learned_fits(&VehicleKey::of(&id(None))).unwrap(), Some(fits));
+        // The capacity learned: the median of the last three flights that measured one.
+        st.record(&id(None), None, Some(&flight(None))).unwrap();
+        st.record(&id(None), None, Some(&flight(Some(36.0)))).unwrap();
+        assert_eq!(st.learned_capacity(&VehicleKey::of(&id(None))).unwrap(), Some((36.0, 3)));
+        assert_eq!(st.learned_capacity(&VehicleKey::of(&id(Some(7)))).unwrap(), None);
     }
 
     #[test]
