@@ -42,7 +42,7 @@
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |
 //! | [`pipeline`] | one vehicle's chain as named stages, the run that wires source → chain → sinks, shutdown |
-//! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
+//! | [`offline`] | train, cross-validate, evaluate, calibrate, learn a vehicle from its `.tlog` logs, sensitivity, plots |
 //! | [`mission`] | routes: waypoint guidance (take-off, legs, holds, landing) |
 //! | [`sim`] | the simulator: a vehicle profile flying a route, sent as ArduPilot or PX4 telemetry (`.tlog` or UDP); outside the flow, it makes what sources read |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
