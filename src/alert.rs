@@ -19,9 +19,10 @@
 //! | `home_margin_below` | `below_wh` | `clear_wh` | remaining − energy home − reserve |
 //! | `mission_margin_below` | `below_wh` | `clear_wh` | remaining − energy of the rest of the mission, its return and landing − reserve (needs a mission: downloaded on the live link or logged in a replayed `.tlog`) |
 //! | `power_above` | `above_w` | `clear_w` | measured power |
-//! | `deviation_above` | `above_w`, optional `model` | `clear_w` | \|measured − predicted\| (a damaged propeller, a heavy payload) |
+//! | `deviation_above` | `above_w`, optional `model` | `clear_w` | \|measured − predicted\| (a damaged propeller, a heavy payload); predicted by the model's slowly adapting reference when adaptation runs |
 //! | `models_disagree` | `above_w` | `clear_w` | spread (max − min) of the models' predictions |
-//! | `cell_voltage_below` | `below_v` | `clear_v` | battery voltage / `[energy] cell_count` |
+//! | `cell_voltage_below` | `below_v` | `clear_v` | battery voltage / cells (`[energy] cell_count`, else the vehicle's) |
+//! | `vehicle_voltage_below` | `threshold` (`low`, `critical`), optional `margin_v` (default 0) | `clear_margin_v` | battery voltage − the autopilot's own threshold (`BATT_LOW_VOLT`/`BATT_CRT_VOLT`, PX4 `BAT1_V_EMPTY` × cells); quiet while the vehicle has not said |
 //! | `telemetry_lost` | — (`for_s` is the time) | — | every kinematic feature stale |
 //!
 //! A clear level defaults to the raise level (no hysteresis) and must lie on the safe side
@@ -62,11 +63,24 @@ pub enum AlertKind {
     ModelsDisagree { above_w: f64, clear_w: Option<f64> },
     /// Battery voltage per cell under `below_v`.
     CellVoltageBelow { below_v: f64, clear_v: Option<f64> },
+    /// Battery voltage (whole pack) under the autopilot's own `threshold` plus `margin_v`
+    /// (V, default 0: at the threshold). Quiet while the vehicle has not said its threshold.
+    VehicleVoltageBelow { threshold: VehicleThreshold, margin_v: Option<f64>, clear_margin_v: Option<f64> },
     /// Every kinematic feature (position, attitude, velocity, rates, acceleration) stale for
     /// `for_s`: the vehicle's state stopped arriving while the link still carries something
     /// (battery, heartbeats). A link gone wholly silent yields no estimates at all, so no
     /// rule runs; the source reports that silence itself.
     TelemetryLost {},
+}
+
+/// Which of the autopilot's battery thresholds a `vehicle_voltage_below` rule watches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VehicleThreshold {
+    /// `BATT_LOW_VOLT` (ArduPilot).
+    Low,
+    /// `BATT_CRT_VOLT` (ArduPilot), else PX4's `BAT1_V_EMPTY` × cells.
+    Critical,
 }
 
 /// One `[[alerts]]` rule: the keys every kind shares, and its [`AlertKind`].
@@ -167,6 +181,9 @@ impl AlertRule {
             K::DeviationAbove { above_w, clear_w, .. } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
             K::ModelsDisagree { above_w, clear_w } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
             K::CellVoltageBelow { below_v, clear_v } => lv(Dir::Below, *below_v, *clear_v, "V", "below_v"),
+            K::VehicleVoltageBelow { margin_v, clear_margin_v, .. } => {
+                lv(Dir::Below, margin_v.unwrap_or(0.0), clear_margin_v.or(*margin_v), "V", "margin_v")
+            }
             K::TelemetryLost {} => lv(Dir::Above, 0.5, None, "", "for_s"),
         })
     }
@@ -190,7 +207,7 @@ impl AlertRule {
         if !l.raise.is_finite() || !l.clear.is_finite() {
             return Err(format!("{}: levels must be finite numbers", l.key));
         }
-        let clear_key = l.key.replace("below", "clear").replace("above", "clear");
+        let clear_key = if l.key == "margin_v" { "clear_margin_v".to_string() } else { l.key.replace("below", "clear").replace("above", "clear") };
         match l.dir {
             Dir::Below if l.clear < l.raise => {
                 return Err(format!("{clear_key} = {}: must be ≥ {} = {} (it clears above the level it raises under)", l.clear, l.key, l.raise))
@@ -215,6 +232,8 @@ impl AlertRule {
             AlertKind::DeviationAbove { .. } => "|measured − predicted|",
             AlertKind::ModelsDisagree { .. } => "model spread",
             AlertKind::CellVoltageBelow { .. } => "cell voltage",
+            AlertKind::VehicleVoltageBelow { threshold: VehicleThreshold::Low, .. } => "battery voltage − the vehicle's low threshold",
+            AlertKind::VehicleVoltageBelow { threshold: VehicleThreshold::Critical, .. } => "battery voltage − the vehicle's critical threshold",
             AlertKind::TelemetryLost {} => "telemetry",
         };
         let cond = if matches!(self.kind, AlertKind::TelemetryLost {}) {
@@ -271,7 +290,10 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
                 Some(n) => est.models.iter().find(|m| &m.name == n),
                 None => est.models.iter().find(|m| m.name == "lstm").or(est.models.first()),
             }?;
-            Some((measured? - f64::from(m.power_w)).abs()).filter(|v| v.is_finite())
+            // Against the slowly adapting reference when adaptation runs (a fault is not
+            // learned away in seconds: see model::adapt), else the raw prediction.
+            let predicted = m.reference_w.unwrap_or(m.power_w);
+            Some((measured? - f64::from(predicted)).abs()).filter(|v| v.is_finite())
         }
         K::ModelsDisagree { .. } => {
             let ps = est.models.iter().map(|m| f64::from(m.power_w)).filter(|p| p.is_finite());
@@ -279,6 +301,14 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
             (est.models.len() >= 2 && hi >= lo).then_some(hi - lo)
         }
         K::CellVoltageBelow { .. } => en.cell_voltage_v,
+        K::VehicleVoltageBelow { threshold, .. } => {
+            let level = match threshold {
+                VehicleThreshold::Low => en.battery.low_voltage_v.as_ref(),
+                VehicleThreshold::Critical => en.battery.critical_voltage_v.as_ref(),
+            }?;
+            let v = f64::from(est.sample.voltage_v?);
+            Some(v - level.value).filter(|d| d.is_finite())
+        }
         K::TelemetryLost {} => Some(if est.sample.stale_mask & KINEMATIC_MASK == KINEMATIC_MASK { 1.0 } else { 0.0 }),
     }
 }

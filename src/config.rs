@@ -85,6 +85,7 @@ impl Config {
         let mut out = Vec::new();
         let checks = [
             self.telemetry.validate(),
+            self.models.validate(),
             self.energy.validate(),
             self.forecast.validate(),
             crate::alert::validate_rules(&self.alerts),

@@ -9,10 +9,14 @@
 //!   a lost link) is capped at `max_dt_s`, and a step backwards (a clock jump, a new
 //!   replay) integrates nothing: one bad timestamp cannot add or remove an hour.
 //! - **remaining** `E_rem = E_cap − E_used`, or `E_cap · pct / 100` when the autopilot reports
-//!   a battery percentage (BATTERY_STATUS `battery_remaining`). `E_cap` is `capacity_wh`,
-//!   default the DJI TB48D: 5700 mAh × 22.8 V = 129.96 Wh.
+//!   a battery percentage (BATTERY_STATUS `battery_remaining`). `E_cap` is `capacity_wh` when
+//!   the config sets it, else the vehicle's own capacity parameter (`BATT_CAPACITY`,
+//!   `BAT1_CAPACITY`: mAh × cells × `nominal_cell_v`), else the DJI TB48D's 5700 mAh × 22.8 V
+//!   = 129.96 Wh ([`crate::vehicle::resolve_battery`]); [`EnergyState::battery`] says
+//!   which. The cell count likewise (config, `BAT1_N_CELLS`, the first voltage seen, 6).
 //! - **forecast power** `P_f`: an exponential moving average (time constant `smoothing_s`)
-//!   of the forecast model's prediction; without one, of the measured power (a physics
+//!   of the forecast model's prediction, adapted to measured power when adaptation runs
+//!   ([`crate::model::adapt`]; [`EnergyState::forecast_adapted`]); without one, of the measured power (a physics
 //!   model is a worse guess of the next minutes than the power actually drawn); without
 //!   either, of the first model that ran. [`EnergyState::forecast_model`] says which.
 //! - **time to empty** `t_empty = 3600 · E_rem / P_f`, s.
@@ -30,16 +34,25 @@
 
 use crate::features::idx;
 pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
-use crate::report::{Estimate, ModelEstimate};
+use crate::report::{BatteryFacts, Estimate, ModelEstimate, Provenance, Sourced};
+use crate::vehicle::params::VehicleParams;
+use crate::vehicle::BatteryConfig;
 
 /// Battery and home-return assumptions (the `[energy]` table).
 #[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct EnergyConfig {
-    /// Usable battery energy when full, Wh. Default 129.96 (DJI TB48D: 5700 mAh × 22.8 V).
-    pub capacity_wh: f64,
-    /// Cells in series, for per-cell voltage alerts. Default 6 (TB48D is 6S).
-    pub cell_count: u32,
+    /// Usable battery energy when full, Wh. Absent: from the vehicle's capacity parameter
+    /// (`BATT_CAPACITY` / `BAT1_CAPACITY`, mAh × cells × `nominal_cell_v`), else 129.96
+    /// (DJI TB48D: 5700 mAh × 22.8 V).
+    pub capacity_wh: Option<f64>,
+    /// Cells in series, for per-cell voltage alerts and the capacity in Wh. Absent: from
+    /// the vehicle (`BAT1_N_CELLS`, else the first battery voltage seen ÷ 4.2 V rounded
+    /// up), else 6 (TB48D is 6S).
+    pub cell_count: Option<u32>,
+    /// Nominal cell voltage, V: a capacity in mAh times cells times this is Wh. Default 3.7
+    /// (LiPo; 3.85 for LiHV, 3.6 for Li-ion).
+    pub nominal_cell_v: f64,
     /// Take remaining energy from the autopilot's battery percentage when it reports one
     /// (`capacity_wh` × %), rather than `capacity_wh` − energy used. Default true.
     pub use_battery_pct: bool,
@@ -63,8 +76,9 @@ pub struct EnergyConfig {
 impl Default for EnergyConfig {
     fn default() -> Self {
         Self {
-            capacity_wh: 5.7 * 22.8,
-            cell_count: 6,
+            capacity_wh: None,
+            cell_count: None,
+            nominal_cell_v: 3.7,
             use_battery_pct: true,
             reserve_pct: 20.0,
             model: None,
@@ -86,7 +100,9 @@ impl EnergyConfig {
                 errs.push(format!("energy.{key} = {v}: must be a positive number"));
             }
         };
-        positive("capacity_wh", self.capacity_wh);
+        if let Some(v) = self.capacity_wh {
+            positive("capacity_wh", v);
+        }
         positive("smoothing_s", self.smoothing_s);
         positive("descent_speed_m_s", self.descent_speed_m_s);
         positive("max_dt_s", self.max_dt_s);
@@ -99,10 +115,20 @@ impl EnergyConfig {
         if !(0.0..100.0).contains(&self.reserve_pct) {
             errs.push(format!("energy.reserve_pct = {}: must be in [0, 100)", self.reserve_pct));
         }
-        if !(1..=24).contains(&self.cell_count) {
-            errs.push(format!("energy.cell_count = {}: must be 1..=24 cells", self.cell_count));
+        if let Some(n) = self.cell_count.filter(|n| !(1..=24).contains(n)) {
+            errs.push(format!("energy.cell_count = {n}: must be 1..=24 cells"));
+        }
+        if !(self.nominal_cell_v.is_finite() && (1.0..=5.0).contains(&self.nominal_cell_v)) {
+            errs.push(format!("energy.nominal_cell_v = {}: must be 1..=5 V", self.nominal_cell_v));
         }
         if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+    }
+}
+
+impl EnergyConfig {
+    /// The `[energy]` keys the vehicle may answer for instead.
+    pub fn battery(&self) -> BatteryConfig {
+        BatteryConfig { capacity_wh: self.capacity_wh, cell_count: self.cell_count, nominal_cell_v: self.nominal_cell_v }
     }
 }
 
@@ -131,6 +157,16 @@ pub struct EnergyTracker {
     cruise: Ema,
     hover: Ema,
     mission: Option<crate::report::MissionStatus>,
+    /// Capacity and cells, with where they came from.
+    battery: BatteryFacts,
+    /// What the vehicle said about itself, when it did.
+    vehicle: VehicleParams,
+    /// The first battery voltage seen, V (the cell count when nothing better says).
+    first_voltage_v: Option<f64>,
+    /// The pack's effective capacity learned on earlier flights, Wh, and over how many.
+    learned_capacity: Option<(f64, usize)>,
+    /// Messages already warned about (each parameter problem once).
+    warned: Vec<String>,
 }
 
 impl EnergyTracker {
@@ -158,7 +194,56 @@ impl EnergyTracker {
             cruise: Ema::default(),
             hover: Ema::default(),
             mission: None,
+            battery: crate::vehicle::battery_from_config(&cfg.battery()),
+            vehicle: VehicleParams::default(),
+            first_voltage_v: None,
+            learned_capacity: None,
+            warned: Vec::new(),
         })
+    }
+
+    /// Take what the vehicle said about itself ([`crate::vehicle::params`]): capacity and
+    /// cells come from it where the config is silent. A parameter out of range is warned
+    /// about once and left out.
+    pub fn set_vehicle(&mut self, params: VehicleParams) {
+        self.vehicle = params;
+        self.resolve_battery();
+    }
+
+    /// Take the pack's effective capacity learned on earlier flights of this vehicle (Wh,
+    /// over how many flights): it beats the vehicle's rated capacity, not the config.
+    pub fn set_learned_capacity(&mut self, learned: Option<(f64, usize)>) {
+        self.learned_capacity = learned.filter(|(wh, n)| wh.is_finite() && *wh > 0.0 && *n > 0);
+        self.resolve_battery();
+    }
+
+    /// Capacity and cells as they stand, with their provenance.
+    pub fn battery(&self) -> &BatteryFacts {
+        &self.battery
+    }
+
+    fn resolve_battery(&mut self) {
+        let (mut facts, notes) = crate::vehicle::resolve_battery(&self.cfg.battery(), &self.vehicle, self.first_voltage_v);
+        if let (Some((wh, flights)), None) = (self.learned_capacity, self.cfg.capacity_wh) {
+            let rated = std::mem::replace(&mut facts.capacity_wh, Sourced::new(wh, Provenance::Learned { flights }));
+            facts.rated_capacity_wh = Some(rated);
+        }
+        for n in notes {
+            if !self.warned.contains(&n) {
+                tracing::warn!("{n}: using the config or the default instead");
+                self.warned.push(n);
+            }
+        }
+        if facts.capacity_wh != self.battery.capacity_wh || facts.cell_count != self.battery.cell_count {
+            tracing::debug!(
+                "battery: {:.1} Wh ({}), {} cells ({})",
+                facts.capacity_wh.value,
+                facts.capacity_wh.source,
+                facts.cell_count.value,
+                facts.cell_count.source
+            );
+        }
+        self.battery = facts;
     }
 
     /// Account for one estimate.
@@ -171,8 +256,17 @@ impl EnergyTracker {
     /// BATTERY_STATUS `battery_remaining`) when it sends one.
     pub fn update_with_battery(&mut self, est: &Estimate, battery_pct: Option<f64>) -> EnergyState {
         let s = &est.sample;
+        if self.first_voltage_v.is_none() {
+            if let Some(v) = s.voltage_v.map(f64::from).filter(|v| v.is_finite() && *v > 1.0) {
+                self.first_voltage_v = Some(v);
+                self.resolve_battery();
+            }
+        }
         let watts = |m: &ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
-        let preferred = self.forecast_model(est).and_then(|m| Some((m, watts(m)?)));
+        // The forecast model's prediction adapted to measured power, where adaptation runs.
+        let adapted = |m: &ModelEstimate| m.adapted_w.map(f64::from).filter(|p| p.is_finite());
+        let preferred = self.forecast_model(est).and_then(|m| Some((m, adapted(m).or(watts(m))?)));
+        let forecast_adapted = self.forecast_model(est).is_some_and(|m| adapted(m).is_some());
         let first = est.models.iter().find_map(|m| Some((m, watts(m)?)));
         let measured = s.measured_w.map(f64::from).filter(|p| p.is_finite());
         let (power, power_source) = match (measured, preferred.or(first)) {
@@ -218,7 +312,7 @@ impl EnergyTracker {
             }
         }
 
-        let cap = self.cfg.capacity_wh;
+        let cap = self.battery.capacity_wh.value;
         let (remaining, remaining_source) = match battery_pct.filter(|p| self.cfg.use_battery_pct && (0.0..=100.0).contains(p)) {
             Some(pct) => (cap * pct / 100.0, RemainingSource::Battery),
             None => ((cap - self.used_wh).max(0.0), RemainingSource::Capacity),
@@ -250,10 +344,12 @@ impl EnergyTracker {
                 .voltage_v
                 .map(f64::from)
                 .filter(|v| v.is_finite() && *v > 0.0)
-                .map(|v| v / f64::from(self.cfg.cell_count)),
+                .map(|v| v / f64::from(self.battery.cell_count.value)),
             mission_energy_wh: self.mission.as_ref().map(|m| m.energy_p50_wh),
             mission_margin_wh: self.mission.as_ref().map(|m| remaining - m.energy_p50_wh - reserve),
             mission: self.mission.clone(),
+            forecast_adapted: forecast_adapted && forecast_from.is_some_and(|(m, _)| m.is_some()),
+            battery: self.battery.clone(),
         }
     }
 
@@ -283,7 +379,7 @@ mod tests {
             },
             models: models
                 .iter()
-                .map(|(n, p)| ModelEstimate { name: n.to_string(), power_w: *p, band_w: None })
+                .map(|(n, p)| ModelEstimate::new(n.to_string(), *p, None))
                 .collect(),
         }
     }
@@ -339,7 +435,7 @@ mod tests {
 
     #[test]
     fn remaining_time_and_home_margin() {
-        let cfg = EnergyConfig { capacity_wh: 100.0, reserve_pct: 10.0, landing_s: 0.0, ..Default::default() };
+        let cfg = EnergyConfig { capacity_wh: Some(100.0), reserve_pct: 10.0, landing_s: 0.0, ..Default::default() };
         let mut tr = tracker(cfg);
         let mut e = est(0.0, Some(360.0), &[("m", 360.0)]);
         e.sample.home = Some(HomeVector { distance_m: 1000.0, height_m: 20.0 });
@@ -360,8 +456,27 @@ mod tests {
     }
 
     #[test]
+    fn learned_capacity_beats_the_vehicle_but_not_the_config() {
+        let mut tr = tracker(EnergyConfig::default());
+        tr.set_vehicle(VehicleParams::from_pairs(&[("BATT_CAPACITY", 5000.0)]));
+        tr.set_learned_capacity(Some((100.0, 2)));
+        let st = tr.update_with_battery(&est(0.0, Some(300.0), &[]), Some(50.0));
+        assert_eq!(st.battery.capacity_wh.source.to_string(), "learned over 2 flight(s)");
+        // remaining = the learned capacity × the gauge's %.
+        assert_eq!(st.remaining_wh, Some(50.0));
+        let rated = st.battery.rated_capacity_wh.expect("the rated capacity is kept beside");
+        assert_eq!(rated.source.to_string(), "vehicle parameter BATT_CAPACITY");
+        // Nonsense learned is ignored; the config always wins.
+        tr.set_learned_capacity(Some((f64::NAN, 1)));
+        assert_eq!(tr.battery().capacity_wh.source.to_string(), "vehicle parameter BATT_CAPACITY");
+        let mut tr = tracker(EnergyConfig { capacity_wh: Some(80.0), ..Default::default() });
+        tr.set_learned_capacity(Some((100.0, 2)));
+        assert_eq!((tr.battery().capacity_wh.value, tr.battery().capacity_wh.source.to_string()), (80.0, "config".to_string()));
+    }
+
+    #[test]
     fn rejects_nonsense_config() {
-        let cfg = EnergyConfig { capacity_wh: -1.0, ..Default::default() };
+        let cfg = EnergyConfig { capacity_wh: Some(-1.0), ..Default::default() };
         let err = EnergyTracker::new(&cfg, None).err().unwrap().to_string();
         assert!(err.contains("energy.capacity_wh"), "{err}");
     }

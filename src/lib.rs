@@ -35,14 +35,15 @@
 //! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV; frame decoding and its counters |
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
 //! | [`window`] | rolling windows of T samples |
-//! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card |
+//! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card, online adaptation to measured power |
+//! | [`vehicle`] | who the vehicle is: identity and battery parameters over MAVLink, battery facts with their provenance, the vehicle store |
 //! | [`mission`] | plans (.plan, .waypoints), the plan flown on paper, its energy forecast (P50/P90, per leg, live re-forecast) |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |
 //! | [`fleet`] | many vehicles on one link: which senders are vehicles, the `--vehicles` filter, lost and dropped vehicles |
 //! | [`pipeline`] | one vehicle's chain as named stages, the demultiplexer that runs one per vehicle, the run that wires source → chains → sinks, shutdown |
-//! | [`offline`] | train, cross-validate, evaluate, calibrate, sensitivity, plots |
+//! | [`offline`] | train, cross-validate, evaluate, calibrate, learn a vehicle from its `.tlog` logs, sensitivity, plots |
 //! | [`mission`] | routes: waypoint guidance (take-off, legs, holds, landing) |
 //! | [`sim`] | the simulator: a vehicle profile flying a route, sent as ArduPilot or PX4 telemetry (`.tlog` or UDP); outside the flow, it makes what sources read |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
@@ -65,6 +66,7 @@ pub mod sink;
 pub mod source;
 pub mod status;
 pub mod telemetry;
+pub mod vehicle;
 pub mod window;
 
 /// The MAVLink dialect dronewatt speaks: ArduPilot's, which includes `common`.

@@ -48,6 +48,15 @@ struct RunArgs {
     /// fleet. Overrides `[fleet] vehicles`.
     #[arg(long, value_name = "IDS")]
     vehicles: Option<String>,
+    /// Vehicle profile to run the physics models on (a `config/vehicles/*.toml` file, or the
+    /// `profile.toml` that `dronewatt learn` wrote); overrides the config's `vehicle`.
+    #[arg(long, value_name = "FILE")]
+    vehicle: Option<PathBuf>,
+    /// Keep the vehicle store (what was learned about each vehicle, its flights) in DIR;
+    /// `off`: none. Default: $DRONEWATT_HOME, else $XDG_DATA_HOME/dronewatt, else
+    /// ~/.local/share/dronewatt.
+    #[arg(long, value_name = "DIR")]
+    data_dir: Option<PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -81,6 +90,8 @@ enum Command {
     Simulate(SimulateArgs),
     /// Score every model on data-set flights (the paper's tables, in watts).
     Eval(dronewatt::offline::eval::EvalArgs),
+    /// Learn a vehicle from its .tlog logs: the physics models fitted, scored on held-out logs; writes a profile and a model card.
+    Learn(dronewatt::offline::learn::LearnArgs),
     /// Fit the physics models' free parameters to training flights.
     Calibrate(dronewatt::offline::calibrate::CalibrateArgs),
     /// Train the LSTM (by-flight cross-validation, grid search, early stopping).
@@ -91,6 +102,15 @@ enum Command {
     Plan(dronewatt::offline::mission::PlanArgs),
     /// Judge the mission forecast on the data set's route flights (pre-flight and live at 50 %, vs the autopilots' rule).
     PlanEval(dronewatt::offline::mission::PlanEvalArgs),
+    /// List the vehicles in the vehicle store: flights, energy per minute, the pack's capacity trend.
+    Vehicles {
+        /// The store's folder (as `monitor --data-dir`).
+        #[arg(long, value_name = "DIR")]
+        data_dir: Option<PathBuf>,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Validate a configuration file and say what it sets up.
     CheckConfig {
         /// The TOML file.
@@ -161,10 +181,17 @@ fn real_main(cli: Cli) -> Result<()> {
         Command::Simulate(a) => simulate(a),
         Command::Eval(a) => dronewatt::offline::eval::run(a),
         Command::Calibrate(a) => dronewatt::offline::calibrate::run(a),
+        Command::Learn(a) => dronewatt::offline::learn::run(a),
         Command::Train(a) => dronewatt::offline::train::run(a),
         Command::Sensitivity(a) => dronewatt::offline::sensitivity::run(a),
         Command::Plan(a) => dronewatt::offline::mission::run_plan(a),
         Command::PlanEval(a) => dronewatt::offline::mission::run_plan_eval(a),
+        Command::Vehicles { data_dir, json } => {
+            let dir = dronewatt::vehicle::store::data_dir_from_env(data_dir.as_deref())
+                .context("the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR")?;
+            print!("{}", dronewatt::vehicle::store::list(&dir, json)?);
+            Ok(())
+        }
         Command::CheckConfig { file } => {
             let cfg = Config::load(&file)?;
             // The secrets' files too: missing, unreadable or readable by others fails here.
@@ -310,9 +337,9 @@ fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     let e = &cfg.energy;
     let mut out = format!("{}: ok\n", file.display());
     out += &format!(
-        "energy: capacity {:.2} Wh, {} cells, reserve {}%, forecast model {}, smoothing {} s\n",
-        e.capacity_wh,
-        e.cell_count,
+        "energy: capacity {}, cells {}, reserve {}%, forecast model {}, smoothing {} s\n",
+        e.capacity_wh.map_or("from the vehicle (else 129.96 Wh)".to_string(), |c| format!("{c:.2} Wh")),
+        e.cell_count.map_or("from the vehicle (else 6)".to_string(), |n| n.to_string()),
         e.reserve_pct,
         e.model.as_deref().unwrap_or("lstm, else measured power"),
         e.smoothing_s
@@ -386,6 +413,9 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
         dronewatt::fleet::VehicleFilter::parse(v).map_err(|e| anyhow::anyhow!("--vehicles {v}: {e}"))?;
         config.fleet.vehicles = Some(v.clone());
     }
+    if let Some(v) = &run.vehicle {
+        config.vehicle = Some(v.clone());
+    }
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {
         sinks.push(SinkSpec::Terminal);
@@ -407,9 +437,10 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     if config.sinks.mqtt.enabled {
         sinks.push(SinkSpec::Mqtt(config.sinks.mqtt.clone()));
     }
+    let data_dir = dronewatt::vehicle::store::data_dir_from_env(run.data_dir.as_deref());
     let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     rt.block_on(async move {
         let shutdown = pipeline::shutdown_on_signal();
-        pipeline::run(Pipeline { config, source, sinks }, shutdown).await.map(|_| ())
+        pipeline::run(Pipeline { config, source, sinks, data_dir }, shutdown).await.map(|_| ())
     })
 }

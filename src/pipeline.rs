@@ -5,7 +5,13 @@
 //! ```text
 //! source ─TimedMessage→ demux ─TimedMessage→ one chain per vehicle:
 //!     telemetry_stage ─Window→ inference_stage (one for all vehicles) ─Estimate→ energy_stage ─Report→ relay ─Report→ Fanout → one task per sink
+//!            └────────── VehicleParams (watch: the latest word only) ──────────▶┘
 //! ```
+//!
+//! The telemetry stage also reads the vehicle ([`crate::vehicle::params`]): on a live link it
+//! asks for the battery parameters (PARAM_REQUEST_READ on the link, resent, bounded), in a
+//! replay it takes the logged PARAM_VALUEs; what it learns reaches the energy stage on a
+//! `tokio::sync::watch` (only the newest value matters, and it never holds a stage back).
 //!
 //! Every arrow is a bounded channel carrying one typed value; a full channel holds the
 //! stage before it back, so a flat-out replay loses nothing. The demultiplexer
@@ -42,7 +48,10 @@ use crate::sink::{Fanout, ReportRx, SinkSpec};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
 use crate::status::{ChainStatus, IngestStats, LinkHandle, StatsSnapshot};
 use crate::telemetry::Telemetry;
+use crate::vehicle::params::{Driver, Identity, ParamReader, VehicleParams};
+use crate::vehicle::store::FlightLog;
 use crate::window::Window;
+use tokio::sync::watch;
 
 /// Channel depth between stages. Deep enough to ride out a slow model for a few seconds
 /// at 10 Hz; a flat-out replay simply waits on the slowest stage (back-pressure).
@@ -62,6 +71,8 @@ pub struct Pipeline {
     pub config: Config,
     pub source: SourceSpec,
     pub sinks: Vec<SinkSpec>,
+    /// The vehicle store's folder ([`crate::vehicle::store`]); `None`: nothing remembered.
+    pub data_dir: Option<std::path::PathBuf>,
 }
 
 /// Run the pipeline to the end of its source or until `shutdown` is cancelled. Returns the
@@ -93,8 +104,8 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         }
         None => (msg_rx, None),
     };
-    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config));
-    let fleet = Fleet { config: p.config, demux, first: Some(chain), inference, fanout, status: status.clone(), live };
+    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config), live);
+    let fleet = Fleet { config: p.config, demux, first: Some(chain), inference, fanout, status: status.clone(), live, data_dir: p.data_dir };
     let demux = tokio::spawn(fleet.run(msg_rx));
 
     let source_result = source.await?;
@@ -164,24 +175,41 @@ pub struct VehicleChain {
     /// The live mission forecast's statuses, in source-time order (`crate::mission::live`),
     /// when a mission tap runs.
     pub mission: Option<mpsc::Receiver<MissionUpdate>>,
+    /// Who the vehicle is and its battery parameters (listening only until
+    /// [`VehicleChain::spawn`] runs it on a live link).
+    pub vehicle: ParamReader,
+    /// dronewatt's own MAVLink ids for the parameter requests (`[sinks.mavlink]`; no system
+    /// id: the vehicle's own, as its companion computer).
+    mav_ids: (Option<u8>, u8),
+    /// The vehicle store's folder, for the warm start ([`VehicleChain::with_memory`]).
+    memory: Option<std::path::PathBuf>,
 }
 
 /// The running stages of one [`VehicleChain`].
 pub struct ChainTasks {
     telemetry: JoinHandle<()>,
     windows: JoinHandle<()>,
-    energy: JoinHandle<()>,
+    energy: JoinHandle<(FlightLog, Option<Identity>)>,
     relay: JoinHandle<()>,
+}
+
+/// What a chain leaves when its input is over: what the vehicle store keeps (with the
+/// adaptation's fits, which the shared inference stage holds: [`Inference::join`]).
+pub struct ChainEnd {
+    /// The vehicle, when its heartbeat was heard.
+    pub identity: Option<Identity>,
+    /// The run's reports, summed up.
+    pub flight: FlightLog,
 }
 
 impl ChainTasks {
     /// Wait for every stage to drain and end (after its input closed).
-    pub async fn join(self) -> Result<()> {
+    pub async fn join(self) -> Result<ChainEnd> {
         self.telemetry.await?;
         self.windows.await?;
-        self.energy.await?;
+        let (flight, identity) = self.energy.await?;
         self.relay.await?;
-        Ok(())
+        Ok(ChainEnd { identity, flight })
     }
 }
 
@@ -213,21 +241,26 @@ impl Batching {
 /// so the windows of all vehicles that queue up together run as one batch.
 pub struct Inference {
     jobs: mpsc::Sender<Job>,
-    task: JoinHandle<()>,
+    /// What the vehicle store remembers of a vehicle, for its adaptation (by system id).
+    warm: std::sync::mpsc::Sender<(u8, WarmStart)>,
+    task: JoinHandle<std::collections::BTreeMap<u8, Fits>>,
 }
 
 impl Inference {
     /// Start the stage on its own thread with these models (on the tokio runtime it is
-    /// called from).
-    pub fn spawn(models: Ensemble, batching: Batching) -> Self {
+    /// called from). `live`: never wait for the vehicle store.
+    pub fn spawn(models: Ensemble, batching: Batching, live: bool) -> Self {
         let (jobs, rx) = mpsc::channel::<Job>(CHANNEL_DEPTH);
+        let (warm, warm_rx) = std::sync::mpsc::channel();
         let rt = tokio::runtime::Handle::current();
         // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
-        Self { jobs, task: tokio::task::spawn_blocking(move || inference_stage(models, rx, batching, rt)) }
+        Self { jobs, warm, task: tokio::task::spawn_blocking(move || inference_stage(models, rx, batching, rt, warm_rx, live)) }
     }
-    /// Wait for it to drain and end, once every chain sending to it has ended.
-    pub async fn join(self) -> Result<()> {
+    /// Wait for it to drain and end, once every chain sending to it has ended; each
+    /// vehicle's adaptation fits (adaptation on).
+    pub async fn join(self) -> Result<std::collections::BTreeMap<u8, Fits>> {
         drop(self.jobs);
+        drop(self.warm);
         Ok(self.task.await?)
     }
 }
@@ -235,7 +268,7 @@ impl Inference {
 impl VehicleChain {
     /// Build and check every stage (profiles loaded, model cards matched, rules compiled).
     pub fn build(cfg: &Config) -> Result<Self> {
-        let models = crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?;
+        let models = crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry, cfg.mission.payload_g)?;
         Ok(Self { models, ..Self::another(cfg)? })
     }
 
@@ -248,7 +281,18 @@ impl VehicleChain {
             energy: EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?,
             alerts: AlertEngine::new(&cfg.alerts)?,
             mission: None,
+            vehicle: ParamReader::passive(),
+            mav_ids: (cfg.sinks.mavlink.system_id, cfg.sinks.mavlink.component_id),
+            memory: None,
         })
+    }
+
+    /// Remember the vehicle in the store in `dir` ([`crate::vehicle::store`]): once its
+    /// identity is heard, what earlier flights taught the adaptation is looked up (on a
+    /// blocking thread) and the models start from it.
+    pub fn with_memory(mut self, dir: Option<std::path::PathBuf>) -> Self {
+        self.memory = dir;
+        self
     }
 
     /// Every message through every stage in order, on the calling thread: what offline work
@@ -259,7 +303,13 @@ impl VehicleChain {
     pub fn push(&mut self, m: Option<&TimedMessage>, out: &mut Vec<Report>) {
         let mut windows = Vec::new();
         match m {
-            Some(m) => self.telemetry.push(m, &mut windows),
+            Some(m) => {
+                self.vehicle.on_message(m);
+                if self.vehicle.take_changed() {
+                    self.energy.set_vehicle(self.vehicle.params());
+                }
+                self.telemetry.push(m, &mut windows)
+            }
             None => self.telemetry.finish(&mut windows),
         }
         if windows.is_empty() {
@@ -290,8 +340,14 @@ impl VehicleChain {
         let vehicle = status.system_id.load(std::sync::atomic::Ordering::Relaxed);
         let mut own = Fanout::default();
         let reports = own.subscribe();
+        // On a live link the reader asks; replaying, it listens to the logged fetch.
+        let reader = if live { ParamReader::live() } else { self.vehicle };
+        let driver = Driver::new(reader, status.link.clone(), self.mav_ids.0.unwrap_or(vehicle), self.mav_ids.1);
+        let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
+        let (capacity_tx, capacity_rx) = watch::channel(None);
+        let memory = self.memory.map(|dir| Memory { dir, vehicle, warm: inference.warm.clone(), capacity: Some(capacity_tx) });
         let tasks = ChainTasks {
-            telemetry: tokio::spawn(telemetry_stage(self.telemetry, msgs, win_tx, status.clone())),
+            telemetry: tokio::spawn(telemetry_stage(self.telemetry, driver, msgs, win_tx, vehicle_tx, memory, status.clone())),
             windows: tokio::spawn(async move {
                 while let Some(window) = win_rx.recv().await {
                     if jobs.send(Job { window, vehicle, reply: est_tx.clone() }).await.is_err() {
@@ -299,7 +355,7 @@ impl VehicleChain {
                     }
                 }
             }),
-            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, own, status.clone(), live)),
+            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, vehicle_rx, capacity_rx, own, status.clone(), live)),
             relay: tokio::spawn(relay(reports, ev_rx, fanout)),
         };
         (ev_tx, tasks)
@@ -316,6 +372,8 @@ struct Fleet {
     fanout: Fanout,
     status: ChainStatus,
     live: bool,
+    /// The vehicle store's folder ([`crate::vehicle::store`]); `None`: nothing remembered.
+    data_dir: Option<std::path::PathBuf>,
 }
 
 /// One vehicle's running chain, as the demultiplexer holds it.
@@ -381,7 +439,7 @@ impl Fleet {
                         if let Some(v) = chains.remove(&id) {
                             let _ = v.events.send(ev);
                             // Its input closes: the chain drains, the relay says it was dropped.
-                            ended.push(v.tasks);
+                            ended.push((id, v.tasks));
                         }
                     }
                 }
@@ -391,12 +449,22 @@ impl Fleet {
         if filtered > 0 {
             tracing::info!("{filtered} messages from vehicles outside fleet.vehicles ignored");
         }
-        ended.extend(chains.into_values().map(|v| v.tasks));
+        ended.extend(chains.into_iter().map(|(id, v)| (id, v.tasks)));
         drop(self.fanout);
-        for t in ended {
-            t.join().await?;
+        let mut ends = Vec::with_capacity(ended.len());
+        for (id, t) in ended {
+            ends.push((id, t.join().await?));
         }
-        self.inference.join().await
+        let mut fits = self.inference.join().await?;
+        // The flight is over: remember each vehicle, off the reactor (a slow or locked
+        // database delays nothing but this write, and a failure is a warning).
+        if let Some(dir) = self.data_dir {
+            for (id, end) in ends {
+                let (dir, fits) = (dir.clone(), fits.remove(&id));
+                tokio::task::spawn_blocking(move || crate::vehicle::store::remember(&dir, end.identity.as_ref(), fits.as_deref(), &end.flight)).await?;
+            }
+        }
+        Ok(())
     }
 
     /// Start vehicle `id`'s chain: the chain built before the run for the first vehicle
@@ -409,6 +477,7 @@ impl Fleet {
         status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id));
         tracing::info!(vehicle = id, "vehicle heard: following it");
         let (tx, rx) = mpsc::channel(CHANNEL_DEPTH);
+        let chain = chain.with_memory(self.data_dir.clone());
         let (events, tasks) = chain.spawn(rx, &self.inference, self.fanout.clone(), &status, self.live);
         Ok(Vehicle { msgs: tx, events, tasks })
     }
@@ -472,11 +541,26 @@ async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedReceiver<FleetE
     }
 }
 
+/// The vehicle store's side of a run: where it is, and where what it remembers goes (the
+/// fits to the inference stage, the pack's effective capacity to the energy stage).
+struct Memory {
+    dir: std::path::PathBuf,
+    /// The vehicle's system id (the inference stage's key for its adaptation).
+    vehicle: u8,
+    warm: std::sync::mpsc::Sender<(u8, WarmStart)>,
+    /// Taken by the one lookup.
+    capacity: Option<watch::Sender<Option<(f64, usize)>>>,
+}
+
 /// Messages → fixed-rate samples → windows; refreshes the signal health about once a second.
+/// Reads the vehicle beside ([`Driver`]: asks on a live link) and publishes what it learns.
 async fn telemetry_stage(
     mut telemetry: Telemetry,
+    mut vehicle: Driver,
     mut msgs: mpsc::Receiver<TimedMessage>,
     windows: mpsc::Sender<Window>,
+    vehicle_tx: watch::Sender<VehicleParams>,
+    mut memory: Option<Memory>,
     status: ChainStatus,
 ) {
     let mut out = Vec::new();
@@ -485,6 +569,25 @@ async fn telemetry_stage(
     while open {
         match msgs.recv().await {
             Some(m) => {
+                if let Some(params) = vehicle.on_message(&m) {
+                    // The vehicle is known: look up what earlier flights taught (off this task;
+                    // `Pending` goes first, so the windows after this message find it).
+                    if let (Some(id), Some(mem)) = (&params.identity, &mut memory) {
+                        if let Some(capacity) = mem.capacity.take() {
+                            let _ = mem.warm.send((mem.vehicle, WarmStart::Pending));
+                            let (dir, warm, id, vehicle) = (mem.dir.clone(), mem.warm.clone(), id.clone(), mem.vehicle);
+                            tokio::task::spawn_blocking(move || {
+                                let learned = crate::vehicle::store::lookup(&dir, &id);
+                                // The capacity first: an estimate made with the warm fits
+                                // reaches the energy stage after it.
+                                let _ = capacity.send(learned.capacity_wh);
+                                let _ = warm.send((vehicle, WarmStart::Ready(learned.fits)));
+                            });
+                        }
+                    }
+                    // Only the energy stage listens; it gone (shutting down) is no error.
+                    let _ = vehicle_tx.send(params);
+                }
                 telemetry.push(&m, &mut out);
                 if let Some(id) = telemetry.system_id() {
                     status.system_id.store(id, std::sync::atomic::Ordering::Relaxed);
@@ -518,11 +621,26 @@ async fn telemetry_stage(
 /// vehicle has been heard, a batch waits up to [`Batching::wait`] for more. The heavy
 /// models (the LSTM) run on every [`Batching::heavy_every`]-th window of a vehicle; the
 /// windows between carry that vehicle's latest heavy estimates.
-fn inference_stage(mut models: Ensemble, mut jobs: mpsc::Receiver<Job>, batching: Batching, rt: tokio::runtime::Handle) {
+///
+/// Each vehicle adapts the models on its own ([`Ensemble::estimate_some`]). What earlier
+/// flights of a vehicle taught its adaptation arrives on `warm` once the vehicle is known;
+/// a replay waits for it (at most [`WARM_WAIT`]) so a replay is reproducible, a live link
+/// never waits. Returns each vehicle's adaptation fits at the end.
+fn inference_stage(
+    mut models: Ensemble,
+    mut jobs: mpsc::Receiver<Job>,
+    batching: Batching,
+    rt: tokio::runtime::Handle,
+    warm: std::sync::mpsc::Receiver<(u8, WarmStart)>,
+    live: bool,
+) -> std::collections::BTreeMap<u8, Fits> {
     let heavy_names = models.heavy_names();
     let mut b = Batch::default();
     // Per vehicle: windows seen, and the heavy models' latest estimates.
     let mut seen: std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)> = Default::default();
+    // Vehicles known whose fits are being looked up.
+    let mut waiting = std::collections::BTreeSet::new();
+    let mut vehicles = Vec::new();
     while let Some(j) = jobs.blocking_recv() {
         let deadline = tokio::time::Instant::now() + batching.wait;
         b.take(j, &mut seen, batching.heavy_every);
@@ -538,7 +656,24 @@ fn inference_stage(mut models: Ensemble, mut jobs: mpsc::Receiver<Job>, batching
                 Err(_) => break,
             }
         }
-        let estimates = models.estimate_some(&b.windows, &b.heavy);
+        for (id, news) in warm.try_iter() {
+            warm_start(&mut models, id, news, &mut waiting);
+        }
+        if !live {
+            let until = std::time::Instant::now() + WARM_WAIT;
+            while b.meta.iter().any(|(v, ..)| waiting.contains(v)) {
+                match warm.recv_timeout(until.saturating_duration_since(std::time::Instant::now())) {
+                    Ok((id, news)) => warm_start(&mut models, id, news, &mut waiting),
+                    Err(_) => {
+                        tracing::warn!("vehicle store: no answer in {WARM_WAIT:?}; the replay goes on without a warm start");
+                        waiting.clear();
+                    }
+                }
+            }
+        }
+        vehicles.clear();
+        vehicles.extend(b.meta.iter().map(|(v, ..)| *v));
+        let estimates = models.estimate_some(&b.windows, &b.heavy, &vehicles);
         for (mut e, (vehicle, full, reply)) in estimates.into_iter().zip(b.meta.drain(..)) {
             if let (true, Some((_, held))) = (batching.heavy_every > 1, seen.get_mut(&vehicle)) {
                 if full {
@@ -553,6 +688,7 @@ fn inference_stage(mut models: Ensemble, mut jobs: mpsc::Receiver<Job>, batching
         b.windows.clear();
         b.heavy.clear();
     }
+    seen.keys().filter_map(|&id| Some((id, models.adaptation(id)?.fits().to_vec()))).collect()
 }
 
 /// The batch the inference stage is gathering: windows, whether the heavy models run on
@@ -575,6 +711,36 @@ impl Batch {
     }
 }
 
+/// Take the warm start's news; whether the answer is still to come.
+fn warm_start(models: &mut Ensemble, vehicle: u8, news: WarmStart, waiting: &mut std::collections::BTreeSet<u8>) {
+    match news {
+        WarmStart::Pending => {
+            waiting.insert(vehicle);
+        }
+        WarmStart::Ready(learned) => {
+            waiting.remove(&vehicle);
+            if let (Some(l), Some(ad)) = (learned, models.adaptation_mut(vehicle)) {
+                let n = ad.restore(&l);
+                tracing::info!(vehicle, "warm start: {n} model(s) start from what earlier flights of this vehicle taught");
+            }
+        }
+    }
+}
+
+/// Adaptation fits by model name (what the vehicle store keeps).
+pub type Fits = Vec<(String, crate::model::adapt::ModelFit)>;
+
+/// The warm start's news to the inference stage.
+pub enum WarmStart {
+    /// The vehicle is known and its fits are being looked up.
+    Pending,
+    /// What earlier flights taught (none: a new vehicle, or no store).
+    Ready(Option<Fits>),
+}
+
+/// Longest a replay waits for the vehicle store's answer.
+const WARM_WAIT: std::time::Duration = std::time::Duration::from_secs(3);
+
 /// Estimates → energy bookkeeping and alert events → one [`Report`] each, to every sink.
 /// On a live link, a silence of [`SILENT_TICK`] still runs the alert rules (on
 /// [`Estimate::silent`]); such a tick reports only when a rule changes state, and leaves
@@ -584,27 +750,47 @@ async fn energy_stage(
     mut alerts: AlertEngine,
     mut estimates: mpsc::Receiver<Estimate>,
     mut mission: Option<mpsc::Receiver<MissionUpdate>>,
+    mut vehicle: watch::Receiver<VehicleParams>,
+    mut learned_capacity: watch::Receiver<Option<(f64, usize)>>,
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
-) {
-    let vehicle = || match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
+) -> (FlightLog, Option<Identity>) {
+    let mut flight = FlightLog::default();
+    let vehicle_id = || match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
         0 => 1,
         id => id,
     };
     // The last real estimate, its energy, and when it came: the base of a silent tick.
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
     let mut next_mission: Option<MissionUpdate> = None;
+    // Whether the vehicle's last word (its sender gone: the telemetry stage done) was taken.
+    let mut vehicle_final = false;
+    let mut capacity_final = false;
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
         } else {
             Ok(estimates.recv().await)
         };
+        // Capacity and cells from the vehicle where the config is silent. A closed channel (a
+        // fast replay whose telemetry stage is done) still holds the last word: take it once.
+        let (changed, closed) = vehicle.has_changed().map_or((true, true), |c| (c, false));
+        if changed && !vehicle_final {
+            energy.set_vehicle(vehicle.borrow_and_update().clone());
+            vehicle_final = closed;
+        }
+        // The pack's effective capacity from earlier flights (the vehicle store), likewise.
+        let (changed, closed) = learned_capacity.has_changed().map_or((true, true), |c| (c, false));
+        if changed && !capacity_final {
+            energy.set_learned_capacity(*learned_capacity.borrow_and_update());
+            capacity_final = closed;
+        }
         let report = match next {
             Ok(Some(est)) => {
                 take_mission(&mut energy, &mut mission, &mut next_mission, est.t_s);
-                let report = account(&mut energy, &mut alerts, est, vehicle());
+                let report = account(&mut energy, &mut alerts, est, vehicle_id());
+                flight.observe(&report);
                 if live {
                     last = Some((report.estimate.clone(), report.energy.clone(), Instant::now()));
                 }
@@ -618,11 +804,13 @@ async fn energy_stage(
                 if events.is_empty() {
                     continue;
                 }
-                Report { estimate: quiet, energy: state.clone(), alerts: events, system_id: vehicle() }
+                Report { estimate: quiet, energy: state.clone(), alerts: events, system_id: vehicle_id() }
             }
         };
         fanout.send(report).await;
     }
+    let identity = vehicle.borrow().identity.clone();
+    (flight, identity)
 }
 
 /// The mission statuses due by source time `t_s` into the energy tracker (the latest one

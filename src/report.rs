@@ -22,6 +22,21 @@ pub struct ModelEstimate {
     /// The model's uncertainty band (low, high), W, where it gives one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub band_w: Option<(f32, f32)>,
+    /// The prediction corrected by online adaptation to measured power
+    /// (`model::adapt`), W; absent when adaptation is off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub adapted_w: Option<f32>,
+    /// The prediction corrected by the slowly adapting reference the `deviation_above`
+    /// alert compares with (`model::adapt`), W; absent when adaptation is off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_w: Option<f32>,
+}
+
+impl ModelEstimate {
+    /// A raw estimate (no adaptation).
+    pub fn new(name: impl Into<String>, power_w: f32, band_w: Option<(f32, f32)>) -> Self {
+        Self { name: name.into(), power_w, band_w, adapted_w: None, reference_w: None }
+    }
 }
 
 /// Every model's estimate for one window: what the inference stage sends on.
@@ -92,6 +107,98 @@ impl RemainingSource {
     }
 }
 
+/// Where a battery figure came from: said beside it in the terminal, the JSON lines and the
+/// dashboard.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum Provenance {
+    /// The configuration file set it.
+    Config,
+    /// The vehicle's own parameter of this name (read over MAVLink or from a log).
+    Parameter(String),
+    /// The first battery voltage seen (cell count = ceil(V / 4.2)).
+    FirstVoltage,
+    /// What the pack delivered on this many earlier flights of the vehicle (the vehicle
+    /// store's effective capacity).
+    Learned { flights: usize },
+    /// dronewatt's built-in default (the M100's TB48D).
+    #[default]
+    Default,
+}
+
+impl fmt::Display for Provenance {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Provenance::Config => f.write_str("config"),
+            Provenance::Parameter(name) => write!(f, "vehicle parameter {name}"),
+            Provenance::FirstVoltage => f.write_str("first battery voltage"),
+            Provenance::Learned { flights } => write!(f, "learned over {flights} flight(s)"),
+            Provenance::Default => f.write_str("default"),
+        }
+    }
+}
+
+impl Serialize for Provenance {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl PartialEq<&str> for Provenance {
+    fn eq(&self, other: &&str) -> bool {
+        self.to_string() == *other
+    }
+}
+
+/// A value and where it came from.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Sourced<T> {
+    pub value: T,
+    pub source: Provenance,
+}
+
+impl<T> Sourced<T> {
+    pub fn new(value: T, source: Provenance) -> Self {
+        Self { value, source }
+    }
+}
+
+/// The DJI TB48D (the M100's pack): 5700 mAh × 22.8 V, Wh. The capacity when neither the
+/// config nor the vehicle says.
+pub const DEFAULT_CAPACITY_WH: f64 = 5.7 * 22.8;
+/// The TB48D's cells in series.
+pub const DEFAULT_CELL_COUNT: u32 = 6;
+
+/// The battery figures the energy stage works with, each with its provenance
+/// (resolved by `vehicle::resolve_battery`: config, vehicle parameter, default).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BatteryFacts {
+    /// Usable energy when full, Wh.
+    pub capacity_wh: Sourced<f64>,
+    /// Cells in series.
+    pub cell_count: Sourced<u32>,
+    /// The autopilot's low-battery voltage (whole pack), V, when it has one.
+    pub low_voltage_v: Option<Sourced<f64>>,
+    /// The autopilot's critical-battery voltage (whole pack), V, when it has one.
+    pub critical_voltage_v: Option<Sourced<f64>>,
+    /// When `capacity_wh` is learned from earlier flights: the rated capacity it replaced
+    /// (vehicle parameter or default).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rated_capacity_wh: Option<Sourced<f64>>,
+}
+
+impl Default for BatteryFacts {
+    /// The TB48D, said to be the default.
+    fn default() -> Self {
+        Self {
+            capacity_wh: Sourced::new(DEFAULT_CAPACITY_WH, Provenance::Default),
+            cell_count: Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
+            low_voltage_v: None,
+            critical_voltage_v: None,
+            rated_capacity_wh: None,
+        }
+    }
+}
+
 /// Energy bookkeeping at one estimate (see [`crate::energy`] for the formulas). Absent
 /// values mean "not known yet" (no power seen, no home), never zero.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -127,6 +234,12 @@ pub struct EnergyState {
     pub mission_margin_wh: Option<f64>,
     /// Where the vehicle stands in its mission, while one is known.
     pub mission: Option<MissionStatus>,
+    /// Whether the forecast (and the power integrated when nothing is measured) is the
+    /// forecast model's prediction adapted to measured power.
+    pub forecast_adapted: bool,
+    /// Capacity, cells and the autopilot's thresholds the figures above use, each with
+    /// where it came from.
+    pub battery: BatteryFacts,
 }
 
 /// What the mission task hands the energy stage, in source-time order: from `t_s` on, this

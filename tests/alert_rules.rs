@@ -11,7 +11,7 @@ fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
     Estimate {
         t_s,
         sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None },
-        models: models.iter().map(|(n, p)| ModelEstimate { name: n.to_string(), power_w: *p, band_w: None }).collect(),
+        models: models.iter().map(|(n, p)| ModelEstimate::new(n.to_string(), *p, None)).collect(),
     }
 }
 
@@ -259,4 +259,39 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
     let cleared: Vec<_> = eng.evaluate(&est(30.0, Some(300.0), &[]), &state(Some(3.5)));
     assert_eq!(cleared.len(), 1);
     assert_eq!(cleared[0].state, AlertState::Cleared);
+}
+
+#[test]
+fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
+    use dronewatt::report::{BatteryFacts, Provenance, Sourced};
+    let cfg = parse(
+        r#"
+        [[alerts]]
+        name = "pack_low"
+        kind = "vehicle_voltage_below"
+        threshold = "low"
+        margin_v = 0.2
+        clear_margin_v = 0.4
+        "#,
+    );
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let at = |t: f64, v: f32| {
+        let mut e = est(t, Some(300.0), &[]);
+        e.sample.voltage_v = Some(v);
+        e
+    };
+    // The vehicle has not said its threshold: quiet, whatever the voltage.
+    assert!(eng.evaluate(&at(0.0, 10.0), &EnergyState::default()).is_empty());
+    // BATT_LOW_VOLT = 14.4 V: raises under 14.6 V, clears from 14.8 V.
+    let low = Sourced::new(14.4, Provenance::Parameter("BATT_LOW_VOLT".into()));
+    let en = EnergyState { battery: BatteryFacts { low_voltage_v: Some(low), ..Default::default() }, ..Default::default() };
+    assert!(eng.evaluate(&at(1.0, 14.7), &en).is_empty());
+    let raised = eng.evaluate(&at(2.0, 14.5), &en);
+    assert_eq!(raised.len(), 1);
+    assert_eq!(raised[0].state, AlertState::Raised);
+    assert!(eng.evaluate(&at(3.0, 14.7), &en).is_empty(), "hysteresis: 14.7 V is not yet 14.8 V");
+    assert_eq!(eng.evaluate(&at(4.0, 14.9), &en)[0].state, AlertState::Cleared);
+    // A clear margin on the wrong side names its key.
+    let err = load_err("[[alerts]]\nname = \"x\"\nkind = \"vehicle_voltage_below\"\nthreshold = \"critical\"\nmargin_v = 0.5\nclear_margin_v = 0.1\n");
+    assert!(err.contains("clear_margin_v"), "{err}");
 }

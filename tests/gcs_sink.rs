@@ -60,7 +60,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         let est = Estimate {
             t_s,
             sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w: Some(measured), voltage_v: Some(22.0), home: None, stale_mask: 0, battery_remaining_pct: None },
-            models: vec![ModelEstimate { name: "lstm".into(), power_w: 480.0, band_w: None }],
+            models: vec![ModelEstimate::new("lstm", 480.0, None)],
         };
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);

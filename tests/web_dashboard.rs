@@ -103,9 +103,9 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
                 battery_remaining_pct: None,
             },
             models: vec![
-                ModelEstimate { name: "tseng".into(), power_w: 470.0, band_w: None },
-                ModelEstimate { name: "dandrea".into(), power_w: w * 0.8, band_w: None },
-                ModelEstimate { name: "lstm".into(), power_w: w + 8.0, band_w: None },
+                ModelEstimate::new("tseng", 470.0, None),
+                ModelEstimate::new("dandrea", w * 0.8, None),
+                ModelEstimate::new("lstm", w + 8.0, None),
             ],
         };
         let state = energy.update(&est);

@@ -218,6 +218,10 @@ impl LstmModel {
     }
 }
 
+/// How far outside its training data (in training standard deviations) an input may lie
+/// for a window to still teach online adaptation ([`super::adapt`]).
+pub const TRAINING_RANGE_SIGMAS: f32 = 6.0;
+
 impl PowerModel for LstmModel {
     fn name(&self) -> &str {
         &self.card.name
@@ -229,6 +233,17 @@ impl PowerModel for LstmModel {
 
     fn heavy(&self) -> bool {
         true
+    }
+
+    /// False when an input of the window's newest sample lies more than
+    /// [`TRAINING_RANGE_SIGMAS`] training standard deviations from the training mean.
+    fn in_training_range(&self, window: &Window) -> bool {
+        let mut x = Vec::with_capacity(N_FEATURES);
+        push_inputs(window, self.card.feature_set, 1, &mut x);
+        x.iter().zip(&self.card.feature_mean).zip(&self.card.feature_std).all(|((v, m), s)| {
+            let z = (v - m) / s;
+            z.is_finite() && z.abs() <= TRAINING_RANGE_SIGMAS
+        })
     }
 
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {

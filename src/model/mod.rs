@@ -1,6 +1,7 @@
 //! Power models: a window (and the vehicle profile a model was built with) in, watts out.
 //! Pure: no I/O, no clocks.
 
+pub mod adapt;
 pub mod card;
 pub mod lstm;
 pub mod lstm_cpu;
@@ -39,18 +40,46 @@ pub trait PowerModel: Send {
     fn heavy(&self) -> bool {
         false
     }
+    /// Whether `window` lies inside what the model was fitted on, so that online adaptation
+    /// ([`adapt`]) may learn from it. Default true (the physics models have no training
+    /// range); the LSTM says false for a window far outside its training data.
+    fn in_training_range(&self, _window: &Window) -> bool {
+        true
+    }
 }
 
 /// The set of models the inference stage runs side by side.
 pub struct Ensemble {
     models: Vec<Box<dyn PowerModel>>,
     scratch: Vec<Prediction>,
+    /// Online adaptation to measured power, when on ([`Ensemble::with_adaptation`]): the
+    /// state every vehicle starts from.
+    adapt: Option<adapt::Adaptation>,
+    /// Each vehicle's adaptation, by MAVLink system id: a fleet's vehicles share the
+    /// models, never what the models learned about each of them.
+    adapted: std::collections::BTreeMap<u8, adapt::Adaptation>,
 }
 
 impl Ensemble {
     /// An ensemble of these models, run in this order.
     pub fn new(models: Vec<Box<dyn PowerModel>>) -> Self {
-        Self { models, scratch: Vec::new() }
+        Self { models, scratch: Vec::new(), adapt: None, adapted: Default::default() }
+    }
+    /// Adapt every model's output to measured power ([`adapt`]).
+    pub fn with_adaptation(mut self, adaptation: adapt::Adaptation) -> Self {
+        self.adapt = Some(adaptation);
+        self
+    }
+    /// Vehicle `vehicle`'s adaptation, when adaptation is on (the starting state before its
+    /// first window).
+    pub fn adaptation(&self, vehicle: u8) -> Option<&adapt::Adaptation> {
+        self.adapted.get(&vehicle).or(self.adapt.as_ref())
+    }
+    /// Vehicle `vehicle`'s adaptation, to restore what an earlier flight learned or to
+    /// start a new flight afresh.
+    pub fn adaptation_mut(&mut self, vehicle: u8) -> Option<&mut adapt::Adaptation> {
+        let start = self.adapt.as_ref()?;
+        Some(self.adapted.entry(vehicle).or_insert_with(|| start.clone()))
     }
     /// Names of the [`PowerModel::heavy`] models, in order.
     pub fn heavy_names(&self) -> Vec<String> {
@@ -65,42 +94,55 @@ impl Ensemble {
     pub fn target_lags(&self) -> Vec<usize> {
         self.models.iter().map(|m| m.target_lag()).collect()
     }
-    /// Run every model on every window (a batch when a replay runs flat out).
+    /// Run every model on every window of one vehicle (key 0 of the adaptation; a batch
+    /// when a replay runs flat out).
     pub fn estimate(&mut self, windows: &[Window]) -> Vec<Estimate> {
-        self.estimate_some(windows, &[])
+        self.estimate_some(windows, &[], &[])
     }
 
     /// [`Ensemble::estimate`], but the [`PowerModel::heavy`] models run only on the windows
     /// whose `heavy[i]` is true (all of them where `heavy` is shorter than `windows`); the
-    /// others' estimates lack those models.
-    pub fn estimate_some(&mut self, windows: &[Window], heavy: &[bool]) -> Vec<Estimate> {
+    /// others' estimates lack those models. Window `i` is vehicle `vehicles[i]`'s (0 where
+    /// `vehicles` is shorter): it teaches and reads that vehicle's adaptation.
+    pub fn estimate_some(&mut self, windows: &[Window], heavy: &[bool], vehicles: &[u8]) -> Vec<Estimate> {
         let mut out: Vec<Estimate> = windows
             .iter()
             .map(|w| Estimate { t_s: w.t_s(), sample: w.last().clone(), models: Vec::with_capacity(self.models.len()) })
             .collect();
         let all = heavy.len() < windows.len() || heavy.iter().all(|&h| h);
         let mut picked = Vec::new();
-        for m in &mut self.models {
-            let name = m.name().to_string();
-            let named = |p: &Prediction| ModelEstimate { name: name.clone(), power_w: p.power_w, band_w: p.band_w };
+        let mut at = Vec::new();
+        for (i, m) in self.models.iter_mut().enumerate() {
+            // The windows this model runs on (indices into `windows`).
+            at.clear();
             if !m.heavy() || all {
+                at.extend(0..windows.len());
                 m.predict(windows, &mut self.scratch);
-                for (e, p) in out.iter_mut().zip(&self.scratch) {
-                    e.models.push(named(p));
+            } else {
+                at.extend((0..windows.len()).filter(|&k| heavy[k]));
+                if at.is_empty() {
+                    continue;
                 }
-                continue;
+                picked.clear();
+                picked.extend(at.iter().map(|&k| windows[k].clone()));
+                m.predict(&picked, &mut self.scratch);
             }
-            picked.clear();
-            picked.extend(windows.iter().zip(heavy).filter(|(_, &h)| h).map(|(w, _)| w.clone()));
-            if picked.is_empty() {
-                continue;
-            }
-            m.predict(&picked, &mut self.scratch);
-            let mut preds = self.scratch.iter();
-            for (e, _) in out.iter_mut().zip(heavy).filter(|(_, &h)| h) {
-                if let Some(p) = preds.next() {
-                    e.models.push(named(p));
+            let lag = m.target_lag();
+            for (&k, p) in at.iter().zip(&self.scratch) {
+                let mut me = ModelEstimate::new(m.name(), p.power_w, p.band_w);
+                if let Some(start) = &self.adapt {
+                    let w = &windows[k];
+                    let vehicle = vehicles.get(k).copied().unwrap_or(0);
+                    let ad = self.adapted.entry(vehicle).or_insert_with(|| start.clone());
+                    // The prediction is for the sample `lag` back: teach with its power.
+                    let measured = w.back(lag).measured_w;
+                    let in_range = measured.is_some() && m.in_training_range(w);
+                    if let Some(a) = ad.step(i, p.power_w, measured, in_range) {
+                        me.adapted_w = Some(a.adapted_w);
+                        me.reference_w = Some(a.reference_w);
+                    }
                 }
+                out[k].models.push(me);
             }
         }
         out
@@ -113,6 +155,15 @@ impl Ensemble {
 pub struct ModelsConfig {
     /// The LSTM (`[models.lstm]`): on by default, with the shipped model.
     pub lstm: lstm::LstmConfig,
+    /// Online adaptation to measured power (`[models.adapt]`): on by default.
+    pub adapt: adapt::AdaptConfig,
+}
+
+impl ModelsConfig {
+    /// Range checks; each message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        self.adapt.validate()
+    }
 }
 
 /// Work that needs libtorch (training, TorchScript models), asked of `dronewatt`, which
@@ -125,13 +176,46 @@ pub struct NeedsLibtorch {
     pub what: String,
 }
 
-/// The models a configuration asks for, built and checked (profiles loaded, cards matched).
+/// The models a configuration asks for, built and checked (profiles loaded, cards matched),
+/// adapting to measured power unless `[models.adapt] enabled = false`. `payload_g` is the
+/// mission's configured payload (the motors-off threshold of adaptation is the loaded
+/// vehicle's ideal hover power).
 pub fn build_ensemble(
     models: &ModelsConfig,
     vehicle: Option<&std::path::Path>,
     telemetry: &crate::telemetry::TelemetryConfig,
+    payload_g: Option<f32>,
 ) -> anyhow::Result<Ensemble> {
-    Ok(Ensemble::new(build_models(models, vehicle, telemetry)?))
+    let ensemble = Ensemble::new(build_models(models, vehicle, telemetry)?);
+    if !models.adapt.enabled {
+        return Ok(ensemble);
+    }
+    let adaptation = build_adaptation(&models.adapt, vehicle, telemetry, payload_g, &ensemble.names())?;
+    Ok(ensemble.with_adaptation(adaptation))
+}
+
+/// The adaptation for these models on this vehicle: windows every 1 / `rate_hz` s, the
+/// motors-off threshold from the profile's ideal hover power with the payload.
+pub fn build_adaptation(
+    cfg: &adapt::AdaptConfig,
+    vehicle: Option<&std::path::Path>,
+    telemetry: &crate::telemetry::TelemetryConfig,
+    payload_g: Option<f32>,
+    names: &[String],
+) -> anyhow::Result<adapt::Adaptation> {
+    cfg.validate().map_err(anyhow::Error::msg)?;
+    let profile = load_profile(vehicle)?;
+    let payload_kg = f64::from(payload_g.unwrap_or(0.0)).max(0.0) / 1000.0;
+    let hover_w = adapt::ideal_hover_w(profile.mass_kg(payload_kg), profile.air.g_m_s2, profile.air.rho_kg_m3, profile.disk_area_m2());
+    Ok(adapt::Adaptation::new(cfg, names, 1.0 / telemetry.rate_hz, hover_w))
+}
+
+/// The vehicle profile file, else the built-in M100.
+fn load_profile(vehicle: Option<&std::path::Path>) -> anyhow::Result<profile::VehicleProfile> {
+    match vehicle {
+        Some(path) => profile::VehicleProfile::load(path),
+        None => Ok(profile::VehicleProfile::m100()),
+    }
 }
 
 /// Every model a configuration runs, in table order: the one place models are listed, so
@@ -145,10 +229,7 @@ pub fn build_models(
 ) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
     let mut out: Vec<Box<dyn PowerModel>> = Vec::new();
     // The physics models (+ Tseng's Solo form) on the configured vehicle profile.
-    let profile = match vehicle {
-        Some(path) => profile::VehicleProfile::load(path)?,
-        None => profile::VehicleProfile::m100(),
-    };
+    let profile = load_profile(vehicle)?;
     out.extend(physics::models(&profile));
     // The LSTM after the physics models, when enabled and found.
     if let Some(m) = lstm::from_config(&models.lstm, telemetry)? {

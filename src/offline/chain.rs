@@ -20,6 +20,12 @@
 //!   the measured power withheld: the energy used the live chain would report, Wh, had the
 //!   power sensor been absent and this model integrated instead.
 //!
+//! - **each model adapted**: when the ensemble adapts to measured power
+//!   ([`crate::model::adapt`]), every model also appears as `<model>~`, its adapted estimate,
+//!   scored and integrated like the raw ones. Each flight starts from the models as they are
+//!   ([`Chain::run`] resets what the previous flight taught), as a new vehicle's first flight
+//!   would, unless [`Chain::keep_learning`] says otherwise.
+//!
 //! [`Chain::run_flight`] lines the steps up by instant ([`FlightSeries`]) and
 //! [`FlightSeries::scores`] scores them ([`crate::offline::metrics`]).
 
@@ -27,7 +33,7 @@ use crate::alert::AlertEngine;
 use crate::config::Config;
 use crate::report::Report;
 use crate::energy::EnergyTracker;
-use crate::report::Estimate;
+use crate::report::{Estimate, ModelEstimate};
 use crate::model::Ensemble;
 use crate::offline::data::FlightWindows;
 use crate::offline::metrics::{self, Aligned, Scores};
@@ -49,9 +55,12 @@ pub struct Step {
 /// Models, energy tracker and alert rules as a configuration sets them up live.
 pub struct Chain {
     ensemble: Ensemble,
+    /// The models' names, then (adapting) each as `<model>~`.
     names: Vec<String>,
     target_lags: Vec<usize>,
     config: Config,
+    /// Whether a flight starts from what earlier flights taught the adaptation.
+    keep_learning: bool,
 }
 
 impl Chain {
@@ -60,12 +69,29 @@ impl Chain {
     pub fn new(cfg: &Config, ensemble: Ensemble) -> anyhow::Result<Self> {
         EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?;
         AlertEngine::new(&cfg.alerts)?;
-        Ok(Self { names: ensemble.names(), target_lags: ensemble.target_lags(), ensemble, config: cfg.clone() })
+        let (mut names, mut target_lags) = (ensemble.names(), ensemble.target_lags());
+        if ensemble.adaptation(0).is_some() {
+            names.extend(ensemble.names().iter().map(|n| format!("{n}~")));
+            target_lags.extend(ensemble.target_lags());
+        }
+        Ok(Self { names, target_lags, ensemble, config: cfg.clone(), keep_learning: false })
+    }
+
+    /// Let each flight start from what the flights before it taught the adaptation (the
+    /// same vehicle flying again), instead of from the models as they are.
+    pub fn keep_learning(mut self, keep: bool) -> Self {
+        self.keep_learning = keep;
+        self
+    }
+
+    /// The models and their adaptation state.
+    pub fn ensemble_mut(&mut self) -> &mut Ensemble {
+        &mut self.ensemble
     }
 
     /// The chain the configuration runs live ([`crate::model::build_ensemble`]'s models).
     pub fn from_config(cfg: &Config) -> anyhow::Result<Self> {
-        Self::new(cfg, crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?)
+        Self::new(cfg, crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry, cfg.mission.payload_g)?)
     }
 
     /// The models' names, in order.
@@ -79,14 +105,22 @@ impl Chain {
         let mut energy = tracker()?;
         let mut alerts = AlertEngine::new(&self.config.alerts)?;
         let mut model_energy = self.names.iter().map(|_| tracker()).collect::<anyhow::Result<Vec<_>>>()?;
+        if !self.keep_learning {
+            if let Some(ad) = self.ensemble.adaptation_mut(0) {
+                ad.reset();
+            }
+        }
         let estimates = self.ensemble.estimate(windows);
         let mut steps = Vec::with_capacity(windows.len());
         for (w, est) in windows.iter().zip(estimates) {
-            let n = est.models.len();
+            let n = self.names.len();
             let (mut for_t_s, mut model_energy_wh) = (Vec::with_capacity(n), Vec::with_capacity(n));
-            for ((m, lag), tracker) in est.models.iter().zip(&self.target_lags).zip(&mut model_energy) {
+            // The raw estimates, then (adapting) the adapted ones as their own models.
+            let adapted = est.models.iter().map(|m| ModelEstimate::new(format!("{}~", m.name), m.adapted_w.unwrap_or(f32::NAN), None));
+            let alone_models = est.models.iter().map(|m| ModelEstimate { adapted_w: None, reference_w: None, ..m.clone() }).chain(adapted);
+            for ((m, lag), tracker) in alone_models.zip(&self.target_lags).zip(&mut model_energy) {
                 let at = w.back(*lag);
-                let alone = Estimate { t_s: at.t_s, sample: Sample { measured_w: None, ..at.clone() }, models: vec![m.clone()] };
+                let alone = Estimate { t_s: at.t_s, sample: Sample { measured_w: None, ..at.clone() }, models: vec![m] };
                 model_energy_wh.push(tracker.update(&alone).energy_used_wh);
                 for_t_s.push(at.t_s);
             }
@@ -151,14 +185,21 @@ impl FlightSeries {
             alerts_raised: steps.iter().flat_map(|s| &s.report.alerts).filter(|a| a.state == crate::report::AlertState::Raised).count(),
         };
         for (j, &lag) in target_lags.iter().enumerate().take(names.len()) {
+            // Column j is model j's raw estimate, or past the models, model j − n's adapted one.
             let at = |i: usize| {
                 let st = steps.get(i + lag)?;
-                let m = st.report.estimate.models.get(j)?;
-                (st.for_t_s.get(j) == Some(&sample(i).t_s)).then_some((m, st.model_energy_wh[j]))
+                let models = &st.report.estimate.models;
+                let (m, adapted) = match models.get(j) {
+                    Some(m) => (m, false),
+                    None => (models.get(j - models.len())?, true),
+                };
+                let power_w = if adapted { m.adapted_w? } else { m.power_w };
+                let band_w = if adapted { None } else { m.band_w };
+                (st.for_t_s.get(j) == Some(&sample(i).t_s)).then_some((power_w, band_w, st.model_energy_wh[j]))
             };
-            s.pred_w.push(keep.iter().map(|&i| at(i).map_or(f64::NAN, |(m, _)| f64::from(m.power_w))).collect());
-            s.band_w.push(keep.iter().map(|&i| at(i).and_then(|(m, _)| m.band_w).map(|(lo, hi)| (f64::from(lo), f64::from(hi)))).collect());
-            s.pred_wh.push(keep.iter().map(|&i| at(i).map_or(f64::NAN, |(_, wh)| wh)).collect());
+            s.pred_w.push(keep.iter().map(|&i| at(i).map_or(f64::NAN, |(p, _, _)| f64::from(p))).collect());
+            s.band_w.push(keep.iter().map(|&i| at(i).and_then(|(_, b, _)| b).map(|(lo, hi)| (f64::from(lo), f64::from(hi)))).collect());
+            s.pred_wh.push(keep.iter().map(|&i| at(i).map_or(f64::NAN, |(_, _, wh)| wh)).collect());
         }
         s
     }

@@ -64,6 +64,16 @@ pub struct EvalArgs {
     /// card's and the LightGBM baseline's reading), not only in flight; MAPE stays in flight.
     #[arg(long)]
     pub all_windows: bool,
+    /// Also score every model adapted online to the measured power
+    /// ([`crate::model::adapt`], the `[models.adapt]` settings) as `<model>~`: each flight
+    /// starts from the model as it is, as a new vehicle's first flight would.
+    #[arg(long)]
+    pub adapt: bool,
+    /// Tell the models this payload, g, whatever the flight carried (the payload input of
+    /// every window): `--payload-g 0 --adapt` on the 500 g flights is a vehicle heavier than
+    /// the models think, and adaptation has to find the difference.
+    #[arg(long, value_name = "G")]
+    pub payload_g: Option<f32>,
 }
 
 /// Named flight splits.
@@ -107,7 +117,13 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         tracing::warn!("{}: no calibrated profile; scoring published parameters only (run `dronewatt calibrate`)", args.calibrated.display());
         None
     };
-    let mut chain = Chain::new(&cfg, Ensemble::new(eval_models(&cfg, cal.as_ref())?))?;
+    let mut ensemble = Ensemble::new(eval_models(&cfg, cal.as_ref())?);
+    if args.adapt {
+        let payload = args.payload_g.or(cfg.mission.payload_g);
+        let ad = crate::model::build_adaptation(&cfg.models.adapt, cfg.vehicle.as_deref(), &cfg.telemetry, payload, &ensemble.names())?;
+        ensemble = ensemble.with_adaptation(ad);
+    }
+    let mut chain = Chain::new(&cfg, ensemble)?;
     let names = chain.names().to_vec();
     let wanted: Option<Vec<u32>> = match (args.flight, args.split) {
         (Some(n), _) => Some(vec![n]),
@@ -119,7 +135,12 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         }
         (None, None) => None,
     };
-    let flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry, &cfg.mission).with_context(|| format!("{}: cannot load flights", data.display()))?;
+    let mut flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry, &cfg.mission).with_context(|| format!("{}: cannot load flights", data.display()))?;
+    if let Some(g) = args.payload_g {
+        for s in flights.iter_mut().flat_map(|f| f.windows.iter_mut()).flat_map(|w| w.samples.iter_mut()) {
+            s.features[crate::features::idx::PAYLOAD] = g;
+        }
+    }
     if flights.is_empty() {
         anyhow::bail!("{}: none of the requested flights is in the file", data.display());
     }

@@ -173,7 +173,13 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if f.model != cfg.forecast.calibration.model {
         tracing::warn!("forecast model {:?} did not run; the P50 follows {:?} uncorrected by its fit", cfg.forecast.calibration.model, f.model);
     }
-    let (m50, m90) = f.margins_wh(cfg.energy.capacity_wh, cfg.energy.reserve_pct);
+    // Offline no vehicle answers: the configured capacity, else the default (said in the log).
+    let battery = crate::vehicle::battery_from_config(&cfg.energy.battery());
+    let capacity_wh = battery.capacity_wh.value;
+    if battery.capacity_wh.source != crate::vehicle::Provenance::Config {
+        tracing::info!("capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack", battery.capacity_wh.source);
+    }
+    let (m50, m90) = f.margins_wh(capacity_wh, cfg.energy.reserve_pct);
     let speed_m_s = a.speed.or(plan.hover_speed_m_s).unwrap_or(cfg.forecast.kinematics.default_speed_m_s);
     let report = PlanReport {
         plan: &plan.source,
@@ -183,14 +189,14 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         speed_m_s,
         payload_g,
         wind: cond.wind,
-        capacity_wh: cfg.energy.capacity_wh,
+        capacity_wh,
         reserve_pct: cfg.energy.reserve_pct,
         margin_p50_wh: m50,
         margin_p90_wh: m90,
         forecast: &f,
     };
     if let Some(png) = &a.plot {
-        plot_plan(png, &plan.source, &tr, &f, cfg.energy.capacity_wh, cfg.energy.reserve_pct)?;
+        plot_plan(png, &plan.source, &tr, &f, capacity_wh, cfg.energy.reserve_pct)?;
     }
     publish(a.json.as_deref(), &report, || plan_table(&report))
 }

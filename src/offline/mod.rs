@@ -1,4 +1,4 @@
-//! Offline work: train, cross-validate, evaluate, calibrate, sensitivity, plots — through
+//! Offline work: train, cross-validate, evaluate, calibrate, learn a vehicle from its logs, sensitivity, plots — through
 //! the live stages: windows from the ingest path ([`data`]), estimates, energy and alerts
 //! from the live chain ([`chain`]), each with the user's configuration (`--config`).
 
@@ -6,6 +6,7 @@ pub mod calibrate;
 pub mod chain;
 pub mod data;
 pub mod eval;
+pub mod learn;
 pub mod metrics;
 pub mod mission;
 pub mod plot;

@@ -2,7 +2,10 @@
 //!
 //! ```text
 //! {"type":"window","system_id":…,"t":…,"measured_w":…,"features":{"wind_speed":…,…}}
-//! {"type":"estimate","system_id":…,"t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]"energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,"mission_energy_wh":…,"mission_margin_wh":…}
+//! {"type":"estimate","system_id":…,"t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
+//!  "energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,
+//!  "capacity_wh":…,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"default"|…,"cell_count":…,"cell_count_source":…,
+//!  ["low_voltage_v":…,"low_voltage_source":…,]["critical_voltage_v":…,"critical_voltage_source":…]}
 //! {"type":"alert","system_id":…,"t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
 //! ```
 //!
@@ -41,7 +44,7 @@ use tokio::task::JoinHandle;
 
 use super::{JsonTarget, ReportRx};
 use crate::features::FEATURE_NAMES;
-use crate::report::Report;
+use crate::report::{Provenance, Report};
 use crate::status::{ChainStatus, StatsSnapshot};
 
 /// Open the target now (so a bad path fails before the run) and write on a blocking thread.
@@ -90,6 +93,7 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
 /// Write a report's `estimate` line.
 pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     let e = &r.estimate;
+    let b = &r.energy.battery;
     let s = &e.sample;
     write_line(
         w,
@@ -106,6 +110,16 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             home_margin_wh: r.energy.home_margin_wh,
             mission_energy_wh: r.energy.mission_energy_wh,
             mission_margin_wh: r.energy.mission_margin_wh,
+            adapted: Adapted(&e.models),
+            forecast_adapted: r.energy.forecast_adapted,
+            capacity_wh: b.capacity_wh.value,
+            capacity_source: &b.capacity_wh.source,
+            cell_count: b.cell_count.value,
+            cell_count_source: &b.cell_count.source,
+            low_voltage_v: b.low_voltage_v.as_ref().map(|v| v.value),
+            low_voltage_source: b.low_voltage_v.as_ref().map(|v| &v.source),
+            critical_voltage_v: b.critical_voltage_v.as_ref().map(|v| v.value),
+            critical_voltage_source: b.critical_voltage_v.as_ref().map(|v| &v.source),
         },
     )
 }
@@ -170,6 +184,50 @@ struct EstimateLine<'a> {
     mission_energy_wh: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     mission_margin_wh: Option<f64>,
+    /// `{"<name>": watts}`: each model adapted to measured power (`model::adapt`); absent
+    /// when adaptation is off.
+    #[serde(skip_serializing_if = "Adapted::is_empty")]
+    adapted: Adapted<'a>,
+    /// Whether the forecast follows the forecast model adapted to measured power.
+    forecast_adapted: bool,
+    /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
+    /// `vehicle parameter BATT_CAPACITY`, `default` …).
+    capacity_wh: f64,
+    capacity_source: &'a Provenance,
+    /// Cells in series, and where that came from.
+    cell_count: u32,
+    cell_count_source: &'a Provenance,
+    /// The autopilot's low and critical pack voltages, V, and where they came from; absent
+    /// when the vehicle did not say.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    low_voltage_v: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    low_voltage_source: Option<&'a Provenance>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    critical_voltage_v: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    critical_voltage_source: Option<&'a Provenance>,
+}
+
+/// Adapted estimates as a name → watts object.
+struct Adapted<'a>(&'a [crate::report::ModelEstimate]);
+
+impl Adapted<'_> {
+    fn is_empty(&self) -> bool {
+        self.0.iter().all(|m| m.adapted_w.is_none())
+    }
+}
+
+impl Serialize for Adapted<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(None)?;
+        for e in self.0 {
+            if let Some(w) = e.adapted_w {
+                m.serialize_entry(&e.name, &w)?;
+            }
+        }
+        m.end()
+    }
 }
 
 /// Uncertainty bands as a name → [low, high] watts object.
@@ -268,8 +326,8 @@ mod tests {
                 t_s: 12.5,
                 sample,
                 models: vec![
-                    ModelEstimate { name: "dandrea".into(), power_w: 230.0, band_w: None },
-                    ModelEstimate { name: "lstm".into(), power_w: f32::INFINITY, band_w: None },
+                    ModelEstimate::new("dandrea", 230.0, None),
+                    ModelEstimate::new("lstm", f32::INFINITY, None),
                 ],
             },
             energy: EnergyState { energy_used_wh: 1.5, remaining_wh: Some(80.0), time_to_empty_s: None, home_margin_wh: None, ..Default::default() },

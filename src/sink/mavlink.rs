@@ -8,7 +8,7 @@
 //! | name | value | unit |
 //! |---|---|---|
 //! | `dw_meas_w` | measured electrical power V·I | W |
-//! | `dw_pred_w` | the forecast model's prediction (`[energy] model`, else `lstm`; absent when the forecast follows measured power) | W |
+//! | `dw_pred_w` | the forecast model's prediction (`[energy] model`, else `lstm`; adapted to measured power when adaptation runs; absent when the forecast follows measured power) | W |
 //! | `dw_lstm_w` | the LSTM's prediction, when the LSTM runs | W |
 //! | `dw_fcst_w` | smoothed forecast power the energy figures assume | W |
 //! | `dw_used_wh` | energy used since the start | Wh |
@@ -179,9 +179,10 @@ impl Encoder {
     pub fn estimates(&mut self, r: &Report) -> Vec<Vec<u8>> {
         let e = &r.energy;
         let model = |n: &str| r.estimate.models.iter().find(|m| m.name == n).map(|m| f64::from(m.power_w));
+        let adapted = |n: &str| r.estimate.models.iter().find(|m| m.name == n).map(|m| f64::from(m.adapted_w.unwrap_or(m.power_w)));
         let values = [
             ("dw_meas_w", r.estimate.sample.measured_w.map(f64::from)),
-            ("dw_pred_w", e.forecast_model.as_deref().and_then(model)),
+            ("dw_pred_w", e.forecast_model.as_deref().and_then(adapted)),
             ("dw_lstm_w", model("lstm")),
             ("dw_fcst_w", e.forecast_w),
             ("dw_used_wh", Some(e.energy_used_wh)),

@@ -122,14 +122,20 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                 None => s.push_str("measured — W  "),
             }
             for m in &e.models {
-                s.push_str(&format!("{} {}  ", m.name, num(m.power_w as f64, 1)));
+                s.push_str(&format!("{} {}", m.name, num(m.power_w as f64, 1)));
+                // Adapted to measured power: "lstm 312.0~348.5".
+                if let Some(a) = m.adapted_w {
+                    s.push_str(&format!("~{}", num(a as f64, 1)));
+                }
+                s.push_str("  ");
             }
             let en = &r.energy;
             if en.energy_used_wh != 0.0 || en.remaining_wh.is_some() {
                 s.push_str(&format!("used {} Wh  ", num(en.energy_used_wh, 2)));
             }
             if let Some(left) = en.remaining_wh {
-                s.push_str(&format!("left {} Wh", num(left, 1)));
+                let b = &en.battery;
+                s.push_str(&format!("left {} of {} Wh [{}]", num(left, 1), num(b.capacity_wh.value, 1), b.capacity_wh.source));
                 if let Some(t) = en.time_to_empty_s {
                     s.push_str(&format!(" ({} min)", num(t / 60.0, 0)));
                 }

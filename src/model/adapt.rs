@@ -1,0 +1,496 @@
+//! Online adaptation: each model's output is fitted to the measured power V·I as the
+//! vehicle flies, so models made for the DJI M100 (or told the wrong payload) follow the
+//! vehicle they are actually attached to. Pure: numbers in, numbers out, no I/O, no clocks.
+//!
+//! ## What is fitted
+//!
+//! An affine output correction per model,
+//!
+//! ```text
+//! P_adapted = a · P_model + b        (W; a dimensionless, b in W)
+//! ```
+//!
+//! warm-started at (a, b) = (1, 0), i.e. the model as it is: exponentially weighted least
+//! squares (recursive least squares with forgetting) on the regressor φ = [P_model, 1] and
+//! the target y = measured power, with the prior (1, 0) kept as a fixed regulariser:
+//!
+//! ```text
+//! S ← λ·S + φ·φᵀ        r ← λ·r + φ·y        (S + R₀)·θ = r + R₀·(1, 0)
+//! ```
+//!
+//! λ = exp(−Δt / memory_s) per window (Δt = 1 / `telemetry.rate_hz`), so a sample's weight
+//! falls by e every `memory_s` seconds: the default `memory_s = 30` follows a new vehicle
+//! within 30–60 s (after 60 s, what it learned before weighs e⁻² ≈ 14 %). R₀ =
+//! diag(σ_y²/σ_a², σ_y²/σ_b²) (σ_a = 0.5, σ_b = 50 W, σ_y = 20 W measurement noise) is a
+//! weak prior that a few seconds of flight outweigh, but only in the direction the data
+//! excite. Many models' outputs barely move while the vehicle cruises, so a and b are not
+//! separately identifiable; the covariance form of RLS then winds its covariance up in the
+//! unexcited direction and a noise burst throws θ far along it (tried on the M100 flights:
+//! 1000 W estimates of a 550 W cruise). The fixed prior holds that direction at (1, 0)
+//! instead. Solving the 2 × 2 system each window costs a few nanoseconds.
+//!
+//! Bounded: a ∈ [`gain_min`, `gain_max`] and |b| ≤ `offset_max_w` after every step, so one
+//! wild sample cannot turn a model upside down, and the published value is never below 0 W.
+//!
+//! ## Two fits per model: the published one and the reference
+//!
+//! - **adapted** (`memory_s`, default 30 s): published beside the raw estimate
+//!   ([`crate::report::ModelEstimate::adapted_w`]) and used by the energy forecast.
+//! - **reference** (`reference_memory_s`, default 900 s): what the `deviation_above` alert
+//!   compares measured power with ([`crate::report::ModelEstimate::reference_w`]). It learns a new
+//!   vehicle's level from its first minutes just as fast (RLS starts at its prior, so its
+//!   first samples weigh as much as the adapted fit's), but once it has seen a few minutes a
+//!   sudden fault (a failing motor, a damaged propeller drawing 30 % more) moves it by under
+//!   1 % in 10 s, so the alert still fires: the fast fit alone would learn the fault away
+//!   within a minute.
+//!
+//! ## What teaches
+//!
+//! A window teaches both fits only when
+//! - measured power and the raw prediction are finite and positive, and measured power is
+//!   at most [`MAX_POWER_W`];
+//! - the motors turn: measured power ≥ `min_power_frac` × the vehicle's ideal hover power
+//!   (momentum theory, `(m·g)^1.5 / √(2·ρ·A)`, from the profile and the mission payload). A
+//!   vehicle on the ground draws a few watts for its electronics while the physics models
+//!   still predict a hover, which says nothing about how it flies. (The samples carry no armed flag; the power threshold
+//!   stands in for "disarmed".)
+//! - the model says the window is inside what it was trained on
+//!   ([`super::PowerModel::in_training_range`]): the LSTM refuses windows with an input more
+//!   than 6 training standard deviations from the training mean.
+//!
+//! The correction is always *applied* (the last fitted a, b); only teaching is gated.
+//!
+//! ## Never worse than the model
+//!
+//! An affine fit of the last half-minute can extrapolate badly into the next regime (a model
+//! whose output is flat in cruise and jumps in a turn). Each window, before it teaches, the
+//! raw prediction and the published fit are both scored against the measured power, and the
+//! mean absolute errors forgotten like the fit ([`ModelFit::err_w`]). The published value
+//! is the fit while its error is no worse than the raw model's, else the raw prediction.
+
+use serde::{Deserialize, Serialize};
+
+/// Measured power above this is not a multirotor's (a corrupt current reading), W.
+pub const MAX_POWER_W: f64 = 50_000.0;
+/// Prior standard deviation of the gain a (dimensionless).
+const SIGMA_A: f64 = 0.5;
+/// Prior standard deviation of the offset b, W.
+const SIGMA_B_W: f64 = 50.0;
+/// Measurement noise the prior is scaled by, W.
+const SIGMA_Y_W: f64 = 20.0;
+
+/// The `[models.adapt]` table: online adaptation of every model to measured power.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AdaptConfig {
+    /// Adapt at all. Default true. Off: no `adapted_w`/`reference_w`, and the forecast and
+    /// the deviation alert use the raw models, as before.
+    pub enabled: bool,
+    /// Memory of the published fit, s: a sample's weight falls by e every `memory_s`.
+    /// Default 30 (follows a new vehicle within 30–60 s).
+    pub memory_s: f64,
+    /// Memory of the slow reference the `deviation_above` alert compares with, s. Default
+    /// 900. Must be at least 5 × `memory_s`.
+    pub reference_memory_s: f64,
+    /// Windows teach only when measured power is at least this fraction of the vehicle's
+    /// ideal hover power (the motors lift; on the ground a vehicle draws a few watts for its
+    /// electronics, while the physics models still predict a hover). Default 0.3.
+    pub min_power_frac: f64,
+    /// Smallest gain a allowed. Default 0.2.
+    pub gain_min: f64,
+    /// Largest gain a allowed. Default 5.
+    pub gain_max: f64,
+    /// Largest offset |b| allowed, W. Default 1000.
+    pub offset_max_w: f64,
+}
+
+impl Default for AdaptConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            memory_s: 30.0,
+            reference_memory_s: 900.0,
+            min_power_frac: 0.3,
+            gain_min: 0.2,
+            gain_max: 5.0,
+            offset_max_w: 1000.0,
+        }
+    }
+}
+
+impl AdaptConfig {
+    /// Range checks; each message names the key (several errors: one per line).
+    pub fn validate(&self) -> Result<(), String> {
+        let mut errs = Vec::new();
+        let mut pos = |k: &str, v: f64| {
+            if !(v.is_finite() && v > 0.0) {
+                errs.push(format!("models.adapt.{k} = {v}: must be a positive number"));
+            }
+        };
+        pos("memory_s", self.memory_s);
+        pos("reference_memory_s", self.reference_memory_s);
+        pos("gain_min", self.gain_min);
+        pos("gain_max", self.gain_max);
+        pos("offset_max_w", self.offset_max_w);
+        if self.reference_memory_s < 5.0 * self.memory_s {
+            errs.push(format!(
+                "models.adapt.reference_memory_s = {}: must be ≥ 5 × memory_s = {} (the deviation alert's reference must adapt much slower than the forecast)",
+                self.reference_memory_s,
+                5.0 * self.memory_s
+            ));
+        }
+        if !(self.min_power_frac.is_finite() && (0.0..1.0).contains(&self.min_power_frac)) {
+            errs.push(format!("models.adapt.min_power_frac = {}: must be in [0, 1)", self.min_power_frac));
+        }
+        if self.gain_min > 1.0 || self.gain_max < 1.0 {
+            errs.push(format!(
+                "models.adapt.gain_min = {}, gain_max = {}: the range must contain 1 (the model as it is)",
+                self.gain_min, self.gain_max
+            ));
+        }
+        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+    }
+}
+
+/// One affine fit: θ = (a, b), the forgotten sums it is solved from, how many windows
+/// taught it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AffineFit {
+    /// Gain a (dimensionless).
+    pub a: f64,
+    /// Offset b, W.
+    pub b_w: f64,
+    /// Σ λᵏ·φφᵀ, upper triangle (φ = [P_model, 1]): the information the data gave, W², W, 1.
+    pub info: [f64; 3],
+    /// Σ λᵏ·φ·y: W², W.
+    pub rhs: [f64; 2],
+    /// Windows that taught this fit.
+    pub taught: u64,
+}
+
+impl Default for AffineFit {
+    fn default() -> Self {
+        Self { a: 1.0, b_w: 0.0, info: [0.0; 3], rhs: [0.0; 2], taught: 0 }
+    }
+}
+
+/// The prior's information diag(σ_y²/σ_a², σ_y²/σ_b²): what (1, 0) weighs against data.
+const PRIOR_INFO: [f64; 2] = [SIGMA_Y_W * SIGMA_Y_W / (SIGMA_A * SIGMA_A), SIGMA_Y_W * SIGMA_Y_W / (SIGMA_B_W * SIGMA_B_W)];
+
+impl AffineFit {
+    /// The corrected power for a raw prediction, W.
+    pub fn apply(&self, p_model_w: f64) -> f64 {
+        self.a * p_model_w + self.b_w
+    }
+
+    /// One step: forget by `lambda`, add the window, solve, bound (module docs).
+    fn teach(&mut self, x: f64, y: f64, lambda: f64, cfg: &AdaptConfig) {
+        let [s00, s01, s11] = self.info;
+        let [r0, r1] = self.rhs;
+        let info = [lambda * s00 + x * x, lambda * s01 + x, lambda * s11 + 1.0];
+        let rhs = [lambda * r0 + x * y, lambda * r1 + y];
+        // (S + R₀)·θ = r + R₀·θ₀ with θ₀ = (1, 0).
+        let (m00, m01, m11) = (info[0] + PRIOR_INFO[0], info[1], info[2] + PRIOR_INFO[1]);
+        let (v0, v1) = (rhs[0] + PRIOR_INFO[0], rhs[1]);
+        let det = m00 * m11 - m01 * m01;
+        let (a, b) = ((m11 * v0 - m01 * v1) / det, (m00 * v1 - m01 * v0) / det);
+        if !(det > 0.0 && a.is_finite() && b.is_finite() && info.iter().chain(&rhs).all(|v| v.is_finite())) {
+            return;
+        }
+        self.info = info;
+        self.rhs = rhs;
+        self.a = a.clamp(cfg.gain_min, cfg.gain_max);
+        self.b_w = b.clamp(-cfg.offset_max_w, cfg.offset_max_w);
+        self.taught += 1;
+    }
+}
+
+/// A model's two fits (module docs): the published one and the slow reference.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct ModelFit {
+    /// Published fit (`memory_s`).
+    pub adapted: AffineFit,
+    /// Slow reference for the deviation alert (`reference_memory_s`).
+    pub reference: AffineFit,
+    /// Recent mean absolute error of the raw prediction and of the published fit, each
+    /// scored before the window taught (out of sample), W, forgotten like the published
+    /// fit: the fit is published only while it beats the raw model (module docs).
+    #[serde(default)]
+    pub err_w: [f64; 2],
+}
+
+/// What a model's estimate becomes after adaptation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Adapted {
+    /// The published fit applied to the raw prediction, W.
+    pub adapted_w: f32,
+    /// The slow reference applied to the raw prediction, W.
+    pub reference_w: f32,
+    /// Whether this window taught the fits.
+    pub taught: bool,
+}
+
+/// Every model's fits, by model name (in the ensemble's order).
+#[derive(Clone)]
+pub struct Adaptation {
+    cfg: AdaptConfig,
+    lambda: f64,
+    lambda_ref: f64,
+    /// Below this measured power nothing teaches (motors off), W.
+    min_teach_w: f64,
+    fits: Vec<(String, ModelFit)>,
+}
+
+impl Adaptation {
+    /// Fits at (1, 0) for these models; windows come every `dt_s` seconds, and the vehicle's
+    /// ideal hover power is `hover_w` (module docs).
+    pub fn new(cfg: &AdaptConfig, names: &[String], dt_s: f64, hover_w: f64) -> Self {
+        let lambda_of = |memory_s: f64| (-dt_s / memory_s).exp().clamp(0.5, 1.0);
+        Self {
+            cfg: cfg.clone(),
+            lambda: lambda_of(cfg.memory_s),
+            lambda_ref: lambda_of(cfg.reference_memory_s),
+            min_teach_w: (cfg.min_power_frac * hover_w).max(0.0),
+            fits: names.iter().map(|n| (n.clone(), ModelFit::default())).collect(),
+        }
+    }
+
+    /// Measured power below which nothing teaches, W.
+    pub fn min_teach_w(&self) -> f64 {
+        self.min_teach_w
+    }
+
+    /// Model `i`'s raw prediction `p_model_w` corrected, and (when `measured_w` qualifies and
+    /// the model says the window is `in_range`) both fits taught with it. The correction is
+    /// the one *before* this window taught: the published estimate never saw its own answer.
+    pub fn step(&mut self, i: usize, p_model_w: f32, measured_w: Option<f32>, in_range: bool) -> Option<Adapted> {
+        let (lambda, lambda_ref, min_w) = (self.lambda, self.lambda_ref, self.min_teach_w);
+        let cfg = &self.cfg;
+        let fit = &mut self.fits.get_mut(i)?.1;
+        let x = f64::from(p_model_w);
+        if !x.is_finite() {
+            return None;
+        }
+        let corrected = fit.adapted.apply(x).max(0.0);
+        // Published: the fit while its recent out-of-sample error is no worse than the raw
+        // model's, else the raw model (a fit that extrapolates badly never makes it worse).
+        let [err_raw, err_fit] = fit.err_w;
+        let out = Adapted {
+            adapted_w: if err_fit <= err_raw { corrected } else { x.max(0.0) } as f32,
+            reference_w: fit.reference.apply(x).max(0.0) as f32,
+            taught: false,
+        };
+        let y = measured_w.map(f64::from).filter(|y| y.is_finite() && *y > 0.0 && *y <= MAX_POWER_W);
+        let Some(y) = y else { return Some(out) };
+        if !in_range || x <= 0.0 || y < min_w {
+            return Some(out);
+        }
+        fit.err_w = [lambda * err_raw + (1.0 - lambda) * (x - y).abs(), lambda * err_fit + (1.0 - lambda) * (corrected - y).abs()];
+        fit.adapted.teach(x, y, lambda, cfg);
+        fit.reference.teach(x, y, lambda_ref, cfg);
+        Some(Adapted { taught: true, ..out })
+    }
+
+    /// The fits, by model name: what the vehicle store keeps between flights.
+    pub fn fits(&self) -> &[(String, ModelFit)] {
+        &self.fits
+    }
+
+    /// Start from fits learned before (a previous flight of the same vehicle): both fits
+    /// start from the stored *reference*, the long-memory fit over the whole flight, not from
+    /// the published fit, which at a flight's end has learned only its last half-minute
+    /// (descent, landing: a poor guess of the next take-off). Models not in
+    /// `learned` keep their current fit; learned fits of models not running are ignored. A
+    /// fit outside the configured bounds or with broken sums is ignored. Returns how
+    /// many fits were taken.
+    pub fn restore(&mut self, learned: &[(String, ModelFit)]) -> usize {
+        let mut n = 0;
+        let cfg = &self.cfg;
+        for (name, fit) in &mut self.fits {
+            if let Some((_, l)) = learned.iter().find(|(ln, _)| ln == name) {
+                if [l.adapted, l.reference].iter().all(|f| fit_ok(cfg, f)) {
+                    *fit = ModelFit { adapted: l.reference, reference: l.reference, err_w: [0.0; 2] };
+                    n += 1;
+                }
+            }
+        }
+        n
+    }
+
+    /// Forget everything learned: every fit back at (1, 0) (a new vehicle's first flight).
+    pub fn reset(&mut self) {
+        for (_, fit) in &mut self.fits {
+            *fit = ModelFit::default();
+        }
+    }
+}
+
+/// Whether a stored fit lies inside the configured bounds with sane sums.
+fn fit_ok(cfg: &AdaptConfig, f: &AffineFit) -> bool {
+    (cfg.gain_min..=cfg.gain_max).contains(&f.a)
+        && f.b_w.abs() <= cfg.offset_max_w
+        && f.info.iter().chain(&f.rhs).all(|v| v.is_finite())
+        && f.info[0] >= 0.0
+        && f.info[2] >= 0.0
+}
+
+/// Ideal (momentum-theory) hover power of a vehicle of mass `mass_kg` with total rotor
+/// disk area `disk_area_m2`: `(m·g)^1.5 / √(2·ρ·A)`, W. Real hover power is this over the
+/// figure of merit and the motor/ESC efficiency (typically 2–3× more).
+pub fn ideal_hover_w(mass_kg: f64, g_m_s2: f64, rho_kg_m3: f64, disk_area_m2: f64) -> f64 {
+    let thrust_n = mass_kg * g_m_s2;
+    thrust_n.powf(1.5) / (2.0 * rho_kg_m3 * disk_area_m2).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DT: f64 = 0.1;
+
+    fn adaptation() -> Adaptation {
+        Adaptation::new(&AdaptConfig::default(), &["m".to_string()], DT, 130.0)
+    }
+
+    /// A deterministic wobble of a hover: raw prediction between 300 and 500 W.
+    fn raw_at(k: usize) -> f64 {
+        400.0 + 100.0 * ((k as f64) * 0.05).sin()
+    }
+
+    #[test]
+    fn learns_a_new_vehicle_within_a_minute() {
+        // The vehicle draws 0.3·P + 20 (a 1 kg quad seen through M100 models).
+        let mut ad = adaptation();
+        let truth = |x: f64| 0.3 * x + 20.0;
+        let mut last = None;
+        for k in 0..600 {
+            let x = raw_at(k);
+            last = ad.step(0, x as f32, Some(truth(x) as f32), true);
+        }
+        let fit = ad.fits()[0].1.adapted;
+        assert!((fit.a - 0.3).abs() < 0.02 && (fit.b_w - 20.0).abs() < 8.0, "{fit:?}");
+        let got = last.unwrap();
+        let want = truth(raw_at(599));
+        assert!((f64::from(got.adapted_w) - want).abs() / want < 0.02, "{got:?} vs {want}");
+    }
+
+    #[test]
+    fn motors_off_and_out_of_range_windows_do_not_teach() {
+        let mut ad = adaptation();
+        // 130 W ideal hover × 30 %: 39 W. A vehicle on the ground drawing 12 W for its
+        // electronics while the model predicts a hover.
+        for k in 0..300 {
+            let a = ad.step(0, raw_at(k) as f32, Some(12.0), true).unwrap();
+            assert!(!a.taught);
+        }
+        // Out of the training range, missing, NaN or absurd measured power: no teaching.
+        assert!(!ad.step(0, 400.0, Some(100.0), false).unwrap().taught);
+        assert!(!ad.step(0, 400.0, None, true).unwrap().taught);
+        assert!(!ad.step(0, 400.0, Some(f32::NAN), true).unwrap().taught);
+        assert!(!ad.step(0, 400.0, Some(1e9), true).unwrap().taught);
+        assert_eq!(ad.fits()[0].1, ModelFit::default());
+        // The raw model passes through untouched while nothing has taught.
+        assert_eq!(ad.step(0, 400.0, None, true).unwrap().adapted_w, 400.0);
+        // A NaN prediction gives no adapted value at all; an unknown model index neither.
+        assert!(ad.step(0, f32::NAN, Some(100.0), true).is_none());
+        assert!(ad.step(7, 400.0, Some(100.0), true).is_none());
+    }
+
+    #[test]
+    fn the_reference_resists_a_sudden_fault_that_the_fast_fit_learns() {
+        let mut ad = adaptation();
+        // Five minutes of normal flight: measured = raw.
+        for k in 0..3000 {
+            let x = raw_at(k);
+            ad.step(0, x as f32, Some(x as f32), true);
+        }
+        // A motor starts failing: 30 % more power from now on.
+        let mut at_10s = None;
+        let mut last = None;
+        for k in 3000..3600 {
+            let x = raw_at(k);
+            let a = ad.step(0, x as f32, Some((1.3 * x) as f32), true).unwrap();
+            if k == 3100 {
+                at_10s = Some((a, 1.3 * x));
+            }
+            last = Some((a, 1.3 * x));
+        }
+        let (a, y) = at_10s.unwrap();
+        // 10 s in: the reference has moved a few % of the way at most; the deviation is
+        // still ~all of the 30 %.
+        let dev_ref = (y - f64::from(a.reference_w)) / y;
+        assert!(dev_ref > 0.18, "reference learned the fault away: {a:?}, measured {y}");
+        // A minute in: the published fit has followed (it is a forecast, it should).
+        let (a, y) = last.unwrap();
+        assert!((y - f64::from(a.adapted_w)).abs() / y < 0.05, "fast fit did not follow: {a:?} vs {y}");
+        assert!((y - f64::from(a.reference_w)) / y > 0.1, "reference followed within a minute: {a:?} vs {y}");
+    }
+
+    #[test]
+    fn bounds_hold_against_garbage() {
+        let mut ad = adaptation();
+        // Measured power 40× the prediction, then near zero: the gain stays in its range.
+        for k in 0..200 {
+            ad.step(0, 10.0, Some(if k % 2 == 0 { 40_000.0 } else { 7.0 }), true);
+        }
+        let f = ad.fits()[0].1;
+        for fit in [f.adapted, f.reference] {
+            assert!((0.2..=5.0).contains(&fit.a) && fit.b_w.abs() <= 1000.0, "{fit:?}");
+        }
+    }
+
+    #[test]
+    fn hover_holds_still_without_windup() {
+        // An hour of hover at one constant power: nothing winds up, and a
+        // manoeuvre afterwards does not kick the fit away from the truth.
+        let mut ad = adaptation();
+        for _ in 0..36_000 {
+            ad.step(0, 400.0, Some(300.0), true);
+        }
+        let f = ad.fits()[0].1.adapted;
+        assert!((f.apply(400.0) - 300.0).abs() < 1.0, "{f:?}");
+        let a = ad.step(0, 600.0, Some(450.0), true).unwrap();
+        assert!(a.adapted_w > 300.0 && a.adapted_w < 700.0, "{a:?}");
+    }
+
+    #[test]
+    fn restores_learned_fits_and_rejects_broken_ones() {
+        let mut ad = adaptation();
+        for k in 0..600 {
+            let x = raw_at(k);
+            ad.step(0, x as f32, Some((0.5 * x) as f32), true);
+        }
+        let learned = ad.fits().to_vec();
+        let mut next = adaptation();
+        assert_eq!(next.restore(&learned), 1);
+        // Both fits start from the stored reference (the whole flight, not its last 30 s).
+        let (a_next, a_then) = (next.step(0, 400.0, None, true).unwrap(), ad.step(0, 400.0, None, true).unwrap());
+        assert_eq!((a_next.adapted_w, a_next.reference_w), (a_then.reference_w, a_then.reference_w));
+        // A fit outside the bounds (a stored database edited by hand, another config).
+        let mut bad = learned.clone();
+        bad[0].1.adapted.a = 50.0;
+        let mut fresh = adaptation();
+        assert_eq!(fresh.restore(&bad), 0);
+        assert_eq!(fresh.fits()[0].1, ModelFit::default());
+        // A fit for a model that does not run is ignored.
+        assert_eq!(fresh.restore(&[("other".into(), learned[0].1)]), 0);
+    }
+
+    #[test]
+    fn config_checks_name_the_key() {
+        let bad = AdaptConfig { reference_memory_s: 60.0, ..Default::default() };
+        assert!(bad.validate().unwrap_err().contains("models.adapt.reference_memory_s"));
+        let bad = AdaptConfig { gain_min: 1.5, ..Default::default() };
+        assert!(bad.validate().unwrap_err().contains("gain_min"));
+        let bad = AdaptConfig { memory_s: f64::NAN, ..Default::default() };
+        assert!(bad.validate().unwrap_err().contains("models.adapt.memory_s"));
+        assert!(AdaptConfig::default().validate().is_ok());
+    }
+
+    #[test]
+    fn m100_ideal_hover() {
+        // 2.431 kg, 4 × 13-inch props: ~127 W ideal (the M100 hovers at ~300–400 W).
+        let p = ideal_hover_w(2.431, 9.81, 1.225, 0.34253);
+        assert!((120.0..135.0).contains(&p), "{p}");
+    }
+}

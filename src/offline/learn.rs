@@ -1,0 +1,235 @@
+//! `dronewatt learn LOG…`: learn a vehicle from the logs its users already have. Each log
+//! goes through the live ingest path (tlog decoding → [`Telemetry`] → windows with the
+//! measured power V·I), the physics models' free parameters are fitted to the training
+//! logs with the existing calibration ([`super::calibrate::fit`]), and the fit is scored on
+//! whole logs held out from it, through the live chain ([`super::chain`]). It writes a
+//! vehicle profile (`profile.toml`, use it with `monitor --vehicle` or `vehicle = …` in the
+//! config; its models are named `<model>_cal`) and a model card (`model-card.md`: what it
+//! was learned from, the held-out score per log, the inputs).
+//!
+//! Input: `.tlog` files, or folders of them. ArduPilot DataFlash `.bin` and PX4 `.ulg` are
+//! not read yet (refused with a message), and the LSTM is not fine-tuned: only the physics
+//! models learn here (online adaptation still corrects the LSTM in flight).
+//!
+//! Held out: every `--holdout-every`-th log (whole logs, never windows of a log that also
+//! trained: windows of one flight are too alike to score honestly), at least one.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+
+use crate::config::Config;
+use crate::model::physics;
+use crate::model::profile::VehicleProfile;
+use crate::model::Ensemble;
+use crate::offline::chain::Chain;
+use crate::offline::data::FlightWindows;
+use crate::offline::metrics::{in_flight, Scores, IN_FLIGHT_W};
+use crate::telemetry::Telemetry;
+
+/// Flight numbers given to logs (clear of the M100 data set's, whose test flights the
+/// calibration refuses to fit on).
+const FIRST_LOG_NUMBER: u32 = 100_000;
+
+/// Arguments of `dronewatt learn`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct LearnArgs {
+    /// `.tlog` files, or folders holding them.
+    #[arg(required = true, value_name = "LOG")]
+    pub logs: Vec<PathBuf>,
+    /// Folder to write `profile.toml` and `model-card.md` into.
+    #[arg(long, value_name = "DIR", default_value = "learned")]
+    pub out: PathBuf,
+    /// Profile to start from: a built-in name (m100, x500, quad-3s) or a profile file.
+    /// Default: the config's `vehicle`, else m100.
+    #[arg(long, value_name = "PROFILE")]
+    pub vehicle: Option<String>,
+    /// Hold out every Nth log for the score (at least one log is held out).
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    pub holdout_every: usize,
+    /// Configuration file (`[telemetry]`, `[mission]`). Default: built-in defaults.
+    #[arg(long, short = 'c', value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Most in-flight windows the fit uses (evenly thinned beyond).
+    #[arg(long, default_value_t = 20_000)]
+    pub max_windows: usize,
+}
+
+/// The logs named: files as given, folders' `.tlog` files in name order.
+fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in args {
+        if p.is_dir() {
+            let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("{}: cannot list", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| is_tlog(f))
+                .collect();
+            v.sort();
+            if v.is_empty() {
+                tracing::warn!("{}: no .tlog file in this folder", p.display());
+            }
+            out.extend(v);
+        } else if !p.exists() {
+            bail!("{}: no such file", p.display());
+        } else if is_tlog(p) {
+            out.push(p.clone());
+        } else {
+            bail!("{}: only .tlog logs are read (DataFlash .bin and PX4 .ulg are not yet)", p.display());
+        }
+    }
+    Ok(out)
+}
+
+fn is_tlog(p: &Path) -> bool {
+    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog"))
+}
+
+/// One log through the live ingest path: its windows, numbered `flight`.
+pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindows> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let stats = crate::source::IngestStats::default();
+    let mut tel = Telemetry::new(&cfg.telemetry, &cfg.mission);
+    let mut windows = Vec::new();
+    for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
+        tel.push(&m, &mut windows);
+    }
+    tel.finish(&mut windows);
+    Ok(FlightWindows { flight, route: "log".into(), windows })
+}
+
+/// Each model's scores on one held-out log, published and learned, by base name.
+struct LogScore {
+    log: String,
+    in_flight_windows: usize,
+    rows: Vec<(String, Option<Scores>, Option<Scores>)>,
+}
+
+/// Score the profile's physics models on one log through the live chain.
+fn score(cfg: &Config, profile: &VehicleProfile, f: &FlightWindows) -> Result<Vec<(String, Option<Scores>)>> {
+    let mut chain = Chain::new(cfg, Ensemble::new(physics::models(profile)))?;
+    let s = chain.run_flight(f)?;
+    Ok(s.names.iter().map(|n| n.trim_end_matches("_cal").to_string()).zip(s.scores(false)).collect())
+}
+
+/// Run `dronewatt learn`.
+pub fn run(args: LearnArgs) -> Result<()> {
+    let cfg = Config::load_or_default(args.config.as_deref())?;
+    let base = match (&args.vehicle, &cfg.vehicle) {
+        (Some(v), _) => VehicleProfile::named_or_file(v)?,
+        (None, Some(p)) => VehicleProfile::load(p)?,
+        (None, None) => VehicleProfile::m100(),
+    };
+    if args.holdout_every < 2 {
+        bail!("--holdout-every {}: must be at least 2 (one log in N is held out)", args.holdout_every);
+    }
+    let logs = collect_logs(&args.logs)?;
+    if logs.len() < 2 {
+        bail!("{} log(s): learn needs at least 2 (whole logs are held out for the score)", logs.len());
+    }
+    let mut flights = Vec::with_capacity(logs.len());
+    for (i, p) in logs.iter().enumerate() {
+        let f = log_windows(p, FIRST_LOG_NUMBER + i as u32, &cfg)?;
+        let n = f.windows.iter().filter(|w| w.last().measured_w.is_some_and(|m| in_flight(f64::from(m)))).count();
+        if n == 0 {
+            tracing::warn!("{}: no in-flight window with measured power (over {IN_FLIGHT_W} W): it teaches nothing", p.display());
+        }
+        flights.push((p, f, n));
+    }
+    let mut held: Vec<usize> = (0..flights.len()).filter(|i| (i + 1) % args.holdout_every == 0).collect();
+    if held.is_empty() {
+        held.push(flights.len() - 1);
+    }
+    let train: Vec<FlightWindows> = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (_, f, _))| f.clone()).collect();
+    let sums: Vec<String> = logs.iter().map(|p| crate::offline::data::sha256_file(p)).collect::<Result<_>>()?;
+    let (learned, fit_report) = super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?;
+
+    let mut scores = Vec::new();
+    for &i in &held {
+        let (p, f, n) = &flights[i];
+        let before = score(&cfg, &base, f)?;
+        let after = score(&cfg, &learned, f)?;
+        let rows = before.into_iter().map(|(name, b)| {
+            let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
+            (name, b, a)
+        });
+        scores.push(LogScore { log: p.display().to_string(), in_flight_windows: *n, rows: rows.collect() });
+    }
+
+    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
+    let profile_path = args.out.join("profile.toml");
+    let mut text = format!(
+        "# Written by `dronewatt learn` from {} log(s) ({} trained, {} held out), starting from {}.\n",
+        logs.len(),
+        train.len(),
+        held.len(),
+        base.name
+    );
+    text.push_str("# Training RMSE, W (published → learned):\n");
+    for r in &fit_report {
+        text.push_str(&format!("#   {:<18} {:>8.1} → {:>6.1}\n", r.model, r.rmse_before_w, r.rmse_after_w));
+    }
+    text.push_str(&toml::to_string(&learned).context("cannot serialise the learned profile")?);
+    std::fs::write(&profile_path, text).with_context(|| format!("{}: cannot write", profile_path.display()))?;
+    let card_path = args.out.join("model-card.md");
+    let card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores);
+    std::fs::write(&card_path, &card).with_context(|| format!("{}: cannot write", card_path.display()))?;
+    print!("{}", held_out_table(&scores));
+    println!("wrote {} and {}", profile_path.display(), card_path.display());
+    Ok(())
+}
+
+fn held_out_table(scores: &[LogScore]) -> String {
+    let mut s = String::new();
+    for l in scores {
+        s += &format!("held out: {} ({} in-flight windows)\n", l.log, l.in_flight_windows);
+        s += "| model | MAPE % published | MAPE % learned | energy % published | energy % learned |\n|---|---|---|---|---|\n";
+        for (name, b, a) in &l.rows {
+            let f = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
+            s += &format!(
+                "| {name} | {} | {} | {} | {} |\n",
+                f(b.map(|x| x.mape_pct)),
+                f(a.map(|x| x.mape_pct)),
+                f(b.map(|x| x.energy_err_pct)),
+                f(a.map(|x| x.energy_err_pct))
+            );
+        }
+    }
+    s
+}
+
+fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held: &[usize], scores: &[LogScore]) -> String {
+    let mut s = String::from("# Model card: physics models learned by `dronewatt learn`\n\n");
+    s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt calibrate`) fitted by bounded least squares on the in-flight windows (measured power over {IN_FLIGHT_W} W) of the training logs.\n\n", base.name);
+    s += "## Learned from\n\n| log | in-flight windows | role |\n|---|---|---|\n";
+    for (i, p) in logs.iter().enumerate() {
+        s += &format!("| {} | {} | {} |\n", p.display(), in_flight[i], if held.contains(&i) { "held out (score)" } else { "training" });
+    }
+    s += "\n## Inputs\n\nWhat the live link must deliver, as for every physics model: position and velocity (GLOBAL_POSITION_INT or LOCAL_POSITION_NED), attitude (ATTITUDE), acceleration (RAW_IMU/SCALED_IMU/HIGHRES_IMU or attitude), wind where sent (WIND, else none), and for the score and for adaptation the battery's voltage and current (SYS_STATUS or BATTERY_STATUS). No motor outputs, ESC telemetry or throttle.\n\n";
+    s += "## Held-out score (whole logs, through the live chain)\n\n";
+    s += &held_out_table(scores);
+    s += "\n## Not learned\n\nThe LSTM is not fine-tuned by `learn` (it keeps the M100 weights; online adaptation corrects its output in flight).\n";
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refuses_what_it_cannot_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let bin = dir.path().join("00000001.BIN");
+        std::fs::write(&bin, b"x").unwrap();
+        let err = collect_logs(&[bin]).unwrap_err().to_string();
+        assert!(err.contains("only .tlog"), "{err}");
+        assert!(collect_logs(&[dir.path().join("missing.tlog")]).unwrap_err().to_string().contains("no such file"));
+        // A folder: its .tlog files in name order, the rest skipped.
+        for n in ["b.tlog", "a.TLOG", "c.ulg"] {
+            std::fs::write(dir.path().join(n), b"").unwrap();
+        }
+        let got = collect_logs(&[dir.path().to_path_buf()]).unwrap();
+        let names: Vec<_> = got.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+        assert_eq!(names, ["a.TLOG", "b.tlog"]);
+    }
+}

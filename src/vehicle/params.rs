@@ -1,0 +1,478 @@
+//! Reading the vehicle: its identity (HEARTBEAT, AUTOPILOT_VERSION) and the parameters that
+//! size its battery, over MAVLink's parameter protocol.
+//!
+//! [`ParamReader`] is a pure state machine: messages and their times in, requests out. It
+//! learns the vehicle from the first autopilot HEARTBEAT (its system and component id, its
+//! type and autopilot), then — when it may speak ([`ParamReader::live`]) — asks for each
+//! parameter of that autopilot's list ([`ARDUPILOT_PARAMS`], [`PX4_PARAMS`]) with a
+//! PARAM_REQUEST_READ and for AUTOPILOT_VERSION with MAV_CMD_REQUEST_MESSAGE. An unanswered
+//! request is sent again after [`RESEND_S`], at most [`MAX_TRIES`] times in all; then the
+//! parameter is *absent* (the vehicle does not have it, or the link drops everything we
+//! send). Nothing ever waits on it: the pipeline carries on with the config and the
+//! defaults, and takes the vehicle's values when they come.
+//!
+//! Replaying a `.tlog` ([`ParamReader::passive`]) it never asks: it takes the PARAM_VALUE
+//! messages the ground station logged when it fetched the parameters.
+//!
+//! [`Driver`] is the thin part that talks: it frames the requests as dronewatt's MAVLink
+//! component (the `[sinks.mavlink]` ids, default system 1, component 191) and queues them on
+//! the live link ([`crate::status::LinkHandle`]).
+//!
+//! ## Decoding PARAM_VALUE
+//!
+//! `param_value` is a float whatever the parameter's type. ArduPilot *casts* integers
+//! (`BATT_CAPACITY` 3300 arrives as 3300.0); PX4 *packs* them bytewise into the float's bits
+//! (`BAT1_N_CELLS` 4 arrives as the float whose bits are 0x00000004). [`decode`] reads
+//! integer types by the autopilot: bits for PX4, the float's value for everyone else.
+
+use std::collections::BTreeMap;
+
+use crate::dialect::{self, MavAutopilot, MavParamType, MavType};
+use crate::source::TimedMessage;
+use crate::MavMessage;
+
+/// ArduPilot parameters that matter to energy: capacity (mAh), low/critical pack voltage
+/// (V), low/critical remaining (mAh), hover throttle (0–1), frame class.
+pub const ARDUPILOT_PARAMS: [&str; 7] =
+    ["BATT_CAPACITY", "BATT_LOW_VOLT", "BATT_CRT_VOLT", "BATT_LOW_MAH", "BATT_CRT_MAH", "MOT_THST_HOVER", "FRAME_CLASS"];
+/// PX4 parameters that matter to energy: capacity (mAh), cells, full and empty cell
+/// voltage (V).
+pub const PX4_PARAMS: [&str; 4] = ["BAT1_CAPACITY", "BAT1_N_CELLS", "BAT1_V_CHARGED", "BAT1_V_EMPTY"];
+/// Seconds before an unanswered request is sent again.
+pub const RESEND_S: f64 = 1.5;
+/// Requests sent for one item before it counts as absent.
+pub const MAX_TRIES: u32 = 3;
+/// The MAVLink message id of AUTOPILOT_VERSION (asked for with MAV_CMD_REQUEST_MESSAGE).
+const AUTOPILOT_VERSION_ID: f32 = 148.0;
+
+/// Which autopilot firmware: it decides how integer parameters are encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Autopilot {
+    ArduPilot,
+    Px4,
+    /// Anything else that sends an autopilot heartbeat (parameters decoded as cast).
+    Other,
+}
+
+impl Autopilot {
+    fn from_mav(a: MavAutopilot) -> Option<Self> {
+        match a {
+            MavAutopilot::MAV_AUTOPILOT_INVALID => None,
+            MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA => Some(Autopilot::ArduPilot),
+            MavAutopilot::MAV_AUTOPILOT_PX4 => Some(Autopilot::Px4),
+            _ => Some(Autopilot::Other),
+        }
+    }
+
+    /// The parameters worth asking this autopilot for.
+    pub fn wanted(self) -> &'static [&'static str] {
+        match self {
+            Autopilot::ArduPilot => &ARDUPILOT_PARAMS,
+            Autopilot::Px4 => &PX4_PARAMS,
+            Autopilot::Other => &[],
+        }
+    }
+}
+
+impl std::fmt::Display for Autopilot {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Autopilot::ArduPilot => "ardupilot",
+            Autopilot::Px4 => "px4",
+            Autopilot::Other => "other",
+        })
+    }
+}
+
+/// Who the vehicle is.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Identity {
+    /// MAVLink system id of the autopilot.
+    pub system_id: u8,
+    /// MAVLink component id of the autopilot (normally 1).
+    pub component_id: u8,
+    pub autopilot: Autopilot,
+    /// HEARTBEAT `type` (`MAV_TYPE_QUADROTOR` …).
+    pub vehicle_type: String,
+    /// AUTOPILOT_VERSION's board uid, where the vehicle sends one (non-zero).
+    pub uid: Option<u64>,
+}
+
+/// One parameter's value as the vehicle sent it, before decoding.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RawParam {
+    pub value: f32,
+    pub param_type: MavParamType,
+}
+
+/// Decode a PARAM_VALUE's float for `autopilot` (module docs): PX4's integer types are the
+/// float's bits, everyone else's are the float's value.
+pub fn decode(autopilot: Autopilot, raw: RawParam) -> f64 {
+    use MavParamType as T;
+    let bits = raw.value.to_bits();
+    let int = matches!(raw.param_type, T::MAV_PARAM_TYPE_UINT8 | T::MAV_PARAM_TYPE_INT8 | T::MAV_PARAM_TYPE_UINT16 | T::MAV_PARAM_TYPE_INT16 | T::MAV_PARAM_TYPE_UINT32 | T::MAV_PARAM_TYPE_INT32);
+    if autopilot != Autopilot::Px4 || !int {
+        return f64::from(raw.value);
+    }
+    match raw.param_type {
+        T::MAV_PARAM_TYPE_UINT8 => f64::from(bits as u8),
+        T::MAV_PARAM_TYPE_INT8 => f64::from(bits as u8 as i8),
+        T::MAV_PARAM_TYPE_UINT16 => f64::from(bits as u16),
+        T::MAV_PARAM_TYPE_INT16 => f64::from(bits as u16 as i16),
+        T::MAV_PARAM_TYPE_UINT32 => f64::from(bits),
+        _ => f64::from(bits as i32),
+    }
+}
+
+/// The vehicle's parameters that were read, decoded, by name.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct VehicleParams {
+    /// The vehicle, once its heartbeat was heard.
+    pub identity: Option<Identity>,
+    /// Decoded values by parameter name.
+    pub values: BTreeMap<String, f64>,
+    /// Parameters asked for [`MAX_TRIES`] times and never answered.
+    pub absent: Vec<String>,
+}
+
+impl VehicleParams {
+    /// A parameter's decoded value.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.values.get(name).copied()
+    }
+    /// Parameters from (name, value) pairs (tests, logs).
+    pub fn from_pairs(pairs: &[(&str, f64)]) -> Self {
+        Self { values: pairs.iter().map(|(n, v)| (n.to_string(), *v)).collect(), ..Default::default() }
+    }
+}
+
+/// Where one request stands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Ask {
+    /// Sent `tries` times, last at `at_s`.
+    Sent { tries: u32, at_s: f64 },
+    /// Answered.
+    Got,
+    /// Asked [`MAX_TRIES`] times, no answer.
+    Absent,
+}
+
+/// The parameter protocol as a state machine (module docs).
+#[derive(Debug)]
+pub struct ParamReader {
+    /// May send requests (a live link) or only listen (a replay).
+    live: bool,
+    identity: Option<Identity>,
+    raw: BTreeMap<String, RawParam>,
+    /// Requests by parameter name; `AUTOPILOT_VERSION` for the version request.
+    asks: BTreeMap<&'static str, Ask>,
+    changed: bool,
+}
+
+/// The key the AUTOPILOT_VERSION request is kept under in the request table.
+const VERSION_KEY: &str = "AUTOPILOT_VERSION";
+
+impl ParamReader {
+    /// A reader that asks the vehicle (a live link).
+    pub fn live() -> Self {
+        Self { live: true, identity: None, raw: BTreeMap::new(), asks: BTreeMap::new(), changed: false }
+    }
+    /// A reader that only listens (a replayed log).
+    pub fn passive() -> Self {
+        Self { live: false, ..Self::live() }
+    }
+
+    /// Take in one message: the first autopilot HEARTBEAT fixes the vehicle; its
+    /// AUTOPILOT_VERSION and PARAM_VALUEs are kept.
+    pub fn on_message(&mut self, m: &TimedMessage) {
+        let (sys, comp) = (m.header.system_id as u8, m.header.component_id);
+        match &m.msg {
+            MavMessage::HEARTBEAT(h) if self.identity.is_none() => {
+                let Some(autopilot) = Autopilot::from_mav(h.autopilot) else { return };
+                if h.mavtype == MavType::MAV_TYPE_GCS {
+                    return;
+                }
+                self.identity = Some(Identity {
+                    system_id: sys,
+                    component_id: comp,
+                    autopilot,
+                    vehicle_type: format!("{:?}", h.mavtype),
+                    uid: None,
+                });
+                self.changed = true;
+            }
+            MavMessage::AUTOPILOT_VERSION(v) if self.is_vehicle(sys, comp) => {
+                if let Some(id) = &mut self.identity {
+                    id.uid = (v.uid != 0).then_some(v.uid);
+                }
+                self.asks.insert(VERSION_KEY, Ask::Got);
+                self.changed = true;
+            }
+            MavMessage::PARAM_VALUE(p) => {
+                // Before the heartbeat, take an autopilot's (component 1) values; after it,
+                // only the vehicle's.
+                let ours = match &self.identity {
+                    Some(id) => id.system_id == sys && id.component_id == comp,
+                    None => comp == 1,
+                };
+                let Ok(name) = p.param_id.to_str() else { return };
+                let name = name.trim_end_matches('\0');
+                if !ours || !ARDUPILOT_PARAMS.iter().chain(&PX4_PARAMS).any(|n| *n == name) {
+                    return;
+                }
+                let raw = RawParam { value: p.param_value, param_type: p.param_type };
+                if self.raw.get(name) != Some(&raw) {
+                    self.raw.insert(name.to_string(), raw);
+                    self.changed = true;
+                }
+                if let Some(key) = ARDUPILOT_PARAMS.iter().chain(&PX4_PARAMS).find(|n| **n == name) {
+                    self.asks.insert(key, Ask::Got);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn is_vehicle(&self, sys: u8, comp: u8) -> bool {
+        self.identity.as_ref().is_some_and(|id| id.system_id == sys && id.component_id == comp)
+    }
+
+    /// The requests due at `t_s` (none for a passive reader or before the heartbeat):
+    /// first asks, and resends of those unanswered for [`RESEND_S`]. Items asked
+    /// [`MAX_TRIES`] times become absent; their names are returned in `gave_up`.
+    pub fn poll(&mut self, t_s: f64, gave_up: &mut Vec<&'static str>) -> Vec<MavMessage> {
+        let mut out = Vec::new();
+        let Some(id) = self.identity.clone().filter(|_| self.live) else { return out };
+        let items = id.autopilot.wanted().iter().copied().chain([VERSION_KEY]);
+        for name in items {
+            let due = match self.asks.get(name) {
+                None => Some(1),
+                Some(Ask::Sent { tries, at_s }) if t_s - at_s >= RESEND_S => {
+                    if *tries >= MAX_TRIES {
+                        self.asks.insert(name, Ask::Absent);
+                        gave_up.push(name);
+                        self.changed = true;
+                        None
+                    } else {
+                        Some(tries + 1)
+                    }
+                }
+                _ => None,
+            };
+            if let Some(tries) = due {
+                self.asks.insert(name, Ask::Sent { tries, at_s: t_s });
+                out.push(request(&id, name));
+            }
+        }
+        out
+    }
+
+    /// Whether every request has been answered or given up (always true when passive).
+    pub fn settled(&self) -> bool {
+        !self.live || self.identity.as_ref().is_some_and(|_| self.asks.values().all(|a| !matches!(a, Ask::Sent { .. })) && !self.asks.is_empty())
+    }
+
+    /// True once after anything new was learned (a heartbeat, a value, a give-up).
+    pub fn take_changed(&mut self) -> bool {
+        std::mem::take(&mut self.changed)
+    }
+
+    /// What has been read so far, decoded by the vehicle's autopilot (ArduPilot's cast
+    /// before any heartbeat).
+    pub fn params(&self) -> VehicleParams {
+        let autopilot = self.identity.as_ref().map_or(Autopilot::ArduPilot, |id| id.autopilot);
+        VehicleParams {
+            identity: self.identity.clone(),
+            values: self.raw.iter().map(|(n, r)| (n.clone(), decode(autopilot, *r))).collect(),
+            absent: self.asks.iter().filter(|(_, a)| **a == Ask::Absent).map(|(n, _)| n.to_string()).collect(),
+        }
+    }
+}
+
+/// The request for one item of the table: PARAM_REQUEST_READ by name, or
+/// MAV_CMD_REQUEST_MESSAGE(AUTOPILOT_VERSION).
+fn request(id: &Identity, name: &str) -> MavMessage {
+    if name == VERSION_KEY {
+        return MavMessage::COMMAND_LONG(dialect::COMMAND_LONG_DATA {
+            param1: AUTOPILOT_VERSION_ID,
+            param2: 0.0,
+            param3: 0.0,
+            param4: 0.0,
+            param5: 0.0,
+            param6: 0.0,
+            param7: 0.0,
+            command: dialect::MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            target_system: id.system_id,
+            target_component: id.component_id,
+            confirmation: 0,
+        });
+    }
+    MavMessage::PARAM_REQUEST_READ(dialect::PARAM_REQUEST_READ_DATA {
+        param_index: -1,
+        target_system: id.system_id,
+        target_component: id.component_id,
+        param_id: name.into(),
+    })
+}
+
+/// The thin part that talks: a [`ParamReader`] whose requests go out on the live link as
+/// dronewatt's MAVLink component, and whose news is published for the energy stage.
+pub struct Driver {
+    reader: ParamReader,
+    link: crate::status::LinkHandle,
+    system_id: u8,
+    component_id: u8,
+    seq: u8,
+    /// Requests the link could not take (none attached, or full).
+    pub unsent: u64,
+}
+
+impl Driver {
+    /// A driver for `reader`, sending on `link` as (`system_id`, `component_id`).
+    pub fn new(reader: ParamReader, link: crate::status::LinkHandle, system_id: u8, component_id: u8) -> Self {
+        Self { reader, link, system_id, component_id, seq: 0, unsent: 0 }
+    }
+
+    /// Take in one message, send what is due; `Some(params)` when something new was
+    /// learned. Logs each parameter given up on (once).
+    pub fn on_message(&mut self, m: &TimedMessage) -> Option<VehicleParams> {
+        self.reader.on_message(m);
+        let mut gave_up = Vec::new();
+        for req in self.reader.poll(m.t_s, &mut gave_up) {
+            let header = mavlink::MavHeader { system_id: u32::from(self.system_id), component_id: self.component_id, sequence: self.seq };
+            self.seq = self.seq.wrapping_add(1);
+            let mut buf = Vec::with_capacity(64);
+            // Writing into a Vec cannot fail.
+            let _ = mavlink::write_versioned_msg(&mut buf, mavlink::MavlinkVersion::V2, header, &req);
+            if !self.link.try_send(buf) {
+                self.unsent += 1;
+            }
+        }
+        if !gave_up.is_empty() {
+            tracing::warn!(
+                "vehicle did not answer for {} after {MAX_TRIES} requests: using the config and defaults for them",
+                gave_up.join(", ")
+            );
+        }
+        self.reader.take_changed().then(|| self.reader.params())
+    }
+
+    /// The reader's state.
+    pub fn reader(&self) -> &ParamReader {
+        &self.reader
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn msg(t_s: f64, sys: u32, comp: u8, msg: MavMessage) -> TimedMessage {
+        TimedMessage { t_s, header: mavlink::MavHeader { system_id: sys, component_id: comp, sequence: 0 }, msg }
+    }
+
+    fn heartbeat(autopilot: MavAutopilot) -> MavMessage {
+        MavMessage::HEARTBEAT(dialect::HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: MavType::MAV_TYPE_QUADROTOR,
+            autopilot,
+            base_mode: dialect::MavModeFlag::empty(),
+            system_status: dialect::MavState::MAV_STATE_STANDBY,
+            mavlink_version: 3,
+        })
+    }
+
+    fn value(name: &str, v: f32, t: MavParamType) -> MavMessage {
+        MavMessage::PARAM_VALUE(dialect::PARAM_VALUE_DATA { param_value: v, param_count: 1000, param_index: 0, param_id: name.into(), param_type: t })
+    }
+
+    fn names(reqs: &[MavMessage]) -> Vec<String> {
+        reqs.iter()
+            .map(|r| match r {
+                MavMessage::PARAM_REQUEST_READ(p) => p.param_id.to_str().unwrap().to_string(),
+                MavMessage::COMMAND_LONG(_) => VERSION_KEY.to_string(),
+                other => panic!("unexpected request {other:?}"),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn decodes_ardupilot_casts_and_px4_bits() {
+        let cast = RawParam { value: 3300.0, param_type: MavParamType::MAV_PARAM_TYPE_INT32 };
+        assert_eq!(decode(Autopilot::ArduPilot, cast), 3300.0);
+        let packed = RawParam { value: f32::from_bits(4), param_type: MavParamType::MAV_PARAM_TYPE_INT32 };
+        assert_eq!(decode(Autopilot::Px4, packed), 4.0);
+        let neg = RawParam { value: f32::from_bits((-1i32) as u32), param_type: MavParamType::MAV_PARAM_TYPE_INT32 };
+        assert_eq!(decode(Autopilot::Px4, neg), -1.0);
+        // Floats are floats on both.
+        let f = RawParam { value: 3.5, param_type: MavParamType::MAV_PARAM_TYPE_REAL32 };
+        assert_eq!((decode(Autopilot::Px4, f), decode(Autopilot::ArduPilot, f)), (3.5, 3.5));
+    }
+
+    #[test]
+    fn asks_after_the_heartbeat_resends_then_gives_up() {
+        let mut r = ParamReader::live();
+        let mut gave_up = Vec::new();
+        assert!(r.poll(0.0, &mut gave_up).is_empty(), "nothing before the vehicle is known");
+        // A ground station's heartbeat is not the vehicle.
+        r.on_message(&msg(0.0, 255, 190, heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID)));
+        assert!(r.poll(0.1, &mut gave_up).is_empty());
+        r.on_message(&msg(0.2, 1, 1, heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA)));
+        let first = names(&r.poll(0.2, &mut gave_up));
+        assert_eq!(first.len(), ARDUPILOT_PARAMS.len() + 1, "{first:?}");
+        assert!(first.contains(&"BATT_CAPACITY".to_string()) && first.contains(&VERSION_KEY.to_string()));
+        // Nothing new until RESEND_S has passed.
+        assert!(r.poll(1.0, &mut gave_up).is_empty());
+        // The vehicle answers all but BATT_CRT_MAH (dropped) and the version request.
+        for n in ARDUPILOT_PARAMS.iter().filter(|n| **n != "BATT_CRT_MAH") {
+            r.on_message(&msg(1.2, 1, 1, value(n, 1.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
+        }
+        assert!(r.take_changed());
+        assert_eq!(names(&r.poll(1.8, &mut gave_up)), ["BATT_CRT_MAH", VERSION_KEY]);
+        assert!(!r.settled());
+        assert_eq!(names(&r.poll(3.4, &mut gave_up)), ["BATT_CRT_MAH", VERSION_KEY]);
+        // Third try was the last: the next due time gives up, once.
+        assert!(r.poll(5.0, &mut gave_up).is_empty());
+        assert_eq!(gave_up, ["BATT_CRT_MAH", VERSION_KEY]);
+        assert!(r.settled());
+        assert!(r.poll(100.0, &mut gave_up).is_empty());
+        assert_eq!(gave_up.len(), 2);
+        let p = r.params();
+        assert_eq!(p.absent, ["AUTOPILOT_VERSION", "BATT_CRT_MAH"]);
+        assert_eq!(p.get("BATT_CAPACITY"), Some(1.0));
+        assert_eq!(p.identity.unwrap().autopilot, Autopilot::ArduPilot);
+    }
+
+    #[test]
+    fn px4_values_decode_by_the_heartbeat_and_uid_is_kept() {
+        let mut r = ParamReader::live();
+        r.on_message(&msg(0.0, 7, 1, heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4)));
+        let mut gave_up = Vec::new();
+        assert_eq!(names(&r.poll(0.0, &mut gave_up)).len(), PX4_PARAMS.len() + 1);
+        r.on_message(&msg(0.5, 7, 1, value("BAT1_N_CELLS", f32::from_bits(4), MavParamType::MAV_PARAM_TYPE_INT32)));
+        // Another system's value is not ours.
+        r.on_message(&msg(0.5, 8, 1, value("BAT1_CAPACITY", 9999.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
+        r.on_message(&msg(0.5, 7, 1, value("BAT1_CAPACITY", 5000.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
+        let mut v = dialect::AUTOPILOT_VERSION_DATA::default();
+        v.uid = 0xDEAD_BEEF;
+        r.on_message(&msg(0.6, 7, 1, MavMessage::AUTOPILOT_VERSION(v)));
+        let p = r.params();
+        assert_eq!((p.get("BAT1_N_CELLS"), p.get("BAT1_CAPACITY")), (Some(4.0), Some(5000.0)));
+        assert_eq!(p.identity.unwrap().uid, Some(0xDEAD_BEEF));
+    }
+
+    #[test]
+    fn a_passive_reader_listens_only() {
+        let mut r = ParamReader::passive();
+        // A logged fetch may come before the first heartbeat.
+        r.on_message(&msg(0.0, 1, 1, value("BATT_CAPACITY", 3300.0, MavParamType::MAV_PARAM_TYPE_INT32)));
+        r.on_message(&msg(0.1, 1, 1, value("SOME_OTHER", 1.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
+        r.on_message(&msg(0.2, 1, 1, heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA)));
+        assert!(r.poll(10.0, &mut Vec::new()).is_empty());
+        assert!(r.settled());
+        let p = r.params();
+        assert_eq!(p.values.len(), 1);
+        assert_eq!(p.get("BATT_CAPACITY"), Some(3300.0));
+    }
+}

@@ -1,0 +1,576 @@
+//! The vehicle store: what dronewatt learned about each vehicle it watched, kept between
+//! runs in an embedded SQLite database, so the next flight of the same vehicle starts from
+//! it.
+//!
+//! ## Where
+//!
+//! `dronewatt.sqlite` in the data directory: `--data-dir DIR`, else `$DRONEWATT_HOME`, else
+//! `$XDG_DATA_HOME/dronewatt`, else `~/.local/share/dronewatt` ([`data_dir`]).
+//! `DRONEWATT_HOME=off` (or `--data-dir off`) turns the store off; the project's
+//! `.cargo/config.toml` sets that for `cargo test` and `cargo run`, so the test suite never
+//! writes to a home directory and runs never learn from each other by accident.
+//!
+//! ## Which vehicle
+//!
+//! Keyed by the vehicle's identity ([`VehicleKey`]): AUTOPILOT_VERSION's board uid where the
+//! autopilot sends one (`uid:00000000deadbeef`, the same airframe whatever its system id),
+//! else its system id, autopilot and type from HEARTBEAT (`sys1-ardupilot-MAV_TYPE_QUADROTOR`,
+//! weaker: two quadrotors both left at system id 1 share an entry). The listing says which.
+//!
+//! ## What
+//!
+//! | table | one row per | holds |
+//! |---|---|---|
+//! | `vehicles` | vehicle | its key and identity, first and last seen, the adaptation fits learned so far (JSON) |
+//! | `flights` | run of the chain with power seen | end time, seconds with the motors turning, energy used (Wh), the autopilot's battery % at start and end, effective capacity, the rated capacity and where it came from |
+//!
+//! **Effective capacity** = energy used ÷ (battery % drop / 100): what the pack delivered
+//! per the autopilot's own gauge. The next flight of the vehicle takes the median of the last
+//! [`CAPACITY_FLIGHTS`] as its capacity unless the config sets one (it then beats the
+//! vehicle's rated `BATT_CAPACITY`: remaining = capacity × the gauge's % is then right for
+//! a pack that has aged). Kept only when the gauge fell by at least
+//! [`MIN_PCT_DROP`] % (a smaller drop is mostly the gauge's rounding). Beside the rated
+//! capacity it is the pack's health: a pack that delivers 85 % of its rating is one a pilot
+//! wants to know about.
+//!
+//! ## Never in the way
+//!
+//! Nothing here runs on a stage of the live chain: the pipeline reads the store on a
+//! blocking thread once the vehicle is known, and writes once at the end of the run
+//! ([`crate::pipeline`]). A database that cannot be opened (corrupt, locked by another run,
+//! a read-only folder) is a warning and the run goes on without it.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use rusqlite::{params, Connection, OptionalExtension};
+
+use crate::model::adapt::ModelFit;
+use crate::report::Report;
+use crate::vehicle::params::Identity;
+
+/// The environment variable that overrides the data directory (`off`: no store).
+pub const HOME_ENV: &str = "DRONEWATT_HOME";
+/// The database's file name in the data directory.
+pub const DB_FILE: &str = "dronewatt.sqlite";
+/// Smallest fall of the autopilot's battery % that yields an effective capacity.
+pub const MIN_PCT_DROP: f64 = 10.0;
+/// How long a write waits for another run holding the database.
+const BUSY_WAIT: Duration = Duration::from_secs(2);
+
+/// The data directory: `flag` (`--data-dir`), else `home_env` (`$DRONEWATT_HOME`), else
+/// `$XDG_DATA_HOME/dronewatt`, else `$HOME/.local/share/dronewatt`. `None`: the store is
+/// off (`off` given, or no home directory at all). The environment is passed in, so the
+/// rule is testable.
+pub fn data_dir(flag: Option<&Path>, home_env: Option<&str>, xdg_data_home: Option<&str>, home: Option<&str>) -> Option<PathBuf> {
+    let nonempty = |s: Option<&str>| s.filter(|s| !s.is_empty()).map(str::to_string);
+    let chosen = flag.map(|p| p.to_string_lossy().into_owned()).filter(|s| !s.is_empty()).or_else(|| nonempty(home_env));
+    if let Some(dir) = chosen {
+        return (dir != "off").then(|| PathBuf::from(dir));
+    }
+    if let Some(x) = nonempty(xdg_data_home).filter(|x| Path::new(x).is_absolute()) {
+        return Some(Path::new(&x).join("dronewatt"));
+    }
+    nonempty(home).map(|h| Path::new(&h).join(".local/share/dronewatt"))
+}
+
+/// [`data_dir`] from this process's environment.
+pub fn data_dir_from_env(flag: Option<&Path>) -> Option<PathBuf> {
+    let var = |k: &str| std::env::var(k).ok();
+    data_dir(flag, var(HOME_ENV).as_deref(), var("XDG_DATA_HOME").as_deref(), var("HOME").as_deref())
+}
+
+/// A vehicle's key in the store, and how strong it is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct VehicleKey {
+    /// `uid:…` or `sysN-autopilot-TYPE`.
+    pub key: String,
+    /// `uid` (the board's own id) or `heartbeat` (system id, autopilot, type).
+    pub kind: &'static str,
+}
+
+impl VehicleKey {
+    /// The key of this vehicle (module docs).
+    pub fn of(id: &Identity) -> Self {
+        match id.uid {
+            Some(uid) => Self { key: format!("uid:{uid:016x}"), kind: "uid" },
+            None => Self { key: format!("sys{}-{}-{}", id.system_id, id.autopilot, id.vehicle_type), kind: "heartbeat" },
+        }
+    }
+}
+
+/// One flight, summed up from its reports ([`FlightLog`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FlightSummary {
+    /// Seconds with the motors turning (measured power above [`FlightLog`]'s threshold).
+    pub airborne_s: f64,
+    /// Energy used over the run, Wh (the energy tracker's figure).
+    pub energy_wh: f64,
+    /// The autopilot's battery % at the first and last report that had one.
+    pub pct_start: Option<f64>,
+    pub pct_end: Option<f64>,
+    /// Energy used ÷ battery % drop, Wh (module docs), when the gauge fell enough.
+    pub effective_capacity_wh: Option<f64>,
+    /// The capacity the run assumed, Wh, and where it came from.
+    pub rated_capacity_wh: f64,
+    pub capacity_source: String,
+}
+
+/// Sums a run's reports into a [`FlightSummary`]; cheap per report (a few numbers kept).
+#[derive(Debug, Default)]
+pub struct FlightLog {
+    /// (t, measured W) of every report with a measured power.
+    power: Vec<(f64, f32)>,
+    energy_wh: f64,
+    pct: Option<(f64, f64)>,
+    capacity: Option<(f64, String)>,
+}
+
+impl FlightLog {
+    /// Take one report in.
+    pub fn observe(&mut self, r: &Report) {
+        let s = &r.estimate.sample;
+        if let Some(p) = s.measured_w.filter(|p| p.is_finite() && *p >= 0.0) {
+            self.power.push((r.estimate.t_s, p));
+        }
+        self.energy_wh = r.energy.energy_used_wh;
+        if let Some(pct) = s.battery_remaining_pct.map(f64::from).filter(|p| (0.0..=100.0).contains(p)) {
+            self.pct = Some((self.pct.map_or(pct, |(a, _)| a), pct));
+        }
+        // The rated capacity (config, parameter or default), not one learned from this store.
+        let b = &r.energy.battery;
+        let c = b.rated_capacity_wh.as_ref().unwrap_or(&b.capacity_wh);
+        self.capacity = Some((c.value, c.source.to_string()));
+    }
+
+    /// The summary, or `None` when no power was ever measured (nothing flew that we saw).
+    /// Motors turning: measured power above 30 % of the run's 90th-percentile power (a
+    /// multirotor's ground idle is a few % of its hover).
+    pub fn summary(&self) -> Option<FlightSummary> {
+        if self.power.len() < 2 {
+            return None;
+        }
+        let mut sorted: Vec<f32> = self.power.iter().map(|(_, p)| *p).collect();
+        sorted.sort_by(f32::total_cmp);
+        let p90 = f64::from(sorted[(sorted.len() - 1) * 9 / 10]);
+        let threshold = 0.3 * p90;
+        let airborne_s = self
+            .power
+            .windows(2)
+            .filter(|w| f64::from(w[1].1) > threshold)
+            .map(|w| (w[1].0 - w[0].0).clamp(0.0, 1.0))
+            .sum();
+        let (rated_capacity_wh, capacity_source) = self.capacity.clone().unwrap_or((0.0, "unknown".into()));
+        let effective_capacity_wh = self
+            .pct
+            .map(|(a, b)| a - b)
+            .filter(|drop| *drop >= MIN_PCT_DROP)
+            .map(|drop| self.energy_wh / (drop / 100.0))
+            .filter(|c| c.is_finite());
+        Some(FlightSummary {
+            airborne_s,
+            energy_wh: self.energy_wh,
+            pct_start: self.pct.map(|p| p.0),
+            pct_end: self.pct.map(|p| p.1),
+            effective_capacity_wh,
+            rated_capacity_wh,
+            capacity_source,
+        })
+    }
+}
+
+/// What the store knows of one vehicle (for `dronewatt vehicles`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct VehicleRecord {
+    pub key: String,
+    /// `uid` or `heartbeat`: how the vehicle was told apart.
+    pub key_kind: String,
+    pub autopilot: String,
+    pub vehicle_type: String,
+    pub system_id: u8,
+    /// Unix seconds.
+    pub first_seen: i64,
+    pub last_seen: i64,
+    /// Models with learned fits.
+    pub learned_models: usize,
+    pub flights: Vec<FlightRecord>,
+}
+
+/// One stored flight.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FlightRecord {
+    /// Unix seconds at the end of the run.
+    pub ended_at: i64,
+    #[serde(flatten)]
+    pub summary: FlightSummary,
+}
+
+impl VehicleRecord {
+    /// Energy per airborne minute over every flight, Wh/min.
+    pub fn wh_per_min(&self) -> Option<f64> {
+        let (wh, s) = self.flights.iter().fold((0.0, 0.0), |(wh, s), f| (wh + f.summary.energy_wh, s + f.summary.airborne_s));
+        (s > 0.0).then(|| wh / (s / 60.0))
+    }
+
+    /// Effective capacity over rated, %, of the flights that have one, oldest first.
+    pub fn capacity_trend_pct(&self) -> Vec<f64> {
+        self.flights
+            .iter()
+            .filter_map(|f| Some(100.0 * f.summary.effective_capacity_wh? / f.summary.rated_capacity_wh).filter(|v| v.is_finite()))
+            .collect()
+    }
+}
+
+/// The open database.
+pub struct Store {
+    conn: Connection,
+    path: PathBuf,
+}
+
+const SCHEMA: &str = "
+CREATE TABLE IF NOT EXISTS vehicles (
+    key          TEXT PRIMARY KEY,
+    key_kind     TEXT NOT NULL,
+    system_id    INTEGER NOT NULL,
+    autopilot    TEXT NOT NULL,
+    vehicle_type TEXT NOT NULL,
+    first_seen   INTEGER NOT NULL,
+    last_seen    INTEGER NOT NULL,
+    fits         TEXT
+);
+CREATE TABLE IF NOT EXISTS flights (
+    id                    INTEGER PRIMARY KEY,
+    vehicle               TEXT NOT NULL REFERENCES vehicles(key),
+    ended_at              INTEGER NOT NULL,
+    airborne_s            REAL NOT NULL,
+    energy_wh             REAL NOT NULL,
+    pct_start             REAL,
+    pct_end               REAL,
+    effective_capacity_wh REAL,
+    rated_capacity_wh     REAL NOT NULL,
+    capacity_source       TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS flights_by_vehicle ON flights(vehicle, ended_at);
+";
+
+fn now_s() -> i64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() as i64)
+}
+
+impl Store {
+    /// Open (creating the folder and the tables when new) the store in `dir`. A file that
+    /// is not a database, or one another run holds locked past [`BUSY_WAIT`], fails here
+    /// with the path in the message.
+    pub fn open(dir: &Path) -> Result<Self> {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the data directory", dir.display()))?;
+        let path = dir.join(DB_FILE);
+        let conn = Connection::open(&path).with_context(|| format!("{}: cannot open the vehicle store", path.display()))?;
+        conn.busy_timeout(BUSY_WAIT)?;
+        conn.execute_batch(SCHEMA).with_context(|| format!("{}: not a dronewatt vehicle store (corrupt?)", path.display()))?;
+        Ok(Self { conn, path })
+    }
+
+    /// The database file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The fits learned on earlier flights of this vehicle, if any. Fits that do not parse
+    /// (another version wrote them) are no fits, with a warning.
+    pub fn learned_fits(&self, key: &VehicleKey) -> Result<Option<Vec<(String, ModelFit)>>> {
+        let text: Option<Option<String>> =
+            self.conn.query_row("SELECT fits FROM vehicles WHERE key = ?1", params![key.key], |r| r.get(0)).optional()?;
+        let Some(Some(text)) = text else { return Ok(None) };
+        match serde_json::from_str(&text) {
+            Ok(f) => Ok(Some(f)),
+            Err(e) => {
+                tracing::warn!("{}: the learned fits of {} do not parse ({e}); starting afresh", self.path.display(), key.key);
+                Ok(None)
+            }
+        }
+    }
+
+    /// The pack's effective capacity over its last [`CAPACITY_FLIGHTS`] flights that
+    /// measured one (the median), Wh, and how many there were.
+    pub fn learned_capacity(&self, key: &VehicleKey) -> Result<Option<(f64, usize)>> {
+        let mut st = self.conn.prepare(
+            "SELECT effective_capacity_wh FROM flights WHERE vehicle = ?1 AND effective_capacity_wh > 0 ORDER BY ended_at DESC, id DESC LIMIT ?2",
+        )?;
+        let mut v: Vec<f64> = st.query_map(params![key.key, CAPACITY_FLIGHTS as i64], |r| r.get(0))?.collect::<rusqlite::Result<_>>()?;
+        v.retain(|c| c.is_finite());
+        if v.is_empty() {
+            return Ok(None);
+        }
+        v.sort_by(f64::total_cmp);
+        Ok(Some((v[v.len() / 2], v.len())))
+    }
+
+    /// Record a run of this vehicle: the vehicle (created or updated, with the fits learned
+    /// when given) and, when it flew, its flight. One transaction.
+    pub fn record(&mut self, id: &Identity, fits: Option<&[(String, ModelFit)]>, flight: Option<&FlightSummary>) -> Result<()> {
+        let key = VehicleKey::of(id);
+        let now = now_s();
+        let fits = fits.map(serde_json::to_string).transpose()?;
+        let tx = self.conn.transaction()?;
+        tx.execute(
+            "INSERT INTO vehicles (key, key_kind, system_id, autopilot, vehicle_type, first_seen, last_seen, fits)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?6, ?7)
+             ON CONFLICT(key) DO UPDATE SET last_seen = ?6, system_id = ?3, fits = COALESCE(?7, fits)",
+            params![key.key, key.kind, id.system_id, id.autopilot.to_string(), id.vehicle_type, now, fits],
+        )?;
+        if let Some(f) = flight {
+            tx.execute(
+                "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+                params![key.key, now, f.airborne_s, f.energy_wh, f.pct_start, f.pct_end, f.effective_capacity_wh, f.rated_capacity_wh, f.capacity_source],
+            )?;
+        }
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Every vehicle with its flights, most recently seen first.
+    pub fn vehicles(&self) -> Result<Vec<VehicleRecord>> {
+        let mut st = self.conn.prepare(
+            "SELECT key, key_kind, system_id, autopilot, vehicle_type, first_seen, last_seen, fits FROM vehicles ORDER BY last_seen DESC, key",
+        )?;
+        let rows = st.query_map([], |r| {
+            let fits: Option<String> = r.get(7)?;
+            let learned_models = fits
+                .and_then(|f| serde_json::from_str::<Vec<(String, ModelFit)>>(&f).ok())
+                .map_or(0, |f| f.iter().filter(|(_, m)| m.adapted.taught > 0).count());
+            Ok(VehicleRecord {
+                key: r.get(0)?,
+                key_kind: r.get(1)?,
+                system_id: r.get(2)?,
+                autopilot: r.get(3)?,
+                vehicle_type: r.get(4)?,
+                first_seen: r.get(5)?,
+                last_seen: r.get(6)?,
+                learned_models,
+                flights: Vec::new(),
+            })
+        })?;
+        let mut out = rows.collect::<rusqlite::Result<Vec<_>>>()?;
+        let mut fl = self.conn.prepare(
+            "SELECT ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source
+             FROM flights WHERE vehicle = ?1 ORDER BY ended_at, id",
+        )?;
+        for v in &mut out {
+            let rows = fl.query_map(params![v.key], |r| {
+                Ok(FlightRecord {
+                    ended_at: r.get(0)?,
+                    summary: FlightSummary {
+                        airborne_s: r.get(1)?,
+                        energy_wh: r.get(2)?,
+                        pct_start: r.get(3)?,
+                        pct_end: r.get(4)?,
+                        effective_capacity_wh: r.get(5)?,
+                        rated_capacity_wh: r.get(6)?,
+                        capacity_source: r.get(7)?,
+                    },
+                })
+            })?;
+            v.flights = rows.collect::<rusqlite::Result<Vec<_>>>()?;
+        }
+        Ok(out)
+    }
+}
+
+/// What earlier flights taught about a vehicle.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Learned {
+    /// The models' adaptation fits.
+    pub fits: Option<Vec<(String, ModelFit)>>,
+    /// The pack's effective capacity, Wh: the median of the last [`CAPACITY_FLIGHTS`]
+    /// flights that measured one, and how many did.
+    pub capacity_wh: Option<(f64, usize)>,
+}
+
+/// Flights the learned capacity is the median of.
+pub const CAPACITY_FLIGHTS: usize = 3;
+
+/// What earlier flights taught about this vehicle, for the warm start; any store problem is
+/// a warning and nothing learned (the run goes on as a first flight).
+pub fn lookup(dir: &Path, id: &Identity) -> Learned {
+    let key = VehicleKey::of(id);
+    let got = Store::open(dir).and_then(|s| Ok(Learned { fits: s.learned_fits(&key)?, capacity_wh: s.learned_capacity(&key)? }));
+    match got {
+        Ok(l) if l.fits.is_some() || l.capacity_wh.is_some() => {
+            tracing::info!("vehicle {} ({}): found what earlier flights learned", key.key, key.kind);
+            l
+        }
+        Ok(l) => {
+            tracing::info!("vehicle {} ({}): first flight in the store", key.key, key.kind);
+            l
+        }
+        Err(e) => {
+            tracing::warn!("vehicle store: {e:#}; this run neither starts from nor keeps what was learned");
+            Learned::default()
+        }
+    }
+}
+
+/// At the end of a run: keep the vehicle, its fits and the flight. Any store problem is a
+/// warning (the run's results stand without it).
+pub fn remember(dir: &Path, id: Option<&Identity>, fits: Option<&[(String, ModelFit)]>, log: &FlightLog) {
+    let Some(id) = id else {
+        tracing::info!("vehicle store: no autopilot heartbeat heard, so no vehicle to remember");
+        return;
+    };
+    let flight = log.summary();
+    let result = Store::open(dir).and_then(|mut s| {
+        s.record(id, fits, flight.as_ref())?;
+        Ok(s.path().to_path_buf())
+    });
+    match result {
+        Ok(path) => tracing::info!(
+            "vehicle {}: {} in {}",
+            VehicleKey::of(id).key,
+            match &flight {
+                Some(f) => format!("flight remembered ({:.2} Wh, {:.0} s airborne)", f.energy_wh, f.airborne_s),
+                None => "seen (no power measured, no flight)".to_string(),
+            },
+            path.display()
+        ),
+        Err(e) => tracing::warn!("vehicle store: {e:#}; what this run learned is not kept"),
+    }
+}
+
+/// `dronewatt vehicles`: the table (or JSON with `json`).
+pub fn list(dir: &Path, json: bool) -> Result<String> {
+    use std::fmt::Write;
+    let path = dir.join(DB_FILE);
+    if !path.exists() {
+        return Ok(if json { "[]\n".into() } else { format!("{}: no vehicle store yet (nothing flown with the store on)\n", path.display()) });
+    }
+    let store = Store::open(dir)?;
+    let vehicles = store.vehicles()?;
+    if json {
+        return Ok(serde_json::to_string_pretty(&vehicles)? + "\n");
+    }
+    let mut s = String::new();
+    let _ = writeln!(s, "{}: {} vehicle(s)", store.path().display(), vehicles.len());
+    let _ = writeln!(
+        s,
+        "{:<34} {:<9} {:<10} {:<22} {:>7} {:>9} {:>9}  {}",
+        "vehicle", "told by", "autopilot", "type", "flights", "airborne", "Wh/min", "capacity delivered / rated, by flight"
+    );
+    for v in &vehicles {
+        let airborne: f64 = v.flights.iter().map(|f| f.summary.airborne_s).sum();
+        let trend = v.capacity_trend_pct();
+        let trend = if trend.is_empty() {
+            "—".to_string()
+        } else {
+            trend.iter().map(|p| format!("{p:.0} %")).collect::<Vec<_>>().join(" → ")
+        };
+        let _ = writeln!(
+            s,
+            "{:<34} {:<9} {:<10} {:<22} {:>7} {:>7.1} m {:>9}  {}",
+            v.key,
+            v.key_kind,
+            v.autopilot,
+            v.vehicle_type.trim_start_matches("MAV_TYPE_"),
+            v.flights.len(),
+            airborne / 60.0,
+            v.wh_per_min().map_or("—".to_string(), |w| format!("{w:.2}")),
+            trend
+        );
+    }
+    Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vehicle::params::Autopilot;
+
+    fn id(uid: Option<u64>) -> Identity {
+        Identity { system_id: 1, component_id: 1, autopilot: Autopilot::ArduPilot, vehicle_type: "MAV_TYPE_QUADROTOR".into(), uid }
+    }
+
+    #[test]
+    fn data_dir_rule() {
+        let flag = Path::new("/tmp/x");
+        assert_eq!(data_dir(Some(flag), Some("/e"), Some("/x"), Some("/h")), Some(PathBuf::from("/tmp/x")));
+        assert_eq!(data_dir(None, Some("/e"), Some("/x"), Some("/h")), Some(PathBuf::from("/e")));
+        assert_eq!(data_dir(None, None, Some("/x"), Some("/h")), Some(PathBuf::from("/x/dronewatt")));
+        // XDG says a relative XDG_DATA_HOME is invalid and to be ignored.
+        assert_eq!(data_dir(None, Some(""), Some("rel"), Some("/h")), Some(PathBuf::from("/h/.local/share/dronewatt")));
+        assert_eq!(data_dir(None, Some("off"), Some("/x"), Some("/h")), None);
+        assert_eq!(data_dir(Some(Path::new("off")), None, None, Some("/h")), None);
+        assert_eq!(data_dir(None, None, None, None), None);
+    }
+
+    #[test]
+    fn keys_prefer_the_uid() {
+        assert_eq!(VehicleKey::of(&id(Some(0xdead_beef))).key, "uid:00000000deadbeef");
+        let k = VehicleKey::of(&id(None));
+        assert_eq!((k.key.as_str(), k.kind), ("sys1-ardupilot-MAV_TYPE_QUADROTOR", "heartbeat"));
+    }
+
+    #[test]
+    fn a_corrupt_file_fails_to_open_with_its_path() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join(DB_FILE), b"this is not sqlite, just forty-odd bytes of text").unwrap();
+        let err = format!("{:#}", Store::open(dir.path()).err().expect("opened a corrupt file"));
+        assert!(err.contains(DB_FILE), "{err}");
+    }
+
+    #[test]
+    fn records_and_lists_with_the_capacity_trend() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut st = Store::open(dir.path()).unwrap();
+        let flight = |eff: Option<f64>| FlightSummary {
+            airborne_s: 600.0,
+            energy_wh: 30.0,
+            pct_start: Some(100.0),
+            pct_end: Some(20.0),
+            effective_capacity_wh: eff,
+            rated_capacity_wh: 40.0,
+            capacity_source: "vehicle parameter BATT_CAPACITY".into(),
+        };
+        let fits = vec![("lstm".to_string(), ModelFit::default())];
+        st.record(&id(None), Some(&fits), Some(&flight(Some(37.5)))).unwrap();
+        st.record(&id(None), None, Some(&flight(Some(34.0)))).unwrap();
+        let v = st.vehicles().unwrap();
+        assert_eq!(v.len(), 1);
+        assert_eq!(v[0].flights.len(), 2);
+        assert_eq!(v[0].capacity_trend_pct(), vec![93.75, 85.0]);
+        assert!((v[0].wh_per_min().unwrap() - 3.0).abs() < 1e-9);
+        let text = list(dir.path(), false).unwrap();
+        assert!(text.contains("sys1-ardupilot-MAV_TYPE_QUADROTOR") && text.contains("94 % → 85 %"), "{text}");
+        // A record without fits keeps the ones learned before.
+        assert_eq!(st.learned_fits(&VehicleKey::of(&id(None))).unwrap(), Some(fits));
+        // The capacity learned: the median of the last three flights that measured one.
+        st.record(&id(None), None, Some(&flight(None))).unwrap();
+        st.record(&id(None), None, Some(&flight(Some(36.0)))).unwrap();
+        assert_eq!(st.learned_capacity(&VehicleKey::of(&id(None))).unwrap(), Some((36.0, 3)));
+        assert_eq!(st.learned_capacity(&VehicleKey::of(&id(Some(7)))).unwrap(), None);
+    }
+
+    #[test]
+    fn effective_capacity_needs_a_real_drop() {
+        use crate::features::{Sample, N_FEATURES};
+        use crate::report::{EnergyState, Estimate};
+        let report = |t: f64, pct: f32, used: f64| Report {
+            estimate: Estimate {
+                t_s: t,
+                sample: Sample { t_s: t, features: [0.0; N_FEATURES], measured_w: Some(300.0), voltage_v: Some(12.0), home: None, stale_mask: 0, battery_remaining_pct: Some(pct) },
+                models: vec![],
+            },
+            energy: EnergyState { energy_used_wh: used, ..Default::default() },
+            alerts: vec![],
+            system_id: 1,
+        };
+        let mut log = FlightLog::default();
+        log.observe(&report(0.0, 90.0, 0.0));
+        log.observe(&report(60.0, 85.0, 5.0));
+        assert_eq!(log.summary().unwrap().effective_capacity_wh, None, "5 % is the gauge's noise");
+        log.observe(&report(120.0, 70.0, 10.0));
+        let s = log.summary().unwrap();
+        assert!((s.effective_capacity_wh.unwrap() - 50.0).abs() < 1e-9, "{s:?}");
+        assert!((s.airborne_s - 2.0).abs() < 1e-9, "steps are capped at 1 s: {s:?}");
+    }
+}

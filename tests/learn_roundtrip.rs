@@ -1,0 +1,88 @@
+//! `dronewatt learn` → `dronewatt replay --vehicle` round trip on a vehicle that is not the
+//! M100: the simulator flies four X500 logs (different seeds and winds); `learn` fits the
+//! physics models on two, scores them on the third (held out whole) and writes a profile
+//! and a model card; a replay of the fourth log, never seen, with the learned profile is far
+//! closer to the measured power than with the published M100 parameters.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn dronewatt(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dronewatt")).args(args).output().unwrap()
+}
+
+fn ok(args: &[&str]) -> Output {
+    let out = dronewatt(args);
+    assert!(out.status.success(), "dronewatt {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    out
+}
+
+fn simulate(path: &Path, seed: u32) {
+    let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
+    ok(&["simulate", "--vehicle", "x500", "--payload-g", "0", "--leg-m", "200", "--hover-s", "20", "--seed", &seed, "--wind-mps", &wind, "--out", path.to_str().unwrap()]);
+}
+
+/// Each physics model's MAPE over the in-flight windows (measured > 100 W) of a replay, %.
+fn physics_mape(tlog: &Path, vehicle: Option<&Path>) -> Vec<(String, f64)> {
+    let json = tlog.with_extension(if vehicle.is_some() { "learned.jsonl" } else { "published.jsonl" });
+    let mut args = vec!["replay", "--speed", "max", "-q", "--data-dir", "off", "--json", json.to_str().unwrap()];
+    if let Some(v) = vehicle {
+        args.extend(["--vehicle", v.to_str().unwrap()]);
+    }
+    args.push(tlog.to_str().unwrap());
+    ok(&args);
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let est: Vec<&serde_json::Value> = lines.iter().filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0)).collect();
+    assert!(est.len() > 500, "{} in-flight estimates", est.len());
+    let names: Vec<String> = est[0]["models"].as_object().unwrap().keys().filter(|n| *n != "lstm").cloned().collect();
+    names
+        .into_iter()
+        .map(|n| {
+            let mape = est.iter().map(|e| (e["models"][&n].as_f64().unwrap() - e["measured_w"].as_f64().unwrap()).abs() / e["measured_w"].as_f64().unwrap()).sum::<f64>();
+            (n, 100.0 * mape / est.len() as f64)
+        })
+        .collect()
+}
+
+#[test]
+fn learned_profile_beats_the_published_one_on_an_unseen_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir_all(&logs).unwrap();
+    for seed in 1..=3 {
+        simulate(&logs.join(format!("x500-{seed}.tlog")), seed);
+    }
+    let unseen = dir.path().join("x500-4.tlog");
+    simulate(&unseen, 4);
+    let out_dir = dir.path().join("learned");
+    let out = ok(&["learn", logs.to_str().unwrap(), "--holdout-every", "3", "--out", out_dir.to_str().unwrap()]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("held out:") && said.contains("x500-3.tlog"), "{said}");
+    let card = std::fs::read_to_string(out_dir.join("model-card.md")).unwrap();
+    assert!(card.contains("held out (score)") && card.contains("| training |") && card.contains("not fine-tuned"), "{card}");
+    let profile = out_dir.join("profile.toml");
+    assert!(std::fs::read_to_string(&profile).unwrap().contains("[calibration]"));
+
+    let published = physics_mape(&unseen, None);
+    let learned = physics_mape(&unseen, Some(&profile));
+    assert!(learned.iter().all(|(n, _)| n.ends_with("_cal")), "{learned:?}");
+    let mean = |v: &[(String, f64)]| v.iter().map(|(_, m)| m).sum::<f64>() / v.len() as f64;
+    let best = |v: &[(String, f64)]| v.iter().map(|(_, m)| *m).fold(f64::INFINITY, f64::min);
+    assert!(mean(&learned) < 0.6 * mean(&published), "learned {learned:?}\npublished {published:?}");
+    assert!(best(&learned) < 10.0, "{learned:?}");
+}
+
+#[test]
+fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = dir.path().join("00000012.BIN");
+    std::fs::write(&bin, b"not read").unwrap();
+    let out = dronewatt(&["learn", bin.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("only .tlog"));
+    let one = dir.path().join("one.tlog");
+    simulate(&one, 1);
+    let out = dronewatt(&["learn", one.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("at least 2"), "{}", String::from_utf8_lossy(&out.stderr));
+}
