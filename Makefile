@@ -21,7 +21,7 @@ build-all: setup
 	$(CARGO) build --locked --workspace
 
 run: build
-	./target/debug/dronewatt replay replay/demo.tlog --speed $(DEMO_SPEED) --config config/demo.toml
+	./target/debug/dronewatt replay replay/demo.tlog --speed $(DEMO_SPEED) --config config/demo.toml --data-dir off
 
 test: setup
 	@scripts/setup-chromium.sh

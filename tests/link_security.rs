@@ -52,6 +52,9 @@ fn a_vehicle_signing_with_the_right_key_is_heard_and_verifies_our_replies() {
 #[test]
 fn a_wrong_key_is_dropped_and_counted_both_ways() {
     let (_dir, cfg) = signed_config(false);
+    // No frame is read, so no vehicle is ever heard: with its system id set, dronewatt still
+    // sends its heartbeat (signed) from the start, which the peer must refuse.
+    let cfg = format!("{cfg}[sinks.mavlink]\nsystem_id = 1\n");
     let r = fly(&cfg, false, r#"[{"send_s": 3}]"#, &["--sign-key", OTHER_KEY_HEX]);
     let frames = r.peer["frames"].as_u64().unwrap();
     assert_eq!(r.count("signature_bad"), frames, "{}", r.summary);
