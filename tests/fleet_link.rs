@@ -11,9 +11,10 @@
 //! - the terminal shows the fleet view (one row per vehicle);
 //! - `--vehicles` keeps only the vehicles asked for.
 
+mod link_common;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
@@ -43,9 +44,6 @@ impl Run {
     }
 }
 
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
 
 /// Monitor a free UDP port with `config` and `args`, fly the fleet at it, stop with SIGTERM.
 fn fly(config: &str, args: &[&str]) -> Run {
@@ -53,7 +51,7 @@ fn fly(config: &str, args: &[&str]) -> Run {
     let cfg = dir.path().join("dw.toml");
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
-    let port = free_udp_port();
+    let port = link_common::free_udp_port();
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "--config"])
         .arg(&cfg)
@@ -64,25 +62,9 @@ fn fly(config: &str, args: &[&str]) -> Run {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let start = Instant::now();
-    while std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok() {
-        assert!(start.elapsed() < Duration::from_secs(60), "dronewatt never listened");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    link_common::wait_listening(port, false, &mut dw);
     let vehicles = r#"[{"id": 1, "power_w": 300, "send_s": 10}, {"id": 2, "power_w": 500, "send_s": 10}, {"id": 3, "power_w": 700, "send_s": 4}]"#;
-    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
-        .args(["--to", &format!("udpout:127.0.0.1:{port}"), "--vehicles", vehicles])
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
-    let status = dw.wait().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
-    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
-    assert!(status.success(), "dronewatt exited with {status}: {stderr}");
-    let out = String::from_utf8_lossy(&peer.stdout);
-    let peer: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {stderr}"));
+    let (peer, stderr) = link_common::peer_then_stop(dw, "fleet.py", &["--to", &format!("udpout:127.0.0.1:{port}"), "--vehicles", vehicles]);
     let lines = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     Run { lines, peer, stderr }
 }

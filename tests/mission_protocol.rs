@@ -4,14 +4,12 @@
 //! / MISSION_ACK, drops one request, and changes the mission halfway. What the vehicle saw
 //! dronewatt ask and say, and what the operator sees (`--json`), are checked.
 
+mod link_common;
+
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
 
 /// Run `monitor` on a free port with `config`, the peer with `peer_args`; (peer JSON,
 /// dronewatt's JSON lines, its stderr).
@@ -20,7 +18,7 @@ fn run(config: &str, peer_args: &[&str]) -> (Value, Vec<Value>, String) {
     let cfg = dir.path().join("dw.toml");
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
-    let port = free_udp_port();
+    let port = link_common::free_udp_port();
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q", "--config"])
         .arg(&cfg)
@@ -31,25 +29,10 @@ fn run(config: &str, peer_args: &[&str]) -> (Value, Vec<Value>, String) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let start = Instant::now();
-    while std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok() {
-        assert!(start.elapsed() < Duration::from_secs(60), "dronewatt never listened");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/mission_server.py"))
-        .args(["--to", &format!("udpout:127.0.0.1:{port}")])
-        .args(peer_args)
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
-    let status = dw.wait().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
-    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
-    assert!(status.success(), "dronewatt exited with {status}: {stderr}");
-    let out = String::from_utf8_lossy(&peer.stdout);
-    let peer: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {stderr}"));
+    link_common::wait_listening(port, false, &mut dw);
+    let to = format!("udpout:127.0.0.1:{port}");
+    let args: Vec<&str> = ["--to", to.as_str()].into_iter().chain(peer_args.iter().copied()).collect();
+    let (peer, stderr) = link_common::peer_then_stop(dw, "mission_server.py", &args);
     let lines = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     (peer, lines, stderr)
 }

@@ -51,7 +51,7 @@ pub fn free_tcp_port() -> u16 {
 
 /// Wait until dronewatt holds `port` (UDP: our bind fails; TCP: a connect succeeds), so no
 /// frame the peer sends is lost to a socket not bound yet.
-fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
+pub fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
     let start = Instant::now();
     loop {
         let up = if tcp {
@@ -70,6 +70,27 @@ fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
         assert!(start.elapsed() < Duration::from_secs(60), "dronewatt never listened on port {port}");
         std::thread::sleep(Duration::from_millis(50));
     }
+}
+
+/// Run the pymavlink peer `tests/peers/SCRIPT` with `args` to its end while `dw` (a
+/// `dronewatt monitor` already listening, stderr piped) watches, then stop dronewatt with
+/// SIGTERM (its own orderly shutdown). Both must succeed; returns the peer's JSON report and
+/// dronewatt's stderr.
+pub fn peer_then_stop(mut dw: std::process::Child, script: &str, args: &[&str]) -> (Value, String) {
+    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
+        .arg(format!("{}/tests/peers/{script}", env!("CARGO_MANIFEST_DIR")))
+        .args(args)
+        .output()
+        .expect("run .venv-py/bin/python (make setup creates it)");
+    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let status = dw.wait().unwrap();
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
+    assert!(status.success(), "dronewatt exited with {status}: {stderr}");
+    let out = String::from_utf8_lossy(&peer.stdout);
+    let peer: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {stderr}"));
+    (peer, stderr)
 }
 
 /// Monitor `udpin:` (or `tcpin:` with `tcp`) with `config`, fly `plan` with the extra peer
@@ -92,20 +113,8 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
         .unwrap();
     wait_listening(port, tcp, &mut dw);
     let to = format!("{}:127.0.0.1:{port}", if tcp { "tcp" } else { "udpout" });
-    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/vehicle.py"))
-        .args(["--to", &to, "--plan", plan])
-        .args(peer_args)
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
-    let status = dw.wait().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
-    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
-    assert!(status.success(), "dronewatt exited with {status}: {stderr}");
-    let out = String::from_utf8_lossy(&peer.stdout);
-    let peer: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {stderr}"));
+    let args: Vec<&str> = ["--to", &to, "--plan", plan].into_iter().chain(peer_args.iter().copied()).collect();
+    let (peer, stderr) = peer_then_stop(dw, "vehicle.py", &args);
     let text = std::fs::read_to_string(&json).unwrap();
     let (mut estimates, mut alerts, mut summary, mut estimate_lines) = (Vec::new(), Vec::new(), Value::Null, 0);
     for line in text.lines() {
