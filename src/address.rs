@@ -28,7 +28,7 @@ impl std::str::FromStr for LinkAddress {
     type Err = anyhow::Error;
     /// Errors name the address and list the accepted forms.
     fn from_str(s: &str) -> Result<Self> {
-        let fail = |why: &str| anyhow::anyhow!("link address '{s}': {why}; expected {ACCEPTED}");
+        let fail = |why: &str| anyhow::anyhow!("link address '{}': {why}; expected {ACCEPTED}", s.escape_debug());
         let Some((kind, rest)) = s.split_once(':') else {
             return Err(fail("no transport"));
         };
