@@ -119,8 +119,8 @@ fn main() {
     c.bench_function("live_chain_tick", |b| {
         b.iter(|| {
             i += 1;
-            let mut t = tick(10.0 + i as f64 * 0.1);
-            black_box(chain.run(black_box(&mut t)))
+            let t = tick(10.0 + i as f64 * 0.1);
+            black_box(chain.run(black_box(&t)))
         })
     });
     // The energy + alert + encode stage alone, on a fixed estimate.

@@ -29,8 +29,7 @@ fn flight_276_energy_matches_the_csv() {
     let last = text
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|v| v["type"] == "estimate")
-        .last()
+        .rfind(|v| v["type"] == "estimate")
         .expect("no estimates");
     let used = last["energy_used_wh"].as_f64().unwrap();
     let err_pct = 100.0 * (used - reference_wh).abs() / reference_wh;

@@ -57,7 +57,7 @@ fn a_reboot_restarts_sequence_and_boot_time_and_moves_home() {
     // more (100 s at ~500 W) and the margin would drop by as much; what else differs (the
     // 0.8 Wh used meanwhile, the forecast power) is a few Wh at most.
     let margin_at = |t: f64| {
-        let e = r.estimates.iter().filter(|e| e["t"].as_f64().unwrap() <= t).next_back().unwrap();
+        let e = r.estimates.iter().rfind(|e| e["t"].as_f64().unwrap() <= t).unwrap();
         e["home_margin_wh"].as_f64().unwrap_or_else(|| panic!("no home margin at {t}: {e}"))
     };
     let t0 = r.times()[0];

@@ -284,7 +284,7 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
         String::from_utf8_lossy(&out.stdout).to_string()
     };
     let with = tokio::task::spawn_blocking({
-        let d = dump.clone();
+        let d = dump;
         move || d(format!("http://{addr}/#token={token}"))
     })
     .await

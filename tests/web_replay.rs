@@ -52,8 +52,7 @@ fn dashboard_of_the_demo_replay_in_chromium() {
     let last = text
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|v| v["type"] == "estimate")
-        .next_back()
+        .rfind(|v| v["type"] == "estimate")
         .unwrap();
     let measured = format!("{:.0} W", last["measured_w"].as_f64().unwrap());
 

@@ -128,7 +128,7 @@ impl LiveMission {
             m.msg,
             MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_) | MavMessage::MISSION_ITEM(_) | MavMessage::MISSION_ACK(_)
         );
-        if !mission_protocol && !self.setup.follows.contains(m.header.system_id.into()) {
+        if !mission_protocol && !self.setup.follows.contains(m.header.system_id) {
             return None;
         }
         let had = self.flown.is_some();

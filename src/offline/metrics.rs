@@ -3,7 +3,7 @@
 //! both.
 //!
 //! By default every score is over **in-flight windows** only ([`in_flight`]: measured power
-//! > [`IN_FLIGHT_W`]). On the ground the power falls to ~2 W (motors off) or idles; no model of
+//! above [`IN_FLIGHT_W`]). On the ground the power falls to ~2 W (motors off) or idles; no model of
 //! the comparative study describes that, a percentage of it means nothing, and on flight 276
 //! the ground windows alone would put ~200 W into every model's MAE and hide every
 //! difference in flight. [`score_over`] with `all_windows` scores MAE, RMSE, MSE and energy

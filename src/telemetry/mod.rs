@@ -394,10 +394,8 @@ impl Telemetry {
                 self.velocity(2, t, [m.vx, m.vy, m.vz].map(|x| x as f64 * 0.01));
                 self.position(0, t, m.lat, m.lon, m.alt);
             }
-            MavMessage::GPS_RAW_INT(m) => {
-                if m.fix_type as u8 >= crate::dialect::GpsFixType::GPS_FIX_TYPE_3D_FIX as u8 {
-                    self.position(1, t, m.lat, m.lon, m.alt);
-                }
+            MavMessage::GPS_RAW_INT(m) if m.fix_type as u8 >= crate::dialect::GpsFixType::GPS_FIX_TYPE_3D_FIX as u8 => {
+                self.position(1, t, m.lat, m.lon, m.alt);
             }
             MavMessage::HOME_POSITION(h) => {
                 self.home_known = true;

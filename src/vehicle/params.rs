@@ -454,8 +454,7 @@ mod tests {
         // Another system's value is not ours.
         r.on_message(&msg(0.5, 8, 1, value("BAT1_CAPACITY", 9999.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
         r.on_message(&msg(0.5, 7, 1, value("BAT1_CAPACITY", 5000.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
-        let mut v = dialect::AUTOPILOT_VERSION_DATA::default();
-        v.uid = 0xDEAD_BEEF;
+        let v = dialect::AUTOPILOT_VERSION_DATA { uid: 0xDEAD_BEEF, ..Default::default() };
         r.on_message(&msg(0.6, 7, 1, MavMessage::AUTOPILOT_VERSION(v)));
         let p = r.params();
         assert_eq!((p.get("BAT1_N_CELLS"), p.get("BAT1_CAPACITY")), (Some(4.0), Some(5000.0)));

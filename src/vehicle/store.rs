@@ -454,8 +454,8 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
     let _ = writeln!(s, "{}: {} vehicle(s)", store.path().display(), vehicles.len());
     let _ = writeln!(
         s,
-        "{:<34} {:<9} {:<10} {:<22} {:>7} {:>9} {:>9}  {}",
-        "vehicle", "told by", "autopilot", "type", "flights", "airborne", "Wh/min", "capacity delivered / rated, by flight"
+        "{:<34} {:<9} {:<10} {:<22} {:>7} {:>9} {:>9}  capacity delivered / rated, by flight",
+        "vehicle", "told by", "autopilot", "type", "flights", "airborne", "Wh/min"
     );
     for v in &vehicles {
         let airborne: f64 = v.flights.iter().map(|f| f.summary.airborne_s).sum();
