@@ -90,7 +90,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
     let live = matches!(p.source, SourceSpec::Link(_));
-    let mission = mission_setup(&p.config, &p.source, Some(demux.filter()))?;
+    let mission = mission_setup(&p.config, &p.source, demux.filter())?;
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
     // The mission tap between the source and the demultiplexer, when there is a mission
@@ -833,7 +833,7 @@ fn take_mission(energy: &mut EnergyTracker, rx: &mut Option<mpsc::Receiver<Missi
 
 /// What the live mission forecast needs, when the source can carry a mission (a live
 /// link, a `.tlog` or raw log; not the data set) and `[forecast.live] enabled`.
-fn mission_setup(cfg: &Config, source: &SourceSpec, follows: Option<&crate::fleet::VehicleFilter>) -> Result<Option<crate::mission::live::LiveSetup>> {
+fn mission_setup(cfg: &Config, source: &SourceSpec, follows: &crate::fleet::VehicleFilter) -> Result<Option<crate::mission::live::LiveSetup>> {
     if !cfg.forecast.live.enabled || matches!(source, SourceSpec::Dataset { .. }) {
         return Ok(None);
     }
@@ -856,7 +856,7 @@ fn mission_setup(cfg: &Config, source: &SourceSpec, follows: Option<&crate::flee
         // Requests go out as the configured id, else as the vehicle's companion computer.
         system_id: cfg.sinks.mavlink.system_id,
         component_id: cfg.sinks.mavlink.component_id,
-        follows: follows.cloned().unwrap_or_default(),
+        follows: follows.clone(),
     }))
 }
 
