@@ -17,7 +17,8 @@
 //! ```text
 //! {"type":"summary","frames_ok":…,"frames_bad":…,"unknown":…,"gaps":…,"windows":…,
 //!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…,
-//!  "signed_ok":…,"signature_bad":…,"signature_replay":…,"unsigned_refused":…}
+//!  "signed_ok":…,"signature_bad":…,"signature_replay":…,"unsigned_refused":…,
+//!  "queue_peak":…,"queue_peak_at_s":…}
 //! ```
 //!
 //! The MQTT sink ([`super::mqtt`]) publishes the same `estimate` and `alert` objects, and
@@ -71,7 +72,7 @@ pub fn spawn(
                     w.flush()?; // live: each report shows up as it happens
                 }
             }
-            write_line(&mut w, &Summary::new(status.stats.snapshot(), reports, rx.missed()))?;
+            write_line(&mut w, &Summary::new(status.stats.snapshot(), reports, rx.missed()).with_queues(status.stats.queues.peak()))?;
             w.flush()
         })();
         run.with_context(|| format!("{name}: cannot write JSON lines"))
@@ -299,12 +300,20 @@ pub struct Summary {
     pub reports: u64,
     /// Reports this sink missed while it was stuck (see [`super::SINK_PATIENCE`]).
     pub missed_reports: u64,
+    /// The deepest any queue between the stages has been (items), and when it got there
+    /// (seconds after the start): see [`crate::status::QueueGauge`].
+    pub queue_peak: u64,
+    pub queue_peak_at_s: f64,
 }
 
 impl Summary {
     /// The summary for these counters.
     pub fn new(s: StatsSnapshot, reports: u64, missed_reports: u64) -> Self {
-        Self { kind: "summary", ingest: s, reports, missed_reports }
+        Self { kind: "summary", ingest: s, reports, missed_reports, queue_peak: 0, queue_peak_at_s: 0.0 }
+    }
+    /// With the queues' high-water mark.
+    pub fn with_queues(self, (queue_peak, queue_peak_at_s): (u64, f64)) -> Self {
+        Self { queue_peak, queue_peak_at_s, ..self }
     }
 }
 
