@@ -13,8 +13,14 @@
 //!   flight's plan: what the model misses systematically (the plan's own simplifications —
 //!   stop-and-go legs, the rotors' spin-up — and the model's bias) is removed, by flight.
 //!   The power is also weighted by phase (`phase_scale`: vertical climb, vertical
-//!   descent, the rest), fitted on the training flights' halves, so that what is left at
-//!   any point of the plan, not only the whole, is right.
+//!   descent, the rest) and the vertical work rate m·g·v_z added with its own weights
+//!   (`climb_work`, climbing and descending), all fitted on the training flights' halves,
+//!   so that what is left at any point of the plan, not only the whole, is right:
+//!   `P50(t) = k · (w_phase(t) · P_f(t) + w_up · m·g·max(v_z, 0) + w_down · m·g·max(−v_z, 0))`.
+//!   The work term is what makes a slanted climb (a leg that climbs while it flies
+//!   forward) cost its climb: forward-flight power plus m·g·v_z over the rotors'
+//!   efficiency, the physics of any climb, where a weight on vertical climbs alone
+//!   would miss it.
 //! - **P90 energy** `E90 = r90 · E50` with `r90` (`p90_ratio`) the 90th percentile of
 //!   measured/forecast over the same training flights after the correction: the by-flight
 //!   residual spread, which holds the day-to-day wind, battery temperature and pilot
@@ -58,12 +64,30 @@ pub struct Calibration {
     /// anything else ([`phase_of`]), fitted by `plan-eval` on the training flights' two
     /// halves. Default: `plan-eval`'s fit.
     pub phase_scale: [f64; 3],
+    /// Weights on the vertical work rate m·g·v_z (W) climbing and descending, added to the
+    /// model's power on every sample that moves vertically, slanted legs included
+    /// ([`vertical_work_w`]): a climb costs the forward-flight power plus m·g·v_z over the
+    /// rotors' efficiency, whatever the horizontal speed. Fitted by `plan-eval` beside
+    /// `phase_scale` (0 = not used). Default: its fit.
+    pub climb_work: [f64; 2],
+    /// The vehicle's mass without payload, kg, that the vertical work is computed with
+    /// (m = `vehicle_kg` + the plan's payload); `climb_work` was fitted with it. Default
+    /// 2.431 (the M100 profile's airframe and TB48D, what `plan-eval` fits with).
+    pub vehicle_kg: f64,
 }
 
 impl Calibration {
     /// No correction: the model's own power (what `plan-eval` fits from).
     pub fn uncorrected() -> Self {
-        Self { model: String::new(), scale: 1.0, p90_ratio: 1.0, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3] }
+        Self { model: String::new(), scale: 1.0, p90_ratio: 1.0, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3], climb_work: [0.0; 2], vehicle_kg: 2.431 }
+    }
+
+    /// The weights on [model power in vertical climb, vertical descent, the rest, vertical
+    /// work up, vertical work down].
+    pub fn weights(&self) -> [f64; 5] {
+        let [a, b, c] = self.phase_scale;
+        let [d, e] = self.climb_work;
+        [a, b, c, d, e]
     }
 }
 
@@ -81,17 +105,31 @@ pub fn phase_of(s: &crate::telemetry::Sample) -> usize {
     }
 }
 
+/// The vertical work rate of a sample, W: m·g·v_z climbing and m·g·|v_z| descending
+/// (`[up, down]`, one of them 0), with m = `vehicle_kg` + the sample's payload.
+pub fn vertical_work_w(s: &crate::telemetry::Sample, vehicle_kg: f64) -> [f64; 2] {
+    let vz = f64::from(s.features[idx::VZ]);
+    let w = (vehicle_kg + f64::from(s.features[idx::PAYLOAD]).max(0.0) / 1000.0) * 9.81 * vz.abs();
+    if vz > 0.0 {
+        [w, 0.0]
+    } else {
+        [0.0, w]
+    }
+}
+
 impl Default for Calibration {
     fn default() -> Self {
         // Fitted by `dronewatt plan-eval` on the M100 training flights (178 route flights, test
         // flights excluded), with the calibrated profile's physics models.
         Self {
             model: "tseng_solo_cal".into(),
-            scale: 0.9992,
-            p90_ratio: 1.0288,
+            scale: 0.9986,
+            p90_ratio: 1.0281,
             live_weight: 0.00,
             recent_flights: 20,
-            phase_scale: [1.3111, 0.9514, 0.9654],
+            phase_scale: [0.9594, 0.9594, 0.9594],
+            climb_work: [2.4472, 0.0],
+            vehicle_kg: 2.431,
         }
     }
 }
@@ -104,6 +142,15 @@ impl Calibration {
         }
         if !(self.p90_ratio.is_finite() && self.p90_ratio >= 1.0) {
             return Err(format!("forecast.calibration.p90_ratio = {}: must be ≥ 1", self.p90_ratio));
+        }
+        if !(self.vehicle_kg.is_finite() && self.vehicle_kg > 0.0) {
+            return Err(format!("forecast.calibration.vehicle_kg = {}: must be > 0", self.vehicle_kg));
+        }
+        if !self.climb_work.iter().all(|w| w.is_finite()) {
+            return Err(format!("forecast.calibration.climb_work = {:?}: must be numbers", self.climb_work));
+        }
+        if !self.phase_scale.iter().all(|w| w.is_finite() && *w > 0.0) {
+            return Err(format!("forecast.calibration.phase_scale = {:?}: must be > 0", self.phase_scale));
         }
         if !(0.0..=1.0).contains(&self.live_weight) {
             return Err(format!("forecast.calibration.live_weight = {}: must be in [0, 1]", self.live_weight));
@@ -229,7 +276,9 @@ fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration
     let mut cum = Vec::with_capacity(p.len());
     let mut e = 0.0;
     for (s, &w) in traj.samples.iter().zip(p) {
-        e += cal.scale * cal.phase_scale[phase_of(s)] * f64::from(w) * dt_h;
+        let [up, down] = vertical_work_w(s, cal.vehicle_kg);
+        let p = cal.phase_scale[phase_of(s)] * f64::from(w) + cal.climb_work[0] * up + cal.climb_work[1] * down;
+        e += cal.scale * p.max(0.0) * dt_h;
         cum.push(e);
     }
     let at = |i: usize| if i == 0 { 0.0 } else { cum.get(i - 1).copied().unwrap_or(e) };
@@ -334,7 +383,7 @@ mod tests {
 
     #[test]
     fn energy_adds_up_and_grows_with_payload_and_wind() {
-        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3] };
+        let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, ..Calibration::uncorrected() };
         let f = run(0.0, Wind::default(), &cal);
         assert_eq!(f.model, "dandrea");
         let legs: f64 = f.legs.iter().map(|l| l.energy_p50_wh).sum();
@@ -416,7 +465,7 @@ mod tests {
 
     #[test]
     fn the_live_reforecast_reads_what_is_left() {
-        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 1.0, recent_flights: 0, phase_scale: [1.0; 3] };
+        let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, live_weight: 1.0, ..Calibration::uncorrected() };
         let f = run(0.0, Wind::default(), &cal);
         let n = f.cum_p50_wh.len();
         let r0 = f.remaining_from(0, None, 1.0);
