@@ -464,6 +464,44 @@ mod tests {
     }
 
     #[test]
+    fn a_slanted_climb_costs_its_climb_work() {
+        // Take off to 25 m, climb to 100 m on a 400 m leg north (slanted), come back down
+        // to 25 m on the way east, return. The work term adds w·m·g·Δh for every metre
+        // climbed, vertical or slanted, and nothing for the descent when its weight is 0.
+        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
+        let d = 400.0 / 111_320.0;
+        let wps = [GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0, alt_m: 100.0 }, GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0 + d, alt_m: 25.0 }];
+        let mut plan = Plan::from_waypoints("slanted", home, &wps, 10.0);
+        for it in plan.items.iter_mut() {
+            if let crate::mission::plan::ItemKind::Takeoff { alt_m } = &mut it.kind {
+                *alt_m = 25.0;
+            }
+        }
+        let tr = fly(&plan, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: 500.0, speed_m_s: None, rate_hz: 10.0 });
+        let slanted = tr.samples.iter().filter(|s| s.features[idx::VZ] > 0.5 && s.features[idx::VX].hypot(s.features[idx::VY]) > 1.0).count();
+        assert!(slanted as f64 * tr.dt_s > 30.0, "the leg north climbs while it flies: {slanted} samples");
+        let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
+        let base = Calibration { model: "tseng_solo".into(), scale: 0.97, ..Calibration::uncorrected() };
+        let w = 2.5;
+        let with = Calibration { climb_work: [w, 0.0], ..base.clone() };
+        let f0 = forecast(&tr, &mut models, &base, 10, 5);
+        let f1 = forecast(&tr, &mut models, &with, 10, 5);
+        let m = base.vehicle_kg + 0.5;
+        let climb_wh = |h: f64| 0.97 * w * m * 9.81 * h / 3600.0;
+        let extra = f1.energy_p50_wh - f0.energy_p50_wh;
+        assert!((extra / climb_wh(100.0) - 1.0).abs() < 0.01, "25 m take-off + 75 m slanted: {extra} Wh vs {}", climb_wh(100.0));
+        let leg = |f: &MissionForecast| f.legs[1].energy_p50_wh;
+        assert!((leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 < 0.01 && (leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 > -0.01, "the slanted leg itself carries its 75 m");
+        assert!((f1.legs[2].energy_p50_wh / f0.legs[2].energy_p50_wh - 1.0).abs() < 1e-9, "descending legs unchanged");
+        // tseng_solo has no climb term of its own: without the work term a slanted climb is free
+        let flat = Plan::from_waypoints("flat", home, &[GeoPoint { alt_m: 25.0, ..wps[0] }, wps[1]], 10.0); // take-off to 25 m
+        let tf = fly(&flat, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: 500.0, speed_m_s: None, rate_hz: 10.0 });
+        let ff = forecast(&tf, &mut models, &base, 10, 5);
+        assert!((ff.legs[1].energy_p50_wh - f0.legs[1].energy_p50_wh).abs() < 0.02 * ff.legs[1].energy_p50_wh);
+        assert!(with.validate().is_ok() && Calibration { vehicle_kg: 0.0, ..with.clone() }.validate().unwrap_err().contains("vehicle_kg"));
+    }
+
+    #[test]
     fn the_live_reforecast_reads_what_is_left() {
         let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, live_weight: 1.0, ..Calibration::uncorrected() };
         let f = run(0.0, Wind::default(), &cal);
