@@ -31,9 +31,11 @@
 //! - **baseline** (what autopilots do): mean power since the motors started × the plan's
 //!   remaining time, scored the same way.
 //!
-//! The forecast's correction (model, scale, P90 ratio, live weight) is fitted on the
-//! training flights only (route flights not in [`TEST_FLIGHTS`]) and then applied to the
-//! test flights; `--json` writes everything, the fit included.
+//! The forecast's correction (model, weighting — per-phase weights, or one weight on the
+//! model's power plus one on the climbing work m·g·v_z ([`BASES`]) — scale, P90 ratio, live
+//! weight) is fitted on the training flights only (route flights not in [`TEST_FLIGHTS`])
+//! by rolling validation and then applied to the test flights; `--json` writes everything,
+//! the fit and the training flights' own scores included.
 
 use std::path::{Path, PathBuf};
 
