@@ -443,7 +443,7 @@ struct ModelRaw {
 /// A forecast's energy split into what the calibration weighs ([`Calibration::weights`]):
 /// the model's energy in vertical climb, vertical descent and the rest, and the vertical
 /// work m·g·v_z up and down, Wh.
-type Terms = [f64; 5];
+pub type Terms = [f64; 5];
 
 /// Phase of a trajectory sample: 0 vertical climb, 1 vertical descent, 2 anything else.
 pub use crate::mission::forecast::phase_of;
@@ -659,7 +659,7 @@ fn phased_wh(p: &Prepared, mi: usize, ks: &Terms) -> f64 {
 /// - `vertical work`: one weight on the model's power everywhere plus one on the climbing
 ///   work m·g·v_z (a slanted climb is forward flight plus a climb: training routes climb
 ///   only vertically, R7 climbs on slanted legs).
-const BASES: [(&str, &[Terms]); 2] = [
+pub const BASES: [(&str, &[Terms]); 2] = [
     ("phases", &[[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0]]),
     ("vertical work", &[[1.0, 1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0]]),
 ];
