@@ -502,6 +502,21 @@ mod tests {
     }
 
     #[test]
+    fn the_calibration_table_reads_its_documented_keys_and_names_a_bad_one() {
+        // the README's block: plan-eval's fit, the defaults
+        let text = "model = \"tseng_solo_cal\"\nscale = 0.9986\np90_ratio = 1.0281\nlive_weight = 0.0\nrecent_flights = 20\n\
+                    phase_scale = [0.9594, 0.9594, 0.9594]\nclimb_work = [2.4472, 0.0]\nvehicle_kg = 2.431\n";
+        let c: Calibration = toml::from_str(text).unwrap();
+        assert_eq!(c, Calibration::default());
+        let old: Calibration = toml::from_str("phase_scale = [1.3111, 0.9514, 0.9654]").unwrap();
+        assert_eq!(old.climb_work, Calibration::default().climb_work, "a key left out keeps its default");
+        let e = toml::from_str::<Calibration>("climb_weight = 2").unwrap_err().to_string();
+        assert!(e.contains("climb_weight"), "{e}");
+        let bad = Calibration { climb_work: [f64::NAN, 0.0], ..Calibration::default() };
+        assert!(bad.validate().unwrap_err().contains("forecast.calibration.climb_work"));
+    }
+
+    #[test]
     fn the_live_reforecast_reads_what_is_left() {
         let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, live_weight: 1.0, ..Calibration::uncorrected() };
         let f = run(0.0, Wind::default(), &cal);
