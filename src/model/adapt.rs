@@ -102,6 +102,11 @@ pub struct AdaptConfig {
     pub gain_max: f64,
     /// Largest offset |b| allowed, W. Default 1000.
     pub offset_max_w: f64,
+    /// Memory of each model's recent error on this vehicle, s: the error of the published
+    /// (adapted) value, forgotten by e every `score_memory_s`, that the forecast picks its
+    /// model by (`[energy.select]`). Default 120 (longer than `memory_s`: the forecast
+    /// model should be the best over the flight's regimes, not the last half-minute's).
+    pub score_memory_s: f64,
 }
 
 impl Default for AdaptConfig {
@@ -114,6 +119,7 @@ impl Default for AdaptConfig {
             gain_min: 0.2,
             gain_max: 5.0,
             offset_max_w: 1000.0,
+            score_memory_s: 120.0,
         }
     }
 }
@@ -132,6 +138,7 @@ impl AdaptConfig {
         pos("gain_min", self.gain_min);
         pos("gain_max", self.gain_max);
         pos("offset_max_w", self.offset_max_w);
+        pos("score_memory_s", self.score_memory_s);
         if self.reference_memory_s < 5.0 * self.memory_s {
             errs.push(format!(
                 "models.adapt.reference_memory_s = {}: must be ≥ 5 × memory_s = {} (the deviation alert's reference must adapt much slower than the forecast)",
@@ -228,6 +235,14 @@ pub struct Adapted {
     pub reference_w: f32,
     /// Whether this window taught the fits.
     pub taught: bool,
+    /// The published value's recent mean absolute error on this vehicle, W, scored before
+    /// the window taught (out of sample), forgotten with `score_memory_s` and corrected for
+    /// the start-up bias of a forgotten mean (divided by 1 − λⁿ after n scored windows).
+    /// None before the first scored window.
+    pub err_w: Option<f32>,
+    /// Seconds of flight that scored this model since this run started (windows that
+    /// taught × the window step): how much evidence `err_w` rests on.
+    pub evidence_s: f32,
 }
 
 /// Every model's fits, by model name (in the ensemble's order).
@@ -239,6 +254,14 @@ pub struct Adaptation {
     /// Below this measured power nothing teaches (motors off), W.
     min_teach_w: f64,
     fits: Vec<(String, ModelFit)>,
+    /// Window step, s.
+    dt_s: f64,
+    /// Forgetting factor of the published value's error (`score_memory_s`).
+    lambda_score: f64,
+    /// Per model: windows that scored it since this run started and the forgotten mean of
+    /// its published value's absolute error, W (the evidence behind its recent error; a
+    /// warm start restores fits, not evidence).
+    scored: Vec<(u64, f64)>,
 }
 
 impl Adaptation {
@@ -252,6 +275,9 @@ impl Adaptation {
             lambda_ref: lambda_of(cfg.reference_memory_s),
             min_teach_w: (cfg.min_power_frac * hover_w).max(0.0),
             fits: names.iter().map(|n| (n.clone(), ModelFit::default())).collect(),
+            dt_s,
+            lambda_score: lambda_of(cfg.score_memory_s),
+            scored: vec![(0, 0.0); names.len()],
         }
     }
 
@@ -264,9 +290,10 @@ impl Adaptation {
     /// the model says the window is `in_range`) both fits taught with it. The correction is
     /// the one *before* this window taught: the published estimate never saw its own answer.
     pub fn step(&mut self, i: usize, p_model_w: f32, measured_w: Option<f32>, in_range: bool) -> Option<Adapted> {
-        let (lambda, lambda_ref, min_w) = (self.lambda, self.lambda_ref, self.min_teach_w);
+        let (lambda, lambda_ref, lambda_score, min_w, dt_s) = (self.lambda, self.lambda_ref, self.lambda_score, self.min_teach_w, self.dt_s);
         let cfg = &self.cfg;
         let fit = &mut self.fits.get_mut(i)?.1;
+        let (scored, score) = self.scored.get_mut(i)?;
         let x = f64::from(p_model_w);
         if !x.is_finite() {
             return None;
@@ -275,10 +302,15 @@ impl Adaptation {
         // Published: the fit while its recent out-of-sample error is no worse than the raw
         // model's, else the raw model (a fit that extrapolates badly never makes it worse).
         let [err_raw, err_fit] = fit.err_w;
-        let out = Adapted {
-            adapted_w: if err_fit <= err_raw { corrected } else { x.max(0.0) } as f32,
+        let published = if err_fit <= err_raw { corrected } else { x.max(0.0) };
+        // A forgotten mean started at 0 is low by the factor 1 − λⁿ: undo it.
+        let recent = |n: u64, err: f64| (n > 0).then(|| (err / (1.0 - lambda_score.powf(n as f64)).max(1e-9)) as f32);
+        let mut out = Adapted {
+            adapted_w: published as f32,
             reference_w: fit.reference.apply(x).max(0.0) as f32,
             taught: false,
+            err_w: recent(*scored, *score),
+            evidence_s: (*scored as f64 * dt_s) as f32,
         };
         let y = measured_w.map(f64::from).filter(|y| y.is_finite() && *y > 0.0 && *y <= MAX_POWER_W);
         let Some(y) = y else { return Some(out) };
@@ -286,9 +318,14 @@ impl Adaptation {
             return Some(out);
         }
         fit.err_w = [lambda * err_raw + (1.0 - lambda) * (x - y).abs(), lambda * err_fit + (1.0 - lambda) * (corrected - y).abs()];
+        *score = lambda_score * *score + (1.0 - lambda_score) * (published - y).abs();
+        *scored += 1;
         fit.adapted.teach(x, y, lambda, cfg);
         fit.reference.teach(x, y, lambda_ref, cfg);
-        Some(Adapted { taught: true, ..out })
+        out.taught = true;
+        out.err_w = recent(*scored, *score);
+        out.evidence_s = (*scored as f64 * dt_s) as f32;
+        Some(out)
     }
 
     /// The fits, by model name: what the vehicle store keeps between flights.
@@ -322,6 +359,7 @@ impl Adaptation {
         for (_, fit) in &mut self.fits {
             *fit = ModelFit::default();
         }
+        self.scored.iter_mut().for_each(|n| *n = (0, 0.0));
     }
 }
 

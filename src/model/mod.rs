@@ -140,6 +140,7 @@ impl Ensemble {
                     if let Some(a) = ad.step(i, p.power_w, measured, in_range) {
                         me.adapted_w = Some(a.adapted_w);
                         me.reference_w = Some(a.reference_w);
+                        me.adapted_err = a.err_w.map(|err_w| crate::report::AdaptedError { err_w, evidence_s: a.evidence_s });
                     }
                 }
                 out[k].models.push(me);
