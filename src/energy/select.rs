@@ -14,7 +14,10 @@
 //!      followed (no switch on the first seconds of a flight);
 //!    - it must beat the followed model's recent error by the fraction `margin`, without a
 //!      break, for `hold_s` seconds (hysteresis: two models of near-equal error never flap,
-//!      and a transient of a few seconds does not move the forecast).
+//!      and a transient of a few seconds does not move the forecast);
+//!    - the profile's model was picked on whole held-out logs of this vehicle, evidence
+//!      the M100's LSTM has not on a vehicle it was not made for: away from it a
+//!      challenger must win by `profile_margin` (larger).
 //!
 //! The choice and why are published ([`Choice`]): the JSON lines (`forecast_model`,
 //! `forecast_why`), the terminal and the dashboard say which model the forecast uses.
@@ -36,13 +39,16 @@ pub struct SelectConfig {
     /// A challenger's recent error must be below (1 − `margin`) × the followed model's.
     /// Default 0.2.
     pub margin: f64,
+    /// The margin against the vehicle profile's own forecast model (picked by `learn` on
+    /// held-out logs of this vehicle), while the forecast still follows it. Default 0.3.
+    pub profile_margin: f64,
     /// ... without a break for this long, s. Default 10.
     pub hold_s: f64,
 }
 
 impl Default for SelectConfig {
     fn default() -> Self {
-        Self { enabled: true, evidence_s: 30.0, margin: 0.2, hold_s: 10.0 }
+        Self { enabled: true, evidence_s: 30.0, margin: 0.2, profile_margin: 0.3, hold_s: 10.0 }
     }
 }
 
@@ -55,8 +61,10 @@ impl SelectConfig {
                 errs.push(format!("energy.select.{k} = {v}: must be ≥ 0"));
             }
         }
-        if !(self.margin.is_finite() && (0.0..1.0).contains(&self.margin)) {
-            errs.push(format!("energy.select.margin = {}: must be in [0, 1)", self.margin));
+        for (k, v) in [("margin", self.margin), ("profile_margin", self.profile_margin)] {
+            if !(v.is_finite() && (0.0..1.0).contains(&v)) {
+                errs.push(format!("energy.select.{k} = {v}: must be in [0, 1)"));
+            }
         }
         errs
     }
@@ -67,8 +75,9 @@ impl SelectConfig {
 pub enum Why {
     /// `[energy] model` names it.
     Config,
-    /// The default: the vehicle profile's choice (`learn`), else `lstm`; `from` says which.
-    Default { from: String },
+    /// The default: the vehicle profile's choice (`learn`; `profile`), else `lstm`; `from`
+    /// says which.
+    Default { from: String, profile: bool },
     /// Its adapted estimate's recent error on this vehicle beat the model followed before.
     LowestError { err_w: f32, was: String, was_err_w: f32, evidence_s: f32 },
 }
@@ -77,7 +86,7 @@ impl std::fmt::Display for Why {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Why::Config => write!(f, "config [energy] model"),
-            Why::Default { from } => write!(f, "default ({from})"),
+            Why::Default { from, .. } => write!(f, "default ({from})"),
             Why::LowestError { err_w, was, was_err_w, evidence_s } => write!(
                 f,
                 "lowest recent error on this vehicle: {err_w:.0} W vs {was} {was_err_w:.0} W ({evidence_s:.0} s of evidence)"
@@ -110,8 +119,8 @@ impl Selector {
     pub fn new(cfg: &SelectConfig, configured: Option<&str>, default: Option<(&str, &str)>) -> Self {
         let (current, fixed) = match (configured, default) {
             (Some(m), _) => (Choice { model: m.to_string(), why: Why::Config }, true),
-            (None, Some((m, from))) => (Choice { model: m.to_string(), why: Why::Default { from: from.to_string() } }, false),
-            (None, None) => (Choice { model: "lstm".into(), why: Why::Default { from: "the M100's forecast model".into() } }, false),
+            (None, Some((m, from))) => (Choice { model: m.to_string(), why: Why::Default { from: from.to_string(), profile: true } }, false),
+            (None, None) => (Choice { model: "lstm".into(), why: Why::Default { from: "the M100's forecast model".into(), profile: false } }, false),
         };
         Self { fixed: fixed || !cfg.enabled, cfg: cfg.clone(), current, ahead: None }
     }
@@ -136,12 +145,16 @@ impl Selector {
             self.ahead = None;
             return &self.current;
         };
+        let margin = match self.current.why {
+            Why::Default { profile: true, .. } => self.cfg.profile_margin,
+            _ => self.cfg.margin,
+        };
         let best = models
             .iter()
             .filter(|m| m.name != self.current.model)
             .filter_map(|m| Some((m, scored(m)?)))
             .min_by(|a, b| a.1.err_w.total_cmp(&b.1.err_w))
-            .filter(|(_, e)| f64::from(e.err_w) < (1.0 - self.cfg.margin) * f64::from(now.err_w));
+            .filter(|(_, e)| f64::from(e.err_w) < (1.0 - margin) * f64::from(now.err_w));
         let Some((m, e)) = best else {
             self.ahead = None;
             return &self.current;
@@ -223,6 +236,19 @@ mod tests {
         let s = Selector::new(&SelectConfig::default(), None, Some(("stolaroff_cal", "vehicle profile learned")));
         assert_eq!(s.current().model, "stolaroff_cal");
         assert_eq!(s.current().why.to_string(), "default (vehicle profile learned)");
+        // The profile's pick (held-out evidence) needs the larger margin: 25 % better is not
+        // enough, 40 % is.
+        let mut s = Selector::new(&SelectConfig::default(), None, Some(("stolaroff_cal", "profile")));
+        for k in 0..1000 {
+            let t = f64::from(k) * 0.1;
+            s.update(t, &[m("lstm", 15.0, t as f32), m("stolaroff_cal", 20.0, t as f32)]);
+        }
+        assert_eq!(s.current().model, "stolaroff_cal");
+        for k in 1000..1200 {
+            let t = f64::from(k) * 0.1;
+            s.update(t, &[m("lstm", 12.0, t as f32), m("stolaroff_cal", 20.0, t as f32)]);
+        }
+        assert_eq!(s.current().model, "lstm");
         // Off: never moves.
         let mut s = Selector::new(&SelectConfig { enabled: false, ..Default::default() }, None, None);
         for k in 0..1000 {

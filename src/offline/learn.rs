@@ -53,6 +53,11 @@ pub struct LearnArgs {
     /// Most in-flight windows the fit uses (evenly thinned beyond).
     #[arg(long, default_value_t = 20_000)]
     pub max_windows: usize,
+    /// The vehicle store to keep the learned profile in for the logs' vehicle (as
+    /// `monitor --data-dir`; default `$DRONEWATT_HOME`, else the XDG data directory; `off`
+    /// for none): the next `monitor`/`replay` of that vehicle starts from it.
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
 }
 
 /// The logs named: files as given, folders' `.tlog` files in name order.
@@ -105,9 +110,14 @@ struct LogScore {
     rows: Vec<(String, Option<Scores>, Option<Scores>)>,
 }
 
-/// Score the profile's physics models on one log through the live chain.
+/// Score the profile's physics models (and the LSTM, when it runs) on one log through the
+/// live chain, from the first window (no adaptation).
 fn score(cfg: &Config, profile: &VehicleProfile, f: &FlightWindows) -> Result<Vec<(String, Option<Scores>)>> {
-    let mut chain = Chain::new(cfg, Ensemble::new(physics::models(profile)))?;
+    let mut models = physics::models(profile);
+    if let Some(m) = crate::model::lstm::from_config(&cfg.models.lstm, &cfg.telemetry)? {
+        models.push(Box::new(m));
+    }
+    let mut chain = Chain::new(cfg, Ensemble::new(models))?;
     let s = chain.run_flight(f)?;
     Ok(s.names.iter().map(|n| n.trim_end_matches("_cal").to_string()).zip(s.scores(false)).collect())
 }
@@ -156,6 +166,17 @@ pub fn run(args: LearnArgs) -> Result<()> {
         scores.push(LogScore { log: p.display().to_string(), in_flight_windows: *n, rows: rows.collect() });
     }
 
+    // The forecast model: the lowest mean held-out MAPE of the learned models.
+    let pick = pick_forecast(&scores);
+    let mut learned = learned;
+    if let Some((name, mape)) = &pick {
+        let model = if name == "lstm" { name.clone() } else { format!("{name}{}", learned.name_suffix()) };
+        learned.forecast = Some(crate::model::profile::ForecastDefault {
+            model,
+            why: format!("lowest held-out MAPE of `dronewatt learn`, {mape:.1} % over {} log(s)", held.len()),
+        });
+    }
+
     std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
     let profile_path = args.out.join("profile.toml");
     let mut text = format!(
@@ -172,11 +193,69 @@ pub fn run(args: LearnArgs) -> Result<()> {
     text.push_str(&toml::to_string(&learned).context("cannot serialise the learned profile")?);
     std::fs::write(&profile_path, text).with_context(|| format!("{}: cannot write", profile_path.display()))?;
     let card_path = args.out.join("model-card.md");
-    let card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores);
+    let mut card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores);
+    if let Some(f) = &learned.forecast {
+        card += &format!("\n## Forecast model\n\n`{}`: {} (written to the profile's `[forecast]`; `[energy] model` in the config overrides it, and online selection may still move it on the vehicle's own evidence).\n", f.model, f.why);
+    }
     std::fs::write(&card_path, &card).with_context(|| format!("{}: cannot write", card_path.display()))?;
     print!("{}", held_out_table(&scores));
+    if let Some(f) = &learned.forecast {
+        println!("forecast model: {} ({})", f.model, f.why);
+    }
     println!("wrote {} and {}", profile_path.display(), card_path.display());
+    if let Some(dir) = crate::vehicle::store::data_dir_from_env(args.data_dir.as_deref()) {
+        remember_profile(&dir, &logs, &profile_path, learned.forecast.as_ref().map(|f| f.model.as_str()));
+    }
     Ok(())
+}
+
+/// The model with the lowest mean held-out MAPE over the held-out logs (learned scores; a
+/// model missing a score on any held-out log is not a candidate), and that MAPE.
+fn pick_forecast(scores: &[LogScore]) -> Option<(String, f64)> {
+    let first = scores.first()?;
+    first
+        .rows
+        .iter()
+        .filter_map(|(name, _, _)| {
+            let per_log: Option<Vec<f64>> = scores
+                .iter()
+                .map(|l| l.rows.iter().find(|(n, _, _)| n == name).and_then(|(_, _, a)| a.map(|a| a.mape_pct)).filter(|v| v.is_finite()))
+                .collect();
+            let v = per_log?;
+            Some((name.clone(), v.iter().sum::<f64>() / v.len() as f64))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Keep the learned profile in the vehicle store for the vehicle(s) the logs were flown by
+/// (identified as live: AUTOPILOT_VERSION's uid, else HEARTBEAT). Any problem is a warning:
+/// the profile file stands without it.
+fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model: Option<&str>) {
+    let profile = std::fs::canonicalize(profile).unwrap_or_else(|_| profile.to_path_buf());
+    let mut ids: Vec<crate::vehicle::params::Identity> = Vec::new();
+    for p in logs {
+        let Ok(bytes) = std::fs::read(p) else { continue };
+        let stats = crate::source::IngestStats::default();
+        let mut reader = crate::vehicle::params::ParamReader::passive();
+        for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
+            reader.on_message(&m);
+        }
+        if let Some(id) = reader.params().identity {
+            if !ids.iter().any(|i| crate::vehicle::store::VehicleKey::of(i) == crate::vehicle::store::VehicleKey::of(&id)) {
+                ids.push(id);
+            }
+        }
+    }
+    if ids.is_empty() {
+        tracing::warn!("vehicle store: no autopilot heartbeat in the logs, so no vehicle to keep the profile for");
+        return;
+    }
+    if ids.len() > 1 {
+        tracing::warn!("vehicle store: the logs come from {} vehicles; the profile is kept for each", ids.len());
+    }
+    for id in &ids {
+        crate::vehicle::store::remember_profile(dir, id, &profile, forecast_model);
+    }
 }
 
 fn held_out_table(scores: &[LogScore]) -> String {
