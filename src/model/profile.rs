@@ -78,6 +78,11 @@ pub struct VehicleProfile {
     /// `dronewatt learn`, picked on held-out logs; optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub forecast: Option<ForecastDefault>,
+    /// The LSTM model folder fine-tuned for this vehicle (`dronewatt learn --fine-tune`),
+    /// relative to the profile file; it runs instead of the shipped one unless the config
+    /// sets `[models.lstm] path`. Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lstm: Option<std::path::PathBuf>,
 }
 
 /// `[forecast]`: which model the energy forecast starts from on this vehicle, unless the

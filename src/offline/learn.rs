@@ -58,6 +58,59 @@ pub struct LearnArgs {
     /// for none): the next `monitor`/`replay` of that vehicle starts from it.
     #[arg(long, value_name = "DIR")]
     pub data_dir: Option<PathBuf>,
+    /// Fine-tune the LSTM from the shipped M100 weights on the training logs, early-stopping
+    /// on the held-out logs (needs libtorch: the command is handed to `dronewatt-torch`).
+    /// Writes `lstm/` (weights and card) beside the profile, which refers to it.
+    #[arg(long)]
+    pub fine_tune: bool,
+    /// Most epochs of fine-tuning.
+    #[arg(long, default_value_t = 8)]
+    pub ft_epochs: usize,
+    /// Stop fine-tuning after this many optimiser steps (smoke tests).
+    #[arg(long)]
+    pub ft_max_steps: Option<usize>,
+    /// Fine-tuning learning rate (Adam).
+    #[arg(long, default_value_t = 3e-4)]
+    pub ft_lr: f64,
+}
+
+/// A fine-tuning of the LSTM that `learn` asks of `dronewatt-torch` ([`set_fine_tuner`]).
+pub struct FineTuneJob<'a> {
+    /// The model folder to start from (its `card.toml` and weights: the shipped M100 model).
+    pub base: &'a Path,
+    /// Training logs' windows (the live feature path) and the held-out logs' (early stop).
+    pub train: &'a [FlightWindows],
+    pub held_out: &'a [FlightWindows],
+    /// The folder to write `card.toml` and `model.safetensors` into.
+    pub out: &'a Path,
+    pub epochs: usize,
+    pub max_steps: Option<usize>,
+    pub lr: f64,
+    /// The training logs' names, for the card.
+    pub logs: Vec<String>,
+}
+
+/// What fine-tuning ran.
+#[derive(Debug, Clone)]
+pub struct FineTuned {
+    /// Epochs run, and the epoch kept (0: no epoch beat the shipped weights on the held-out
+    /// logs, which are kept).
+    pub epochs_run: usize,
+    pub best_epoch: usize,
+    /// Held-out MAE of the shipped weights and of the kept ones, W.
+    pub held_out_mae_w: (f64, f64),
+    pub train_windows: usize,
+    pub train_time_s: f64,
+}
+
+/// Fine-tunes the LSTM: registered by `dronewatt-torch`.
+pub type FineTuner = fn(&FineTuneJob) -> Result<FineTuned>;
+
+static FINE_TUNER: std::sync::OnceLock<FineTuner> = std::sync::OnceLock::new();
+
+/// Register the fine-tuner (once per process; later calls are ignored).
+pub fn set_fine_tuner(f: FineTuner) {
+    let _ = FINE_TUNER.set(f);
 }
 
 /// The logs named: files as given, folders' `.tlog` files in name order.
@@ -110,16 +163,21 @@ struct LogScore {
     rows: Vec<(String, Option<Scores>, Option<Scores>)>,
 }
 
-/// Score the profile's physics models (and the LSTM, when it runs) on one log through the
-/// live chain, from the first window (no adaptation).
-fn score(cfg: &Config, profile: &VehicleProfile, f: &FlightWindows) -> Result<Vec<(String, Option<Scores>)>> {
+/// Score the profile's physics models and the LSTM (`lstm`: a fine-tuned model folder, else
+/// the configured one, when it runs) on one log through the live chain, from the first
+/// window (no adaptation), by base name.
+fn score(cfg: &Config, profile: &VehicleProfile, lstm: Option<&Path>, f: &FlightWindows) -> Result<Vec<(String, Option<Scores>)>> {
     let mut models = physics::models(profile);
-    if let Some(m) = crate::model::lstm::from_config(&cfg.models.lstm, &cfg.telemetry)? {
+    let lstm = match lstm {
+        Some(p) => Some(crate::model::lstm::LstmModel::load(p, &cfg.telemetry)?),
+        None => crate::model::lstm::from_config(&cfg.models.lstm, &cfg.telemetry)?,
+    };
+    if let Some(m) = lstm {
         models.push(Box::new(m));
     }
     let mut chain = Chain::new(cfg, Ensemble::new(models))?;
     let s = chain.run_flight(f)?;
-    Ok(s.names.iter().map(|n| n.trim_end_matches("_cal").to_string()).zip(s.scores(false)).collect())
+    Ok(s.names.iter().map(|n| n.trim_end_matches("_cal").trim_end_matches("_ft").to_string()).zip(s.scores(false)).collect())
 }
 
 /// Run `dronewatt learn`.
@@ -129,6 +187,13 @@ pub fn run(args: LearnArgs) -> Result<()> {
         (Some(v), _) => VehicleProfile::named_or_file(v)?,
         (None, Some(p)) => VehicleProfile::load(p)?,
         (None, None) => VehicleProfile::m100(),
+    };
+    // Fine-tuning needs libtorch: ask before anything is written (the command is handed
+    // to `dronewatt-torch` whole).
+    let fine_tuner = match (args.fine_tune, FINE_TUNER.get()) {
+        (false, _) => None,
+        (true, Some(f)) => Some(*f),
+        (true, None) => return Err(crate::model::NeedsLibtorch { what: "fine-tuning the LSTM (learn --fine-tune)".into() }.into()),
     };
     if args.holdout_every < 2 {
         bail!("--holdout-every {}: must be at least 2 (one log in N is held out)", args.holdout_every);
@@ -153,12 +218,35 @@ pub fn run(args: LearnArgs) -> Result<()> {
     let train: Vec<FlightWindows> = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (_, f, _))| f.clone()).collect();
     let sums: Vec<String> = logs.iter().map(|p| crate::offline::data::sha256_file(p)).collect::<Result<_>>()?;
     let (learned, fit_report) = super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
+
+    // The LSTM fine-tuned from the shipped weights, early-stopping on the held-out logs.
+    let mut learned = learned;
+    let mut tuned = None;
+    if let Some(fine_tune) = fine_tuner {
+        let shipped = crate::model::lstm::resolve_model_path(cfg.models.lstm.path.as_deref()).context("no LSTM model to fine-tune from")?;
+        let held_windows: Vec<FlightWindows> = held.iter().map(|&i| flights[i].1.clone()).collect();
+        let out = args.out.join("lstm");
+        std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
+        let train_logs = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (p, _, _))| p.display().to_string()).collect();
+        let job = FineTuneJob { base: &shipped, train: &train, held_out: &held_windows, out: &out, epochs: args.ft_epochs, max_steps: args.ft_max_steps, lr: args.ft_lr, logs: train_logs };
+        let done = fine_tune(&job)?;
+        tracing::info!(
+            "LSTM fine-tuned: {} epoch(s), kept epoch {}, held-out MAE {:.1} → {:.1} W",
+            done.epochs_run,
+            done.best_epoch,
+            done.held_out_mae_w.0,
+            done.held_out_mae_w.1
+        );
+        learned.lstm = Some(PathBuf::from("lstm"));
+        tuned = Some((out, done));
+    }
 
     let mut scores = Vec::new();
     for &i in &held {
         let (p, f, n) = &flights[i];
-        let before = score(&cfg, &base, f)?;
-        let after = score(&cfg, &learned, f)?;
+        let before = score(&cfg, &base, None, f)?;
+        let after = score(&cfg, &learned, tuned.as_ref().map(|(p, _)| p.as_path()), f)?;
         let rows = before.into_iter().map(|(name, b)| {
             let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
             (name, b, a)
@@ -168,16 +256,18 @@ pub fn run(args: LearnArgs) -> Result<()> {
 
     // The forecast model: the lowest mean held-out MAPE of the learned models.
     let pick = pick_forecast(&scores);
-    let mut learned = learned;
     if let Some((name, mape)) = &pick {
-        let model = if name == "lstm" { name.clone() } else { format!("{name}{}", learned.name_suffix()) };
+        let model = match (name.as_str(), &tuned) {
+            ("lstm", Some(_)) => "lstm_ft".to_string(),
+            ("lstm", None) => name.clone(),
+            _ => format!("{name}{}", learned.name_suffix()),
+        };
         learned.forecast = Some(crate::model::profile::ForecastDefault {
             model,
             why: format!("lowest held-out MAPE of `dronewatt learn`, {mape:.1} % over {} log(s)", held.len()),
         });
     }
 
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
     let profile_path = args.out.join("profile.toml");
     let mut text = format!(
         "# Written by `dronewatt learn` from {} log(s) ({} trained, {} held out), starting from {}.\n",
@@ -193,7 +283,7 @@ pub fn run(args: LearnArgs) -> Result<()> {
     text.push_str(&toml::to_string(&learned).context("cannot serialise the learned profile")?);
     std::fs::write(&profile_path, text).with_context(|| format!("{}: cannot write", profile_path.display()))?;
     let card_path = args.out.join("model-card.md");
-    let mut card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores);
+    let mut card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores, tuned.as_ref().map(|(_, t)| t));
     if let Some(f) = &learned.forecast {
         card += &format!("\n## Forecast model\n\n`{}`: {} (written to the profile's `[forecast]`; `[energy] model` in the config overrides it, and online selection may still move it on the vehicle's own evidence).\n", f.model, f.why);
     }
@@ -277,7 +367,7 @@ fn held_out_table(scores: &[LogScore]) -> String {
     s
 }
 
-fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held: &[usize], scores: &[LogScore]) -> String {
+fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held: &[usize], scores: &[LogScore], tuned: Option<&FineTuned>) -> String {
     let mut s = String::from("# Model card: physics models learned by `dronewatt learn`\n\n");
     s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt calibrate`) fitted by bounded least squares on the in-flight windows (measured power over {IN_FLIGHT_W} W) of the training logs.\n\n", base.name);
     s += "## Learned from\n\n| log | in-flight windows | role |\n|---|---|---|\n";
@@ -287,7 +377,21 @@ fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held
     s += "\n## Inputs\n\nWhat the live link must deliver, as for every physics model: position and velocity (GLOBAL_POSITION_INT or LOCAL_POSITION_NED), attitude (ATTITUDE), acceleration (RAW_IMU/SCALED_IMU/HIGHRES_IMU or attitude), wind where sent (WIND, else none), and for the score and for adaptation the battery's voltage and current (SYS_STATUS or BATTERY_STATUS). No motor outputs, ESC telemetry or throttle.\n\n";
     s += "## Held-out score (whole logs, through the live chain)\n\n";
     s += &held_out_table(scores);
-    s += "\n## Not learned\n\nThe LSTM is not fine-tuned by `learn` (it keeps the M100 weights; online adaptation corrects its output in flight).\n";
+    match tuned {
+        Some(t) => {
+            s += &format!(
+                "\n## LSTM fine-tuned (`lstm_ft`)\n\nFrom the shipped M100 weights, on the training logs' windows (the live feature path, the M100 model's feature normalisation and target scale kept), Adam, early stopping on the held-out logs' MAE: {} epoch(s) run, epoch {} kept ({}), held-out MAE {:.1} W → {:.1} W, {} training windows, {:.0} s. Weights and card in `lstm/` (the profile's `lstm`); its rows in the held-out table above are `lstm` (shipped → fine-tuned). The held-out log also chose the epoch, so its score is optimistic: score an unseen log with `replay --vehicle`.\n",
+                t.epochs_run,
+                t.best_epoch,
+                if t.best_epoch == 0 { "none beat the shipped weights: they are kept" } else { "the lowest held-out MAE" },
+                t.held_out_mae_w.0,
+                t.held_out_mae_w.1,
+                t.train_windows,
+                t.train_time_s
+            );
+        }
+        None => s += "\n## Not learned\n\nThe LSTM is not fine-tuned by `learn` without `--fine-tune` (it keeps the M100 weights; online adaptation corrects its output in flight).\n",
+    }
     s
 }
 
