@@ -64,14 +64,20 @@ pub struct LearnArgs {
     #[arg(long)]
     pub fine_tune: bool,
     /// Most epochs of fine-tuning.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 30)]
     pub ft_epochs: usize,
     /// Stop fine-tuning after this many optimiser steps (smoke tests).
     #[arg(long)]
     pub ft_max_steps: Option<usize>,
     /// Fine-tuning learning rate (Adam).
-    #[arg(long, default_value_t = 3e-4)]
+    #[arg(long, default_value_t = 1e-3)]
     pub ft_lr: f64,
+    /// Epochs without a better held-out MAE before fine-tuning stops.
+    #[arg(long, default_value_t = 5)]
+    pub ft_patience: usize,
+    /// Dropout while fine-tuning (default: the shipped model's).
+    #[arg(long)]
+    pub ft_dropout: Option<f64>,
 }
 
 /// A fine-tuning of the LSTM that `learn` asks of `dronewatt-torch` ([`set_fine_tuner`]).
@@ -86,6 +92,9 @@ pub struct FineTuneJob<'a> {
     pub epochs: usize,
     pub max_steps: Option<usize>,
     pub lr: f64,
+    pub patience: usize,
+    /// Dropout while fine-tuning (None: the shipped model's).
+    pub dropout: Option<f64>,
     /// The training logs' names, for the card.
     pub logs: Vec<String>,
 }
@@ -229,7 +238,7 @@ pub fn run(args: LearnArgs) -> Result<()> {
         let out = args.out.join("lstm");
         std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
         let train_logs = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (p, _, _))| p.display().to_string()).collect();
-        let job = FineTuneJob { base: &shipped, train: &train, held_out: &held_windows, out: &out, epochs: args.ft_epochs, max_steps: args.ft_max_steps, lr: args.ft_lr, logs: train_logs };
+        let job = FineTuneJob { base: &shipped, train: &train, held_out: &held_windows, out: &out, epochs: args.ft_epochs, max_steps: args.ft_max_steps, lr: args.ft_lr, patience: args.ft_patience, dropout: args.ft_dropout, logs: train_logs };
         let done = fine_tune(&job)?;
         tracing::info!(
             "LSTM fine-tuned: {} epoch(s), kept epoch {}, held-out MAE {:.1} → {:.1} W",

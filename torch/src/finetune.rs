@@ -30,8 +30,6 @@ use crate::Net;
 pub const NAME: &str = "lstm_ft";
 /// Windows a batch.
 const BATCH: usize = 64;
-/// Epochs without a better held-out MAE before stopping.
-const PATIENCE: usize = 2;
 const SEED: u64 = 1;
 
 /// Raw inputs and targets of these logs' windows.
@@ -61,7 +59,7 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
 
     tch::manual_seed(SEED as i64);
     let mut vs = nn::VarStore::new(device);
-    let net = Net::new(&vs.root(), card.hidden, card.layers, card.training.dropout);
+    let net = Net::new(&vs.root(), card.hidden, card.layers, job.dropout.unwrap_or(card.training.dropout));
     let weights = job.base.join(&card.weights);
     vs.load(&weights).with_context(|| format!("{}: cannot load the weights to fine-tune", weights.display()))?;
     let mut opt = nn::Adam::default().build(&vs, job.lr)?;
@@ -89,7 +87,7 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
         tracing::info!("fine-tuning epoch {epoch}: held-out MAE {mae:.1} W (shipped {shipped_mae:.1} W)");
         if mae < best.0 {
             best = (mae, epoch, snapshot(&vs));
-        } else if epoch - best.1 >= PATIENCE {
+        } else if epoch - best.1 >= job.patience {
             break;
         }
         if steps >= max_steps {
@@ -112,6 +110,7 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
     out_card.training.data_sha256 = String::new();
     out_card.training.seed = SEED;
     out_card.training.learning_rate = job.lr;
+    out_card.training.dropout = job.dropout.unwrap_or(card.training.dropout);
     out_card.training.batch_size = BATCH;
     out_card.training.epochs_run = epochs_run;
     out_card.training.best_epoch = best_epoch;
