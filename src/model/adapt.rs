@@ -204,12 +204,36 @@ impl AffineFit {
         if !(det > 0.0 && a.is_finite() && b.is_finite() && info.iter().chain(&rhs).all(|v| v.is_finite())) {
             return;
         }
+        let (a, b) = box_solve([m00, m01, m11], [v0, v1], (a, b), (cfg.gain_min, cfg.gain_max), cfg.offset_max_w);
         self.info = info;
         self.rhs = rhs;
-        self.a = a.clamp(cfg.gain_min, cfg.gain_max);
-        self.b_w = b.clamp(-cfg.offset_max_w, cfg.offset_max_w);
+        self.a = a;
+        self.b_w = b;
         self.taught += 1;
     }
+}
+
+/// The minimum of `θᵀMθ − 2vᵀθ` (M = [[m00, m01], [m01, m11]] positive definite) over the
+/// box a ∈ `gain`, |b| ≤ `b_max`, given the unconstrained minimum `free`. Clamping a and b
+/// each on its own is not the constrained fit: a gain held at its bound needs the offset
+/// that fits *with* it (a model whose output falls while the power rises, as Tseng-Solo's
+/// in a climb, drove the gain to its bound and left the offset of a gain 3× larger: a
+/// 1,000 W estimate of a 600 W climb). Inside the box the free minimum is the answer; else
+/// the minimum lies on an edge, where it is a one-dimensional fit clamped to the edge.
+fn box_solve(m: [f64; 3], v: [f64; 2], free: (f64, f64), gain: (f64, f64), b_max: f64) -> (f64, f64) {
+    let [m00, m01, m11] = m;
+    let inside = |(a, b): (f64, f64)| (gain.0..=gain.1).contains(&a) && b.abs() <= b_max;
+    if inside(free) {
+        return free;
+    }
+    let cost = |(a, b): (f64, f64)| m00 * a * a + 2.0 * m01 * a * b + m11 * b * b - 2.0 * (v[0] * a + v[1] * b);
+    let on_a = |a: f64| (a, ((v[1] - m01 * a) / m11).clamp(-b_max, b_max));
+    let on_b = |b: f64| (((v[0] - m01 * b) / m00).clamp(gain.0, gain.1), b);
+    [on_a(gain.0), on_a(gain.1), on_b(-b_max), on_b(b_max)]
+        .into_iter()
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .min_by(|p, q| cost(*p).total_cmp(&cost(*q)))
+        .unwrap_or((free.0.clamp(gain.0, gain.1), free.1.clamp(-b_max, b_max)))
 }
 
 /// A model's two fits (module docs): the published one and the slow reference.
@@ -475,6 +499,48 @@ mod tests {
         for fit in [f.adapted, f.reference] {
             assert!((0.2..=5.0).contains(&fit.a) && fit.b_w.abs() <= 1000.0, "{fit:?}");
         }
+    }
+
+    #[test]
+    fn a_gain_at_its_bound_gets_the_offset_that_fits_with_it() {
+        // A model whose output barely moves and falls while the power climbs (Tseng-Solo in a
+        // climb): the unconstrained gain runs far past gain_max. The fit must still put the
+        // estimate near the measured level, not at a·x + b with a clamped and b not refitted.
+        let mut ad = adaptation();
+        for k in 0..300 {
+            let x = 330.0 + 0.01 * (k % 7) as f64;
+            ad.step(0, x as f32, Some(460.0), true);
+        }
+        let mut last = None;
+        for k in 0..400 {
+            let x = 316.0 - 0.01 * (k % 5) as f64;
+            last = ad.step(0, x as f32, Some(650.0), true);
+        }
+        // The free fit wants a gain far below 0 (output down, power up): held at gain_min,
+        // the offset is refitted with it. Clamping each on its own gave 0.2·316 + 1000 =
+        // 1,063 W here (the free offset is thousands of W).
+        let f = ad.fits()[0].1.adapted;
+        assert_eq!(f.a, 0.2, "{f:?}");
+        let est = f.apply(316.0);
+        assert!((560.0..=660.0).contains(&est), "{f:?}: {est:.0} W for a 650 W climb after 40 s");
+        assert!((560.0..=660.0).contains(&f64::from(last.unwrap().adapted_w)), "{last:?}");
+    }
+
+    #[test]
+    fn box_solve_is_the_constrained_minimum() {
+        // Brute force over a grid of the box against the closed form.
+        let (m, v) = ([4.0e6, 1.2e4, 40.0], [2.0e7, 5.0e4]);
+        let det = m[0] * m[2] - m[1] * m[1];
+        let free = ((m[2] * v[0] - m[1] * v[1]) / det, (m[0] * v[1] - m[1] * v[0]) / det);
+        let got = box_solve(m, v, free, (0.2, 5.0), 1000.0);
+        let cost = |a: f64, b: f64| m[0] * a * a + 2.0 * m[1] * a * b + m[2] * b * b - 2.0 * (v[0] * a + v[1] * b);
+        let mut best = f64::INFINITY;
+        for i in 0..=480 {
+            for j in 0..=400 {
+                best = best.min(cost(0.2 + 0.01 * f64::from(i), -1000.0 + 5.0 * f64::from(j)));
+            }
+        }
+        assert!(cost(got.0, got.1) <= best + 1e-6 * best.abs(), "{got:?}: {} vs {best}", cost(got.0, got.1));
     }
 
     #[test]
