@@ -8,8 +8,13 @@
 //! was learned from, the held-out score per log, the inputs).
 //!
 //! Input: `.tlog` files, or folders of them. ArduPilot DataFlash `.bin` and PX4 `.ulg` are
-//! not read yet (refused with a message), and the LSTM is not fine-tuned: only the physics
-//! models learn here (online adaptation still corrects the LSTM in flight).
+//! not read yet (refused with a message).
+//!
+//! With `--fine-tune` the LSTM is fine-tuned from the shipped weights too (on libtorch, by
+//! `dronewatt-torch`: [`set_fine_tuner`]; `lstm/` beside the profile, model `lstm_ft`).
+//! The forecast model is picked on the held-out score (the lowest mean MAPE) into the
+//! profile's `[forecast]`, and the profile is kept in the vehicle store for the logs'
+//! vehicle (`--data-dir`), so its next run starts from it.
 //!
 //! Held out: every `--holdout-every`-th log (whole logs, never windows of a log that also
 //! trained: windows of one flight are too alike to score honestly), at least one.
