@@ -282,10 +282,10 @@ pub struct Adaptation {
     dt_s: f64,
     /// Forgetting factor of the published value's error (`score_memory_s`).
     lambda_score: f64,
-    /// Per model: windows that scored it since this run started and the forgotten mean of
-    /// its published value's absolute error, W (the evidence behind its recent error; a
+    /// Per model: windows that scored it since this run started, the forgotten mean of its
+    /// published value's absolute error, W, and λⁿ (the evidence behind its recent error; a
     /// warm start restores fits, not evidence).
-    scored: Vec<(u64, f64)>,
+    scored: Vec<(u64, f64, f64)>,
 }
 
 impl Adaptation {
@@ -301,7 +301,7 @@ impl Adaptation {
             fits: names.iter().map(|n| (n.clone(), ModelFit::default())).collect(),
             dt_s,
             lambda_score: lambda_of(cfg.score_memory_s),
-            scored: vec![(0, 0.0); names.len()],
+            scored: vec![(0, 0.0, 1.0); names.len()],
         }
     }
 
@@ -317,7 +317,7 @@ impl Adaptation {
         let (lambda, lambda_ref, lambda_score, min_w, dt_s) = (self.lambda, self.lambda_ref, self.lambda_score, self.min_teach_w, self.dt_s);
         let cfg = &self.cfg;
         let fit = &mut self.fits.get_mut(i)?.1;
-        let (scored, score) = self.scored.get_mut(i)?;
+        let (scored, score, decay) = self.scored.get_mut(i)?;
         let x = f64::from(p_model_w);
         if !x.is_finite() {
             return None;
@@ -328,12 +328,12 @@ impl Adaptation {
         let [err_raw, err_fit] = fit.err_w;
         let published = if err_fit <= err_raw { corrected } else { x.max(0.0) };
         // A forgotten mean started at 0 is low by the factor 1 − λⁿ: undo it.
-        let recent = |n: u64, err: f64| (n > 0).then(|| (err / (1.0 - lambda_score.powf(n as f64)).max(1e-9)) as f32);
+        let recent = |n: u64, err: f64, decay: f64| (n > 0).then(|| (err / (1.0 - decay).max(1e-9)) as f32);
         let mut out = Adapted {
             adapted_w: published as f32,
             reference_w: fit.reference.apply(x).max(0.0) as f32,
             taught: false,
-            err_w: recent(*scored, *score),
+            err_w: recent(*scored, *score, *decay),
             evidence_s: (*scored as f64 * dt_s) as f32,
         };
         let y = measured_w.map(f64::from).filter(|y| y.is_finite() && *y > 0.0 && *y <= MAX_POWER_W);
@@ -344,10 +344,11 @@ impl Adaptation {
         fit.err_w = [lambda * err_raw + (1.0 - lambda) * (x - y).abs(), lambda * err_fit + (1.0 - lambda) * (corrected - y).abs()];
         *score = lambda_score * *score + (1.0 - lambda_score) * (published - y).abs();
         *scored += 1;
+        *decay *= lambda_score;
         fit.adapted.teach(x, y, lambda, cfg);
         fit.reference.teach(x, y, lambda_ref, cfg);
         out.taught = true;
-        out.err_w = recent(*scored, *score);
+        out.err_w = recent(*scored, *score, *decay);
         out.evidence_s = (*scored as f64 * dt_s) as f32;
         Some(out)
     }
@@ -383,7 +384,7 @@ impl Adaptation {
         for (_, fit) in &mut self.fits {
             *fit = ModelFit::default();
         }
-        self.scored.iter_mut().for_each(|n| *n = (0, 0.0));
+        self.scored.iter_mut().for_each(|n| *n = (0, 0.0, 1.0));
     }
 }
 
