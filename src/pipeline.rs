@@ -583,13 +583,13 @@ struct Memory {
 /// The models built from the profile `learn` kept for the vehicle, and its forecast model
 /// with the reason; nothing without one, without a builder (a profile is configured), or
 /// when the profile does not load (a warning: the run goes on with the configured models).
-fn learned_models(learned: &crate::vehicle::store::Learned, rebuild: Option<&Rebuild>) -> (Option<Ensemble>, Option<(String, String)>) {
+fn learned_models(learned: &crate::vehicle::store::Learned, rebuild: Option<&Rebuild>) -> (Option<Box<Ensemble>>, Option<(String, String)>) {
     let (Some(p), Some(rebuild)) = (&learned.profile, rebuild) else { return (None, None) };
     match rebuild(&p.path) {
         Ok(models) => {
             tracing::info!("vehicle store: the models start from the profile learned for this vehicle, {}", p.path.display());
             let why = format!("vehicle profile learned for this vehicle ({})", p.path.display());
-            (Some(models), p.forecast_model.clone().map(|m| (m, why)))
+            (Some(Box::new(models)), p.forecast_model.clone().map(|m| (m, why)))
         }
         Err(e) => {
             tracing::warn!("vehicle store: the profile learned for this vehicle does not load ({e:#}); the configured models run");
@@ -770,7 +770,7 @@ fn warm_start(models: &mut Ensemble, vehicle: u8, news: WarmStart, waiting: &mut
         WarmStart::Ready(learned, profile_models) => {
             waiting.remove(&vehicle);
             match profile_models {
-                Some(m) if vehicles <= 1 => *models = m,
+                Some(m) if vehicles <= 1 => *models = *m,
                 Some(_) => tracing::warn!(vehicle, "vehicle store: a learned profile is not applied in a fleet (the vehicles share the models)"),
                 None => {}
             }
@@ -791,7 +791,7 @@ pub enum WarmStart {
     Pending,
     /// What earlier flights taught (none: a new vehicle, or no store), and the models of the
     /// profile `learn` kept for the vehicle (none: none kept, or a profile is configured).
-    Ready(Option<Fits>, Option<Ensemble>),
+    Ready(Option<Fits>, Option<Box<Ensemble>>),
 }
 
 /// Longest a replay waits for the vehicle store's answer.
