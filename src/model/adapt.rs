@@ -31,6 +31,18 @@
 //!
 //! Bounded: a ∈ [`gain_min`, `gain_max`] and |b| ≤ `offset_max_w` after every step, so one
 //! wild sample cannot turn a model upside down, and the published value is never below 0 W.
+//! The bounded fit is the least-squares fit *within* the bounds (a box-constrained 2 × 2
+//! problem: the free minimum, else the best point on the box's edges), not the free fit
+//! with a and b clamped each on its own: a model whose output falls while the power rises
+//! (Tseng-Solo in a climb) drives the free gain far out of range, and its free offset
+//! belongs to that gain, not to the bound.
+//!
+//! ## The recent error each model is picked by
+//!
+//! Each window that teaches also scores the *published* value against the measured power,
+//! before teaching; the mean absolute error is forgotten with `score_memory_s` (120 s) and
+//! published with how many seconds of flight it rests on ([`Adapted::err_w`],
+//! [`Adapted::evidence_s`]): the forecast picks its model by it (`energy::select`).
 //!
 //! ## Two fits per model: the published one and the reference
 //!
