@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
 use dronewatt::config::Config;
@@ -209,8 +209,9 @@ fn real_main(cli: Cli) -> Result<()> {
 /// Arguments of `dronewatt simulate`: a triangle mission (the default route) for a vehicle.
 #[derive(Debug, Clone, clap::Args)]
 struct SimulateArgs {
-    /// Write the flight to this `.tlog` file.
-    #[arg(long, value_name = "FILE.tlog", conflicts_with = "udp", required_unless_present = "udp")]
+    /// Write the flight to this file: a `.tlog`, or with `.bin` the ArduPilot vehicle's own
+    /// DataFlash log (one vehicle, `--autopilot ardupilot`).
+    #[arg(long, value_name = "FILE.tlog|FILE.bin", conflicts_with = "udp", required_unless_present = "udp")]
     out: Option<PathBuf>,
     /// Stream the flight's MAVLink frames to this UDP address (`dronewatt monitor udpin:…`).
     #[arg(long, value_name = "HOST:PORT")]
@@ -313,7 +314,15 @@ fn simulate(args: SimulateArgs) -> Result<()> {
     let duration_s = flight.duration_s();
     tracing::info!(messages = flight.records.len(), duration_s, energy_wh, "simulated mission");
     if let Some(path) = &args.out {
-        let bytes = sim::output::write_tlog(path, &flight)?;
+        let bytes = if dronewatt::source::dataflash::is_dataflash(path) {
+            // The autopilot's own log: one ArduPilot vehicle (PX4 writes ULog, not DataFlash).
+            if args.vehicles > 1 || args.autopilot != Autopilot::Ardupilot {
+                bail!("{}: a DataFlash .bin is one ArduPilot vehicle's own log: use --autopilot ardupilot and one vehicle, or write a .tlog", path.display());
+            }
+            sim::output::write_dataflash(path, &flight)?
+        } else {
+            sim::output::write_tlog(path, &flight)?
+        };
         let n = flight.records.len();
         let who = if args.vehicles > 1 { format!(" by {} vehicles (system ids 1-{})", args.vehicles, args.vehicles) } else { String::new() };
         eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.1} Wh drawn{who}, {bytes} bytes", path.display());

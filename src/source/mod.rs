@@ -9,6 +9,7 @@
 //!
 //! The simulator that writes tlogs is [`crate::sim`].
 
+pub mod dataflash;
 pub mod dataset;
 pub mod frame;
 pub mod link;
