@@ -61,9 +61,11 @@ struct RunArgs {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Replay a logged flight: a .tlog, a raw MAVLink stream, or the M100 flights.csv[.gz].
+    /// Replay a logged flight: a .tlog, an ArduPilot DataFlash .bin, a raw MAVLink stream, or
+    /// the M100 flights.csv[.gz].
     Replay {
-        /// The file to replay (.tlog, .bin/.raw/.mavlink raw stream, .csv or .csv.gz data set).
+        /// The file to replay (.tlog, an ArduPilot DataFlash .bin, .bin/.raw/.mavlink raw stream,
+        /// .csv or .csv.gz data set). A .bin is DataFlash when it starts with DataFlash's header.
         file: PathBuf,
         /// Playback speed: 1 = real time, N = N× faster, 'max' = flat out.
         #[arg(long, default_value = "1")]
@@ -165,6 +167,8 @@ fn real_main(cli: Cli) -> Result<()> {
             let source = if name.ends_with(".csv") || name.ends_with(".csv.gz") {
                 let flight = flight.context("a data-set CSV holds many flights: pick one with --flight N")?;
                 SourceSpec::Dataset { path: file, flight, speed }
+            } else if !raw && name.ends_with(".bin") && dronewatt::source::dataflash::starts_as_dataflash(&file) {
+                SourceSpec::Dataflash { path: file, speed }
             } else if raw || !name.ends_with(".tlog") {
                 SourceSpec::Raw { path: file, speed }
             } else {

@@ -54,6 +54,14 @@ pub fn is_dataflash(path: &std::path::Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bin"))
 }
 
+/// Whether the file at `path` starts with a DataFlash message header (a `.bin` may also be
+/// a raw MAVLink capture). False when it cannot be read (opening it later says why).
+pub fn starts_as_dataflash(path: &std::path::Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 2];
+    std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head)).is_ok() && head == MAGIC
+}
+
 /// Decode a whole in-memory DataFlash log into MAVLink messages (see the module docs).
 /// Clock jumps are counted in `stats`.
 pub fn decode_dataflash(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, DataflashError> {
@@ -400,5 +408,74 @@ fn field_size(c: char) -> usize {
         'N' => 16,
         'Z' => 64,
         _ => 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use Value::{Float as F, Int as I, Str as S};
+
+    const BAT: MsgDef = MsgDef { id: 80, name: "BAT", format: "QBff", labels: "TimeUS,Inst,Volt,Curr" };
+    const PARM: MsgDef = MsgDef { id: 81, name: "PARM", format: "QNf", labels: "TimeUS,Name,Value" };
+    /// ATT without Yaw: a log from a version whose fields differ.
+    const ATT: MsgDef = MsgDef { id: 82, name: "ATT", format: "Qcc", labels: "TimeUS,Roll,Pitch" };
+
+    fn decode(bytes: &[u8]) -> Result<Vec<TimedMessage>, DataflashError> {
+        decode_dataflash(bytes, &IngestStats::default())
+    }
+
+    #[test]
+    fn frame_class_names_the_vehicle_and_battery_without_current_degrades() {
+        let mut w = Writer::new();
+        w.write(&PARM, &[I(0), S("FRAME_CLASS"), F(2.0)]);
+        w.write(&BAT, &[I(1_000_000), I(0), F(22.2)]);
+        w.write(&ATT, &[I(1_100_000), F(5.0), F(-3.0)]);
+        w.write(&BAT, &[I(2_000_000), I(0), F(22.1), F(12.5)]);
+        let m = decode(&w.into_bytes()).unwrap();
+        let MavMessage::HEARTBEAT(h) = &m[0].msg else { panic!("{:?}", m[0]) };
+        assert_eq!((h.mavtype, h.autopilot), (d::MavType::MAV_TYPE_HEXAROTOR, d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA));
+        let sys: Vec<(f64, u16, i16)> = m.iter().filter_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some((m.t_s, s.voltage_battery, s.current_battery)) } else { None }).collect();
+        // The writer pads a value left out (Curr 0 A); stamps are seconds from the first.
+        assert_eq!(sys, [(1.0, 22200, 0), (2.0, 22100, 1250)]);
+        // No Yaw: no ATTITUDE (said once), no panic.
+        assert!(!m.iter().any(|m| matches!(m.msg, MavMessage::ATTITUDE(_))));
+    }
+
+    #[test]
+    fn a_field_the_format_lacks_is_unknown_not_zero() {
+        const BAT2: MsgDef = MsgDef { id: 83, name: "BAT", format: "QBf", labels: "TimeUS,Inst,Volt" };
+        let mut w = Writer::new();
+        w.write(&BAT2, &[I(5), I(0), F(11.1)]);
+        let m = decode(&w.into_bytes()).unwrap();
+        let s = m.iter().find_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some(s.clone()) } else { None }).unwrap();
+        assert_eq!((s.voltage_battery, s.current_battery, s.battery_remaining), (11100, -1, -1));
+    }
+
+    #[test]
+    fn corrupt_or_foreign_files_are_errors_and_never_panic() {
+        assert!(matches!(decode(b""), Err(DataflashError::NotDataflash)));
+        assert!(matches!(decode(&[0xFD, 9, 0, 0]), Err(DataflashError::NotDataflash)));
+        // Only FMT records: nothing timed.
+        let mut w = Writer::new();
+        w.write(&PARM, &[I(0), S("X"), F(1.0)]);
+        let only_fmt: Vec<u8> = w.into_bytes()[..89].to_vec();
+        assert!(matches!(decode(&only_fmt), Err(DataflashError::NoMessages)));
+        // Cut short anywhere, or bytes flipped: whatever is whole is read.
+        let mut w = Writer::new();
+        for i in 0..50 {
+            w.write(&BAT, &[I(i * 100_000), I(0), F(16.0), F(3.0)]);
+        }
+        let good = w.into_bytes();
+        for cut in [3, 90, 100, good.len() / 2, good.len() - 1] {
+            let _ = decode(&good[..cut]);
+        }
+        let mut bad = good.clone();
+        for i in (95..bad.len()).step_by(7) {
+            bad[i] ^= 0x5A;
+        }
+        let _ = decode(&bad);
+        let n = decode(&good).unwrap().iter().filter(|m| matches!(m.msg, MavMessage::SYS_STATUS(_))).count();
+        assert_eq!(n, 50);
     }
 }

@@ -77,6 +77,8 @@ pub enum SourceSpec {
     Link(String),
     /// A `.tlog` (8-byte big-endian µs timestamp before each frame).
     Tlog { path: std::path::PathBuf, speed: Speed },
+    /// An ArduPilot DataFlash `.bin` log, as the MAVLink a tlog gives ([`dataflash`]).
+    Dataflash { path: std::path::PathBuf, speed: Speed },
     /// A raw MAVLink byte stream with no timestamps.
     Raw { path: std::path::PathBuf, speed: Speed },
     /// One flight of the M100 data set's `flights.csv[.gz]`, encoded as MAVLink.
@@ -149,6 +151,21 @@ pub async fn run(
             let f = open(&path).await?;
             replay(f, &path.display().to_string(), TimedReader::raw(), speed, tx, &stats, shutdown).await
         }
+        SourceSpec::Dataflash { path, speed } => {
+            let bytes = tokio::fs::read(&path).await.with_context(|| format!("{}: cannot read", path.display()))?;
+            let decoded = {
+                let stats = stats.clone();
+                tokio::task::spawn_blocking(move || dataflash::decode_dataflash(&bytes, &stats)).await?
+            };
+            let msgs = decoded.with_context(|| format!("{}", path.display()))?;
+            let start = tokio::time::Instant::now();
+            for m in msgs {
+                if !pace(start, m.t_s, speed, &shutdown).await || !send(&tx, m, &stats, &shutdown).await {
+                    return Ok(());
+                }
+            }
+            Ok(())
+        }
         SourceSpec::Dataset { path, flight, speed } => {
             let name = format!("{} flight {flight}", path.display());
             let bytes = tokio::task::spawn_blocking(move || dataset::flight_tlog(&path, flight)).await??;
@@ -178,17 +195,7 @@ async fn replay<R: AsyncRead + Unpin>(
     let mut bytes_read = 0u64;
     loop {
         while let Some(m) = reader.next_message(stats) {
-            if let Speed::Factor(f) = speed {
-                // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
-                let due = start + Duration::try_from_secs_f64(m.t_s / f).unwrap_or(Duration::ZERO);
-                if due > tokio::time::Instant::now() + Duration::from_millis(1) {
-                    tokio::select! {
-                        _ = shutdown.cancelled() => return Ok(()),
-                        _ = tokio::time::sleep_until(due) => {}
-                    }
-                }
-            }
-            if !send(&tx, m, stats, &shutdown).await {
+            if !pace(start, m.t_s, speed, &shutdown).await || !send(&tx, m, stats, &shutdown).await {
                 return Ok(());
             }
         }
@@ -219,6 +226,22 @@ async fn replay<R: AsyncRead + Unpin>(
             bytes_read += n as u64;
         }
     }
+}
+
+/// Wait until a recorded message at `t_s` is due at `speed` (from `start`). False when
+/// shutdown came first.
+async fn pace(start: tokio::time::Instant, t_s: f64, speed: Speed, shutdown: &CancellationToken) -> bool {
+    if let Speed::Factor(f) = speed {
+        // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
+        let due = start + Duration::try_from_secs_f64(t_s / f).unwrap_or(Duration::ZERO);
+        if due > tokio::time::Instant::now() + Duration::from_millis(1) {
+            tokio::select! {
+                _ = shutdown.cancelled() => return false,
+                _ = tokio::time::sleep_until(due) => {}
+            }
+        }
+    }
+    true
 }
 
 /// Send one message, waiting for room (back-pressure) unless shutdown comes first.
