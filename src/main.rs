@@ -61,10 +61,10 @@ struct RunArgs {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Replay a logged flight: a .tlog, an ArduPilot DataFlash .bin, a raw MAVLink stream, or
-    /// the M100 flights.csv[.gz].
+    /// Replay a logged flight: a .tlog, an ArduPilot DataFlash .bin, a PX4 .ulg, a raw MAVLink
+    /// stream, or the M100 flights.csv[.gz].
     Replay {
-        /// The file to replay (.tlog, an ArduPilot DataFlash .bin, .bin/.raw/.mavlink raw stream,
+        /// The file to replay (.tlog, an ArduPilot DataFlash .bin, a PX4 .ulg, .bin/.raw/.mavlink raw stream,
         /// .csv or .csv.gz data set). A .bin is DataFlash when it starts with DataFlash's header.
         file: PathBuf,
         /// Playback speed: 1 = real time, N = N× faster, 'max' = flat out.
@@ -167,8 +167,8 @@ fn real_main(cli: Cli) -> Result<()> {
             let source = if name.ends_with(".csv") || name.ends_with(".csv.gz") {
                 let flight = flight.context("a data-set CSV holds many flights: pick one with --flight N")?;
                 SourceSpec::Dataset { path: file, flight, speed }
-            } else if !raw && name.ends_with(".bin") && dronewatt::source::dataflash::starts_as_dataflash(&file) {
-                SourceSpec::Dataflash { path: file, speed }
+            } else if !raw && (name.ends_with(".ulg") || name.ends_with(".bin") && dronewatt::source::dataflash::starts_as_dataflash(&file)) {
+                SourceSpec::AutopilotLog { path: file, speed }
             } else if raw || !name.ends_with(".tlog") {
                 SourceSpec::Raw { path: file, speed }
             } else {
@@ -214,8 +214,9 @@ fn real_main(cli: Cli) -> Result<()> {
 #[derive(Debug, Clone, clap::Args)]
 struct SimulateArgs {
     /// Write the flight to this file: a `.tlog`, or with `.bin` the ArduPilot vehicle's own
-    /// DataFlash log (one vehicle, `--autopilot ardupilot`).
-    #[arg(long, value_name = "FILE.tlog|FILE.bin", conflicts_with = "udp", required_unless_present = "udp")]
+    /// DataFlash log (one vehicle, `--autopilot ardupilot`), with `.ulg` the PX4 vehicle's
+    /// own ULog (one vehicle, `--autopilot px4`).
+    #[arg(long, value_name = "FILE.tlog|FILE.bin|FILE.ulg", conflicts_with = "udp", required_unless_present = "udp")]
     out: Option<PathBuf>,
     /// Stream the flight's MAVLink frames to this UDP address (`dronewatt monitor udpin:…`).
     #[arg(long, value_name = "HOST:PORT")]
@@ -324,6 +325,11 @@ fn simulate(args: SimulateArgs) -> Result<()> {
                 bail!("{}: a DataFlash .bin is one ArduPilot vehicle's own log: use --autopilot ardupilot and one vehicle, or write a .tlog", path.display());
             }
             sim::output::write_dataflash(path, &flight)?
+        } else if dronewatt::source::ulog::is_ulog(path) {
+            if args.vehicles > 1 || args.autopilot != Autopilot::Px4 {
+                bail!("{}: a ULog .ulg is one PX4 vehicle's own log: use --autopilot px4 and one vehicle, or write a .tlog", path.display());
+            }
+            sim::output::write_ulog(path, &flight)?
         } else {
             sim::output::write_tlog(path, &flight)?
         };

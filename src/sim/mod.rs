@@ -16,6 +16,7 @@
 //! | [`ardupilot`], [`px4`] | what differs between the two: modes, attitude and IMU messages, parameters |
 //! | [`output`] | `.tlog` bytes and the paced UDP stream |
 //! | [`dataflash`] | an ArduPilot flight as its DataFlash `.bin` log |
+//! | [`ulog`] | a PX4 flight as its ULog `.ulg` |
 //!
 //! ## Flight model (point mass, kinematic)
 //! The guidance's desired velocity becomes the commanded acceleration `K_v·(v_des − v)`,
@@ -35,6 +36,7 @@ pub mod emit;
 pub mod output;
 pub mod physics;
 pub mod px4;
+pub mod ulog;
 
 use std::f64::consts::PI;
 

@@ -17,6 +17,7 @@ pub mod raw;
 pub mod signing;
 pub mod timed;
 pub mod tlog;
+pub mod ulog;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -77,8 +78,9 @@ pub enum SourceSpec {
     Link(String),
     /// A `.tlog` (8-byte big-endian µs timestamp before each frame).
     Tlog { path: std::path::PathBuf, speed: Speed },
-    /// An ArduPilot DataFlash `.bin` log, as the MAVLink a tlog gives ([`dataflash`]).
-    Dataflash { path: std::path::PathBuf, speed: Speed },
+    /// An autopilot's own log, ArduPilot DataFlash `.bin` ([`dataflash`]) or PX4 ULog
+    /// `.ulg` ([`ulog`]), as the MAVLink a tlog gives.
+    AutopilotLog { path: std::path::PathBuf, speed: Speed },
     /// A raw MAVLink byte stream with no timestamps.
     Raw { path: std::path::PathBuf, speed: Speed },
     /// One flight of the M100 data set's `flights.csv[.gz]`, encoded as MAVLink.
@@ -151,13 +153,11 @@ pub async fn run(
             let f = open(&path).await?;
             replay(f, &path.display().to_string(), TimedReader::raw(), speed, tx, &stats, shutdown).await
         }
-        SourceSpec::Dataflash { path, speed } => {
-            let bytes = tokio::fs::read(&path).await.with_context(|| format!("{}: cannot read", path.display()))?;
-            let decoded = {
-                let stats = stats.clone();
-                tokio::task::spawn_blocking(move || dataflash::decode_dataflash(&bytes, &stats)).await?
+        SourceSpec::AutopilotLog { path, speed } => {
+            let msgs = {
+                let (stats, path) = (stats.clone(), path.clone());
+                tokio::task::spawn_blocking(move || decode_autopilot_log(&path, &stats)).await??
             };
-            let msgs = decoded.with_context(|| format!("{}", path.display()))?;
             let start = tokio::time::Instant::now();
             for m in msgs {
                 if !pace(start, m.t_s, speed, &shutdown).await || !send(&tx, m, &stats, &shutdown).await {
@@ -171,6 +171,18 @@ pub async fn run(
             let bytes = tokio::task::spawn_blocking(move || dataset::flight_tlog(&path, flight)).await??;
             replay(&bytes[..], &name, TimedReader::tlog(), speed, tx, &stats, shutdown).await
         }
+    }
+}
+
+/// Read a DataFlash `.bin` or ULog `.ulg` (by its name) whole into the MAVLink a tlog
+/// gives. Errors name the file and what is wrong.
+pub fn decode_autopilot_log(path: &std::path::Path, stats: &IngestStats) -> anyhow::Result<Vec<TimedMessage>> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let name = path.display();
+    if ulog::is_ulog(path) {
+        ulog::decode_ulog(&bytes, stats).with_context(|| format!("{name}"))
+    } else {
+        dataflash::decode_dataflash(&bytes, stats).with_context(|| format!("{name}"))
     }
 }
 
