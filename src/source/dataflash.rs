@@ -43,7 +43,7 @@ pub const FMT_TYPE: u8 = 128;
 pub enum DataflashError {
     #[error("not an ArduPilot DataFlash log (it does not start with the 0xA3 0x95 message header)")]
     NotDataflash,
-    #[error("no timestamped message (no FMT-described entry with TimeUS): an empty or corrupt log")]
+    #[error("no timestamped message (no FMT-described entry with TimeUS or TimeMS): an empty or corrupt log")]
     NoMessages,
     #[error("cannot read the log: {0}")]
     Read(#[from] ardupilot_binlog::BinlogError),
@@ -157,7 +157,8 @@ impl State {
     }
 
     fn entry(&mut self, e: &Entry, stats: &IngestStats, out: &mut Vec<TimedMessage>) {
-        if let Some(us) = e.timestamp_usec.filter(|_| e.labels().first().is_some_and(|l| l == "TimeUS")) {
+        // TimeUS (TimeMS in logs before ArduPilot 3.3, scaled to µs by the reader).
+        if let Some(us) = e.timestamp_usec.filter(|_| e.labels().first().is_some_and(|l| l == "TimeUS" || l == "TimeMS")) {
             let (t, jump) = self.clock.map(us as f64 * 1e-6);
             if jump {
                 IngestStats::add(&stats.gaps, 1);
@@ -440,6 +441,17 @@ mod tests {
         assert_eq!(sys, [(1.0, 22200, 0), (2.0, 22100, 1250)]);
         // No Yaw: no ATTITUDE (said once), no panic.
         assert!(!m.iter().any(|m| matches!(m.msg, MavMessage::ATTITUDE(_))));
+    }
+
+    #[test]
+    fn old_logs_stamped_in_milliseconds_are_timed() {
+        const OLD: MsgDef = MsgDef { id: 84, name: "BAT", format: "Iff", labels: "TimeMS,Volt,Curr" };
+        let mut w = Writer::new();
+        w.write(&OLD, &[I(2000), F(12.0), F(5.0)]);
+        w.write(&OLD, &[I(2250), F(11.9), F(5.5)]);
+        let m = decode(&w.into_bytes()).unwrap();
+        let t: Vec<f64> = m.iter().filter(|m| matches!(m.msg, MavMessage::SYS_STATUS(_))).map(|m| m.t_s).collect();
+        assert_eq!(t, [0.0, 0.25]);
     }
 
     #[test]
