@@ -99,13 +99,27 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
 #[test]
 fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     let dir = tempfile::tempdir().unwrap();
-    let bin = dir.path().join("00000012.BIN");
-    std::fs::write(&bin, b"not read").unwrap();
-    let out = dronewatt(&["learn", bin.to_str().unwrap()]);
+    let txt = dir.path().join("notes.txt");
+    std::fs::write(&txt, b"not read").unwrap();
+    let out = dronewatt(&["learn", txt.to_str().unwrap()]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("only .tlog"));
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(said.contains("notes.txt") && said.contains(".tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg"), "{said}");
     let one = dir.path().join("one.tlog");
     simulate(&one, 1);
+    // A .bin that is not DataFlash: an error naming it and what is wrong.
+    let bin = dir.path().join("00000012.BIN");
+    std::fs::write(&bin, b"not a log").unwrap();
+    let out = dronewatt(&["learn", bin.to_str().unwrap(), one.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap(), "--data-dir", "off"]);
+    assert!(!out.status.success());
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(said.contains("00000012.BIN") && said.contains("not an ArduPilot DataFlash log"), "{said}");
+    let ulg = dir.path().join("log_3.ulg");
+    std::fs::write(&ulg, b"not a log").unwrap();
+    let out = dronewatt(&["learn", ulg.to_str().unwrap(), one.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap(), "--data-dir", "off"]);
+    assert!(!out.status.success());
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(said.contains("log_3.ulg") && said.contains("not a readable PX4 ULog"), "{said}");
     let out = dronewatt(&["learn", one.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap()]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("at least 2"), "{}", String::from_utf8_lossy(&out.stderr));

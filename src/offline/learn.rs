@@ -7,8 +7,9 @@
 //! config; its models are named `<model>_cal`) and a model card (`model-card.md`: what it
 //! was learned from, the held-out score per log, the inputs).
 //!
-//! Input: `.tlog` files, or folders of them. ArduPilot DataFlash `.bin` and PX4 `.ulg` are
-//! not read yet (refused with a message).
+//! Input: `.tlog` files, ArduPilot DataFlash `.bin` and PX4 ULog `.ulg` logs
+//! ([`crate::source::dataflash`], [`crate::source::ulog`]: turned into the same MAVLink
+//! stream a tlog gives), or folders of them.
 //!
 //! With `--fine-tune` the LSTM is fine-tuned from the shipped weights too (on libtorch, by
 //! `dronewatt-torch`: [`set_fine_tuner`]; `lstm/` beside the profile, model `lstm_ft`).
@@ -39,7 +40,7 @@ const FIRST_LOG_NUMBER: u32 = 100_000;
 /// Arguments of `dronewatt learn`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct LearnArgs {
-    /// `.tlog` files, or folders holding them.
+    /// `.tlog`, DataFlash `.bin` or ULog `.ulg` files, or folders holding them.
     #[arg(required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
     /// Folder to write `profile.toml` and `model-card.md` into.
@@ -127,7 +128,7 @@ pub fn set_fine_tuner(f: FineTuner) {
     let _ = FINE_TUNER.set(f);
 }
 
-/// The logs named: files as given, folders' `.tlog` files in name order.
+/// The logs named: files as given, folders' `.tlog`, `.bin` and `.ulg` files in name order.
 fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for p in args {
@@ -135,35 +136,40 @@ fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
             let mut v: Vec<PathBuf> = std::fs::read_dir(p)
                 .with_context(|| format!("{}: cannot list", p.display()))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| is_tlog(f))
+                .filter(|f| is_log(f))
                 .collect();
             v.sort();
             if v.is_empty() {
-                tracing::warn!("{}: no .tlog file in this folder", p.display());
+                tracing::warn!("{}: no .tlog, .bin or .ulg file in this folder", p.display());
             }
             out.extend(v);
         } else if !p.exists() {
             bail!("{}: no such file", p.display());
-        } else if is_tlog(p) {
+        } else if is_log(p) {
             out.push(p.clone());
         } else {
-            bail!("{}: only .tlog logs are read (DataFlash .bin and PX4 .ulg are not yet)", p.display());
+            bail!("{}: learn reads .tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg logs", p.display());
         }
     }
     Ok(out)
 }
 
-fn is_tlog(p: &Path) -> bool {
-    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog"))
+fn is_log(p: &Path) -> bool {
+    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog")) || crate::source::dataflash::is_dataflash(p) || crate::source::ulog::is_ulog(p)
 }
 
 /// One log through the live ingest path: its windows, numbered `flight`.
 pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindows> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let stats = crate::source::IngestStats::default();
+    let messages = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog")) {
+        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        crate::source::tlog::decode_tlog(&bytes, &stats)
+    } else {
+        crate::source::decode_autopilot_log(path, &stats)?
+    };
     let mut tel = Telemetry::new(&cfg.telemetry, &cfg.mission);
     let mut windows = Vec::new();
-    for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
+    for m in messages {
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);
@@ -416,17 +422,27 @@ mod tests {
     #[test]
     fn refuses_what_it_cannot_read() {
         let dir = tempfile::tempdir().unwrap();
-        let bin = dir.path().join("00000001.BIN");
-        std::fs::write(&bin, b"x").unwrap();
-        let err = collect_logs(&[bin]).unwrap_err().to_string();
-        assert!(err.contains("only .tlog"), "{err}");
+        // A .ulg that is not ULog is taken, and reading it is an error naming it.
+        let ulg = dir.path().join("log_1.ulg");
+        std::fs::write(&ulg, b"x").unwrap();
+        let err = format!("{:#}", log_windows(&ulg, 1, &Config::default()).unwrap_err());
+        assert!(err.contains("log_1.ulg") && err.contains("not a readable PX4 ULog"), "{err}");
+        let txt = dir.path().join("notes.txt");
+        std::fs::write(&txt, b"x").unwrap();
+        let err = collect_logs(&[txt]).unwrap_err().to_string();
+        assert!(err.contains("notes.txt") && err.contains(".tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg"), "{err}");
         assert!(collect_logs(&[dir.path().join("missing.tlog")]).unwrap_err().to_string().contains("no such file"));
-        // A folder: its .tlog files in name order, the rest skipped.
+        // A .bin that is not DataFlash is taken, and reading it is an error naming it.
+        let bin = dir.path().join("00000001.BIN");
+        std::fs::write(&bin, b"not a log").unwrap();
+        let err = format!("{:#}", log_windows(&bin, 1, &Config::default()).unwrap_err());
+        assert!(err.contains("00000001.BIN") && err.contains("not an ArduPilot DataFlash log"), "{err}");
+        // A folder: its .tlog and .bin files in name order, the rest skipped.
         for n in ["b.tlog", "a.TLOG", "c.ulg"] {
             std::fs::write(dir.path().join(n), b"").unwrap();
         }
         let got = collect_logs(&[dir.path().to_path_buf()]).unwrap();
         let names: Vec<_> = got.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-        assert_eq!(names, ["a.TLOG", "b.tlog"]);
+        assert_eq!(names, ["00000001.BIN", "a.TLOG", "b.tlog", "c.ulg", "log_1.ulg"]);
     }
 }
