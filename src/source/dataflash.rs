@@ -1,5 +1,5 @@
-//! ArduPilot DataFlash `.bin` logs (the autopilot's own SD-card log), read with the
-//! `ardupilot-binlog` crate (streaming; every message's layout comes from the file's own FMT
+//! ArduPilot DataFlash `.bin` logs (the autopilot's own SD-card log), read record by record
+//! ([`super::dataflash_records`]: every message's layout comes from the file's own FMT
 //! records, so any ArduPilot version reads) and turned into the same [`TimedMessage`]s a
 //! tlog gives: MAVLink messages synthesised from the log's entries, `t_s` from their
 //! `TimeUS` through a [`super::timed::Clock`]. Everything downstream (telemetry, windows,
@@ -25,7 +25,7 @@
 
 use std::collections::HashMap;
 
-use ardupilot_binlog::{Entry, Reader};
+use super::dataflash_records::{Entry, Reader};
 use mavlink::MavHeader;
 
 use super::timed::Clock;
@@ -45,8 +45,6 @@ pub enum DataflashError {
     NotDataflash,
     #[error("no timestamped message (no FMT-described entry with TimeUS or TimeMS): an empty or corrupt log")]
     NoMessages,
-    #[error("cannot read the log: {0}")]
-    Read(#[from] ardupilot_binlog::BinlogError),
 }
 
 /// Whether `path` names a DataFlash log (`.bin`, any case).
@@ -71,16 +69,17 @@ pub fn decode_dataflash(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMe
     // First pass: the frame, so the first HEARTBEAT already names it.
     let mut frame_class = None;
     for e in Reader::new(bytes) {
-        let e = e?;
         if e.name == "PARM" && e.get_str("Name") == Some("FRAME_CLASS") {
             frame_class = e.get_f64("Value");
         }
     }
     let mut s = State { mavtype: mav_type(frame_class), ..State::default() };
     let mut out = Vec::with_capacity(bytes.len() / 60);
-    for e in Reader::new(bytes) {
-        s.entry(&e?, stats, &mut out);
+    let mut records = Reader::new(bytes);
+    for e in &mut records {
+        s.entry(&e, stats, &mut out);
     }
+    IngestStats::add(&stats.junk_bytes, records.skipped as u64);
     if !s.timed {
         return Err(DataflashError::NoMessages);
     }

@@ -10,6 +10,7 @@
 //! The simulator that writes tlogs is [`crate::sim`].
 
 pub mod dataflash;
+mod dataflash_records;
 pub mod dataset;
 pub mod frame;
 pub mod link;
