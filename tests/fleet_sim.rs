@@ -67,6 +67,32 @@ fn three_vehicles_fly_their_own_missions_in_one_tlog_deterministically() {
 }
 
 #[test]
+fn a_paced_replay_reports_the_message_to_estimate_latency_of_every_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let tlog = dir.path().join("f.tlog");
+    let o = simulate(&tlog, "3", "5");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Paced (as a live link delivers it, 20× faster); JSON to a file, so the terminal view
+    // runs too and says it at exit.
+    let json = dir.path().join("f.jsonl");
+    let o = dronewatt(&["replay", tlog.to_str().unwrap(), "--speed", "20", "--json", json.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    // Every estimate made from the link's messages (alert-only reports on a silent
+    // estimate carry no models and no arrival).
+    let estimates = lines.iter().filter(|v| v["type"] == "estimate" && v["models"].as_object().is_some_and(|m| !m.is_empty())).count() as u64;
+    assert!(estimates > 900, "three whole flights: {estimates}");
+    let summary = lines.last().unwrap();
+    assert_eq!(summary["type"], "summary");
+    let l = &summary["latency"];
+    assert_eq!(l["count"].as_u64(), Some(estimates), "{summary}");
+    let (p50, p99, max) = (l["p50_ms"].as_f64().unwrap(), l["p99_ms"].as_f64().unwrap(), l["max_ms"].as_f64().unwrap());
+    assert!(0.0 <= p50 && p50 <= p99 && p99 <= max, "{l}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains(&format!("message → estimate p50 {p50:.2} ms, p99 {p99:.2} ms, max {max:.2} ms ({estimates} estimates)")), "{err}");
+}
+
+#[test]
 fn a_fleet_of_zero_is_refused_with_the_flag_named() {
     let dir = tempfile::tempdir().unwrap();
     let o = simulate(&dir.path().join("x.tlog"), "0", "1");

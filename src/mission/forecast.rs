@@ -197,7 +197,7 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
                     })
                     .collect()
             };
-            windows.push(Window { samples });
+            windows.push(Window { samples, arrived: None });
             at.push(j);
             j += stride;
         }

@@ -40,6 +40,10 @@ pub struct TimedMessage {
     pub header: mavlink::MavHeader,
     /// The message.
     pub msg: MavMessage,
+    /// When it reached dronewatt (monotonic): read off a live link, or handed on by a
+    /// paced replay at its due time. What the message → estimate latency is measured from
+    /// ([`crate::status::LatencyHistogram`]).
+    pub arrived: std::time::Instant,
 }
 
 /// How fast a recorded source plays (replay), or a simulated one is sent (`simulate --udp`).
@@ -175,7 +179,7 @@ async fn replay<R: AsyncRead + Unpin>(
     let mut eof = false;
     let mut bytes_read = 0u64;
     loop {
-        while let Some(m) = reader.next_message(stats) {
+        while let Some(mut m) = reader.next_message(stats) {
             if let Speed::Factor(f) = speed {
                 // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
                 let due = start + Duration::try_from_secs_f64(m.t_s / f).unwrap_or(Duration::ZERO);
@@ -185,6 +189,9 @@ async fn replay<R: AsyncRead + Unpin>(
                         _ = tokio::time::sleep_until(due) => {}
                     }
                 }
+                // It arrives when it is due, as on a live link: a replay running late
+                // counts its own delay in the latency.
+                m.arrived = due.into_std().min(std::time::Instant::now());
             }
             if !send(&tx, m, &shutdown).await {
                 return Ok(());

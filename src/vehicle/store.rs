@@ -556,6 +556,7 @@ mod tests {
         use crate::report::{EnergyState, Estimate};
         let report = |t: f64, pct: f32, used: f64| Report {
             estimate: Estimate {
+                arrived: None,
                 t_s: t,
                 sample: Sample { t_s: t, features: [0.0; N_FEATURES], measured_w: Some(300.0), voltage_v: Some(12.0), home: None, stale_mask: 0, battery_remaining_pct: Some(pct) },
                 models: vec![],
