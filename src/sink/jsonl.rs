@@ -25,6 +25,7 @@
 //! the newest message behind an estimate (read off a live link; a paced replay's message
 //! at its due time) to its report going to the sinks ([`crate::status::LatencyHistogram`]:
 //! quantiles at most 12.5 % high, the maximum exact). A flat-out replay's is its queueing.
+//! The windows the end of the input flushes (no message arrived to make them) are not counted.
 //!
 //! The MQTT sink ([`super::mqtt`]) publishes the same `estimate` and `alert` objects, and
 //! its retained per-vehicle state as one more kind, never written to the file:
