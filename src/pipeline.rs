@@ -104,7 +104,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         }
         None => (msg_rx, None),
     };
-    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config), live);
+    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config), live, status.stats.clone());
     let fleet = Fleet { config: p.config, demux, first: Some(chain), inference, fanout, status: status.clone(), live, data_dir: p.data_dir };
     let demux = tokio::spawn(fleet.run(msg_rx));
 
@@ -123,7 +123,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
 /// here (the same transports as the monitored link, `source::link`). Fails before anything
 /// runs when a sink cannot start.
 pub fn start_sinks(specs: Vec<SinkSpec>, status: &ChainStatus) -> Result<(Fanout, SinkTasks)> {
-    let mut fanout = Fanout::default();
+    let mut fanout = Fanout::default().gauged(status.stats.clone());
     let mut tasks = SinkTasks { sinks: Vec::with_capacity(specs.len()), uplinks: Vec::new(), uplink_stop: status.shutdown.child_token() };
     for spec in specs {
         let mut sink_status = status.clone();
@@ -249,12 +249,12 @@ pub struct Inference {
 impl Inference {
     /// Start the stage on its own thread with these models (on the tokio runtime it is
     /// called from). `live`: never wait for the vehicle store.
-    pub fn spawn(models: Ensemble, batching: Batching, live: bool) -> Self {
+    pub fn spawn(models: Ensemble, batching: Batching, live: bool, stats: Arc<IngestStats>) -> Self {
         let (jobs, rx) = mpsc::channel::<Job>(CHANNEL_DEPTH);
         let (warm, warm_rx) = std::sync::mpsc::channel();
         let rt = tokio::runtime::Handle::current();
         // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
-        Self { jobs, warm, task: tokio::task::spawn_blocking(move || inference_stage(models, rx, batching, rt, warm_rx, live)) }
+        Self { jobs, warm, task: tokio::task::spawn_blocking(move || inference_stage(models, rx, batching, rt, warm_rx, live, stats)) }
     }
     /// Wait for it to drain and end, once every chain sending to it has ended; each
     /// vehicle's adaptation fits (adaptation on).
@@ -338,7 +338,8 @@ impl VehicleChain {
         let (ev_tx, ev_rx) = mpsc::unbounded_channel();
         let jobs = inference.jobs.clone();
         let vehicle = status.system_id.load(std::sync::atomic::Ordering::Relaxed);
-        let mut own = Fanout::default();
+        let mut own = Fanout::default().gauged(status.stats.clone());
+        let stats = status.stats.clone();
         let reports = own.subscribe();
         // On a live link the reader asks; replaying, it listens to the logged fetch.
         let reader = if live { ParamReader::live() } else { self.vehicle };
@@ -353,6 +354,7 @@ impl VehicleChain {
                     if jobs.send(Job { window, vehicle, reply: est_tx.clone() }).await.is_err() {
                         return;
                     }
+                    stats.queues.observe(&jobs);
                 }
             }),
             energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, vehicle_rx, capacity_rx, own, status.clone(), live)),
@@ -415,6 +417,7 @@ impl Fleet {
                             }
                             // A chain that ended early (it cannot) would only lose this message.
                             let _ = v.msgs.send(m).await;
+                            self.status.stats.queues.observe(&v.msgs);
                         }
                     }
                     if !self.live {
@@ -617,6 +620,7 @@ async fn telemetry_stage(
             if windows.send(w).await.is_err() {
                 return;
             }
+            status.stats.queues.observe(&windows);
         }
     }
 }
@@ -641,6 +645,7 @@ fn inference_stage(
     rt: tokio::runtime::Handle,
     warm: std::sync::mpsc::Receiver<(u8, WarmStart)>,
     live: bool,
+    stats: Arc<IngestStats>,
 ) -> std::collections::BTreeMap<u8, Fits> {
     let heavy_names = models.heavy_names();
     let mut b = Batch::default();
@@ -692,6 +697,7 @@ fn inference_stage(
             }
             // A vehicle dropped meanwhile no longer wants its estimate.
             let _ = reply.blocking_send(e);
+            stats.queues.observe(&reply);
         }
         b.windows.clear();
         b.heavy.clear();

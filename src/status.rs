@@ -5,7 +5,8 @@
 //! that fill it. Imports nothing of ours.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
+use std::time::Instant;
 
 /// What one vehicle chain publishes about itself, shared by every sink of that chain.
 #[derive(Debug, Clone, Default)]
@@ -60,6 +61,38 @@ pub struct IngestStats {
     pub signature_replay: AtomicU64,
     /// Unsigned frames dropped because `[link] require_signing` is set.
     pub unsigned_refused: AtomicU64,
+    /// How deep the queues between the stages have been.
+    pub queues: QueueGauge,
+}
+
+/// The deepest any bounded queue between the stages has been (items waiting in one queue),
+/// and when it first got that deep. The queues' memory grows with their depth and, bounded,
+/// no further: growth of the process after the mark is not theirs (`scripts/soak.sh` reads
+/// it so). Watched where items are sent: messages, windows, jobs, estimates, reports.
+#[derive(Debug, Default)]
+pub struct QueueGauge {
+    peak: AtomicU64,
+    peak_at_ms: AtomicU64,
+    started: OnceLock<Instant>,
+}
+
+impl QueueGauge {
+    /// Start the clock `peak_at_s` counts from (the run's start; else the first send).
+    pub fn start(&self) {
+        self.started.get_or_init(Instant::now);
+    }
+    /// A queue just sent to: its depth now.
+    pub fn observe<T>(&self, tx: &tokio::sync::mpsc::Sender<T>) {
+        let depth = (tx.max_capacity() - tx.capacity()) as u64;
+        if depth > self.peak.load(Ordering::Relaxed) && self.peak.fetch_max(depth, Ordering::Relaxed) < depth {
+            let ms = self.started.get_or_init(Instant::now).elapsed().as_millis();
+            self.peak_at_ms.store(u64::try_from(ms).unwrap_or(u64::MAX), Ordering::Relaxed);
+        }
+    }
+    /// (deepest, seconds after the start when it was reached).
+    pub fn peak(&self) -> (u64, f64) {
+        (self.peak.load(Ordering::Relaxed), self.peak_at_ms.load(Ordering::Relaxed) as f64 / 1000.0)
+    }
 }
 
 impl IngestStats {

@@ -19,6 +19,8 @@ fn a_short_soak_keeps_memory_flat_and_loses_no_report() {
         // when the machine is busy (seen: +16 % with the whole suite running beside it,
         // +2 % alone): here only a gross leak fails; the 5 % rule is the long run's.
         .env("SOAK_MAX_GROWTH_PCT", "35")
+        // ... and the queues may still be deepening at the end: judge from the plain warm-up.
+        .env("SOAK_MIN_JUDGED_FRAC", "0")
         .output()
         .expect("run scripts/soak.sh");
     let said = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
@@ -32,5 +34,7 @@ fn a_short_soak_keeps_memory_flat_and_loses_no_report() {
     assert_eq!((n("frames_bad"), n("junk_bytes"), n("clock_jumps")), (0.0, 0.0, 0.0), "{f}");
     // Well over an hour of flight in 45 s even on a busy machine: the loop really ran fast.
     assert!(n("flight_s_replayed") > 1800.0, "{f}");
+    // The queues' high-water mark is reported, and no queue is deeper than its bound.
+    assert!((1.0..=1024.0).contains(&n("queue_peak")), "{f}");
     eprintln!("{said}");
 }

@@ -18,7 +18,7 @@
 //! {"type":"summary","frames_ok":…,"frames_bad":…,"unknown":…,"gaps":…,"windows":…,
 //!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…,
 //!  "signed_ok":…,"signature_bad":…,"signature_replay":…,"unsigned_refused":…,
-//!  "latency":{"count":…,"p50_ms":…,"p99_ms":…,"max_ms":…}|null}
+//!  "queue_peak":…,"queue_peak_at_s":…,"latency":{"count":…,"p50_ms":…,"p99_ms":…,"max_ms":…}|null}
 //! ```
 //!
 //! `latency` is the message → estimate latency over the run's reports: from the arrival of
@@ -78,7 +78,8 @@ pub fn spawn(
                     w.flush()?; // live: each report shows up as it happens
                 }
             }
-            write_line(&mut w, &Summary::new(status.stats.snapshot(), reports, rx.missed(), status.latency.summary()))?;
+            let summary = Summary::new(status.stats.snapshot(), reports, rx.missed()).with_queues(status.stats.queues.peak());
+            write_line(&mut w, &summary.with_latency(status.latency.summary()))?;
             w.flush()
         })();
         run.with_context(|| format!("{name}: cannot write JSON lines"))
@@ -306,14 +307,26 @@ pub struct Summary {
     pub reports: u64,
     /// Reports this sink missed while it was stuck (see [`super::SINK_PATIENCE`]).
     pub missed_reports: u64,
+    /// The deepest any queue between the stages has been (items), and when it got there
+    /// (seconds after the start): see [`crate::status::QueueGauge`].
+    pub queue_peak: u64,
+    pub queue_peak_at_s: f64,
     /// Message → estimate latency over the run's reports (`null`: none made).
     pub latency: Option<LatencySummary>,
 }
 
 impl Summary {
     /// The summary for these counters.
-    pub fn new(s: StatsSnapshot, reports: u64, missed_reports: u64, latency: Option<LatencySummary>) -> Self {
-        Self { kind: "summary", ingest: s, reports, missed_reports, latency }
+    pub fn new(s: StatsSnapshot, reports: u64, missed_reports: u64) -> Self {
+        Self { kind: "summary", ingest: s, reports, missed_reports, queue_peak: 0, queue_peak_at_s: 0.0, latency: None }
+    }
+    /// With the queues' high-water mark.
+    pub fn with_queues(self, (queue_peak, queue_peak_at_s): (u64, f64)) -> Self {
+        Self { queue_peak, queue_peak_at_s, ..self }
+    }
+    /// With the message → estimate latency.
+    pub fn with_latency(self, latency: Option<LatencySummary>) -> Self {
+        Self { latency, ..self }
     }
 }
 
@@ -398,7 +411,7 @@ mod tests {
 
     #[test]
     fn the_summary_starts_with_the_contract_fields_in_order() {
-        let s = serde_json::to_string(&Summary::new(StatsSnapshot { frames_ok: 3, ..Default::default() }, 0, 0, None)).unwrap();
+        let s = serde_json::to_string(&Summary::new(StatsSnapshot { frames_ok: 3, ..Default::default() }, 0, 0)).unwrap();
         assert!(s.starts_with(r#"{"type":"summary","frames_ok":3,"frames_bad":0,"unknown":0,"gaps":0,"windows":0,"#), "{s}");
     }
 }

@@ -113,6 +113,8 @@ impl ReportRx {
 #[derive(Default, Clone)]
 pub struct Fanout {
     outs: Vec<Outlet>,
+    /// Where the queues' depth is watched ([`crate::status::QueueGauge`]).
+    stats: Option<Arc<crate::status::IngestStats>>,
 }
 
 #[derive(Clone)]
@@ -123,6 +125,11 @@ struct Outlet {
 }
 
 impl Fanout {
+    /// Watch the depth of every queue of this fanout in `stats`.
+    pub fn gauged(self, stats: Arc<crate::status::IngestStats>) -> Self {
+        Self { stats: Some(stats), ..self }
+    }
+
     /// A new sink's queue.
     pub fn subscribe(&mut self) -> ReportRx {
         let (tx, rx) = mpsc::channel(SINK_DEPTH);
@@ -155,6 +162,9 @@ impl Fanout {
                 Err(mpsc::error::TrySendError::Full(_)) => {
                     o.missed.fetch_add(1, Ordering::Relaxed);
                 }
+            }
+            if let Some(s) = &self.stats {
+                s.queues.observe(&o.tx);
             }
         }
     }

@@ -162,7 +162,7 @@ async fn deliver(
     shutdown: &CancellationToken,
 ) -> bool {
     while let Some(m) = reader.next_message(stats) {
-        if !super::send(tx, m, shutdown).await {
+        if !super::send(tx, m, stats, shutdown).await {
             return false;
         }
     }

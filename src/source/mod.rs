@@ -138,6 +138,7 @@ pub async fn run(
     signing: Option<Arc<LinkSigning>>,
     shutdown: CancellationToken,
 ) -> anyhow::Result<()> {
+    stats.queues.start();
     match spec {
         SourceSpec::Link(address) => {
             let addr: link::LinkAddress = address.parse()?;
@@ -193,7 +194,7 @@ async fn replay<R: AsyncRead + Unpin>(
                 // counts its own delay in the latency.
                 m.arrived = due.into_std().min(std::time::Instant::now());
             }
-            if !send(&tx, m, &shutdown).await {
+            if !send(&tx, m, stats, &shutdown).await {
                 return Ok(());
             }
         }
@@ -228,18 +229,20 @@ async fn replay<R: AsyncRead + Unpin>(
 
 /// Send one message, waiting for room (back-pressure) unless shutdown comes first.
 /// False when the run is over (shutdown, or nobody listens any more).
-async fn send(tx: &mpsc::Sender<TimedMessage>, m: TimedMessage, shutdown: &CancellationToken) -> bool {
+async fn send(tx: &mpsc::Sender<TimedMessage>, m: TimedMessage, stats: &IngestStats, shutdown: &CancellationToken) -> bool {
     if shutdown.is_cancelled() {
         return false;
     }
-    match tx.try_send(m) {
+    let sent = match tx.try_send(m) {
         Ok(()) => true,
         Err(mpsc::error::TrySendError::Closed(_)) => false,
         Err(mpsc::error::TrySendError::Full(m)) => tokio::select! {
             _ = shutdown.cancelled() => false,
             r = tx.send(m) => r.is_ok(),
         },
-    }
+    };
+    stats.queues.observe(tx);
+    sent
 }
 
 #[cfg(test)]

@@ -117,14 +117,69 @@ pub struct FlightSummary {
     pub capacity_source: String,
 }
 
-/// Sums a run's reports into a [`FlightSummary`]; cheap per report (a few numbers kept).
+/// Sums a run's reports into a [`FlightSummary`] in bounded memory, however long the run:
+/// the measured powers go into a histogram of 1 %-wide bins (at most [`PowerBins::MAX`] bins,
+/// a few hundred on a real flight), each bin holding how many reports fell in it and the
+/// seconds they cover. The airborne threshold and the seconds above it are read off the
+/// histogram, so both are exact to the bin width (1 %).
 #[derive(Debug, Default)]
 pub struct FlightLog {
-    /// (t, measured W) of every report with a measured power.
-    power: Vec<(f64, f32)>,
+    power: PowerBins,
+    /// Time of the previous report with a measured power.
+    last_t: Option<f64>,
     energy_wh: f64,
     pct: Option<(f64, f64)>,
     capacity: Option<(f64, String)>,
+}
+
+/// Measured powers binned on a log scale: bin 0 below 1 W, bin k ≥ 1 for
+/// [1.01^(k−1), 1.01^k) W; (reports, seconds) per bin.
+#[derive(Debug, Default)]
+struct PowerBins(std::collections::BTreeMap<u16, (u64, f64)>);
+
+impl PowerBins {
+    /// The most bins there can be (1 W to 1 MW in 1 % steps, and one below 1 W).
+    const MAX: u16 = 1 + 1389;
+
+    fn bin(p: f32) -> u16 {
+        if p < 1.0 {
+            return 0;
+        }
+        // ln(1.01) = 0.00995033; a power above 1 MW (nonsense) lands in the last bin.
+        (1.0 + (f64::from(p).ln() / 1.01f64.ln()).floor()).min(f64::from(Self::MAX - 1)) as u16
+    }
+
+    /// A bin's power: its geometric centre (0 for the bin below 1 W).
+    fn power(bin: u16) -> f64 {
+        if bin == 0 { 0.0 } else { 1.01f64.powf(f64::from(bin) - 0.5) }
+    }
+
+    fn add(&mut self, p: f32, dt_s: f64) {
+        let e = self.0.entry(Self::bin(p)).or_default();
+        e.0 += 1;
+        e.1 += dt_s;
+    }
+
+    fn count(&self) -> u64 {
+        self.0.values().map(|e| e.0).sum()
+    }
+
+    /// The power of the report at rank `k` (0-based) in increasing order, to the bin.
+    fn rank(&self, k: u64) -> f64 {
+        let mut seen = 0;
+        for (&bin, &(n, _)) in &self.0 {
+            seen += n;
+            if seen > k {
+                return Self::power(bin);
+            }
+        }
+        0.0
+    }
+
+    /// Seconds covered by reports with a power above `w`, to the bin.
+    fn seconds_above(&self, w: f64) -> f64 {
+        self.0.iter().filter(|(&bin, _)| Self::power(bin) > w).map(|(_, e)| e.1).sum()
+    }
 }
 
 impl FlightLog {
@@ -132,7 +187,11 @@ impl FlightLog {
     pub fn observe(&mut self, r: &Report) {
         let s = &r.estimate.sample;
         if let Some(p) = s.measured_w.filter(|p| p.is_finite() && *p >= 0.0) {
-            self.power.push((r.estimate.t_s, p));
+            let t = r.estimate.t_s;
+            // A report's seconds: since the previous one, at most 1 s (a gap is not flight).
+            let dt = self.last_t.map_or(0.0, |last| (t - last).clamp(0.0, 1.0));
+            self.power.add(p, dt);
+            self.last_t = Some(t);
         }
         self.energy_wh = r.energy.energy_used_wh;
         if let Some(pct) = s.battery_remaining_pct.map(f64::from).filter(|p| (0.0..=100.0).contains(p)) {
@@ -148,19 +207,12 @@ impl FlightLog {
     /// Motors turning: measured power above 30 % of the run's 90th-percentile power (a
     /// multirotor's ground idle is a few % of its hover).
     pub fn summary(&self) -> Option<FlightSummary> {
-        if self.power.len() < 2 {
+        let n = self.power.count();
+        if n < 2 {
             return None;
         }
-        let mut sorted: Vec<f32> = self.power.iter().map(|(_, p)| *p).collect();
-        sorted.sort_by(f32::total_cmp);
-        let p90 = f64::from(sorted[(sorted.len() - 1) * 9 / 10]);
-        let threshold = 0.3 * p90;
-        let airborne_s = self
-            .power
-            .windows(2)
-            .filter(|w| f64::from(w[1].1) > threshold)
-            .map(|w| (w[1].0 - w[0].0).clamp(0.0, 1.0))
-            .sum();
+        let p90 = self.power.rank((n - 1) * 9 / 10);
+        let airborne_s = self.power.seconds_above(0.3 * p90);
         let (rated_capacity_wh, capacity_source) = self.capacity.clone().unwrap_or((0.0, "unknown".into()));
         let effective_capacity_wh = self
             .pct
@@ -573,5 +625,32 @@ mod tests {
         let s = log.summary().unwrap();
         assert!((s.effective_capacity_wh.unwrap() - 50.0).abs() < 1e-9, "{s:?}");
         assert!((s.airborne_s - 2.0).abs() < 1e-9, "steps are capped at 1 s: {s:?}");
+    }
+
+    /// Ten hours at 10 Hz: 60 s on the ground at 20 W, then hover around 350 W with a
+    /// climb at 600 W every minute, repeated. The motors-turning time is the flight's
+    /// (everything but the ground idle), and the log's memory stays a few hundred bins.
+    #[test]
+    fn a_long_flight_is_summed_in_bounded_memory() {
+        use crate::features::{Sample, N_FEATURES};
+        use crate::report::{EnergyState, Estimate};
+        let mut log = FlightLog::default();
+        let n = 360_000;
+        for i in 0..n {
+            let t = f64::from(i) * 0.1;
+            let p = if t < 60.0 { 20.0 } else if i % 600 < 50 { 600.0 } else { 350.0 + (i % 37) as f32 };
+            let sample = Sample { t_s: t, features: [0.0; N_FEATURES], measured_w: Some(p), voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None };
+            log.observe(&Report { estimate: Estimate { t_s: t, sample, models: vec![] }, energy: EnergyState::default(), alerts: vec![], system_id: 1 });
+        }
+        let s = log.summary().unwrap();
+        let flown = f64::from(n - 1) * 0.1 - 60.0;
+        assert!((s.airborne_s - flown).abs() < 0.2, "airborne {} s, flown {flown} s", s.airborne_s);
+        assert!(log.power.0.len() < 100, "{} bins", log.power.0.len());
+        // Every bin is where its power is: the centre within half a bin (0.5 %).
+        for p in [1.0f32, 20.0, 350.0, 5_000.0] {
+            assert!((PowerBins::power(PowerBins::bin(p)) / f64::from(p) - 1.0).abs() < 0.0051, "{p} W");
+        }
+        assert_eq!(PowerBins::bin(0.3), 0);
+        assert_eq!(PowerBins::bin(1e9), PowerBins::MAX - 1);
     }
 }
