@@ -15,6 +15,7 @@
 #            rss_kib_per_vehicle  rss_mib × 1024 / N
 #            estimates       reports made (JSON summary `reports`, summed)
 #            missed          reports a sink missed (`missed_reports`) + windows never reported
+#            gaps            breaks in a sender's sequence (a live link's lost datagrams)
 #            p50/p99/max_ms  message → estimate latency from each instance's JSON summary
 #                            (`latency`: arrival of the newest message behind an estimate to
 #                            its report going to the sinks). Over several instances: the
@@ -30,9 +31,14 @@
 # summed), mqtt_received (every message the subscriber got) and mqtt_estimates_received
 # (those on `…/<vehicle>/estimate`: one per report, so = estimates when nothing is lost).
 #
+# LIVE=1: live links instead of replays: link k is `dronewatt simulate --vehicles M --udp`
+# (seed k, real time) into `dronewatt monitor udpin:127.0.0.1:PORT` (label live-…; the
+# simulators' CPU is not counted, but they share the machine).
+#
 # Appends rows to OUT/fleet-load.csv (OUT default target/fleet-load; a new file gets the
 # header) and plots it (`cargo run --example fleet_load_plot`): fleet-load.png (CPU per
-# vehicle-second), fleet-load-rss.png (peak RSS per vehicle). The tlogs are kept in TLOGS
+# vehicle-second), fleet-load-rss.png (peak RSS per vehicle), fleet-load-latency.png (p99
+# latency). The tlogs are kept in TLOGS
 # (default OUT/tlogs; ~68 MB per 250 vehicles).
 #
 # Usage: scripts/fleet-load.sh [SECONDS] [N ...]      (default: 30, 1 10 100 250)
@@ -58,14 +64,15 @@ cleanup() {
 trap cleanup EXIT
 TICK=$(getconf CLK_TCK)
 CSV="$OUT/fleet-load.csv"
-HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,estimates,missed,p50_ms,p99_ms,max_ms,flat_windows_per_s,max_vehicles_10hz,mqtt_published,mqtt_dropped,mqtt_received,mqtt_estimates_received"
+HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,estimates,missed,gaps,p50_ms,p99_ms,max_ms,flat_windows_per_s,max_vehicles_10hz,mqtt_published,mqtt_dropped,mqtt_received,mqtt_estimates_received"
 [ -s "$CSV" ] || echo "$HEAD" > "$CSV"
 
 LABEL=10hz
+[ "${LIVE:-0}" = 1 ] && LABEL=live-10hz
 CFG="$TMP/base.toml"
 : > "$CFG"
 if [ -n "${LSTM_RATE:-}" ]; then
-  LABEL="${LSTM_RATE}hz"
+  LABEL="${LABEL%10hz}${LSTM_RATE}hz"
   printf '[fleet]\nlstm_rate_hz = %s\n' "$LSTM_RATE" >> "$CFG"
 fi
 MQTT_PORT=
@@ -102,15 +109,27 @@ run_size() {  # $1 = N
   fi
   # Paced: every link at real time for DUR seconds. The JSON lines go through a pipe that
   # keeps only the summary (a 1,000-vehicle run writes ~10,000 lines a second).
+  local sims=() port
   for i in $(seq 1 "$k"); do
     mkfifo "$TMP/json$i"
     grep -F '"type":"summary"' < "$TMP/json$i" > "$TMP/summary$i.json" &
     greps+=($!)
-    RUST_LOG=dronewatt=info "$BIN" replay "$TLOGS/fleet${m}-seed$i.tlog" --speed 1 -q --config "$TMP/link$i.toml" \
-      --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
-    pids+=($!)
+    if [ "${LIVE:-0}" = 1 ]; then
+      port=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+      RUST_LOG=dronewatt=info "$BIN" monitor "udpin:127.0.0.1:$port" -q --config "$TMP/link$i.toml" \
+        --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
+      pids+=($!)
+      until grep -q "listening on" "$TMP/paced$i.err"; do sleep 0.1; done
+      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:$port" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null &
+      sims+=($!)
+    else
+      RUST_LOG=dronewatt=info "$BIN" replay "$TLOGS/fleet${m}-seed$i.tlog" --speed 1 -q --config "$TMP/link$i.toml" \
+        --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
+      pids+=($!)
+    fi
   done
   sleep "$DUR"
+  for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
   local cpu=0 hwm=0 p
   for p in "${pids[@]}"; do
     cpu=$(awk -v t="$TICK" -v c="$cpu" '{print c + ($14 + $15) / t}' "/proc/$p/stat")
@@ -145,12 +164,13 @@ run_size() {  # $1 = N
 import json, re, sys, glob, os
 tmp, n, k, dur, cpu, hwm, t0, t1, label, received = sys.argv[1:]
 n, k, dur, cpu, hwm = int(n), int(k), float(dur), float(cpu), int(hwm)
-est = missed = 0
+est = missed = gaps = 0
 lat = {"p50_ms": 0.0, "p99_ms": 0.0, "max_ms": 0.0}
 pub = drop = 0
 for i in range(1, k + 1):
     s = json.loads(open(f"{tmp}/summary{i}.json").read().strip().splitlines()[-1])
     est += s["reports"]
+    gaps += s["gaps"]
     missed += s["missed_reports"] + max(0, s["windows"] - s["reports"])
     for q in lat:
         lat[q] = max(lat[q], (s.get("latency") or {}).get(q, 0.0))
@@ -164,7 +184,7 @@ if float(t1) > 0:
     wps = f"{windows / (float(t1) - float(t0)):.0f}"
     vmax = f"{float(wps) / 10:.0f}"
 mq = f"{pub},{drop},{received}" if received else ",,,"
-print(f"{label},{n},{k},{dur},{cpu / (n * dur) * 1e6:.1f},{hwm / 1024:.1f},{hwm / n:.1f},{est},{missed},"
+print(f"{label},{n},{k},{dur},{cpu / (n * dur) * 1e6:.1f},{hwm / 1024:.1f},{hwm / n:.1f},{est},{missed},{gaps},"
       f"{lat['p50_ms']:.2f},{lat['p99_ms']:.2f},{lat['max_ms']:.2f},{wps},{vmax},{mq}")
 PY
   tail -1 "$CSV"
