@@ -26,7 +26,7 @@ fn main() -> Result<()> {
     for (i, line) in lines.enumerate() {
         let f: Vec<&str> = line.split(',').collect();
         let num = |c: usize| f.get(c).and_then(|v| v.parse::<f64>().ok()).with_context(|| format!("{csv}: line {}: column {}", i + 2, head[c]));
-        let label = format!("LSTM at {}", f.get(lstm).copied().unwrap_or("?").replace("+mqtt", ", MQTT on"));
+        let label = label(f.get(lstm).copied().unwrap_or("?"));
         let vehicles = num(n)? as u64;
         cpu_lines.entry(label.clone()).or_default().insert(vehicles, num(cpu)?);
         rss_lines.entry(label.clone()).or_default().insert(vehicles, num(rss)?);
@@ -38,6 +38,17 @@ fn main() -> Result<()> {
     log_log(&beside("rss"), "dronewatt fleet load: memory per vehicle", "peak RSS per vehicle, KiB", &rss_lines)?;
     log_log(&beside("latency"), "dronewatt fleet load: message → estimate, p99", "p99 latency, ms", &p99_lines)?;
     Ok(())
+}
+
+/// A row's `lstm` column in words: `2hz` → `LSTM 2 Hz`, `live-2hz+mqtt` → `live UDP, LSTM 2 Hz, MQTT`.
+fn label(lstm: &str) -> String {
+    let (live, rest) = lstm.strip_prefix("live-").map_or((false, lstm), |r| (true, r));
+    let (rate, mqtt) = rest.strip_suffix("+mqtt").map_or((rest, false), |r| (r, true));
+    let mut s = format!("{}LSTM {} Hz", if live { "live UDP, " } else { "" }, rate.trim_end_matches("hz"));
+    if mqtt {
+        s.push_str(", MQTT");
+    }
+    s
 }
 
 /// The values `m × 10^k` (m from `steps`) between `lo` and `hi`: where the labels go.
