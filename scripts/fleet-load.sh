@@ -119,7 +119,7 @@ run_size() {  # $1 = N
       RUST_LOG=dronewatt=info "$BIN" monitor "udpin:127.0.0.1:$port" -q --config "$TMP/link$i.toml" \
         --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
       pids+=($!)
-      until grep -q "listening on" "$TMP/paced$i.err"; do sleep 0.1; done
+      until grep -qs "listening on" "$TMP/paced$i.err"; do sleep 0.1; done
       "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:$port" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null &
       sims+=($!)
     else
