@@ -1,7 +1,9 @@
 //! Mission forecast speed. Goals (issue 12): a plan of 500 waypoints forecasts in < 50 ms
 //! (fly it on paper + the forecast model along it + energy per leg); a live re-forecast
 //! (locate the vehicle from its current item and position, read what is left) < 1 ms.
-//! Run: `cargo bench --profile dev --bench mission`.
+//! Run: `cargo bench --locked --profile dev --bench mission` (the project's bench profile:
+//! opt-level 2, overflow checks on in dronewatt; plain `cargo bench` builds the `bench`
+//! profile, which inherits `release`'s opt-level 3, and rebuilds every dependency for it).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::mission::forecast::{forecast, Calibration};

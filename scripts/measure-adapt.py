@@ -26,6 +26,14 @@ for name in rest[0]["models"]:
         err = 100 * (energy(p, ts) - energy(meas, ts)) / energy(meas, ts)
         row += [mape, err]
     print(f"{row[0]:<20}{row[1]:>12.1f}{row[3]:>16.1f}{row[2]:>14.1f}{row[4]:>18.1f}")
+# The forecast: the model the forecast followed at each line (its adapted value where adapted).
+if all("forecast_model" in e for e in rest):
+    p = [(e.get("adapted", {}) if e["forecast_adapted"] else e["models"]).get(e["forecast_model"]) if e["forecast_model"] else m for e, m in zip(rest, meas)]
+    if all(v is not None for v in p):
+        mape = 100 * sum(abs(a - m) / m for a, m in zip(p, meas)) / len(p)
+        err = 100 * (energy(p, ts) - energy(meas, ts)) / energy(meas, ts)
+        used = sorted({e["forecast_model"] or "measured" for e in rest})
+        print(f"{'forecast (followed)':<20}{'':>12}{mape:>16.1f}{'':>14}{err:>18.1f}   models followed: {', '.join(used)}")
 # time to empty vs remaining / mean measured power over the next 60 s
 errs = []
 for i, e in enumerate(est):

@@ -14,6 +14,11 @@
 //!   `BAT1_CAPACITY`: mAh × cells × `nominal_cell_v`), else the DJI TB48D's 5700 mAh × 22.8 V
 //!   = 129.96 Wh ([`crate::vehicle::resolve_battery`]); [`EnergyState::battery`] says
 //!   which. The cell count likewise (config, `BAT1_N_CELLS`, the first voltage seen, 6).
+//! - **forecast model**: `[energy] model` when set, else the vehicle profile's (`learn`
+//!   picks it), else `lstm`, until this vehicle's measured power shows another model's
+//!   adapted estimate steadily better ([`select`]: online selection with a minimum of
+//!   evidence and hysteresis). [`EnergyState::forecast_model`] and
+//!   [`EnergyState::forecast_why`] say which and why.
 //! - **forecast power** `P_f`: an exponential moving average (time constant `smoothing_s`)
 //!   of the forecast model's prediction, adapted to measured power when adaptation runs
 //!   ([`crate::model::adapt`]; [`EnergyState::forecast_adapted`]); without one, of the measured power (a physics
@@ -38,6 +43,8 @@ use crate::report::{BatteryFacts, Estimate, ModelEstimate, Provenance, Sourced};
 use crate::vehicle::params::VehicleParams;
 use crate::vehicle::BatteryConfig;
 
+pub mod select;
+
 /// Battery and home-return assumptions (the `[energy]` table).
 #[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -58,9 +65,13 @@ pub struct EnergyConfig {
     pub use_battery_pct: bool,
     /// Energy kept in reserve at landing, % of capacity. Default 20.
     pub reserve_pct: f64,
-    /// Model whose prediction is the forecast (and is integrated when nothing is measured).
-    /// Default: `lstm` if it runs; else the forecast follows measured power.
+    /// Model whose prediction is the forecast (and is integrated when nothing is measured),
+    /// always (no online selection). Default: the vehicle profile's `[forecast] model`, else
+    /// `lstm`, while it runs (else the forecast follows measured power), moving to the model
+    /// with the lowest recent error on this vehicle as `[energy.select]` allows.
     pub model: Option<String>,
+    /// Online selection of the forecast model (`[energy.select]`).
+    pub select: select::SelectConfig,
     /// Time constant of the forecast power's moving average, s. Default 10.
     pub smoothing_s: f64,
     /// Ground speed flying home, m/s. Default: `[mission] speed_m_s`, else 10.
@@ -82,6 +93,7 @@ impl Default for EnergyConfig {
             use_battery_pct: true,
             reserve_pct: 20.0,
             model: None,
+            select: select::SelectConfig::default(),
             smoothing_s: 10.0,
             cruise_speed_m_s: None,
             descent_speed_m_s: 2.0,
@@ -121,6 +133,7 @@ impl EnergyConfig {
         if !(self.nominal_cell_v.is_finite() && (1.0..=5.0).contains(&self.nominal_cell_v)) {
             errs.push(format!("energy.nominal_cell_v = {}: must be 1..=5 V", self.nominal_cell_v));
         }
+        errs.extend(self.select.validate());
         if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
     }
 }
@@ -167,6 +180,8 @@ pub struct EnergyTracker {
     learned_capacity: Option<(f64, usize)>,
     /// Messages already warned about (each parameter problem once).
     warned: Vec<String>,
+    /// Which model the forecast follows ([`select`]).
+    selector: select::Selector,
 }
 
 impl EnergyTracker {
@@ -199,7 +214,14 @@ impl EnergyTracker {
             first_voltage_v: None,
             learned_capacity: None,
             warned: Vec::new(),
+            selector: select::Selector::new(&cfg.select, cfg.model.as_deref(), None),
         })
+    }
+
+    /// The forecast model to start from when `[energy] model` is not set: the vehicle
+    /// profile's (`model`), and where that came from (`from`, shown as the reason).
+    pub fn set_default_model(&mut self, model: &str, from: &str) {
+        self.selector = select::Selector::new(&self.cfg.select, self.cfg.model.as_deref(), Some((model, from)));
     }
 
     /// Take what the vehicle said about itself ([`crate::vehicle::params`]): capacity and
@@ -256,6 +278,7 @@ impl EnergyTracker {
     /// BATTERY_STATUS `battery_remaining`) when it sends one.
     pub fn update_with_battery(&mut self, est: &Estimate, battery_pct: Option<f64>) -> EnergyState {
         let s = &est.sample;
+        self.selector.update(est.t_s, &est.models);
         if self.first_voltage_v.is_none() {
             if let Some(v) = s.voltage_v.map(f64::from).filter(|v| v.is_finite() && *v > 1.0) {
                 self.first_voltage_v = Some(v);
@@ -337,6 +360,7 @@ impl EnergyTracker {
             remaining_source,
             forecast_w: forecast,
             forecast_model: forecast_from.and_then(|(m, _)| m).map(|m| m.name.clone()),
+            forecast_why: preferred.map(|_| self.selector.current().why.to_string()),
             time_to_empty_s,
             home_energy_wh,
             home_margin_wh: home_energy_wh.map(|e| remaining - e - reserve),
@@ -353,10 +377,10 @@ impl EnergyTracker {
         }
     }
 
-    /// The model whose prediction is the forecast: the configured one, else `lstm`.
+    /// The model whose prediction is the forecast ([`select`]), when it ran.
     fn forecast_model<'a>(&self, est: &'a Estimate) -> Option<&'a ModelEstimate> {
-        let name = self.cfg.model.as_deref().unwrap_or("lstm");
-        est.models.iter().find(|m| m.name == name)
+        let name = &self.selector.current().model;
+        est.models.iter().find(|m| m.name == *name)
     }
 }
 

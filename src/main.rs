@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
 use dronewatt::config::Config;
@@ -61,9 +61,11 @@ struct RunArgs {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Replay a logged flight: a .tlog, a raw MAVLink stream, or the M100 flights.csv[.gz].
+    /// Replay a logged flight: a .tlog, an ArduPilot DataFlash .bin, a PX4 .ulg, a raw MAVLink
+    /// stream, or the M100 flights.csv[.gz].
     Replay {
-        /// The file to replay (.tlog, .bin/.raw/.mavlink raw stream, .csv or .csv.gz data set).
+        /// The file to replay (.tlog, an ArduPilot DataFlash .bin, a PX4 .ulg, .bin/.raw/.mavlink raw stream,
+        /// .csv or .csv.gz data set). A .bin is DataFlash when it starts with DataFlash's header.
         file: PathBuf,
         /// Playback speed: 1 = real time, N = N× faster, 'max' = flat out.
         #[arg(long, default_value = "1")]
@@ -165,6 +167,8 @@ fn real_main(cli: Cli) -> Result<()> {
             let source = if name.ends_with(".csv") || name.ends_with(".csv.gz") {
                 let flight = flight.context("a data-set CSV holds many flights: pick one with --flight N")?;
                 SourceSpec::Dataset { path: file, flight, speed }
+            } else if !raw && (name.ends_with(".ulg") || name.ends_with(".bin") && dronewatt::source::dataflash::starts_as_dataflash(&file)) {
+                SourceSpec::AutopilotLog { path: file, speed }
             } else if raw || !name.ends_with(".tlog") {
                 SourceSpec::Raw { path: file, speed }
             } else {
@@ -209,8 +213,10 @@ fn real_main(cli: Cli) -> Result<()> {
 /// Arguments of `dronewatt simulate`: a triangle mission (the default route) for a vehicle.
 #[derive(Debug, Clone, clap::Args)]
 struct SimulateArgs {
-    /// Write the flight to this `.tlog` file.
-    #[arg(long, value_name = "FILE.tlog", conflicts_with = "udp", required_unless_present = "udp")]
+    /// Write the flight to this file: a `.tlog`, or with `.bin` the ArduPilot vehicle's own
+    /// DataFlash log (one vehicle, `--autopilot ardupilot`), with `.ulg` the PX4 vehicle's
+    /// own ULog (one vehicle, `--autopilot px4`).
+    #[arg(long, value_name = "FILE.tlog|FILE.bin|FILE.ulg", conflicts_with = "udp", required_unless_present = "udp")]
     out: Option<PathBuf>,
     /// Stream the flight's MAVLink frames to this UDP address (`dronewatt monitor udpin:…`).
     #[arg(long, value_name = "HOST:PORT")]
@@ -313,7 +319,20 @@ fn simulate(args: SimulateArgs) -> Result<()> {
     let duration_s = flight.duration_s();
     tracing::info!(messages = flight.records.len(), duration_s, energy_wh, "simulated mission");
     if let Some(path) = &args.out {
-        let bytes = sim::output::write_tlog(path, &flight)?;
+        let bytes = if dronewatt::source::dataflash::is_dataflash(path) {
+            // The autopilot's own log: one ArduPilot vehicle (PX4 writes ULog, not DataFlash).
+            if args.vehicles > 1 || args.autopilot != Autopilot::Ardupilot {
+                bail!("{}: a DataFlash .bin is one ArduPilot vehicle's own log: use --autopilot ardupilot and one vehicle, or write a .tlog", path.display());
+            }
+            sim::output::write_dataflash(path, &flight)?
+        } else if dronewatt::source::ulog::is_ulog(path) {
+            if args.vehicles > 1 || args.autopilot != Autopilot::Px4 {
+                bail!("{}: a ULog .ulg is one PX4 vehicle's own log: use --autopilot px4 and one vehicle, or write a .tlog", path.display());
+            }
+            sim::output::write_ulog(path, &flight)?
+        } else {
+            sim::output::write_tlog(path, &flight)?
+        };
         let n = flight.records.len();
         let who = if args.vehicles > 1 { format!(" by {} vehicles (system ids 1-{})", args.vehicles, args.vehicles) } else { String::new() };
         eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.1} Wh drawn{who}, {bytes} bytes", path.display());

@@ -183,6 +183,21 @@ pub struct VehicleChain {
     mav_ids: (Option<u8>, u8),
     /// The vehicle store's folder, for the warm start ([`VehicleChain::with_memory`]).
     memory: Option<std::path::PathBuf>,
+    /// Builds the models from a profile `dronewatt learn` kept for the vehicle in the
+    /// store; None when the config names a vehicle profile (the config wins).
+    rebuild: Option<Rebuild>,
+}
+
+/// Builds the ensemble from a vehicle profile file.
+pub type Rebuild = Arc<dyn Fn(&std::path::Path) -> Result<Ensemble> + Send + Sync>;
+
+/// What the vehicle store tells the energy stage about a vehicle.
+#[derive(Debug, Clone, Default)]
+struct StoreNews {
+    /// The pack's effective capacity learned on earlier flights, Wh, over how many.
+    capacity: Option<(f64, usize)>,
+    /// The forecast model of the learned profile the models now run from, and why.
+    forecast: Option<(String, String)>,
 }
 
 /// The running stages of one [`VehicleChain`].
@@ -275,15 +290,25 @@ impl VehicleChain {
     /// Another vehicle's chain on the same configuration: its own telemetry, energy and
     /// alert state, no models (the fleet's vehicles share one [`Inference`] stage).
     pub fn another(cfg: &Config) -> Result<Self> {
+        let mut energy = EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?;
+        // The vehicle profile's forecast model (`learn` picks it), when it names one.
+        if let Some((model, why)) = crate::model::profile::forecast_default(cfg.vehicle.as_deref()) {
+            energy.set_default_model(&model, &why);
+        }
+        let rebuild = cfg.vehicle.is_none().then(|| {
+            let (models, telemetry, payload_g) = (cfg.models.clone(), cfg.telemetry.clone(), cfg.mission.payload_g);
+            Arc::new(move |path: &std::path::Path| crate::model::build_ensemble(&models, Some(path), &telemetry, payload_g)) as Rebuild
+        });
         Ok(Self {
             telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
             models: Ensemble::new(Vec::new()),
-            energy: EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?,
+            energy,
             alerts: AlertEngine::new(&cfg.alerts)?,
             mission: None,
             vehicle: ParamReader::passive(),
             mav_ids: (cfg.sinks.mavlink.system_id, cfg.sinks.mavlink.component_id),
             memory: None,
+            rebuild,
         })
     }
 
@@ -345,8 +370,9 @@ impl VehicleChain {
         let reader = if live { ParamReader::live() } else { self.vehicle };
         let driver = Driver::new(reader, status.link.clone(), self.mav_ids.0.unwrap_or(vehicle), self.mav_ids.1);
         let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
-        let (capacity_tx, capacity_rx) = watch::channel(None);
-        let memory = self.memory.map(|dir| Memory { dir, vehicle, warm: inference.warm.clone(), capacity: Some(capacity_tx) });
+        let (capacity_tx, capacity_rx) = watch::channel(StoreNews::default());
+        let rebuild = self.rebuild;
+        let memory = self.memory.map(|dir| Memory { dir, vehicle, warm: inference.warm.clone(), capacity: Some(capacity_tx), rebuild });
         let tasks = ChainTasks {
             telemetry: tokio::spawn(telemetry_stage(self.telemetry, driver, msgs, win_tx, vehicle_tx, memory, status.clone())),
             windows: tokio::spawn(async move {
@@ -556,7 +582,27 @@ struct Memory {
     vehicle: u8,
     warm: std::sync::mpsc::Sender<(u8, WarmStart)>,
     /// Taken by the one lookup.
-    capacity: Option<watch::Sender<Option<(f64, usize)>>>,
+    capacity: Option<watch::Sender<StoreNews>>,
+    /// Builds the models from a learned profile the store keeps for the vehicle.
+    rebuild: Option<Rebuild>,
+}
+
+/// The models built from the profile `learn` kept for the vehicle, and its forecast model
+/// with the reason; nothing without one, without a builder (a profile is configured), or
+/// when the profile does not load (a warning: the run goes on with the configured models).
+fn learned_models(learned: &crate::vehicle::store::Learned, rebuild: Option<&Rebuild>) -> (Option<Box<Ensemble>>, Option<(String, String)>) {
+    let (Some(p), Some(rebuild)) = (&learned.profile, rebuild) else { return (None, None) };
+    match rebuild(&p.path) {
+        Ok(models) => {
+            tracing::info!("vehicle store: the models start from the profile learned for this vehicle, {}", p.path.display());
+            let why = format!("vehicle profile learned for this vehicle ({})", p.path.display());
+            (Some(Box::new(models)), p.forecast_model.clone().map(|m| (m, why)))
+        }
+        Err(e) => {
+            tracing::warn!("vehicle store: the profile learned for this vehicle does not load ({e:#}); the configured models run");
+            (None, None)
+        }
+    }
 }
 
 /// Messages → fixed-rate samples → windows; refreshes the signal health about once a second.
@@ -582,13 +628,15 @@ async fn telemetry_stage(
                     if let (Some(id), Some(mem)) = (&params.identity, &mut memory) {
                         if let Some(capacity) = mem.capacity.take() {
                             let _ = mem.warm.send((mem.vehicle, WarmStart::Pending));
-                            let (dir, warm, id, vehicle) = (mem.dir.clone(), mem.warm.clone(), id.clone(), mem.vehicle);
+                            let (dir, warm, id, vehicle, rebuild) = (mem.dir.clone(), mem.warm.clone(), id.clone(), mem.vehicle, mem.rebuild.clone());
                             tokio::task::spawn_blocking(move || {
                                 let learned = crate::vehicle::store::lookup(&dir, &id);
-                                // The capacity first: an estimate made with the warm fits
-                                // reaches the energy stage after it.
-                                let _ = capacity.send(learned.capacity_wh);
-                                let _ = warm.send((vehicle, WarmStart::Ready(learned.fits)));
+                                // The profile `learn` kept for it (no profile configured).
+                                let (models, forecast) = learned_models(&learned, rebuild.as_ref());
+                                // The store's news first: an estimate made with the warm
+                                // fits reaches the energy stage after it.
+                                let _ = capacity.send(StoreNews { capacity: learned.capacity_wh, forecast });
+                                let _ = warm.send((vehicle, WarmStart::Ready(learned.fits, models)));
                             });
                         }
                     }
@@ -670,13 +718,13 @@ fn inference_stage(
             }
         }
         for (id, news) in warm.try_iter() {
-            warm_start(&mut models, id, news, &mut waiting);
+            warm_start(&mut models, id, news, &mut waiting, seen.len());
         }
         if !live {
             let until = std::time::Instant::now() + WARM_WAIT;
             while b.meta.iter().any(|(v, ..)| waiting.contains(v)) {
                 match warm.recv_timeout(until.saturating_duration_since(std::time::Instant::now())) {
-                    Ok((id, news)) => warm_start(&mut models, id, news, &mut waiting),
+                    Ok((id, news)) => warm_start(&mut models, id, news, &mut waiting, seen.len()),
                     Err(_) => {
                         tracing::warn!("vehicle store: no answer in {WARM_WAIT:?}; the replay goes on without a warm start");
                         waiting.clear();
@@ -725,14 +773,21 @@ impl Batch {
     }
 }
 
-/// Take the warm start's news; whether the answer is still to come.
-fn warm_start(models: &mut Ensemble, vehicle: u8, news: WarmStart, waiting: &mut std::collections::BTreeSet<u8>) {
+/// Take the warm start's news; whether the answer is still to come. `vehicles`: how many
+/// vehicles the stage has heard (a learned profile's models replace the run's only while
+/// one vehicle is: a fleet's vehicles share the models).
+fn warm_start(models: &mut Ensemble, vehicle: u8, news: WarmStart, waiting: &mut std::collections::BTreeSet<u8>, vehicles: usize) {
     match news {
         WarmStart::Pending => {
             waiting.insert(vehicle);
         }
-        WarmStart::Ready(learned) => {
+        WarmStart::Ready(learned, profile_models) => {
             waiting.remove(&vehicle);
+            match profile_models {
+                Some(m) if vehicles <= 1 => *models = *m,
+                Some(_) => tracing::warn!(vehicle, "vehicle store: a learned profile is not applied in a fleet (the vehicles share the models)"),
+                None => {}
+            }
             if let (Some(l), Some(ad)) = (learned, models.adaptation_mut(vehicle)) {
                 let n = ad.restore(&l);
                 tracing::info!(vehicle, "warm start: {n} model(s) start from what earlier flights of this vehicle taught");
@@ -748,8 +803,9 @@ pub type Fits = Vec<(String, crate::model::adapt::ModelFit)>;
 pub enum WarmStart {
     /// The vehicle is known and its fits are being looked up.
     Pending,
-    /// What earlier flights taught (none: a new vehicle, or no store).
-    Ready(Option<Fits>),
+    /// What earlier flights taught (none: a new vehicle, or no store), and the models of the
+    /// profile `learn` kept for the vehicle (none: none kept, or a profile is configured).
+    Ready(Option<Fits>, Option<Box<Ensemble>>),
 }
 
 /// Longest a replay waits for the vehicle store's answer.
@@ -765,7 +821,7 @@ async fn energy_stage(
     mut estimates: mpsc::Receiver<Estimate>,
     mut mission: Option<mpsc::Receiver<MissionUpdate>>,
     mut vehicle: watch::Receiver<VehicleParams>,
-    mut learned_capacity: watch::Receiver<Option<(f64, usize)>>,
+    mut learned: watch::Receiver<StoreNews>,
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
@@ -794,10 +850,15 @@ async fn energy_stage(
             energy.set_vehicle(vehicle.borrow_and_update().clone());
             vehicle_final = closed;
         }
-        // The pack's effective capacity from earlier flights (the vehicle store), likewise.
-        let (changed, closed) = learned_capacity.has_changed().map_or((true, true), |c| (c, false));
+        // The pack's effective capacity from earlier flights (the vehicle store), and the
+        // forecast model of a learned profile the models now run from, likewise.
+        let (changed, closed) = learned.has_changed().map_or((true, true), |c| (c, false));
         if changed && !capacity_final {
-            energy.set_learned_capacity(*learned_capacity.borrow_and_update());
+            let news = learned.borrow_and_update().clone();
+            energy.set_learned_capacity(news.capacity);
+            if let Some((model, why)) = news.forecast {
+                energy.set_default_model(&model, &why);
+            }
             capacity_final = closed;
         }
         let report = match next {

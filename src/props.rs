@@ -230,6 +230,41 @@ fn check_timed(what: &str, mut r: TimedReader, input: &[u8], min_frame: u64) -> 
     Ok(())
 }
 
+/// An autopilot's own log (`decode` reads it whole, as `learn` and `replay` do): an error
+/// or messages whose times are finite, from 0 up and never going back, and no more
+/// messages than input bytes (every message comes from a record of several bytes: nothing
+/// is made up out of a time span, so a log cannot make the reader allocate without bound).
+fn check_autopilot_log<E: std::fmt::Display>(what: &str, data: &[u8], decode: fn(&[u8], &IngestStats) -> Result<Vec<crate::source::TimedMessage>, E>) -> Result<(), String> {
+    let stats = IngestStats::default();
+    match decode(data, &stats) {
+        Err(e) if e.to_string().trim().is_empty() => Err(format!("{what}: an error that says nothing")),
+        Err(_) => Ok(()),
+        Ok(msgs) => {
+            if msgs.len() > data.len() {
+                return Err(format!("{what}: {} messages from {} bytes", msgs.len(), data.len()));
+            }
+            let mut last = 0.0f64;
+            for (n, m) in msgs.iter().enumerate() {
+                if !m.t_s.is_finite() || m.t_s < last {
+                    return Err(format!("{what}: message {n} has t_s = {} after {last}", m.t_s));
+                }
+                last = m.t_s;
+            }
+            Ok(())
+        }
+    }
+}
+
+/// The ArduPilot DataFlash (`.bin`) reader.
+pub fn check_dataflash(data: &[u8]) -> Result<(), String> {
+    check_autopilot_log("dataflash", data, crate::source::dataflash::decode_dataflash)
+}
+
+/// The PX4 ULog (`.ulg`) reader.
+pub fn check_ulog(data: &[u8]) -> Result<(), String> {
+    check_autopilot_log("ulog", data, crate::source::ulog::decode_ulog)
+}
+
 /// The `.tlog` reader, timestamps included.
 pub fn check_tlog(data: &[u8]) -> Result<(), String> {
     check_timed("tlog", TimedReader::tlog(), data, 16)

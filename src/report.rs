@@ -30,12 +30,25 @@ pub struct ModelEstimate {
     /// alert compares with (`model::adapt`), W; absent when adaptation is off.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_w: Option<f32>,
+    /// How `adapted_w` has done on this vehicle lately (`model::adapt`): what the forecast
+    /// picks its model by (`energy::select`); absent before the first scored window.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub adapted_err: Option<AdaptedError>,
+}
+
+/// The adapted estimate's recent error on this vehicle, and the evidence behind it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AdaptedError {
+    /// Recent mean absolute error against measured power, W (forgotten like the fit).
+    pub err_w: f32,
+    /// Seconds of flight with measured power that scored the model this run.
+    pub evidence_s: f32,
 }
 
 impl ModelEstimate {
     /// A raw estimate (no adaptation).
     pub fn new(name: impl Into<String>, power_w: f32, band_w: Option<(f32, f32)>) -> Self {
-        Self { name: name.into(), power_w, band_w, adapted_w: None, reference_w: None }
+        Self { name: name.into(), power_w, band_w, adapted_w: None, reference_w: None, adapted_err: None }
     }
 }
 
@@ -221,6 +234,10 @@ pub struct EnergyState {
     /// The model whose prediction the forecast follows, when a model ran (else the
     /// forecast follows measured power).
     pub forecast_model: Option<String>,
+    /// Why the forecast follows `forecast_model` (`energy::select`): the config, the
+    /// default (the vehicle profile's choice, else the M100's LSTM), or its lowest recent
+    /// error on this vehicle.
+    pub forecast_why: Option<String>,
     /// Time to empty at the forecast power, s.
     pub time_to_empty_s: Option<f64>,
     /// Energy needed to fly home, descend and land, Wh (needs a home position).

@@ -15,13 +15,15 @@ use mavlink::{MavHeader, MavlinkVersion};
 
 type Check = fn(&[u8]) -> Result<(), String>;
 
-const TARGETS: [(&str, Check); 6] = [
+const TARGETS: [(&str, Check); 8] = [
     ("decoder", props::check_decoder),
     ("tlog", props::check_tlog),
     ("raw", props::check_raw),
     ("csv", props::check_csv),
     ("config", props::check_config),
     ("plan", props::check_plan),
+    ("dataflash", props::check_dataflash),
+    ("ulog", props::check_ulog),
 ];
 
 fn fuzz_dir() -> PathBuf {
@@ -294,13 +296,15 @@ fn plan_seeds() -> Vec<Vec<u8>> {
 #[test]
 #[ignore]
 fn write_seeds() {
-    let sets: [(&str, Vec<Vec<u8>>); 6] = [
+    let sets: [(&str, Vec<Vec<u8>>); 8] = [
         ("decoder", decoder_seeds()),
         ("tlog", tlog_seeds()),
         ("raw", raw_seeds()),
         ("csv", csv_seeds()),
         ("config", config_seeds()),
         ("plan", plan_seeds()),
+        ("dataflash", autopilot_log_seeds("bin", "ardupilot")),
+        ("ulog", autopilot_log_seeds("ulg", "px4")),
     ];
     for (target, seeds) in sets {
         let dir = fuzz_dir().join("seeds").join(target);
@@ -309,6 +313,32 @@ fn write_seeds() {
             std::fs::write(dir.join(format!("seed-{i:02}")), s).unwrap();
         }
     }
+}
+
+/// An autopilot's own log as the simulator writes it (`simulate --out F.bin`, ArduPilot
+/// DataFlash; `F.ulg`, PX4 ULog), a short flight: its head cut at several lengths (the
+/// fuzzer's inputs are at most 4 kB), each also with a byte flipped in its records, and the
+/// whole header alone.
+fn autopilot_log_seeds(ext: &str, autopilot: &str) -> Vec<Vec<u8>> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(format!("seed.{ext}"));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["simulate", "--autopilot", autopilot, "--leg-m", "50", "--hover-s", "2", "--seed", "3", "--out"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let log = std::fs::read(&path).unwrap();
+    let mut seeds = Vec::new();
+    for len in [16, 200, 600, 1200, 2000, 3000, 4096] {
+        let head = log[..len.min(log.len())].to_vec();
+        let mut flipped = head.clone();
+        let at = flipped.len() * 2 / 3;
+        flipped[at] ^= 0x5a;
+        seeds.push(head);
+        seeds.push(flipped);
+    }
+    seeds
 }
 
 /// The plan seeds reach past the readers' first error: the good ones read, in each format.

@@ -1,6 +1,7 @@
 //! Mission energy forecast end to end: `dronewatt plan` on a hand-written `.waypoints`
 //! file (table, JSON, plot, a bad plan's error), and `plan-eval` on a subset of the real
-//! data set (fit on training flights, score test flights 276 and 277) with loose bounds.
+//! data set (fit on training flights, score test flights 276 and 277) with loose bounds;
+//! R7's staged altitudes flown as slanted climbs that the vertical-work term prices.
 
 use std::process::Command;
 
@@ -87,4 +88,39 @@ fn plan_eval_on_a_subset_forecasts_r1_flights_within_loose_bounds() {
     assert!(r.training.preflight_median_err_pct < r.training.baseline_preflight_median_err_pct, "{:?}", r.training);
     assert!(r.training.live_median_err_pct < r.training.baseline_live_median_err_pct, "{:?}", r.training);
     assert!(r.training.p90_coverage_pct >= 80.0, "{:?}", r.training);
+    // the weighting kept is the one with the smallest training error of those tried
+    let kept = r.bases_fit.iter().find(|(b, _)| *b == r.basis).map(|(_, e)| *e).unwrap();
+    assert!(r.bases_fit.len() >= 2 && r.bases_fit.iter().all(|(_, e)| kept <= *e), "{} of {:?}", r.basis, r.bases_fit);
+    assert!(r.calibration.validate().is_ok(), "{:?}", r.calibration);
+}
+
+#[test]
+fn r7s_altitude_stages_are_slanted_climbs_and_the_forecast_prices_their_climb() {
+    use dronewatt::features::idx;
+    use dronewatt::mission::forecast::{forecast, Calibration};
+    use dronewatt::mission::trajectory::{fly, Conditions, KinematicsConfig, Wind};
+    let ds = dronewatt::source::dataset::read_flights(&dronewatt::default_data_path(), Some(&[278])).unwrap();
+    let f = &ds.flights[0];
+    assert_eq!((f.route.as_str(), f.altitude_text.as_str()), ("R7", "25-50-100-25"));
+    let plan = dronewatt::offline::mission::flight_plan(f, f).unwrap();
+    let tr = fly(&plan, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: f.payload_g, speed_m_s: Some(f.speed_m_s), rate_hz: 10.0 });
+    // climbed height, vertically (take-off) and on legs that fly forward while they climb
+    let (mut vertical, mut slanted) = (0.0, 0.0);
+    for s in &tr.samples {
+        let (vz, vh) = (f64::from(s.features[idx::VZ]), f64::from(s.features[idx::VX].hypot(s.features[idx::VY])));
+        if vz > 0.0 {
+            *(if vh > 1.0 { &mut slanted } else { &mut vertical }) += vz * tr.dt_s;
+        }
+    }
+    // (a slanted leg starts from a stop: its first metres climb before it has 1 m/s forward)
+    assert!((vertical + slanted - 100.0).abs() < 1.0 && slanted > 65.0, "take-off 25 m, stages 25→50→100 mostly on slanted legs: {vertical:.1} m + {slanted:.1} m");
+    // the fitted calibration (plan-eval's, the default) prices every metre climbed
+    let profile = dronewatt::model::profile::VehicleProfile::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/vehicles/m100-calibrated.toml")).unwrap();
+    let cal = Calibration::default();
+    let mut models: Vec<_> = dronewatt::model::physics::models(&profile).into_iter().filter(|m| m.name() == cal.model).collect();
+    let with = forecast(&tr, &mut models, &cal, 10, dronewatt::mission::MODEL_STRIDE);
+    let without = forecast(&tr, &mut models, &Calibration { climb_work: [0.0; 2], ..cal.clone() }, 10, dronewatt::mission::MODEL_STRIDE);
+    let climb_wh = cal.scale * cal.climb_work[0] * (cal.vehicle_kg + f.payload_g / 1000.0) * 9.81 * 100.0 / 3600.0;
+    assert!(cal.climb_work[0] > 1.0, "a climb costs more than its potential energy: {:?}", cal.climb_work);
+    assert!(((with.energy_p50_wh - without.energy_p50_wh) / climb_wh - 1.0).abs() < 0.01, "{} − {} vs {climb_wh}", with.energy_p50_wh, without.energy_p50_wh);
 }

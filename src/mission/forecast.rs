@@ -13,8 +13,14 @@
 //!   flight's plan: what the model misses systematically (the plan's own simplifications —
 //!   stop-and-go legs, the rotors' spin-up — and the model's bias) is removed, by flight.
 //!   The power is also weighted by phase (`phase_scale`: vertical climb, vertical
-//!   descent, the rest), fitted on the training flights' halves, so that what is left at
-//!   any point of the plan, not only the whole, is right.
+//!   descent, the rest) and the vertical work rate m·g·v_z added with its own weights
+//!   (`climb_work`, climbing and descending), all fitted on the training flights' halves,
+//!   so that what is left at any point of the plan, not only the whole, is right:
+//!   `P50(t) = k · (w_phase(t) · P_f(t) + w_up · m·g·max(v_z, 0) + w_down · m·g·max(−v_z, 0))`.
+//!   The work term is what makes a slanted climb (a leg that climbs while it flies
+//!   forward) cost its climb: forward-flight power plus m·g·v_z over the rotors'
+//!   efficiency, the physics of any climb, where a weight on vertical climbs alone
+//!   would miss it.
 //! - **P90 energy** `E90 = r90 · E50` with `r90` (`p90_ratio`) the 90th percentile of
 //!   measured/forecast over the same training flights after the correction: the by-flight
 //!   residual spread, which holds the day-to-day wind, battery temperature and pilot
@@ -58,12 +64,30 @@ pub struct Calibration {
     /// anything else ([`phase_of`]), fitted by `plan-eval` on the training flights' two
     /// halves. Default: `plan-eval`'s fit.
     pub phase_scale: [f64; 3],
+    /// Weights on the vertical work rate m·g·v_z (W) climbing and descending, added to the
+    /// model's power on every sample that moves vertically, slanted legs included
+    /// ([`vertical_work_w`]): a climb costs the forward-flight power plus m·g·v_z over the
+    /// rotors' efficiency, whatever the horizontal speed. Fitted by `plan-eval` beside
+    /// `phase_scale` (0 = not used). Default: its fit.
+    pub climb_work: [f64; 2],
+    /// The vehicle's mass without payload, kg, that the vertical work is computed with
+    /// (m = `vehicle_kg` + the plan's payload); `climb_work` was fitted with it. Default
+    /// 2.431 (the M100 profile's airframe and TB48D, what `plan-eval` fits with).
+    pub vehicle_kg: f64,
 }
 
 impl Calibration {
     /// No correction: the model's own power (what `plan-eval` fits from).
     pub fn uncorrected() -> Self {
-        Self { model: String::new(), scale: 1.0, p90_ratio: 1.0, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3] }
+        Self { model: String::new(), scale: 1.0, p90_ratio: 1.0, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3], climb_work: [0.0; 2], vehicle_kg: 2.431 }
+    }
+
+    /// The weights on [model power in vertical climb, vertical descent, the rest, vertical
+    /// work up, vertical work down].
+    pub fn weights(&self) -> [f64; 5] {
+        let [a, b, c] = self.phase_scale;
+        let [d, e] = self.climb_work;
+        [a, b, c, d, e]
     }
 }
 
@@ -81,17 +105,31 @@ pub fn phase_of(s: &crate::telemetry::Sample) -> usize {
     }
 }
 
+/// The vertical work rate of a sample, W: m·g·v_z climbing and m·g·|v_z| descending
+/// (`[up, down]`, one of them 0), with m = `vehicle_kg` + the sample's payload.
+pub fn vertical_work_w(s: &crate::telemetry::Sample, vehicle_kg: f64) -> [f64; 2] {
+    let vz = f64::from(s.features[idx::VZ]);
+    let w = (vehicle_kg + f64::from(s.features[idx::PAYLOAD]).max(0.0) / 1000.0) * 9.81 * vz.abs();
+    if vz > 0.0 {
+        [w, 0.0]
+    } else {
+        [0.0, w]
+    }
+}
+
 impl Default for Calibration {
     fn default() -> Self {
         // Fitted by `dronewatt plan-eval` on the M100 training flights (178 route flights, test
         // flights excluded), with the calibrated profile's physics models.
         Self {
             model: "tseng_solo_cal".into(),
-            scale: 0.9992,
-            p90_ratio: 1.0288,
+            scale: 0.9986,
+            p90_ratio: 1.0281,
             live_weight: 0.00,
             recent_flights: 20,
-            phase_scale: [1.3111, 0.9514, 0.9654],
+            phase_scale: [0.9594, 0.9594, 0.9594],
+            climb_work: [2.4472, 0.0],
+            vehicle_kg: 2.431,
         }
     }
 }
@@ -104,6 +142,15 @@ impl Calibration {
         }
         if !(self.p90_ratio.is_finite() && self.p90_ratio >= 1.0) {
             return Err(format!("forecast.calibration.p90_ratio = {}: must be ≥ 1", self.p90_ratio));
+        }
+        if !(self.vehicle_kg.is_finite() && self.vehicle_kg > 0.0) {
+            return Err(format!("forecast.calibration.vehicle_kg = {}: must be > 0", self.vehicle_kg));
+        }
+        if !self.climb_work.iter().all(|w| w.is_finite()) {
+            return Err(format!("forecast.calibration.climb_work = {:?}: must be numbers", self.climb_work));
+        }
+        if !self.phase_scale.iter().all(|w| w.is_finite() && *w > 0.0) {
+            return Err(format!("forecast.calibration.phase_scale = {:?}: must be > 0", self.phase_scale));
         }
         if !(0.0..=1.0).contains(&self.live_weight) {
             return Err(format!("forecast.calibration.live_weight = {}: must be in [0, 1]", self.live_weight));
@@ -158,6 +205,11 @@ pub struct MissionForecast {
     pub dt_s: f64,
 }
 
+/// Windows built and predicted at a time: a batch large enough for the LSTM's batched
+/// kernel, small enough to stay in cache and be reused (a 500-waypoint plan has 16,600
+/// windows, 23 MB as one batch: allocating and faulting that in cost more than the models).
+const BATCH: usize = 512;
+
 /// Run `models` on `traj` and integrate. `window_t` is the window length T, `stride` the
 /// sample step at which models run (≥ 1). The model named by `cal.model` gives the P50
 /// (when it did not run, the first model that did: its name is in the result).
@@ -165,57 +217,52 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
     let n = traj.samples.len();
     let stride = stride.max(1);
     let t = window_t.max(1);
-    let mut powers: Vec<(String, Vec<f32>)> = Vec::with_capacity(models.len());
-    let mut windows: Vec<Window> = Vec::new();
+    let mut powers: Vec<(String, Vec<f32>)> = models.iter().map(|m| (m.name().to_string(), vec![0.0f32; n])).collect();
+    let mut windows: Vec<Window> = Vec::with_capacity(BATCH.min(n.div_ceil(stride)));
     let mut preds: Vec<Prediction> = Vec::new();
-    let mut at = Vec::new();
-    let mut built_for = None;
-    for m in models.iter_mut() {
-        let lag = m.target_lag();
+    // Models with the same target lag share each batch of windows.
+    let mut lags: Vec<usize> = models.iter().map(|m| m.target_lag()).collect();
+    lags.sort_unstable();
+    lags.dedup();
+    for lag in lags {
         // windows ending at j + lag for j = 0, stride, 2·stride, …; clamped at both ends
-        // (before take-off and after touchdown the vehicle is still). Models with the same
-        // lag share them.
-        if built_for == Some(lag) {
-            m.predict(&windows, &mut preds);
-            powers.push((m.name().to_string(), hold(&at, &preds, n)));
-            continue;
-        }
-        built_for = Some(lag);
-        windows.clear();
-        at.clear();
-        let mut j = 0;
-        while j < n {
-            let end = (j + lag).min(n - 1);
-            let samples: Vec<_> = if end + 1 >= t {
-                traj.samples[end + 1 - t..=end].to_vec()
-            } else {
-                (0..t)
-                    .map(|i| {
+        // (before take-off and after touchdown the vehicle is still); the power of the
+        // window at j is held until the next one.
+        let mut j0 = 0;
+        while j0 < n {
+            let count = (n - j0).div_ceil(stride).min(BATCH);
+            for b in 0..count {
+                let end = (j0 + b * stride + lag).min(n - 1);
+                if b == windows.len() {
+                    windows.push(Window { samples: Vec::with_capacity(t), arrived: None });
+                }
+                let w = &mut windows[b].samples;
+                w.clear();
+                if end + 1 >= t {
+                    w.extend_from_slice(&traj.samples[end + 1 - t..=end]);
+                } else {
+                    w.extend((0..t).map(|i| {
                         let mut s = traj.samples[(end + i + 1).saturating_sub(t)].clone();
                         s.t_s = (end as f64 + i as f64 + 1.0 - t as f64) * traj.dt_s;
                         s
-                    })
-                    .collect()
-            };
-            windows.push(Window { samples, arrived: None });
-            at.push(j);
-            j += stride;
+                    }));
+                }
+            }
+            for (m, (_, p)) in models.iter_mut().zip(powers.iter_mut()) {
+                if m.target_lag() != lag {
+                    continue;
+                }
+                m.predict(&windows[..count], &mut preds);
+                for (b, pr) in preds.iter().enumerate().take(count) {
+                    let a = j0 + b * stride;
+                    let v = if pr.power_w.is_finite() { pr.power_w.max(0.0) } else { 0.0 };
+                    p[a..(a + stride).min(n)].fill(v);
+                }
+            }
+            j0 += count * stride;
         }
-        m.predict(&windows, &mut preds);
-        powers.push((m.name().to_string(), hold(&at, &preds, n)));
     }
     integrate(traj, &powers, cal)
-}
-
-/// Per-sample power from predictions at samples `at`, each held until the next.
-fn hold(at: &[usize], preds: &[Prediction], n: usize) -> Vec<f32> {
-    let mut p = vec![0.0f32; n];
-    for (w, (&j0, pr)) in at.iter().zip(preds).enumerate() {
-        let j1 = at.get(w + 1).copied().unwrap_or(n);
-        let v = if pr.power_w.is_finite() { pr.power_w.max(0.0) } else { 0.0 };
-        p[j0..j1].fill(v);
-    }
-    p
 }
 
 fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration) -> MissionForecast {
@@ -229,7 +276,9 @@ fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration
     let mut cum = Vec::with_capacity(p.len());
     let mut e = 0.0;
     for (s, &w) in traj.samples.iter().zip(p) {
-        e += cal.scale * cal.phase_scale[phase_of(s)] * f64::from(w) * dt_h;
+        let [up, down] = vertical_work_w(s, cal.vehicle_kg);
+        let p = cal.phase_scale[phase_of(s)] * f64::from(w) + cal.climb_work[0] * up + cal.climb_work[1] * down;
+        e += cal.scale * p.max(0.0) * dt_h;
         cum.push(e);
     }
     let at = |i: usize| if i == 0 { 0.0 } else { cum.get(i - 1).copied().unwrap_or(e) };
@@ -334,7 +383,7 @@ mod tests {
 
     #[test]
     fn energy_adds_up_and_grows_with_payload_and_wind() {
-        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3] };
+        let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, ..Calibration::uncorrected() };
         let f = run(0.0, Wind::default(), &cal);
         assert_eq!(f.model, "dandrea");
         let legs: f64 = f.legs.iter().map(|l| l.energy_p50_wh).sum();
@@ -350,9 +399,126 @@ mod tests {
         assert!((scaled.energy_p50_wh / f.energy_p50_wh - 1.2).abs() < 1e-9);
     }
 
+    /// A model with a target lag whose power is a function of the whole window (every
+    /// sample's time and speed): any window built wrong changes it.
+    struct WholeWindow;
+    impl PowerModel for WholeWindow {
+        fn name(&self) -> &str {
+            "whole_window"
+        }
+        fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
+            out.clear();
+            out.extend(windows.iter().map(|w| {
+                let p = w.samples.iter().enumerate().map(|(i, s)| (i + 1) as f64 * (s.t_s + f64::from(s.features[idx::VY]).abs())).sum::<f64>();
+                Prediction { power_w: p as f32, band_w: None }
+            }));
+        }
+        fn target_lag(&self) -> usize {
+            3
+        }
+    }
+
+    #[test]
+    fn batched_windows_forecast_exactly_what_one_window_at_a_time_does() {
+        // The forecast builds its windows in reused batches; the plain way (one window,
+        // copied fresh, predicted alone, its power held until the next) must agree exactly,
+        // for a plan of more windows than a batch and models of two lags.
+        let tr = fly(&plan(60), &KinematicsConfig::default(), &Conditions { wind: "3@40".parse().unwrap(), payload_g: 250.0, speed_m_s: None, rate_hz: 10.0 });
+        let (t, stride, n) = (10, 5, tr.samples.len());
+        assert!(n / stride > 2 * BATCH, "{n} samples: more windows than two batches");
+        let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
+        models.push(Box::new(WholeWindow));
+        let cal = Calibration { model: "whole_window".into(), ..Calibration::uncorrected() };
+        let f = forecast(&tr, &mut models, &cal, t, stride);
+        let last = models.len() - 1;
+        for (mi, m) in models.iter_mut().enumerate() {
+            let lag = m.target_lag();
+            let mut p = vec![0.0f32; n];
+            let mut out = Vec::new();
+            for j in (0..n).step_by(stride) {
+                let end = (j + lag).min(n - 1);
+                let samples = (0..t)
+                    .map(|i| {
+                        let mut s = tr.samples[(end + i + 1).saturating_sub(t)].clone();
+                        if end + 1 < t {
+                            s.t_s = (end as f64 + i as f64 + 1.0 - t as f64) * tr.dt_s;
+                        }
+                        s
+                    })
+                    .collect();
+                m.predict(&[Window { samples, arrived: None }], &mut out);
+                p[j..(j + stride).min(n)].fill(out[0].power_w.max(0.0));
+            }
+            let e = p.iter().map(|&w| f64::from(w)).sum::<f64>() * tr.dt_s / 3600.0;
+            let (name, got) = &f.models_raw_wh[mi];
+            assert_eq!(name, m.name());
+            assert!((got - e).abs() <= 1e-12 * e.abs(), "{name}: {got} vs {e}");
+            if mi == last {
+                let mut cum = 0.0;
+                for (k, &w) in p.iter().enumerate() {
+                    cum += f64::from(w) * tr.dt_s / 3600.0;
+                    assert!((f.cum_p50_wh[k] - cum).abs() <= 1e-12 * cum.abs(), "sample {k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_slanted_climb_costs_its_climb_work() {
+        // Take off to 25 m, climb to 100 m on a 400 m leg north (slanted), come back down
+        // to 25 m on the way east, return. The work term adds w·m·g·Δh for every metre
+        // climbed, vertical or slanted, and nothing for the descent when its weight is 0.
+        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
+        let d = 400.0 / 111_320.0;
+        let wps = [GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0, alt_m: 100.0 }, GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0 + d, alt_m: 25.0 }];
+        let mut plan = Plan::from_waypoints("slanted", home, &wps, 10.0);
+        for it in plan.items.iter_mut() {
+            if let crate::mission::plan::ItemKind::Takeoff { alt_m } = &mut it.kind {
+                *alt_m = 25.0;
+            }
+        }
+        let tr = fly(&plan, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: 500.0, speed_m_s: None, rate_hz: 10.0 });
+        let slanted = tr.samples.iter().filter(|s| s.features[idx::VZ] > 0.5 && s.features[idx::VX].hypot(s.features[idx::VY]) > 1.0).count();
+        assert!(slanted as f64 * tr.dt_s > 30.0, "the leg north climbs while it flies: {slanted} samples");
+        let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
+        let base = Calibration { model: "tseng_solo".into(), scale: 0.97, ..Calibration::uncorrected() };
+        let w = 2.5;
+        let with = Calibration { climb_work: [w, 0.0], ..base.clone() };
+        let f0 = forecast(&tr, &mut models, &base, 10, 5);
+        let f1 = forecast(&tr, &mut models, &with, 10, 5);
+        let m = base.vehicle_kg + 0.5;
+        let climb_wh = |h: f64| 0.97 * w * m * 9.81 * h / 3600.0;
+        let extra = f1.energy_p50_wh - f0.energy_p50_wh;
+        assert!((extra / climb_wh(100.0) - 1.0).abs() < 0.01, "25 m take-off + 75 m slanted: {extra} Wh vs {}", climb_wh(100.0));
+        let leg = |f: &MissionForecast| f.legs[1].energy_p50_wh;
+        assert!((leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 < 0.01 && (leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 > -0.01, "the slanted leg itself carries its 75 m");
+        assert!((f1.legs[2].energy_p50_wh / f0.legs[2].energy_p50_wh - 1.0).abs() < 1e-9, "descending legs unchanged");
+        // tseng_solo has no climb term of its own: without the work term a slanted climb is free
+        let flat = Plan::from_waypoints("flat", home, &[GeoPoint { alt_m: 25.0, ..wps[0] }, wps[1]], 10.0); // take-off to 25 m
+        let tf = fly(&flat, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: 500.0, speed_m_s: None, rate_hz: 10.0 });
+        let ff = forecast(&tf, &mut models, &base, 10, 5);
+        assert!((ff.legs[1].energy_p50_wh - f0.legs[1].energy_p50_wh).abs() < 0.02 * ff.legs[1].energy_p50_wh);
+        assert!(with.validate().is_ok() && Calibration { vehicle_kg: 0.0, ..with.clone() }.validate().unwrap_err().contains("vehicle_kg"));
+    }
+
+    #[test]
+    fn the_calibration_table_reads_its_documented_keys_and_names_a_bad_one() {
+        // the README's block: plan-eval's fit, the defaults
+        let text = "model = \"tseng_solo_cal\"\nscale = 0.9986\np90_ratio = 1.0281\nlive_weight = 0.0\nrecent_flights = 20\n\
+                    phase_scale = [0.9594, 0.9594, 0.9594]\nclimb_work = [2.4472, 0.0]\nvehicle_kg = 2.431\n";
+        let c: Calibration = toml::from_str(text).unwrap();
+        assert_eq!(c, Calibration::default());
+        let old: Calibration = toml::from_str("phase_scale = [1.3111, 0.9514, 0.9654]").unwrap();
+        assert_eq!(old.climb_work, Calibration::default().climb_work, "a key left out keeps its default");
+        let e = toml::from_str::<Calibration>("climb_weight = 2").unwrap_err().to_string();
+        assert!(e.contains("climb_weight"), "{e}");
+        let bad = Calibration { climb_work: [f64::NAN, 0.0], ..Calibration::default() };
+        assert!(bad.validate().unwrap_err().contains("forecast.calibration.climb_work"));
+    }
+
     #[test]
     fn the_live_reforecast_reads_what_is_left() {
-        let cal = Calibration { model: "dandrea".into(), scale: 1.0, p90_ratio: 1.1, live_weight: 1.0, recent_flights: 0, phase_scale: [1.0; 3] };
+        let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, live_weight: 1.0, ..Calibration::uncorrected() };
         let f = run(0.0, Wind::default(), &cal);
         let n = f.cum_p50_wh.len();
         let r0 = f.remaining_from(0, None, 1.0);

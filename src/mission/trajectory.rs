@@ -394,6 +394,45 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
     segs
 }
 
+/// The body attitude for a heading (rad, ENU bearing of forward) and the horizontal
+/// force per unit mass the thrust tilts toward, and what the features read off it.
+#[derive(Debug, Clone, Copy)]
+struct Attitude {
+    /// The data set's quaternion (x, y, z, w; w ≥ 0).
+    q_xyzw: [f32; 4],
+    /// The quaternion's own yaw ψ (heading frame of the velocity features).
+    sin_psi: f64,
+    cos_psi: f64,
+    /// Forward and right, ENU horizontal unit vectors.
+    fwd: nalgebra::Vector2<f64>,
+    right: nalgebra::Vector2<f64>,
+}
+
+fn attitude(heading: f64, f_h: nalgebra::Vector2<f64>) -> Attitude {
+    let tilt = (f_h.norm() / G_M_S2).atan();
+    let yaw_body_x = heading - std::f64::consts::FRAC_PI_2; // body y is forward
+    let q_yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_body_x);
+    let q = if tilt > 1e-6 {
+        let axis = Vector3::z().cross(&Vector3::new(f_h.x, f_h.y, 0.0));
+        UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(axis), tilt) * q_yaw
+    } else {
+        q_yaw
+    };
+    let r = q.to_rotation_matrix();
+    let psi = r.matrix()[(1, 0)].atan2(r.matrix()[(0, 0)]);
+    let (sin_psi, cos_psi) = psi.sin_cos();
+    let fwd = nalgebra::Vector2::new(heading.cos(), heading.sin());
+    let qq = q.quaternion();
+    let sign = if qq.w < 0.0 { -1.0 } else { 1.0 };
+    Attitude {
+        q_xyzw: [(sign * qq.i) as f32, (sign * qq.j) as f32, (sign * qq.k) as f32, (sign * qq.w) as f32],
+        sin_psi,
+        cos_psi,
+        fwd,
+        right: nalgebra::Vector2::new(fwd.y, -fwd.x),
+    }
+}
+
 /// Fly `plan` on paper. Never fails: a plan with no motion gives no samples.
 pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
     let speed0 = c.speed_m_s.or(plan.hover_speed_m_s).unwrap_or(k.default_speed_m_s);
@@ -417,6 +456,9 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
     let mut seg_t0 = 0.0f64;
     let mut cur_speed = speed0;
     let coslat = plan.home.lat_deg.to_radians().cos().max(1e-6);
+    // memo keys start as NaN: never equal, the first sample computes them
+    let (mut att_key, mut att) = ([f64::NAN; 3], attitude(0.0, nalgebra::Vector2::zeros()));
+    let mut anemo = ([f64::NAN; 2], 0.0f32, 0.0f32);
     for j in 0..n {
         let t = j as f64 * dt;
         while seg_i + 1 < segs.len() && t >= seg_t0 + segs[seg_i].duration_s {
@@ -431,34 +473,27 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
         let air = v - wind;
         // thrust axis: tilt toward the horizontal force per unit mass
         let f_h = a.xy() + G_M_S2 * k.tilt_per_airspeed2 * air.xy().norm() * air.xy();
-        let tilt = (f_h.norm() / G_M_S2).atan();
-        let yaw_body_x = heading - std::f64::consts::FRAC_PI_2; // body y is forward
-        let q_yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_body_x);
-        let q = if tilt > 1e-6 {
-            let axis = Vector3::z().cross(&Vector3::new(f_h.x, f_h.y, 0.0));
-            UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(axis), tilt) * q_yaw
-        } else {
-            q_yaw
-        };
-        let r = q.to_rotation_matrix();
-        let psi = r.matrix()[(1, 0)].atan2(r.matrix()[(0, 0)]);
-        let (sn, cs) = psi.sin_cos();
+        // the attitude and the anemometer depend on (heading, f_h) and the airspeed only:
+        // steady cruise, climbs and holds repeat them sample after sample
+        let key = [heading, f_h.x, f_h.y];
+        if att_key != key {
+            (att_key, att) = (key, attitude(heading, f_h));
+        }
+        let air_key = [air.x, air.y];
+        if anemo.0 != air_key {
+            anemo = (air_key, air.xy().norm() as f32, air.x.atan2(air.y).to_degrees().rem_euclid(360.0) as f32);
+        }
+        let (sn, cs) = (att.sin_psi, att.cos_psi);
         let vx = v.x * cs + v.y * sn;
         let vy = -v.x * sn + v.y * cs;
-        let fwd = nalgebra::Vector2::new(heading.cos(), heading.sin());
-        let right = nalgebra::Vector2::new(fwd.y, -fwd.x);
+        let (fwd, right) = (att.fwd, att.right);
         let mut f = [0.0f32; N_FEATURES];
-        let qq = q.quaternion();
-        let sign = if qq.w < 0.0 { -1.0 } else { 1.0 };
-        f[idx::WIND_SPEED] = air.xy().norm() as f32;
-        f[idx::WIND_ANGLE] = air.x.atan2(air.y).to_degrees().rem_euclid(360.0) as f32;
+        f[idx::WIND_SPEED] = anemo.1;
+        f[idx::WIND_ANGLE] = anemo.2;
         f[idx::POS_X] = (plan.home.lon_deg + p.x / (M_PER_DEG * coslat)) as f32;
         f[idx::POS_Y] = (plan.home.lat_deg + p.y / M_PER_DEG) as f32;
         f[idx::POS_Z] = (plan.home.alt_m + p.z) as f32;
-        f[idx::QX] = (sign * qq.i) as f32;
-        f[idx::QY] = (sign * qq.j) as f32;
-        f[idx::QZ] = (sign * qq.k) as f32;
-        f[idx::QW] = (sign * qq.w) as f32;
+        [f[idx::QX], f[idx::QY], f[idx::QZ], f[idx::QW]] = att.q_xyzw;
         f[idx::VX] = vx as f32;
         f[idx::VY] = vy as f32;
         f[idx::VZ] = v.z as f32;

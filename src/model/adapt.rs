@@ -31,6 +31,18 @@
 //!
 //! Bounded: a ∈ [`gain_min`, `gain_max`] and |b| ≤ `offset_max_w` after every step, so one
 //! wild sample cannot turn a model upside down, and the published value is never below 0 W.
+//! The bounded fit is the least-squares fit *within* the bounds (a box-constrained 2 × 2
+//! problem: the free minimum, else the best point on the box's edges), not the free fit
+//! with a and b clamped each on its own: a model whose output falls while the power rises
+//! (Tseng-Solo in a climb) drives the free gain far out of range, and its free offset
+//! belongs to that gain, not to the bound.
+//!
+//! ## The recent error each model is picked by
+//!
+//! Each window that teaches also scores the *published* value against the measured power,
+//! before teaching; the mean absolute error is forgotten with `score_memory_s` (120 s) and
+//! published with how many seconds of flight it rests on ([`Adapted::err_w`],
+//! [`Adapted::evidence_s`]): the forecast picks its model by it (`energy::select`).
 //!
 //! ## Two fits per model: the published one and the reference
 //!
@@ -102,6 +114,11 @@ pub struct AdaptConfig {
     pub gain_max: f64,
     /// Largest offset |b| allowed, W. Default 1000.
     pub offset_max_w: f64,
+    /// Memory of each model's recent error on this vehicle, s: the error of the published
+    /// (adapted) value, forgotten by e every `score_memory_s`, that the forecast picks its
+    /// model by (`[energy.select]`). Default 120 (longer than `memory_s`: the forecast
+    /// model should be the best over the flight's regimes, not the last half-minute's).
+    pub score_memory_s: f64,
 }
 
 impl Default for AdaptConfig {
@@ -114,6 +131,7 @@ impl Default for AdaptConfig {
             gain_min: 0.2,
             gain_max: 5.0,
             offset_max_w: 1000.0,
+            score_memory_s: 120.0,
         }
     }
 }
@@ -132,6 +150,7 @@ impl AdaptConfig {
         pos("gain_min", self.gain_min);
         pos("gain_max", self.gain_max);
         pos("offset_max_w", self.offset_max_w);
+        pos("score_memory_s", self.score_memory_s);
         if self.reference_memory_s < 5.0 * self.memory_s {
             errs.push(format!(
                 "models.adapt.reference_memory_s = {}: must be ≥ 5 × memory_s = {} (the deviation alert's reference must adapt much slower than the forecast)",
@@ -197,12 +216,36 @@ impl AffineFit {
         if !(det > 0.0 && a.is_finite() && b.is_finite() && info.iter().chain(&rhs).all(|v| v.is_finite())) {
             return;
         }
+        let (a, b) = box_solve([m00, m01, m11], [v0, v1], (a, b), (cfg.gain_min, cfg.gain_max), cfg.offset_max_w);
         self.info = info;
         self.rhs = rhs;
-        self.a = a.clamp(cfg.gain_min, cfg.gain_max);
-        self.b_w = b.clamp(-cfg.offset_max_w, cfg.offset_max_w);
+        self.a = a;
+        self.b_w = b;
         self.taught += 1;
     }
+}
+
+/// The minimum of `θᵀMθ − 2vᵀθ` (M = [[m00, m01], [m01, m11]] positive definite) over the
+/// box a ∈ `gain`, |b| ≤ `b_max`, given the unconstrained minimum `free`. Clamping a and b
+/// each on its own is not the constrained fit: a gain held at its bound needs the offset
+/// that fits *with* it (a model whose output falls while the power rises, as Tseng-Solo's
+/// in a climb, drove the gain to its bound and left the offset of a gain 3× larger: a
+/// 1,000 W estimate of a 600 W climb). Inside the box the free minimum is the answer; else
+/// the minimum lies on an edge, where it is a one-dimensional fit clamped to the edge.
+fn box_solve(m: [f64; 3], v: [f64; 2], free: (f64, f64), gain: (f64, f64), b_max: f64) -> (f64, f64) {
+    let [m00, m01, m11] = m;
+    let inside = |(a, b): (f64, f64)| (gain.0..=gain.1).contains(&a) && b.abs() <= b_max;
+    if inside(free) {
+        return free;
+    }
+    let cost = |(a, b): (f64, f64)| m00 * a * a + 2.0 * m01 * a * b + m11 * b * b - 2.0 * (v[0] * a + v[1] * b);
+    let on_a = |a: f64| (a, ((v[1] - m01 * a) / m11).clamp(-b_max, b_max));
+    let on_b = |b: f64| (((v[0] - m01 * b) / m00).clamp(gain.0, gain.1), b);
+    [on_a(gain.0), on_a(gain.1), on_b(-b_max), on_b(b_max)]
+        .into_iter()
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .min_by(|p, q| cost(*p).total_cmp(&cost(*q)))
+        .unwrap_or((free.0.clamp(gain.0, gain.1), free.1.clamp(-b_max, b_max)))
 }
 
 /// A model's two fits (module docs): the published one and the slow reference.
@@ -228,6 +271,14 @@ pub struct Adapted {
     pub reference_w: f32,
     /// Whether this window taught the fits.
     pub taught: bool,
+    /// The published value's recent mean absolute error on this vehicle, W, scored before
+    /// the window taught (out of sample), forgotten with `score_memory_s` and corrected for
+    /// the start-up bias of a forgotten mean (divided by 1 − λⁿ after n scored windows).
+    /// None before the first scored window.
+    pub err_w: Option<f32>,
+    /// Seconds of flight that scored this model since this run started (windows that
+    /// taught × the window step): how much evidence `err_w` rests on.
+    pub evidence_s: f32,
 }
 
 /// Every model's fits, by model name (in the ensemble's order).
@@ -239,6 +290,14 @@ pub struct Adaptation {
     /// Below this measured power nothing teaches (motors off), W.
     min_teach_w: f64,
     fits: Vec<(String, ModelFit)>,
+    /// Window step, s.
+    dt_s: f64,
+    /// Forgetting factor of the published value's error (`score_memory_s`).
+    lambda_score: f64,
+    /// Per model: windows that scored it since this run started, the forgotten mean of its
+    /// published value's absolute error, W, and λⁿ (the evidence behind its recent error; a
+    /// warm start restores fits, not evidence).
+    scored: Vec<(u64, f64, f64)>,
 }
 
 impl Adaptation {
@@ -252,6 +311,9 @@ impl Adaptation {
             lambda_ref: lambda_of(cfg.reference_memory_s),
             min_teach_w: (cfg.min_power_frac * hover_w).max(0.0),
             fits: names.iter().map(|n| (n.clone(), ModelFit::default())).collect(),
+            dt_s,
+            lambda_score: lambda_of(cfg.score_memory_s),
+            scored: vec![(0, 0.0, 1.0); names.len()],
         }
     }
 
@@ -264,9 +326,10 @@ impl Adaptation {
     /// the model says the window is `in_range`) both fits taught with it. The correction is
     /// the one *before* this window taught: the published estimate never saw its own answer.
     pub fn step(&mut self, i: usize, p_model_w: f32, measured_w: Option<f32>, in_range: bool) -> Option<Adapted> {
-        let (lambda, lambda_ref, min_w) = (self.lambda, self.lambda_ref, self.min_teach_w);
+        let (lambda, lambda_ref, lambda_score, min_w, dt_s) = (self.lambda, self.lambda_ref, self.lambda_score, self.min_teach_w, self.dt_s);
         let cfg = &self.cfg;
         let fit = &mut self.fits.get_mut(i)?.1;
+        let (scored, score, decay) = self.scored.get_mut(i)?;
         let x = f64::from(p_model_w);
         if !x.is_finite() {
             return None;
@@ -275,10 +338,15 @@ impl Adaptation {
         // Published: the fit while its recent out-of-sample error is no worse than the raw
         // model's, else the raw model (a fit that extrapolates badly never makes it worse).
         let [err_raw, err_fit] = fit.err_w;
-        let out = Adapted {
-            adapted_w: if err_fit <= err_raw { corrected } else { x.max(0.0) } as f32,
+        let published = if err_fit <= err_raw { corrected } else { x.max(0.0) };
+        // A forgotten mean started at 0 is low by the factor 1 − λⁿ: undo it.
+        let recent = |n: u64, err: f64, decay: f64| (n > 0).then(|| (err / (1.0 - decay).max(1e-9)) as f32);
+        let mut out = Adapted {
+            adapted_w: published as f32,
             reference_w: fit.reference.apply(x).max(0.0) as f32,
             taught: false,
+            err_w: recent(*scored, *score, *decay),
+            evidence_s: (*scored as f64 * dt_s) as f32,
         };
         let y = measured_w.map(f64::from).filter(|y| y.is_finite() && *y > 0.0 && *y <= MAX_POWER_W);
         let Some(y) = y else { return Some(out) };
@@ -286,9 +354,15 @@ impl Adaptation {
             return Some(out);
         }
         fit.err_w = [lambda * err_raw + (1.0 - lambda) * (x - y).abs(), lambda * err_fit + (1.0 - lambda) * (corrected - y).abs()];
+        *score = lambda_score * *score + (1.0 - lambda_score) * (published - y).abs();
+        *scored += 1;
+        *decay *= lambda_score;
         fit.adapted.teach(x, y, lambda, cfg);
         fit.reference.teach(x, y, lambda_ref, cfg);
-        Some(Adapted { taught: true, ..out })
+        out.taught = true;
+        out.err_w = recent(*scored, *score, *decay);
+        out.evidence_s = (*scored as f64 * dt_s) as f32;
+        Some(out)
     }
 
     /// The fits, by model name: what the vehicle store keeps between flights.
@@ -322,6 +396,7 @@ impl Adaptation {
         for (_, fit) in &mut self.fits {
             *fit = ModelFit::default();
         }
+        self.scored.iter_mut().for_each(|n| *n = (0, 0.0, 1.0));
     }
 }
 
@@ -437,6 +512,48 @@ mod tests {
         for fit in [f.adapted, f.reference] {
             assert!((0.2..=5.0).contains(&fit.a) && fit.b_w.abs() <= 1000.0, "{fit:?}");
         }
+    }
+
+    #[test]
+    fn a_gain_at_its_bound_gets_the_offset_that_fits_with_it() {
+        // A model whose output barely moves and falls while the power climbs (Tseng-Solo in a
+        // climb): the unconstrained gain runs far past gain_max. The fit must still put the
+        // estimate near the measured level, not at a·x + b with a clamped and b not refitted.
+        let mut ad = adaptation();
+        for k in 0..300 {
+            let x = 330.0 + 0.01 * (k % 7) as f64;
+            ad.step(0, x as f32, Some(460.0), true);
+        }
+        let mut last = None;
+        for k in 0..400 {
+            let x = 316.0 - 0.01 * (k % 5) as f64;
+            last = ad.step(0, x as f32, Some(650.0), true);
+        }
+        // The free fit wants a gain far below 0 (output down, power up): held at gain_min,
+        // the offset is refitted with it. Clamping each on its own gave 0.2·316 + 1000 =
+        // 1,063 W here (the free offset is thousands of W).
+        let f = ad.fits()[0].1.adapted;
+        assert_eq!(f.a, 0.2, "{f:?}");
+        let est = f.apply(316.0);
+        assert!((560.0..=660.0).contains(&est), "{f:?}: {est:.0} W for a 650 W climb after 40 s");
+        assert!((560.0..=660.0).contains(&f64::from(last.unwrap().adapted_w)), "{last:?}");
+    }
+
+    #[test]
+    fn box_solve_is_the_constrained_minimum() {
+        // Brute force over a grid of the box against the closed form.
+        let (m, v) = ([4.0e6, 1.2e4, 40.0], [2.0e7, 5.0e4]);
+        let det = m[0] * m[2] - m[1] * m[1];
+        let free = ((m[2] * v[0] - m[1] * v[1]) / det, (m[0] * v[1] - m[1] * v[0]) / det);
+        let got = box_solve(m, v, free, (0.2, 5.0), 1000.0);
+        let cost = |a: f64, b: f64| m[0] * a * a + 2.0 * m[1] * a * b + m[2] * b * b - 2.0 * (v[0] * a + v[1] * b);
+        let mut best = f64::INFINITY;
+        for i in 0..=480 {
+            for j in 0..=400 {
+                best = best.min(cost(0.2 + 0.01 * f64::from(i), -1000.0 + 5.0 * f64::from(j)));
+            }
+        }
+        assert!(cost(got.0, got.1) <= best + 1e-6 * best.abs(), "{got:?}: {} vs {best}", cost(got.0, got.1));
     }
 
     #[test]

@@ -140,6 +140,7 @@ impl Ensemble {
                     if let Some(a) = ad.step(i, p.power_w, measured, in_range) {
                         me.adapted_w = Some(a.adapted_w);
                         me.reference_w = Some(a.reference_w);
+                        me.adapted_err = a.err_w.map(|err_w| crate::report::AdaptedError { err_w, evidence_s: a.evidence_s });
                     }
                 }
                 out[k].models.push(me);
@@ -231,8 +232,14 @@ pub fn build_models(
     // The physics models (+ Tseng's Solo form) on the configured vehicle profile.
     let profile = load_profile(vehicle)?;
     out.extend(physics::models(&profile));
-    // The LSTM after the physics models, when enabled and found.
-    if let Some(m) = lstm::from_config(&models.lstm, telemetry)? {
+    // The LSTM after the physics models, when enabled and found: the configured one, else
+    // the one fine-tuned for the vehicle profile (relative to the profile file), else the
+    // shipped one.
+    let mut lstm_cfg = models.lstm.clone();
+    if let (None, Some(dir), Some(path)) = (&lstm_cfg.path, &profile.lstm, vehicle) {
+        lstm_cfg.path = Some(path.parent().unwrap_or(std::path::Path::new(".")).join(dir));
+    }
+    if let Some(m) = lstm::from_config(&lstm_cfg, telemetry)? {
         out.push(Box::new(m));
     }
     Ok(out)

@@ -74,6 +74,37 @@ pub struct VehicleProfile {
     /// are named with a `_cal` suffix.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<Calibration>,
+    /// `[forecast]`: the model the forecast starts from on this vehicle (written by
+    /// `dronewatt learn`, picked on held-out logs; optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forecast: Option<ForecastDefault>,
+    /// The LSTM model folder fine-tuned for this vehicle (`dronewatt learn --fine-tune`),
+    /// relative to the profile file; it runs instead of the shipped one unless the config
+    /// sets `[models.lstm] path`. Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lstm: Option<std::path::PathBuf>,
+}
+
+/// `[forecast]`: which model the energy forecast starts from on this vehicle, unless the
+/// config's `[energy] model` says otherwise (online selection, `[energy.select]`, may still
+/// move it on the vehicle's own evidence).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForecastDefault {
+    /// The model's name as it runs from this profile (`stolaroff_cal`, `lstm`, …).
+    pub model: String,
+    /// Why it was picked (shown as the forecast's reason).
+    #[serde(default)]
+    pub why: String,
+}
+
+/// The `[forecast]` default of the profile file `vehicle` (None: no file, no section, or a
+/// file that does not load: the chain's own load reports that).
+pub fn forecast_default(vehicle: Option<&Path>) -> Option<(String, String)> {
+    let p = VehicleProfile::load(vehicle?).ok()?;
+    let f = p.forecast?;
+    let why = if f.why.is_empty() { String::new() } else { format!(": {}", f.why) };
+    Some((f.model, format!("vehicle profile {}{why}", p.name)))
 }
 
 /// Airframe facts (DJI's published figures for the M100).

@@ -117,7 +117,7 @@ impl Chain {
             let (mut for_t_s, mut model_energy_wh) = (Vec::with_capacity(n), Vec::with_capacity(n));
             // The raw estimates, then (adapting) the adapted ones as their own models.
             let adapted = est.models.iter().map(|m| ModelEstimate::new(format!("{}~", m.name), m.adapted_w.unwrap_or(f32::NAN), None));
-            let alone_models = est.models.iter().map(|m| ModelEstimate { adapted_w: None, reference_w: None, ..m.clone() }).chain(adapted);
+            let alone_models = est.models.iter().map(|m| ModelEstimate { adapted_w: None, reference_w: None, adapted_err: None, ..m.clone() }).chain(adapted);
             for ((m, lag), tracker) in alone_models.zip(&self.target_lags).zip(&mut model_energy) {
                 let at = w.back(*lag);
                 let alone = Estimate { t_s: at.t_s, sample: Sample { measured_w: None, ..at.clone() }, models: vec![m], arrived: None };

@@ -7,9 +7,15 @@
 //! config; its models are named `<model>_cal`) and a model card (`model-card.md`: what it
 //! was learned from, the held-out score per log, the inputs).
 //!
-//! Input: `.tlog` files, or folders of them. ArduPilot DataFlash `.bin` and PX4 `.ulg` are
-//! not read yet (refused with a message), and the LSTM is not fine-tuned: only the physics
-//! models learn here (online adaptation still corrects the LSTM in flight).
+//! Input: `.tlog` files, ArduPilot DataFlash `.bin` and PX4 ULog `.ulg` logs
+//! ([`crate::source::dataflash`], [`crate::source::ulog`]: turned into the same MAVLink
+//! stream a tlog gives), or folders of them.
+//!
+//! With `--fine-tune` the LSTM is fine-tuned from the shipped weights too (on libtorch, by
+//! `dronewatt-torch`: [`set_fine_tuner`]; `lstm/` beside the profile, model `lstm_ft`).
+//! The forecast model is picked on the held-out score (the lowest mean MAPE) into the
+//! profile's `[forecast]`, and the profile is kept in the vehicle store for the logs'
+//! vehicle (`--data-dir`), so its next run starts from it.
 //!
 //! Held out: every `--holdout-every`-th log (whole logs, never windows of a log that also
 //! trained: windows of one flight are too alike to score honestly), at least one.
@@ -34,7 +40,7 @@ const FIRST_LOG_NUMBER: u32 = 100_000;
 /// Arguments of `dronewatt learn`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct LearnArgs {
-    /// `.tlog` files, or folders holding them.
+    /// `.tlog`, DataFlash `.bin` or ULog `.ulg` files, or folders holding them.
     #[arg(required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
     /// Folder to write `profile.toml` and `model-card.md` into.
@@ -53,9 +59,76 @@ pub struct LearnArgs {
     /// Most in-flight windows the fit uses (evenly thinned beyond).
     #[arg(long, default_value_t = 20_000)]
     pub max_windows: usize,
+    /// The vehicle store to keep the learned profile in for the logs' vehicle (as
+    /// `monitor --data-dir`; default `$DRONEWATT_HOME`, else the XDG data directory; `off`
+    /// for none): the next `monitor`/`replay` of that vehicle starts from it.
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
+    /// Fine-tune the LSTM from the shipped M100 weights on the training logs, early-stopping
+    /// on the held-out logs (needs libtorch: the command is handed to `dronewatt-torch`).
+    /// Writes `lstm/` (weights and card) beside the profile, which refers to it.
+    #[arg(long)]
+    pub fine_tune: bool,
+    /// Most epochs of fine-tuning.
+    #[arg(long, default_value_t = 30)]
+    pub ft_epochs: usize,
+    /// Stop fine-tuning after this many optimiser steps (smoke tests).
+    #[arg(long)]
+    pub ft_max_steps: Option<usize>,
+    /// Fine-tuning learning rate (Adam).
+    #[arg(long, default_value_t = 1e-3)]
+    pub ft_lr: f64,
+    /// Epochs without a better held-out MAE before fine-tuning stops.
+    #[arg(long, default_value_t = 5)]
+    pub ft_patience: usize,
+    /// Dropout while fine-tuning (default: the shipped model's).
+    #[arg(long)]
+    pub ft_dropout: Option<f64>,
 }
 
-/// The logs named: files as given, folders' `.tlog` files in name order.
+/// A fine-tuning of the LSTM that `learn` asks of `dronewatt-torch` ([`set_fine_tuner`]).
+pub struct FineTuneJob<'a> {
+    /// The model folder to start from (its `card.toml` and weights: the shipped M100 model).
+    pub base: &'a Path,
+    /// Training logs' windows (the live feature path) and the held-out logs' (early stop).
+    pub train: &'a [FlightWindows],
+    pub held_out: &'a [FlightWindows],
+    /// The folder to write `card.toml` and `model.safetensors` into.
+    pub out: &'a Path,
+    pub epochs: usize,
+    pub max_steps: Option<usize>,
+    pub lr: f64,
+    pub patience: usize,
+    /// Dropout while fine-tuning (None: the shipped model's).
+    pub dropout: Option<f64>,
+    /// The training logs' names, for the card.
+    pub logs: Vec<String>,
+}
+
+/// What fine-tuning ran.
+#[derive(Debug, Clone)]
+pub struct FineTuned {
+    /// Epochs run, and the epoch kept (0: no epoch beat the shipped weights on the held-out
+    /// logs, which are kept).
+    pub epochs_run: usize,
+    pub best_epoch: usize,
+    /// Held-out MAE of the shipped weights and of the kept ones, W.
+    pub held_out_mae_w: (f64, f64),
+    pub train_windows: usize,
+    pub train_time_s: f64,
+}
+
+/// Fine-tunes the LSTM: registered by `dronewatt-torch`.
+pub type FineTuner = fn(&FineTuneJob) -> Result<FineTuned>;
+
+static FINE_TUNER: std::sync::OnceLock<FineTuner> = std::sync::OnceLock::new();
+
+/// Register the fine-tuner (once per process; later calls are ignored).
+pub fn set_fine_tuner(f: FineTuner) {
+    let _ = FINE_TUNER.set(f);
+}
+
+/// The logs named: files as given, folders' `.tlog`, `.bin` and `.ulg` files in name order.
 fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for p in args {
@@ -63,35 +136,40 @@ fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
             let mut v: Vec<PathBuf> = std::fs::read_dir(p)
                 .with_context(|| format!("{}: cannot list", p.display()))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| is_tlog(f))
+                .filter(|f| is_log(f))
                 .collect();
             v.sort();
             if v.is_empty() {
-                tracing::warn!("{}: no .tlog file in this folder", p.display());
+                tracing::warn!("{}: no .tlog, .bin or .ulg file in this folder", p.display());
             }
             out.extend(v);
         } else if !p.exists() {
             bail!("{}: no such file", p.display());
-        } else if is_tlog(p) {
+        } else if is_log(p) {
             out.push(p.clone());
         } else {
-            bail!("{}: only .tlog logs are read (DataFlash .bin and PX4 .ulg are not yet)", p.display());
+            bail!("{}: learn reads .tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg logs", p.display());
         }
     }
     Ok(out)
 }
 
-fn is_tlog(p: &Path) -> bool {
-    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog"))
+fn is_log(p: &Path) -> bool {
+    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog")) || crate::source::dataflash::is_dataflash(p) || crate::source::ulog::is_ulog(p)
 }
 
 /// One log through the live ingest path: its windows, numbered `flight`.
 pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindows> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let stats = crate::source::IngestStats::default();
+    let messages = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog")) {
+        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        crate::source::tlog::decode_tlog(&bytes, &stats)
+    } else {
+        crate::source::decode_autopilot_log(path, &stats)?
+    };
     let mut tel = Telemetry::new(&cfg.telemetry, &cfg.mission);
     let mut windows = Vec::new();
-    for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
+    for m in messages {
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);
@@ -105,11 +183,21 @@ struct LogScore {
     rows: Vec<(String, Option<Scores>, Option<Scores>)>,
 }
 
-/// Score the profile's physics models on one log through the live chain.
-fn score(cfg: &Config, profile: &VehicleProfile, f: &FlightWindows) -> Result<Vec<(String, Option<Scores>)>> {
-    let mut chain = Chain::new(cfg, Ensemble::new(physics::models(profile)))?;
+/// Score the profile's physics models and the LSTM (`lstm`: a fine-tuned model folder, else
+/// the configured one, when it runs) on one log through the live chain, from the first
+/// window (no adaptation), by base name.
+fn score(cfg: &Config, profile: &VehicleProfile, lstm: Option<&Path>, f: &FlightWindows) -> Result<Vec<(String, Option<Scores>)>> {
+    let mut models = physics::models(profile);
+    let lstm = match lstm {
+        Some(p) => Some(crate::model::lstm::LstmModel::load(p, &cfg.telemetry)?),
+        None => crate::model::lstm::from_config(&cfg.models.lstm, &cfg.telemetry)?,
+    };
+    if let Some(m) = lstm {
+        models.push(Box::new(m));
+    }
+    let mut chain = Chain::new(cfg, Ensemble::new(models))?;
     let s = chain.run_flight(f)?;
-    Ok(s.names.iter().map(|n| n.trim_end_matches("_cal").to_string()).zip(s.scores(false)).collect())
+    Ok(s.names.iter().map(|n| n.trim_end_matches("_cal").trim_end_matches("_ft").to_string()).zip(s.scores(false)).collect())
 }
 
 /// Run `dronewatt learn`.
@@ -119,6 +207,13 @@ pub fn run(args: LearnArgs) -> Result<()> {
         (Some(v), _) => VehicleProfile::named_or_file(v)?,
         (None, Some(p)) => VehicleProfile::load(p)?,
         (None, None) => VehicleProfile::m100(),
+    };
+    // Fine-tuning needs libtorch: ask before anything is written (the command is handed
+    // to `dronewatt-torch` whole).
+    let fine_tuner = match (args.fine_tune, FINE_TUNER.get()) {
+        (false, _) => None,
+        (true, Some(f)) => Some(*f),
+        (true, None) => return Err(crate::model::NeedsLibtorch { what: "fine-tuning the LSTM (learn --fine-tune)".into() }.into()),
     };
     if args.holdout_every < 2 {
         bail!("--holdout-every {}: must be at least 2 (one log in N is held out)", args.holdout_every);
@@ -143,12 +238,35 @@ pub fn run(args: LearnArgs) -> Result<()> {
     let train: Vec<FlightWindows> = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (_, f, _))| f.clone()).collect();
     let sums: Vec<String> = logs.iter().map(|p| crate::offline::data::sha256_file(p)).collect::<Result<_>>()?;
     let (learned, fit_report) = super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
+
+    // The LSTM fine-tuned from the shipped weights, early-stopping on the held-out logs.
+    let mut learned = learned;
+    let mut tuned = None;
+    if let Some(fine_tune) = fine_tuner {
+        let shipped = crate::model::lstm::resolve_model_path(cfg.models.lstm.path.as_deref()).context("no LSTM model to fine-tune from")?;
+        let held_windows: Vec<FlightWindows> = held.iter().map(|&i| flights[i].1.clone()).collect();
+        let out = args.out.join("lstm");
+        std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
+        let train_logs = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (p, _, _))| p.display().to_string()).collect();
+        let job = FineTuneJob { base: &shipped, train: &train, held_out: &held_windows, out: &out, epochs: args.ft_epochs, max_steps: args.ft_max_steps, lr: args.ft_lr, patience: args.ft_patience, dropout: args.ft_dropout, logs: train_logs };
+        let done = fine_tune(&job)?;
+        tracing::info!(
+            "LSTM fine-tuned: {} epoch(s), kept epoch {}, held-out MAE {:.1} → {:.1} W",
+            done.epochs_run,
+            done.best_epoch,
+            done.held_out_mae_w.0,
+            done.held_out_mae_w.1
+        );
+        learned.lstm = Some(PathBuf::from("lstm"));
+        tuned = Some((out, done));
+    }
 
     let mut scores = Vec::new();
     for &i in &held {
         let (p, f, n) = &flights[i];
-        let before = score(&cfg, &base, f)?;
-        let after = score(&cfg, &learned, f)?;
+        let before = score(&cfg, &base, None, f)?;
+        let after = score(&cfg, &learned, tuned.as_ref().map(|(p, _)| p.as_path()), f)?;
         let rows = before.into_iter().map(|(name, b)| {
             let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
             (name, b, a)
@@ -156,7 +274,20 @@ pub fn run(args: LearnArgs) -> Result<()> {
         scores.push(LogScore { log: p.display().to_string(), in_flight_windows: *n, rows: rows.collect() });
     }
 
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
+    // The forecast model: the lowest mean held-out MAPE of the learned models.
+    let pick = pick_forecast(&scores);
+    if let Some((name, mape)) = &pick {
+        let model = match (name.as_str(), &tuned) {
+            ("lstm", Some(_)) => "lstm_ft".to_string(),
+            ("lstm", None) => name.clone(),
+            _ => format!("{name}{}", learned.name_suffix()),
+        };
+        learned.forecast = Some(crate::model::profile::ForecastDefault {
+            model,
+            why: format!("lowest held-out MAPE of `dronewatt learn`, {mape:.1} % over {} log(s)", held.len()),
+        });
+    }
+
     let profile_path = args.out.join("profile.toml");
     let mut text = format!(
         "# Written by `dronewatt learn` from {} log(s) ({} trained, {} held out), starting from {}.\n",
@@ -172,11 +303,69 @@ pub fn run(args: LearnArgs) -> Result<()> {
     text.push_str(&toml::to_string(&learned).context("cannot serialise the learned profile")?);
     std::fs::write(&profile_path, text).with_context(|| format!("{}: cannot write", profile_path.display()))?;
     let card_path = args.out.join("model-card.md");
-    let card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores);
+    let mut card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores, tuned.as_ref().map(|(_, t)| t));
+    if let Some(f) = &learned.forecast {
+        card += &format!("\n## Forecast model\n\n`{}`: {} (written to the profile's `[forecast]`; `[energy] model` in the config overrides it, and online selection may still move it on the vehicle's own evidence).\n", f.model, f.why);
+    }
     std::fs::write(&card_path, &card).with_context(|| format!("{}: cannot write", card_path.display()))?;
     print!("{}", held_out_table(&scores));
+    if let Some(f) = &learned.forecast {
+        println!("forecast model: {} ({})", f.model, f.why);
+    }
     println!("wrote {} and {}", profile_path.display(), card_path.display());
+    if let Some(dir) = crate::vehicle::store::data_dir_from_env(args.data_dir.as_deref()) {
+        remember_profile(&dir, &logs, &profile_path, learned.forecast.as_ref().map(|f| f.model.as_str()));
+    }
     Ok(())
+}
+
+/// The model with the lowest mean held-out MAPE over the held-out logs (learned scores; a
+/// model missing a score on any held-out log is not a candidate), and that MAPE.
+fn pick_forecast(scores: &[LogScore]) -> Option<(String, f64)> {
+    let first = scores.first()?;
+    first
+        .rows
+        .iter()
+        .filter_map(|(name, _, _)| {
+            let per_log: Option<Vec<f64>> = scores
+                .iter()
+                .map(|l| l.rows.iter().find(|(n, _, _)| n == name).and_then(|(_, _, a)| a.map(|a| a.mape_pct)).filter(|v| v.is_finite()))
+                .collect();
+            let v = per_log?;
+            Some((name.clone(), v.iter().sum::<f64>() / v.len() as f64))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Keep the learned profile in the vehicle store for the vehicle(s) the logs were flown by
+/// (identified as live: AUTOPILOT_VERSION's uid, else HEARTBEAT). Any problem is a warning:
+/// the profile file stands without it.
+fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model: Option<&str>) {
+    let profile = std::fs::canonicalize(profile).unwrap_or_else(|_| profile.to_path_buf());
+    let mut ids: Vec<crate::vehicle::params::Identity> = Vec::new();
+    for p in logs {
+        let Ok(bytes) = std::fs::read(p) else { continue };
+        let stats = crate::source::IngestStats::default();
+        let mut reader = crate::vehicle::params::ParamReader::passive();
+        for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
+            reader.on_message(&m);
+        }
+        if let Some(id) = reader.params().identity {
+            if !ids.iter().any(|i| crate::vehicle::store::VehicleKey::of(i) == crate::vehicle::store::VehicleKey::of(&id)) {
+                ids.push(id);
+            }
+        }
+    }
+    if ids.is_empty() {
+        tracing::warn!("vehicle store: no autopilot heartbeat in the logs, so no vehicle to keep the profile for");
+        return;
+    }
+    if ids.len() > 1 {
+        tracing::warn!("vehicle store: the logs come from {} vehicles; the profile is kept for each", ids.len());
+    }
+    for id in &ids {
+        crate::vehicle::store::remember_profile(dir, id, &profile, forecast_model);
+    }
 }
 
 fn held_out_table(scores: &[LogScore]) -> String {
@@ -198,7 +387,7 @@ fn held_out_table(scores: &[LogScore]) -> String {
     s
 }
 
-fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held: &[usize], scores: &[LogScore]) -> String {
+fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held: &[usize], scores: &[LogScore], tuned: Option<&FineTuned>) -> String {
     let mut s = String::from("# Model card: physics models learned by `dronewatt learn`\n\n");
     s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt calibrate`) fitted by bounded least squares on the in-flight windows (measured power over {IN_FLIGHT_W} W) of the training logs.\n\n", base.name);
     s += "## Learned from\n\n| log | in-flight windows | role |\n|---|---|---|\n";
@@ -208,7 +397,21 @@ fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held
     s += "\n## Inputs\n\nWhat the live link must deliver, as for every physics model: position and velocity (GLOBAL_POSITION_INT or LOCAL_POSITION_NED), attitude (ATTITUDE), acceleration (RAW_IMU/SCALED_IMU/HIGHRES_IMU or attitude), wind where sent (WIND, else none), and for the score and for adaptation the battery's voltage and current (SYS_STATUS or BATTERY_STATUS). No motor outputs, ESC telemetry or throttle.\n\n";
     s += "## Held-out score (whole logs, through the live chain)\n\n";
     s += &held_out_table(scores);
-    s += "\n## Not learned\n\nThe LSTM is not fine-tuned by `learn` (it keeps the M100 weights; online adaptation corrects its output in flight).\n";
+    match tuned {
+        Some(t) => {
+            s += &format!(
+                "\n## LSTM fine-tuned (`lstm_ft`)\n\nFrom the shipped M100 weights, on the training logs' windows (the live feature path, the M100 model's feature normalisation and target scale kept), Adam, early stopping on the held-out logs' MAE: {} epoch(s) run, epoch {} kept ({}), held-out MAE {:.1} W → {:.1} W, {} training windows, {:.0} s. Weights and card in `lstm/` (the profile's `lstm`); its rows in the held-out table above are `lstm` (shipped → fine-tuned). The held-out log also chose the epoch, so its score is optimistic: score an unseen log with `replay --vehicle`.\n",
+                t.epochs_run,
+                t.best_epoch,
+                if t.best_epoch == 0 { "none beat the shipped weights: they are kept" } else { "the lowest held-out MAE" },
+                t.held_out_mae_w.0,
+                t.held_out_mae_w.1,
+                t.train_windows,
+                t.train_time_s
+            );
+        }
+        None => s += "\n## Not learned\n\nThe LSTM is not fine-tuned by `learn` without `--fine-tune` (it keeps the M100 weights; online adaptation corrects its output in flight).\n",
+    }
     s
 }
 
@@ -219,17 +422,27 @@ mod tests {
     #[test]
     fn refuses_what_it_cannot_read() {
         let dir = tempfile::tempdir().unwrap();
-        let bin = dir.path().join("00000001.BIN");
-        std::fs::write(&bin, b"x").unwrap();
-        let err = collect_logs(&[bin]).unwrap_err().to_string();
-        assert!(err.contains("only .tlog"), "{err}");
+        // A .ulg that is not ULog is taken, and reading it is an error naming it.
+        let ulg = dir.path().join("log_1.ulg");
+        std::fs::write(&ulg, b"x").unwrap();
+        let err = format!("{:#}", log_windows(&ulg, 1, &Config::default()).unwrap_err());
+        assert!(err.contains("log_1.ulg") && err.contains("not a readable PX4 ULog"), "{err}");
+        let txt = dir.path().join("notes.txt");
+        std::fs::write(&txt, b"x").unwrap();
+        let err = collect_logs(&[txt]).unwrap_err().to_string();
+        assert!(err.contains("notes.txt") && err.contains(".tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg"), "{err}");
         assert!(collect_logs(&[dir.path().join("missing.tlog")]).unwrap_err().to_string().contains("no such file"));
-        // A folder: its .tlog files in name order, the rest skipped.
+        // A .bin that is not DataFlash is taken, and reading it is an error naming it.
+        let bin = dir.path().join("00000001.BIN");
+        std::fs::write(&bin, b"not a log").unwrap();
+        let err = format!("{:#}", log_windows(&bin, 1, &Config::default()).unwrap_err());
+        assert!(err.contains("00000001.BIN") && err.contains("not an ArduPilot DataFlash log"), "{err}");
+        // A folder: its .tlog and .bin files in name order, the rest skipped.
         for n in ["b.tlog", "a.TLOG", "c.ulg"] {
             std::fs::write(dir.path().join(n), b"").unwrap();
         }
         let got = collect_logs(&[dir.path().to_path_buf()]).unwrap();
         let names: Vec<_> = got.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-        assert_eq!(names, ["a.TLOG", "b.tlog"]);
+        assert_eq!(names, ["00000001.BIN", "a.TLOG", "b.tlog", "c.ulg", "log_1.ulg"]);
     }
 }

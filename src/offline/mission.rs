@@ -31,9 +31,11 @@
 //! - **baseline** (what autopilots do): mean power since the motors started × the plan's
 //!   remaining time, scored the same way.
 //!
-//! The forecast's correction (model, scale, P90 ratio, live weight) is fitted on the
-//! training flights only (route flights not in [`TEST_FLIGHTS`]) and then applied to the
-//! test flights; `--json` writes everything, the fit included.
+//! The forecast's correction (model, weighting — per-phase weights, or one weight on the
+//! model's power plus one on the climbing work m·g·v_z ([`BASES`]) — scale, P90 ratio, live
+//! weight) is fitted on the training flights only (route flights not in [`TEST_FLIGHTS`])
+//! by rolling validation and then applied to the test flights; `--json` writes everything,
+//! the fit and the training flights' own scores included.
 
 use std::path::{Path, PathBuf};
 
@@ -415,6 +417,11 @@ pub struct FlightScore {
     /// Live at 50 %: measured energy of the rest, dronewatt's and the baseline's forecast, Wh.
     pub live_measured_rest_wh: f64,
     pub live_forecast_rest_wh: f64,
+    /// Live at 50 %: measured energy so far (from the recording's start; from take-off)
+    /// and the forecast of the part of the plan flown, Wh.
+    pub live_measured_done_wh: f64,
+    pub live_measured_airborne_done_wh: f64,
+    pub live_forecast_done_wh: f64,
     pub live_err_pct: f64,
     pub baseline_rest_wh: f64,
     pub baseline_err_pct: f64,
@@ -428,16 +435,21 @@ pub struct FlightScore {
 struct ModelRaw {
     name: String,
     total_wh: f64,
-    first_wh: [f64; 3],
-    rest_wh: [f64; 3],
+    first_wh: Terms,
+    rest_wh: Terms,
     planned_left_s: f64,
 }
+
+/// A forecast's energy split into what the calibration weighs ([`Calibration::weights`]):
+/// the model's energy in vertical climb, vertical descent and the rest, and the vertical
+/// work m·g·v_z up and down, Wh.
+pub type Terms = [f64; 5];
 
 /// Phase of a trajectory sample: 0 vertical climb, 1 vertical descent, 2 anything else.
 pub use crate::mission::forecast::phase_of;
 
-fn dot3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+fn dot5(a: &Terms, b: &Terms) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// Inputs of one flight kept for fitting.
@@ -459,6 +471,8 @@ struct Prepared {
     /// measured after, mean power since the motors started.
     live_k: usize,
     live_so_far_wh: f64,
+    /// Energy measured from take-off (first row above `AIRBORNE_W`) to the live point, Wh.
+    live_airborne_so_far_wh: f64,
     live_rest_wh: f64,
     live_mean_w: f64,
     airborne_s: f64,
@@ -498,20 +512,21 @@ fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config, models: &m
         k = traj.locate(k, horizon, [e as f32, n as f32, (r.alt_m - home.alt_m) as f32]);
     }
     let so_far = cum[ih];
+    let vehicle_kg = VehicleProfile::m100().mass_kg(0.0);
     let raw = fcs
         .into_iter()
         .map(|fc| {
-            let (mut first_wh, mut rest_wh) = ([0.0; 3], [0.0; 3]);
+            let (mut first_wh, mut rest_wh) = ([0.0; 5], [0.0; 5]);
             let mut prev = 0.0;
             for (j, &c) in fc.cum_p50_wh.iter().enumerate() {
                 let e = c - prev;
                 prev = c;
                 let ph = phase_of(&traj.samples[j]);
-                if j <= k {
-                    first_wh[ph] += e;
-                } else {
-                    rest_wh[ph] += e;
-                }
+                let x = if j <= k { &mut first_wh } else { &mut rest_wh };
+                x[ph] += e;
+                let [up, down] = crate::mission::forecast::vertical_work_w(&traj.samples[j], vehicle_kg);
+                x[3] += up * traj.dt_s / 3600.0;
+                x[4] += down * traj.dt_s / 3600.0;
             }
             ModelRaw { name: fc.model.clone(), total_wh: fc.energy_p50_wh, first_wh, rest_wh, planned_left_s: fc.remaining_from(k, None, 0.0).time_s }
         })
@@ -535,6 +550,7 @@ fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config, models: &m
         raw,
         live_k: k,
         live_so_far_wh: so_far,
+        live_airborne_so_far_wh: cum[ih] - cum[i0],
         live_rest_wh: measured_wh - so_far,
         live_mean_w,
         airborne_s: air_s,
@@ -568,9 +584,9 @@ fn quantile(v: &mut [f64], q: f64) -> f64 {
 
 fn score(p: &Prepared, cal: &Calibration, scale: f64, baseline_w: f64) -> FlightScore {
     let m = p.raw.iter().find(|m| m.name == cal.model).unwrap_or(&p.raw[0]);
-    let ks = &cal.phase_scale;
-    let done = scale * dot3(ks, &m.first_wh);
-    let mut left = scale * dot3(ks, &m.rest_wh);
+    let ks = &cal.weights();
+    let done = scale * dot5(ks, &m.first_wh);
+    let mut left = scale * dot5(ks, &m.rest_wh);
     let p50 = done + left;
     let p90 = p50 * cal.p90_ratio;
     if done > 0.05 * p50 && p.live_so_far_wh > 0.0 {
@@ -602,6 +618,9 @@ fn score(p: &Prepared, cal: &Calibration, scale: f64, baseline_w: f64) -> Flight
         p90_covers: p.measured_wh <= p90,
         live_measured_rest_wh: p.live_rest_wh,
         live_forecast_rest_wh: left,
+        live_measured_done_wh: p.live_so_far_wh,
+        live_measured_airborne_done_wh: p.live_airborne_so_far_wh,
+        live_forecast_done_wh: done,
         live_err_pct: err(left, p.live_rest_wh),
         baseline_rest_wh: baseline,
         baseline_err_pct: err(baseline, p.live_rest_wh),
@@ -615,7 +634,7 @@ fn score(p: &Prepared, cal: &Calibration, scale: f64, baseline_w: f64) -> Flight
 /// `k` = 0: all of them), never the flight itself; all other training flights when fewer
 /// than 5 come before it. The vehicle, its battery and the season drift (the test flights
 /// fly in autumn, most training flights in summer): the recent flights say more.
-fn recent_scale(train: &[Prepared], mi: usize, ks: &[f64; 3], flight: u32, k: usize) -> f64 {
+fn recent_scale(train: &[Prepared], mi: usize, ks: &Terms, flight: u32, k: usize) -> f64 {
     let mut before: Vec<&Prepared> = train.iter().filter(|p| p.flight < flight).collect();
     if before.len() < 5 {
         before = train.iter().filter(|p| p.flight != flight).collect();
@@ -627,39 +646,60 @@ fn recent_scale(train: &[Prepared], mi: usize, ks: &[f64; 3], flight: u32, k: us
 }
 
 /// Model `mi`'s forecast of flight `p` with phase weights `ks`, Wh.
-fn phased_wh(p: &Prepared, mi: usize, ks: &[f64; 3]) -> f64 {
+fn phased_wh(p: &Prepared, mi: usize, ks: &Terms) -> f64 {
     let m = &p.raw[mi];
-    dot3(ks, &m.first_wh) + dot3(ks, &m.rest_wh)
+    dot5(ks, &m.first_wh) + dot5(ks, &m.rest_wh)
 }
 
-/// Phase weights for model `mi`: least squares over the training flights' two halves
-/// (energy to the live point, energy after it), each relative to its measured energy, so
-/// the forecast's split between climb, descent and the rest follows what the training
-/// flights drew. [1, 1, 1] when the system is singular (a phase never flown).
-fn phase_weights(train: &[Prepared], mi: usize) -> [f64; 3] {
-    let mut ata = nalgebra::Matrix3::<f64>::zeros();
-    let mut atb = nalgebra::Vector3::<f64>::zeros();
+/// The ways the forecast's [`Terms`] may be weighted, each row one fitted weight shared
+/// by the terms the row sums; `plan-eval` keeps the one with the smallest rolling-
+/// validation error on the training flights:
+/// - `phases`: the model's power weighted by phase (vertical climb, vertical descent, the
+///   rest), no vertical work;
+/// - `vertical work`: one weight on the model's power everywhere plus one on the climbing
+///   work m·g·v_z (a slanted climb is forward flight plus a climb: training routes climb
+///   only vertically, R7 climbs on slanted legs).
+pub const BASES: [(&str, &[Terms]); 2] = [
+    ("phases", &[[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0]]),
+    ("vertical work", &[[1.0, 1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0]]),
+];
+
+/// Weights for model `mi`: least squares over the training flights' two halves (energy
+/// to the live point, energy after it), each relative to its measured energy, so the
+/// forecast's split between climb, descent and the rest follows what the training
+/// flights drew. Unweighted model power when the system is singular (a phase never flown).
+fn phase_weights(train: &[Prepared], mi: usize, rows: &[Terms]) -> Terms {
+    let kk = rows.len();
+    let mut ata = nalgebra::DMatrix::<f64>::zeros(kk, kk);
+    let mut atb = nalgebra::DVector::<f64>::zeros(kk);
     for p in train {
         let m = &p.raw[mi];
         for (x, y) in [(m.first_wh, p.live_so_far_wh), (m.rest_wh, p.live_rest_wh)] {
             if y <= 0.0 {
                 continue;
             }
-            let v = nalgebra::Vector3::new(x[0] / y, x[1] / y, x[2] / y);
-            ata += v * v.transpose();
+            let v = nalgebra::DVector::from_iterator(kk, rows.iter().map(|r| dot5(r, &x) / y));
+            ata += &v * v.transpose();
             atb += v;
         }
     }
+    let plain = [1.0, 1.0, 1.0, 0.0, 0.0];
     match ata.try_inverse() {
         Some(inv) => {
             let k = inv * atb;
-            if k.iter().all(|v| v.is_finite() && *v > 0.0) {
-                [k[0], k[1], k[2]]
+            let mut w = [0.0; 5];
+            for (r, kr) in rows.iter().zip(k.iter()) {
+                for j in 0..5 {
+                    w[j] += r[j] * kr;
+                }
+            }
+            if w.iter().all(|v| v.is_finite()) && w[..3].iter().all(|v| *v > 0.0) {
+                w
             } else {
-                [1.0; 3]
+                plain
             }
         }
-        None => [1.0; 3],
+        None => plain,
     }
 }
 
@@ -673,33 +713,45 @@ const RECENT_CHOICES: [usize; 5] = [5, 10, 20, 40, 0];
 /// live weight the one of 0, ¼, ½, ¾, 1 with the smallest median live error. The scale
 /// kept in the calibration is the one from the latest `k` training flights (for plans
 /// flown after them).
-fn fit(train: &[Prepared]) -> (Calibration, Vec<(String, f64, f64)>) {
+fn fit(train: &[Prepared]) -> Fitted {
     let names: Vec<String> = train.first().map(|p| p.raw.iter().map(|m| m.name.clone()).collect()).unwrap_or_default();
-    let weights: Vec<[f64; 3]> = (0..names.len()).map(|mi| phase_weights(train, mi)).collect();
-    let mut per_model = Vec::new();
-    let mut best: (f64, usize, usize) = (f64::INFINITY, 0, 0);
-    for (mi, name) in names.iter().enumerate() {
-        let ks = &weights[mi];
-        let mut model_best = (f64::INFINITY, 0usize);
-        for &k in &RECENT_CHOICES {
-            let mut e: Vec<f64> = train.iter().map(|p| (p.measured_wh / (phased_wh(p, mi, ks) * recent_scale(train, mi, ks, p.flight, k)).max(1e-9) - 1.0).abs()).collect();
-            let m = 100.0 * median(&mut e);
-            if m < model_best.0 {
-                model_best = (m, k);
-            }
-            if m < best.0 {
-                best = (m, mi, k);
+    let mut per_model: Vec<(String, f64, f64)> = names.iter().map(|n| (n.clone(), 0.0, f64::INFINITY)).collect();
+    let mut per_basis = Vec::new();
+    // (error, basis, model, k, weights)
+    let mut best: (f64, usize, usize, usize, Terms) = (f64::INFINITY, 0, 0, 0, [1.0, 1.0, 1.0, 0.0, 0.0]);
+    for (bi, (basis, rows)) in BASES.iter().enumerate() {
+        let mut basis_best = f64::INFINITY;
+        for (mi, pm) in per_model.iter_mut().enumerate() {
+            let ks = phase_weights(train, mi, rows);
+            for &k in &RECENT_CHOICES {
+                let mut e: Vec<f64> = train.iter().map(|p| (p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9) - 1.0).abs()).collect();
+                let m = 100.0 * median(&mut e);
+                if m < pm.2 {
+                    (pm.1, pm.2) = (k as f64, m);
+                }
+                basis_best = basis_best.min(m);
+                if m < best.0 {
+                    best = (m, bi, mi, k, ks);
+                }
             }
         }
-        per_model.push((name.clone(), model_best.1 as f64, model_best.0));
+        per_basis.push((basis.to_string(), basis_best));
     }
-    let (_, mi, k) = best;
-    let ks = weights.get(mi).copied().unwrap_or([1.0; 3]);
+    let (_, bi, mi, k, ks) = best;
     let mut res: Vec<f64> = train.iter().map(|p| p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9)).collect();
     let p90_ratio = quantile(&mut res, 0.9).max(1.0);
     let latest = train.iter().map(|p| p.flight).max().unwrap_or(0) + 1;
     let scale = recent_scale(train, mi, &ks, latest, k);
-    let mut cal = Calibration { model: names.get(mi).cloned().unwrap_or_default(), scale, p90_ratio, live_weight: 0.0, recent_flights: k, phase_scale: ks };
+    let mut cal = Calibration {
+        model: names.get(mi).cloned().unwrap_or_default(),
+        scale,
+        p90_ratio,
+        live_weight: 0.0,
+        recent_flights: k,
+        phase_scale: [ks[0], ks[1], ks[2]],
+        climb_work: [ks[3], ks[4]],
+        vehicle_kg: VehicleProfile::m100().mass_kg(0.0),
+    };
     let mut best_w = (f64::INFINITY, 0.0);
     for w in [0.0, 0.25, 0.5, 0.75, 1.0] {
         cal.live_weight = w;
@@ -710,7 +762,18 @@ fn fit(train: &[Prepared]) -> (Calibration, Vec<(String, f64, f64)>) {
         }
     }
     cal.live_weight = best_w.1;
-    (cal, per_model)
+    Fitted { cal, basis: BASES[bi].0.to_string(), per_model, per_basis }
+}
+
+/// What [`fit`] found.
+struct Fitted {
+    cal: Calibration,
+    /// The [`BASES`] entry kept.
+    basis: String,
+    /// Per model: its best number of recent flights, its median error (%).
+    per_model: Vec<(String, f64, f64)>,
+    /// Per basis: its best median error (%), any model.
+    per_basis: Vec<(String, f64)>,
 }
 
 /// Summary of one set of flights.
@@ -767,10 +830,17 @@ pub struct PlanEvalReport {
     /// Per model on the training flights (rolling validation): name, its best number of
     /// recent flights to fit on (0 = all), its median |error| (%).
     pub models_fit: Vec<(String, f64, f64)>,
+    /// How the forecast's power is weighted (a [`BASES`] name), and each way's median
+    /// error (%) on the training flights (rolling validation, best model).
+    pub basis: String,
+    pub bases_fit: Vec<(String, f64)>,
     pub training_flights: Vec<u32>,
     pub training: Summary,
     pub test: Summary,
     pub test_flights: Vec<FlightScore>,
+    /// The training flights scored as in the rolling validation (each with the scale of
+    /// the training flights before it).
+    pub training_scores: Vec<FlightScore>,
     pub ground_wind: bool,
 }
 
@@ -829,11 +899,11 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let (cal, models_fit) = fit(&prepared_train);
+    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit } = fit(&prepared_train);
     let mut mean_w: Vec<f64> = prepared_train.iter().map(|p| p.flight_mean_w).collect();
     let baseline_w = median(&mut mean_w);
     let mi = prepared_train.first().and_then(|p| p.raw.iter().position(|m| m.name == cal.model)).unwrap_or(0);
-    let sc = |p: &Prepared| score(p, &cal, recent_scale(&prepared_train, mi, &cal.phase_scale, p.flight, cal.recent_flights), baseline_w);
+    let sc = |p: &Prepared| score(p, &cal, recent_scale(&prepared_train, mi, &cal.weights(), p.flight, cal.recent_flights), baseline_w);
     let train_scores: Vec<FlightScore> = prepared_train.iter().map(sc).collect();
     let test_scores: Vec<FlightScore> = prepared_test.iter().map(sc).collect();
     Ok(PlanEvalReport {
@@ -841,8 +911,11 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
         test: summarize(&test_scores, &cal.model),
         calibration: cal,
         models_fit,
+        basis,
+        bases_fit,
         training_flights: prepared_train.iter().map(|p| p.flight).collect(),
         test_flights: test_scores,
+        training_scores: train_scores,
         ground_wind: opt.ground_wind,
     })
 }
@@ -854,12 +927,16 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
     let c = &r.calibration;
     let _ = writeln!(
         s,
-        "fitted on {} training flights: forecast model {}, phase weights climb/descent/other {:.3}/{:.3}/{:.3}, × (median measured/forecast of the {} training flights before each flight; latest {:.4}), P90 = {:.4} × P50, live weight {:.2}{}",
+        "fitted on {} training flights: forecast model {}, weighting {:?} ({}), phase weights climb/descent/other {:.3}/{:.3}/{:.3}, vertical work up/down {:.3}/{:.3}, × (median measured/forecast of the {} training flights before each flight; latest {:.4}), P90 = {:.4} × P50, live weight {:.2}{}",
         r.training_flights.len(),
         c.model,
+        r.basis,
+        r.bases_fit.iter().map(|(b, e)| format!("{b} {e:.2} %")).collect::<Vec<_>>().join(", "),
         c.phase_scale[0],
         c.phase_scale[1],
         c.phase_scale[2],
+        c.climb_work[0],
+        c.climb_work[1],
         c.recent_flights,
         c.scale,
         c.p90_ratio,

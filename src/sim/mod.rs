@@ -15,6 +15,8 @@
 //! | [`emit`] | the state → MAVLink at an autopilot's rates, with sensor noise |
 //! | [`ardupilot`], [`px4`] | what differs between the two: modes, attitude and IMU messages, parameters |
 //! | [`output`] | `.tlog` bytes and the paced UDP stream |
+//! | [`dataflash`] | an ArduPilot flight as its DataFlash `.bin` log |
+//! | [`ulog`] | a PX4 flight as its ULog `.ulg` |
 //!
 //! ## Flight model (point mass, kinematic)
 //! The guidance's desired velocity becomes the commanded acceleration `K_v·(v_des − v)`,
@@ -29,10 +31,12 @@
 //! the same options give a byte-identical `.tlog`.
 
 pub mod ardupilot;
+pub mod dataflash;
 pub mod emit;
 pub mod output;
 pub mod physics;
 pub mod px4;
+pub mod ulog;
 
 use std::f64::consts::PI;
 

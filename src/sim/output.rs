@@ -29,6 +29,22 @@ pub fn write_tlog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
     Ok(bytes.len())
 }
 
+/// Write `flight` as an ArduPilot DataFlash `.bin` at `path` ([`super::dataflash`]);
+/// returns the bytes written. Errors name the file.
+pub fn write_dataflash(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
+    let bytes = flight.to_dataflash();
+    std::fs::write(path, &bytes).with_context(|| format!("{}: cannot write the DataFlash log", path.display()))?;
+    Ok(bytes.len())
+}
+
+/// Write `flight` as a PX4 ULog `.ulg` at `path` ([`super::ulog`]); returns the bytes
+/// written. Errors name the file.
+pub fn write_ulog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
+    let bytes = flight.to_ulog();
+    std::fs::write(path, &bytes).with_context(|| format!("{}: cannot write the ULog", path.display()))?;
+    Ok(bytes.len())
+}
+
 /// Send `records` as MAVLink 2 frames, one datagram each, to `addr` (`HOST:PORT`), paced
 /// by `speed` on the records' timestamps. Returns the number of frames sent.
 pub async fn stream_udp(records: &[SimRecord], addr: &str, speed: Speed) -> anyhow::Result<u64> {

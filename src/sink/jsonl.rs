@@ -3,7 +3,7 @@
 //! ```text
 //! {"type":"window","system_id":…,"t":…,"measured_w":…,"features":{"wind_speed":…,…}}
 //! {"type":"estimate","system_id":…,"t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
-//!  "energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,
+//!  "energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
 //!  "capacity_wh":…,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"default"|…,"cell_count":…,"cell_count_source":…,
 //!  ["low_voltage_v":…,"low_voltage_source":…,]["critical_voltage_v":…,"critical_voltage_source":…]}
 //! {"type":"alert","system_id":…,"t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
@@ -120,6 +120,8 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             mission_margin_wh: r.energy.mission_margin_wh,
             adapted: Adapted(&e.models),
             forecast_adapted: r.energy.forecast_adapted,
+            forecast_model: r.energy.forecast_model.as_deref(),
+            forecast_why: r.energy.forecast_why.as_deref(),
             capacity_wh: b.capacity_wh.value,
             capacity_source: &b.capacity_wh.source,
             cell_count: b.cell_count.value,
@@ -198,6 +200,9 @@ struct EstimateLine<'a> {
     adapted: Adapted<'a>,
     /// Whether the forecast follows the forecast model adapted to measured power.
     forecast_adapted: bool,
+    /// The model the forecast follows (null: measured power), and why (`energy::select`).
+    forecast_model: Option<&'a str>,
+    forecast_why: Option<&'a str>,
     /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
     /// `vehicle parameter BATT_CAPACITY`, `default` …).
     capacity_wh: f64,

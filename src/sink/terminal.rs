@@ -140,7 +140,12 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                 let b = &en.battery;
                 s.push_str(&format!("left {} of {} Wh [{}]", num(left, 1), num(b.capacity_wh.value, 1), b.capacity_wh.source));
                 if let Some(t) = en.time_to_empty_s {
-                    s.push_str(&format!(" ({} min)", num(t / 60.0, 0)));
+                    s.push_str(&format!(" ({} min", num(t / 60.0, 0)));
+                    // Which model the forecast follows: "(12 min on lstm~)".
+                    if let Some(m) = &en.forecast_model {
+                        s.push_str(&format!(" on {m}{}", if en.forecast_adapted { "~" } else { "" }));
+                    }
+                    s.push(')');
                 }
                 s.push_str("  ");
             }

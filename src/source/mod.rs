@@ -9,6 +9,7 @@
 //!
 //! The simulator that writes tlogs is [`crate::sim`].
 
+pub mod dataflash;
 pub mod dataset;
 pub mod frame;
 pub mod link;
@@ -16,6 +17,7 @@ pub mod raw;
 pub mod signing;
 pub mod timed;
 pub mod tlog;
+pub mod ulog;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -80,6 +82,9 @@ pub enum SourceSpec {
     Link(String),
     /// A `.tlog` (8-byte big-endian µs timestamp before each frame).
     Tlog { path: std::path::PathBuf, speed: Speed },
+    /// An autopilot's own log, ArduPilot DataFlash `.bin` ([`dataflash`]) or PX4 ULog
+    /// `.ulg` ([`ulog`]), as the MAVLink a tlog gives.
+    AutopilotLog { path: std::path::PathBuf, speed: Speed },
     /// A raw MAVLink byte stream with no timestamps.
     Raw { path: std::path::PathBuf, speed: Speed },
     /// One flight of the M100 data set's `flights.csv[.gz]`, encoded as MAVLink.
@@ -152,11 +157,36 @@ pub async fn run(
             let f = open(&path).await?;
             replay(f, &path.display().to_string(), TimedReader::raw(), speed, tx, &stats, shutdown).await
         }
+        SourceSpec::AutopilotLog { path, speed } => {
+            let msgs = {
+                let (stats, path) = (stats.clone(), path.clone());
+                tokio::task::spawn_blocking(move || decode_autopilot_log(&path, &stats)).await??
+            };
+            let start = tokio::time::Instant::now();
+            for mut m in msgs {
+                if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, &stats, &shutdown).await {
+                    return Ok(());
+                }
+            }
+            Ok(())
+        }
         SourceSpec::Dataset { path, flight, speed } => {
             let name = format!("{} flight {flight}", path.display());
             let bytes = tokio::task::spawn_blocking(move || dataset::flight_tlog(&path, flight)).await??;
             replay(&bytes[..], &name, TimedReader::tlog(), speed, tx, &stats, shutdown).await
         }
+    }
+}
+
+/// Read a DataFlash `.bin` or ULog `.ulg` (by its name) whole into the MAVLink a tlog
+/// gives. Errors name the file and what is wrong.
+pub fn decode_autopilot_log(path: &std::path::Path, stats: &IngestStats) -> anyhow::Result<Vec<TimedMessage>> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let name = path.display();
+    if ulog::is_ulog(path) {
+        ulog::decode_ulog(&bytes, stats).with_context(|| format!("{name}"))
+    } else {
+        dataflash::decode_dataflash(&bytes, stats).with_context(|| format!("{name}"))
     }
 }
 
@@ -181,20 +211,7 @@ async fn replay<R: AsyncRead + Unpin>(
     let mut bytes_read = 0u64;
     loop {
         while let Some(mut m) = reader.next_message(stats) {
-            if let Speed::Factor(f) = speed {
-                // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
-                let due = start + Duration::try_from_secs_f64(m.t_s / f).unwrap_or(Duration::ZERO);
-                if due > tokio::time::Instant::now() + Duration::from_millis(1) {
-                    tokio::select! {
-                        _ = shutdown.cancelled() => return Ok(()),
-                        _ = tokio::time::sleep_until(due) => {}
-                    }
-                }
-                // It arrives when it is due, as on a live link: a replay running late
-                // counts its own delay in the latency.
-                m.arrived = due.into_std().min(std::time::Instant::now());
-            }
-            if !send(&tx, m, stats, &shutdown).await {
+            if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, stats, &shutdown).await {
                 return Ok(());
             }
         }
@@ -225,6 +242,24 @@ async fn replay<R: AsyncRead + Unpin>(
             bytes_read += n as u64;
         }
     }
+}
+
+/// Wait until a recorded message is due at `speed` (from `start`); it arrives then, as on
+/// a live link (a replay running late counts its own delay in the latency). False when
+/// shutdown came first.
+async fn pace(start: tokio::time::Instant, m: &mut TimedMessage, speed: Speed, shutdown: &CancellationToken) -> bool {
+    if let Speed::Factor(f) = speed {
+        // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
+        let due = start + Duration::try_from_secs_f64(m.t_s / f).unwrap_or(Duration::ZERO);
+        if due > tokio::time::Instant::now() + Duration::from_millis(1) {
+            tokio::select! {
+                _ = shutdown.cancelled() => return false,
+                _ = tokio::time::sleep_until(due) => {}
+            }
+        }
+        m.arrived = due.into_std().min(std::time::Instant::now());
+    }
+    true
 }
 
 /// Send one message, waiting for room (back-pressure) unless shutdown comes first.

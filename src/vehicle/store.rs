@@ -246,7 +246,21 @@ pub struct VehicleRecord {
     pub last_seen: i64,
     /// Models with learned fits.
     pub learned_models: usize,
+    /// The profile `dronewatt learn` wrote for this vehicle, if any.
+    pub profile: Option<LearnedProfile>,
     pub flights: Vec<FlightRecord>,
+}
+
+/// A vehicle profile learned from the vehicle's logs (`dronewatt learn`): the next run of
+/// the vehicle starts from it unless a profile is configured.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LearnedProfile {
+    /// The profile file (absolute, as `learn` wrote it).
+    pub path: PathBuf,
+    /// The forecast model `learn` picked on held-out logs, when it did.
+    pub forecast_model: Option<String>,
+    /// Unix seconds.
+    pub learned_at: i64,
 }
 
 /// One stored flight.
@@ -304,6 +318,12 @@ CREATE TABLE IF NOT EXISTS flights (
     capacity_source       TEXT NOT NULL
 );
 CREATE INDEX IF NOT EXISTS flights_by_vehicle ON flights(vehicle, ended_at);
+CREATE TABLE IF NOT EXISTS profiles (
+    vehicle        TEXT PRIMARY KEY REFERENCES vehicles(key),
+    path           TEXT NOT NULL,
+    forecast_model TEXT,
+    learned_at     INTEGER NOT NULL
+);
 ";
 
 fn now_s() -> i64 {
@@ -382,6 +402,27 @@ impl Store {
         Ok(())
     }
 
+    /// Keep the profile `dronewatt learn` wrote for this vehicle (replacing an earlier one).
+    pub fn record_profile(&mut self, id: &Identity, path: &Path, forecast_model: Option<&str>) -> Result<()> {
+        self.record(id, None, None)?;
+        self.conn.execute(
+            "INSERT INTO profiles (vehicle, path, forecast_model, learned_at) VALUES (?1, ?2, ?3, ?4)
+             ON CONFLICT(vehicle) DO UPDATE SET path = ?2, forecast_model = ?3, learned_at = ?4",
+            params![VehicleKey::of(id).key, path.to_string_lossy(), forecast_model, now_s()],
+        )?;
+        Ok(())
+    }
+
+    /// The profile learned for this vehicle, if any.
+    pub fn learned_profile(&self, key: &str) -> Result<Option<LearnedProfile>> {
+        Ok(self
+            .conn
+            .query_row("SELECT path, forecast_model, learned_at FROM profiles WHERE vehicle = ?1", params![key], |r| {
+                Ok(LearnedProfile { path: PathBuf::from(r.get::<_, String>(0)?), forecast_model: r.get(1)?, learned_at: r.get(2)? })
+            })
+            .optional()?)
+    }
+
     /// Every vehicle with its flights, most recently seen first.
     pub fn vehicles(&self) -> Result<Vec<VehicleRecord>> {
         let mut st = self.conn.prepare(
@@ -401,6 +442,7 @@ impl Store {
                 first_seen: r.get(5)?,
                 last_seen: r.get(6)?,
                 learned_models,
+                profile: None,
                 flights: Vec::new(),
             })
         })?;
@@ -425,6 +467,7 @@ impl Store {
                 })
             })?;
             v.flights = rows.collect::<rusqlite::Result<Vec<_>>>()?;
+            v.profile = self.learned_profile(&v.key)?;
         }
         Ok(out)
     }
@@ -438,6 +481,8 @@ pub struct Learned {
     /// The pack's effective capacity, Wh: the median of the last [`CAPACITY_FLIGHTS`]
     /// flights that measured one, and how many did.
     pub capacity_wh: Option<(f64, usize)>,
+    /// The profile `dronewatt learn` wrote for it.
+    pub profile: Option<LearnedProfile>,
 }
 
 /// Flights the learned capacity is the median of.
@@ -447,9 +492,10 @@ pub const CAPACITY_FLIGHTS: usize = 3;
 /// a warning and nothing learned (the run goes on as a first flight).
 pub fn lookup(dir: &Path, id: &Identity) -> Learned {
     let key = VehicleKey::of(id);
-    let got = Store::open(dir).and_then(|s| Ok(Learned { fits: s.learned_fits(&key)?, capacity_wh: s.learned_capacity(&key)? }));
+    let got = Store::open(dir)
+        .and_then(|s| Ok(Learned { fits: s.learned_fits(&key)?, capacity_wh: s.learned_capacity(&key)?, profile: s.learned_profile(&key.key)? }));
     match got {
-        Ok(l) if l.fits.is_some() || l.capacity_wh.is_some() => {
+        Ok(l) if l.fits.is_some() || l.capacity_wh.is_some() || l.profile.is_some() => {
             tracing::info!("vehicle {} ({}): found what earlier flights learned", key.key, key.kind);
             l
         }
@@ -490,6 +536,19 @@ pub fn remember(dir: &Path, id: Option<&Identity>, fits: Option<&[(String, Model
     }
 }
 
+/// `dronewatt learn`: keep the profile it wrote for this vehicle. Any store problem is a
+/// warning (the profile file stands without it).
+pub fn remember_profile(dir: &Path, id: &Identity, path: &Path, forecast_model: Option<&str>) {
+    let key = VehicleKey::of(id);
+    match Store::open(dir).and_then(|mut s| {
+        s.record_profile(id, path, forecast_model)?;
+        Ok(s.path().to_path_buf())
+    }) {
+        Ok(db) => tracing::info!("vehicle {}: the next run starts from {} (kept in {})", key.key, path.display(), db.display()),
+        Err(e) => tracing::warn!("vehicle store: {e:#}; the learned profile is not kept for the vehicle"),
+    }
+}
+
 /// `dronewatt vehicles`: the table (or JSON with `json`).
 pub fn list(dir: &Path, json: bool) -> Result<String> {
     use std::fmt::Write;
@@ -510,7 +569,8 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
         "vehicle", "told by", "autopilot", "type", "flights", "airborne", "Wh/min"
     );
     for v in &vehicles {
-        let airborne: f64 = v.flights.iter().map(|f| f.summary.airborne_s).sum();
+        // (+ 0.0: an empty sum is −0.0.)
+        let airborne: f64 = v.flights.iter().map(|f| f.summary.airborne_s).sum::<f64>() + 0.0;
         let trend = v.capacity_trend_pct();
         let trend = if trend.is_empty() {
             "—".to_string()
@@ -529,6 +589,15 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
             v.wh_per_min().map_or("—".to_string(), |w| format!("{w:.2}")),
             trend
         );
+        if let Some(p) = &v.profile {
+            let _ = writeln!(
+                s,
+                "{:<34} learned profile {} (forecast model {})",
+                "",
+                p.path.display(),
+                p.forecast_model.as_deref().unwrap_or("not picked")
+            );
+        }
     }
     Ok(s)
 }

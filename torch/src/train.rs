@@ -45,11 +45,11 @@ struct Hyper {
 
 /// Inputs and targets of a set of flights, raw (unstandardised).
 #[derive(Default)]
-struct FlightData {
+pub(crate) struct FlightData {
     /// T × 21 values per window.
-    x: Vec<f32>,
+    pub(crate) x: Vec<f32>,
     /// Measured power of each window's newest sample, W.
-    y: Vec<f32>,
+    pub(crate) y: Vec<f32>,
 }
 
 /// One epoch's point of the loss curves.
@@ -74,10 +74,10 @@ struct RunOutcome {
 
 /// Standardisation and target scale of a training split.
 #[derive(Debug, Clone)]
-struct Scaling {
-    mean: Vec<f32>,
-    std: Vec<f32>,
-    power_scale_w: f32,
+pub(crate) struct Scaling {
+    pub(crate) mean: Vec<f32>,
+    pub(crate) std: Vec<f32>,
+    pub(crate) power_scale_w: f32,
 }
 
 /// Run `dronewatt train`.
@@ -221,7 +221,7 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Re
 
 /// The raw inputs and targets of one flight's windows whose target sample (`lag` before
 /// the newest) carries a measured power.
-fn flight_data(f: &FlightWindows, set: FeatureSet, t: usize, lag: usize) -> FlightData {
+pub(crate) fn flight_data(f: &FlightWindows, set: FeatureSet, t: usize, lag: usize) -> FlightData {
     let mut d = FlightData::default();
     for w in &f.windows {
         if let Some(p) = w.back(lag).measured_w.filter(|p| p.is_finite()) {
@@ -326,7 +326,7 @@ fn fit_scaling(x: &[f32], y: &[f32]) -> Scaling {
 }
 
 /// Standardised `[n, T, 21]` inputs and scaled `[n]` targets on `device`.
-fn to_tensors(x: &[f32], y: &[f32], s: &Scaling, t: usize, device: Device) -> (Tensor, Tensor) {
+pub(crate) fn to_tensors(x: &[f32], y: &[f32], s: &Scaling, t: usize, device: Device) -> (Tensor, Tensor) {
     let n = y.len() as i64;
     let mean = Tensor::from_slice(&s.mean).view([1, 1, N_FEATURES as i64]);
     let std = Tensor::from_slice(&s.std).view([1, 1, N_FEATURES as i64]);
@@ -342,7 +342,7 @@ fn pinball(pred: &Tensor, y: &Tensor, q: f64) -> Tensor {
 }
 
 /// The training loss of network outputs `out` (`[n, 3]`) against scaled targets `y`.
-fn loss_fn(out: &Tensor, y: &Tensor) -> Tensor {
+pub(crate) fn loss_fn(out: &Tensor, y: &Tensor) -> Tensor {
     2.0 * pinball(&out.select(1, 0), y, 0.5)
         + pinball(&out.select(1, 1), y, BAND_Q.0 as f64)
         + pinball(&out.select(1, 2), y, BAND_Q.1 as f64)
@@ -430,7 +430,7 @@ fn train_split(
 }
 
 /// Validation loss, MAE (W) and RMSE (W) with dropout off, in batches.
-fn validate(net: &Net, x: &Tensor, y: &Tensor, scale: f32) -> (f64, f64, f64) {
+pub(crate) fn validate(net: &Net, x: &Tensor, y: &Tensor, scale: f32) -> (f64, f64, f64) {
     tch::no_grad(|| {
         let n = y.size()[0];
         let (mut loss, mut abs, mut sq) = (0.0, 0.0, 0.0);

@@ -1,0 +1,456 @@
+//! PX4 ULog `.ulg` logs (the autopilot's own SD-card log), read with the `yule_log` crate
+//! (streaming; every topic's layout comes from the file's own format definitions) and
+//! turned into the same [`TimedMessage`]s a tlog gives, as [`super::dataflash`] does for
+//! ArduPilot: `t_s` from each topic's `timestamp` (µs since boot) through a
+//! [`super::timed::Clock`].
+//!
+//! | uORB topic (instance 0) | MAVLink | used for |
+//! |---|---|---|
+//! | `vehicle_attitude` q + the last `vehicle_angular_velocity` xyz | `ATTITUDE_QUATERNION` | attitude, rates |
+//! | `sensor_combined` gyro_rad, accelerometer_m_s2 | `HIGHRES_IMU` | rates, acceleration |
+//! | `vehicle_local_position` vx, vy, vz | `LOCAL_POSITION_NED` | velocity |
+//! | `vehicle_global_position` lat, lon, alt (+ the last local velocity) | `GLOBAL_POSITION_INT` | position |
+//! | `wind` / `wind_estimate` windspeed_north, windspeed_east | `WIND_COV` | wind |
+//! | `battery_status` voltage_v, current_a, discharged_mah, remaining | `SYS_STATUS`, `BATTERY_STATUS` | measured power V·I, charge |
+//! | parameters (`BAT1_CAPACITY`, …) | `PARAM_VALUE` (PX4's encoding: integers as the float's bits) | the vehicle reader |
+//! | `vehicle_status` arming_state, nav_state | `HEARTBEAT` (1 Hz of log time; PX4, frame from `MAV_TYPE`) | the vehicle |
+//! | `airspeed_validated` true_airspeed_m_s + the attitude's heading | `VFR_HUD` | airspeed (when there is no wind estimate) |
+//! | `debug_key_value` key, value | `NAMED_VALUE_FLOAT` | mission hints (`cmd_speed`, …) |
+//!
+//! A missing topic or field leaves its signal to the other sources; a file that is not
+//! ULog, or has no logged data, is an error.
+
+use mavlink::MavHeader;
+use yule_log::model::inst::{FieldValue as V, Format, ParameterValue};
+use yule_log::model::msg::UlogMessage;
+
+use super::timed::Clock;
+use super::{IngestStats, TimedMessage};
+use crate::dialect as d;
+use crate::MavMessage;
+
+/// What is wrong with a file that is not a readable ULog.
+#[derive(Debug, thiserror::Error)]
+pub enum UlogError {
+    #[error("no logged data (an empty or corrupt log)")]
+    NoMessages,
+    #[error("not a readable PX4 ULog: {0}")]
+    Read(#[from] yule_log::errors::ULogError),
+}
+
+/// Whether `path` names a ULog (`.ulg`, any case).
+pub fn is_ulog(path: &std::path::Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ulg"))
+}
+
+/// A field as numbers (a scalar is one).
+fn nums(f: &Format, name: &str) -> Option<Vec<f64>> {
+    let v = &f.fields.iter().find(|x| x.name.as_ref() == name)?.value;
+    let one = |x: f64| Some(vec![x]);
+    match v {
+        V::ScalarU8(x) => one((*x).into()),
+        V::ScalarU16(x) => one((*x).into()),
+        V::ScalarU32(x) => one((*x).into()),
+        V::ScalarU64(x) => one(*x as f64),
+        V::ScalarI8(x) => one((*x).into()),
+        V::ScalarI16(x) => one((*x).into()),
+        V::ScalarI32(x) => one((*x).into()),
+        V::ScalarI64(x) => one(*x as f64),
+        V::ScalarF32(x) => one((*x).into()),
+        V::ScalarF64(x) => one(*x),
+        V::ScalarBool(x) => one(f64::from(u8::from(*x))),
+        V::ArrayF32(a) => Some(a.iter().map(|&x| x.into()).collect()),
+        V::ArrayF64(a) => Some(a.clone()),
+        V::ArrayI32(a) => Some(a.iter().map(|&x| x.into()).collect()),
+        V::ArrayU8(a) => Some(a.iter().map(|&x| x.into()).collect()),
+        _ => None,
+    }
+    .filter(|v| v.iter().all(|x| x.is_finite()))
+}
+
+fn num(f: &Format, name: &str) -> Option<f64> {
+    nums(f, name).and_then(|v| v.first().copied())
+}
+
+fn vec3(f: &Format, name: &str) -> Option<[f32; 3]> {
+    let v = nums(f, name)?;
+    (v.len() >= 3).then(|| [v[0] as f32, v[1] as f32, v[2] as f32])
+}
+
+fn text(f: &Format, name: &str) -> Option<String> {
+    match &f.fields.iter().find(|x| x.name.as_ref() == name)?.value {
+        V::ArrayChar(a) => Some(a.iter().map(|c| c.as_char()).take_while(|&c| c != '\0').collect()),
+        _ => None,
+    }
+}
+
+/// PX4's `MAV_TYPE` parameter as a MAVLink vehicle type (quadrotor when unknown).
+fn mav_type(v: Option<i32>) -> d::MavType {
+    use num_traits::FromPrimitive;
+    v.and_then(d::MavType::from_i32).filter(|t| *t != d::MavType::MAV_TYPE_GCS).unwrap_or(d::MavType::MAV_TYPE_QUADROTOR)
+}
+
+#[derive(Default)]
+struct State {
+    clock: Clock,
+    t_s: f64,
+    boot_ms: u32,
+    timed: bool,
+    mavtype: d::MavType,
+    nav_state: u32,
+    armed: bool,
+    next_heartbeat_s: Option<f64>,
+    rates: [f32; 3],
+    /// Heading of the last attitude, degrees 0–360.
+    heading_deg: Option<f64>,
+    vel: Option<[f32; 3]>,
+    seq: u8,
+}
+
+impl State {
+    fn push(&mut self, msg: MavMessage, out: &mut Vec<TimedMessage>) {
+        let header = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
+        self.seq = self.seq.wrapping_add(1);
+        out.push(TimedMessage { t_s: self.t_s, header, msg, arrived: std::time::Instant::now() });
+    }
+
+    fn heartbeat(&self) -> MavMessage {
+        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
+        if self.armed {
+            base |= d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
+        }
+        MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
+            custom_mode: self.nav_state,
+            mavtype: self.mavtype,
+            autopilot: d::MavAutopilot::MAV_AUTOPILOT_PX4,
+            base_mode: base,
+            system_status: if self.armed { d::MavState::MAV_STATE_ACTIVE } else { d::MavState::MAV_STATE_STANDBY },
+            mavlink_version: 3,
+        })
+    }
+
+    fn param(&mut self, key: &str, value: &ParameterValue, out: &mut Vec<TimedMessage>) {
+        use d::MavParamType as T;
+        let (v, t) = match value {
+            ParameterValue::FLOAT(x) => (*x, T::MAV_PARAM_TYPE_REAL32),
+            ParameterValue::INT32(i) => (f32::from_bits(*i as u32), T::MAV_PARAM_TYPE_INT32),
+        };
+        let p = d::PARAM_VALUE_DATA { param_value: v, param_count: 0, param_index: u16::MAX, param_id: key.into(), param_type: t };
+        self.push(MavMessage::PARAM_VALUE(p), out);
+    }
+
+    fn data(&mut self, timestamp: u64, f: &Format, stats: &IngestStats, out: &mut Vec<TimedMessage>) {
+        if f.multi_id_index.is_some_and(|i| i != 0) {
+            return;
+        }
+        let (t, jump) = self.clock.map(timestamp as f64 * 1e-6);
+        if jump {
+            IngestStats::add(&stats.gaps, 1);
+            IngestStats::add(&stats.clock_jumps, 1);
+        }
+        self.t_s = t;
+        self.boot_ms = (timestamp / 1000) as u32;
+        self.timed = true;
+        if self.next_heartbeat_s.is_none_or(|n| t >= n) {
+            self.next_heartbeat_s = Some(t + 1.0);
+            self.push(self.heartbeat(), out);
+        }
+        let boot_ms = self.boot_ms;
+        match f.name.as_ref() {
+            "vehicle_status" => {
+                if let Some(a) = num(f, "arming_state") {
+                    self.armed = a == 2.0;
+                }
+                if let Some(n) = num(f, "nav_state") {
+                    self.nav_state = n as u32;
+                }
+            }
+            "vehicle_angular_velocity" => {
+                if let Some(r) = vec3(f, "xyz") {
+                    self.rates = r;
+                }
+            }
+            "vehicle_attitude" => {
+                let Some(q) = nums(f, "q").filter(|q| q.len() == 4) else { return };
+                let [rollspeed, pitchspeed, yawspeed] = self.rates;
+                let yaw = (2.0 * (q[0] * q[3] + q[1] * q[2])).atan2(1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
+                self.heading_deg = Some(yaw.to_degrees().rem_euclid(360.0));
+                let [q1, q2, q3, q4] = [q[0], q[1], q[2], q[3]].map(|x| x as f32);
+                let m = d::ATTITUDE_QUATERNION_DATA { time_boot_ms: boot_ms, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed, ..Default::default() };
+                self.push(MavMessage::ATTITUDE_QUATERNION(m), out);
+            }
+            "sensor_combined" => {
+                let (Some([xgyro, ygyro, zgyro]), Some([xacc, yacc, zacc])) = (vec3(f, "gyro_rad"), vec3(f, "accelerometer_m_s2")) else { return };
+                let m = d::HIGHRES_IMU_DATA { time_usec: timestamp, xacc, yacc, zacc, xgyro, ygyro, zgyro, ..Default::default() };
+                self.push(MavMessage::HIGHRES_IMU(m), out);
+            }
+            "vehicle_local_position" => {
+                let (Some(vx), Some(vy), Some(vz)) = (num(f, "vx"), num(f, "vy"), num(f, "vz")) else { return };
+                let [vx, vy, vz] = [vx, vy, vz].map(|x| x as f32);
+                self.vel = Some([vx, vy, vz]);
+                let p = ["x", "y", "z"].map(|k| num(f, k).unwrap_or(0.0) as f32);
+                let m = d::LOCAL_POSITION_NED_DATA { time_boot_ms: boot_ms, x: p[0], y: p[1], z: p[2], vx, vy, vz };
+                self.push(MavMessage::LOCAL_POSITION_NED(m), out);
+            }
+            "vehicle_global_position" => {
+                let (Some(lat), Some(lon), Some(alt)) = (num(f, "lat"), num(f, "lon"), num(f, "alt")) else { return };
+                let Some(v) = self.vel else { return };
+                let [vx, vy, vz] = v.map(|x| (f64::from(x) * 100.0).clamp(-32768.0, 32767.0) as i16);
+                let m = d::GLOBAL_POSITION_INT_DATA {
+                    time_boot_ms: boot_ms,
+                    lat: (lat * 1e7).round() as i32,
+                    lon: (lon * 1e7).round() as i32,
+                    alt: (alt * 1000.0).round() as i32,
+                    relative_alt: 0,
+                    vx,
+                    vy,
+                    vz,
+                    hdg: u16::MAX,
+                };
+                self.push(MavMessage::GLOBAL_POSITION_INT(m), out);
+            }
+            "wind" | "wind_estimate" => {
+                let (Some(n), Some(e)) = (num(f, "windspeed_north"), num(f, "windspeed_east")) else { return };
+                let m = d::WIND_COV_DATA { time_usec: timestamp, wind_x: n as f32, wind_y: e as f32, ..Default::default() };
+                self.push(MavMessage::WIND_COV(m), out);
+            }
+            "battery_status" => {
+                let Some(volt) = num(f, "voltage_v") else { return };
+                let mv = (volt * 1000.0).round().clamp(0.0, 65534.0) as u16;
+                let ca = num(f, "current_a").filter(|&c| c >= 0.0).map_or(-1, |c| (c * 100.0).round().clamp(-32768.0, 32767.0) as i16);
+                let remaining = num(f, "remaining").filter(|r| (0.0..=1.0).contains(r)).map_or(-1, |r| (r * 100.0).round() as i8);
+                let s = d::SYS_STATUS_DATA { voltage_battery: mv, current_battery: ca, battery_remaining: remaining, ..Default::default() };
+                self.push(MavMessage::SYS_STATUS(s), out);
+                let mut voltages = [u16::MAX; 10];
+                voltages[0] = mv;
+                let b = d::BATTERY_STATUS_DATA {
+                    current_consumed: num(f, "discharged_mah").map_or(-1, |x| x.round() as i32),
+                    energy_consumed: -1,
+                    temperature: i16::MAX,
+                    voltages,
+                    current_battery: ca,
+                    id: 0,
+                    battery_remaining: remaining,
+                    ..Default::default()
+                };
+                self.push(MavMessage::BATTERY_STATUS(b), out);
+            }
+            "airspeed_validated" => {
+                let (Some(air), Some(hdg)) = (num(f, "true_airspeed_m_s"), self.heading_deg) else { return };
+                let ground = self.vel.map_or(0.0, |v| v[0].hypot(v[1]));
+                let m = d::VFR_HUD_DATA { airspeed: air as f32, groundspeed: ground, heading: hdg.round() as i16 % 360, ..Default::default() };
+                self.push(MavMessage::VFR_HUD(m), out);
+            }
+            "debug_key_value" => {
+                if let (Some(k), Some(v)) = (text(f, "key"), num(f, "value")) {
+                    let m = d::NAMED_VALUE_FLOAT_DATA { time_boot_ms: boot_ms, value: v as f32, name: k.as_str().into() };
+                    self.push(MavMessage::NAMED_VALUE_FLOAT(m), out);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Decode a whole in-memory ULog into MAVLink messages (see the module docs). Clock jumps
+/// are counted in `stats`.
+pub fn decode_ulog(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
+    let mut s = State::default();
+    let mut out = Vec::with_capacity(bytes.len() / 60);
+    let mut params = Vec::new();
+    let mut mav_type_param = None;
+    let parser = yule_log::builder::ULogParserBuilder::new(bytes).build()?;
+    for m in parser {
+        match m? {
+            UlogMessage::Parameter(p) => {
+                if p.key == "MAV_TYPE" {
+                    if let ParameterValue::INT32(i) = p.value {
+                        mav_type_param = Some(i);
+                    }
+                }
+                params.push((p.key, p.value));
+            }
+            UlogMessage::LoggedData(ld) => {
+                if !s.timed {
+                    // The definitions section is over: the vehicle, then its parameters.
+                    s.mavtype = mav_type(mav_type_param);
+                    let t = ld.timestamp;
+                    s.data(t, &ld.data, stats, &mut out);
+                    for (k, v) in std::mem::take(&mut params) {
+                        s.param(&k, &v, &mut out);
+                    }
+                } else {
+                    s.data(ld.timestamp, &ld.data, stats, &mut out);
+                }
+            }
+            _ => {}
+        }
+    }
+    if !s.timed {
+        return Err(UlogError::NoMessages);
+    }
+    Ok(out)
+}
+
+/// One field of a ULog topic: its C type (`uint64_t`, `float`, `double`, `uint8_t`,
+/// `char`, with `[n]` for an array) and name.
+#[derive(Debug, Clone, Copy)]
+pub struct Field {
+    pub ty: &'static str,
+    pub name: &'static str,
+}
+
+/// A topic the writer logs.
+#[derive(Debug, Clone, Copy)]
+pub struct Topic {
+    pub id: u16,
+    pub name: &'static str,
+    /// The fields after `uint64_t timestamp`.
+    pub fields: &'static [Field],
+}
+
+/// A field's value for [`Writer::data`]: numbers in the field's type, text for `char[n]`.
+#[derive(Debug, Clone)]
+pub enum Value<'a> {
+    Nums(&'a [f64]),
+    Text(&'a str),
+}
+
+/// Writes ULog files (the simulator's `.ulg` output), as PX4's logger lays them out: the
+/// 16-byte header, the flag bits, each topic's format ('F') and subscription ('A'), the
+/// parameters ('P'), then data ('D'), little-endian and packed.
+#[derive(Debug)]
+pub struct Writer {
+    buf: Vec<u8>,
+}
+
+impl Writer {
+    /// Header and flag bits, then the topics' formats and subscriptions and the parameters
+    /// (`(name, value, is_int)`).
+    pub fn new(topics: &[Topic], params: &[(String, f64, bool)]) -> Self {
+        let mut buf = b"ULog\x01\x12\x35".to_vec();
+        buf.push(1);
+        buf.extend(0u64.to_le_bytes());
+        let mut w = Self { buf };
+        w.message(b'B', &[0u8; 40]);
+        for t in topics {
+            let mut fmt = format!("{}:uint64_t timestamp;", t.name);
+            for f in t.fields {
+                fmt.push_str(&format!("{} {};", f.ty, f.name));
+            }
+            w.message(b'F', fmt.as_bytes());
+        }
+        for (name, v, int) in params {
+            let key = format!("{} {name}", if *int { "int32_t" } else { "float" });
+            let mut p = vec![key.len() as u8];
+            p.extend(key.as_bytes());
+            if *int {
+                p.extend((*v as i32).to_le_bytes());
+            } else {
+                p.extend((*v as f32).to_le_bytes());
+            }
+            w.message(b'P', &p);
+        }
+        for t in topics {
+            let mut a = vec![0u8];
+            a.extend(t.id.to_le_bytes());
+            a.extend(t.name.as_bytes());
+            w.message(b'A', &a);
+        }
+        w
+    }
+
+    fn message(&mut self, kind: u8, payload: &[u8]) {
+        self.buf.extend((payload.len() as u16).to_le_bytes());
+        self.buf.push(kind);
+        self.buf.extend_from_slice(payload);
+    }
+
+    /// One sample of `topic` at `t_us` (µs since boot); `values` in the topic's field order.
+    pub fn data(&mut self, topic: &Topic, t_us: u64, values: &[Value]) {
+        let mut p = topic.id.to_le_bytes().to_vec();
+        p.extend(t_us.to_le_bytes());
+        for (f, v) in topic.fields.iter().zip(values) {
+            let (base, n) = match f.ty.split_once('[') {
+                Some((b, n)) => (b, n.trim_end_matches(']').parse::<usize>().unwrap_or(1)),
+                None => (f.ty, 1),
+            };
+            match v {
+                Value::Text(s) => {
+                    let b = s.as_bytes();
+                    p.extend((0..n).map(|i| b.get(i).copied().unwrap_or(0)));
+                }
+                Value::Nums(x) => {
+                    for i in 0..n {
+                        let x = x.get(i).copied().unwrap_or(0.0);
+                        match base {
+                            "float" => p.extend((x as f32).to_le_bytes()),
+                            "double" => p.extend(x.to_le_bytes()),
+                            "uint8_t" | "bool" => p.push(x as u8),
+                            "int32_t" => p.extend((x as i32).to_le_bytes()),
+                            "uint64_t" => p.extend((x as u64).to_le_bytes()),
+                            _ => {}
+                        }
+                    }
+                }
+            }
+        }
+        self.message(b'D', &p);
+    }
+
+    /// The log's bytes.
+    pub fn into_bytes(self) -> Vec<u8> {
+        self.buf
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use Value::Nums as N;
+
+    const BAT: Topic = Topic { id: 0, name: "battery_status", fields: &[Field { ty: "float", name: "voltage_v" }, Field { ty: "float", name: "current_a" }] };
+    /// battery_status without current_a: a log of a version whose fields differ.
+    const BAT_V: Topic = Topic { id: 0, name: "battery_status", fields: &[Field { ty: "float", name: "voltage_v" }] };
+
+    fn decode(bytes: &[u8]) -> Result<Vec<TimedMessage>, UlogError> {
+        decode_ulog(bytes, &IngestStats::default())
+    }
+
+    fn sys(m: &[TimedMessage]) -> Vec<(f64, u16, i16)> {
+        m.iter().filter_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some((m.t_s, s.voltage_battery, s.current_battery)) } else { None }).collect()
+    }
+
+    #[test]
+    fn mav_type_names_the_vehicle_and_a_missing_current_degrades() {
+        let mut w = Writer::new(&[BAT_V], &[("MAV_TYPE".into(), 13.0, true), ("BAT1_CAPACITY".into(), 2200.0, false)]);
+        w.data(&BAT_V, 1_000_000, &[N(&[11.1])]);
+        w.data(&BAT_V, 1_500_000, &[N(&[11.0])]);
+        let m = decode(&w.into_bytes()).unwrap();
+        let MavMessage::HEARTBEAT(h) = &m[0].msg else { panic!("{:?}", m[0]) };
+        assert_eq!((h.mavtype, h.autopilot), (d::MavType::MAV_TYPE_HEXAROTOR, d::MavAutopilot::MAV_AUTOPILOT_PX4));
+        assert_eq!(sys(&m), [(0.0, 11100, -1), (0.5, 11000, -1)]);
+        assert!(m.iter().any(|m| matches!(&m.msg, MavMessage::PARAM_VALUE(p) if p.param_value == 2200.0)));
+    }
+
+    #[test]
+    fn corrupt_or_foreign_files_are_errors_and_never_panic() {
+        assert!(decode(b"").is_err());
+        assert!(decode(b"\xA3\x95not ulog at all").is_err());
+        assert!(matches!(decode(&Writer::new(&[BAT], &[]).into_bytes()), Err(UlogError::NoMessages)));
+        let mut w = Writer::new(&[BAT], &[]);
+        for i in 0..50 {
+            w.data(&BAT, i * 100_000, &[N(&[16.0]), N(&[3.0])]);
+        }
+        let good = w.into_bytes();
+        assert_eq!(sys(&decode(&good).unwrap()).len(), 50);
+        for cut in [10, 16, 60, good.len() / 2, good.len() - 1] {
+            let _ = decode(&good[..cut]);
+        }
+        let mut bad = good.clone();
+        for i in (20..bad.len()).step_by(7) {
+            bad[i] ^= 0x5A;
+        }
+        let _ = decode(&bad);
+    }
+}
