@@ -46,7 +46,7 @@ fn tick(t_s: f64) -> Vec<TimedMessage> {
         MavMessage::HOME_POSITION(d::HOME_POSITION_DATA { latitude: 473_977_419, longitude: 85_455_938, ..Default::default() }),
     ];
     msgs.into_iter()
-        .map(|msg| TimedMessage { t_s, header: mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 }, msg })
+        .map(|msg| TimedMessage { t_s, header: mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 }, msg, arrived: std::time::Instant::now() })
         .collect()
 }
 
@@ -126,6 +126,7 @@ fn main() {
     // The energy + alert + encode stage alone, on a fixed estimate.
     let mut chain = Chain::new();
     let est = dronewatt::report::Estimate {
+        arrived: None,
         t_s: 0.0,
         sample: dronewatt::features::Sample {
             t_s: 0.0,

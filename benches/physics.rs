@@ -27,7 +27,7 @@ fn cruise_window() -> Window {
             Sample { t_s: 0.1 * i as f64, features: f, measured_w: Some(500.0), voltage_v: Some(22.0), home: None, stale_mask: 0, battery_remaining_pct: None }
         })
         .collect();
-    Window { samples }
+    Window { samples, arrived: None }
 }
 
 fn bench(c: &mut Criterion) {

@@ -1,26 +1,49 @@
 #!/usr/bin/env bash
-# Fleet load benchmark (issue 14): recorded simulated fleet traffic through one dronewatt.
+# Fleet load benchmark (issue 14): recorded simulated fleet traffic through dronewatt.
 #
-# For each fleet size N (default 1 10 100 250; one MAVLink link holds at most 254 vehicles,
-# system ids being 8 bits): `dronewatt simulate --vehicles N` records a fleet's flight into
-# one tlog (seed 1, deterministic), then two runs of `dronewatt replay` read it:
+# For each fleet size N (default 1 10 100 250): `dronewatt simulate --vehicles M` records a
+# fleet's flight into a tlog (deterministic per seed). One MAVLink link holds at most 254
+# vehicles (8-bit system ids), so a fleet of more than PER_LINK (default 250) is several
+# links, one dronewatt each — the topology the README documents past one link: N = K × M,
+# K = ceil(N / PER_LINK) instances of M = N / K vehicles, link k replaying its own tlog
+# (seed k), all at once on this machine. Each size runs
 #
 #   paced  --speed 1 (messages at the recorded rate, as a live link delivers them) for
 #          SECONDS, stopped by SIGINT (the clean shutdown path: every sink drains):
-#            cpu_us_per_vs   CPU time (user+sys, /proc) / (N × SECONDS): µs per vehicle-second
-#            rss_mib         peak resident memory (VmHWM); rss_kib_per_vehicle = (RSS(N) − RSS(1)) / (N − 1)
-#            missed          reports the sinks missed (summary `missed_reports`) + windows never reported
-#            lag_s           how far the newest estimate trails the replay clock at the stop
-#                            (backlog: an upper bound on message → estimate latency at that moment)
-#   flat   --speed max: the whole tlog as fast as it goes: windows_per_s, the most vehicles
-#          at 10 Hz windows this machine sustains = windows_per_s / 10.
+#            cpu_us_per_vs   CPU time of all instances (user+sys, /proc) / (N × SECONDS)
+#            rss_mib         peak resident memory (VmHWM), summed over the instances
+#            rss_kib_per_vehicle  rss_mib × 1024 / N
+#            estimates       reports made (JSON summary `reports`, summed)
+#            missed          reports a sink missed (`missed_reports`) + windows never reported
+#            gaps            breaks in a sender's sequence (a live link's lost datagrams)
+#            p50/p99/max_ms  message → estimate latency from each instance's JSON summary
+#                            (`latency`: arrival of the newest message behind an estimate to
+#                            its report going to the sinks). Over several instances: the
+#                            largest instance p50/p99/max (an upper bound on the fleet's)
+#   flat   (FLAT=1 only) --speed max, the instances at once over their whole tlogs:
+#          windows_per_s, and the most vehicles at 10 Hz windows = windows_per_s / 10.
 #
-# Both with the LSTM on every window (the default) and, with LSTM_RATE set, a second pass with
-# `[fleet] lstm_rate_hz = LSTM_RATE`. Writes fleet-load.csv and fleet-load.png (plotted by
-# `cargo run --example fleet_load_plot`) into OUT (default target/fleet-load).
+# LSTM on every window by default (label 10hz); LSTM_RATE=R runs `[fleet] lstm_rate_hz = R`
+# instead (label Rhz; physics, energy and alerts stay at 10 Hz). MQTT=1 adds the MQTT sink:
+# a Mosquitto of its own on a free loopback port, every instance publishing under
+# `dronewatt/link<k>` as instance `link<k>`, a `mosquitto_sub` on `dronewatt/#` counting
+# what arrives; the row then also has mqtt_published / mqtt_dropped (the sinks' summaries,
+# summed), mqtt_received (every message the subscriber got) and mqtt_estimates_received
+# (those on `…/<vehicle>/estimate`: one per report, so = estimates when nothing is lost).
+#
+# LIVE=1: live links instead of replays: link k is `dronewatt simulate --vehicles M --udp`
+# (seed k, real time) into `dronewatt monitor udpin:127.0.0.1:PORT` (label live-…; the
+# simulators' CPU is not counted, but they share the machine).
+#
+# Appends rows to OUT/fleet-load.csv (OUT default target/fleet-load; a new file gets the
+# header) and plots it (`cargo run --example fleet_load_plot`): fleet-load.png (CPU per
+# vehicle-second), fleet-load-rss.png (peak RSS per vehicle), fleet-load-latency.png (p99
+# latency). The tlogs are kept in TLOGS
+# (default OUT/tlogs; ~68 MB per 250 vehicles).
 #
 # Usage: scripts/fleet-load.sh [SECONDS] [N ...]      (default: 30, 1 10 100 250)
-#        LSTM_RATE=2 scripts/fleet-load.sh 30 1 10 100 250
+#        LSTM_RATE=2 scripts/fleet-load.sh 30 1 10 100 250 1000
+#        LSTM_RATE=2 MQTT=1 scripts/fleet-load.sh 30 1000
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DUR=${1:-30}
@@ -28,60 +51,146 @@ shift || true
 SIZES=${*:-1 10 100 250}
 BIN=${DRONEWATT_BIN:-target/debug/dronewatt}
 OUT=${OUT:-target/fleet-load}
+PER_LINK=${PER_LINK:-250}
+TLOGS=${TLOGS:-$OUT/tlogs}
 [ -x "$BIN" ] || cargo build --locked
-mkdir -p "$OUT"
+mkdir -p "$OUT" "$TLOGS"
 TMP=$(mktemp -d)
-trap 'rm -rf "$TMP"' EXIT
+PIDS=()
+cleanup() {
+  for p in "${PIDS[@]}"; do kill "$p" 2> /dev/null || true; done
+  rm -rf "$TMP"
+}
+trap cleanup EXIT
 TICK=$(getconf CLK_TCK)
 CSV="$OUT/fleet-load.csv"
-echo "lstm,vehicles,seconds,cpu_us_per_vs,rss_mib,estimates,missed,lag_s,flat_windows_per_s,max_vehicles_10hz" > "$CSV"
+HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,estimates,missed,gaps,p50_ms,p99_ms,max_ms,flat_windows_per_s,max_vehicles_10hz,mqtt_published,mqtt_dropped,mqtt_received,mqtt_estimates_received"
+[ -s "$CSV" ] || echo "$HEAD" > "$CSV"
 
-run_size() {  # $1 = N, $2 = config file, $3 = label
-  local n=$1 cfg=$2 label=$3 tlog="$TMP/fleet$1.tlog"
-  [ -f "$tlog" ] || "$BIN" simulate --vehicles "$n" --out "$tlog" --seed 1 --leg-m 200 --hover-s 10 2> /dev/null
-  # Paced: real time for DUR seconds.
-  "$BIN" replay "$tlog" --speed 1 -q --config "$cfg" --json "$TMP/paced.jsonl" 2> "$TMP/paced.err" &
-  local pid=$! start
-  start=$(date +%s.%N)
+LABEL=10hz
+[ "${LIVE:-0}" = 1 ] && LABEL=live-10hz
+CFG="$TMP/base.toml"
+: > "$CFG"
+if [ -n "${LSTM_RATE:-}" ]; then
+  LABEL="${LABEL%10hz}${LSTM_RATE}hz"
+  printf '[fleet]\nlstm_rate_hz = %s\n' "$LSTM_RATE" >> "$CFG"
+fi
+MQTT_PORT=
+if [ "${MQTT:-0}" = 1 ]; then
+  LABEL="$LABEL+mqtt"
+  MQTT_PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+  # The subscriber is a client like any other: so that a slow moment of it is not counted
+  # against dronewatt, the broker queues for it without bound.
+  printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\nmax_queued_messages 0\nlog_dest stderr\n' "$MQTT_PORT" > "$TMP/mosquitto.conf"
+  /usr/sbin/mosquitto -c "$TMP/mosquitto.conf" 2> "$TMP/mosquitto.log" &
+  PIDS+=($!)
+  sleep 0.5
+fi
+
+run_size() {  # $1 = N
+  local n=$1 k m
+  k=$(( (n + PER_LINK - 1) / PER_LINK ))
+  m=$(( n / k ))
+  if [ $(( m * k )) -ne "$n" ]; then echo "$n vehicles do not split evenly over $k links of ≤ $PER_LINK" >&2; exit 2; fi
+  local i pids=() greps=() sub=
+  for i in $(seq 1 "$k"); do
+    local tlog="$TLOGS/fleet${m}-seed$i.tlog"
+    [ -f "$tlog" ] || "$BIN" simulate --vehicles "$m" --out "$tlog" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null
+    cp "$CFG" "$TMP/link$i.toml"
+    if [ -n "$MQTT_PORT" ]; then
+      printf '[sinks.mqtt]\nenabled = true\nport = %s\nprefix = "dronewatt/link%s"\ninstance = "link%s"\n' "$MQTT_PORT" "$i" "$i" >> "$TMP/link$i.toml"
+    fi
+    rm -rf "$TMP/store$i" "$TMP/summary$i.json"
+  done
+  if [ -n "$MQTT_PORT" ]; then
+    mosquitto_sub -h 127.0.0.1 -p "$MQTT_PORT" -t 'dronewatt/#' -F '%t' > "$TMP/sub.txt" &
+    sub=$!
+    sleep 0.5
+  fi
+  # Paced: every link at real time for DUR seconds. The JSON lines go through a pipe that
+  # keeps only the summary (a 1,000-vehicle run writes ~10,000 lines a second).
+  local sims=() port
+  for i in $(seq 1 "$k"); do
+    mkfifo "$TMP/json$i"
+    grep -F '"type":"summary"' < "$TMP/json$i" > "$TMP/summary$i.json" &
+    greps+=($!)
+    if [ "${LIVE:-0}" = 1 ]; then
+      port=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+      RUST_LOG=dronewatt=info "$BIN" monitor "udpin:127.0.0.1:$port" -q --config "$TMP/link$i.toml" \
+        --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
+      pids+=($!)
+      until grep -qs "listening on" "$TMP/paced$i.err"; do sleep 0.1; done
+      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:$port" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null &
+      sims+=($!)
+    else
+      RUST_LOG=dronewatt=info "$BIN" replay "$TLOGS/fleet${m}-seed$i.tlog" --speed 1 -q --config "$TMP/link$i.toml" \
+        --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
+      pids+=($!)
+    fi
+  done
   sleep "$DUR"
-  local cpu hwm
-  cpu=$(awk -v t="$TICK" '{print ($14 + $15) / t}' "/proc/$pid/stat")
-  hwm=$(awk '/^VmHWM/ {print $2}' "/proc/$pid/status")
-  kill -INT "$pid"; wait "$pid" || true
-  local wall
-  wall=$(echo "$(date +%s.%N) - $start" | bc)
-  # Flat out: the whole tlog.
-  local t0 t1
-  t0=$(date +%s.%N)
-  "$BIN" replay "$tlog" --speed max -q --config "$cfg" --json "$TMP/flat.jsonl" 2> /dev/null
-  t1=$(date +%s.%N)
-  .venv-py/bin/python - "$TMP/paced.jsonl" "$TMP/flat.jsonl" "$n" "$DUR" "$cpu" "$hwm" "$wall" "$t0" "$t1" "$label" >> "$CSV" <<'PY'
-import json, sys
-paced, flat, n, dur, cpu, hwm, wall, t0, t1, label = sys.argv[1:]
-n, dur, cpu, hwm, wall = int(n), float(dur), float(cpu), int(hwm), float(wall)
-est, newest, summary = 0, 0.0, {}
-for line in open(paced):
-    v = json.loads(line)
-    if v["type"] == "estimate" and v["models"]:
-        est += 1
-        newest = max(newest, v["t"])
-    elif v["type"] == "summary":
-        summary = v
-missed = summary.get("missed_reports", 0) + max(0, summary.get("windows", 0) - summary.get("reports", 0))
-# Replay time starts at the first record (t = 0); the stop came `dur` s after the start.
-lag = max(0.0, dur - newest)
-windows = sum(1 for line in open(flat) if line.startswith('{"type":"estimate"'))
-wps = windows / (float(t1) - float(t0))
-print(f"{label},{n},{dur},{cpu / (n * dur) * 1e6:.1f},{hwm / 1024:.1f},{est},{missed},{lag:.2f},{wps:.0f},{wps / 10:.0f}")
+  for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
+  local cpu=0 hwm=0 p
+  for p in "${pids[@]}"; do
+    cpu=$(awk -v t="$TICK" -v c="$cpu" '{print c + ($14 + $15) / t}' "/proc/$p/stat")
+    hwm=$(awk -v h="$hwm" '/^VmHWM/ {print h + $2}' "/proc/$p/status")
+  done
+  for p in "${pids[@]}"; do kill -INT "$p" || true; done
+  for p in "${pids[@]}"; do wait "$p" || echo "instance $p exited $?" >&2; done
+  for p in "${greps[@]}"; do wait "$p" || true; done
+  rm -f "$TMP"/json*
+  local received=""
+  if [ -n "$sub" ]; then
+    # Until the subscriber has read all the broker holds for it (its count still for 2 s).
+    local was=-1 now=0
+    while [ "$now" != "$was" ]; do was=$now; sleep 2; now=$(wc -l < "$TMP/sub.txt"); done
+    kill "$sub"; wait "$sub" 2> /dev/null || true
+    grep -i "drop" "$TMP/mosquitto.log" >&2 || true
+    received="$(wc -l < "$TMP/sub.txt"),$(grep -c '^dronewatt/link[0-9]*/[0-9]*/estimate$' "$TMP/sub.txt" || true)"
+  fi
+  # Flat out (FLAT=1): every link's whole tlog at once.
+  local t0=0 t1=0
+  if [ "${FLAT:-0}" = 1 ]; then
+    pids=()
+    t0=$(date +%s.%N)
+    for i in $(seq 1 "$k"); do
+      "$BIN" replay "$TLOGS/fleet${m}-seed$i.tlog" --speed max -q --config "$CFG" --data-dir off --json "$TMP/flat$i.json" 2> /dev/null &
+      pids+=($!)
+    done
+    for p in "${pids[@]}"; do wait "$p"; done
+    t1=$(date +%s.%N)
+  fi
+  python3 - "$TMP" "$n" "$k" "$DUR" "$cpu" "$hwm" "$t0" "$t1" "$LABEL" "$received" >> "$CSV" <<'PY'
+import json, re, sys, glob, os
+tmp, n, k, dur, cpu, hwm, t0, t1, label, received = sys.argv[1:]
+n, k, dur, cpu, hwm = int(n), int(k), float(dur), float(cpu), int(hwm)
+est = missed = gaps = 0
+lat = {"p50_ms": 0.0, "p99_ms": 0.0, "max_ms": 0.0}
+pub = drop = 0
+for i in range(1, k + 1):
+    s = json.loads(open(f"{tmp}/summary{i}.json").read().strip().splitlines()[-1])
+    est += s["reports"]
+    gaps += s["gaps"]
+    missed += s["missed_reports"] + max(0, s["windows"] - s["reports"])
+    for q in lat:
+        lat[q] = max(lat[q], (s.get("latency") or {}).get(q, 0.0))
+    for line in open(f"{tmp}/paced{i}.err"):
+        m = re.search(r"mqtt summary: (\d+) messages published, (\d+) dropped", line)
+        if m:
+            pub += int(m[1]); drop += int(m[2])
+wps = vmax = ""
+if float(t1) > 0:
+    windows = sum(1 for i in range(1, k + 1) for line in open(f"{tmp}/flat{i}.json") if line.startswith('{"type":"estimate"'))
+    wps = f"{windows / (float(t1) - float(t0)):.0f}"
+    vmax = f"{float(wps) / 10:.0f}"
+mq = f"{pub},{drop},{received}" if received else ",,,"
+print(f"{label},{n},{k},{dur},{cpu / (n * dur) * 1e6:.1f},{hwm / 1024:.1f},{hwm / n:.1f},{est},{missed},{gaps},"
+      f"{lat['p50_ms']:.2f},{lat['p99_ms']:.2f},{lat['max_ms']:.2f},{wps},{vmax},{mq}")
 PY
   tail -1 "$CSV"
+  rm -f "$TMP"/flat*.json
 }
 
-echo "" > "$TMP/full.toml"
-for n in $SIZES; do run_size "$n" "$TMP/full.toml" "10hz"; done
-if [ -n "${LSTM_RATE:-}" ]; then
-  printf '[fleet]\nlstm_rate_hz = %s\n' "$LSTM_RATE" > "$TMP/rate.toml"
-  for n in $SIZES; do run_size "$n" "$TMP/rate.toml" "${LSTM_RATE}hz"; done
-fi
+for n in $SIZES; do run_size "$n"; done
 cargo run --locked --quiet --example fleet_load_plot -- "$CSV" "$OUT/fleet-load.png"
 echo "wrote $CSV and $OUT/fleet-load.png (load average: $(cut -d' ' -f1-3 /proc/loadavg))"

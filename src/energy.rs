@@ -391,6 +391,7 @@ mod tests {
 
     fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
         Estimate {
+            arrived: None,
             t_s,
             sample: Sample {
                 t_s,

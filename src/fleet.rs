@@ -278,7 +278,7 @@ mod tests {
     use crate::dialect::{MavAutopilot, MavType, HEARTBEAT_DATA};
 
     fn msg(sys: u32, t_s: f64, msg: MavMessage) -> TimedMessage {
-        TimedMessage { t_s, header: mavlink::MavHeader { system_id: sys, component_id: 1, sequence: 0 }, msg }
+        TimedMessage { t_s, header: mavlink::MavHeader { system_id: sys, component_id: 1, sequence: 0 }, msg, arrived: std::time::Instant::now() }
     }
     fn hb(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
         MavMessage::HEARTBEAT(HEARTBEAT_DATA { mavtype, autopilot, ..Default::default() })

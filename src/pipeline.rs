@@ -384,7 +384,7 @@ impl VehicleChain {
                 }
             }),
             energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, vehicle_rx, capacity_rx, own, status.clone(), live)),
-            relay: tokio::spawn(relay(reports, ev_rx, fanout)),
+            relay: tokio::spawn(relay(reports, ev_rx, fanout, status.latency.clone())),
         };
         (ev_tx, tasks)
     }
@@ -516,7 +516,8 @@ impl Fleet {
 /// between: lost (alert `vehicle_lost` raised; cleared when the vehicle is heard again) and dropped (alert `vehicle_dropped`, after the
 /// vehicle's last report). Each is reported on the vehicle's last estimate and energy; a
 /// vehicle that never produced a report has nothing to report it on (it is logged).
-async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedReceiver<FleetEvent>, mut fanout: Fanout) {
+/// Each report's message → estimate latency is counted in `latency` as it goes to the sinks.
+async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedReceiver<FleetEvent>, mut fanout: Fanout, latency: Arc<crate::status::LatencyHistogram>) {
     let mut last: Option<Arc<Report>> = None;
     let mut dropped = None;
     let mut open = true;
@@ -533,6 +534,9 @@ async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedReceiver<FleetE
             biased;
             r = reports.next() => match r {
                 Some(r) => {
+                    if let Some(at) = r.estimate.arrived {
+                        latency.record(at.elapsed());
+                    }
                     last = Some(r.clone());
                     fanout.send_shared(r).await;
                 }
@@ -640,11 +644,15 @@ async fn telemetry_stage(
                     let _ = vehicle_tx.send(params);
                 }
                 telemetry.push(&m, &mut out);
+                // The windows this message completes: it is the newest that went in.
+                out.iter_mut().for_each(|w| w.arrived = Some(m.arrived));
                 if let Some(id) = telemetry.system_id() {
                     status.system_id.store(id, std::sync::atomic::Ordering::Relaxed);
                 }
             }
             None => {
+                // What the end of the input flushes was made by no message's arrival: these
+                // windows keep `arrived: None` and count in no latency.
                 telemetry.finish(&mut out);
                 open = false;
             }

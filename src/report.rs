@@ -61,6 +61,9 @@ pub struct Estimate {
     pub sample: Sample,
     /// One entry per model that ran, in the model set's order.
     pub models: Vec<ModelEstimate>,
+    /// When the newest message behind it reached dronewatt (its window's `arrived`);
+    /// `None` for estimates not from a source (a silent tick, offline work).
+    pub arrived: Option<std::time::Instant>,
 }
 
 impl Estimate {
@@ -72,7 +75,7 @@ impl Estimate {
         sample.t_s = t_s;
         sample.stale_mask = u32::MAX;
         sample.measured_w = None;
-        Estimate { t_s, sample, models: Vec::new() }
+        Estimate { t_s, sample, models: Vec::new(), arrived: None }
     }
 }
 

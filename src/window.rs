@@ -11,6 +11,10 @@ pub const DEFAULT_T: usize = 10;
 pub struct Window {
     /// Oldest first; `samples.len()` is the window length T.
     pub samples: Vec<Sample>,
+    /// When the newest message that went into it reached dronewatt (monotonic; the
+    /// pipeline stamps it, `None` for windows not from a source): the start of the
+    /// message → estimate latency.
+    pub arrived: Option<std::time::Instant>,
 }
 
 impl Window {
@@ -51,7 +55,7 @@ impl WindowRing {
             self.ring.pop_front();
         }
         self.ring.push_back(s);
-        (self.ring.len() == self.t).then(|| Window { samples: self.ring.iter().cloned().collect() })
+        (self.ring.len() == self.t).then(|| Window { samples: self.ring.iter().cloned().collect(), arrived: None })
     }
     /// Forget the held samples (after a gap).
     pub fn clear(&mut self) {

@@ -28,7 +28,7 @@ fn window(t_s: f64, demand_w: f32, measured_w: f32) -> Window {
     let mut features = [0.0; N_FEATURES];
     features[0] = demand_w;
     let s = Sample { t_s, features, measured_w: Some(measured_w), voltage_v: Some(22.2), home: None, stale_mask: 0, battery_remaining_pct: None };
-    Window { samples: vec![s] }
+    Window { samples: vec![s], arrived: None }
 }
 
 fn rules() -> Vec<AlertRule> {

@@ -9,6 +9,7 @@ use dronewatt::telemetry::{Sample, N_FEATURES};
 
 fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
     Estimate {
+        arrived: None,
         t_s,
         sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None },
         models: models.iter().map(|(n, p)| ModelEstimate::new(n.to_string(), *p, None)).collect(),

@@ -59,6 +59,10 @@ fn replay_max_speed_ends_with_the_exact_summary_line() {
     let count = |t: &str| lines.iter().filter(|l| l["type"] == t).count() as u64;
     assert_eq!(count("window"), windows);
     assert_eq!(count("estimate"), windows);
+    // Flat out, the latency is the queueing; an estimate is counted once at most (those the
+    // end of the log flushes, made by no arrival, not at all).
+    let counted = summary["latency"]["count"].as_u64().expect("latency counted");
+    assert!(counted > 0 && counted <= windows, "{summary}");
 }
 
 #[test]

@@ -55,7 +55,7 @@ impl Mix {
         let mut out = Vec::new();
         for (i, (t, sys, msg)) in self.msgs.into_iter().enumerate() {
             let header = mavlink::MavHeader { system_id: sys, component_id: 1, sequence: i as u8 };
-            tel.push(&TimedMessage { t_s: 1000.0 + t, header, msg }, &mut out);
+            tel.push(&TimedMessage { t_s: 1000.0 + t, header, msg, arrived: std::time::Instant::now() }, &mut out);
         }
         tel.finish(&mut out);
         (tel, out)
@@ -267,7 +267,7 @@ fn a_quiet_source_is_held_and_marked_stale_without_stalling_the_stream() {
     let mut out = Vec::new();
     for (i, (t, sys, msg)) in mix.msgs.into_iter().enumerate() {
         let header = mavlink::MavHeader { system_id: sys, component_id: 1, sequence: i as u8 };
-        tel.push(&TimedMessage { t_s: t, header, msg }, &mut out);
+        tel.push(&TimedMessage { t_s: t, header, msg, arrived: std::time::Instant::now() }, &mut out);
     }
     // Before finish(): the stream kept flowing (latency bounded by the stale limit).
     // Power comes at 1 Hz here, and every signal gates the grid: at most 1 s behind.

@@ -67,6 +67,46 @@ fn three_vehicles_fly_their_own_missions_in_one_tlog_deterministically() {
 }
 
 #[test]
+fn a_paced_replay_reports_the_message_to_estimate_latency_of_every_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let tlog = dir.path().join("f.tlog");
+    let o = simulate(&tlog, "3", "5");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Paced (as a live link delivers it, 20× faster); JSON to a file, so the terminal view
+    // runs too and says it at exit.
+    let json = dir.path().join("f.jsonl");
+    let o = dronewatt(&["replay", tlog.to_str().unwrap(), "--speed", "20", "--json", json.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    // Estimates made from the link's messages (alert-only reports on a silent estimate
+    // carry no models and no arrival), and per vehicle the time of its last one.
+    let made: Vec<(u64, f64)> = lines
+        .iter()
+        .filter(|v| v["type"] == "estimate" && v["models"].as_object().is_some_and(|m| !m.is_empty()))
+        .map(|v| (v["system_id"].as_u64().unwrap(), v["t"].as_f64().unwrap()))
+        .collect();
+    let estimates = made.len() as u64;
+    assert!(estimates > 900, "three whole flights: {estimates}");
+    let mut last: BTreeMap<u64, f64> = BTreeMap::new();
+    for &(id, t) in &made {
+        let e = last.entry(id).or_insert(t);
+        *e = e.max(t);
+    }
+    let final_second = made.iter().filter(|(id, t)| *t > last[id] - 1.0).count() as u64;
+    let summary = lines.last().unwrap();
+    assert_eq!(summary["type"], "summary");
+    let l = &summary["latency"];
+    // Each counted once; the only ones not counted are what the end of the log flushed
+    // (no message arrived to make them): among each vehicle's final second.
+    let count = l["count"].as_u64().unwrap();
+    assert!(count <= estimates && estimates - count <= final_second, "{count} of {estimates} counted ({final_second} in the final seconds): {summary}");
+    let (p50, p99, max) = (l["p50_ms"].as_f64().unwrap(), l["p99_ms"].as_f64().unwrap(), l["max_ms"].as_f64().unwrap());
+    assert!(0.0 <= p50 && p50 <= p99 && p99 <= max, "{l}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains(&format!("message → estimate p50 {p50:.2} ms, p99 {p99:.2} ms, max {max:.2} ms ({count} estimates)")), "{err}");
+}
+
+#[test]
 fn a_fleet_of_zero_is_refused_with_the_flag_named() {
     let dir = tempfile::tempdir().unwrap();
     let o = simulate(&dir.path().join("x.tlog"), "0", "1");

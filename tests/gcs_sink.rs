@@ -58,6 +58,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         let t_s = i as f64 * 0.1;
         let measured = 500.0 + 40.0 * ((i as f32) * 0.7).sin();
         let est = Estimate {
+            arrived: None,
             t_s,
             sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w: Some(measured), voltage_v: Some(22.0), home: None, stale_mask: 0, battery_remaining_pct: None },
             models: vec![ModelEstimate::new("lstm", 480.0, None)],

@@ -273,7 +273,7 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
     let cfg = dronewatt::sink::web::WebSinkConfig { enabled: true, token_file: Some(token_file(&dir, token)), ..Default::default() };
     let (addr, mut tx) = dashboard(cfg).await;
     let sample = Sample { t_s: 1.0, features: [0.0; N_FEATURES], measured_w: Some(512.0), voltage_v: Some(22.5), home: None, stale_mask: 0, battery_remaining_pct: None };
-    let est = Estimate { t_s: 1.0, sample, models: vec![ModelEstimate::new("tseng", 470.0, None)] };
+    let est = Estimate { t_s: 1.0, sample, models: vec![ModelEstimate::new("tseng", 470.0, None)], arrived: None };
     tx.send(Report { estimate: est, energy: EnergyState::default(), alerts: vec![], system_id: 1 }).await;
     let dump = move |url: String| {
         let out = Command::new(browser)

@@ -92,6 +92,7 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
         let t_s = i as f64 * 0.1;
         let w = if i == 900 { 512.0 } else { 450.0 + 120.0 * (-(t_s as f32) / 8.0).exp() + 30.0 * ((t_s as f32) / 6.0).sin() };
         let est = Estimate {
+            arrived: None,
             t_s,
             sample: Sample {
                 t_s,

@@ -234,7 +234,7 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
             for b in 0..count {
                 let end = (j0 + b * stride + lag).min(n - 1);
                 if b == windows.len() {
-                    windows.push(Window { samples: Vec::with_capacity(t) });
+                    windows.push(Window { samples: Vec::with_capacity(t), arrived: None });
                 }
                 let w = &mut windows[b].samples;
                 w.clear();
@@ -446,7 +446,7 @@ mod tests {
                         s
                     })
                     .collect();
-                m.predict(&[Window { samples }], &mut out);
+                m.predict(&[Window { samples, arrived: None }], &mut out);
                 p[j..(j + stride).min(n)].fill(out[0].power_w.max(0.0));
             }
             let e = p.iter().map(|&w| f64::from(w)).sum::<f64>() * tr.dt_s / 3600.0;

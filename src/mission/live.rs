@@ -379,7 +379,7 @@ mod tests {
     use crate::mission::plan::GeoPoint;
 
     fn msg(t_s: f64, msg: MavMessage) -> TimedMessage {
-        TimedMessage { t_s, header: mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 }, msg }
+        TimedMessage { t_s, header: mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 }, msg, arrived: std::time::Instant::now() }
     }
 
     fn live() -> LiveMission {

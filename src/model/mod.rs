@@ -107,7 +107,7 @@ impl Ensemble {
     pub fn estimate_some(&mut self, windows: &[Window], heavy: &[bool], vehicles: &[u8]) -> Vec<Estimate> {
         let mut out: Vec<Estimate> = windows
             .iter()
-            .map(|w| Estimate { t_s: w.t_s(), sample: w.last().clone(), models: Vec::with_capacity(self.models.len()) })
+            .map(|w| Estimate { t_s: w.t_s(), sample: w.last().clone(), models: Vec::with_capacity(self.models.len()), arrived: w.arrived })
             .collect();
         let all = heavy.len() < windows.len() || heavy.iter().all(|&h| h);
         let mut picked = Vec::new();

@@ -120,7 +120,7 @@ impl Chain {
             let alone_models = est.models.iter().map(|m| ModelEstimate { adapted_w: None, reference_w: None, adapted_err: None, ..m.clone() }).chain(adapted);
             for ((m, lag), tracker) in alone_models.zip(&self.target_lags).zip(&mut model_energy) {
                 let at = w.back(*lag);
-                let alone = Estimate { t_s: at.t_s, sample: Sample { measured_w: None, ..at.clone() }, models: vec![m] };
+                let alone = Estimate { t_s: at.t_s, sample: Sample { measured_w: None, ..at.clone() }, models: vec![m], arrived: None };
                 model_energy_wh.push(tracker.update(&alone).energy_used_wh);
                 for_t_s.push(at.t_s);
             }
@@ -253,7 +253,7 @@ mod tests {
             battery_remaining_pct: None,
         };
         let all: Vec<Sample> = (0..60).map(sample).collect();
-        let windows = (9..60).map(|e| Window { samples: all[e - 9..=e].to_vec() }).collect();
+        let windows = (9..60).map(|e| Window { samples: all[e - 9..=e].to_vec(), arrived: None }).collect();
         FlightWindows { flight: 1, route: "R1".into(), windows }
     }
 

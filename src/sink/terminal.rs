@@ -31,7 +31,7 @@ use crate::status::{ChainStatus, IngestStats, SignalHealth};
 
 /// Run the view until the report channel closes.
 pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
-    let ChainStatus { stats, health, .. } = status;
+    let ChainStatus { stats, health, latency, .. } = status;
     let colour = std::io::stderr().is_terminal();
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     tick.tick().await; // the first tick is immediate: nothing to show yet
@@ -97,6 +97,9 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
         s.windows,
         if missed > 0 { format!(", {missed} reports missed by the terminal view") } else { String::new() }
     );
+    if let Some(l) = latency.summary() {
+        eprintln!("      {l}");
+    }
     Ok(())
 }
 

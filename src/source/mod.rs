@@ -43,6 +43,10 @@ pub struct TimedMessage {
     pub header: mavlink::MavHeader,
     /// The message.
     pub msg: MavMessage,
+    /// When it reached dronewatt (monotonic): read off a live link, or handed on by a
+    /// paced replay at its due time. What the message → estimate latency is measured from
+    /// ([`crate::status::LatencyHistogram`]).
+    pub arrived: std::time::Instant,
 }
 
 /// How fast a recorded source plays (replay), or a simulated one is sent (`simulate --udp`).
@@ -160,8 +164,8 @@ pub async fn run(
                 tokio::task::spawn_blocking(move || decode_autopilot_log(&path, &stats)).await??
             };
             let start = tokio::time::Instant::now();
-            for m in msgs {
-                if !pace(start, m.t_s, speed, &shutdown).await || !send(&tx, m, &stats, &shutdown).await {
+            for mut m in msgs {
+                if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, &stats, &shutdown).await {
                     return Ok(());
                 }
             }
@@ -207,8 +211,8 @@ async fn replay<R: AsyncRead + Unpin>(
     let mut eof = false;
     let mut bytes_read = 0u64;
     loop {
-        while let Some(m) = reader.next_message(stats) {
-            if !pace(start, m.t_s, speed, &shutdown).await || !send(&tx, m, stats, &shutdown).await {
+        while let Some(mut m) = reader.next_message(stats) {
+            if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, stats, &shutdown).await {
                 return Ok(());
             }
         }
@@ -241,18 +245,20 @@ async fn replay<R: AsyncRead + Unpin>(
     }
 }
 
-/// Wait until a recorded message at `t_s` is due at `speed` (from `start`). False when
+/// Wait until a recorded message is due at `speed` (from `start`); it arrives then, as on
+/// a live link (a replay running late counts its own delay in the latency). False when
 /// shutdown came first.
-async fn pace(start: tokio::time::Instant, t_s: f64, speed: Speed, shutdown: &CancellationToken) -> bool {
+async fn pace(start: tokio::time::Instant, m: &mut TimedMessage, speed: Speed, shutdown: &CancellationToken) -> bool {
     if let Speed::Factor(f) = speed {
         // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
-        let due = start + Duration::try_from_secs_f64(t_s / f).unwrap_or(Duration::ZERO);
+        let due = start + Duration::try_from_secs_f64(m.t_s / f).unwrap_or(Duration::ZERO);
         if due > tokio::time::Instant::now() + Duration::from_millis(1) {
             tokio::select! {
                 _ = shutdown.cancelled() => return false,
                 _ = tokio::time::sleep_until(due) => {}
             }
         }
+        m.arrived = due.into_std().min(std::time::Instant::now());
     }
     true
 }

@@ -111,7 +111,7 @@ impl State {
     fn push(&mut self, msg: MavMessage, out: &mut Vec<TimedMessage>) {
         let header = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
         self.seq = self.seq.wrapping_add(1);
-        out.push(TimedMessage { t_s: self.t_s, header, msg });
+        out.push(TimedMessage { t_s: self.t_s, header, msg, arrived: std::time::Instant::now() });
     }
 
     fn heartbeat(&self) -> MavMessage {

@@ -369,7 +369,7 @@ mod tests {
     use super::*;
 
     fn msg(t_s: f64, sys: u32, comp: u8, msg: MavMessage) -> TimedMessage {
-        TimedMessage { t_s, header: mavlink::MavHeader { system_id: sys, component_id: comp, sequence: 0 }, msg }
+        TimedMessage { t_s, header: mavlink::MavHeader { system_id: sys, component_id: comp, sequence: 0 }, msg, arrived: std::time::Instant::now() }
     }
 
     fn heartbeat(autopilot: MavAutopilot) -> MavMessage {

@@ -677,6 +677,7 @@ mod tests {
         use crate::report::{EnergyState, Estimate};
         let report = |t: f64, pct: f32, used: f64| Report {
             estimate: Estimate {
+                arrived: None,
                 t_s: t,
                 sample: Sample { t_s: t, features: [0.0; N_FEATURES], measured_w: Some(300.0), voltage_v: Some(12.0), home: None, stale_mask: 0, battery_remaining_pct: Some(pct) },
                 models: vec![],
@@ -708,7 +709,7 @@ mod tests {
             let t = f64::from(i) * 0.1;
             let p = if t < 60.0 { 20.0 } else if i % 600 < 50 { 600.0 } else { 350.0 + (i % 37) as f32 };
             let sample = Sample { t_s: t, features: [0.0; N_FEATURES], measured_w: Some(p), voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None };
-            log.observe(&Report { estimate: Estimate { t_s: t, sample, models: vec![] }, energy: EnergyState::default(), alerts: vec![], system_id: 1 });
+            log.observe(&Report { estimate: Estimate { t_s: t, sample, models: vec![], arrived: None }, energy: EnergyState::default(), alerts: vec![], system_id: 1 });
         }
         let s = log.summary().unwrap();
         let flown = f64::from(n - 1) * 0.1 - 60.0;

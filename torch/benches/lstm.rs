@@ -32,7 +32,7 @@ fn window(i: usize) -> Window {
             Sample { t_s: (i * 10 + k) as f64 * 0.1, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
         })
         .collect();
-    Window { samples }
+    Window { samples, arrived: None }
 }
 
 fn bench(c: &mut Criterion) {

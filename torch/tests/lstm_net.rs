@@ -24,7 +24,7 @@ fn synthetic_window(i: usize) -> Window {
             Sample { t_s: k as f64 * 0.1, features: f, measured_w: Some(p), voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
         })
         .collect();
-    Window { samples }
+    Window { samples, arrived: None }
 }
 
 fn card(dir: &std::path::Path, window: usize) -> ModelCard {

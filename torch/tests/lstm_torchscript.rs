@@ -87,6 +87,7 @@ fn torchscript_module_loads_with_its_card() {
                     battery_remaining_pct: None,
                 })
                 .collect(),
+            arrived: None,
         })
         .collect();
     let mut out = Vec::new();

@@ -306,7 +306,7 @@ pub(crate) mod testutil {
     pub fn window(s: Sample) -> Window {
         let mut a = s.clone();
         a.t_s -= 0.9;
-        Window { samples: vec![a, s] }
+        Window { samples: vec![a, s], arrived: None }
     }
 }
 
