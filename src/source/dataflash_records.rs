@@ -193,7 +193,7 @@ impl Iterator for Reader<'_> {
             let first = |label: &str| f.labels.first().is_some_and(|l| l == label);
             let timestamp_usec = match values.first() {
                 Some(Value::Num(v)) if first("TimeUS") && *v >= 0.0 => Some(*v as u64),
-                Some(Value::Num(v)) if first("TimeMS") && *v >= 0.0 => Some(*v as u64 * 1000),
+                Some(Value::Num(v)) if first("TimeMS") && *v >= 0.0 => Some((*v as u64).saturating_mul(1000)),
                 _ => None,
             };
             let entry = Entry { name: f.name.clone(), timestamp_usec, labels: f.labels.clone(), values };

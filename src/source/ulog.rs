@@ -36,6 +36,8 @@ pub enum UlogError {
     NoMessages,
     #[error("not a readable PX4 ULog: {0}")]
     Read(#[from] yule_log::errors::ULogError),
+    #[error("not a readable PX4 ULog: the ULog parser (yule_log) gave up on it: {0}")]
+    ParserPanicked(String),
 }
 
 /// Whether `path` names a ULog (`.ulg`, any case).
@@ -254,7 +256,18 @@ impl State {
 
 /// Decode a whole in-memory ULog into MAVLink messages (see the module docs). Clock jumps
 /// are counted in `stats`.
+///
+/// The `yule_log` parser panics on some malformed files (fuzzing found an `unwrap` on a
+/// format definition's array length): the whole decode runs under `catch_unwind`, and such
+/// a file is an error like any other ([`UlogError::ParserPanicked`]).
 pub fn decode_ulog(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode(bytes, stats))).unwrap_or_else(|p| {
+        let why = p.downcast_ref::<String>().map(String::as_str).or_else(|| p.downcast_ref::<&str>().copied()).unwrap_or("a panic");
+        Err(UlogError::ParserPanicked(why.to_string()))
+    })
+}
+
+fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
     let mut s = State::default();
     let mut out = Vec::with_capacity(bytes.len() / 60);
     let mut params = Vec::new();
