@@ -26,9 +26,8 @@
 use std::collections::HashMap;
 
 use super::dataflash_records::{Entry, Reader};
-use mavlink::MavHeader;
 
-use super::timed::Clock;
+use super::synth::Synth;
 use super::{IngestStats, TimedMessage};
 use crate::dialect as d;
 use crate::MavMessage;
@@ -73,14 +72,14 @@ pub fn decode_dataflash(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMe
             frame_class = e.get_f64("Value");
         }
     }
-    let mut s = State { mavtype: mav_type(frame_class), ..State::default() };
+    let mut s = State { syn: Synth::new(d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA, mav_type(frame_class)), ..State::default() };
     let mut out = Vec::with_capacity(bytes.len() / 60);
     let mut records = Reader::new(bytes);
     for e in &mut records {
         s.entry(&e, stats, &mut out);
     }
     IngestStats::add(&stats.junk_bytes, records.skipped as u64);
-    if !s.timed {
+    if !s.syn.timed {
         return Err(DataflashError::NoMessages);
     }
     Ok(out)
@@ -102,30 +101,16 @@ fn mav_type(frame_class: Option<f64>) -> d::MavType {
 
 #[derive(Default)]
 struct State {
-    clock: Clock,
-    t_s: f64,
-    boot_ms: u32,
-    timed: bool,
-    mavtype: d::MavType,
-    custom_mode: u32,
-    armed: bool,
-    next_heartbeat_s: Option<f64>,
+    syn: Synth,
     gyro: [f32; 3],
     /// The last EKF (core 0) and GPS NED velocities, m/s.
     ekf_vel: Option<[f64; 3]>,
     gps_vel: Option<[f64; 3]>,
-    seq: u8,
     /// Labels a message was missing, warned once per (message, label).
     missing: HashMap<(String, &'static str), ()>,
 }
 
 impl State {
-    fn push(&mut self, msg: MavMessage, out: &mut Vec<TimedMessage>) {
-        let header = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
-        self.seq = self.seq.wrapping_add(1);
-        out.push(TimedMessage { t_s: self.t_s, header, msg, arrived: std::time::Instant::now() });
-    }
-
     /// A field, or None (warned once per message and field).
     fn f(&mut self, e: &Entry, label: &'static str) -> Option<f64> {
         let v = e.get_f64(label).filter(|v| v.is_finite());
@@ -140,55 +125,29 @@ impl State {
         e.get_f64(label).is_none_or(|i| i == 0.0)
     }
 
-    fn heartbeat(&self) -> MavMessage {
-        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
-        if self.armed {
-            base |= d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
-        }
-        MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
-            custom_mode: self.custom_mode,
-            mavtype: self.mavtype,
-            autopilot: d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
-            base_mode: base,
-            system_status: if self.armed { d::MavState::MAV_STATE_ACTIVE } else { d::MavState::MAV_STATE_STANDBY },
-            mavlink_version: 3,
-        })
-    }
-
     fn entry(&mut self, e: &Entry, stats: &IngestStats, out: &mut Vec<TimedMessage>) {
         // TimeUS (TimeMS in logs before ArduPilot 3.3, scaled to µs by the reader).
         if let Some(us) = e.timestamp_usec.filter(|_| e.labels().first().is_some_and(|l| l == "TimeUS" || l == "TimeMS")) {
-            let (t, jump) = self.clock.map(us as f64 * 1e-6);
-            if jump {
-                IngestStats::add(&stats.gaps, 1);
-                IngestStats::add(&stats.clock_jumps, 1);
-            }
-            self.t_s = t;
-            self.boot_ms = (us / 1000) as u32;
-            self.timed = true;
-            if self.next_heartbeat_s.is_none_or(|n| t >= n) {
-                self.next_heartbeat_s = Some(t + 1.0);
-                self.push(self.heartbeat(), out);
-            }
+            self.syn.at(us, stats, out);
         }
-        let (n, boot_ms) = (e.name.as_str(), self.boot_ms);
+        let (n, boot_ms) = (e.name.as_str(), self.syn.boot_ms);
         match n {
             "PARM" => {
                 if let (Some(name), Some(v)) = (e.get_str("Name"), e.get_f64("Value")) {
                     let p = d::PARAM_VALUE_DATA { param_value: v as f32, param_count: 0, param_index: u16::MAX, param_id: name.into(), param_type: d::MavParamType::MAV_PARAM_TYPE_REAL32 };
-                    self.push(MavMessage::PARAM_VALUE(p), out);
+                    self.syn.push(MavMessage::PARAM_VALUE(p), out);
                 }
             }
             "MODE" => {
                 if let Some(m) = e.get_f64("ModeNum").or_else(|| e.get_f64("Mode")) {
-                    self.custom_mode = m as u32;
-                    self.push(self.heartbeat(), out);
+                    self.syn.custom_mode = m as u32;
+                    self.syn.announce(out);
                 }
             }
             "ARM" => {
                 if let Some(a) = e.get_f64("ArmState") {
-                    self.armed = a != 0.0;
-                    self.push(self.heartbeat(), out);
+                    self.syn.armed = a != 0.0;
+                    self.syn.announce(out);
                 }
             }
             "IMU" if Self::first(e, "I") => {
@@ -199,14 +158,14 @@ impl State {
                 let [xgyro, ygyro, zgyro] = self.gyro;
                 let [xacc, yacc, zacc] = a.map(|x| x as f32);
                 let m = d::HIGHRES_IMU_DATA { time_usec: u64::from(boot_ms) * 1000, xacc, yacc, zacc, xgyro, ygyro, zgyro, ..Default::default() };
-                self.push(MavMessage::HIGHRES_IMU(m), out);
+                self.syn.push(MavMessage::HIGHRES_IMU(m), out);
             }
             "ATT" => {
                 let Some([roll, pitch, yaw]) = all(["Roll", "Pitch", "Yaw"].map(|l| self.f(e, l))) else { return };
                 let [rollspeed, pitchspeed, yawspeed] = self.gyro;
                 let rad = |deg: f64| deg.to_radians() as f32;
                 let m = d::ATTITUDE_DATA { time_boot_ms: boot_ms, roll: rad(roll), pitch: rad(pitch), yaw: rad(yaw), rollspeed, pitchspeed, yawspeed };
-                self.push(MavMessage::ATTITUDE(m), out);
+                self.syn.push(MavMessage::ATTITUDE(m), out);
             }
             "XKF1" | "NKF1" if Self::first(e, "C") => {
                 let Some(v) = all(["VN", "VE", "VD"].map(|l| self.f(e, l))) else { return };
@@ -214,12 +173,12 @@ impl State {
                 let p = ["PN", "PE", "PD"].map(|l| e.get_f64(l).unwrap_or(0.0) as f32);
                 let [vx, vy, vz] = v.map(|x| x as f32);
                 let m = d::LOCAL_POSITION_NED_DATA { time_boot_ms: boot_ms, x: p[0], y: p[1], z: p[2], vx, vy, vz };
-                self.push(MavMessage::LOCAL_POSITION_NED(m), out);
+                self.syn.push(MavMessage::LOCAL_POSITION_NED(m), out);
             }
             "XKF2" | "NKF2" if Self::first(e, "C") => {
                 let Some([n, e_]) = all(["VWN", "VWE"].map(|l| self.f(e, l))) else { return };
                 let m = d::WIND_COV_DATA { time_usec: u64::from(boot_ms) * 1000, wind_x: n as f32, wind_y: e_ as f32, ..Default::default() };
-                self.push(MavMessage::WIND_COV(m), out);
+                self.syn.push(MavMessage::WIND_COV(m), out);
             }
             "GPS" if Self::first(e, "I") => {
                 let (Some(status), Some(lat), Some(lng)) = (self.f(e, "Status"), self.f(e, "Lat"), self.f(e, "Lng")) else { return };
@@ -251,7 +210,7 @@ impl State {
                     epv: u16::MAX,
                     ..Default::default()
                 };
-                self.push(MavMessage::GPS_RAW_INT(m), out);
+                self.syn.push(MavMessage::GPS_RAW_INT(m), out);
             }
             "POS" => {
                 let (Some(lat), Some(lng), Some(alt)) = (self.f(e, "Lat"), self.f(e, "Lng"), self.f(e, "Alt")) else { return };
@@ -271,7 +230,7 @@ impl State {
                     vz,
                     hdg: u16::MAX,
                 };
-                self.push(MavMessage::GLOBAL_POSITION_INT(m), out);
+                self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
             }
             "BAT" if Self::first(e, "Inst") || Self::first(e, "Instance") => {
                 let Some(volt) = self.f(e, "Volt") else { return };
@@ -279,7 +238,7 @@ impl State {
                 let ca = self.f(e, "Curr").map_or(-1, |c| (c * 100.0).round().clamp(-32768.0, 32767.0) as i16);
                 let remaining = e.get_f64("RemPct").map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
                 let s = d::SYS_STATUS_DATA { voltage_battery: mv, current_battery: ca, battery_remaining: remaining, ..Default::default() };
-                self.push(MavMessage::SYS_STATUS(s), out);
+                self.syn.push(MavMessage::SYS_STATUS(s), out);
                 let mut voltages = [u16::MAX; 10];
                 voltages[0] = mv;
                 let b = d::BATTERY_STATUS_DATA {
@@ -293,12 +252,12 @@ impl State {
                     battery_remaining: remaining,
                     ..Default::default()
                 };
-                self.push(MavMessage::BATTERY_STATUS(b), out);
+                self.syn.push(MavMessage::BATTERY_STATUS(b), out);
             }
             "NVF" => {
                 if let (Some(name), Some(v)) = (e.get_str("Name"), e.get_f64("Value")) {
                     let m = d::NAMED_VALUE_FLOAT_DATA { time_boot_ms: boot_ms, value: v as f32, name: name.into() };
-                    self.push(MavMessage::NAMED_VALUE_FLOAT(m), out);
+                    self.syn.push(MavMessage::NAMED_VALUE_FLOAT(m), out);
                 }
             }
             _ => {}

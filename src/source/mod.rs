@@ -11,6 +11,7 @@
 
 pub mod dataflash;
 mod dataflash_records;
+mod synth;
 pub mod dataset;
 pub mod frame;
 pub mod link;

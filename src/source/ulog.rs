@@ -20,11 +20,10 @@
 //! A missing topic or field leaves its signal to the other sources; a file that is not
 //! ULog, or has no logged data, is an error.
 
-use mavlink::MavHeader;
 use yule_log::model::inst::{FieldValue as V, Format, ParameterValue};
 use yule_log::model::msg::UlogMessage;
 
-use super::timed::Clock;
+use super::synth::Synth;
 use super::{IngestStats, TimedMessage};
 use crate::dialect as d;
 use crate::MavMessage;
@@ -94,43 +93,14 @@ fn mav_type(v: Option<i32>) -> d::MavType {
 
 #[derive(Default)]
 struct State {
-    clock: Clock,
-    t_s: f64,
-    boot_ms: u32,
-    timed: bool,
-    mavtype: d::MavType,
-    nav_state: u32,
-    armed: bool,
-    next_heartbeat_s: Option<f64>,
+    syn: Synth,
     rates: [f32; 3],
     /// Heading of the last attitude, degrees 0–360.
     heading_deg: Option<f64>,
     vel: Option<[f32; 3]>,
-    seq: u8,
 }
 
 impl State {
-    fn push(&mut self, msg: MavMessage, out: &mut Vec<TimedMessage>) {
-        let header = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
-        self.seq = self.seq.wrapping_add(1);
-        out.push(TimedMessage { t_s: self.t_s, header, msg, arrived: std::time::Instant::now() });
-    }
-
-    fn heartbeat(&self) -> MavMessage {
-        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
-        if self.armed {
-            base |= d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
-        }
-        MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
-            custom_mode: self.nav_state,
-            mavtype: self.mavtype,
-            autopilot: d::MavAutopilot::MAV_AUTOPILOT_PX4,
-            base_mode: base,
-            system_status: if self.armed { d::MavState::MAV_STATE_ACTIVE } else { d::MavState::MAV_STATE_STANDBY },
-            mavlink_version: 3,
-        })
-    }
-
     fn param(&mut self, key: &str, value: &ParameterValue, out: &mut Vec<TimedMessage>) {
         use d::MavParamType as T;
         let (v, t) = match value {
@@ -138,33 +108,22 @@ impl State {
             ParameterValue::INT32(i) => (f32::from_bits(*i as u32), T::MAV_PARAM_TYPE_INT32),
         };
         let p = d::PARAM_VALUE_DATA { param_value: v, param_count: 0, param_index: u16::MAX, param_id: key.into(), param_type: t };
-        self.push(MavMessage::PARAM_VALUE(p), out);
+        self.syn.push(MavMessage::PARAM_VALUE(p), out);
     }
 
     fn data(&mut self, timestamp: u64, f: &Format, stats: &IngestStats, out: &mut Vec<TimedMessage>) {
         if f.multi_id_index.is_some_and(|i| i != 0) {
             return;
         }
-        let (t, jump) = self.clock.map(timestamp as f64 * 1e-6);
-        if jump {
-            IngestStats::add(&stats.gaps, 1);
-            IngestStats::add(&stats.clock_jumps, 1);
-        }
-        self.t_s = t;
-        self.boot_ms = (timestamp / 1000) as u32;
-        self.timed = true;
-        if self.next_heartbeat_s.is_none_or(|n| t >= n) {
-            self.next_heartbeat_s = Some(t + 1.0);
-            self.push(self.heartbeat(), out);
-        }
-        let boot_ms = self.boot_ms;
+        self.syn.at(timestamp, stats, out);
+        let boot_ms = self.syn.boot_ms;
         match f.name.as_ref() {
             "vehicle_status" => {
                 if let Some(a) = num(f, "arming_state") {
-                    self.armed = a == 2.0;
+                    self.syn.armed = a == 2.0;
                 }
                 if let Some(n) = num(f, "nav_state") {
-                    self.nav_state = n as u32;
+                    self.syn.custom_mode = n as u32;
                 }
             }
             "vehicle_angular_velocity" => {
@@ -179,12 +138,12 @@ impl State {
                 self.heading_deg = Some(yaw.to_degrees().rem_euclid(360.0));
                 let [q1, q2, q3, q4] = [q[0], q[1], q[2], q[3]].map(|x| x as f32);
                 let m = d::ATTITUDE_QUATERNION_DATA { time_boot_ms: boot_ms, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed, ..Default::default() };
-                self.push(MavMessage::ATTITUDE_QUATERNION(m), out);
+                self.syn.push(MavMessage::ATTITUDE_QUATERNION(m), out);
             }
             "sensor_combined" => {
                 let (Some([xgyro, ygyro, zgyro]), Some([xacc, yacc, zacc])) = (vec3(f, "gyro_rad"), vec3(f, "accelerometer_m_s2")) else { return };
                 let m = d::HIGHRES_IMU_DATA { time_usec: timestamp, xacc, yacc, zacc, xgyro, ygyro, zgyro, ..Default::default() };
-                self.push(MavMessage::HIGHRES_IMU(m), out);
+                self.syn.push(MavMessage::HIGHRES_IMU(m), out);
             }
             "vehicle_local_position" => {
                 let (Some(vx), Some(vy), Some(vz)) = (num(f, "vx"), num(f, "vy"), num(f, "vz")) else { return };
@@ -192,7 +151,7 @@ impl State {
                 self.vel = Some([vx, vy, vz]);
                 let p = ["x", "y", "z"].map(|k| num(f, k).unwrap_or(0.0) as f32);
                 let m = d::LOCAL_POSITION_NED_DATA { time_boot_ms: boot_ms, x: p[0], y: p[1], z: p[2], vx, vy, vz };
-                self.push(MavMessage::LOCAL_POSITION_NED(m), out);
+                self.syn.push(MavMessage::LOCAL_POSITION_NED(m), out);
             }
             "vehicle_global_position" => {
                 let (Some(lat), Some(lon), Some(alt)) = (num(f, "lat"), num(f, "lon"), num(f, "alt")) else { return };
@@ -209,12 +168,12 @@ impl State {
                     vz,
                     hdg: u16::MAX,
                 };
-                self.push(MavMessage::GLOBAL_POSITION_INT(m), out);
+                self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
             }
             "wind" | "wind_estimate" => {
                 let (Some(n), Some(e)) = (num(f, "windspeed_north"), num(f, "windspeed_east")) else { return };
                 let m = d::WIND_COV_DATA { time_usec: timestamp, wind_x: n as f32, wind_y: e as f32, ..Default::default() };
-                self.push(MavMessage::WIND_COV(m), out);
+                self.syn.push(MavMessage::WIND_COV(m), out);
             }
             "battery_status" => {
                 let Some(volt) = num(f, "voltage_v") else { return };
@@ -222,7 +181,7 @@ impl State {
                 let ca = num(f, "current_a").filter(|&c| c >= 0.0).map_or(-1, |c| (c * 100.0).round().clamp(-32768.0, 32767.0) as i16);
                 let remaining = num(f, "remaining").filter(|r| (0.0..=1.0).contains(r)).map_or(-1, |r| (r * 100.0).round() as i8);
                 let s = d::SYS_STATUS_DATA { voltage_battery: mv, current_battery: ca, battery_remaining: remaining, ..Default::default() };
-                self.push(MavMessage::SYS_STATUS(s), out);
+                self.syn.push(MavMessage::SYS_STATUS(s), out);
                 let mut voltages = [u16::MAX; 10];
                 voltages[0] = mv;
                 let b = d::BATTERY_STATUS_DATA {
@@ -235,18 +194,18 @@ impl State {
                     battery_remaining: remaining,
                     ..Default::default()
                 };
-                self.push(MavMessage::BATTERY_STATUS(b), out);
+                self.syn.push(MavMessage::BATTERY_STATUS(b), out);
             }
             "airspeed_validated" => {
                 let (Some(air), Some(hdg)) = (num(f, "true_airspeed_m_s"), self.heading_deg) else { return };
                 let ground = self.vel.map_or(0.0, |v| v[0].hypot(v[1]));
                 let m = d::VFR_HUD_DATA { airspeed: air as f32, groundspeed: ground, heading: hdg.round() as i16 % 360, ..Default::default() };
-                self.push(MavMessage::VFR_HUD(m), out);
+                self.syn.push(MavMessage::VFR_HUD(m), out);
             }
             "debug_key_value" => {
                 if let (Some(k), Some(v)) = (text(f, "key"), num(f, "value")) {
                     let m = d::NAMED_VALUE_FLOAT_DATA { time_boot_ms: boot_ms, value: v as f32, name: k.as_str().into() };
-                    self.push(MavMessage::NAMED_VALUE_FLOAT(m), out);
+                    self.syn.push(MavMessage::NAMED_VALUE_FLOAT(m), out);
                 }
             }
             _ => {}
@@ -268,7 +227,7 @@ pub fn decode_ulog(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage
 }
 
 fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
-    let mut s = State::default();
+    let mut s = State { syn: Synth::new(d::MavAutopilot::MAV_AUTOPILOT_PX4, d::MavType::MAV_TYPE_QUADROTOR), ..State::default() };
     let mut out = Vec::with_capacity(bytes.len() / 60);
     let mut params = Vec::new();
     let mut mav_type_param = None;
@@ -284,9 +243,9 @@ fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogEr
                 params.push((p.key, p.value));
             }
             UlogMessage::LoggedData(ld) => {
-                if !s.timed {
+                if !s.syn.timed {
                     // The definitions section is over: the vehicle, then its parameters.
-                    s.mavtype = mav_type(mav_type_param);
+                    s.syn.mavtype = mav_type(mav_type_param);
                     let t = ld.timestamp;
                     s.data(t, &ld.data, stats, &mut out);
                     for (k, v) in std::mem::take(&mut params) {
@@ -299,7 +258,7 @@ fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogEr
             _ => {}
         }
     }
-    if !s.timed {
+    if !s.syn.timed {
         return Err(UlogError::NoMessages);
     }
     Ok(out)

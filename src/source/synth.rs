@@ -1,0 +1,79 @@
+//! What the readers of an autopilot's own log ([`super::dataflash`], [`super::ulog`]) share
+//! in turning its records into the [`TimedMessage`]s a tlog gives: the log's clock (through
+//! [`Clock`], jumps counted), a HEARTBEAT naming the vehicle at 1 Hz of log time, and the
+//! messages' sequence.
+
+use mavlink::MavHeader;
+
+use super::timed::Clock;
+use super::{IngestStats, TimedMessage};
+use crate::dialect as d;
+use crate::MavMessage;
+
+/// The synthesised stream's state.
+#[derive(Default)]
+pub(super) struct Synth {
+    clock: Clock,
+    t_s: f64,
+    /// The log's time, ms, for the messages' `time_boot_ms`.
+    pub boot_ms: u32,
+    /// Whether any record had a time.
+    pub timed: bool,
+    pub autopilot: d::MavAutopilot,
+    pub mavtype: d::MavType,
+    /// The flight mode the log last said, as the HEARTBEAT's `custom_mode`.
+    pub custom_mode: u32,
+    pub armed: bool,
+    next_heartbeat_s: Option<f64>,
+    seq: u8,
+}
+
+impl Synth {
+    pub fn new(autopilot: d::MavAutopilot, mavtype: d::MavType) -> Self {
+        Self { autopilot, mavtype, ..Self::default() }
+    }
+
+    /// One message at the current log time.
+    pub fn push(&mut self, msg: MavMessage, out: &mut Vec<TimedMessage>) {
+        let header = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
+        self.seq = self.seq.wrapping_add(1);
+        out.push(TimedMessage { t_s: self.t_s, header, msg, arrived: std::time::Instant::now() });
+    }
+
+    /// A record stamped `us` (µs of log time): the clock moves (a jump is counted in
+    /// `stats`), and the HEARTBEAT goes out when one is due.
+    pub fn at(&mut self, us: u64, stats: &IngestStats, out: &mut Vec<TimedMessage>) {
+        let (t, jump) = self.clock.map(us as f64 * 1e-6);
+        if jump {
+            IngestStats::add(&stats.gaps, 1);
+            IngestStats::add(&stats.clock_jumps, 1);
+        }
+        self.t_s = t;
+        self.boot_ms = (us / 1000) as u32;
+        self.timed = true;
+        if self.next_heartbeat_s.is_none_or(|n| t >= n) {
+            self.announce(out);
+        }
+    }
+
+    /// A HEARTBEAT now (the mode or arming changed), the next one a second later.
+    pub fn announce(&mut self, out: &mut Vec<TimedMessage>) {
+        self.next_heartbeat_s = Some(self.t_s + 1.0);
+        self.push(self.heartbeat(), out);
+    }
+
+    fn heartbeat(&self) -> MavMessage {
+        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
+        if self.armed {
+            base |= d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
+        }
+        MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
+            custom_mode: self.custom_mode,
+            mavtype: self.mavtype,
+            autopilot: self.autopilot,
+            base_mode: base,
+            system_status: if self.armed { d::MavState::MAV_STATE_ACTIVE } else { d::MavState::MAV_STATE_STANDBY },
+            mavlink_version: 3,
+        })
+    }
+}
