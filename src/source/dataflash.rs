@@ -234,25 +234,9 @@ impl State {
             }
             "BAT" if Self::first(e, "Inst") || Self::first(e, "Instance") => {
                 let Some(volt) = self.f(e, "Volt") else { return };
-                let mv = (volt * 1000.0).round().clamp(0.0, 65534.0) as u16;
-                let ca = self.f(e, "Curr").map_or(-1, |c| (c * 100.0).round().clamp(-32768.0, 32767.0) as i16);
+                let amps = self.f(e, "Curr");
                 let remaining = e.get_f64("RemPct").map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
-                let s = d::SYS_STATUS_DATA { voltage_battery: mv, current_battery: ca, battery_remaining: remaining, ..Default::default() };
-                self.syn.push(MavMessage::SYS_STATUS(s), out);
-                let mut voltages = [u16::MAX; 10];
-                voltages[0] = mv;
-                let b = d::BATTERY_STATUS_DATA {
-                    current_consumed: e.get_f64("CurrTot").map_or(-1, |x| x.round() as i32),
-                    // hJ: 1 Wh = 36 hJ.
-                    energy_consumed: e.get_f64("EnrgTot").map_or(-1, |x| (x * 36.0).round() as i32),
-                    temperature: i16::MAX,
-                    voltages,
-                    current_battery: ca,
-                    id: 0,
-                    battery_remaining: remaining,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::BATTERY_STATUS(b), out);
+                self.syn.battery(volt, amps, remaining, e.get_f64("CurrTot"), e.get_f64("EnrgTot"), out);
             }
             "NVF" => {
                 if let (Some(name), Some(v)) = (e.get_str("Name"), e.get_f64("Value")) {

@@ -62,6 +62,29 @@ impl Synth {
         self.push(self.heartbeat(), out);
     }
 
+    /// The battery as a ground station hears it: SYS_STATUS and BATTERY_STATUS from the
+    /// voltage (V), current (A, when known), remaining % and what was consumed (mAh, Wh).
+    pub fn battery(&mut self, volt: f64, amps: Option<f64>, remaining: i8, consumed_mah: Option<f64>, consumed_wh: Option<f64>, out: &mut Vec<TimedMessage>) {
+        let mv = (volt * 1000.0).round().clamp(0.0, 65534.0) as u16;
+        let ca = amps.map_or(-1, |c| (c * 100.0).round().clamp(-32768.0, 32767.0) as i16);
+        let s = d::SYS_STATUS_DATA { voltage_battery: mv, current_battery: ca, battery_remaining: remaining, ..Default::default() };
+        self.push(MavMessage::SYS_STATUS(s), out);
+        let mut voltages = [u16::MAX; 10];
+        voltages[0] = mv;
+        let b = d::BATTERY_STATUS_DATA {
+            current_consumed: consumed_mah.map_or(-1, |x| x.round() as i32),
+            // hJ: 1 Wh = 36 hJ.
+            energy_consumed: consumed_wh.map_or(-1, |x| (x * 36.0).round() as i32),
+            temperature: i16::MAX,
+            voltages,
+            current_battery: ca,
+            id: 0,
+            battery_remaining: remaining,
+            ..Default::default()
+        };
+        self.push(MavMessage::BATTERY_STATUS(b), out);
+    }
+
     fn heartbeat(&self) -> MavMessage {
         let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
         if self.armed {

@@ -177,24 +177,9 @@ impl State {
             }
             "battery_status" => {
                 let Some(volt) = num(f, "voltage_v") else { return };
-                let mv = (volt * 1000.0).round().clamp(0.0, 65534.0) as u16;
-                let ca = num(f, "current_a").filter(|&c| c >= 0.0).map_or(-1, |c| (c * 100.0).round().clamp(-32768.0, 32767.0) as i16);
+                let amps = num(f, "current_a").filter(|&c| c >= 0.0);
                 let remaining = num(f, "remaining").filter(|r| (0.0..=1.0).contains(r)).map_or(-1, |r| (r * 100.0).round() as i8);
-                let s = d::SYS_STATUS_DATA { voltage_battery: mv, current_battery: ca, battery_remaining: remaining, ..Default::default() };
-                self.syn.push(MavMessage::SYS_STATUS(s), out);
-                let mut voltages = [u16::MAX; 10];
-                voltages[0] = mv;
-                let b = d::BATTERY_STATUS_DATA {
-                    current_consumed: num(f, "discharged_mah").map_or(-1, |x| x.round() as i32),
-                    energy_consumed: -1,
-                    temperature: i16::MAX,
-                    voltages,
-                    current_battery: ca,
-                    id: 0,
-                    battery_remaining: remaining,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::BATTERY_STATUS(b), out);
+                self.syn.battery(volt, amps, remaining, num(f, "discharged_mah"), None, out);
             }
             "airspeed_validated" => {
                 let (Some(air), Some(hdg)) = (num(f, "true_airspeed_m_s"), self.heading_deg) else { return };
