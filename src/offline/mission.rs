@@ -403,6 +403,9 @@ pub struct FlightScore {
     /// Live: where the vehicle was found on the plan at half time (planned time, s) and
     /// the half time itself (from the motors' start, s).
     pub live_plan_t_s: f64,
+    /// The plan's legs as flown on paper: label, start and end (s from take-off), horizontal
+    /// distance (m): where the plan's clock can be set beside the flight's.
+    pub plan_legs: Vec<(String, f64, f64, f64)>,
     pub live_t_s: f64,
     /// Measured ∫V·I, Wh.
     pub measured_wh: f64,
@@ -609,6 +612,7 @@ fn score(p: &Prepared, cal: &Calibration, scale: f64, baseline_w: f64) -> Flight
         planned_s: p.traj.duration_s(),
         airborne_s: p.airborne_s,
         live_plan_t_s: p.live_k as f64 * p.traj.dt_s,
+        plan_legs: p.traj.legs.iter().map(|l| (l.label.clone(), l.t_start_s, l.t_end_s, l.distance_m)).collect(),
         live_t_s: p.live_t_s,
         measured_wh: p.measured_wh,
         models_raw_wh: p.raw.iter().map(|m| (m.name.clone(), m.total_wh)).collect(),
