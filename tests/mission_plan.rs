@@ -84,6 +84,18 @@ fn plan_eval_on_a_subset_forecasts_r1_flights_within_loose_bounds() {
         assert!(f.live_err_pct < 12.0, "flight {}: live error {:.2} %", f.flight, f.live_err_pct);
         assert!(f.p90_wh > f.p50_wh);
     }
+    // the plan's clock runs with the flight's during it, not only in total: at half time
+    // the vehicle is found where the plan has it then (the take-off's ground spin-up and
+    // the measured stops and legs; defaults that matched only the total lagged ~3 s), and
+    // what the plan has left from there is what the flight had left
+    let mut lag: Vec<f64> = r.training_scores.iter().map(|f| (f.live_t_s - f.live_plan_t_s).abs()).collect();
+    let mut left: Vec<f64> = r.training_scores.iter().map(|f| ((f.planned_s - f.live_plan_t_s) - (f.airborne_s - f.live_t_s)).abs()).collect();
+    lag.sort_by(f64::total_cmp);
+    left.sort_by(f64::total_cmp);
+    assert!(lag[lag.len() / 2] < 2.0, "median |lag| at half time {:.2} s", lag[lag.len() / 2]);
+    assert!(left[left.len() / 2] < 2.0, "median |planned − flown time left| {:.2} s", left[left.len() / 2]);
+    let takeoff = &r.test_flights[0].plan_legs[0];
+    assert!(takeoff.0 == "takeoff" && (takeoff.2 - (4.4 + 25.0 / 3.0)).abs() < 0.2, "spin-up then climb to 25 m: {takeoff:?}");
     // the fit on training flights beats the autopilots' rule there, pre-flight and live
     assert!(r.training.preflight_median_err_pct < r.training.baseline_preflight_median_err_pct, "{:?}", r.training);
     assert!(r.training.live_median_err_pct < r.training.baseline_live_median_err_pct, "{:?}", r.training);
