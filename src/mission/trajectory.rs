@@ -15,20 +15,19 @@
 //!   next leg's heading (the turn is the yaw rate `angular_z`), plus the item's hold or
 //!   loiter time;
 //! - **descent** (LAND, RTL): vertical, at `descent_m_s` down to `slow_below_m` above
-//!   home, then `land_m_s` to the ground.
-//!
+//!   home, then `land_m_s` to the ground;
 //! - **spin-up**: before every lift-off the motors run `spinup_s` on the ground (held at
 //!   hover): the M100 spends ~4.4 s between its motors passing 150 W and leaving the ground.
 //!
 //! The defaults are the M100's, each measured on its own on the data set's training flights
 //! (`scripts/measure-kinematics.py`: the 130 R1 training flights whose stops match the
-//! route's three legs; medians): spin-up 4.4 s; climb 2.9 m/s; a stop (horizontal speed
+//! route's three legs; medians): spin-up 4.4 s; climb 2.9 m/s (3.0 kept); a stop (horizontal speed
 //! under 1 m/s between legs) 2.7 s; a leg takes distance/speed plus 0.7, 1.6, 2.3, 3.2,
 //! 4.2 s at 4, 6, 8, 10, 12 m/s — a trapezoid at 3.2 m/s² fits 8–12 m/s, where the energy
 //! is; the last stop and descent 24, 35, 44, 52 s from 25, 50, 75, 100 m (2.7 m/s, then
 //! 1 m/s in the last 20 m). Measured this way, not fitted to the total, the plan's clock
 //! also agrees with the flight's *during* it: where the vehicle is at half time is where
-//! the plan has it (median lag 0.3 s on the training flights, 3.1 s with the earlier
+//! the plan has it (median |lag| 1.2 s on the training flights, 3.1 s with the earlier
 //! defaults that matched only the total), which is what the live forecast's "what is left"
 //! rests on.
 //!
