@@ -177,7 +177,7 @@ pub struct Leg {
     pub item: usize,
     /// What it is, for tables: `takeoff`, `waypoint`, `loiter`, `land`, `rtl`, `not modelled 31`.
     pub label: String,
-    /// Start and end time from take-off, s.
+    /// Start and end time from the motors' start (the take-off's spin-up), s.
     pub t_start_s: f64,
     pub t_end_s: f64,
     /// Horizontal distance flown, m.
@@ -189,7 +189,7 @@ pub struct Leg {
 /// A plan flown on paper.
 #[derive(Debug, Clone)]
 pub struct Trajectory {
-    /// One sample per 1/rate_hz from the start of the climb to touchdown.
+    /// One sample per 1/rate_hz from the motors' start (spin-up) to touchdown.
     pub samples: Vec<Sample>,
     /// East, north, up from home, m, per sample.
     pub enu_m: Vec<[f32; 3]>,
@@ -309,11 +309,12 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
             pos.z = 0.0;
         }
     };
-    // The motors spin up on the ground before every lift-off.
-    let spin_up = |segs: &mut Vec<Segment>, pos: Vector3<f64>, yaw: f64, leg: usize, airborne: bool| {
-        if !airborne && pos.z <= 0.0 {
+    // Leaving the ground: the motors spin up there first.
+    let lift_off = |segs: &mut Vec<Segment>, pos: Vector3<f64>, yaw: f64, leg: usize, airborne: &mut bool| {
+        if !*airborne && pos.z <= 0.0 {
             pause(segs, pos, yaw, yaw, k.spinup_s, leg);
         }
+        *airborne = true;
     };
     let fly_to = |segs: &mut Vec<Segment>, pos: &mut Vector3<f64>, yaw: &mut f64, to: Vector3<f64>, speed: f64, leg: usize| -> f64 {
         let dh = (to - *pos).xy();
@@ -353,19 +354,17 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
                         pos = Vector3::new(t.x, t.y, 0.0);
                     }
                 }
-                spin_up(&mut segs, pos, yaw, leg, airborne);
+                lift_off(&mut segs, pos, yaw, leg, &mut airborne);
                 if alt_m > pos.z {
                     let d = (alt_m - pos.z) / k.climb_m_s;
                     segs.push(Segment { motion: Motion::Vertical { from: pos, z1: alt_m }, duration_s: d, yaw, leg });
                     pos.z = alt_m;
                 }
-                airborne = true;
                 "takeoff".into()
             }
             ItemKind::Waypoint { hold_s } => match target {
                 Some(t) => {
-                    spin_up(&mut segs, pos, yaw, leg, airborne);
-                    airborne = true;
+                    lift_off(&mut segs, pos, yaw, leg, &mut airborne);
                     distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
                     pause(&mut segs, pos, yaw, yaw, hold_s, leg);
                     "waypoint".into()
@@ -374,8 +373,7 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
             },
             ItemKind::LoiterTime { time_s } => {
                 if let Some(t) = target {
-                    spin_up(&mut segs, pos, yaw, leg, airborne);
-                    airborne = true;
+                    lift_off(&mut segs, pos, yaw, leg, &mut airborne);
                     distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
                 }
                 pause(&mut segs, pos, yaw, yaw, time_s, leg);
@@ -397,8 +395,7 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
             }
             ItemKind::NotModelled { command, flown_through } => match (flown_through, target) {
                 (true, Some(t)) => {
-                    spin_up(&mut segs, pos, yaw, leg, airborne);
-                    airborne = true;
+                    lift_off(&mut segs, pos, yaw, leg, &mut airborne);
                     distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
                     format!("not modelled {command}")
                 }

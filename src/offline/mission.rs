@@ -251,7 +251,7 @@ fn plot_plan(path: &Path, title: &str, tr: &Trajectory, f: &MissionForecast, cap
             .x_label_area_size(45)
             .y_label_area_size(70)
             .build_cartesian_2d(0.0..xmax, 0.0..ymax)?;
-        chart.configure_mesh().x_desc("time from take-off (s)").y_desc("energy (Wh)").label_style(("sans-serif", 16)).axis_desc_style(("sans-serif", 18)).draw()?;
+        chart.configure_mesh().x_desc("time from the motors' start (s)").y_desc("energy (Wh)").label_style(("sans-serif", 16)).axis_desc_style(("sans-serif", 18)).draw()?;
         let band: Vec<(f64, f64)> = t.iter().zip(&f.cum_p50_wh).map(|(&x, &e)| (x, e * f.p90_ratio)).chain(t.iter().zip(&f.cum_p50_wh).rev().map(|(&x, &e)| (x, e))).collect();
         chart.draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.2))))?.label("P50–P90").legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLUE.mix(0.2).filled()));
         chart.draw_series(LineSeries::new(t.iter().zip(&f.cum_p50_wh).map(|(&x, &e)| (x, e)), BLUE.stroke_width(2)))?.label("P50").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(3)));
@@ -403,7 +403,7 @@ pub struct FlightScore {
     /// Live: where the vehicle was found on the plan at half time (planned time, s) and
     /// the half time itself (from the motors' start, s).
     pub live_plan_t_s: f64,
-    /// The plan's legs as flown on paper: label, start and end (s from take-off), horizontal
+    /// The plan's legs as flown on paper: label, start and end (s from the motors' start), horizontal
     /// distance (m): where the plan's clock can be set beside the flight's.
     pub plan_legs: Vec<(String, f64, f64, f64)>,
     pub live_t_s: f64,
