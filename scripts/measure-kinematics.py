@@ -8,7 +8,12 @@ stop (last row above 150 W): lift-off (height 0.4 m above the ground), the climb
 first horizontal move (speed over 1 m/s), the stops between legs (speed under 1 m/s for
 more than 0.5 s), the last move and the end. A flight counts when it shows the route's
 three legs (two stops). A leg's distance is the straight line between the stops' positions.
-Standard library only; prints medians."""
+
+The cut at 1 m/s moves the slow ends of every acceleration into the stops: with a
+trapezoid at `a`, a measured leg lasts distance/speed + (v − 2)/a (not + v/a) and a measured
+stop lasts the pause + 2/a, the stop after the climb the pause + 1/a. So `accel_m_s2` is
+fitted by least squares to the legs' extra time over (v − 2) at every speed, and the pause is
+the measured stop less 2/a. Standard library only; prints medians and the fitted defaults."""
 import csv, gzip, math, os, statistics as st, sys
 from collections import defaultdict
 
@@ -80,9 +85,19 @@ print(f"{path}: {used} R1 training flights with the route's three legs (of {len(
 print(f"spin-up (motors on to lift-off)       spinup_s     {st.median(spin):5.2f} s")
 print(f"climb                                 climb_m_s    {1 / st.median(climb_s_per_m):5.2f} m/s")
 print(f"stop after the climb (at 3 m/s)                    {st.median(settle):5.2f} s")
-print(f"stop between legs                     waypoint_pause_s {st.median(stops):5.2f} s")
+print(f"stop between legs (under 1 m/s)                    {st.median(stops):5.2f} s")
 for v in sorted(over):
     o = st.median(over[v])
-    print(f"leg at {v:4.1f} m/s: distance/speed + {o:5.2f} s  (trapezoid: accel_m_s2 = v/extra = {v / o if o > 0 else float('inf'):5.2f})")
+    print(f"leg at {v:4.1f} m/s: distance/speed + {o:5.2f} s  (through the cut, a = (v - 2)/extra = {(v - 2) / o if o > 0 else float('inf'):5.2f})")
+# the trapezoid seen through the 1 m/s cut: extra = (v - 2 u)/a, u = 1 m/s
+U = 1.0
+xs = [(v - 2 * U, st.median(o)) for v, o in over.items()]
+a = sum(x * x for x, _ in xs) / sum(x * y for x, y in xs)
+pause = st.median(stops) - 2 * U / a
+print(f"fitted through the 1 m/s cut:         accel_m_s2   {a:5.2f} m/s² (legs: " + ", ".join(f"{v:.0f} m/s {(v - 2 * U) / a:.2f} s" for v in sorted(over)) + ")")
+print(f"                                      waypoint_pause_s {pause:5.2f} s (stop {st.median(stops):.2f} s less 2/a; after the climb {st.median(settle) - U / a:.2f} s)")
 for h in sorted(tail):
     print(f"last stop and descent from {h:5.0f} m: {st.median(tail[h]):5.1f} s")
+# the tail is the last slow end (1/a), the pause, the descent to 20 m and 20 m at 1 m/s (land_m_s)
+ys = [(h - 20.0, st.median(tl) - U / a - pause - 20.0) for h, tl in tail.items() if h > 20.0]
+print(f"descent above 20 m, least squares:    descent_m_s  {sum(x * x for x, _ in ys) / sum(x * y for x, y in ys):5.2f} m/s")

@@ -100,9 +100,14 @@ fn plan_eval_on_a_subset_forecasts_r1_flights_within_loose_bounds() {
     assert!(r.training.preflight_median_err_pct < r.training.baseline_preflight_median_err_pct, "{:?}", r.training);
     assert!(r.training.live_median_err_pct < r.training.baseline_live_median_err_pct, "{:?}", r.training);
     assert!(r.training.p90_coverage_pct >= 80.0, "{:?}", r.training);
-    // the weighting kept is the one with the smallest training error of those tried
-    let kept = r.bases_fit.iter().find(|(b, _)| *b == r.basis).map(|(_, e)| *e).unwrap();
-    assert!(r.bases_fit.len() >= 2 && r.bases_fit.iter().all(|(_, e)| kept <= *e), "{} of {:?}", r.basis, r.bases_fit);
+    // the model kept is the vehicle's own (`_cal`: its correction cannot follow a published
+    // model onto another vehicle) with the smallest training error, climbing work priced
+    let c = &r.calibration;
+    let kept = r.models_fit.iter().find(|m| m.0 == c.model).map(|m| m.2).unwrap();
+    assert!(c.model.ends_with("_cal") && r.models_fit.iter().filter(|m| m.0.ends_with("_cal")).all(|m| kept <= m.2), "{} of {:?}", c.model, r.models_fit);
+    assert!(r.basis == "vertical work" && c.climb_work[0] > 0.0, "{} {:?}", r.basis, c);
+    // the near ties are each fitted alone and scored: the kept model among them
+    assert!(r.near_ties.iter().any(|t| t.model == c.model && t.test.flights == 2), "{:?}", r.near_ties.iter().map(|t| &t.model).collect::<Vec<_>>());
     assert!(r.calibration.validate().is_ok(), "{:?}", r.calibration);
 }
 

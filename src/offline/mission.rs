@@ -31,8 +31,8 @@
 //! - **baseline** (what autopilots do): mean power since the motors started × the plan's
 //!   remaining time, scored the same way.
 //!
-//! The forecast's correction (model, weighting — per-phase weights, or one weight on the
-//! model's power plus one on the climbing work m·g·v_z ([`BASES`]) — scale, P90 ratio, live
+//! The forecast's correction (model, weighting — one weight on the model's power plus one
+//! on the climbing work m·g·v_z ([`BASES`]) — scale, P90 ratio, live
 //! weight) is fitted on the training flights only (route flights not in [`TEST_FLIGHTS`])
 //! by rolling validation and then applied to the test flights; `--json` writes everything,
 //! the fit and the training flights' own scores included.
@@ -657,16 +657,16 @@ fn phased_wh(p: &Prepared, mi: usize, ks: &Terms) -> f64 {
 
 /// The ways the forecast's [`Terms`] may be weighted, each row one fitted weight shared
 /// by the terms the row sums; `plan-eval` keeps the one with the smallest rolling-
-/// validation error on the training flights:
-/// - `phases`: the model's power weighted by phase (vertical climb, vertical descent, the
-///   rest), no vertical work;
+/// validation error on the training flights. One way today:
 /// - `vertical work`: one weight on the model's power everywhere plus one on the climbing
-///   work m·g·v_z (a slanted climb is forward flight plus a climb: training routes climb
-///   only vertically, R7 climbs on slanted legs).
-pub const BASES: [(&str, &[Terms]); 2] = [
-    ("phases", &[[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0]]),
-    ("vertical work", &[[1.0, 1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0]]),
-];
+///   work m·g·v_z, defined for any climb, vertical or slanted.
+///
+/// A weight per phase (vertical climb, vertical descent, the rest) fits the training
+/// flights as well or slightly better, but says nothing about a slanted climb: every
+/// training route climbs only vertically, so the training flights cannot tell the two
+/// apart on what matters for a new route (R7 climbs on slanted legs), and only the
+/// climbing work carries over. The choice is made on that physics, not on the test flights.
+pub const BASES: [(&str, &[Terms]); 1] = [("vertical work", &[[1.0, 1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0]])];
 
 /// Weights for model `mi`: least squares over the training flights' two halves (energy
 /// to the live point, energy after it), each relative to its measured energy, so the
@@ -710,15 +710,22 @@ fn phase_weights(train: &[Prepared], mi: usize, rows: &[Terms]) -> Terms {
 /// How many recent training flights the correction may be fitted on (0 = all).
 const RECENT_CHOICES: [usize; 5] = [5, 10, 20, 40, 0];
 
-/// Fit the correction on training flights only, by rolling validation: each training
-/// flight is forecast with the correction fitted on the training flights before it
-/// ([`recent_scale`]); the model and the window `k` with the smallest median error win;
+/// Fit the correction on training flights only, by rolling validation, among the
+/// vehicle's own (`_cal`) models when any ran: each training flight is forecast with the
+/// correction fitted on the training flights before it ([`recent_scale`]); the model and the window `k` with the smallest median error win;
 /// the P90 ratio is the 90th percentile of measured over those corrected forecasts; the
 /// live weight the one of 0, ¼, ½, ¾, 1 with the smallest median live error. The scale
 /// kept in the calibration is the one from the latest `k` training flights (for plans
 /// flown after them).
-fn fit(train: &[Prepared]) -> Fitted {
+///
+/// `only`: fit with that model alone (the near ties, [`NEAR_TIE_PCT`]).
+fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
     let names: Vec<String> = train.first().map(|p| p.raw.iter().map(|m| m.name.clone()).collect()).unwrap_or_default();
+    // Only the vehicle's own models (`_cal`: they run only with its calibrated profile) may
+    // carry its correction: a correction of a published model would follow that model onto
+    // every other vehicle (with this vehicle's mass in the climbing work).
+    let own = |n: &str| n.ends_with("_cal");
+    let own_any = only.is_none() && names.iter().any(|n| own(n));
     let mut per_model: Vec<(String, f64, f64)> = names.iter().map(|n| (n.clone(), 0.0, f64::INFINITY)).collect();
     let mut per_basis = Vec::new();
     // (error, basis, model, k, weights)
@@ -726,12 +733,19 @@ fn fit(train: &[Prepared]) -> Fitted {
     for (bi, (basis, rows)) in BASES.iter().enumerate() {
         let mut basis_best = f64::INFINITY;
         for (mi, pm) in per_model.iter_mut().enumerate() {
+            if only.is_some_and(|o| o != mi) {
+                continue;
+            }
+            let may_win = !own_any || own(&names[mi]);
             let ks = phase_weights(train, mi, rows);
             for &k in &RECENT_CHOICES {
                 let mut e: Vec<f64> = train.iter().map(|p| (p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9) - 1.0).abs()).collect();
                 let m = 100.0 * median(&mut e);
                 if m < pm.2 {
                     (pm.1, pm.2) = (k as f64, m);
+                }
+                if !may_win {
+                    continue;
                 }
                 basis_best = basis_best.min(m);
                 if m < best.0 {
@@ -846,6 +860,25 @@ pub struct PlanEvalReport {
     /// the training flights before it).
     pub training_scores: Vec<FlightScore>,
     pub ground_wind: bool,
+    /// The models within [`NEAR_TIE_PCT`] of the best on the training flights, each fitted
+    /// alone and scored on the test flights: how much the test figures owe to a choice the
+    /// training flights cannot make.
+    pub near_ties: Vec<NearTie>,
+}
+
+/// Models whose training error is within this many points of the best are near ties: about
+/// a twentieth of the error itself; the leaders swap places under changes as small as one
+/// kinematics default.
+pub const NEAR_TIE_PCT: f64 = 0.1;
+
+/// One near tie of the fit ([`PlanEvalReport::near_ties`]).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct NearTie {
+    pub model: String,
+    /// Its median error on the training flights (rolling validation), %.
+    pub training_err_pct: f64,
+    /// The test flights forecast with it.
+    pub test: Summary,
 }
 
 /// Options of [`plan_eval`].
@@ -903,14 +936,28 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit } = fit(&prepared_train);
+    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit } = fit(&prepared_train, None);
     let mut mean_w: Vec<f64> = prepared_train.iter().map(|p| p.flight_mean_w).collect();
     let baseline_w = median(&mut mean_w);
-    let mi = prepared_train.first().and_then(|p| p.raw.iter().position(|m| m.name == cal.model)).unwrap_or(0);
-    let sc = |p: &Prepared| score(p, &cal, recent_scale(&prepared_train, mi, &cal.weights(), p.flight, cal.recent_flights), baseline_w);
-    let train_scores: Vec<FlightScore> = prepared_train.iter().map(sc).collect();
-    let test_scores: Vec<FlightScore> = prepared_test.iter().map(sc).collect();
+    let index_of = |name: &str| prepared_train.first().and_then(|p| p.raw.iter().position(|m| m.name == name)).unwrap_or(0);
+    let scores = |cal: &Calibration, set: &[Prepared]| -> Vec<FlightScore> {
+        let mi = index_of(&cal.model);
+        set.iter().map(|p| score(p, cal, recent_scale(&prepared_train, mi, &cal.weights(), p.flight, cal.recent_flights), baseline_w)).collect()
+    };
+    let train_scores = scores(&cal, &prepared_train);
+    let test_scores = scores(&cal, &prepared_test);
+    let best = models_fit.iter().find(|m| m.0 == cal.model).map_or(f64::INFINITY, |m| m.2);
+    let own_any = models_fit.iter().any(|m| m.0.ends_with("_cal"));
+    let near_ties = models_fit
+        .iter()
+        .filter(|m| m.2 <= best + NEAR_TIE_PCT && (!own_any || m.0.ends_with("_cal")))
+        .map(|m| {
+            let c = fit(&prepared_train, Some(index_of(&m.0))).cal;
+            NearTie { model: m.0.clone(), training_err_pct: m.2, test: summarize(&scores(&c, &prepared_test), &c.model) }
+        })
+        .collect();
     Ok(PlanEvalReport {
+        near_ties,
         training: summarize(&train_scores, &cal.model),
         test: summarize(&test_scores, &cal.model),
         calibration: cal,
@@ -991,6 +1038,17 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
             x.baseline_live_median_err_pct,
             x.live_advantage
         );
+    }
+    if r.near_ties.len() > 1 {
+        let _ = writeln!(s, "near ties (within {NEAR_TIE_PCT} points of the best on the training flights, each fitted alone; the fit cannot choose between them):");
+        for t in &r.near_ties {
+            let x = &t.test;
+            let _ = writeln!(
+                s,
+                "  {:<16} training {:.2} % -> test pre-flight median {:.2} % (max {:.2} %, P90 covers {:.0} %), live {:.2} % vs baseline {:.2} %",
+                t.model, t.training_err_pct, x.preflight_median_err_pct, x.preflight_max_err_pct, x.p90_coverage_pct, x.live_median_err_pct, x.baseline_live_median_err_pct
+            );
+        }
     }
     s
 }
