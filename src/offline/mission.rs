@@ -707,6 +707,14 @@ fn phase_weights(train: &[Prepared], mi: usize, rows: &[Terms]) -> Terms {
     }
 }
 
+/// Whether model `name` may carry the fitted correction: only the vehicle's own models
+/// (`_cal`: they run only with its calibrated profile) when any ran, since a correction of a
+/// published model would follow that model onto every other vehicle (with this vehicle's
+/// mass in the climbing work); any model when none of its own ran.
+fn may_carry(name: &str, all: &[String]) -> bool {
+    name.ends_with("_cal") || !all.iter().any(|n| n.ends_with("_cal"))
+}
+
 /// How many recent training flights the correction may be fitted on (0 = all).
 const RECENT_CHOICES: [usize; 5] = [5, 10, 20, 40, 0];
 
@@ -721,11 +729,6 @@ const RECENT_CHOICES: [usize; 5] = [5, 10, 20, 40, 0];
 /// `only`: fit with that model alone (the near ties, [`NEAR_TIE_PCT`]).
 fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
     let names: Vec<String> = train.first().map(|p| p.raw.iter().map(|m| m.name.clone()).collect()).unwrap_or_default();
-    // Only the vehicle's own models (`_cal`: they run only with its calibrated profile) may
-    // carry its correction: a correction of a published model would follow that model onto
-    // every other vehicle (with this vehicle's mass in the climbing work).
-    let own = |n: &str| n.ends_with("_cal");
-    let own_any = only.is_none() && names.iter().any(|n| own(n));
     let mut per_model: Vec<(String, f64, f64)> = names.iter().map(|n| (n.clone(), 0.0, f64::INFINITY)).collect();
     let mut per_basis = Vec::new();
     // (error, basis, model, k, weights)
@@ -736,7 +739,7 @@ fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
             if only.is_some_and(|o| o != mi) {
                 continue;
             }
-            let may_win = !own_any || own(&names[mi]);
+            let may_win = only.is_some() || may_carry(&names[mi], &names);
             let ks = phase_weights(train, mi, rows);
             for &k in &RECENT_CHOICES {
                 let mut e: Vec<f64> = train.iter().map(|p| (p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9) - 1.0).abs()).collect();
@@ -947,10 +950,10 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
     let train_scores = scores(&cal, &prepared_train);
     let test_scores = scores(&cal, &prepared_test);
     let best = models_fit.iter().find(|m| m.0 == cal.model).map_or(f64::INFINITY, |m| m.2);
-    let own_any = models_fit.iter().any(|m| m.0.ends_with("_cal"));
+    let names: Vec<String> = models_fit.iter().map(|m| m.0.clone()).collect();
     let near_ties = models_fit
         .iter()
-        .filter(|m| m.2 <= best + NEAR_TIE_PCT && (!own_any || m.0.ends_with("_cal")))
+        .filter(|m| m.2 <= best + NEAR_TIE_PCT && may_carry(&m.0, &names))
         .map(|m| {
             let c = fit(&prepared_train, Some(index_of(&m.0))).cal;
             NearTie { model: m.0.clone(), training_err_pct: m.2, test: summarize(&scores(&c, &prepared_test), &c.model) }
