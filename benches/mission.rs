@@ -30,12 +30,12 @@ fn bench(c: &mut Criterion) {
     let k = KinematicsConfig::default();
     let cond = Conditions { wind: Wind { speed_m_s: 4.0, from_deg: 250.0 }, payload_g: 250.0, speed_m_s: None, rate_hz: 10.0 };
     let cal = Calibration::default();
-    // The default forecast model is a `_cal` physics model: the calibrated profile's.
+    // The default forecast's members are `_cal` physics models: the calibrated profile's.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/vehicles/m100-calibrated.toml");
     let profile = dronewatt::model::profile::VehicleProfile::load(&path).expect("the shipped calibrated profile");
     let mut models: Vec<Box<dyn PowerModel>> =
-        dronewatt::model::physics::models(&profile).into_iter().filter(|m| m.name() == cal.model).collect();
-    assert_eq!(models.len(), 1, "the default forecast model is a physics model of the published profile or the calibrated one");
+        dronewatt::model::physics::models(&profile).into_iter().filter(|m| cal.members.iter().any(|c| c.model == m.name())).collect();
+    assert_eq!(models.len(), cal.members.len(), "the default forecast's members are physics models of the published profile or the calibrated one");
     let tr = fly(&plan, &k, &cond);
     eprintln!("500 waypoints: {} samples, {:.0} s of flight", tr.samples.len(), tr.duration_s());
     c.bench_function("mission: 500-waypoint plan, fly + forecast", |b| {

@@ -7,20 +7,24 @@
 //!   trajectory (the window ending `target_lag` samples after t, as the model was trained).
 //!   Models run on every `stride`-th sample and the power is held in between: a plan flies
 //!   minutes of steady motion, and 500 waypoints must forecast in milliseconds.
-//! - **P50 power** `P50(t) = k · P_f(t)`: the *forecast model* `f` (the `[forecast.calibration]`
-//!   `model` key) times its correction `k` (`scale`), both fitted on training flights by
+//! - **P50 power**: the mean of the *forecast's members* (`[forecast.calibration] members`),
+//!   each a model `f` times its own correction `k` (`scale`), fitted on training flights by
 //!   `dronewatt plan-eval` as the median of measured ∫V·I over the model's forecast of the
 //!   flight's plan: what the model misses systematically (the plan's own simplifications —
 //!   stop-and-go legs, the rotors' spin-up — and the model's bias) is removed, by flight.
-//!   The power is also weighted by phase (`phase_scale`: vertical climb, vertical
+//!   Each member's power is also weighted by phase (`phase_scale`: vertical climb, vertical
 //!   descent, the rest) and the vertical work rate m·g·v_z added with its own weights
 //!   (`climb_work`, climbing and descending), all fitted on the training flights' halves,
 //!   so that what is left at any point of the plan, not only the whole, is right:
-//!   `P50(t) = k · (w_phase(t) · P_f(t) + w_up · m·g·max(v_z, 0) + w_down · m·g·max(−v_z, 0))`.
+//!   `P_f,k(t) = k · (w_phase(t) · P_f(t) + w_up · m·g·max(v_z, 0) + w_down · m·g·max(−v_z, 0))`,
+//!   `P50(t) = mean over members of P_f,k(t)`.
 //!   The work term is what makes a slanted climb (a leg that climbs while it flies
 //!   forward) cost its climb: forward-flight power plus m·g·v_z over the rotors'
 //!   efficiency, the physics of any climb, where a weight on vertical climbs alone
-//!   would miss it.
+//!   would miss it. Several members: the training flights (one route, nearly all of them)
+//!   cannot rank models whose errors there differ by less than their noise, and models of
+//!   different structure err differently on a route they never flew; their mean hedges
+//!   what no single one of them can be shown to get right.
 //! - **P90 energy** `E90 = r90 · E50` with `r90` (`p90_ratio`) the 90th percentile of
 //!   measured/forecast over the same training flights after the correction: the by-flight
 //!   residual spread, which holds the day-to-day wind, battery temperature and pilot
@@ -41,45 +45,41 @@ use crate::telemetry::idx;
 use crate::model::{PowerModel, Prediction};
 use crate::window::Window;
 
-/// The fitted correction of the forecast (`[forecast.calibration]`).
+/// One model of the forecast with its own fitted correction (an entry of
+/// `[forecast.calibration] members`).
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct Calibration {
-    /// The model whose power, corrected, is the P50 (a name from `dronewatt eval`'s
-    /// table). Default: the one `plan-eval` picked on the training flights.
+pub struct Member {
+    /// The model (a name from `dronewatt eval`'s table).
     pub model: String,
-    /// Multiplier on that model's power (measured over forecast energy, median over the
-    /// training flights). Default: `plan-eval`'s fit.
+    /// Multiplier on its weighted power (measured over forecast energy, median over the
+    /// recent training flights). Default 1.
     pub scale: f64,
-    /// P90 energy over P50 energy (90th percentile of measured over corrected forecast on
-    /// the training flights). Default: `plan-eval`'s fit.
-    pub p90_ratio: f64,
-    /// Weight of the flight's own measured/forecast ratio in a live re-forecast, 0..1.
-    /// Default: `plan-eval`'s choice on the training flights.
-    pub live_weight: f64,
     /// How many recent training flights `plan-eval` fits `scale` on, before each flight
     /// (0 = all); informational here, `scale` is what the forecast uses.
     pub recent_flights: usize,
-    /// Weights on the forecast model's power by phase: vertical climb, vertical descent,
-    /// anything else ([`phase_of`]), fitted by `plan-eval` on the training flights' two
-    /// halves. Default: `plan-eval`'s fit.
+    /// Weights on the model's power by phase: vertical climb, vertical descent, anything
+    /// else ([`phase_of`]), fitted by `plan-eval` on the training flights' two halves.
+    /// Default 1.
     pub phase_scale: [f64; 3],
     /// Weights on the vertical work rate m·g·v_z (W) climbing and descending, added to the
     /// model's power on every sample that moves vertically, slanted legs included
     /// ([`vertical_work_w`]): a climb costs the forward-flight power plus m·g·v_z over the
     /// rotors' efficiency, whatever the horizontal speed. Fitted by `plan-eval` beside
-    /// `phase_scale` (0 = not used). Default: its fit.
+    /// `phase_scale`. Default 0 (not used).
     pub climb_work: [f64; 2],
-    /// The vehicle's mass without payload, kg, that the vertical work is computed with
-    /// (m = `vehicle_kg` + the plan's payload); `climb_work` was fitted with it. Default
-    /// 2.431 (the M100 profile's airframe and TB48D, what `plan-eval` fits with).
-    pub vehicle_kg: f64,
 }
 
-impl Calibration {
-    /// No correction: the model's own power (what `plan-eval` fits from).
-    pub fn uncorrected() -> Self {
-        Self { model: String::new(), scale: 1.0, p90_ratio: 1.0, live_weight: 0.0, recent_flights: 0, phase_scale: [1.0; 3], climb_work: [0.0; 2], vehicle_kg: 2.431 }
+impl Default for Member {
+    fn default() -> Self {
+        Self { model: String::new(), scale: 1.0, recent_flights: 0, phase_scale: [1.0; 3], climb_work: [0.0; 2] }
+    }
+}
+
+impl Member {
+    /// Model `model`, uncorrected.
+    pub fn of(model: &str) -> Self {
+        Self { model: model.to_string(), ..Self::default() }
     }
 
     /// The weights on [model power in vertical climb, vertical descent, the rest, vertical
@@ -88,6 +88,50 @@ impl Calibration {
         let [a, b, c] = self.phase_scale;
         let [d, e] = self.climb_work;
         [a, b, c, d, e]
+    }
+
+    /// Corrected power, W, where the model predicted `w` W in phase `phase` ([`phase_of`])
+    /// with vertical work rates `[up, down]` ([`vertical_work_w`]).
+    fn power_w(&self, w: f64, phase: usize, [up, down]: [f64; 2]) -> f64 {
+        self.scale * (self.phase_scale[phase] * w + self.climb_work[0] * up + self.climb_work[1] * down).max(0.0)
+    }
+}
+
+/// The fitted correction of the forecast (`[forecast.calibration]`).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Calibration {
+    /// The forecast's models, each with its correction; the P50 power is their mean
+    /// (those that run). One member is one model; `plan-eval` keeps every one of the
+    /// vehicle's own models the training flights cannot tell from the best. Default:
+    /// `plan-eval`'s fit.
+    pub members: Vec<Member>,
+    /// P90 energy over P50 energy (90th percentile of measured over corrected forecast on
+    /// the training flights). Default: `plan-eval`'s fit.
+    pub p90_ratio: f64,
+    /// Weight of the flight's own measured/forecast ratio in a live re-forecast, 0..1.
+    /// Default: `plan-eval`'s choice on the training flights.
+    pub live_weight: f64,
+    /// The vehicle's mass without payload, kg, that the vertical work is computed with
+    /// (m = `vehicle_kg` + the plan's payload); `climb_work` was fitted with it. Default
+    /// 2.431 (the M100 profile's airframe and TB48D, what `plan-eval` fits with).
+    pub vehicle_kg: f64,
+}
+
+impl Calibration {
+    /// No correction: the model's own power (what `plan-eval` fits from).
+    pub fn uncorrected(model: &str) -> Self {
+        Self::of(Member::of(model))
+    }
+
+    /// One member, no P90 spread, no live weight.
+    pub fn of(member: Member) -> Self {
+        Self { members: vec![member], p90_ratio: 1.0, live_weight: 0.0, vehicle_kg: 2.431 }
+    }
+
+    /// The members' models joined with " + ".
+    pub fn name(&self) -> String {
+        self.members.iter().map(|m| m.model.as_str()).collect::<Vec<_>>().join(" + ")
     }
 }
 
@@ -121,14 +165,16 @@ impl Default for Calibration {
     fn default() -> Self {
         // Fitted by `dronewatt plan-eval` on the M100 training flights (178 route flights, test
         // flights excluded), with the calibrated profile's physics models.
+        let m = |model: &str, scale: f64, recent_flights: usize, w: f64, up: f64| Member { model: model.into(), scale, recent_flights, phase_scale: [w; 3], climb_work: [up, 0.0] };
         Self {
-            model: "dorling_cal".into(),
-            scale: 0.9983,
-            p90_ratio: 1.0394,
+            members: vec![
+                m("dorling_cal", 0.9983, 20, 0.9739, 1.6593),
+                m("tseng_solo_cal", 0.9909, 40, 0.9670, 1.7320),
+                m("tseng_cal", 0.9987, 20, 1.0042, 1.5432),
+                m("kirschstein_cal", 0.9961, 20, 0.9622, 1.7957),
+            ],
+            p90_ratio: 1.0363,
             live_weight: 0.25,
-            recent_flights: 20,
-            phase_scale: [0.9739, 0.9739, 0.9739],
-            climb_work: [1.6593, 0.0],
             vehicle_kg: 2.431,
         }
     }
@@ -137,20 +183,29 @@ impl Default for Calibration {
 impl Calibration {
     /// Range checks; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
-        if !(self.scale.is_finite() && self.scale > 0.0) {
-            return Err(format!("forecast.calibration.scale = {}: must be > 0", self.scale));
+        if self.members.is_empty() {
+            return Err("forecast.calibration.members: empty; name at least one model".into());
+        }
+        for (i, m) in self.members.iter().enumerate() {
+            let key = format!("forecast.calibration.members[{i}] ({:?})", m.model);
+            if m.model.is_empty() {
+                return Err(format!("{key}: model: missing"));
+            }
+            if !(m.scale.is_finite() && m.scale > 0.0) {
+                return Err(format!("{key}: scale = {}: must be > 0", m.scale));
+            }
+            if !m.climb_work.iter().all(|w| w.is_finite()) {
+                return Err(format!("{key}: climb_work = {:?}: must be numbers", m.climb_work));
+            }
+            if !m.phase_scale.iter().all(|w| w.is_finite() && *w > 0.0) {
+                return Err(format!("{key}: phase_scale = {:?}: must be > 0", m.phase_scale));
+            }
         }
         if !(self.p90_ratio.is_finite() && self.p90_ratio >= 1.0) {
             return Err(format!("forecast.calibration.p90_ratio = {}: must be ≥ 1", self.p90_ratio));
         }
         if !(self.vehicle_kg.is_finite() && self.vehicle_kg > 0.0) {
             return Err(format!("forecast.calibration.vehicle_kg = {}: must be > 0", self.vehicle_kg));
-        }
-        if !self.climb_work.iter().all(|w| w.is_finite()) {
-            return Err(format!("forecast.calibration.climb_work = {:?}: must be numbers", self.climb_work));
-        }
-        if !self.phase_scale.iter().all(|w| w.is_finite() && *w > 0.0) {
-            return Err(format!("forecast.calibration.phase_scale = {:?}: must be > 0", self.phase_scale));
         }
         if !(0.0..=1.0).contains(&self.live_weight) {
             return Err(format!("forecast.calibration.live_weight = {}: must be in [0, 1]", self.live_weight));
@@ -181,7 +236,7 @@ pub struct LegForecast {
 /// A plan's energy forecast.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct MissionForecast {
-    /// The forecast model (P50 = its power × `scale`).
+    /// The forecast's models (P50 = the mean of their corrected power), joined with " + ".
     pub model: String,
     /// Every model that ran, with its own uncorrected energy for the whole plan, Wh.
     pub models_raw_wh: Vec<(String, f64)>,
@@ -211,8 +266,9 @@ pub struct MissionForecast {
 const BATCH: usize = 512;
 
 /// Run `models` on `traj` and integrate. `window_t` is the window length T, `stride` the
-/// sample step at which models run (≥ 1). The model named by `cal.model` gives the P50
-/// (when it did not run, the first model that did: its name is in the result).
+/// sample step at which models run (≥ 1). The mean of the calibration's members gives the
+/// P50 (those that ran; when none did, the first model that ran, uncorrected: the names
+/// are in the result).
 pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Calibration, window_t: usize, stride: usize) -> MissionForecast {
     let n = traj.samples.len();
     let stride = stride.max(1);
@@ -268,17 +324,23 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
 fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration) -> MissionForecast {
     let dt_h = traj.dt_s / 3600.0;
     let models_raw_wh: Vec<(String, f64)> = powers.iter().map(|(n, p)| (n.clone(), p.iter().map(|&w| f64::from(w)).sum::<f64>() * dt_h)).collect();
-    let chosen = powers.iter().find(|(n, _)| *n == cal.model).or_else(|| powers.first());
-    let (model, p) = match chosen {
-        Some((n, p)) => (n.clone(), p.as_slice()),
-        None => (String::from("none"), &[][..]),
-    };
-    let mut cum = Vec::with_capacity(p.len());
+    // the members that ran; none: the first model that ran, uncorrected
+    let mut picked: Vec<(&Member, &[f32])> = cal.members.iter().filter_map(|m| powers.iter().find(|(n, _)| *n == m.model).map(|(_, p)| (m, p.as_slice()))).collect();
+    let fallback;
+    if picked.is_empty() {
+        if let Some((n, p)) = powers.first() {
+            fallback = Member::of(n);
+            picked.push((&fallback, p.as_slice()));
+        }
+    }
+    let model = if picked.is_empty() { String::from("none") } else { picked.iter().map(|(m, _)| m.model.as_str()).collect::<Vec<_>>().join(" + ") };
+    let share = 1.0 / picked.len().max(1) as f64;
+    let mut cum = Vec::with_capacity(traj.samples.len());
     let mut e = 0.0;
-    for (s, &w) in traj.samples.iter().zip(p) {
-        let [up, down] = vertical_work_w(s, cal.vehicle_kg);
-        let p = cal.phase_scale[phase_of(s)] * f64::from(w) + cal.climb_work[0] * up + cal.climb_work[1] * down;
-        e += cal.scale * p.max(0.0) * dt_h;
+    for (j, s) in traj.samples.iter().enumerate() {
+        let (phase, work) = (phase_of(s), vertical_work_w(s, cal.vehicle_kg));
+        let p: f64 = picked.iter().map(|(m, p)| m.power_w(f64::from(p[j]), phase, work)).sum();
+        e += share * p * dt_h;
         cum.push(e);
     }
     let at = |i: usize| if i == 0 { 0.0 } else { cum.get(i - 1).copied().unwrap_or(e) };
@@ -383,7 +445,7 @@ mod tests {
 
     #[test]
     fn energy_adds_up_and_grows_with_payload_and_wind() {
-        let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, ..Calibration::uncorrected() };
+        let cal = Calibration { p90_ratio: 1.1, ..Calibration::uncorrected("dandrea") };
         let f = run(0.0, Wind::default(), &cal);
         assert_eq!(f.model, "dandrea");
         let legs: f64 = f.legs.iter().map(|l| l.energy_p50_wh).sum();
@@ -395,7 +457,7 @@ mod tests {
         assert!(heavy.energy_p50_wh > f.energy_p50_wh * 1.02, "payload costs energy");
         let windy = run(0.0, "8@0".parse().unwrap(), &cal);
         assert!(windy.energy_p50_wh > f.energy_p50_wh, "wind costs energy");
-        let scaled = run(0.0, Wind::default(), &Calibration { scale: 1.2, ..cal.clone() });
+        let scaled = run(0.0, Wind::default(), &Calibration { members: vec![Member { scale: 1.2, ..Member::of("dandrea") }], ..cal.clone() });
         assert!((scaled.energy_p50_wh / f.energy_p50_wh - 1.2).abs() < 1e-9);
     }
 
@@ -428,7 +490,7 @@ mod tests {
         assert!(n / stride > 2 * BATCH, "{n} samples: more windows than two batches");
         let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
         models.push(Box::new(WholeWindow));
-        let cal = Calibration { model: "whole_window".into(), ..Calibration::uncorrected() };
+        let cal = Calibration::uncorrected("whole_window");
         let f = forecast(&tr, &mut models, &cal, t, stride);
         let last = models.len() - 1;
         for (mi, m) in models.iter_mut().enumerate() {
@@ -481,9 +543,9 @@ mod tests {
         let slanted = tr.samples.iter().filter(|s| s.features[idx::VZ] > 0.5 && s.features[idx::VX].hypot(s.features[idx::VY]) > 1.0).count();
         assert!(slanted as f64 * tr.dt_s > 30.0, "the leg north climbs while it flies: {slanted} samples");
         let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
-        let base = Calibration { model: "tseng_solo".into(), scale: 0.97, ..Calibration::uncorrected() };
+        let base = Calibration::of(Member { scale: 0.97, ..Member::of("tseng_solo") });
         let w = 2.5;
-        let with = Calibration { climb_work: [w, 0.0], ..base.clone() };
+        let with = Calibration::of(Member { scale: 0.97, climb_work: [w, 0.0], ..Member::of("tseng_solo") });
         let f0 = forecast(&tr, &mut models, &base, 10, 5);
         let f1 = forecast(&tr, &mut models, &with, 10, 5);
         let m = base.vehicle_kg + 0.5;
@@ -504,21 +566,48 @@ mod tests {
     #[test]
     fn the_calibration_table_reads_its_documented_keys_and_names_a_bad_one() {
         // the README's block: plan-eval's fit, the defaults
-        let text = "model = \"dorling_cal\"\nscale = 0.9983\np90_ratio = 1.0394\nlive_weight = 0.25\nrecent_flights = 20\n\
-                    phase_scale = [0.9739, 0.9739, 0.9739]\nclimb_work = [1.6593, 0.0]\nvehicle_kg = 2.431\n";
+        let text = "p90_ratio = 1.0363\nlive_weight = 0.25\nvehicle_kg = 2.431\nmembers = [\n\
+                    { model = \"dorling_cal\", scale = 0.9983, recent_flights = 20, phase_scale = [0.9739, 0.9739, 0.9739], climb_work = [1.6593, 0.0] },\n\
+                    { model = \"tseng_solo_cal\", scale = 0.9909, recent_flights = 40, phase_scale = [0.9670, 0.9670, 0.9670], climb_work = [1.7320, 0.0] },\n\
+                    { model = \"tseng_cal\", scale = 0.9987, recent_flights = 20, phase_scale = [1.0042, 1.0042, 1.0042], climb_work = [1.5432, 0.0] },\n\
+                    { model = \"kirschstein_cal\", scale = 0.9961, recent_flights = 20, phase_scale = [0.9622, 0.9622, 0.9622], climb_work = [1.7957, 0.0] },\n]\n";
         let c: Calibration = toml::from_str(text).unwrap();
         assert_eq!(c, Calibration::default());
-        let old: Calibration = toml::from_str("phase_scale = [1.3111, 0.9514, 0.9654]").unwrap();
-        assert_eq!(old.climb_work, Calibration::default().climb_work, "a key left out keeps its default");
-        let e = toml::from_str::<Calibration>("climb_weight = 2").unwrap_err().to_string();
+        let one: Calibration = toml::from_str("members = [{ model = \"tseng\" }]").unwrap();
+        assert_eq!(one.members, vec![Member::of("tseng")], "a key left out keeps its default");
+        assert_eq!(one.p90_ratio, Calibration::default().p90_ratio);
+        let e = toml::from_str::<Calibration>("model = \"tseng\"").unwrap_err().to_string();
+        assert!(e.contains("model"), "{e}");
+        let e = toml::from_str::<Calibration>("members = [{ model = \"tseng\", climb_weight = 2 }]").unwrap_err().to_string();
         assert!(e.contains("climb_weight"), "{e}");
-        let bad = Calibration { climb_work: [f64::NAN, 0.0], ..Calibration::default() };
-        assert!(bad.validate().unwrap_err().contains("forecast.calibration.climb_work"));
+        let mut bad = Calibration::default();
+        bad.members[2].climb_work = [f64::NAN, 0.0];
+        let e = bad.validate().unwrap_err();
+        assert!(e.contains("forecast.calibration.members[2] (\"tseng_cal\"): climb_work"), "{e}");
+        assert!(Calibration { members: vec![], ..Calibration::default() }.validate().unwrap_err().contains("members: empty"));
+    }
+
+    #[test]
+    fn the_p50_is_the_mean_of_the_members_that_ran() {
+        let single = |m: Member| run(0.0, Wind::default(), &Calibration::of(m)).energy_p50_wh;
+        let a = Member { scale: 0.9, climb_work: [1.5, 0.0], ..Member::of("dandrea") };
+        let b = Member { scale: 1.1, phase_scale: [1.2, 0.8, 1.0], ..Member::of("tseng") };
+        let both = run(0.0, Wind::default(), &Calibration { members: vec![a.clone(), b.clone()], ..Calibration::uncorrected("") });
+        assert_eq!(both.model, "dandrea + tseng");
+        assert!((both.energy_p50_wh - 0.5 * (single(a.clone()) + single(b))).abs() < 1e-9);
+        // a member whose model did not run is left out, not counted as zero
+        let with_ghost = run(0.0, Wind::default(), &Calibration { members: vec![a.clone(), Member::of("no_such_model")], ..Calibration::uncorrected("") });
+        assert_eq!(with_ghost.model, "dandrea");
+        assert!((with_ghost.energy_p50_wh - single(a)).abs() < 1e-9);
+        // none ran: the first model that did, uncorrected
+        let none = run(0.0, Wind::default(), &Calibration::uncorrected("no_such_model"));
+        assert_eq!(none.model, crate::model::physics::models(&crate::model::profile::VehicleProfile::m100())[0].name());
+        assert!(none.energy_p50_wh > 0.0);
     }
 
     #[test]
     fn the_live_reforecast_reads_what_is_left() {
-        let cal = Calibration { model: "dandrea".into(), p90_ratio: 1.1, live_weight: 1.0, ..Calibration::uncorrected() };
+        let cal = Calibration { p90_ratio: 1.1, live_weight: 1.0, ..Calibration::uncorrected("dandrea") };
         let f = run(0.0, Wind::default(), &cal);
         let n = f.cum_p50_wh.len();
         let r0 = f.remaining_from(0, None, 1.0);

@@ -54,8 +54,9 @@ pub const STATUS_DEPTH: usize = 1024;
 pub struct LiveSetup {
     /// `[forecast]`: kinematics and calibration.
     pub forecast: super::ForecastConfig,
-    /// The power models the forecast runs (the calibration's model among them for the
-    /// fitted P50; else the first one's power, uncorrected, and a warning).
+    /// The power models the forecast may run (the calibration's members among them for the
+    /// fitted P50: those missing are left out with a warning; with none, the first one's
+    /// power, uncorrected).
     pub models: Vec<Box<dyn PowerModel>>,
     /// Sample rate, Hz, and window length T of the models.
     pub rate_hz: f64,
@@ -213,20 +214,29 @@ impl LiveMission {
             tracing::warn!("{source}: the mission flies nowhere (no take-off, no waypoint); no mission forecast");
             return None;
         }
-        // The fitted correction belongs to its model: without that model, none (the P90
-        // ratio, the by-flight spread, still applies).
-        // Only the P50's model runs: live, nothing reads the others.
+        // Each fitted correction belongs to its model: the members that do not run are left
+        // out; with none of them, no correction (the P90 ratio, the by-flight spread, still
+        // applies). Only the members' models run: live, nothing reads the others.
         let fitted = &self.setup.forecast.calibration;
-        let (i, cal) = match self.setup.models.iter().position(|m| m.name() == fitted.model) {
-            Some(i) => (i, fitted.clone()),
-            None => {
-                let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
-                tracing::warn!("mission forecast: model {:?} does not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected", fitted.model);
-                (0, super::forecast::Calibration { model: first, p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected() })
+        let runs = |name: &str| self.setup.models.iter().any(|m| m.name() == name);
+        let missing: Vec<&str> = fitted.members.iter().map(|m| m.model.as_str()).filter(|n| !runs(n)).collect();
+        let cal = if missing.len() < fitted.members.len() {
+            if !missing.is_empty() {
+                tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile?); the P50 is the mean of the others");
             }
+            super::forecast::Calibration { members: fitted.members.iter().filter(|m| runs(&m.model)).cloned().collect(), ..fitted.clone() }
+        } else {
+            let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
+            tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected");
+            super::forecast::Calibration { p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected(&first) }
         };
-        let model = self.setup.models.get_mut(i..=i).unwrap_or_default();
-        let f = forecast(&traj, model, &cal, self.setup.window, super::MODEL_STRIDE);
+        // only the members run (the slice `forecast` is given); the models' order is restored after
+        let (ran, rest): (Vec<_>, Vec<_>) = std::mem::take(&mut self.setup.models).into_iter().enumerate().partition(|(_, m)| cal.members.iter().any(|c| c.model == m.name()));
+        let (order, mut members): (Vec<usize>, Vec<_>) = ran.into_iter().unzip();
+        let f = forecast(&traj, &mut members, &cal, self.setup.window, super::MODEL_STRIDE);
+        let mut back: Vec<_> = order.into_iter().zip(members).chain(rest).collect();
+        back.sort_by_key(|(i, _)| *i);
+        self.setup.models = back.into_iter().map(|(_, m)| m).collect();
         tracing::info!(
             "{source}: {items} items, {:.0} m, {:.0} s, {:.1} Wh (P50), {:.1} Wh (P90) with the return and landing, wind {:.1} m/s from {:.0}°",
             f.distance_m,

@@ -28,21 +28,24 @@
 //!   `AIRBORNE_W`), the flight's own first half is replayed (position tracked along the
 //!   plan with [`Trajectory::locate`], the measured energy so far known) and the rest of
 //!   the plan forecast from there; scored against the measured energy of the rest;
-//! - **baseline** (what autopilots do): mean power since the motors started × the plan's
-//!   remaining time, scored the same way.
+//! - **baseline** (what autopilots do): mean power since the motors started × the time
+//!   left, scored the same way, with two clocks: the ground station's (QGroundControl's
+//!   mission time, [`gcs_left_s`], the only one a pilot has today) and dronewatt's own (the
+//!   plan's time left as flown on paper, which isolates the power model).
 //!
-//! The forecast's correction (model, weighting — one weight on the model's power plus one
-//! on the climbing work m·g·v_z ([`BASES`]) — scale, P90 ratio, live
-//! weight) is fitted on the training flights only (route flights not in [`TEST_FLIGHTS`])
-//! by rolling validation and then applied to the test flights; `--json` writes everything,
-//! the fit and the training flights' own scores included.
+//! The forecast's correction (its members — the vehicle's own models that tie for the best
+//! fit, each with its weighting: one weight on the model's power plus one on the climbing
+//! work m·g·v_z ([`BASES`]), and its scale — the P90 ratio, the live weight) is fitted on the
+//! training flights only (route flights not in [`TEST_FLIGHTS`]) by rolling validation and
+//! then applied to the test flights; `--json` writes everything, the fit and the training
+//! flights' own scores included.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
 use crate::config::Config;
-use crate::mission::forecast::{forecast, Calibration, MissionForecast};
+use crate::mission::forecast::{forecast, Calibration, Member, MissionForecast};
 use crate::mission::plan::{GeoPoint, Plan};
 use crate::mission::trajectory::{enu_of, fly, Conditions, Trajectory, Wind};
 use crate::model::profile::VehicleProfile;
@@ -172,8 +175,9 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     }
     let mut models = models_for(&cfg, &a.calibrated)?;
     let f = forecast(&tr, &mut models, &cfg.forecast.calibration, cfg.telemetry.window, crate::mission::MODEL_STRIDE);
-    if f.model != cfg.forecast.calibration.model {
-        tracing::warn!("forecast model {:?} did not run; the P50 follows {:?} uncorrected by its fit", cfg.forecast.calibration.model, f.model);
+    let wanted = cfg.forecast.calibration.name();
+    if f.model != wanted {
+        tracing::warn!("forecast models {wanted:?} did not all run; the P50 follows {:?}", f.model);
     }
     // Offline no vehicle answers: the configured capacity, else the default (said in the log).
     let battery = crate::vehicle::battery_from_config(&cfg.energy.battery());
@@ -208,7 +212,7 @@ fn plan_table(r: &PlanReport) -> String {
     let f = r.forecast;
     let mut s = String::new();
     let _ = writeln!(s, "{}: {} items, {:.1} m/s, payload {:.0} g, wind {:.1} m/s from {:.0}°", r.plan, r.items, r.speed_m_s, r.payload_g, r.wind.speed_m_s, r.wind.from_deg);
-    let _ = writeln!(s, "forecast model: {} (P90 = {:.3} × P50)", f.model, f.p90_ratio);
+    let _ = writeln!(s, "P50: {} (P90 = {:.3} × P50)", if f.model.contains(" + ") { format!("the mean of {}", f.model) } else { f.model.clone() }, f.p90_ratio);
     let _ = writeln!(s, "{:>4} {:<18} {:>8} {:>8} {:>9} {:>9}", "item", "leg", "time s", "dist m", "P50 Wh", "P90 Wh");
     for l in &f.legs {
         let _ = writeln!(s, "{:>4} {:<18} {:>8.1} {:>8.0} {:>9.2} {:>9.2}", l.item, l.label, l.duration_s, l.distance_m, l.energy_p50_wh, l.energy_p90_wh);
@@ -428,6 +432,11 @@ pub struct FlightScore {
     pub live_err_pct: f64,
     pub baseline_rest_wh: f64,
     pub baseline_err_pct: f64,
+    /// Live baseline with the ground station's clock: mean power so far × QGroundControl's
+    /// mission time left ([`gcs_left_s`]), Wh, and its error, %.
+    pub gcs_left_s: f64,
+    pub baseline_gcs_rest_wh: f64,
+    pub baseline_gcs_err_pct: f64,
     /// Pre-flight baseline: the training flights' median mean power × the planned time, Wh.
     pub baseline_preflight_wh: f64,
     pub baseline_preflight_err_pct: f64,
@@ -473,6 +482,8 @@ struct Prepared {
     /// Live: the trajectory sample reached at half time, energy measured so far, energy
     /// measured after, mean power since the motors started.
     live_k: usize,
+    /// The ground station's mission time left from the live point ([`gcs_left_s`]), s.
+    live_gcs_left_s: f64,
     live_so_far_wh: f64,
     /// Energy measured from take-off (first row above `AIRBORNE_W`) to the live point, Wh.
     live_airborne_so_far_wh: f64,
@@ -491,7 +502,7 @@ fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config, models: &m
     let traj = fly(&plan, &cfg.forecast.kinematics, &cond);
     let mut fcs = Vec::new();
     for m in models.iter_mut() {
-        let cal = Calibration { model: m.name().to_string(), ..Calibration::uncorrected() };
+        let cal = Calibration::uncorrected(m.name());
         fcs.push(forecast(&traj, std::slice::from_mut(m), &cal, cfg.telemetry.window, crate::mission::MODEL_STRIDE));
     }
     // measured energy, cumulative by row (rectangle rule to the next row)
@@ -534,6 +545,7 @@ fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config, models: &m
             ModelRaw { name: fc.model.clone(), total_wh: fc.energy_p50_wh, first_wh, rest_wh, planned_left_s: fc.remaining_from(k, None, 0.0).time_s }
         })
         .collect();
+    let gcs_left = gcs_left_s(&traj, k, f.speed_m_s, &cfg.forecast.kinematics);
     let span = rows[ih].time_s - rows[i0].time_s;
     let live_mean_w = if span > 0.0 { (cum[ih] - cum[i0]) * 3600.0 / span } else { 0.0 };
     let air_s = rows[i1].time_s - rows[i0].time_s;
@@ -552,6 +564,7 @@ fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config, models: &m
         traj,
         raw,
         live_k: k,
+        live_gcs_left_s: gcs_left,
         live_so_far_wh: so_far,
         live_airborne_so_far_wh: cum[ih] - cum[i0],
         live_rest_wh: measured_wh - so_far,
@@ -560,6 +573,36 @@ fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config, models: &m
         live_t_s: span,
         flight_mean_w,
     })
+}
+
+/// QGroundControl's mission time for what is left of `traj` from sample `k`, s: the rule of
+/// its plan view (`MissionController`), which is the only mission clock a pilot has today:
+/// horizontal distance at the plan's speed, the take-off's height at the ascent speed, the
+/// final descent at the descent speed, holds (`loiter` legs) at their length; no
+/// accelerations, stops or spin-up, and a leg's climb or descent costs no time. The ascent
+/// and descent speeds are the vehicle's own (`climb_m_s`, `descent_m_s`), kinder to the
+/// baseline than QGroundControl's offline defaults.
+fn gcs_left_s(traj: &Trajectory, k: usize, speed_m_s: f64, kin: &crate::mission::trajectory::KinematicsConfig) -> f64 {
+    let n = traj.enu_m.len();
+    if k + 1 >= n {
+        return 0.0;
+    }
+    let horizontal: f64 = traj.enu_m[k..].windows(2).map(|w| f64::from(w[1][0] - w[0][0]).hypot(f64::from(w[1][1] - w[0][1]))).sum();
+    let z = |j: usize| f64::from(traj.enu_m[j.min(n - 1)][2]);
+    let leg_at = traj.leg_of.get(k).map_or(0, |&l| l as usize);
+    let mut t = horizontal / speed_m_s.max(0.1);
+    for (i, l) in traj.legs.iter().enumerate().skip(leg_at) {
+        let from = if i == leg_at { k } else { l.samples.start };
+        let label = l.label.as_str();
+        if label == "takeoff" {
+            t += (z(l.samples.end.saturating_sub(1)) - z(from)).max(0.0) / kin.climb_m_s.max(0.1);
+        } else if label == "rtl" || label.starts_with("land") {
+            t += z(from).max(0.0) / kin.descent_m_s.max(0.1);
+        } else if label == "loiter" {
+            t += l.samples.end.saturating_sub(from) as f64 * traj.dt_s;
+        }
+    }
+    t
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -585,18 +628,28 @@ fn quantile(v: &mut [f64], q: f64) -> f64 {
     v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
 }
 
-fn score(p: &Prepared, cal: &Calibration, scale: f64, baseline_w: f64) -> FlightScore {
-    let m = p.raw.iter().find(|m| m.name == cal.model).unwrap_or(&p.raw[0]);
-    let ks = &cal.weights();
-    let done = scale * dot5(ks, &m.first_wh);
-    let mut left = scale * dot5(ks, &m.rest_wh);
+/// Flight `p` forecast with `cal`, each member `i` with the scale `scales[i]` (the one
+/// fitted before the flight) in place of its own.
+fn score(p: &Prepared, cal: &Calibration, scales: &[f64], baseline_w: f64) -> FlightScore {
+    let (mut done, mut left, mut n) = (0.0f64, 0.0f64, 0.0f64);
+    let mut planned_left_s = 0.0;
+    for (c, scale) in cal.members.iter().zip(scales) {
+        let Some(m) = p.raw.iter().find(|m| m.name == c.model) else { continue };
+        let ks = c.weights();
+        done += scale * dot5(&ks, &m.first_wh);
+        left += scale * dot5(&ks, &m.rest_wh);
+        planned_left_s = m.planned_left_s;
+        n += 1.0;
+    }
+    let (done, mut left) = (done / n.max(1.0), left / n.max(1.0));
     let p50 = done + left;
     let p90 = p50 * cal.p90_ratio;
     if done > 0.05 * p50 && p.live_so_far_wh > 0.0 {
         let s = (p.live_so_far_wh / done).clamp(0.8, 1.25);
         left *= 1.0 + cal.live_weight * (s - 1.0);
     }
-    let baseline = p.live_mean_w * m.planned_left_s / 3600.0;
+    let baseline = p.live_mean_w * planned_left_s / 3600.0;
+    let baseline_gcs = p.live_mean_w * p.live_gcs_left_s / 3600.0;
     let err = |f: f64, m: f64| 100.0 * (f - m).abs() / m.max(1e-9);
     let baseline_preflight_wh = baseline_w * p.traj.duration_s() / 3600.0;
     FlightScore {
@@ -628,6 +681,9 @@ fn score(p: &Prepared, cal: &Calibration, scale: f64, baseline_w: f64) -> Flight
         live_err_pct: err(left, p.live_rest_wh),
         baseline_rest_wh: baseline,
         baseline_err_pct: err(baseline, p.live_rest_wh),
+        gcs_left_s: p.live_gcs_left_s,
+        baseline_gcs_rest_wh: baseline_gcs,
+        baseline_gcs_err_pct: err(baseline_gcs, p.live_rest_wh),
         baseline_preflight_wh,
         baseline_preflight_err_pct: err(baseline_preflight_wh, p.measured_wh),
     }
@@ -718,72 +774,138 @@ fn may_carry(name: &str, all: &[String]) -> bool {
 /// How many recent training flights the correction may be fitted on (0 = all).
 const RECENT_CHOICES: [usize; 5] = [5, 10, 20, 40, 0];
 
-/// Fit the correction on training flights only, by rolling validation, among the
-/// vehicle's own (`_cal`) models when any ran: each training flight is forecast with the
-/// correction fitted on the training flights before it ([`recent_scale`]); the model and the window `k` with the smallest median error win;
-/// the P90 ratio is the 90th percentile of measured over those corrected forecasts; the
-/// live weight the one of 0, ¼, ½, ¾, 1 with the smallest median live error. The scale
-/// kept in the calibration is the one from the latest `k` training flights (for plans
-/// flown after them).
-///
-/// `only`: fit with that model alone (the near ties, [`NEAR_TIE_PCT`]).
-fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
-    let names: Vec<String> = train.first().map(|p| p.raw.iter().map(|m| m.name.clone()).collect()).unwrap_or_default();
-    let mut per_model: Vec<(String, f64, f64)> = names.iter().map(|n| (n.clone(), 0.0, f64::INFINITY)).collect();
-    let mut per_basis = Vec::new();
-    // (error, basis, model, k, weights)
-    let mut best: (f64, usize, usize, usize, Terms) = (f64::INFINITY, 0, 0, 0, [1.0, 1.0, 1.0, 0.0, 0.0]);
-    for (bi, (basis, rows)) in BASES.iter().enumerate() {
-        let mut basis_best = f64::INFINITY;
-        for (mi, pm) in per_model.iter_mut().enumerate() {
-            if only.is_some_and(|o| o != mi) {
-                continue;
-            }
-            let may_win = only.is_some() || may_carry(&names[mi], &names);
-            let ks = phase_weights(train, mi, rows);
-            for &k in &RECENT_CHOICES {
-                let mut e: Vec<f64> = train.iter().map(|p| (p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9) - 1.0).abs()).collect();
-                let m = 100.0 * median(&mut e);
-                if m < pm.2 {
-                    (pm.1, pm.2) = (k as f64, m);
-                }
-                if !may_win {
-                    continue;
-                }
-                basis_best = basis_best.min(m);
-                if m < best.0 {
-                    best = (m, bi, mi, k, ks);
-                }
-            }
+/// Model `mi`'s member fitted with weighting `rows`: the weights by least squares on the
+/// halves ([`phase_weights`]), the window `k` of recent flights with the smallest median
+/// rolling-validation error, and the scale from the latest `k` training flights (for plans
+/// flown after them). Also each training flight's rolling error, %.
+fn fit_member(train: &[Prepared], mi: usize, rows: &[Terms]) -> (Member, Vec<f64>) {
+    let ks = phase_weights(train, mi, rows);
+    let mut best: (f64, usize, Vec<f64>) = (f64::INFINITY, 0, Vec::new());
+    for &k in &RECENT_CHOICES {
+        let e: Vec<f64> = train.iter().map(|p| 100.0 * (p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9) - 1.0).abs()).collect();
+        let m = median(&mut e.clone());
+        if m < best.0 {
+            best = (m, k, e);
         }
-        per_basis.push((basis.to_string(), basis_best));
     }
-    let (_, bi, mi, k, ks) = best;
-    let mut res: Vec<f64> = train.iter().map(|p| p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9)).collect();
-    let p90_ratio = quantile(&mut res, 0.9).max(1.0);
+    let (_, k, e) = best;
     let latest = train.iter().map(|p| p.flight).max().unwrap_or(0) + 1;
-    let scale = recent_scale(train, mi, &ks, latest, k);
-    let mut cal = Calibration {
-        model: names.get(mi).cloned().unwrap_or_default(),
-        scale,
-        p90_ratio,
-        live_weight: 0.0,
-        recent_flights: k,
-        phase_scale: [ks[0], ks[1], ks[2]],
-        climb_work: [ks[3], ks[4]],
-        vehicle_kg: VehicleProfile::m100().mass_kg(0.0),
-    };
+    let name = train.first().map_or(String::new(), |p| p.raw[mi].name.clone());
+    let member = Member { model: name, scale: recent_scale(train, mi, &ks, latest, k), recent_flights: k, phase_scale: [ks[0], ks[1], ks[2]], climb_work: [ks[3], ks[4]] };
+    (member, e)
+}
+
+/// Each member's scale for flight `flight`: fitted on the training flights before it.
+fn rolling_scales(train: &[Prepared], cal: &Calibration, flight: u32) -> Vec<f64> {
+    let index = |name: &str| train.first().and_then(|p| p.raw.iter().position(|m| m.name == name));
+    cal.members.iter().map(|c| index(&c.model).map_or(c.scale, |mi| recent_scale(train, mi, &c.weights(), flight, c.recent_flights))).collect()
+}
+
+/// The P90 ratio and live weight for `members`, from the training flights forecast with
+/// the members' rolling scales: the 90th percentile of measured over forecast, and the
+/// live weight of 0, ¼, ½, ¾, 1 with the smallest median live error.
+fn finish(train: &[Prepared], members: Vec<Member>) -> Calibration {
+    let mut cal = Calibration { members, vehicle_kg: VehicleProfile::m100().mass_kg(0.0), ..Calibration::uncorrected("") };
+    let scales: Vec<Vec<f64>> = train.iter().map(|p| rolling_scales(train, &cal, p.flight)).collect();
+    let mut res: Vec<f64> = train.iter().zip(&scales).map(|(p, sc)| p.measured_wh / score(p, &cal, sc, 0.0).p50_wh.max(1e-9)).collect();
+    cal.p90_ratio = quantile(&mut res, 0.9).max(1.0);
     let mut best_w = (f64::INFINITY, 0.0);
     for w in [0.0, 0.25, 0.5, 0.75, 1.0] {
         cal.live_weight = w;
-        let mut e: Vec<f64> = train.iter().map(|p| score(p, &cal, recent_scale(train, mi, &ks, p.flight, k), 0.0).live_err_pct).collect();
+        let mut e: Vec<f64> = train.iter().zip(&scales).map(|(p, sc)| score(p, &cal, sc, 0.0).live_err_pct).collect();
         let m = median(&mut e);
         if m < best_w.0 {
             best_w = (m, w);
         }
     }
     cal.live_weight = best_w.1;
-    Fitted { cal, basis: BASES[bi].0.to_string(), per_model, per_basis }
+    cal
+}
+
+/// Paired bootstrap resamples of the training flights in [`tie_share`].
+const BOOTSTRAP: usize = 4000;
+/// A model ties with the best when its median error is no larger than the best's in at
+/// least this share of the resamples (a one-sided 5 % test cannot tell them apart).
+const TIE_SHARE: f64 = 0.05;
+
+/// How far errors `e` (per training flight, %) tie with the best's `best`: resample the
+/// flights with replacement, both models on the same flights, and return the share of
+/// resamples in which `e`'s median is no larger (a tie from [`TIE_SHARE`] up). Seeded: the
+/// same flights give the same answer.
+fn tie_share(e: &[f64], best: &[f64]) -> f64 {
+    use rand::{Rng, SeedableRng};
+    let n = e.len().min(best.len());
+    if n == 0 {
+        return 0.0;
+    }
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0x64_77_61_74_74);
+    let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+    let mut no_worse = 0usize;
+    for _ in 0..BOOTSTRAP {
+        for j in 0..n {
+            let i = rng.random_range(0..n);
+            (a[j], b[j]) = (e[i], best[i]);
+        }
+        if median(&mut a) <= median(&mut b) {
+            no_worse += 1;
+        }
+    }
+    no_worse as f64 / BOOTSTRAP as f64
+}
+
+/// Fit the correction on training flights only, by rolling validation: each training
+/// flight is forecast with the correction fitted on the training flights before it
+/// ([`recent_scale`]). Every model gets its member ([`fit_member`]); the best of the
+/// vehicle's own (`_cal`) models, when any ran ([`may_carry`]), and every one of them that
+/// ties with it ([`tie_share`]) are the members, ordered by error; then their P90 ratio and
+/// live weight ([`finish`]).
+///
+/// Why a tie is kept rather than decided: nearly every training flight flies one route, so
+/// a model's small lead there is noise (the leaders swapped under a change as small as one
+/// kinematics default) and says nothing of a route none of them flew, where models of
+/// different structure err differently; their mean hedges that.
+///
+/// `only`: fit with that model alone (each member scored alone in the report).
+fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
+    let names: Vec<String> = train.first().map(|p| p.raw.iter().map(|m| m.name.clone()).collect()).unwrap_or_default();
+    let mut per_model: Vec<(String, f64, f64)> = names.iter().map(|n| (n.clone(), 0.0, f64::INFINITY)).collect();
+    let mut per_basis = Vec::new();
+    // (best error, basis, its candidates)
+    let mut best: (f64, usize, Vec<Candidate>) = (f64::INFINITY, 0, Vec::new());
+    for (bi, (basis, rows)) in BASES.iter().enumerate() {
+        let mut cands = Vec::new();
+        for (mi, pm) in per_model.iter_mut().enumerate() {
+            if only.is_some_and(|o| o != mi) {
+                continue;
+            }
+            let (member, e) = fit_member(train, mi, rows);
+            let m = median(&mut e.clone());
+            if m < pm.2 {
+                (pm.1, pm.2) = (member.recent_flights as f64, m);
+            }
+            if only.is_some() || may_carry(&names[mi], &names) {
+                cands.push(Candidate { err: m, member, errors: e });
+            }
+        }
+        cands.sort_by(|a, b| a.err.total_cmp(&b.err));
+        let basis_best = cands.first().map_or(f64::INFINITY, |c| c.err);
+        per_basis.push((basis.to_string(), basis_best));
+        if basis_best < best.0 {
+            best = (basis_best, bi, cands);
+        }
+    }
+    let (_, bi, cands) = best;
+    let lead = cands.first().map(|c| c.errors.clone()).unwrap_or_default();
+    let ties: Vec<(String, f64)> = cands.iter().map(|c| (c.member.model.clone(), tie_share(&c.errors, &lead))).collect();
+    let members: Vec<Member> = cands.into_iter().zip(&ties).filter(|(_, t)| t.1 >= TIE_SHARE).map(|(c, _)| c.member).collect();
+    Fitted { cal: finish(train, members), basis: BASES[bi].0.to_string(), per_model, per_basis, ties }
+}
+
+/// A model's member and its median and per-flight rolling errors (%), a candidate of [`fit`].
+struct Candidate {
+    err: f64,
+    member: Member,
+    errors: Vec<f64>,
 }
 
 /// What [`fit`] found.
@@ -795,6 +917,8 @@ struct Fitted {
     per_model: Vec<(String, f64, f64)>,
     /// Per basis: its best median error (%), any model.
     per_basis: Vec<(String, f64)>,
+    /// Per candidate model of the basis kept: its [`tie_share`] with the best.
+    ties: Vec<(String, f64)>,
 }
 
 /// Summary of one set of flights.
@@ -808,6 +932,10 @@ pub struct Summary {
     pub baseline_live_median_err_pct: f64,
     /// Baseline's median live error over dronewatt's.
     pub live_advantage: f64,
+    /// The live baseline with the ground station's clock ([`gcs_left_s`]): median error, %,
+    /// and over dronewatt's.
+    pub baseline_gcs_live_median_err_pct: f64,
+    pub live_advantage_gcs: f64,
     /// The forecast model's uncorrected median pre-flight error, %.
     pub preflight_uncorrected_median_err_pct: f64,
     /// Pre-flight baseline (training flights' median mean power × planned time): median error, %.
@@ -816,16 +944,21 @@ pub struct Summary {
     pub preflight_advantage: f64,
 }
 
-fn summarize(s: &[FlightScore], model: &str) -> Summary {
+fn summarize(s: &[FlightScore], cal: &Calibration) -> Summary {
     let mut pre: Vec<f64> = s.iter().map(|x| x.preflight_err_pct).collect();
     let mut live: Vec<f64> = s.iter().map(|x| x.live_err_pct).collect();
     let mut base: Vec<f64> = s.iter().map(|x| x.baseline_err_pct).collect();
+    // the members' own power, uncorrected, their mean
     let mut raw: Vec<f64> = s
         .iter()
-        .filter_map(|x| x.models_raw_wh.iter().find(|(n, _)| n == model).map(|(_, e)| 100.0 * (e - x.measured_wh).abs() / x.measured_wh))
+        .filter_map(|x| {
+            let e: Vec<f64> = cal.members.iter().filter_map(|c| x.models_raw_wh.iter().find(|(n, _)| *n == c.model).map(|(_, e)| *e)).collect();
+            (!e.is_empty()).then(|| 100.0 * (e.iter().sum::<f64>() / e.len() as f64 - x.measured_wh).abs() / x.measured_wh)
+        })
         .collect();
     let live_m = median(&mut live);
     let base_m = median(&mut base);
+    let base_gcs_m = median(&mut s.iter().map(|x| x.baseline_gcs_err_pct).collect::<Vec<_>>());
     let mut base_pre: Vec<f64> = s.iter().map(|x| x.baseline_preflight_err_pct).collect();
     let pre_m = median(&mut pre);
     let base_pre_m = median(&mut base_pre);
@@ -837,6 +970,8 @@ fn summarize(s: &[FlightScore], model: &str) -> Summary {
         live_median_err_pct: live_m,
         baseline_live_median_err_pct: base_m,
         live_advantage: base_m / live_m.max(1e-9),
+        baseline_gcs_live_median_err_pct: base_gcs_m,
+        live_advantage_gcs: base_gcs_m / live_m.max(1e-9),
         preflight_uncorrected_median_err_pct: median(&mut raw),
         baseline_preflight_median_err_pct: base_pre_m,
         preflight_advantage: base_pre_m / pre_m.max(1e-9),
@@ -863,24 +998,20 @@ pub struct PlanEvalReport {
     /// the training flights before it).
     pub training_scores: Vec<FlightScore>,
     pub ground_wind: bool,
-    /// The models within [`NEAR_TIE_PCT`] of the best on the training flights, each fitted
-    /// alone and scored on the test flights: how much the test figures owe to a choice the
-    /// training flights cannot make.
-    pub near_ties: Vec<NearTie>,
+    /// The calibration's members, each fitted and scored alone: what the mean owes to each.
+    pub members_alone: Vec<Alone>,
 }
 
-/// Models whose training error is within this many points of the best are near ties: about
-/// a twentieth of the error itself; the leaders swap places under changes as small as one
-/// kinematics default.
-pub const NEAR_TIE_PCT: f64 = 0.1;
-
-/// One near tie of the fit ([`PlanEvalReport::near_ties`]).
+/// One member of the fit forecasting alone ([`PlanEvalReport::members_alone`]).
 #[derive(Debug, Clone, serde::Serialize)]
-pub struct NearTie {
+pub struct Alone {
     pub model: String,
     /// Its median error on the training flights (rolling validation), %.
     pub training_err_pct: f64,
-    /// The test flights forecast with it.
+    /// Share of the paired resamples of the training flights in which its median error is
+    /// no larger than the best's ([`tie_share`]), %.
+    pub tie_share_pct: f64,
+    /// The test flights forecast with it alone.
     pub test: Summary,
 }
 
@@ -939,30 +1070,30 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit } = fit(&prepared_train, None);
+    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit, ties } = fit(&prepared_train, None);
     let mut mean_w: Vec<f64> = prepared_train.iter().map(|p| p.flight_mean_w).collect();
     let baseline_w = median(&mut mean_w);
-    let index_of = |name: &str| prepared_train.first().and_then(|p| p.raw.iter().position(|m| m.name == name)).unwrap_or(0);
-    let scores = |cal: &Calibration, set: &[Prepared]| -> Vec<FlightScore> {
-        let mi = index_of(&cal.model);
-        set.iter().map(|p| score(p, cal, recent_scale(&prepared_train, mi, &cal.weights(), p.flight, cal.recent_flights), baseline_w)).collect()
-    };
+    let scores = |cal: &Calibration, set: &[Prepared]| -> Vec<FlightScore> { set.iter().map(|p| score(p, cal, &rolling_scales(&prepared_train, cal, p.flight), baseline_w)).collect() };
     let train_scores = scores(&cal, &prepared_train);
     let test_scores = scores(&cal, &prepared_test);
-    let best = models_fit.iter().find(|m| m.0 == cal.model).map_or(f64::INFINITY, |m| m.2);
-    let names: Vec<String> = models_fit.iter().map(|m| m.0.clone()).collect();
-    let near_ties = models_fit
-        .iter()
-        .filter(|m| m.2 <= best + NEAR_TIE_PCT && may_carry(&m.0, &names))
-        .map(|m| {
-            let c = fit(&prepared_train, Some(index_of(&m.0))).cal;
-            NearTie { model: m.0.clone(), training_err_pct: m.2, test: summarize(&scores(&c, &prepared_test), &c.model) }
-        })
-        .collect();
+    let index_of = |name: &str| prepared_train.first().and_then(|p| p.raw.iter().position(|m| m.name == name)).unwrap_or(0);
+    let members_alone = if cal.members.len() > 1 {
+        cal.members
+            .iter()
+            .map(|c| {
+                let one = fit(&prepared_train, Some(index_of(&c.model))).cal;
+                let training_err_pct = models_fit.iter().find(|m| m.0 == c.model).map_or(f64::NAN, |m| m.2);
+                let tie_share_pct = 100.0 * ties.iter().find(|t| t.0 == c.model).map_or(f64::NAN, |t| t.1);
+                Alone { model: c.model.clone(), training_err_pct, tie_share_pct, test: summarize(&scores(&one, &prepared_test), &one) }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     Ok(PlanEvalReport {
-        near_ties,
-        training: summarize(&train_scores, &cal.model),
-        test: summarize(&test_scores, &cal.model),
+        members_alone,
+        training: summarize(&train_scores, &cal),
+        test: summarize(&test_scores, &cal),
         calibration: cal,
         models_fit,
         basis,
@@ -981,31 +1112,32 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
     let c = &r.calibration;
     let _ = writeln!(
         s,
-        "fitted on {} training flights: forecast model {}, weighting {:?} ({}), phase weights climb/descent/other {:.3}/{:.3}/{:.3}, vertical work up/down {:.3}/{:.3}, × (median measured/forecast of the {} training flights before each flight; latest {:.4}), P90 = {:.4} × P50, live weight {:.2}{}",
+        "fitted on {} training flights: weighting {:?} ({}), P90 = {:.4} × P50, live weight {:.2}{}; the P50 is the mean of {} member(s):",
         r.training_flights.len(),
-        c.model,
         r.basis,
         r.bases_fit.iter().map(|(b, e)| format!("{b} {e:.2} %")).collect::<Vec<_>>().join(", "),
-        c.phase_scale[0],
-        c.phase_scale[1],
-        c.phase_scale[2],
-        c.climb_work[0],
-        c.climb_work[1],
-        c.recent_flights,
-        c.scale,
         c.p90_ratio,
         c.live_weight,
-        if r.ground_wind { ", ground wind" } else { ", calm air" }
+        if r.ground_wind { ", ground wind" } else { ", calm air" },
+        c.members.len()
     );
+    for m in &c.members {
+        let err = r.models_fit.iter().find(|x| x.0 == m.model).map_or(f64::NAN, |x| x.2);
+        let _ = writeln!(
+            s,
+            "  {:<16} training {:.2} %: power × {:.3}/{:.3}/{:.3} (climb/descent/other) + vertical work × {:.3}/{:.3} (up/down), × {:.4} (median measured/forecast of the {} training flights before each flight; latest)",
+            m.model, err, m.phase_scale[0], m.phase_scale[1], m.phase_scale[2], m.climb_work[0], m.climb_work[1], m.scale, m.recent_flights
+        );
+    }
     let _ = writeln!(
         s,
-        "{:>6} {:<5} {:>5} {:>6} {:<12} {:>5} {:>6} {:>6} {:>8} {:>8} {:>8} {:>7} {:>4} {:>8} {:>8} {:>7} {:>8} {:>7}",
-        "flight", "route", "m/s", "g", "alt", "geom", "meas s", "plan s", "meas Wh", "P50 Wh", "P90 Wh", "err %", "P90", "rest Wh", "fc Wh", "err %", "base Wh", "err %"
+        "{:>6} {:<5} {:>5} {:>6} {:<12} {:>5} {:>6} {:>6} {:>8} {:>8} {:>8} {:>7} {:>4} {:>8} {:>8} {:>7} {:>8} {:>7} {:>8} {:>7}",
+        "flight", "route", "m/s", "g", "alt", "geom", "meas s", "plan s", "meas Wh", "P50 Wh", "P90 Wh", "err %", "P90", "rest Wh", "fc Wh", "err %", "gcs Wh", "err %", "base Wh", "err %"
     );
     for f in &r.test_flights {
         let _ = writeln!(
             s,
-            "{:>6} {:<5} {:>5.1} {:>6.0} {:<12} {:>5} {:>6.0} {:>6.0} {:>8.2} {:>8.2} {:>8.2} {:>7.2} {:>4} {:>8.2} {:>8.2} {:>7.2} {:>8.2} {:>7.2}",
+            "{:>6} {:<5} {:>5.1} {:>6.0} {:<12} {:>5} {:>6.0} {:>6.0} {:>8.2} {:>8.2} {:>8.2} {:>7.2} {:>4} {:>8.2} {:>8.2} {:>7.2} {:>8.2} {:>7.2} {:>8.2} {:>7.2}",
             f.flight,
             f.route,
             f.speed_m_s,
@@ -1022,6 +1154,8 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
             f.live_measured_rest_wh,
             f.live_forecast_rest_wh,
             f.live_err_pct,
+            f.baseline_gcs_rest_wh,
+            f.baseline_gcs_err_pct,
             f.baseline_rest_wh,
             f.baseline_err_pct
         );
@@ -1029,7 +1163,7 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
     for (name, x) in [("test", &r.test), ("training", &r.training)] {
         let _ = writeln!(
             s,
-            "{name} ({} flights): pre-flight median {:.2} % (max {:.2} %; uncorrected model {:.2} %; baseline {:.2} %, {:.1}× better), P90 covers {:.0} %; live at 50 %: median {:.2} % vs baseline {:.2} % ({:.1}× better)",
+            "{name} ({} flights): pre-flight median {:.2} % (max {:.2} %; uncorrected model {:.2} %; baseline {:.2} %, {:.1}× better), P90 covers {:.0} %; live at 50 %: median {:.2} % vs baseline {:.2} % with the ground station's clock ({:.1}× better), {:.2} % with dronewatt's ({:.1}×)",
             x.flights,
             x.preflight_median_err_pct,
             x.preflight_max_err_pct,
@@ -1038,18 +1172,20 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
             x.preflight_advantage,
             x.p90_coverage_pct,
             x.live_median_err_pct,
+            x.baseline_gcs_live_median_err_pct,
+            x.live_advantage_gcs,
             x.baseline_live_median_err_pct,
             x.live_advantage
         );
     }
-    if r.near_ties.len() > 1 {
-        let _ = writeln!(s, "near ties (within {NEAR_TIE_PCT} points of the best on the training flights, each fitted alone; the fit cannot choose between them):");
-        for t in &r.near_ties {
+    if !r.members_alone.is_empty() {
+        let _ = writeln!(s, "the members alone (each ties with the best on the training flights: no larger median error in ≥ {:.0} % of {BOOTSTRAP} paired resamples), each fitted and scored by itself:", 100.0 * TIE_SHARE);
+        for t in &r.members_alone {
             let x = &t.test;
             let _ = writeln!(
                 s,
-                "  {:<16} training {:.2} % -> test pre-flight median {:.2} % (max {:.2} %, P90 covers {:.0} %), live {:.2} % vs baseline {:.2} %",
-                t.model, t.training_err_pct, x.preflight_median_err_pct, x.preflight_max_err_pct, x.p90_coverage_pct, x.live_median_err_pct, x.baseline_live_median_err_pct
+                "  {:<16} training {:.2} % (no larger than the best's in {:.0} % of resamples) -> test pre-flight median {:.2} % (max {:.2} %, P90 covers {:.0} %), live {:.2} % vs baseline {:.2} %",
+                t.model, t.training_err_pct, t.tie_share_pct, x.preflight_median_err_pct, x.preflight_max_err_pct, x.p90_coverage_pct, x.live_median_err_pct, x.baseline_live_median_err_pct
             );
         }
     }
