@@ -133,6 +133,38 @@ impl Calibration {
     pub fn name(&self) -> String {
         self.members.iter().map(|m| m.model.as_str()).collect::<Vec<_>>().join(" + ")
     }
+
+    /// Range checks; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.members.is_empty() {
+            return Err("forecast.calibration.members: empty; name at least one model".into());
+        }
+        for (i, m) in self.members.iter().enumerate() {
+            let key = format!("forecast.calibration.members[{i}] ({:?})", m.model);
+            if m.model.is_empty() {
+                return Err(format!("{key}: model: missing"));
+            }
+            if !(m.scale.is_finite() && m.scale > 0.0) {
+                return Err(format!("{key}: scale = {}: must be > 0", m.scale));
+            }
+            if !m.climb_work.iter().all(|w| w.is_finite()) {
+                return Err(format!("{key}: climb_work = {:?}: must be numbers", m.climb_work));
+            }
+            if !m.phase_scale.iter().all(|w| w.is_finite() && *w > 0.0) {
+                return Err(format!("{key}: phase_scale = {:?}: must be > 0", m.phase_scale));
+            }
+        }
+        if !(self.p90_ratio.is_finite() && self.p90_ratio >= 1.0) {
+            return Err(format!("forecast.calibration.p90_ratio = {}: must be ≥ 1", self.p90_ratio));
+        }
+        if !(self.vehicle_kg.is_finite() && self.vehicle_kg > 0.0) {
+            return Err(format!("forecast.calibration.vehicle_kg = {}: must be > 0", self.vehicle_kg));
+        }
+        if !(0.0..=1.0).contains(&self.live_weight) {
+            return Err(format!("forecast.calibration.live_weight = {}: must be in [0, 1]", self.live_weight));
+        }
+        Ok(())
+    }
 }
 
 /// Phase of a trajectory sample for [`Calibration::phase_scale`]: 0 vertical climb, 1
@@ -180,39 +212,6 @@ impl Default for Calibration {
     }
 }
 
-impl Calibration {
-    /// Range checks; the message names the key.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.members.is_empty() {
-            return Err("forecast.calibration.members: empty; name at least one model".into());
-        }
-        for (i, m) in self.members.iter().enumerate() {
-            let key = format!("forecast.calibration.members[{i}] ({:?})", m.model);
-            if m.model.is_empty() {
-                return Err(format!("{key}: model: missing"));
-            }
-            if !(m.scale.is_finite() && m.scale > 0.0) {
-                return Err(format!("{key}: scale = {}: must be > 0", m.scale));
-            }
-            if !m.climb_work.iter().all(|w| w.is_finite()) {
-                return Err(format!("{key}: climb_work = {:?}: must be numbers", m.climb_work));
-            }
-            if !m.phase_scale.iter().all(|w| w.is_finite() && *w > 0.0) {
-                return Err(format!("{key}: phase_scale = {:?}: must be > 0", m.phase_scale));
-            }
-        }
-        if !(self.p90_ratio.is_finite() && self.p90_ratio >= 1.0) {
-            return Err(format!("forecast.calibration.p90_ratio = {}: must be ≥ 1", self.p90_ratio));
-        }
-        if !(self.vehicle_kg.is_finite() && self.vehicle_kg > 0.0) {
-            return Err(format!("forecast.calibration.vehicle_kg = {}: must be > 0", self.vehicle_kg));
-        }
-        if !(0.0..=1.0).contains(&self.live_weight) {
-            return Err(format!("forecast.calibration.live_weight = {}: must be in [0, 1]", self.live_weight));
-        }
-        Ok(())
-    }
-}
 
 /// One leg's forecast.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

@@ -777,8 +777,8 @@ const RECENT_CHOICES: [usize; 5] = [5, 10, 20, 40, 0];
 /// Model `mi`'s member fitted with weighting `rows`: the weights by least squares on the
 /// halves ([`phase_weights`]), the window `k` of recent flights with the smallest median
 /// rolling-validation error, and the scale from the latest `k` training flights (for plans
-/// flown after them). Also each training flight's rolling error, %.
-fn fit_member(train: &[Prepared], mi: usize, rows: &[Terms]) -> (Member, Vec<f64>) {
+/// flown after them). Also the candidate it makes: its median and per-flight rolling errors.
+fn fit_member(train: &[Prepared], mi: usize, rows: &[Terms]) -> Candidate {
     let ks = phase_weights(train, mi, rows);
     let mut best: (f64, usize, Vec<f64>) = (f64::INFINITY, 0, Vec::new());
     for &k in &RECENT_CHOICES {
@@ -788,11 +788,11 @@ fn fit_member(train: &[Prepared], mi: usize, rows: &[Terms]) -> (Member, Vec<f64
             best = (m, k, e);
         }
     }
-    let (_, k, e) = best;
+    let (err, k, errors) = best;
     let latest = train.iter().map(|p| p.flight).max().unwrap_or(0) + 1;
     let name = train.first().map_or(String::new(), |p| p.raw[mi].name.clone());
     let member = Member { model: name, scale: recent_scale(train, mi, &ks, latest, k), recent_flights: k, phase_scale: [ks[0], ks[1], ks[2]], climb_work: [ks[3], ks[4]] };
-    (member, e)
+    Candidate { err, member, errors }
 }
 
 /// Each member's scale for flight `flight`: fitted on the training flights before it.
@@ -805,7 +805,7 @@ fn rolling_scales(train: &[Prepared], cal: &Calibration, flight: u32) -> Vec<f64
 /// the members' rolling scales: the 90th percentile of measured over forecast, and the
 /// live weight of 0, ¼, ½, ¾, 1 with the smallest median live error.
 fn finish(train: &[Prepared], members: Vec<Member>) -> Calibration {
-    let mut cal = Calibration { members, vehicle_kg: VehicleProfile::m100().mass_kg(0.0), ..Calibration::uncorrected("") };
+    let mut cal = Calibration { members, p90_ratio: 1.0, live_weight: 0.0, vehicle_kg: VehicleProfile::m100().mass_kg(0.0) };
     let scales: Vec<Vec<f64>> = train.iter().map(|p| rolling_scales(train, &cal, p.flight)).collect();
     let mut res: Vec<f64> = train.iter().zip(&scales).map(|(p, sc)| p.measured_wh / score(p, &cal, sc, 0.0).p50_wh.max(1e-9)).collect();
     cal.p90_ratio = quantile(&mut res, 0.9).max(1.0);
@@ -878,13 +878,12 @@ fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
             if only.is_some_and(|o| o != mi) {
                 continue;
             }
-            let (member, e) = fit_member(train, mi, rows);
-            let m = median(&mut e.clone());
-            if m < pm.2 {
-                (pm.1, pm.2) = (member.recent_flights as f64, m);
+            let c = fit_member(train, mi, rows);
+            if c.err < pm.2 {
+                (pm.1, pm.2) = (c.member.recent_flights as f64, c.err);
             }
             if only.is_some() || may_carry(&names[mi], &names) {
-                cands.push(Candidate { err: m, member, errors: e });
+                cands.push(c);
             }
         }
         cands.sort_by(|a, b| a.err.total_cmp(&b.err));
