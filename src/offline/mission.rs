@@ -864,9 +864,7 @@ fn tie_share(e: &[f64], best: &[f64]) -> f64 {
 /// a model's small lead there is noise (the leaders swapped under a change as small as one
 /// kinematics default) and says nothing of a route none of them flew, where models of
 /// different structure err differently; their mean hedges that.
-///
-/// `only`: fit with that model alone (each member scored alone in the report).
-fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
+fn fit(train: &[Prepared]) -> Fitted {
     let names: Vec<String> = train.first().map(|p| p.raw.iter().map(|m| m.name.clone()).collect()).unwrap_or_default();
     let mut per_model: Vec<(String, f64, f64)> = names.iter().map(|n| (n.clone(), 0.0, f64::INFINITY)).collect();
     let mut per_basis = Vec::new();
@@ -875,14 +873,11 @@ fn fit(train: &[Prepared], only: Option<usize>) -> Fitted {
     for (bi, (basis, rows)) in BASES.iter().enumerate() {
         let mut cands = Vec::new();
         for (mi, pm) in per_model.iter_mut().enumerate() {
-            if only.is_some_and(|o| o != mi) {
-                continue;
-            }
             let c = fit_member(train, mi, rows);
             if c.err < pm.2 {
                 (pm.1, pm.2) = (c.member.recent_flights as f64, c.err);
             }
-            if only.is_some() || may_carry(&names[mi], &names) {
+            if may_carry(&names[mi], &names) {
                 cands.push(c);
             }
         }
@@ -1069,18 +1064,18 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit, ties } = fit(&prepared_train, None);
+    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit, ties } = fit(&prepared_train);
     let mut mean_w: Vec<f64> = prepared_train.iter().map(|p| p.flight_mean_w).collect();
     let baseline_w = median(&mut mean_w);
     let scores = |cal: &Calibration, set: &[Prepared]| -> Vec<FlightScore> { set.iter().map(|p| score(p, cal, &rolling_scales(&prepared_train, cal, p.flight), baseline_w)).collect() };
     let train_scores = scores(&cal, &prepared_train);
     let test_scores = scores(&cal, &prepared_test);
-    let index_of = |name: &str| prepared_train.first().and_then(|p| p.raw.iter().position(|m| m.name == name)).unwrap_or(0);
+    // each member alone: the member as the fit made it, with its own P90 ratio and live weight
     let members_alone = if cal.members.len() > 1 {
         cal.members
             .iter()
             .map(|c| {
-                let one = fit(&prepared_train, Some(index_of(&c.model))).cal;
+                let one = finish(&prepared_train, vec![c.clone()]);
                 let training_err_pct = models_fit.iter().find(|m| m.0 == c.model).map_or(f64::NAN, |m| m.2);
                 let tie_share_pct = 100.0 * ties.iter().find(|t| t.0 == c.model).map_or(f64::NAN, |t| t.1);
                 Alone { model: c.model.clone(), training_err_pct, tie_share_pct, test: summarize(&scores(&one, &prepared_test), &one) }
