@@ -5,7 +5,7 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::model::physics::{Kind, PhysicsModel};
 use dronewatt::model::profile::VehicleProfile;
 use dronewatt::telemetry::{idx, Sample, N_FEATURES};
-use dronewatt::window::Window;
+use dronewatt::telemetry::window::Window;
 
 fn cruise_window() -> Window {
     let samples = (0..10)

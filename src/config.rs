@@ -32,7 +32,7 @@ pub struct Config {
     pub link: crate::source::signing::LinkConfig,
     /// Many vehicles on one link: when a silent vehicle is lost and dropped, which system
     /// ids this instance watches.
-    pub fleet: crate::fleet::FleetConfig,
+    pub fleet: crate::source::fleet::FleetConfig,
 }
 
 /// A configuration error that names the file, the key and why.

@@ -6,68 +6,61 @@
 //! ## One path, one direction
 //!
 //! ```text
-//!  source ──TimedMessage──▶ telemetry ──Window──▶ inference ──Estimate──▶ energy + alerts ──Report──▶ sinks
-//!  (link, tlog, raw,         (state, frames,        (physics ×6,            (used, remaining,          (terminal, jsonl,
-//!   dataset csv, sim)         resample → Sample,      lstm, byo model)        home margin, rules)        mavlink, web)
-//!                             ring of T → Window)
+//!  source ──TimedMessage──▶ telemetry ──Window──▶ model ──Estimate──▶ energy + alert ──Report──▶ sink
+//!  (link, tlog, raw,         (state, frames,        (physics ×7,         (used, remaining,          (terminal, jsonl,
+//!   DataFlash, ULog,          resample → Sample,      lstm, byo model,     home and mission           mavlink, web, mqtt)
+//!   dataset csv)              ring of T → Window)     adaptation)          margin, rules)
 //! ```
 //!
 //! Live monitoring, replay and evaluation walk this same path: [`pipeline::VehicleChain`]
 //! is one vehicle's stages, run as tasks live ([`pipeline::run`]) or in one loop offline
-//! ([`pipeline::VehicleChain::push`]), so live and offline cannot drift apart. Each arrow is
-//! one typed value on a bounded tokio channel. Nothing flows backwards; the only fan-out is
-//! to the sinks. Model code ([`model`]) is pure: a window and a vehicle profile in, watts
-//! out, no I/O and no clocks.
+//! ([`offline::chain`]), so live and offline cannot drift apart. Each arrow is one typed
+//! value on a bounded tokio channel. Nothing flows backwards; the only fan-out is to the
+//! sinks. Model code ([`model`]) is pure: a window and a vehicle profile in, watts out, no
+//! I/O and no clocks.
 //!
 //! ## Modules
 //!
-//! The floor (imports nothing of ours but the floor): [`features`], [`report`], [`status`],
-//! [`address`]. Each stage imports the floor and the stages before it, never one after it;
-//! [`config`] gathers each part's own config and no part imports it
-//! (`python3 ../shared/tools/module-cycles.py src` checks there is no cycle).
+//! The folders are the diagram. The floor (imports nothing of ours but the floor):
+//! [`features`], [`report`] (with [`report::status`]). Each stage imports the floor and the
+//! stages before it, never one after it; [`config`] gathers each part's own config and no
+//! part imports it (`python3 ../shared/tools/module-cycles.py src` checks there is no cycle).
 //!
 //! | module | what it owns |
 //! |---|---|
 //! | [`features`] | the floor: [`features::Sample`], the 21 feature names and indices, the home vector, frame conversions |
-//! | [`report`] | the floor: the messages from the models on ([`report::Estimate`], [`report::EnergyState`], [`report::AlertEvent`], [`report::Report`]) |
-//! | [`status`] | the floor: what a chain says beside the data (ingest counters, signal health, the uplink, the stop signal) |
-//! | [`address`] | the floor: the one link address grammar (`udpin:`, `udpout:`, `tcpin:`, `tcpout:`, `serial:`) |
-//! | [`source`] | where MAVLink comes from: live links, `.tlog`, raw streams, the M100 CSV; frame decoding and its counters |
-//! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors |
-//! | [`window`] | rolling windows of T samples |
+//! | [`report`] | the floor: the messages from the models on ([`report::Estimate`], [`report::EnergyState`], [`report::AlertEvent`], [`report::Report`]), and [`report::status`]: what a chain says beside them (ingest counters, signal health, the uplink, the stop signal) |
+//! | [`source`] | where MAVLink comes from: the link address grammar, live links, `.tlog`, raw streams, DataFlash `.bin`, ULog `.ulg`, the M100 CSV; frame decoding and its counters; which senders are vehicles ([`source::fleet`]) |
+//! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors, rolling windows ([`telemetry::window`]) |
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card, online adaptation to measured power |
 //! | [`vehicle`] | who the vehicle is: identity and battery parameters over MAVLink, battery facts with their provenance, the vehicle store |
-//! | [`mission`] | plans (.plan, .waypoints), the plan flown on paper, its energy forecast (P50/P90, per leg, live re-forecast) |
-//! | [`energy`] | energy used, remaining energy and time, energy to get home |
+//! | [`mission`] | plans (.plan, .waypoints, the mission protocol), the plan flown on paper, its energy forecast (P50/P90, per leg, live re-forecast) |
+//! | [`energy`] | energy used, remaining energy and time, energy to get home, the forecast model's selection |
 //! | [`alert`] | alert rules from TOML: debounce, hysteresis, repeat |
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |
-//! | [`fleet`] | many vehicles on one link: which senders are vehicles, the `--vehicles` filter, lost and dropped vehicles |
-//! | [`pipeline`] | one vehicle's chain as named stages, the demultiplexer that runs one per vehicle, the run that wires source → chains → sinks, shutdown |
-//! | [`offline`] | train, cross-validate, evaluate, calibrate, learn a vehicle from its `.tlog` logs, sensitivity, plots |
-//! | [`mission`] | routes: waypoint guidance (take-off, legs, holds, landing) |
-//! | [`sim`] | the simulator: a vehicle profile flying a route, sent as ArduPilot or PX4 telemetry (`.tlog` or UDP); outside the flow, it makes what sources read |
+//! | [`pipeline`] | running it: one vehicle's chain as named stages, the shared inference stage, the fleet's demultiplexer, the sinks, shutdown |
+//! | [`sim`] | the simulator: route guidance, a vehicle profile flying it, sent as ArduPilot or PX4 telemetry (`.tlog`, `.bin`, `.ulg` or UDP); outside the flow, it makes what sources read |
+//! | [`offline`] | one file a command: eval, train, calibrate, learn, sensitivity, plan, plan-eval (with the route rebuilding and the forecast's fit) |
+//! | [`cli`] | the command line both binaries' `main` call |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
-//! | [`props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_corpus.rs` |
+//! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_corpus.rs` |
 
-pub mod address;
 pub mod alert;
+pub mod cli;
 pub mod config;
 pub mod energy;
 pub mod features;
-pub mod fleet;
 pub mod mission;
 pub mod model;
 pub mod offline;
 pub mod pipeline;
-pub mod props;
+pub mod fuzz_props;
 pub mod report;
 pub mod sim;
 pub mod sink;
 pub mod source;
-pub mod status;
 pub mod telemetry;
 pub mod vehicle;
-pub mod window;
 
 /// The MAVLink dialect dronewatt speaks: ArduPilot's, which includes `common`.
 pub use mavlink::dialects::ardupilotmega as dialect;

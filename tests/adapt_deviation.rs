@@ -8,7 +8,7 @@ use dronewatt::energy::EnergyState;
 use dronewatt::model::adapt::{AdaptConfig, Adaptation};
 use dronewatt::model::{Ensemble, PowerModel, Prediction};
 use dronewatt::features::{Sample, N_FEATURES};
-use dronewatt::window::Window;
+use dronewatt::telemetry::window::Window;
 
 /// A model that predicts half of what the vehicle really draws in normal flight (an M100
 /// model on another airframe): 200 W where the vehicle draws 400 W.

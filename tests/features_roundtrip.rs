@@ -9,7 +9,7 @@ use dronewatt::offline::data::flight_windows;
 use dronewatt::source::dataset::{read_flights, Flight};
 use dronewatt::telemetry::resample::{Resampler, Signal};
 use dronewatt::telemetry::{idx, MissionConfig, TelemetryConfig, FEATURE_NAMES, N_FEATURES};
-use dronewatt::window::{Window, WindowRing};
+use dronewatt::telemetry::window::{Window, WindowRing};
 
 /// The CSV columns resampled directly, windowed the way `Telemetry` windows.
 fn csv_windows(f: &Flight, cfg: &TelemetryConfig) -> Vec<Window> {

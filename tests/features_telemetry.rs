@@ -5,7 +5,7 @@
 use dronewatt::dialect::*;
 use dronewatt::source::TimedMessage;
 use dronewatt::telemetry::{idx, MissionConfig, Telemetry, TelemetryConfig};
-use dronewatt::window::Window;
+use dronewatt::telemetry::window::Window;
 use dronewatt::MavMessage;
 
 const LAT0: f64 = 40.459;

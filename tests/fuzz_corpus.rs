@@ -1,5 +1,5 @@
 //! Replays the fuzz corpus through the fuzz targets' own property checks
-//! (`dronewatt::props`), on plain stable `cargo test`: no nightly, no sanitizer.
+//! (`dronewatt::fuzz_props`), on plain stable `cargo test`: no nightly, no sanitizer.
 //! Every committed seed (`fuzz/seeds/TARGET/`) and every input that once broke a property
 //! or crashed (`fuzz/regressions/TARGET/`) must pass, so a fixed crash stays fixed.
 //!
@@ -9,21 +9,21 @@
 use std::path::{Path, PathBuf};
 
 use dronewatt::dialect::*;
-use dronewatt::props;
+use dronewatt::fuzz_props;
 use dronewatt::MavMessage;
 use mavlink::{MavHeader, MavlinkVersion};
 
 type Check = fn(&[u8]) -> Result<(), String>;
 
 const TARGETS: [(&str, Check); 8] = [
-    ("decoder", props::check_decoder),
-    ("tlog", props::check_tlog),
-    ("raw", props::check_raw),
-    ("csv", props::check_csv),
-    ("config", props::check_config),
-    ("plan", props::check_plan),
-    ("dataflash", props::check_dataflash),
-    ("ulog", props::check_ulog),
+    ("decoder", fuzz_props::check_decoder),
+    ("tlog", fuzz_props::check_tlog),
+    ("raw", fuzz_props::check_raw),
+    ("csv", fuzz_props::check_csv),
+    ("config", fuzz_props::check_config),
+    ("plan", fuzz_props::check_plan),
+    ("dataflash", fuzz_props::check_dataflash),
+    ("ulog", fuzz_props::check_ulog),
 ];
 
 fn fuzz_dir() -> PathBuf {
@@ -63,12 +63,12 @@ fn every_seed_and_regression_input_keeps_the_properties() {
 /// every byte, and a frame hidden in garbage is found (positive controls on hand-made input).
 #[test]
 fn the_checks_see_frames_in_garbage_and_count_every_byte() {
-    let frame = props::encode_frame(MavHeader { system_id: 1, component_id: 1, sequence: 9 }, &heartbeat(), MavlinkVersion::V2, true);
+    let frame = fuzz_props::encode_frame(MavHeader { system_id: 1, component_id: 1, sequence: 9 }, &heartbeat(), MavlinkVersion::V2, true);
     let mut stream = vec![0x00, 7, 200]; // stream framing, chunk sizes
     stream.extend_from_slice(&[0xFD, 0x09, 0x33, 0xFE, 0x01]);
     stream.extend_from_slice(&frame);
     stream.extend_from_slice(&[0xFE, 0x10]);
-    props::check_decoder(&stream).unwrap();
+    fuzz_props::check_decoder(&stream).unwrap();
 
     let stats = dronewatt::source::IngestStats::default();
     let mut d = dronewatt::source::frame::FrameDecoder::new(dronewatt::source::frame::Framing::Stream);
@@ -109,7 +109,7 @@ fn frames(n: usize, version: MavlinkVersion, signed: bool, t0_ms: u32) -> Vec<u8
             1 => attitude(t0_ms + 100 * i as u32),
             _ => sys_status(),
         };
-        out.extend(props::encode_frame(hdr(i as u8), &msg, version, signed));
+        out.extend(fuzz_props::encode_frame(hdr(i as u8), &msg, version, signed));
     }
     out
 }

@@ -11,7 +11,7 @@
 
 use std::process::Command;
 
-use dronewatt::mission::guidance::Phase;
+use dronewatt::sim::guidance::Phase;
 use dronewatt::sim::{self, SimMission, SimOptions, TruthSample};
 use serde_json::Value;
 

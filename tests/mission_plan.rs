@@ -6,7 +6,7 @@
 use std::process::Command;
 
 use dronewatt::config::Config;
-use dronewatt::offline::mission::{plan_eval, PlanEvalOptions};
+use dronewatt::offline::plan_eval::{plan_eval, PlanEvalOptions};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_dronewatt"))
@@ -132,7 +132,7 @@ fn r7s_altitude_stages_are_slanted_climbs_and_the_forecast_prices_their_climb() 
     let ds = dronewatt::source::dataset::read_flights(&dronewatt::default_data_path(), Some(&[278])).unwrap();
     let f = &ds.flights[0];
     assert_eq!((f.route.as_str(), f.altitude_text.as_str()), ("R7", "25-50-100-25"));
-    let plan = dronewatt::offline::mission::flight_plan(f, f).unwrap();
+    let plan = dronewatt::offline::route::flight_plan(f, f).unwrap();
     let tr = fly(&plan, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: f.payload_g, speed_m_s: Some(f.speed_m_s), rate_hz: 10.0 });
     // climbed height, vertically (take-off) and on legs that fly forward while they climb
     let (mut vertical, mut slanted) = (0.0, 0.0);

@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use dronewatt::mission::guidance::{Phase, Triangle};
+use dronewatt::sim::guidance::{Phase, Triangle};
 use dronewatt::model::profile::VehicleProfile;
 use dronewatt::sim::physics::Airframe;
 use dronewatt::sim::{simulate, Autopilot, SimFlight, SimOptions};

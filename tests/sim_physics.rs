@@ -2,7 +2,7 @@
 //! power in the data set's range, power rising with payload and, beyond the minimum-power
 //! speed, with speed; the battery's V·I = P; a whole mission's energy use.
 
-use dronewatt::mission::guidance::{Phase, Triangle};
+use dronewatt::sim::guidance::{Phase, Triangle};
 use dronewatt::model::profile::VehicleProfile;
 use dronewatt::sim::physics::{Airframe, Battery};
 use dronewatt::sim::{simulate, SimFlight, SimOptions};

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use dronewatt::mission::guidance::Triangle;
+use dronewatt::sim::guidance::Triangle;
 use dronewatt::sim::{simulate, Autopilot, SimOptions, EPOCH_START_US};
 use dronewatt::MavMessage;
 

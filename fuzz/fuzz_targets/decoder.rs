@@ -1,9 +1,9 @@
-//! Fuzz target: [`dronewatt::props::check_decoder`] on every input (the properties
+//! Fuzz target: [`dronewatt::fuzz_props::check_decoder`] on every input (the properties
 //! are documented there; `tests/fuzz_corpus.rs` replays the corpus through the same check).
 #![no_main]
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    if let Err(e) = dronewatt::props::check_decoder(data) {
+    if let Err(e) = dronewatt::fuzz_props::check_decoder(data) {
         panic!("property broken: {e}");
     }
 });

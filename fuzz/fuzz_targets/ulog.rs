@@ -1,4 +1,4 @@
-//! Fuzz target: [`dronewatt::props::check_ulog`] on every input (the properties
+//! Fuzz target: [`dronewatt::fuzz_props::check_ulog`] on every input (the properties
 //! are documented there; `tests/fuzz_corpus.rs` replays the corpus through the same check).
 //!
 //! The `yule_log` parser panics on some malformed files; `decode_ulog` catches that and
@@ -17,7 +17,7 @@ libfuzzer_sys::fuzz_target!(
         }));
     },
     |data: &[u8]| {
-        if let Err(e) = dronewatt::props::check_ulog(data) {
+        if let Err(e) = dronewatt::fuzz_props::check_ulog(data) {
             panic!("property broken: {e}");
         }
     }

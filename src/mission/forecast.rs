@@ -43,7 +43,7 @@
 use super::trajectory::Trajectory;
 use crate::telemetry::idx;
 use crate::model::{PowerModel, Prediction};
-use crate::window::Window;
+use crate::telemetry::window::Window;
 
 /// One model of the forecast with its own fitted correction (an entry of
 /// `[forecast.calibration] members`).
@@ -167,7 +167,7 @@ impl Calibration {
     }
 }
 
-/// Phase of a trajectory sample for [`Calibration::phase_scale`]: 0 vertical climb, 1
+/// Phase of a trajectory sample for [`Member::phase_scale`]: 0 vertical climb, 1
 /// vertical descent (|v_z| > 0.5 m/s with under 1 m/s horizontal), 2 anything else.
 pub fn phase_of(s: &crate::telemetry::Sample) -> usize {
     let f = &s.features;

@@ -32,7 +32,7 @@ use super::protocol::{Event, MissionClient};
 use super::trajectory::{enu_of, fly, Conditions, Trajectory, Wind};
 use crate::model::PowerModel;
 use crate::report::{MissionStatus, MissionUpdate};
-use crate::status::LinkHandle;
+use crate::report::status::LinkHandle;
 use crate::source::TimedMessage;
 use crate::MavMessage;
 
@@ -73,7 +73,7 @@ pub struct LiveSetup {
     /// The vehicles it may follow (`[fleet] vehicles` / `--vehicles`): another vehicle's
     /// heartbeat, position or MISSION_CURRENT is not looked at (a ground station's mission
     /// messages still are: a logged upload).
-    pub follows: crate::fleet::VehicleFilter,
+    pub follows: crate::source::fleet::VehicleFilter,
 }
 
 /// A mission flown on paper.

@@ -1,7 +1,7 @@
 //! Mission energy forecast: will the planned mission, and the way home, finish above
 //! reserve?
 //!
-//! - [`guidance`]: a list of waypoints (take-off, legs at their own speeds, holds,
+//! - [`crate::sim::guidance`]: a list of waypoints (take-off, legs at their own speeds, holds,
 //!   landing) turned into the velocity a multirotor's position controller would command,
 //!   step by step: what the simulator flies;
 //! - [`plan`]: the plan model (home, items, speeds, altitude frames) and its readers,
@@ -19,10 +19,9 @@
 //!
 //! Pure apart from reading plan files and [`live`]'s frames: this module imports the models and the telemetry's
 //! sample types, never energy, alerts, sinks or the pipeline. The `plan` and `plan-eval`
-//! commands live in [`crate::offline::mission`].
+//! commands live in [`crate::offline::plan`] and [`crate::offline::plan_eval`].
 
 pub mod forecast;
-pub mod guidance;
 pub mod live;
 pub mod plan;
 pub mod protocol;

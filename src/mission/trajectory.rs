@@ -641,7 +641,7 @@ mod tests {
         let tr = fly(&square(8.0), &KinematicsConfig::default(), &Conditions { wind: "4@90".parse().unwrap(), ..cond() });
         let profile = crate::model::profile::VehicleProfile::m100();
         let j = tr.legs[2].samples.start + 100; // cruising east at 8 m/s, wind 4 m/s from the east
-        let w = crate::window::Window { samples: tr.samples[j - 9..=j].to_vec(), arrived: None };
+        let w = crate::telemetry::window::Window { samples: tr.samples[j - 9..=j].to_vec(), arrived: None };
         let kin = crate::model::physics::Kinematics::from_window(&w, &profile);
         assert!((kin.ground_m_s - Vector3::new(8.0, 0.0, 0.0)).norm() < 0.1, "{:?}", kin.ground_m_s);
         assert!((kin.wind_m_s - Vector3::new(-4.0, 0.0, 0.0)).norm() < 0.1, "{:?}", kin.wind_m_s);

@@ -9,7 +9,7 @@
 //! P_scale from the model card (1.2 × the largest training power, so tanh's range covers
 //! the data). Trained with Adam on the pinball loss of all three heads (the point head's,
 //! at 0.5, is the MAE). A card may set a target lag L: the estimate is then for the sample
-//! L steps before the window's newest ([`crate::window::Window::back`]).
+//! L steps before the window's newest ([`crate::telemetry::window::Window::back`]).
 //!
 //! Every batch, one window (the live case) or thousands (a replay flat out, `eval`), runs
 //! through the batched hand-written forward of [`super::lstm_cpu`], with no libtorch in
@@ -37,7 +37,7 @@ use super::lstm_cpu::CpuLstm;
 use super::{PowerModel, Prediction};
 use crate::features::{idx, N_FEATURES};
 use crate::telemetry::TelemetryConfig;
-use crate::window::Window;
+use crate::telemetry::window::Window;
 
 /// The default model's folder, relative to a checkout or install root.
 pub const DEFAULT_MODEL_DIR: &str = "config/models/lstm-m100";

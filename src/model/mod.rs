@@ -9,7 +9,7 @@ pub mod physics;
 pub mod profile;
 
 pub use crate::report::{Estimate, ModelEstimate};
-use crate::window::Window;
+use crate::telemetry::window::Window;
 
 /// One model's output for one window.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -38,7 +38,7 @@ use crate::model::Ensemble;
 use crate::offline::data::FlightWindows;
 use crate::offline::metrics::{self, Aligned, Scores};
 use crate::features::Sample;
-use crate::window::Window;
+use crate::telemetry::window::Window;
 
 /// One window's pass through the chain.
 #[derive(Debug, Clone)]

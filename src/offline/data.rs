@@ -7,7 +7,7 @@ use std::path::Path;
 
 use crate::source::dataset;
 use crate::telemetry::{MissionConfig, Telemetry, TelemetryConfig};
-use crate::window::Window;
+use crate::telemetry::window::Window;
 
 /// One flight's windows, oldest first.
 #[derive(Debug, Clone)]

@@ -22,7 +22,7 @@ use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
 use crate::offline::metrics::in_flight;
 use crate::offline::plot;
 use crate::features::idx;
-use crate::window::Window;
+use crate::telemetry::window::Window;
 
 /// The paper's Table 3: input index, label, and the five steps (−1, −½, 0, +½, +1).
 pub const STEPS: [(usize, &str, [f32; 5]); 3] = [

@@ -2,7 +2,7 @@
 //!
 //! Every window comes from [`crate::offline::data::load_flights`], the same ingest path as
 //! live telemetry. Splits are by flight, never by row: the test flights
-//! ([`TEST_FLIGHTS`]) never train or validate, and ground tests (routes `A*`, no GPS,
+//! ([`crate::offline::data::TEST_FLIGHTS`]) never train or validate, and ground tests (routes `A*`, no GPS,
 //! motors in odd states) are left out of training. The kept weights are the epoch with the
 //! lowest validation MAE (early stopping with `--patience`). A seed fixes the weight init,
 //! dropout and the batch order.

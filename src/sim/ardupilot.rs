@@ -9,7 +9,7 @@ use super::emit::{param, Every, Instant, Style};
 use super::physics::G;
 use super::SimOptions;
 use crate::dialect as d;
-use crate::mission::guidance::Phase;
+use crate::sim::guidance::Phase;
 use crate::MavMessage;
 
 /// ArduPilot Copter's telemetry style.

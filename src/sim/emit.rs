@@ -26,7 +26,7 @@ use rand::rngs::StdRng;
 use super::physics::{Battery, G};
 use super::{std_normal, Autopilot, SimOptions, SimRecord, State, EPOCH_START_US, HOME};
 use crate::dialect as d;
-use crate::mission::guidance::{Phase, Route};
+use crate::sim::guidance::{Phase, Route};
 use crate::MavMessage;
 
 /// The vehicle's side of a mission download: MISSION_COUNT, then every MISSION_ITEM_INT.

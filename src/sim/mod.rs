@@ -9,7 +9,7 @@
 //! ## Parts
 //! | part | job |
 //! |---|---|
-//! | [`crate::mission::guidance`] | the route: take-off, waypoints, holds, landing → desired velocity |
+//! | [`crate::sim::guidance`] | the route: take-off, waypoints, holds, landing → desired velocity |
 //! | this module | the loop: wind and gusts, the velocity loop and its lag, attitude, sensor errors |
 //! | [`physics`] | rotor power by momentum theory and the battery, from the [`VehicleProfile`] |
 //! | [`emit`] | the state → MAVLink at an autopilot's rates, with sensor noise |
@@ -31,8 +31,10 @@
 //! the same options give a byte-identical `.tlog`.
 
 pub mod ardupilot;
+
 pub mod dataflash;
 pub mod emit;
+pub mod guidance;
 pub mod output;
 pub mod physics;
 pub mod px4;
@@ -46,7 +48,7 @@ use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
-use crate::mission::guidance::{self, Guidance, Home, InvalidOption, Phase, Route};
+use crate::sim::guidance::{Guidance, Home, InvalidOption, Phase, Route};
 use crate::model::profile::VehicleProfile;
 use crate::MavMessage;
 use physics::{Airframe, Battery};

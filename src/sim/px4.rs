@@ -8,7 +8,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::emit::{param, pressure_pa, Every, Instant, Style};
 use super::{SimOptions, HOME};
 use crate::dialect as d;
-use crate::mission::guidance::Phase;
+use crate::sim::guidance::Phase;
 use crate::MavMessage;
 
 /// PX4's telemetry style.

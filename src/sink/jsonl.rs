@@ -10,7 +10,7 @@
 //! ```
 //!
 //! `system_id` is the MAVLink system id of the vehicle the line is about (a link may carry
-//! a fleet; see [`crate::fleet`]).
+//! a fleet; see [`crate::pipeline::Demux`]).
 //!
 //! and last, once the run is over (end of a replay, Ctrl-C, a source error):
 //!
@@ -23,7 +23,7 @@
 //!
 //! `latency` is the message → estimate latency over the run's reports: from the arrival of
 //! the newest message behind an estimate (read off a live link; a paced replay's message
-//! at its due time) to its report going to the sinks ([`crate::status::LatencyHistogram`]:
+//! at its due time) to its report going to the sinks ([`crate::report::status::LatencyHistogram`]:
 //! quantiles at most 12.5 % high, the maximum exact). A flat-out replay's is its queueing.
 //! The windows the end of the input flushes (no message arrived to make them) are not counted.
 //!
@@ -52,7 +52,7 @@ use tokio::task::JoinHandle;
 use super::{JsonTarget, ReportRx};
 use crate::features::FEATURE_NAMES;
 use crate::report::{Provenance, Report};
-use crate::status::{ChainStatus, LatencySummary, StatsSnapshot};
+use crate::report::status::{ChainStatus, LatencySummary, StatsSnapshot};
 
 /// Open the target now (so a bad path fails before the run) and write on a blocking thread.
 pub fn spawn(
@@ -313,7 +313,7 @@ pub struct Summary {
     /// Reports this sink missed while it was stuck (see [`super::SINK_PATIENCE`]).
     pub missed_reports: u64,
     /// The deepest any queue between the stages has been (items), and when it got there
-    /// (seconds after the start): see [`crate::status::QueueGauge`].
+    /// (seconds after the start): see [`crate::report::status::QueueGauge`].
     pub queue_peak: u64,
     pub queue_peak_at_s: f64,
     /// Message → estimate latency over the run's reports (`null`: none made).

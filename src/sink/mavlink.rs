@@ -69,7 +69,7 @@ pub struct MavlinkSinkConfig {
     /// `address` is set.
     pub enabled: Option<bool>,
     /// A link address of its own (`udpout:HOST:PORT`, `tcpout:HOST:PORT`, or any form
-    /// `monitor` takes: the grammar is one, see `crate::address`); absent: the link
+    /// `monitor` takes: the grammar is one, see `crate::source::address`); absent: the link
     /// `monitor` reads.
     pub address: Option<String>,
     /// System id dronewatt sends with. Default: the id of the vehicle each report is about
@@ -107,7 +107,7 @@ impl MavlinkSinkConfig {
             ));
         }
         if let Some(a) = &self.address {
-            if let Err(e) = a.parse::<crate::address::LinkAddress>() {
+            if let Err(e) = a.parse::<crate::source::address::LinkAddress>() {
                 errs.push(format!("sinks.mavlink.address: {e}"));
             }
         }

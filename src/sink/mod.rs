@@ -35,7 +35,7 @@ use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
 use crate::report::Report;
-use crate::status::ChainStatus;
+use crate::report::status::ChainStatus;
 
 /// Reports a sink's queue holds before the energy stage waits for it.
 pub const SINK_DEPTH: usize = 1024;
@@ -113,8 +113,8 @@ impl ReportRx {
 #[derive(Default, Clone)]
 pub struct Fanout {
     outs: Vec<Outlet>,
-    /// Where the queues' depth is watched ([`crate::status::QueueGauge`]).
-    stats: Option<Arc<crate::status::IngestStats>>,
+    /// Where the queues' depth is watched ([`crate::report::status::QueueGauge`]).
+    stats: Option<Arc<crate::report::status::IngestStats>>,
 }
 
 #[derive(Clone)]
@@ -126,7 +126,7 @@ struct Outlet {
 
 impl Fanout {
     /// Watch the depth of every queue of this fanout in `stats`.
-    pub fn gauged(self, stats: Arc<crate::status::IngestStats>) -> Self {
+    pub fn gauged(self, stats: Arc<crate::report::status::IngestStats>) -> Self {
         Self { stats: Some(stats), ..self }
     }
 

@@ -3,7 +3,7 @@
 //! the client is rumqttc (pure Rust, on tokio).
 //!
 //! Topics, under `prefix` (default `dronewatt`); `<vehicle>` is the vehicle's MAVLink
-//! system id ([`Report::system_id`]), so several instances watching different vehicles can
+//! system id ([`crate::report::Report::system_id`]), so several instances watching different vehicles can
 //! share one broker:
 //!
 //! | topic | payload | QoS | retained | when |

@@ -27,7 +27,7 @@ use crossterm::style::Stylize;
 use super::ReportRx;
 use crate::features::FEATURE_NAMES;
 use crate::report::{AlertEvent, AlertState, Report, Severity};
-use crate::status::{ChainStatus, IngestStats, SignalHealth};
+use crate::report::status::{ChainStatus, IngestStats, SignalHealth};
 
 /// Run the view until the report channel closes.
 pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {

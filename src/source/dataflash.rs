@@ -1,5 +1,5 @@
 //! ArduPilot DataFlash `.bin` logs (the autopilot's own SD-card log), read record by record
-//! ([`super::dataflash_records`]: every message's layout comes from the file's own FMT
+//! (`dataflash_records`: every message's layout comes from the file's own FMT
 //! records, so any ArduPilot version reads) and turned into the same [`TimedMessage`]s a
 //! tlog gives: MAVLink messages synthesised from the log's entries, `t_s` from their
 //! `TimeUS` through a [`super::timed::Clock`]. Everything downstream (telemetry, windows,

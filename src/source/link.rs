@@ -42,7 +42,7 @@ pub const GCS_SYSTEM_ID: u8 = 255;
 /// Component id dronewatt uses on a link: `MAV_COMP_ID_MISSIONPLANNER` (190).
 pub const GCS_COMPONENT_ID: u8 = 190;
 
-pub use crate::address::LinkAddress;
+pub use crate::source::address::LinkAddress;
 
 /// Run one live link until `shutdown`. Fails only when the link cannot be set up at all
 /// (a port that cannot be bound, a name that does not resolve, a serial device that

@@ -9,10 +9,12 @@
 //!
 //! The simulator that writes tlogs is [`crate::sim`].
 
+pub mod address;
 pub mod dataflash;
 mod dataflash_records;
 mod synth;
 pub mod dataset;
+pub mod fleet;
 pub mod frame;
 pub mod link;
 pub mod raw;
@@ -31,7 +33,7 @@ use tokio_util::sync::CancellationToken;
 
 use timed::TimedReader;
 
-pub use crate::status::{IngestStats, LinkHandle, StatsSnapshot};
+pub use crate::report::status::{IngestStats, LinkHandle, StatsSnapshot};
 use crate::MavMessage;
 
 /// One decoded MAVLink message with the time it belongs to.
@@ -46,7 +48,7 @@ pub struct TimedMessage {
     pub msg: MavMessage,
     /// When it reached dronewatt (monotonic): read off a live link, or handed on by a
     /// paced replay at its due time. What the message → estimate latency is measured from
-    /// ([`crate::status::LatencyHistogram`]).
+    /// ([`crate::report::status::LatencyHistogram`]).
     pub arrived: std::time::Instant,
 }
 
@@ -95,7 +97,7 @@ pub enum SourceSpec {
 
 /// A live link's signing set-up (`[link] signing_key_file`): the signer for what
 /// dronewatt sends and the verifier every incoming frame must pass, shared by every task
-/// of the link. The sinks see only its signing side ([`crate::status::FrameSigner`]).
+/// of the link. The sinks see only its signing side ([`crate::report::status::FrameSigner`]).
 pub struct LinkSigning {
     signer: std::sync::Mutex<signing::Signer>,
     verifier: frame::SharedVerifier,
@@ -115,7 +117,7 @@ impl LinkSigning {
     }
 }
 
-impl crate::status::FrameSigner for LinkSigning {
+impl crate::report::status::FrameSigner for LinkSigning {
     fn sign(&self, frame: &mut Vec<u8>) {
         if let Ok(mut signer) = self.signer.lock() {
             signer.sign(frame);

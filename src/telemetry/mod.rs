@@ -5,7 +5,7 @@
 //! vehicle state from whatever messages the autopilot sends, converts each signal to the
 //! data set's frame and units at message time ([`frames`]), hands it to the fixed-rate
 //! [`resample::Resampler`], and slides a ring of T samples over the result
-//! ([`crate::window::WindowRing`]). Training and evaluation walk the same stage over the
+//! ([`crate::telemetry::window::WindowRing`]). Training and evaluation walk the same stage over the
 //! data set encoded as MAVLink ([`crate::offline::data`]), so live and offline features
 //! cannot drift apart.
 //!
@@ -47,13 +47,14 @@
 //! See [`frames`] for the per-column conventions and the checks behind them.
 
 pub mod resample;
+pub mod window;
 
 // The shared types live on the floor ([`crate::features`]); re-exported here because the
 // telemetry stage is where they are made.
 pub use crate::features::{frames, idx, HomeVector, Sample, FEATURE_NAMES, N_FEATURES};
-pub use crate::status::{HealthHandle, SignalHealth};
+pub use crate::report::status::{HealthHandle, SignalHealth};
 use crate::source::TimedMessage;
-use crate::window::{Window, WindowRing};
+use crate::telemetry::window::{Window, WindowRing};
 use crate::MavMessage;
 use resample::{Resampler, Signal, N_SIGNALS, SIGNALS};
 
@@ -87,7 +88,7 @@ pub struct TelemetryConfig {
 
 impl Default for TelemetryConfig {
     fn default() -> Self {
-        Self { rate_hz: 10.0, window: crate::window::DEFAULT_T, stale_after_s: 1.5, max_gap_s: 1.0 }
+        Self { rate_hz: 10.0, window: crate::telemetry::window::DEFAULT_T, stale_after_s: 1.5, max_gap_s: 1.0 }
     }
 }
 
@@ -264,7 +265,7 @@ impl Telemetry {
                 false
             }
             (None, MavMessage::HEARTBEAT(h)) => {
-                let autopilot = crate::fleet::is_vehicle_heartbeat(h);
+                let autopilot = crate::source::fleet::is_vehicle_heartbeat(h);
                 if autopilot {
                     self.sysid = Some(sys);
                 }

@@ -16,7 +16,7 @@
 //!
 //! [`Driver`] is the thin part that talks: it frames the requests as dronewatt's MAVLink
 //! component (the `[sinks.mavlink]` ids, default system 1, component 191) and queues them on
-//! the live link ([`crate::status::LinkHandle`]).
+//! the live link ([`crate::report::status::LinkHandle`]).
 //!
 //! ## Decoding PARAM_VALUE
 //!
@@ -320,7 +320,7 @@ fn request(id: &Identity, name: &str) -> MavMessage {
 /// dronewatt's MAVLink component, and whose news is published for the energy stage.
 pub struct Driver {
     reader: ParamReader,
-    link: crate::status::LinkHandle,
+    link: crate::report::status::LinkHandle,
     system_id: u8,
     component_id: u8,
     seq: u8,
@@ -330,7 +330,7 @@ pub struct Driver {
 
 impl Driver {
     /// A driver for `reader`, sending on `link` as (`system_id`, `component_id`).
-    pub fn new(reader: ParamReader, link: crate::status::LinkHandle, system_id: u8, component_id: u8) -> Self {
+    pub fn new(reader: ParamReader, link: crate::report::status::LinkHandle, system_id: u8, component_id: u8) -> Self {
         Self { reader, link, system_id, component_id, seq: 0, unsent: 0 }
     }
 

@@ -12,7 +12,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use dronewatt::model::lstm::{resolve_model_path, LstmModel};
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
-use dronewatt::window::Window;
+use dronewatt::telemetry::window::Window;
 
 /// A plausible in-flight window (values near the data set's means).
 fn window(i: usize) -> Window {

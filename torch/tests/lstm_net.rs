@@ -7,7 +7,7 @@ use dronewatt::model::lstm::{push_inputs, LstmModel};
 use dronewatt_torch::Net;
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
-use dronewatt::window::Window;
+use dronewatt::telemetry::window::Window;
 use tch::nn::{self, OptimizerConfig};
 use tch::{Device, Kind, Tensor};
 

@@ -9,7 +9,7 @@ use dronewatt::model::card::{FeatureSet, ModelCard, TrainingInfo, WeightsFormat}
 use dronewatt::model::lstm::LstmModel;
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
-use dronewatt::window::Window;
+use dronewatt::telemetry::window::Window;
 
 const EXPORT: &str = r#"
 import sys, torch

@@ -45,7 +45,7 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use super::profile::VehicleProfile;
 use super::{PowerModel, Prediction};
 use crate::features::{idx, Sample};
-use crate::window::Window;
+use crate::telemetry::window::Window;
 
 /// The physical state every model reads, derived once per window. SI units, world ENU.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -284,7 +284,7 @@ pub fn models(profile: &VehicleProfile) -> Vec<Box<dyn PowerModel>> {
 #[cfg(test)]
 pub(crate) mod testutil {
     use crate::features::{idx, Sample, N_FEATURES};
-    use crate::window::Window;
+    use crate::telemetry::window::Window;
 
     /// A level sample: velocity along body (x, y, up), anemometer speed and bearing (deg),
     /// payload g, and yaw (deg, ENU bearing of body x from east: 90° = body x north).

@@ -4,7 +4,10 @@
 //! hands every sink. They live here, not in the stages that make them, so a stage depends
 //! only on what it reads, never on the stage that wrote it (no import loops), and a sink
 //! never needs the energy or alert code to read a report. Imports nothing of ours but the
-//! feature floor.
+//! feature floor. [`status`] is the other half of the floor: what a chain says beside the
+//! reports (ingest counters, signal health, the uplink, the stop signal).
+
+pub mod status;
 
 use std::fmt;
 

@@ -39,198 +39,22 @@
 //! blocking thread once the vehicle is known, and writes once at the end of the run
 //! ([`crate::pipeline`]). A database that cannot be opened (corrupt, locked by another run,
 //! a read-only folder) is a warning and the run goes on without it.
+mod dir;
+mod flight;
+mod list;
+
+pub use dir::{data_dir, data_dir_from_env, DB_FILE, HOME_ENV, MIN_PCT_DROP};
+pub use flight::{FlightLog, FlightSummary, VehicleKey};
+pub use list::list;
 
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use anyhow::{Context, Result};
 use rusqlite::{params, Connection, OptionalExtension};
 
 use crate::model::adapt::ModelFit;
-use crate::report::Report;
 use crate::vehicle::params::Identity;
-
-/// The environment variable that overrides the data directory (`off`: no store).
-pub const HOME_ENV: &str = "DRONEWATT_HOME";
-/// The database's file name in the data directory.
-pub const DB_FILE: &str = "dronewatt.sqlite";
-/// Smallest fall of the autopilot's battery % that yields an effective capacity.
-pub const MIN_PCT_DROP: f64 = 10.0;
-/// How long a write waits for another run holding the database.
-const BUSY_WAIT: Duration = Duration::from_secs(2);
-
-/// The data directory: `flag` (`--data-dir`), else `home_env` (`$DRONEWATT_HOME`), else
-/// `$XDG_DATA_HOME/dronewatt`, else `$HOME/.local/share/dronewatt`. `None`: the store is
-/// off (`off` given, or no home directory at all). The environment is passed in, so the
-/// rule is testable.
-pub fn data_dir(flag: Option<&Path>, home_env: Option<&str>, xdg_data_home: Option<&str>, home: Option<&str>) -> Option<PathBuf> {
-    let nonempty = |s: Option<&str>| s.filter(|s| !s.is_empty()).map(str::to_string);
-    let chosen = flag.map(|p| p.to_string_lossy().into_owned()).filter(|s| !s.is_empty()).or_else(|| nonempty(home_env));
-    if let Some(dir) = chosen {
-        return (dir != "off").then(|| PathBuf::from(dir));
-    }
-    if let Some(x) = nonempty(xdg_data_home).filter(|x| Path::new(x).is_absolute()) {
-        return Some(Path::new(&x).join("dronewatt"));
-    }
-    nonempty(home).map(|h| Path::new(&h).join(".local/share/dronewatt"))
-}
-
-/// [`data_dir`] from this process's environment.
-pub fn data_dir_from_env(flag: Option<&Path>) -> Option<PathBuf> {
-    let var = |k: &str| std::env::var(k).ok();
-    data_dir(flag, var(HOME_ENV).as_deref(), var("XDG_DATA_HOME").as_deref(), var("HOME").as_deref())
-}
-
-/// A vehicle's key in the store, and how strong it is.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct VehicleKey {
-    /// `uid:…` or `sysN-autopilot-TYPE`.
-    pub key: String,
-    /// `uid` (the board's own id) or `heartbeat` (system id, autopilot, type).
-    pub kind: &'static str,
-}
-
-impl VehicleKey {
-    /// The key of this vehicle (module docs).
-    pub fn of(id: &Identity) -> Self {
-        match id.uid {
-            Some(uid) => Self { key: format!("uid:{uid:016x}"), kind: "uid" },
-            None => Self { key: format!("sys{}-{}-{}", id.system_id, id.autopilot, id.vehicle_type), kind: "heartbeat" },
-        }
-    }
-}
-
-/// One flight, summed up from its reports ([`FlightLog`]).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct FlightSummary {
-    /// Seconds with the motors turning (measured power above [`FlightLog`]'s threshold).
-    pub airborne_s: f64,
-    /// Energy used over the run, Wh (the energy tracker's figure).
-    pub energy_wh: f64,
-    /// The autopilot's battery % at the first and last report that had one.
-    pub pct_start: Option<f64>,
-    pub pct_end: Option<f64>,
-    /// Energy used ÷ battery % drop, Wh (module docs), when the gauge fell enough.
-    pub effective_capacity_wh: Option<f64>,
-    /// The capacity the run assumed, Wh, and where it came from.
-    pub rated_capacity_wh: f64,
-    pub capacity_source: String,
-}
-
-/// Sums a run's reports into a [`FlightSummary`] in bounded memory, however long the run:
-/// the measured powers go into a histogram of 1 %-wide bins (at most [`PowerBins::MAX`] bins,
-/// a few hundred on a real flight), each bin holding how many reports fell in it and the
-/// seconds they cover. The airborne threshold and the seconds above it are read off the
-/// histogram, so both are exact to the bin width (1 %).
-#[derive(Debug, Default)]
-pub struct FlightLog {
-    power: PowerBins,
-    /// Time of the previous report with a measured power.
-    last_t: Option<f64>,
-    energy_wh: f64,
-    pct: Option<(f64, f64)>,
-    capacity: Option<(f64, String)>,
-}
-
-/// Measured powers binned on a log scale: bin 0 below 1 W, bin k ≥ 1 for
-/// [1.01^(k−1), 1.01^k) W; (reports, seconds) per bin.
-#[derive(Debug, Default)]
-struct PowerBins(std::collections::BTreeMap<u16, (u64, f64)>);
-
-impl PowerBins {
-    /// The most bins there can be (1 W to 1 MW in 1 % steps, and one below 1 W).
-    const MAX: u16 = 1 + 1389;
-
-    fn bin(p: f32) -> u16 {
-        if p < 1.0 {
-            return 0;
-        }
-        // ln(1.01) = 0.00995033; a power above 1 MW (nonsense) lands in the last bin.
-        (1.0 + (f64::from(p).ln() / 1.01f64.ln()).floor()).min(f64::from(Self::MAX - 1)) as u16
-    }
-
-    /// A bin's power: its geometric centre (0 for the bin below 1 W).
-    fn power(bin: u16) -> f64 {
-        if bin == 0 { 0.0 } else { 1.01f64.powf(f64::from(bin) - 0.5) }
-    }
-
-    fn add(&mut self, p: f32, dt_s: f64) {
-        let e = self.0.entry(Self::bin(p)).or_default();
-        e.0 += 1;
-        e.1 += dt_s;
-    }
-
-    fn count(&self) -> u64 {
-        self.0.values().map(|e| e.0).sum()
-    }
-
-    /// The power of the report at rank `k` (0-based) in increasing order, to the bin.
-    fn rank(&self, k: u64) -> f64 {
-        let mut seen = 0;
-        for (&bin, &(n, _)) in &self.0 {
-            seen += n;
-            if seen > k {
-                return Self::power(bin);
-            }
-        }
-        0.0
-    }
-
-    /// Seconds covered by reports with a power above `w`, to the bin.
-    fn seconds_above(&self, w: f64) -> f64 {
-        self.0.iter().filter(|(&bin, _)| Self::power(bin) > w).map(|(_, e)| e.1).sum()
-    }
-}
-
-impl FlightLog {
-    /// Take one report in.
-    pub fn observe(&mut self, r: &Report) {
-        let s = &r.estimate.sample;
-        if let Some(p) = s.measured_w.filter(|p| p.is_finite() && *p >= 0.0) {
-            let t = r.estimate.t_s;
-            // A report's seconds: since the previous one, at most 1 s (a gap is not flight).
-            let dt = self.last_t.map_or(0.0, |last| (t - last).clamp(0.0, 1.0));
-            self.power.add(p, dt);
-            self.last_t = Some(t);
-        }
-        self.energy_wh = r.energy.energy_used_wh;
-        if let Some(pct) = s.battery_remaining_pct.map(f64::from).filter(|p| (0.0..=100.0).contains(p)) {
-            self.pct = Some((self.pct.map_or(pct, |(a, _)| a), pct));
-        }
-        // The rated capacity (config, parameter or default), not one learned from this store.
-        let b = &r.energy.battery;
-        let c = b.rated_capacity_wh.as_ref().unwrap_or(&b.capacity_wh);
-        self.capacity = Some((c.value, c.source.to_string()));
-    }
-
-    /// The summary, or `None` when no power was ever measured (nothing flew that we saw).
-    /// Motors turning: measured power above 30 % of the run's 90th-percentile power (a
-    /// multirotor's ground idle is a few % of its hover).
-    pub fn summary(&self) -> Option<FlightSummary> {
-        let n = self.power.count();
-        if n < 2 {
-            return None;
-        }
-        let p90 = self.power.rank((n - 1) * 9 / 10);
-        let airborne_s = self.power.seconds_above(0.3 * p90);
-        let (rated_capacity_wh, capacity_source) = self.capacity.clone().unwrap_or((0.0, "unknown".into()));
-        let effective_capacity_wh = self
-            .pct
-            .map(|(a, b)| a - b)
-            .filter(|drop| *drop >= MIN_PCT_DROP)
-            .map(|drop| self.energy_wh / (drop / 100.0))
-            .filter(|c| c.is_finite());
-        Some(FlightSummary {
-            airborne_s,
-            energy_wh: self.energy_wh,
-            pct_start: self.pct.map(|p| p.0),
-            pct_end: self.pct.map(|p| p.1),
-            effective_capacity_wh,
-            rated_capacity_wh,
-            capacity_source,
-        })
-    }
-}
+use dir::BUSY_WAIT;
 
 /// What the store knows of one vehicle (for `dronewatt vehicles`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -332,7 +156,7 @@ fn now_s() -> i64 {
 
 impl Store {
     /// Open (creating the folder and the tables when new) the store in `dir`. A file that
-    /// is not a database, or one another run holds locked past [`BUSY_WAIT`], fails here
+    /// is not a database, or one another run holds locked past `BUSY_WAIT`, fails here
     /// with the path in the message.
     pub fn open(dir: &Path) -> Result<Self> {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the data directory", dir.display()))?;
@@ -549,62 +373,11 @@ pub fn remember_profile(dir: &Path, id: &Identity, path: &Path, forecast_model: 
     }
 }
 
-/// `dronewatt vehicles`: the table (or JSON with `json`).
-pub fn list(dir: &Path, json: bool) -> Result<String> {
-    use std::fmt::Write;
-    let path = dir.join(DB_FILE);
-    if !path.exists() {
-        return Ok(if json { "[]\n".into() } else { format!("{}: no vehicle store yet (nothing flown with the store on)\n", path.display()) });
-    }
-    let store = Store::open(dir)?;
-    let vehicles = store.vehicles()?;
-    if json {
-        return Ok(serde_json::to_string_pretty(&vehicles)? + "\n");
-    }
-    let mut s = String::new();
-    let _ = writeln!(s, "{}: {} vehicle(s)", store.path().display(), vehicles.len());
-    let _ = writeln!(
-        s,
-        "{:<34} {:<9} {:<10} {:<22} {:>7} {:>9} {:>9}  capacity delivered / rated, by flight",
-        "vehicle", "told by", "autopilot", "type", "flights", "airborne", "Wh/min"
-    );
-    for v in &vehicles {
-        // (+ 0.0: an empty sum is −0.0.)
-        let airborne: f64 = v.flights.iter().map(|f| f.summary.airborne_s).sum::<f64>() + 0.0;
-        let trend = v.capacity_trend_pct();
-        let trend = if trend.is_empty() {
-            "—".to_string()
-        } else {
-            trend.iter().map(|p| format!("{p:.0} %")).collect::<Vec<_>>().join(" → ")
-        };
-        let _ = writeln!(
-            s,
-            "{:<34} {:<9} {:<10} {:<22} {:>7} {:>7.1} m {:>9}  {}",
-            v.key,
-            v.key_kind,
-            v.autopilot,
-            v.vehicle_type.trim_start_matches("MAV_TYPE_"),
-            v.flights.len(),
-            airborne / 60.0,
-            v.wh_per_min().map_or("—".to_string(), |w| format!("{w:.2}")),
-            trend
-        );
-        if let Some(p) = &v.profile {
-            let _ = writeln!(
-                s,
-                "{:<34} learned profile {} (forecast model {})",
-                "",
-                p.path.display(),
-                p.forecast_model.as_deref().unwrap_or("not picked")
-            );
-        }
-    }
-    Ok(s)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::report::Report;
+    use flight::PowerBins;
     use crate::vehicle::params::Autopilot;
 
     fn id(uid: Option<u64>) -> Identity {

@@ -13,141 +13,146 @@
 //! A vehicle with no message for `lost_after_s` is reported lost (alert `vehicle_lost`,
 //! cleared when it is heard again); after `drop_after_s` it is dropped: its chain ends
 //! (alert `vehicle_dropped`), and a later message makes it a new vehicle.
+//!
+//! Below, [`Fleet`] runs it: it routes every message to its vehicle's chain, starts a chain
+//! for a vehicle newly heard, and ends the chains of vehicles dropped.
 
+use std::sync::Arc;
+
+use anyhow::Result;
+use tokio::sync::mpsc;
+use tokio::time::Instant;
+
+use crate::config::Config;
 use std::collections::BTreeMap;
 
-use crate::source::TimedMessage;
+use crate::source::fleet::{is_vehicle_heartbeat, is_vehicle_telemetry, FleetConfig, VehicleFilter};
 use crate::MavMessage;
+use crate::sink::Fanout;
+use crate::source::TimedMessage;
+use crate::report::status::ChainStatus;
+use super::{ChainTasks, Inference, VehicleChain, CHANNEL_DEPTH, SILENT_TICK};
 
-/// The `[fleet]` table: many vehicles on one link.
-#[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct FleetConfig {
-    /// A vehicle with no message for this long is reported lost (alert `vehicle_lost`), s.
-    /// Default 10 (a `telemetry_lost` alert rule is the quicker, configurable alarm).
-    pub lost_after_s: f64,
-    /// A vehicle with no message for this long is dropped: its chain ends (alert
-    /// `vehicle_dropped`), s. Longer than `lost_after_s`. Default 60.
-    pub drop_after_s: f64,
-    /// Which system ids this instance watches: ids and ranges, e.g. `"1-125"` or
-    /// `"3,7,10-20"` (`monitor --vehicles` overrides it). Others are ignored and counted, so
-    /// several instances can split one link's vehicles. Default: all (1-255).
-    pub vehicles: Option<String>,
-    /// With more than one vehicle, the longest a window waits for other vehicles' windows
-    /// to join its batch before the models run, ms (one vehicle never waits). Default 2;
-    /// 0 runs whatever is queued at once.
-    pub batch_wait_ms: f64,
-    /// How often each vehicle's LSTM estimate is computed, Hz; the windows in between
-    /// carry the vehicle's latest one (held). Default: every window (`telemetry.rate_hz`).
-    /// The physics models, energy and alerts always run on every window.
-    pub lstm_rate_hz: Option<f64>,
+/// The demultiplexer and what it starts chains with.
+pub(super) struct Fleet {
+    pub(super) config: Config,
+    pub(super) demux: Demux,
+    /// The chain built (and checked) before the run: the first vehicle's.
+    pub(super) first: Option<VehicleChain>,
+    pub(super) inference: Inference,
+    pub(super) fanout: Fanout,
+    pub(super) status: ChainStatus,
+    pub(super) live: bool,
+    /// The vehicle store's folder ([`crate::vehicle::store`]); `None`: nothing remembered.
+    pub(super) data_dir: Option<std::path::PathBuf>,
 }
 
-impl Default for FleetConfig {
-    fn default() -> Self {
-        Self { lost_after_s: 10.0, drop_after_s: 60.0, vehicles: None, batch_wait_ms: 2.0, lstm_rate_hz: None }
-    }
+/// One vehicle's running chain, as the demultiplexer holds it.
+struct Vehicle {
+    msgs: mpsc::Sender<TimedMessage>,
+    events: mpsc::UnboundedSender<FleetEvent>,
+    tasks: ChainTasks,
 }
 
-impl FleetConfig {
-    /// Range checks; each message names the key (several errors: one per line).
-    pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
-        if !(self.lost_after_s > 0.0 && self.lost_after_s.is_finite()) {
-            errs.push(format!("fleet.lost_after_s = {}: must be > 0", self.lost_after_s));
-        }
-        if !(self.drop_after_s > self.lost_after_s && self.drop_after_s.is_finite()) {
-            errs.push(format!("fleet.drop_after_s = {}: must be longer than fleet.lost_after_s ({})", self.drop_after_s, self.lost_after_s));
-        }
-        if !(0.0..=100.0).contains(&self.batch_wait_ms) {
-            errs.push(format!("fleet.batch_wait_ms = {}: must be 0..=100 ms", self.batch_wait_ms));
-        }
-        if let Some(r) = self.lstm_rate_hz {
-            if !(r > 0.0 && r <= 100.0) {
-                errs.push(format!("fleet.lstm_rate_hz = {r}: must be in (0, 100] Hz"));
+impl Fleet {
+    /// Route every message to its vehicle's chain (starting one for a vehicle newly heard),
+    /// report vehicles gone silent, and end dropped vehicles' chains. Ends when the source
+    /// does, after every chain and the inference stage have drained.
+    pub(super) async fn run(mut self, mut msgs: mpsc::Receiver<TimedMessage>) -> Result<()> {
+        let mut chains: std::collections::HashMap<u8, Vehicle> = Default::default();
+        let mut ended = Vec::new();
+        let mut events = Vec::new();
+        // The source's clock: its newest time, and (live) the wall-clock instant it came.
+        let mut clock: Option<(f64, Instant)> = None;
+        let mut tick = tokio::time::interval(SILENT_TICK);
+        loop {
+            tokio::select! {
+                m = msgs.recv() => {
+                    let Some(m) = m else { break };
+                    if m.t_s.is_finite() && clock.is_none_or(|(t, _)| m.t_s >= t) {
+                        clock = Some((m.t_s, Instant::now()));
+                    }
+                    if let Route::Vehicle { id, new, back } = self.demux.route(&m) {
+                        if new {
+                            match self.start(id) {
+                                Ok(v) => { chains.insert(id, v); }
+                                Err(e) => tracing::error!(vehicle = id, "cannot start a chain for this vehicle: {e:#}"),
+                            }
+                        }
+                        if let Some(v) = chains.get(&id) {
+                            if back {
+                                tracing::info!(vehicle = id, "vehicle heard again");
+                                let _ = v.events.send(FleetEvent::Back { id, t_s: m.t_s });
+                            }
+                            // A chain that ended early (it cannot) would only lose this message.
+                            let _ = v.msgs.send(m).await;
+                            self.status.stats.queues.observe(&v.msgs);
+                        }
+                    }
+                    if !self.live {
+                        if let Some((t, _)) = clock { self.demux.advance(t, &mut events); }
+                    }
+                }
+                _ = tick.tick(), if self.live => {
+                    if let Some((t, at)) = clock { self.demux.advance(t + at.elapsed().as_secs_f64(), &mut events); }
+                }
+            }
+            for ev in events.drain(..) {
+                match ev {
+                    FleetEvent::Lost { id, silent_s, .. } => {
+                        tracing::warn!(vehicle = id, "vehicle lost: nothing heard for {silent_s:.1} s");
+                        if let Some(v) = chains.get(&id) {
+                            let _ = v.events.send(ev);
+                        }
+                    }
+                    FleetEvent::Back { .. } => {}
+                    FleetEvent::Dropped { id, silent_s, .. } => {
+                        tracing::warn!(vehicle = id, "vehicle dropped: nothing heard for {silent_s:.1} s");
+                        if let Some(v) = chains.remove(&id) {
+                            let _ = v.events.send(ev);
+                            // Its input closes: the chain drains, the relay says it was dropped.
+                            ended.push((id, v.tasks));
+                        }
+                    }
+                }
             }
         }
-        if let Some(v) = &self.vehicles {
-            if let Err(e) = VehicleFilter::parse(v) {
-                errs.push(format!("fleet.vehicles = {v:?}: {e}"));
+        let filtered = self.demux.filtered();
+        if filtered > 0 {
+            tracing::info!("{filtered} messages from vehicles outside fleet.vehicles ignored");
+        }
+        ended.extend(chains.into_iter().map(|(id, v)| (id, v.tasks)));
+        drop(self.fanout);
+        let mut ends = Vec::with_capacity(ended.len());
+        for (id, t) in ended {
+            ends.push((id, t.join().await?));
+        }
+        let mut fits = self.inference.join().await?;
+        // The flight is over: remember each vehicle, off the reactor (a slow or locked
+        // database delays nothing but this write, and a failure is a warning).
+        if let Some(dir) = self.data_dir {
+            for (id, end) in ends {
+                let (dir, fits) = (dir.clone(), fits.remove(&id));
+                tokio::task::spawn_blocking(move || crate::vehicle::store::remember(&dir, end.identity.as_ref(), fits.as_deref(), &end.flight)).await?;
             }
         }
-        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+        Ok(())
     }
-}
 
-/// A set of MAVLink system ids (1..=255), written as ids and ranges: `1-125`, `3,7,10-20`.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct VehicleFilter {
-    ids: [bool; 256],
-}
-
-impl Default for VehicleFilter {
-    /// Every id.
-    fn default() -> Self {
-        let mut ids = [true; 256];
-        ids[0] = false;
-        Self { ids }
-    }
-}
-
-impl VehicleFilter {
-    /// Parse `1-125`, `3,7,10-20`; an id outside 1..=255, a reversed range or an empty list
-    /// is an error that says which part.
-    pub fn parse(s: &str) -> Result<Self, String> {
-        let mut ids = [false; 256];
-        let id = |p: &str| -> Result<u8, String> {
-            match p.trim().parse::<u8>() {
-                Ok(v) if v > 0 => Ok(v),
-                _ => Err(format!("{:?} is not a system id (1-255)", p.trim())),
-            }
+    /// Start vehicle `id`'s chain: the chain built before the run for the first vehicle
+    /// (it reports the signal health the terminal shows), a fresh one for the others.
+    fn start(&mut self, id: u8) -> Result<Vehicle> {
+        let (chain, mut status) = match self.first.take() {
+            Some(c) => (c, self.status.clone()),
+            None => (VehicleChain::another(&self.config)?, ChainStatus { health: Default::default(), ..self.status.clone() }),
         };
-        for part in s.split(',') {
-            let (lo, hi) = match part.split_once('-') {
-                Some((a, b)) => (id(a)?, id(b)?),
-                None => (id(part)?, id(part)?),
-            };
-            if lo > hi {
-                return Err(format!("range {:?} runs backwards", part.trim()));
-            }
-            ids[usize::from(lo)..=usize::from(hi)].iter_mut().for_each(|b| *b = true);
-        }
-        Ok(Self { ids })
+        status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id));
+        tracing::info!(vehicle = id, "vehicle heard: following it");
+        let (tx, rx) = mpsc::channel(CHANNEL_DEPTH);
+        let chain = chain.with_memory(self.data_dir.clone());
+        let (events, tasks) = chain.spawn(rx, &self.inference, self.fanout.clone(), &status, self.live);
+        Ok(Vehicle { msgs: tx, events, tasks })
     }
-    /// Whether `id` is in the set.
-    pub fn contains(&self, id: u32) -> bool {
-        usize::try_from(id).ok().and_then(|i| self.ids.get(i)).copied().unwrap_or(false)
-    }
-}
-
-/// Whether a HEARTBEAT comes from a vehicle's autopilot (not a ground station, a companion
-/// computer or another onboard component).
-pub fn is_vehicle_heartbeat(h: &crate::dialect::HEARTBEAT_DATA) -> bool {
-    use crate::dialect::{MavAutopilot, MavType};
-    h.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
-        && !matches!(h.mavtype, MavType::MAV_TYPE_GCS | MavType::MAV_TYPE_ONBOARD_CONTROLLER)
-}
-
-/// Telemetry only a vehicle sends (what the telemetry stage reads its signals from).
-fn is_vehicle_telemetry(m: &MavMessage) -> bool {
-    matches!(
-        m,
-        MavMessage::ATTITUDE_QUATERNION(_)
-            | MavMessage::ATTITUDE(_)
-            | MavMessage::HIGHRES_IMU(_)
-            | MavMessage::SCALED_IMU(_)
-            | MavMessage::RAW_IMU(_)
-            | MavMessage::LOCAL_POSITION_NED(_)
-            | MavMessage::ODOMETRY(_)
-            | MavMessage::GLOBAL_POSITION_INT(_)
-            | MavMessage::GPS_RAW_INT(_)
-            | MavMessage::HOME_POSITION(_)
-            | MavMessage::WIND(_)
-            | MavMessage::WIND_COV(_)
-            | MavMessage::VFR_HUD(_)
-            | MavMessage::BATTERY_STATUS(_)
-            | MavMessage::SYS_STATUS(_)
-    )
 }
 
 /// Where one message goes.

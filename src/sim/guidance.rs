@@ -261,14 +261,14 @@ impl Route {
     /// DO_CHANGE_SPEED; the plan's `hoverSpeed` wins over it), hold and loiter times as
     /// holds; LAND lands at its position (or where it is), RETURN_TO_LAUNCH flies home at
     /// the altitude it is at and lands. Positions are NED from the plan's home.
-    pub fn from_plan(plan: &super::plan::Plan, speed_mps: f64) -> Result<PlanRoute, InvalidOption> {
-        use super::plan::ItemKind as K;
+    pub fn from_plan(plan: &crate::mission::plan::Plan, speed_mps: f64) -> Result<PlanRoute, InvalidOption> {
+        use crate::mission::plan::ItemKind as K;
         let mut speed = plan.hover_speed_m_s.unwrap_or(speed_mps);
         let mut waypoints: Vec<Waypoint> = Vec::new();
         let mut waypoint_items = Vec::new();
         let mut takeoff: Option<(usize, f64)> = None;
         let mut end_item = plan.items.len().saturating_sub(1);
-        let ned = |p: &super::plan::GeoPoint| super::trajectory::enu_of(&plan.home, p.lat_deg, p.lon_deg);
+        let ned = |p: &crate::mission::plan::GeoPoint| crate::mission::trajectory::enu_of(&plan.home, p.lat_deg, p.lon_deg);
         for it in &plan.items {
             let hold_s = match it.kind {
                 K::ChangeSpeed { speed_m_s } => {

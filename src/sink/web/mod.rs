@@ -305,7 +305,7 @@ struct Since {
 }
 
 async fn index() -> impl IntoResponse {
-    Html(include_str!("web/index.html"))
+    Html(include_str!("index.html"))
 }
 
 async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoResponse {
@@ -353,7 +353,7 @@ pub fn spawn(cfg: WebSinkConfig, rx: super::ReportRx, shutdown: CancellationToke
 pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx: super::ReportRx, shutdown: CancellationToken) -> Result<()> {
     let token = cfg.token().map_err(anyhow::Error::msg)?;
     let dash: Shared = Arc::default();
-    let rules = Arc::new(guard::Rules::new(token, cfg.max_request_bytes, include_str!("web/index.html")));
+    let rules = Arc::new(guard::Rules::new(token, cfg.max_request_bytes, include_str!("index.html")));
     let app = Router::new()
         .route("/", get(index))
         .route("/api/state", get(state))

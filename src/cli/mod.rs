@@ -1,0 +1,257 @@
+//! The `dronewatt` command line: parse, load config, run one command. Both binaries' `main`
+//! is [`main`]: `dronewatt` (`src/main.rs`) and `dronewatt-torch` (`torch/src/main.rs`, which
+//! registers the libtorch parts first).
+//!
+//! `dronewatt` does not load libtorch (it starts in milliseconds; the LSTM runs on the
+//! hand-written kernel). A command that needs libtorch (training, a TorchScript model) fails
+//! with [`NeedsLibtorch`] and is handed, whole, to `dronewatt-torch` beside this executable
+//! (`handoff`), which runs this same command line with the libtorch parts registered.
+
+mod describe;
+mod simulate;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+
+use crate::config::Config;
+use crate::model::NeedsLibtorch;
+use crate::pipeline::{self, Pipeline};
+use crate::sink::{JsonTarget, SinkSpec};
+use crate::source::{SourceSpec, Speed};
+use crate::cli::simulate::SimulateArgs;
+use crate::cli::describe::describe_config;
+
+/// Live drone power, energy and flight-time estimates from MAVLink telemetry.
+#[derive(Debug, Parser)]
+#[command(name = "dronewatt", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// What every command that runs the pipeline shares.
+#[derive(Debug, Clone, clap::Args)]
+struct RunArgs {
+    /// Configuration file (TOML). Without one, the built-in defaults.
+    #[arg(long, short = 'c', value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Write JSON lines to PATH, or to standard output with '-'.
+    #[arg(long, value_name = "PATH|-")]
+    json: Option<String>,
+    /// No live terminal view.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+    /// Run this LSTM instead of the shipped one: a model folder, its card.toml, or a
+    /// weights file (.safetensors, or a TorchScript .pt) with card.toml beside it.
+    #[arg(long, value_name = "FILE")]
+    model: Option<PathBuf>,
+    /// Watch only these vehicles (MAVLink system ids): ids and ranges such as `1-125` or
+    /// `3,7,10-20`; the others are ignored, so several instances can split one link's
+    /// fleet. Overrides `[fleet] vehicles`.
+    #[arg(long, value_name = "IDS")]
+    vehicles: Option<String>,
+    /// Vehicle profile to run the physics models on (a `config/vehicles/*.toml` file, or the
+    /// `profile.toml` that `dronewatt learn` wrote); overrides the config's `vehicle`.
+    #[arg(long, value_name = "FILE")]
+    vehicle: Option<PathBuf>,
+    /// Keep the vehicle store (what was learned about each vehicle, its flights) in DIR;
+    /// `off`: none. Default: $DRONEWATT_HOME, else $XDG_DATA_HOME/dronewatt, else
+    /// ~/.local/share/dronewatt.
+    #[arg(long, value_name = "DIR")]
+    data_dir: Option<PathBuf>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Replay a logged flight: a .tlog, an ArduPilot DataFlash .bin, a PX4 .ulg, a raw MAVLink
+    /// stream, or the M100 flights.csv[.gz].
+    Replay {
+        /// The file to replay (.tlog, an ArduPilot DataFlash .bin, a PX4 .ulg, .bin/.raw/.mavlink raw stream,
+        /// .csv or .csv.gz data set). A .bin is DataFlash when it starts with DataFlash's header.
+        file: PathBuf,
+        /// Playback speed: 1 = real time, N = N× faster, 'max' = flat out.
+        #[arg(long, default_value = "1")]
+        speed: Speed,
+        /// Which flight of a data-set CSV to replay.
+        #[arg(long)]
+        flight: Option<u32>,
+        /// Treat FILE as a raw MAVLink stream (no timestamps) whatever its name.
+        #[arg(long)]
+        raw: bool,
+        #[command(flatten)]
+        run: RunArgs,
+    },
+    /// Watch a live link: udpin:HOST:PORT, udpout:HOST:PORT, tcpin:, tcpout:, serial:DEV:BAUD.
+    Monitor {
+        /// The link address, as MAVProxy and rust-mavlink spell it.
+        address: String,
+        #[command(flatten)]
+        run: RunArgs,
+    },
+    /// Write one data-set flight as a .tlog.
+    Convert(crate::source::dataset::ConvertArgs),
+    /// Fly the built-in simulator to a UDP address or a .tlog.
+    Simulate(SimulateArgs),
+    /// Score every model on data-set flights (the paper's tables, in watts).
+    Eval(crate::offline::eval::EvalArgs),
+    /// Learn a vehicle from its .tlog logs: the physics models fitted, scored on held-out logs; writes a profile and a model card.
+    Learn(crate::offline::learn::LearnArgs),
+    /// Fit the physics models' free parameters to training flights.
+    Calibrate(crate::offline::calibrate::CalibrateArgs),
+    /// Train the LSTM (by-flight cross-validation, grid search, early stopping).
+    Train(crate::offline::train::TrainArgs),
+    /// Sensitivity of the LSTM to altitude, payload and speed (the paper's Table 3).
+    Sensitivity(crate::offline::sensitivity::SensitivityArgs),
+    /// Forecast a mission plan's energy before flight: per leg and in all, P50/P90, margin over reserve.
+    Plan(crate::offline::plan::PlanArgs),
+    /// Judge the mission forecast on the data set's route flights (pre-flight and live at 50 %, vs the autopilots' rule).
+    PlanEval(crate::offline::plan_eval::PlanEvalArgs),
+    /// List the vehicles in the vehicle store: flights, energy per minute, the pack's capacity trend.
+    Vehicles {
+        /// The store's folder (as `monitor --data-dir`).
+        #[arg(long, value_name = "DIR")]
+        data_dir: Option<PathBuf>,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Validate a configuration file and say what it sets up.
+    CheckConfig {
+        /// The TOML file.
+        file: PathBuf,
+    },
+}
+
+pub fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "dronewatt=info,warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+    match real_main(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            if e.chain().any(|c| c.is::<NeedsLibtorch>()) {
+                handoff();
+            }
+            eprintln!("dronewatt: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Run this command line again as `dronewatt-torch` (beside this executable), replacing
+/// this process; returns only when there is none to run (the error then says how to build
+/// it). `DRONEWATT_HANDOFF` marks the child, so a hand-off happens at most once.
+fn handoff() {
+    use std::os::unix::process::CommandExt;
+    const MARK: &str = "DRONEWATT_HANDOFF";
+    if std::env::var_os(MARK).is_some() {
+        return;
+    }
+    let Some(torch) = std::env::current_exe().ok().map(|exe| exe.with_file_name("dronewatt-torch")).filter(|p| p.is_file()) else {
+        return;
+    };
+    tracing::info!("handing the command to {} (it loads libtorch)", torch.display());
+    let err = std::process::Command::new(&torch).args(std::env::args_os().skip(1)).env(MARK, "1").exec();
+    tracing::warn!("{}: cannot run: {err}", torch.display());
+}
+
+fn real_main(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Replay { file, speed, flight, raw, run } => {
+            if !file.exists() {
+                anyhow::bail!("{}: no such file", file.display());
+            }
+            let name = file.to_string_lossy().to_ascii_lowercase();
+            let source = if name.ends_with(".csv") || name.ends_with(".csv.gz") {
+                let flight = flight.context("a data-set CSV holds many flights: pick one with --flight N")?;
+                SourceSpec::Dataset { path: file, flight, speed }
+            } else if !raw && (name.ends_with(".ulg") || name.ends_with(".bin") && crate::source::dataflash::starts_as_dataflash(&file)) {
+                SourceSpec::AutopilotLog { path: file, speed }
+            } else if raw || !name.ends_with(".tlog") {
+                SourceSpec::Raw { path: file, speed }
+            } else {
+                SourceSpec::Tlog { path: file, speed }
+            };
+            run_pipeline(source, run)
+        }
+        Command::Monitor { address, run } => {
+            // A malformed address fails here, before anything starts, with one line.
+            address.parse::<crate::source::link::LinkAddress>()?;
+            run_pipeline(SourceSpec::Link(address), run)
+        }
+        Command::Convert(a) => crate::source::dataset::run(a),
+        Command::Simulate(a) => simulate::simulate(a),
+        Command::Eval(a) => crate::offline::eval::run(a),
+        Command::Calibrate(a) => crate::offline::calibrate::run(a),
+        Command::Learn(a) => crate::offline::learn::run(a),
+        Command::Train(a) => crate::offline::train::run(a),
+        Command::Sensitivity(a) => crate::offline::sensitivity::run(a),
+        Command::Plan(a) => crate::offline::plan::run_plan(a),
+        Command::PlanEval(a) => crate::offline::plan_eval::run_plan_eval(a),
+        Command::Vehicles { data_dir, json } => {
+            let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref())
+                .context("the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR")?;
+            print!("{}", crate::vehicle::store::list(&dir, json)?);
+            Ok(())
+        }
+        Command::CheckConfig { file } => {
+            let cfg = Config::load(&file)?;
+            // The secrets' files too: missing, unreadable or readable by others fails here.
+            let err = |e: String| anyhow::anyhow!("{}: {e}", file.display());
+            cfg.link.load().map_err(err)?;
+            if cfg.sinks.web.enabled {
+                cfg.sinks.web.token().map_err(err)?;
+            }
+            print!("{}", describe_config(&file, &cfg));
+            Ok(())
+        }
+    }
+}
+
+fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
+    let mut config = Config::load_or_default(run.config.as_deref())?;
+    if let Some(m) = &run.model {
+        config.models.lstm.path = Some(m.clone());
+    }
+    if let Some(v) = &run.vehicles {
+        crate::source::fleet::VehicleFilter::parse(v).map_err(|e| anyhow::anyhow!("--vehicles {v}: {e}"))?;
+        config.fleet.vehicles = Some(v.clone());
+    }
+    if let Some(v) = &run.vehicle {
+        config.vehicle = Some(v.clone());
+    }
+    let mut sinks = Vec::new();
+    if !run.quiet && run.json.as_deref() != Some("-") {
+        sinks.push(SinkSpec::Terminal);
+    }
+    if let Some(j) = &run.json {
+        sinks.push(SinkSpec::Json(if j == "-" { JsonTarget::Stdout } else { JsonTarget::File(j.into()) }));
+    }
+    // MAVLink back to the ground station: on by default when watching a live link (so
+    // `monitor udpin:…` answers the ground station with no config at all), or wherever
+    // the config gives an address.
+    let mav = &config.sinks.mavlink;
+    let live = matches!(source, SourceSpec::Link(_));
+    if mav.enabled.unwrap_or(live || mav.address.is_some()) {
+        sinks.push(SinkSpec::Mavlink(mav.clone()));
+    }
+    if config.sinks.web.enabled {
+        sinks.push(SinkSpec::Web(config.sinks.web.clone()));
+    }
+    if config.sinks.mqtt.enabled {
+        sinks.push(SinkSpec::Mqtt(config.sinks.mqtt.clone()));
+    }
+    let data_dir = crate::vehicle::store::data_dir_from_env(run.data_dir.as_deref());
+    let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
+    rt.block_on(async move {
+        let shutdown = pipeline::shutdown_on_signal();
+        pipeline::run(Pipeline { config, source, sinks, data_dir }, shutdown).await.map(|_| ())
+    })
+}

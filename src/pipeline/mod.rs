@@ -1,0 +1,122 @@
+//! One vehicle's chain as named stages, the demultiplexer that runs one chain per vehicle
+//! of a link, the run that feeds them from a source and fans their reports out to the
+//! sinks, and shutdown.
+//!
+//! ```text
+//! source ─TimedMessage→ demux ─TimedMessage→ one chain per vehicle:
+//!     telemetry_stage ─Window→ inference_stage (one for all vehicles) ─Estimate→ energy_stage ─Report→ relay ─Report→ Fanout → one task per sink
+//!            └────────── VehicleParams (watch: the latest word only) ──────────▶┘
+//! ```
+//!
+//! The telemetry stage also reads the vehicle ([`crate::vehicle::params`]): on a live link it
+//! asks for the battery parameters (PARAM_REQUEST_READ on the link, resent, bounded), in a
+//! replay it takes the logged PARAM_VALUEs; what it learns reaches the energy stage on a
+//! `tokio::sync::watch` (only the newest value matters, and it never holds a stage back).
+//!
+//! Every arrow is a bounded channel carrying one typed value; a full channel holds the
+//! stage before it back, so a flat-out replay loses nothing. The demultiplexer
+//! ([`Demux`]) starts a [`VehicleChain`] for each vehicle it hears, ends it when
+//! the vehicle is dropped, and tells the vehicle's relay when it is lost (the relay then
+//! reports the `vehicle_lost` / `vehicle_dropped` alert after the vehicle's last report).
+//! [`VehicleChain`] is one vehicle's state (telemetry, models, energy, alert rules), built
+//! and checked before anything listens; [`VehicleChain::spawn`] runs its stages. The models
+//! run once for the fleet ([`Inference`]): each window goes with the channel its estimate
+//! goes back on. What the chain says about itself beside the reports (counters, signal
+//! health, the uplink, the stop signal) is one [`ChainStatus`] every sink gets.
+//!
+//! Shutdown is one path whatever starts it (Ctrl-C or SIGTERM through
+//! [`shutdown_on_signal`], the end of a replay, a fatal source error): the source stops and
+//! drops its sender, each stage drains what it holds and drops its own, and every sink
+//! sees its queue close, flushes and writes its summary. Nothing is lost on the way out.
+
+mod chain;
+mod fleet;
+mod inference;
+mod shutdown;
+mod sinks;
+
+pub use chain::{account, ChainEnd, ChainTasks, Rebuild, VehicleChain};
+pub use fleet::{Demux, FleetEvent, Route};
+pub use inference::{Batching, Fits, Inference, Job, WarmStart};
+pub use shutdown::shutdown_on_signal;
+pub use sinks::{start_sinks, SinkTasks};
+use chain::mission_setup;
+use fleet::Fleet;
+use sinks::relay;
+
+use std::sync::Arc;
+
+use anyhow::Result;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+use crate::config::Config;
+use crate::model::Ensemble;
+use crate::sink::SinkSpec;
+use crate::source::{LinkSigning, SourceSpec, TimedMessage};
+use crate::report::status::{ChainStatus, LinkHandle, StatsSnapshot};
+
+/// Channel depth between stages. Deep enough to ride out a slow model for a few seconds
+/// at 10 Hz; a flat-out replay simply waits on the slowest stage (back-pressure).
+pub const CHANNEL_DEPTH: usize = 1024;
+/// Most windows the inference stage runs as one batch when they queue up.
+pub const MAX_BATCH: usize = 256;
+/// On a live link, with no estimate for this long the alert rules are still evaluated, on
+/// [`crate::report::Estimate::silent`], so `telemetry_lost` fires when the link goes wholly silent.
+pub const SILENT_TICK: std::time::Duration = std::time::Duration::from_secs(1);
+/// How long the end of a run waits for an uplink to write what its sink queued last.
+pub(crate) const UPLINK_FLUSH: std::time::Duration = std::time::Duration::from_secs(2);
+/// How often the telemetry stage refreshes the signal health the terminal view shows.
+pub(crate) const HEALTH_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// Everything a run of the pipeline needs.
+pub struct Pipeline {
+    pub config: Config,
+    pub source: SourceSpec,
+    pub sinks: Vec<SinkSpec>,
+    /// The vehicle store's folder ([`crate::vehicle::store`]); `None`: nothing remembered.
+    pub data_dir: Option<std::path::PathBuf>,
+}
+
+/// Run the pipeline to the end of its source or until `shutdown` is cancelled. Returns the
+/// ingest counters (the summary line's numbers).
+pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
+    // Built before any task starts, so a bad model or profile fails before we listen.
+    let mut chain = VehicleChain::build(&p.config)?;
+    let demux = Demux::new(&p.config.fleet, None).map_err(anyhow::Error::msg)?;
+    // The signing key is read now: a missing or world-readable key fails before we listen.
+    let signing = p.config.link.load().map_err(anyhow::Error::msg)?.map(|s| Arc::new(LinkSigning::new(s)));
+    let signer = signing.clone().map(|s| s as Arc<dyn crate::report::status::FrameSigner>);
+    let status = ChainStatus { shutdown: shutdown.clone(), link: LinkHandle::with_signer(signer), ..ChainStatus::default() };
+
+    // Sinks start first so they see every report.
+    let (fanout, sinks) = start_sinks(p.sinks, &status)?;
+
+    let live = matches!(p.source, SourceSpec::Link(_));
+    let mission = mission_setup(&p.config, &p.source, demux.filter())?;
+    let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
+    let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
+    // The mission tap between the source and the demultiplexer, when there is a mission
+    // to follow: it follows the vehicle it first hears, whose chain (the first) gets it.
+    let (msg_rx, mission_task) = match mission {
+        Some(setup) => {
+            let (status_tx, status_rx) = mpsc::channel(crate::mission::live::STATUS_DEPTH);
+            let (rx, task) = crate::mission::live::spawn(msg_rx, setup, status.link.clone(), status_tx);
+            chain.mission = Some(status_rx);
+            (rx, Some(task))
+        }
+        None => (msg_rx, None),
+    };
+    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config), live, status.stats.clone());
+    let fleet = Fleet { config: p.config, demux, first: Some(chain), inference, fanout, status: status.clone(), live, data_dir: p.data_dir };
+    let demux = tokio::spawn(fleet.run(msg_rx));
+
+    let source_result = source.await?;
+    if let Some(t) = mission_task {
+        t.await?;
+    }
+    demux.await??;
+    sinks.join().await?;
+    source_result?;
+    Ok(status.stats.snapshot())
+}

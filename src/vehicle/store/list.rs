@@ -1,0 +1,61 @@
+//! `dronewatt vehicles`: what the store knows, as a table or JSON.
+
+use std::path::Path;
+
+use anyhow::Result;
+
+use crate::vehicle::store::dir::DB_FILE;
+use crate::vehicle::store::Store;
+
+/// `dronewatt vehicles`: the table (or JSON with `json`).
+pub fn list(dir: &Path, json: bool) -> Result<String> {
+    use std::fmt::Write;
+    let path = dir.join(DB_FILE);
+    if !path.exists() {
+        return Ok(if json { "[]\n".into() } else { format!("{}: no vehicle store yet (nothing flown with the store on)\n", path.display()) });
+    }
+    let store = Store::open(dir)?;
+    let vehicles = store.vehicles()?;
+    if json {
+        return Ok(serde_json::to_string_pretty(&vehicles)? + "\n");
+    }
+    let mut s = String::new();
+    let _ = writeln!(s, "{}: {} vehicle(s)", store.path().display(), vehicles.len());
+    let _ = writeln!(
+        s,
+        "{:<34} {:<9} {:<10} {:<22} {:>7} {:>9} {:>9}  capacity delivered / rated, by flight",
+        "vehicle", "told by", "autopilot", "type", "flights", "airborne", "Wh/min"
+    );
+    for v in &vehicles {
+        // (+ 0.0: an empty sum is −0.0.)
+        let airborne: f64 = v.flights.iter().map(|f| f.summary.airborne_s).sum::<f64>() + 0.0;
+        let trend = v.capacity_trend_pct();
+        let trend = if trend.is_empty() {
+            "—".to_string()
+        } else {
+            trend.iter().map(|p| format!("{p:.0} %")).collect::<Vec<_>>().join(" → ")
+        };
+        let _ = writeln!(
+            s,
+            "{:<34} {:<9} {:<10} {:<22} {:>7} {:>7.1} m {:>9}  {}",
+            v.key,
+            v.key_kind,
+            v.autopilot,
+            v.vehicle_type.trim_start_matches("MAV_TYPE_"),
+            v.flights.len(),
+            airborne / 60.0,
+            v.wh_per_min().map_or("—".to_string(), |w| format!("{w:.2}")),
+            trend
+        );
+        if let Some(p) = &v.profile {
+            let _ = writeln!(
+                s,
+                "{:<34} learned profile {} (forecast model {})",
+                "",
+                p.path.display(),
+                p.forecast_model.as_deref().unwrap_or("not picked")
+            );
+        }
+    }
+    Ok(s)
+}
