@@ -33,6 +33,7 @@
 //! | [`source`] | where MAVLink comes from: the link address grammar, live links, `.tlog`, raw streams, DataFlash `.bin`, ULog `.ulg`, the M100 CSV; frame decoding and its counters; which senders are vehicles ([`source::fleet`]) |
 //! | [`telemetry`] | vehicle state, frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors, rolling windows ([`telemetry::window`]) |
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models, the LSTM and its model card, online adaptation to measured power |
+//! | [`battery`] | the pack, pure like [`model`]: chemistry and cell count, OCV curves (the TB48D's fitted on the data set), the equivalent circuit and its online estimator, the loaded-voltage forecast |
 //! | [`vehicle`] | who the vehicle is: identity and battery parameters over MAVLink, battery facts with their provenance, the vehicle store |
 //! | [`mission`] | plans (.plan, .waypoints, the mission protocol), the plan flown on paper, its energy forecast (P50/P90, per leg, live re-forecast) |
 //! | [`energy`] | energy used, remaining energy and time, energy to get home, the forecast model's selection |
@@ -46,6 +47,7 @@
 //! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_corpus.rs` |
 
 pub mod alert;
+pub mod battery;
 pub mod cli;
 pub mod config;
 pub mod energy;

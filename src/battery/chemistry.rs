@@ -1,0 +1,158 @@
+//! Cell chemistries, their voltage windows and default OCV shapes, and robust cell-count
+//! detection from a resting voltage.
+
+use super::ocv::OcvCurve;
+
+/// Cell chemistry. Windows are *resting* (open-circuit) voltages per cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Chemistry {
+    /// LiPo / LiCoO2-class, 4.20 V full.
+    LiPo,
+    /// High-voltage LiPo (e.g. DJI TB48D), 4.35 V full.
+    LiHv,
+    /// Li-ion (NMC 18650/21700 class), 4.20 V full, usable down to ~3.0 V.
+    LiIon,
+}
+
+/// LiPo default SoC table: the widely circulated hobby LiPo resting-voltage table
+/// (4.20 = 100 %, 3.84 = 50 %, 3.69 = 10 %, 3.27 = 0 %). Pairs are (V/cell, SoC).
+const LIPO: [(f64, f64); 14] = [
+    (3.27, 0.0),
+    (3.61, 0.05),
+    (3.69, 0.10),
+    (3.73, 0.20),
+    (3.77, 0.30),
+    (3.80, 0.40),
+    (3.84, 0.50),
+    (3.87, 0.60),
+    (3.91, 0.65),
+    (3.95, 0.70),
+    (4.02, 0.80),
+    (4.08, 0.85),
+    (4.11, 0.90),
+    (4.20, 1.00),
+];
+
+/// Li-ion (NMC) default: approximate low-rate OCV of generic NMC 18650 cells, digitised
+/// from typical datasheet curves (approximate; refine per cell when data exist).
+const LIION: [(f64, f64); 12] = [
+    (2.90, 0.0),
+    (3.20, 0.04),
+    (3.30, 0.06),
+    (3.40, 0.10),
+    (3.50, 0.15),
+    (3.60, 0.25),
+    (3.70, 0.40),
+    (3.80, 0.55),
+    (3.90, 0.68),
+    (4.00, 0.80),
+    (4.10, 0.91),
+    (4.20, 1.00),
+];
+
+impl Chemistry {
+    /// Full-charge resting voltage per cell.
+    pub fn full_v(self) -> f64 {
+        match self {
+            Chemistry::LiPo | Chemistry::LiIon => 4.20,
+            Chemistry::LiHv => 4.35,
+        }
+    }
+    /// Nominal voltage per cell (labels, Wh ratings).
+    pub fn nominal_v(self) -> f64 {
+        match self {
+            Chemistry::LiPo => 3.70,
+            Chemistry::LiHv => 3.80,
+            Chemistry::LiIon => 3.60,
+        }
+    }
+    /// Lowest plausible *resting* voltage per cell (the empty end of the OCV table).
+    pub fn floor_v(self) -> f64 {
+        match self {
+            Chemistry::LiPo => 3.27,
+            Chemistry::LiHv => 3.30,
+            Chemistry::LiIon => 2.90,
+        }
+    }
+    /// Default normalised OCV curve (SoC 0..1 vs V/cell). LiHV is the fitted TB48D shape.
+    pub fn default_curve(self) -> OcvCurve {
+        match self {
+            Chemistry::LiPo => OcvCurve::from_soc_pairs(&LIPO),
+            Chemistry::LiIon => OcvCurve::from_soc_pairs(&LIION),
+            Chemistry::LiHv => OcvCurve::tb48d().normalized(),
+        }
+    }
+}
+
+/// Tolerance above `full_v` for meter error / fresh-off-charger surface charge.
+pub const FULL_TOL_V: f64 = 0.05;
+
+/// Every cell count `n` (1..=16) whose per-cell voltage `v_rest/n` lies in
+/// `[floor_v, full_v + FULL_TOL_V]`. Compares `v_rest` against `n·bound` (no division, no
+/// `ceil`: 12.6/4.2 is 3.0000000000000004 in f64, so `ceil` would say 4). More than one
+/// result means the count is ambiguous from voltage alone; empty means implausible input.
+pub fn cell_candidates(chem: Chemistry, v_rest: f64) -> Vec<u32> {
+    if !v_rest.is_finite() || v_rest <= 0.0 {
+        return Vec::new();
+    }
+    let eps = 1e-9;
+    (1u32..=16)
+        .filter(|&n| {
+            let nf = f64::from(n);
+            v_rest >= nf * chem.floor_v() - eps && v_rest <= nf * (chem.full_v() + FULL_TOL_V) + eps
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn full_3s_lipo_is_three_cells() {
+        assert_eq!(cell_candidates(Chemistry::LiPo, 12.6), vec![3]);
+    }
+
+    #[test]
+    fn exact_full_packs() {
+        for n in 1..=12u32 {
+            let lipo = cell_candidates(Chemistry::LiPo, 4.2 * f64::from(n));
+            assert!(lipo.contains(&n), "LiPo {n}: {lipo:?}");
+            let lihv = cell_candidates(Chemistry::LiHv, 4.35 * f64::from(n));
+            assert!(lihv.contains(&n), "LiHV {n}: {lihv:?}");
+            // never fewer cells than the truth (a full nS can also look like a low (n+1)S)
+            assert_eq!(lipo.first(), Some(&n), "LiPo {n}: {lipo:?}");
+        }
+        // full 6S LiHV (4.35) is also a plausible 7S at 3.73 V/cell: ambiguous, say so
+        assert_eq!(cell_candidates(Chemistry::LiHv, 26.1), vec![6, 7]);
+    }
+
+    #[test]
+    fn ambiguous_and_garbage() {
+        // 13.2 V is a low 4S or an over-full 3S LiPo? 3S max 12.75 -> 4S only
+        assert_eq!(cell_candidates(Chemistry::LiPo, 13.2), vec![4]);
+        // Li-ion at 8.8 V: 2S (4.4 no) -> 3S at 2.93 V ok, 2S at 4.4 too high
+        assert_eq!(cell_candidates(Chemistry::LiIon, 8.8), vec![3]);
+        // 25 V LiPo: 6S (4.17) and 7S (3.57): ambiguous
+        assert_eq!(cell_candidates(Chemistry::LiPo, 25.0), vec![6, 7]);
+        assert!(cell_candidates(Chemistry::LiPo, f64::NAN).is_empty());
+        assert!(cell_candidates(Chemistry::LiPo, 0.0).is_empty());
+        assert!(cell_candidates(Chemistry::LiPo, -3.0).is_empty());
+    }
+
+    #[test]
+    fn default_curves_are_monotone_and_span_window() {
+        for c in [Chemistry::LiPo, Chemistry::LiHv, Chemistry::LiIon] {
+            let k = c.default_curve();
+            assert!((k.soc(c.full_v()) - 1.0).abs() < 1e-9, "{c:?}");
+            assert!(k.soc(c.floor_v()).abs() < 1e-9, "{c:?}");
+            let mut last = -1.0;
+            for i in 0..=200 {
+                let v = 2.5 + 2.0 * f64::from(i) / 200.0;
+                let s = k.soc(v);
+                assert!(s >= last - 1e-12);
+                last = s;
+            }
+        }
+    }
+}

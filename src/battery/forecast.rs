@@ -1,0 +1,138 @@
+//! Loaded-voltage forecast over a future power profile.
+//!
+//! Why power and not current: planners predict power (W) from speed/mass/wind; the pack
+//! decides the current. Each step solves P = V·I with V = C − R·I, where
+//! C = OCV − b − R1·x1·e1 and R = f·R0 + f·R1·(1 − e1) (the RC state's exact step),
+//! i.e. R·I² − C·I + P = 0, taking the smaller root (the stable operating point).
+//! If C² < 4·R·P the pack cannot deliver P: the current is set to the maximum-power point
+//! C/(2R) and `power_limited` is set.
+
+use super::circuit::Estimator;
+
+/// Forecast result. Times are seconds from the forecast start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Forecast {
+    /// Lowest loaded voltage (V); NaN if no valid step.
+    pub v_min: f64,
+    /// When `v_min` occurs (s).
+    pub t_v_min: f64,
+    /// Loaded voltage at the end of the profile (V).
+    pub v_end: f64,
+    /// First time the voltage falls below each threshold (same order), `None` if never.
+    pub crossings: Vec<Option<f64>>,
+    /// True if some step asked for more power than the pack can deliver.
+    pub power_limited: bool,
+    /// Energy left above floor at the end (Wh for the TB48D table).
+    pub energy_end_wh: f64,
+}
+
+/// Simulates from the estimator's present state (not modified) over `profile` =
+/// [(dt_s, power_w)]. Non-finite or non-positive dt steps are skipped; negative or NaN
+/// power is treated as 0 W (NaN) or clamped to 0 W (negative). Never panics.
+pub fn forecast(state: &Estimator, profile: &[(f64, f64)], thresholds_v: &[f64]) -> Forecast {
+    let mut s = state.clone();
+    let p = s.p;
+    let [r0, r1, b] = s.theta;
+    let mut out = Forecast {
+        v_min: f64::NAN,
+        t_v_min: f64::NAN,
+        v_end: f64::NAN,
+        crossings: vec![None; thresholds_v.len()],
+        power_limited: false,
+        energy_end_wh: s.energy,
+    };
+    let mut t = 0.0;
+    for &(dt, pw) in profile {
+        if !(dt.is_finite() && dt > 0.0) {
+            continue;
+        }
+        let pw = if pw.is_finite() { pw.max(0.0) } else { 0.0 };
+        let eh = (-dt / p.tau_heat_s).exp();
+        s.heat *= eh;
+        let f = 1.0 + p.warm_a * (-s.heat / p.heat_scale).exp();
+        let e1 = (-dt / p.tau1_s).exp();
+        let c = s.ocv() - b - r1 * s.x1 * e1;
+        let re = (f * r0 + r1 * f * (1.0 - e1)).max(1e-6);
+        let disc = c * c - 4.0 * re * pw;
+        let i = if disc >= 0.0 {
+            (c - disc.sqrt()) / (2.0 * re)
+        } else {
+            out.power_limited = true;
+            c / (2.0 * re)
+        };
+        let v = c - re * i;
+        s.heat += i * i * p.tau_heat_s * (1.0 - eh);
+        s.x1 = s.x1 * e1 + f * i * (1.0 - e1);
+        s.energy = (s.energy - v * i * dt / 3600.0).max(0.0);
+        t += dt;
+        if out.v_min.is_nan() || v < out.v_min {
+            out.v_min = v;
+            out.t_v_min = t;
+        }
+        out.v_end = v;
+        for (k, &th) in thresholds_v.iter().enumerate() {
+            if out.crossings[k].is_none() && v < th {
+                out.crossings[k] = Some(t);
+            }
+        }
+    }
+    out.energy_end_wh = s.energy;
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::battery::{CircuitParams, OcvCurve};
+
+    fn est() -> Estimator {
+        Estimator::new(CircuitParams::default(), OcvCurve::tb48d(), 24.0, 0.0).expect("valid")
+    }
+
+    #[test]
+    fn reproduces_python_forecast() {
+        let mut prof = vec![(0.5, 500.0); 120];
+        prof.extend(vec![(0.5, 100.0); 20]);
+        let f = forecast(&est(), &prof, &[22.5, 21.0]);
+        assert!((f.v_min - 21.351727443961877).abs() < 1e-9, "{f:?}");
+        assert!((f.t_v_min - 60.0).abs() < 1e-9);
+        assert!((f.v_end - 22.74851184137836).abs() < 1e-9);
+        assert_eq!(f.crossings, vec![Some(0.5), None]);
+        assert!(!f.power_limited);
+    }
+
+    #[test]
+    fn empty_nan_and_huge_profiles_do_not_panic() {
+        let e = est();
+        let f = forecast(&e, &[], &[21.0]);
+        assert!(f.v_min.is_nan() && f.crossings == vec![None]);
+        let f = forecast(
+            &e,
+            &[
+                (f64::NAN, 1.0),
+                (1.0, f64::NAN),
+                (-1.0, 5.0),
+                (1.0, f64::INFINITY),
+            ],
+            &[f64::NAN],
+        );
+        assert!(f.v_min.is_finite());
+        let f = forecast(&e, &[(1.0, 1e9)], &[]);
+        assert!(f.power_limited && f.v_min.is_finite());
+        let mut s: u64 = 99;
+        for _ in 0..200 {
+            let prof: Vec<(f64, f64)> = (0..50)
+                .map(|_| {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let u = (s >> 11) as f64 / (1u64 << 53) as f64;
+                    (u * 2.0 - 0.2, u * 3000.0 - 100.0)
+                })
+                .collect();
+            let f = forecast(&e, &prof, &[21.0, 22.0]);
+            assert!(f.v_min.is_nan() || f.v_min <= f.v_end + 1e-12);
+            assert!(f.energy_end_wh >= 0.0);
+        }
+    }
+}
