@@ -4,7 +4,8 @@
 use super::ocv::OcvCurve;
 
 /// Cell chemistry. Windows are *resting* (open-circuit) voltages per cell.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Chemistry {
     /// LiPo / LiCoO2-class, 4.20 V full.
     LiPo,
@@ -51,6 +52,18 @@ const LIION: [(f64, f64); 12] = [
 ];
 
 impl Chemistry {
+    /// As the config writes it: `lipo`, `lihv`, `liion`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Chemistry::LiPo => "lipo",
+            Chemistry::LiHv => "lihv",
+            Chemistry::LiIon => "liion",
+        }
+    }
+    /// The inverse of [`Chemistry::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Chemistry::LiPo, Chemistry::LiHv, Chemistry::LiIon].into_iter().find(|c| c.name() == name)
+    }
     /// Full-charge resting voltage per cell.
     pub fn full_v(self) -> f64 {
         match self {

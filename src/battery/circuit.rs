@@ -160,7 +160,7 @@ impl Estimator {
             v_prior,
             error: err,
             ocv,
-            r0_eff: self.theta[0] * phi[0] / i.max(1e-9),
+            r0_eff: self.theta[0] * self.factor(),
             soc: self.energy / self.curve.capacity(),
             energy_wh: self.energy,
         })

@@ -20,6 +20,9 @@ pub struct Forecast {
     pub v_end: f64,
     /// First time the voltage falls below each threshold (same order), `None` if never.
     pub crossings: Vec<Option<f64>>,
+    /// Energy left above the floor when each threshold is first crossed (same order, table
+    /// units): what is usable before the voltage failsafe, subtracted from the energy now.
+    pub energy_at_crossing: Vec<Option<f64>>,
     /// True if some step asked for more power than the pack can deliver.
     pub power_limited: bool,
     /// Energy left above floor at the end (Wh for the TB48D table).
@@ -38,6 +41,7 @@ pub fn forecast(state: &Estimator, profile: &[(f64, f64)], thresholds_v: &[f64])
         t_v_min: f64::NAN,
         v_end: f64::NAN,
         crossings: vec![None; thresholds_v.len()],
+        energy_at_crossing: vec![None; thresholds_v.len()],
         power_limited: false,
         energy_end_wh: s.energy,
     };
@@ -73,6 +77,7 @@ pub fn forecast(state: &Estimator, profile: &[(f64, f64)], thresholds_v: &[f64])
         for (k, &th) in thresholds_v.iter().enumerate() {
             if out.crossings[k].is_none() && v < th {
                 out.crossings[k] = Some(t);
+                out.energy_at_crossing[k] = Some(s.energy);
             }
         }
     }

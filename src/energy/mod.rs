@@ -39,10 +39,11 @@
 
 use crate::features::idx;
 pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
-use crate::report::{BatteryFacts, Estimate, ModelEstimate, Provenance, Sourced};
+use crate::report::{BatteryFacts, Estimate, ModelEstimate, PackState, Provenance, Sourced, BATTERY_PCT_AGREE};
 use crate::vehicle::params::VehicleParams;
 use crate::vehicle::BatteryConfig;
 
+pub mod pack;
 pub mod select;
 
 /// Battery and home-return assumptions (the `[energy]` table).
@@ -57,9 +58,14 @@ pub struct EnergyConfig {
     /// the vehicle (`BAT1_N_CELLS`, else the first battery voltage seen ÷ 4.2 V rounded
     /// up), else 6 (TB48D is 6S).
     pub cell_count: Option<u32>,
-    /// Nominal cell voltage, V: a capacity in mAh times cells times this is Wh. Default 3.7
-    /// (LiPo; 3.85 for LiHV, 3.6 for Li-ion).
-    pub nominal_cell_v: f64,
+    /// Nominal cell voltage, V: a capacity in mAh times cells times this is Wh. Default: the
+    /// chemistry's (LiPo 3.7, LiHV 3.8, Li-ion 3.6).
+    pub nominal_cell_v: Option<f64>,
+    /// Cell chemistry: `lipo` (4.20 V full), `lihv` (4.35 V full, the TB48D) or `liion`
+    /// (4.20 V full, a lower floor). It picks the cell count's voltage window, the nominal
+    /// voltage and the default OCV curve. Default: LiHV when `MOT_BAT_VOLT_MAX` is cells ×
+    /// 4.35 or the pack is the default TB48D, else LiPo.
+    pub chemistry: Option<crate::battery::Chemistry>,
     /// Take remaining energy from the autopilot's battery percentage when it reports one
     /// (`capacity_wh` × %), rather than `capacity_wh` − energy used. Default true.
     pub use_battery_pct: bool,
@@ -89,7 +95,8 @@ impl Default for EnergyConfig {
         Self {
             capacity_wh: None,
             cell_count: None,
-            nominal_cell_v: 3.7,
+            nominal_cell_v: None,
+            chemistry: None,
             use_battery_pct: true,
             reserve_pct: 20.0,
             model: None,
@@ -130,8 +137,8 @@ impl EnergyConfig {
         if let Some(n) = self.cell_count.filter(|n| !(1..=24).contains(n)) {
             errs.push(format!("energy.cell_count = {n}: must be 1..=24 cells"));
         }
-        if !(self.nominal_cell_v.is_finite() && (1.0..=5.0).contains(&self.nominal_cell_v)) {
-            errs.push(format!("energy.nominal_cell_v = {}: must be 1..=5 V", self.nominal_cell_v));
+        if let Some(v) = self.nominal_cell_v.filter(|v| !(v.is_finite() && (1.0..=5.0).contains(v))) {
+            errs.push(format!("energy.nominal_cell_v = {v}: must be 1..=5 V"));
         }
         errs.extend(self.select.validate());
         if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
@@ -141,7 +148,7 @@ impl EnergyConfig {
 impl EnergyConfig {
     /// The `[energy]` keys the vehicle may answer for instead.
     pub fn battery(&self) -> BatteryConfig {
-        BatteryConfig { capacity_wh: self.capacity_wh, cell_count: self.cell_count, nominal_cell_v: self.nominal_cell_v }
+        BatteryConfig { capacity_wh: self.capacity_wh, cell_count: self.cell_count, nominal_cell_v: self.nominal_cell_v, chemistry: self.chemistry }
     }
 }
 
@@ -180,8 +187,14 @@ pub struct EnergyTracker {
     learned_capacity: Option<(f64, usize)>,
     /// Messages already warned about (each parameter problem once).
     warned: Vec<String>,
+    /// Warned once: the vehicle's battery % disagrees with the resting voltage.
+    warned_pct: bool,
+    /// Warned once: flying with the pack assumed full.
+    warned_full: bool,
     /// Which model the forecast follows ([`select`]).
     selector: select::Selector,
+    /// The pack: start state from the resting voltage, equivalent circuit, voltage forecast.
+    pack: pack::Pack,
 }
 
 impl EnergyTracker {
@@ -214,7 +227,10 @@ impl EnergyTracker {
             first_voltage_v: None,
             learned_capacity: None,
             warned: Vec::new(),
+            warned_pct: false,
+            warned_full: false,
             selector: select::Selector::new(&cfg.select, cfg.model.as_deref(), None),
+            pack: pack::Pack::default(),
         })
     }
 
@@ -252,7 +268,7 @@ impl EnergyTracker {
         }
         for n in notes {
             if !self.warned.contains(&n) {
-                tracing::warn!("{n}: using the config or the default instead");
+                tracing::warn!("{n}");
                 self.warned.push(n);
             }
         }
@@ -335,12 +351,48 @@ impl EnergyTracker {
             }
         }
 
+        // The pack: voltage and current (discharge positive) from the measured power.
+        let volts = s.voltage_v.map(f64::from).filter(|v| v.is_finite() && *v > 0.5);
+        let amps = volts.zip(measured).map(|(v, p)| p / v);
+        // The voltage forecast flies the rest of the mission at its mean power when one is
+        // known, else the forecast power until the reserve.
+        let rest_of_flight = self
+            .mission
+            .as_ref()
+            .filter(|m| m.time_left_s > 1.0 && m.energy_p50_wh > 0.0)
+            .map(|m| (3600.0 * m.energy_p50_wh / m.time_left_s, Some(m.time_left_s)))
+            .or(forecast.map(|p| (p, None)));
+        self.pack.reserve_frac = self.cfg.reserve_pct / 100.0;
+        let pk = self.pack.update(t, volts, amps, rest_of_flight, &self.battery);
+        for n in std::mem::take(&mut self.pack.notes) {
+            tracing::warn!("{n}");
+        }
+        let reported_pct = battery_pct.filter(|p| (0.0..=100.0).contains(p));
+        let disagreement = reported_pct.zip(pk.soc_pct).map(|(b, soc)| b - soc).filter(|d| d.abs() > BATTERY_PCT_AGREE);
+        if let (Some(d), false) = (disagreement, self.warned_pct) {
+            self.warned_pct = true;
+            tracing::warn!(
+                "battery: the vehicle reports {:.0} %, the resting voltage {:.2} V says {:.0} %: using the resting voltage (an autopilot that counts from 'full at boot' reads a half pack as full)",
+                reported_pct.unwrap_or(f64::NAN),
+                pk.rest_v.unwrap_or(f64::NAN),
+                reported_pct.unwrap_or(f64::NAN) - d
+            );
+        }
         let cap = self.battery.capacity_wh.value;
-        let (remaining, remaining_source) = match battery_pct.filter(|p| self.cfg.use_battery_pct && (0.0..=100.0).contains(p)) {
-            Some(pct) => (cap * pct / 100.0, RemainingSource::Battery),
-            None => ((cap - self.used_wh).max(0.0), RemainingSource::Capacity),
+        let (remaining, remaining_source, full_wh) = match (pk.usable_wh.or(pk.energy_wh), reported_pct.filter(|_| self.cfg.use_battery_pct)) {
+            (Some(e), _) => (e, RemainingSource::RestingVoltage, pk.curve_wh.unwrap_or(cap)),
+            (None, Some(pct)) => (cap * pct / 100.0, RemainingSource::Battery, cap),
+            (None, None) => ((cap - self.used_wh).max(0.0), RemainingSource::AssumedFull, cap),
         };
-        let time_to_empty_s = forecast.filter(|p| *p > 1.0).map(|p| 3600.0 * remaining / p);
+        if remaining_source == RemainingSource::AssumedFull && amps.is_some_and(|i| i >= pack::LOAD_CURRENT_A) && !self.warned_full {
+            self.warned_full = true;
+            tracing::warn!("battery: no resting voltage was read before take-off and the vehicle sends no battery %: remaining energy assumes the pack started full");
+        }
+        // To the voltage failsafe when the pack model forecasts one; else to the floor.
+        let time_to_empty_s = match (remaining_source, pk.time_to_low_v_s) {
+            (RemainingSource::RestingVoltage, Some(t_low)) => Some(t_low),
+            _ => forecast.filter(|p| *p > 1.0).map(|p| 3600.0 * remaining / p),
+        };
         let home_energy_wh = s.home.and_then(|h| {
             let p_cruise = self.cruise.0.or(forecast)?;
             let p_hover = self.hover.0.unwrap_or(p_cruise);
@@ -351,12 +403,12 @@ impl EnergyTracker {
             let wh = (p_cruise * flight_s + p_hover * down_s) / 3600.0;
             wh.is_finite().then_some(wh)
         });
-        let reserve = cap * self.cfg.reserve_pct / 100.0;
+        let reserve = full_wh * self.cfg.reserve_pct / 100.0;
         EnergyState {
             energy_used_wh: self.used_wh,
             power_source,
             remaining_wh: Some(remaining),
-            remaining_pct: Some(100.0 * remaining / cap),
+            remaining_pct: Some(100.0 * remaining / full_wh),
             remaining_source,
             forecast_w: forecast,
             forecast_model: forecast_from.and_then(|(m, _)| m).map(|m| m.name.clone()),
@@ -373,6 +425,19 @@ impl EnergyTracker {
             mission_margin_wh: self.mission.as_ref().map(|m| remaining - m.energy_p50_wh - reserve),
             mission: self.mission.clone(),
             forecast_adapted: forecast_adapted && forecast_from.is_some_and(|(m, _)| m.is_some()),
+            pack: PackState {
+                battery_v: volts,
+                battery_v_model: pk.v_model,
+                battery_ocv_v: pk.ocv_v,
+                battery_rest_v: pk.rest_v,
+                soc_pct: pk.soc_pct,
+                internal_r_ohm: pk.internal_r_ohm,
+                v_min_forecast_v: pk.v_min_forecast.map(|(v, _)| v),
+                v_min_forecast_at_s: pk.v_min_forecast.map(|(_, t)| t),
+                time_to_low_v_s: pk.time_to_low_v_s,
+                low_threshold_v: pk.low_v,
+                battery_pct_disagreement: disagreement,
+            },
             battery: self.battery.clone(),
         }
     }
@@ -477,7 +542,34 @@ mod tests {
         assert_eq!(st.remaining_source, "battery");
         // Unless the configuration says not to trust it.
         tr.cfg.use_battery_pct = false;
-        assert_eq!(tr.update_with_battery(&e, Some(40.0)).remaining_source, "capacity");
+        assert_eq!(tr.update_with_battery(&e, Some(40.0)).remaining_source, "assumed full");
+    }
+
+    /// A half-used TB48D resting at 23.2 V before take-off, with an autopilot that says 100 %
+    /// (ArduPilot counts from "full at boot").
+    #[test]
+    fn the_resting_voltage_starts_the_pack_and_beats_a_full_at_boot_gauge() {
+        let mut tr = tracker(EnergyConfig::default());
+        let mut st = EnergyState::default();
+        for k in 0..600 {
+            let t = f64::from(k) * 0.1;
+            let (v, amps) = if t < 4.0 { (23.2, 0.1) } else { (21.9, 20.0) };
+            let mut e = est(t, Some((v * amps) as f32), &[("m", (v * amps) as f32)]);
+            e.sample.voltage_v = Some(v as f32);
+            st = tr.update_with_battery(&e, Some(100.0));
+        }
+        assert_eq!(st.remaining_source, "resting voltage");
+        assert_eq!(st.pack.battery_rest_v, Some(f64::from(23.2f32)));
+        // 3.87 V a cell at rest: well under full, and the usable energy less again.
+        let soc = st.pack.soc_pct.expect("a state of charge");
+        assert!(soc > 25.0 && soc < 55.0, "{soc}");
+        assert!(st.remaining_pct.is_some_and(|p| p < soc), "{st:?}");
+        assert!(st.pack.battery_pct_disagreement.is_some_and(|d| d > 40.0), "{st:?}");
+        assert!(st.pack.internal_r_ohm.is_some_and(|r| r > 0.0), "{st:?}");
+        assert!(st.pack.v_min_forecast_v.is_some_and(|v| v < 21.9), "{st:?}");
+        // The time to empty is the time to the low-voltage threshold (3.5 V a cell, 21 V).
+        assert_eq!(st.pack.low_threshold_v, Some(21.0));
+        assert_eq!(st.time_to_empty_s, st.pack.time_to_low_v_s);
     }
 
     #[test]

@@ -107,24 +107,65 @@ impl PowerSource {
 
 /// Where `remaining_wh` comes from.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
 pub enum RemainingSource {
-    /// The capacity minus the energy used.
+    /// No start state known: the capacity minus the energy used, as if the pack had
+    /// started full (said so, never silently).
     #[default]
-    Capacity,
+    #[serde(rename = "assumed full")]
+    AssumedFull,
     /// The autopilot's reported state of charge × the capacity.
+    #[serde(rename = "battery")]
     Battery,
+    /// The resting voltage before take-off through the pack's OCV curve, then the
+    /// equivalent circuit, down to the usable floor (the low-voltage threshold under load).
+    #[serde(rename = "resting voltage")]
+    RestingVoltage,
 }
 
 impl RemainingSource {
     /// As JSON and the terminal say it.
     pub fn as_str(self) -> &'static str {
         match self {
-            RemainingSource::Capacity => "capacity",
+            RemainingSource::AssumedFull => "assumed full",
             RemainingSource::Battery => "battery",
+            RemainingSource::RestingVoltage => "resting voltage",
         }
     }
 }
+
+/// The pack model's view at one estimate ([`crate::energy`]'s pack): each value absent
+/// until known (no voltage yet, no resting voltage read, no forecast power).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct PackState {
+    /// Measured pack voltage, V.
+    pub battery_v: Option<f64>,
+    /// Modelled loaded voltage for this sample (predicted before it was seen), V.
+    pub battery_v_model: Option<f64>,
+    /// Open-circuit voltage now, V.
+    pub battery_ocv_v: Option<f64>,
+    /// The resting voltage the pack's state started from, V.
+    pub battery_rest_v: Option<f64>,
+    /// State of charge, % of the OCV curve's energy.
+    pub soc_pct: Option<f64>,
+    /// Series resistance now, Ω (estimated online).
+    pub internal_r_ohm: Option<f64>,
+    /// Lowest loaded voltage forecast for the rest of the flight, V, and when, s from now.
+    pub v_min_forecast_v: Option<f64>,
+    pub v_min_forecast_at_s: Option<f64>,
+    /// Time until the forecast loaded voltage crosses the low threshold, s.
+    pub time_to_low_v_s: Option<f64>,
+    /// The low threshold: the autopilot's `BATT_LOW_VOLT`, else 3.5 V a cell, V.
+    pub low_threshold_v: Option<f64>,
+    /// The autopilot's battery % minus the resting voltage's state of charge, points, when
+    /// they disagree by more than [`BATTERY_PCT_AGREE`] (ArduPilot counts from "full at
+    /// boot", so a half pack reads 100 %).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub battery_pct_disagreement: Option<f64>,
+}
+
+/// How far (points) the autopilot's battery % may differ from the resting voltage's state
+/// of charge before it is called a disagreement.
+pub const BATTERY_PCT_AGREE: f64 = 10.0;
 
 /// Where a battery figure came from: said beside it in the terminal, the JSON lines and the
 /// dashboard.
@@ -134,7 +175,7 @@ pub enum Provenance {
     Config,
     /// The vehicle's own parameter of this name (read over MAVLink or from a log).
     Parameter(String),
-    /// The first battery voltage seen (cell count = ceil(V / 4.2)).
+    /// The first battery voltage seen (the cell counts whose resting window holds it).
     FirstVoltage,
     /// What the pack delivered on this many earlier flights of the vehicle (the vehicle
     /// store's effective capacity).
@@ -195,6 +236,8 @@ pub struct BatteryFacts {
     pub capacity_wh: Sourced<f64>,
     /// Cells in series.
     pub cell_count: Sourced<u32>,
+    /// Cell chemistry: `lipo`, `lihv` or `liion` (`crate::battery::Chemistry`).
+    pub chemistry: Sourced<String>,
     /// The autopilot's low-battery voltage (whole pack), V, when it has one.
     pub low_voltage_v: Option<Sourced<f64>>,
     /// The autopilot's critical-battery voltage (whole pack), V, when it has one.
@@ -211,6 +254,7 @@ impl Default for BatteryFacts {
         Self {
             capacity_wh: Sourced::new(DEFAULT_CAPACITY_WH, Provenance::Default),
             cell_count: Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
+            chemistry: Sourced::new("lihv".into(), Provenance::Default),
             low_voltage_v: None,
             critical_voltage_v: None,
             rated_capacity_wh: None,
@@ -260,6 +304,9 @@ pub struct EnergyState {
     /// Whether the forecast (and the power integrated when nothing is measured) is the
     /// forecast model's prediction adapted to measured power.
     pub forecast_adapted: bool,
+    /// The pack model: voltages, state of charge, resistance, the voltage forecast.
+    #[serde(flatten)]
+    pub pack: PackState,
     /// Capacity, cells and the autopilot's thresholds the figures above use, each with
     /// where it came from.
     pub battery: BatteryFacts,

@@ -3,8 +3,10 @@
 //! ```text
 //! {"type":"window","system_id":…,"t":…,"measured_w":…,"features":{"wind_speed":…,…}}
 //! {"type":"estimate","system_id":…,"t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
-//!  "energy_used_wh":…,"remaining_wh":…,"time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
+//!  "energy_used_wh":…,"remaining_wh":…,"remaining_source":"resting voltage"|"battery"|"assumed full","time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
 //!  "capacity_wh":…,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"default"|…,"cell_count":…,"cell_count_source":…,
+//!  "chemistry":"lipo"|"lihv"|"liion","chemistry_source":…,"battery_v":…,"battery_v_model":…,"battery_ocv_v":…,"battery_rest_v":…,
+//!  "soc_pct":…,"internal_r_ohm":…,"v_min_forecast_v":…,"v_min_forecast_at_s":…,"time_to_low_v_s":…,"low_threshold_v":…,["battery_pct_disagreement":…,]
 //!  ["low_voltage_v":…,"low_voltage_source":…,]["critical_voltage_v":…,"critical_voltage_source":…]}
 //! {"type":"alert","system_id":…,"t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
 //! ```
@@ -114,6 +116,7 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             bands: Bands(&e.models),
             energy_used_wh: r.energy.energy_used_wh,
             remaining_wh: r.energy.remaining_wh,
+            remaining_source: r.energy.remaining_source,
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
             mission_energy_wh: r.energy.mission_energy_wh,
@@ -126,6 +129,9 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             capacity_source: &b.capacity_wh.source,
             cell_count: b.cell_count.value,
             cell_count_source: &b.cell_count.source,
+            chemistry: &b.chemistry.value,
+            chemistry_source: &b.chemistry.source,
+            pack: &r.energy.pack,
             low_voltage_v: b.low_voltage_v.as_ref().map(|v| v.value),
             low_voltage_source: b.low_voltage_v.as_ref().map(|v| &v.source),
             critical_voltage_v: b.critical_voltage_v.as_ref().map(|v| v.value),
@@ -186,7 +192,10 @@ struct EstimateLine<'a> {
     #[serde(skip_serializing_if = "Bands::is_empty")]
     bands: Bands<'a>,
     energy_used_wh: f64,
+    /// Energy left to the usable floor, Wh, and where the start state came from
+    /// (`resting voltage`, `battery`: the autopilot's %, `assumed full`).
     remaining_wh: Option<f64>,
+    remaining_source: crate::report::RemainingSource,
     time_to_empty_s: Option<f64>,
     home_margin_wh: Option<f64>,
     /// While a mission is known (`crate::mission::live`).
@@ -210,6 +219,14 @@ struct EstimateLine<'a> {
     /// Cells in series, and where that came from.
     cell_count: u32,
     cell_count_source: &'a Provenance,
+    /// Cell chemistry (`lipo`, `lihv`, `liion`), and where that came from.
+    chemistry: &'a str,
+    chemistry_source: &'a Provenance,
+    /// The pack model: `battery_v`, `battery_v_model`, `battery_ocv_v`, `battery_rest_v`,
+    /// `soc_pct`, `internal_r_ohm`, `v_min_forecast_v`, `v_min_forecast_at_s`,
+    /// `time_to_low_v_s`, `low_threshold_v`, [`battery_pct_disagreement`].
+    #[serde(flatten)]
+    pack: &'a crate::report::PackState,
     /// The autopilot's low and critical pack voltages, V, and where they came from; absent
     /// when the vehicle did not say.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -8,9 +8,15 @@
 //!
 //! | figure | 1. config | 2. vehicle | 3. fallback |
 //! |---|---|---|---|
-//! | cell count | `[energy] cell_count` | `BAT1_N_CELLS` (PX4), else `ceil(V / 4.2)` of the first battery voltage seen | 6 (TB48D) |
-//! | capacity, Wh | `[energy] capacity_wh` | `BATT_CAPACITY` / `BAT1_CAPACITY` (mAh) / 1000 × cells × `[energy] nominal_cell_v` (3.7 V, LiPo) | 129.96 (TB48D) |
+//! | chemistry | `[energy] chemistry` | LiHV when `MOT_BAT_VOLT_MAX` is cells × 4.35 | LiHV for the default pack (the TB48D), else LiPo |
+//! | cell count | `[energy] cell_count` | `BAT1_N_CELLS` (PX4); `MOT_BAT_VOLT_MAX` = cells × 4.2 or 4.35, `MOT_BAT_VOLT_MIN` = cells × 3.3 (ArduCopter); else the first battery voltage seen, checked against the chemistry's resting window ([`crate::battery::cell_candidates`]) | 6 (TB48D) |
+//! | capacity, Wh | `[energy] capacity_wh` | `BATT_CAPACITY` / `BAT1_CAPACITY` (mAh) / 1000 × cells × nominal cell voltage (`[energy] nominal_cell_v`, else the chemistry's: LiPo 3.7, LiHV 3.8, Li-ion 3.6 V) | 129.96 (TB48D) |
 //! | low / critical voltage, V (pack) | — | `BATT_LOW_VOLT` / `BATT_CRT_VOLT` (ArduPilot); `BAT1_V_EMPTY` × cells as critical (PX4) | none |
+//!
+//! A voltage that fits two cell counts (a full 6S LiHV pack at 26.1 V is also a 7S pack at
+//! 3.73 V a cell) takes the fewer cells (a pack is far more often flown full than nearly
+//! empty) and says so in a warning, never silently. No float `ceil`: in floating point
+//! 12.6 / 4.2 is 3.0000000000000004, which `ceil` made 4 cells.
 //!
 //! and [`Provenance`] says which, all the way to the terminal, the JSON lines and the
 //! dashboard. A parameter that is absent or out of range falls back to the next column
@@ -22,8 +28,7 @@ pub mod store;
 
 pub use crate::report::{BatteryFacts, Provenance, Sourced, DEFAULT_CAPACITY_WH, DEFAULT_CELL_COUNT};
 
-/// A full LiPo cell, V: the first voltage seen over this, rounded up, is the cell count.
-pub const FULL_CELL_V: f64 = 4.2;
+use crate::battery::{cell_candidates, Chemistry};
 
 /// What the configuration says about the battery (the `[energy]` keys that may be left
 /// to the vehicle).
@@ -33,8 +38,17 @@ pub struct BatteryConfig {
     pub capacity_wh: Option<f64>,
     /// `[energy] cell_count`, when set.
     pub cell_count: Option<u32>,
-    /// `[energy] nominal_cell_v`: mAh × cells × this = capacity, V.
-    pub nominal_cell_v: f64,
+    /// `[energy] nominal_cell_v`: mAh × cells × this = capacity, V; None: the chemistry's.
+    pub nominal_cell_v: Option<f64>,
+    /// `[energy] chemistry`, when set.
+    pub chemistry: Option<Chemistry>,
+}
+
+/// The cell count a pack voltage parameter gives when it is `cells × per_cell` within
+/// ±`tol` V a cell (integer arithmetic on the rounded count: no `ceil`).
+fn cells_from(v: f64, per_cell: f64, tol: f64) -> Option<u32> {
+    let n = (v / per_cell).round();
+    (n >= 1.0 && n <= 24.0 && (v - n * per_cell).abs() <= tol * n).then_some(n as u32)
 }
 
 /// Resolve each figure, best first (module docs), from the config, the vehicle's
@@ -47,7 +61,7 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
         if v.is_finite() && v >= lo && v <= hi {
             Some(v)
         } else {
-            notes.push(format!("vehicle parameter {name} = {v}: outside {lo}..={hi} {unit}, ignored"));
+            notes.push(format!("vehicle parameter {name} = {v}: outside {lo}..={hi} {unit}, ignored: using the config or the default instead"));
             None
         }
     };
@@ -62,27 +76,55 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
     let low = checked("BATT_LOW_VOLT", 0.1, 100.0, "V").map(|v| Sourced::new(v, Provenance::Parameter("BATT_LOW_VOLT".into())));
     let crt = checked("BATT_CRT_VOLT", 0.1, 100.0, "V").map(|v| Sourced::new(v, Provenance::Parameter("BATT_CRT_VOLT".into())));
     let v_empty = checked("BAT1_V_EMPTY", 2.0, 4.5, "V per cell");
+    // ArduCopter's thrust-scaling voltages: 0 (the default) means off, not a pack.
+    let volt_param = |name: &str| p.get(name).filter(|v| v.is_finite() && *v > 0.0);
+    let max_cells = volt_param("MOT_BAT_VOLT_MAX").and_then(|v| {
+        cells_from(v, 4.2, 0.03).map(|n| (n, Chemistry::LiPo)).or_else(|| cells_from(v, 4.35, 0.03).map(|n| (n, Chemistry::LiHv)))
+    });
+    let min_cells = volt_param("MOT_BAT_VOLT_MIN").and_then(|v| cells_from(v, 3.3, 0.1));
 
-    let from_voltage = first_voltage_v
-        .filter(|v| v.is_finite() && *v > 1.0 && *v < 24.0 * FULL_CELL_V)
-        .map(|v| (v / FULL_CELL_V).ceil().max(1.0) as u32);
-    let cell_count = match (cfg.cell_count, cells_param, from_voltage) {
-        (Some(n), _, _) => Sourced::new(n, Provenance::Config),
-        (None, Some(n), _) => Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into())),
-        (None, None, Some(n)) => Sourced::new(n, Provenance::FirstVoltage),
-        (None, None, None) => Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
+    let chemistry = match (cfg.chemistry, max_cells) {
+        (Some(c), _) => Sourced::new(c, Provenance::Config),
+        (None, Some((_, c))) => Sourced::new(c, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
+        // The default pack is the TB48D, a LiHV pack; any other pack a LiPo unless said.
+        (None, None) if cfg.capacity_wh.is_none() && cap_param.is_none() => Sourced::new(Chemistry::LiHv, Provenance::Default),
+        (None, None) => Sourced::new(Chemistry::LiPo, Provenance::Default),
     };
+    let from_voltage = first_voltage_v.filter(|v| v.is_finite() && *v > 1.0).and_then(|v| {
+        let fits = cell_candidates(chemistry.value, v);
+        if fits.len() > 1 {
+            let list = fits.iter().map(u32::to_string).collect::<Vec<_>>().join(" or ");
+            notes.push(format!(
+                "battery voltage {v:.2} V fits {list} {} cells; taking {} (a pack flies full more often than nearly empty) — set [energy] cell_count to be sure",
+                chemistry.value.name(),
+                fits[0]
+            ));
+        } else if fits.is_empty() {
+            notes.push(format!("battery voltage {v:.2} V fits no {} pack of 1-16 cells", chemistry.value.name()));
+        }
+        fits.first().copied()
+    });
+    let cell_count = match (cfg.cell_count, cells_param, max_cells, min_cells, from_voltage) {
+        (Some(n), ..) => Sourced::new(n, Provenance::Config),
+        (None, Some(n), ..) => Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into())),
+        (None, None, Some((n, _)), ..) => Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
+        (None, None, None, Some(n), _) => Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MIN".into())),
+        (None, None, None, None, Some(n)) => Sourced::new(n, Provenance::FirstVoltage),
+        (None, None, None, None, None) => Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
+    };
+    let nominal_cell_v = cfg.nominal_cell_v.unwrap_or(chemistry.value.nominal_v());
     let capacity_wh = match (cfg.capacity_wh, cap_param) {
         (Some(wh), _) => Sourced::new(wh, Provenance::Config),
         (None, Some((name, mah))) => {
-            Sourced::new(mah / 1000.0 * f64::from(cell_count.value) * cfg.nominal_cell_v, Provenance::Parameter(name.into()))
+            Sourced::new(mah / 1000.0 * f64::from(cell_count.value) * nominal_cell_v, Provenance::Parameter(name.into()))
         }
         (None, None) => Sourced::new(DEFAULT_CAPACITY_WH, Provenance::Default),
     };
     let critical_voltage_v = crt.or_else(|| {
         v_empty.map(|v| Sourced::new(v * f64::from(cell_count.value), Provenance::Parameter("BAT1_V_EMPTY".into())))
     });
-    (BatteryFacts { capacity_wh, cell_count, low_voltage_v: low, critical_voltage_v, rated_capacity_wh: None }, notes)
+    let chemistry = Sourced::new(chemistry.value.name().to_string(), chemistry.source);
+    (BatteryFacts { capacity_wh, cell_count, chemistry, low_voltage_v: low, critical_voltage_v, rated_capacity_wh: None }, notes)
 }
 
 /// The facts with nothing from the vehicle: config, else defaults.
@@ -96,7 +138,7 @@ mod tests {
     use super::*;
 
     fn cfg(capacity_wh: Option<f64>, cell_count: Option<u32>) -> BatteryConfig {
-        BatteryConfig { capacity_wh, cell_count, nominal_cell_v: 3.7 }
+        BatteryConfig { capacity_wh, cell_count, nominal_cell_v: Some(3.7), chemistry: None }
     }
 
     #[test]
@@ -143,4 +185,46 @@ mod tests {
         assert_eq!(notes.len(), 3, "{notes:?}");
         assert!(notes.iter().any(|n| n.contains("BATT_CAPACITY = 0")), "{notes:?}");
     }
+
+    #[test]
+    fn cell_count_from_the_vehicle_never_by_float_ceil() {
+        // A full 3S pack at exactly 12.6 V is 3 cells (12.6 / 4.2 = 3.0000000000000004).
+        let ardu = VehicleParams::from_pairs(&[("BATT_CAPACITY", 3300.0)]);
+        let (f, notes) = resolve_battery(&cfg(None, None), &ardu, Some(12.6));
+        assert_eq!(f.cell_count, Sourced::new(3, Provenance::FirstVoltage), "{notes:?}");
+        // ArduCopter's default 3300 mAh on 3S: 36-44 Wh.
+        assert!((36.0..=44.0).contains(&f.capacity_wh.value), "{}", f.capacity_wh.value);
+        assert_eq!(f.chemistry.value, "lipo");
+        // MOT_BAT_VOLT_MAX says the cells and, at 4.35 V a cell, the chemistry; 0 is off.
+        let p = VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 16.8), ("MOT_BAT_VOLT_MIN", 13.2)]);
+        assert_eq!(resolve_battery(&cfg(None, None), &p, Some(12.0)).0.cell_count.value, 4);
+        let p = VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 26.1)]);
+        let (f, _) = resolve_battery(&cfg(None, None), &p, None);
+        assert_eq!((f.cell_count.value, f.chemistry.value.as_str()), (6, "lihv"));
+        let p = VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 0.0), ("MOT_BAT_VOLT_MIN", 9.9)]);
+        assert_eq!(resolve_battery(&cfg(None, None), &p, None).0.cell_count.source, Provenance::Parameter("MOT_BAT_VOLT_MIN".into()));
+        // A voltage that fits two counts is said, not picked silently: a full 6S LiHV (the
+        // default pack) at 26.1 V could be a low 7S.
+        let (f, notes) = resolve_battery(&cfg(None, None), &VehicleParams::default(), Some(26.1));
+        assert_eq!(f.cell_count.value, 6);
+        assert!(notes.iter().any(|n| n.contains("6 or 7")), "{notes:?}");
+        // Nothing plausible: said, and the default stands.
+        let (f, notes) = resolve_battery(&cfg(None, None), &VehicleParams::default(), Some(500.0));
+        assert_eq!(f.cell_count.source, Provenance::Default);
+        assert_eq!(notes.len(), 1, "{notes:?}");
+    }
+
+    #[test]
+    fn cell_counts_of_exact_full_and_empty_packs_property() {
+        // Every full pack of 1-12 cells at exactly 4.2 V (LiPo) reads as its own count.
+        for n in 1..=12u32 {
+            let p = VehicleParams::from_pairs(&[("BATT_CAPACITY", 5000.0)]);
+            let v = 4.2 * f64::from(n);
+            let (f, _) = resolve_battery(&cfg(None, None), &p, Some(v));
+            assert_eq!(f.cell_count.value, n, "{v} V");
+            assert_eq!(cells_from(v, 4.2, 0.03), Some(n));
+            assert_eq!(cells_from(3.3 * f64::from(n), 3.3, 0.1), Some(n));
+        }
+    }
+
 }
