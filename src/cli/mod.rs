@@ -109,6 +109,8 @@ enum Command {
     Plan(crate::offline::plan::PlanArgs),
     /// Judge the mission forecast on the data set's route flights (pre-flight and live at 50 %, vs the autopilots' rule).
     PlanEval(crate::offline::plan_eval::PlanEvalArgs),
+    /// Score the battery pack model (rest-voltage energy, loaded-voltage model, forecasts) on the data set, beside the autopilots' rules.
+    BatteryEval(crate::offline::battery_eval::BatteryEvalArgs),
     /// List the vehicles in the vehicle store: flights, energy per minute, the pack's capacity trend.
     Vehicles {
         /// The store's folder (as `monitor --data-dir`).
@@ -195,6 +197,7 @@ fn real_main(cli: Cli) -> Result<()> {
         Command::Sensitivity(a) => crate::offline::sensitivity::run(a),
         Command::Plan(a) => crate::offline::plan::run_plan(a),
         Command::PlanEval(a) => crate::offline::plan_eval::run_plan_eval(a),
+        Command::BatteryEval(a) => crate::offline::battery_eval::run(a),
         Command::Vehicles { data_dir, json } => {
             let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref())
                 .context("the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR")?;

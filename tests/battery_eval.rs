@@ -1,0 +1,113 @@
+//! `dronewatt battery-eval` on the real M100 data set: the pack model's resting-voltage
+//! energy and end-voltage figures meet their targets on the test flights, the model beats
+//! the autopilots' rules by a wide margin, and the JSON and the plot are written.
+//! Skipped (with a message) when the data set is absent. About a second in a dev build.
+
+use std::process::Command;
+
+#[test]
+fn battery_eval_on_the_data_set() {
+    let data = dronewatt::default_data_path();
+    if !data.exists() {
+        eprintln!("SKIPPED: {} absent (set DRONEWATT_DATA)", data.display());
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (json, png) = (dir.path().join("b.json"), dir.path().join("b.png"));
+    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["battery-eval", "--data"])
+        .arg(&data)
+        .arg("--json")
+        .arg(&json)
+        .arg("--plot")
+        .arg(&png)
+        .output()
+        .expect("run dronewatt");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("energy between rest voltages")
+            && stdout.contains("perfect power forecast"),
+        "{stdout}"
+    );
+    assert_eq!(&std::fs::read(&png).expect("plot written")[1..4], b"PNG");
+
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&json).expect("json written")).expect("valid JSON");
+    let f = |set: &str, k: &str| {
+        r[set][k]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{set}.{k} missing or not a number: {}", r[set]))
+    };
+    for set in ["train", "test"] {
+        for k in [
+            "ocv_energy_mae_wh",
+            "ocv_end_v_mae_v",
+            "px4_36_energy_mae_wh",
+            "px4_35_energy_mae_wh",
+            "full_pack_start_energy_err_wh",
+            "px4_start_energy_err_wh",
+            "ardupilot_start_mah_err",
+            "ecm_median_rmse_v",
+            "online_onestep_rmse_v",
+            "preflight_min_v_mae",
+            "halftime_min_v_mae",
+            "rest_under_load_ours_mae_v",
+            "rest_under_load_px4_mae_v",
+            "rest_under_load_ardupilot_mae_v",
+        ] {
+            assert!(f(set, k).is_finite(), "{set}.{k}");
+        }
+    }
+    assert!(
+        r["test"]["n_rest"].as_u64().is_some_and(|n| n >= 5),
+        "{}",
+        r["test"]
+    );
+    assert!(
+        r["train"]["n_rest"].as_u64().is_some_and(|n| n >= 100),
+        "{}",
+        r["train"]
+    );
+    let flights = r["flights"].as_array().expect("per-flight figures");
+    assert!(
+        flights.iter().any(|x| x["test"] == true) && flights.iter().any(|x| x["test"] == false)
+    );
+    assert!(flights
+        .iter()
+        .all(|x| x.get("ocv_energy_err_wh").is_some() && x.get("halftime_min_v_err").is_some()));
+
+    // targets of the resting-voltage model, on the test flights
+    assert!(f("test", "ocv_energy_mae_wh") <= 1.0, "{}", r["test"]);
+    assert!(f("test", "ocv_end_v_mae_v") <= 0.05, "{}", r["test"]);
+    // a wide margin over the autopilots' rules and "full at take-off" (×5 or more)
+    for set in ["train", "test"] {
+        let ours = f(set, "ocv_energy_mae_wh");
+        assert!(
+            f(set, "px4_36_energy_mae_wh") > 5.0 * ours
+                && f(set, "px4_35_energy_mae_wh") > 5.0 * ours,
+            "{}",
+            r[set]
+        );
+        assert!(
+            f(set, "full_pack_start_energy_err_wh") > 20.0 * ours,
+            "{}",
+            r[set]
+        );
+        assert!(
+            f(set, "rest_under_load_px4_mae_v") > 5.0 * f(set, "rest_under_load_ours_mae_v"),
+            "{}",
+            r[set]
+        );
+    }
+    // the online estimator tracks the loaded voltage far better than the open loop
+    assert!(
+        f("test", "online_onestep_rmse_v") < 0.5 * f("test", "ecm_median_rmse_v"),
+        "{}",
+        r["test"]
+    );
+}
