@@ -23,6 +23,7 @@
 //! | `models_disagree` | `above_w` | `clear_w` | spread (max − min) of the models' predictions |
 //! | `cell_voltage_below` | `below_v` | `clear_v` | battery voltage / cells (`[energy] cell_count`, else the vehicle's) |
 //! | `vehicle_voltage_below` | `threshold` (`low`, `critical`), optional `margin_v` (default 0) | `clear_margin_v` | battery voltage − the autopilot's own threshold (`BATT_LOW_VOLT`/`BATT_CRT_VOLT`, PX4 `BAT1_V_EMPTY` × cells); quiet while the vehicle has not said |
+//! | `voltage_forecast_below` | optional `below_v` (default: the low threshold, the vehicle's `BATT_LOW_VOLT` else 3.5 V a cell), optional `margin_v` (default 0) | `clear_margin_v` | the lowest loaded voltage forecast for the rest of the flight (the mission's, else until the reserve) − that threshold: "the final climb sags under BATT_LOW_VOLT" before it does |
 //! | `telemetry_lost` | — (`for_s` is the time) | — | every kinematic feature stale |
 //!
 //! A clear level defaults to the raise level (no hysteresis) and must lie on the safe side
@@ -66,6 +67,10 @@ pub enum AlertKind {
     /// Battery voltage (whole pack) under the autopilot's own `threshold` plus `margin_v`
     /// (V, default 0: at the threshold). Quiet while the vehicle has not said its threshold.
     VehicleVoltageBelow { threshold: VehicleThreshold, margin_v: Option<f64>, clear_margin_v: Option<f64> },
+    /// The lowest loaded voltage forecast for the rest of the flight under `below_v` (V,
+    /// whole pack; default the low threshold: the vehicle's `BATT_LOW_VOLT`, else 3.5 V a
+    /// cell) plus `margin_v` (default 0).
+    VoltageForecastBelow { below_v: Option<f64>, margin_v: Option<f64>, clear_margin_v: Option<f64> },
     /// Every kinematic feature (position, attitude, velocity, rates, acceleration) stale for
     /// `for_s`: the vehicle's state stopped arriving while the link still carries something
     /// (battery, heartbeats). A link gone wholly silent yields no estimates at all, so no
@@ -184,6 +189,12 @@ impl AlertRule {
             K::VehicleVoltageBelow { margin_v, clear_margin_v, .. } => {
                 lv(Dir::Below, margin_v.unwrap_or(0.0), clear_margin_v.or(*margin_v), "V", "margin_v")
             }
+            K::VoltageForecastBelow { below_v, margin_v, clear_margin_v } => {
+                if below_v.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                    return Err(format!("below_v = {}: must be a positive voltage (whole pack)", below_v.unwrap_or(f64::NAN)));
+                }
+                lv(Dir::Below, margin_v.unwrap_or(0.0), clear_margin_v.or(*margin_v), "V", "margin_v")
+            }
             K::TelemetryLost {} => lv(Dir::Above, 0.5, None, "", "for_s"),
         })
     }
@@ -234,6 +245,8 @@ impl AlertRule {
             AlertKind::CellVoltageBelow { .. } => "cell voltage",
             AlertKind::VehicleVoltageBelow { threshold: VehicleThreshold::Low, .. } => "battery voltage − the vehicle's low threshold",
             AlertKind::VehicleVoltageBelow { threshold: VehicleThreshold::Critical, .. } => "battery voltage − the vehicle's critical threshold",
+            AlertKind::VoltageForecastBelow { below_v: Some(_), .. } => "lowest forecast loaded voltage − below_v",
+            AlertKind::VoltageForecastBelow { .. } => "lowest forecast loaded voltage − the low threshold",
             AlertKind::TelemetryLost {} => "telemetry",
         };
         let cond = if matches!(self.kind, AlertKind::TelemetryLost {}) {
@@ -309,6 +322,10 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
             let v = f64::from(est.sample.voltage_v?);
             Some(v - level.value).filter(|d| d.is_finite())
         }
+        K::VoltageForecastBelow { below_v, .. } => {
+            let threshold = below_v.or(en.pack.low_threshold_v)?;
+            Some(en.pack.v_min_forecast_v? - threshold).filter(|d| d.is_finite())
+        }
         K::TelemetryLost {} => Some(if est.sample.stale_mask & KINEMATIC_MASK == KINEMATIC_MASK { 1.0 } else { 0.0 }),
     }
 }
@@ -368,6 +385,11 @@ impl AlertEngine {
                 let head = rule.message.as_deref().unwrap_or(&rule.name);
                 if matches!(rule.kind, AlertKind::TelemetryLost {}) {
                     format!("{prefix}{head}")
+                } else if let (AlertKind::VoltageForecastBelow { .. }, Some(low), Some(at)) =
+                    (&rule.kind, energy.pack.v_min_forecast_v, energy.pack.v_min_forecast_at_s)
+                {
+                    // "sags to 20.6 V (0.4 V under) in 3:05": what, by how much, and when.
+                    format!("{prefix}{head} {low:.1}V ({}V) in {}:{:02}", fmt_value(v), (at / 60.0).floor(), (at % 60.0).floor())
                 } else {
                     format!("{prefix}{head} {}{}", fmt_value(v), l.unit)
                 }

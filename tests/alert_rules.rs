@@ -296,3 +296,39 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
     let err = load_err("[[alerts]]\nname = \"x\"\nkind = \"vehicle_voltage_below\"\nthreshold = \"critical\"\nmargin_v = 0.5\nclear_margin_v = 0.1\n");
     assert!(err.contains("clear_margin_v"), "{err}");
 }
+
+#[test]
+fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() {
+    use dronewatt::report::PackState;
+    let cfg = parse(
+        r#"
+        [[alerts]]
+        name = "sag"
+        kind = "voltage_forecast_below"
+        clear_margin_v = 0.2
+        "#,
+    );
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let en = |v_min: Option<f64>, low: Option<f64>| EnergyState {
+        pack: PackState { v_min_forecast_v: v_min, v_min_forecast_at_s: Some(185.0), low_threshold_v: low, ..Default::default() },
+        ..Default::default()
+    };
+    // No forecast yet, or no threshold: quiet.
+    assert!(eng.evaluate(&est(0.0, Some(300.0), &[]), &en(None, Some(21.0))).is_empty());
+    assert!(eng.evaluate(&est(1.0, Some(300.0), &[]), &en(Some(20.0), None)).is_empty());
+    assert!(eng.evaluate(&est(2.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0))).is_empty());
+    // The final climb sags to 20.6 V, under the 21.0 V low threshold, in 3 min 5 s.
+    let raised = eng.evaluate(&est(3.0, Some(300.0), &[]), &en(Some(20.6), Some(21.0)));
+    assert_eq!(raised.len(), 1);
+    assert_eq!(raised[0].state, AlertState::Raised);
+    assert!(raised[0].message.contains("20.6V") && raised[0].message.contains("3:05"), "{}", raised[0].message);
+    assert!(raised[0].message.len() <= 50, "a STATUSTEXT holds 50 bytes: {}", raised[0].message);
+    assert!(eng.evaluate(&est(4.0, Some(300.0), &[]), &en(Some(21.1), Some(21.0))).is_empty(), "hysteresis");
+    assert_eq!(eng.evaluate(&est(5.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))[0].state, AlertState::Cleared);
+    // An explicit level in volts, and a bad one named.
+    let cfg = parse("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
+    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    assert_eq!(eng.evaluate(&est(0.0, Some(300.0), &[]), &en(Some(21.9), None)).len(), 1);
+    let err = load_err("[[alerts]]\nname = \"x\"\nkind = \"voltage_forecast_below\"\nbelow_v = -1\n");
+    assert!(err.contains("below_v"), "{err}");
+}

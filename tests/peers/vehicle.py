@@ -8,12 +8,17 @@ at 22.2 V, battery_remaining unknown) to `dronewatt monitor`, in phases given as
   vehicle.py --to udpout:127.0.0.1:PORT --plan '[{"send_s": 6}, {"quiet_s": 10}, {"send_s": 6}]'
 
 Phase keys (all optional but one of send_s / quiet_s):
+  ground      on the ground, motors idle (2 W), not moving: the pack rests
   send_s      stream telemetry this long          quiet_s   send nothing this long (still listen)
   rate_hz     ticks per second (10)               v1        every other frame MAVLink 1 (else all 2)
   reboot      before this phase: sequence numbers restart at 0, time_boot_ms at 0, a new home 1 km north
   reconnect   before this phase: close the connection and open a new one (UDP: a new source port)
   stray       a second vehicle (system 2, 2000 W) interleaves its own telemetry
   replay      at the end of this phase, send again the first N frames it recorded (signing tests)
+
+--pack '{"cells": 3, "wh": 4, "rest_v": 11.45, "r0": 0.08, "r1": 0.05, "tau_s": 10}' flies a sagging pack
+instead of the fixed 22.2 V: a LiPo with its own OCV table, a series resistance and one RC pair,
+the current solved from the power each tick (P = V·I); the voltage falls as the pack drains.
 
 Signing: --sign-key HEX signs every MAVLink 2 frame (pymavlink's setup_signing; it then also
 verifies what it hears and drops what fails). --link-id N its link id.
@@ -35,6 +40,40 @@ from pymavlink.dialects.v20 import ardupilotmega as mav  # noqa: E402
 LAT0, LON0 = 47.3977419, 8.5455938
 VOLTS = 22.2
 
+# A LiPo cell's resting voltage against its state of charge (the common hobby table).
+LIPO = [(3.27, 0.0), (3.61, 0.05), (3.69, 0.10), (3.73, 0.20), (3.77, 0.30), (3.80, 0.40), (3.84, 0.50),
+        (3.87, 0.60), (3.91, 0.65), (3.95, 0.70), (4.02, 0.80), (4.08, 0.85), (4.11, 0.90), (4.20, 1.00)]
+
+
+def interp(x, xs, ys):
+    if x <= xs[0]:
+        return ys[0]
+    for (x0, y0), (x1, y1) in zip(zip(xs, ys), zip(xs[1:], ys[1:])):
+        if x <= x1:
+            return y0 + (x - x0) / (x1 - x0) * (y1 - y0)
+    return ys[-1]
+
+
+class Pack:
+    """A sagging pack: OCV(SoC) − R0·I − x1, dx1/dt = (R1·I − x1)/τ, SoC counted in energy."""
+
+    def __init__(self, cells, wh, rest_v, r0, r1, tau_s):
+        self.cells, self.wh, self.r0, self.r1, self.tau = cells, wh, r0, r1, tau_s
+        self.soc = interp(rest_v / cells, [v for v, _ in LIPO], [s for _, s in LIPO])
+        self.x1 = 0.0
+
+    def ocv(self):
+        return self.cells * interp(self.soc, [s for _, s in LIPO], [v for v, _ in LIPO])
+
+    def draw(self, power, dt):
+        c = self.ocv() - self.x1
+        disc = max(c * c - 4.0 * self.r0 * power, 0.0)
+        amps = (c - math.sqrt(disc)) / (2.0 * self.r0)
+        volts = c - self.r0 * amps
+        self.x1 += dt / self.tau * (self.r1 * amps - self.x1)
+        self.soc = max(self.soc - volts * amps * dt / 3600.0 / self.wh, 0.0)
+        return volts, amps
+
 
 class Vehicle:
     def __init__(self, a):
@@ -46,6 +85,7 @@ class Vehicle:
         self.boot0 = time.monotonic()
         self.home_lat = LAT0
         self.stray = mav.MAVLink(None, srcSystem=2, srcComponent=1)
+        self.pack = Pack(**json.loads(a.pack)) if a.pack else None
         self.open()
 
     def open(self):
@@ -106,22 +146,22 @@ class Vehicle:
         else:
             m.send(msg)
 
-    def tick(self, t_flight, v1_phase, stray):
+    def tick(self, t_flight, v1_phase, stray, ground=False, dt=0.1):
         """One tick's messages; t_flight is seconds since take-off (power profile and path)."""
         boot_ms = int((time.monotonic() - self.boot0) * 1000)
         alt = 25.0 * min(t_flight / 5.0, 1.0)
         speed = 0.0 if t_flight < 5.0 else 10.0
         north = max(0.0, t_flight - 5.0) * 10.0
         lat = self.home_lat + north / 111_320.0
-        power = self.a.power_w + 40.0 * math.sin(2 * math.pi * t_flight / 3.0)
-        current = power / VOLTS
+        power = 2.0 if ground else self.a.power_w + self.a.power_swing_w * math.sin(2 * math.pi * t_flight / 3.0)
+        volts, current = self.pack.draw(power, dt) if self.pack else (VOLTS, power / VOLTS)
         msgs = []
         if self.n % 10 == 0:
             msgs.append(mav.MAVLink_heartbeat_message(mav.MAV_TYPE_QUADROTOR, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, mav.MAV_STATE_ACTIVE, 3))
             msgs.append(mav.MAVLink_home_position_message(int(self.home_lat * 1e7), int(LON0 * 1e7), 400_000, 0.0, 0.0, 0.0,
                                                           [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0))
-        msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, int(VOLTS * 1000), int(current * 100), -1, 0, 0, 0, 0, 0, 0))
-        vz = 5.0 if t_flight < 5.0 else 0.0
+        msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(current * 100), -1, 0, 0, 0, 0, 0, 0))
+        vz = 0.0 if ground else (5.0 if t_flight < 5.0 else 0.0)
         msgs.append(mav.MAVLink_global_position_int_message(boot_ms, int(lat * 1e7), int(LON0 * 1e7), int((400.0 + alt) * 1000),
                                                             int(alt * 1000), int(speed * 100), 0, int(-vz * 100), 0))
         pitch = -0.1 if speed > 0 else 0.0
@@ -165,9 +205,11 @@ class Vehicle:
                 k = 0
                 while k / rate <= ph["send_s"]:
                     self.wait_until(start + k / rate)
-                    self.tick(t_flight + k / rate, ph.get("v1", False), ph.get("stray", False))
+                    ground = ph.get("ground", False)
+                    self.tick(t_flight + (0 if ground else k / rate), ph.get("v1", False), ph.get("stray", False), ground, 1.0 / rate)
                     k += 1
-                t_flight += k / rate
+                if not ph.get("ground", False):
+                    t_flight += k / rate
             replayed = 0
             if ph.get("replay"):
                 for buf in list(self.recorded[: ph["replay"]]):
@@ -197,8 +239,10 @@ def main():
     ap.add_argument("--to", required=True, help="pymavlink address: udpout:HOST:PORT or tcp:HOST:PORT")
     ap.add_argument("--plan", required=True)
     ap.add_argument("--power-w", type=float, default=500.0)
+    ap.add_argument("--power-swing-w", type=float, default=40.0, help="amplitude of the power's 3 s swing")
     ap.add_argument("--sign-key", default=None, help="32-byte key as 64 hex digits")
     ap.add_argument("--link-id", type=int, default=1)
+    ap.add_argument("--pack", default=None, help="JSON: fly a sagging pack (see the module docs)")
     ap.add_argument("--listen-after-s", type=float, default=1.5)
     a = ap.parse_args()
     Vehicle(a).run(json.loads(a.plan))
