@@ -104,10 +104,15 @@ fn battery_eval_on_the_data_set() {
             r[set]
         );
     }
-    // the online estimator tracks the loaded voltage far better than the open loop
+    // the loaded voltage: open loop (the pack's resistance carried over from its previous
+    // flight) within the 0.20 V target, and the online estimator closer still
+    assert!(f("test", "ecm_median_rmse_v") <= 0.20, "{}", r["test"]);
     assert!(
-        f("test", "online_onestep_rmse_v") < 0.5 * f("test", "ecm_median_rmse_v"),
+        f("test", "online_onestep_rmse_v") < f("test", "ecm_median_rmse_v"),
         "{}",
         r["test"]
     );
+    // the carry-over is there: some flights follow another on the same pack, some do not
+    let carried = flights.iter().filter(|f| f["k_prev"].is_number()).count();
+    assert!(carried > 50 && carried < flights.len(), "{carried} of {} flights carry k", flights.len());
 }

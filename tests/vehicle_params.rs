@@ -71,11 +71,13 @@ fn ardupilot_parameters_size_the_battery_over_a_live_link() {
     assert_eq!(req["BATT_CRT_MAH"], 3, "{heard}");
     assert!(err.contains("BATT_CRT_MAH") && err.contains("did not answer"), "{err}");
     assert!(req["AUTOPILOT_VERSION"].as_u64().unwrap() >= 1, "{heard}");
-    // 3300 mAh × 3 cells (12.4 V first seen) × 3.7 V = 36.63 Wh, from the vehicle.
+    // 3300 mAh × 3 cells (MOT_BAT_VOLT_MAX 12.6 V = 3 × 4.2: a LiPo) × 3.7 V = 36.63 Wh, from
+    // the vehicle.
     let e = last_estimate(&lines);
     assert_eq!(e["capacity_source"], "vehicle parameter BATT_CAPACITY", "{e}");
     assert!((e["capacity_wh"].as_f64().unwrap() - 36.63).abs() < 1e-6, "{e}");
-    assert_eq!((e["cell_count"].as_u64(), e["cell_count_source"].as_str()), (Some(3), Some("first battery voltage")), "{e}");
+    assert_eq!((e["cell_count"].as_u64(), e["cell_count_source"].as_str()), (Some(3), Some("vehicle parameter MOT_BAT_VOLT_MAX")), "{e}");
+    assert_eq!((e["chemistry"].as_str(), e["chemistry_source"].as_str()), (Some("lipo"), Some("vehicle parameter MOT_BAT_VOLT_MAX")), "{e}");
     let remaining = e["remaining_wh"].as_f64().unwrap();
     let used = e["energy_used_wh"].as_f64().unwrap();
     assert!((remaining - (36.63 - used)).abs() < 1e-6, "{e}");

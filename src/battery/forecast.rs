@@ -103,6 +103,9 @@ mod tests {
         assert!((f.t_v_min - 60.0).abs() < 1e-9);
         assert!((f.v_end - 22.74851184137836).abs() < 1e-9);
         assert_eq!(f.crossings, vec![Some(0.5), None]);
+        assert!(
+            f.energy_at_crossing[0].is_some_and(|e| e > 0.0) && f.energy_at_crossing[1].is_none()
+        );
         assert!(!f.power_limited);
     }
 

@@ -21,6 +21,11 @@
 //! V      = OCV − b − R0·f·I − R1·x1
 //! ```
 //!
+//! Per-pack resistance scale: packs differ (and cold packs sag more) by ±30 % in R; the
+//! estimator accumulates this flight's least-squares scale k ([`Estimator::pack_scale`]) and
+//! the next flight on the same pack starts from R·(1 + 0.555·(k − 1))
+//! ([`CircuitParams::carried_over`]). First flights of a pack have no such information.
+//!
 //! The online estimator runs a 3×3 RLS with forgetting on θ = [R0, R1, b], so warm-up,
 //! ageing and OCV offsets are tracked in flight. The forecast solves P = V·I (a quadratic
 //! in I) each step.
@@ -31,6 +36,6 @@ pub mod forecast;
 pub mod ocv;
 
 pub use chemistry::{cell_candidates, Chemistry};
-pub use circuit::{CircuitParams, Estimate, Estimator};
+pub use circuit::{CircuitParams, Estimate, Estimator, PACK_SCALE_CARRY};
 pub use forecast::{forecast, Forecast};
 pub use ocv::OcvCurve;

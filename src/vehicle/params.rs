@@ -33,8 +33,18 @@ use crate::MavMessage;
 
 /// ArduPilot parameters that matter to energy: capacity (mAh), low/critical pack voltage
 /// (V), low/critical remaining (mAh), hover throttle (0–1), frame class.
-pub const ARDUPILOT_PARAMS: [&str; 7] =
-    ["BATT_CAPACITY", "BATT_LOW_VOLT", "BATT_CRT_VOLT", "BATT_LOW_MAH", "BATT_CRT_MAH", "MOT_THST_HOVER", "FRAME_CLASS"];
+pub const ARDUPILOT_PARAMS: [&str; 9] = [
+    "BATT_CAPACITY",
+    "BATT_LOW_VOLT",
+    "BATT_CRT_VOLT",
+    "BATT_LOW_MAH",
+    "BATT_CRT_MAH",
+    "MOT_THST_HOVER",
+    "FRAME_CLASS",
+    // The pack's cells: usually cells × 4.2 (or 4.35) and cells × 3.3 when set (0: off).
+    "MOT_BAT_VOLT_MAX",
+    "MOT_BAT_VOLT_MIN",
+];
 /// PX4 parameters that matter to energy: capacity (mAh), cells, full and empty cell
 /// voltage (V).
 pub const PX4_PARAMS: [&str; 4] = ["BAT1_CAPACITY", "BAT1_N_CELLS", "BAT1_V_CHARGED", "BAT1_V_EMPTY"];

@@ -31,6 +31,8 @@ ARDUPILOT = {  # name: (value, type)
     "BATT_CRT_VOLT": (9.9, mav.MAV_PARAM_TYPE_REAL32),
     "BATT_LOW_MAH": (0, mav.MAV_PARAM_TYPE_INT32),
     "MOT_THST_HOVER": (0.35, mav.MAV_PARAM_TYPE_REAL32),
+    "MOT_BAT_VOLT_MAX": (12.6, mav.MAV_PARAM_TYPE_REAL32),
+    "MOT_BAT_VOLT_MIN": (9.9, mav.MAV_PARAM_TYPE_REAL32),
     "FRAME_CLASS": (1, mav.MAV_PARAM_TYPE_INT8),
     # BATT_CRT_MAH deliberately missing: dronewatt must give up on it, not hang.
 }

@@ -29,12 +29,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::battery::{forecast, CircuitParams, OcvCurve};
+use crate::battery::{forecast, CircuitParams, OcvCurve, PACK_SCALE_CARRY};
 use crate::offline::data::TEST_FLIGHTS;
 use crate::source::dataset;
 
 use prep::{
-    fill_grid, heat_carry, link_chains, median, prepare, Prepared, DT, RELAX_C_V, RELAX_K_S,
+    fill_grid, heat_carry, link_chains, median, prepare, previous_pack_scale, Prepared, DT, RELAX_C_V, RELAX_K_S,
 };
 use score::{score_flight, FlightFigures, Traces, THR_V};
 
@@ -290,7 +290,11 @@ pub fn battery_eval(
     let mut traces = HashMap::new();
     for p in &chosen {
         let h0 = heat_carry(p.flight, &by_id, &prev, params.tau_heat_s, &mut cache);
-        let (f, tr) = score_flight(p, h0, params, &curve);
+        // The pack's resistance as its previous flight showed it, when there was one.
+        let k_prev = previous_pack_scale(p.flight, &by_id, &prev, params, &curve, &mut cache);
+        let flight_params = k_prev.map_or(params, |k| params.carried_over(k, PACK_SCALE_CARRY));
+        let (mut f, tr) = score_flight(p, h0, flight_params, &curve);
+        f.k_prev = k_prev;
         if f.ecm_rmse_v.is_finite() || f.ocv_energy_err_wh.is_finite() {
             traces.insert(p.flight, tr);
             flights.push(f);
@@ -326,7 +330,7 @@ pub fn battery_eval(
         curve_v_cell: crate::battery::ocv::TB48D_V.to_vec(),
         curve_energy_wh: crate::battery::ocv::TB48D_E_WH.to_vec(),
         relax,
-        heat_carry_over: "from the previous flight on the same pack (consecutive flight, same date, start ≤ 25 min later, rest voltages consistent), decayed over the gap".into(),
+        heat_carry_over: "from the previous flight on the same pack (consecutive flight, same date, start ≤ 25 min later, rest voltages consistent), decayed over the gap; so is the pack's resistance scale k, R·(1 + 0.555·(k − 1))".into(),
         power_profile: "forecasts are given the flight's own measured power (a perfect power forecast)".into(),
         targets: TARGETS.iter().map(|(k, v)| ((*k).to_string(), *v)).collect(),
         train,

@@ -262,6 +262,28 @@ pub fn heat_carry(
     h
 }
 
+/// The resistance scale k of the flight before `flight` on the same pack
+/// ([`crate::battery::Estimator::pack_scale`]: the nominal circuit run over that flight's
+/// rows, its own heat carried in), or None for the first flight of a pack. The next flight
+/// starts from `params.carried_over(k, PACK_SCALE_CARRY)`.
+pub fn previous_pack_scale(
+    flight: u32,
+    by_id: &HashMap<u32, &Prepared>,
+    prev: &HashMap<u32, u32>,
+    params: crate::battery::CircuitParams,
+    curve: &crate::battery::OcvCurve,
+    heat: &mut HashMap<u32, f64>,
+) -> Option<f64> {
+    let pf = *prev.get(&flight)?;
+    let q = by_id.get(&pf).filter(|q| q.ecm_ok() && !q.tg.is_empty())?;
+    let h0 = heat_carry(pf, by_id, prev, params.tau_heat_s, heat);
+    let mut est = crate::battery::Estimator::new(params, curve.clone(), q.v_start, h0)?;
+    for k in 1..q.t.len() {
+        est.update(q.t[k] - q.t[k - 1], q.i[k], q.v[k]);
+    }
+    est.pack_scale()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -34,6 +34,9 @@ pub struct FlightFigures {
     pub v_end_rest: f64,
     pub measured_wh: f64,
     pub heat0_a2s: f64,
+    /// The resistance scale of the previous flight on the same pack, carried over (none: the
+    /// first flight of a pack).
+    pub k_prev: Option<f64>,
     /// Energy between the two rest voltages (OCV curve) − measured, Wh.
     pub ocv_energy_err_wh: f64,
     /// End rest V predicted from the start rest V and the measured energy − end rest V, V.
