@@ -227,16 +227,19 @@ def plan_eval_members(r):
 # ---------------------------------------------------------------- eval (optional)
 
 def eval_cvar(r):
-    """Per-model scores on the test split, if `eval --json` has them in a shape we know."""
+    """Every model's mean scores over the test flights (`eval --split cvar --json -`)."""
     models = r.get("models") if isinstance(r, dict) else None
-    if not isinstance(models, list) or not models or not isinstance(models[0], dict):
+    if not isinstance(models, dict) or not models:
         return None
-    keys = [k for k in ("mae_w", "rmse_w", "mape_pct", "energy_err_pct") if k in models[0]]
-    if "name" not in models[0] or not keys:
-        return None
-    rows = [[f"`{m['name']}`"] + [f(m.get(k)) for k in keys] for m in models]
+    rows = sorted(models.items(), key=lambda kv: kv[1]["mae_w"])
     md = header("eval --split cvar --json -")
-    return md + table(["model"] + keys, rows)
+    md += (f"Mean over the test flights {', '.join(str(x) for x in r.get('flights', []))}, "
+           f"scored over {r.get('scored_over', 'in_flight').replace('_', '-')} windows "
+           "(in flight: measured power > 100 W), best MAE first.\n\n")
+    md += table(["model", "MAE (W)", "RMSE (W)", "in-flight MAPE %", "energy error %"],
+                [[f"`{n}`", f(m["mae_w"], 1), f(m["rmse_w"], 1), f(m["mape_pct"], 1), f(m["energy_err_pct"], 1)]
+                 for n, m in rows])
+    return md
 
 
 WRITERS = {
