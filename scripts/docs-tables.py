@@ -9,6 +9,7 @@ so the book builds without the data set.
     scripts/docs-tables.py --if-available  # what `make docs` runs: refresh when the binary is
                                            # up to date with src/ and the data set is there,
                                            # else keep the committed tables (with a note)
+    scripts/docs-tables.py --no-eval       # skip `eval --split cvar`
     scripts/docs-tables.py --from-json DIR # read DIR/battery-eval.json, DIR/plan-eval.json,
                                            # DIR/eval-cvar.json instead of running anything
 
@@ -28,7 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "docs" / "src" / "generated"
 
-# (file stem, command line after the binary); eval is optional (slower, LSTM on every window).
+# (file stem, command line after the binary). All three take ~9 s together in a dev build.
 COMMANDS = {
     "battery-eval": ["battery-eval", "--json", "-"],
     "plan-eval": ["plan-eval", "--json", "-"],
@@ -267,7 +268,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--from-json", metavar="DIR", type=Path)
     ap.add_argument("--if-available", action="store_true")
-    ap.add_argument("--eval", action="store_true", help="also run `eval --split cvar` (slower)")
+    ap.add_argument("--no-eval", action="store_true", help="skip `eval --split cvar` (a few seconds)")
     a = ap.parse_args()
 
     target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
@@ -275,7 +276,7 @@ def main():
     binary = Path(os.environ.get("DRONEWATT_BIN", target / "debug" / "dronewatt"))
     data = Path(os.environ.get("DRONEWATT_DATA", ROOT.parent / "shared" / "data" / "m100" / "flights.csv.gz"))
 
-    wanted = ["battery-eval", "plan-eval"] + (["eval-cvar"] if a.eval else [])
+    wanted = ["battery-eval", "plan-eval"] + ([] if a.no_eval else ["eval-cvar"])
     results = {}
     if a.from_json:
         for name in wanted:
