@@ -6,7 +6,7 @@ SHELL := /bin/bash
 CARGO ?= cargo
 DEMO_SPEED ?= 10
 
-.PHONY: setup run test build build-all bench fuzz clean-setup
+.PHONY: setup run test build build-all bench fuzz clean-setup docs docs-tables
 setup:
 	@scripts/setup-libtorch.sh
 	@scripts/setup-python.sh
@@ -38,3 +38,19 @@ fuzz:
 
 clean-setup:
 	rm -rf .venv-torch .libtorch .venv-py
+
+# The book (docs/, mdBook): mdbook from crates.io into .tools/ (scripts/setup-mdbook.sh, once),
+# the results tables refreshed from the commands' --json when the binary is up to date and
+# the data set is there (else the committed ones stay), then the build and a link check.
+# Output: docs/book/index.html.
+docs:
+	@scripts/setup-mdbook.sh
+	@python3 scripts/docs-tables.py --if-available
+	.tools/bin/mdbook build docs
+	@python3 scripts/docs-linkcheck.py docs/book
+
+# Rewrite docs/src/generated/*.md from `dronewatt battery-eval --json -` and `plan-eval --json -`
+# (needs the data set; builds dronewatt first). Commit the result.
+docs-tables:
+	$(CARGO) build --locked -p dronewatt --bin dronewatt
+	python3 scripts/docs-tables.py

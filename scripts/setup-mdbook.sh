@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Install mdbook (the docs book's builder) from crates.io into .tools/ — idempotent.
+# `make docs` runs this first; a second run does nothing once .tools/bin/mdbook exists.
+# MDBOOK_VERSION may pin another 0.4.x; the book uses the 0.4 configuration format.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MDBOOK_VERSION="${MDBOOK_VERSION:-0.4.52}"
+if [[ -x .tools/bin/mdbook ]]; then
+    exit 0
+fi
+echo "setup-mdbook: installing mdbook $MDBOOK_VERSION into .tools/ (a few minutes, once)" >&2
+# Only the `search` feature: the book is built, not served, so `serve`/`watch`
+# (tokio, axum, notify) would only lengthen the build.
+nice cargo install mdbook --locked --version "$MDBOOK_VERSION" --root .tools \
+    --no-default-features --features search
