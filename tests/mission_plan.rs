@@ -22,6 +22,47 @@ const WPL: &str = "QGC WPL 110\n\
 5\t0\t3\t206\t25\t0\t1\t0\t0\t0\t0\t1\n\
 6\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n";
 
+/// `plan` for a pack at rest and for another vehicle: the voltage along the plan, and the
+/// vehicle's own models and pack, never the M100's number.
+#[test]
+fn plan_takes_a_pack_state_and_another_vehicle() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = dir.path().join("r1.waypoints");
+    std::fs::write(&plan, WPL).unwrap();
+    let run = |args: &[&str]| -> serde_json::Value {
+        let out = bin().current_dir(env!("CARGO_MANIFEST_DIR")).arg("plan").arg(&plan).args(args).args(["--json", "-"]).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let m100 = run(&[]);
+    assert!(m100.get("pack").is_none(), "no start state, no voltage forecast");
+    // A TB48D half used (23.9 V at rest): the margin is over what it holds now.
+    let half = run(&["--battery-v", "23.9"]);
+    let p = &half["pack"];
+    let (v_min, landing) = (p["v_min_v"].as_f64().unwrap(), p["landing_v"].as_f64().unwrap());
+    assert!(v_min < landing && landing < 23.9, "{p}");
+    assert!((30.0..80.0).contains(&p["soc_pct"].as_f64().unwrap()), "{p}");
+    assert_eq!(p["low_v"].as_f64(), Some(21.0), "3.5 V a cell on 6 cells: {p}");
+    assert!(half["margin_p50_wh"].as_f64().unwrap() < m100["margin_p50_wh"].as_f64().unwrap() - 20.0, "{half}");
+    // The X500: its own models and its own 4S pack, not the M100's forecast.
+    let x500 = run(&["--vehicle", "x500", "--battery-v", "16.4"]);
+    assert_eq!(x500["vehicle"], "Holybro X500 V2 (4S 5000 mAh)");
+    assert!(x500["forecast_from"].as_str().unwrap().contains("only the M100 is calibrated"), "{}", x500["forecast_from"]);
+    assert!(!x500["forecast"]["model"].as_str().unwrap().contains("_cal"), "{}", x500["forecast"]["model"]);
+    assert_ne!(x500["forecast"]["energy_p50_wh"], m100["forecast"]["energy_p50_wh"]);
+    assert!(x500["forecast"]["p90_ratio"].as_f64().unwrap() >= 1.3, "the P90 is widened");
+    assert!((70.0..80.0).contains(&x500["capacity_wh"].as_f64().unwrap()), "5000 mAh × 4S × 3.7 V: {}", x500["capacity_wh"]);
+    assert_eq!((x500["pack"]["cells"].as_u64(), x500["pack"]["chemistry"].as_str()), (Some(4), Some("lipo")));
+    // A name that is nothing is said so.
+    let out = bin().arg("plan").arg(&plan).args(["--vehicle", "no-such-vehicle", "--data-dir", dir.path().to_str().unwrap()]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("no-such-vehicle") && err.contains("x500") && err.contains("store"), "{err}");
+    // A resting voltage that is not one for this pack is refused, naming the flag.
+    let out = bin().current_dir(env!("CARGO_MANIFEST_DIR")).arg("plan").arg(&plan).args(["--battery-v", "12.6"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--battery-v 12.6"), "{err}");
+}
+
 #[test]
 fn plan_prints_legs_margin_json_and_plot() {
     let dir = tempfile::tempdir().unwrap();

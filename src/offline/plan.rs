@@ -17,9 +17,21 @@ use crate::offline::plan_eval::publish;
 pub struct PlanArgs {
     /// The plan: a QGroundControl `.plan` or a `QGC WPL 110` `.waypoints` file.
     pub file: PathBuf,
-    /// Vehicle profile (`config/vehicles/*.toml`). Default: the config's, else the M100.
-    #[arg(long, value_name = "PROFILE")]
-    pub vehicle: Option<PathBuf>,
+    /// The vehicle: a built-in name (m100, x500, quad-3s), a profile file
+    /// (`config/vehicles/*.toml`, or the `profile.toml` `learn` wrote), or a vehicle's key in
+    /// the vehicle store as `dronewatt vehicles` lists it (its learned profile). Its own
+    /// physics models and pack fly the plan. Default: the config's, else the M100.
+    #[arg(long, value_name = "NAME|FILE|KEY")]
+    pub vehicle: Option<String>,
+    /// The vehicle store for `--vehicle KEY` (default as `monitor`'s: $DRONEWATT_HOME, else
+    /// the XDG data directory).
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
+    /// The pack's resting voltage before take-off, V (whole pack): the forecast then starts
+    /// from its state of charge, and prints the landing and lowest loaded voltages and when
+    /// the voltage would cross the low threshold (`BATT_LOW_VOLT`, else 3.5 V a cell).
+    #[arg(long, value_name = "V")]
+    pub battery_v: Option<f64>,
     /// Wind, SPEED@FROM_DEG (m/s, bearing it blows from), e.g. 5@270. Default: calm.
     #[arg(long, value_name = "SPEED@FROM_DEG")]
     pub wind: Option<Wind>,
@@ -65,6 +77,9 @@ pub(crate) fn models_for(cfg: &Config, calibrated: &Path) -> anyhow::Result<Vec<
 #[derive(Debug, serde::Serialize)]
 struct PlanReport<'a> {
     plan: &'a str,
+    /// The vehicle flown, and whose forecast calibration it is.
+    vehicle: String,
+    forecast_from: String,
     items: usize,
     not_modelled: Vec<String>,
     terrain_frame_items: Vec<usize>,
@@ -75,15 +90,74 @@ struct PlanReport<'a> {
     reserve_pct: f64,
     margin_p50_wh: f64,
     margin_p90_wh: f64,
+    /// The pack along the plan, when `--battery-v` gave its start state.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pack: Option<PackForecast>,
     forecast: &'a MissionForecast,
+}
+
+/// The loaded voltage along the plan at its P50 power, from a resting voltage.
+#[derive(Debug, serde::Serialize)]
+struct PackForecast {
+    rest_v: f64,
+    cells: u32,
+    chemistry: String,
+    /// State of charge at the start, % of the pack's OCV curve.
+    soc_pct: f64,
+    /// Energy to the curve's floor at the start, Wh.
+    start_wh: f64,
+    /// The lowest loaded voltage, V, when (s from the motors' start) and on which leg.
+    v_min_v: f64,
+    v_min_at_s: f64,
+    v_min_leg: Option<String>,
+    /// The loaded voltage at the end of the plan, V.
+    landing_v: f64,
+    /// The low threshold, V, where it comes from, and when the voltage first crosses it.
+    low_v: f64,
+    low_source: String,
+    low_crossed_at_s: Option<f64>,
+    /// More power asked than the pack can give somewhere (the voltage collapses).
+    power_limited: bool,
+}
+
+/// The vehicle `--vehicle` names: a built-in, a file, or a key in the vehicle store.
+fn resolve_vehicle(name: &str, data_dir: Option<&Path>) -> anyhow::Result<(VehicleProfile, Option<PathBuf>)> {
+    if crate::model::profile::BUILT_IN.iter().any(|(n, _)| *n == name) {
+        return Ok((VehicleProfile::named_or_file(name)?, None));
+    }
+    let path = Path::new(name);
+    if path.exists() {
+        return Ok((VehicleProfile::load(path)?, Some(path.to_path_buf())));
+    }
+    if let Some(dir) = crate::vehicle::store::data_dir_from_env(data_dir) {
+        if dir.join(crate::vehicle::store::DB_FILE).exists() {
+            let store = crate::vehicle::store::Store::open(&dir)?;
+            if let Some(p) = store.learned_profile(name)? {
+                return Ok((VehicleProfile::load(&p.path)?, Some(p.path)));
+            }
+            if store.vehicles()?.iter().any(|v| v.key == name) {
+                anyhow::bail!("vehicle '{name}': in the store ({}), but no profile was learned for it yet: run `dronewatt learn` on its logs", dir.display());
+            }
+        }
+    }
+    let names: Vec<&str> = crate::model::profile::BUILT_IN.iter().map(|b| b.0).collect();
+    anyhow::bail!("vehicle '{name}': neither a built-in profile ({}), nor a file, nor a vehicle in the store (`dronewatt vehicles` lists them)", names.join(", "))
 }
 
 /// `dronewatt plan FILE`.
 pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     let mut cfg = load_config(a.config.as_deref())?;
-    if let Some(v) = &a.vehicle {
-        cfg.vehicle = Some(v.clone());
+    let (profile, profile_path) = match &a.vehicle {
+        Some(v) => resolve_vehicle(v, a.data_dir.as_deref())?,
+        None => match &cfg.vehicle {
+            Some(p) => (VehicleProfile::load(p)?, Some(p.clone())),
+            None => (VehicleProfile::m100(), None),
+        },
+    };
+    if let Some(p) = &profile_path {
+        cfg.vehicle = Some(p.clone());
     }
+    let is_m100 = profile.name == VehicleProfile::m100().name;
     let plan = Plan::load(&a.file)?;
     let payload_g = a.payload_g.or(cfg.mission.payload_g.map(f64::from)).unwrap_or(0.0);
     if !(payload_g.is_finite() && payload_g >= 0.0) {
@@ -99,22 +173,78 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if tr.samples.is_empty() {
         anyhow::bail!("{}: the plan flies nowhere (no take-off, no waypoint)", a.file.display());
     }
-    let mut models = models_for(&cfg, &a.calibrated)?;
-    let f = forecast(&tr, &mut models, &cfg.forecast.calibration, cfg.telemetry.window, crate::mission::MODEL_STRIDE);
-    let wanted = cfg.forecast.calibration.name();
+    // The forecast is the vehicle's own: the M100 with its calibrated models and fitted
+    // correction; another vehicle with its learned forecast model, else the mean of its own
+    // physics models uncorrected, the P90 widened (the M100's correction is not its).
+    let (mut models, calibration, forecast_from) = if is_m100 {
+        (models_for(&cfg, &a.calibrated)?, cfg.forecast.calibration.clone(), "the M100's calibrated models and fitted correction".to_string())
+    } else {
+        let models = match &profile_path {
+            Some(p) => crate::model::build_models(&cfg.models, Some(p), &cfg.telemetry)?,
+            None => crate::model::physics::models(&profile),
+        };
+        match profile.forecast.as_ref().filter(|f| models.iter().any(|m| m.name() == f.model)) {
+            Some(fd) => {
+                let mut c = crate::mission::forecast::Calibration::uncorrected(&fd.model);
+                c.p90_ratio = OWN_MODEL_P90;
+                (models, c, format!("{}'s learned forecast model {} (uncorrected; P90 = {OWN_MODEL_P90} × P50)", profile.name, fd.model))
+            }
+            None => {
+                let names: Vec<String> = models.iter().map(|m| m.name().to_string()).filter(|n| PUBLISHED.contains(&n.as_str())).collect();
+                tracing::warn!(
+                    "only the M100's forecast calibration exists; {} flies on its own published physics models, uncorrected, with the P90 widened to {UNCALIBRATED_P90} × P50",
+                    profile.name
+                );
+                let c = crate::mission::forecast::Calibration {
+                    members: names.iter().map(|n| crate::mission::forecast::Member::of(n)).collect(),
+                    p90_ratio: UNCALIBRATED_P90,
+                    live_weight: 0.0,
+                    vehicle_kg: profile.vehicle.airframe_kg + profile.vehicle.battery_kg,
+                };
+                (models, c, format!("the mean of {}'s published physics models {} (uncorrected: only the M100 is calibrated; P90 = {UNCALIBRATED_P90} × P50)", profile.name, names.join(", ")))
+            }
+        }
+    };
+    let f = forecast(&tr, &mut models, &calibration, cfg.telemetry.window, crate::mission::MODEL_STRIDE);
+    let wanted = calibration.name();
     if f.model != wanted {
         tracing::warn!("forecast models {wanted:?} did not all run; the P50 follows {:?}", f.model);
     }
-    // Offline no vehicle answers: the configured capacity, else the default (said in the log).
-    let battery = crate::vehicle::battery_from_config(&cfg.energy.battery());
+    // Offline no vehicle answers: the configured pack, else the profile's, else the default.
+    let mut battery_cfg = cfg.energy.battery();
+    if let (false, Some(b)) = (is_m100, profile.battery.as_ref()) {
+        battery_cfg.cell_count = battery_cfg.cell_count.or(Some(b.cells));
+        if battery_cfg.capacity_wh.is_none() {
+            battery_cfg.capacity_wh = Some(b.capacity_mah / 1000.0 * f64::from(b.cells) * battery_cfg.chemistry.unwrap_or(crate::battery::Chemistry::LiPo).nominal_v());
+        }
+    }
+    let mut battery = crate::vehicle::battery_from_config(&battery_cfg);
+    if !is_m100 && cfg.energy.capacity_wh.is_none() && profile.battery.is_some() {
+        battery.capacity_wh.source = crate::vehicle::Provenance::Parameter(format!("{} profile [battery]", profile.name));
+    }
     let capacity_wh = battery.capacity_wh.value;
     if battery.capacity_wh.source != crate::vehicle::Provenance::Config {
         tracing::info!("capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack", battery.capacity_wh.source);
     }
-    let (m50, m90) = f.margins_wh(capacity_wh, cfg.energy.reserve_pct);
+    let pack = match a.battery_v {
+        Some(v) => Some(pack_forecast(v, &battery, &f, &tr)?),
+        None => None,
+    };
+    // With a start state, the margins are over what the pack holds now.
+    let (start_wh, reserve_of) = match &pack {
+        Some(p) => {
+            let full = crate::energy::pack::pack_model(&battery).map_or(capacity_wh, |(c, _)| c.capacity());
+            (p.start_wh, full)
+        }
+        None => (capacity_wh, capacity_wh),
+    };
+    let reserve_wh = reserve_of * cfg.energy.reserve_pct / 100.0;
+    let (m50, m90) = (start_wh - f.energy_p50_wh - reserve_wh, start_wh - f.energy_p90_wh - reserve_wh);
     let speed_m_s = a.speed.or(plan.hover_speed_m_s).unwrap_or(cfg.forecast.kinematics.default_speed_m_s);
     let report = PlanReport {
         plan: &plan.source,
+        vehicle: profile.name.clone(),
+        forecast_from,
         items: plan.items.len(),
         not_modelled: plan.not_modelled().iter().map(|i| format!("item {} ({}): MAV_CMD {}", i.index, i.origin, i.command)).collect(),
         terrain_frame_items: plan.terrain_items().iter().map(|i| i.index).collect(),
@@ -125,6 +255,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         reserve_pct: cfg.energy.reserve_pct,
         margin_p50_wh: m50,
         margin_p90_wh: m90,
+        pack,
         forecast: &f,
     };
     if let Some(png) = &a.plot {
@@ -133,11 +264,67 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     publish(a.json.as_deref(), &report, || plan_table(&report))
 }
 
+/// P90 ratio of a vehicle flown on its learned forecast model, which has no fitted spread.
+const OWN_MODEL_P90: f64 = 1.15;
+/// P90 ratio of a vehicle flown on published physics models no one calibrated for it.
+const UNCALIBRATED_P90: f64 = 1.3;
+/// The published physics models (the `_cal` ones are the M100's).
+const PUBLISHED: [&str; 5] = ["dandrea", "dorling", "kirschstein", "stolaroff", "tseng_solo"];
+
+/// The pack flown along the plan at the forecast's P50 power, from a resting voltage.
+fn pack_forecast(rest_v: f64, battery: &crate::report::BatteryFacts, f: &MissionForecast, tr: &Trajectory) -> anyhow::Result<PackForecast> {
+    let cells = battery.cell_count.value;
+    let per_cell = rest_v / f64::from(cells);
+    let chem = crate::battery::Chemistry::from_name(&battery.chemistry.value).unwrap_or(crate::battery::Chemistry::LiPo);
+    if !(rest_v.is_finite() && per_cell >= chem.floor_v() - 0.3 && per_cell <= chem.full_v() + 0.1) {
+        anyhow::bail!(
+            "--battery-v {rest_v}: {per_cell:.2} V a cell is not a resting {} voltage for {cells} cells ({:.2}-{:.2} V a cell); set [energy] cell_count / chemistry for this pack",
+            battery.chemistry.value,
+            chem.floor_v(),
+            chem.full_v()
+        );
+    }
+    let (curve, params) = crate::energy::pack::pack_model(battery).context("no pack model for this battery")?;
+    let est = crate::battery::Estimator::new(params, curve.clone(), rest_v, 0.0).context("--battery-v: no pack state from this voltage")?;
+    let mut prev = 0.0;
+    let profile: Vec<(f64, f64)> = f
+        .cum_p50_wh
+        .iter()
+        .map(|&e| {
+            let p = (e - prev) * 3600.0 / f.dt_s;
+            prev = e;
+            (f.dt_s, p)
+        })
+        .collect();
+    let (low_v, low_source) = match &battery.low_voltage_v {
+        Some(l) => (l.value, l.source.to_string()),
+        None => (crate::energy::pack::DEFAULT_LOW_V_CELL * f64::from(cells), format!("{} V a cell", crate::energy::pack::DEFAULT_LOW_V_CELL)),
+    };
+    let fc = crate::battery::forecast(&est, &profile, &[low_v]);
+    let v_min_leg = tr.legs.iter().find(|l| l.t_end_s >= fc.t_v_min).map(|l| l.label.clone());
+    Ok(PackForecast {
+        rest_v,
+        cells,
+        chemistry: battery.chemistry.value.clone(),
+        soc_pct: 100.0 * curve.soc(per_cell),
+        start_wh: est.energy_wh(),
+        v_min_v: fc.v_min,
+        v_min_at_s: fc.t_v_min,
+        v_min_leg,
+        landing_v: fc.v_end,
+        low_v,
+        low_source,
+        low_crossed_at_s: fc.crossings.first().copied().flatten(),
+        power_limited: fc.power_limited,
+    })
+}
+
 fn plan_table(r: &PlanReport) -> String {
     use std::fmt::Write;
     let f = r.forecast;
     let mut s = String::new();
     let _ = writeln!(s, "{}: {} items, {:.1} m/s, payload {:.0} g, wind {:.1} m/s from {:.0}°", r.plan, r.items, r.speed_m_s, r.payload_g, r.wind.speed_m_s, r.wind.from_deg);
+    let _ = writeln!(s, "vehicle: {}; forecast: {}", r.vehicle, r.forecast_from);
     let _ = writeln!(s, "P50: {} (P90 = {:.3} × P50)", if f.model.contains(" + ") { format!("the mean of {}", f.model) } else { f.model.clone() }, f.p90_ratio);
     let _ = writeln!(s, "{:>4} {:<18} {:>8} {:>8} {:>9} {:>9}", "item", "leg", "time s", "dist m", "P50 Wh", "P90 Wh");
     for l in &f.legs {
@@ -146,13 +333,39 @@ fn plan_table(r: &PlanReport) -> String {
     let _ = writeln!(s, "{:>4} {:<18} {:>8.1} {:>8.0} {:>9.2} {:>9.2}", "", "total", f.duration_s, f.distance_m, f.energy_p50_wh, f.energy_p90_wh);
     let _ = writeln!(
         s,
-        "battery {:.1} Wh, reserve {:.0} %: margin over reserve {:.1} Wh at P50, {:.1} Wh at P90{}",
+        "battery {:.1} Wh{}, reserve {:.0} %: margin over reserve {:.1} Wh at P50, {:.1} Wh at P90{}",
         r.capacity_wh,
+        r.pack.as_ref().map(|p| format!(" ({:.1} Wh in it now)", p.start_wh)).unwrap_or_default(),
         r.reserve_pct,
         r.margin_p50_wh,
         r.margin_p90_wh,
         if r.margin_p90_wh < 0.0 { "  — the mission may not finish above reserve" } else { "" }
     );
+    if let Some(p) = &r.pack {
+        let _ = writeln!(
+            s,
+            "pack: {:.2} V at rest ({} {}S, {:.0} % charged, {:.1} Wh to empty): lowest loaded voltage {:.2} V at {:.0} s{}, landing {:.2} V",
+            p.rest_v,
+            p.chemistry,
+            p.cells,
+            p.soc_pct,
+            p.start_wh,
+            p.v_min_v,
+            p.v_min_at_s,
+            p.v_min_leg.as_deref().map(|l| format!(" ({l})")).unwrap_or_default(),
+            p.landing_v
+        );
+        let _ = writeln!(
+            s,
+            "low threshold {:.2} V ({}): {}",
+            p.low_v,
+            p.low_source,
+            match p.low_crossed_at_s {
+                Some(t) => format!("crossed at {t:.0} s — the voltage failsafe would fire on this plan"),
+                None => format!("not crossed ({:.2} V above it at the lowest)", p.v_min_v - p.low_v),
+            }
+        );
+    }
     for n in &r.not_modelled {
         let _ = writeln!(s, "not modelled: {n}");
     }
