@@ -226,6 +226,11 @@ impl Estimator {
         }
     }
 
+    /// State of charge (energy fraction of the curve) at a resting cell voltage.
+    pub fn curve_soc(&self, v_cell: f64) -> f64 {
+        self.curve.soc(v_cell)
+    }
+
     /// Current parameter estimate θ = [R0 (Ω), R1 (Ω), b (V)].
     pub fn theta(&self) -> [f64; 3] {
         self.theta

@@ -255,6 +255,12 @@ impl EnergyTracker {
         self.resolve_battery();
     }
 
+    /// What the last flight of this vehicle left of its pack (the vehicle store): carried
+    /// into this flight when it starts soon after on the same pack.
+    pub fn set_pack_history(&mut self, h: Option<crate::battery::PackHistory>) {
+        self.pack.history = h;
+    }
+
     /// Capacity and cells as they stand, with their provenance.
     pub fn battery(&self) -> &BatteryFacts {
         &self.battery
@@ -437,6 +443,12 @@ impl EnergyTracker {
                 time_to_low_v_s: pk.time_to_low_v_s,
                 low_threshold_v: pk.low_v,
                 battery_pct_disagreement: disagreement,
+                battery_end_rest_v: pk.end_rest_v,
+                end_rest_soc_pct: pk.end_rest_soc_pct,
+                pack_r_scale: pk.r_scale,
+                pack_carried_over: pk.carried,
+                heat_a2s: pk.heat,
+                curve_wh: pk.curve_wh,
             },
             battery: self.battery.clone(),
         }

@@ -24,7 +24,7 @@
 //! Nothing here does I/O; a sample with no voltage, a NaN, or a current under −2 A
 //! leaves the state as it was.
 
-use crate::battery::{forecast, CircuitParams, Chemistry, Estimator, OcvCurve};
+use crate::battery::{forecast, CircuitParams, Chemistry, Estimator, OcvCurve, PackHistory};
 use crate::report::{BatteryFacts, Provenance};
 
 /// Current under which the pack counts as resting, A.
@@ -71,6 +71,16 @@ pub struct PackNow {
     pub usable_wh: Option<f64>,
     /// The low threshold used, V.
     pub low_v: Option<f64>,
+    /// The resting voltage after the flight (landed, settled), V, and its state of charge, %.
+    pub end_rest_v: Option<f64>,
+    pub end_rest_soc_pct: Option<f64>,
+    /// This flight's resistance against the nominal circuit's (least squares under load).
+    pub r_scale: Option<f64>,
+    /// The heat proxy now, A²·s (carried to the next flight on this pack).
+    pub heat: Option<f64>,
+    /// Whether the state started from the previous flight on this pack (its resistance and
+    /// heat carried over).
+    pub carried: bool,
 }
 
 /// The pack's state across the estimates of one vehicle.
@@ -87,6 +97,8 @@ pub struct Pack {
     /// Energy kept in reserve, fraction of the curve's (the rest of a flight with no
     /// mission ends there).
     pub reserve_frac: f64,
+    /// The last flight's pack, from the vehicle store.
+    pub history: Option<PackHistory>,
     /// Messages for a warning, taken by the caller.
     pub notes: Vec<String>,
 }
@@ -146,6 +158,8 @@ impl Pack {
             self.now.internal_r_ohm = Some(e.r0_eff);
             self.now.soc_pct = Some(100.0 * e.soc);
             self.now.energy_wh = Some(e.energy_wh);
+            self.now.r_scale = est.pack_scale();
+            self.now.heat = Some(est.heat());
         }
         if self.last_forecast_t.is_none_or(|t0| t - t0 >= FORECAST_EVERY_S || t < t0) {
             self.last_forecast_t = Some(t);
@@ -176,7 +190,11 @@ impl Pack {
                     ocv.unwrap_or(f64::NAN)
                 ));
                 self.flown = false;
+                self.history = None;
             } else {
+                // Landed: the resting voltage after the flight (pack health, the next flight).
+                self.now.end_rest_v = Some(rest_v);
+                self.now.end_rest_soc_pct = self.est.as_ref().map(|e| 100.0 * e.curve_soc(rest_v / cells));
                 return;
             }
         }
@@ -185,10 +203,14 @@ impl Pack {
         }
         let Some((curve, params)) = pack_model(facts) else { return };
         let curve_wh = curve.capacity();
-        if let Some(est) = Estimator::new(params, curve, rest_v, 0.0) {
+        // The same pack flown again soon: its resistance and warmth carry over.
+        let carry = self.history.filter(|h| h.same_pack(rest_v, facts.cell_count.value));
+        let params = carry.and_then(|h| h.r_scale).map_or(params, |k| params.carried_over(k, crate::battery::PACK_SCALE_CARRY));
+        let heat0 = carry.map_or(0.0, |h| h.heat * (-h.gap_s / params.tau_heat_s).exp());
+        if let Some(est) = Estimator::new(params, curve, rest_v, heat0) {
             self.est = Some(est);
             self.rest_v = Some(rest_v);
-            self.now = PackNow { rest_v: Some(rest_v), curve_wh: Some(curve_wh), ..PackNow::default() };
+            self.now = PackNow { rest_v: Some(rest_v), curve_wh: Some(curve_wh), carried: carry.is_some(), ..PackNow::default() };
         }
     }
 
@@ -295,4 +317,22 @@ mod tests {
         // A full 3S LiPo at rest holds the whole capacity.
         assert!((curve.energy(12.6 / 3.0) - 36.6).abs() < 1e-9);
     }
+
+    #[test]
+    fn the_same_pack_soon_after_carries_its_resistance_and_warmth() {
+        let f = tb48d();
+        let hist = |gap_s: f64| PackHistory { gap_s, r_scale: Some(1.4), heat: 100_000.0, end_rest_v: Some(23.3) };
+        let mut soon = Pack { history: Some(hist(300.0)), ..Pack::default() };
+        let mut cold = Pack { history: Some(hist(3.0 * 3600.0)), ..Pack::default() };
+        let (a, b) = (run(&mut soon, &f, 23.4, 30.0), run(&mut cold, &f, 23.4, 30.0));
+        assert!(a.carried && !b.carried, "{a:?} {b:?}");
+        // A resistance 1.4× the nominal carried over, shrunk: more sag than a fresh start, but
+        // the warmth carried lowers it too; the model differs either way.
+        assert_ne!(a.v_model, b.v_model);
+        assert!(a.r_scale.is_some() && a.heat.is_some_and(|h| h > 0.0), "{a:?}");
+        // A pack at a voltage it could not have relaxed to is another pack.
+        let mut other = Pack { history: Some(hist(300.0)), ..Pack::default() };
+        assert!(!run(&mut other, &f, 25.9, 10.0).carried);
+    }
+
 }

@@ -56,6 +56,8 @@ struct StoreNews {
     capacity: Option<(f64, usize)>,
     /// The forecast model of the learned profile the models now run from, and why.
     forecast: Option<(String, String)>,
+    /// What the vehicle's last flight left of its pack.
+    pack: Option<crate::battery::PackHistory>,
 }
 
 /// The running stages of one [`VehicleChain`].
@@ -257,7 +259,7 @@ async fn telemetry_stage(
                                 let (models, forecast) = learned_models(&learned, rebuild.as_ref());
                                 // The store's news first: an estimate made with the warm
                                 // fits reaches the energy stage after it.
-                                let _ = capacity.send(StoreNews { capacity: learned.capacity_wh, forecast });
+                                let _ = capacity.send(StoreNews { capacity: learned.capacity_wh, forecast, pack: learned.pack });
                                 let _ = warm.send((vehicle, WarmStart::Ready(learned.fits, models)));
                             });
                         }
@@ -340,6 +342,7 @@ async fn energy_stage(
         if changed && !capacity_final {
             let news = learned.borrow_and_update().clone();
             energy.set_learned_capacity(news.capacity);
+            energy.set_pack_history(news.pack);
             if let Some((model, why)) = news.forecast {
                 energy.set_default_model(&model, &why);
             }

@@ -161,6 +161,20 @@ pub struct PackState {
     /// boot", so a half pack reads 100 %).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub battery_pct_disagreement: Option<f64>,
+    /// The resting voltage after landing, V, and its state of charge, %.
+    pub battery_end_rest_v: Option<f64>,
+    #[serde(skip)]
+    pub end_rest_soc_pct: Option<f64>,
+    /// This flight's pack resistance over the nominal circuit's (1: as fitted on the M100).
+    pub pack_r_scale: Option<f64>,
+    /// Whether the pack's resistance and warmth came from its previous flight.
+    pub pack_carried_over: bool,
+    /// The heat proxy, A²·s (for the vehicle store).
+    #[serde(skip)]
+    pub heat_a2s: Option<f64>,
+    /// The OCV curve's whole energy, Wh (for the vehicle store's pack health).
+    #[serde(skip)]
+    pub curve_wh: Option<f64>,
 }
 
 /// How far (points) the autopilot's battery % may differ from the resting voltage's state

@@ -27,7 +27,7 @@ impl VehicleKey {
 }
 
 /// One flight, summed up from its reports ([`FlightLog`]).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct FlightSummary {
     /// Seconds with the motors turning (measured power above [`FlightLog`]'s threshold).
     pub airborne_s: f64,
@@ -41,7 +41,21 @@ pub struct FlightSummary {
     /// The capacity the run assumed, Wh, and where it came from.
     pub rated_capacity_wh: f64,
     pub capacity_source: String,
+    /// The pack: resting voltage before and after, V; resistance scale over the nominal
+    /// circuit's and the resistance, Ω, at the end; the heat proxy at the end, A²·s.
+    pub rest_v_start: Option<f64>,
+    pub rest_v_end: Option<f64>,
+    pub r_scale: Option<f64>,
+    pub internal_r_ohm: Option<f64>,
+    pub heat_a2s: Option<f64>,
+    /// Pack health: the energy the pack delivered between its two resting voltages over what
+    /// its OCV curve holds between them, % (flights that used at least
+    /// [`MIN_SOC_DROP_PCT`] of it).
+    pub pack_health_pct: Option<f64>,
 }
+
+/// The least state-of-charge drop, %, for a flight's pack health (smaller is noise).
+pub const MIN_SOC_DROP_PCT: f64 = 10.0;
 
 /// Sums a run's reports into a [`FlightSummary`] in bounded memory, however long the run:
 /// the measured powers go into a histogram of 1 %-wide bins (at most `PowerBins::MAX` bins,
@@ -56,6 +70,9 @@ pub struct FlightLog {
     energy_wh: f64,
     pct: Option<(f64, f64)>,
     capacity: Option<(f64, String)>,
+    /// The pack as the last report had it (the start state is kept from the first).
+    pack: crate::report::PackState,
+    pack_start: Option<(f64, f64)>,
 }
 
 /// Measured powers binned on a log scale: bin 0 below 1 W, bin k ≥ 1 for
@@ -127,6 +144,14 @@ impl FlightLog {
         let b = &r.energy.battery;
         let c = b.rated_capacity_wh.as_ref().unwrap_or(&b.capacity_wh);
         self.capacity = Some((c.value, c.source.to_string()));
+        let pk = &r.energy.pack;
+        if let (Some(v), Some(soc)) = (pk.battery_rest_v, pk.soc_pct) {
+            // The start state, when it is (re)read: its voltage and state of charge then.
+            if pk.battery_end_rest_v.is_none() && self.pack_start.is_none_or(|(v0, _)| v0 != v) {
+                self.pack_start = Some((v, soc));
+            }
+        }
+        self.pack = *pk;
     }
 
     /// The summary, or `None` when no power was ever measured (nothing flew that we saw).
@@ -146,6 +171,13 @@ impl FlightLog {
             .filter(|drop| *drop >= MIN_PCT_DROP)
             .map(|drop| self.energy_wh / (drop / 100.0))
             .filter(|c| c.is_finite());
+        let pk = &self.pack;
+        let pack_health_pct = match (self.pack_start, pk.end_rest_soc_pct, pk.curve_wh) {
+            (Some((_, soc0)), Some(soc1), Some(curve)) if soc0 - soc1 >= MIN_SOC_DROP_PCT => {
+                Some(100.0 * self.energy_wh / (curve * (soc0 - soc1) / 100.0)).filter(|h| h.is_finite() && *h > 0.0)
+            }
+            _ => None,
+        };
         Some(FlightSummary {
             airborne_s,
             energy_wh: self.energy_wh,
@@ -154,6 +186,12 @@ impl FlightLog {
             effective_capacity_wh,
             rated_capacity_wh,
             capacity_source,
+            rest_v_start: self.pack_start.map(|p| p.0),
+            rest_v_end: pk.battery_end_rest_v,
+            r_scale: pk.pack_r_scale,
+            internal_r_ohm: pk.internal_r_ohm,
+            heat_a2s: pk.heat_a2s,
+            pack_health_pct,
         })
     }
 }

@@ -47,6 +47,10 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
             v.wh_per_min().map_or("—".to_string(), |w| format!("{w:.2}")),
             trend
         );
+        let pack = pack_trend(&v.flights);
+        if !pack.is_empty() {
+            let _ = writeln!(s, "{:<34} pack (per vehicle: no pack id heard), by flight: {pack}", "");
+        }
         if let Some(p) = &v.profile {
             let _ = writeln!(
                 s,
@@ -58,4 +62,19 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
         }
     }
     Ok(s)
+}
+
+/// The pack's trend over flights, oldest first: health (energy delivered between the
+/// resting voltages over what the OCV curve holds between them) and series resistance.
+fn pack_trend(flights: &[super::FlightRecord]) -> String {
+    let health: Vec<String> = flights.iter().filter_map(|f| f.summary.pack_health_pct).map(|h| format!("{h:.0} %")).collect();
+    let r: Vec<String> = flights.iter().filter_map(|f| f.summary.internal_r_ohm).map(|r| format!("{:.0}", 1000.0 * r)).collect();
+    let mut parts = Vec::new();
+    if !health.is_empty() {
+        parts.push(format!("health {}", health.join(" → ")));
+    }
+    if !r.is_empty() {
+        parts.push(format!("R {} mΩ", r.join(" → ")));
+    }
+    parts.join("; ")
 }

@@ -150,6 +150,33 @@ CREATE TABLE IF NOT EXISTS profiles (
 );
 ";
 
+/// The schema this build writes (`PRAGMA user_version`): 1 the first stores (no version
+/// set, read as 0), 2 adds each flight's pack (resting voltages, resistance, heat, health).
+pub const SCHEMA_VERSION: i64 = 2;
+
+/// The columns schema 2 adds to `flights`.
+const PACK_COLUMNS: [&str; 6] = ["rest_v_start", "rest_v_end", "r_scale", "internal_r_ohm", "heat_a2s", "pack_health_pct"];
+
+/// Bring an older store up to [`SCHEMA_VERSION`] in one transaction; refuse a newer one (a
+/// later dronewatt wrote it: reading it could lose what that one keeps).
+fn migrate(conn: &Connection) -> Result<()> {
+    let version: i64 = conn.query_row("PRAGMA user_version", [], |r| r.get(0))?;
+    if version > SCHEMA_VERSION {
+        anyhow::bail!("written by a newer dronewatt (schema {version}; this one reads up to {SCHEMA_VERSION})");
+    }
+    if version == SCHEMA_VERSION {
+        return Ok(());
+    }
+    let have: Vec<String> = conn.prepare("SELECT name FROM pragma_table_info('flights')")?.query_map([], |r| r.get(0))?.collect::<rusqlite::Result<_>>()?;
+    let mut sql = String::from("BEGIN;");
+    for c in PACK_COLUMNS.iter().filter(|c| !have.iter().any(|h| h == *c)) {
+        sql.push_str(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"));
+    }
+    sql.push_str(&format!("PRAGMA user_version = {SCHEMA_VERSION}; COMMIT;"));
+    conn.execute_batch(&sql)?;
+    Ok(())
+}
+
 fn now_s() -> i64 {
     std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() as i64)
 }
@@ -164,6 +191,7 @@ impl Store {
         let conn = Connection::open(&path).with_context(|| format!("{}: cannot open the vehicle store", path.display()))?;
         conn.busy_timeout(BUSY_WAIT)?;
         conn.execute_batch(SCHEMA).with_context(|| format!("{}: not a dronewatt vehicle store (corrupt?)", path.display()))?;
+        migrate(&conn).with_context(|| format!("{}: cannot bring the vehicle store to schema {SCHEMA_VERSION}", path.display()))?;
         Ok(Self { conn, path })
     }
 
@@ -202,6 +230,24 @@ impl Store {
         Ok(Some((v[v.len() / 2], v.len())))
     }
 
+    /// What the vehicle's last flight left of its pack, for the next flight on it.
+    pub fn pack_history(&self, key: &VehicleKey) -> Result<Option<crate::battery::PackHistory>> {
+        let row = self
+            .conn
+            .query_row(
+                "SELECT ended_at, r_scale, heat_a2s, rest_v_end FROM flights WHERE vehicle = ?1 ORDER BY ended_at DESC, id DESC LIMIT 1",
+                params![key.key],
+                |r| Ok((r.get::<_, i64>(0)?, r.get::<_, Option<f64>>(1)?, r.get::<_, Option<f64>>(2)?, r.get::<_, Option<f64>>(3)?)),
+            )
+            .optional()?;
+        Ok(row.map(|(ended, r_scale, heat, end_rest_v)| crate::battery::PackHistory {
+            gap_s: (now_s() - ended) as f64,
+            r_scale,
+            heat: heat.filter(|h| h.is_finite() && *h >= 0.0).unwrap_or(0.0),
+            end_rest_v,
+        }))
+    }
+
     /// Record a run of this vehicle: the vehicle (created or updated, with the fits learned
     /// when given) and, when it flew, its flight. One transaction.
     pub fn record(&mut self, id: &Identity, fits: Option<&[(String, ModelFit)]>, flight: Option<&FlightSummary>) -> Result<()> {
@@ -217,9 +263,26 @@ impl Store {
         )?;
         if let Some(f) = flight {
             tx.execute(
-                "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
-                params![key.key, now, f.airborne_s, f.energy_wh, f.pct_start, f.pct_end, f.effective_capacity_wh, f.rated_capacity_wh, f.capacity_source],
+                "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
+                                      rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)",
+                params![
+                    key.key,
+                    now,
+                    f.airborne_s,
+                    f.energy_wh,
+                    f.pct_start,
+                    f.pct_end,
+                    f.effective_capacity_wh,
+                    f.rated_capacity_wh,
+                    f.capacity_source,
+                    f.rest_v_start,
+                    f.rest_v_end,
+                    f.r_scale,
+                    f.internal_r_ohm,
+                    f.heat_a2s,
+                    f.pack_health_pct
+                ],
             )?;
         }
         tx.commit()?;
@@ -272,7 +335,8 @@ impl Store {
         })?;
         let mut out = rows.collect::<rusqlite::Result<Vec<_>>>()?;
         let mut fl = self.conn.prepare(
-            "SELECT ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source
+            "SELECT ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
+                    rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct
              FROM flights WHERE vehicle = ?1 ORDER BY ended_at, id",
         )?;
         for v in &mut out {
@@ -287,6 +351,12 @@ impl Store {
                         effective_capacity_wh: r.get(5)?,
                         rated_capacity_wh: r.get(6)?,
                         capacity_source: r.get(7)?,
+                        rest_v_start: r.get(8)?,
+                        rest_v_end: r.get(9)?,
+                        r_scale: r.get(10)?,
+                        internal_r_ohm: r.get(11)?,
+                        heat_a2s: r.get(12)?,
+                        pack_health_pct: r.get(13)?,
                     },
                 })
             })?;
@@ -307,6 +377,8 @@ pub struct Learned {
     pub capacity_wh: Option<(f64, usize)>,
     /// The profile `dronewatt learn` wrote for it.
     pub profile: Option<LearnedProfile>,
+    /// What its last flight left of its pack.
+    pub pack: Option<crate::battery::PackHistory>,
 }
 
 /// Flights the learned capacity is the median of.
@@ -317,7 +389,9 @@ pub const CAPACITY_FLIGHTS: usize = 3;
 pub fn lookup(dir: &Path, id: &Identity) -> Learned {
     let key = VehicleKey::of(id);
     let got = Store::open(dir)
-        .and_then(|s| Ok(Learned { fits: s.learned_fits(&key)?, capacity_wh: s.learned_capacity(&key)?, profile: s.learned_profile(&key.key)? }));
+        .and_then(|s| {
+            Ok(Learned { fits: s.learned_fits(&key)?, capacity_wh: s.learned_capacity(&key)?, profile: s.learned_profile(&key.key)?, pack: s.pack_history(&key)? })
+        });
     match got {
         Ok(l) if l.fits.is_some() || l.capacity_wh.is_some() || l.profile.is_some() => {
             tracing::info!("vehicle {} ({}): found what earlier flights learned", key.key, key.kind);
@@ -424,6 +498,7 @@ mod tests {
             effective_capacity_wh: eff,
             rated_capacity_wh: 40.0,
             capacity_source: "vehicle parameter BATT_CAPACITY".into(),
+            ..Default::default()
         };
         let fits = vec![("lstm".to_string(), ModelFit::default())];
         st.record(&id(None), Some(&fits), Some(&flight(Some(37.5)))).unwrap();
@@ -495,4 +570,59 @@ mod tests {
         assert_eq!(PowerBins::bin(0.3), 0);
         assert_eq!(PowerBins::bin(1e9), PowerBins::MAX - 1);
     }
+
+    /// A store written by the first schema (no version, no pack columns) opens, keeps its
+    /// flights, and takes the pack's from then on; a store from a newer dronewatt is refused.
+    #[test]
+    fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
+        let dir = tempfile::tempdir().unwrap();
+        {
+            let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
+            conn.execute_batch(SCHEMA).unwrap();
+            conn.execute(
+                "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 'system id', 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
+                [],
+            )
+            .unwrap();
+            conn.execute(
+                "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, rated_capacity_wh, capacity_source) VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 1, 300, 20, 40, 'default')",
+                [],
+            )
+            .unwrap();
+        }
+        let mut st = Store::open(dir.path()).expect("an old store opens");
+        let version: i64 = st.conn.query_row("PRAGMA user_version", [], |r| r.get(0)).unwrap();
+        assert_eq!(version, SCHEMA_VERSION);
+        let v = st.vehicles().unwrap();
+        assert_eq!(v[0].flights.len(), 1);
+        assert_eq!(v[0].flights[0].summary.rest_v_start, None);
+        let id = id(None);
+        let key = VehicleKey::of(&id);
+        assert_eq!(key.key, "sys1-ardupilot-MAV_TYPE_QUADROTOR");
+        let pack = FlightSummary {
+            airborne_s: 500.0,
+            energy_wh: 30.0,
+            rest_v_start: Some(24.3),
+            rest_v_end: Some(23.3),
+            r_scale: Some(1.2),
+            internal_r_ohm: Some(0.045),
+            heat_a2s: Some(90_000.0),
+            pack_health_pct: Some(97.0),
+            ..Default::default()
+        };
+        st.record(&id, None, Some(&pack)).unwrap();
+        let h = st.pack_history(&key).unwrap().expect("a history");
+        assert_eq!((h.r_scale, h.end_rest_v, h.heat), (Some(1.2), Some(23.3), 90_000.0));
+        assert!(h.gap_s >= 0.0 && h.gap_s < 60.0, "{h:?}");
+        assert!(h.same_pack(23.35, 6) && !h.same_pack(25.9, 6), "a recharged pack is another");
+        let listing = list::list(dir.path(), false).unwrap();
+        assert!(listing.contains("health 97 %") && listing.contains("R 45 mΩ"), "{listing}");
+        drop(st);
+        let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
+        conn.execute_batch("PRAGMA user_version = 99").unwrap();
+        drop(conn);
+        let err = Store::open(dir.path()).err().expect("a newer store is refused").to_string();
+        assert!(err.contains("newer dronewatt") || format!("{err:#}").contains("schema"), "{err}");
+    }
+
 }
