@@ -354,7 +354,8 @@ pub fn check_config(data: &[u8]) -> Result<(), String> {
 pub fn check_plan(data: &[u8]) -> Result<(), String> {
     use crate::mission::plan::{parse_qgc_plan, parse_waypoints, Plan, PlanError};
     let Ok(text) = std::str::from_utf8(data) else { return Ok(()) };
-    let readers: [(&str, fn(&str, &str) -> Result<Plan, PlanError>); 2] = [("fuzz.plan", parse_qgc_plan), ("fuzz.waypoints", parse_waypoints)];
+    type Reader = fn(&str, &str) -> Result<Plan, PlanError>;
+    let readers: [(&str, Reader); 2] = [("fuzz.plan", parse_qgc_plan), ("fuzz.waypoints", parse_waypoints)];
     for (file, read) in readers {
         let first = read(text, file);
         let again = read(text, file);

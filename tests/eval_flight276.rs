@@ -30,7 +30,9 @@ fn mae_by_model(models: Vec<Box<dyn PowerModel>>, f: &dronewatt::offline::data::
 /// The README's Table 2 (flight 276, in-flight MAE / RMSE in W): the published parameters
 /// and the committed calibrated profile. Pinned to 0.1 W, so the README's figures cannot
 /// drift from what the code computes.
-const README_TABLE: [(&str, (f64, f64), (f64, f64)); 7] = [
+/// (model, (MAE low, high), (MAPE low, high)).
+type Row = (&'static str, (f64, f64), (f64, f64));
+const README_TABLE: [Row; 7] = [
     ("dandrea", (322.2, 345.7), (56.8, 83.8)),
     ("dandrea_headwind", (335.4, 357.6), (56.8, 83.8)),
     ("dorling", (370.5, 379.1), (63.9, 87.8)),

@@ -29,27 +29,25 @@ pub struct Forecast {
     pub energy_end_wh: f64,
 }
 
-/// Simulates from the estimator's present state (not modified) over `profile` =
-/// [(dt_s, power_w)]. Non-finite or non-positive dt steps are skipped; negative or NaN
-/// power is treated as 0 W (NaN) or clamped to 0 W (negative). Never panics.
-pub fn forecast(state: &Estimator, profile: &[(f64, f64)], thresholds_v: &[f64]) -> Forecast {
+/// One step of a forecast: time since its start (s), the loaded voltage (V), the energy left
+/// (table units), and whether the pack could not give the power asked.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step {
+    pub t_s: f64,
+    pub v: f64,
+    pub energy: f64,
+    pub power_limited: bool,
+}
+
+/// The steps of flying `profile` = [(dt_s, power_w)] from the estimator's present state (not
+/// modified), lazily: a caller that wants only the first crossing stops there. Non-finite or
+/// non-positive dt steps are skipped; NaN power is 0 W, negative power clamped to 0 W.
+pub fn steps<'a>(state: &Estimator, profile: &'a [(f64, f64)]) -> impl Iterator<Item = Step> + 'a {
     let mut s = state.clone();
     let p = s.p;
     let [r0, r1, b] = s.theta;
-    let mut out = Forecast {
-        v_min: f64::NAN,
-        t_v_min: f64::NAN,
-        v_end: f64::NAN,
-        crossings: vec![None; thresholds_v.len()],
-        energy_at_crossing: vec![None; thresholds_v.len()],
-        power_limited: false,
-        energy_end_wh: s.energy,
-    };
     let mut t = 0.0;
-    for &(dt, pw) in profile {
-        if !(dt.is_finite() && dt > 0.0) {
-            continue;
-        }
+    profile.iter().filter(|(dt, _)| dt.is_finite() && *dt > 0.0).map(move |&(dt, pw)| {
         let pw = if pw.is_finite() { pw.max(0.0) } else { 0.0 };
         let eh = (-dt / p.tau_heat_s).exp();
         s.heat *= eh;
@@ -58,30 +56,49 @@ pub fn forecast(state: &Estimator, profile: &[(f64, f64)], thresholds_v: &[f64])
         let c = s.ocv() - b - r1 * s.x1 * e1;
         let re = (f * r0 + r1 * f * (1.0 - e1)).max(1e-6);
         let disc = c * c - 4.0 * re * pw;
-        let i = if disc >= 0.0 {
-            (c - disc.sqrt()) / (2.0 * re)
-        } else {
-            out.power_limited = true;
-            c / (2.0 * re)
-        };
+        let (i, power_limited) = if disc >= 0.0 { ((c - disc.sqrt()) / (2.0 * re), false) } else { (c / (2.0 * re), true) };
         let v = c - re * i;
         s.heat += i * i * p.tau_heat_s * (1.0 - eh);
         s.x1 = s.x1 * e1 + f * i * (1.0 - e1);
         s.energy = (s.energy - v * i * dt / 3600.0).max(0.0);
         t += dt;
-        if out.v_min.is_nan() || v < out.v_min {
-            out.v_min = v;
-            out.t_v_min = t;
+        Step { t_s: t, v, energy: s.energy, power_limited }
+    })
+}
+
+/// The first step whose loaded voltage falls below `threshold_v` (stops there), if any.
+pub fn first_crossing(state: &Estimator, profile: &[(f64, f64)], threshold_v: f64) -> Option<Step> {
+    steps(state, profile).find(|s| s.v < threshold_v)
+}
+
+/// Simulates from the estimator's present state (not modified) over `profile` =
+/// [(dt_s, power_w)]. Non-finite or non-positive dt steps are skipped; negative or NaN
+/// power is treated as 0 W (NaN) or clamped to 0 W (negative). Never panics.
+pub fn forecast(state: &Estimator, profile: &[(f64, f64)], thresholds_v: &[f64]) -> Forecast {
+    let mut out = Forecast {
+        v_min: f64::NAN,
+        t_v_min: f64::NAN,
+        v_end: f64::NAN,
+        crossings: vec![None; thresholds_v.len()],
+        energy_at_crossing: vec![None; thresholds_v.len()],
+        power_limited: false,
+        energy_end_wh: state.energy,
+    };
+    for st in steps(state, profile) {
+        out.power_limited |= st.power_limited;
+        if out.v_min.is_nan() || st.v < out.v_min {
+            out.v_min = st.v;
+            out.t_v_min = st.t_s;
         }
-        out.v_end = v;
+        out.v_end = st.v;
+        out.energy_end_wh = st.energy;
         for (k, &th) in thresholds_v.iter().enumerate() {
-            if out.crossings[k].is_none() && v < th {
-                out.crossings[k] = Some(t);
-                out.energy_at_crossing[k] = Some(s.energy);
+            if out.crossings[k].is_none() && st.v < th {
+                out.crossings[k] = Some(st.t_s);
+                out.energy_at_crossing[k] = Some(st.energy);
             }
         }
     }
-    out.energy_end_wh = s.energy;
     out
 }
 

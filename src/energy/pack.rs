@@ -24,6 +24,7 @@
 //! Nothing here does I/O; a sample with no voltage, a NaN, or a current under −2 A
 //! leaves the state as it was.
 
+use crate::battery::forecast::first_crossing;
 use crate::battery::{forecast, CircuitParams, Chemistry, Estimator, OcvCurve, PackHistory};
 use crate::report::{BatteryFacts, Provenance};
 
@@ -233,10 +234,11 @@ impl Pack {
         let steps = |span: f64| vec![(FORECAST_STEP_S, p); (span / FORECAST_STEP_S).ceil() as usize];
         let f = forecast(est, &steps(rest_s), &[]);
         self.now.v_min_forecast = f.v_min.is_finite().then_some((f.v_min, f.t_v_min));
-        let on = forecast(est, &steps(FORECAST_HORIZON_S), &[low]);
-        self.now.time_to_low_v_s = on.crossings.first().copied().flatten();
-        self.now.usable_wh = Some(match on.energy_at_crossing.first().copied().flatten() {
-            Some(e_low) => (e_now - e_low).max(0.0),
+        // Flying on at that power, stopping where it crosses the low threshold.
+        let on = first_crossing(est, &steps(FORECAST_HORIZON_S), low);
+        self.now.time_to_low_v_s = on.map(|s| s.t_s);
+        self.now.usable_wh = Some(match on {
+            Some(s) => (e_now - s.energy).max(0.0),
             // Never crosses within the horizon: all of it down to the floor.
             None => e_now,
         });

@@ -301,6 +301,7 @@ async fn telemetry_stage(
 /// On a live link, a silence of [`SILENT_TICK`] still runs the alert rules (on
 /// [`Estimate::silent`]); such a tick reports only when a rule changes state, and leaves
 /// the energy as it stood.
+#[allow(clippy::too_many_arguments)] // a stage: its state, its channels in and out, its clock
 async fn energy_stage(
     mut energy: EnergyTracker,
     mut alerts: AlertEngine,

@@ -218,6 +218,7 @@ impl Serialize for Provenance {
 }
 
 impl PartialEq<&str> for Provenance {
+    #[allow(clippy::cmp_owned)] // the text is made by Display, as the JSON and the terminal say it
     fn eq(&self, other: &&str) -> bool {
         self.to_string() == *other
     }

@@ -160,7 +160,9 @@ struct Claim {
     unknown: bool,
 }
 
-/// What the bytes at one position turned out to be.
+/// What the bytes at one position turned out to be. (`Good` is large: boxing its message
+/// would allocate once a frame on the decoder's hot path, for a value that lives a moment.)
+#[allow(clippy::large_enum_variant)]
 enum At {
     /// A frame of `len` bytes whose CRC checked and whose payload decoded.
     Good { len: usize, header: MavHeader, version: MavlinkVersion, msg: MavMessage },

@@ -86,6 +86,7 @@ pub fn spawn_uplink(addr: LinkAddress, base: &LinkHandle, stop: CancellationToke
 /// Run one link's transport. A `monitored` link (the one the chain reads) watches for
 /// silence and, on `udpout:`, sends a ground-station heartbeat each second so routers
 /// learn where to send; an uplink does neither.
+#[allow(clippy::too_many_arguments)] // a transport: its address, channels, counters and stop signal
 async fn serve(
     addr: LinkAddress,
     tx: mpsc::Sender<TimedMessage>,

@@ -176,7 +176,7 @@ impl Telemetry {
 
     /// Feed one message; push any windows it completes onto `out`.
     pub fn push(&mut self, m: &TimedMessage, out: &mut Vec<Window>) {
-        if !m.t_s.is_finite() || !self.from_vehicle(m) {
+        if !m.t_s.is_finite() || !self.hears_vehicle(m) {
             return;
         }
         let t_us = (m.t_s * 1e6).round() as i64;
@@ -256,7 +256,7 @@ impl Telemetry {
         }));
     }
 
-    fn from_vehicle(&mut self, m: &TimedMessage) -> bool {
+    fn hears_vehicle(&mut self, m: &TimedMessage) -> bool {
         let sys = m.header.system_id;
         match (self.sysid, &m.msg) {
             (Some(id), _) if id == sys => true,

@@ -48,7 +48,7 @@ pub struct BatteryConfig {
 /// ±`tol` V a cell (integer arithmetic on the rounded count: no `ceil`).
 fn cells_from(v: f64, per_cell: f64, tol: f64) -> Option<u32> {
     let n = (v / per_cell).round();
-    (n >= 1.0 && n <= 24.0 && (v - n * per_cell).abs() <= tol * n).then_some(n as u32)
+    ((1.0..=24.0).contains(&n) && (v - n * per_cell).abs() <= tol * n).then_some(n as u32)
 }
 
 /// Resolve each figure, best first (module docs), from the config, the vehicle's

@@ -143,7 +143,7 @@ pub fn parse_waypoints(text: &str, file: &str) -> Result<Plan, PlanError> {
     let Some((home_line, _, home_raw)) = rows.first() else {
         return Err(err("file".into(), "no items: a .waypoints file needs at least the home row and one item".into()));
     };
-    if !(home_raw.lat.is_finite() && home_raw.lon.is_finite() && home_raw.alt.is_finite())
+    if !home_raw.lat.is_finite() || !home_raw.lon.is_finite() || !home_raw.alt.is_finite()
         || !(-90.0..=90.0).contains(&home_raw.lat)
         || !(-180.0..=180.0).contains(&home_raw.lon)
     {
@@ -193,7 +193,7 @@ pub fn parse_qgc_plan(text: &str, file: &str) -> Result<Plan, PlanError> {
         Some(Value::Array(a)) if a.len() >= 2 => {
             let n = |i: usize| a.get(i).and_then(Value::as_f64);
             let (lat, lon) = (n(0).unwrap_or(f64::NAN), n(1).unwrap_or(f64::NAN));
-            if !(lat.is_finite() && lon.is_finite()) || !(-90.0..=90.0).contains(&lat) || !(-180.0..=180.0).contains(&lon) {
+            if !lat.is_finite() || !lon.is_finite() || !(-90.0..=90.0).contains(&lat) || !(-180.0..=180.0).contains(&lon) {
                 return Err(err("mission.plannedHomePosition", format!("({lat}, {lon}) is not a valid latitude/longitude")));
             }
             Some(GeoPoint { lat_deg: lat, lon_deg: lon, alt_m: n(2).filter(|v| v.is_finite()).unwrap_or(0.0) })

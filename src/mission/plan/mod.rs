@@ -194,7 +194,7 @@ impl Plan {
         let err = |at: String, why: String| PlanError { file: source.to_string(), at, why };
         let (home, rest, seq_offset) = match (m.home_is_item0, m.items.split_first()) {
             (true, Some((h, rest))) => {
-                if !(h.lat_deg.is_finite() && h.lon_deg.is_finite() && h.alt_m.is_finite()) || !(-90.0..=90.0).contains(&h.lat_deg) || !(-180.0..=180.0).contains(&h.lon_deg) {
+                if !h.lat_deg.is_finite() || !h.lon_deg.is_finite() || !h.alt_m.is_finite() || !(-90.0..=90.0).contains(&h.lat_deg) || !(-180.0..=180.0).contains(&h.lon_deg) {
                     return Err(err("item 0 (seq 0, home)".into(), format!("home position ({}, {}, {}) is not a valid position", h.lat_deg, h.lon_deg, h.alt_m)));
                 }
                 (GeoPoint { lat_deg: h.lat_deg, lon_deg: h.lon_deg, alt_m: h.alt_m }, rest, 1u16)
