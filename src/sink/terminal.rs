@@ -138,7 +138,7 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
             }
             if let Some(left) = en.remaining_wh {
                 let b = &en.battery;
-                s.push_str(&format!("left {} of {} Wh [{}]", num(left, 1), num(b.capacity_wh.value, 1), b.capacity_wh.source));
+                s.push_str(&format!("left {} of {} Wh [{}; {}]", num(left, 1), num(b.capacity_wh.value, 1), b.capacity_wh.source, en.remaining_source));
                 if let Some(t) = en.time_to_empty_s {
                     s.push_str(&format!(" ({} min", num(t / 60.0, 0)));
                     // Which model the forecast follows: "(12 min on lstm~)".
@@ -146,6 +146,22 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                         s.push_str(&format!(" on {m}{}", if en.forecast_adapted { "~" } else { "" }));
                     }
                     s.push(')');
+                }
+                s.push_str("  ");
+            }
+            // The pack: voltage measured ~ modelled, state of charge, and the forecast's low.
+            let pk = &en.pack;
+            if let Some(v) = pk.battery_v {
+                s.push_str(&format!("pack {} V", num(v, 2)));
+                if let Some(m) = pk.battery_v_model {
+                    s.push_str(&format!("~{}", num(m, 2)));
+                }
+                if let Some(soc) = pk.soc_pct {
+                    s.push_str(&format!(" {}%", num(soc, 0)));
+                }
+                if let (Some(lo), Some(low)) = (pk.v_min_forecast_v, pk.low_threshold_v) {
+                    let txt = format!(" min {} V", num(lo, 2));
+                    s.push_str(&if colour && lo < low { txt.red().to_string() } else { txt });
                 }
                 s.push_str("  ");
             }
