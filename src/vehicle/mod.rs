@@ -9,7 +9,7 @@
 //! | figure | 1. config | 2. vehicle | 3. fallback |
 //! |---|---|---|---|
 //! | chemistry | `[energy] chemistry` | LiHV when `MOT_BAT_VOLT_MAX` is cells × 4.35 | LiHV for the default pack (the TB48D), else LiPo |
-//! | cell count | `[energy] cell_count` | `BAT1_N_CELLS` (PX4); `MOT_BAT_VOLT_MAX` = cells × 4.2 or 4.35, `MOT_BAT_VOLT_MIN` = cells × 3.3 (ArduCopter); else the first battery voltage seen, checked against the chemistry's resting window ([`crate::battery::cell_candidates`]) | 6 (TB48D) |
+//! | cell count | `[energy] cell_count` | `BAT1_N_CELLS` (PX4); the cells BATTERY_STATUS reports one by one; `MOT_BAT_VOLT_MAX` = cells × 4.2 or 4.35, `MOT_BAT_VOLT_MIN` = cells × 3.3 (ArduCopter); else the first battery voltage seen, checked against the chemistry's resting window ([`crate::battery::cell_candidates`]) | 6 (TB48D) |
 //! | capacity, Wh | `[energy] capacity_wh` | `BATT_CAPACITY` / `BAT1_CAPACITY` (mAh) / 1000 × cells × nominal cell voltage (`[energy] nominal_cell_v`, else the chemistry's: LiPo 3.7, LiHV 3.8, Li-ion 3.6 V) | 129.96 (TB48D) |
 //! | low / critical voltage, V (pack) | — | `BATT_LOW_VOLT` / `BATT_CRT_VOLT` (ArduPilot); `BAT1_V_EMPTY` × cells as critical (PX4) | none |
 //!
@@ -104,9 +104,11 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
         }
         fits.first().copied()
     });
-    let cell_count = match (cfg.cell_count, cells_param, max_cells, min_cells, from_voltage) {
+    let monitor_cells = p.battery_cells.filter(|n| (2..=24).contains(n));
+    let cell_count = match (cfg.cell_count, cells_param.or(monitor_cells), max_cells, min_cells, from_voltage) {
         (Some(n), ..) => Sourced::new(n, Provenance::Config),
-        (None, Some(n), ..) => Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into())),
+        (None, Some(n), ..) if cells_param.is_some() => Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into())),
+        (None, Some(n), ..) => Sourced::new(n, Provenance::Parameter("BATTERY_STATUS cell voltages".into())),
         (None, None, Some((n, _)), ..) => Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
         (None, None, None, Some(n), _) => Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MIN".into())),
         (None, None, None, None, Some(n)) => Sourced::new(n, Provenance::FirstVoltage),
@@ -225,6 +227,29 @@ mod tests {
             assert_eq!(cells_from(v, 4.2, 0.03), Some(n));
             assert_eq!(cells_from(3.3 * f64::from(n), 3.3, 0.1), Some(n));
         }
+    }
+
+
+    #[test]
+    fn cells_the_battery_monitor_reports_one_by_one() {
+        use crate::dialect::BATTERY_STATUS_DATA;
+        let mut b = BATTERY_STATUS_DATA { voltages: [u16::MAX; 10], ..Default::default() };
+        // A monitor that knows only the pack: one entry, the whole pack. No cell count.
+        b.voltages[0] = 16_400;
+        assert_eq!(params::cells_reported(&b), None);
+        // Four cells at 3.9-4.1 V, the rest 65535 ("no cell").
+        b.voltages[..4].copy_from_slice(&[4_100, 4_050, 3_900, 4_000]);
+        assert_eq!(params::cells_reported(&b), Some(4));
+        // Cells past the tenth in voltages_ext (0: none).
+        b.voltages = [3_800; 10];
+        b.voltages_ext[..2].copy_from_slice(&[3_800, 3_790]);
+        assert_eq!(params::cells_reported(&b), Some(12));
+        // A nonsense entry (0.1 V) is no cell voltage: no count.
+        b.voltages[3] = 100;
+        assert_eq!(params::cells_reported(&b), None);
+        let p = VehicleParams { battery_cells: Some(4), ..Default::default() };
+        let (f, _) = resolve_battery(&cfg(None, None), &p, Some(12.6));
+        assert_eq!(f.cell_count, Sourced::new(4, Provenance::Parameter("BATTERY_STATUS cell voltages".into())));
     }
 
 }

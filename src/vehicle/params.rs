@@ -144,6 +144,9 @@ pub struct VehicleParams {
     pub values: BTreeMap<String, f64>,
     /// Parameters asked for [`MAX_TRIES`] times and never answered.
     pub absent: Vec<String>,
+    /// Cells the battery monitor reports one by one (BATTERY_STATUS `voltages`: two or more
+    /// entries, each a cell's voltage; 65535 is "no cell"), when it does.
+    pub battery_cells: Option<u32>,
 }
 
 impl VehicleParams {
@@ -178,6 +181,17 @@ pub struct ParamReader {
     /// Requests by parameter name; `AUTOPILOT_VERSION` for the version request.
     asks: BTreeMap<&'static str, Ask>,
     changed: bool,
+    /// Cells BATTERY_STATUS reports one by one ([`cells_reported`]).
+    cells: Option<u32>,
+}
+
+/// The cells a BATTERY_STATUS reports one by one: its entries that are not "no cell"
+/// (65535 in `voltages`, 0 in `voltages_ext`), when there are two or more and each is a
+/// cell's voltage (2.5-4.5 V). A monitor that knows only the pack puts it all in the first
+/// entry: that is no cell count.
+pub fn cells_reported(b: &crate::dialect::BATTERY_STATUS_DATA) -> Option<u32> {
+    let cells: Vec<u16> = b.voltages.iter().copied().filter(|&c| c != u16::MAX).chain(b.voltages_ext.iter().copied().filter(|&c| c != 0)).collect();
+    (cells.len() >= 2 && cells.iter().all(|c| (2500..=4500).contains(c))).then_some(cells.len() as u32)
 }
 
 /// The key the AUTOPILOT_VERSION request is kept under in the request table.
@@ -186,7 +200,7 @@ const VERSION_KEY: &str = "AUTOPILOT_VERSION";
 impl ParamReader {
     /// A reader that asks the vehicle (a live link).
     pub fn live() -> Self {
-        Self { live: true, identity: None, raw: BTreeMap::new(), asks: BTreeMap::new(), changed: false }
+        Self { live: true, identity: None, raw: BTreeMap::new(), asks: BTreeMap::new(), changed: false, cells: None }
     }
     /// A reader that only listens (a replayed log).
     pub fn passive() -> Self {
@@ -218,6 +232,13 @@ impl ParamReader {
                 }
                 self.asks.insert(VERSION_KEY, Ask::Got);
                 self.changed = true;
+            }
+            MavMessage::BATTERY_STATUS(b) if b.id == 0 && self.identity.as_ref().is_none_or(|id| id.system_id == sys) => {
+                let cells = cells_reported(b);
+                if cells.is_some() && cells != self.cells {
+                    self.cells = cells;
+                    self.changed = true;
+                }
             }
             MavMessage::PARAM_VALUE(p) => {
                 // Before the heartbeat, take an autopilot's (component 1) values; after it,
@@ -296,6 +317,7 @@ impl ParamReader {
             identity: self.identity.clone(),
             values: self.raw.iter().map(|(n, r)| (n.clone(), decode(autopilot, *r))).collect(),
             absent: self.asks.iter().filter(|(_, a)| **a == Ask::Absent).map(|(n, _)| n.to_string()).collect(),
+            battery_cells: self.cells,
         }
     }
 }
