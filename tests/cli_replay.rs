@@ -230,3 +230,32 @@ fn a_missing_data_set_names_the_path_and_the_environment_variable() {
     assert!(err.contains(missing.to_str().unwrap()), "the path not in: {err}");
     assert!(err.contains("DRONEWATT_DATA"), "the variable not in: {err}");
 }
+
+/// A data-set flight whose pack rests at 22.95 V before take-off (flight 253, a TB48D at
+/// 3.83 V a cell): the start state is that resting voltage, well under full, said so;
+/// the voltage is modelled and forecast, and the pack is 6 cells of LiHV.
+#[test]
+fn a_half_used_pack_replays_well_under_full_from_its_resting_voltage() {
+    let data = dronewatt::default_data_path();
+    if !data.exists() {
+        eprintln!("skipped: no data set at {}", data.display());
+        return;
+    }
+    let out = dronewatt().args(["replay"]).arg(&data).args(["--flight", "253", "--speed", "max", "-q", "--data-dir", "off", "--json", "-"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let lines = json_lines(&out.stdout);
+    let flying: Vec<_> = lines.iter().filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|w| w > 300.0)).collect();
+    let take_off = flying.first().expect("the flight flies");
+    assert_eq!(take_off["remaining_source"], "resting voltage", "{take_off}");
+    assert!(take_off["battery_rest_v"].as_f64().is_some_and(|v| (v - 22.95).abs() < 0.05), "{take_off}");
+    assert!(take_off["soc_pct"].as_f64().is_some_and(|s| s < 45.0), "{take_off}");
+    assert!(take_off["remaining_wh"].as_f64().is_some_and(|wh| wh < 0.4 * 129.96), "not a full pack: {take_off}");
+    assert_eq!((take_off["cell_count"].as_u64(), take_off["chemistry"].as_str()), (Some(6), Some("lihv")));
+    // In flight: the modelled voltage follows the measured one, and a forecast low is given.
+    let mid = flying[flying.len() / 2];
+    let (v, m) = (mid["battery_v"].as_f64().unwrap(), mid["battery_v_model"].as_f64().unwrap());
+    assert!((v - m).abs() < 0.5, "measured {v} V, modelled {m} V");
+    // The lowest forecast for the rest of the flight is a loaded voltage near the one now
+    // (at the smoothed forecast power, not this moment's), far under the resting voltage.
+    assert!(mid["v_min_forecast_v"].as_f64().is_some_and(|lo| (lo - v).abs() < 0.6 && lo < 22.5), "{mid}");
+}
