@@ -386,9 +386,11 @@ impl EnergyTracker {
         }
         let cap = self.battery.capacity_wh.value;
         let (remaining, remaining_source, full_wh) = match (pk.usable_wh.or(pk.energy_wh), reported_pct.filter(|_| self.cfg.use_battery_pct)) {
-            (Some(e), _) => (e, RemainingSource::RestingVoltage, pk.curve_wh.unwrap_or(cap)),
-            (None, Some(pct)) => (cap * pct / 100.0, RemainingSource::Battery, cap),
-            (None, None) => ((cap - self.used_wh).max(0.0), RemainingSource::AssumedFull, cap),
+            (Some(e), _) => (Some(e), RemainingSource::RestingVoltage, pk.curve_wh.unwrap_or(cap)),
+            (None, Some(pct)) => (Some(cap * pct / 100.0), RemainingSource::Battery, cap),
+            // The pack rests and its voltage is settling: not known yet (a moment), not full.
+            (None, None) if self.pack.pending() => (None, RemainingSource::AssumedFull, cap),
+            (None, None) => (Some((cap - self.used_wh).max(0.0)), RemainingSource::AssumedFull, cap),
         };
         if remaining_source == RemainingSource::AssumedFull && amps.is_some_and(|i| i >= pack::LOAD_CURRENT_A) && !self.warned_full {
             self.warned_full = true;
@@ -397,7 +399,7 @@ impl EnergyTracker {
         // To the voltage failsafe when the pack model forecasts one; else to the floor.
         let time_to_empty_s = match (remaining_source, pk.time_to_low_v_s) {
             (RemainingSource::RestingVoltage, Some(t_low)) => Some(t_low),
-            _ => forecast.filter(|p| *p > 1.0).map(|p| 3600.0 * remaining / p),
+            _ => remaining.zip(forecast.filter(|p| *p > 1.0)).map(|(e, p)| 3600.0 * e / p),
         };
         let home_energy_wh = s.home.and_then(|h| {
             let p_cruise = self.cruise.0.or(forecast)?;
@@ -413,22 +415,22 @@ impl EnergyTracker {
         EnergyState {
             energy_used_wh: self.used_wh,
             power_source,
-            remaining_wh: Some(remaining),
-            remaining_pct: Some(100.0 * remaining / full_wh),
+            remaining_wh: remaining,
+            remaining_pct: remaining.map(|r| 100.0 * r / full_wh),
             remaining_source,
             forecast_w: forecast,
             forecast_model: forecast_from.and_then(|(m, _)| m).map(|m| m.name.clone()),
             forecast_why: preferred.map(|_| self.selector.current().why.to_string()),
             time_to_empty_s,
             home_energy_wh,
-            home_margin_wh: home_energy_wh.map(|e| remaining - e - reserve),
+            home_margin_wh: remaining.zip(home_energy_wh).map(|(r, e)| r - e - reserve),
             cell_voltage_v: s
                 .voltage_v
                 .map(f64::from)
                 .filter(|v| v.is_finite() && *v > 0.0)
                 .map(|v| v / f64::from(self.battery.cell_count.value)),
             mission_energy_wh: self.mission.as_ref().map(|m| m.energy_p50_wh),
-            mission_margin_wh: self.mission.as_ref().map(|m| remaining - m.energy_p50_wh - reserve),
+            mission_margin_wh: remaining.zip(self.mission.as_ref()).map(|(r, m)| r - m.energy_p50_wh - reserve),
             mission: self.mission.clone(),
             forecast_adapted: forecast_adapted && forecast_from.is_some_and(|(m, _)| m.is_some()),
             pack: PackState {

@@ -162,11 +162,21 @@ impl Pack {
             self.now.r_scale = est.pack_scale();
             self.now.heat = Some(est.heat());
         }
-        if self.last_forecast_t.is_none_or(|t0| t - t0 >= FORECAST_EVERY_S || t < t0) {
+        if self.flown && !self.rest.is_empty() {
+            // Landed: no rest of the flight to forecast.
+            (self.now.v_min_forecast, self.now.time_to_low_v_s) = (None, None);
+        } else if self.last_forecast_t.is_none_or(|t0| t - t0 >= FORECAST_EVERY_S || t < t0) {
             self.last_forecast_t = Some(t);
             self.forecast(rest_of_flight, facts);
         }
         self.now
+    }
+
+    /// Whether the start state may still come from a resting voltage: the pack is resting
+    /// now, no resting voltage has been read yet and nothing has flown. Until then the
+    /// remaining energy is unknown rather than assumed.
+    pub fn pending(&self) -> bool {
+        self.est.is_none() && !self.rest.is_empty()
     }
 
     /// The median of the rest stretch when it is long and still enough.
