@@ -57,7 +57,7 @@ fn replay(tlog: &std::path::Path, capacity_wh: f64) -> (Vec<(f64, String)>, Vec<
     std::fs::write(
         &cfg,
         format!(
-            "[energy]\ncapacity_wh = {capacity_wh}\nreserve_pct = {RESERVE_PCT}\nuse_battery_pct = false\n\n\
+            "[energy]\ncapacity_wh = {capacity_wh}\nchemistry = \"lihv\"\ncell_count = 6\nreserve_pct = {RESERVE_PCT}\nuse_battery_pct = false\n\n\
              [mission]\npayload_g = 500\n\n\
              [forecast.live]\ncalibrated_profile = \"{calibrated}\"\n\n\
              [[alerts]]\nname = \"mission_margin\"\nkind = \"mission_margin_below\"\nbelow_wh = 0\nclear_wh = 2\nfor_s = 3\n\
