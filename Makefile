@@ -1,5 +1,6 @@
 # Two commands do everything on a fresh machine:
-#   make run   — build `dronewatt` (no libtorch needed) and replay the demo flight
+#   make run   — build `dronewatt` (no libtorch needed) and replay the demo flight: a
+#                simulated M100 delivery from replay/demo.plan, dashboard on :8787
 #   make test  — install what the tests need (libtorch, pymavlink venv, Chromium,
 #                Mosquitto), then every test of the workspace (what CI runs)
 SHELL := /bin/bash
@@ -11,11 +12,17 @@ setup:
 	@scripts/setup-libtorch.sh
 	@scripts/setup-python.sh
 
-# The dev profile builds dependencies at opt-level 2 (Cargo.toml), so the demo shares
-# `make test`'s build instead of compiling MAVLink twice. `dronewatt` does not link
-# libtorch; `dronewatt-torch` (training, TorchScript models) needs `make setup` first.
+# The demo shares `make test`'s build: the same dev profile (dependencies at opt-level 2,
+# Cargo.toml) and the same features. `--workspace` unifies features across the workspace as
+# `cargo test --workspace` does (`-p dronewatt` alone resolves 9 dependencies, serde among
+# them, with other features, so everything above them was built twice); serde's `alloc`
+# is named in Cargo.toml because criterion, a dev-dependency, asks for it. After `make
+# test`, `make build` prints only 'Finished'. `--bin dronewatt` builds that binary alone:
+# it does not link libtorch; `dronewatt-torch` (training, TorchScript models) needs `make
+# setup` first.
+DW_BUILD = $(CARGO) build --workspace --locked --bin dronewatt
 build:
-	$(CARGO) build --locked -p dronewatt --bin dronewatt
+	$(DW_BUILD)
 
 build-all: setup
 	$(CARGO) build --locked --workspace
@@ -52,5 +59,5 @@ docs:
 # Rewrite docs/src/generated/*.md from `dronewatt battery-eval --json -` and `plan-eval --json -`
 # (needs the data set; builds dronewatt first). Commit the result.
 docs-tables:
-	$(CARGO) build --locked -p dronewatt --bin dronewatt
+	$(DW_BUILD)
 	python3 scripts/docs-tables.py

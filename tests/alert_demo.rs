@@ -1,38 +1,54 @@
-//! The demo `make run` plays: replay/demo.tlog with config/demo.toml raises its
-//! remaining-energy warning once, at the first estimate whose remaining energy is under
-//! 40 % of the demo's 40 Wh pack — late in the flight, in the hover over home.
+//! The demo `make run` plays: replay/demo.tlog (an M100 delivery flown from
+//! replay/demo.plan on a part-used pack) with config/demo.toml raises its alerts mid-flight,
+//! in the hold at the drop point, not at the start: `mission_margin_below` once, with the
+//! margin under its level, and cleared once the vehicle heads home; the voltage forecast's
+//! `voltage_forecast_below` and the remaining energy's `remaining_below` after it.
 
 use std::process::Command;
 
 #[test]
-fn demo_warns_once_when_the_pack_crosses_40_percent() {
+fn demo_raises_its_mission_and_pack_alerts_mid_flight() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     // The demo's config without the dashboard, so the test needs no free port 8787.
     let demo = std::fs::read_to_string(root.join("config/demo.toml")).unwrap();
-    assert!(demo.contains("capacity_wh = 40") && demo.contains("below_pct = 40"), "the demo config changed: update this test");
+    assert!(demo.contains("kind = \"mission_margin_below\"\nbelow_wh = 1\n") && demo.contains("below_pct = 20"), "the demo config changed: update this test");
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("demo.toml");
-    std::fs::write(&cfg, demo.replace("enabled = true", "enabled = false")).unwrap();
+    let vehicles = format!("calibrated_profile = \"{}/", root.join("config/vehicles").display());
+    std::fs::write(&cfg, demo.replace("enabled = true", "enabled = false").replace("calibrated_profile = \"vehicles/", &vehicles)).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["replay", "--speed", "max", "-q", "--json", "-", "--config"])
+        .args(["replay", "--speed", "max", "-q", "--data-dir", "off", "--json", "-", "--config"])
         .arg(&cfg)
         .arg(root.join("replay/demo.tlog"))
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let lines: Vec<serde_json::Value> =
-        String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    let alerts: Vec<&serde_json::Value> = lines.iter().filter(|l| l["type"] == "alert").collect();
-    assert_eq!(alerts.len(), 1, "{alerts:?}");
-    assert_eq!((alerts[0]["rule"].as_str(), alerts[0]["severity"].as_str()), (Some("energy_low"), Some("warning")));
-    let t = alerts[0]["t"].as_f64().unwrap();
-    let est: Vec<(f64, f64)> = lines
-        .iter()
-        .filter(|l| l["type"] == "estimate")
-        .map(|l| (l["t"].as_f64().unwrap(), l["remaining_wh"].as_f64().unwrap()))
-        .collect();
-    let first_below = est.iter().find(|(_, wh)| *wh < 16.0).expect("the pack never went under 40 %");
-    assert_eq!(first_below.0, t, "the warning must come with the first estimate under 40 %");
-    let end = est.last().unwrap().0;
-    assert!(t > 0.75 * end && t < end - 20.0, "late in the flight but before landing: {t} of {end} s");
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let est: Vec<&serde_json::Value> = lines.iter().filter(|l| l["type"] == "estimate").collect();
+    let end = est.last().unwrap()["t"].as_f64().unwrap();
+    let events = |rule: &str, state: &str| -> Vec<f64> {
+        lines.iter().filter(|l| l["type"] == "alert" && l["rule"] == rule && l["state"] == state).map(|l| l["t"].as_f64().unwrap()).collect()
+    };
+    // The pack starts from its resting voltage, part-used.
+    let flying = est.iter().find(|e| e["t"].as_f64().unwrap() > 20.0).unwrap();
+    assert_eq!(flying["remaining_source"], "resting voltage", "{flying}");
+    let soc = flying["soc_pct"].as_f64().unwrap();
+    assert!((50.0..65.0).contains(&soc), "a part-used pack: {soc} %");
+    let mut early: Vec<f64> = est.iter().filter(|e| (10.0..60.0).contains(&e["t"].as_f64().unwrap())).filter_map(|e| e["mission_margin_wh"].as_f64()).collect();
+    early.sort_by(f64::total_cmp);
+    assert!(early[early.len() / 2] > 2.0, "a margin over the alert's level at the start (median {})", early[early.len() / 2]);
+
+    let raised = events("mission_margin", "raised");
+    let cleared = events("mission_margin", "cleared");
+    assert_eq!(raised.len(), 1, "mission_margin raised once: {raised:?}");
+    let t = raised[0];
+    assert!(t > 0.35 * end && t < 0.7 * end, "mid-flight: {t} of {end} s");
+    let at = est.iter().find(|e| e["t"].as_f64().unwrap() >= t).unwrap();
+    assert!(at["mission_margin_wh"].as_f64().unwrap() < 1.0, "raised with the margin under 1 Wh: {at}");
+    assert!(cleared.len() == 1 && cleared[0] > t && cleared[0] < end - 30.0, "cleared on the way home: {cleared:?}");
+    let sag = events("sag_forecast", "raised");
+    assert!(sag.first().is_some_and(|s| *s > t && *s < 0.7 * end), "voltage_forecast_below after it: {sag:?}");
+    let low = events("energy_low", "raised");
+    assert!(low.len() == 1 && low[0] > t && low[0] < 0.7 * end, "remaining_below mid-flight: {low:?}");
+    assert!(events("home_margin", "raised").is_empty() && events("power_high", "raised").is_empty());
 }

@@ -4,7 +4,7 @@
 
 use dronewatt::sim::guidance::{Phase, Triangle};
 use dronewatt::model::profile::VehicleProfile;
-use dronewatt::sim::physics::{Airframe, Battery};
+use dronewatt::sim::physics::{Airframe, Battery, BatteryStart};
 use dronewatt::sim::{simulate, SimFlight, SimOptions};
 use nalgebra::Vector3;
 
@@ -79,7 +79,7 @@ fn climbing_and_accelerating_cost_more_than_hover() {
 
 #[test]
 fn battery_voltage_times_current_is_the_power_and_sags_under_load() {
-    let mut b = Battery::from_profile(&VehicleProfile::m100(), 0.9).expect("TB48D");
+    let mut b = Battery::from_profile(&VehicleProfile::m100(), BatteryStart::Soc(0.9)).expect("TB48D");
     let ocv = b.ocv_v();
     assert!((24.0..=26.1).contains(&ocv), "OCV at 90 % {ocv}");
     for p in [0.0, 100.0, 500.0, 900.0] {

@@ -185,15 +185,15 @@ fn the_demo_tlog_is_what_the_command_in_its_readme_makes() {
     let dir = tempfile::tempdir().expect("tempdir");
     let tlog = dir.path().join("demo.tlog");
     let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["simulate", "--out"])
+        .current_dir(root)
+        .args(["simulate", "--plan", "replay/demo.plan", "--out"])
         .arg(&tlog)
-        .args(["--speed-mps", "10", "--altitude-m", "25", "--payload-g", "500", "--wind-mps", "4", "--wind-dir-deg", "250"])
-        .args(["--leg-m", "400", "--hover-s", "30", "--seed", "42"])
+        .args(["--payload-g", "500", "--wind-mps", "4", "--wind-dir-deg", "250", "--seed", "42", "--battery-v", "23.95"])
         .output()
         .expect("run dronewatt simulate");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let readme = std::fs::read_to_string(root.join("replay/README.md")).expect("replay/README.md");
-    assert!(readme.contains("--wind-mps 4 --wind-dir-deg 250 --leg-m 400 --hover-s 30 --seed 42"), "the README's command changed: update this test");
+    assert!(readme.contains("--plan replay/demo.plan --out replay/demo.tlog --payload-g 500") && readme.contains("--wind-mps 4 --wind-dir-deg 250 --seed 42 --battery-v 23.95"), "the README's command changed: update this test");
     let (made, shipped) = (std::fs::read(&tlog).expect("made"), std::fs::read(root.join("replay/demo.tlog")).expect("shipped"));
     assert!(made == shipped, "replay/demo.tlog is not what its README's command makes ({} vs {} bytes): regenerate it", made.len(), shipped.len());
 }

@@ -1,7 +1,9 @@
 //! The dashboard against a replay, end to end: `dronewatt replay replay/demo.tlog` with the
 //! demo config and the dashboard on a free loopback port; once the replay has ended (the
 //! dashboard lingers), headless Chromium loads the page and the DOM must show the last
-//! estimate's measured power and the demo's energy warning. Skips loudly without chromium.
+//! estimate's measured power, the demo's mission alert, the route panel drawing the plan
+//! (its points and the vehicle's place), the mission tiles and the pack's tiles with
+//! numbers. Skips loudly without chromium.
 
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -28,7 +30,9 @@ fn dashboard_of_the_demo_replay_in_chromium() {
     let demo = std::fs::read_to_string(root.join("config/demo.toml")).unwrap();
     let cfg = dir.path().join("demo.toml");
     let web = format!("enabled = true\nbind = \"127.0.0.1:{port}\"\nlinger_s = 60\n");
-    std::fs::write(&cfg, demo.replace("enabled = true", &web)).unwrap();
+    // Paths in the config are relative to it: the copy names the repository's.
+    let vehicles = format!("calibrated_profile = \"{}/", root.join("config/vehicles").display());
+    std::fs::write(&cfg, demo.replace("enabled = true", &web).replace("calibrated_profile = \"vehicles/", &vehicles)).unwrap();
     let json = dir.path().join("out.jsonl");
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["replay", "--speed", "max", "-q", "--config"])
@@ -55,14 +59,14 @@ fn dashboard_of_the_demo_replay_in_chromium() {
         .rfind(|v| v["type"] == "estimate")
         .unwrap();
     let measured = format!("{:.0} W", last["measured_w"].as_f64().unwrap());
+    let volts = format!("{:.2} V", last["battery_v"].as_f64().expect("the pack's measured voltage"));
 
     let url = format!("http://127.0.0.1:{port}/");
-    let shot = root.join("target/test-artifacts/web_replay.png");
-    std::fs::create_dir_all(shot.parent().unwrap()).unwrap();
+    let shot = dir.path().join("web_replay.png");
     let run = |extra: &str| {
         Command::new(browser)
             .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars"])
-            .args(["--window-size=1280,1100", "--virtual-time-budget=4000", extra, &url])
+            .args(["--window-size=1280,1800", "--virtual-time-budget=4000", extra, &url])
             .output()
             .unwrap()
     };
@@ -73,8 +77,40 @@ fn dashboard_of_the_demo_replay_in_chromium() {
     let html = String::from_utf8_lossy(&dom.stdout);
     assert!(dom.status.success() && shot_out.status.success(), "{}", String::from_utf8_lossy(&dom.stderr));
     assert!(html.contains(&format!("id=\"v-measured\">{measured}<")), "expected {measured} in:\n{html}");
-    assert!(html.contains("WARNING  Battery low 40.0%"), "no warning in:\n{html}");
-    assert!(html.contains("t = 209."), "the page did not reach the end of the flight:\n{html}");
+    assert!(html.contains("CRITICAL  Return now: margin"), "no mission margin alert in:\n{html}");
+    assert!(html.contains("WARNING  Sag 21.1V"), "no voltage forecast alert in:\n{html}");
+    assert!(html.contains("t = 231."), "the page did not reach the end of the flight:\n{html}");
+    // The route panel draws the plan: the demo plan's route, the vehicle at its end.
+    let attr = |id: &str, name: &str| -> Option<String> {
+        let tag = html.split(&format!("id=\"{id}\"")).nth(1)?.split('>').next()?.to_string();
+        Some(tag.split(&format!("{name}=\"")).nth(1)?.split('"').next()?.to_string())
+    };
+    let points: usize = attr("c-route", "data-points").and_then(|v| v.parse().ok()).unwrap_or(0);
+    let at: usize = attr("c-route", "data-at").and_then(|v| v.parse().ok()).unwrap_or(0);
+    assert!(points >= 6, "the route panel drew {points} points of the plan:\n{html}");
+    assert!(at > 0 && at < points, "the vehicle on the route: point {at} of {points}");
+    // Tiles that hold a number, by id.
+    let tile = |id: &str| -> String {
+        html.split(&format!("id=\"{id}\">")).nth(1).and_then(|t| t.split('<').next()).unwrap_or("").to_string()
+    };
+    let number = |id: &str| {
+        let t = tile(id);
+        assert!(t.chars().next().is_some_and(|c| c.is_ascii_digit() || c == '-'), "tile {id} holds no number: {t:?}");
+    };
+    for id in ["v-mission", "v-mmargin", "v-batt", "v-batt-model", "v-soc", "v-vmin", "v-tlow"] {
+        number(id);
+    }
+    assert_eq!(tile("v-batt"), volts, "the measured voltage tile shows the last estimate's");
+    assert!(tile("v-mission").contains("item "), "mission tile: {}", tile("v-mission"));
+    assert_eq!(tile("v-source"), "resting voltage", "the demo's pack starts from its resting voltage");
+    assert!(tile("v-batt-rest").starts_with("at rest before take-off 23."), "{}", tile("v-batt-rest"));
+    let png = std::fs::read(&shot).expect("the screenshot");
+    assert!(png.len() > 10_000 && png.starts_with(b"\x89PNG"), "a screenshot of the page");
+    // Kept for people to look at (target/test-artifacts/, ignored by git).
+    let keep = root.join("target/test-artifacts/web_replay.png");
+    if std::fs::create_dir_all(keep.parent().unwrap()).is_ok() {
+        let _ = std::fs::copy(&shot, &keep);
+    }
     assert!(status.success(), "dronewatt ended with {status} on SIGTERM while lingering");
     assert!(start.elapsed() < Duration::from_secs(50), "SIGTERM must end the linger");
 }

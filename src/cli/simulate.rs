@@ -65,6 +65,14 @@ pub(crate) struct SimulateArgs {
     /// heading (the route turned about home), seed (seed + i) and start (within the first second).
     #[arg(long, value_name = "N", default_value_t = 1)]
     vehicles: u8,
+    /// Start the pack at this resting (open-circuit) voltage, V, through the pack's OCV
+    /// curve: a part-used pack (the M100's TB48D: 26.1 V full, about 23.5 V at 60 %).
+    /// Default: a full pack.
+    #[arg(long, value_name = "V", conflicts_with = "soc_pct")]
+    battery_v: Option<f64>,
+    /// Start the pack at this state of charge, % of its energy. Default: 100 (full).
+    #[arg(long, value_name = "PCT")]
+    soc_pct: Option<f64>,
 }
 
 impl SimulateArgs {
@@ -92,7 +100,18 @@ impl SimulateArgs {
             wind_dir_deg: self.wind_dir_deg,
             seed: self.seed,
             autopilot: self.autopilot,
+            battery: match (self.battery_v, self.soc_pct) {
+                (Some(v), _) => sim::BatteryStart::RestV(v),
+                (None, Some(pct)) => sim::BatteryStart::Soc(pct / 100.0),
+                (None, None) => sim::BatteryStart::Full,
+            },
         };
+        if let Err(e) = sim::physics::Battery::from_profile(&opts.vehicle, opts.battery) {
+            let flag = if self.battery_v.is_some() { "--battery-v" } else { "--soc-pct" };
+            if self.battery_v.is_some() || self.soc_pct.is_some() {
+                bail!("{flag}: {e:#}");
+            }
+        }
         opts.validate().map_err(|e| match e.downcast::<InvalidOption>() {
             Ok(e) => flag(e),
             Err(e) => e,

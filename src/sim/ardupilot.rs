@@ -32,20 +32,30 @@ impl Style for ArduPilot {
 
     /// From the profile's `[battery]`: `BATT_CAPACITY` (mAh, INT32), `BATT_LOW_VOLT` and
     /// `BATT_CRT_VOLT` (3.6 and 3.5 V a cell, Mission Planner's initial-setup values for
-    /// LiPo), `BATT_LOW_MAH` and `BATT_CRT_MAH` (20 % and 10 % of the capacity left);
+    /// LiPo; 3.5 and 3.4 V for a LiHV pack), `BATT_LOW_MAH` and `BATT_CRT_MAH` (20 % and 10 % of the capacity left);
     /// `MOT_THST_HOVER` 0.5 (the simulator's VFR_HUD throttle in the hover is 50 %);
+    /// `MOT_BAT_VOLT_MAX` / `MOT_BAT_VOLT_MIN` (cells × 4.35 for a LiHV pack, else × 4.2;
+    /// cells × 3.3);
     /// `FRAME_CLASS` 1 (quad, INT8).
     fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA> {
         use d::MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_INT8 as INT8, MAV_PARAM_TYPE_REAL32 as REAL32};
         let Some(b) = &opts.vehicle.battery else { return Vec::new() };
         let (mah, cells) = (b.capacity_mah, f64::from(b.cells));
+        let lihv = super::physics::Battery::facts(b).chemistry.value == "lihv";
+        // LiHV: 4.35 V full; its failsafe a cell lower (3.5 / 3.4 V: the data set's M100
+        // flights fly down to 3.5 V a cell under load).
+        let (full_cell, low_cell) = if lihv { (4.35, 3.5) } else { (4.2, 3.6) };
         vec![
             param("BATT_CAPACITY", mah.round() as i32 as f32, INT32),
-            param("BATT_LOW_VOLT", (3.6 * cells) as f32, REAL32),
-            param("BATT_CRT_VOLT", (3.5 * cells) as f32, REAL32),
+            param("BATT_LOW_VOLT", (low_cell * cells) as f32, REAL32),
+            param("BATT_CRT_VOLT", ((low_cell - 0.1) * cells) as f32, REAL32),
             param("BATT_LOW_MAH", (0.2 * mah) as f32, REAL32),
             param("BATT_CRT_MAH", (0.1 * mah) as f32, REAL32),
             param("MOT_THST_HOVER", 0.5, REAL32),
+            // The pack's full and empty voltages, as ArduCopter's voltage scaling holds them
+            // (cells × 4.2 or 4.35, cells × 3.3): who the pack is.
+            param("MOT_BAT_VOLT_MAX", (full_cell * cells) as f32, REAL32),
+            param("MOT_BAT_VOLT_MIN", (3.3 * cells) as f32, REAL32),
             param("FRAME_CLASS", 1.0, INT8),
         ]
     }

@@ -346,8 +346,12 @@ impl Emitter {
     /// SYS_STATUS and BATTERY_STATUS with noisy voltage and current.
     fn battery(&mut self, now: &Instant, rng: &mut StdRng) {
         let (st, bat, t_ms) = (now.st, now.battery, now.t_ms);
-        let v_meas = (st.voltage_v + 0.05 * std_normal(rng)).max(0.0);
-        let i_meas = st.current_a + (0.1 + 0.07 * st.current_a) * std_normal(rng);
+        // 10 mV: a filtered voltage monitor, steady enough at rest for a resting voltage
+        // to be read (the pack's own sag and recovery are the model's, not noise).
+        let v_meas = (st.voltage_v + 0.01 * std_normal(rng)).max(0.0);
+        // Never below 0: a small draw at rest must not read as charging, nor as MAVLink's -1
+        // ("not measured").
+        let i_meas = (st.current_a + (0.1 + 0.07 * st.current_a) * std_normal(rng)).max(0.0);
         let mv = (v_meas * 1000.0).round().clamp(0.0, 65534.0) as u16;
         let ca = (i_meas * 100.0).round().clamp(-32768.0, 32767.0) as i16;
         let remaining = (bat.soc * 100.0).round().clamp(0.0, 100.0) as i8;

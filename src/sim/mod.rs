@@ -52,6 +52,7 @@ use crate::sim::guidance::{Guidance, Home, InvalidOption, Phase, Route};
 use crate::model::profile::VehicleProfile;
 use crate::MavMessage;
 use physics::{Airframe, Battery};
+pub use physics::BatteryStart;
 
 /// Whose message set and conventions the output follows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -83,6 +84,9 @@ pub struct SimOptions {
     /// logs a download (MISSION_COUNT, MISSION_ITEM_INT at the start) with MISSION_CURRENT
     /// at 1 Hz; None for the built-in triangle (no mission messages).
     pub mission: Option<SimMission>,
+    /// The pack's state at the start: full (the default), a state of charge, or a resting
+    /// voltage (`simulate --soc-pct`, `--battery-v`).
+    pub battery: BatteryStart,
 }
 
 /// A mission as the simulated autopilot holds it, and which item each phase flies.
@@ -145,6 +149,7 @@ impl Default for SimOptions {
             seed: 1,
             autopilot: Autopilot::Ardupilot,
             mission: None,
+            battery: BatteryStart::Full,
         }
     }
 }
@@ -154,7 +159,7 @@ impl SimOptions {
     pub fn validate(&self) -> anyhow::Result<()> {
         self.route.validate()?;
         let frame = Airframe::from_profile(&self.vehicle)?;
-        Battery::from_profile(&self.vehicle, START_SOC)?;
+        Battery::from_profile(&self.vehicle, self.battery)?;
         let max_g = (frame.max_payload_kg() * 1000.0).floor().max(0.0);
         guidance::in_range("payload_g", self.payload_g, 0.0, max_g, false).map_err(|e| InvalidOption {
             reason: format!("{} ({}: {} kg MTOW − {:.3} kg empty)", e.reason, self.vehicle.name, frame.mtow_kg, frame.mass_kg(0.0)),
@@ -235,8 +240,10 @@ pub const EPOCH_START_US: u64 = 1_571_923_920_000_000;
 /// −79.782820 E, 268.7 m above sea level).
 pub const HOME: Home = Home { lat_deg: 40.459_060, lon_deg: -79.782_820, alt_amsl_m: 268.7 };
 
-/// Initial state of charge of the battery.
-pub const START_SOC: f64 = 0.9;
+/// Disarmed on the ground the pack feeds a third of the avionics power (the flight
+/// controller and radios; the data set's M100 reads about 0 A before take-off), so a
+/// resting voltage can be read before the flight, as on a real vehicle.
+const DISARMED_FRAC: f64 = 1.0 / 3.0;
 /// Simulation step, s.
 const DT: f64 = 0.01;
 /// Horizontal and vertical acceleration limits of the velocity loop, m/s².
@@ -302,7 +309,7 @@ pub struct State {
 pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
     opts.validate()?;
     let frame = Airframe::from_profile(&opts.vehicle)?;
-    let mut battery = Battery::from_profile(&opts.vehicle, START_SOC)?;
+    let mut battery = Battery::from_profile(&opts.vehicle, opts.battery)?;
     let mut rng = StdRng::seed_from_u64(opts.seed);
     let mass = frame.mass_kg(opts.payload_g / 1000.0);
     let mut guide = Guidance::new(opts.route.clone());
@@ -395,6 +402,7 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
         } else {
             let p = match phase {
                 Phase::Spinup | Phase::Landed => frame.idle_w,
+                Phase::PreArm | Phase::Done => DISARMED_FRAC * frame.avionics_w,
                 _ => frame.avionics_w,
             };
             (Rotation3::from_euler_angles(0.0, 0.0, st.yaw), p)
@@ -404,10 +412,9 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
         st.rates = Vector3::new(m[(2, 1)] - m[(1, 2)], m[(0, 2)] - m[(2, 0)], m[(1, 0)] - m[(0, 1)]) / (2.0 * DT);
         st.rot = rot;
         st.power_w = power;
-        let (v, i) = battery.load(power);
+        let (v, i) = battery.step(power, DT);
         st.voltage_v = v;
         st.current_a = i;
-        battery.step(power, DT);
         st.throttle = if st.in_air { (50.0 * (power / hover_p).sqrt()).clamp(0.0, 100.0) } else if st.armed { 8.0 } else { 0.0 };
 
         let gps = Vector3::new(gps_err[0].step(&mut rng, DT), gps_err[1].step(&mut rng, DT), gps_err[2].step(&mut rng, DT));

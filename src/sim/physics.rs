@@ -17,15 +17,23 @@
 //! g = (0, 0, 9.80665) m/s²).
 //!
 //! ## Battery
-//! `V = OCV(SoC)·cells − I·R`; for a draw P the current solves `P = (OCV − I·R)·I`, so
-//! `V·I = P` exactly. The state of charge falls with the charge drawn.
+//! The project's pack model ([`crate::battery`]), chosen for the profile's pack as the
+//! monitor chooses it ([`crate::energy::pack::pack_model`]: the TB48D's fitted curve and
+//! circuit for the M100, else the chemistry's default curve scaled to the capacity):
+//! `V = OCV(E) − R0·f·I − R1·x1`, with the polarisation `x1` (one RC pair, τ1) and the
+//! cold-pack factor `f` that falls as the pack warms. For a draw P the current solves
+//! `P = V·I` over the step; the energy above the floor `E` falls by `V·I·dt`. The start is
+//! a full pack, a state of charge or a resting voltage ([`BatteryStart`]).
 
 use std::f64::consts::PI;
 
 use anyhow::Context;
 use nalgebra::Vector3;
 
+use crate::battery::{CircuitParams, Chemistry, Estimator};
+use crate::energy::pack::pack_model;
 use crate::model::profile::{self, VehicleProfile};
+use crate::report::{BatteryFacts, Provenance, Sourced};
 
 /// Standard gravity, m/s² (also ArduPilot's `GRAVITY_MSS`, which scales RAW_IMU).
 pub const G: f64 = 9.80665;
@@ -185,63 +193,150 @@ impl Airframe {
     }
 }
 
-/// A battery pack being discharged: its spec (from the profile) and its state.
-#[derive(Debug, Clone, PartialEq)]
+/// Where the simulated pack starts: full, at a state of charge, or at a resting voltage.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum BatteryStart {
+    /// A freshly charged pack (the OCV curve's top).
+    #[default]
+    Full,
+    /// State of charge, 0..1 of the OCV curve's energy.
+    Soc(f64),
+    /// Resting (open-circuit) pack voltage, V.
+    RestV(f64),
+}
+
+/// A battery pack being discharged: its spec (from the profile), the project's pack model
+/// ([`crate::battery`], chosen by [`crate::energy::pack::pack_model`]) and its state.
+#[derive(Debug, Clone)]
 pub struct Battery {
-    /// Cells, capacity, resistance, OCV curve.
+    /// Cells and capacity (the profile's `[battery]`).
     pub spec: profile::Battery,
     /// Capacity, Ah.
     pub capacity_ah: f64,
     /// Cells in series.
     pub cells: f64,
-    /// Internal resistance, Ω.
+    /// The chemistry: LiHV when the profile's full cell voltage is over 4.3 V, else LiPo.
+    pub chemistry: Chemistry,
+    /// Warm ohmic resistance R0 of the circuit, Ω.
     pub r_ohm: f64,
-    /// State of charge, 0..1.
+    /// State of charge, 0..1 (energy fraction of the OCV curve).
     pub soc: f64,
     /// Charge drawn so far, Ah.
     pub drawn_ah: f64,
     /// Energy drawn so far, Wh.
     pub drawn_wh: f64,
+    /// The circuit, driven open loop: OCV(energy), R0·f, the RC pair, the heat proxy.
+    est: Estimator,
 }
 
 impl Battery {
-    /// The pack a profile describes, at state of charge `soc`; an error names a missing
-    /// `[battery]` section.
-    pub fn from_profile(p: &VehicleProfile, soc: f64) -> anyhow::Result<Self> {
-        Ok(Self::new(section(&p.battery, "battery", p)?.clone(), soc))
+    /// The pack a profile describes, starting at `start`; an error names a missing
+    /// `[battery]` section or a start outside the pack's window.
+    pub fn from_profile(p: &VehicleProfile, start: BatteryStart) -> anyhow::Result<Self> {
+        Self::new(section(&p.battery, "battery", p)?.clone(), start)
     }
 
-    /// A pack of `spec` at state of charge `soc` (clamped to 0..1).
-    pub fn new(spec: profile::Battery, soc: f64) -> Self {
-        Self {
+    /// The battery facts the monitor would resolve for this pack: its cells, its chemistry
+    /// (from the profile's full cell voltage) and its capacity (mAh × cells × nominal).
+    pub fn facts(spec: &profile::Battery) -> BatteryFacts {
+        let full = spec.ocv_cell_v.last().map_or(4.2, |p| p[1]);
+        let chem = if full > 4.3 { Chemistry::LiHv } else { Chemistry::LiPo };
+        let cap = spec.capacity_mah / 1000.0 * f64::from(spec.cells) * chem.nominal_v();
+        BatteryFacts {
+            capacity_wh: Sourced::new(cap, Provenance::Config),
+            cell_count: Sourced::new(spec.cells, Provenance::Config),
+            chemistry: Sourced::new(chem.name().into(), Provenance::Config),
+            ..BatteryFacts::default()
+        }
+    }
+
+    /// A pack of `spec` starting at `start`: the OCV curve and circuit of
+    /// [`pack_model`](crate::energy::pack::pack_model) for its facts, with no measurement
+    /// offset (`bias_v` 0: the simulated pack is the truth), cold (no heat).
+    pub fn new(spec: profile::Battery, start: BatteryStart) -> anyhow::Result<Self> {
+        let facts = Self::facts(&spec);
+        let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+        let (curve, params) = pack_model(&facts).with_context(|| format!("no pack model for {} cells of {}", spec.cells, chem.name()))?;
+        let params = CircuitParams { bias_v: 0.0, ..params };
+        let n = f64::from(spec.cells);
+        let (lo, hi) = (n * chem.floor_v(), n * (chem.full_v() + crate::battery::chemistry::FULL_TOL_V));
+        let v_rest = match start {
+            BatteryStart::Full => n * curve.v_cell(1.0),
+            BatteryStart::Soc(s) if (0.0..=1.0).contains(&s) => n * curve.v_cell(s),
+            BatteryStart::Soc(s) => anyhow::bail!("state of charge {:.1} %: must be 0-100 %", s * 100.0),
+            BatteryStart::RestV(v) if v.is_finite() && (lo..=hi).contains(&v) => v,
+            BatteryStart::RestV(v) => {
+                anyhow::bail!("resting voltage {v} V: a {}S {} pack rests between {lo:.2} and {hi:.2} V", spec.cells, chem.name())
+            }
+        };
+        let est = Estimator::new(params, curve, v_rest, 0.0).context("the pack model rejected the start state")?;
+        let mut b = Self {
             capacity_ah: spec.capacity_mah / 1000.0,
-            cells: f64::from(spec.cells),
-            r_ohm: spec.internal_resistance_ohm,
+            cells: n,
+            chemistry: chem,
+            r_ohm: params.r0,
             spec,
-            soc: soc.clamp(0.0, 1.0),
+            soc: 0.0,
             drawn_ah: 0.0,
             drawn_wh: 0.0,
-        }
+            est,
+        };
+        b.soc = b.soc_now();
+        Ok(b)
+    }
+
+    fn soc_now(&self) -> f64 {
+        self.est.curve.soc(self.est.ocv() / self.cells).clamp(0.0, 1.0)
     }
 
     /// Open-circuit pack voltage, V.
     pub fn ocv_v(&self) -> f64 {
-        self.spec.ocv_cell_at(self.soc) * self.cells
+        self.est.ocv()
     }
 
-    /// Terminal voltage and current for a power draw, (V, A).
+    /// Resistance factor of a cold pack, `1 + a·exp(−H/Hs)`.
+    fn factor(&self) -> f64 {
+        let p = &self.est.p;
+        1.0 + p.warm_a * (-self.est.heat / p.heat_scale).exp()
+    }
+
+    /// The current that draws `power_w` from a source `e − r·I`: the smaller root of
+    /// `r·I² − e·I + P = 0` (past the pack's maximum power, the current at that maximum).
+    fn solve(e: f64, r: f64, power_w: f64) -> f64 {
+        let p = power_w.max(0.0);
+        if r <= 0.0 {
+            return if e > 0.0 { p / e } else { 0.0 };
+        }
+        let disc = (e * e - 4.0 * r * p).max(0.0);
+        (e - disc.sqrt()) / (2.0 * r)
+    }
+
+    /// Terminal voltage and current for a power draw now (the instantaneous response:
+    /// OCV less the polarisation held and R0·f·I), (V, A); `V·I = P`.
     pub fn load(&self, power_w: f64) -> (f64, f64) {
-        let ocv = self.ocv_v();
-        let disc = (ocv * ocv - 4.0 * self.r_ohm * power_w.max(0.0)).max(0.0);
-        let i = (ocv - disc.sqrt()) / (2.0 * self.r_ohm);
-        (ocv - i * self.r_ohm, i)
+        let th = &self.est.theta;
+        let e = self.ocv_v() - th[2] - th[1] * self.est.x1;
+        let r = th[0] * self.factor();
+        let i = Self::solve(e, r, power_w);
+        (e - r * i, i)
     }
 
-    /// Draw `power_w` for `dt_s` seconds.
-    pub fn step(&mut self, power_w: f64, dt_s: f64) {
-        let (_, i) = self.load(power_w);
+    /// Draw `power_w` for `dt_s` seconds: the current solved from `P = V·I` with the RC
+    /// pair's response over the step, then the circuit stepped open loop
+    /// ([`Estimator::step_open_loop`]); returns the terminal voltage and current, (V, A).
+    pub fn step(&mut self, power_w: f64, dt_s: f64) -> (f64, f64) {
+        let th = self.est.theta;
+        let f = self.factor();
+        let e1 = (-dt_s / self.est.p.tau1_s).exp();
+        // V = OCV − b − R1·x1·e1 − (R0·f + R1·f·(1 − e1))·I
+        let e = self.ocv_v() - th[2] - th[1] * self.est.x1 * e1;
+        let r = th[0] * f + th[1] * f * (1.0 - e1);
+        let i = Self::solve(e, r, power_w);
+        let v = self.est.step_open_loop(dt_s, i);
+        let v = if v.is_finite() { v } else { e - r * i };
         self.drawn_ah += i * dt_s / 3600.0;
         self.drawn_wh += power_w * dt_s / 3600.0;
-        self.soc = (self.soc - i * dt_s / 3600.0 / self.capacity_ah).max(0.0);
+        self.soc = self.soc_now();
+        (v, i)
     }
 }

@@ -166,6 +166,12 @@ struct Point {
     home_margin_wh: Option<f64>,
     /// Remaining − rest of the mission − reserve, while a mission is known.
     mission_margin_wh: Option<f64>,
+    /// The pack (the voltage plot): measured and modelled loaded voltage, the lowest
+    /// forecast loaded voltage and the low threshold, V.
+    battery_v: Option<f64>,
+    battery_v_model: Option<f64>,
+    v_min_forecast_v: Option<f64>,
+    low_threshold_v: Option<f64>,
 }
 
 #[derive(Debug, Default)]
@@ -292,6 +298,10 @@ impl Dash {
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
             mission_margin_wh: r.energy.mission_margin_wh,
+            battery_v: r.energy.pack.battery_v,
+            battery_v_model: r.energy.pack.battery_v_model,
+            v_min_forecast_v: r.energy.pack.v_min_forecast_v,
+            low_threshold_v: r.energy.pack.low_threshold_v,
         });
     }
 }
