@@ -7,7 +7,7 @@ SHELL := /bin/bash
 CARGO ?= cargo
 DEMO_SPEED ?= 10
 
-.PHONY: setup run test build build-all bench fuzz clean-setup docs docs-tables
+.PHONY: setup run test lint build build-all bench fuzz clean-setup docs docs-tables
 setup:
 	@scripts/setup-libtorch.sh
 	@scripts/setup-python.sh
@@ -34,6 +34,14 @@ test: setup
 	@scripts/setup-chromium.sh
 	@scripts/setup-mosquitto.sh
 	$(CARGO) test --workspace --locked --no-fail-fast
+
+# The code gates CI runs before the tests: rustfmt, clippy with warnings as errors, rustdoc
+# with warnings as errors (broken intra-doc links), over the whole workspace (the torch crate
+# too, so libtorch first).
+lint: setup
+	$(CARGO) fmt --all -- --check
+	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps --locked
 
 bench: setup
 	$(CARGO) bench --workspace --locked

@@ -6,27 +6,39 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::model::adapt::{AdaptConfig, Adaptation};
 
 fn bench(c: &mut Criterion) {
-    let names: Vec<String> = ["dandrea", "dandrea_headwind", "dorling", "stolaroff", "kirschstein", "tseng", "tseng_solo", "lstm"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+    let names: Vec<String> = [
+        "dandrea",
+        "dandrea_headwind",
+        "dorling",
+        "stolaroff",
+        "kirschstein",
+        "tseng",
+        "tseng_solo",
+        "lstm",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
     let mut ad = Adaptation::new(&AdaptConfig::default(), &names, 0.1, 127.0);
     let mut k = 0u32;
-    c.bench_function("adapt: 8 models, one window (correct + teach both fits)", |b| {
-        b.iter(|| {
-            k = k.wrapping_add(1);
-            let wobble = (k % 100) as f32;
-            let measured = 380.0 + wobble;
-            let mut sum = 0.0f32;
-            for i in 0..names.len() {
-                let raw = 300.0 + 20.0 * i as f32 + wobble;
-                if let Some(a) = ad.step(i, black_box(raw), Some(black_box(measured)), true) {
-                    sum += a.adapted_w;
+    c.bench_function(
+        "adapt: 8 models, one window (correct + teach both fits)",
+        |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                let wobble = (k % 100) as f32;
+                let measured = 380.0 + wobble;
+                let mut sum = 0.0f32;
+                for i in 0..names.len() {
+                    let raw = 300.0 + 20.0 * i as f32 + wobble;
+                    if let Some(a) = ad.step(i, black_box(raw), Some(black_box(measured)), true) {
+                        sum += a.adapted_w;
+                    }
                 }
-            }
-            sum
-        })
-    });
+                sum
+            })
+        },
+    );
 }
 
 criterion_group!(benches, bench);

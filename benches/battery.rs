@@ -23,23 +23,34 @@ fn bench(c: &mut Criterion) {
     // so every forecast flies the whole rest of the flight, as it does in the air.
     let (template, t0) = (pack.clone(), t);
     let mut k = 0u32;
-    c.bench_function("battery: one window (RLS step; the forecast once in ten windows)", |b| {
-        b.iter(|| {
-            k = k.wrapping_add(1);
-            if k.is_multiple_of(3000) {
-                pack = template.clone();
-                t = t0;
-            }
-            t += 0.1;
-            let wobble = f64::from(k % 50) * 0.1;
-            pack.update(black_box(t), Some(22.0 - 0.01 * wobble), Some(20.0 + wobble), Some((450.0, None)), &facts)
-        })
-    });
-    let est = Estimator::new(CircuitParams::default(), OcvCurve::tb48d(), 24.3, 0.0).expect("a state");
+    c.bench_function(
+        "battery: one window (RLS step; the forecast once in ten windows)",
+        |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                if k.is_multiple_of(3000) {
+                    pack = template.clone();
+                    t = t0;
+                }
+                t += 0.1;
+                let wobble = f64::from(k % 50) * 0.1;
+                pack.update(
+                    black_box(t),
+                    Some(22.0 - 0.01 * wobble),
+                    Some(20.0 + wobble),
+                    Some((450.0, None)),
+                    &facts,
+                )
+            })
+        },
+    );
+    let est =
+        Estimator::new(CircuitParams::default(), OcvCurve::tb48d(), 24.3, 0.0).expect("a state");
     let profile = vec![(5.0, 450.0); 720];
-    c.bench_function("battery: the voltage forecast alone (720 steps of 5 s)", |b| {
-        b.iter(|| forecast(black_box(&est), black_box(&profile), &[21.0]))
-    });
+    c.bench_function(
+        "battery: the voltage forecast alone (720 steps of 5 s)",
+        |b| b.iter(|| forecast(black_box(&est), black_box(&profile), &[21.0])),
+    );
 }
 
 criterion_group!(benches, bench);

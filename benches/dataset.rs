@@ -23,11 +23,15 @@ fn whole_data_set(c: &mut Criterion) {
     g.sample_size(10);
     g.measurement_time(std::time::Duration::from_secs(60));
     g.bench_function("flight_276", |b| {
-        b.iter(|| load_flights(&path, Some(&[276]), &cfg, &MissionConfig::default()).expect("data set loads"))
+        b.iter(|| {
+            load_flights(&path, Some(&[276]), &cfg, &MissionConfig::default())
+                .expect("data set loads")
+        })
     });
     g.bench_function("all_flights", |b| {
         b.iter(|| {
-            let f = load_flights(&path, None, &cfg, &MissionConfig::default()).expect("data set loads");
+            let f =
+                load_flights(&path, None, &cfg, &MissionConfig::default()).expect("data set loads");
             assert_eq!(f.len(), 200);
             f
         })

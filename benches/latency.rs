@@ -39,14 +39,44 @@ fn tick(t_s: f64) -> Vec<TimedMessage> {
             vx: 1000,
             ..Default::default()
         }),
-        MavMessage::ATTITUDE(d::ATTITUDE_DATA { time_boot_ms: ms, pitch: -0.1, ..Default::default() }),
-        MavMessage::VFR_HUD(d::VFR_HUD_DATA { airspeed: 10.0, groundspeed: 10.0, alt: 25.0, ..Default::default() }),
-        MavMessage::HIGHRES_IMU(d::HIGHRES_IMU_DATA { time_usec: u64::from(ms) * 1000, zacc: -9.81, ..Default::default() }),
-        MavMessage::WIND(d::WIND_DATA { direction: 180.0, speed: 2.0, speed_z: 0.0 }),
-        MavMessage::HOME_POSITION(d::HOME_POSITION_DATA { latitude: 473_977_419, longitude: 85_455_938, ..Default::default() }),
+        MavMessage::ATTITUDE(d::ATTITUDE_DATA {
+            time_boot_ms: ms,
+            pitch: -0.1,
+            ..Default::default()
+        }),
+        MavMessage::VFR_HUD(d::VFR_HUD_DATA {
+            airspeed: 10.0,
+            groundspeed: 10.0,
+            alt: 25.0,
+            ..Default::default()
+        }),
+        MavMessage::HIGHRES_IMU(d::HIGHRES_IMU_DATA {
+            time_usec: u64::from(ms) * 1000,
+            zacc: -9.81,
+            ..Default::default()
+        }),
+        MavMessage::WIND(d::WIND_DATA {
+            direction: 180.0,
+            speed: 2.0,
+            speed_z: 0.0,
+        }),
+        MavMessage::HOME_POSITION(d::HOME_POSITION_DATA {
+            latitude: 473_977_419,
+            longitude: 85_455_938,
+            ..Default::default()
+        }),
     ];
     msgs.into_iter()
-        .map(|msg| TimedMessage { t_s, header: mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 }, msg, arrived: std::time::Instant::now() })
+        .map(|msg| TimedMessage {
+            t_s,
+            header: mavlink::MavHeader {
+                system_id: 1,
+                component_id: 1,
+                sequence: 0,
+            },
+            msg,
+            arrived: std::time::Instant::now(),
+        })
         .collect()
 }
 
@@ -133,7 +163,10 @@ fn main() {
             features: [0.0; dronewatt::features::N_FEATURES],
             measured_w: Some(500.0),
             voltage_v: Some(22.2),
-            home: Some(dronewatt::features::HomeVector { distance_m: 300.0, height_m: 25.0 }),
+            home: Some(dronewatt::features::HomeVector {
+                distance_m: 300.0,
+                height_m: 25.0,
+            }),
             stale_mask: 0,
             battery_remaining_pct: None,
         },

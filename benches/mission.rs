@@ -13,13 +13,21 @@ use dronewatt::model::PowerModel;
 
 /// 500 waypoints, a survey-like lawnmower of 100 m lines 30 m apart at 30 m, 8 m/s.
 fn plan_500() -> Plan {
-    let home = GeoPoint { lat_deg: 40.44, lon_deg: -79.94, alt_m: 300.0 };
+    let home = GeoPoint {
+        lat_deg: 40.44,
+        lon_deg: -79.94,
+        alt_m: 300.0,
+    };
     let m = 1.0 / 111_320.0;
     let wps: Vec<GeoPoint> = (0..500)
         .map(|i| {
             let row = (i / 2) as f64;
             let east = if (i / 2) % 2 == 0 { i % 2 } else { 1 - i % 2 } as f64 * 100.0;
-            GeoPoint { lat_deg: 40.44 + row * 30.0 * m, lon_deg: -79.94 + east * m / 40.44f64.to_radians().cos(), alt_m: 30.0 }
+            GeoPoint {
+                lat_deg: 40.44 + row * 30.0 * m,
+                lon_deg: -79.94 + east * m / 40.44f64.to_radians().cos(),
+                alt_m: 30.0,
+            }
         })
         .collect();
     Plan::from_waypoints("lawnmower-500", home, &wps, 8.0)
@@ -28,16 +36,32 @@ fn plan_500() -> Plan {
 fn bench(c: &mut Criterion) {
     let plan = plan_500();
     let k = KinematicsConfig::default();
-    let cond = Conditions { wind: Wind { speed_m_s: 4.0, from_deg: 250.0 }, payload_g: 250.0, speed_m_s: None, rate_hz: 10.0 };
+    let cond = Conditions {
+        wind: Wind {
+            speed_m_s: 4.0,
+            from_deg: 250.0,
+        },
+        payload_g: 250.0,
+        speed_m_s: None,
+        rate_hz: 10.0,
+    };
     let cal = Calibration::default();
     // The default forecast's members are `_cal` physics models: the calibrated profile's.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/vehicles/m100-calibrated.toml");
-    let profile = dronewatt::model::profile::VehicleProfile::load(&path).expect("the shipped calibrated profile");
-    let mut models: Vec<Box<dyn PowerModel>> =
-        dronewatt::model::physics::models(&profile).into_iter().filter(|m| cal.members.iter().any(|c| c.model == m.name())).collect();
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config/vehicles/m100-calibrated.toml");
+    let profile = dronewatt::model::profile::VehicleProfile::load(&path)
+        .expect("the shipped calibrated profile");
+    let mut models: Vec<Box<dyn PowerModel>> = dronewatt::model::physics::models(&profile)
+        .into_iter()
+        .filter(|m| cal.members.iter().any(|c| c.model == m.name()))
+        .collect();
     assert_eq!(models.len(), cal.members.len(), "the default forecast's members are physics models of the published profile or the calibrated one");
     let tr = fly(&plan, &k, &cond);
-    eprintln!("500 waypoints: {} samples, {:.0} s of flight", tr.samples.len(), tr.duration_s());
+    eprintln!(
+        "500 waypoints: {} samples, {:.0} s of flight",
+        tr.samples.len(),
+        tr.duration_s()
+    );
     c.bench_function("mission: 500-waypoint plan, fly + forecast", |b| {
         b.iter(|| {
             let tr = fly(black_box(&plan), &k, &cond);
@@ -45,9 +69,20 @@ fn bench(c: &mut Criterion) {
         })
     });
     // The two halves apart: where the time goes.
-    c.bench_function("mission: 500-waypoint plan, fly only", |b| b.iter(|| fly(black_box(&plan), &k, &cond).samples.len()));
+    c.bench_function("mission: 500-waypoint plan, fly only", |b| {
+        b.iter(|| fly(black_box(&plan), &k, &cond).samples.len())
+    });
     c.bench_function("mission: 500-waypoint plan, forecast only", |b| {
-        b.iter(|| forecast(black_box(&tr), &mut models, &cal, 10, dronewatt::mission::MODEL_STRIDE).energy_p50_wh)
+        b.iter(|| {
+            forecast(
+                black_box(&tr),
+                &mut models,
+                &cal,
+                10,
+                dronewatt::mission::MODEL_STRIDE,
+            )
+            .energy_p50_wh
+        })
     });
     let f = forecast(&tr, &mut models, &cal, 10, dronewatt::mission::MODEL_STRIDE);
     let item = 300;

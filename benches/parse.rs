@@ -27,7 +27,12 @@ fn bench(c: &mut Criterion) {
     if let Err(e) = std::fs::write(&path, &bytes) {
         eprintln!("cannot write {}: {e}", path.display());
     } else {
-        eprintln!("wrote {} ({} messages, {} bytes)", path.display(), N, bytes.len());
+        eprintln!(
+            "wrote {} ({} messages, {} bytes)",
+            path.display(),
+            N,
+            bytes.len()
+        );
     }
     let stats = IngestStats::default();
     assert_eq!(decode_tlog(&bytes, &stats).len(), N);

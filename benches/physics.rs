@@ -4,8 +4,8 @@
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::model::physics::{Kind, PhysicsModel};
 use dronewatt::model::profile::VehicleProfile;
-use dronewatt::telemetry::{idx, Sample, N_FEATURES};
 use dronewatt::telemetry::window::Window;
+use dronewatt::telemetry::{idx, Sample, N_FEATURES};
 
 fn cruise_window() -> Window {
     let samples = (0..10)
@@ -24,15 +24,29 @@ fn cruise_window() -> Window {
             f[idx::WIND_ANGLE] = 312.0;
             f[idx::PAYLOAD] = 500.0;
             f[idx::AZ] = -9.8;
-            Sample { t_s: 0.1 * i as f64, features: f, measured_w: Some(500.0), voltage_v: Some(22.0), home: None, stale_mask: 0, battery_remaining_pct: None }
+            Sample {
+                t_s: 0.1 * i as f64,
+                features: f,
+                measured_w: Some(500.0),
+                voltage_v: Some(22.0),
+                home: None,
+                stale_mask: 0,
+                battery_remaining_pct: None,
+            }
         })
         .collect();
-    Window { samples, arrived: None }
+    Window {
+        samples,
+        arrived: None,
+    }
 }
 
 fn bench(c: &mut Criterion) {
     let w = cruise_window();
-    let models: Vec<PhysicsModel> = Kind::ALL.iter().map(|&k| PhysicsModel::new(k, VehicleProfile::m100())).collect();
+    let models: Vec<PhysicsModel> = Kind::ALL
+        .iter()
+        .map(|&k| PhysicsModel::new(k, VehicleProfile::m100()))
+        .collect();
     c.bench_function("physics: all models, one window", |b| {
         b.iter(|| models.iter().map(|m| m.power_w(black_box(&w))).sum::<f64>())
     });

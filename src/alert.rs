@@ -31,7 +31,6 @@
 //! clears: the rule keeps its state. Time is the estimates' own clock, so a replay at ×10
 //! debounces exactly like the live flight did.
 
-
 use serde::Deserialize;
 
 pub use crate::report::{AlertEvent, AlertState, Severity};
@@ -51,26 +50,44 @@ pub enum AlertKind {
     /// Time to empty at the forecast power under `below_s`.
     TimeToEmptyBelow { below_s: f64, clear_s: Option<f64> },
     /// Remaining − energy to get home − reserve under `below_wh`.
-    HomeMarginBelow { below_wh: f64, clear_wh: Option<f64> },
+    HomeMarginBelow {
+        below_wh: f64,
+        clear_wh: Option<f64>,
+    },
     /// Remaining − energy of the rest of the mission, the return and the landing − reserve
     /// under `below_wh`: "mission cannot finish with reserve — return now".
-    MissionMarginBelow { below_wh: f64, clear_wh: Option<f64> },
+    MissionMarginBelow {
+        below_wh: f64,
+        clear_wh: Option<f64>,
+    },
     /// Measured electrical power over `above_w`.
     PowerAbove { above_w: f64, clear_w: Option<f64> },
     /// |measured − predicted| over `above_w`, predicted by `model` (default `lstm`, else the
     /// first model that ran).
-    DeviationAbove { above_w: f64, clear_w: Option<f64>, model: Option<String> },
+    DeviationAbove {
+        above_w: f64,
+        clear_w: Option<f64>,
+        model: Option<String>,
+    },
     /// The models' predictions spread (max − min) wider than `above_w`.
     ModelsDisagree { above_w: f64, clear_w: Option<f64> },
     /// Battery voltage per cell under `below_v`.
     CellVoltageBelow { below_v: f64, clear_v: Option<f64> },
     /// Battery voltage (whole pack) under the autopilot's own `threshold` plus `margin_v`
     /// (V, default 0: at the threshold). Quiet while the vehicle has not said its threshold.
-    VehicleVoltageBelow { threshold: VehicleThreshold, margin_v: Option<f64>, clear_margin_v: Option<f64> },
+    VehicleVoltageBelow {
+        threshold: VehicleThreshold,
+        margin_v: Option<f64>,
+        clear_margin_v: Option<f64>,
+    },
     /// The lowest loaded voltage forecast for the rest of the flight under `below_v` (V,
     /// whole pack; default the low threshold: the vehicle's `BATT_LOW_VOLT`, else 3.5 V a
     /// cell) plus `margin_v` (default 0).
-    VoltageForecastBelow { below_v: Option<f64>, margin_v: Option<f64>, clear_margin_v: Option<f64> },
+    VoltageForecastBelow {
+        below_v: Option<f64>,
+        margin_v: Option<f64>,
+        clear_margin_v: Option<f64>,
+    },
     /// Every kinematic feature (position, attitude, velocity, rates, acceleration) stale for
     /// `for_s`: the vehicle's state stopped arriving while the link still carries something
     /// (battery, heartbeats). A link gone wholly silent yields no estimates at all, so no
@@ -135,8 +152,16 @@ impl TryFrom<toml::Table> for AlertRule {
             }
         }
         let c = Common::deserialize(common).map_err(|e| format!("alert rule: {}", e.message()))?;
-        let kind = AlertKind::deserialize(t).map_err(|e| format!("alert rule '{}': {}", c.name, e.message()))?;
-        Ok(AlertRule { name: c.name, severity: c.severity, for_s: c.for_s, repeat_s: c.repeat_s, message: c.message, kind })
+        let kind = AlertKind::deserialize(t)
+            .map_err(|e| format!("alert rule '{}': {}", c.name, e.message()))?;
+        Ok(AlertRule {
+            name: c.name,
+            severity: c.severity,
+            for_s: c.for_s,
+            repeat_s: c.repeat_s,
+            message: c.message,
+            kind,
+        })
     }
 }
 
@@ -162,38 +187,92 @@ struct Levels {
 impl AlertRule {
     fn levels(&self) -> Result<Levels, String> {
         use AlertKind as K;
-        let lv = |dir, raise: f64, clear: Option<f64>, unit, key| Levels { dir, raise, clear: clear.unwrap_or(raise), unit, key };
+        let lv = |dir, raise: f64, clear: Option<f64>, unit, key| Levels {
+            dir,
+            raise,
+            clear: clear.unwrap_or(raise),
+            unit,
+            key,
+        };
         Ok(match &self.kind {
-            K::RemainingBelow { below_wh, below_pct, clear_wh, clear_pct } => match (below_wh, below_pct) {
+            K::RemainingBelow {
+                below_wh,
+                below_pct,
+                clear_wh,
+                clear_pct,
+            } => match (below_wh, below_pct) {
                 (Some(wh), None) => {
                     if clear_pct.is_some() {
-                        return Err("clear_pct: with below_wh, give the clear level as clear_wh".into());
+                        return Err(
+                            "clear_pct: with below_wh, give the clear level as clear_wh".into()
+                        );
                     }
                     lv(Dir::Below, *wh, *clear_wh, "Wh", "below_wh")
                 }
                 (None, Some(pct)) => {
                     if clear_wh.is_some() {
-                        return Err("clear_wh: with below_pct, give the clear level as clear_pct".into());
+                        return Err(
+                            "clear_wh: with below_pct, give the clear level as clear_pct".into(),
+                        );
                     }
                     lv(Dir::Below, *pct, *clear_pct, "%", "below_pct")
                 }
-                _ => return Err("kind 'remaining_below' needs exactly one of below_wh, below_pct".into()),
-            },
-            K::TimeToEmptyBelow { below_s, clear_s } => lv(Dir::Below, *below_s, *clear_s, "s", "below_s"),
-            K::HomeMarginBelow { below_wh, clear_wh } => lv(Dir::Below, *below_wh, *clear_wh, "Wh", "below_wh"),
-            K::MissionMarginBelow { below_wh, clear_wh } => lv(Dir::Below, *below_wh, *clear_wh, "Wh", "below_wh"),
-            K::PowerAbove { above_w, clear_w } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
-            K::DeviationAbove { above_w, clear_w, .. } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
-            K::ModelsDisagree { above_w, clear_w } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
-            K::CellVoltageBelow { below_v, clear_v } => lv(Dir::Below, *below_v, *clear_v, "V", "below_v"),
-            K::VehicleVoltageBelow { margin_v, clear_margin_v, .. } => {
-                lv(Dir::Below, margin_v.unwrap_or(0.0), clear_margin_v.or(*margin_v), "V", "margin_v")
-            }
-            K::VoltageForecastBelow { below_v, margin_v, clear_margin_v } => {
-                if below_v.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
-                    return Err(format!("below_v = {}: must be a positive voltage (whole pack)", below_v.unwrap_or(f64::NAN)));
+                _ => {
+                    return Err(
+                        "kind 'remaining_below' needs exactly one of below_wh, below_pct".into(),
+                    )
                 }
-                lv(Dir::Below, margin_v.unwrap_or(0.0), clear_margin_v.or(*margin_v), "V", "margin_v")
+            },
+            K::TimeToEmptyBelow { below_s, clear_s } => {
+                lv(Dir::Below, *below_s, *clear_s, "s", "below_s")
+            }
+            K::HomeMarginBelow { below_wh, clear_wh } => {
+                lv(Dir::Below, *below_wh, *clear_wh, "Wh", "below_wh")
+            }
+            K::MissionMarginBelow { below_wh, clear_wh } => {
+                lv(Dir::Below, *below_wh, *clear_wh, "Wh", "below_wh")
+            }
+            K::PowerAbove { above_w, clear_w } => {
+                lv(Dir::Above, *above_w, *clear_w, "W", "above_w")
+            }
+            K::DeviationAbove {
+                above_w, clear_w, ..
+            } => lv(Dir::Above, *above_w, *clear_w, "W", "above_w"),
+            K::ModelsDisagree { above_w, clear_w } => {
+                lv(Dir::Above, *above_w, *clear_w, "W", "above_w")
+            }
+            K::CellVoltageBelow { below_v, clear_v } => {
+                lv(Dir::Below, *below_v, *clear_v, "V", "below_v")
+            }
+            K::VehicleVoltageBelow {
+                margin_v,
+                clear_margin_v,
+                ..
+            } => lv(
+                Dir::Below,
+                margin_v.unwrap_or(0.0),
+                clear_margin_v.or(*margin_v),
+                "V",
+                "margin_v",
+            ),
+            K::VoltageForecastBelow {
+                below_v,
+                margin_v,
+                clear_margin_v,
+            } => {
+                if below_v.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                    return Err(format!(
+                        "below_v = {}: must be a positive voltage (whole pack)",
+                        below_v.unwrap_or(f64::NAN)
+                    ));
+                }
+                lv(
+                    Dir::Below,
+                    margin_v.unwrap_or(0.0),
+                    clear_margin_v.or(*margin_v),
+                    "V",
+                    "margin_v",
+                )
             }
             K::TelemetryLost {} => lv(Dir::Above, 0.5, None, "", "for_s"),
         })
@@ -209,22 +288,38 @@ impl AlertRule {
             return Err(format!("for_s = {}: must be ≥ 0 s", self.for_s));
         }
         if !(self.repeat_s.is_finite() && self.repeat_s >= 0.0) {
-            return Err(format!("repeat_s = {}: must be ≥ 0 s (0: say it once)", self.repeat_s));
+            return Err(format!(
+                "repeat_s = {}: must be ≥ 0 s (0: say it once)",
+                self.repeat_s
+            ));
         }
         if matches!(self.kind, AlertKind::TelemetryLost {}) && self.for_s <= 0.0 {
-            return Err("for_s: telemetry_lost needs for_s > 0 (how long before the link counts as lost)".into());
+            return Err(
+                "for_s: telemetry_lost needs for_s > 0 (how long before the link counts as lost)"
+                    .into(),
+            );
         }
         let l = self.levels()?;
         if !l.raise.is_finite() || !l.clear.is_finite() {
             return Err(format!("{}: levels must be finite numbers", l.key));
         }
-        let clear_key = if l.key == "margin_v" { "clear_margin_v".to_string() } else { l.key.replace("below", "clear").replace("above", "clear") };
+        let clear_key = if l.key == "margin_v" {
+            "clear_margin_v".to_string()
+        } else {
+            l.key.replace("below", "clear").replace("above", "clear")
+        };
         match l.dir {
             Dir::Below if l.clear < l.raise => {
-                return Err(format!("{clear_key} = {}: must be ≥ {} = {} (it clears above the level it raises under)", l.clear, l.key, l.raise))
+                return Err(format!(
+                "{clear_key} = {}: must be ≥ {} = {} (it clears above the level it raises under)",
+                l.clear, l.key, l.raise
+            ))
             }
             Dir::Above if l.clear > l.raise => {
-                return Err(format!("{clear_key} = {}: must be ≤ {} = {} (it clears below the level it raises over)", l.clear, l.key, l.raise))
+                return Err(format!(
+                "{clear_key} = {}: must be ≤ {} = {} (it clears below the level it raises over)",
+                l.clear, l.key, l.raise
+            ))
             }
             _ => {}
         }
@@ -233,7 +328,9 @@ impl AlertRule {
 
     /// One line saying what the rule does, for `check-config`.
     pub fn describe(&self) -> String {
-        let Ok(l) = self.levels() else { return format!("{}: invalid", self.name) };
+        let Ok(l) = self.levels() else {
+            return format!("{}: invalid", self.name);
+        };
         let what = match &self.kind {
             AlertKind::RemainingBelow { .. } => "remaining energy",
             AlertKind::TimeToEmptyBelow { .. } => "time to empty",
@@ -243,20 +340,44 @@ impl AlertRule {
             AlertKind::DeviationAbove { .. } => "|measured − predicted|",
             AlertKind::ModelsDisagree { .. } => "model spread",
             AlertKind::CellVoltageBelow { .. } => "cell voltage",
-            AlertKind::VehicleVoltageBelow { threshold: VehicleThreshold::Low, .. } => "battery voltage − the vehicle's low threshold",
-            AlertKind::VehicleVoltageBelow { threshold: VehicleThreshold::Critical, .. } => "battery voltage − the vehicle's critical threshold",
-            AlertKind::VoltageForecastBelow { below_v: Some(_), .. } => "lowest forecast loaded voltage − below_v",
-            AlertKind::VoltageForecastBelow { .. } => "lowest forecast loaded voltage − the low threshold",
+            AlertKind::VehicleVoltageBelow {
+                threshold: VehicleThreshold::Low,
+                ..
+            } => "battery voltage − the vehicle's low threshold",
+            AlertKind::VehicleVoltageBelow {
+                threshold: VehicleThreshold::Critical,
+                ..
+            } => "battery voltage − the vehicle's critical threshold",
+            AlertKind::VoltageForecastBelow {
+                below_v: Some(_), ..
+            } => "lowest forecast loaded voltage − below_v",
+            AlertKind::VoltageForecastBelow { .. } => {
+                "lowest forecast loaded voltage − the low threshold"
+            }
             AlertKind::TelemetryLost {} => "telemetry",
         };
         let cond = if matches!(self.kind, AlertKind::TelemetryLost {}) {
             "lost".to_string()
         } else {
-            let (op, cop) = if l.dir == Dir::Below { ("<", "≥") } else { (">", "≤") };
-            format!("{op} {} {}, clears {cop} {} {}", l.raise, l.unit, l.clear, l.unit)
+            let (op, cop) = if l.dir == Dir::Below {
+                ("<", "≥")
+            } else {
+                (">", "≤")
+            };
+            format!(
+                "{op} {} {}, clears {cop} {} {}",
+                l.raise, l.unit, l.clear, l.unit
+            )
         };
-        let repeat = if self.repeat_s > 0.0 { format!(", repeats every {} s", self.repeat_s) } else { String::new() };
-        format!("{} [{}]: {what} {cond}, for {} s{repeat}", self.name, self.severity, self.for_s)
+        let repeat = if self.repeat_s > 0.0 {
+            format!(", repeats every {} s", self.repeat_s)
+        } else {
+            String::new()
+        };
+        format!(
+            "{} [{}]: {what} {cond}, for {} s{repeat}",
+            self.name, self.severity, self.for_s
+        )
     }
 }
 
@@ -269,10 +390,17 @@ pub fn validate_rules(rules: &[AlertRule]) -> Result<(), String> {
             errs.push(format!("alerts[{i}] ({}).{e}", r.name.escape_debug()));
         }
         if rules[..i].iter().any(|o| o.name == r.name) {
-            errs.push(format!("alerts[{i}].name = '{}': another rule already has this name", r.name.escape_debug()));
+            errs.push(format!(
+                "alerts[{i}].name = '{}': another rule already has this name",
+                r.name.escape_debug()
+            ));
         }
     }
-    if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+    if errs.is_empty() {
+        Ok(())
+    } else {
+        Err(errs.join("\n"))
+    }
 }
 
 /// Bitmask of the kinematic features (position, attitude, velocity, rates, acceleration):
@@ -290,9 +418,15 @@ const KINEMATIC_MASK: u32 = {
 /// The rule's value at one estimate, in its level's unit; None when unknown.
 fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
     use AlertKind as K;
-    let measured = est.sample.measured_w.map(f64::from).filter(|v| v.is_finite());
+    let measured = est
+        .sample
+        .measured_w
+        .map(f64::from)
+        .filter(|v| v.is_finite());
     match &rule.kind {
-        K::RemainingBelow { below_wh: Some(_), .. } => en.remaining_wh,
+        K::RemainingBelow {
+            below_wh: Some(_), ..
+        } => en.remaining_wh,
         K::RemainingBelow { .. } => en.remaining_pct,
         K::TimeToEmptyBelow { .. } => en.time_to_empty_s,
         K::HomeMarginBelow { .. } => en.home_margin_wh,
@@ -301,7 +435,11 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
         K::DeviationAbove { model, .. } => {
             let m = match model {
                 Some(n) => est.models.iter().find(|m| &m.name == n),
-                None => est.models.iter().find(|m| m.name == "lstm").or(est.models.first()),
+                None => est
+                    .models
+                    .iter()
+                    .find(|m| m.name == "lstm")
+                    .or(est.models.first()),
             }?;
             // Against the slowly adapting reference when adaptation runs (a fault is not
             // learned away in seconds: see model::adapt), else the raw prediction.
@@ -309,8 +447,14 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
             Some((measured? - f64::from(predicted)).abs()).filter(|v| v.is_finite())
         }
         K::ModelsDisagree { .. } => {
-            let ps = est.models.iter().map(|m| f64::from(m.power_w)).filter(|p| p.is_finite());
-            let (lo, hi) = ps.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
+            let ps = est
+                .models
+                .iter()
+                .map(|m| f64::from(m.power_w))
+                .filter(|p| p.is_finite());
+            let (lo, hi) = ps.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p), hi.max(p))
+            });
             (est.models.len() >= 2 && hi >= lo).then_some(hi - lo)
         }
         K::CellVoltageBelow { .. } => en.cell_voltage_v,
@@ -326,7 +470,13 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
             let threshold = below_v.or(en.pack.low_threshold_v)?;
             Some(en.pack.v_min_forecast_v? - threshold).filter(|d| d.is_finite())
         }
-        K::TelemetryLost {} => Some(if est.sample.stale_mask & KINEMATIC_MASK == KINEMATIC_MASK { 1.0 } else { 0.0 }),
+        K::TelemetryLost {} => Some(
+            if est.sample.stale_mask & KINEMATIC_MASK == KINEMATIC_MASK {
+                1.0
+            } else {
+                0.0
+            },
+        ),
     }
 }
 
@@ -373,23 +523,38 @@ impl AlertEngine {
                 st.raised_at = st.raised_at.map(|_| t);
             }
             st.last_t = Some(t);
-            let Some(v) = value(rule, est, energy) else { continue };
+            let Some(v) = value(rule, est, energy) else {
+                continue;
+            };
             let (raising, clearing) = match l.dir {
                 Dir::Below => (v < l.raise, v >= l.clear),
                 Dir::Above => (v > l.raise, v <= l.clear),
             };
             let mut emit = |state, text: String| {
-                events.push(AlertEvent { t, rule: rule.name.clone(), severity: rule.severity, state, message: text })
+                events.push(AlertEvent {
+                    t,
+                    rule: rule.name.clone(),
+                    severity: rule.severity,
+                    state,
+                    message: text,
+                })
             };
             let text = |prefix: &str| {
                 let head = rule.message.as_deref().unwrap_or(&rule.name);
                 if matches!(rule.kind, AlertKind::TelemetryLost {}) {
                     format!("{prefix}{head}")
-                } else if let (AlertKind::VoltageForecastBelow { .. }, Some(low), Some(at)) =
-                    (&rule.kind, energy.pack.v_min_forecast_v, energy.pack.v_min_forecast_at_s)
-                {
+                } else if let (AlertKind::VoltageForecastBelow { .. }, Some(low), Some(at)) = (
+                    &rule.kind,
+                    energy.pack.v_min_forecast_v,
+                    energy.pack.v_min_forecast_at_s,
+                ) {
                     // "sags to 20.6 V (0.4 V under) in 3:05": what, by how much, and when.
-                    format!("{prefix}{head} {low:.1}V ({}V) in {}:{:02}", fmt_value(v), (at / 60.0).floor(), (at % 60.0).floor())
+                    format!(
+                        "{prefix}{head} {low:.1}V ({}V) in {}:{:02}",
+                        fmt_value(v),
+                        (at / 60.0).floor(),
+                        (at % 60.0).floor()
+                    )
                 } else {
                     format!("{prefix}{head} {}{}", fmt_value(v), l.unit)
                 }

@@ -46,16 +46,27 @@ pub struct ConfigError {
 impl Config {
     /// Read and validate a configuration file.
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
-        let err = |message: String| ConfigError { file: path.to_path_buf(), message };
+        let err = |message: String| ConfigError {
+            file: path.to_path_buf(),
+            message,
+        };
         let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
-        let mut cfg: Config = toml::from_str(&text).map_err(|e| err(e.to_string().trim_end().to_string()))?;
+        let mut cfg: Config =
+            toml::from_str(&text).map_err(|e| err(e.to_string().trim_end().to_string()))?;
         if let (Some(v), Some(dir)) = (cfg.vehicle.as_mut(), path.parent()) {
             if v.is_relative() {
                 *v = dir.join(&*v);
             }
         }
         let dir = path.parent().unwrap_or(Path::new(""));
-        for p in [cfg.link.signing_key_file.as_mut(), cfg.sinks.web.token_file.as_mut(), cfg.forecast.live.calibrated_profile.as_mut()].into_iter().flatten() {
+        for p in [
+            cfg.link.signing_key_file.as_mut(),
+            cfg.sinks.web.token_file.as_mut(),
+            cfg.forecast.live.calibrated_profile.as_mut(),
+        ]
+        .into_iter()
+        .flatten()
+        {
             if p.is_relative() {
                 *p = dir.join(&*p);
             }

@@ -46,14 +46,22 @@ fn version_name(v: MavlinkVersion) -> &'static str {
 
 /// Decode `input` in chunks of the given sizes (cycled), draining after each push; checks
 /// the buffering bound on the way.
-fn decode_chunked(framing: Framing, input: &[u8], chunks: &[usize]) -> Result<(Vec<FrameKey>, StatsSnapshot, ByteTally), String> {
+fn decode_chunked(
+    framing: Framing,
+    input: &[u8],
+    chunks: &[usize],
+) -> Result<(Vec<FrameKey>, StatsSnapshot, ByteTally), String> {
     let stats = IngestStats::default();
     let mut d = FrameDecoder::new(framing);
     let mut frames = Vec::new();
     let mut at = 0;
     let mut k = 0;
     while at < input.len() {
-        let n = chunks.get(k % chunks.len().max(1)).copied().unwrap_or(input.len()).clamp(1, input.len() - at);
+        let n = chunks
+            .get(k % chunks.len().max(1))
+            .copied()
+            .unwrap_or(input.len())
+            .clamp(1, input.len() - at);
         k += 1;
         d.push(&input[at..at + n]);
         at += n;
@@ -61,7 +69,11 @@ fn decode_chunked(framing: Framing, input: &[u8], chunks: &[usize]) -> Result<(V
             frames.push((f.header, f.version, f.msg.message_id(), f.stamp_us));
         }
         if d.pending_len() > MAX_PENDING {
-            return Err(format!("{framing:?}: {} bytes buffered after {at} of {} pushed (bound {MAX_PENDING})", d.pending_len(), input.len()));
+            return Err(format!(
+                "{framing:?}: {} bytes buffered after {at} of {} pushed (bound {MAX_PENDING})",
+                d.pending_len(),
+                input.len()
+            ));
         }
     }
     d.finish();
@@ -69,13 +81,22 @@ fn decode_chunked(framing: Framing, input: &[u8], chunks: &[usize]) -> Result<(V
         frames.push((f.header, f.version, f.msg.message_id(), f.stamp_us));
     }
     if d.pending_len() != 0 {
-        return Err(format!("{framing:?}: {} bytes left undecoded after finish", d.pending_len()));
+        return Err(format!(
+            "{framing:?}: {} bytes left undecoded after finish",
+            d.pending_len()
+        ));
     }
     Ok((frames, stats.snapshot(), d.byte_tally()))
 }
 
 /// `ok + bad + unknown + junk == input bytes`, and the frame counters agree with the bytes.
-fn check_accounting(what: &str, len: usize, s: &StatsSnapshot, t: &ByteTally, min_frame: u64) -> Result<(), String> {
+fn check_accounting(
+    what: &str,
+    len: usize,
+    s: &StatsSnapshot,
+    t: &ByteTally,
+    min_frame: u64,
+) -> Result<(), String> {
     let sum = t.ok + t.bad + t.unknown + s.junk_bytes;
     if sum != len as u64 {
         return Err(format!(
@@ -84,31 +105,63 @@ fn check_accounting(what: &str, len: usize, s: &StatsSnapshot, t: &ByteTally, mi
         ));
     }
     if t.ok < s.frames_ok * min_frame || (s.frames_ok == 0) != (t.ok == 0) {
-        return Err(format!("{what}: {} good frames in {} good bytes", s.frames_ok, t.ok));
+        return Err(format!(
+            "{what}: {} good frames in {} good bytes",
+            s.frames_ok, t.ok
+        ));
     }
     // Not `unknown × min_frame`: an unknown frame's span ends where a good frame found
     // inside it begins, so it may keep fewer bytes than a whole frame.
     if (s.unknown == 0) != (t.unknown == 0) {
-        return Err(format!("{what}: {} unknown frames in {} unknown bytes", s.unknown, t.unknown));
+        return Err(format!(
+            "{what}: {} unknown frames in {} unknown bytes",
+            s.unknown, t.unknown
+        ));
     }
     if t.bad > 0 && s.frames_bad == 0 {
-        return Err(format!("{what}: {} bad bytes but no bad frame counted", t.bad));
+        return Err(format!(
+            "{what}: {} bad bytes but no bad frame counted",
+            t.bad
+        ));
     }
     Ok(())
 }
 
 /// One valid frame of `msg` as `version` (signed: MAVLink 2 with the signing flag and a
 /// 13-byte signature, which dronewatt does not verify but must skip).
-pub fn encode_frame(header: MavHeader, msg: &MavMessage, version: MavlinkVersion, signed: bool) -> Vec<u8> {
+pub fn encode_frame(
+    header: MavHeader,
+    msg: &MavMessage,
+    version: MavlinkVersion,
+    signed: bool,
+) -> Vec<u8> {
     let mut payload = [0u8; 255];
     let n = msg.ser(version, &mut payload);
     let id = msg.message_id();
     let mut out = match version {
-        MavlinkVersion::V1 => vec![frame::STX_V1, n as u8, header.sequence, header.system_id as u8, header.component_id, id as u8],
+        MavlinkVersion::V1 => vec![
+            frame::STX_V1,
+            n as u8,
+            header.sequence,
+            header.system_id as u8,
+            header.component_id,
+            id as u8,
+        ],
         MavlinkVersion::V2 => {
             let [a, b, c, _] = id.to_le_bytes();
             let incompat = if signed { frame::IFLAG_SIGNED } else { 0 };
-            vec![frame::STX_V2, n as u8, incompat, 0, header.sequence, header.system_id as u8, header.component_id, a, b, c]
+            vec![
+                frame::STX_V2,
+                n as u8,
+                incompat,
+                0,
+                header.sequence,
+                header.system_id as u8,
+                header.component_id,
+                a,
+                b,
+                c,
+            ]
         }
     };
     out.extend_from_slice(&payload[..n]);
@@ -125,17 +178,44 @@ pub fn encode_frame(header: MavHeader, msg: &MavMessage, version: MavlinkVersion
 fn embedded_frame(sel: u8, seq: u8) -> (MavHeader, MavMessage, MavlinkVersion, bool) {
     use crate::dialect::*;
     let msg = match sel % 4 {
-        0 => MavMessage::HEARTBEAT(HEARTBEAT_DATA { mavlink_version: 3, ..Default::default() }),
-        1 => MavMessage::ATTITUDE(ATTITUDE_DATA { time_boot_ms: 1234, roll: 0.1, pitch: -0.2, yaw: 1.5, ..Default::default() }),
-        2 => MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA { lat: 473_977_420, lon: 85_455_940, alt: 12_000, ..Default::default() }),
-        _ => MavMessage::SYS_STATUS(SYS_STATUS_DATA { voltage_battery: 22_800, current_battery: 1_250, ..Default::default() }),
+        0 => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            mavlink_version: 3,
+            ..Default::default()
+        }),
+        1 => MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: 1234,
+            roll: 0.1,
+            pitch: -0.2,
+            yaw: 1.5,
+            ..Default::default()
+        }),
+        2 => MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            lat: 473_977_420,
+            lon: 85_455_940,
+            alt: 12_000,
+            ..Default::default()
+        }),
+        _ => MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+            voltage_battery: 22_800,
+            current_battery: 1_250,
+            ..Default::default()
+        }),
     };
     let (version, signed) = match (sel >> 2) % 3 {
         0 => (MavlinkVersion::V1, false),
         1 => (MavlinkVersion::V2, false),
         _ => (MavlinkVersion::V2, true),
     };
-    (MavHeader { system_id: 1 + (sel >> 4) as u32, component_id: 1, sequence: seq }, msg, version, signed)
+    (
+        MavHeader {
+            system_id: 1 + (sel >> 4) as u32,
+            component_id: 1,
+            sequence: seq,
+        },
+        msg,
+        version,
+        signed,
+    )
 }
 
 /// The frame decoder. The first byte picks the framing (bit 0: tlog) and the chunk sizes
@@ -144,24 +224,42 @@ fn embedded_frame(sel: u8, seq: u8) -> (MavHeader, MavMessage, MavlinkVersion, b
 /// that it is found, unless the garbage before it itself holds a valid frame that runs
 /// over it.
 pub fn check_decoder(data: &[u8]) -> Result<(), String> {
-    let Some((&mode, rest)) = data.split_first() else { return Ok(()) };
+    let Some((&mode, rest)) = data.split_first() else {
+        return Ok(());
+    };
     let (c1, c2, input) = match rest {
         [a, b, tail @ ..] => (*a, *b, tail),
         _ => return Ok(()),
     };
-    let framing = if mode & 1 == 1 { Framing::Tlog } else { Framing::Stream };
+    let framing = if mode & 1 == 1 {
+        Framing::Tlog
+    } else {
+        Framing::Stream
+    };
     let min_frame = if framing == Framing::Tlog { 16 } else { 8 };
 
     // One push of everything, then odd chunk sizes: the same frames and counters.
     let (whole, s, t) = decode_chunked(framing, input, &[input.len()])?;
     check_accounting(&format!("{framing:?}"), input.len(), &s, &t, min_frame)?;
     if s.frames_ok != whole.len() as u64 {
-        return Err(format!("{framing:?}: frames_ok {} but {} frames returned", s.frames_ok, whole.len()));
+        return Err(format!(
+            "{framing:?}: frames_ok {} but {} frames returned",
+            s.frames_ok,
+            whole.len()
+        ));
     }
     if s.gaps > s.frames_ok + s.unknown {
-        return Err(format!("{framing:?}: {} gaps for {} frames", s.gaps, s.frames_ok + s.unknown));
+        return Err(format!(
+            "{framing:?}: {} gaps for {} frames",
+            s.gaps,
+            s.frames_ok + s.unknown
+        ));
     }
-    let chunks = [1 + c1 as usize % 64, 1 + c2 as usize, 1 + (c1 ^ c2) as usize % 7];
+    let chunks = [
+        1 + c1 as usize % 64,
+        1 + c2 as usize,
+        1 + (c1 ^ c2) as usize % 7,
+    ];
     let (parts, s2, t2) = decode_chunked(framing, input, &chunks)?;
     if parts != whole || s2 != s || t2 != t {
         return Err(format!(
@@ -175,15 +273,26 @@ pub fn check_decoder(data: &[u8]) -> Result<(), String> {
     if framing == Framing::Stream {
         let (header, msg, version, signed) = embedded_frame(mode >> 1, c1);
         let frame_bytes = encode_frame(header, &msg, version, signed);
-        let split = if input.is_empty() { 0 } else { c2 as usize % (input.len() + 1) };
+        let split = if input.is_empty() {
+            0
+        } else {
+            c2 as usize % (input.len() + 1)
+        };
         let (prefix, suffix) = input.split_at(split);
         let mut stream = prefix.to_vec();
         stream.extend_from_slice(&frame_bytes);
         stream.extend_from_slice(suffix);
         // A good frame starting in the garbage and running into ours may hide it.
-        let shadowed = (0..prefix.len()).any(|i| frame::good_frame_len(&stream[i..]).is_some_and(|n| i + n > prefix.len()));
+        let shadowed = (0..prefix.len())
+            .any(|i| frame::good_frame_len(&stream[i..]).is_some_and(|n| i + n > prefix.len()));
         let (found, s, t) = decode_chunked(Framing::Stream, &stream, &chunks)?;
-        check_accounting("Stream with a frame inside", stream.len(), &s, &t, min_frame)?;
+        check_accounting(
+            "Stream with a frame inside",
+            stream.len(),
+            &s,
+            &t,
+            min_frame,
+        )?;
         let want = (header, version, msg.message_id(), None);
         if !shadowed && !found.contains(&want) {
             return Err(format!(
@@ -211,10 +320,16 @@ fn check_timed(what: &str, mut r: TimedReader, input: &[u8], min_frame: u64) -> 
             return Err(format!("{what}: message {n} has t_s = {}", m.t_s));
         }
         if n == 0 && m.t_s != 0.0 {
-            return Err(format!("{what}: the first message has t_s = {}, not 0", m.t_s));
+            return Err(format!(
+                "{what}: the first message has t_s = {}, not 0",
+                m.t_s
+            ));
         }
         if m.t_s < last {
-            return Err(format!("{what}: t_s goes back from {last} to {} at message {n}", m.t_s));
+            return Err(format!(
+                "{what}: t_s goes back from {last} to {} at message {n}",
+                m.t_s
+            ));
         }
         last = m.t_s;
         n += 1;
@@ -222,10 +337,16 @@ fn check_timed(what: &str, mut r: TimedReader, input: &[u8], min_frame: u64) -> 
     let s = stats.snapshot();
     check_accounting(what, input.len(), &s, &r.byte_tally(), min_frame)?;
     if s.frames_ok != n {
-        return Err(format!("{what}: frames_ok {} but {n} messages", s.frames_ok));
+        return Err(format!(
+            "{what}: frames_ok {} but {n} messages",
+            s.frames_ok
+        ));
     }
     if s.clock_jumps > n || s.clock_jumps > s.gaps {
-        return Err(format!("{what}: {} clock jumps, {} gaps, {n} messages", s.clock_jumps, s.gaps));
+        return Err(format!(
+            "{what}: {} clock jumps, {} gaps, {n} messages",
+            s.clock_jumps, s.gaps
+        ));
     }
     Ok(())
 }
@@ -234,19 +355,32 @@ fn check_timed(what: &str, mut r: TimedReader, input: &[u8], min_frame: u64) -> 
 /// or messages whose times are finite, from 0 up and never going back, and no more
 /// messages than input bytes (every message comes from a record of several bytes: nothing
 /// is made up out of a time span, so a log cannot make the reader allocate without bound).
-fn check_autopilot_log<E: std::fmt::Display>(what: &str, data: &[u8], decode: fn(&[u8], &IngestStats) -> Result<Vec<crate::source::TimedMessage>, E>) -> Result<(), String> {
+fn check_autopilot_log<E: std::fmt::Display>(
+    what: &str,
+    data: &[u8],
+    decode: fn(&[u8], &IngestStats) -> Result<Vec<crate::source::TimedMessage>, E>,
+) -> Result<(), String> {
     let stats = IngestStats::default();
     match decode(data, &stats) {
-        Err(e) if e.to_string().trim().is_empty() => Err(format!("{what}: an error that says nothing")),
+        Err(e) if e.to_string().trim().is_empty() => {
+            Err(format!("{what}: an error that says nothing"))
+        }
         Err(_) => Ok(()),
         Ok(msgs) => {
             if msgs.len() > data.len() {
-                return Err(format!("{what}: {} messages from {} bytes", msgs.len(), data.len()));
+                return Err(format!(
+                    "{what}: {} messages from {} bytes",
+                    msgs.len(),
+                    data.len()
+                ));
             }
             let mut last = 0.0f64;
             for (n, m) in msgs.iter().enumerate() {
                 if !m.t_s.is_finite() || m.t_s < last {
-                    return Err(format!("{what}: message {n} has t_s = {} after {last}", m.t_s));
+                    return Err(format!(
+                        "{what}: message {n} has t_s = {} after {last}",
+                        m.t_s
+                    ));
                 }
                 last = m.t_s;
             }
@@ -257,7 +391,11 @@ fn check_autopilot_log<E: std::fmt::Display>(what: &str, data: &[u8], decode: fn
 
 /// The ArduPilot DataFlash (`.bin`) reader.
 pub fn check_dataflash(data: &[u8]) -> Result<(), String> {
-    check_autopilot_log("dataflash", data, crate::source::dataflash::decode_dataflash)
+    check_autopilot_log(
+        "dataflash",
+        data,
+        crate::source::dataflash::decode_dataflash,
+    )
 }
 
 /// The PX4 ULog (`.ulg`) reader.
@@ -283,13 +421,25 @@ pub fn check_csv(data: &[u8]) -> Result<(), String> {
     let Ok(text) = std::str::from_utf8(data) else {
         return Err("parse_flights accepted bytes that are not UTF-8".into());
     };
-    let lines = text.split('\n').skip(1).filter(|l| !l.trim().is_empty()).count();
+    let lines = text
+        .split('\n')
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .count();
     let rows: usize = ds.flights.iter().map(|f| f.rows.len()).sum();
     if rows + ds.skipped.len() != lines {
-        return Err(format!("{lines} data lines but {rows} rows kept + {} skipped", ds.skipped.len()));
+        return Err(format!(
+            "{lines} data lines but {rows} rows kept + {} skipped",
+            ds.skipped.len()
+        ));
     }
-    if ds.skipped.windows(2).any(|w| w[0].line >= w[1].line) || ds.skipped.iter().any(|s| s.line < 2 || s.reason.is_empty()) {
-        return Err(format!("skipped rows out of order or unnamed: {:?}", ds.skipped));
+    if ds.skipped.windows(2).any(|w| w[0].line >= w[1].line)
+        || ds.skipped.iter().any(|s| s.line < 2 || s.reason.is_empty())
+    {
+        return Err(format!(
+            "skipped rows out of order or unnamed: {:?}",
+            ds.skipped
+        ));
     }
     if ds.all_flights.windows(2).any(|w| w[0] >= w[1]) {
         return Err(format!("all_flights not increasing: {:?}", ds.all_flights));
@@ -298,10 +448,18 @@ pub fn check_csv(data: &[u8]) -> Result<(), String> {
         if !ds.all_flights.contains(&f.flight) {
             return Err(format!("flight {} read but not in all_flights", f.flight));
         }
-        if ![f.speed_m_s, f.payload_g, f.altitude_m].iter().all(|x| x.is_finite()) {
-            return Err(format!("flight {}: a non-finite speed, payload or altitude", f.flight));
+        if ![f.speed_m_s, f.payload_g, f.altitude_m]
+            .iter()
+            .all(|x| x.is_finite())
+        {
+            return Err(format!(
+                "flight {}: a non-finite speed, payload or altitude",
+                f.flight
+            ));
         }
-        if f.rows.windows(2).any(|w| w[0].time_s >= w[1].time_s) || f.rows.iter().any(|r| !r.time_s.is_finite()) {
+        if f.rows.windows(2).any(|w| w[0].time_s >= w[1].time_s)
+            || f.rows.iter().any(|r| !r.time_s.is_finite())
+        {
             return Err(format!("flight {}: time does not increase", f.flight));
         }
     }
@@ -312,7 +470,10 @@ pub fn check_csv(data: &[u8]) -> Result<(), String> {
             let msgs = crate::source::tlog::decode_tlog(&bytes, &stats);
             let s = stats.snapshot();
             if s.frames_bad != 0 || s.unknown != 0 || s.junk_bytes != 0 || msgs.is_empty() {
-                return Err(format!("flight {}: its own encoding decodes with {s:?}", f.flight));
+                return Err(format!(
+                    "flight {}: its own encoding decodes with {s:?}",
+                    f.flight
+                ));
             }
         }
     }
@@ -321,14 +482,21 @@ pub fn check_csv(data: &[u8]) -> Result<(), String> {
 
 /// The TOML configuration: parse, then validate.
 pub fn check_config(data: &[u8]) -> Result<(), String> {
-    let Ok(text) = std::str::from_utf8(data) else { return Ok(()) };
-    let Ok(cfg) = toml::from_str::<crate::config::Config>(text) else { return Ok(()) };
+    let Ok(text) = std::str::from_utf8(data) else {
+        return Ok(());
+    };
+    let Ok(cfg) = toml::from_str::<crate::config::Config>(text) else {
+        return Ok(());
+    };
     let errors = cfg.errors();
     if errors != cfg.errors() {
         return Err("validate() is not deterministic".into());
     }
     const KEYS: [&str; 5] = ["telemetry.", "energy.", "alerts[", "sinks.", "mission."];
-    if let Some(e) = errors.iter().find(|e| !KEYS.iter().any(|k| e.starts_with(k))) {
+    if let Some(e) = errors
+        .iter()
+        .find(|e| !KEYS.iter().any(|k| e.starts_with(k)))
+    {
         return Err(format!("a validation message names no key: {e:?}"));
     }
     if cfg.validate().is_ok() != errors.is_empty() {
@@ -336,12 +504,21 @@ pub fn check_config(data: &[u8]) -> Result<(), String> {
     }
     if errors.is_empty() {
         if cfg.vehicle.is_none() {
-            crate::energy::EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s).map_err(|e| format!("validated, but the energy tracker refuses it: {e}"))?;
+            crate::energy::EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)
+                .map_err(|e| format!("validated, but the energy tracker refuses it: {e}"))?;
         }
-        crate::alert::AlertEngine::new(&cfg.alerts).map_err(|e| format!("validated, but the alert engine refuses it: {e}"))?;
+        crate::alert::AlertEngine::new(&cfg.alerts)
+            .map_err(|e| format!("validated, but the alert engine refuses it: {e}"))?;
         let _ = crate::telemetry::Telemetry::new(&cfg.telemetry, &cfg.mission);
-        if let Some(r) = cfg.alerts.iter().find(|r| r.describe().ends_with(": invalid")) {
-            return Err(format!("validated, but rule '{}' describes itself as invalid", r.name));
+        if let Some(r) = cfg
+            .alerts
+            .iter()
+            .find(|r| r.describe().ends_with(": invalid"))
+        {
+            return Err(format!(
+                "validated, but rule '{}' describes itself as invalid",
+                r.name
+            ));
         }
     }
     Ok(())
@@ -353,16 +530,23 @@ pub fn check_config(data: &[u8]) -> Result<(), String> {
 /// names the file, the item or the whole file, and why. Reading is deterministic.
 pub fn check_plan(data: &[u8]) -> Result<(), String> {
     use crate::mission::plan::{parse_qgc_plan, parse_waypoints, Plan, PlanError};
-    let Ok(text) = std::str::from_utf8(data) else { return Ok(()) };
+    let Ok(text) = std::str::from_utf8(data) else {
+        return Ok(());
+    };
     type Reader = fn(&str, &str) -> Result<Plan, PlanError>;
-    let readers: [(&str, Reader); 2] = [("fuzz.plan", parse_qgc_plan), ("fuzz.waypoints", parse_waypoints)];
+    let readers: [(&str, Reader); 2] = [
+        ("fuzz.plan", parse_qgc_plan),
+        ("fuzz.waypoints", parse_waypoints),
+    ];
     for (file, read) in readers {
         let first = read(text, file);
         let again = read(text, file);
         match (&first, &again) {
             (Err(a), Err(b)) if a.to_string() == b.to_string() => {
                 if a.file != file || a.at.is_empty() || a.why.is_empty() {
-                    return Err(format!("{file}: an error that does not say where and why: {a:?}"));
+                    return Err(format!(
+                        "{file}: an error that does not say where and why: {a:?}"
+                    ));
                 }
             }
             (Ok(a), Ok(b)) if a.items.len() == b.items.len() => {
@@ -370,7 +554,11 @@ pub fn check_plan(data: &[u8]) -> Result<(), String> {
                     return Err(format!("{file}: read with no items"));
                 }
                 let in_range = |p: &crate::mission::plan::GeoPoint| {
-                    p.lat_deg.is_finite() && p.lon_deg.is_finite() && p.alt_m.is_finite() && p.lat_deg.abs() <= 90.0 && p.lon_deg.abs() <= 180.0
+                    p.lat_deg.is_finite()
+                        && p.lon_deg.is_finite()
+                        && p.alt_m.is_finite()
+                        && p.lat_deg.abs() <= 90.0
+                        && p.lon_deg.abs() <= 180.0
                 };
                 if !in_range(&a.home) {
                     return Err(format!("{file}: home out of range: {:?}", a.home));

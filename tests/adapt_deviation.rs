@@ -5,9 +5,9 @@
 
 use dronewatt::alert::{AlertEngine, AlertRule, AlertState};
 use dronewatt::energy::EnergyState;
+use dronewatt::features::{Sample, N_FEATURES};
 use dronewatt::model::adapt::{AdaptConfig, Adaptation};
 use dronewatt::model::{Ensemble, PowerModel, Prediction};
-use dronewatt::features::{Sample, N_FEATURES};
 use dronewatt::telemetry::window::Window;
 
 /// A model that predicts half of what the vehicle really draws in normal flight (an M100
@@ -20,15 +20,29 @@ impl PowerModel for HalfModel {
     }
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
         out.clear();
-        out.extend(windows.iter().map(|w| Prediction { power_w: w.last().features[0], band_w: None }));
+        out.extend(windows.iter().map(|w| Prediction {
+            power_w: w.last().features[0],
+            band_w: None,
+        }));
     }
 }
 
 fn window(t_s: f64, demand_w: f32, measured_w: f32) -> Window {
     let mut features = [0.0; N_FEATURES];
     features[0] = demand_w;
-    let s = Sample { t_s, features, measured_w: Some(measured_w), voltage_v: Some(22.2), home: None, stale_mask: 0, battery_remaining_pct: None };
-    Window { samples: vec![s], arrived: None }
+    let s = Sample {
+        t_s,
+        features,
+        measured_w: Some(measured_w),
+        voltage_v: Some(22.2),
+        home: None,
+        stale_mask: 0,
+        battery_remaining_pct: None,
+    };
+    Window {
+        samples: vec![s],
+        arrived: None,
+    }
 }
 
 fn rules() -> Vec<AlertRule> {
@@ -69,7 +83,10 @@ fn fly(adapt: bool) -> (Option<f64>, f64) {
         }
         if t < 300.0 && adapt {
             // Normal flight: once adapted the alert is quiet.
-            assert!(t < 30.0 || raised.is_none(), "raised in normal flight at {t} s");
+            assert!(
+                t < 30.0 || raised.is_none(),
+                "raised in normal flight at {t} s"
+            );
         }
     }
     (raised, last_err)
@@ -79,9 +96,15 @@ fn fly(adapt: bool) -> (Option<f64>, f64) {
 fn a_sudden_30_pct_step_still_raises_deviation_above() {
     let (raised, last_err) = fly(true);
     let after = raised.expect("deviation_above never raised on a 30 % power step");
-    assert!((0.0..10.0).contains(&after), "raised {after} s after the step");
+    assert!(
+        (0.0..10.0).contains(&after),
+        "raised {after} s after the step"
+    );
     // Meanwhile the published fit followed the faulty vehicle (it is a forecast).
-    assert!(last_err < 25.0, "adapted estimate off by {last_err} W a minute after the step");
+    assert!(
+        last_err < 25.0,
+        "adapted estimate off by {last_err} W a minute after the step"
+    );
     // Without adaptation the model is simply wrong for this vehicle: the alert raises in
     // normal flight, long before any fault, and means nothing.
     let (raised, _) = fly(false);

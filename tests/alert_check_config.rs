@@ -4,7 +4,11 @@
 use std::process::Command;
 
 fn check(path: &std::path::Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt")).arg("check-config").arg(path).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .arg("check-config")
+        .arg(path)
+        .output()
+        .unwrap()
 }
 
 #[test]
@@ -13,21 +17,44 @@ fn shipped_configs_pass() {
     for (file, rules) in [("config/dronewatt.toml", 10), ("config/demo.toml", 5)] {
         let out = check(&root.join(file));
         let text = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "{file}: {}", String::from_utf8_lossy(&out.stderr));
-        assert!(text.contains(&format!("alerts: {rules} rule(s)")), "{file}:\n{text}");
-        assert!(text.contains("sinks.mavlink: ") && text.contains("component 191"), "{file}:\n{text}");
+        assert!(
+            out.status.success(),
+            "{file}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            text.contains(&format!("alerts: {rules} rule(s)")),
+            "{file}:\n{text}"
+        );
+        assert!(
+            text.contains("sinks.mavlink: ") && text.contains("component 191"),
+            "{file}:\n{text}"
+        );
     }
-    let text = String::from_utf8_lossy(&check(&root.join("config/dronewatt.toml")).stdout).to_string();
-    assert!(text.contains("mission_margin [critical]: mission-reserve margin < 0 Wh, clears ≥ 3 Wh"), "{text}");
+    let text =
+        String::from_utf8_lossy(&check(&root.join("config/dronewatt.toml")).stdout).to_string();
+    assert!(
+        text.contains("mission_margin [critical]: mission-reserve margin < 0 Wh, clears ≥ 3 Wh"),
+        "{text}"
+    );
 }
 
 #[test]
 fn a_bad_config_names_file_key_and_reason() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("mine.toml");
-    std::fs::write(&p, "[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\nclear_wh = 25\n").unwrap();
+    std::fs::write(
+        &p,
+        "[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\nclear_wh = 25\n",
+    )
+    .unwrap();
     let out = check(&p);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("mine.toml") && err.contains("alerts[0] (low).clear_wh = 25") && err.contains("must be ≥"), "{err}");
+    assert!(
+        err.contains("mine.toml")
+            && err.contains("alerts[0] (low).clear_wh = 25")
+            && err.contains("must be ≥"),
+        "{err}"
+    );
 }

@@ -11,44 +11,105 @@ fn demo_raises_its_mission_and_pack_alerts_mid_flight() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     // The demo's config without the dashboard, so the test needs no free port 8787.
     let demo = std::fs::read_to_string(root.join("config/demo.toml")).unwrap();
-    assert!(demo.contains("kind = \"mission_margin_below\"\nbelow_wh = 1\n") && demo.contains("below_pct = 20"), "the demo config changed: update this test");
+    assert!(
+        demo.contains("kind = \"mission_margin_below\"\nbelow_wh = 1\n")
+            && demo.contains("below_pct = 20"),
+        "the demo config changed: update this test"
+    );
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("demo.toml");
-    let vehicles = format!("calibrated_profile = \"{}/", root.join("config/vehicles").display());
-    std::fs::write(&cfg, demo.replace("enabled = true", "enabled = false").replace("calibrated_profile = \"vehicles/", &vehicles)).unwrap();
+    let vehicles = format!(
+        "calibrated_profile = \"{}/",
+        root.join("config/vehicles").display()
+    );
+    std::fs::write(
+        &cfg,
+        demo.replace("enabled = true", "enabled = false")
+            .replace("calibrated_profile = \"vehicles/", &vehicles),
+    )
+    .unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["replay", "--speed", "max", "-q", "--data-dir", "off", "--json", "-", "--config"])
+        .args([
+            "replay",
+            "--speed",
+            "max",
+            "-q",
+            "--data-dir",
+            "off",
+            "--json",
+            "-",
+            "--config",
+        ])
         .arg(&cfg)
         .arg(root.join("replay/demo.tlog"))
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     let est: Vec<&serde_json::Value> = lines.iter().filter(|l| l["type"] == "estimate").collect();
     let end = est.last().unwrap()["t"].as_f64().unwrap();
     let events = |rule: &str, state: &str| -> Vec<f64> {
-        lines.iter().filter(|l| l["type"] == "alert" && l["rule"] == rule && l["state"] == state).map(|l| l["t"].as_f64().unwrap()).collect()
+        lines
+            .iter()
+            .filter(|l| l["type"] == "alert" && l["rule"] == rule && l["state"] == state)
+            .map(|l| l["t"].as_f64().unwrap())
+            .collect()
     };
     // The pack starts from its resting voltage, part-used.
-    let flying = est.iter().find(|e| e["t"].as_f64().unwrap() > 20.0).unwrap();
+    let flying = est
+        .iter()
+        .find(|e| e["t"].as_f64().unwrap() > 20.0)
+        .unwrap();
     assert_eq!(flying["remaining_source"], "resting voltage", "{flying}");
     let soc = flying["soc_pct"].as_f64().unwrap();
     assert!((50.0..65.0).contains(&soc), "a part-used pack: {soc} %");
-    let mut early: Vec<f64> = est.iter().filter(|e| (10.0..60.0).contains(&e["t"].as_f64().unwrap())).filter_map(|e| e["mission_margin_wh"].as_f64()).collect();
+    let mut early: Vec<f64> = est
+        .iter()
+        .filter(|e| (10.0..60.0).contains(&e["t"].as_f64().unwrap()))
+        .filter_map(|e| e["mission_margin_wh"].as_f64())
+        .collect();
     early.sort_by(f64::total_cmp);
-    assert!(early[early.len() / 2] > 2.0, "a margin over the alert's level at the start (median {})", early[early.len() / 2]);
+    assert!(
+        early[early.len() / 2] > 2.0,
+        "a margin over the alert's level at the start (median {})",
+        early[early.len() / 2]
+    );
 
     let raised = events("mission_margin", "raised");
     let cleared = events("mission_margin", "cleared");
     assert_eq!(raised.len(), 1, "mission_margin raised once: {raised:?}");
     let t = raised[0];
-    assert!(t > 0.35 * end && t < 0.7 * end, "mid-flight: {t} of {end} s");
+    assert!(
+        t > 0.35 * end && t < 0.7 * end,
+        "mid-flight: {t} of {end} s"
+    );
     let at = est.iter().find(|e| e["t"].as_f64().unwrap() >= t).unwrap();
-    assert!(at["mission_margin_wh"].as_f64().unwrap() < 1.0, "raised with the margin under 1 Wh: {at}");
-    assert!(cleared.len() == 1 && cleared[0] > t && cleared[0] < end - 30.0, "cleared on the way home: {cleared:?}");
+    assert!(
+        at["mission_margin_wh"].as_f64().unwrap() < 1.0,
+        "raised with the margin under 1 Wh: {at}"
+    );
+    assert!(
+        cleared.len() == 1 && cleared[0] > t && cleared[0] < end - 30.0,
+        "cleared on the way home: {cleared:?}"
+    );
     let sag = events("sag_forecast", "raised");
-    assert!(sag.first().is_some_and(|s| *s > t && *s < 0.7 * end), "voltage_forecast_below after it: {sag:?}");
+    assert!(
+        sag.first().is_some_and(|s| *s > t && *s < 0.7 * end),
+        "voltage_forecast_below after it: {sag:?}"
+    );
     let low = events("energy_low", "raised");
-    assert!(low.len() == 1 && low[0] > t && low[0] < 0.7 * end, "remaining_below mid-flight: {low:?}");
-    assert!(events("home_margin", "raised").is_empty() && events("power_high", "raised").is_empty());
+    assert!(
+        low.len() == 1 && low[0] > t && low[0] < 0.7 * end,
+        "remaining_below mid-flight: {low:?}"
+    );
+    assert!(
+        events("home_margin", "raised").is_empty() && events("power_high", "raised").is_empty()
+    );
 }

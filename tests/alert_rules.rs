@@ -11,13 +11,28 @@ fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
     Estimate {
         arrived: None,
         t_s,
-        sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None },
-        models: models.iter().map(|(n, p)| ModelEstimate::new(n.to_string(), *p, None)).collect(),
+        sample: Sample {
+            t_s,
+            features: [0.0; N_FEATURES],
+            measured_w,
+            voltage_v: None,
+            home: None,
+            stale_mask: 0,
+            battery_remaining_pct: None,
+        },
+        models: models
+            .iter()
+            .map(|(n, p)| ModelEstimate::new(n.to_string(), *p, None))
+            .collect(),
     }
 }
 
 fn energy(remaining_wh: f64) -> EnergyState {
-    EnergyState { remaining_wh: Some(remaining_wh), remaining_pct: Some(remaining_wh / 129.96 * 100.0), ..Default::default() }
+    EnergyState {
+        remaining_wh: Some(remaining_wh),
+        remaining_pct: Some(remaining_wh / 129.96 * 100.0),
+        ..Default::default()
+    }
 }
 
 fn parse(toml_text: &str) -> Config {
@@ -39,7 +54,9 @@ fn load_err(toml_text: &str) -> String {
 
 /// Feed `(t, remaining_wh)` pairs; collect the events.
 fn run(engine: &mut AlertEngine, seq: &[(f64, f64)]) -> Vec<AlertEvent> {
-    seq.iter().flat_map(|&(t, wh)| engine.evaluate(&est(t, Some(300.0), &[]), &energy(wh))).collect()
+    seq.iter()
+        .flat_map(|&(t, wh)| engine.evaluate(&est(t, Some(300.0), &[]), &energy(wh)))
+        .collect()
 }
 
 #[test]
@@ -55,10 +72,22 @@ fn hysteresis_raises_once_on_a_noisy_crossing() {
     );
     let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     // Remaining falls through 30 Wh with ±1.5 Wh noise: it crosses 30 many times.
-    let seq: Vec<(f64, f64)> =
-        (0..200).map(|i| (i as f64 * 0.1, 35.0 - i as f64 * 0.05 + if i % 2 == 0 { 1.5 } else { -1.5 })).collect();
-    let crossings = seq.windows(2).filter(|w| (w[0].1 < 30.0) != (w[1].1 < 30.0)).count();
-    assert!(crossings > 5, "the sequence must be noisy around the level ({crossings})");
+    let seq: Vec<(f64, f64)> = (0..200)
+        .map(|i| {
+            (
+                i as f64 * 0.1,
+                35.0 - i as f64 * 0.05 + if i % 2 == 0 { 1.5 } else { -1.5 },
+            )
+        })
+        .collect();
+    let crossings = seq
+        .windows(2)
+        .filter(|w| (w[0].1 < 30.0) != (w[1].1 < 30.0))
+        .count();
+    assert!(
+        crossings > 5,
+        "the sequence must be noisy around the level ({crossings})"
+    );
     let ev = run(&mut eng, &seq);
     assert_eq!(ev.len(), 1, "{ev:?}");
     assert_eq!(ev[0].state, AlertState::Raised);
@@ -76,7 +105,9 @@ fn without_hysteresis_the_same_crossing_flaps() {
     // The control for the test above: the clear level at the raise level flaps on noise.
     let cfg = parse("[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\n");
     let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
-    let seq: Vec<(f64, f64)> = (0..40).map(|i| (i as f64 * 0.1, if i % 2 == 0 { 31.0 } else { 29.0 })).collect();
+    let seq: Vec<(f64, f64)> = (0..40)
+        .map(|i| (i as f64 * 0.1, if i % 2 == 0 { 31.0 } else { 29.0 }))
+        .collect();
     let ev = run(&mut eng, &seq);
     // The first step is above the level; every one after it raises or clears.
     assert_eq!(ev.len(), 39, "raise and clear on every step");
@@ -101,7 +132,11 @@ fn debounce_needs_the_condition_to_hold_for_for_s() {
     let mut ev = Vec::new();
     for i in 0..50 {
         let t = i as f64 * 0.1;
-        let p = if (1.0..=2.5).contains(&t) { 900.0 } else { 500.0 };
+        let p = if (1.0..=2.5).contains(&t) {
+            900.0
+        } else {
+            500.0
+        };
         ev.extend(eng.evaluate(&est(t, Some(p), &[]), &e0));
     }
     assert!(ev.is_empty(), "{ev:?}");
@@ -134,7 +169,11 @@ fn repeat_says_it_again_while_raised() {
     let ev = run(&mut eng, &seq);
     let ts: Vec<f64> = ev.iter().map(|e| e.t).collect();
     assert_eq!(ts, vec![0.0, 10.0, 20.0, 30.0], "{ev:?}");
-    assert!(ev.iter().all(|e| e.state == AlertState::Raised && e.message.starts_with("Battery low 7.7%")), "{ev:?}");
+    assert!(
+        ev.iter()
+            .all(|e| e.state == AlertState::Raised && e.message.starts_with("Battery low 7.7%")),
+        "{ev:?}"
+    );
 }
 
 #[test]
@@ -237,26 +276,54 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
         "#,
     );
     let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
-    let state = |m: Option<f64>| EnergyState { remaining_wh: Some(80.0), mission_margin_wh: m, ..Default::default() };
+    let state = |m: Option<f64>| EnergyState {
+        remaining_wh: Some(80.0),
+        mission_margin_wh: m,
+        ..Default::default()
+    };
     // No mission known: nothing, however long.
-    let none: Vec<_> = (0..50).flat_map(|i| eng.evaluate(&est(i as f64 * 0.1, Some(300.0), &[]), &state(None))).collect();
+    let none: Vec<_> = (0..50)
+        .flat_map(|i| eng.evaluate(&est(i as f64 * 0.1, Some(300.0), &[]), &state(None)))
+        .collect();
     assert!(none.is_empty(), "{none:?}");
     // The margin dips under 0 for 1 s (debounce: no alert); then under 0 for 3 s (raised
     // once, after 2 s) and ±1.5 Wh for 17 s: never cleared (it must come back above 3 Wh).
     let mut events = Vec::new();
     for i in 0..10 {
-        events.extend(eng.evaluate(&est(5.0 + i as f64 * 0.1, Some(300.0), &[]), &state(Some(-1.0))));
+        events.extend(eng.evaluate(
+            &est(5.0 + i as f64 * 0.1, Some(300.0), &[]),
+            &state(Some(-1.0)),
+        ));
     }
     events.extend(eng.evaluate(&est(6.0, Some(300.0), &[]), &state(Some(5.0))));
     assert!(events.is_empty(), "a 1 s dip is debounced: {events:?}");
     for i in 0..200 {
-        let m = if i < 30 { -1.0 } else if i % 2 == 0 { -1.5 } else { 1.5 };
-        events.extend(eng.evaluate(&est(7.0 + i as f64 * 0.1, Some(300.0), &[]), &state(Some(m))));
+        let m = if i < 30 {
+            -1.0
+        } else if i % 2 == 0 {
+            -1.5
+        } else {
+            1.5
+        };
+        events.extend(eng.evaluate(
+            &est(7.0 + i as f64 * 0.1, Some(300.0), &[]),
+            &state(Some(m)),
+        ));
     }
     assert_eq!(events.len(), 1, "{events:?}");
     assert_eq!(events[0].state, AlertState::Raised);
-    assert!((events[0].t - 9.0).abs() < 0.15, "raised 2 s after 7 s: {}", events[0].t);
-    assert!(events[0].message.starts_with("mission cannot finish with reserve"), "{}", events[0].message);
+    assert!(
+        (events[0].t - 9.0).abs() < 0.15,
+        "raised 2 s after 7 s: {}",
+        events[0].t
+    );
+    assert!(
+        events[0]
+            .message
+            .starts_with("mission cannot finish with reserve"),
+        "{}",
+        events[0].message
+    );
     let cleared: Vec<_> = eng.evaluate(&est(30.0, Some(300.0), &[]), &state(Some(3.5)));
     assert_eq!(cleared.len(), 1);
     assert_eq!(cleared[0].state, AlertState::Cleared);
@@ -282,16 +349,30 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
         e
     };
     // The vehicle has not said its threshold: quiet, whatever the voltage.
-    assert!(eng.evaluate(&at(0.0, 10.0), &EnergyState::default()).is_empty());
+    assert!(eng
+        .evaluate(&at(0.0, 10.0), &EnergyState::default())
+        .is_empty());
     // BATT_LOW_VOLT = 14.4 V: raises under 14.6 V, clears from 14.8 V.
     let low = Sourced::new(14.4, Provenance::Parameter("BATT_LOW_VOLT".into()));
-    let en = EnergyState { battery: BatteryFacts { low_voltage_v: Some(low), ..Default::default() }, ..Default::default() };
+    let en = EnergyState {
+        battery: BatteryFacts {
+            low_voltage_v: Some(low),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
     assert!(eng.evaluate(&at(1.0, 14.7), &en).is_empty());
     let raised = eng.evaluate(&at(2.0, 14.5), &en);
     assert_eq!(raised.len(), 1);
     assert_eq!(raised[0].state, AlertState::Raised);
-    assert!(eng.evaluate(&at(3.0, 14.7), &en).is_empty(), "hysteresis: 14.7 V is not yet 14.8 V");
-    assert_eq!(eng.evaluate(&at(4.0, 14.9), &en)[0].state, AlertState::Cleared);
+    assert!(
+        eng.evaluate(&at(3.0, 14.7), &en).is_empty(),
+        "hysteresis: 14.7 V is not yet 14.8 V"
+    );
+    assert_eq!(
+        eng.evaluate(&at(4.0, 14.9), &en)[0].state,
+        AlertState::Cleared
+    );
     // A clear margin on the wrong side names its key.
     let err = load_err("[[alerts]]\nname = \"x\"\nkind = \"vehicle_voltage_below\"\nthreshold = \"critical\"\nmargin_v = 0.5\nclear_margin_v = 0.1\n");
     assert!(err.contains("clear_margin_v"), "{err}");
@@ -310,25 +391,57 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
     );
     let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let en = |v_min: Option<f64>, low: Option<f64>| EnergyState {
-        pack: PackState { v_min_forecast_v: v_min, v_min_forecast_at_s: Some(185.0), low_threshold_v: low, ..Default::default() },
+        pack: PackState {
+            v_min_forecast_v: v_min,
+            v_min_forecast_at_s: Some(185.0),
+            low_threshold_v: low,
+            ..Default::default()
+        },
         ..Default::default()
     };
     // No forecast yet, or no threshold: quiet.
-    assert!(eng.evaluate(&est(0.0, Some(300.0), &[]), &en(None, Some(21.0))).is_empty());
-    assert!(eng.evaluate(&est(1.0, Some(300.0), &[]), &en(Some(20.0), None)).is_empty());
-    assert!(eng.evaluate(&est(2.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0))).is_empty());
+    assert!(eng
+        .evaluate(&est(0.0, Some(300.0), &[]), &en(None, Some(21.0)))
+        .is_empty());
+    assert!(eng
+        .evaluate(&est(1.0, Some(300.0), &[]), &en(Some(20.0), None))
+        .is_empty());
+    assert!(eng
+        .evaluate(&est(2.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))
+        .is_empty());
     // The final climb sags to 20.6 V, under the 21.0 V low threshold, in 3 min 5 s.
     let raised = eng.evaluate(&est(3.0, Some(300.0), &[]), &en(Some(20.6), Some(21.0)));
     assert_eq!(raised.len(), 1);
     assert_eq!(raised[0].state, AlertState::Raised);
-    assert!(raised[0].message.contains("20.6V") && raised[0].message.contains("3:05"), "{}", raised[0].message);
-    assert!(raised[0].message.len() <= 50, "a STATUSTEXT holds 50 bytes: {}", raised[0].message);
-    assert!(eng.evaluate(&est(4.0, Some(300.0), &[]), &en(Some(21.1), Some(21.0))).is_empty(), "hysteresis");
-    assert_eq!(eng.evaluate(&est(5.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))[0].state, AlertState::Cleared);
+    assert!(
+        raised[0].message.contains("20.6V") && raised[0].message.contains("3:05"),
+        "{}",
+        raised[0].message
+    );
+    assert!(
+        raised[0].message.len() <= 50,
+        "a STATUSTEXT holds 50 bytes: {}",
+        raised[0].message
+    );
+    assert!(
+        eng.evaluate(&est(4.0, Some(300.0), &[]), &en(Some(21.1), Some(21.0)))
+            .is_empty(),
+        "hysteresis"
+    );
+    assert_eq!(
+        eng.evaluate(&est(5.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))[0].state,
+        AlertState::Cleared
+    );
     // An explicit level in volts, and a bad one named.
-    let cfg = parse("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
+    let cfg =
+        parse("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
     let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
-    assert_eq!(eng.evaluate(&est(0.0, Some(300.0), &[]), &en(Some(21.9), None)).len(), 1);
-    let err = load_err("[[alerts]]\nname = \"x\"\nkind = \"voltage_forecast_below\"\nbelow_v = -1\n");
+    assert_eq!(
+        eng.evaluate(&est(0.0, Some(300.0), &[]), &en(Some(21.9), None))
+            .len(),
+        1
+    );
+    let err =
+        load_err("[[alerts]]\nname = \"x\"\nkind = \"voltage_forecast_below\"\nbelow_v = -1\n");
     assert!(err.contains("below_v"), "{err}");
 }

@@ -114,5 +114,9 @@ fn battery_eval_on_the_data_set() {
     );
     // the carry-over is there: some flights follow another on the same pack, some do not
     let carried = flights.iter().filter(|f| f["k_prev"].is_number()).count();
-    assert!(carried > 50 && carried < flights.len(), "{carried} of {} flights carry k", flights.len());
+    assert!(
+        carried > 50 && carried < flights.len(),
+        "{carried} of {} flights carry k",
+        flights.len()
+    );
 }

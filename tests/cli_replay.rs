@@ -40,8 +40,22 @@ fn replay_max_speed_ends_with_the_exact_summary_line() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("flight.tlog");
     std::fs::write(&path, damaged_tlog(400)).unwrap();
-    let out = dronewatt().args(["replay", path.to_str().unwrap(), "--speed", "max", "--json", "-"]).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = dronewatt()
+        .args([
+            "replay",
+            path.to_str().unwrap(),
+            "--speed",
+            "max",
+            "--json",
+            "-",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let lines = json_lines(&out.stdout);
     let summary = lines.last().expect("a summary line");
     assert_eq!(summary["type"], "summary");
@@ -55,13 +69,19 @@ fn replay_max_speed_ends_with_the_exact_summary_line() {
     // One window per 100 ms of flight once the first is full: never zero, which would make
     // the line counts below hold hollowly (0 == 0).
     let windows = summary["windows"].as_u64().expect("windows is a number");
-    assert!(windows > 0, "no windows from {} frames", summary["frames_ok"]);
+    assert!(
+        windows > 0,
+        "no windows from {} frames",
+        summary["frames_ok"]
+    );
     let count = |t: &str| lines.iter().filter(|l| l["type"] == t).count() as u64;
     assert_eq!(count("window"), windows);
     assert_eq!(count("estimate"), windows);
     // Flat out, the latency is the queueing; an estimate is counted once at most (those the
     // end of the log flushes, made by no arrival, not at all).
-    let counted = summary["latency"]["count"].as_u64().expect("latency counted");
+    let counted = summary["latency"]["count"]
+        .as_u64()
+        .expect("latency counted");
     assert!(counted > 0 && counted <= windows, "{summary}");
 }
 
@@ -73,13 +93,32 @@ fn replay_writes_json_to_a_file_and_reads_raw_streams() {
     std::fs::write(&raw, bytes).unwrap();
     let json = dir.path().join("out.jsonl");
     let out = dronewatt()
-        .args(["replay", raw.to_str().unwrap(), "--speed", "max", "-q", "--json", json.to_str().unwrap()])
+        .args([
+            "replay",
+            raw.to_str().unwrap(),
+            "--speed",
+            "max",
+            "-q",
+            "--json",
+            json.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let lines = json_lines(&std::fs::read(&json).unwrap());
     let s = lines.last().unwrap();
-    assert_eq!((s["type"].as_str(), s["frames_ok"].as_u64(), s["frames_bad"].as_u64()), (Some("summary"), Some(250), Some(0)));
+    assert_eq!(
+        (
+            s["type"].as_str(),
+            s["frames_ok"].as_u64(),
+            s["frames_bad"].as_u64()
+        ),
+        (Some("summary"), Some(250), Some(0))
+    );
 }
 
 #[test]
@@ -91,14 +130,31 @@ fn replay_at_a_speed_factor_honours_the_timestamps() {
     assert!(span_s > 11.0, "{span_s} s");
     std::fs::write(&path, tlog(&recs, V2)).unwrap();
     let start = Instant::now();
-    let out = dronewatt().args(["replay", path.to_str().unwrap(), "--speed", "4", "-q", "--json", "-"]).output().unwrap();
+    let out = dronewatt()
+        .args([
+            "replay",
+            path.to_str().unwrap(),
+            "--speed",
+            "4",
+            "-q",
+            "--json",
+            "-",
+        ])
+        .output()
+        .unwrap();
     let took = start.elapsed().as_secs_f64();
     assert!(out.status.success());
     // ×4 → about span/4 (3 s). Not faster than that, and clearly faster than ×2 (6 s), so a
     // replay that ignored the factor and ran at ×1 (12 s) fails; the slack above span/4 is
     // for process start on a busy machine.
-    assert!(took >= span_s / 4.0 * 0.9, "took {took:.2} s for {span_s:.2} s at ×4");
-    assert!(took < span_s / 2.0, "took {took:.2} s for {span_s:.2} s at ×4: slower than ×2");
+    assert!(
+        took >= span_s / 4.0 * 0.9,
+        "took {took:.2} s for {span_s:.2} s at ×4"
+    );
+    assert!(
+        took < span_s / 2.0,
+        "took {took:.2} s for {span_s:.2} s at ×4: slower than ×2"
+    );
     assert_eq!(json_lines(&out.stdout).last().unwrap()["frames_ok"], 760);
 }
 
@@ -111,18 +167,28 @@ fn fails_with_one_line(args: &[&str], want: &[&str]) {
     for w in want {
         assert!(err.contains(w), "'{w}' not in: {err}");
     }
-    assert!(out.stdout.is_empty(), "nothing on stdout: {}", String::from_utf8_lossy(&out.stdout));
+    assert!(
+        out.stdout.is_empty(),
+        "nothing on stdout: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
 }
 
 #[test]
 fn a_missing_file_is_one_clear_error_line() {
-    fails_with_one_line(&["replay", "/nonexistent/flight.tlog", "--json", "-"], &["/nonexistent/flight.tlog"]);
+    fails_with_one_line(
+        &["replay", "/nonexistent/flight.tlog", "--json", "-"],
+        &["/nonexistent/flight.tlog"],
+    );
 }
 
 #[test]
 fn a_bad_address_is_one_clear_error_line() {
     for bad in ["udpin:14550", "bogus:1.2.3.4:5", "tcpout:localhost:port"] {
-        fails_with_one_line(&["monitor", bad, "--json", "-"], &[bad, "udpin:HOST:PORT", "serial:DEVICE:BAUD"]);
+        fails_with_one_line(
+            &["monitor", bad, "--json", "-"],
+            &[bad, "udpin:HOST:PORT", "serial:DEVICE:BAUD"],
+        );
     }
 }
 
@@ -147,13 +213,19 @@ fn ctrl_c_on_a_live_link_still_writes_the_summary() {
             }
         }
     });
-    listening.recv_timeout(Duration::from_secs(30)).expect("monitor never said it was listening");
+    listening
+        .recv_timeout(Duration::from_secs(30))
+        .expect("monitor never said it was listening");
     let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     for (_, h, m) in flight(25) {
-        sock.send_to(&frame(h, &m, V2), ("127.0.0.1", port)).unwrap();
+        sock.send_to(&frame(h, &m, V2), ("127.0.0.1", port))
+            .unwrap();
     }
     std::thread::sleep(Duration::from_millis(500));
-    let ok = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    let ok = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
     assert!(ok.success());
     let deadline = Instant::now() + Duration::from_secs(10);
     let status = loop {
@@ -164,10 +236,18 @@ fn ctrl_c_on_a_live_link_still_writes_the_summary() {
         std::thread::sleep(Duration::from_millis(50));
     };
     let mut stdout = Vec::new();
-    child.stdout.take().unwrap().read_to_end(&mut stdout).unwrap();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_end(&mut stdout)
+        .unwrap();
     assert!(status.success(), "exit {status:?}");
     let s = json_lines(&stdout).pop().unwrap();
-    assert_eq!((s["type"].as_str(), s["frames_ok"].as_u64()), (Some("summary"), Some(25)));
+    assert_eq!(
+        (s["type"].as_str(), s["frames_ok"].as_u64()),
+        (Some("summary"), Some(25))
+    );
 }
 
 /// 200 kB of deterministic noise (xorshift), no MAVLink in it.
@@ -186,19 +266,42 @@ fn noise(n: usize) -> Vec<u8> {
 #[test]
 fn a_file_with_no_mavlink_says_so_and_names_the_format_it_expected() {
     let dir = tempfile::tempdir().unwrap();
-    for (name, expected) in [("noise.tlog", "an 8-byte big-endian microsecond timestamp"), ("noise.bin", "a raw MAVLink byte stream")] {
+    for (name, expected) in [
+        ("noise.tlog", "an 8-byte big-endian microsecond timestamp"),
+        ("noise.bin", "a raw MAVLink byte stream"),
+    ] {
         let path = dir.path().join(name);
         std::fs::write(&path, noise(200_000)).unwrap();
-        let out = dronewatt().args(["replay", path.to_str().unwrap(), "--speed", "max", "--json", "-"]).output().unwrap();
+        let out = dronewatt()
+            .args([
+                "replay",
+                path.to_str().unwrap(),
+                "--speed",
+                "max",
+                "--json",
+                "-",
+            ])
+            .output()
+            .unwrap();
         // Still a clean end with the summary (the counters are the evidence)…
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let summary = json_lines(&out.stdout).pop().expect("a summary line");
         assert_eq!(summary["frames_ok"], 0);
         // …and one line that says what is wrong and what was expected.
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains("no MAVLink in this file: 200000 bytes"), "{name}: {err}");
+        assert!(
+            err.contains("no MAVLink in this file: 200000 bytes"),
+            "{name}: {err}"
+        );
         assert!(err.contains(expected), "{name}: '{expected}' not in: {err}");
-        assert!(err.contains(path.to_str().unwrap()), "{name}: the path not in: {err}");
+        assert!(
+            err.contains(path.to_str().unwrap()),
+            "{name}: the path not in: {err}"
+        );
     }
 }
 
@@ -211,11 +314,22 @@ fn a_config_with_several_errors_names_every_one() {
         "[telemetry]\nrate_hz = 200.0\n[energy]\ncapacity_wh = -5.0\nreserve_pct = 120.0\n[sinks.web]\nbind = \"nowhere\"\n",
     )
     .unwrap();
-    let out = dronewatt().args(["check-config", path.to_str().unwrap()]).output().unwrap();
+    let out = dronewatt()
+        .args(["check-config", path.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains(path.to_str().unwrap()) && err.contains("4 errors"), "{err}");
-    for key in ["telemetry.rate_hz = 200", "energy.capacity_wh = -5", "energy.reserve_pct = 120", "sinks.web.bind = 'nowhere'"] {
+    assert!(
+        err.contains(path.to_str().unwrap()) && err.contains("4 errors"),
+        "{err}"
+    );
+    for key in [
+        "telemetry.rate_hz = 200",
+        "energy.capacity_wh = -5",
+        "energy.reserve_pct = 120",
+        "sinks.web.bind = 'nowhere'",
+    ] {
         assert!(err.contains(key), "'{key}' not in: {err}");
     }
 }
@@ -224,10 +338,17 @@ fn a_config_with_several_errors_names_every_one() {
 fn a_missing_data_set_names_the_path_and_the_environment_variable() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nowhere/flights.csv.gz");
-    let out = dronewatt().env("DRONEWATT_DATA", &missing).args(["eval", "--flight", "276"]).output().unwrap();
+    let out = dronewatt()
+        .env("DRONEWATT_DATA", &missing)
+        .args(["eval", "--flight", "276"])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains(missing.to_str().unwrap()), "the path not in: {err}");
+    assert!(
+        err.contains(missing.to_str().unwrap()),
+        "the path not in: {err}"
+    );
     assert!(err.contains("DRONEWATT_DATA"), "the variable not in: {err}");
 }
 
@@ -241,21 +362,73 @@ fn a_half_used_pack_replays_well_under_full_from_its_resting_voltage() {
         eprintln!("skipped: no data set at {}", data.display());
         return;
     }
-    let out = dronewatt().args(["replay"]).arg(&data).args(["--flight", "253", "--speed", "max", "-q", "--data-dir", "off", "--json", "-"]).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = dronewatt()
+        .args(["replay"])
+        .arg(&data)
+        .args([
+            "--flight",
+            "253",
+            "--speed",
+            "max",
+            "-q",
+            "--data-dir",
+            "off",
+            "--json",
+            "-",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let lines = json_lines(&out.stdout);
-    let flying: Vec<_> = lines.iter().filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|w| w > 300.0)).collect();
+    let flying: Vec<_> = lines
+        .iter()
+        .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|w| w > 300.0))
+        .collect();
     let take_off = flying.first().expect("the flight flies");
-    assert_eq!(take_off["remaining_source"], "resting voltage", "{take_off}");
-    assert!(take_off["battery_rest_v"].as_f64().is_some_and(|v| (v - 22.95).abs() < 0.05), "{take_off}");
-    assert!(take_off["soc_pct"].as_f64().is_some_and(|s| s < 45.0), "{take_off}");
-    assert!(take_off["remaining_wh"].as_f64().is_some_and(|wh| wh < 0.4 * 129.96), "not a full pack: {take_off}");
-    assert_eq!((take_off["cell_count"].as_u64(), take_off["chemistry"].as_str()), (Some(6), Some("lihv")));
+    assert_eq!(
+        take_off["remaining_source"], "resting voltage",
+        "{take_off}"
+    );
+    assert!(
+        take_off["battery_rest_v"]
+            .as_f64()
+            .is_some_and(|v| (v - 22.95).abs() < 0.05),
+        "{take_off}"
+    );
+    assert!(
+        take_off["soc_pct"].as_f64().is_some_and(|s| s < 45.0),
+        "{take_off}"
+    );
+    assert!(
+        take_off["remaining_wh"]
+            .as_f64()
+            .is_some_and(|wh| wh < 0.4 * 129.96),
+        "not a full pack: {take_off}"
+    );
+    assert_eq!(
+        (
+            take_off["cell_count"].as_u64(),
+            take_off["chemistry"].as_str()
+        ),
+        (Some(6), Some("lihv"))
+    );
     // In flight: the modelled voltage follows the measured one, and a forecast low is given.
     let mid = flying[flying.len() / 2];
-    let (v, m) = (mid["battery_v"].as_f64().unwrap(), mid["battery_v_model"].as_f64().unwrap());
+    let (v, m) = (
+        mid["battery_v"].as_f64().unwrap(),
+        mid["battery_v_model"].as_f64().unwrap(),
+    );
     assert!((v - m).abs() < 0.5, "measured {v} V, modelled {m} V");
     // The lowest forecast for the rest of the flight is a loaded voltage near the one now
     // (at the smoothed forecast power, not this moment's), far under the resting voltage.
-    assert!(mid["v_min_forecast_v"].as_f64().is_some_and(|lo| (lo - v).abs() < 0.6 && lo < 22.5), "{mid}");
+    assert!(
+        mid["v_min_forecast_v"]
+            .as_f64()
+            .is_some_and(|lo| (lo - v).abs() < 0.6 && lo < 22.5),
+        "{mid}"
+    );
 }

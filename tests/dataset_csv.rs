@@ -11,12 +11,17 @@ use dronewatt::source::dataset::{flight_tlog, read_flights};
 /// Header and the lines of flights 276 and 277 of the real file.
 fn real_lines() -> (String, Vec<String>) {
     let mut text = String::new();
-    flate2::read::MultiGzDecoder::new(std::fs::File::open(dronewatt::default_data_path()).expect("data set"))
-        .read_to_string(&mut text)
-        .expect("gunzip");
+    flate2::read::MultiGzDecoder::new(
+        std::fs::File::open(dronewatt::default_data_path()).expect("data set"),
+    )
+    .read_to_string(&mut text)
+    .expect("gunzip");
     let mut lines = text.lines();
     let header = lines.next().unwrap().to_string();
-    let keep = lines.filter(|l| l.starts_with("276,") || l.starts_with("277,")).map(str::to_string).collect();
+    let keep = lines
+        .filter(|l| l.starts_with("276,") || l.starts_with("277,"))
+        .map(str::to_string)
+        .collect();
     (header, keep)
 }
 
@@ -40,8 +45,17 @@ fn plain_crlf_gzip_and_reordered_columns_read_the_same() {
     let crlf = lf.replace('\n', "\r\n");
     // Columns in reverse order: found by name.
     let rev = |l: &str| l.split(',').rev().collect::<Vec<_>>().join(",");
-    let reversed = format!("{}\n{}\n", rev(&header), lines.iter().map(|l| rev(l)).collect::<Vec<_>>().join("\n"));
-    let cases = [("a.csv", &crlf, false), ("b.csv.gz", &lf, true), ("c.csv", &reversed, false), ("plain-named.gz", &lf, false)];
+    let reversed = format!(
+        "{}\n{}\n",
+        rev(&header),
+        lines.iter().map(|l| rev(l)).collect::<Vec<_>>().join("\n")
+    );
+    let cases = [
+        ("a.csv", &crlf, false),
+        ("b.csv.gz", &lf, true),
+        ("c.csv", &reversed, false),
+        ("plain-named.gz", &lf, false),
+    ];
     let reference = read_flights(&dronewatt::default_data_path(), Some(&[276, 277])).unwrap();
     assert_eq!(reference.flights.len(), 2);
     for (name, text, gz) in cases {
@@ -51,12 +65,24 @@ fn plain_crlf_gzip_and_reordered_columns_read_the_same() {
         assert!(ds.skipped.is_empty(), "{name}: {:?}", ds.skipped);
         assert_eq!(ds.flights.len(), 2, "{name}");
         for (a, b) in ds.flights.iter().zip(&reference.flights) {
-            assert_eq!((a.flight, &a.route, a.speed_m_s, a.payload_g, a.altitude_m), (b.flight, &b.route, b.speed_m_s, b.payload_g, b.altitude_m));
+            assert_eq!(
+                (a.flight, &a.route, a.speed_m_s, a.payload_g, a.altitude_m),
+                (b.flight, &b.route, b.speed_m_s, b.payload_g, b.altitude_m)
+            );
             assert_eq!(a.rows, b.rows, "{name}: flight {}", a.flight);
         }
     }
     let f276 = &reference.flights[0];
-    assert_eq!((f276.rows.len(), f276.route.as_str(), f276.speed_m_s, f276.payload_g, f276.altitude_m), (984, "R1", 10.0, 500.0, 25.0));
+    assert_eq!(
+        (
+            f276.rows.len(),
+            f276.route.as_str(),
+            f276.speed_m_s,
+            f276.payload_g,
+            f276.altitude_m
+        ),
+        (984, "R1", 10.0, 500.0, 25.0)
+    );
 }
 
 #[test]
@@ -77,17 +103,39 @@ fn bad_rows_are_skipped_and_named_bad_files_are_errors() {
     let ds = read_flights(&p, None).unwrap();
     let lines_skipped: Vec<usize> = ds.skipped.iter().map(|s| s.line).collect();
     assert_eq!(lines_skipped, vec![12, 21, 31]);
-    assert!(ds.skipped[0].reason.contains("velocity_z") && ds.skipped[0].reason.contains("1.2.3"), "{:?}", ds.skipped[0]);
-    assert!(ds.skipped[1].reason.contains("10 fields"), "{:?}", ds.skipped[1]);
+    assert!(
+        ds.skipped[0].reason.contains("velocity_z") && ds.skipped[0].reason.contains("1.2.3"),
+        "{:?}",
+        ds.skipped[0]
+    );
+    assert!(
+        ds.skipped[1].reason.contains("10 fields"),
+        "{:?}",
+        ds.skipped[1]
+    );
     assert!(ds.skipped[2].reason.contains("time"), "{:?}", ds.skipped[2]);
     assert_eq!(ds.flights[0].rows.len(), 984 - 3);
 
     // A missing column is an error naming the file, the line and the column.
     let p2 = dir.path().join("nocol.csv");
-    let drop = |l: &str| l.split(',').enumerate().filter(|(i, _)| *i != 15).map(|(_, c)| c).collect::<Vec<_>>().join(",");
-    write(&p2, &format!("{}\n{}\n", drop(&header), drop(&lines[0])), false);
+    let drop = |l: &str| {
+        l.split(',')
+            .enumerate()
+            .filter(|(i, _)| *i != 15)
+            .map(|(_, c)| c)
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    write(
+        &p2,
+        &format!("{}\n{}\n", drop(&header), drop(&lines[0])),
+        false,
+    );
     let e = format!("{:#}", read_flights(&p2, None).unwrap_err());
-    assert!(e.contains("nocol.csv") && e.contains("line 1") && e.contains("'velocity_z'"), "{e}");
+    assert!(
+        e.contains("nocol.csv") && e.contains("line 1") && e.contains("'velocity_z'"),
+        "{e}"
+    );
 
     // A damaged gzip, and a flight that is not there.
     let p3 = dir.path().join("cut.csv.gz");
@@ -97,7 +145,10 @@ fn bad_rows_are_skipped_and_named_bad_files_are_errors() {
     let e = format!("{:#}", read_flights(&p3, None).unwrap_err());
     assert!(e.contains("cut.csv.gz") && e.contains("gzip"), "{e}");
     let e = format!("{:#}", flight_tlog(&p, 5).unwrap_err());
-    assert!(e.contains("flight 5 is not in this file") && e.contains("276-277"), "{e}");
+    assert!(
+        e.contains("flight 5 is not in this file") && e.contains("276-277"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -107,13 +158,27 @@ fn list_and_convert_a_flight() {
     let p = dir.path().join("two.csv.gz");
     write(&p, &format!("{header}\n{}\n", lines.join("\n")), true);
     let list = list_flights(&p).unwrap();
-    assert_eq!(list.iter().map(|f| f.flight).collect::<Vec<_>>(), vec![276, 277]);
+    assert_eq!(
+        list.iter().map(|f| f.flight).collect::<Vec<_>>(),
+        vec![276, 277]
+    );
     assert_eq!(list[0].rows, 984);
-    assert!((list[0].duration_s - 147.9).abs() < 0.2, "{}", list[0].duration_s);
+    assert!(
+        (list[0].duration_s - 147.9).abs() < 0.2,
+        "{}",
+        list[0].duration_s
+    );
     // `dronewatt convert` writes the tlog that flight_tlog builds.
     let out = dir.path().join("276.tlog");
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["convert", p.to_str().unwrap(), "--flight", "276", "-o", out.to_str().unwrap()])
+        .args([
+            "convert",
+            p.to_str().unwrap(),
+            "--flight",
+            "276",
+            "-o",
+            out.to_str().unwrap(),
+        ])
         .status()
         .unwrap();
     assert!(status.success());
@@ -133,8 +198,19 @@ while True:\n x=m.recv_match()\n if x is None: break\n c[x.get_type()]+=1\nprint
         .output()
         .unwrap_or_else(|e| panic!("{}: {e} (run scripts/setup-python.sh)", py.display()));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let counts: std::collections::BTreeMap<String, u64> = serde_json::from_slice(&o.stdout).unwrap();
-    for t in ["ATTITUDE", "ATTITUDE_QUATERNION", "HIGHRES_IMU", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "WIND", "VFR_HUD", "SYS_STATUS", "BATTERY_STATUS"] {
+    let counts: std::collections::BTreeMap<String, u64> =
+        serde_json::from_slice(&o.stdout).unwrap();
+    for t in [
+        "ATTITUDE",
+        "ATTITUDE_QUATERNION",
+        "HIGHRES_IMU",
+        "LOCAL_POSITION_NED",
+        "GLOBAL_POSITION_INT",
+        "WIND",
+        "VFR_HUD",
+        "SYS_STATUS",
+        "BATTERY_STATUS",
+    ] {
         assert_eq!(counts.get(t), Some(&984), "{t}: {counts:?}");
     }
     assert_eq!(counts.get("HOME_POSITION"), Some(&1));

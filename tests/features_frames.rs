@@ -6,7 +6,9 @@
 //! Needs the data set (`DRONEWATT_DATA`).
 
 use dronewatt::source::dataset::{read_flights, Row};
-use dronewatt::telemetry::frames::{ds_to_ned, ne_offset_m, ned_to_body_vel, qmul, rotate, yaw_ned, Quat};
+use dronewatt::telemetry::frames::{
+    ds_to_ned, ne_offset_m, ned_to_body_vel, qmul, rotate, yaw_ned, Quat,
+};
 
 fn corr(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len() as f64;
@@ -59,8 +61,21 @@ fn check(rs: &[Row], attitude: impl Fn(&Row) -> Quat) -> ([f64; 9], f64) {
         let f = rotate(conj(q), [a[0], a[1], a[2] - 9.81]);
         let vb = ned_to_body_vel(v, yaw_ned(q));
         let r = &rs[i];
-        let got = [r.ang[0], r.ang[1], r.ang[2], r.acc[0], r.acc[1], r.acc[2], r.vel[0], r.vel[1], r.vel[2]];
-        let want = [2.0 * w[1], 2.0 * w[2], 2.0 * w[3], f[0], f[1], f[2], vb[0], vb[1], vb[2]];
+        let got = [
+            r.ang[0], r.ang[1], r.ang[2], r.acc[0], r.acc[1], r.acc[2], r.vel[0], r.vel[1],
+            r.vel[2],
+        ];
+        let want = [
+            2.0 * w[1],
+            2.0 * w[2],
+            2.0 * w[3],
+            f[0],
+            f[1],
+            f[2],
+            vb[0],
+            vb[1],
+            vb[2],
+        ];
         for k in 0..9 {
             cols[k].push(got[k]);
             cols[9 + k].push(want[k]);
@@ -76,29 +91,72 @@ fn check(rs: &[Row], attitude: impl Fn(&Row) -> Quat) -> ([f64; 9], f64) {
 
 #[test]
 fn columns_follow_the_documented_frames_on_flights_100_150_276() {
-    let ds = read_flights(&dronewatt::default_data_path(), Some(&[100, 150, 276])).expect("data set readable");
+    let ds = read_flights(&dronewatt::default_data_path(), Some(&[100, 150, 276]))
+        .expect("data set readable");
     assert_eq!(ds.flights.len(), 3);
     for f in &ds.flights {
         let (c, wind_cos) = check(&f.rows, |r| ds_to_ned(r.q_wxyz()));
-        let names = ["angular_x", "angular_y", "angular_z", "acc_x", "acc_y", "acc_z", "velocity_x", "velocity_y", "velocity_z"];
+        let names = [
+            "angular_x",
+            "angular_y",
+            "angular_z",
+            "acc_x",
+            "acc_y",
+            "acc_z",
+            "velocity_x",
+            "velocity_y",
+            "velocity_z",
+        ];
         // Documented mapping: every column correlates positively and clearly.
         for (k, n) in names.iter().enumerate() {
-            assert!(c[k] > 0.5, "flight {}: {n} vs its predicted FRD/heading-frame value: r = {:.2}", f.flight, c[k]);
+            assert!(
+                c[k] > 0.5,
+                "flight {}: {n} vs its predicted FRD/heading-frame value: r = {:.2}",
+                f.flight,
+                c[k]
+            );
         }
-        assert!(c[6] > 0.8 && c[7] > 0.9, "flight {}: velocities r = {:.2}, {:.2}", f.flight, c[6], c[7]);
+        assert!(
+            c[6] > 0.8 && c[7] > 0.9,
+            "flight {}: velocities r = {:.2}, {:.2}",
+            f.flight,
+            c[6],
+            c[7]
+        );
         // The apparent wind comes from the direction of travel: a from-direction from north.
-        assert!(wind_cos > 0.7, "flight {}: mean cos(wind_angle − course) = {wind_cos:.2}", f.flight);
+        assert!(
+            wind_cos > 0.7,
+            "flight {}: mean cos(wind_angle − course) = {wind_cos:.2}",
+            f.flight
+        );
         // In cruise the vehicle moves along velocity_y (forward), not velocity_x.
-        let cruise: Vec<&Row> = f.rows.iter().filter(|r| r.vel[0].hypot(r.vel[1]) > 5.0).collect();
-        let mean = |k: usize| cruise.iter().map(|r| r.vel[k].abs()).sum::<f64>() / cruise.len() as f64;
-        assert!(mean(1) > 5.0 * mean(0), "flight {}: |vy| {:.2} vs |vx| {:.2}", f.flight, mean(1), mean(0));
+        let cruise: Vec<&Row> = f
+            .rows
+            .iter()
+            .filter(|r| r.vel[0].hypot(r.vel[1]) > 5.0)
+            .collect();
+        let mean =
+            |k: usize| cruise.iter().map(|r| r.vel[k].abs()).sum::<f64>() / cruise.len() as f64;
+        assert!(
+            mean(1) > 5.0 * mean(0),
+            "flight {}: |vy| {:.2} vs |vx| {:.2}",
+            f.flight,
+            mean(1),
+            mean(0)
+        );
 
         // The reading SOURCE.md started from (quaternion as body FLU → ENU, i.e. ours turned
         // by 90° about the body z axis) leaves the IMU's x and y uncorrelated.
         let h = std::f64::consts::FRAC_1_SQRT_2;
         let (alt, _) = check(&f.rows, |r| qmul(ds_to_ned(r.q_wxyz()), [h, 0.0, 0.0, h]));
         for k in [0, 1, 3, 4] {
-            assert!(alt[k].abs() < 0.35, "flight {}: FLU reading of {}: r = {:.2}", f.flight, names[k], alt[k]);
+            assert!(
+                alt[k].abs() < 0.35,
+                "flight {}: FLU reading of {}: r = {:.2}",
+                f.flight,
+                names[k],
+                alt[k]
+            );
         }
     }
 }

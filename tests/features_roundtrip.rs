@@ -8,8 +8,8 @@
 use dronewatt::offline::data::flight_windows;
 use dronewatt::source::dataset::{read_flights, Flight};
 use dronewatt::telemetry::resample::{Resampler, Signal};
-use dronewatt::telemetry::{idx, MissionConfig, TelemetryConfig, FEATURE_NAMES, N_FEATURES};
 use dronewatt::telemetry::window::{Window, WindowRing};
+use dronewatt::telemetry::{idx, MissionConfig, TelemetryConfig, FEATURE_NAMES, N_FEATURES};
 
 /// The CSV columns resampled directly, windowed the way `Telemetry` windows.
 fn csv_windows(f: &Flight, cfg: &TelemetryConfig) -> Vec<Window> {
@@ -28,7 +28,11 @@ fn csv_windows(f: &Flight, cfg: &TelemetryConfig) -> Vec<Window> {
         rs.update(Signal::Velocity, t, &r.vel);
         rs.update(Signal::Rates, t, &r.ang);
         rs.update(Signal::Accel, t, &r.acc);
-        rs.update(Signal::Power, t, &[r.voltage_v, r.current_a, r.voltage_v * r.current_a]);
+        rs.update(
+            Signal::Power,
+            t,
+            &[r.voltage_v, r.current_a, r.voltage_v * r.current_a],
+        );
         if rs.take_restart() {
             ring.clear();
         }
@@ -51,8 +55,8 @@ fn csv_windows(f: &Flight, cfg: &TelemetryConfig) -> Vec<Window> {
 /// - rates, acceleration: f32 HIGHRES_IMU/ATTITUDE, 1e-6;
 /// - mission: f32 NAMED_VALUE_FLOAT of small integers, exact.
 const RES: [f32; N_FEATURES] = [
-    1e-4, 0.01, 5e-8, 5e-8, 5e-4, 1e-6, 1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 0.0,
-    0.0, 0.0,
+    1e-4, 0.01, 5e-8, 5e-8, 5e-4, 1e-6, 1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-6,
+    1e-6, 1e-6, 0.0, 0.0, 0.0,
 ];
 /// Power: voltage in mV (±0.5 mV) and current in cA (±5 mA, ±15 mA where −0.01 A, the
 /// "not measured" sentinel, is sent as 0): |ΔP| ≤ 0.0005·47.2 + 0.015·25.9 ≈ 0.41 W.
@@ -79,27 +83,62 @@ fn check_flight(flight: u32) -> (usize, usize) {
     let mut compared = 0;
     for (wi, (g, w)) in got.iter().zip(&want).enumerate() {
         for (a, b) in g.samples.iter().zip(&w.samples) {
-            assert!((a.t_s - base_s - b.t_s).abs() < 1e-5, "flight {flight} window {wi}: t {} vs {}", a.t_s - base_s, b.t_s);
-            assert_eq!(a.stale_mask, b.stale_mask, "flight {flight} t={}: stale mask", b.t_s);
+            assert!(
+                (a.t_s - base_s - b.t_s).abs() < 1e-5,
+                "flight {flight} window {wi}: t {} vs {}",
+                a.t_s - base_s,
+                b.t_s
+            );
+            assert_eq!(
+                a.stale_mask, b.stale_mask,
+                "flight {flight} t={}: stale mask",
+                b.t_s
+            );
             // Rows bracketing this grid time (for the wind-angle rule).
             let k = row_t.partition_point(|&t| t < b.t_s);
-            let calm = [k.saturating_sub(1), k.min(row_t.len() - 1)].iter().any(|&j| f.rows[j].wind_speed < 0.05);
+            let calm = [k.saturating_sub(1), k.min(row_t.len() - 1)]
+                .iter()
+                .any(|&j| f.rows[j].wind_speed < 0.05);
             for i in 0..N_FEATURES {
                 if i == idx::WIND_ANGLE && calm {
                     continue;
                 }
                 let (x, y) = (a.features[i], b.features[i]);
-                let d = if i == idx::WIND_ANGLE { ((x - y + 180.0).rem_euclid(360.0) - 180.0).abs() } else { (x - y).abs() };
+                let d = if i == idx::WIND_ANGLE {
+                    ((x - y + 180.0).rem_euclid(360.0) - 180.0).abs()
+                } else {
+                    (x - y).abs()
+                };
                 let tol = RES[i] + ulp(y).max(ulp(x));
-                assert!(d <= tol, "flight {flight} t={:.2}: {} = {x} via MAVLink, {y} from the CSV (tol {tol})", b.t_s, FEATURE_NAMES[i]);
+                assert!(
+                    d <= tol,
+                    "flight {flight} t={:.2}: {} = {x} via MAVLink, {y} from the CSV (tol {tol})",
+                    b.t_s,
+                    FEATURE_NAMES[i]
+                );
             }
-            let (pa, pb) = (a.measured_w.expect("power present"), b.measured_w.expect("power present"));
-            assert!((pa - pb).abs() <= POWER_TOL_W, "flight {flight} t={:.2}: power {pa} vs {pb}", b.t_s);
+            let (pa, pb) = (
+                a.measured_w.expect("power present"),
+                b.measured_w.expect("power present"),
+            );
+            assert!(
+                (pa - pb).abs() <= POWER_TOL_W,
+                "flight {flight} t={:.2}: power {pa} vs {pb}",
+                b.t_s
+            );
             let (va, vb) = (a.voltage_v.expect("voltage"), b.voltage_v.expect("voltage"));
-            assert!((va - vb).abs() <= VOLT_TOL_V, "flight {flight} t={:.2}: voltage {va} vs {vb}", b.t_s);
+            assert!(
+                (va - vb).abs() <= VOLT_TOL_V,
+                "flight {flight} t={:.2}: voltage {va} vs {vb}",
+                b.t_s
+            );
             // Home: HOME_POSITION carries 1e-7° (≈ 1 cm) and 1 mm.
             let (ha, hb) = (a.home.expect("home"), b.home.expect("home"));
-            assert!((ha.distance_m - hb.distance_m).abs() < 0.03 && (ha.height_m - hb.height_m).abs() < 2e-3, "{ha:?} vs {hb:?}");
+            assert!(
+                (ha.distance_m - hb.distance_m).abs() < 0.03
+                    && (ha.height_m - hb.height_m).abs() < 2e-3,
+                "{ha:?} vs {hb:?}"
+            );
             compared += 1;
         }
     }
@@ -123,7 +162,10 @@ fn flight_278_with_a_5_s_gap_matches_and_no_window_spans_the_gap() {
     let fw = flight_windows(&ds.flights[0], &cfg, &MissionConfig::default());
     let span = (cfg.window - 1) as f64 / cfg.rate_hz + 1e-6;
     for w in &fw.windows {
-        assert!(w.samples.last().unwrap().t_s - w.samples[0].t_s <= span, "a window spans a gap");
+        assert!(
+            w.samples.last().unwrap().t_s - w.samples[0].t_s <= span,
+            "a window spans a gap"
+        );
     }
     // The 5.28 s gap is in this flight: some consecutive windows are more than a step apart.
     assert!(fw.windows.windows(2).any(|p| p[1].t_s() - p[0].t_s() > 5.0));

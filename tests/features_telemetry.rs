@@ -4,8 +4,8 @@
 
 use dronewatt::dialect::*;
 use dronewatt::source::TimedMessage;
-use dronewatt::telemetry::{idx, MissionConfig, Telemetry, TelemetryConfig};
 use dronewatt::telemetry::window::Window;
+use dronewatt::telemetry::{idx, MissionConfig, Telemetry, TelemetryConfig};
 use dronewatt::MavMessage;
 
 const LAT0: f64 = 40.459;
@@ -54,8 +54,20 @@ impl Mix {
         let mut tel = Telemetry::new(cfg, mission);
         let mut out = Vec::new();
         for (i, (t, sys, msg)) in self.msgs.into_iter().enumerate() {
-            let header = mavlink::MavHeader { system_id: sys, component_id: 1, sequence: i as u8 };
-            tel.push(&TimedMessage { t_s: 1000.0 + t, header, msg, arrived: std::time::Instant::now() }, &mut out);
+            let header = mavlink::MavHeader {
+                system_id: sys,
+                component_id: 1,
+                sequence: i as u8,
+            };
+            tel.push(
+                &TimedMessage {
+                    t_s: 1000.0 + t,
+                    header,
+                    msg,
+                    arrived: std::time::Instant::now(),
+                },
+                &mut out,
+            );
         }
         tel.finish(&mut out);
         (tel, out)
@@ -110,14 +122,38 @@ fn battery(v: f64, a: f64) -> [MavMessage; 2] {
 /// HIGHRES_IMU (and here no LOCAL_POSITION_NED: no EKF origin).
 fn ardupilot(f: Flight, until: f64) -> Mix {
     let mut m = Mix::new();
-    m.every(1.0, 0.0, until, |_| heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA));
+    m.every(1.0, 0.0, until, |_| {
+        heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA)
+    });
     let yaw = f.heading_deg.to_radians() as f32;
-    m.every(10.0, 0.0, until, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw, ..Default::default() }));
-    m.every(10.0, 0.02, until, |_| MavMessage::RAW_IMU(RAW_IMU_DATA { zacc: -1000, ..Default::default() }));
+    m.every(10.0, 0.0, until, |_| {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            yaw,
+            ..Default::default()
+        })
+    });
+    m.every(10.0, 0.02, until, |_| {
+        MavMessage::RAW_IMU(RAW_IMU_DATA {
+            zacc: -1000,
+            ..Default::default()
+        })
+    });
     m.every(5.0, 0.04, until, |t| gpi(f, t));
     // True wind: 3 m/s from the west.
-    m.every(3.0, 0.06, until, |_| MavMessage::WIND(WIND_DATA { direction: 270.0, speed: 3.0, speed_z: 0.0 }));
-    m.every(4.0, 0.08, until, |_| MavMessage::VFR_HUD(VFR_HUD_DATA { airspeed: 8.5, heading: f.heading_deg as i16, ..Default::default() }));
+    m.every(3.0, 0.06, until, |_| {
+        MavMessage::WIND(WIND_DATA {
+            direction: 270.0,
+            speed: 3.0,
+            speed_z: 0.0,
+        })
+    });
+    m.every(4.0, 0.08, until, |_| {
+        MavMessage::VFR_HUD(VFR_HUD_DATA {
+            airspeed: 8.5,
+            heading: f.heading_deg as i16,
+            ..Default::default()
+        })
+    });
     m.every(2.0, 0.1, until, |_| battery(23.0, 20.0)[0].clone());
     m.every(2.0, 0.1, until, |_| battery(23.0, 20.0)[1].clone());
     m
@@ -132,10 +168,18 @@ fn quat_yaw(yaw_deg: f64) -> [f32; 4] {
 /// GLOBAL_POSITION_INT, VFR_HUD, BATTERY_STATUS, SYS_STATUS, HOME_POSITION; no WIND.
 fn px4(f: Flight, from: f64, until: f64) -> Mix {
     let mut m = Mix::new();
-    m.every(1.0, from, until, |_| heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4));
+    m.every(1.0, from, until, |_| {
+        heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4)
+    });
     let q = quat_yaw(f.heading_deg);
     m.every(50.0, from + 0.001, until, |_| {
-        MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA { q1: q[0], q2: q[1], q3: q[2], q4: q[3], ..Default::default() })
+        MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
+            q1: q[0],
+            q2: q[1],
+            q3: q[2],
+            q4: q[3],
+            ..Default::default()
+        })
     });
     m.every(50.0, from + 0.002, until, |_| {
         MavMessage::HIGHRES_IMU(HIGHRES_IMU_DATA {
@@ -146,25 +190,41 @@ fn px4(f: Flight, from: f64, until: f64) -> Mix {
     });
     let v = f.v_ned.map(|x| x as f32);
     m.every(30.0, from + 0.003, until, |_| {
-        MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA { vx: v[0], vy: v[1], vz: v[2], ..Default::default() })
+        MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+            vx: v[0],
+            vy: v[1],
+            vz: v[2],
+            ..Default::default()
+        })
     });
     m.every(10.0, from + 0.004, until, |t| gpi(f, t));
     m.every(4.0, from + 0.005, until, |_| {
-        MavMessage::VFR_HUD(VFR_HUD_DATA { airspeed: 5.0, heading: f.heading_deg as i16, ..Default::default() })
+        MavMessage::VFR_HUD(VFR_HUD_DATA {
+            airspeed: 5.0,
+            heading: f.heading_deg as i16,
+            ..Default::default()
+        })
     });
     m.every(1.0, from + 0.006, until, |_| battery(22.0, 10.0)[1].clone());
     m.every(1.0, from + 0.007, until, |_| battery(22.0, 10.0)[0].clone());
-    m.at(from + 0.5, 1, MavMessage::HOME_POSITION(HOME_POSITION_DATA {
-        latitude: (LAT0 * 1e7) as i32,
-        longitude: (LON0 * 1e7) as i32,
-        altitude: 300_000,
-        ..Default::default()
-    }));
+    m.at(
+        from + 0.5,
+        1,
+        MavMessage::HOME_POSITION(HOME_POSITION_DATA {
+            latitude: (LAT0 * 1e7) as i32,
+            longitude: (LON0 * 1e7) as i32,
+            altitude: 300_000,
+            ..Default::default()
+        }),
+    );
     m
 }
 
 fn source(tel: &Telemetry, signal: &str) -> Option<&'static str> {
-    tel.health().into_iter().find(|h| h.signal == signal).and_then(|h| h.source)
+    tel.health()
+        .into_iter()
+        .find(|h| h.signal == signal)
+        .and_then(|h| h.source)
 }
 
 fn close(a: f32, b: f64, tol: f64) -> bool {
@@ -174,7 +234,10 @@ fn close(a: f32, b: f64, tol: f64) -> bool {
 #[test]
 fn ardupilot_mix_fills_every_feature_in_the_data_set_frames() {
     // Nose north, flying north at 8 m/s, climbing 1 m/s.
-    let f = Flight { v_ned: [8.0, 0.0, -1.0], heading_deg: 0.0 };
+    let f = Flight {
+        v_ned: [8.0, 0.0, -1.0],
+        heading_deg: 0.0,
+    };
     let cfg = TelemetryConfig::default();
     let (tel, out) = ardupilot(f, 10.0).run(&cfg, &MissionConfig::default());
     // Deterministic input: exactly 90 windows in 10 s at 10 Hz (a lower bound would let
@@ -186,24 +249,45 @@ fn ardupilot_mix_fills_every_feature_in_the_data_set_frames() {
         let x = &s.features;
         assert!(x.iter().all(|v| v.is_finite()));
         // Forward is velocity_y; climbing is velocity_z > 0.
-        assert!(close(x[idx::VX], 0.0, 0.02) && close(x[idx::VY], 8.0, 0.02) && close(x[idx::VZ], 1.0, 0.02), "{x:?}");
+        assert!(
+            close(x[idx::VX], 0.0, 0.02)
+                && close(x[idx::VY], 8.0, 0.02)
+                && close(x[idx::VZ], 1.0, 0.02),
+            "{x:?}"
+        );
         // At constant velocity the specific force is −g along body z.
         assert!(close(x[idx::AZ], -9.80665, 1e-3) && close(x[idx::AX], 0.0, 1e-6));
         // Level, nose north: the data set's identity quaternion.
         assert!(close(x[idx::QW], 1.0, 1e-6) && close(x[idx::QZ], 0.0, 1e-6));
         // Anemometer: air from the west at 3 m/s seen from a vehicle going north at 8 m/s
         // comes at √73 m/s from 339.4°.
-        assert!(close(x[idx::WIND_SPEED], 73f64.sqrt(), 1e-3), "wind {}", x[idx::WIND_SPEED]);
-        assert!(close(x[idx::WIND_ANGLE], 360.0 - 3f64.atan2(8.0).to_degrees(), 0.01));
+        assert!(
+            close(x[idx::WIND_SPEED], 73f64.sqrt(), 1e-3),
+            "wind {}",
+            x[idx::WIND_SPEED]
+        );
+        assert!(close(
+            x[idx::WIND_ANGLE],
+            360.0 - 3f64.atan2(8.0).to_degrees(),
+            0.01
+        ));
         assert!(close(x[idx::POS_Y], LAT0, 1e-3) && close(x[idx::POS_X], LON0, 1e-3));
         assert_eq!(s.measured_w, Some(460.0));
         // Mission defaults.
-        assert_eq!((x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]), (10.0, 0.0, 25.0));
+        assert_eq!(
+            (x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]),
+            (10.0, 0.0, 25.0)
+        );
         // Home is the first fix (t = 0.04 s): 8 m/s north, 1 m/s up. (Past the last fix,
         // at the end of the stream, the position is held.)
         let home = s.home.expect("home from the first fix");
         let t = s.t_s - 1000.0 - 0.04;
-        assert!(t > 9.76 ||(home.distance_m as f64 - 8.0 * t).abs() < 0.1 && (home.height_m as f64 - t).abs() < 0.05, "{home:?} at {t}");
+        assert!(
+            t > 9.76
+                || (home.distance_m as f64 - 8.0 * t).abs() < 0.1
+                    && (home.height_m as f64 - t).abs() < 0.05,
+            "{home:?} at {t}"
+        );
     }
     assert_eq!(source(&tel, "attitude"), Some("ATTITUDE"));
     assert_eq!(source(&tel, "acceleration"), Some("RAW_IMU"));
@@ -216,23 +300,44 @@ fn ardupilot_mix_fills_every_feature_in_the_data_set_frames() {
 #[test]
 fn px4_mix_without_wind_fills_every_feature() {
     // Nose east, drifting north at 5 m/s (to its left), descending 0.5 m/s.
-    let f = Flight { v_ned: [5.0, 0.0, 0.5], heading_deg: 90.0 };
+    let f = Flight {
+        v_ned: [5.0, 0.0, 0.5],
+        heading_deg: 90.0,
+    };
     let cfg = TelemetryConfig::default();
-    let (tel, out) = px4(f, 0.0, 10.0).run(&cfg, &MissionConfig { speed_m_s: Some(6.0), payload_g: Some(250.0), altitude_m: None });
+    let (tel, out) = px4(f, 0.0, 10.0).run(
+        &cfg,
+        &MissionConfig {
+            speed_m_s: Some(6.0),
+            payload_g: Some(250.0),
+            altitude_m: None,
+        },
+    );
     assert_eq!(out.len(), 90, "windows in 10 s at 10 Hz");
     let h = std::f64::consts::FRAC_1_SQRT_2;
     for w in &out {
         let s = w.last();
         assert_eq!(s.stale_mask, 0, "t={}", s.t_s);
         let x = &s.features;
-        assert!(close(x[idx::VX], -5.0, 1e-4) && close(x[idx::VY], 0.0, 1e-4) && close(x[idx::VZ], -0.5, 1e-4), "{x:?}");
+        assert!(
+            close(x[idx::VX], -5.0, 1e-4)
+                && close(x[idx::VY], 0.0, 1e-4)
+                && close(x[idx::VZ], -0.5, 1e-4),
+            "{x:?}"
+        );
         assert!(close(x[idx::AZ], -9.81, 1e-5));
         // Facing east: the data-set quaternion is a −90° (clockwise) turn about ENU up.
-        assert!(close(x[idx::QW], h, 1e-6) && close(x[idx::QZ], -h, 1e-6), "{x:?}");
+        assert!(
+            close(x[idx::QW], h, 1e-6) && close(x[idx::QZ], -h, 1e-6),
+            "{x:?}"
+        );
         // No WIND: airspeed from VFR_HUD, the angle from the heading.
         assert!(close(x[idx::WIND_SPEED], 5.0, 1e-6) && close(x[idx::WIND_ANGLE], 90.0, 1e-6));
         assert_eq!(s.measured_w, Some(220.0));
-        assert_eq!((x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]), (6.0, 250.0, 25.0));
+        assert_eq!(
+            (x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]),
+            (6.0, 250.0, 25.0)
+        );
     }
     assert!(out.last().unwrap().last().home.is_some());
     assert_eq!(source(&tel, "attitude"), Some("ATTITUDE_QUATERNION"));
@@ -244,7 +349,10 @@ fn px4_mix_without_wind_fills_every_feature() {
 
 #[test]
 fn hover_at_rest_reads_minus_g_and_zero_velocity() {
-    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 0.0 };
+    let f = Flight {
+        v_ned: [0.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
     let (_, out) = ardupilot(f, 4.0).run(&TelemetryConfig::default(), &MissionConfig::default());
     let s = out.last().expect("windows").last();
     assert!(close(s.features[idx::AZ], -9.80665, 1e-3));
@@ -252,22 +360,41 @@ fn hover_at_rest_reads_minus_g_and_zero_velocity() {
         assert!(close(s.features[i], 0.0, 1e-6));
     }
     // Hovering in a 3 m/s westerly, the anemometer reads the wind itself.
-    assert!(close(s.features[idx::WIND_SPEED], 3.0, 1e-4) && close(s.features[idx::WIND_ANGLE], 270.0, 1e-3));
+    assert!(
+        close(s.features[idx::WIND_SPEED], 3.0, 1e-4)
+            && close(s.features[idx::WIND_ANGLE], 270.0, 1e-3)
+    );
 }
 
 #[test]
 fn a_quiet_source_is_held_and_marked_stale_without_stalling_the_stream() {
-    let f = Flight { v_ned: [5.0, 0.0, 0.0], heading_deg: 0.0 };
+    let f = Flight {
+        v_ned: [5.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
     let mut mix = px4(f, 0.0, 10.0);
     // GLOBAL_POSITION_INT stops at 5 s; everything else goes on.
-    mix.msgs.retain(|(t, _, m)| !(matches!(m, MavMessage::GLOBAL_POSITION_INT(_)) && *t > 5.0));
+    mix.msgs
+        .retain(|(t, _, m)| !(matches!(m, MavMessage::GLOBAL_POSITION_INT(_)) && *t > 5.0));
     let cfg = TelemetryConfig::default();
     let mut tel = Telemetry::new(&cfg, &MissionConfig::default());
     mix.msgs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut out = Vec::new();
     for (i, (t, sys, msg)) in mix.msgs.into_iter().enumerate() {
-        let header = mavlink::MavHeader { system_id: sys, component_id: 1, sequence: i as u8 };
-        tel.push(&TimedMessage { t_s: t, header, msg, arrived: std::time::Instant::now() }, &mut out);
+        let header = mavlink::MavHeader {
+            system_id: sys,
+            component_id: 1,
+            sequence: i as u8,
+        };
+        tel.push(
+            &TimedMessage {
+                t_s: t,
+                header,
+                msg,
+                arrived: std::time::Instant::now(),
+            },
+            &mut out,
+        );
     }
     // Before finish(): the stream kept flowing (latency bounded by the stale limit).
     // Power comes at 1 Hz here, and every signal gates the grid: at most 1 s behind.
@@ -294,11 +421,20 @@ fn a_quiet_source_is_held_and_marked_stale_without_stalling_the_stream() {
 
 #[test]
 fn a_worse_source_takes_over_when_the_better_one_stops() {
-    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 90.0 };
+    let f = Flight {
+        v_ned: [0.0, 0.0, 0.0],
+        heading_deg: 90.0,
+    };
     let mut mix = px4(f, 0.0, 10.0);
-    mix.msgs.retain(|(t, _, m)| !(matches!(m, MavMessage::ATTITUDE_QUATERNION(_)) && *t > 4.0));
+    mix.msgs
+        .retain(|(t, _, m)| !(matches!(m, MavMessage::ATTITUDE_QUATERNION(_)) && *t > 4.0));
     let yaw = std::f32::consts::FRAC_PI_2;
-    mix.every(10.0, 0.0, 10.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw, ..Default::default() }));
+    mix.every(10.0, 0.0, 10.0, |_| {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            yaw,
+            ..Default::default()
+        })
+    });
     let (tel, out) = mix.run(&TelemetryConfig::default(), &MissionConfig::default());
     assert_eq!(source(&tel, "attitude"), Some("ATTITUDE"));
     let h = std::f64::consts::FRAC_1_SQRT_2;
@@ -311,15 +447,24 @@ fn a_worse_source_takes_over_when_the_better_one_stops() {
 
 #[test]
 fn a_gap_restarts_the_window_ring() {
-    let f = Flight { v_ned: [5.0, 0.0, 0.0], heading_deg: 0.0 };
+    let f = Flight {
+        v_ned: [5.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
     let mut mix = px4(f, 0.0, 5.0);
     mix.msgs.extend(px4(f, 8.0, 13.0).msgs);
     let cfg = TelemetryConfig::default();
     let (tel, out) = mix.run(&cfg, &MissionConfig::default());
     assert_eq!(tel.restarts(), 1);
     let span = (cfg.window - 1) as f64 / cfg.rate_hz + 1e-6;
-    assert!(out.iter().all(|w| w.t_s() - w.samples[0].t_s <= span), "a window spans the gap");
-    assert!(out.iter().any(|w| w.samples[0].t_s > 1008.0), "windows resume after the gap");
+    assert!(
+        out.iter().all(|w| w.t_s() - w.samples[0].t_s <= span),
+        "a window spans the gap"
+    );
+    assert!(
+        out.iter().any(|w| w.samples[0].t_s > 1008.0),
+        "windows resume after the gap"
+    );
     for w in &out {
         for s in &w.samples {
             assert_eq!(s.stale_mask, 0, "t={}", s.t_s);
@@ -329,16 +474,28 @@ fn a_gap_restarts_the_window_ring() {
 
 #[test]
 fn bad_values_and_other_systems_are_ignored() {
-    let f = Flight { v_ned: [8.0, 0.0, 0.0], heading_deg: 0.0 };
+    let f = Flight {
+        v_ned: [8.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
     let mut mix = ardupilot(f, 5.0);
     // A ground station's heartbeat first: it must not capture the stream.
-    mix.at(-0.5, 255, MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        ..Default::default()
-    }));
+    mix.at(
+        -0.5,
+        255,
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            mavtype: MavType::MAV_TYPE_GCS,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+            ..Default::default()
+        }),
+    );
     // Another vehicle flying south, and NaN attitude from ours.
-    mix.every(10.0, 0.05, 5.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { yaw: 3.1, ..Default::default() }));
+    mix.every(10.0, 0.05, 5.0, |_| {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            yaw: 3.1,
+            ..Default::default()
+        })
+    });
     for (_, sys, m) in mix.msgs.iter_mut() {
         if let MavMessage::ATTITUDE(a) = m {
             if a.yaw == 3.1 {
@@ -346,42 +503,82 @@ fn bad_values_and_other_systems_are_ignored() {
             }
         }
     }
-    mix.every(2.0, 0.01, 5.0, |_| MavMessage::ATTITUDE(ATTITUDE_DATA { roll: f32::NAN, ..Default::default() }));
+    mix.every(2.0, 0.01, 5.0, |_| {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            roll: f32::NAN,
+            ..Default::default()
+        })
+    });
     let (tel, out) = mix.run(&TelemetryConfig::default(), &MissionConfig::default());
     // Exactly what was sent: NaN attitude at 2 Hz for 5 s (10), the other vehicle's
     // attitude at 10 Hz for 5 s (50; the ground station's heartbeat is no vehicle's).
     assert_eq!(tel.nonfinite(), 10);
     assert_eq!(tel.foreign(), 50);
     for w in &out {
-        assert!(w.samples.iter().all(|s| s.features.iter().all(|v| v.is_finite())));
-        assert!(close(w.last().features[idx::QW], 1.0, 1e-6), "other system's attitude leaked in");
+        assert!(w
+            .samples
+            .iter()
+            .all(|s| s.features.iter().all(|v| v.is_finite())));
+        assert!(
+            close(w.last().features[idx::QW], 1.0, 1e-6),
+            "other system's attitude leaked in"
+        );
     }
 }
 
 #[test]
 fn mission_from_named_values_beats_the_config() {
-    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 0.0 };
+    let f = Flight {
+        v_ned: [0.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
     let mut mix = ardupilot(f, 3.0);
     for (name, v) in [("cmd_speed", 12.0), ("payload_g", 500.0), ("cmd_alt", 50.0)] {
-        mix.at(0.0, 1, MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA { time_boot_ms: 0, value: v, name: name.into() }));
+        mix.at(
+            0.0,
+            1,
+            MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
+                time_boot_ms: 0,
+                value: v,
+                name: name.into(),
+            }),
+        );
     }
-    let mission = MissionConfig { speed_m_s: Some(4.0), payload_g: Some(0.0), altitude_m: Some(25.0) };
+    let mission = MissionConfig {
+        speed_m_s: Some(4.0),
+        payload_g: Some(0.0),
+        altitude_m: Some(25.0),
+    };
     let (tel, out) = mix.run(&TelemetryConfig::default(), &mission);
     let x = out.last().unwrap().last().features;
-    assert_eq!((x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]), (12.0, 500.0, 50.0));
+    assert_eq!(
+        (x[idx::SPEED], x[idx::PAYLOAD], x[idx::ALTITUDE]),
+        (12.0, 500.0, 50.0)
+    );
     assert_eq!(source(&tel, "mission"), Some("NAMED_VALUE_FLOAT"));
 }
 
 #[test]
 fn the_autopilots_state_of_charge_rides_along_when_it_reports_one() {
-    let f = Flight { v_ned: [0.0, 0.0, 0.0], heading_deg: 0.0 };
+    let f = Flight {
+        v_ned: [0.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
     // The helper's SYS_STATUS says −1 (unknown): no percentage.
     let (_, out) = ardupilot(f, 3.0).run(&TelemetryConfig::default(), &MissionConfig::default());
     assert!(out.iter().all(|w| w.last().battery_remaining_pct.is_none()));
     // A BATTERY_STATUS with 57 % from t = 2 s on (after the mix's own, which say −1, and
     // which must not erase it): later samples carry it.
     let mut m = ardupilot(f, 4.0);
-    m.every(2.0, 2.15, 4.0, |_| MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA { battery_remaining: 57, ..Default::default() }));
+    m.every(2.0, 2.15, 4.0, |_| {
+        MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
+            battery_remaining: 57,
+            ..Default::default()
+        })
+    });
     let (_, out) = m.run(&TelemetryConfig::default(), &MissionConfig::default());
-    assert_eq!(out.last().expect("windows").last().battery_remaining_pct, Some(57.0));
+    assert_eq!(
+        out.last().expect("windows").last().battery_remaining_pct,
+        Some(57.0)
+    );
 }

@@ -32,7 +32,10 @@ fn fuzz_dir() -> PathBuf {
 
 fn files(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = match std::fs::read_dir(dir) {
-        Ok(rd) => rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect(),
+        Ok(rd) => rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_file())
+            .collect(),
         Err(_) => Vec::new(),
     };
     v.sort();
@@ -45,7 +48,11 @@ fn every_seed_and_regression_input_keeps_the_properties() {
     for (target, check) in TARGETS {
         let seeds = files(&fuzz_dir().join("seeds").join(target));
         // An empty or missing corpus would make this test pass hollow.
-        assert!(seeds.len() >= 10, "fuzz/seeds/{target}: {} seeds, expected at least 10", seeds.len());
+        assert!(
+            seeds.len() >= 10,
+            "fuzz/seeds/{target}: {} seeds, expected at least 10",
+            seeds.len()
+        );
         let regressions = files(&fuzz_dir().join("regressions").join(target));
         for path in seeds.iter().chain(&regressions) {
             let data = std::fs::read(path).expect("read corpus file");
@@ -56,14 +63,28 @@ fn every_seed_and_regression_input_keeps_the_properties() {
             }
         }
     }
-    assert!(failures.is_empty(), "{} corpus inputs break a property:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} corpus inputs break a property:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 /// The checks do catch what they promise to: a stream with a lost byte still accounts for
 /// every byte, and a frame hidden in garbage is found (positive controls on hand-made input).
 #[test]
 fn the_checks_see_frames_in_garbage_and_count_every_byte() {
-    let frame = fuzz_props::encode_frame(MavHeader { system_id: 1, component_id: 1, sequence: 9 }, &heartbeat(), MavlinkVersion::V2, true);
+    let frame = fuzz_props::encode_frame(
+        MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence: 9,
+        },
+        &heartbeat(),
+        MavlinkVersion::V2,
+        true,
+    );
     let mut stream = vec![0x00, 7, 200]; // stream framing, chunk sizes
     stream.extend_from_slice(&[0xFD, 0x09, 0x33, 0xFE, 0x01]);
     stream.extend_from_slice(&frame);
@@ -71,7 +92,8 @@ fn the_checks_see_frames_in_garbage_and_count_every_byte() {
     fuzz_props::check_decoder(&stream).unwrap();
 
     let stats = dronewatt::source::IngestStats::default();
-    let mut d = dronewatt::source::frame::FrameDecoder::new(dronewatt::source::frame::Framing::Stream);
+    let mut d =
+        dronewatt::source::frame::FrameDecoder::new(dronewatt::source::frame::Framing::Stream);
     d.push(&stream[3..]);
     d.finish();
     let mut n = 0;
@@ -82,23 +104,44 @@ fn the_checks_see_frames_in_garbage_and_count_every_byte() {
     let t = d.byte_tally();
     assert_eq!(n, 1);
     assert_eq!(t.ok, frame.len() as u64);
-    assert_eq!(t.ok + t.bad + t.unknown + s.junk_bytes, (stream.len() - 3) as u64, "{s:?} {t:?}");
+    assert_eq!(
+        t.ok + t.bad + t.unknown + s.junk_bytes,
+        (stream.len() - 3) as u64,
+        "{s:?} {t:?}"
+    );
 }
 
 fn heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA { mavlink_version: 3, ..Default::default() })
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavlink_version: 3,
+        ..Default::default()
+    })
 }
 
 fn attitude(ms: u32) -> MavMessage {
-    MavMessage::ATTITUDE(ATTITUDE_DATA { time_boot_ms: ms, roll: 0.05, pitch: -0.1, yaw: 1.0, ..Default::default() })
+    MavMessage::ATTITUDE(ATTITUDE_DATA {
+        time_boot_ms: ms,
+        roll: 0.05,
+        pitch: -0.1,
+        yaw: 1.0,
+        ..Default::default()
+    })
 }
 
 fn sys_status() -> MavMessage {
-    MavMessage::SYS_STATUS(SYS_STATUS_DATA { voltage_battery: 22_800, current_battery: 1_250, ..Default::default() })
+    MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+        voltage_battery: 22_800,
+        current_battery: 1_250,
+        ..Default::default()
+    })
 }
 
 fn hdr(seq: u8) -> MavHeader {
-    MavHeader { system_id: 1, component_id: 1, sequence: seq }
+    MavHeader {
+        system_id: 1,
+        component_id: 1,
+        sequence: seq,
+    }
 }
 
 fn frames(n: usize, version: MavlinkVersion, signed: bool, t0_ms: u32) -> Vec<u8> {
@@ -109,7 +152,12 @@ fn frames(n: usize, version: MavlinkVersion, signed: bool, t0_ms: u32) -> Vec<u8
             1 => attitude(t0_ms + 100 * i as u32),
             _ => sys_status(),
         };
-        out.extend(fuzz_props::encode_frame(hdr(i as u8), &msg, version, signed));
+        out.extend(fuzz_props::encode_frame(
+            hdr(i as u8),
+            &msg,
+            version,
+            signed,
+        ));
     }
     out
 }
@@ -117,8 +165,18 @@ fn frames(n: usize, version: MavlinkVersion, signed: bool, t0_ms: u32) -> Vec<u8
 fn tlog(n: usize, t0_us: u64, version: MavlinkVersion) -> Vec<u8> {
     let mut out = Vec::new();
     for i in 0..n {
-        let msg = if i % 2 == 0 { attitude(100 * i as u32) } else { sys_status() };
-        dronewatt::source::tlog::write_record(&mut out, t0_us + 100_000 * i as u64, hdr(i as u8), &msg, version);
+        let msg = if i % 2 == 0 {
+            attitude(100 * i as u32)
+        } else {
+            sys_status()
+        };
+        dronewatt::source::tlog::write_record(
+            &mut out,
+            t0_us + 100_000 * i as u64,
+            hdr(i as u8),
+            &msg,
+            version,
+        );
     }
     out
 }
@@ -142,7 +200,15 @@ fn decoder_seeds() -> Vec<Vec<u8>> {
         with(0, v1.clone()),
         with(2, v2.clone()),
         with(4, signed.clone()),
-        with(0, [b"garbage\xfe\x03".to_vec(), v2.clone(), b"\xfd\xfd\xfe".to_vec()].concat()),
+        with(
+            0,
+            [
+                b"garbage\xfe\x03".to_vec(),
+                v2.clone(),
+                b"\xfd\xfd\xfe".to_vec(),
+            ]
+            .concat(),
+        ),
         with(6, [v1.clone(), v2.clone(), signed.clone()].concat()),
         with(0, flip(v2.clone(), 17)),
         with(8, [unknown.clone(), v2.clone(), unknown.clone()].concat()),
@@ -150,7 +216,15 @@ fn decoder_seeds() -> Vec<Vec<u8>> {
         with(1, tlog(8, T0, MavlinkVersion::V2)),
         with(3, tlog(8, T0, MavlinkVersion::V1)),
         with(1, flip(tlog(12, T0, MavlinkVersion::V2), 23)),
-        with(5, [tlog(3, T0, MavlinkVersion::V2), vec![0; 11], tlog(3, T0 + 400_000, MavlinkVersion::V2)].concat()),
+        with(
+            5,
+            [
+                tlog(3, T0, MavlinkVersion::V2),
+                vec![0; 11],
+                tlog(3, T0 + 400_000, MavlinkVersion::V2),
+            ]
+            .concat(),
+        ),
         with(1, tlog(4, T0, MavlinkVersion::V2)[..50].to_vec()),
         with(10, (0u8..=255).collect()),
     ]
@@ -168,12 +242,21 @@ fn tlog_seeds() -> Vec<Vec<u8>> {
         flip(tlog(20, T0, MavlinkVersion::V2), 97),
         zero_stamp,
         backwards,
-        [tlog(4, T0, MavlinkVersion::V2), tlog(4, T0 + 3_600_000_000, MavlinkVersion::V2)].concat(),
+        [
+            tlog(4, T0, MavlinkVersion::V2),
+            tlog(4, T0 + 3_600_000_000, MavlinkVersion::V2),
+        ]
+        .concat(),
         tlog(5, T0, MavlinkVersion::V2)[..70].to_vec(),
         [vec![0xAA; 5], tlog(5, T0, MavlinkVersion::V2)].concat(),
         frames(6, MavlinkVersion::V2, false, 0),
         vec![0; 64],
-        [tlog(2, T0, MavlinkVersion::V2), frames(2, MavlinkVersion::V2, true, 0), tlog(2, T0 + 300_000, MavlinkVersion::V2)].concat(),
+        [
+            tlog(2, T0, MavlinkVersion::V2),
+            frames(2, MavlinkVersion::V2, true, 0),
+            tlog(2, T0 + 300_000, MavlinkVersion::V2),
+        ]
+        .concat(),
     ]
 }
 
@@ -182,10 +265,22 @@ fn raw_seeds() -> Vec<Vec<u8>> {
         frames(12, MavlinkVersion::V2, false, 1000),
         frames(12, MavlinkVersion::V1, false, 1000),
         frames(12, MavlinkVersion::V2, true, 1000),
-        [frames(6, MavlinkVersion::V2, false, 50_000), frames(6, MavlinkVersion::V2, false, 10)].concat(), // reboot
-        [frames(6, MavlinkVersion::V2, false, u32::MAX - 500), frames(6, MavlinkVersion::V2, false, 0)].concat(), // wrap
+        [
+            frames(6, MavlinkVersion::V2, false, 50_000),
+            frames(6, MavlinkVersion::V2, false, 10),
+        ]
+        .concat(), // reboot
+        [
+            frames(6, MavlinkVersion::V2, false, u32::MAX - 500),
+            frames(6, MavlinkVersion::V2, false, 0),
+        ]
+        .concat(), // wrap
         flip(frames(20, MavlinkVersion::V2, false, 0), 13),
-        [b"\x00\x01noise".to_vec(), frames(5, MavlinkVersion::V1, false, 0)].concat(),
+        [
+            b"\x00\x01noise".to_vec(),
+            frames(5, MavlinkVersion::V1, false, 0),
+        ]
+        .concat(),
         frames(5, MavlinkVersion::V2, false, 0)[..40].to_vec(),
         tlog(6, T0, MavlinkVersion::V2),
         vec![0xFD; 40],
@@ -195,11 +290,31 @@ fn raw_seeds() -> Vec<Vec<u8>> {
 
 fn csv_header() -> String {
     let sensors = [
-        "wind_speed", "wind_angle", "battery_voltage", "battery_current", "position_x", "position_y", "position_z",
-        "orientation_x", "orientation_y", "orientation_z", "orientation_w", "velocity_x", "velocity_y", "velocity_z",
-        "angular_x", "angular_y", "angular_z", "linear_acceleration_x", "linear_acceleration_y", "linear_acceleration_z",
+        "wind_speed",
+        "wind_angle",
+        "battery_voltage",
+        "battery_current",
+        "position_x",
+        "position_y",
+        "position_z",
+        "orientation_x",
+        "orientation_y",
+        "orientation_z",
+        "orientation_w",
+        "velocity_x",
+        "velocity_y",
+        "velocity_z",
+        "angular_x",
+        "angular_y",
+        "angular_z",
+        "linear_acceleration_x",
+        "linear_acceleration_y",
+        "linear_acceleration_z",
     ];
-    format!("flight,time,{},speed,payload,altitude,date,time_day,route", sensors.join(","))
+    format!(
+        "flight,time,{},speed,payload,altitude,date,time_day,route",
+        sensors.join(",")
+    )
 }
 
 /// A made-up row (not from the data set): hovering, a little wind.
@@ -211,7 +326,12 @@ fn csv_row(flight: u32, t: f64, v: f64) -> String {
 
 fn csv_seeds() -> Vec<Vec<u8>> {
     let h = csv_header();
-    let rows = |f: u32, n: usize| (0..n).map(|i| csv_row(f, 0.1 * i as f64, 24.0 - 0.01 * i as f64)).collect::<Vec<_>>().join("\n");
+    let rows = |f: u32, n: usize| {
+        (0..n)
+            .map(|i| csv_row(f, 0.1 * i as f64, 24.0 - 0.01 * i as f64))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
     let s = |text: String| text.into_bytes();
     vec![
         s(format!("{h}\n{}\n", rows(1, 5))),
@@ -219,8 +339,14 @@ fn csv_seeds() -> Vec<Vec<u8>> {
         s(format!("{h}\n{}\n{}\n", rows(3, 3), rows(4, 3))),
         s(format!("{h}\n{}\n1,0.5,NaN\n", rows(5, 2))),
         s(format!("{h}\n{}\n{}\n", rows(6, 3), csv_row(6, 0.05, 24.0))),
-        s(format!("{h}\n{}\n", csv_row(7, 0.0, 24.0).replace(",25,", ",20-25,"))),
-        s(format!("{h}\n{}\n", csv_row(8, 0.0, 24.0).replace("2019-04-07", "xx"))),
+        s(format!(
+            "{h}\n{}\n",
+            csv_row(7, 0.0, 24.0).replace(",25,", ",20-25,")
+        )),
+        s(format!(
+            "{h}\n{}\n",
+            csv_row(8, 0.0, 24.0).replace("2019-04-07", "xx")
+        )),
         s(format!("{h}\nx,0,1\n\n{}\n", rows(9, 2))),
         s(format!("{h}\n{}\n", csv_row(10, 0.0, 1e308))),
         s("flight,time\n1,0\n".to_string()),
@@ -231,8 +357,10 @@ fn csv_seeds() -> Vec<Vec<u8>> {
 
 fn config_seeds() -> Vec<Vec<u8>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut v: Vec<Vec<u8>> =
-        ["config/demo.toml", "config/dronewatt.toml"].iter().filter_map(|p| std::fs::read(root.join(p)).ok()).collect();
+    let mut v: Vec<Vec<u8>> = ["config/demo.toml", "config/dronewatt.toml"]
+        .iter()
+        .filter_map(|p| std::fs::read(root.join(p)).ok())
+        .collect();
     for text in [
         "",
         "[telemetry]\nrate_hz = 10.0\nwindow = 20\n",
@@ -259,7 +387,10 @@ fn plan_seeds() -> Vec<Vec<u8>> {
 5\t0\t3\t206\t25\t0\t1\t0\t0\t0\t0\t1\n6\t0\t0\t16\t0\t0\t0\t0\t40.4401\t-79.9401\t320\t1\n7\t0\t10\t16\t0\t0\t0\t0\t40.4402\t-79.9402\t30\t1\n\
 8\t0\t3\t21\t0\t0\t0\t0\t40.44\t-79.94\t0\t1\n9\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1\n";
     let item = |cmd: u32, p: [f64; 7]| {
-        format!(r#"{{"type":"SimpleItem","command":{cmd},"frame":3,"params":[{},{},{},{},{},{},{}],"autoContinue":true,"doJumpId":1}}"#, p[0], p[1], p[2], p[3], p[4], p[5], p[6])
+        format!(
+            r#"{{"type":"SimpleItem","command":{cmd},"frame":3,"params":[{},{},{},{},{},{},{}],"autoContinue":true,"doJumpId":1}}"#,
+            p[0], p[1], p[2], p[3], p[4], p[5], p[6]
+        )
     };
     let plan = |items: &str| {
         format!(
@@ -278,7 +409,11 @@ fn plan_seeds() -> Vec<Vec<u8>> {
     let mut v: Vec<Vec<u8>> = vec![
         wpl.into(),
         plan(&simple).into_bytes(),
-        plan(&format!("{},{survey}", item(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25.0]))).into_bytes(),
+        plan(&format!(
+            "{},{survey}",
+            item(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25.0])
+        ))
+        .into_bytes(),
         plan("").into_bytes(),
         plan(&item(31337, [0.0; 7])).into_bytes(),
         plan(&item(16, [0.0, 0.0, 0.0, 0.0, 95.0, 0.0, 10.0])).into_bytes(),
@@ -288,7 +423,14 @@ fn plan_seeds() -> Vec<Vec<u8>> {
         b"QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\tnan\t0\t0\t1\n".to_vec(),
         b"{\"fileType\":\"Plan\",\"mission\":".to_vec(),
     ];
-    v.push(plan(&simple).replace("\"plannedHomePosition\":[40.44,-79.94,290]", "\"plannedHomePosition\":[40.44,-79.94]").into_bytes());
+    v.push(
+        plan(&simple)
+            .replace(
+                "\"plannedHomePosition\":[40.44,-79.94,290]",
+                "\"plannedHomePosition\":[40.44,-79.94]",
+            )
+            .into_bytes(),
+    );
     v
 }
 
@@ -323,11 +465,26 @@ fn autopilot_log_seeds(ext: &str, autopilot: &str) -> Vec<Vec<u8>> {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(format!("seed.{ext}"));
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["simulate", "--autopilot", autopilot, "--leg-m", "50", "--hover-s", "2", "--seed", "3", "--out"])
+        .args([
+            "simulate",
+            "--autopilot",
+            autopilot,
+            "--leg-m",
+            "50",
+            "--hover-s",
+            "2",
+            "--seed",
+            "3",
+            "--out",
+        ])
         .arg(&path)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let log = std::fs::read(&path).unwrap();
     let mut seeds = Vec::new();
     for len in [16, 200, 600, 1200, 2000, 3000, 4096] {
@@ -349,10 +506,18 @@ fn the_good_plan_seeds_read() {
     let text = |i: usize| String::from_utf8(seeds[i].clone()).expect("utf-8 seed");
     let wpl = parse_waypoints(&text(0), "seed-00").expect("the .waypoints seed reads");
     assert_eq!(wpl.items.len(), 9, "home is line 0; nine items follow");
-    assert_eq!(wpl.not_modelled().len(), 1, "the camera trigger (206) is listed");
+    assert_eq!(
+        wpl.not_modelled().len(),
+        1,
+        "the camera trigger (206) is listed"
+    );
     let plan = parse_qgc_plan(&text(1), "seed-01").expect("the .plan seed reads");
     assert_eq!(plan.items.len(), 5);
     assert_eq!(plan.cruise_speed_m_s, Some(10.0));
     let survey = parse_qgc_plan(&text(2), "seed-02").expect("the survey seed reads");
-    assert_eq!(survey.items.len(), 3, "takeoff and the survey's two waypoints");
+    assert_eq!(
+        survey.items.len(),
+        3,
+        "takeoff and the survey's two waypoints"
+    );
 }

@@ -8,7 +8,11 @@
 use std::process::{Command, Stdio};
 
 fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
 }
 
 /// Stream 15 s at ~500 W to dronewatt with a `capacity_wh` battery and a 1.5 Wh warning.
@@ -27,7 +31,12 @@ fn fly_with(config: &str, peer_args: &[&str]) -> serde_json::Value {
     std::fs::write(&cfg, config).unwrap();
     let port = free_udp_port();
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q", "--config"])
+        .args([
+            "monitor",
+            &format!("udpin:127.0.0.1:{port}"),
+            "-q",
+            "--config",
+        ])
         .arg(&cfg)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -35,32 +44,67 @@ fn fly_with(config: &str, peer_args: &[&str]) -> serde_json::Value {
         .unwrap();
     std::thread::sleep(std::time::Duration::from_millis(500));
     let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/gcs_flight.py"))
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/peers/gcs_flight.py"
+        ))
         .args(["--port", &port.to_string(), "--power-w", "500"])
         .args(peer_args)
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
     // SIGTERM: the pipeline's own shutdown path.
-    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let _ = Command::new("kill")
+        .args(["-TERM", &dw.id().to_string()])
+        .status();
     let status = dw.wait().unwrap();
     let mut err = String::new();
     std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
+    assert!(
+        peer.status.success(),
+        "peer failed: {}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
     assert!(status.success(), "dronewatt exited with {status}: {err}");
     let out = String::from_utf8_lossy(&peer.stdout);
-    serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {err}"))
+    serde_json::from_str(out.trim())
+        .unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {err}"))
 }
 
 fn check_estimates(heard: &serde_json::Value) {
     let values = heard["values"].as_object().unwrap();
     for name in ["dw_meas_w", "dw_used_wh", "dw_rem_wh", "dw_tte_s"] {
-        assert!(values.get(name).is_some_and(|v| v.as_array().unwrap().len() >= 10), "no {name} in {heard}");
+        assert!(
+            values
+                .get(name)
+                .is_some_and(|v| v.as_array().unwrap().len() >= 10),
+            "no {name} in {heard}"
+        );
     }
-    let meas: Vec<f64> = values["dw_meas_w"].as_array().unwrap().iter().filter_map(|v| v.as_f64()).collect();
-    assert!(meas.iter().all(|w| (440.0..=560.0).contains(w)), "measured power off the profile: {meas:?}");
+    let meas: Vec<f64> = values["dw_meas_w"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|v| v.as_f64())
+        .collect();
+    assert!(
+        meas.iter().all(|w| (440.0..=560.0).contains(w)),
+        "measured power off the profile: {meas:?}"
+    );
     // Our own ids alongside nothing that claims to be the autopilot (component 1).
-    assert!(heard["senders"].as_array().unwrap().contains(&serde_json::json!([1, 191])), "{heard}");
-    assert!(!heard["senders"].as_array().unwrap().contains(&serde_json::json!([1, 1])), "{heard}");
+    assert!(
+        heard["senders"]
+            .as_array()
+            .unwrap()
+            .contains(&serde_json::json!([1, 191])),
+        "{heard}"
+    );
+    assert!(
+        !heard["senders"]
+            .as_array()
+            .unwrap()
+            .contains(&serde_json::json!([1, 1])),
+        "{heard}"
+    );
     assert!(heard["heartbeats"].as_u64().unwrap() >= 5, "{heard}");
     eprintln!(
         "SYS_STATUS → dw_meas_w delay over the link: p50 {} ms, p99 {} ms ({} samples)",
@@ -76,9 +120,18 @@ fn monitor_warns_once_when_energy_runs_low() {
     let texts = heard["statustexts"].as_array().unwrap();
     assert_eq!(texts.len(), 1, "exactly one warning: {texts:?}");
     assert_eq!(texts[0]["severity"], 4, "MAV_SEVERITY_WARNING");
-    assert!(texts[0]["text"].as_str().unwrap().starts_with("Battery low 1."), "{texts:?}");
+    assert!(
+        texts[0]["text"]
+            .as_str()
+            .unwrap()
+            .starts_with("Battery low 1."),
+        "{texts:?}"
+    );
     let at = texts[0]["t"].as_f64().unwrap();
-    assert!((9.0..=14.0).contains(&at), "warned at {at} s of the flight, expected ~11 s");
+    assert!(
+        (9.0..=14.0).contains(&at),
+        "warned at {at} s of the flight, expected ~11 s"
+    );
 }
 
 #[test]
@@ -98,5 +151,11 @@ fn monitor_warns_when_the_link_goes_silent() {
     let texts = heard["statustexts"].as_array().unwrap();
     assert_eq!(texts.len(), 1, "exactly one alert: {texts:?}");
     assert_eq!(texts[0]["severity"], 2, "MAV_SEVERITY_CRITICAL");
-    assert!(texts[0]["text"].as_str().unwrap().starts_with("Telemetry lost"), "{texts:?}");
+    assert!(
+        texts[0]["text"]
+            .as_str()
+            .unwrap()
+            .starts_with("Telemetry lost"),
+        "{texts:?}"
+    );
 }

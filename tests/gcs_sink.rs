@@ -23,7 +23,10 @@ fn python() -> std::path::PathBuf {
 /// station heard.
 async fn fly(capacity_wh: f64) -> serde_json::Value {
     let mut peer = Command::new(python())
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/gcs_listen.py"))
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/peers/gcs_listen.py"
+        ))
         .args(["--idle-s", "1.5"])
         .stdout(Stdio::piped())
         .spawn()
@@ -51,7 +54,11 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
     .unwrap();
     cfg.validate().unwrap();
     let cfg = Arc::new(cfg);
-    let (mut fanout, sinks) = start_sinks(vec![SinkSpec::Mavlink(cfg.sinks.mavlink.clone())], &Default::default()).unwrap();
+    let (mut fanout, sinks) = start_sinks(
+        vec![SinkSpec::Mavlink(cfg.sinks.mavlink.clone())],
+        &Default::default(),
+    )
+    .unwrap();
     let mut energy = EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s).unwrap();
     let mut alerts = AlertEngine::new(&cfg.alerts).unwrap();
     for i in 0..600 {
@@ -60,12 +67,27 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
         let est = Estimate {
             arrived: None,
             t_s,
-            sample: Sample { t_s, features: [0.0; N_FEATURES], measured_w: Some(measured), voltage_v: Some(22.0), home: None, stale_mask: 0, battery_remaining_pct: None },
+            sample: Sample {
+                t_s,
+                features: [0.0; N_FEATURES],
+                measured_w: Some(measured),
+                voltage_v: Some(22.0),
+                home: None,
+                stale_mask: 0,
+                battery_remaining_pct: None,
+            },
             models: vec![ModelEstimate::new("lstm", 480.0, None)],
         };
         let state = energy.update(&est);
         let events = alerts.evaluate(&est, &state);
-        fanout.send(Report { estimate: est, energy: state, alerts: events, system_id: 1 }).await;
+        fanout
+            .send(Report {
+                estimate: est,
+                energy: state,
+                alerts: events,
+                system_id: 1,
+            })
+            .await;
         tokio::time::sleep(std::time::Duration::from_millis(2)).await;
     }
     drop(fanout);
@@ -78,16 +100,43 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
 
 fn check_estimates(heard: &serde_json::Value) {
     let values = heard["values"].as_object().unwrap();
-    for name in ["dw_meas_w", "dw_pred_w", "dw_lstm_w", "dw_fcst_w", "dw_used_wh", "dw_rem_wh", "dw_rem_pct", "dw_tte_s"] {
-        assert!(values.get(name).is_some_and(|v| v.as_array().unwrap().len() >= 5), "no {name} in {values:?}");
+    for name in [
+        "dw_meas_w",
+        "dw_pred_w",
+        "dw_lstm_w",
+        "dw_fcst_w",
+        "dw_used_wh",
+        "dw_rem_wh",
+        "dw_rem_pct",
+        "dw_tte_s",
+    ] {
+        assert!(
+            values
+                .get(name)
+                .is_some_and(|v| v.as_array().unwrap().len() >= 5),
+            "no {name} in {values:?}"
+        );
     }
     assert!(values.keys().all(|k| k.len() <= 10));
-    let meas: Vec<f64> = values["dw_meas_w"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let meas: Vec<f64> = values["dw_meas_w"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
     assert!(meas.iter().all(|w| (450.0..=550.0).contains(w)), "{meas:?}");
     let pred = values["dw_pred_w"].as_array().unwrap();
     assert!(pred.iter().all(|w| w.as_f64() == Some(480.0)), "{pred:?}");
-    let rem: Vec<f64> = values["dw_rem_wh"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
-    assert!(rem.windows(2).all(|w| w[1] <= w[0]), "remaining energy must fall: {rem:?}");
+    let rem: Vec<f64> = values["dw_rem_wh"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        rem.windows(2).all(|w| w[1] <= w[0]),
+        "remaining energy must fall: {rem:?}"
+    );
     // dronewatt's ids, never the autopilot's component 1.
     assert_eq!(heard["senders"], serde_json::json!([[1, 191]]));
     assert!(heard["heartbeats"].as_u64().unwrap() >= 1);
@@ -102,7 +151,11 @@ async fn one_warning_when_the_energy_threshold_is_crossed() {
     assert_eq!(texts.len(), 1, "{texts:?}");
     assert_eq!(texts[0]["severity"], 4, "MAV_SEVERITY_WARNING");
     let text = texts[0]["text"].as_str().unwrap();
-    let wh: f64 = text.strip_prefix("Battery low ").and_then(|v| v.strip_suffix("Wh")).and_then(|v| v.parse().ok()).unwrap_or(f64::NAN);
+    let wh: f64 = text
+        .strip_prefix("Battery low ")
+        .and_then(|v| v.strip_suffix("Wh"))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(f64::NAN);
     assert!((3.9..=4.0).contains(&wh), "{text}");
 }
 

@@ -38,7 +38,14 @@ fn rust_mavlink_reads(bytes: &[u8], version: MavlinkVersion) -> Vec<MavMessage> 
 }
 
 fn counts(ok: u64, bad: u64, unknown: u64, gaps: u64, junk: u64) -> StatsSnapshot {
-    StatsSnapshot { frames_ok: ok, frames_bad: bad, unknown, gaps, junk_bytes: junk, ..Default::default() }
+    StatsSnapshot {
+        frames_ok: ok,
+        frames_bad: bad,
+        unknown,
+        gaps,
+        junk_bytes: junk,
+        ..Default::default()
+    }
 }
 
 #[test]
@@ -52,7 +59,11 @@ fn clean_v1_and_v2_streams_decode_exactly_whatever_the_chunking() {
             assert_eq!(s, counts(300, 0, 0, 0, 0), "{version:?} chunk {chunk}");
             // MAVLink 1 cannot carry extension fields: compare with what rust-mavlink's
             // own reader makes of the same bytes.
-            let want = if version == V1 { rust_mavlink_reads(&bytes, V1) } else { want.clone() };
+            let want = if version == V1 {
+                rust_mavlink_reads(&bytes, V1)
+            } else {
+                want.clone()
+            };
             assert!(got == want, "{version:?} chunk {chunk}: messages differ");
         }
     }
@@ -79,7 +90,10 @@ fn a_flipped_crc_byte_is_one_bad_frame_and_one_sequence_gap() {
         bytes[starts[21] - 1] ^= 0x5A;
         let (got, s) = decode(&bytes, 100);
         assert_eq!(s, counts(49, 1, 0, 1, 0), "{version:?}");
-        assert!(got[20] == rust_mavlink_reads(&frame(recs[21].1, &recs[21].2, version), version)[0], "the frame after the bad one is kept");
+        assert!(
+            got[20] == rust_mavlink_reads(&frame(recs[21].1, &recs[21].2, version), version)[0],
+            "the frame after the bad one is kept"
+        );
     }
 }
 
@@ -90,8 +104,14 @@ fn a_corrupted_length_byte_does_not_swallow_the_next_frame() {
         let (mut bytes, starts) = stream(&recs, version);
         bytes[starts[10] + 1] = bytes[starts[10] + 1].wrapping_add(delta);
         let (got, s) = decode(&bytes, 50);
-        assert_eq!((s.frames_ok, s.frames_bad, s.unknown), (29, 1, 0), "len +{delta} {version:?}: {s:?}");
-        assert!(got[10] == rust_mavlink_reads(&frame(recs[11].1, &recs[11].2, version), version)[0]);
+        assert_eq!(
+            (s.frames_ok, s.frames_bad, s.unknown),
+            (29, 1, 0),
+            "len +{delta} {version:?}: {s:?}"
+        );
+        assert!(
+            got[10] == rust_mavlink_reads(&frame(recs[11].1, &recs[11].2, version), version)[0]
+        );
     }
 }
 
@@ -103,7 +123,9 @@ fn garbage_between_frames_is_counted_as_junk() {
     for (i, (_, h, m)) in recs.iter().enumerate() {
         bytes.extend(frame(*h, m, V2));
         if i % 10 == 4 {
-            let g: Vec<u8> = (0..(i as u8 + 3)).map(|k| k.wrapping_mul(37) % 200).collect();
+            let g: Vec<u8> = (0..(i as u8 + 3))
+                .map(|k| k.wrapping_mul(37) % 200)
+                .collect();
             junk += g.len() as u64;
             bytes.extend(g);
         }
@@ -201,11 +223,17 @@ fn nan_and_infinite_fields_decode_without_panicking() {
         yaw: f32::NEG_INFINITY,
         ..Default::default()
     });
-    let h = mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 };
+    let h = mavlink::MavHeader {
+        system_id: 1,
+        component_id: 1,
+        sequence: 0,
+    };
     for version in [V1, V2] {
         let (got, s) = decode(&frame(h, &msg, version), 8);
         assert_eq!(s.frames_ok, 1);
-        let MavMessage::ATTITUDE(a) = &got[0] else { panic!("not ATTITUDE") };
+        let MavMessage::ATTITUDE(a) = &got[0] else {
+            panic!("not ATTITUDE")
+        };
         assert!(a.roll.is_nan() && a.pitch == f32::INFINITY && a.yaw == f32::NEG_INFINITY);
     }
 }
@@ -219,7 +247,11 @@ fn sequence_gaps_are_counted_per_sender() {
             bytes.extend(frame(*h, m, V2)); // 12 lost on the way: one gap for system 1
         }
         // A second sender interleaved, with its own clean sequence.
-        let h2 = mavlink::MavHeader { system_id: 2, component_id: 1, sequence: i as u8 };
+        let h2 = mavlink::MavHeader {
+            system_id: 2,
+            component_id: 1,
+            sequence: i as u8,
+        };
         bytes.extend(frame(h2, m, V2));
     }
     let (_, s) = decode(&bytes, 4096);

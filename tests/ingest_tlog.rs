@@ -33,7 +33,10 @@ fn a_clean_tlog_gives_every_message_at_its_stamp_relative_to_the_first() {
     for version in [V1, V2] {
         let recs = flight(500);
         let (msgs, s) = tlog_decode(&tlog(&recs, version));
-        assert_eq!((s.frames_ok, s.frames_bad, s.unknown, s.gaps, s.junk_bytes), (500, 0, 0, 0, 0));
+        assert_eq!(
+            (s.frames_ok, s.frames_bad, s.unknown, s.gaps, s.junk_bytes),
+            (500, 0, 0, 0, 0)
+        );
         for (m, r) in msgs.iter().zip(&recs) {
             let want = (r.0 - recs[0].0) as f64 * 1e-6;
             assert!((m.t_s - want).abs() < 1e-6, "t_s {} want {want}", m.t_s);
@@ -61,7 +64,10 @@ fn reading_in_chunks_matches_reading_whole() {
         chunked.push(m);
     }
     assert_eq!(chunked.len(), whole.len());
-    assert!(chunked.iter().zip(&whole).all(|(a, b)| a.t_s == b.t_s && a.msg == b.msg));
+    assert!(chunked
+        .iter()
+        .zip(&whole)
+        .all(|(a, b)| a.t_s == b.t_s && a.msg == b.msg));
 }
 
 #[test]
@@ -69,11 +75,23 @@ fn a_zero_stamp_is_one_clock_jump_and_does_not_move_time() {
     let mut recs = flight(100);
     recs[40].0 = 0;
     let (msgs, s) = tlog_decode(&tlog(&recs, V2));
-    assert_eq!((s.frames_ok, s.frames_bad, s.clock_jumps, s.gaps), (100, 0, 1, 1));
-    assert_eq!(msgs[40].t_s, msgs[39].t_s, "a bad stamp keeps the last time");
-    assert!(msgs.windows(2).all(|w| w[1].t_s >= w[0].t_s), "t_s never goes back");
+    assert_eq!(
+        (s.frames_ok, s.frames_bad, s.clock_jumps, s.gaps),
+        (100, 0, 1, 1)
+    );
+    assert_eq!(
+        msgs[40].t_s, msgs[39].t_s,
+        "a bad stamp keeps the last time"
+    );
+    assert!(
+        msgs.windows(2).all(|w| w[1].t_s >= w[0].t_s),
+        "t_s never goes back"
+    );
     let want = (recs[99].0 - recs[0].0) as f64 * 1e-6;
-    assert!((msgs[99].t_s - want).abs() < 1e-6, "time after the bad stamp is unharmed");
+    assert!(
+        (msgs[99].t_s - want).abs() < 1e-6,
+        "time after the bad stamp is unharmed"
+    );
 }
 
 #[test]
@@ -84,7 +102,11 @@ fn an_absurd_stamp_and_a_backwards_one_are_clock_jumps() {
     let (msgs, s) = tlog_decode(&tlog(&recs, V2));
     assert_eq!((s.frames_ok, s.clock_jumps), (100, 2));
     assert!(msgs.windows(2).all(|w| w[1].t_s >= w[0].t_s));
-    assert!(msgs[99].t_s < 15.0, "no jump leaks into t_s: {}", msgs[99].t_s);
+    assert!(
+        msgs[99].t_s < 15.0,
+        "no jump leaks into t_s: {}",
+        msgs[99].t_s
+    );
 }
 
 #[test]
@@ -94,7 +116,10 @@ fn a_flipped_crc_byte_costs_one_record() {
     let starts = record_starts(&recs, V2);
     bytes[starts[51] - 2] ^= 0xFF;
     let (msgs, s) = tlog_decode(&bytes);
-    assert_eq!((s.frames_ok, s.frames_bad, s.unknown, s.gaps, s.junk_bytes), (99, 1, 0, 1, 0));
+    assert_eq!(
+        (s.frames_ok, s.frames_bad, s.unknown, s.gaps, s.junk_bytes),
+        (99, 1, 0, 1, 0)
+    );
     assert_eq!(msgs[50].msg, recs[51].2);
 }
 
@@ -125,7 +150,10 @@ fn garbage_between_records_is_junk() {
         }
     }
     let (msgs, s) = tlog_decode(&bytes);
-    assert_eq!((s.frames_ok, s.frames_bad, s.junk_bytes, s.gaps), (50, 0, junk, 0));
+    assert_eq!(
+        (s.frames_ok, s.frames_bad, s.junk_bytes, s.gaps),
+        (50, 0, junk, 0)
+    );
     assert_eq!(msgs.len(), 50);
 }
 
@@ -134,9 +162,18 @@ fn a_truncated_last_record_is_counted_bad() {
     let recs = flight(30);
     let bytes = tlog(&recs, V2);
     let starts = record_starts(&recs, V2);
-    for cut in [starts[29] + 3, starts[29] + 8, starts[29] + 14, bytes.len() - 1] {
+    for cut in [
+        starts[29] + 3,
+        starts[29] + 8,
+        starts[29] + 14,
+        bytes.len() - 1,
+    ] {
         let (msgs, s) = tlog_decode(&bytes[..cut]);
-        assert_eq!((s.frames_ok, s.frames_bad, s.junk_bytes), (29, 1, 0), "cut at {cut}");
+        assert_eq!(
+            (s.frames_ok, s.frames_bad, s.junk_bytes),
+            (29, 1, 0),
+            "cut at {cut}"
+        );
         assert_eq!(msgs.len(), 29);
     }
 }
@@ -149,7 +186,10 @@ fn an_unknown_message_id_record_is_skipped_exactly() {
     bytes.extend(unknown_v2(recs[9].1.sequence)); // repeats a sequence number: no gap
     bytes.extend(tlog(&recs[10..], V2));
     let (msgs, s) = tlog_decode(&bytes);
-    assert_eq!((s.frames_ok, s.frames_bad, s.unknown, s.junk_bytes, s.gaps), (20, 0, 1, 0, 0));
+    assert_eq!(
+        (s.frames_ok, s.frames_bad, s.unknown, s.junk_bytes, s.gaps),
+        (20, 0, 1, 0, 0)
+    );
     assert_eq!(msgs.len(), 20);
 }
 
@@ -161,11 +201,17 @@ fn a_pymavlink_tlog_with_v1_v2_and_signed_frames_decodes_exactly() {
     assert_eq!(made["signed"], 30);
     let bytes = std::fs::read(&path).unwrap();
     let (msgs, s) = tlog_decode(&bytes);
-    assert_eq!((s.frames_ok, s.frames_bad, s.unknown, s.gaps, s.junk_bytes), (90, 0, 0, 0, 0), "{s:?}");
+    assert_eq!(
+        (s.frames_ok, s.frames_bad, s.unknown, s.gaps, s.junk_bytes),
+        (90, 0, 0, 0, 0),
+        "{s:?}"
+    );
     for (i, m) in msgs.iter().enumerate() {
         assert!((m.t_s - i as f64 * 0.1).abs() < 1e-6);
     }
-    let dronewatt::MavMessage::SYS_STATUS(st) = &msgs[1].msg else { panic!("record 1 is SYS_STATUS") };
+    let dronewatt::MavMessage::SYS_STATUS(st) = &msgs[1].msg else {
+        panic!("record 1 is SYS_STATUS")
+    };
     assert_eq!((st.voltage_battery, st.current_battery), (22799, 1050));
 }
 
@@ -187,7 +233,11 @@ fn a_raw_stream_is_timed_by_time_boot_ms_and_a_reboot_is_one_jump() {
     // Time runs on from where it stood, at the right rate.
     let last = &msgs[299];
     let span_s = (recs[299].0 - recs[0].0) as f64 * 1e-6;
-    assert!((last.t_s - span_s).abs() < 0.25, "t_s {} want about {span_s}", last.t_s);
+    assert!(
+        (last.t_s - span_s).abs() < 0.25,
+        "t_s {} want about {span_s}",
+        last.t_s
+    );
 }
 
 fn set_boot_ms(m: &mut dronewatt::MavMessage, f: impl Fn(u32) -> u32) {

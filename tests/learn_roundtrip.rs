@@ -11,37 +11,92 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn dronewatt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn ok(args: &[&str]) -> Output {
     let out = dronewatt(args);
-    assert!(out.status.success(), "dronewatt {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "dronewatt {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out
 }
 
 fn simulate(path: &Path, seed: u32) {
     let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&["simulate", "--vehicle", "x500", "--payload-g", "0", "--leg-m", "200", "--hover-s", "20", "--seed", &seed, "--wind-mps", &wind, "--out", path.to_str().unwrap()]);
+    ok(&[
+        "simulate",
+        "--vehicle",
+        "x500",
+        "--payload-g",
+        "0",
+        "--leg-m",
+        "200",
+        "--hover-s",
+        "20",
+        "--seed",
+        &seed,
+        "--wind-mps",
+        &wind,
+        "--out",
+        path.to_str().unwrap(),
+    ]);
 }
 
 /// Each physics model's MAPE over the in-flight windows (measured > 100 W) of a replay, %.
 fn physics_mape(tlog: &Path, vehicle: Option<&Path>) -> Vec<(String, f64)> {
-    let json = tlog.with_extension(if vehicle.is_some() { "learned.jsonl" } else { "published.jsonl" });
-    let mut args = vec!["replay", "--speed", "max", "-q", "--data-dir", "off", "--json", json.to_str().unwrap()];
+    let json = tlog.with_extension(if vehicle.is_some() {
+        "learned.jsonl"
+    } else {
+        "published.jsonl"
+    });
+    let mut args = vec![
+        "replay",
+        "--speed",
+        "max",
+        "-q",
+        "--data-dir",
+        "off",
+        "--json",
+        json.to_str().unwrap(),
+    ];
     if let Some(v) = vehicle {
         args.extend(["--vehicle", v.to_str().unwrap()]);
     }
     args.push(tlog.to_str().unwrap());
     ok(&args);
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    let est: Vec<&serde_json::Value> = lines.iter().filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0)).collect();
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let est: Vec<&serde_json::Value> = lines
+        .iter()
+        .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
+        .collect();
     assert!(est.len() > 500, "{} in-flight estimates", est.len());
-    let names: Vec<String> = est[0]["models"].as_object().unwrap().keys().filter(|n| *n != "lstm").cloned().collect();
+    let names: Vec<String> = est[0]["models"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .filter(|n| *n != "lstm")
+        .cloned()
+        .collect();
     names
         .into_iter()
         .map(|n| {
-            let mape = est.iter().map(|e| (e["models"][&n].as_f64().unwrap() - e["measured_w"].as_f64().unwrap()).abs() / e["measured_w"].as_f64().unwrap()).sum::<f64>();
+            let mape = est
+                .iter()
+                .map(|e| {
+                    (e["models"][&n].as_f64().unwrap() - e["measured_w"].as_f64().unwrap()).abs()
+                        / e["measured_w"].as_f64().unwrap()
+                })
+                .sum::<f64>();
             (n, 100.0 * mape / est.len() as f64)
         })
         .collect()
@@ -59,11 +114,28 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     simulate(&unseen, 4);
     let out_dir = dir.path().join("learned");
     let store = dir.path().join("store");
-    let out = ok(&["learn", logs.to_str().unwrap(), "--holdout-every", "3", "--out", out_dir.to_str().unwrap(), "--data-dir", store.to_str().unwrap()]);
+    let out = ok(&[
+        "learn",
+        logs.to_str().unwrap(),
+        "--holdout-every",
+        "3",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--data-dir",
+        store.to_str().unwrap(),
+    ]);
     let said = String::from_utf8_lossy(&out.stdout);
-    assert!(said.contains("held out:") && said.contains("x500-3.tlog"), "{said}");
+    assert!(
+        said.contains("held out:") && said.contains("x500-3.tlog"),
+        "{said}"
+    );
     let card = std::fs::read_to_string(out_dir.join("model-card.md")).unwrap();
-    assert!(card.contains("held out (score)") && card.contains("| training |") && card.contains("not fine-tuned"), "{card}");
+    assert!(
+        card.contains("held out (score)")
+            && card.contains("| training |")
+            && card.contains("not fine-tuned"),
+        "{card}"
+    );
     let profile = out_dir.join("profile.toml");
     let text = std::fs::read_to_string(&profile).unwrap();
     assert!(text.contains("[calibration]"));
@@ -71,29 +143,77 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     let table: toml::Table = toml::from_str(&text).unwrap();
     let pick = table["forecast"]["model"].as_str().unwrap().to_string();
     assert!(pick.ends_with("_cal") || pick == "lstm", "{pick}");
-    assert!(card.contains("## Forecast model") && card.contains(&pick), "{card}");
+    assert!(
+        card.contains("## Forecast model") && card.contains(&pick),
+        "{card}"
+    );
     // The store keeps it for the logs' vehicle, and says so.
-    let listing = String::from_utf8_lossy(&ok(&["vehicles", "--data-dir", store.to_str().unwrap()]).stdout).into_owned();
-    assert!(listing.contains("learned profile") && listing.contains(&pick), "{listing}");
+    let listing =
+        String::from_utf8_lossy(&ok(&["vehicles", "--data-dir", store.to_str().unwrap()]).stdout)
+            .into_owned();
+    assert!(
+        listing.contains("learned profile") && listing.contains(&pick),
+        "{listing}"
+    );
 
     let published = physics_mape(&unseen, None);
     let learned = physics_mape(&unseen, Some(&profile));
-    assert!(learned.iter().all(|(n, _)| n.ends_with("_cal")), "{learned:?}");
+    assert!(
+        learned.iter().all(|(n, _)| n.ends_with("_cal")),
+        "{learned:?}"
+    );
     let mean = |v: &[(String, f64)]| v.iter().map(|(_, m)| m).sum::<f64>() / v.len() as f64;
     let best = |v: &[(String, f64)]| v.iter().map(|(_, m)| *m).fold(f64::INFINITY, f64::min);
-    assert!(mean(&learned) < 0.6 * mean(&published), "learned {learned:?}\npublished {published:?}");
+    assert!(
+        mean(&learned) < 0.6 * mean(&published),
+        "learned {learned:?}\npublished {published:?}"
+    );
     assert!(best(&learned) < 10.0, "{learned:?}");
 
     // The next run of the vehicle with the store (no --vehicle): the learned profile's
     // models, the forecast on its pick, from the first window.
     let json = dir.path().join("from-store.jsonl");
-    ok(&["replay", "--speed", "max", "-q", "--data-dir", store.to_str().unwrap(), "--json", json.to_str().unwrap(), unseen.to_str().unwrap()]);
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    ok(&[
+        "replay",
+        "--speed",
+        "max",
+        "-q",
+        "--data-dir",
+        store.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        unseen.to_str().unwrap(),
+    ]);
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     let est: Vec<&serde_json::Value> = lines.iter().filter(|l| l["type"] == "estimate").collect();
-    let first = est.iter().find(|e| e["forecast_model"].is_string()).unwrap();
-    assert!(first["models"].as_object().unwrap().keys().any(|n| n.ends_with("_cal")), "{first}");
-    assert_eq!(first["forecast_model"].as_str(), Some(pick.as_str()), "{first}");
-    assert!(first["forecast_why"].as_str().unwrap().contains("learned for this vehicle"), "{first}");
+    let first = est
+        .iter()
+        .find(|e| e["forecast_model"].is_string())
+        .unwrap();
+    assert!(
+        first["models"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .any(|n| n.ends_with("_cal")),
+        "{first}"
+    );
+    assert_eq!(
+        first["forecast_model"].as_str(),
+        Some(pick.as_str()),
+        "{first}"
+    );
+    assert!(
+        first["forecast_why"]
+            .as_str()
+            .unwrap()
+            .contains("learned for this vehicle"),
+        "{first}"
+    );
 }
 
 #[test]
@@ -104,23 +224,58 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     let out = dronewatt(&["learn", txt.to_str().unwrap()]);
     assert!(!out.status.success());
     let said = String::from_utf8_lossy(&out.stderr);
-    assert!(said.contains("notes.txt") && said.contains(".tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg"), "{said}");
+    assert!(
+        said.contains("notes.txt")
+            && said.contains(".tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg"),
+        "{said}"
+    );
     let one = dir.path().join("one.tlog");
     simulate(&one, 1);
     // A .bin that is not DataFlash: an error naming it and what is wrong.
     let bin = dir.path().join("00000012.BIN");
     std::fs::write(&bin, b"not a log").unwrap();
-    let out = dronewatt(&["learn", bin.to_str().unwrap(), one.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap(), "--data-dir", "off"]);
+    let out = dronewatt(&[
+        "learn",
+        bin.to_str().unwrap(),
+        one.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+        "--data-dir",
+        "off",
+    ]);
     assert!(!out.status.success());
     let said = String::from_utf8_lossy(&out.stderr);
-    assert!(said.contains("00000012.BIN") && said.contains("not an ArduPilot DataFlash log"), "{said}");
+    assert!(
+        said.contains("00000012.BIN") && said.contains("not an ArduPilot DataFlash log"),
+        "{said}"
+    );
     let ulg = dir.path().join("log_3.ulg");
     std::fs::write(&ulg, b"not a log").unwrap();
-    let out = dronewatt(&["learn", ulg.to_str().unwrap(), one.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap(), "--data-dir", "off"]);
+    let out = dronewatt(&[
+        "learn",
+        ulg.to_str().unwrap(),
+        one.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+        "--data-dir",
+        "off",
+    ]);
     assert!(!out.status.success());
     let said = String::from_utf8_lossy(&out.stderr);
-    assert!(said.contains("log_3.ulg") && said.contains("not a readable PX4 ULog"), "{said}");
-    let out = dronewatt(&["learn", one.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap()]);
+    assert!(
+        said.contains("log_3.ulg") && said.contains("not a readable PX4 ULog"),
+        "{said}"
+    );
+    let out = dronewatt(&[
+        "learn",
+        one.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+    ]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("at least 2"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("at least 2"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }

@@ -29,7 +29,10 @@ fn signed_config(require: bool) -> (tempfile::TempDir, String) {
     std::fs::write(&key, format!("{KEY_HEX}\n")).unwrap();
     #[cfg(unix)]
     std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
-    let cfg = format!("[link]\nsigning_key_file = \"{}\"\nrequire_signing = {require}\n", key.display());
+    let cfg = format!(
+        "[link]\nsigning_key_file = \"{}\"\nrequire_signing = {require}\n",
+        key.display()
+    );
     (dir, cfg)
 }
 
@@ -39,14 +42,34 @@ fn a_vehicle_signing_with_the_right_key_is_heard_and_verifies_our_replies() {
     let r = fly(&cfg, false, r#"[{"send_s": 4}]"#, &["--sign-key", KEY_HEX]);
     check_consistent(&r);
     let frames = r.peer["frames"].as_u64().unwrap();
-    assert_eq!((r.count("frames_ok"), r.count("signed_ok")), (frames, frames), "{}", r.summary);
-    assert_eq!((r.count("signature_bad"), r.count("signature_replay"), r.count("unsigned_refused")), (0, 0, 0));
-    assert!(expected_estimates(4.0, 1).contains(&r.estimates.len()), "{} estimates", r.estimates.len());
+    assert_eq!(
+        (r.count("frames_ok"), r.count("signed_ok")),
+        (frames, frames),
+        "{}",
+        r.summary
+    );
+    assert_eq!(
+        (
+            r.count("signature_bad"),
+            r.count("signature_replay"),
+            r.count("unsigned_refused")
+        ),
+        (0, 0, 0)
+    );
+    assert!(
+        expected_estimates(4.0, 1).contains(&r.estimates.len()),
+        "{} estimates",
+        r.estimates.len()
+    );
     // pymavlink with a key drops unsigned or badly signed frames: it heard our estimates,
     // and every frame of ours it checked was good.
     let sig = &r.peer["signing"];
     assert!(r.peer["named_values"].as_u64().unwrap() >= 5, "{}", r.peer);
-    assert!(sig["goodsig"].as_u64().unwrap() >= 5 && sig["badsig"] == 0 && sig["unsigned"] == 0, "{}", r.peer);
+    assert!(
+        sig["goodsig"].as_u64().unwrap() >= 5 && sig["badsig"] == 0 && sig["unsigned"] == 0,
+        "{}",
+        r.peer
+    );
 }
 
 #[test]
@@ -55,25 +78,49 @@ fn a_wrong_key_is_dropped_and_counted_both_ways() {
     // No frame is read, so no vehicle is ever heard: with its system id set, dronewatt still
     // sends its heartbeat (signed) from the start, which the peer must refuse.
     let cfg = format!("{cfg}[sinks.mavlink]\nsystem_id = 1\n");
-    let r = fly(&cfg, false, r#"[{"send_s": 3}]"#, &["--sign-key", OTHER_KEY_HEX]);
+    let r = fly(
+        &cfg,
+        false,
+        r#"[{"send_s": 3}]"#,
+        &["--sign-key", OTHER_KEY_HEX],
+    );
     let frames = r.peer["frames"].as_u64().unwrap();
     assert_eq!(r.count("signature_bad"), frames, "{}", r.summary);
-    assert_eq!((r.count("frames_ok"), r.count("windows")), (0, 0), "nothing read from a wrong key: {}", r.summary);
+    assert_eq!(
+        (r.count("frames_ok"), r.count("windows")),
+        (0, 0),
+        "nothing read from a wrong key: {}",
+        r.summary
+    );
     assert!(r.estimates.is_empty());
     // And pymavlink, holding the other key, refused every frame dronewatt signed.
     let sig = &r.peer["signing"];
-    assert!(sig["badsig"].as_u64().unwrap() >= 1 && sig["goodsig"] == 0, "{}", r.peer);
+    assert!(
+        sig["badsig"].as_u64().unwrap() >= 1 && sig["goodsig"] == 0,
+        "{}",
+        r.peer
+    );
     assert_eq!(r.peer["named_values"], 0, "{}", r.peer);
 }
 
 #[test]
 fn replayed_frames_are_dropped_and_counted() {
     let (_dir, cfg) = signed_config(true);
-    let r = fly(&cfg, false, r#"[{"send_s": 3, "replay": 40}]"#, &["--sign-key", KEY_HEX]);
+    let r = fly(
+        &cfg,
+        false,
+        r#"[{"send_s": 3, "replay": 40}]"#,
+        &["--sign-key", KEY_HEX],
+    );
     check_consistent(&r);
     let frames = r.peer["frames"].as_u64().unwrap();
     assert_eq!(r.peer["phases"][0]["replayed"], 40);
-    assert_eq!((r.count("signed_ok"), r.count("signature_replay")), (frames, 40), "{}", r.summary);
+    assert_eq!(
+        (r.count("signed_ok"), r.count("signature_replay")),
+        (frames, 40),
+        "{}",
+        r.summary
+    );
 }
 
 #[test]
@@ -81,7 +128,12 @@ fn with_require_signing_unsigned_frames_mavlink_1_included_are_refused() {
     let (_dir, cfg) = signed_config(true);
     let r = fly(&cfg, false, r#"[{"send_s": 2, "v1": true}]"#, &[]);
     let frames = r.peer["frames"].as_u64().unwrap();
-    assert_eq!((r.count("unsigned_refused"), r.count("frames_ok")), (frames, 0), "{}", r.summary);
+    assert_eq!(
+        (r.count("unsigned_refused"), r.count("frames_ok")),
+        (frames, 0),
+        "{}",
+        r.summary
+    );
     assert!(r.estimates.is_empty());
 }
 
@@ -89,17 +141,29 @@ fn with_require_signing_unsigned_frames_mavlink_1_included_are_refused() {
 fn a_key_file_others_can_read_stops_monitor_before_it_listens() {
     let (dir, cfg) = signed_config(false);
     #[cfg(unix)]
-    std::fs::set_permissions(dir.path().join("link.key"), std::os::unix::fs::PermissionsExt::from_mode(0o644)).unwrap();
+    std::fs::set_permissions(
+        dir.path().join("link.key"),
+        std::os::unix::fs::PermissionsExt::from_mode(0o644),
+    )
+    .unwrap();
     let path = dir.path().join("dw.toml");
     std::fs::write(&path, cfg).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["monitor", &format!("udpin:127.0.0.1:{}", free_udp_port()), "-q", "--config"])
+        .args([
+            "monitor",
+            &format!("udpin:127.0.0.1:{}", free_udp_port()),
+            "-q",
+            "--config",
+        ])
         .arg(&path)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(err.contains("link.signing_key_file") && err.contains("chmod 600"), "{err}");
+    assert!(
+        err.contains("link.signing_key_file") && err.contains("chmod 600"),
+        "{err}"
+    );
 }
 
 // ---- the dashboard ----
@@ -112,29 +176,57 @@ fn http(addr: std::net::SocketAddr, request: &str) -> (u16, Vec<(String, String)
     let mut raw = Vec::new();
     let _ = s.read_to_end(&mut raw);
     let text = String::from_utf8_lossy(&raw).to_string();
-    let (head, body) = text.split_once("\r\n\r\n").unwrap_or_else(|| panic!("no HTTP response: {text:?}"));
+    let (head, body) = text
+        .split_once("\r\n\r\n")
+        .unwrap_or_else(|| panic!("no HTTP response: {text:?}"));
     let mut lines = head.lines();
-    let status = lines.next().unwrap().split(' ').nth(1).unwrap().parse().unwrap();
-    let headers = lines.filter_map(|l| l.split_once(':')).map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string())).collect();
+    let status = lines
+        .next()
+        .unwrap()
+        .split(' ')
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    let headers = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
+        .collect();
     (status, headers, body.to_string())
 }
 
-fn get(addr: std::net::SocketAddr, path: &str, extra: &str) -> (u16, Vec<(String, String)>, String) {
-    http(addr, &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{extra}\r\n"))
+fn get(
+    addr: std::net::SocketAddr,
+    path: &str,
+    extra: &str,
+) -> (u16, Vec<(String, String)>, String) {
+    http(
+        addr,
+        &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{extra}\r\n"),
+    )
 }
 
 fn header<'a>(h: &'a [(String, String)], name: &str) -> &'a str {
-    h.iter().find(|(k, _)| k == name).map_or("", |(_, v)| v.as_str())
+    h.iter()
+        .find(|(k, _)| k == name)
+        .map_or("", |(_, v)| v.as_str())
 }
 
 /// The dashboard served on a free loopback port from `cfg`, fed nothing; dropping the
 /// sender ends it.
-async fn dashboard(cfg: dronewatt::sink::web::WebSinkConfig) -> (std::net::SocketAddr, dronewatt::sink::Fanout) {
+async fn dashboard(
+    cfg: dronewatt::sink::web::WebSinkConfig,
+) -> (std::net::SocketAddr, dronewatt::sink::Fanout) {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     let mut fanout = dronewatt::sink::Fanout::default();
     let rx = fanout.subscribe();
-    tokio::spawn(dronewatt::sink::web::serve(cfg, listener, rx, Default::default()));
+    tokio::spawn(dronewatt::sink::web::serve(
+        cfg,
+        listener,
+        rx,
+        Default::default(),
+    ));
     (addr, fanout)
 }
 
@@ -148,7 +240,11 @@ fn token_file(dir: &tempfile::TempDir, token: &str) -> std::path::PathBuf {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_dashboard_sets_safe_headers_is_read_only_and_caps_request_size() {
-    let (addr, _tx) = dashboard(dronewatt::sink::web::WebSinkConfig { enabled: true, ..Default::default() }).await;
+    let (addr, _tx) = dashboard(dronewatt::sink::web::WebSinkConfig {
+        enabled: true,
+        ..Default::default()
+    })
+    .await;
     tokio::task::spawn_blocking(move || {
         let (status, h, body) = get(addr, "/", "");
         assert_eq!(status, 200);
@@ -179,15 +275,50 @@ async fn the_dashboard_sets_safe_headers_is_read_only_and_caps_request_size() {
 async fn with_a_token_the_api_answers_only_to_its_bearer() {
     let dir = tempfile::tempdir().unwrap();
     let token = "s3cret-token-for-tests-0123";
-    let cfg = dronewatt::sink::web::WebSinkConfig { enabled: true, token_file: Some(token_file(&dir, token)), ..Default::default() };
+    let cfg = dronewatt::sink::web::WebSinkConfig {
+        enabled: true,
+        token_file: Some(token_file(&dir, token)),
+        ..Default::default()
+    };
     let (addr, _tx) = dashboard(cfg).await;
     tokio::task::spawn_blocking(move || {
         let (status, h, _) = get(addr, "/api/state", "");
-        assert_eq!((status, header(&h, "www-authenticate")), (401, "Bearer realm=\"dronewatt\""));
-        assert_eq!(get(addr, "/api/state", "Authorization: Bearer wrong-token-wrong-token\r\n").0, 401);
-        assert_eq!(get(addr, "/api/state", &format!("Authorization: Bearer {token}x\r\n")).0, 401);
-        assert_eq!(get(addr, "/api/state", &format!("Authorization: Bearer {token}\r\n")).0, 200);
-        assert_eq!(get(addr, "/", "").0, 200, "the page holds no data and loads without the token");
+        assert_eq!(
+            (status, header(&h, "www-authenticate")),
+            (401, "Bearer realm=\"dronewatt\"")
+        );
+        assert_eq!(
+            get(
+                addr,
+                "/api/state",
+                "Authorization: Bearer wrong-token-wrong-token\r\n"
+            )
+            .0,
+            401
+        );
+        assert_eq!(
+            get(
+                addr,
+                "/api/state",
+                &format!("Authorization: Bearer {token}x\r\n")
+            )
+            .0,
+            401
+        );
+        assert_eq!(
+            get(
+                addr,
+                "/api/state",
+                &format!("Authorization: Bearer {token}\r\n")
+            )
+            .0,
+            200
+        );
+        assert_eq!(
+            get(addr, "/", "").0,
+            200,
+            "the page holds no data and loads without the token"
+        );
     })
     .await
     .unwrap();
@@ -195,21 +326,38 @@ async fn with_a_token_the_api_answers_only_to_its_bearer() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn connections_beyond_the_limit_wait_until_one_closes() {
-    let cfg = dronewatt::sink::web::WebSinkConfig { enabled: true, max_connections: 2, ..Default::default() };
+    let cfg = dronewatt::sink::web::WebSinkConfig {
+        enabled: true,
+        max_connections: 2,
+        ..Default::default()
+    };
     let (addr, _tx) = dashboard(cfg).await;
     tokio::task::spawn_blocking(move || {
         let idle: Vec<TcpStream> = (0..2).map(|_| TcpStream::connect(addr).unwrap()).collect();
         std::thread::sleep(Duration::from_millis(300));
         let mut third = TcpStream::connect(addr).unwrap(); // the kernel's backlog takes it
-        third.write_all(b"GET /api/state HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").unwrap();
-        third.set_read_timeout(Some(Duration::from_millis(700))).unwrap();
+        third
+            .write_all(b"GET /api/state HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+            .unwrap();
+        third
+            .set_read_timeout(Some(Duration::from_millis(700)))
+            .unwrap();
         let mut b = [0u8; 64];
-        assert!(third.read(&mut b).is_err(), "a third connection must not be served while two are open");
+        assert!(
+            third.read(&mut b).is_err(),
+            "a third connection must not be served while two are open"
+        );
         drop(idle);
-        third.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        third
+            .set_read_timeout(Some(Duration::from_secs(10)))
+            .unwrap();
         let mut raw = Vec::new();
         let _ = third.read_to_end(&mut raw);
-        assert!(raw.starts_with(b"HTTP/1.1 200"), "served once a slot is free: {:?}", String::from_utf8_lossy(&raw));
+        assert!(
+            raw.starts_with(b"HTTP/1.1 200"),
+            "served once a slot is free: {:?}",
+            String::from_utf8_lossy(&raw)
+        );
     })
     .await
     .unwrap();
@@ -221,10 +369,16 @@ fn beyond_loopback_the_dashboard_needs_a_token_from_the_environment() {
     let dir = tempfile::tempdir().unwrap();
     let port = free_tcp_port();
     let cfg = dir.path().join("web.toml");
-    std::fs::write(&cfg, format!("[sinks.web]\nenabled = true\nbind = \"0.0.0.0:{port}\"\nlinger_s = 30\n")).unwrap();
+    std::fs::write(
+        &cfg,
+        format!("[sinks.web]\nenabled = true\nbind = \"0.0.0.0:{port}\"\nlinger_s = 30\n"),
+    )
+    .unwrap();
     let run = |token: Option<&str>| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
-        c.args(["replay", "--speed", "max", "-q", "--config"]).arg(&cfg).arg(root.join("replay/demo.tlog"));
+        c.args(["replay", "--speed", "max", "-q", "--config"])
+            .arg(&cfg)
+            .arg(root.join("replay/demo.tlog"));
         c.env_remove("DRONEWATT_WEB_TOKEN");
         if let Some(t) = token {
             c.env("DRONEWATT_WEB_TOKEN", t);
@@ -233,35 +387,65 @@ fn beyond_loopback_the_dashboard_needs_a_token_from_the_environment() {
     };
     let out = run(None).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "a public dashboard without a token must not start");
-    assert!(err.contains("sinks.web.bind") && err.contains("DRONEWATT_WEB_TOKEN"), "{err}");
+    assert!(
+        !out.status.success(),
+        "a public dashboard without a token must not start"
+    );
+    assert!(
+        err.contains("sinks.web.bind") && err.contains("DRONEWATT_WEB_TOKEN"),
+        "{err}"
+    );
     let out = run(Some("short")).output().unwrap();
-    assert!(String::from_utf8_lossy(&out.stderr).contains("at least 16"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("at least 16"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     let token = "token-from-the-environment-42";
-    let mut dw = run(Some(token)).stderr(std::process::Stdio::null()).spawn().unwrap();
+    let mut dw = run(Some(token))
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
     let addr: std::net::SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
     let start = std::time::Instant::now();
     while TcpStream::connect(addr).is_err() {
-        assert!(start.elapsed() < Duration::from_secs(60), "dashboard never listened");
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "dashboard never listened"
+        );
         std::thread::sleep(Duration::from_millis(100));
     }
     let unauth = get(addr, "/api/state", "").0;
-    let auth = get(addr, "/api/state", &format!("Authorization: Bearer {token}\r\n"));
-    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let auth = get(
+        addr,
+        "/api/state",
+        &format!("Authorization: Bearer {token}\r\n"),
+    );
+    let _ = Command::new("kill")
+        .args(["-TERM", &dw.id().to_string()])
+        .status();
     let _ = dw.wait();
     assert_eq!(unauth, 401);
     assert_eq!(auth.0, 200, "{}", auth.2);
 }
 
 fn chromium() -> Option<&'static str> {
-    ["chromium", "chromium-browser"].into_iter().find(|c| Command::new(c).arg("--version").output().is_ok_and(|o| o.status.success()))
+    ["chromium", "chromium-browser"].into_iter().find(|c| {
+        Command::new(c)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() {
     let Some(browser) = chromium() else {
-        assert!(std::env::var("CI").as_deref() != Ok("true"), "CI=true: chromium is required (scripts/setup-chromium.sh)");
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true: chromium is required (scripts/setup-chromium.sh)"
+        );
         eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine; the token flow in the browser is NOT tested !!!!!!!!\n");
         return;
     };
@@ -270,14 +454,44 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
     use dronewatt::telemetry::{Sample, N_FEATURES};
     let dir = tempfile::tempdir().unwrap();
     let token = "browser-token-0123456789";
-    let cfg = dronewatt::sink::web::WebSinkConfig { enabled: true, token_file: Some(token_file(&dir, token)), ..Default::default() };
+    let cfg = dronewatt::sink::web::WebSinkConfig {
+        enabled: true,
+        token_file: Some(token_file(&dir, token)),
+        ..Default::default()
+    };
     let (addr, mut tx) = dashboard(cfg).await;
-    let sample = Sample { t_s: 1.0, features: [0.0; N_FEATURES], measured_w: Some(512.0), voltage_v: Some(22.5), home: None, stale_mask: 0, battery_remaining_pct: None };
-    let est = Estimate { t_s: 1.0, sample, models: vec![ModelEstimate::new("tseng", 470.0, None)], arrived: None };
-    tx.send(Report { estimate: est, energy: EnergyState::default(), alerts: vec![], system_id: 1 }).await;
+    let sample = Sample {
+        t_s: 1.0,
+        features: [0.0; N_FEATURES],
+        measured_w: Some(512.0),
+        voltage_v: Some(22.5),
+        home: None,
+        stale_mask: 0,
+        battery_remaining_pct: None,
+    };
+    let est = Estimate {
+        t_s: 1.0,
+        sample,
+        models: vec![ModelEstimate::new("tseng", 470.0, None)],
+        arrived: None,
+    };
+    tx.send(Report {
+        estimate: est,
+        energy: EnergyState::default(),
+        alerts: vec![],
+        system_id: 1,
+    })
+    .await;
     let dump = move |url: String| {
         let out = Command::new(browser)
-            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--virtual-time-budget=3000", "--dump-dom"])
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-dev-shm-usage",
+                "--virtual-time-budget=3000",
+                "--dump-dom",
+            ])
             .arg(url)
             .output()
             .unwrap();
@@ -289,7 +503,15 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
     })
     .await
     .unwrap();
-    assert!(with.contains(">512 W<"), "with its token the page shows the numbers:\n{with}");
-    let without = tokio::task::spawn_blocking(move || dump(format!("http://{addr}/"))).await.unwrap();
-    assert!(without.contains("needs its token") && !without.contains(">512 W<"), "without it, it asks:\n{without}");
+    assert!(
+        with.contains(">512 W<"),
+        "with its token the page shows the numbers:\n{with}"
+    );
+    let without = tokio::task::spawn_blocking(move || dump(format!("http://{addr}/")))
+        .await
+        .unwrap();
+    assert!(
+        without.contains("needs its token") && !without.contains(">512 W<"),
+        "without it, it asks:\n{without}"
+    );
 }

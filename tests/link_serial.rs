@@ -32,7 +32,9 @@ async fn serial_reads_frames_and_writes_back_on_a_pty() {
     tokio::time::sleep(Duration::from_millis(300)).await;
     let recs = flight(30);
     for (i, (_, h, m)) in recs.iter().enumerate() {
-        ours.write_all(&frame(*h, m, if i % 2 == 0 { V1 } else { V2 })).await.unwrap();
+        ours.write_all(&frame(*h, m, if i % 2 == 0 { V1 } else { V2 }))
+            .await
+            .unwrap();
     }
     let mut got = 0;
     while got < 30 {
@@ -43,12 +45,27 @@ async fn serial_reads_frames_and_writes_back_on_a_pty() {
     }
     assert_eq!(got, 30);
     // A sink's frame goes out on the port.
-    let hb = frame(mavlink::MavHeader { system_id: 255, component_id: 190, sequence: 0 }, &recs[0].2, V2);
+    let hb = frame(
+        mavlink::MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence: 0,
+        },
+        &recs[0].2,
+        V2,
+    );
     assert!(link.try_send(hb.clone()));
     let mut back = vec![0u8; hb.len()];
-    tokio::time::timeout(Duration::from_secs(5), ours.read_exact(&mut back)).await.expect("frame back in time").unwrap();
+    tokio::time::timeout(Duration::from_secs(5), ours.read_exact(&mut back))
+        .await
+        .expect("frame back in time")
+        .unwrap();
     assert_eq!(back, hb);
     shutdown.cancel();
-    tokio::time::timeout(Duration::from_secs(5), task).await.unwrap().unwrap().unwrap();
+    tokio::time::timeout(Duration::from_secs(5), task)
+        .await
+        .unwrap()
+        .unwrap()
+        .unwrap();
     assert_eq!(stats.snapshot().frames_bad, 0);
 }

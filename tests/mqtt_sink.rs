@@ -24,7 +24,10 @@ fn root() -> &'static Path {
 /// A binary on PATH or in /usr/sbin (where Debian puts `mosquitto`).
 fn find(name: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH").unwrap_or_default();
-    std::env::split_paths(&path).chain([PathBuf::from("/usr/sbin")]).map(|d| d.join(name)).find(|p| p.is_file())
+    std::env::split_paths(&path)
+        .chain([PathBuf::from("/usr/sbin")])
+        .map(|d| d.join(name))
+        .find(|p| p.is_file())
 }
 
 /// A Mosquitto broker of our own on 127.0.0.1, killed when dropped.
@@ -51,11 +54,18 @@ fn broker() -> Option<Broker> {
 
 /// Skip (or under CI=true, fail) when one of these programs is missing.
 fn have(programs: &[&str]) -> bool {
-    let missing: Vec<&str> = programs.iter().copied().filter(|p| find(p).is_none()).collect();
+    let missing: Vec<&str> = programs
+        .iter()
+        .copied()
+        .filter(|p| find(p).is_none())
+        .collect();
     if missing.is_empty() {
         return true;
     }
-    let why = format!("{} not installed (run scripts/setup-mosquitto.sh)", missing.join(", "));
+    let why = format!(
+        "{} not installed (run scripts/setup-mosquitto.sh)",
+        missing.join(", ")
+    );
     if std::env::var("CI").is_ok_and(|v| v == "true") {
         panic!("{why}");
     }
@@ -70,20 +80,39 @@ fn broker_with(listener: impl FnOnce(&Path, u16) -> (String, Vec<String>)) -> Op
         return None;
     }
     let dir = tempfile::tempdir().unwrap();
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
     let (extra, client_args) = listener(dir.path(), port);
     let conf = dir.path().join("mosquitto.conf");
     // No queue limits: a subscriber that falls behind a flat-out replay must get everything.
     // `user root` keeps a broker started as root able to read the test's files (no effect
     // otherwise); `allow_anonymous` may be overridden by `extra`.
-    let anonymous = if extra.contains("allow_anonymous") { "" } else { "allow_anonymous true\n" };
+    let anonymous = if extra.contains("allow_anonymous") {
+        ""
+    } else {
+        "allow_anonymous true\n"
+    };
     std::fs::write(
         &conf,
         format!("user root\nper_listener_settings false\npersistence false\nmax_queued_messages 0\nmax_inflight_messages 0\n{anonymous}listener {port} 127.0.0.1\n{extra}"),
     )
     .unwrap();
-    let child = Command::new(find("mosquitto").unwrap()).arg("-c").arg(&conf).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
-    let b = Broker { child, port, client_args, _dir: dir };
+    let child = Command::new(find("mosquitto").unwrap())
+        .arg("-c")
+        .arg(&conf)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let b = Broker {
+        child,
+        port,
+        client_args,
+        _dir: dir,
+    };
     let until = Instant::now() + Duration::from_secs(10);
     while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
         assert!(Instant::now() < until, "mosquitto did not listen on {port}");
@@ -105,7 +134,12 @@ fn parse(line: &str) -> Option<Msg> {
     let mut it = line.splitn(4, ' ');
     let retained = it.next()? == "1";
     let qos = it.next()?.parse().ok()?;
-    Some(Msg { retained, qos, topic: it.next()?.to_string(), payload: it.next().unwrap_or("").to_string() })
+    Some(Msg {
+        retained,
+        qos,
+        topic: it.next()?.to_string(),
+        payload: it.next().unwrap_or("").to_string(),
+    })
 }
 
 /// `mosquitto_sub` on `topic`, every message collected as it comes.
@@ -117,7 +151,18 @@ struct Subscriber {
 impl Subscriber {
     fn start(b: &Broker, topic: &str) -> Subscriber {
         let mut child = Command::new(find("mosquitto_sub").unwrap())
-            .args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-q", "1", "-F", "%r %q %t %p", "-t", topic])
+            .args([
+                "-h",
+                "127.0.0.1",
+                "-p",
+                &b.port.to_string(),
+                "-q",
+                "1",
+                "-F",
+                "%r %q %t %p",
+                "-t",
+                topic,
+            ])
             .args(&b.client_args)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
@@ -167,7 +212,16 @@ impl Drop for Subscriber {
 
 fn pub_once(b: &Broker, topic: &str, payload: &str) {
     let ok = Command::new(find("mosquitto_pub").expect("mosquitto_pub"))
-        .args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-t", topic, "-m", payload])
+        .args([
+            "-h",
+            "127.0.0.1",
+            "-p",
+            &b.port.to_string(),
+            "-t",
+            topic,
+            "-m",
+            payload,
+        ])
         .args(&b.client_args)
         .status()
         .unwrap();
@@ -178,12 +232,26 @@ fn pub_once(b: &Broker, topic: &str, payload: &str) {
 /// to at once.
 fn retained(b: &Broker, topics: &[&str]) -> Vec<Msg> {
     let mut cmd = Command::new(find("mosquitto_sub").unwrap());
-    cmd.args(["-h", "127.0.0.1", "-p", &b.port.to_string(), "-F", "%r %q %t %p", "--retained-only", "-W", "2"]).args(&b.client_args);
+    cmd.args([
+        "-h",
+        "127.0.0.1",
+        "-p",
+        &b.port.to_string(),
+        "-F",
+        "%r %q %t %p",
+        "--retained-only",
+        "-W",
+        "2",
+    ])
+    .args(&b.client_args);
     for t in topics {
         cmd.args(["-t", t]);
     }
     let out = cmd.output().unwrap();
-    String::from_utf8_lossy(&out.stdout).lines().filter_map(parse).collect()
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(parse)
+        .collect()
 }
 
 /// A config with the MQTT sink on, to this broker, under prefix `dw`.
@@ -197,7 +265,12 @@ fn replay(cfg: &Path, file: &Path, json: &Path) -> (std::process::Output, Durati
     replay_env(cfg, file, json, &[])
 }
 
-fn replay_env(cfg: &Path, file: &Path, json: &Path, env: &[(&str, &str)]) -> (std::process::Output, Duration) {
+fn replay_env(
+    cfg: &Path,
+    file: &Path,
+    json: &Path,
+    env: &[(&str, &str)],
+) -> (std::process::Output, Duration) {
     let t0 = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["replay", "--speed", "max", "-q", "--json"])
@@ -209,14 +282,23 @@ fn replay_env(cfg: &Path, file: &Path, json: &Path, env: &[(&str, &str)]) -> (st
         .output()
         .unwrap();
     let took = t0.elapsed();
-    assert!(out.status.success(), "dronewatt failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "dronewatt failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     (out, took)
 }
 
 /// The `--json` lines of one type, as written.
 fn lines_of(json: &Path, kind: &str) -> Vec<String> {
     let tag = format!("{{\"type\":\"{kind}\"");
-    std::fs::read_to_string(json).unwrap().lines().filter(|l| l.starts_with(&tag)).map(str::to_string).collect()
+    std::fs::read_to_string(json)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with(&tag))
+        .map(str::to_string)
+        .collect()
 }
 
 fn on(seen: &[Msg], topic: &str) -> Vec<Msg> {
@@ -229,7 +311,10 @@ fn a_replay_publishes_every_estimate_and_alert_the_retained_state_and_status() {
     let dir = tempfile::tempdir().unwrap();
     // The demo (its mission margin and pack alerts) without its dashboard; paths in the
     // config are relative to it, so the copy names the repository's.
-    let vehicles = format!("calibrated_profile = \"{}/", root().join("config/vehicles").display());
+    let vehicles = format!(
+        "calibrated_profile = \"{}/",
+        root().join("config/vehicles").display()
+    );
     let demo = std::fs::read_to_string(root().join("config/demo.toml"))
         .unwrap()
         .replace("enabled = true", "enabled = false")
@@ -240,10 +325,18 @@ fn a_replay_publishes_every_estimate_and_alert_the_retained_state_and_status() {
     let (out, _) = replay(&cfg, &root().join("replay/demo.tlog"), &json);
     let estimates = lines_of(&json, "estimate");
     let alerts = lines_of(&json, "alert");
-    assert!(estimates.len() > 100 && !alerts.is_empty(), "{} estimates, {} alerts", estimates.len(), alerts.len());
+    assert!(
+        estimates.len() > 100 && !alerts.is_empty(),
+        "{} estimates, {} alerts",
+        estimates.len(),
+        alerts.len()
+    );
 
     let seen = sub.wait_for(Duration::from_secs(20), |s| {
-        on(s, "dw/1/estimate").len() >= estimates.len() && on(s, "dw/status/test").last().is_some_and(|m| m.payload == "offline")
+        on(s, "dw/1/estimate").len() >= estimates.len()
+            && on(s, "dw/status/test")
+                .last()
+                .is_some_and(|m| m.payload == "offline")
     });
     // Every estimate, in order, byte for byte the JSON line; QoS 0, not retained.
     let got = on(&seen, "dw/1/estimate");
@@ -254,41 +347,83 @@ fn a_replay_publishes_every_estimate_and_alert_the_retained_state_and_status() {
     }
     // Every alert event, QoS 1.
     let got = on(&seen, "dw/1/alert");
-    assert_eq!(got.iter().map(|m| &m.payload).collect::<Vec<_>>(), alerts.iter().collect::<Vec<_>>());
+    assert_eq!(
+        got.iter().map(|m| &m.payload).collect::<Vec<_>>(),
+        alerts.iter().collect::<Vec<_>>()
+    );
     assert!(got.iter().all(|m| m.qos == 1));
     // Nothing under any other vehicle: the tlog's vehicle is system 1.
-    assert!(seen.iter().all(|m| !m.topic.starts_with("dw/") || m.topic.starts_with("dw/1/") || m.topic.starts_with("dw/status/") || m.topic == "dw/probe"));
+    assert!(seen.iter().all(|m| !m.topic.starts_with("dw/")
+        || m.topic.starts_with("dw/1/")
+        || m.topic.starts_with("dw/status/")
+        || m.topic == "dw/probe"));
     // State: about once per second of flight (10 reports), plus the alert's.
     let states = on(&seen, "dw/1/state");
-    assert!(states.len() >= estimates.len() / 12 && states.len() <= estimates.len() / 10 + alerts.len() + 2, "{} states for {} estimates", states.len(), estimates.len());
+    assert!(
+        states.len() >= estimates.len() / 12
+            && states.len() <= estimates.len() / 10 + alerts.len() + 2,
+        "{} states for {} estimates",
+        states.len(),
+        estimates.len()
+    );
     // Status: online, then offline on the clean exit.
-    let status: Vec<String> = on(&seen, "dw/status/test").into_iter().map(|m| m.payload).collect();
+    let status: Vec<String> = on(&seen, "dw/status/test")
+        .into_iter()
+        .map(|m| m.payload)
+        .collect();
     assert_eq!(status, ["online", "offline"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("0 dropped (queue full), 0 undelivered at exit, 0 reports missed"), "{stderr}");
+    assert!(
+        stderr.contains("0 dropped (queue full), 0 undelivered at exit, 0 reports missed"),
+        "{stderr}"
+    );
 
     // What a dashboard starting now sees: the last state and `offline`, retained.
     let r = retained(&b, &["dw/1/state", "dw/status/test"]);
-    let state = r.iter().find(|m| m.topic == "dw/1/state").expect("a retained state");
-    let status = r.iter().find(|m| m.topic == "dw/status/test").expect("a retained status");
+    let state = r
+        .iter()
+        .find(|m| m.topic == "dw/1/state")
+        .expect("a retained state");
+    let status = r
+        .iter()
+        .find(|m| m.topic == "dw/status/test")
+        .expect("a retained status");
     assert!(state.retained && status.retained && status.payload == "offline");
     let state: serde_json::Value = serde_json::from_str(&state.payload).unwrap();
     let last: serde_json::Value = serde_json::from_str(estimates.last().unwrap()).unwrap();
     assert_eq!(state["type"], "state");
-    assert_eq!(state["t"], last["t"], "the retained state is the last report's");
+    assert_eq!(
+        state["t"], last["t"],
+        "the retained state is the last report's"
+    );
     assert_eq!(state["energy_used_wh"], last["energy_used_wh"]);
     assert_eq!(state["remaining_wh"], last["remaining_wh"]);
     // The demo's alerts raised and not cleared at the end: the state says so.
     let mut standing = std::collections::BTreeMap::new();
     for a in &alerts {
         let a: serde_json::Value = serde_json::from_str(a).unwrap();
-        standing.insert(a["rule"].as_str().unwrap().to_string(), a["state"] == "raised");
+        standing.insert(
+            a["rule"].as_str().unwrap().to_string(),
+            a["state"] == "raised",
+        );
     }
-    let mut want: Vec<&String> = standing.iter().filter(|(_, up)| **up).map(|(r, _)| r).collect();
-    let mut got: Vec<String> = state["active_alerts"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+    let mut want: Vec<&String> = standing
+        .iter()
+        .filter(|(_, up)| **up)
+        .map(|(r, _)| r)
+        .collect();
+    let mut got: Vec<String> = state["active_alerts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect();
     want.sort();
     got.sort();
-    assert!(want.iter().any(|r| r.as_str() == "energy_low"), "the demo's energy warning stands at the end: {want:?}");
+    assert!(
+        want.iter().any(|r| r.as_str() == "energy_low"),
+        "the demo's energy warning stands at the end: {want:?}"
+    );
     assert_eq!(got.iter().collect::<Vec<_>>(), want);
 }
 
@@ -297,18 +432,35 @@ fn the_last_will_says_offline_when_dronewatt_is_killed() {
     let Some(b) = broker() else { return };
     let dir = tempfile::tempdir().unwrap();
     let cfg = config(dir.path(), &b, "victim", "");
-    let udp = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let udp = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["monitor", &format!("udpin:127.0.0.1:{udp}"), "-q", "--config"])
+        .args([
+            "monitor",
+            &format!("udpin:127.0.0.1:{udp}"),
+            "-q",
+            "--config",
+        ])
         .arg(&cfg)
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
     let until = Instant::now() + Duration::from_secs(20);
-    let status = || retained(&b, &["dw/status/victim"]).into_iter().next().map(|m| (m.retained, m.payload));
+    let status = || {
+        retained(&b, &["dw/status/victim"])
+            .into_iter()
+            .next()
+            .map(|m| (m.retained, m.payload))
+    };
     while status() != Some((true, "online".into())) {
-        assert!(Instant::now() < until, "dronewatt never announced itself online");
+        assert!(
+            Instant::now() < until,
+            "dronewatt never announced itself online"
+        );
     }
     dw.kill().unwrap(); // SIGKILL: no chance to say goodbye
     dw.wait().unwrap();
@@ -332,18 +484,27 @@ fn a_long_flight_flat_out_is_published_without_drops() {
         .args(["--leg-m", "4000", "--hover-s", "120"])
         .output()
         .unwrap();
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
     let cfg = config(dir.path(), &b, "long", "");
     let sub = Subscriber::start(&b, "dw/#");
     let json = dir.path().join("out.jsonl");
     let (out, took) = replay(&cfg, &tlog, &json);
     let estimates = lines_of(&json, "estimate").len();
-    let seen = sub.wait_for(Duration::from_secs(60), |s| on(s, "dw/1/estimate").len() >= estimates);
+    let seen = sub.wait_for(Duration::from_secs(60), |s| {
+        on(s, "dw/1/estimate").len() >= estimates
+    });
     let got = on(&seen, "dw/1/estimate").len();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(estimates > 3000, "a long flight: {estimates} estimates");
     assert_eq!(got, estimates, "every estimate of the flight arrives");
-    assert!(stderr.contains(" 0 dropped (queue full), 0 undelivered at exit"), "{stderr}");
+    assert!(
+        stderr.contains(" 0 dropped (queue full), 0 undelivered at exit"),
+        "{stderr}"
+    );
     let published = seen.iter().filter(|m| m.topic.starts_with("dw/1/")).count();
     eprintln!(
         "long flight: {estimates} reports, {published} messages in {:.2} s whole-process flat out: {:.0} messages/s",
@@ -354,23 +515,91 @@ fn a_long_flight_flat_out_is_published_without_drops() {
 
 /// Run a command in `dir`, asserting it succeeds.
 fn sh(dir: &Path, program: &str, args: &[&str]) {
-    let out = Command::new(find(program).unwrap()).args(args).current_dir(dir).output().unwrap();
-    assert!(out.status.success(), "{program} {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new(find(program).unwrap())
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{program} {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// A test CA and a server certificate for 127.0.0.1 signed by it (rustls wants the IP in
 /// subjectAltName), and a password file with user `dronewatt`, password `s3cret`.
 fn tls_and_login(dir: &Path) {
-    let ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"];
-    sh(dir, "openssl", &[&["req", "-x509"][..], &ec, &["-keyout", "ca.key", "-out", "ca.pem", "-days", "2", "-subj", "/CN=dronewatt test CA"]].concat());
-    sh(dir, "openssl", &[&["req"][..], &ec, &["-keyout", "server.key", "-out", "server.csr", "-subj", "/CN=127.0.0.1"]].concat());
+    let ec = [
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+    ];
+    sh(
+        dir,
+        "openssl",
+        &[
+            &["req", "-x509"][..],
+            &ec,
+            &[
+                "-keyout",
+                "ca.key",
+                "-out",
+                "ca.pem",
+                "-days",
+                "2",
+                "-subj",
+                "/CN=dronewatt test CA",
+            ],
+        ]
+        .concat(),
+    );
+    sh(
+        dir,
+        "openssl",
+        &[
+            &["req"][..],
+            &ec,
+            &[
+                "-keyout",
+                "server.key",
+                "-out",
+                "server.csr",
+                "-subj",
+                "/CN=127.0.0.1",
+            ],
+        ]
+        .concat(),
+    );
     std::fs::write(dir.join("san.ext"), "subjectAltName=IP:127.0.0.1\n").unwrap();
     sh(
         dir,
         "openssl",
-        &["x509", "-req", "-in", "server.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-out", "server.pem", "-days", "2", "-extfile", "san.ext"],
+        &[
+            "x509",
+            "-req",
+            "-in",
+            "server.csr",
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-out",
+            "server.pem",
+            "-days",
+            "2",
+            "-extfile",
+            "san.ext",
+        ],
     );
-    sh(dir, "mosquitto_passwd", &["-b", "-c", "passwords", "dronewatt", "s3cret"]);
+    sh(
+        dir,
+        "mosquitto_passwd",
+        &["-b", "-c", "passwords", "dronewatt", "s3cret"],
+    );
 }
 
 #[test]
@@ -392,7 +621,9 @@ fn tls_with_a_password_from_the_environment_and_a_wrong_password_never_stalls_th
     let ca = b._dir.path().join("ca.pem");
     let login = format!("[sinks.mqtt]\ntls = true\nca_file = \"{}\"\nusername = \"dronewatt\"\npassword_env = \"DW_TEST_MQTT_PW\"\n", ca.display());
     let cfg = dir.path().join("tls.toml");
-    let demo = std::fs::read_to_string(config(dir.path(), &b, "tls", "")).unwrap().replace("[sinks.mqtt]\n", &login);
+    let demo = std::fs::read_to_string(config(dir.path(), &b, "tls", ""))
+        .unwrap()
+        .replace("[sinks.mqtt]\n", &login);
     std::fs::write(&cfg, demo).unwrap();
     let sub = Subscriber::start(&b, "dw/#");
     let json = dir.path().join("out.jsonl");
@@ -401,32 +632,75 @@ fn tls_with_a_password_from_the_environment_and_a_wrong_password_never_stalls_th
     // The right password: everything arrives over TLS.
     let (out, _) = replay_env(&cfg, &tlog, &json, &[("DW_TEST_MQTT_PW", "s3cret")]);
     let estimates = lines_of(&json, "estimate").len();
-    let seen = sub.wait_for(Duration::from_secs(20), |s| on(s, "dw/1/estimate").len() >= estimates);
-    assert_eq!(on(&seen, "dw/1/estimate").len(), estimates, "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(String::from_utf8_lossy(&out.stderr).contains(" 0 dropped (queue full), 0 undelivered at exit"));
+    let seen = sub.wait_for(Duration::from_secs(20), |s| {
+        on(s, "dw/1/estimate").len() >= estimates
+    });
+    assert_eq!(
+        on(&seen, "dw/1/estimate").len(),
+        estimates,
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr)
+        .contains(" 0 dropped (queue full), 0 undelivered at exit"));
 
     // A wrong one: refused, retried with back-off, the small queue overflows and counts its
     // drops, and the run still ends with every JSON line written.
     let small = dir.path().join("small-queue.toml");
-    std::fs::write(&small, std::fs::read_to_string(&cfg).unwrap().replace("[sinks.mqtt]\n", "[sinks.mqtt]\nqueue = 100\n")).unwrap();
+    std::fs::write(
+        &small,
+        std::fs::read_to_string(&cfg)
+            .unwrap()
+            .replace("[sinks.mqtt]\n", "[sinks.mqtt]\nqueue = 100\n"),
+    )
+    .unwrap();
     let json2 = dir.path().join("refused.jsonl");
     let (out, took) = replay_env(&small, &tlog, &json2, &[("DW_TEST_MQTT_PW", "wrong")]);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(lines_of(&json2, "estimate").len(), estimates, "the other sinks lose nothing");
-    assert!(stderr.contains("mqtt summary: 0 messages published"), "{stderr}");
-    let dropped: u64 = stderr.split("published, ").nth(1).and_then(|r| r.split(' ').next()).and_then(|n| n.parse().ok()).expect("a summary");
-    assert!(dropped > estimates as u64 / 2, "a 100-message queue drops most of {estimates} reports: {dropped}");
+    assert_eq!(
+        lines_of(&json2, "estimate").len(),
+        estimates,
+        "the other sinks lose nothing"
+    );
+    assert!(
+        stderr.contains("mqtt summary: 0 messages published"),
+        "{stderr}"
+    );
+    let dropped: u64 = stderr
+        .split("published, ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .expect("a summary");
+    assert!(
+        dropped > estimates as u64 / 2,
+        "a 100-message queue drops most of {estimates} reports: {dropped}"
+    );
     assert!(stderr.contains("retrying in"), "{stderr}");
-    eprintln!("refused broker: run ended after {:.1} s (flush timeout included)", took.as_secs_f64());
+    eprintln!(
+        "refused broker: run ended after {:.1} s (flush timeout included)",
+        took.as_secs_f64()
+    );
 }
 
 /// `monitor` on a free UDP port with `--vehicles ids`, the MQTT sink on as `instance`.
 fn monitor_fleet(b: &Broker, dir: &Path, instance: &str, ids: &str) -> (Child, u16, PathBuf) {
     let cfg = config(dir, b, instance, "");
     let json = dir.join("out.jsonl");
-    let port = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
     let dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q", "--vehicles", ids, "--json"])
+        .args([
+            "monitor",
+            &format!("udpin:127.0.0.1:{port}"),
+            "-q",
+            "--vehicles",
+            ids,
+            "--json",
+        ])
         .arg(&json)
         .arg("--config")
         .arg(&cfg)
@@ -454,12 +728,25 @@ fn two_instances_split_one_links_vehicles_and_each_vehicle_is_published_by_one()
     let vehicles = r#"[{"id": 1, "power_w": 300, "send_s": 6}, {"id": 2, "power_w": 500, "send_s": 6}, {"id": 3, "power_w": 700, "send_s": 6}]"#;
     let peer = Command::new(root().join(".venv-py/bin/python"))
         .arg(root().join("tests/peers/fleet.py"))
-        .args(["--to", &format!("udpout:127.0.0.1:{pa}"), "--to", &format!("udpout:127.0.0.1:{pc}"), "--vehicles", vehicles])
+        .args([
+            "--to",
+            &format!("udpout:127.0.0.1:{pa}"),
+            "--to",
+            &format!("udpout:127.0.0.1:{pc}"),
+            "--vehicles",
+            vehicles,
+        ])
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
+    assert!(
+        peer.status.success(),
+        "peer failed: {}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
     for dw in [&mut a, &mut c] {
-        let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+        let _ = Command::new("kill")
+            .args(["-TERM", &dw.id().to_string()])
+            .status();
         let status = dw.wait().unwrap();
         let mut err = String::new();
         std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
@@ -467,25 +754,64 @@ fn two_instances_split_one_links_vehicles_and_each_vehicle_is_published_by_one()
     }
     let (ea, ec) = (lines_of(&ja, "estimate"), lines_of(&jc, "estimate"));
     let seen = sub.wait_for(Duration::from_secs(20), |s| {
-        ["1", "2", "3"].iter().map(|v| on(s, &format!("dw/{v}/estimate")).len()).sum::<usize>() >= ea.len() + ec.len()
-            && ["gcs-a", "gcs-b"].iter().all(|i| on(s, &format!("dw/status/{i}")).last().is_some_and(|m| m.payload == "offline"))
+        ["1", "2", "3"]
+            .iter()
+            .map(|v| on(s, &format!("dw/{v}/estimate")).len())
+            .sum::<usize>()
+            >= ea.len() + ec.len()
+            && ["gcs-a", "gcs-b"].iter().all(|i| {
+                on(s, &format!("dw/status/{i}"))
+                    .last()
+                    .is_some_and(|m| m.payload == "offline")
+            })
     });
     let ids = |lines: &[String]| -> std::collections::BTreeSet<u64> {
-        lines.iter().map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["system_id"].as_u64().unwrap()).collect()
+        lines
+            .iter()
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["system_id"]
+                    .as_u64()
+                    .unwrap()
+            })
+            .collect()
     };
-    assert_eq!(ids(&ea).into_iter().collect::<Vec<_>>(), vec![1, 2], "instance a watches 1-2");
-    assert_eq!(ids(&ec).into_iter().collect::<Vec<_>>(), vec![3], "instance b watches 3");
+    assert_eq!(
+        ids(&ea).into_iter().collect::<Vec<_>>(),
+        vec![1, 2],
+        "instance a watches 1-2"
+    );
+    assert_eq!(
+        ids(&ec).into_iter().collect::<Vec<_>>(),
+        vec![3],
+        "instance b watches 3"
+    );
     // Each vehicle's estimate topic is exactly what its one instance wrote, byte for byte:
     // nothing from the other instance, nothing twice.
     for (v, mine) in [(1, &ea), (2, &ea), (3, &ec)] {
-        let want: Vec<String> = mine.iter().filter(|l| l.contains(&format!("\"system_id\":{v},"))).cloned().collect();
-        let got: Vec<String> = on(&seen, &format!("dw/{v}/estimate")).into_iter().map(|m| m.payload).collect();
+        let want: Vec<String> = mine
+            .iter()
+            .filter(|l| l.contains(&format!("\"system_id\":{v},")))
+            .cloned()
+            .collect();
+        let got: Vec<String> = on(&seen, &format!("dw/{v}/estimate"))
+            .into_iter()
+            .map(|m| m.payload)
+            .collect();
         assert!(want.len() > 30, "vehicle {v}: {} estimates", want.len());
-        assert_eq!(got, want, "vehicle {v}'s estimates on the broker are its instance's");
-        assert!(on(&seen, &format!("dw/{v}/state")).len() >= 3, "vehicle {v}: retained state published");
+        assert_eq!(
+            got, want,
+            "vehicle {v}'s estimates on the broker are its instance's"
+        );
+        assert!(
+            on(&seen, &format!("dw/{v}/state")).len() >= 3,
+            "vehicle {v}: retained state published"
+        );
     }
     for i in ["gcs-a", "gcs-b"] {
-        let status: Vec<String> = on(&seen, &format!("dw/status/{i}")).into_iter().map(|m| m.payload).collect();
+        let status: Vec<String> = on(&seen, &format!("dw/status/{i}"))
+            .into_iter()
+            .map(|m| m.payload)
+            .collect();
         assert_eq!(status, ["online", "offline"], "instance {i}");
     }
 }

@@ -23,7 +23,11 @@ fn eval_models(dir: &Path, name: &str, toml: &str, flight: &str) -> serde_json::
     let cfg = dir.join(name);
     std::fs::write(&cfg, toml).unwrap();
     let out = dronewatt(&["eval", "--flight", flight, "--json", "-"], &cfg);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let json: serde_json::Value = serde_json::from_str(&text[text.find('{').unwrap()..]).unwrap();
     json["models"].clone()
@@ -33,16 +37,32 @@ fn eval_models(dir: &Path, name: &str, toml: &str, flight: &str) -> serde_json::
 fn eval_runs_the_configured_models_and_energy_tracker() {
     let dir = tempfile::tempdir().unwrap();
     // The LSTM switched off: the physics models are scored, the LSTM is not.
-    let models = eval_models(dir.path(), "no-lstm.toml", "[models.lstm]\nenabled = false\n", "277");
-    assert!(models.get("lstm").is_none() && models.get("tseng").is_some(), "{models}");
+    let models = eval_models(
+        dir.path(),
+        "no-lstm.toml",
+        "[models.lstm]\nenabled = false\n",
+        "277",
+    );
+    assert!(
+        models.get("lstm").is_none() && models.get("tseng").is_some(),
+        "{models}"
+    );
     // Flight 277 has a telemetry gap of more than a second in flight. The energy tracker
     // caps a step at [energy] max_dt_s (default 1 s); lifting the cap integrates the whole
     // gap. Energy scores move with it, power scores do not: energy comes from the tracker.
     let capped = eval_models(dir.path(), "default.toml", "", "277");
-    let uncapped = eval_models(dir.path(), "uncapped.toml", "[energy]\nmax_dt_s = 100\n", "277");
+    let uncapped = eval_models(
+        dir.path(),
+        "uncapped.toml",
+        "[energy]\nmax_dt_s = 100\n",
+        "277",
+    );
     let f = |m: &serde_json::Value, key: &str| m["dandrea"][key].as_f64().unwrap();
     assert_eq!(f(&capped, "mae_w"), f(&uncapped, "mae_w"));
-    assert!((f(&capped, "energy_err_pct") - f(&uncapped, "energy_err_pct")).abs() > 0.01, "{capped} vs {uncapped}");
+    assert!(
+        (f(&capped, "energy_err_pct") - f(&uncapped, "energy_err_pct")).abs() > 0.01,
+        "{capped} vs {uncapped}"
+    );
 }
 
 #[test]
@@ -55,7 +75,13 @@ fn a_bad_config_stops_every_offline_command_naming_the_file_and_key() {
     let out_file = dir.path().join("cal.toml");
     let commands: [&[&str]; 4] = [
         &["eval", "--flight", "276"],
-        &["calibrate", "--flights", "100", "-o", out_file.to_str().unwrap()],
+        &[
+            "calibrate",
+            "--flights",
+            "100",
+            "-o",
+            out_file.to_str().unwrap(),
+        ],
         &["sensitivity", "--flights", "276", "--out", out_dir],
         &["train", "--flights", "100,150", "--out", out_dir],
     ];
@@ -63,13 +89,22 @@ fn a_bad_config_stops_every_offline_command_naming_the_file_and_key() {
         let out = dronewatt(args, &bad);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} accepted a bad config");
-        assert!(err.contains("bad.toml") && err.contains("window_len"), "{args:?}: {err}");
+        assert!(
+            err.contains("bad.toml") && err.contains("window_len"),
+            "{args:?}: {err}"
+        );
     }
     // A valid file whose window the shipped LSTM was not trained on: the model refuses it,
     // naming the key, so the telemetry settings do reach the models.
     let short = dir.path().join("short.toml");
     std::fs::write(&short, "[telemetry]\nwindow = 5\n").unwrap();
-    let out = dronewatt(&["sensitivity", "--flights", "276", "--out", out_dir], &short);
+    let out = dronewatt(
+        &["sensitivity", "--flights", "276", "--out", out_dir],
+        &short,
+    );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("telemetry.window"), "{err}");
+    assert!(
+        !out.status.success() && err.contains("telemetry.window"),
+        "{err}"
+    );
 }

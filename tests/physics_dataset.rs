@@ -10,13 +10,27 @@ use dronewatt::telemetry::{MissionConfig, TelemetryConfig};
 #[test]
 fn every_model_finite_on_every_window() {
     let path = dronewatt::default_data_path();
-    let flights = load_flights(&path, None, &TelemetryConfig::default(), &MissionConfig::default()).expect("the data set (set DRONEWATT_DATA)");
+    let flights = load_flights(
+        &path,
+        None,
+        &TelemetryConfig::default(),
+        &MissionConfig::default(),
+    )
+    .expect("the data set (set DRONEWATT_DATA)");
     assert!(flights.len() >= 200, "{} flights", flights.len());
     for g in 211..=219 {
-        assert!(flights.iter().any(|f| f.flight == g && !f.windows.is_empty()), "ground test {g} missing");
+        assert!(
+            flights
+                .iter()
+                .any(|f| f.flight == g && !f.windows.is_empty()),
+            "ground test {g} missing"
+        );
     }
-    let cal = VehicleProfile::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/vehicles/m100-calibrated.toml"))
-        .expect("committed calibrated profile");
+    let cal = VehicleProfile::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config/vehicles/m100-calibrated.toml"),
+    )
+    .expect("committed calibrated profile");
     let mut models = physics::models(&VehicleProfile::m100());
     models.extend(physics::models(&cal));
     let mut out = Vec::new();
@@ -26,8 +40,20 @@ fn every_model_finite_on_every_window() {
             m.predict(&f.windows, &mut out);
             assert_eq!(out.len(), f.windows.len());
             for (i, p) in out.iter().enumerate() {
-                assert!(p.power_w.is_finite(), "{} on flight {} window {i}: {}", m.name(), f.flight, p.power_w);
-                assert!(p.power_w >= 0.0, "{} on flight {} window {i}: negative power {} W", m.name(), f.flight, p.power_w);
+                assert!(
+                    p.power_w.is_finite(),
+                    "{} on flight {} window {i}: {}",
+                    m.name(),
+                    f.flight,
+                    p.power_w
+                );
+                assert!(
+                    p.power_w >= 0.0,
+                    "{} on flight {} window {i}: negative power {} W",
+                    m.name(),
+                    f.flight,
+                    p.power_w
+                );
             }
             n += out.len();
         }

@@ -13,22 +13,55 @@ use dronewatt::MavMessage;
 use serde_json::Value;
 
 fn dronewatt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn ok(args: &[&str]) -> Output {
     let out = dronewatt(args);
-    assert!(out.status.success(), "dronewatt {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "dronewatt {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out
 }
 
 fn simulate(path: &Path, seed: u32) {
     let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&["simulate", "--vehicle", "x500", "--payload-g", "0", "--leg-m", "200", "--hover-s", "20", "--seed", &seed, "--wind-mps", &wind, "--out", path.to_str().unwrap()]);
+    ok(&[
+        "simulate",
+        "--vehicle",
+        "x500",
+        "--payload-g",
+        "0",
+        "--leg-m",
+        "200",
+        "--hover-s",
+        "20",
+        "--seed",
+        &seed,
+        "--wind-mps",
+        &wind,
+        "--out",
+        path.to_str().unwrap(),
+    ]);
 }
 
 fn rows(v: &Value) -> Vec<Vec<f64>> {
-    v.as_array().unwrap().iter().map(|r| r.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()).collect()
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            r.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect()
 }
 
 #[test]
@@ -38,53 +71,123 @@ fn pymavlink_reads_the_simulated_bin_as_the_tlog_says() {
     simulate(&bin, 1);
     simulate(&tlog, 1);
     let out = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/dataflash_dump.py"))
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/peers/dataflash_dump.py"
+        ))
         .args([&bin, &tlog])
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let d: Value = serde_json::from_slice(&out.stdout).unwrap();
     let (b, t) = (&d["bin"], &d["tlog"]);
     let n = |v: &Value, k: &str| v["counts"][k].as_u64().unwrap_or(0);
-    for (df, mav) in [("BAT", "BATTERY_STATUS"), ("ATT", "ATTITUDE"), ("IMU", "RAW_IMU"), ("POS", "GLOBAL_POSITION_INT"), ("GPS", "GPS_RAW_INT"), ("XKF2", "WIND"), ("PARM", "PARAM_VALUE")] {
-        assert!(n(b, df) > 0 && n(b, df) == n(t, mav), "{df} {} vs {mav} {}", n(b, df), n(t, mav));
+    for (df, mav) in [
+        ("BAT", "BATTERY_STATUS"),
+        ("ATT", "ATTITUDE"),
+        ("IMU", "RAW_IMU"),
+        ("POS", "GLOBAL_POSITION_INT"),
+        ("GPS", "GPS_RAW_INT"),
+        ("XKF2", "WIND"),
+        ("PARM", "PARAM_VALUE"),
+    ] {
+        assert!(
+            n(b, df) > 0 && n(b, df) == n(t, mav),
+            "{df} {} vs {mav} {}",
+            n(b, df),
+            n(t, mav)
+        );
     }
     assert_eq!(b["parm"], t["parm"]);
-    assert_eq!(b["parm"]["BATT_CAPACITY"].as_f64(), Some(5000.0), "{}", b["parm"]);
+    assert_eq!(
+        b["parm"]["BATT_CAPACITY"].as_f64(),
+        Some(5000.0),
+        "{}",
+        b["parm"]
+    );
     // Same stamps (µs from the first record) and values, to the fields' resolution.
-    for (k, tol) in [("bat", [0.0, 1e-5, 1e-5, 0.0]), ("pos", [0.0, 1e-9, 1e-9, 1e-4])] {
+    for (k, tol) in [
+        ("bat", [0.0, 1e-5, 1e-5, 0.0]),
+        ("pos", [0.0, 1e-9, 1e-9, 1e-4]),
+    ] {
         let (rb, rt) = (rows(&b[k]), rows(&t[k]));
         assert_eq!(rb.len(), rt.len());
         for (x, y) in rb.iter().zip(&rt) {
             for i in 0..4 {
-                assert!((x[i] - y[i]).abs() <= tol[i] * y[i].abs().max(1.0), "{k} {x:?} vs {y:?}");
+                assert!(
+                    (x[i] - y[i]).abs() <= tol[i] * y[i].abs().max(1.0),
+                    "{k} {x:?} vs {y:?}"
+                );
             }
         }
     }
     for (x, y) in rows(&b["att"]).iter().zip(&rows(&t["att"])) {
         assert_eq!(x[0], y[0]);
         let yaw = y[3].to_degrees().rem_euclid(360.0);
-        assert!((x[1] - y[1].to_degrees()).abs() < 0.006 && (x[2] - y[2].to_degrees()).abs() < 0.006, "{x:?} vs {y:?}");
-        assert!((x[3] - yaw).abs() < 0.006 || (x[3] - yaw).abs() > 359.99, "{x:?} vs {y:?}");
+        assert!(
+            (x[1] - y[1].to_degrees()).abs() < 0.006 && (x[2] - y[2].to_degrees()).abs() < 0.006,
+            "{x:?} vs {y:?}"
+        );
+        assert!(
+            (x[3] - yaw).abs() < 0.006 || (x[3] - yaw).abs() > 359.99,
+            "{x:?} vs {y:?}"
+        );
     }
 
     // dronewatt's reader: the MAVLink a tlog gives.
     let stats = dronewatt::source::IngestStats::default();
-    let msgs = dronewatt::source::dataflash::decode_dataflash(&std::fs::read(&bin).unwrap(), &stats).unwrap();
-    let hb = msgs.iter().find_map(|m| if let MavMessage::HEARTBEAT(h) = &m.msg { Some(h.clone()) } else { None }).unwrap();
-    assert_eq!(hb.autopilot, dronewatt::dialect::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA);
+    let msgs =
+        dronewatt::source::dataflash::decode_dataflash(&std::fs::read(&bin).unwrap(), &stats)
+            .unwrap();
+    let hb = msgs
+        .iter()
+        .find_map(|m| {
+            if let MavMessage::HEARTBEAT(h) = &m.msg {
+                Some(h.clone())
+            } else {
+                None
+            }
+        })
+        .unwrap();
+    assert_eq!(
+        hb.autopilot,
+        dronewatt::dialect::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA
+    );
     assert_eq!(hb.mavtype, dronewatt::dialect::MavType::MAV_TYPE_QUADROTOR);
     let power: Vec<(f64, f64, f64)> = msgs
         .iter()
-        .filter_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some((m.t_s, s.voltage_battery as f64 * 1e-3, s.current_battery as f64 * 0.01)) } else { None })
+        .filter_map(|m| {
+            if let MavMessage::SYS_STATUS(s) = &m.msg {
+                Some((
+                    m.t_s,
+                    s.voltage_battery as f64 * 1e-3,
+                    s.current_battery as f64 * 0.01,
+                ))
+            } else {
+                None
+            }
+        })
         .collect();
     let bat = rows(&b["bat"]);
     assert_eq!(power.len(), bat.len());
     for (p, r) in power.iter().zip(&bat) {
-        assert!((p.0 - (r[0] - bat[0][0]) * 1e-6 - power[0].0).abs() < 1e-6, "{p:?} vs {r:?}");
-        assert!((p.1 - r[1]).abs() < 1e-3 && (p.2 - r[2]).abs() < 1e-2, "{p:?} vs {r:?}");
+        assert!(
+            (p.0 - (r[0] - bat[0][0]) * 1e-6 - power[0].0).abs() < 1e-6,
+            "{p:?} vs {r:?}"
+        );
+        assert!(
+            (p.1 - r[1]).abs() < 1e-3 && (p.2 - r[2]).abs() < 1e-2,
+            "{p:?} vs {r:?}"
+        );
     }
-    let att = msgs.iter().filter(|m| matches!(m.msg, MavMessage::ATTITUDE(_))).count();
+    let att = msgs
+        .iter()
+        .filter(|m| matches!(m.msg, MavMessage::ATTITUDE(_)))
+        .count();
     assert_eq!(att as u64, n(b, "ATT"));
     let cap = msgs.iter().any(|m| matches!(&m.msg, MavMessage::PARAM_VALUE(p) if p.param_id.to_str().unwrap_or("").starts_with("BATT_CAPACITY") && p.param_value == 5000.0));
     assert!(cap);
@@ -113,23 +216,55 @@ fn learn_on_bin_logs_scores_as_on_the_same_flights_as_tlog() {
         for seed in 1..=3 {
             simulate(&logs.join(format!("x500-{seed}.{ext}")), seed);
         }
-        let out = ok(&["learn", logs.to_str().unwrap(), "--holdout-every", "3", "--out", dir.path().join(format!("learned-{ext}")).to_str().unwrap(), "--data-dir", "off"]);
+        let out = ok(&[
+            "learn",
+            logs.to_str().unwrap(),
+            "--holdout-every",
+            "3",
+            "--out",
+            dir.path().join(format!("learned-{ext}")).to_str().unwrap(),
+            "--data-dir",
+            "off",
+        ]);
         let said = String::from_utf8_lossy(&out.stdout).into_owned();
         assert!(said.contains(&format!("x500-3.{ext}")), "{said}");
         got.push(learned_mape(&said));
     }
     let (bin, tlog) = (&got[0], &got[1]);
-    assert!(bin.len() >= 5 && bin.len() == tlog.len(), "{bin:?}\n{tlog:?}");
+    assert!(
+        bin.len() >= 5 && bin.len() == tlog.len(),
+        "{bin:?}\n{tlog:?}"
+    );
     for ((nb, mb), (nt, mt)) in bin.iter().zip(tlog) {
         assert_eq!(nb, nt);
-        assert!((mb - mt).abs() <= 0.5 && *mb < 15.0, "{nb}: .bin {mb} % vs .tlog {mt} %");
+        assert!(
+            (mb - mt).abs() <= 0.5 && *mb < 15.0,
+            "{nb}: .bin {mb} % vs .tlog {mt} %"
+        );
     }
 
     // replay FILE.bin: the live pipeline on the autopilot's own log, with measured power.
     let json = dir.path().join("replay.jsonl");
     let bin3 = dir.path().join("bin/x500-3.bin");
-    ok(&["replay", "--speed", "max", "-q", "--data-dir", "off", "--json", json.to_str().unwrap(), bin3.to_str().unwrap()]);
-    let lines: Vec<Value> = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    let measured = lines.iter().filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0)).count();
+    ok(&[
+        "replay",
+        "--speed",
+        "max",
+        "-q",
+        "--data-dir",
+        "off",
+        "--json",
+        json.to_str().unwrap(),
+        bin3.to_str().unwrap(),
+    ]);
+    let lines: Vec<Value> = std::fs::read_to_string(&json)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let measured = lines
+        .iter()
+        .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
+        .count();
     assert!(measured > 500, "{measured} in-flight estimates");
 }

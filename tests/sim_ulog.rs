@@ -13,18 +13,53 @@ use dronewatt::MavMessage;
 use serde_json::Value;
 
 fn ok(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt")).args(args).output().unwrap();
-    assert!(out.status.success(), "dronewatt {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "dronewatt {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out
 }
 
 fn simulate(path: &Path, seed: u32) {
     let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&["simulate", "--autopilot", "px4", "--vehicle", "x500", "--payload-g", "0", "--leg-m", "200", "--hover-s", "20", "--seed", &seed, "--wind-mps", &wind, "--out", path.to_str().unwrap()]);
+    ok(&[
+        "simulate",
+        "--autopilot",
+        "px4",
+        "--vehicle",
+        "x500",
+        "--payload-g",
+        "0",
+        "--leg-m",
+        "200",
+        "--hover-s",
+        "20",
+        "--seed",
+        &seed,
+        "--wind-mps",
+        &wind,
+        "--out",
+        path.to_str().unwrap(),
+    ]);
 }
 
 fn rows(v: &Value) -> Vec<Vec<f64>> {
-    v.as_array().unwrap().iter().map(|r| r.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()).collect()
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            r.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect()
 }
 
 #[test]
@@ -34,16 +69,35 @@ fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
     simulate(&ulg, 1);
     simulate(&tlog, 1);
     let out = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/ulog_dump.py"))
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/peers/ulog_dump.py"
+        ))
         .args([&ulg, &tlog])
         .output()
         .expect("run .venv-py/bin/python (scripts/setup-python.sh creates it)");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let d: Value = serde_json::from_slice(&out.stdout).unwrap();
     let (u, t) = (&d["ulg"], &d["tlog"]);
     let n = |v: &Value, k: &str| v["counts"][k].as_u64().unwrap_or(0);
-    for (topic, mav) in [("battery_status", "BATTERY_STATUS"), ("vehicle_attitude", "ATTITUDE_QUATERNION"), ("sensor_combined", "HIGHRES_IMU"), ("vehicle_global_position", "GLOBAL_POSITION_INT"), ("airspeed_validated", "VFR_HUD"), ("debug_key_value", "NAMED_VALUE_FLOAT")] {
-        assert!(n(u, topic) > 0 && n(u, topic) == n(t, mav), "{topic} {} vs {mav} {}", n(u, topic), n(t, mav));
+    for (topic, mav) in [
+        ("battery_status", "BATTERY_STATUS"),
+        ("vehicle_attitude", "ATTITUDE_QUATERNION"),
+        ("sensor_combined", "HIGHRES_IMU"),
+        ("vehicle_global_position", "GLOBAL_POSITION_INT"),
+        ("airspeed_validated", "VFR_HUD"),
+        ("debug_key_value", "NAMED_VALUE_FLOAT"),
+    ] {
+        assert!(
+            n(u, topic) > 0 && n(u, topic) == n(t, mav),
+            "{topic} {} vs {mav} {}",
+            n(u, topic),
+            n(t, mav)
+        );
     }
     // Parameters: the float ones as sent, the integer one as its value (PX4 sends the bits).
     assert_eq!(u["parm"]["BAT1_CAPACITY"], t["parm"]["BAT1_CAPACITY"]);
@@ -55,7 +109,10 @@ fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
         for (x, y) in ru.iter().zip(&rt) {
             assert_eq!(x[0], y[0], "{k} stamps");
             for i in 1..x.len() {
-                assert!((x[i] - y[i]).abs() <= 1e-5 * y[i].abs().max(1.0), "{k} {x:?} vs {y:?}");
+                assert!(
+                    (x[i] - y[i]).abs() <= 1e-5 * y[i].abs().max(1.0),
+                    "{k} {x:?} vs {y:?}"
+                );
             }
         }
     }
@@ -63,23 +120,57 @@ fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
     // dronewatt's reader: the MAVLink a tlog gives.
     let stats = dronewatt::source::IngestStats::default();
     let msgs = dronewatt::source::ulog::decode_ulog(&std::fs::read(&ulg).unwrap(), &stats).unwrap();
-    let MavMessage::HEARTBEAT(hb) = &msgs[0].msg else { panic!("{:?}", msgs[0]) };
-    assert_eq!((hb.autopilot, hb.mavtype), (dronewatt::dialect::MavAutopilot::MAV_AUTOPILOT_PX4, dronewatt::dialect::MavType::MAV_TYPE_QUADROTOR));
+    let MavMessage::HEARTBEAT(hb) = &msgs[0].msg else {
+        panic!("{:?}", msgs[0])
+    };
+    assert_eq!(
+        (hb.autopilot, hb.mavtype),
+        (
+            dronewatt::dialect::MavAutopilot::MAV_AUTOPILOT_PX4,
+            dronewatt::dialect::MavType::MAV_TYPE_QUADROTOR
+        )
+    );
     let power: Vec<(f64, f64, f64)> = msgs
         .iter()
-        .filter_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some((m.t_s, s.voltage_battery as f64 * 1e-3, s.current_battery as f64 * 0.01)) } else { None })
+        .filter_map(|m| {
+            if let MavMessage::SYS_STATUS(s) = &m.msg {
+                Some((
+                    m.t_s,
+                    s.voltage_battery as f64 * 1e-3,
+                    s.current_battery as f64 * 0.01,
+                ))
+            } else {
+                None
+            }
+        })
         .collect();
     let bat = rows(&u["bat"]);
     assert_eq!(power.len(), bat.len());
     for (p, r) in power.iter().zip(&bat) {
-        assert!((p.0 - (r[0] - bat[0][0]) * 1e-6 - power[0].0).abs() < 1e-6, "{p:?} vs {r:?}");
-        assert!((p.1 - r[1]).abs() < 1e-3 && (p.2 - r[2]).abs() < 1e-2, "{p:?} vs {r:?}");
+        assert!(
+            (p.0 - (r[0] - bat[0][0]) * 1e-6 - power[0].0).abs() < 1e-6,
+            "{p:?} vs {r:?}"
+        );
+        assert!(
+            (p.1 - r[1]).abs() < 1e-3 && (p.2 - r[2]).abs() < 1e-2,
+            "{p:?} vs {r:?}"
+        );
     }
     let cells = msgs.iter().find_map(|m| match &m.msg {
-        MavMessage::PARAM_VALUE(p) if p.param_id.to_str().unwrap_or("").starts_with("BAT1_N_CELLS") => Some((p.param_value.to_bits(), p.param_type)),
+        MavMessage::PARAM_VALUE(p)
+            if p.param_id
+                .to_str()
+                .unwrap_or("")
+                .starts_with("BAT1_N_CELLS") =>
+        {
+            Some((p.param_value.to_bits(), p.param_type))
+        }
         _ => None,
     });
-    assert_eq!(cells, Some((4, dronewatt::dialect::MavParamType::MAV_PARAM_TYPE_INT32)));
+    assert_eq!(
+        cells,
+        Some((4, dronewatt::dialect::MavParamType::MAV_PARAM_TYPE_INT32))
+    );
     assert_eq!(stats.snapshot().clock_jumps, 0);
 }
 
@@ -104,34 +195,81 @@ fn learn_on_ulg_logs_scores_as_on_the_same_flights_as_tlog() {
         for seed in 1..=3 {
             simulate(&logs.join(format!("x500-{seed}.{ext}")), seed);
         }
-        let out = ok(&["learn", logs.to_str().unwrap(), "--holdout-every", "3", "--out", dir.path().join(format!("learned-{ext}")).to_str().unwrap(), "--data-dir", "off"]);
+        let out = ok(&[
+            "learn",
+            logs.to_str().unwrap(),
+            "--holdout-every",
+            "3",
+            "--out",
+            dir.path().join(format!("learned-{ext}")).to_str().unwrap(),
+            "--data-dir",
+            "off",
+        ]);
         let said = String::from_utf8_lossy(&out.stdout).into_owned();
         assert!(said.contains(&format!("x500-3.{ext}")), "{said}");
         got.push(learned_mape(&said));
     }
     let (ulg, tlog) = (&got[0], &got[1]);
-    assert!(ulg.len() >= 5 && ulg.len() == tlog.len(), "{ulg:?}\n{tlog:?}");
+    assert!(
+        ulg.len() >= 5 && ulg.len() == tlog.len(),
+        "{ulg:?}\n{tlog:?}"
+    );
     for ((nu, mu), (nt, mt)) in ulg.iter().zip(tlog) {
         assert_eq!(nu, nt);
-        assert!((mu - mt).abs() <= 0.5 && *mu < 15.0, "{nu}: .ulg {mu} % vs .tlog {mt} %");
+        assert!(
+            (mu - mt).abs() <= 0.5 && *mu < 15.0,
+            "{nu}: .ulg {mu} % vs .tlog {mt} %"
+        );
     }
 
     let json = dir.path().join("replay.jsonl");
     let ulg3 = dir.path().join("ulg/x500-3.ulg");
-    ok(&["replay", "--speed", "max", "-q", "--data-dir", "off", "--json", json.to_str().unwrap(), ulg3.to_str().unwrap()]);
-    let lines: Vec<Value> = std::fs::read_to_string(&json).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    let measured = lines.iter().filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0)).count();
+    ok(&[
+        "replay",
+        "--speed",
+        "max",
+        "-q",
+        "--data-dir",
+        "off",
+        "--json",
+        json.to_str().unwrap(),
+        ulg3.to_str().unwrap(),
+    ]);
+    let lines: Vec<Value> = std::fs::read_to_string(&json)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let measured = lines
+        .iter()
+        .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
+        .count();
     assert!(measured > 500, "{measured} in-flight estimates");
 }
 
 #[test]
 fn an_autopilots_own_log_is_of_that_autopilot() {
     let dir = tempfile::tempdir().unwrap();
-    for (autopilot, file, says) in [("ardupilot", "a.ulg", "--autopilot px4"), ("px4", "b.bin", "--autopilot ardupilot")] {
+    for (autopilot, file, says) in [
+        ("ardupilot", "a.ulg", "--autopilot px4"),
+        ("px4", "b.bin", "--autopilot ardupilot"),
+    ] {
         let path = dir.path().join(file);
-        let out = Command::new(env!("CARGO_BIN_EXE_dronewatt")).args(["simulate", "--autopilot", autopilot, "--out", path.to_str().unwrap()]).output().unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+            .args([
+                "simulate",
+                "--autopilot",
+                autopilot,
+                "--out",
+                path.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
         let said = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && said.contains(file) && said.contains(says), "{said}");
+        assert!(
+            !out.status.success() && said.contains(file) && said.contains(says),
+            "{said}"
+        );
         assert!(!path.exists());
     }
 }

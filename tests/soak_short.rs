@@ -23,15 +23,25 @@ fn a_short_soak_keeps_memory_flat_and_loses_no_report() {
         .env("SOAK_MIN_JUDGED_FRAC", "0")
         .output()
         .expect("run scripts/soak.sh");
-    let said = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(out.status.success(), "soak failed: {said}");
-    let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("soak.json")).unwrap()).unwrap();
+    let f: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("soak.json")).unwrap())
+            .unwrap();
     let n = |k: &str| f[k].as_f64().unwrap_or_else(|| panic!("no {k} in {f}"));
     assert_eq!(n("missed_reports"), 0.0, "{f}");
     assert!(n("rss_growth_pct") <= 35.0, "{f}");
     assert_eq!(n("estimate_lines"), n("reports"), "{f}");
     assert_eq!(n("reports"), n("windows"), "{f}");
-    assert_eq!((n("frames_bad"), n("junk_bytes"), n("clock_jumps")), (0.0, 0.0, 0.0), "{f}");
+    assert_eq!(
+        (n("frames_bad"), n("junk_bytes"), n("clock_jumps")),
+        (0.0, 0.0, 0.0),
+        "{f}"
+    );
     // Well over an hour of flight in 45 s even on a busy machine: the loop really ran fast.
     assert!(n("flight_s_replayed") > 1800.0, "{f}");
     // The queues' high-water mark is reported, and no queue is deeper than its bound.

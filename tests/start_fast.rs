@@ -9,9 +9,16 @@ const BIN: &str = env!("CARGO_BIN_EXE_dronewatt");
 #[test]
 fn the_executable_needs_no_libtorch() {
     let out = Command::new("ldd").arg(BIN).output().expect("run ldd");
-    assert!(out.status.success(), "ldd failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "ldd failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let libs = String::from_utf8_lossy(&out.stdout);
-    assert!(libs.contains("libc.so"), "ldd listed no libraries at all:\n{libs}");
+    assert!(
+        libs.contains("libc.so"),
+        "ldd listed no libraries at all:\n{libs}"
+    );
     for torch in ["libtorch", "libc10", "libgomp"] {
         assert!(!libs.contains(torch), "dronewatt links {torch}:\n{libs}");
     }
@@ -24,9 +31,15 @@ fn training_without_the_torch_binary_says_what_to_build() {
     let dir = tempfile::tempdir().expect("temp dir");
     let lone = dir.path().join("dronewatt");
     std::fs::copy(BIN, &lone).expect("copy the binary");
-    let out = Command::new(&lone).args(["train", "--epochs", "1"]).output().expect("run dronewatt train");
+    let out = Command::new(&lone)
+        .args(["train", "--epochs", "1"])
+        .output()
+        .expect("run dronewatt train");
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("training the LSTM needs libtorch") && err.contains("dronewatt-torch"), "{err}");
+    assert!(
+        err.contains("training the LSTM needs libtorch") && err.contains("dronewatt-torch"),
+        "{err}"
+    );
     assert!(!err.contains("panicked"), "{err}");
 }

@@ -43,11 +43,15 @@ fn corrupt(bytes: &[u8], rate: f64, seed: u64) -> (Vec<u8>, Vec<bool>) {
 
 #[test]
 fn corrupted_tlog_keeps_every_record_the_flips_left_whole() {
-    let clean = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/replay/demo.tlog")).expect("replay/demo.tlog");
+    let clean = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/replay/demo.tlog"))
+        .expect("replay/demo.tlog");
     let recs = records(&clean);
     for rate in [1e-3, 1e-2] {
         let (bytes, hit) = corrupt(&clean, rate, 0x5EED_0000 ^ (rate * 1e6) as u64);
-        let untouched = recs.iter().filter(|(a, b)| !hit[*a..*b].iter().any(|&h| h)).count();
+        let untouched = recs
+            .iter()
+            .filter(|(a, b)| !hit[*a..*b].iter().any(|&h| h))
+            .count();
         let stats = IngestStats::default();
         let mut r = TimedReader::tlog();
         r.push(&bytes);
@@ -66,8 +70,19 @@ fn corrupted_tlog_keeps_every_record_the_flips_left_whole() {
             s.unknown,
             s.junk_bytes
         );
-        assert!(kept >= untouched, "rate {rate}: {kept} frames kept but {untouched} records were untouched");
-        assert!(kept <= recs.len(), "rate {rate}: {kept} frames from {} records", recs.len());
-        assert_eq!(t.ok + t.bad + t.unknown + s.junk_bytes, bytes.len() as u64, "rate {rate}: {s:?} {t:?}");
+        assert!(
+            kept >= untouched,
+            "rate {rate}: {kept} frames kept but {untouched} records were untouched"
+        );
+        assert!(
+            kept <= recs.len(),
+            "rate {rate}: {kept} frames from {} records",
+            recs.len()
+        );
+        assert_eq!(
+            t.ok + t.bad + t.unknown + s.junk_bytes,
+            bytes.len() as u64,
+            "rate {rate}: {s:?} {t:?}"
+        );
     }
 }

@@ -17,17 +17,27 @@ fn peer(name: &str) -> String {
 }
 
 fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
 }
 
 /// The JSON lines of a file, parsed.
 fn lines(path: &std::path::Path) -> Vec<serde_json::Value> {
     let text = std::fs::read_to_string(path).unwrap();
-    text.lines().map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}"))).collect()
+    text.lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}")))
+        .collect()
 }
 
 fn last_estimate(lines: &[serde_json::Value]) -> &serde_json::Value {
-    lines.iter().rev().find(|l| l["type"] == "estimate").expect("no estimate line")
+    lines
+        .iter()
+        .rev()
+        .find(|l| l["type"] == "estimate")
+        .expect("no estimate line")
 }
 
 /// Run `dronewatt monitor` against the pymavlink autopilot; (peer's JSON, dronewatt's
@@ -37,7 +47,12 @@ fn monitor(autopilot: &str) -> (serde_json::Value, Vec<serde_json::Value>, Strin
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q", "--json"])
+        .args([
+            "monitor",
+            &format!("udpin:127.0.0.1:{port}"),
+            "-q",
+            "--json",
+        ])
         .arg(&json)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -49,14 +64,21 @@ fn monitor(autopilot: &str) -> (serde_json::Value, Vec<serde_json::Value>, Strin
         .args(["--port", &port.to_string(), "--autopilot", autopilot])
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let _ = Command::new("kill")
+        .args(["-TERM", &dw.id().to_string()])
+        .status();
     let status = dw.wait().unwrap();
     let mut err = String::new();
     std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert!(out.status.success(), "peer failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "peer failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(status.success(), "dronewatt exited with {status}: {err}");
     let said = String::from_utf8_lossy(&out.stdout);
-    let heard = serde_json::from_str(said.trim()).unwrap_or_else(|e| panic!("peer said {said:?}: {e}\ndronewatt: {err}"));
+    let heard = serde_json::from_str(said.trim())
+        .unwrap_or_else(|e| panic!("peer said {said:?}: {e}\ndronewatt: {err}"));
     (heard, lines(&json), err)
 }
 
@@ -65,19 +87,40 @@ fn ardupilot_parameters_size_the_battery_over_a_live_link() {
     let (heard, lines, err) = monitor("ardupilot");
     let req = &heard["requests"];
     // The dropped capacity request was sent again, and answered the second time.
-    assert_eq!(heard["dropped"], serde_json::json!(["BATT_CAPACITY"]), "{heard}");
+    assert_eq!(
+        heard["dropped"],
+        serde_json::json!(["BATT_CAPACITY"]),
+        "{heard}"
+    );
     assert_eq!(req["BATT_CAPACITY"], 2, "{heard}");
     // A parameter this vehicle lacks: asked the bounded number of times, then given up.
     assert_eq!(req["BATT_CRT_MAH"], 3, "{heard}");
-    assert!(err.contains("BATT_CRT_MAH") && err.contains("did not answer"), "{err}");
+    assert!(
+        err.contains("BATT_CRT_MAH") && err.contains("did not answer"),
+        "{err}"
+    );
     assert!(req["AUTOPILOT_VERSION"].as_u64().unwrap() >= 1, "{heard}");
     // 3300 mAh × 3 cells (MOT_BAT_VOLT_MAX 12.6 V = 3 × 4.2: a LiPo) × 3.7 V = 36.63 Wh, from
     // the vehicle.
     let e = last_estimate(&lines);
-    assert_eq!(e["capacity_source"], "vehicle parameter BATT_CAPACITY", "{e}");
-    assert!((e["capacity_wh"].as_f64().unwrap() - 36.63).abs() < 1e-6, "{e}");
-    assert_eq!((e["cell_count"].as_u64(), e["cell_count_source"].as_str()), (Some(3), Some("vehicle parameter MOT_BAT_VOLT_MAX")), "{e}");
-    assert_eq!((e["chemistry"].as_str(), e["chemistry_source"].as_str()), (Some("lipo"), Some("vehicle parameter MOT_BAT_VOLT_MAX")), "{e}");
+    assert_eq!(
+        e["capacity_source"], "vehicle parameter BATT_CAPACITY",
+        "{e}"
+    );
+    assert!(
+        (e["capacity_wh"].as_f64().unwrap() - 36.63).abs() < 1e-6,
+        "{e}"
+    );
+    assert_eq!(
+        (e["cell_count"].as_u64(), e["cell_count_source"].as_str()),
+        (Some(3), Some("vehicle parameter MOT_BAT_VOLT_MAX")),
+        "{e}"
+    );
+    assert_eq!(
+        (e["chemistry"].as_str(), e["chemistry_source"].as_str()),
+        (Some("lipo"), Some("vehicle parameter MOT_BAT_VOLT_MAX")),
+        "{e}"
+    );
     let remaining = e["remaining_wh"].as_f64().unwrap();
     let used = e["energy_used_wh"].as_f64().unwrap();
     assert!((remaining - (36.63 - used)).abs() < 1e-6, "{e}");
@@ -89,9 +132,19 @@ fn px4_packed_integers_decode_over_a_live_link() {
     assert_eq!(heard["requests"]["BAT1_CAPACITY"], 2, "{heard}");
     // BAT1_N_CELLS = 4 arrives packed into the float's bits; cast it would read 5.6e-45.
     let e = last_estimate(&lines);
-    assert_eq!((e["cell_count"].as_u64(), e["cell_count_source"].as_str()), (Some(4), Some("vehicle parameter BAT1_N_CELLS")), "{e}");
-    assert_eq!(e["capacity_source"], "vehicle parameter BAT1_CAPACITY", "{e}");
-    assert!((e["capacity_wh"].as_f64().unwrap() - 5.0 * 4.0 * 3.7).abs() < 1e-6, "{e}");
+    assert_eq!(
+        (e["cell_count"].as_u64(), e["cell_count_source"].as_str()),
+        (Some(4), Some("vehicle parameter BAT1_N_CELLS")),
+        "{e}"
+    );
+    assert_eq!(
+        e["capacity_source"], "vehicle parameter BAT1_CAPACITY",
+        "{e}"
+    );
+    assert!(
+        (e["capacity_wh"].as_f64().unwrap() - 5.0 * 4.0 * 3.7).abs() < 1e-6,
+        "{e}"
+    );
 }
 
 /// Replay a pymavlink-written tlog (with or without the logged PARAM_VALUEs) with this
@@ -105,7 +158,11 @@ fn replay(with_params: bool, config: &str) -> Vec<serde_json::Value> {
         cmd.arg("--no-params");
     }
     let out = cmd.output().expect("run .venv-py/bin/python");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let cfg = dir.path().join("c.toml");
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
@@ -117,7 +174,11 @@ fn replay(with_params: bool, config: &str) -> Vec<serde_json::Value> {
         .arg(&tlog)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     lines(&json)
 }
 
@@ -126,17 +187,30 @@ fn a_replayed_tlog_takes_the_logged_capacity() {
     // 60 s at 150 W: 2.5 Wh used.
     let with = replay(true, "");
     let e = last_estimate(&with);
-    assert_eq!(e["capacity_source"], "vehicle parameter BATT_CAPACITY", "{e}");
+    assert_eq!(
+        e["capacity_source"], "vehicle parameter BATT_CAPACITY",
+        "{e}"
+    );
     let used = e["energy_used_wh"].as_f64().unwrap();
     assert!((used - 2.5).abs() < 0.1, "{e}");
-    assert!((e["remaining_wh"].as_f64().unwrap() - (36.63 - used)).abs() < 1e-6, "{e}");
+    assert!(
+        (e["remaining_wh"].as_f64().unwrap() - (36.63 - used)).abs() < 1e-6,
+        "{e}"
+    );
     // The same flight without the parameter fetch: the M100's pack, and it says so.
     let without = replay(false, "");
     let e = last_estimate(&without);
     assert_eq!(e["capacity_source"], "default", "{e}");
-    assert!((e["remaining_wh"].as_f64().unwrap() - (129.96 - used)).abs() < 0.01, "{e}");
+    assert!(
+        (e["remaining_wh"].as_f64().unwrap() - (129.96 - used)).abs() < 0.01,
+        "{e}"
+    );
     // The config wins over the vehicle.
     let configured = replay(true, "[energy]\ncapacity_wh = 50\n");
     let e = last_estimate(&configured);
-    assert_eq!((e["capacity_wh"].as_f64(), e["capacity_source"].as_str()), (Some(50.0), Some("config")), "{e}");
+    assert_eq!(
+        (e["capacity_wh"].as_f64(), e["capacity_source"].as_str()),
+        (Some(50.0), Some("config")),
+        "{e}"
+    );
 }

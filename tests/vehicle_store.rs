@@ -13,24 +13,58 @@ use std::process::{Command, Output};
 const PYTHON: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python");
 
 fn dronewatt(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt")).args(args).env("RUST_LOG", "dronewatt=info").output().unwrap();
-    assert!(out.status.success(), "dronewatt {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(args)
+        .env("RUST_LOG", "dronewatt=info")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "dronewatt {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out
 }
 
 /// A short X500 triangle (ArduPilot style, with its PARAM_VALUEs and battery %).
 fn x500_tlog(dir: &Path) -> String {
     let tlog = dir.join("x500.tlog").to_string_lossy().into_owned();
-    dronewatt(&["simulate", "--vehicle", "x500", "--payload-g", "0", "--leg-m", "200", "--hover-s", "20", "--out", &tlog]);
+    dronewatt(&[
+        "simulate",
+        "--vehicle",
+        "x500",
+        "--payload-g",
+        "0",
+        "--leg-m",
+        "200",
+        "--hover-s",
+        "20",
+        "--out",
+        &tlog,
+    ]);
     tlog
 }
 
 /// Replay with this data dir; (estimate lines, stderr).
 fn replay(tlog: &str, data_dir: &Path, tag: &str) -> (Vec<serde_json::Value>, String) {
     let json = data_dir.parent().unwrap().join(format!("{tag}.jsonl"));
-    let out = dronewatt(&["replay", "--speed", "max", "-q", "--data-dir", data_dir.to_str().unwrap(), "--json", json.to_str().unwrap(), tlog]);
+    let out = dronewatt(&[
+        "replay",
+        "--speed",
+        "max",
+        "-q",
+        "--data-dir",
+        data_dir.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        tlog,
+    ]);
     let text = std::fs::read_to_string(&json).unwrap();
-    let est = text.lines().map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()).filter(|v| v["type"] == "estimate").collect();
+    let est = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["type"] == "estimate")
+        .collect();
     (est, String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
@@ -43,7 +77,11 @@ fn early_error_pct(est: &[serde_json::Value], n: usize) -> f64 {
         .take(n)
         .map(|(m, a)| (a - m).abs() / m)
         .collect();
-    assert_eq!(errs.len(), n, "fewer than {n} in-flight estimates with an adapted LSTM");
+    assert_eq!(
+        errs.len(),
+        n,
+        "fewer than {n} in-flight estimates with an adapted LSTM"
+    );
     100.0 * errs.iter().sum::<f64>() / n as f64
 }
 
@@ -58,21 +96,38 @@ fn the_second_flight_starts_from_what_the_first_learned() {
     assert!(data.join("dronewatt.sqlite").exists());
     // The first estimate of the first flight: nothing learned yet, adapted = raw (never
     // below 0 W).
-    let lstm = |e: &serde_json::Value| (e["models"]["lstm"].as_f64().unwrap().max(0.0), e["adapted"]["lstm"].as_f64().unwrap());
-    let e0 = first.iter().find(|e| e["adapted"]["lstm"].is_number()).expect("no adapted estimate");
+    let lstm = |e: &serde_json::Value| {
+        (
+            e["models"]["lstm"].as_f64().unwrap().max(0.0),
+            e["adapted"]["lstm"].as_f64().unwrap(),
+        )
+    };
+    let e0 = first
+        .iter()
+        .find(|e| e["adapted"]["lstm"].is_number())
+        .expect("no adapted estimate");
     let (raw, adapted) = lstm(e0);
     assert!((raw - adapted).abs() < 1e-3, "{e0}");
 
     let (second, err2) = replay(&tlog, &data, "second");
-    assert!(err2.contains("found what earlier flights learned") && err2.contains("warm start"), "{err2}");
+    assert!(
+        err2.contains("found what earlier flights learned") && err2.contains("warm start"),
+        "{err2}"
+    );
     // The first estimate of the second flight already carries the first flight's correction.
-    let e0 = second.iter().find(|e| e["adapted"]["lstm"].is_number()).unwrap();
+    let e0 = second
+        .iter()
+        .find(|e| e["adapted"]["lstm"].is_number())
+        .unwrap();
     let (raw, adapted) = lstm(e0);
     assert!((raw - adapted).abs() > 1.0, "{e0}");
     // And the first 3 s in the air (30 windows: the take-off, before this flight has taught
     // much) are closer to the measured power than the first flight's were.
     let (cold, warm) = (early_error_pct(&first, 30), early_error_pct(&second, 30));
-    assert!(warm < cold, "first 3 s in flight: {cold:.1} % cold, {warm:.1} % warm");
+    assert!(
+        warm < cold,
+        "first 3 s in flight: {cold:.1} % cold, {warm:.1} % warm"
+    );
 
     // The listing: one vehicle (no uid in the simulator's ArduPilot style: the heartbeat
     // key), two flights with their energy.
@@ -81,24 +136,46 @@ fn the_second_flight_starts_from_what_the_first_learned() {
     let v = v.as_array().unwrap();
     assert_eq!(v.len(), 1, "{v:?}");
     assert_eq!(v[0]["key_kind"], "heartbeat");
-    assert!(v[0]["key"].as_str().unwrap().starts_with("sys1-ardupilot-"), "{v:?}");
+    assert!(
+        v[0]["key"].as_str().unwrap().starts_with("sys1-ardupilot-"),
+        "{v:?}"
+    );
     let flights = v[0]["flights"].as_array().unwrap();
     assert_eq!(flights.len(), 2);
     let used = first.last().unwrap()["energy_used_wh"].as_f64().unwrap();
     for f in flights {
-        assert!((f["energy_wh"].as_f64().unwrap() - used).abs() < 1e-6, "{f}");
+        assert!(
+            (f["energy_wh"].as_f64().unwrap() - used).abs() < 1e-6,
+            "{f}"
+        );
         assert!(f["airborne_s"].as_f64().unwrap() > 60.0, "{f}");
-        assert_eq!(f["capacity_source"], "vehicle parameter BATT_CAPACITY", "{f}");
+        assert_eq!(
+            f["capacity_source"], "vehicle parameter BATT_CAPACITY",
+            "{f}"
+        );
     }
     // The second flight took the pack's capacity from what the first measured (energy used
     // over the autopilot's % drop), not from the rated BATT_CAPACITY.
-    let effective = flights[0]["effective_capacity_wh"].as_f64().expect("the first flight measured no capacity");
+    let effective = flights[0]["effective_capacity_wh"]
+        .as_f64()
+        .expect("the first flight measured no capacity");
     let e = second.last().unwrap();
     assert_eq!(e["capacity_source"], "learned over 1 flight(s)", "{e}");
-    assert!((e["capacity_wh"].as_f64().unwrap() - effective).abs() < 1e-9, "{e} vs {effective}");
-    assert_eq!(first.last().unwrap()["capacity_source"], "vehicle parameter BATT_CAPACITY");
-    let table = String::from_utf8(dronewatt(&["vehicles", "--data-dir", data.to_str().unwrap()]).stdout).unwrap();
-    assert!(table.contains("1 vehicle(s)") && table.contains("QUADROTOR"), "{table}");
+    assert!(
+        (e["capacity_wh"].as_f64().unwrap() - effective).abs() < 1e-9,
+        "{e} vs {effective}"
+    );
+    assert_eq!(
+        first.last().unwrap()["capacity_source"],
+        "vehicle parameter BATT_CAPACITY"
+    );
+    let table =
+        String::from_utf8(dronewatt(&["vehicles", "--data-dir", data.to_str().unwrap()]).stdout)
+            .unwrap();
+    assert!(
+        table.contains("1 vehicle(s)") && table.contains("QUADROTOR"),
+        "{table}"
+    );
 }
 
 #[test]
@@ -111,7 +188,10 @@ fn a_corrupt_or_locked_store_degrades_with_a_message() {
     std::fs::write(bad.join("dronewatt.sqlite"), vec![0x5a; 8192]).unwrap();
     let (est, err) = replay(&tlog, &bad, "corrupt");
     assert!(!est.is_empty());
-    assert!(err.contains("vehicle store:") && err.contains("dronewatt.sqlite"), "{err}");
+    assert!(
+        err.contains("vehicle store:") && err.contains("dronewatt.sqlite"),
+        "{err}"
+    );
     // Held by another program (an exclusive lock for longer than the store waits).
     let locked = dir.path().join("locked");
     let (_, _) = replay(&tlog, &locked, "create");
@@ -123,11 +203,18 @@ fn a_corrupt_or_locked_store_degrades_with_a_message() {
         .spawn()
         .expect("run .venv-py/bin/python");
     let mut line = String::new();
-    std::io::BufRead::read_line(&mut std::io::BufReader::new(holder.stdout.as_mut().unwrap()), &mut line).unwrap();
+    std::io::BufRead::read_line(
+        &mut std::io::BufReader::new(holder.stdout.as_mut().unwrap()),
+        &mut line,
+    )
+    .unwrap();
     assert_eq!(line.trim(), "locked");
     let (est, err) = replay(&tlog, &locked, "locked");
     let _ = holder.kill();
     let _ = holder.wait();
     assert!(!est.is_empty());
-    assert!(err.contains("vehicle store:") && err.contains("locked"), "{err}");
+    assert!(
+        err.contains("vehicle store:") && err.contains("locked"),
+        "{err}"
+    );
 }

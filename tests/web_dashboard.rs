@@ -9,18 +9,29 @@ use std::process::Command;
 use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
 use dronewatt::energy::{EnergyTracker, Report};
-use dronewatt::report::MissionStatus;
 use dronewatt::model::{Estimate, ModelEstimate};
+use dronewatt::report::MissionStatus;
 use dronewatt::sink::web;
 use dronewatt::telemetry::{HomeVector, Sample, N_FEATURES};
 
 fn chromium() -> Option<&'static str> {
-    ["chromium", "chromium-browser"].into_iter().find(|c| Command::new(c).arg("--version").output().is_ok_and(|o| o.status.success()))
+    ["chromium", "chromium-browser"].into_iter().find(|c| {
+        Command::new(c)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
 }
 
 fn headless(browser: &str, url: &str, extra: &[&str]) -> std::process::Output {
     Command::new(browser)
-        .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars"])
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--hide-scrollbars",
+        ])
         .args(["--window-size=1280,1100", "--virtual-time-budget=4000"])
         .args(extra)
         .arg(url)
@@ -57,7 +68,11 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
     let url = format!("http://{}/", listener.local_addr().unwrap());
     let mut fanout = dronewatt::sink::Fanout::default();
     let rx = fanout.subscribe();
-    let wcfg = web::WebSinkConfig { enabled: true, min_step_s: 0.2, ..Default::default() };
+    let wcfg = web::WebSinkConfig {
+        enabled: true,
+        min_step_s: 0.2,
+        ..Default::default()
+    };
     let server = tokio::spawn(web::serve(wcfg, listener, rx, Default::default()));
 
     // A 90 s flight: take-off surge, cruise with a gentle oscillation, a last reading of
@@ -90,7 +105,11 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
             energy.set_mission(Some(m));
         }
         let t_s = i as f64 * 0.1;
-        let w = if i == 900 { 512.0 } else { 450.0 + 120.0 * (-(t_s as f32) / 8.0).exp() + 30.0 * ((t_s as f32) / 6.0).sin() };
+        let w = if i == 900 {
+            512.0
+        } else {
+            450.0 + 120.0 * (-(t_s as f32) / 8.0).exp() + 30.0 * ((t_s as f32) / 6.0).sin()
+        };
         let est = Estimate {
             arrived: None,
             t_s,
@@ -99,7 +118,10 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
                 features: [0.0; N_FEATURES],
                 measured_w: Some(w),
                 voltage_v: Some(22.5),
-                home: Some(HomeVector { distance_m: 10.0 * t_s as f32, height_m: 25.0 }),
+                home: Some(HomeVector {
+                    distance_m: 10.0 * t_s as f32,
+                    height_m: 25.0,
+                }),
                 stale_mask: 0,
                 battery_remaining_pct: None,
             },
@@ -113,7 +135,14 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
         last_margin = state.mission_margin_wh;
         let events = alerts.evaluate(&est, &state);
         raised += events.len();
-        fanout.send(Report { estimate: est, energy: state, alerts: events, system_id: 1 }).await;
+        fanout
+            .send(Report {
+                estimate: est,
+                energy: state,
+                alerts: events,
+                system_id: 1,
+            })
+            .await;
     }
     assert_eq!(raised, 1, "the flight is built to raise one alert");
 
@@ -124,9 +153,15 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
     .await
     .unwrap();
     let html = String::from_utf8_lossy(&dom.stdout);
-    assert!(dom.status.success(), "chromium failed: {}", String::from_utf8_lossy(&dom.stderr));
+    assert!(
+        dom.status.success(),
+        "chromium failed: {}",
+        String::from_utf8_lossy(&dom.stderr)
+    );
     let text_of = |id: &str| -> String {
-        let start = html.find(&format!("id=\"{id}\"")).unwrap_or_else(|| panic!("no #{id} in the DOM:\n{html}"));
+        let start = html
+            .find(&format!("id=\"{id}\""))
+            .unwrap_or_else(|| panic!("no #{id} in the DOM:\n{html}"));
         let rest = &html[start..];
         let open = rest.find('>').unwrap() + 1;
         let close = rest.find('<').unwrap_or(rest.len());
@@ -134,43 +169,80 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
     };
     assert_eq!(text_of("v-measured"), "512 W");
     let remaining = text_of("v-remaining");
-    assert!(remaining.ends_with("%)") && remaining.contains("Wh"), "{remaining}");
-    assert!(text_of("status").starts_with("t = 90.0 s"), "{}", text_of("status"));
+    assert!(
+        remaining.ends_with("%)") && remaining.contains("Wh"),
+        "{remaining}"
+    );
+    assert!(
+        text_of("status").starts_with("t = 90.0 s"),
+        "{}",
+        text_of("status")
+    );
     assert_eq!(text_of("v-mission"), "5.0 Wh · item 3/6 · 40%");
     // The route the map draws, as the page gets it.
-    let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+    let addr = url
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string();
     let body = tokio::task::spawn_blocking(move || {
         use std::io::{Read, Write};
         let mut c = std::net::TcpStream::connect(addr).unwrap();
-        c.write_all(b"GET /api/state HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").unwrap();
+        c.write_all(b"GET /api/state HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+            .unwrap();
         let mut r = String::new();
         c.read_to_string(&mut r).unwrap();
         r
     })
     .await
     .unwrap();
-    let json: serde_json::Value = serde_json::from_str(&body[body.find("\r\n\r\n").unwrap() + 4..]).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&body[body.find("\r\n\r\n").unwrap() + 4..]).unwrap();
     let route = &json["latest"]["route"];
-    assert_eq!(route["points"].as_array().map(Vec::len), Some(40), "{route}");
+    assert_eq!(
+        route["points"].as_array().map(Vec::len),
+        Some(40),
+        "{route}"
+    );
     assert_eq!(route["points"][10], serde_json::json!([200.0, 0.0]));
     assert_eq!(route["at"], 16);
-    let shown: f64 = text_of("v-mmargin").trim_end_matches(" Wh").parse().unwrap();
-    assert!((shown - last_margin.unwrap()).abs() < 0.051, "{shown} vs {last_margin:?}");
+    let shown: f64 = text_of("v-mmargin")
+        .trim_end_matches(" Wh")
+        .parse()
+        .unwrap();
+    assert!(
+        (shown - last_margin.unwrap()).abs() < 0.051,
+        "{shown} vs {last_margin:?}"
+    );
     // Every model in the table, and the alert in the log with its severity class.
     for m in ["tseng", "dandrea", "lstm"] {
-        assert!(html.contains(&format!("</span>{m}</td>")), "model {m} missing:\n{html}");
+        assert!(
+            html.contains(&format!("</span>{m}</td>")),
+            "model {m} missing:\n{html}"
+        );
     }
-    assert!(html.contains("class=\"alert sev-warning\"") && html.contains("WARNING  Battery low"), "alert missing:\n{html}");
+    assert!(
+        html.contains("class=\"alert sev-warning\"") && html.contains("WARNING  Battery low"),
+        "alert missing:\n{html}"
+    );
 
     let shots = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-artifacts");
     std::fs::create_dir_all(&shots).unwrap();
     let png = shots.join("web_dashboard.png");
     let _ = std::fs::remove_file(&png);
     let arg = format!("--screenshot={}", png.display());
-    let shot = tokio::task::spawn_blocking(move || headless(browser, &url, &[&arg])).await.unwrap();
-    assert!(shot.status.success(), "{}", String::from_utf8_lossy(&shot.stderr));
+    let shot = tokio::task::spawn_blocking(move || headless(browser, &url, &[&arg]))
+        .await
+        .unwrap();
+    assert!(
+        shot.status.success(),
+        "{}",
+        String::from_utf8_lossy(&shot.stderr)
+    );
     let bytes = std::fs::read(&png).unwrap();
-    assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000, "screenshot too small to hold charts");
+    assert!(
+        bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000,
+        "screenshot too small to hold charts"
+    );
 
     drop(fanout);
     server.await.unwrap().unwrap();

@@ -62,7 +62,9 @@ impl Chemistry {
     }
     /// The inverse of [`Chemistry::name`].
     pub fn from_name(name: &str) -> Option<Self> {
-        [Chemistry::LiPo, Chemistry::LiHv, Chemistry::LiIon].into_iter().find(|c| c.name() == name)
+        [Chemistry::LiPo, Chemistry::LiHv, Chemistry::LiIon]
+            .into_iter()
+            .find(|c| c.name() == name)
     }
     /// Full-charge resting voltage per cell.
     pub fn full_v(self) -> f64 {

@@ -47,23 +47,35 @@ pub fn steps<'a>(state: &Estimator, profile: &'a [(f64, f64)]) -> impl Iterator<
     let p = s.p;
     let [r0, r1, b] = s.theta;
     let mut t = 0.0;
-    profile.iter().filter(|(dt, _)| dt.is_finite() && *dt > 0.0).map(move |&(dt, pw)| {
-        let pw = if pw.is_finite() { pw.max(0.0) } else { 0.0 };
-        let eh = (-dt / p.tau_heat_s).exp();
-        s.heat *= eh;
-        let f = 1.0 + p.warm_a * (-s.heat / p.heat_scale).exp();
-        let e1 = (-dt / p.tau1_s).exp();
-        let c = s.ocv() - b - r1 * s.x1 * e1;
-        let re = (f * r0 + r1 * f * (1.0 - e1)).max(1e-6);
-        let disc = c * c - 4.0 * re * pw;
-        let (i, power_limited) = if disc >= 0.0 { ((c - disc.sqrt()) / (2.0 * re), false) } else { (c / (2.0 * re), true) };
-        let v = c - re * i;
-        s.heat += i * i * p.tau_heat_s * (1.0 - eh);
-        s.x1 = s.x1 * e1 + f * i * (1.0 - e1);
-        s.energy = (s.energy - v * i * dt / 3600.0).max(0.0);
-        t += dt;
-        Step { t_s: t, v, energy: s.energy, power_limited }
-    })
+    profile
+        .iter()
+        .filter(|(dt, _)| dt.is_finite() && *dt > 0.0)
+        .map(move |&(dt, pw)| {
+            let pw = if pw.is_finite() { pw.max(0.0) } else { 0.0 };
+            let eh = (-dt / p.tau_heat_s).exp();
+            s.heat *= eh;
+            let f = 1.0 + p.warm_a * (-s.heat / p.heat_scale).exp();
+            let e1 = (-dt / p.tau1_s).exp();
+            let c = s.ocv() - b - r1 * s.x1 * e1;
+            let re = (f * r0 + r1 * f * (1.0 - e1)).max(1e-6);
+            let disc = c * c - 4.0 * re * pw;
+            let (i, power_limited) = if disc >= 0.0 {
+                ((c - disc.sqrt()) / (2.0 * re), false)
+            } else {
+                (c / (2.0 * re), true)
+            };
+            let v = c - re * i;
+            s.heat += i * i * p.tau_heat_s * (1.0 - eh);
+            s.x1 = s.x1 * e1 + f * i * (1.0 - e1);
+            s.energy = (s.energy - v * i * dt / 3600.0).max(0.0);
+            t += dt;
+            Step {
+                t_s: t,
+                v,
+                energy: s.energy,
+                power_limited,
+            }
+        })
 }
 
 /// The first step whose loaded voltage falls below `threshold_v` (stops there), if any.

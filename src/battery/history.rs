@@ -28,7 +28,8 @@ impl PackHistory {
         let n = f64::from(cells);
         self.gap_s.is_finite()
             && (0.0..=SAME_PACK_GAP_S).contains(&self.gap_s)
-            && self.end_rest_v.is_none_or(|end| rest_v >= end - 0.02 * n && rest_v <= end + 0.15 * n)
+            && self
+                .end_rest_v
+                .is_none_or(|end| rest_v >= end - 0.02 * n && rest_v <= end + 0.15 * n)
     }
 }
-

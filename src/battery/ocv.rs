@@ -98,8 +98,14 @@ impl OcvCurve {
     /// chemistry curve made a pack's. `None` for a capacity that is not a positive number.
     pub fn scaled(&self, capacity_wh: f64) -> Option<Self> {
         let (lo, cap) = (self.e[0], self.capacity());
-        (capacity_wh.is_finite() && capacity_wh > 0.0)
-            .then(|| Self { v: self.v.clone(), e: self.e.iter().map(|x| (x - lo) / cap * capacity_wh).collect() })
+        (capacity_wh.is_finite() && capacity_wh > 0.0).then(|| Self {
+            v: self.v.clone(),
+            e: self
+                .e
+                .iter()
+                .map(|x| (x - lo) / cap * capacity_wh)
+                .collect(),
+        })
     }
 
     /// Energy between floor and full of the table (Wh for a fitted pack, 1 if normalised).

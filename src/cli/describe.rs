@@ -1,7 +1,5 @@
 //! `dronewatt check-config`: what a configuration file sets up, in words.
 
-
-
 use crate::config::Config;
 
 /// What `check-config` prints: what the file sets up, in words.
@@ -10,8 +8,12 @@ pub(crate) fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     let mut out = format!("{}: ok\n", file.display());
     out += &format!(
         "energy: capacity {}, cells {}, reserve {}%, forecast model {}, smoothing {} s\n",
-        e.capacity_wh.map_or("from the vehicle (else 129.96 Wh)".to_string(), |c| format!("{c:.2} Wh")),
-        e.cell_count.map_or("from the vehicle (else 6)".to_string(), |n| n.to_string()),
+        e.capacity_wh.map_or(
+            "from the vehicle (else 129.96 Wh)".to_string(),
+            |c| format!("{c:.2} Wh")
+        ),
+        e.cell_count
+            .map_or("from the vehicle (else 6)".to_string(), |n| n.to_string()),
         e.reserve_pct,
         e.model.as_deref().unwrap_or("lstm, else measured power"),
         e.smoothing_s
@@ -30,20 +32,37 @@ pub(crate) fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     out += &format!(
         "sinks.mavlink: {mav_on}, to {}, as system {} component {}, estimates at {} Hz\n",
         m.address.as_deref().unwrap_or("the monitored link"),
-        m.system_id.map_or("of each vehicle".to_string(), |id| id.to_string()),
+        m.system_id
+            .map_or("of each vehicle".to_string(), |id| id.to_string()),
         m.component_id,
         m.rate_hz
     );
     let w = &cfg.sinks.web;
-    let guarded = if w.token_file.is_some() || std::env::var_os(crate::sink::web::TOKEN_ENV).is_some() { ", token required" } else { "" };
-    out += &format!("sinks.web: {}\n", if w.enabled { format!("on, http://{}/{guarded}", w.bind) } else { "off".into() });
+    let guarded =
+        if w.token_file.is_some() || std::env::var_os(crate::sink::web::TOKEN_ENV).is_some() {
+            ", token required"
+        } else {
+            ""
+        };
+    out += &format!(
+        "sinks.web: {}\n",
+        if w.enabled {
+            format!("on, http://{}/{guarded}", w.bind)
+        } else {
+            "off".into()
+        }
+    );
     let l = &cfg.link;
     out += &match &l.signing_key_file {
         Some(k) => format!(
             "link: MAVLink 2 signing with the key in {}, link id {}, unsigned frames {}\n",
             k.display(),
             l.signing_link_id,
-            if l.require_signing { "refused" } else { "accepted" }
+            if l.require_signing {
+                "refused"
+            } else {
+                "accepted"
+            }
         ),
         None => "link: no signing\n".into(),
     };
@@ -67,7 +86,10 @@ pub(crate) fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
                 q.port(),
                 q.prefix,
                 q.instance(),
-                q.username.as_ref().map(|u| format!(", user {u}")).unwrap_or_default()
+                q.username
+                    .as_ref()
+                    .map(|u| format!(", user {u}"))
+                    .unwrap_or_default()
             )
         } else {
             "off".into()

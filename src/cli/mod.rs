@@ -16,13 +16,13 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
+use crate::cli::describe::describe_config;
+use crate::cli::simulate::SimulateArgs;
 use crate::config::Config;
 use crate::model::NeedsLibtorch;
 use crate::pipeline::{self, Pipeline};
 use crate::sink::{JsonTarget, SinkSpec};
 use crate::source::{SourceSpec, Speed};
-use crate::cli::simulate::SimulateArgs;
-use crate::cli::describe::describe_config;
 
 /// Live drone power, energy and flight-time estimates from MAVLink telemetry.
 #[derive(Debug, Parser)]
@@ -130,7 +130,8 @@ enum Command {
 pub fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "dronewatt=info,warn".into()),
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "dronewatt=info,warn".into()),
         )
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
@@ -156,25 +157,50 @@ fn handoff() {
     if std::env::var_os(MARK).is_some() {
         return;
     }
-    let Some(torch) = std::env::current_exe().ok().map(|exe| exe.with_file_name("dronewatt-torch")).filter(|p| p.is_file()) else {
+    let Some(torch) = std::env::current_exe()
+        .ok()
+        .map(|exe| exe.with_file_name("dronewatt-torch"))
+        .filter(|p| p.is_file())
+    else {
         return;
     };
-    tracing::info!("handing the command to {} (it loads libtorch)", torch.display());
-    let err = std::process::Command::new(&torch).args(std::env::args_os().skip(1)).env(MARK, "1").exec();
+    tracing::info!(
+        "handing the command to {} (it loads libtorch)",
+        torch.display()
+    );
+    let err = std::process::Command::new(&torch)
+        .args(std::env::args_os().skip(1))
+        .env(MARK, "1")
+        .exec();
     tracing::warn!("{}: cannot run: {err}", torch.display());
 }
 
 fn real_main(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Replay { file, speed, flight, raw, run } => {
+        Command::Replay {
+            file,
+            speed,
+            flight,
+            raw,
+            run,
+        } => {
             if !file.exists() {
                 anyhow::bail!("{}: no such file", file.display());
             }
             let name = file.to_string_lossy().to_ascii_lowercase();
             let source = if name.ends_with(".csv") || name.ends_with(".csv.gz") {
-                let flight = flight.context("a data-set CSV holds many flights: pick one with --flight N")?;
-                SourceSpec::Dataset { path: file, flight, speed }
-            } else if !raw && (name.ends_with(".ulg") || name.ends_with(".bin") && crate::source::dataflash::starts_as_dataflash(&file)) {
+                let flight = flight
+                    .context("a data-set CSV holds many flights: pick one with --flight N")?;
+                SourceSpec::Dataset {
+                    path: file,
+                    flight,
+                    speed,
+                }
+            } else if !raw
+                && (name.ends_with(".ulg")
+                    || name.ends_with(".bin")
+                        && crate::source::dataflash::starts_as_dataflash(&file))
+            {
                 SourceSpec::AutopilotLog { path: file, speed }
             } else if raw || !name.ends_with(".tlog") {
                 SourceSpec::Raw { path: file, speed }
@@ -224,7 +250,8 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
         config.models.lstm.path = Some(m.clone());
     }
     if let Some(v) = &run.vehicles {
-        crate::source::fleet::VehicleFilter::parse(v).map_err(|e| anyhow::anyhow!("--vehicles {v}: {e}"))?;
+        crate::source::fleet::VehicleFilter::parse(v)
+            .map_err(|e| anyhow::anyhow!("--vehicles {v}: {e}"))?;
         config.fleet.vehicles = Some(v.clone());
     }
     if let Some(v) = &run.vehicle {
@@ -235,7 +262,11 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
         sinks.push(SinkSpec::Terminal);
     }
     if let Some(j) = &run.json {
-        sinks.push(SinkSpec::Json(if j == "-" { JsonTarget::Stdout } else { JsonTarget::File(j.into()) }));
+        sinks.push(SinkSpec::Json(if j == "-" {
+            JsonTarget::Stdout
+        } else {
+            JsonTarget::File(j.into())
+        }));
     }
     // MAVLink back to the ground station: on by default when watching a live link (so
     // `monitor udpin:…` answers the ground station with no config at all), or wherever
@@ -252,9 +283,21 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
         sinks.push(SinkSpec::Mqtt(config.sinks.mqtt.clone()));
     }
     let data_dir = crate::vehicle::store::data_dir_from_env(run.data_dir.as_deref());
-    let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
     rt.block_on(async move {
         let shutdown = pipeline::shutdown_on_signal();
-        pipeline::run(Pipeline { config, source, sinks, data_dir }, shutdown).await.map(|_| ())
+        pipeline::run(
+            Pipeline {
+                config,
+                source,
+                sinks,
+                data_dir,
+            },
+            shutdown,
+        )
+        .await
+        .map(|_| ())
     })
 }

@@ -15,7 +15,12 @@ pub(crate) struct SimulateArgs {
     /// Write the flight to this file: a `.tlog`, or with `.bin` the ArduPilot vehicle's own
     /// DataFlash log (one vehicle, `--autopilot ardupilot`), with `.ulg` the PX4 vehicle's
     /// own ULog (one vehicle, `--autopilot px4`).
-    #[arg(long, value_name = "FILE.tlog|FILE.bin|FILE.ulg", conflicts_with = "udp", required_unless_present = "udp")]
+    #[arg(
+        long,
+        value_name = "FILE.tlog|FILE.bin|FILE.ulg",
+        conflicts_with = "udp",
+        required_unless_present = "udp"
+    )]
     out: Option<PathBuf>,
     /// Stream the flight's MAVLink frames to this UDP address (`dronewatt monitor udpin:…`).
     #[arg(long, value_name = "HOST:PORT")]
@@ -82,11 +87,18 @@ impl SimulateArgs {
         let (route, mission) = match &self.plan {
             Some(path) => {
                 let plan = crate::mission::plan::Plan::load(path)?;
-                let (route, mission) = sim::SimMission::from_plan(&plan, self.speed_mps, self.autopilot).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                let (route, mission) =
+                    sim::SimMission::from_plan(&plan, self.speed_mps, self.autopilot)
+                        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
                 (route, Some(mission))
             }
             None => {
-                let triangle = Triangle { leg_m: self.leg_m, altitude_m: self.altitude_m, speed_mps: self.speed_mps, hover_s: self.hover_s };
+                let triangle = Triangle {
+                    leg_m: self.leg_m,
+                    altitude_m: self.altitude_m,
+                    speed_mps: self.speed_mps,
+                    hover_s: self.hover_s,
+                };
                 triangle.validate().map_err(flag)?;
                 (triangle.route(), None)
             }
@@ -107,15 +119,20 @@ impl SimulateArgs {
             },
         };
         if let Err(e) = sim::physics::Battery::from_profile(&opts.vehicle, opts.battery) {
-            let flag = if self.battery_v.is_some() { "--battery-v" } else { "--soc-pct" };
+            let flag = if self.battery_v.is_some() {
+                "--battery-v"
+            } else {
+                "--soc-pct"
+            };
             if self.battery_v.is_some() || self.soc_pct.is_some() {
                 bail!("{flag}: {e:#}");
             }
         }
-        opts.validate().map_err(|e| match e.downcast::<InvalidOption>() {
-            Ok(e) => flag(e),
-            Err(e) => e,
-        })?;
+        opts.validate()
+            .map_err(|e| match e.downcast::<InvalidOption>() {
+                Ok(e) => flag(e),
+                Err(e) => e,
+            })?;
         Ok(opts)
     }
 }
@@ -131,11 +148,26 @@ pub(crate) fn simulate(args: SimulateArgs) -> Result<()> {
         // One stream; the longest flight's truth gives the duration, the energy is everyone's.
         let flights = sim::simulate_fleet(&opts, args.vehicles)?;
         let energy_wh: f64 = flights.iter().map(|f| f.energy_wh()).sum();
-        let truth = flights.iter().max_by(|a, b| a.duration_s().total_cmp(&b.duration_s())).map(|f| f.truth.clone()).unwrap_or_default();
-        (sim::SimFlight { records: sim::merge(&flights), truth }, energy_wh)
+        let truth = flights
+            .iter()
+            .max_by(|a, b| a.duration_s().total_cmp(&b.duration_s()))
+            .map(|f| f.truth.clone())
+            .unwrap_or_default();
+        (
+            sim::SimFlight {
+                records: sim::merge(&flights),
+                truth,
+            },
+            energy_wh,
+        )
     };
     let duration_s = flight.duration_s();
-    tracing::info!(messages = flight.records.len(), duration_s, energy_wh, "simulated mission");
+    tracing::info!(
+        messages = flight.records.len(),
+        duration_s,
+        energy_wh,
+        "simulated mission"
+    );
     if let Some(path) = &args.out {
         let bytes = if crate::source::dataflash::is_dataflash(path) {
             // The autopilot's own log: one ArduPilot vehicle (PX4 writes ULog, not DataFlash).
@@ -152,13 +184,26 @@ pub(crate) fn simulate(args: SimulateArgs) -> Result<()> {
             sim::output::write_tlog(path, &flight)?
         };
         let n = flight.records.len();
-        let who = if args.vehicles > 1 { format!(" by {} vehicles (system ids 1-{})", args.vehicles, args.vehicles) } else { String::new() };
+        let who = if args.vehicles > 1 {
+            format!(
+                " by {} vehicles (system ids 1-{})",
+                args.vehicles, args.vehicles
+            )
+        } else {
+            String::new()
+        };
         eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.1} Wh drawn{who}, {bytes} bytes", path.display());
         return Ok(());
     }
-    let addr = args.udp.as_deref().context("give --out FILE.tlog or --udp HOST:PORT")?;
+    let addr = args
+        .udp
+        .as_deref()
+        .context("give --out FILE.tlog or --udp HOST:PORT")?;
     let speed = args.rate.unwrap_or(Speed::Factor(1.0));
-    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("cannot start the tokio runtime")?;
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the tokio runtime")?;
     let sent = rt.block_on(async {
         tokio::select! {
             r = sim::output::stream_udp(&flight.records, addr, speed) => r,

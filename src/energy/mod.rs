@@ -38,8 +38,10 @@
 //!   ([`crate::mission::live`], set with [`EnergyTracker::set_mission`]).
 
 use crate::features::idx;
+use crate::report::{
+    BatteryFacts, Estimate, ModelEstimate, PackState, Provenance, Sourced, BATTERY_PCT_AGREE,
+};
 pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
-use crate::report::{BatteryFacts, Estimate, ModelEstimate, PackState, Provenance, Sourced, BATTERY_PCT_AGREE};
 use crate::vehicle::params::VehicleParams;
 use crate::vehicle::BatteryConfig;
 
@@ -129,26 +131,44 @@ impl EnergyConfig {
             positive("cruise_speed_m_s", v);
         }
         if !(self.landing_s.is_finite() && self.landing_s >= 0.0) {
-            errs.push(format!("energy.landing_s = {}: must be ≥ 0", self.landing_s));
+            errs.push(format!(
+                "energy.landing_s = {}: must be ≥ 0",
+                self.landing_s
+            ));
         }
         if !(0.0..100.0).contains(&self.reserve_pct) {
-            errs.push(format!("energy.reserve_pct = {}: must be in [0, 100)", self.reserve_pct));
+            errs.push(format!(
+                "energy.reserve_pct = {}: must be in [0, 100)",
+                self.reserve_pct
+            ));
         }
         if let Some(n) = self.cell_count.filter(|n| !(1..=24).contains(n)) {
             errs.push(format!("energy.cell_count = {n}: must be 1..=24 cells"));
         }
-        if let Some(v) = self.nominal_cell_v.filter(|v| !(v.is_finite() && (1.0..=5.0).contains(v))) {
+        if let Some(v) = self
+            .nominal_cell_v
+            .filter(|v| !(v.is_finite() && (1.0..=5.0).contains(v)))
+        {
             errs.push(format!("energy.nominal_cell_v = {v}: must be 1..=5 V"));
         }
         errs.extend(self.select.validate());
-        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
     }
 }
 
 impl EnergyConfig {
     /// The `[energy]` keys the vehicle may answer for instead.
     pub fn battery(&self) -> BatteryConfig {
-        BatteryConfig { capacity_wh: self.capacity_wh, cell_count: self.cell_count, nominal_cell_v: self.nominal_cell_v, chemistry: self.chemistry }
+        BatteryConfig {
+            capacity_wh: self.capacity_wh,
+            cell_count: self.cell_count,
+            nominal_cell_v: self.nominal_cell_v,
+            chemistry: self.chemistry,
+        }
     }
 }
 
@@ -237,7 +257,11 @@ impl EnergyTracker {
     /// The forecast model to start from when `[energy] model` is not set: the vehicle
     /// profile's (`model`), and where that came from (`from`, shown as the reason).
     pub fn set_default_model(&mut self, model: &str, from: &str) {
-        self.selector = select::Selector::new(&self.cfg.select, self.cfg.model.as_deref(), Some((model, from)));
+        self.selector = select::Selector::new(
+            &self.cfg.select,
+            self.cfg.model.as_deref(),
+            Some((model, from)),
+        );
     }
 
     /// Take what the vehicle said about itself ([`crate::vehicle::params`]): capacity and
@@ -267,9 +291,16 @@ impl EnergyTracker {
     }
 
     fn resolve_battery(&mut self) {
-        let (mut facts, notes) = crate::vehicle::resolve_battery(&self.cfg.battery(), &self.vehicle, self.first_voltage_v);
+        let (mut facts, notes) = crate::vehicle::resolve_battery(
+            &self.cfg.battery(),
+            &self.vehicle,
+            self.first_voltage_v,
+        );
         if let (Some((wh, flights)), None) = (self.learned_capacity, self.cfg.capacity_wh) {
-            let rated = std::mem::replace(&mut facts.capacity_wh, Sourced::new(wh, Provenance::Learned { flights }));
+            let rated = std::mem::replace(
+                &mut facts.capacity_wh,
+                Sourced::new(wh, Provenance::Learned { flights }),
+            );
             facts.rated_capacity_wh = Some(rated);
         }
         for n in notes {
@@ -278,7 +309,9 @@ impl EnergyTracker {
                 self.warned.push(n);
             }
         }
-        if facts.capacity_wh != self.battery.capacity_wh || facts.cell_count != self.battery.cell_count {
+        if facts.capacity_wh != self.battery.capacity_wh
+            || facts.cell_count != self.battery.cell_count
+        {
             tracing::debug!(
                 "battery: {:.1} Wh ({}), {} cells ({})",
                 facts.capacity_wh.value,
@@ -302,7 +335,11 @@ impl EnergyTracker {
         let s = &est.sample;
         self.selector.update(est.t_s, &est.models);
         if self.first_voltage_v.is_none() {
-            if let Some(v) = s.voltage_v.map(f64::from).filter(|v| v.is_finite() && *v > 1.0) {
+            if let Some(v) = s
+                .voltage_v
+                .map(f64::from)
+                .filter(|v| v.is_finite() && *v > 1.0)
+            {
                 self.first_voltage_v = Some(v);
                 self.resolve_battery();
             }
@@ -310,8 +347,12 @@ impl EnergyTracker {
         let watts = |m: &ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
         // The forecast model's prediction adapted to measured power, where adaptation runs.
         let adapted = |m: &ModelEstimate| m.adapted_w.map(f64::from).filter(|p| p.is_finite());
-        let preferred = self.forecast_model(est).and_then(|m| Some((m, adapted(m).or(watts(m))?)));
-        let forecast_adapted = self.forecast_model(est).is_some_and(|m| adapted(m).is_some());
+        let preferred = self
+            .forecast_model(est)
+            .and_then(|m| Some((m, adapted(m).or(watts(m))?)));
+        let forecast_adapted = self
+            .forecast_model(est)
+            .is_some_and(|m| adapted(m).is_some());
         let first = est.models.iter().find_map(|m| Some((m, watts(m)?)));
         let measured = s.measured_w.map(f64::from).filter(|p| p.is_finite());
         let (power, power_source) = match (measured, preferred.or(first)) {
@@ -358,7 +399,10 @@ impl EnergyTracker {
         }
 
         // The pack: voltage and current (discharge positive) from the measured power.
-        let volts = s.voltage_v.map(f64::from).filter(|v| v.is_finite() && *v > 0.5);
+        let volts = s
+            .voltage_v
+            .map(f64::from)
+            .filter(|v| v.is_finite() && *v > 0.5);
         let amps = volts.zip(measured).map(|(v, p)| p / v);
         // The voltage forecast flies the rest of the mission at its mean power when one is
         // known, else the forecast power until the reserve.
@@ -366,15 +410,25 @@ impl EnergyTracker {
             .mission
             .as_ref()
             .filter(|m| m.time_left_s > 1.0 && m.energy_p50_wh > 0.0)
-            .map(|m| (3600.0 * m.energy_p50_wh / m.time_left_s, Some(m.time_left_s)))
+            .map(|m| {
+                (
+                    3600.0 * m.energy_p50_wh / m.time_left_s,
+                    Some(m.time_left_s),
+                )
+            })
             .or(forecast.map(|p| (p, None)));
         self.pack.reserve_frac = self.cfg.reserve_pct / 100.0;
-        let pk = self.pack.update(t, volts, amps, rest_of_flight, &self.battery);
+        let pk = self
+            .pack
+            .update(t, volts, amps, rest_of_flight, &self.battery);
         for n in std::mem::take(&mut self.pack.notes) {
             tracing::warn!("{n}");
         }
         let reported_pct = battery_pct.filter(|p| (0.0..=100.0).contains(p));
-        let disagreement = reported_pct.zip(pk.soc_pct).map(|(b, soc)| b - soc).filter(|d| d.abs() > BATTERY_PCT_AGREE);
+        let disagreement = reported_pct
+            .zip(pk.soc_pct)
+            .map(|(b, soc)| b - soc)
+            .filter(|d| d.abs() > BATTERY_PCT_AGREE);
         if let (Some(d), false) = (disagreement, self.warned_pct) {
             self.warned_pct = true;
             tracing::warn!(
@@ -385,21 +439,37 @@ impl EnergyTracker {
             );
         }
         let cap = self.battery.capacity_wh.value;
-        let (remaining, remaining_source, full_wh) = match (pk.usable_wh.or(pk.energy_wh), reported_pct.filter(|_| self.cfg.use_battery_pct)) {
-            (Some(e), _) => (Some(e), RemainingSource::RestingVoltage, pk.curve_wh.unwrap_or(cap)),
+        let (remaining, remaining_source, full_wh) = match (
+            pk.usable_wh.or(pk.energy_wh),
+            reported_pct.filter(|_| self.cfg.use_battery_pct),
+        ) {
+            (Some(e), _) => (
+                Some(e),
+                RemainingSource::RestingVoltage,
+                pk.curve_wh.unwrap_or(cap),
+            ),
             (None, Some(pct)) => (Some(cap * pct / 100.0), RemainingSource::Battery, cap),
             // The pack rests and its voltage is settling: not known yet (a moment), not full.
             (None, None) if self.pack.pending() => (None, RemainingSource::AssumedFull, cap),
-            (None, None) => (Some((cap - self.used_wh).max(0.0)), RemainingSource::AssumedFull, cap),
+            (None, None) => (
+                Some((cap - self.used_wh).max(0.0)),
+                RemainingSource::AssumedFull,
+                cap,
+            ),
         };
-        if remaining_source == RemainingSource::AssumedFull && amps.is_some_and(|i| i >= pack::LOAD_CURRENT_A) && !self.warned_full {
+        if remaining_source == RemainingSource::AssumedFull
+            && amps.is_some_and(|i| i >= pack::LOAD_CURRENT_A)
+            && !self.warned_full
+        {
             self.warned_full = true;
             tracing::warn!("battery: no resting voltage was read before take-off and the vehicle sends no battery %: remaining energy assumes the pack started full");
         }
         // To the voltage failsafe when the pack model forecasts one; else to the floor.
         let time_to_empty_s = match (remaining_source, pk.time_to_low_v_s) {
             (RemainingSource::RestingVoltage, Some(t_low)) => Some(t_low),
-            _ => remaining.zip(forecast.filter(|p| *p > 1.0)).map(|(e, p)| 3600.0 * e / p),
+            _ => remaining
+                .zip(forecast.filter(|p| *p > 1.0))
+                .map(|(e, p)| 3600.0 * e / p),
         };
         let home_energy_wh = s.home.and_then(|h| {
             let p_cruise = self.cruise.0.or(forecast)?;
@@ -430,7 +500,9 @@ impl EnergyTracker {
                 .filter(|v| v.is_finite() && *v > 0.0)
                 .map(|v| v / f64::from(self.battery.cell_count.value)),
             mission_energy_wh: self.mission.as_ref().map(|m| m.energy_p50_wh),
-            mission_margin_wh: remaining.zip(self.mission.as_ref()).map(|(r, m)| r - m.energy_p50_wh - reserve),
+            mission_margin_wh: remaining
+                .zip(self.mission.as_ref())
+                .map(|(r, m)| r - m.energy_p50_wh - reserve),
             mission: self.mission.clone(),
             forecast_adapted: forecast_adapted && forecast_from.is_some_and(|(m, _)| m.is_some()),
             pack: PackState {
@@ -500,7 +572,11 @@ mod tests {
         for i in 0..=100 {
             st = tr.update(&est(i as f64 * 0.1, Some(360.0), &[("tseng", 100.0)]));
         }
-        assert!((st.energy_used_wh - 1.0).abs() < 1e-9, "{}", st.energy_used_wh);
+        assert!(
+            (st.energy_used_wh - 1.0).abs() < 1e-9,
+            "{}",
+            st.energy_used_wh
+        );
         assert_eq!(st.power_source, "measured");
         // A 100 s gap counts as max_dt_s (1 s): 0.1 Wh, not 10 Wh.
         let st = tr.update(&est(110.0, Some(360.0), &[]));
@@ -525,7 +601,11 @@ mod tests {
         // Physics models only: measured power is the forecast, the first model is what is
         // integrated when nothing is measured.
         let mut tr = tracker(EnergyConfig::default());
-        let st = tr.update(&est(0.0, Some(300.0), &[("dandrea", 100.0), ("tseng", 500.0)]));
+        let st = tr.update(&est(
+            0.0,
+            Some(300.0),
+            &[("dandrea", 100.0), ("tseng", 500.0)],
+        ));
         assert_eq!((st.forecast_model, st.forecast_w), (None, Some(300.0)));
         let st = tr.update(&est(1.0, None, &[("dandrea", 100.0), ("tseng", 500.0)]));
         assert_eq!(st.power_source, "dandrea");
@@ -539,10 +619,18 @@ mod tests {
 
     #[test]
     fn remaining_time_and_home_margin() {
-        let cfg = EnergyConfig { capacity_wh: Some(100.0), reserve_pct: 10.0, landing_s: 0.0, ..Default::default() };
+        let cfg = EnergyConfig {
+            capacity_wh: Some(100.0),
+            reserve_pct: 10.0,
+            landing_s: 0.0,
+            ..Default::default()
+        };
         let mut tr = tracker(cfg);
         let mut e = est(0.0, Some(360.0), &[("m", 360.0)]);
-        e.sample.home = Some(HomeVector { distance_m: 1000.0, height_m: 20.0 });
+        e.sample.home = Some(HomeVector {
+            distance_m: 1000.0,
+            height_m: 20.0,
+        });
         e.sample.features[idx::VX] = 10.0;
         let st = tr.update(&e);
         // 100 Wh at 360 W: 1000 s.
@@ -556,7 +644,10 @@ mod tests {
         assert_eq!(st.remaining_source, "battery");
         // Unless the configuration says not to trust it.
         tr.cfg.use_battery_pct = false;
-        assert_eq!(tr.update_with_battery(&e, Some(40.0)).remaining_source, "assumed full");
+        assert_eq!(
+            tr.update_with_battery(&e, Some(40.0)).remaining_source,
+            "assumed full"
+        );
     }
 
     /// A half-used TB48D resting at 23.2 V before take-off, with an autopilot that says 100 %
@@ -578,7 +669,10 @@ mod tests {
         let soc = st.pack.soc_pct.expect("a state of charge");
         assert!(soc > 25.0 && soc < 55.0, "{soc}");
         assert!(st.remaining_pct.is_some_and(|p| p < soc), "{st:?}");
-        assert!(st.pack.battery_pct_disagreement.is_some_and(|d| d > 40.0), "{st:?}");
+        assert!(
+            st.pack.battery_pct_disagreement.is_some_and(|d| d > 40.0),
+            "{st:?}"
+        );
         assert!(st.pack.internal_r_ohm.is_some_and(|r| r > 0.0), "{st:?}");
         assert!(st.pack.v_min_forecast_v.is_some_and(|v| v < 21.9), "{st:?}");
         // The time to empty is the time to the low-voltage threshold (3.5 V a cell, 21 V).
@@ -592,22 +686,43 @@ mod tests {
         tr.set_vehicle(VehicleParams::from_pairs(&[("BATT_CAPACITY", 5000.0)]));
         tr.set_learned_capacity(Some((100.0, 2)));
         let st = tr.update_with_battery(&est(0.0, Some(300.0), &[]), Some(50.0));
-        assert_eq!(st.battery.capacity_wh.source.to_string(), "learned over 2 flight(s)");
+        assert_eq!(
+            st.battery.capacity_wh.source.to_string(),
+            "learned over 2 flight(s)"
+        );
         // remaining = the learned capacity × the gauge's %.
         assert_eq!(st.remaining_wh, Some(50.0));
-        let rated = st.battery.rated_capacity_wh.expect("the rated capacity is kept beside");
+        let rated = st
+            .battery
+            .rated_capacity_wh
+            .expect("the rated capacity is kept beside");
         assert_eq!(rated.source.to_string(), "vehicle parameter BATT_CAPACITY");
         // Nonsense learned is ignored; the config always wins.
         tr.set_learned_capacity(Some((f64::NAN, 1)));
-        assert_eq!(tr.battery().capacity_wh.source.to_string(), "vehicle parameter BATT_CAPACITY");
-        let mut tr = tracker(EnergyConfig { capacity_wh: Some(80.0), ..Default::default() });
+        assert_eq!(
+            tr.battery().capacity_wh.source.to_string(),
+            "vehicle parameter BATT_CAPACITY"
+        );
+        let mut tr = tracker(EnergyConfig {
+            capacity_wh: Some(80.0),
+            ..Default::default()
+        });
         tr.set_learned_capacity(Some((100.0, 2)));
-        assert_eq!((tr.battery().capacity_wh.value, tr.battery().capacity_wh.source.to_string()), (80.0, "config".to_string()));
+        assert_eq!(
+            (
+                tr.battery().capacity_wh.value,
+                tr.battery().capacity_wh.source.to_string()
+            ),
+            (80.0, "config".to_string())
+        );
     }
 
     #[test]
     fn rejects_nonsense_config() {
-        let cfg = EnergyConfig { capacity_wh: Some(-1.0), ..Default::default() };
+        let cfg = EnergyConfig {
+            capacity_wh: Some(-1.0),
+            ..Default::default()
+        };
         let err = EnergyTracker::new(&cfg, None).err().unwrap().to_string();
         assert!(err.contains("energy.capacity_wh"), "{err}");
     }

@@ -25,7 +25,7 @@
 //! leaves the state as it was.
 
 use crate::battery::forecast::first_crossing;
-use crate::battery::{forecast, CircuitParams, Chemistry, Estimator, OcvCurve, PackHistory};
+use crate::battery::{forecast, Chemistry, CircuitParams, Estimator, OcvCurve, PackHistory};
 use crate::report::{BatteryFacts, Provenance};
 
 /// Current under which the pack counts as resting, A.
@@ -113,7 +113,8 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
     let cap = facts.capacity_wh.value;
     let tb48d = chem == Chemistry::LiHv
         && cells == crate::report::DEFAULT_CELL_COUNT
-        && (facts.capacity_wh.source == Provenance::Default || (cap - crate::report::DEFAULT_CAPACITY_WH).abs() < 0.5);
+        && (facts.capacity_wh.source == Provenance::Default
+            || (cap - crate::report::DEFAULT_CAPACITY_WH).abs() < 0.5);
     let base = CircuitParams::default();
     if tb48d {
         return Some((OcvCurve::tb48d(), base));
@@ -122,25 +123,51 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
     // Resistance grows with cells in series and falls with capacity (cells in parallel).
     let ah = cap / (f64::from(cells) * chem.nominal_v());
     let k = f64::from(cells) / f64::from(base.n_cells) * (5.7 / ah);
-    Some((curve, CircuitParams { n_cells: cells, r0: base.r0 * k, r1: base.r1 * k, bias_v: 0.0, ..base }))
+    Some((
+        curve,
+        CircuitParams {
+            n_cells: cells,
+            r0: base.r0 * k,
+            r1: base.r1 * k,
+            bias_v: 0.0,
+            ..base
+        },
+    ))
 }
 
 impl Pack {
     /// Take one sample: time (s), pack voltage (V) and current (A, discharge positive);
     /// `rest_of_flight` is the power the forecast flies at (W) and for how long (s; None:
     /// until the reserve); `facts` say which pack.
-    pub fn update(&mut self, t: f64, v: Option<f64>, i: Option<f64>, rest_of_flight: Option<(f64, Option<f64>)>, facts: &BatteryFacts) -> PackNow {
-        let (Some(v), Some(i)) = (v.filter(|v| v.is_finite() && *v > 0.5), i.filter(|i| i.is_finite() && *i > -2.0)) else {
+    pub fn update(
+        &mut self,
+        t: f64,
+        v: Option<f64>,
+        i: Option<f64>,
+        rest_of_flight: Option<(f64, Option<f64>)>,
+        facts: &BatteryFacts,
+    ) -> PackNow {
+        let (Some(v), Some(i)) = (
+            v.filter(|v| v.is_finite() && *v > 0.5),
+            i.filter(|i| i.is_finite() && *i > -2.0),
+        ) else {
             return self.now;
         };
         if !t.is_finite() {
             return self.now;
         }
-        let dt = self.last_t.map(|t0| t - t0).filter(|dt| *dt > 0.0 && *dt <= 5.0);
+        let dt = self
+            .last_t
+            .map(|t0| t - t0)
+            .filter(|dt| *dt > 0.0 && *dt <= 5.0);
         self.last_t = Some(t);
         if i.abs() < REST_CURRENT_A {
             self.rest.push_back((t, v));
-            while self.rest.front().is_some_and(|(t0, _)| t - t0 > REST_SETTLE_S) {
+            while self
+                .rest
+                .front()
+                .is_some_and(|(t0, _)| t - t0 > REST_SETTLE_S)
+            {
                 self.rest.pop_front();
             }
             if let Some(rest_v) = self.settled(t) {
@@ -152,7 +179,9 @@ impl Pack {
                 self.flown = true;
             }
         }
-        let Some(est) = self.est.as_mut() else { return self.now };
+        let Some(est) = self.est.as_mut() else {
+            return self.now;
+        };
         if let Some(e) = dt.and_then(|dt| est.update(dt, i, v)) {
             self.now.v_model = Some(e.v_prior);
             self.now.ocv_v = Some(e.ocv);
@@ -165,7 +194,10 @@ impl Pack {
         if self.flown && !self.rest.is_empty() {
             // Landed: no rest of the flight to forecast.
             (self.now.v_min_forecast, self.now.time_to_low_v_s) = (None, None);
-        } else if self.last_forecast_t.is_none_or(|t0| t - t0 >= FORECAST_EVERY_S || t < t0) {
+        } else if self
+            .last_forecast_t
+            .is_none_or(|t0| t - t0 >= FORECAST_EVERY_S || t < t0)
+        {
             self.last_forecast_t = Some(t);
             self.forecast(rest_of_flight, facts);
         }
@@ -205,23 +237,37 @@ impl Pack {
             } else {
                 // Landed: the resting voltage after the flight (pack health, the next flight).
                 self.now.end_rest_v = Some(rest_v);
-                self.now.end_rest_soc_pct = self.est.as_ref().map(|e| 100.0 * e.curve_soc(rest_v / cells));
+                self.now.end_rest_soc_pct = self
+                    .est
+                    .as_ref()
+                    .map(|e| 100.0 * e.curve_soc(rest_v / cells));
                 return;
             }
         }
         if self.rest_v.is_some_and(|r| (r - rest_v).abs() < 0.005) && self.est.is_some() {
             return;
         }
-        let Some((curve, params)) = pack_model(facts) else { return };
+        let Some((curve, params)) = pack_model(facts) else {
+            return;
+        };
         let curve_wh = curve.capacity();
         // The same pack flown again soon: its resistance and warmth carry over.
-        let carry = self.history.filter(|h| h.same_pack(rest_v, facts.cell_count.value));
-        let params = carry.and_then(|h| h.r_scale).map_or(params, |k| params.carried_over(k, crate::battery::PACK_SCALE_CARRY));
+        let carry = self
+            .history
+            .filter(|h| h.same_pack(rest_v, facts.cell_count.value));
+        let params = carry.and_then(|h| h.r_scale).map_or(params, |k| {
+            params.carried_over(k, crate::battery::PACK_SCALE_CARRY)
+        });
         let heat0 = carry.map_or(0.0, |h| h.heat * (-h.gap_s / params.tau_heat_s).exp());
         if let Some(est) = Estimator::new(params, curve, rest_v, heat0) {
             self.est = Some(est);
             self.rest_v = Some(rest_v);
-            self.now = PackNow { rest_v: Some(rest_v), curve_wh: Some(curve_wh), carried: carry.is_some(), ..PackNow::default() };
+            self.now = PackNow {
+                rest_v: Some(rest_v),
+                curve_wh: Some(curve_wh),
+                carried: carry.is_some(),
+                ..PackNow::default()
+            };
         }
     }
 
@@ -235,13 +281,20 @@ impl Pack {
             .unwrap_or(DEFAULT_LOW_V_CELL * f64::from(facts.cell_count.value));
         self.now.low_v = Some(low);
         let Some((p, horizon)) = rest_of_flight.filter(|(p, _)| p.is_finite() && *p > 1.0) else {
-            (self.now.v_min_forecast, self.now.time_to_low_v_s, self.now.usable_wh) = (None, None, None);
+            (
+                self.now.v_min_forecast,
+                self.now.time_to_low_v_s,
+                self.now.usable_wh,
+            ) = (None, None, None);
             return;
         };
         let e_now = est.energy_wh();
         let reserve_wh = self.reserve_frac * self.now.curve_wh.unwrap_or(0.0);
-        let rest_s = horizon.unwrap_or(3600.0 * (e_now - reserve_wh) / p).clamp(0.0, FORECAST_HORIZON_S);
-        let steps = |span: f64| vec![(FORECAST_STEP_S, p); (span / FORECAST_STEP_S).ceil() as usize];
+        let rest_s = horizon
+            .unwrap_or(3600.0 * (e_now - reserve_wh) / p)
+            .clamp(0.0, FORECAST_HORIZON_S);
+        let steps =
+            |span: f64| vec![(FORECAST_STEP_S, p); (span / FORECAST_STEP_S).ceil() as usize];
         let f = forecast(est, &steps(rest_s), &[]);
         self.now.v_min_forecast = f.v_min.is_finite().then_some((f.v_min, f.t_v_min));
         // Flying on at that power, stopping where it crosses the low threshold.
@@ -269,7 +322,11 @@ mod tests {
         let mut now = PackNow::default();
         let mut t = 0.0;
         while t < t_end {
-            let (v, i) = if t < 5.0 { (rest_v, 0.1) } else { (rest_v - 0.06 * 20.0, 20.0) };
+            let (v, i) = if t < 5.0 {
+                (rest_v, 0.1)
+            } else {
+                (rest_v - 0.06 * 20.0, 20.0)
+            };
             now = p.update(t, Some(v), Some(i), Some((450.0, None)), facts);
             t += 0.1;
         }
@@ -282,7 +339,10 @@ mod tests {
         let now = run(&mut p, &tb48d(), 23.2, 4.0);
         // 23.2 V at rest is 3.87 V a cell: about 45 % of the fitted curve, not full.
         let soc = 100.0 * OcvCurve::tb48d().soc(23.2 / 6.0);
-        assert!(now.rest_v.is_some_and(|v| (v - 23.2).abs() < 1e-9), "{now:?}");
+        assert!(
+            now.rest_v.is_some_and(|v| (v - 23.2).abs() < 1e-9),
+            "{now:?}"
+        );
         assert!(soc < 60.0 && soc > 30.0, "{soc}");
         assert!(now.energy_wh.unwrap_or(f64::NAN) < 0.6 * 103.4, "{now:?}");
     }
@@ -294,18 +354,33 @@ mod tests {
         let (v_min, _) = now.v_min_forecast.expect("a forecast");
         assert!(v_min < 24.3, "{now:?}");
         let usable = now.usable_wh.expect("usable");
-        assert!(usable > 0.0 && usable < now.energy_wh.unwrap_or(0.0), "{now:?}");
+        assert!(
+            usable > 0.0 && usable < now.energy_wh.unwrap_or(0.0),
+            "{now:?}"
+        );
         assert!(now.time_to_low_v_s.is_some_and(|t| t > 60.0), "{now:?}");
-        assert!(now.internal_r_ohm.is_some_and(|r| r > 0.0 && r < 0.5), "{now:?}");
+        assert!(
+            now.internal_r_ohm.is_some_and(|r| r > 0.0 && r < 0.5),
+            "{now:?}"
+        );
     }
 
     #[test]
     fn garbage_and_a_swapped_pack() {
         let mut p = Pack::default();
         let f = tb48d();
-        assert_eq!(p.update(0.0, Some(f64::NAN), Some(0.0), None, &f), PackNow::default());
-        assert_eq!(p.update(0.1, Some(0.0), Some(0.0), None, &f), PackNow::default());
-        assert_eq!(p.update(0.2, Some(24.0), Some(-30.0), None, &f), PackNow::default());
+        assert_eq!(
+            p.update(0.0, Some(f64::NAN), Some(0.0), None, &f),
+            PackNow::default()
+        );
+        assert_eq!(
+            p.update(0.1, Some(0.0), Some(0.0), None, &f),
+            PackNow::default()
+        );
+        assert_eq!(
+            p.update(0.2, Some(24.0), Some(-30.0), None, &f),
+            PackNow::default()
+        );
         assert_eq!(p.update(0.3, None, Some(1.0), None, &f), PackNow::default());
         run(&mut p, &f, 23.4, 60.0);
         assert!(p.notes.is_empty());
@@ -333,18 +408,37 @@ mod tests {
     #[test]
     fn the_same_pack_soon_after_carries_its_resistance_and_warmth() {
         let f = tb48d();
-        let hist = |gap_s: f64| PackHistory { gap_s, r_scale: Some(1.4), heat: 100_000.0, end_rest_v: Some(23.3) };
-        let mut soon = Pack { history: Some(hist(300.0)), ..Pack::default() };
-        let mut cold = Pack { history: Some(hist(3.0 * 3600.0)), ..Pack::default() };
-        let (a, b) = (run(&mut soon, &f, 23.4, 30.0), run(&mut cold, &f, 23.4, 30.0));
+        let hist = |gap_s: f64| PackHistory {
+            gap_s,
+            r_scale: Some(1.4),
+            heat: 100_000.0,
+            end_rest_v: Some(23.3),
+        };
+        let mut soon = Pack {
+            history: Some(hist(300.0)),
+            ..Pack::default()
+        };
+        let mut cold = Pack {
+            history: Some(hist(3.0 * 3600.0)),
+            ..Pack::default()
+        };
+        let (a, b) = (
+            run(&mut soon, &f, 23.4, 30.0),
+            run(&mut cold, &f, 23.4, 30.0),
+        );
         assert!(a.carried && !b.carried, "{a:?} {b:?}");
         // A resistance 1.4× the nominal carried over, shrunk: more sag than a fresh start, but
         // the warmth carried lowers it too; the model differs either way.
         assert_ne!(a.v_model, b.v_model);
-        assert!(a.r_scale.is_some() && a.heat.is_some_and(|h| h > 0.0), "{a:?}");
+        assert!(
+            a.r_scale.is_some() && a.heat.is_some_and(|h| h > 0.0),
+            "{a:?}"
+        );
         // A pack at a voltage it could not have relaxed to is another pack.
-        let mut other = Pack { history: Some(hist(300.0)), ..Pack::default() };
+        let mut other = Pack {
+            history: Some(hist(300.0)),
+            ..Pack::default()
+        };
         assert!(!run(&mut other, &f, 25.9, 10.0).carried);
     }
-
 }

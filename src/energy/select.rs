@@ -48,7 +48,13 @@ pub struct SelectConfig {
 
 impl Default for SelectConfig {
     fn default() -> Self {
-        Self { enabled: true, evidence_s: 30.0, margin: 0.2, profile_margin: 0.3, hold_s: 10.0 }
+        Self {
+            enabled: true,
+            evidence_s: 30.0,
+            margin: 0.2,
+            profile_margin: 0.3,
+            hold_s: 10.0,
+        }
     }
 }
 
@@ -61,7 +67,10 @@ impl SelectConfig {
                 errs.push(format!("energy.select.{k} = {v}: must be ≥ 0"));
             }
         }
-        for (k, v) in [("margin", self.margin), ("profile_margin", self.profile_margin)] {
+        for (k, v) in [
+            ("margin", self.margin),
+            ("profile_margin", self.profile_margin),
+        ] {
             if !(v.is_finite() && (0.0..1.0).contains(&v)) {
                 errs.push(format!("energy.select.{k} = {v}: must be in [0, 1)"));
             }
@@ -79,7 +88,12 @@ pub enum Why {
     /// says which.
     Default { from: String, profile: bool },
     /// Its adapted estimate's recent error on this vehicle beat the model followed before.
-    LowestError { err_w: f32, was: String, was_err_w: f32, evidence_s: f32 },
+    LowestError {
+        err_w: f32,
+        was: String,
+        was_err_w: f32,
+        evidence_s: f32,
+    },
 }
 
 impl std::fmt::Display for Why {
@@ -116,13 +130,46 @@ pub struct Selector {
 impl Selector {
     /// `configured`: `[energy] model`; `default`: the profile's choice and where it came
     /// from (None: `lstm`).
-    pub fn new(cfg: &SelectConfig, configured: Option<&str>, default: Option<(&str, &str)>) -> Self {
+    pub fn new(
+        cfg: &SelectConfig,
+        configured: Option<&str>,
+        default: Option<(&str, &str)>,
+    ) -> Self {
         let (current, fixed) = match (configured, default) {
-            (Some(m), _) => (Choice { model: m.to_string(), why: Why::Config }, true),
-            (None, Some((m, from))) => (Choice { model: m.to_string(), why: Why::Default { from: from.to_string(), profile: true } }, false),
-            (None, None) => (Choice { model: "lstm".into(), why: Why::Default { from: "the M100's forecast model".into(), profile: false } }, false),
+            (Some(m), _) => (
+                Choice {
+                    model: m.to_string(),
+                    why: Why::Config,
+                },
+                true,
+            ),
+            (None, Some((m, from))) => (
+                Choice {
+                    model: m.to_string(),
+                    why: Why::Default {
+                        from: from.to_string(),
+                        profile: true,
+                    },
+                },
+                false,
+            ),
+            (None, None) => (
+                Choice {
+                    model: "lstm".into(),
+                    why: Why::Default {
+                        from: "the M100's forecast model".into(),
+                        profile: false,
+                    },
+                },
+                false,
+            ),
         };
-        Self { fixed: fixed || !cfg.enabled, cfg: cfg.clone(), current, ahead: None }
+        Self {
+            fixed: fixed || !cfg.enabled,
+            cfg: cfg.clone(),
+            current,
+            ahead: None,
+        }
     }
 
     /// The model followed now.
@@ -138,10 +185,16 @@ impl Selector {
             return &self.current;
         }
         let scored = |m: &ModelEstimate| {
-            let e = m.adapted_err.filter(|e| e.err_w.is_finite() && f64::from(e.evidence_s) >= self.cfg.evidence_s)?;
+            let e = m.adapted_err.filter(|e| {
+                e.err_w.is_finite() && f64::from(e.evidence_s) >= self.cfg.evidence_s
+            })?;
             m.adapted_w.is_some().then_some(e)
         };
-        let Some(now) = models.iter().find(|m| m.name == self.current.model).and_then(scored) else {
+        let Some(now) = models
+            .iter()
+            .find(|m| m.name == self.current.model)
+            .and_then(scored)
+        else {
             self.ahead = None;
             return &self.current;
         };
@@ -175,7 +228,12 @@ impl Selector {
             );
             self.current = Choice {
                 model: m.name.clone(),
-                why: Why::LowestError { err_w: e.err_w, was: self.current.model.clone(), was_err_w: now.err_w, evidence_s: e.evidence_s },
+                why: Why::LowestError {
+                    err_w: e.err_w,
+                    was: self.current.model.clone(),
+                    was_err_w: now.err_w,
+                    evidence_s: e.evidence_s,
+                },
             };
             self.ahead = None;
         }
@@ -189,7 +247,11 @@ mod tests {
     use crate::report::AdaptedError;
 
     fn m(name: &str, err_w: f32, evidence_s: f32) -> ModelEstimate {
-        ModelEstimate { adapted_w: Some(100.0), adapted_err: Some(AdaptedError { err_w, evidence_s }), ..ModelEstimate::new(name, 100.0, None) }
+        ModelEstimate {
+            adapted_w: Some(100.0),
+            adapted_err: Some(AdaptedError { err_w, evidence_s }),
+            ..ModelEstimate::new(name, 100.0, None)
+        }
     }
 
     #[test]
@@ -199,19 +261,36 @@ mod tests {
         // 20 s in: stolaroff much better, but too little evidence.
         for k in 0..200 {
             let t = f64::from(k) * 0.1;
-            assert_eq!(s.update(t, &[m("lstm", 40.0, t as f32), m("stolaroff", 10.0, t as f32)]).model, "lstm");
+            assert_eq!(
+                s.update(
+                    t,
+                    &[m("lstm", 40.0, t as f32), m("stolaroff", 10.0, t as f32)]
+                )
+                .model,
+                "lstm"
+            );
         }
         // With evidence: it must stay ahead for hold_s (10 s) before the switch.
         let mut switched_at = None;
         for k in 300..500 {
             let t = f64::from(k) * 0.1;
-            if s.update(t, &[m("lstm", 40.0, t as f32), m("stolaroff", 10.0, t as f32)]).model == "stolaroff" {
+            if s.update(
+                t,
+                &[m("lstm", 40.0, t as f32), m("stolaroff", 10.0, t as f32)],
+            )
+            .model
+                == "stolaroff"
+            {
                 switched_at.get_or_insert(t);
             }
         }
         let at = switched_at.expect("switched");
         assert!((at - 40.0).abs() < 0.15, "{at}");
-        assert!(s.current().why.to_string().contains("lowest recent error"), "{}", s.current().why);
+        assert!(
+            s.current().why.to_string().contains("lowest recent error"),
+            "{}",
+            s.current().why
+        );
     }
 
     #[test]
@@ -220,37 +299,94 @@ mod tests {
         for k in 0..3000 {
             let t = f64::from(k) * 0.1;
             // Near-equal errors crossing back and forth, and a 5 s dip of the other model.
-            let other = if (1000..1050).contains(&k) { 5.0 } else if k % 20 < 10 { 18.0 } else { 22.0 };
-            assert_eq!(s.update(t, &[m("lstm", 20.0, t as f32), m("dorling", other, t as f32)]).model, "lstm", "at {t}");
+            let other = if (1000..1050).contains(&k) {
+                5.0
+            } else if k % 20 < 10 {
+                18.0
+            } else {
+                22.0
+            };
+            assert_eq!(
+                s.update(
+                    t,
+                    &[m("lstm", 20.0, t as f32), m("dorling", other, t as f32)]
+                )
+                .model,
+                "lstm",
+                "at {t}"
+            );
         }
     }
 
     #[test]
     fn the_config_wins_and_the_profile_sets_the_default() {
-        let mut s = Selector::new(&SelectConfig::default(), Some("dandrea"), Some(("stolaroff_cal", "profile")));
+        let mut s = Selector::new(
+            &SelectConfig::default(),
+            Some("dandrea"),
+            Some(("stolaroff_cal", "profile")),
+        );
         for k in 0..1000 {
             let t = f64::from(k) * 0.1;
-            s.update(t, &[m("dandrea", 90.0, t as f32), m("stolaroff_cal", 1.0, t as f32)]);
+            s.update(
+                t,
+                &[
+                    m("dandrea", 90.0, t as f32),
+                    m("stolaroff_cal", 1.0, t as f32),
+                ],
+            );
         }
-        assert_eq!((s.current().model.as_str(), &s.current().why), ("dandrea", &Why::Config));
-        let s = Selector::new(&SelectConfig::default(), None, Some(("stolaroff_cal", "vehicle profile learned")));
+        assert_eq!(
+            (s.current().model.as_str(), &s.current().why),
+            ("dandrea", &Why::Config)
+        );
+        let s = Selector::new(
+            &SelectConfig::default(),
+            None,
+            Some(("stolaroff_cal", "vehicle profile learned")),
+        );
         assert_eq!(s.current().model, "stolaroff_cal");
-        assert_eq!(s.current().why.to_string(), "default (vehicle profile learned)");
+        assert_eq!(
+            s.current().why.to_string(),
+            "default (vehicle profile learned)"
+        );
         // The profile's pick (held-out evidence) needs the larger margin: 25 % better is not
         // enough, 40 % is.
-        let mut s = Selector::new(&SelectConfig::default(), None, Some(("stolaroff_cal", "profile")));
+        let mut s = Selector::new(
+            &SelectConfig::default(),
+            None,
+            Some(("stolaroff_cal", "profile")),
+        );
         for k in 0..1000 {
             let t = f64::from(k) * 0.1;
-            s.update(t, &[m("lstm", 15.0, t as f32), m("stolaroff_cal", 20.0, t as f32)]);
+            s.update(
+                t,
+                &[
+                    m("lstm", 15.0, t as f32),
+                    m("stolaroff_cal", 20.0, t as f32),
+                ],
+            );
         }
         assert_eq!(s.current().model, "stolaroff_cal");
         for k in 1000..1200 {
             let t = f64::from(k) * 0.1;
-            s.update(t, &[m("lstm", 12.0, t as f32), m("stolaroff_cal", 20.0, t as f32)]);
+            s.update(
+                t,
+                &[
+                    m("lstm", 12.0, t as f32),
+                    m("stolaroff_cal", 20.0, t as f32),
+                ],
+            );
         }
         assert_eq!(s.current().model, "lstm");
         // Off: never moves.
-        let mut s = Selector::new(&SelectConfig { enabled: false, ..Default::default() }, None, None);
+        let mut s = Selector::new(
+            &SelectConfig {
+                enabled: false,
+                ..Default::default()
+            },
+            None,
+            None,
+        );
         for k in 0..1000 {
             let t = f64::from(k) * 0.1;
             s.update(t, &[m("lstm", 90.0, 100.0), m("dorling", 1.0, 100.0)]);
@@ -260,8 +396,15 @@ mod tests {
 
     #[test]
     fn config_checks_name_the_key() {
-        let bad = SelectConfig { margin: 1.5, hold_s: -1.0, ..Default::default() };
+        let bad = SelectConfig {
+            margin: 1.5,
+            hold_s: -1.0,
+            ..Default::default()
+        };
         let errs = bad.validate().join("\n");
-        assert!(errs.contains("energy.select.margin") && errs.contains("energy.select.hold_s"), "{errs}");
+        assert!(
+            errs.contains("energy.select.margin") && errs.contains("energy.select.hold_s"),
+            "{errs}"
+        );
     }
 }

@@ -108,7 +108,11 @@ pub fn rotate(q: Quat, v: [f64; 3]) -> [f64; 3] {
 /// (radians clockwise from north).
 pub fn ned_to_body_vel(v_ned: [f64; 3], yaw: f64) -> [f64; 3] {
     let (s, c) = yaw.sin_cos();
-    [-v_ned[0] * s + v_ned[1] * c, v_ned[0] * c + v_ned[1] * s, -v_ned[2]]
+    [
+        -v_ned[0] * s + v_ned[1] * c,
+        v_ned[0] * c + v_ned[1] * s,
+        -v_ned[2],
+    ]
 }
 
 /// The data set's (right, forward, up) velocity → NED for heading `yaw`. Inverse of
@@ -137,7 +141,10 @@ pub fn wind_vec_to_from(v: [f64; 2]) -> [f64; 2] {
 /// the air's velocity relative to the vehicle, from the true wind (north, east) and the
 /// ground velocity (north, east).
 pub fn apparent_wind(true_wind_ne: [f64; 2], ground_ne: [f64; 2]) -> [f64; 2] {
-    wind_vec_to_from([true_wind_ne[0] - ground_ne[0], true_wind_ne[1] - ground_ne[1]])
+    wind_vec_to_from([
+        true_wind_ne[0] - ground_ne[0],
+        true_wind_ne[1] - ground_ne[1],
+    ])
 }
 
 /// Horizontal distance between two WGS84 points (degrees), metres: equirectangular, good to
@@ -151,7 +158,10 @@ pub fn ground_distance_m(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> f64 {
 pub fn ne_offset_m(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> (f64, f64) {
     const R: f64 = 6_371_000.0;
     let lat_m = ((lat1 + lat2) / 2.0).to_radians();
-    ((lat2 - lat1).to_radians() * R, (lon2 - lon1).to_radians() * R * lat_m.cos())
+    (
+        (lat2 - lat1).to_radians() * R,
+        (lon2 - lon1).to_radians() * R * lat_m.cos(),
+    )
 }
 
 #[cfg(test)]
@@ -186,13 +196,25 @@ mod tests {
     #[test]
     fn body_velocity_and_wind() {
         // Heading north, flying north at 5 m/s and climbing 1 m/s: forward is y.
-        assert!(close(&ned_to_body_vel([5.0, 0.0, -1.0], 0.0), &[0.0, 5.0, 1.0], 1e-12));
+        assert!(close(
+            &ned_to_body_vel([5.0, 0.0, -1.0], 0.0),
+            &[0.0, 5.0, 1.0],
+            1e-12
+        ));
         // Heading east, moving north = moving to the left (negative right).
         let v = ned_to_body_vel([1.0, 0.0, 0.0], std::f64::consts::FRAC_PI_2);
         assert!(close(&v, &[-1.0, 0.0, 0.0], 1e-12));
-        assert!(close(&body_to_ned_vel(v, std::f64::consts::FRAC_PI_2), &[1.0, 0.0, 0.0], 1e-12));
+        assert!(close(
+            &body_to_ned_vel(v, std::f64::consts::FRAC_PI_2),
+            &[1.0, 0.0, 0.0],
+            1e-12
+        ));
         // Still air, flying north at 10 m/s: the apparent wind comes from the north.
-        assert!(close(&apparent_wind([0.0, 0.0], [10.0, 0.0]), &[10.0, 0.0], 1e-9));
+        assert!(close(
+            &apparent_wind([0.0, 0.0], [10.0, 0.0]),
+            &[10.0, 0.0],
+            1e-9
+        ));
         // A 3 m/s wind from the west, hovering.
         let w = wind_from_to_vec(3.0, 270.0);
         assert!(close(&apparent_wind(w, [0.0, 0.0]), &[3.0, 270.0], 1e-9));

@@ -13,27 +13,27 @@ pub const N_FEATURES: usize = 21;
 /// are the M100 data set's (see `../shared/data/m100/SOURCE.md`), whatever the autopilot
 /// sends: the telemetry stage converts at its boundary.
 pub const FEATURE_NAMES: [&str; N_FEATURES] = [
-    "wind_speed",            // m/s, anemometer airspeed (includes own motion)
-    "wind_angle",            // deg, relative to north
-    "position_x",            // deg longitude
-    "position_y",            // deg latitude
-    "position_z",            // m above sea level
-    "orientation_x",         // quaternion: body (x right, y forward, z up) → ENU, w ≥ 0
+    "wind_speed",    // m/s, anemometer airspeed (includes own motion)
+    "wind_angle",    // deg, relative to north
+    "position_x",    // deg longitude
+    "position_y",    // deg latitude
+    "position_z",    // m above sea level
+    "orientation_x", // quaternion: body (x right, y forward, z up) → ENU, w ≥ 0
     "orientation_y",
     "orientation_z",
     "orientation_w",
-    "velocity_x",            // m/s ground velocity, heading frame: right
-    "velocity_y",            // m/s forward
-    "velocity_z",            // m/s up
-    "angular_x",             // rad/s body rates, FRD
+    "velocity_x", // m/s ground velocity, heading frame: right
+    "velocity_y", // m/s forward
+    "velocity_z", // m/s up
+    "angular_x",  // rad/s body rates, FRD
     "angular_y",
     "angular_z",
     "linear_acceleration_x", // m/s², specific force, FRD body (z ≈ −9.81 at rest)
     "linear_acceleration_y",
     "linear_acceleration_z",
-    "speed",                 // m/s commanded cruise ground speed (mission)
-    "payload",               // g (mission)
-    "altitude",              // m commanded cruise altitude (mission)
+    "speed",    // m/s commanded cruise ground speed (mission)
+    "payload",  // g (mission)
+    "altitude", // m commanded cruise altitude (mission)
 ];
 
 /// Index of each feature in [`FEATURE_NAMES`].
@@ -69,7 +69,7 @@ pub struct Sample {
     /// Grid time, seconds on the source clock.
     pub t_s: f64,
     /// The 21 features, data-set units and frames, order of [`FEATURE_NAMES`] (frames as
-/// verified on the data set: see [`frames`]).
+    /// verified on the data set: see [`frames`]).
     pub features: [f32; N_FEATURES],
     /// Measured electrical power V × I, watts, when voltage and current are present
     /// (interpolated like the features; `None` while the battery source is stale).

@@ -41,8 +41,8 @@
 //! Pure: no I/O.
 
 use super::trajectory::Trajectory;
-use crate::telemetry::idx;
 use crate::model::{PowerModel, Prediction};
+use crate::telemetry::idx;
 use crate::telemetry::window::Window;
 
 /// One model of the forecast with its own fitted correction (an entry of
@@ -72,14 +72,23 @@ pub struct Member {
 
 impl Default for Member {
     fn default() -> Self {
-        Self { model: String::new(), scale: 1.0, recent_flights: 0, phase_scale: [1.0; 3], climb_work: [0.0; 2] }
+        Self {
+            model: String::new(),
+            scale: 1.0,
+            recent_flights: 0,
+            phase_scale: [1.0; 3],
+            climb_work: [0.0; 2],
+        }
     }
 }
 
 impl Member {
     /// Model `model`, uncorrected.
     pub fn of(model: &str) -> Self {
-        Self { model: model.to_string(), ..Self::default() }
+        Self {
+            model: model.to_string(),
+            ..Self::default()
+        }
     }
 
     /// The weights on [model power in vertical climb, vertical descent, the rest, vertical
@@ -93,7 +102,9 @@ impl Member {
     /// Corrected power, W, where the model predicted `w` W in phase `phase` ([`phase_of`])
     /// with vertical work rates `[up, down]` ([`vertical_work_w`]).
     fn power_w(&self, w: f64, phase: usize, [up, down]: [f64; 2]) -> f64 {
-        self.scale * (self.phase_scale[phase] * w + self.climb_work[0] * up + self.climb_work[1] * down).max(0.0)
+        self.scale
+            * (self.phase_scale[phase] * w + self.climb_work[0] * up + self.climb_work[1] * down)
+                .max(0.0)
     }
 }
 
@@ -126,12 +137,21 @@ impl Calibration {
 
     /// One member, no P90 spread, no live weight.
     pub fn of(member: Member) -> Self {
-        Self { members: vec![member], p90_ratio: 1.0, live_weight: 0.0, vehicle_kg: 2.431 }
+        Self {
+            members: vec![member],
+            p90_ratio: 1.0,
+            live_weight: 0.0,
+            vehicle_kg: 2.431,
+        }
     }
 
     /// The members' models joined with " + ".
     pub fn name(&self) -> String {
-        self.members.iter().map(|m| m.model.as_str()).collect::<Vec<_>>().join(" + ")
+        self.members
+            .iter()
+            .map(|m| m.model.as_str())
+            .collect::<Vec<_>>()
+            .join(" + ")
     }
 
     /// Range checks; the message names the key.
@@ -148,20 +168,35 @@ impl Calibration {
                 return Err(format!("{key}: scale = {}: must be > 0", m.scale));
             }
             if !m.climb_work.iter().all(|w| w.is_finite()) {
-                return Err(format!("{key}: climb_work = {:?}: must be numbers", m.climb_work));
+                return Err(format!(
+                    "{key}: climb_work = {:?}: must be numbers",
+                    m.climb_work
+                ));
             }
             if !m.phase_scale.iter().all(|w| w.is_finite() && *w > 0.0) {
-                return Err(format!("{key}: phase_scale = {:?}: must be > 0", m.phase_scale));
+                return Err(format!(
+                    "{key}: phase_scale = {:?}: must be > 0",
+                    m.phase_scale
+                ));
             }
         }
         if !(self.p90_ratio.is_finite() && self.p90_ratio >= 1.0) {
-            return Err(format!("forecast.calibration.p90_ratio = {}: must be ≥ 1", self.p90_ratio));
+            return Err(format!(
+                "forecast.calibration.p90_ratio = {}: must be ≥ 1",
+                self.p90_ratio
+            ));
         }
         if !(self.vehicle_kg.is_finite() && self.vehicle_kg > 0.0) {
-            return Err(format!("forecast.calibration.vehicle_kg = {}: must be > 0", self.vehicle_kg));
+            return Err(format!(
+                "forecast.calibration.vehicle_kg = {}: must be > 0",
+                self.vehicle_kg
+            ));
         }
         if !(0.0..=1.0).contains(&self.live_weight) {
-            return Err(format!("forecast.calibration.live_weight = {}: must be in [0, 1]", self.live_weight));
+            return Err(format!(
+                "forecast.calibration.live_weight = {}: must be in [0, 1]",
+                self.live_weight
+            ));
         }
         Ok(())
     }
@@ -197,7 +232,13 @@ impl Default for Calibration {
     fn default() -> Self {
         // Fitted by `dronewatt plan-eval` on the M100 training flights (178 route flights, test
         // flights excluded), with the calibrated profile's physics models.
-        let m = |model: &str, scale: f64, recent_flights: usize, w: f64, up: f64| Member { model: model.into(), scale, recent_flights, phase_scale: [w; 3], climb_work: [up, 0.0] };
+        let m = |model: &str, scale: f64, recent_flights: usize, w: f64, up: f64| Member {
+            model: model.into(),
+            scale,
+            recent_flights,
+            phase_scale: [w; 3],
+            climb_work: [up, 0.0],
+        };
         Self {
             members: vec![
                 m("dorling_cal", 0.9983, 20, 0.9739, 1.6593),
@@ -211,7 +252,6 @@ impl Default for Calibration {
         }
     }
 }
-
 
 /// One leg's forecast.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -268,11 +308,20 @@ const BATCH: usize = 512;
 /// sample step at which models run (≥ 1). The mean of the calibration's members gives the
 /// P50 (those that ran; when none did, the first model that ran, uncorrected: the names
 /// are in the result).
-pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Calibration, window_t: usize, stride: usize) -> MissionForecast {
+pub fn forecast(
+    traj: &Trajectory,
+    models: &mut [Box<dyn PowerModel>],
+    cal: &Calibration,
+    window_t: usize,
+    stride: usize,
+) -> MissionForecast {
     let n = traj.samples.len();
     let stride = stride.max(1);
     let t = window_t.max(1);
-    let mut powers: Vec<(String, Vec<f32>)> = models.iter().map(|m| (m.name().to_string(), vec![0.0f32; n])).collect();
+    let mut powers: Vec<(String, Vec<f32>)> = models
+        .iter()
+        .map(|m| (m.name().to_string(), vec![0.0f32; n]))
+        .collect();
     let mut windows: Vec<Window> = Vec::with_capacity(BATCH.min(n.div_ceil(stride)));
     let mut preds: Vec<Prediction> = Vec::new();
     // Models with the same target lag share each batch of windows.
@@ -289,7 +338,10 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
             for b in 0..count {
                 let end = (j0 + b * stride + lag).min(n - 1);
                 if b == windows.len() {
-                    windows.push(Window { samples: Vec::with_capacity(t), arrived: None });
+                    windows.push(Window {
+                        samples: Vec::with_capacity(t),
+                        arrived: None,
+                    });
                 }
                 let w = &mut windows[b].samples;
                 w.clear();
@@ -310,7 +362,11 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
                 m.predict(&windows[..count], &mut preds);
                 for (b, pr) in preds.iter().enumerate().take(count) {
                     let a = j0 + b * stride;
-                    let v = if pr.power_w.is_finite() { pr.power_w.max(0.0) } else { 0.0 };
+                    let v = if pr.power_w.is_finite() {
+                        pr.power_w.max(0.0)
+                    } else {
+                        0.0
+                    };
                     p[a..(a + stride).min(n)].fill(v);
                 }
             }
@@ -320,11 +376,32 @@ pub fn forecast(traj: &Trajectory, models: &mut [Box<dyn PowerModel>], cal: &Cal
     integrate(traj, &powers, cal)
 }
 
-fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration) -> MissionForecast {
+fn integrate(
+    traj: &Trajectory,
+    powers: &[(String, Vec<f32>)],
+    cal: &Calibration,
+) -> MissionForecast {
     let dt_h = traj.dt_s / 3600.0;
-    let models_raw_wh: Vec<(String, f64)> = powers.iter().map(|(n, p)| (n.clone(), p.iter().map(|&w| f64::from(w)).sum::<f64>() * dt_h)).collect();
+    let models_raw_wh: Vec<(String, f64)> = powers
+        .iter()
+        .map(|(n, p)| {
+            (
+                n.clone(),
+                p.iter().map(|&w| f64::from(w)).sum::<f64>() * dt_h,
+            )
+        })
+        .collect();
     // the members that ran; none: the first model that ran, uncorrected
-    let mut picked: Vec<(&Member, &[f32])> = cal.members.iter().filter_map(|m| powers.iter().find(|(n, _)| *n == m.model).map(|(_, p)| (m, p.as_slice()))).collect();
+    let mut picked: Vec<(&Member, &[f32])> = cal
+        .members
+        .iter()
+        .filter_map(|m| {
+            powers
+                .iter()
+                .find(|(n, _)| *n == m.model)
+                .map(|(_, p)| (m, p.as_slice()))
+        })
+        .collect();
     let fallback;
     if picked.is_empty() {
         if let Some((n, p)) = powers.first() {
@@ -332,17 +409,34 @@ fn integrate(traj: &Trajectory, powers: &[(String, Vec<f32>)], cal: &Calibration
             picked.push((&fallback, p.as_slice()));
         }
     }
-    let model = if picked.is_empty() { String::from("none") } else { picked.iter().map(|(m, _)| m.model.as_str()).collect::<Vec<_>>().join(" + ") };
+    let model = if picked.is_empty() {
+        String::from("none")
+    } else {
+        picked
+            .iter()
+            .map(|(m, _)| m.model.as_str())
+            .collect::<Vec<_>>()
+            .join(" + ")
+    };
     let share = 1.0 / picked.len().max(1) as f64;
     let mut cum = Vec::with_capacity(traj.samples.len());
     let mut e = 0.0;
     for (j, s) in traj.samples.iter().enumerate() {
         let (phase, work) = (phase_of(s), vertical_work_w(s, cal.vehicle_kg));
-        let p: f64 = picked.iter().map(|(m, p)| m.power_w(f64::from(p[j]), phase, work)).sum();
+        let p: f64 = picked
+            .iter()
+            .map(|(m, p)| m.power_w(f64::from(p[j]), phase, work))
+            .sum();
         e += share * p * dt_h;
         cum.push(e);
     }
-    let at = |i: usize| if i == 0 { 0.0 } else { cum.get(i - 1).copied().unwrap_or(e) };
+    let at = |i: usize| {
+        if i == 0 {
+            0.0
+        } else {
+            cum.get(i - 1).copied().unwrap_or(e)
+        }
+    };
     let legs = traj
         .legs
         .iter()
@@ -398,7 +492,12 @@ impl MissionForecast {
     /// The live re-forecast: the rest of the mission (and its landing) from trajectory
     /// sample `k`, scaled by the flight's own showing so far when `measured_so_far_wh` is
     /// given (see the module docs; `live_weight` = 0 ignores it). O(1).
-    pub fn remaining_from(&self, k: usize, measured_so_far_wh: Option<f64>, live_weight: f64) -> Remaining {
+    pub fn remaining_from(
+        &self,
+        k: usize,
+        measured_so_far_wh: Option<f64>,
+        live_weight: f64,
+    ) -> Remaining {
         let total = self.energy_p50_wh;
         let done = self.energy_to_wh(k);
         let mut left = (total - done).max(0.0);
@@ -431,32 +530,75 @@ mod tests {
     use crate::mission::trajectory::{fly, Conditions, KinematicsConfig, Wind};
 
     fn plan(n: usize) -> Plan {
-        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
-        let wps: Vec<GeoPoint> = (0..n).map(|i| GeoPoint { lat_deg: 40.0 + 0.001 * (i % 2) as f64, lon_deg: -80.0 + 0.001 * i as f64, alt_m: 30.0 }).collect();
+        let home = GeoPoint {
+            lat_deg: 40.0,
+            lon_deg: -80.0,
+            alt_m: 300.0,
+        };
+        let wps: Vec<GeoPoint> = (0..n)
+            .map(|i| GeoPoint {
+                lat_deg: 40.0 + 0.001 * (i % 2) as f64,
+                lon_deg: -80.0 + 0.001 * i as f64,
+                alt_m: 30.0,
+            })
+            .collect();
         Plan::from_waypoints("zigzag", home, &wps, 8.0)
     }
 
     fn run(payload_g: f64, wind: Wind, cal: &Calibration) -> MissionForecast {
-        let tr = fly(&plan(6), &KinematicsConfig::default(), &Conditions { wind, payload_g, speed_m_s: None, rate_hz: 10.0 });
-        let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
+        let tr = fly(
+            &plan(6),
+            &KinematicsConfig::default(),
+            &Conditions {
+                wind,
+                payload_g,
+                speed_m_s: None,
+                rate_hz: 10.0,
+            },
+        );
+        let mut models =
+            crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
         forecast(&tr, &mut models, cal, 10, 5)
     }
 
     #[test]
     fn energy_adds_up_and_grows_with_payload_and_wind() {
-        let cal = Calibration { p90_ratio: 1.1, ..Calibration::uncorrected("dandrea") };
+        let cal = Calibration {
+            p90_ratio: 1.1,
+            ..Calibration::uncorrected("dandrea")
+        };
         let f = run(0.0, Wind::default(), &cal);
         assert_eq!(f.model, "dandrea");
         let legs: f64 = f.legs.iter().map(|l| l.energy_p50_wh).sum();
-        assert!((legs - f.energy_p50_wh).abs() < 1e-9, "legs sum to the whole: {legs} vs {}", f.energy_p50_wh);
+        assert!(
+            (legs - f.energy_p50_wh).abs() < 1e-9,
+            "legs sum to the whole: {legs} vs {}",
+            f.energy_p50_wh
+        );
         assert!((f.energy_p90_wh / f.energy_p50_wh - 1.1).abs() < 1e-12);
         let mean_w = f.energy_p50_wh * 3600.0 / f.duration_s;
-        assert!((150.0..1500.0).contains(&mean_w), "an M100's power: {mean_w} W");
+        assert!(
+            (150.0..1500.0).contains(&mean_w),
+            "an M100's power: {mean_w} W"
+        );
         let heavy = run(500.0, Wind::default(), &cal);
-        assert!(heavy.energy_p50_wh > f.energy_p50_wh * 1.02, "payload costs energy");
+        assert!(
+            heavy.energy_p50_wh > f.energy_p50_wh * 1.02,
+            "payload costs energy"
+        );
         let windy = run(0.0, "8@0".parse().unwrap(), &cal);
         assert!(windy.energy_p50_wh > f.energy_p50_wh, "wind costs energy");
-        let scaled = run(0.0, Wind::default(), &Calibration { members: vec![Member { scale: 1.2, ..Member::of("dandrea") }], ..cal.clone() });
+        let scaled = run(
+            0.0,
+            Wind::default(),
+            &Calibration {
+                members: vec![Member {
+                    scale: 1.2,
+                    ..Member::of("dandrea")
+                }],
+                ..cal.clone()
+            },
+        );
         assert!((scaled.energy_p50_wh / f.energy_p50_wh - 1.2).abs() < 1e-9);
     }
 
@@ -470,8 +612,16 @@ mod tests {
         fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
             out.clear();
             out.extend(windows.iter().map(|w| {
-                let p = w.samples.iter().enumerate().map(|(i, s)| (i + 1) as f64 * (s.t_s + f64::from(s.features[idx::VY]).abs())).sum::<f64>();
-                Prediction { power_w: p as f32, band_w: None }
+                let p = w
+                    .samples
+                    .iter()
+                    .enumerate()
+                    .map(|(i, s)| (i + 1) as f64 * (s.t_s + f64::from(s.features[idx::VY]).abs()))
+                    .sum::<f64>();
+                Prediction {
+                    power_w: p as f32,
+                    band_w: None,
+                }
             }));
         }
         fn target_lag(&self) -> usize {
@@ -484,10 +634,23 @@ mod tests {
         // The forecast builds its windows in reused batches; the plain way (one window,
         // copied fresh, predicted alone, its power held until the next) must agree exactly,
         // for a plan of more windows than a batch and models of two lags.
-        let tr = fly(&plan(60), &KinematicsConfig::default(), &Conditions { wind: "3@40".parse().unwrap(), payload_g: 250.0, speed_m_s: None, rate_hz: 10.0 });
+        let tr = fly(
+            &plan(60),
+            &KinematicsConfig::default(),
+            &Conditions {
+                wind: "3@40".parse().unwrap(),
+                payload_g: 250.0,
+                speed_m_s: None,
+                rate_hz: 10.0,
+            },
+        );
         let (t, stride, n) = (10, 5, tr.samples.len());
-        assert!(n / stride > 2 * BATCH, "{n} samples: more windows than two batches");
-        let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
+        assert!(
+            n / stride > 2 * BATCH,
+            "{n} samples: more windows than two batches"
+        );
+        let mut models =
+            crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
         models.push(Box::new(WholeWindow));
         let cal = Calibration::uncorrected("whole_window");
         let f = forecast(&tr, &mut models, &cal, t, stride);
@@ -507,7 +670,13 @@ mod tests {
                         s
                     })
                     .collect();
-                m.predict(&[Window { samples, arrived: None }], &mut out);
+                m.predict(
+                    &[Window {
+                        samples,
+                        arrived: None,
+                    }],
+                    &mut out,
+                );
                 p[j..(j + stride).min(n)].fill(out[0].power_w.max(0.0));
             }
             let e = p.iter().map(|&w| f64::from(w)).sum::<f64>() * tr.dt_s / 3600.0;
@@ -518,7 +687,10 @@ mod tests {
                 let mut cum = 0.0;
                 for (k, &w) in p.iter().enumerate() {
                     cum += f64::from(w) * tr.dt_s / 3600.0;
-                    assert!((f.cum_p50_wh[k] - cum).abs() <= 1e-12 * cum.abs(), "sample {k}");
+                    assert!(
+                        (f.cum_p50_wh[k] - cum).abs() <= 1e-12 * cum.abs(),
+                        "sample {k}"
+                    );
                 }
             }
         }
@@ -529,37 +701,121 @@ mod tests {
         // Take off to 25 m, climb to 100 m on a 400 m leg north (slanted), come back down
         // to 25 m on the way east, return. The work term adds w·m·g·Δh for every metre
         // climbed, vertical or slanted, and nothing for the descent when its weight is 0.
-        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
+        let home = GeoPoint {
+            lat_deg: 40.0,
+            lon_deg: -80.0,
+            alt_m: 300.0,
+        };
         let d = 400.0 / 111_320.0;
-        let wps = [GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0, alt_m: 100.0 }, GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0 + d, alt_m: 25.0 }];
+        let wps = [
+            GeoPoint {
+                lat_deg: 40.0 + d,
+                lon_deg: -80.0,
+                alt_m: 100.0,
+            },
+            GeoPoint {
+                lat_deg: 40.0 + d,
+                lon_deg: -80.0 + d,
+                alt_m: 25.0,
+            },
+        ];
         let mut plan = Plan::from_waypoints("slanted", home, &wps, 10.0);
         for it in plan.items.iter_mut() {
             if let crate::mission::plan::ItemKind::Takeoff { alt_m } = &mut it.kind {
                 *alt_m = 25.0;
             }
         }
-        let tr = fly(&plan, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: 500.0, speed_m_s: None, rate_hz: 10.0 });
-        let slanted = tr.samples.iter().filter(|s| s.features[idx::VZ] > 0.5 && s.features[idx::VX].hypot(s.features[idx::VY]) > 1.0).count();
-        assert!(slanted as f64 * tr.dt_s > 30.0, "the leg north climbs while it flies: {slanted} samples");
-        let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
-        let base = Calibration::of(Member { scale: 0.97, ..Member::of("tseng_solo") });
+        let tr = fly(
+            &plan,
+            &KinematicsConfig::default(),
+            &Conditions {
+                wind: Wind::default(),
+                payload_g: 500.0,
+                speed_m_s: None,
+                rate_hz: 10.0,
+            },
+        );
+        let slanted = tr
+            .samples
+            .iter()
+            .filter(|s| {
+                s.features[idx::VZ] > 0.5 && s.features[idx::VX].hypot(s.features[idx::VY]) > 1.0
+            })
+            .count();
+        assert!(
+            slanted as f64 * tr.dt_s > 30.0,
+            "the leg north climbs while it flies: {slanted} samples"
+        );
+        let mut models =
+            crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
+        let base = Calibration::of(Member {
+            scale: 0.97,
+            ..Member::of("tseng_solo")
+        });
         let w = 2.5;
-        let with = Calibration::of(Member { scale: 0.97, climb_work: [w, 0.0], ..Member::of("tseng_solo") });
+        let with = Calibration::of(Member {
+            scale: 0.97,
+            climb_work: [w, 0.0],
+            ..Member::of("tseng_solo")
+        });
         let f0 = forecast(&tr, &mut models, &base, 10, 5);
         let f1 = forecast(&tr, &mut models, &with, 10, 5);
         let m = base.vehicle_kg + 0.5;
         let climb_wh = |h: f64| 0.97 * w * m * 9.81 * h / 3600.0;
         let extra = f1.energy_p50_wh - f0.energy_p50_wh;
-        assert!((extra / climb_wh(100.0) - 1.0).abs() < 0.01, "25 m take-off + 75 m slanted: {extra} Wh vs {}", climb_wh(100.0));
+        assert!(
+            (extra / climb_wh(100.0) - 1.0).abs() < 0.01,
+            "25 m take-off + 75 m slanted: {extra} Wh vs {}",
+            climb_wh(100.0)
+        );
         let leg = |f: &MissionForecast| f.legs[1].energy_p50_wh;
-        assert!((leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 < 0.01 && (leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 > -0.01, "the slanted leg itself carries its 75 m");
-        assert!((f1.legs[2].energy_p50_wh / f0.legs[2].energy_p50_wh - 1.0).abs() < 1e-9, "descending legs unchanged");
+        assert!(
+            (leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 < 0.01
+                && (leg(&f1) - leg(&f0)) / climb_wh(75.0) - 1.0 > -0.01,
+            "the slanted leg itself carries its 75 m"
+        );
+        assert!(
+            (f1.legs[2].energy_p50_wh / f0.legs[2].energy_p50_wh - 1.0).abs() < 1e-9,
+            "descending legs unchanged"
+        );
         // tseng_solo has no climb term of its own: without the work term a slanted climb is free
-        let flat = Plan::from_waypoints("flat", home, &[GeoPoint { alt_m: 25.0, ..wps[0] }, wps[1]], 10.0); // take-off to 25 m
-        let tf = fly(&flat, &KinematicsConfig::default(), &Conditions { wind: Wind::default(), payload_g: 500.0, speed_m_s: None, rate_hz: 10.0 });
+        let flat = Plan::from_waypoints(
+            "flat",
+            home,
+            &[
+                GeoPoint {
+                    alt_m: 25.0,
+                    ..wps[0]
+                },
+                wps[1],
+            ],
+            10.0,
+        ); // take-off to 25 m
+        let tf = fly(
+            &flat,
+            &KinematicsConfig::default(),
+            &Conditions {
+                wind: Wind::default(),
+                payload_g: 500.0,
+                speed_m_s: None,
+                rate_hz: 10.0,
+            },
+        );
         let ff = forecast(&tf, &mut models, &base, 10, 5);
-        assert!((ff.legs[1].energy_p50_wh - f0.legs[1].energy_p50_wh).abs() < 0.02 * ff.legs[1].energy_p50_wh);
-        assert!(with.validate().is_ok() && Calibration { vehicle_kg: 0.0, ..with.clone() }.validate().unwrap_err().contains("vehicle_kg"));
+        assert!(
+            (ff.legs[1].energy_p50_wh - f0.legs[1].energy_p50_wh).abs()
+                < 0.02 * ff.legs[1].energy_p50_wh
+        );
+        assert!(
+            with.validate().is_ok()
+                && Calibration {
+                    vehicle_kg: 0.0,
+                    ..with.clone()
+                }
+                .validate()
+                .unwrap_err()
+                .contains("vehicle_kg")
+        );
     }
 
     #[test]
@@ -573,40 +829,91 @@ mod tests {
         let c: Calibration = toml::from_str(text).unwrap();
         assert_eq!(c, Calibration::default());
         let one: Calibration = toml::from_str("members = [{ model = \"tseng\" }]").unwrap();
-        assert_eq!(one.members, vec![Member::of("tseng")], "a key left out keeps its default");
+        assert_eq!(
+            one.members,
+            vec![Member::of("tseng")],
+            "a key left out keeps its default"
+        );
         assert_eq!(one.p90_ratio, Calibration::default().p90_ratio);
-        let e = toml::from_str::<Calibration>("model = \"tseng\"").unwrap_err().to_string();
+        let e = toml::from_str::<Calibration>("model = \"tseng\"")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("model"), "{e}");
-        let e = toml::from_str::<Calibration>("members = [{ model = \"tseng\", climb_weight = 2 }]").unwrap_err().to_string();
+        let e =
+            toml::from_str::<Calibration>("members = [{ model = \"tseng\", climb_weight = 2 }]")
+                .unwrap_err()
+                .to_string();
         assert!(e.contains("climb_weight"), "{e}");
         let mut bad = Calibration::default();
         bad.members[2].climb_work = [f64::NAN, 0.0];
         let e = bad.validate().unwrap_err();
-        assert!(e.contains("forecast.calibration.members[2] (\"tseng_cal\"): climb_work"), "{e}");
-        assert!(Calibration { members: vec![], ..Calibration::default() }.validate().unwrap_err().contains("members: empty"));
+        assert!(
+            e.contains("forecast.calibration.members[2] (\"tseng_cal\"): climb_work"),
+            "{e}"
+        );
+        assert!(Calibration {
+            members: vec![],
+            ..Calibration::default()
+        }
+        .validate()
+        .unwrap_err()
+        .contains("members: empty"));
     }
 
     #[test]
     fn the_p50_is_the_mean_of_the_members_that_ran() {
         let single = |m: Member| run(0.0, Wind::default(), &Calibration::of(m)).energy_p50_wh;
-        let a = Member { scale: 0.9, climb_work: [1.5, 0.0], ..Member::of("dandrea") };
-        let b = Member { scale: 1.1, phase_scale: [1.2, 0.8, 1.0], ..Member::of("tseng") };
-        let both = run(0.0, Wind::default(), &Calibration { members: vec![a.clone(), b.clone()], ..Calibration::uncorrected("") });
+        let a = Member {
+            scale: 0.9,
+            climb_work: [1.5, 0.0],
+            ..Member::of("dandrea")
+        };
+        let b = Member {
+            scale: 1.1,
+            phase_scale: [1.2, 0.8, 1.0],
+            ..Member::of("tseng")
+        };
+        let both = run(
+            0.0,
+            Wind::default(),
+            &Calibration {
+                members: vec![a.clone(), b.clone()],
+                ..Calibration::uncorrected("")
+            },
+        );
         assert_eq!(both.model, "dandrea + tseng");
         assert!((both.energy_p50_wh - 0.5 * (single(a.clone()) + single(b))).abs() < 1e-9);
         // a member whose model did not run is left out, not counted as zero
-        let with_ghost = run(0.0, Wind::default(), &Calibration { members: vec![a.clone(), Member::of("no_such_model")], ..Calibration::uncorrected("") });
+        let with_ghost = run(
+            0.0,
+            Wind::default(),
+            &Calibration {
+                members: vec![a.clone(), Member::of("no_such_model")],
+                ..Calibration::uncorrected("")
+            },
+        );
         assert_eq!(with_ghost.model, "dandrea");
         assert!((with_ghost.energy_p50_wh - single(a)).abs() < 1e-9);
         // none ran: the first model that did, uncorrected
-        let none = run(0.0, Wind::default(), &Calibration::uncorrected("no_such_model"));
-        assert_eq!(none.model, crate::model::physics::models(&crate::model::profile::VehicleProfile::m100())[0].name());
+        let none = run(
+            0.0,
+            Wind::default(),
+            &Calibration::uncorrected("no_such_model"),
+        );
+        assert_eq!(
+            none.model,
+            crate::model::physics::models(&crate::model::profile::VehicleProfile::m100())[0].name()
+        );
         assert!(none.energy_p50_wh > 0.0);
     }
 
     #[test]
     fn the_live_reforecast_reads_what_is_left() {
-        let cal = Calibration { p90_ratio: 1.1, live_weight: 1.0, ..Calibration::uncorrected("dandrea") };
+        let cal = Calibration {
+            p90_ratio: 1.1,
+            live_weight: 1.0,
+            ..Calibration::uncorrected("dandrea")
+        };
         let f = run(0.0, Wind::default(), &cal);
         let n = f.cum_p50_wh.len();
         let r0 = f.remaining_from(0, None, 1.0);

@@ -31,8 +31,8 @@ use super::plan::{GeoPoint, Plan};
 use super::protocol::{Event, MissionClient};
 use super::trajectory::{enu_of, fly, Conditions, Trajectory, Wind};
 use crate::model::PowerModel;
-use crate::report::{MissionStatus, MissionUpdate};
 use crate::report::status::LinkHandle;
+use crate::report::{MissionStatus, MissionUpdate};
 use crate::source::TimedMessage;
 use crate::MavMessage;
 
@@ -111,7 +111,17 @@ impl LiveMission {
     /// The state for a run.
     pub fn new(setup: LiveSetup) -> Self {
         let client = MissionClient::new(setup.active, setup.system_id, setup.component_id);
-        Self { setup, client, flown: None, home: None, position: None, current_seq: None, last_published: None, wind: Wind::default(), waiting_for_home: None }
+        Self {
+            setup,
+            client,
+            flown: None,
+            home: None,
+            position: None,
+            current_seq: None,
+            last_published: None,
+            wind: Wind::default(),
+            waiting_for_home: None,
+        }
     }
 
     /// The protocol client (its counters).
@@ -124,23 +134,42 @@ impl LiveMission {
     /// is returned (a status, or none when the mission in hand went away).
     // MISSION_ITEM is deprecated, and still what older ground stations log.
     #[allow(deprecated)]
-    pub fn on_message(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionUpdate> {
+    pub fn on_message(
+        &mut self,
+        now_s: f64,
+        m: &TimedMessage,
+        out: &mut Vec<MavMessage>,
+    ) -> Option<MissionUpdate> {
         let mission_protocol = matches!(
             m.msg,
-            MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_) | MavMessage::MISSION_ITEM(_) | MavMessage::MISSION_ACK(_)
+            MavMessage::MISSION_COUNT(_)
+                | MavMessage::MISSION_ITEM_INT(_)
+                | MavMessage::MISSION_ITEM(_)
+                | MavMessage::MISSION_ACK(_)
         );
         if !mission_protocol && !self.setup.follows.contains(m.header.system_id) {
             return None;
         }
         let had = self.flown.is_some();
         match self.step(now_s, m, out) {
-            Some(s) => Some(MissionUpdate { t_s: s.t_s, status: Some(s) }),
-            None if had && self.flown.is_none() => Some(MissionUpdate { t_s: m.t_s, status: None }),
+            Some(s) => Some(MissionUpdate {
+                t_s: s.t_s,
+                status: Some(s),
+            }),
+            None if had && self.flown.is_none() => Some(MissionUpdate {
+                t_s: m.t_s,
+                status: None,
+            }),
             None => None,
         }
     }
 
-    fn step(&mut self, now_s: f64, m: &TimedMessage, out: &mut Vec<MavMessage>) -> Option<MissionStatus> {
+    fn step(
+        &mut self,
+        now_s: f64,
+        m: &TimedMessage,
+        out: &mut Vec<MavMessage>,
+    ) -> Option<MissionStatus> {
         if let Some(ev) = self.client.on_message(now_s, &m.header, &m.msg, out) {
             self.on_event(ev, m.t_s);
             return self.status(m.t_s, true);
@@ -154,7 +183,11 @@ impl LiveMission {
             MavMessage::GLOBAL_POSITION_INT(p) if p.lat != 0 || p.lon != 0 => {
                 let (lat, lon) = (f64::from(p.lat) * 1e-7, f64::from(p.lon) * 1e-7);
                 if self.home.is_none() {
-                    self.home = Some(GeoPoint { lat_deg: lat, lon_deg: lon, alt_m: f64::from(p.alt) * 1e-3 - f64::from(p.relative_alt) * 1e-3 });
+                    self.home = Some(GeoPoint {
+                        lat_deg: lat,
+                        lon_deg: lon,
+                        alt_m: f64::from(p.alt) * 1e-3 - f64::from(p.relative_alt) * 1e-3,
+                    });
                 }
                 self.position = Some((lat, lon, f64::from(p.relative_alt) * 1e-3));
                 if let Some(waiting) = self.waiting_for_home.take() {
@@ -165,16 +198,26 @@ impl LiveMission {
             }
             // ArduPilot: the bearing it blows from; PX4: the NED vector it blows toward.
             MavMessage::WIND(w) if w.speed.is_finite() && w.direction.is_finite() => {
-                self.wind = Wind { speed_m_s: f64::from(w.speed).max(0.0), from_deg: f64::from(w.direction).rem_euclid(360.0) };
+                self.wind = Wind {
+                    speed_m_s: f64::from(w.speed).max(0.0),
+                    from_deg: f64::from(w.direction).rem_euclid(360.0),
+                };
                 self.refly_in_wind(m.t_s)
             }
             MavMessage::WIND_COV(w) if w.wind_x.is_finite() && w.wind_y.is_finite() => {
                 let (n, e) = (f64::from(w.wind_x), f64::from(w.wind_y));
-                self.wind = Wind { speed_m_s: n.hypot(e), from_deg: (e.atan2(n).to_degrees() + 180.0).rem_euclid(360.0) };
+                self.wind = Wind {
+                    speed_m_s: n.hypot(e),
+                    from_deg: (e.atan2(n).to_degrees() + 180.0).rem_euclid(360.0),
+                };
                 self.refly_in_wind(m.t_s)
             }
             MavMessage::HOME_POSITION(h) if h.latitude != 0 || h.longitude != 0 => {
-                self.home = Some(GeoPoint { lat_deg: f64::from(h.latitude) * 1e-7, lon_deg: f64::from(h.longitude) * 1e-7, alt_m: f64::from(h.altitude) * 1e-3 });
+                self.home = Some(GeoPoint {
+                    lat_deg: f64::from(h.latitude) * 1e-7,
+                    lon_deg: f64::from(h.longitude) * 1e-7,
+                    alt_m: f64::from(h.altitude) * 1e-3,
+                });
                 let waiting = self.waiting_for_home.take()?;
                 self.on_event(Event::Mission(waiting), m.t_s);
                 self.status(m.t_s, true)
@@ -206,9 +249,21 @@ impl LiveMission {
     }
 
     /// Fly `plan` on paper in the current wind and forecast it.
-    fn fly(&mut self, source: &str, plan: Plan, seq_offset: u16, items: u16, t_s: f64) -> Option<Flown> {
+    fn fly(
+        &mut self,
+        source: &str,
+        plan: Plan,
+        seq_offset: u16,
+        items: u16,
+        t_s: f64,
+    ) -> Option<Flown> {
         let s = &self.setup;
-        let cond = Conditions { wind: self.wind, payload_g: s.payload_g, speed_m_s: s.speed_m_s, rate_hz: s.rate_hz };
+        let cond = Conditions {
+            wind: self.wind,
+            payload_g: s.payload_g,
+            speed_m_s: s.speed_m_s,
+            rate_hz: s.rate_hz,
+        };
         let traj = fly(&plan, &s.forecast.kinematics, &cond);
         if traj.samples.is_empty() {
             tracing::warn!("{source}: the mission flies nowhere (no take-off, no waypoint); no mission forecast");
@@ -219,21 +274,51 @@ impl LiveMission {
         // applies). Only the members' models run: live, nothing reads the others.
         let fitted = &self.setup.forecast.calibration;
         let runs = |name: &str| self.setup.models.iter().any(|m| m.name() == name);
-        let missing: Vec<&str> = fitted.members.iter().map(|m| m.model.as_str()).filter(|n| !runs(n)).collect();
+        let missing: Vec<&str> = fitted
+            .members
+            .iter()
+            .map(|m| m.model.as_str())
+            .filter(|n| !runs(n))
+            .collect();
         let cal = if missing.len() < fitted.members.len() {
             if !missing.is_empty() {
                 tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile?); the P50 is the mean of the others");
             }
-            super::forecast::Calibration { members: fitted.members.iter().filter(|m| runs(&m.model)).cloned().collect(), ..fitted.clone() }
+            super::forecast::Calibration {
+                members: fitted
+                    .members
+                    .iter()
+                    .filter(|m| runs(&m.model))
+                    .cloned()
+                    .collect(),
+                ..fitted.clone()
+            }
         } else {
-            let first = self.setup.models.first().map(|m| m.name().to_string()).unwrap_or_default();
+            let first = self
+                .setup
+                .models
+                .first()
+                .map(|m| m.name().to_string())
+                .unwrap_or_default();
             tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected");
-            super::forecast::Calibration { p90_ratio: fitted.p90_ratio, ..super::forecast::Calibration::uncorrected(&first) }
+            super::forecast::Calibration {
+                p90_ratio: fitted.p90_ratio,
+                ..super::forecast::Calibration::uncorrected(&first)
+            }
         };
         // only the members run (the slice `forecast` is given); the models' order is restored after
-        let (ran, rest): (Vec<_>, Vec<_>) = std::mem::take(&mut self.setup.models).into_iter().enumerate().partition(|(_, m)| cal.members.iter().any(|c| c.model == m.name()));
+        let (ran, rest): (Vec<_>, Vec<_>) = std::mem::take(&mut self.setup.models)
+            .into_iter()
+            .enumerate()
+            .partition(|(_, m)| cal.members.iter().any(|c| c.model == m.name()));
         let (order, mut members): (Vec<usize>, Vec<_>) = ran.into_iter().unzip();
-        let f = forecast(&traj, &mut members, &cal, self.setup.window, super::MODEL_STRIDE);
+        let f = forecast(
+            &traj,
+            &mut members,
+            &cal,
+            self.setup.window,
+            super::MODEL_STRIDE,
+        );
         let mut back: Vec<_> = order.into_iter().zip(members).chain(rest).collect();
         back.sort_by_key(|(i, _)| *i);
         self.setup.models = back.into_iter().map(|(_, m)| m).collect();
@@ -246,9 +331,29 @@ impl LiveMission {
             self.wind.speed_m_s,
             self.wind.from_deg
         );
-        let route_stride = traj.enu_m.len().div_ceil(MissionStatus::ROUTE_POINTS).max(1);
-        let route = std::sync::Arc::new(traj.enu_m.iter().step_by(route_stride).map(|p| [p[0], p[1]]).collect());
-        Some(Flown { plan, seq_offset, items, traj, forecast: f, wind: self.wind, flown_at: t_s, route, route_stride })
+        let route_stride = traj
+            .enu_m
+            .len()
+            .div_ceil(MissionStatus::ROUTE_POINTS)
+            .max(1);
+        let route = std::sync::Arc::new(
+            traj.enu_m
+                .iter()
+                .step_by(route_stride)
+                .map(|p| [p[0], p[1]])
+                .collect(),
+        );
+        Some(Flown {
+            plan,
+            seq_offset,
+            items,
+            traj,
+            forecast: f,
+            wind: self.wind,
+            flown_at: t_s,
+            route,
+            route_stride,
+        })
     }
 
     fn on_event(&mut self, ev: Event, t_s: f64) {
@@ -266,7 +371,9 @@ impl LiveMission {
             return;
         }
         if !m.home_is_item0 && self.home.is_none() {
-            tracing::debug!("{source}: no home yet; flown once HOME_POSITION or a position is heard");
+            tracing::debug!(
+                "{source}: no home yet; flown once HOME_POSITION or a position is heard"
+            );
             self.waiting_for_home = Some(m);
             self.flown = None;
             return;
@@ -280,7 +387,13 @@ impl LiveMission {
             }
         };
         for i in plan.not_modelled() {
-            tracing::info!("{source}: item {} ({}): MAV_CMD {} not modelled (flown through: {})", i.index, i.origin, i.command, i.command < 100);
+            tracing::info!(
+                "{source}: item {} ({}): MAV_CMD {} not modelled (flown through: {})",
+                i.index,
+                i.origin,
+                i.command,
+                i.command < 100
+            );
         }
         let items = u16::try_from(m.items.len()).unwrap_or(u16::MAX);
         self.flown = self.fly(&source, plan, seq_offset, items, t_s);
@@ -292,7 +405,11 @@ impl LiveMission {
     fn status(&mut self, t_s: f64, now: bool) -> Option<MissionStatus> {
         let fl = self.flown.as_ref()?;
         let seq = self.current_seq.unwrap_or(fl.seq_offset);
-        if !now && self.last_published.is_some_and(|(t, s)| s == seq && t_s - t < PUBLISH_EVERY_S && t_s >= t) {
+        if !now
+            && self
+                .last_published
+                .is_some_and(|(t, s)| s == seq && t_s - t < PUBLISH_EVERY_S && t_s >= t)
+        {
             return None;
         }
         let k = locate(fl, seq, self.position);
@@ -327,7 +444,8 @@ fn locate(fl: &Flown, seq: u16, position: Option<(f64, f64, f64)>) -> usize {
     match position {
         Some((lat, lon, up)) => {
             let (e, nn) = enu_of(&fl.plan.home, lat, lon);
-            fl.traj.locate(from, to - from, [e as f32, nn as f32, up as f32])
+            fl.traj
+                .locate(from, to - from, [e as f32, nn as f32, up as f32])
         }
         None => from,
     }
@@ -335,7 +453,12 @@ fn locate(fl: &Flown, seq: u16, position: Option<(f64, f64, f64)>) -> usize {
 
 /// Run the tap: every message from `msgs` on to the returned receiver, unchanged and in
 /// order; mission statuses to `statuses`; protocol frames out on `link` when active.
-pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: LinkHandle, statuses: mpsc::Sender<MissionUpdate>) -> (mpsc::Receiver<TimedMessage>, JoinHandle<()>) {
+pub fn spawn(
+    mut msgs: mpsc::Receiver<TimedMessage>,
+    setup: LiveSetup,
+    link: LinkHandle,
+    statuses: mpsc::Sender<MissionUpdate>,
+) -> (mpsc::Receiver<TimedMessage>, JoinHandle<()>) {
     let (tx, rx) = mpsc::channel(TAP_DEPTH);
     let active = setup.active;
     let task = tokio::spawn(async move {
@@ -366,18 +489,32 @@ pub fn spawn(mut msgs: mpsc::Receiver<TimedMessage>, setup: LiveSetup, link: Lin
                 continue;
             };
             for msg in out.drain(..) {
-                let header = mavlink::MavHeader { system_id: sys.into(), component_id: comp, sequence: seq };
+                let header = mavlink::MavHeader {
+                    system_id: sys.into(),
+                    component_id: comp,
+                    sequence: seq,
+                };
                 seq = seq.wrapping_add(1);
                 let mut buf = Vec::with_capacity(64);
                 // Writing into a Vec cannot fail.
-                let _ = mavlink::write_versioned_msg(&mut buf, mavlink::MavlinkVersion::V2, header, &msg);
+                let _ = mavlink::write_versioned_msg(
+                    &mut buf,
+                    mavlink::MavlinkVersion::V2,
+                    header,
+                    &msg,
+                );
                 if !link.try_send(buf) {
                     tracing::debug!("mission protocol frame not sent (no link or link full)");
                 }
             }
         }
         let st = live.client().stats;
-        tracing::debug!(downloads = st.downloads, resends = st.resends, failures = st.failures, "mission protocol");
+        tracing::debug!(
+            downloads = st.downloads,
+            resends = st.resends,
+            failures = st.failures,
+            "mission protocol"
+        );
     });
     (rx, task)
 }
@@ -389,7 +526,16 @@ mod tests {
     use crate::mission::plan::GeoPoint;
 
     fn msg(t_s: f64, msg: MavMessage) -> TimedMessage {
-        TimedMessage { t_s, header: mavlink::MavHeader { system_id: 1, component_id: 1, sequence: 0 }, msg, arrived: std::time::Instant::now() }
+        TimedMessage {
+            t_s,
+            header: mavlink::MavHeader {
+                system_id: 1,
+                component_id: 1,
+                sequence: 0,
+            },
+            msg,
+            arrived: std::time::Instant::now(),
+        }
     }
 
     fn live() -> LiveMission {
@@ -409,13 +555,34 @@ mod tests {
 
     /// Feed a logged download of an out-and-back (1 km north) into `l`; the status after it.
     fn download(l: &mut LiveMission) -> Option<MissionUpdate> {
-        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
-        let wp = GeoPoint { lat_deg: 40.0 + 1000.0 / 111_320.0, lon_deg: -80.0, alt_m: 25.0 };
+        let home = GeoPoint {
+            lat_deg: 40.0,
+            lon_deg: -80.0,
+            alt_m: 300.0,
+        };
+        let wp = GeoPoint {
+            lat_deg: 40.0 + 1000.0 / 111_320.0,
+            lon_deg: -80.0,
+            alt_m: 25.0,
+        };
         let items = Plan::from_waypoints("t", home, &[wp], 10.0).to_mission_items();
         let mut out = Vec::new();
-        let hb = MavMessage::HEARTBEAT(d::HEARTBEAT_DATA { autopilot: d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA, ..Default::default() });
+        let hb = MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
+            autopilot: d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            ..Default::default()
+        });
         l.on_message(0.0, &msg(0.0, hb), &mut out);
-        l.on_message(0.0, &msg(0.0, MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA { count: items.len() as u16, ..Default::default() })), &mut out);
+        l.on_message(
+            0.0,
+            &msg(
+                0.0,
+                MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA {
+                    count: items.len() as u16,
+                    ..Default::default()
+                }),
+            ),
+            &mut out,
+        );
         let mut last = None;
         for it in &items {
             let m = MavMessage::MISSION_ITEM_INT(d::MISSION_ITEM_INT_DATA {
@@ -437,12 +604,25 @@ mod tests {
     #[test]
     fn a_logged_mission_is_forecast_located_and_flown_again_when_the_wind_changes() {
         let mut l = live();
-        let start = download(&mut l).and_then(|u| u.status).expect("a status once the mission is whole");
+        let start = download(&mut l)
+            .and_then(|u| u.status)
+            .expect("a status once the mission is whole");
         assert_eq!(start.items, 5, "home, speed, take-off, waypoint, RTL");
-        assert!(start.energy_p50_wh > 5.0 && start.progress_pct < 1.0, "{start:?}");
+        assert!(
+            start.energy_p50_wh > 5.0 && start.progress_pct < 1.0,
+            "{start:?}"
+        );
         // Flying to the waypoint (seq 3), half way out: a quarter of the way, ~3/4 left.
         let mut out = Vec::new();
-        let cur = |t, seq| msg(t, MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA { seq, ..Default::default() }));
+        let cur = |t, seq| {
+            msg(
+                t,
+                MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA {
+                    seq,
+                    ..Default::default()
+                }),
+            )
+        };
         l.on_message(1.0, &cur(1.0, 3), &mut out);
         let pos = MavMessage::GLOBAL_POSITION_INT(d::GLOBAL_POSITION_INT_DATA {
             lat: ((40.0 + 500.0 / 111_320.0) * 1e7) as i32,
@@ -450,22 +630,62 @@ mod tests {
             relative_alt: 25_000,
             ..Default::default()
         });
-        let half = l.on_message(2.0, &msg(2.0, pos), &mut out).and_then(|u| u.status).expect("a status a second later");
+        let half = l
+            .on_message(2.0, &msg(2.0, pos), &mut out)
+            .and_then(|u| u.status)
+            .expect("a status a second later");
         let share = half.energy_p50_wh / start.energy_p50_wh;
-        assert!((0.65..0.85).contains(&share) && (20.0..32.0).contains(&half.progress_pct), "half way out, {share} of the energy left: {half:?}");
+        assert!(
+            (0.65..0.85).contains(&share) && (20.0..32.0).contains(&half.progress_pct),
+            "half way out, {share} of the energy left: {half:?}"
+        );
         assert_eq!(half.current_seq, 3);
         // A wind estimate 8 m/s from the north: too early to fly again at 10 s, done at 40 s.
-        let wind = |t| msg(t, MavMessage::WIND(d::WIND_DATA { direction: 0.0, speed: 8.0, speed_z: 0.0 }));
+        let wind = |t| {
+            msg(
+                t,
+                MavMessage::WIND(d::WIND_DATA {
+                    direction: 0.0,
+                    speed: 8.0,
+                    speed_z: 0.0,
+                }),
+            )
+        };
         assert_eq!(l.on_message(10.0, &wind(10.0), &mut out), None);
-        let windy = l.on_message(40.0, &wind(40.0), &mut out).and_then(|u| u.status).expect("flown again in the wind");
+        let windy = l
+            .on_message(40.0, &wind(40.0), &mut out)
+            .and_then(|u| u.status)
+            .expect("flown again in the wind");
         // (which way depends on the model: D'Andrea's induced power falls with airspeed)
         let change = windy.energy_p50_wh / half.energy_p50_wh - 1.0;
-        assert!(change.abs() > 0.02, "the forecast moved with the wind: {windy:?} vs {half:?}");
+        assert!(
+            change.abs() > 0.02,
+            "the forecast moved with the wind: {windy:?} vs {half:?}"
+        );
         // Past the last item: nothing left.
-        let done = l.on_message(50.0, &cur(50.0, 9), &mut out).and_then(|u| u.status).unwrap();
+        let done = l
+            .on_message(50.0, &cur(50.0, 9), &mut out)
+            .and_then(|u| u.status)
+            .unwrap();
         assert!(done.energy_p50_wh < 0.01 * start.energy_p50_wh, "{done:?}");
         // The vehicle's mission cleared (a new, empty list overheard): the update says none.
-        let cleared = l.on_message(51.0, &msg(51.0, MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA { count: 0, ..Default::default() })), &mut out);
-        assert_eq!(cleared, Some(MissionUpdate { t_s: 51.0, status: None }));
+        let cleared = l.on_message(
+            51.0,
+            &msg(
+                51.0,
+                MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA {
+                    count: 0,
+                    ..Default::default()
+                }),
+            ),
+            &mut out,
+        );
+        assert_eq!(
+            cleared,
+            Some(MissionUpdate {
+                t_s: 51.0,
+                status: None
+            })
+        );
     }
 }

@@ -57,7 +57,10 @@ pub struct LiveForecastConfig {
 
 impl Default for LiveForecastConfig {
     fn default() -> Self {
-        Self { enabled: true, calibrated_profile: None }
+        Self {
+            enabled: true,
+            calibrated_profile: None,
+        }
     }
 }
 

@@ -94,9 +94,17 @@ pub enum Event {
 enum State {
     Idle,
     /// MISSION_REQUEST_LIST sent.
-    WaitCount { sent_at: f64, tries: u32 },
+    WaitCount {
+        sent_at: f64,
+        tries: u32,
+    },
     /// Items being requested one by one.
-    Items { items: Vec<Option<MissionItem>>, next: u16, sent_at: f64, tries: u32 },
+    Items {
+        items: Vec<Option<MissionItem>>,
+        next: u16,
+        sent_at: f64,
+        tries: u32,
+    },
 }
 
 /// Counters, for logs and tests.
@@ -155,7 +163,10 @@ impl MissionClient {
     /// Who it sends as (system, component); None while it has no system id (its own is not
     /// set and no vehicle was heard yet: it sends nothing then).
     pub fn sender(&self) -> Option<(u8, u8)> {
-        self.own.0.or(self.target.map(|t| t.0)).map(|sys| (sys, self.own.1))
+        self.own
+            .0
+            .or(self.target.map(|t| t.0))
+            .map(|sys| (sys, self.own.1))
     }
 
     /// Whether a download is under way.
@@ -166,18 +177,29 @@ impl MissionClient {
     /// One message heard at `now_s`; messages to send go to `out`.
     // MISSION_ITEM is deprecated, and still what older ground stations log.
     #[allow(deprecated)]
-    pub fn on_message(&mut self, now_s: f64, header: &mavlink::MavHeader, msg: &MavMessage, out: &mut Vec<MavMessage>) -> Option<Event> {
-        let from = (u8::try_from(header.system_id).unwrap_or(0), header.component_id);
+    pub fn on_message(
+        &mut self,
+        now_s: f64,
+        header: &mavlink::MavHeader,
+        msg: &MavMessage,
+        out: &mut Vec<MavMessage>,
+    ) -> Option<Event> {
+        let from = (
+            u8::try_from(header.system_id).unwrap_or(0),
+            header.component_id,
+        );
         if Some(from) == self.sender() {
             return None;
         }
         let from_target = self.target == Some(from);
         match msg {
             MavMessage::HEARTBEAT(h) => {
-                let autopilot = h.autopilot != d::MavAutopilot::MAV_AUTOPILOT_INVALID && h.mavtype != d::MavType::MAV_TYPE_GCS;
+                let autopilot = h.autopilot != d::MavAutopilot::MAV_AUTOPILOT_INVALID
+                    && h.mavtype != d::MavType::MAV_TYPE_GCS;
                 if autopilot && self.target.is_none() {
                     self.target = Some(from);
-                    self.ardupilot = Some(h.autopilot == d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA);
+                    self.ardupilot =
+                        Some(h.autopilot == d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA);
                 }
                 self.maybe_start(now_s, out);
                 None
@@ -198,7 +220,12 @@ impl MissionClient {
                         out.push(self.ack(d::MavMissionResult::MAV_MISSION_ACCEPTED));
                         return Some(self.finish(Vec::new(), Origin::Downloaded));
                     }
-                    self.state = State::Items { items: vec![None; usize::from(c.count)], next: 0, sent_at: now_s, tries: 1 };
+                    self.state = State::Items {
+                        items: vec![None; usize::from(c.count)],
+                        next: 0,
+                        sent_at: now_s,
+                        tries: 1,
+                    };
                     out.push(self.request(0));
                     return None;
                 }
@@ -236,20 +263,37 @@ impl MissionClient {
                 };
                 self.on_item(now_s, from_target, item, out)
             }
-            MavMessage::MISSION_ACK(a) if from_target && self.busy() && is_mission(a.mission_type) => {
+            MavMessage::MISSION_ACK(a)
+                if from_target && self.busy() && is_mission(a.mission_type) =>
+            {
                 if a.mavtype == d::MavMissionResult::MAV_MISSION_ACCEPTED {
                     return None;
                 }
-                Some(self.fail(now_s, format!("the vehicle refused the download: {:?}", a.mavtype)))
+                Some(self.fail(
+                    now_s,
+                    format!("the vehicle refused the download: {:?}", a.mavtype),
+                ))
             }
             _ => None,
         }
     }
 
-    fn on_item(&mut self, now_s: f64, from_target: bool, item: MissionItem, out: &mut Vec<MavMessage>) -> Option<Event> {
+    fn on_item(
+        &mut self,
+        now_s: f64,
+        from_target: bool,
+        item: MissionItem,
+        out: &mut Vec<MavMessage>,
+    ) -> Option<Event> {
         let seq = usize::from(item.seq);
         if from_target {
-            if let State::Items { items, next, sent_at, tries } = &mut self.state {
+            if let State::Items {
+                items,
+                next,
+                sent_at,
+                tries,
+            } = &mut self.state
+            {
                 if seq < items.len() && items[seq].is_none() {
                     items[seq] = Some(item);
                 }
@@ -279,7 +323,13 @@ impl MissionClient {
             list[seq] = Some(item);
         }
         if list.iter().all(Option::is_some) {
-            let items = self.overheard.take().unwrap_or_default().into_iter().flatten().collect();
+            let items = self
+                .overheard
+                .take()
+                .unwrap_or_default()
+                .into_iter()
+                .flatten()
+                .collect();
             return Some(self.finish(items, Origin::Overheard));
         }
         None
@@ -292,7 +342,9 @@ impl MissionClient {
                 self.maybe_start(now_s, out);
                 return None;
             }
-            State::WaitCount { sent_at, tries } | State::Items { sent_at, tries, .. } => (sent_at, tries),
+            State::WaitCount { sent_at, tries } | State::Items { sent_at, tries, .. } => {
+                (sent_at, tries)
+            }
         };
         if now_s - *sent_at < RESEND_S {
             return None;
@@ -321,7 +373,10 @@ impl MissionClient {
         };
         if wanted {
             self.held_sig = Some(self.current_sig);
-            self.state = State::WaitCount { sent_at: now_s, tries: 1 };
+            self.state = State::WaitCount {
+                sent_at: now_s,
+                tries: 1,
+            };
             out.push(self.request_list());
         }
     }
@@ -338,8 +393,17 @@ impl MissionClient {
         if origin == Origin::Downloaded {
             self.stats.downloads += 1;
         }
-        let home_is_item0 = self.ardupilot.unwrap_or_else(|| items.first().is_some_and(|i| i.command == 16 && i.frame == 0));
-        Event::Mission(Mission { items, mission_id: self.current_sig.map_or(0, |s| s.0), origin, home_is_item0 })
+        let home_is_item0 = self.ardupilot.unwrap_or_else(|| {
+            items
+                .first()
+                .is_some_and(|i| i.command == 16 && i.frame == 0)
+        });
+        Event::Mission(Mission {
+            items,
+            mission_id: self.current_sig.map_or(0, |s| s.0),
+            origin,
+            home_is_item0,
+        })
     }
 
     fn targets(&self) -> (u8, u8) {
@@ -386,7 +450,11 @@ mod tests {
     use super::*;
 
     fn hdr(sys: u8, comp: u8) -> mavlink::MavHeader {
-        mavlink::MavHeader { system_id: sys.into(), component_id: comp, sequence: 0 }
+        mavlink::MavHeader {
+            system_id: sys.into(),
+            component_id: comp,
+            sequence: 0,
+        }
     }
 
     fn heartbeat() -> MavMessage {
@@ -410,7 +478,10 @@ mod tests {
     }
 
     fn count(n: u16) -> MavMessage {
-        MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA { count: n, ..Default::default() })
+        MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA {
+            count: n,
+            ..Default::default()
+        })
     }
 
     fn requested(out: &[MavMessage]) -> Vec<u16> {
@@ -428,7 +499,10 @@ mod tests {
         let mut c = MissionClient::new(true, Some(1), 191);
         let mut out = Vec::new();
         assert_eq!(c.on_message(0.0, &v, &heartbeat(), &mut out), None);
-        assert!(matches!(out.as_slice(), [MavMessage::MISSION_REQUEST_LIST(_)]), "{out:?}");
+        assert!(
+            matches!(out.as_slice(), [MavMessage::MISSION_REQUEST_LIST(_)]),
+            "{out:?}"
+        );
         out.clear();
         c.on_message(0.1, &v, &count(3), &mut out);
         assert_eq!(requested(&out), [0]);
@@ -444,20 +518,34 @@ mod tests {
         c.on_message(2.0, &v, &item(1), &mut out);
         out.clear();
         let ev = c.on_message(2.1, &v, &item(2), &mut out);
-        let Some(Event::Mission(m)) = ev else { panic!("{ev:?}") };
+        let Some(Event::Mission(m)) = ev else {
+            panic!("{ev:?}")
+        };
         assert_eq!(m.items.len(), 3);
         assert_eq!(m.items[2].seq, 2);
         assert!((m.items[1].lat_deg - 47.3978).abs() < 1e-9);
         assert!(m.home_is_item0 && m.origin == Origin::Downloaded);
-        assert!(matches!(out.as_slice(), [MavMessage::MISSION_ACK(a)] if a.mavtype == d::MavMissionResult::MAV_MISSION_ACCEPTED));
+        assert!(
+            matches!(out.as_slice(), [MavMessage::MISSION_ACK(a)] if a.mavtype == d::MavMissionResult::MAV_MISSION_ACCEPTED)
+        );
         // same mission: nothing; a new mission_id: download again
         out.clear();
-        let cur = |id| MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA { seq: 1, total: 2, mission_id: id, ..Default::default() });
+        let cur = |id| {
+            MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA {
+                seq: 1,
+                total: 2,
+                mission_id: id,
+                ..Default::default()
+            })
+        };
         c.on_message(3.0, &v, &cur(0), &mut out);
         c.on_message(4.0, &v, &cur(0), &mut out);
         assert!(out.is_empty(), "unchanged: {out:?}");
         c.on_message(5.0, &v, &cur(77), &mut out);
-        assert!(matches!(out.as_slice(), [MavMessage::MISSION_REQUEST_LIST(_)]), "{out:?}");
+        assert!(
+            matches!(out.as_slice(), [MavMessage::MISSION_REQUEST_LIST(_)]),
+            "{out:?}"
+        );
     }
 
     #[test]
@@ -475,12 +563,19 @@ mod tests {
             }
         }
         assert!(matches!(failed, Some(Event::Failed(_))), "{failed:?}");
-        assert_eq!(out.len() as u32, MAX_TRIES, "the list requested MAX_TRIES times: {out:?}");
+        assert_eq!(
+            out.len() as u32,
+            MAX_TRIES,
+            "the list requested MAX_TRIES times: {out:?}"
+        );
         out.clear();
         c.tick(t + 1.0, &mut out);
         assert!(out.is_empty(), "waits before trying again");
         c.tick(t + RETRY_AFTER_S + 0.1, &mut out);
-        assert!(matches!(out.as_slice(), [MavMessage::MISSION_REQUEST_LIST(_)]));
+        assert!(matches!(
+            out.as_slice(),
+            [MavMessage::MISSION_REQUEST_LIST(_)]
+        ));
     }
 
     #[test]
@@ -491,7 +586,16 @@ mod tests {
         c.on_message(0.1, &hdr(1, 1), &count(2), &mut out);
         assert_eq!(c.on_message(0.2, &hdr(1, 1), &item(1), &mut out), None);
         let ev = c.on_message(0.3, &hdr(1, 1), &item(0), &mut out);
-        assert!(matches!(ev, Some(Event::Mission(Mission { origin: Origin::Overheard, .. }))), "{ev:?}");
+        assert!(
+            matches!(
+                ev,
+                Some(Event::Mission(Mission {
+                    origin: Origin::Overheard,
+                    ..
+                }))
+            ),
+            "{ev:?}"
+        );
         assert!(out.is_empty());
     }
 }

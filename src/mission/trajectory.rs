@@ -117,7 +117,12 @@ impl KinematicsConfig {
         pos("land_m_s", self.land_m_s)?;
         pos("accel_m_s2", self.accel_m_s2)?;
         pos("default_speed_m_s", self.default_speed_m_s)?;
-        for (k, v) in [("spinup_s", self.spinup_s), ("slow_below_m", self.slow_below_m), ("waypoint_pause_s", self.waypoint_pause_s), ("tilt_per_airspeed2", self.tilt_per_airspeed2)] {
+        for (k, v) in [
+            ("spinup_s", self.spinup_s),
+            ("slow_below_m", self.slow_below_m),
+            ("waypoint_pause_s", self.waypoint_pause_s),
+            ("tilt_per_airspeed2", self.tilt_per_airspeed2),
+        ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("forecast.kinematics.{k} = {v}: must be ≥ 0"));
             }
@@ -147,16 +152,27 @@ impl std::str::FromStr for Wind {
     type Err = String;
     /// `SPEED@FROM_DEG`, e.g. `5@270` (5 m/s from the west).
     fn from_str(s: &str) -> Result<Self, String> {
-        let (a, b) = s.split_once('@').ok_or_else(|| format!("wind {s:?}: expected SPEED@FROM_DEG, e.g. 5@270"))?;
-        let speed_m_s: f64 = a.trim().parse().map_err(|_| format!("wind {s:?}: speed {a:?} is not a number"))?;
-        let from_deg: f64 = b.trim().parse().map_err(|_| format!("wind {s:?}: bearing {b:?} is not a number"))?;
+        let (a, b) = s
+            .split_once('@')
+            .ok_or_else(|| format!("wind {s:?}: expected SPEED@FROM_DEG, e.g. 5@270"))?;
+        let speed_m_s: f64 = a
+            .trim()
+            .parse()
+            .map_err(|_| format!("wind {s:?}: speed {a:?} is not a number"))?;
+        let from_deg: f64 = b
+            .trim()
+            .parse()
+            .map_err(|_| format!("wind {s:?}: bearing {b:?} is not a number"))?;
         if !(speed_m_s.is_finite() && (0.0..=40.0).contains(&speed_m_s)) {
             return Err(format!("wind {s:?}: speed must be 0..40 m/s"));
         }
         if !from_deg.is_finite() {
             return Err(format!("wind {s:?}: bearing must be a number of degrees"));
         }
-        Ok(Wind { speed_m_s, from_deg: from_deg.rem_euclid(360.0) })
+        Ok(Wind {
+            speed_m_s,
+            from_deg: from_deg.rem_euclid(360.0),
+        })
     }
 }
 
@@ -209,11 +225,20 @@ pub struct Trajectory {
 #[derive(Debug, Clone, Copy)]
 enum Motion {
     /// Stay at `at`, turning from heading `yaw0` to `yaw1` (rad, ENU bearing of forward).
-    Hover { at: Vector3<f64>, yaw0: f64, yaw1: f64 },
+    Hover {
+        at: Vector3<f64>,
+        yaw0: f64,
+        yaw1: f64,
+    },
     /// Vertical from `from` to height `z1` at `rate` m/s.
     Vertical { from: Vector3<f64>, z1: f64 },
     /// Straight leg, trapezoidal horizontal speed (`v` cruise, `a` accel), height linear in time.
-    Line { from: Vector3<f64>, to: Vector3<f64>, v: f64, a: f64 },
+    Line {
+        from: Vector3<f64>,
+        to: Vector3<f64>,
+        v: f64,
+        a: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -231,20 +256,42 @@ fn state(seg: &Segment, t: f64) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>, f6
         Motion::Hover { at, yaw0, yaw1 } => {
             let dy = wrap_pi(yaw1 - yaw0);
             let f = (t / d).clamp(0.0, 1.0);
-            (at, Vector3::zeros(), Vector3::zeros(), yaw0 + dy * f, dy / d)
+            (
+                at,
+                Vector3::zeros(),
+                Vector3::zeros(),
+                yaw0 + dy * f,
+                dy / d,
+            )
         }
         Motion::Vertical { from, z1 } => {
             let rate = (z1 - from.z) / d;
-            (Vector3::new(from.x, from.y, from.z + rate * t), Vector3::new(0.0, 0.0, rate), Vector3::zeros(), seg.yaw, 0.0)
+            (
+                Vector3::new(from.x, from.y, from.z + rate * t),
+                Vector3::new(0.0, 0.0, rate),
+                Vector3::zeros(),
+                seg.yaw,
+                0.0,
+            )
         }
         Motion::Line { from, to, v, a } => {
             let dh = (to - from).xy();
             let len = dh.norm();
-            let dir = if len > 1e-9 { dh / len } else { nalgebra::Vector2::zeros() };
+            let dir = if len > 1e-9 {
+                dh / len
+            } else {
+                nalgebra::Vector2::zeros()
+            };
             let (s, sp, acc) = trapezoid(len, v, a, t);
             let vz = (to.z - from.z) / d;
             let p = Vector3::new(from.x + dir.x * s, from.y + dir.y * s, from.z + vz * t);
-            (p, Vector3::new(dir.x * sp, dir.y * sp, vz), Vector3::new(dir.x * acc, dir.y * acc, 0.0), seg.yaw, 0.0)
+            (
+                p,
+                Vector3::new(dir.x * sp, dir.y * sp, vz),
+                Vector3::new(dir.x * acc, dir.y * acc, 0.0),
+                seg.yaw,
+                0.0,
+            )
         }
     }
 }
@@ -295,32 +342,61 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
     let mut yaw = std::f64::consts::FRAC_PI_2; // facing north until the first leg
     let mut speed = speed0;
     let mut airborne = false;
-    let pause = |segs: &mut Vec<Segment>, at: Vector3<f64>, yaw0: f64, yaw1: f64, d: f64, leg: usize| {
-        if d > 0.0 {
-            segs.push(Segment { motion: Motion::Hover { at, yaw0, yaw1 }, duration_s: d, yaw: yaw1, leg });
-        }
-    };
+    let pause =
+        |segs: &mut Vec<Segment>, at: Vector3<f64>, yaw0: f64, yaw1: f64, d: f64, leg: usize| {
+            if d > 0.0 {
+                segs.push(Segment {
+                    motion: Motion::Hover { at, yaw0, yaw1 },
+                    duration_s: d,
+                    yaw: yaw1,
+                    leg,
+                });
+            }
+        };
     let descend = |segs: &mut Vec<Segment>, pos: &mut Vector3<f64>, yaw: f64, leg: usize| {
         let slow = k.slow_below_m.max(0.0);
         if pos.z > slow {
             let d = (pos.z - slow) / k.descent_m_s;
-            segs.push(Segment { motion: Motion::Vertical { from: *pos, z1: slow }, duration_s: d, yaw, leg });
+            segs.push(Segment {
+                motion: Motion::Vertical {
+                    from: *pos,
+                    z1: slow,
+                },
+                duration_s: d,
+                yaw,
+                leg,
+            });
             pos.z = slow;
         }
         if pos.z > 0.0 {
             let d = pos.z / k.land_m_s;
-            segs.push(Segment { motion: Motion::Vertical { from: *pos, z1: 0.0 }, duration_s: d, yaw, leg });
+            segs.push(Segment {
+                motion: Motion::Vertical {
+                    from: *pos,
+                    z1: 0.0,
+                },
+                duration_s: d,
+                yaw,
+                leg,
+            });
             pos.z = 0.0;
         }
     };
     // Leaving the ground: the motors spin up there first.
-    let lift_off = |segs: &mut Vec<Segment>, pos: Vector3<f64>, yaw: f64, leg: usize, airborne: &mut bool| {
-        if !*airborne && pos.z <= 0.0 {
-            pause(segs, pos, yaw, yaw, k.spinup_s, leg);
-        }
-        *airborne = true;
-    };
-    let fly_to = |segs: &mut Vec<Segment>, pos: &mut Vector3<f64>, yaw: &mut f64, to: Vector3<f64>, speed: f64, leg: usize| -> f64 {
+    let lift_off =
+        |segs: &mut Vec<Segment>, pos: Vector3<f64>, yaw: f64, leg: usize, airborne: &mut bool| {
+            if !*airborne && pos.z <= 0.0 {
+                pause(segs, pos, yaw, yaw, k.spinup_s, leg);
+            }
+            *airborne = true;
+        };
+    let fly_to = |segs: &mut Vec<Segment>,
+                  pos: &mut Vector3<f64>,
+                  yaw: &mut f64,
+                  to: Vector3<f64>,
+                  speed: f64,
+                  leg: usize|
+     -> f64 {
         let dh = (to - *pos).xy();
         let len = dh.norm();
         let heading = if len > 0.5 { dh.y.atan2(dh.x) } else { *yaw };
@@ -328,10 +404,24 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
         pause(segs, *pos, *yaw, heading, k.waypoint_pause_s, leg);
         let t_h = trapezoid_time(len, speed, k.accel_m_s2);
         let dz = to.z - pos.z;
-        let t_v = if dz >= 0.0 { dz / k.climb_m_s } else { -dz / k.descent_m_s };
+        let t_v = if dz >= 0.0 {
+            dz / k.climb_m_s
+        } else {
+            -dz / k.descent_m_s
+        };
         let d = t_h.max(t_v);
         if d > 0.0 {
-            segs.push(Segment { motion: Motion::Line { from: *pos, to, v: speed, a: k.accel_m_s2 }, duration_s: d, yaw: heading, leg });
+            segs.push(Segment {
+                motion: Motion::Line {
+                    from: *pos,
+                    to,
+                    v: speed,
+                    a: k.accel_m_s2,
+                },
+                duration_s: d,
+                yaw: heading,
+                leg,
+            });
         }
         *pos = to;
         *yaw = heading;
@@ -361,7 +451,15 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
                 lift_off(&mut segs, pos, yaw, leg, &mut airborne);
                 if alt_m > pos.z {
                     let d = (alt_m - pos.z) / k.climb_m_s;
-                    segs.push(Segment { motion: Motion::Vertical { from: pos, z1: alt_m }, duration_s: d, yaw, leg });
+                    segs.push(Segment {
+                        motion: Motion::Vertical {
+                            from: pos,
+                            z1: alt_m,
+                        },
+                        duration_s: d,
+                        yaw,
+                        leg,
+                    });
                     pos.z = alt_m;
                 }
                 "takeoff".into()
@@ -395,9 +493,16 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
                 pause(&mut segs, pos, yaw, yaw, k.waypoint_pause_s, leg);
                 descend(&mut segs, &mut pos, yaw, leg);
                 airborne = false;
-                if matches!(item.kind, ItemKind::Land) { "land".into() } else { "rtl".into() }
+                if matches!(item.kind, ItemKind::Land) {
+                    "land".into()
+                } else {
+                    "rtl".into()
+                }
             }
-            ItemKind::NotModelled { command, flown_through } => match (flown_through, target) {
+            ItemKind::NotModelled {
+                command,
+                flown_through,
+            } => match (flown_through, target) {
                 (true, Some(t)) => {
                     lift_off(&mut segs, pos, yaw, leg, &mut airborne);
                     distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
@@ -407,7 +512,14 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
             },
         };
         if segs.len() > first || distance_m > 0.0 {
-            legs.push(Leg { item: i, label, t_start_s: 0.0, t_end_s: 0.0, distance_m, samples: 0..0 });
+            legs.push(Leg {
+                item: i,
+                label,
+                t_start_s: 0.0,
+                t_end_s: 0.0,
+                distance_m,
+                samples: 0..0,
+            });
         }
     }
     // A plan that ends in the air lands where it is.
@@ -415,7 +527,14 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
         let leg = legs.len();
         pause(&mut segs, pos, yaw, yaw, k.waypoint_pause_s, leg);
         descend(&mut segs, &mut pos, yaw, leg);
-        legs.push(Leg { item: plan.items.len().saturating_sub(1), label: "land (end of plan)".into(), t_start_s: 0.0, t_end_s: 0.0, distance_m: 0.0, samples: 0..0 });
+        legs.push(Leg {
+            item: plan.items.len().saturating_sub(1),
+            label: "land (end of plan)".into(),
+            t_start_s: 0.0,
+            t_end_s: 0.0,
+            distance_m: 0.0,
+            samples: 0..0,
+        });
     }
     segs
 }
@@ -451,7 +570,12 @@ fn attitude(heading: f64, f_h: nalgebra::Vector2<f64>) -> Attitude {
     let qq = q.quaternion();
     let sign = if qq.w < 0.0 { -1.0 } else { 1.0 };
     Attitude {
-        q_xyzw: [(sign * qq.i) as f32, (sign * qq.j) as f32, (sign * qq.k) as f32, (sign * qq.w) as f32],
+        q_xyzw: [
+            (sign * qq.i) as f32,
+            (sign * qq.j) as f32,
+            (sign * qq.k) as f32,
+            (sign * qq.w) as f32,
+        ],
         sin_psi,
         cos_psi,
         fwd,
@@ -461,7 +585,10 @@ fn attitude(heading: f64, f_h: nalgebra::Vector2<f64>) -> Attitude {
 
 /// Fly `plan` on paper. Never fails: a plan with no motion gives no samples.
 pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
-    let speed0 = c.speed_m_s.or(plan.hover_speed_m_s).unwrap_or(k.default_speed_m_s);
+    let speed0 = c
+        .speed_m_s
+        .or(plan.hover_speed_m_s)
+        .unwrap_or(k.default_speed_m_s);
     let mut legs = Vec::new();
     let segs = segments(plan, k, speed0, &mut legs);
     let dt = 1.0 / c.rate_hz;
@@ -507,7 +634,11 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
         }
         let air_key = [air.x, air.y];
         if anemo.0 != air_key {
-            anemo = (air_key, air.xy().norm() as f32, air.x.atan2(air.y).to_degrees().rem_euclid(360.0) as f32);
+            anemo = (
+                air_key,
+                air.xy().norm() as f32,
+                air.x.atan2(air.y).to_degrees().rem_euclid(360.0) as f32,
+            );
         }
         let (sn, cs) = (att.sin_psi, att.cos_psi);
         let vx = v.x * cs + v.y * sn;
@@ -535,7 +666,10 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
             features: f,
             measured_w: None,
             voltage_v: None,
-            home: Some(HomeVector { distance_m: p.xy().norm() as f32, height_m: p.z as f32 }),
+            home: Some(HomeVector {
+                distance_m: p.xy().norm() as f32,
+                height_m: p.z as f32,
+            }),
             stale_mask: 0,
             battery_remaining_pct: None,
         });
@@ -557,7 +691,13 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
             leg.t_end_s = j as f64 * dt;
         }
     }
-    Trajectory { samples, enu_m, leg_of, legs, dt_s: dt }
+    Trajectory {
+        samples,
+        enu_m,
+        leg_of,
+        legs,
+        dt_s: dt,
+    }
 }
 
 impl Trajectory {
@@ -572,7 +712,9 @@ impl Trajectory {
     /// route that crosses itself cannot send it back or far ahead.
     pub fn locate(&self, from: usize, horizon: usize, enu_m: [f32; 3]) -> usize {
         let end = (from + horizon).min(self.enu_m.len());
-        let d2 = |p: &[f32; 3]| (p[0] - enu_m[0]).powi(2) + (p[1] - enu_m[1]).powi(2) + (p[2] - enu_m[2]).powi(2);
+        let d2 = |p: &[f32; 3]| {
+            (p[0] - enu_m[0]).powi(2) + (p[1] - enu_m[1]).powi(2) + (p[2] - enu_m[2]).powi(2)
+        };
         let mut best = from.min(self.enu_m.len().saturating_sub(1));
         let mut best_d = f32::INFINITY;
         for (i, p) in self.enu_m.iter().enumerate().take(end).skip(from) {
@@ -589,7 +731,10 @@ impl Trajectory {
     /// vehicle is flying toward `item`): where [`Trajectory::locate`] starts for a
     /// MISSION_CURRENT of `item`.
     pub fn first_sample_of_item(&self, item: usize) -> usize {
-        self.legs.iter().find(|l| l.item >= item).map_or(self.samples.len(), |l| l.samples.start)
+        self.legs
+            .iter()
+            .find(|l| l.item >= item)
+            .map_or(self.samples.len(), |l| l.samples.start)
     }
 }
 
@@ -599,17 +744,34 @@ mod tests {
     use crate::mission::plan::{GeoPoint, Plan};
 
     fn square(speed: f64) -> Plan {
-        let home = GeoPoint { lat_deg: 40.0, lon_deg: -80.0, alt_m: 300.0 };
+        let home = GeoPoint {
+            lat_deg: 40.0,
+            lon_deg: -80.0,
+            alt_m: 300.0,
+        };
         let d = 200.0 / M_PER_DEG;
         let wps = [
-            GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0, alt_m: 25.0 },
-            GeoPoint { lat_deg: 40.0 + d, lon_deg: -80.0 + d / 40f64.to_radians().cos(), alt_m: 25.0 },
+            GeoPoint {
+                lat_deg: 40.0 + d,
+                lon_deg: -80.0,
+                alt_m: 25.0,
+            },
+            GeoPoint {
+                lat_deg: 40.0 + d,
+                lon_deg: -80.0 + d / 40f64.to_radians().cos(),
+                alt_m: 25.0,
+            },
         ];
         Plan::from_waypoints("square", home, &wps, speed)
     }
 
     fn cond() -> Conditions {
-        Conditions { wind: Wind::default(), payload_g: 250.0, speed_m_s: None, rate_hz: 10.0 }
+        Conditions {
+            wind: Wind::default(),
+            payload_g: 250.0,
+            speed_m_s: None,
+            rate_hz: 10.0,
+        }
     }
 
     #[test]
@@ -619,41 +781,89 @@ mod tests {
         let labels: Vec<&str> = tr.legs.iter().map(|l| l.label.as_str()).collect();
         assert_eq!(labels, ["takeoff", "waypoint", "waypoint", "rtl"]);
         // 200 m north, 200 m east, 283 m home: three stop-to-stop legs at 10 m/s, a = k.accel_m_s2
-        let legs_s: f64 = [200.0, 200.0, 200.0 * 2f64.sqrt()].iter().map(|&l| trapezoid_time(l, 10.0, k.accel_m_s2)).sum();
-        let expect = k.spinup_s + 25.0 / 3.0 + legs_s + 4.0 * k.waypoint_pause_s + 5.0 / k.descent_m_s + 20.0 / 1.0;
-        assert!((tr.duration_s() - expect).abs() < 0.2, "{} vs {expect}", tr.duration_s());
+        let legs_s: f64 = [200.0, 200.0, 200.0 * 2f64.sqrt()]
+            .iter()
+            .map(|&l| trapezoid_time(l, 10.0, k.accel_m_s2))
+            .sum();
+        let expect = k.spinup_s
+            + 25.0 / 3.0
+            + legs_s
+            + 4.0 * k.waypoint_pause_s
+            + 5.0 / k.descent_m_s
+            + 20.0 / 1.0;
+        assert!(
+            (tr.duration_s() - expect).abs() < 0.2,
+            "{} vs {expect}",
+            tr.duration_s()
+        );
         let dist: f64 = tr.legs.iter().map(|l| l.distance_m).sum();
         assert!((dist - (400.0 + 200.0 * 2f64.sqrt())).abs() < 1.0, "{dist}");
         // cruising north at 10 m/s: forward velocity 10, ~9° tilt, anemometer 10 m/s from the north bearing
         let mid = &tr.samples[tr.legs[1].samples.start + 120];
-        assert!((mid.features[idx::VY] - 10.0).abs() < 0.05 && mid.features[idx::VX].abs() < 0.05, "{:?}", mid.features);
+        assert!(
+            (mid.features[idx::VY] - 10.0).abs() < 0.05 && mid.features[idx::VX].abs() < 0.05,
+            "{:?}",
+            mid.features
+        );
         assert!((mid.features[idx::WIND_SPEED] - 10.0).abs() < 0.05);
         assert!(mid.features[idx::WIND_ANGLE] < 0.5 || mid.features[idx::WIND_ANGLE] > 359.5);
         assert_eq!(mid.features[idx::PAYLOAD], 250.0);
         assert_eq!(mid.features[idx::ALTITUDE], 25.0);
         let last = tr.samples.last().unwrap();
-        assert!(last.home.unwrap().distance_m < 0.5 && last.home.unwrap().height_m.abs() < 0.2, "lands at home");
+        assert!(
+            last.home.unwrap().distance_m < 0.5 && last.home.unwrap().height_m.abs() < 0.2,
+            "lands at home"
+        );
     }
 
     #[test]
     fn the_models_read_the_trajectory_as_the_motion_it_is() {
         // The physics models' own reading of the features must give back the motion.
-        let tr = fly(&square(8.0), &KinematicsConfig::default(), &Conditions { wind: "4@90".parse().unwrap(), ..cond() });
+        let tr = fly(
+            &square(8.0),
+            &KinematicsConfig::default(),
+            &Conditions {
+                wind: "4@90".parse().unwrap(),
+                ..cond()
+            },
+        );
         let profile = crate::model::profile::VehicleProfile::m100();
         let j = tr.legs[2].samples.start + 100; // cruising east at 8 m/s, wind 4 m/s from the east
-        let w = crate::telemetry::window::Window { samples: tr.samples[j - 9..=j].to_vec(), arrived: None };
+        let w = crate::telemetry::window::Window {
+            samples: tr.samples[j - 9..=j].to_vec(),
+            arrived: None,
+        };
         let kin = crate::model::physics::Kinematics::from_window(&w, &profile);
-        assert!((kin.ground_m_s - Vector3::new(8.0, 0.0, 0.0)).norm() < 0.1, "{:?}", kin.ground_m_s);
-        assert!((kin.wind_m_s - Vector3::new(-4.0, 0.0, 0.0)).norm() < 0.1, "{:?}", kin.wind_m_s);
+        assert!(
+            (kin.ground_m_s - Vector3::new(8.0, 0.0, 0.0)).norm() < 0.1,
+            "{:?}",
+            kin.ground_m_s
+        );
+        assert!(
+            (kin.wind_m_s - Vector3::new(-4.0, 0.0, 0.0)).norm() < 0.1,
+            "{:?}",
+            kin.wind_m_s
+        );
         assert!((kin.headwind() - 4.0).abs() < 0.1);
-        assert!(kin.thrust_axis.x > 0.1, "nose down toward the airspeed: {:?}", kin.thrust_axis);
+        assert!(
+            kin.thrust_axis.x > 0.1,
+            "nose down toward the airspeed: {:?}",
+            kin.thrust_axis
+        );
     }
 
     #[test]
     fn wind_parses_and_points_downwind() {
         let w: Wind = "5@270".parse().unwrap();
-        assert!((w.velocity_enu() - Vector3::new(5.0, 0.0, 0.0)).norm() < 1e-9, "from the west blows east");
-        assert!("5".parse::<Wind>().is_err() && "x@1".parse::<Wind>().is_err() && "99@0".parse::<Wind>().is_err());
+        assert!(
+            (w.velocity_enu() - Vector3::new(5.0, 0.0, 0.0)).norm() < 1e-9,
+            "from the west blows east"
+        );
+        assert!(
+            "5".parse::<Wind>().is_err()
+                && "x@1".parse::<Wind>().is_err()
+                && "99@0".parse::<Wind>().is_err()
+        );
     }
 
     #[test]

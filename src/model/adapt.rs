@@ -159,7 +159,10 @@ impl AdaptConfig {
             ));
         }
         if !(self.min_power_frac.is_finite() && (0.0..1.0).contains(&self.min_power_frac)) {
-            errs.push(format!("models.adapt.min_power_frac = {}: must be in [0, 1)", self.min_power_frac));
+            errs.push(format!(
+                "models.adapt.min_power_frac = {}: must be in [0, 1)",
+                self.min_power_frac
+            ));
         }
         if self.gain_min > 1.0 || self.gain_max < 1.0 {
             errs.push(format!(
@@ -167,7 +170,11 @@ impl AdaptConfig {
                 self.gain_min, self.gain_max
             ));
         }
-        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
     }
 }
 
@@ -189,12 +196,21 @@ pub struct AffineFit {
 
 impl Default for AffineFit {
     fn default() -> Self {
-        Self { a: 1.0, b_w: 0.0, info: [0.0; 3], rhs: [0.0; 2], taught: 0 }
+        Self {
+            a: 1.0,
+            b_w: 0.0,
+            info: [0.0; 3],
+            rhs: [0.0; 2],
+            taught: 0,
+        }
     }
 }
 
 /// The prior's information diag(σ_y²/σ_a², σ_y²/σ_b²): what (1, 0) weighs against data.
-const PRIOR_INFO: [f64; 2] = [SIGMA_Y_W * SIGMA_Y_W / (SIGMA_A * SIGMA_A), SIGMA_Y_W * SIGMA_Y_W / (SIGMA_B_W * SIGMA_B_W)];
+const PRIOR_INFO: [f64; 2] = [
+    SIGMA_Y_W * SIGMA_Y_W / (SIGMA_A * SIGMA_A),
+    SIGMA_Y_W * SIGMA_Y_W / (SIGMA_B_W * SIGMA_B_W),
+];
 
 impl AffineFit {
     /// The corrected power for a raw prediction, W.
@@ -213,10 +229,20 @@ impl AffineFit {
         let (v0, v1) = (rhs[0] + PRIOR_INFO[0], rhs[1]);
         let det = m00 * m11 - m01 * m01;
         let (a, b) = ((m11 * v0 - m01 * v1) / det, (m00 * v1 - m01 * v0) / det);
-        if !(det > 0.0 && a.is_finite() && b.is_finite() && info.iter().chain(&rhs).all(|v| v.is_finite())) {
+        if !(det > 0.0
+            && a.is_finite()
+            && b.is_finite()
+            && info.iter().chain(&rhs).all(|v| v.is_finite()))
+        {
             return;
         }
-        let (a, b) = box_solve([m00, m01, m11], [v0, v1], (a, b), (cfg.gain_min, cfg.gain_max), cfg.offset_max_w);
+        let (a, b) = box_solve(
+            [m00, m01, m11],
+            [v0, v1],
+            (a, b),
+            (cfg.gain_min, cfg.gain_max),
+            cfg.offset_max_w,
+        );
         self.info = info;
         self.rhs = rhs;
         self.a = a;
@@ -232,13 +258,21 @@ impl AffineFit {
 /// in a climb, drove the gain to its bound and left the offset of a gain 3× larger: a
 /// 1,000 W estimate of a 600 W climb). Inside the box the free minimum is the answer; else
 /// the minimum lies on an edge, where it is a one-dimensional fit clamped to the edge.
-fn box_solve(m: [f64; 3], v: [f64; 2], free: (f64, f64), gain: (f64, f64), b_max: f64) -> (f64, f64) {
+fn box_solve(
+    m: [f64; 3],
+    v: [f64; 2],
+    free: (f64, f64),
+    gain: (f64, f64),
+    b_max: f64,
+) -> (f64, f64) {
     let [m00, m01, m11] = m;
     let inside = |(a, b): (f64, f64)| (gain.0..=gain.1).contains(&a) && b.abs() <= b_max;
     if inside(free) {
         return free;
     }
-    let cost = |(a, b): (f64, f64)| m00 * a * a + 2.0 * m01 * a * b + m11 * b * b - 2.0 * (v[0] * a + v[1] * b);
+    let cost = |(a, b): (f64, f64)| {
+        m00 * a * a + 2.0 * m01 * a * b + m11 * b * b - 2.0 * (v[0] * a + v[1] * b)
+    };
     let on_a = |a: f64| (a, ((v[1] - m01 * a) / m11).clamp(-b_max, b_max));
     let on_b = |b: f64| (((v[0] - m01 * b) / m00).clamp(gain.0, gain.1), b);
     [on_a(gain.0), on_a(gain.1), on_b(-b_max), on_b(b_max)]
@@ -310,7 +344,10 @@ impl Adaptation {
             lambda: lambda_of(cfg.memory_s),
             lambda_ref: lambda_of(cfg.reference_memory_s),
             min_teach_w: (cfg.min_power_frac * hover_w).max(0.0),
-            fits: names.iter().map(|n| (n.clone(), ModelFit::default())).collect(),
+            fits: names
+                .iter()
+                .map(|n| (n.clone(), ModelFit::default()))
+                .collect(),
             dt_s,
             lambda_score: lambda_of(cfg.score_memory_s),
             scored: vec![(0, 0.0, 1.0); names.len()],
@@ -325,8 +362,20 @@ impl Adaptation {
     /// Model `i`'s raw prediction `p_model_w` corrected, and (when `measured_w` qualifies and
     /// the model says the window is `in_range`) both fits taught with it. The correction is
     /// the one *before* this window taught: the published estimate never saw its own answer.
-    pub fn step(&mut self, i: usize, p_model_w: f32, measured_w: Option<f32>, in_range: bool) -> Option<Adapted> {
-        let (lambda, lambda_ref, lambda_score, min_w, dt_s) = (self.lambda, self.lambda_ref, self.lambda_score, self.min_teach_w, self.dt_s);
+    pub fn step(
+        &mut self,
+        i: usize,
+        p_model_w: f32,
+        measured_w: Option<f32>,
+        in_range: bool,
+    ) -> Option<Adapted> {
+        let (lambda, lambda_ref, lambda_score, min_w, dt_s) = (
+            self.lambda,
+            self.lambda_ref,
+            self.lambda_score,
+            self.min_teach_w,
+            self.dt_s,
+        );
         let cfg = &self.cfg;
         let fit = &mut self.fits.get_mut(i)?.1;
         let (scored, score, decay) = self.scored.get_mut(i)?;
@@ -338,9 +387,14 @@ impl Adaptation {
         // Published: the fit while its recent out-of-sample error is no worse than the raw
         // model's, else the raw model (a fit that extrapolates badly never makes it worse).
         let [err_raw, err_fit] = fit.err_w;
-        let published = if err_fit <= err_raw { corrected } else { x.max(0.0) };
+        let published = if err_fit <= err_raw {
+            corrected
+        } else {
+            x.max(0.0)
+        };
         // A forgotten mean started at 0 is low by the factor 1 − λⁿ: undo it.
-        let recent = |n: u64, err: f64, decay: f64| (n > 0).then(|| (err / (1.0 - decay).max(1e-9)) as f32);
+        let recent =
+            |n: u64, err: f64, decay: f64| (n > 0).then(|| (err / (1.0 - decay).max(1e-9)) as f32);
         let mut out = Adapted {
             adapted_w: published as f32,
             reference_w: fit.reference.apply(x).max(0.0) as f32,
@@ -348,12 +402,17 @@ impl Adaptation {
             err_w: recent(*scored, *score, *decay),
             evidence_s: (*scored as f64 * dt_s) as f32,
         };
-        let y = measured_w.map(f64::from).filter(|y| y.is_finite() && *y > 0.0 && *y <= MAX_POWER_W);
+        let y = measured_w
+            .map(f64::from)
+            .filter(|y| y.is_finite() && *y > 0.0 && *y <= MAX_POWER_W);
         let Some(y) = y else { return Some(out) };
         if !in_range || x <= 0.0 || y < min_w {
             return Some(out);
         }
-        fit.err_w = [lambda * err_raw + (1.0 - lambda) * (x - y).abs(), lambda * err_fit + (1.0 - lambda) * (corrected - y).abs()];
+        fit.err_w = [
+            lambda * err_raw + (1.0 - lambda) * (x - y).abs(),
+            lambda * err_fit + (1.0 - lambda) * (corrected - y).abs(),
+        ];
         *score = lambda_score * *score + (1.0 - lambda_score) * (published - y).abs();
         *scored += 1;
         *decay *= lambda_score;
@@ -383,7 +442,11 @@ impl Adaptation {
         for (name, fit) in &mut self.fits {
             if let Some((_, l)) = learned.iter().find(|(ln, _)| ln == name) {
                 if [l.adapted, l.reference].iter().all(|f| fit_ok(cfg, f)) {
-                    *fit = ModelFit { adapted: l.reference, reference: l.reference, err_w: [0.0; 2] };
+                    *fit = ModelFit {
+                        adapted: l.reference,
+                        reference: l.reference,
+                        err_w: [0.0; 2],
+                    };
                     n += 1;
                 }
             }
@@ -443,10 +506,16 @@ mod tests {
             last = ad.step(0, x as f32, Some(truth(x) as f32), true);
         }
         let fit = ad.fits()[0].1.adapted;
-        assert!((fit.a - 0.3).abs() < 0.02 && (fit.b_w - 20.0).abs() < 8.0, "{fit:?}");
+        assert!(
+            (fit.a - 0.3).abs() < 0.02 && (fit.b_w - 20.0).abs() < 8.0,
+            "{fit:?}"
+        );
         let got = last.unwrap();
         let want = truth(raw_at(599));
-        assert!((f64::from(got.adapted_w) - want).abs() / want < 0.02, "{got:?} vs {want}");
+        assert!(
+            (f64::from(got.adapted_w) - want).abs() / want < 0.02,
+            "{got:?} vs {want}"
+        );
     }
 
     #[test]
@@ -494,11 +563,20 @@ mod tests {
         // 10 s in: the reference has moved a few % of the way at most; the deviation is
         // still ~all of the 30 %.
         let dev_ref = (y - f64::from(a.reference_w)) / y;
-        assert!(dev_ref > 0.18, "reference learned the fault away: {a:?}, measured {y}");
+        assert!(
+            dev_ref > 0.18,
+            "reference learned the fault away: {a:?}, measured {y}"
+        );
         // A minute in: the published fit has followed (it is a forecast, it should).
         let (a, y) = last.unwrap();
-        assert!((y - f64::from(a.adapted_w)).abs() / y < 0.05, "fast fit did not follow: {a:?} vs {y}");
-        assert!((y - f64::from(a.reference_w)) / y > 0.1, "reference followed within a minute: {a:?} vs {y}");
+        assert!(
+            (y - f64::from(a.adapted_w)).abs() / y < 0.05,
+            "fast fit did not follow: {a:?} vs {y}"
+        );
+        assert!(
+            (y - f64::from(a.reference_w)) / y > 0.1,
+            "reference followed within a minute: {a:?} vs {y}"
+        );
     }
 
     #[test]
@@ -510,7 +588,10 @@ mod tests {
         }
         let f = ad.fits()[0].1;
         for fit in [f.adapted, f.reference] {
-            assert!((0.2..=5.0).contains(&fit.a) && fit.b_w.abs() <= 1000.0, "{fit:?}");
+            assert!(
+                (0.2..=5.0).contains(&fit.a) && fit.b_w.abs() <= 1000.0,
+                "{fit:?}"
+            );
         }
     }
 
@@ -535,8 +616,14 @@ mod tests {
         let f = ad.fits()[0].1.adapted;
         assert_eq!(f.a, 0.2, "{f:?}");
         let est = f.apply(316.0);
-        assert!((560.0..=660.0).contains(&est), "{f:?}: {est:.0} W for a 650 W climb after 40 s");
-        assert!((560.0..=660.0).contains(&f64::from(last.unwrap().adapted_w)), "{last:?}");
+        assert!(
+            (560.0..=660.0).contains(&est),
+            "{f:?}: {est:.0} W for a 650 W climb after 40 s"
+        );
+        assert!(
+            (560.0..=660.0).contains(&f64::from(last.unwrap().adapted_w)),
+            "{last:?}"
+        );
     }
 
     #[test]
@@ -544,16 +631,28 @@ mod tests {
         // Brute force over a grid of the box against the closed form.
         let (m, v) = ([4.0e6, 1.2e4, 40.0], [2.0e7, 5.0e4]);
         let det = m[0] * m[2] - m[1] * m[1];
-        let free = ((m[2] * v[0] - m[1] * v[1]) / det, (m[0] * v[1] - m[1] * v[0]) / det);
+        let free = (
+            (m[2] * v[0] - m[1] * v[1]) / det,
+            (m[0] * v[1] - m[1] * v[0]) / det,
+        );
         let got = box_solve(m, v, free, (0.2, 5.0), 1000.0);
-        let cost = |a: f64, b: f64| m[0] * a * a + 2.0 * m[1] * a * b + m[2] * b * b - 2.0 * (v[0] * a + v[1] * b);
+        let cost = |a: f64, b: f64| {
+            m[0] * a * a + 2.0 * m[1] * a * b + m[2] * b * b - 2.0 * (v[0] * a + v[1] * b)
+        };
         let mut best = f64::INFINITY;
         for i in 0..=480 {
             for j in 0..=400 {
-                best = best.min(cost(0.2 + 0.01 * f64::from(i), -1000.0 + 5.0 * f64::from(j)));
+                best = best.min(cost(
+                    0.2 + 0.01 * f64::from(i),
+                    -1000.0 + 5.0 * f64::from(j),
+                ));
             }
         }
-        assert!(cost(got.0, got.1) <= best + 1e-6 * best.abs(), "{got:?}: {} vs {best}", cost(got.0, got.1));
+        assert!(
+            cost(got.0, got.1) <= best + 1e-6 * best.abs(),
+            "{got:?}: {} vs {best}",
+            cost(got.0, got.1)
+        );
     }
 
     #[test]
@@ -581,8 +680,14 @@ mod tests {
         let mut next = adaptation();
         assert_eq!(next.restore(&learned), 1);
         // Both fits start from the stored reference (the whole flight, not its last 30 s).
-        let (a_next, a_then) = (next.step(0, 400.0, None, true).unwrap(), ad.step(0, 400.0, None, true).unwrap());
-        assert_eq!((a_next.adapted_w, a_next.reference_w), (a_then.reference_w, a_then.reference_w));
+        let (a_next, a_then) = (
+            next.step(0, 400.0, None, true).unwrap(),
+            ad.step(0, 400.0, None, true).unwrap(),
+        );
+        assert_eq!(
+            (a_next.adapted_w, a_next.reference_w),
+            (a_then.reference_w, a_then.reference_w)
+        );
         // A fit outside the bounds (a stored database edited by hand, another config).
         let mut bad = learned.clone();
         bad[0].1.adapted.a = 50.0;
@@ -595,12 +700,27 @@ mod tests {
 
     #[test]
     fn config_checks_name_the_key() {
-        let bad = AdaptConfig { reference_memory_s: 60.0, ..Default::default() };
-        assert!(bad.validate().unwrap_err().contains("models.adapt.reference_memory_s"));
-        let bad = AdaptConfig { gain_min: 1.5, ..Default::default() };
+        let bad = AdaptConfig {
+            reference_memory_s: 60.0,
+            ..Default::default()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("models.adapt.reference_memory_s"));
+        let bad = AdaptConfig {
+            gain_min: 1.5,
+            ..Default::default()
+        };
         assert!(bad.validate().unwrap_err().contains("gain_min"));
-        let bad = AdaptConfig { memory_s: f64::NAN, ..Default::default() };
-        assert!(bad.validate().unwrap_err().contains("models.adapt.memory_s"));
+        let bad = AdaptConfig {
+            memory_s: f64::NAN,
+            ..Default::default()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("models.adapt.memory_s"));
         assert!(AdaptConfig::default().validate().is_ok());
     }
 

@@ -28,7 +28,8 @@ pub enum FeatureSet {
 }
 
 /// Names of the home feature set's three position inputs.
-pub const HOME_POSITION_NAMES: [&str; 3] = ["home_distance_m", "home_height_m", "climb_in_window_m"];
+pub const HOME_POSITION_NAMES: [&str; 3] =
+    ["home_distance_m", "home_height_m", "climb_in_window_m"];
 
 impl FeatureSet {
     /// The input names, in order, that this feature set feeds the network.
@@ -152,33 +153,54 @@ pub struct Metrics {
 impl ModelCard {
     /// Read a card; the error names the file and the key.
     pub fn load(path: &Path) -> anyhow::Result<ModelCard> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read model card", path.display()))?;
-        let card: ModelCard = toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
-        card.self_check().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read model card", path.display()))?;
+        let card: ModelCard = toml::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        card.self_check()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         Ok(card)
     }
 
     /// Write the card as TOML.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
         let text = toml::to_string_pretty(self).context("serialising the model card")?;
-        std::fs::write(path, text).with_context(|| format!("{}: cannot write model card", path.display()))
+        std::fs::write(path, text)
+            .with_context(|| format!("{}: cannot write model card", path.display()))
     }
 
     /// Internal consistency: lengths and scales.
     fn self_check(&self) -> Result<(), String> {
         if self.format != 1 {
-            return Err(format!("format = {}: this dronewatt reads model card format 1", self.format));
+            return Err(format!(
+                "format = {}: this dronewatt reads model card format 1",
+                self.format
+            ));
         }
-        for (key, len) in [("feature_names", self.feature_names.len()), ("feature_mean", self.feature_mean.len()), ("feature_std", self.feature_std.len())] {
+        for (key, len) in [
+            ("feature_names", self.feature_names.len()),
+            ("feature_mean", self.feature_mean.len()),
+            ("feature_std", self.feature_std.len()),
+        ] {
             if len != N_FEATURES {
                 return Err(format!("{key} has {len} entries, expected {N_FEATURES}"));
             }
         }
-        if let Some(i) = self.feature_std.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(format!("feature_std[{i}] = {}: must be a positive number", self.feature_std[i]));
+        if let Some(i) = self
+            .feature_std
+            .iter()
+            .position(|s| !(s.is_finite() && *s > 0.0))
+        {
+            return Err(format!(
+                "feature_std[{i}] = {}: must be a positive number",
+                self.feature_std[i]
+            ));
         }
         if !(self.power_scale_w.is_finite() && self.power_scale_w > 0.0) {
-            return Err(format!("power_scale_w = {}: must be positive", self.power_scale_w));
+            return Err(format!(
+                "power_scale_w = {}: must be positive",
+                self.power_scale_w
+            ));
         }
         Ok(())
     }
@@ -187,7 +209,12 @@ impl ModelCard {
     pub fn check(&self, cfg: &TelemetryConfig) -> Result<(), String> {
         let expected = self.feature_set.names();
         if self.feature_names != expected {
-            let i = self.feature_names.iter().zip(&expected).position(|(a, b)| a != b).unwrap_or(0);
+            let i = self
+                .feature_names
+                .iter()
+                .zip(&expected)
+                .position(|(a, b)| a != b)
+                .unwrap_or(0);
             return Err(format!(
                 "feature_names[{i}] is '{}' but dronewatt's {:?} feature set has '{}' there: the model was trained on other inputs",
                 self.feature_names.get(i).map(String::as_str).unwrap_or("?"),

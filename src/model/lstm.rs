@@ -36,8 +36,8 @@ use super::card::{FeatureSet, ModelCard, WeightsFormat};
 use super::lstm_cpu::CpuLstm;
 use super::{PowerModel, Prediction};
 use crate::features::{idx, N_FEATURES};
-use crate::telemetry::TelemetryConfig;
 use crate::telemetry::window::Window;
+use crate::telemetry::TelemetryConfig;
 
 /// The default model's folder, relative to a checkout or install root.
 pub const DEFAULT_MODEL_DIR: &str = "config/models/lstm-m100";
@@ -56,7 +56,10 @@ pub struct LstmConfig {
 
 impl Default for LstmConfig {
     fn default() -> Self {
-        Self { enabled: true, path: None }
+        Self {
+            enabled: true,
+            path: None,
+        }
     }
 }
 
@@ -76,7 +79,10 @@ pub fn push_inputs(w: &Window, set: FeatureSet, t: usize, out: &mut Vec<f32>) {
         let sample = &s[i];
         let mut f = sample.features;
         if set == FeatureSet::Home {
-            let (d, h) = sample.home.map(|h| (h.distance_m, h.height_m)).unwrap_or((0.0, 0.0));
+            let (d, h) = sample
+                .home
+                .map(|h| (h.distance_m, h.height_m))
+                .unwrap_or((0.0, 0.0));
             f[idx::POS_X] = d;
             f[idx::POS_Y] = h;
             f[idx::POS_Z] = sample.features[idx::POS_Z] - z0;
@@ -97,7 +103,8 @@ pub trait ExternalNet: Send {
 
 /// Loads a model the kernel cannot run (TorchScript), or claims one it could (CUDA);
 /// `Ok(None)` leaves it to the kernel.
-pub type ExternalLoader = fn(weights: &Path, card: &ModelCard) -> anyhow::Result<Option<Box<dyn ExternalNet>>>;
+pub type ExternalLoader =
+    fn(weights: &Path, card: &ModelCard) -> anyhow::Result<Option<Box<dyn ExternalNet>>>;
 
 static EXTERNAL: OnceLock<ExternalLoader> = OnceLock::new();
 
@@ -132,7 +139,11 @@ impl LstmModel {
     }
 
     /// [`Self::load`] with this loader (or none: the kernel only).
-    pub fn load_with(path: &Path, cfg: &TelemetryConfig, external: Option<ExternalLoader>) -> anyhow::Result<LstmModel> {
+    pub fn load_with(
+        path: &Path,
+        cfg: &TelemetryConfig,
+        external: Option<ExternalLoader>,
+    ) -> anyhow::Result<LstmModel> {
         let (card_path, weights_override) = if path.is_dir() {
             (path.join("card.toml"), None)
         } else if path.extension().is_some_and(|e| e == "toml") {
@@ -141,7 +152,12 @@ impl LstmModel {
             (path.with_file_name("card.toml"), Some(path.to_path_buf()))
         };
         let card = ModelCard::load(&card_path)?;
-        card.check(cfg).map_err(|e| anyhow::anyhow!("{}: model card does not match the ingest path: {e}", card_path.display()))?;
+        card.check(cfg).map_err(|e| {
+            anyhow::anyhow!(
+                "{}: model card does not match the ingest path: {e}",
+                card_path.display()
+            )
+        })?;
         let dir = card_path.parent().unwrap_or(Path::new("."));
         let weights = weights_override.unwrap_or_else(|| dir.join(&card.weights));
         let claimed = match external {
@@ -154,14 +170,26 @@ impl LstmModel {
                 Backend::External(net)
             }
             (None, WeightsFormat::Safetensors) => {
-                let (layers, hidden) = (usize::try_from(card.layers)?, usize::try_from(card.hidden)?);
-                Backend::Kernel(Box::new(CpuLstm::from_safetensors(&weights, layers, hidden)?))
+                let (layers, hidden) =
+                    (usize::try_from(card.layers)?, usize::try_from(card.hidden)?);
+                Backend::Kernel(Box::new(CpuLstm::from_safetensors(
+                    &weights, layers, hidden,
+                )?))
             }
             (None, WeightsFormat::Torchscript) => {
-                return Err(super::NeedsLibtorch { what: format!("{}: a TorchScript model", weights.display()) }.into())
+                return Err(super::NeedsLibtorch {
+                    what: format!("{}: a TorchScript model", weights.display()),
+                }
+                .into())
             }
         };
-        Ok(LstmModel { card, backend, buf: Vec::new(), out: Vec::new(), warned: false })
+        Ok(LstmModel {
+            card,
+            backend,
+            buf: Vec::new(),
+            out: Vec::new(),
+            warned: false,
+        })
     }
 
     /// Whether the hand-written kernel runs this model (not libtorch).
@@ -197,7 +225,12 @@ impl LstmModel {
             }
             Backend::External(net) => {
                 let (out, cols) = net.forward(&self.buf, b, t)?;
-                anyhow::ensure!(cols > 0 && out.len() == b * cols, "{}: {} outputs for {b} windows", net.describe(), out.len());
+                anyhow::ensure!(
+                    cols > 0 && out.len() == b * cols,
+                    "{}: {} outputs for {b} windows",
+                    net.describe(),
+                    out.len()
+                );
                 self.out = out;
                 cols
             }
@@ -240,10 +273,13 @@ impl PowerModel for LstmModel {
     fn in_training_range(&self, window: &Window) -> bool {
         let mut x = Vec::with_capacity(N_FEATURES);
         push_inputs(window, self.card.feature_set, 1, &mut x);
-        x.iter().zip(&self.card.feature_mean).zip(&self.card.feature_std).all(|((v, m), s)| {
-            let z = (v - m) / s;
-            z.is_finite() && z.abs() <= TRAINING_RANGE_SIGMAS
-        })
+        x.iter()
+            .zip(&self.card.feature_mean)
+            .zip(&self.card.feature_std)
+            .all(|((v, m), s)| {
+                let z = (v - m) / s;
+                z.is_finite() && z.abs() <= TRAINING_RANGE_SIGMAS
+            })
     }
 
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
@@ -252,17 +288,25 @@ impl PowerModel for LstmModel {
             return;
         }
         match self.forward_w(windows) {
-            Ok(rows) if rows.len() == windows.len() => out.extend(rows.iter().map(|r| Prediction {
-                power_w: r[0],
-                band_w: (r[1] != r[2]).then_some((r[1], r[2])),
-            })),
+            Ok(rows) if rows.len() == windows.len() => {
+                out.extend(rows.iter().map(|r| Prediction {
+                    power_w: r[0],
+                    band_w: (r[1] != r[2]).then_some((r[1], r[2])),
+                }))
+            }
             other => {
                 if !self.warned {
-                    let why = other.err().map(|e| format!("{e:#}")).unwrap_or_else(|| "wrong output size".into());
+                    let why = other
+                        .err()
+                        .map(|e| format!("{e:#}"))
+                        .unwrap_or_else(|| "wrong output size".into());
                     tracing::warn!("lstm: inference failed, emitting NaN: {why}");
                     self.warned = true;
                 }
-                out.extend(windows.iter().map(|_| Prediction { power_w: f32::NAN, band_w: None }));
+                out.extend(windows.iter().map(|_| Prediction {
+                    power_w: f32::NAN,
+                    band_w: None,
+                }));
             }
         }
     }
@@ -281,13 +325,18 @@ pub fn resolve_model_path(configured: Option<&Path>) -> Option<PathBuf> {
         }
     }
     candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_MODEL_DIR));
-    candidates.into_iter().find(|c| c.join("card.toml").is_file())
+    candidates
+        .into_iter()
+        .find(|c| c.join("card.toml").is_file())
 }
 
 /// The LSTM a configuration asks for, or `None` when it is disabled or (default path
 /// only) no shipped model is found. A configured path that fails, or a card that does not
 /// match `telemetry`, is an error.
-pub fn from_config(cfg: &LstmConfig, telemetry: &TelemetryConfig) -> anyhow::Result<Option<LstmModel>> {
+pub fn from_config(
+    cfg: &LstmConfig,
+    telemetry: &TelemetryConfig,
+) -> anyhow::Result<Option<LstmModel>> {
     if !cfg.enabled {
         return Ok(None);
     }

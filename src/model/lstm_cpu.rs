@@ -99,17 +99,31 @@ fn pack(w: &[f32], n: usize, k: usize) -> Vec<f32> {
 impl CpuLstm {
     /// Read the weights of the network from a `.safetensors` file (PyTorch's `nn.LSTM`
     /// and `nn.Linear` names under `lstm.` and `head.`, float32 or float64).
-    pub fn from_safetensors(path: &std::path::Path, layers: usize, hidden: usize) -> anyhow::Result<CpuLstm> {
+    pub fn from_safetensors(
+        path: &std::path::Path,
+        layers: usize,
+        hidden: usize,
+    ) -> anyhow::Result<CpuLstm> {
         use anyhow::Context;
         use safetensors::{Dtype, SafeTensors};
-        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read LSTM weights", path.display()))?;
-        let st = SafeTensors::deserialize(&bytes).with_context(|| format!("{}: not a safetensors file", path.display()))?;
+        let bytes = std::fs::read(path)
+            .with_context(|| format!("{}: cannot read LSTM weights", path.display()))?;
+        let st = SafeTensors::deserialize(&bytes)
+            .with_context(|| format!("{}: not a safetensors file", path.display()))?;
         let get = |name: &str| -> Option<(Vec<f32>, Vec<usize>)> {
             let t = st.tensor(name).ok()?;
             let data = t.data();
             let values: Vec<f32> = match t.dtype() {
-                Dtype::F32 => data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
-                Dtype::F64 => data.chunks_exact(8).map(|b| f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) as f32).collect(),
+                Dtype::F32 => data
+                    .chunks_exact(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect(),
+                Dtype::F64 => data
+                    .chunks_exact(8)
+                    .map(|b| {
+                        f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) as f32
+                    })
+                    .collect(),
                 _ => return None,
             };
             Some((values, t.shape().to_vec()))
@@ -122,7 +136,11 @@ impl CpuLstm {
     /// Build from named tensors (`get(name)` → values, row-major, and shape), PyTorch's
     /// names (`lstm.weight_ih_l0_reverse`, `head.bias`, …). `None` when a tensor is missing
     /// or has an unexpected shape, or 4H is not a multiple of 16.
-    pub fn from_tensors(get: impl Fn(&str) -> Option<(Vec<f32>, Vec<usize>)>, layers: usize, hidden: usize) -> Option<CpuLstm> {
+    pub fn from_tensors(
+        get: impl Fn(&str) -> Option<(Vec<f32>, Vec<usize>)>,
+        layers: usize,
+        hidden: usize,
+    ) -> Option<CpuLstm> {
         let g = 4 * hidden;
         let mut ls = Vec::new();
         for l in 0..layers {
@@ -132,7 +150,13 @@ impl CpuLstm {
                 let (b_ih, _) = get(&format!("lstm.bias_ih_l{l}{suffix}"))?;
                 let (b_hh, _) = get(&format!("lstm.bias_hh_l{l}{suffix}"))?;
                 let input = *s_ih.get(1)?;
-                let ok = g.is_multiple_of(NR) && s_ih[0] == g && s_hh == [g, hidden] && w_hh.len() == g * hidden && w_ih.len() == g * input && b_ih.len() == g && b_hh.len() == g;
+                let ok = g.is_multiple_of(NR)
+                    && s_ih[0] == g
+                    && s_hh == [g, hidden]
+                    && w_hh.len() == g * hidden
+                    && w_ih.len() == g * input
+                    && b_ih.len() == g
+                    && b_hh.len() == g;
                 ok.then(|| Direction {
                     input,
                     w_ih: pack(&w_ih, g, input),
@@ -144,7 +168,10 @@ impl CpuLstm {
         }
         let (head_w, hs) = get("head.weight")?;
         let (head_b, _) = get("head.bias")?;
-        if hs.get(1).copied()? != 2 * hidden || head_b.len() != hs[0] || head_w.len() != hs[0] * 2 * hidden {
+        if hs.get(1).copied()? != 2 * hidden
+            || head_b.len() != hs[0]
+            || head_w.len() != hs[0] * 2 * hidden
+        {
             return None;
         }
         Some(CpuLstm {
@@ -194,11 +221,17 @@ impl CpuLstm {
     /// `xs.len() / (T · inputs)`) into `out` (`[B][outputs]`).
     pub fn forward_batch(&mut self, xs: &[f32], t: usize, out: &mut [f32]) {
         let per_window = t * self.inputs();
-        assert!(per_window > 0 && xs.len().is_multiple_of(per_window), "windows of the wrong size");
+        assert!(
+            per_window > 0 && xs.len().is_multiple_of(per_window),
+            "windows of the wrong size"
+        );
         let b = xs.len() / per_window;
         let o = self.outputs();
         assert_eq!(out.len(), b * o, "output of the wrong size");
-        for (xc, oc) in xs.chunks(CHUNK_WINDOWS * per_window).zip(out.chunks_mut(CHUNK_WINDOWS * o)) {
+        for (xc, oc) in xs
+            .chunks(CHUNK_WINDOWS * per_window)
+            .zip(out.chunks_mut(CHUNK_WINDOWS * o))
+        {
             self.forward_chunk(xc, t, xc.len() / per_window, oc);
         }
     }
@@ -228,16 +261,37 @@ impl CpuLstm {
                 for row in self.pre[..rows * g].chunks_exact_mut(g) {
                     row.copy_from_slice(&dir.bias);
                 }
-                gemm(isa, &dir.w_ih, dir.input, input, dir.input, rows, &mut self.pre, g);
+                gemm(
+                    isa,
+                    &dir.w_ih,
+                    dir.input,
+                    input,
+                    dir.input,
+                    rows,
+                    &mut self.pre,
+                    g,
+                );
                 self.h.iter_mut().for_each(|v| *v = 0.0);
                 self.c.iter_mut().for_each(|v| *v = 0.0);
                 for k in 0..t {
                     let s = if d == 0 { k } else { t - 1 - k };
                     // pre_s += H W_hhᵀ: the rows of step s are T rows apart.
-                    gemm(isa, &dir.w_hh, hd, &self.h, hd, b, &mut self.pre[s * g..], t * g);
+                    gemm(
+                        isa,
+                        &dir.w_hh,
+                        hd,
+                        &self.h,
+                        hd,
+                        b,
+                        &mut self.pre[s * g..],
+                        t * g,
+                    );
                     for w in 0..b {
                         let gates = &self.pre[(w * t + s) * g..(w * t + s + 1) * g];
-                        let (c, h) = (&mut self.c[w * hd..(w + 1) * hd], &mut self.h[w * hd..(w + 1) * hd]);
+                        let (c, h) = (
+                            &mut self.c[w * hd..(w + 1) * hd],
+                            &mut self.h[w * hd..(w + 1) * hd],
+                        );
                         cell(isa, gates, c, h);
                         if !top {
                             let at = (w * t + s) * 2 * hd + d * hd;
@@ -247,7 +301,8 @@ impl CpuLstm {
                 }
                 if top {
                     for w in 0..b {
-                        self.last[w * 2 * hd + d * hd..w * 2 * hd + (d + 1) * hd].copy_from_slice(&self.h[w * hd..(w + 1) * hd]);
+                        self.last[w * 2 * hd + d * hd..w * 2 * hd + (d + 1) * hd]
+                            .copy_from_slice(&self.h[w * hd..(w + 1) * hd]);
                     }
                 }
             }
@@ -300,17 +355,40 @@ impl Isa {
 /// `y[r] += W x[r]` for rows `r < rows`: `w` packed `[n][k]` (see [`pack`]), row r of x at
 /// `x[r·ldx ..][..k]`, of y at `y[r·ldy ..][..n]` (`n = w.len() / k`).
 #[allow(clippy::too_many_arguments)] // a BLAS-shaped call: the names are the contract
-fn gemm(isa: Isa, w: &[f32], k: usize, x: &[f32], ldx: usize, rows: usize, y: &mut [f32], ldy: usize) {
+fn gemm(
+    isa: Isa,
+    w: &[f32],
+    k: usize,
+    x: &[f32],
+    ldx: usize,
+    rows: usize,
+    y: &mut [f32],
+    ldy: usize,
+) {
     let n = w.len() / k;
     assert!(
-        rows > 0 && n.is_multiple_of(NR) && w.len() == n * k && ldx >= k && ldy >= n && x.len() >= (rows - 1) * ldx + k && y.len() >= (rows - 1) * ldy + n
+        rows > 0
+            && n.is_multiple_of(NR)
+            && w.len() == n * k
+            && ldx >= k
+            && ldy >= n
+            && x.len() >= (rows - 1) * ldx + k
+            && y.len() >= (rows - 1) * ldy + n
     );
     #[cfg(target_arch = "x86_64")]
     match isa {
         // SAFETY: the instruction sets were detected at run time (`Isa::available`); the
         // sizes are checked above.
-        Isa::Avx512 => return unsafe { avx512::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy) },
-        Isa::Avx2 => return unsafe { avx::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy) },
+        Isa::Avx512 => {
+            return unsafe {
+                avx512::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy)
+            }
+        }
+        Isa::Avx2 => {
+            return unsafe {
+                avx::gemm(w.as_ptr(), k, n, x.as_ptr(), ldx, rows, y.as_mut_ptr(), ldy)
+            }
+        }
         Isa::Scalar => {}
     }
     let _ = isa;
@@ -340,7 +418,12 @@ fn cell(isa: Isa, gates: &[f32], c: &mut [f32], h: &mut [f32]) {
     let _ = isa;
     let sig = |v: f32| 1.0 / (1.0 + (-v).exp());
     for j in 0..hd {
-        let (i, f, g, o) = (sig(gates[j]), sig(gates[hd + j]), gates[2 * hd + j].tanh(), sig(gates[3 * hd + j]));
+        let (i, f, g, o) = (
+            sig(gates[j]),
+            sig(gates[hd + j]),
+            gates[2 * hd + j].tanh(),
+            sig(gates[3 * hd + j]),
+        );
         c[j] = f * c[j] + i * g;
         h[j] = o * c[j].tanh();
     }
@@ -356,7 +439,16 @@ mod avx {
     /// left over (fewer than 6) over several blocks at a time.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn gemm(w: *const f32, k: usize, n: usize, x: *const f32, ldx: usize, rows: usize, y: *mut f32, ldy: usize) {
+    pub unsafe fn gemm(
+        w: *const f32,
+        k: usize,
+        n: usize,
+        x: *const f32,
+        ldx: usize,
+        rows: usize,
+        y: *mut f32,
+        ldy: usize,
+    ) {
         let nb = n / NR;
         let step = k * NR; // floats from one packed block to the next
         let mut r0 = 0;
@@ -366,7 +458,15 @@ mod avx {
             for b in 0..nb {
                 let (wb, mut r) = (w.add(b * step), r0);
                 while r < r0 + full {
-                    tile::<MR, 1>(wb, step, k, x.add(r * ldx), ldx, y.add(r * ldy + b * NR), ldy);
+                    tile::<MR, 1>(
+                        wb,
+                        step,
+                        k,
+                        x.add(r * ldx),
+                        ldx,
+                        y.add(r * ldy + b * NR),
+                        ldy,
+                    );
                     r += MR;
                 }
             }
@@ -388,7 +488,16 @@ mod avx {
     #[allow(clippy::too_many_arguments)]
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn blocks<const R: usize, const B: usize>(w: *const f32, step: usize, nb: usize, k: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+    unsafe fn blocks<const R: usize, const B: usize>(
+        w: *const f32,
+        step: usize,
+        nb: usize,
+        k: usize,
+        x: *const f32,
+        ldx: usize,
+        y: *mut f32,
+        ldy: usize,
+    ) {
         let mut b = 0;
         while b + B <= nb {
             tile::<R, B>(w.add(b * step), step, k, x, ldx, y.add(b * NR), ldy);
@@ -405,7 +514,15 @@ mod avx {
     #[allow(clippy::too_many_arguments, clippy::needless_range_loop)] // acc[r][b][q]: registers, clearer indexed
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn tile<const R: usize, const B: usize>(w: *const f32, step: usize, k: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+    unsafe fn tile<const R: usize, const B: usize>(
+        w: *const f32,
+        step: usize,
+        k: usize,
+        x: *const f32,
+        ldx: usize,
+        y: *mut f32,
+        ldy: usize,
+    ) {
         let mut acc = [[[_mm256_setzero_ps(); 2]; B]; R];
         for r in 0..R {
             for b in 0..B {
@@ -443,16 +560,34 @@ mod avx {
     #[inline]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn exp(x: __m256) -> __m256 {
-        let x = _mm256_min_ps(_mm256_max_ps(x, _mm256_set1_ps(-87.3)), _mm256_set1_ps(88.3));
-        let n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(std::f32::consts::LOG2_E)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+        let x = _mm256_min_ps(
+            _mm256_max_ps(x, _mm256_set1_ps(-87.3)),
+            _mm256_set1_ps(88.3),
+        );
+        let n = _mm256_round_ps(
+            _mm256_mul_ps(x, _mm256_set1_ps(std::f32::consts::LOG2_E)),
+            _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC,
+        );
         let r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693_359_4), x);
         let r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-2.121_944_4e-4), r);
         let mut p = _mm256_set1_ps(1.987_569_1e-4);
-        for c in [1.398_199_9e-3, 8.333_452e-3, 4.166_579_6e-2, 1.666_666_5e-1, 0.5] {
+        for c in [
+            1.398_199_9e-3,
+            8.333_452e-3,
+            4.166_579_6e-2,
+            1.666_666_5e-1,
+            0.5,
+        ] {
             p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(c));
         }
-        let p = _mm256_add_ps(_mm256_fmadd_ps(_mm256_mul_ps(p, r), r, r), _mm256_set1_ps(1.0));
-        let scale = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23));
+        let p = _mm256_add_ps(
+            _mm256_fmadd_ps(_mm256_mul_ps(p, r), r, r),
+            _mm256_set1_ps(1.0),
+        );
+        let scale = _mm256_castsi256_ps(_mm256_slli_epi32(
+            _mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)),
+            23,
+        ));
         _mm256_mul_ps(p, scale)
     }
 
@@ -460,7 +595,10 @@ mod avx {
     #[target_feature(enable = "avx2,fma")]
     unsafe fn sigmoid(x: __m256) -> __m256 {
         let one = _mm256_set1_ps(1.0);
-        _mm256_div_ps(one, _mm256_add_ps(one, exp(_mm256_sub_ps(_mm256_setzero_ps(), x))))
+        _mm256_div_ps(
+            one,
+            _mm256_add_ps(one, exp(_mm256_sub_ps(_mm256_setzero_ps(), x))),
+        )
     }
 
     /// tanh x = 2σ(2x) − 1.
@@ -500,7 +638,16 @@ mod avx512 {
     /// with 16-lane registers: one register per packed row of a block.
     #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx512f")]
-    pub unsafe fn gemm(w: *const f32, k: usize, n: usize, x: *const f32, ldx: usize, rows: usize, y: *mut f32, ldy: usize) {
+    pub unsafe fn gemm(
+        w: *const f32,
+        k: usize,
+        n: usize,
+        x: *const f32,
+        ldx: usize,
+        rows: usize,
+        y: *mut f32,
+        ldy: usize,
+    ) {
         let nb = n / NR;
         let step = k * NR;
         let mut r0 = 0;
@@ -508,7 +655,17 @@ mod avx512 {
             let mc = MC.min(rows - r0);
             let full = mc / MR * MR;
             if full > 0 {
-                blocks::<MR, 2>(w, step, nb, k, full, x.add(r0 * ldx), ldx, y.add(r0 * ldy), ldy);
+                blocks::<MR, 2>(
+                    w,
+                    step,
+                    nb,
+                    k,
+                    full,
+                    x.add(r0 * ldx),
+                    ldx,
+                    y.add(r0 * ldy),
+                    ldy,
+                );
             }
             let (r, rest) = (r0 + full, mc - full);
             let (xr, yr) = (x.add(r * ldx), y.add(r * ldy));
@@ -532,7 +689,17 @@ mod avx512 {
     #[allow(clippy::too_many_arguments)]
     #[inline]
     #[target_feature(enable = "avx512f")]
-    unsafe fn blocks<const R: usize, const B: usize>(w: *const f32, step: usize, nb: usize, k: usize, rows: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+    unsafe fn blocks<const R: usize, const B: usize>(
+        w: *const f32,
+        step: usize,
+        nb: usize,
+        k: usize,
+        rows: usize,
+        x: *const f32,
+        ldx: usize,
+        y: *mut f32,
+        ldy: usize,
+    ) {
         let mut b = 0;
         while b < nb {
             let wide = b + B <= nb;
@@ -555,7 +722,15 @@ mod avx512 {
     #[allow(clippy::too_many_arguments, clippy::needless_range_loop)] // acc[r][b]: registers, clearer indexed
     #[inline]
     #[target_feature(enable = "avx512f")]
-    unsafe fn tile<const R: usize, const B: usize>(w: *const f32, step: usize, k: usize, x: *const f32, ldx: usize, y: *mut f32, ldy: usize) {
+    unsafe fn tile<const R: usize, const B: usize>(
+        w: *const f32,
+        step: usize,
+        k: usize,
+        x: *const f32,
+        ldx: usize,
+        y: *mut f32,
+        ldy: usize,
+    ) {
         let mut acc = [[_mm512_setzero_ps(); B]; R];
         for r in 0..R {
             for b in 0..B {
@@ -604,7 +779,11 @@ mod tests {
             for (k, &x) in chunk.iter().enumerate() {
                 let s = 1.0 / (1.0 + (-x as f64).exp());
                 let want = s * (x as f64).tanh();
-                assert!((c[k] as f64 - want).abs() < 2e-7, "x = {x}: {} vs {want}", c[k]);
+                assert!(
+                    (c[k] as f64 - want).abs() < 2e-7,
+                    "x = {x}: {} vs {want}",
+                    c[k]
+                );
             }
         }
     }

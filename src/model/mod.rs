@@ -63,7 +63,12 @@ pub struct Ensemble {
 impl Ensemble {
     /// An ensemble of these models, run in this order.
     pub fn new(models: Vec<Box<dyn PowerModel>>) -> Self {
-        Self { models, scratch: Vec::new(), adapt: None, adapted: Default::default() }
+        Self {
+            models,
+            scratch: Vec::new(),
+            adapt: None,
+            adapted: Default::default(),
+        }
     }
     /// Adapt every model's output to measured power ([`adapt`]).
     pub fn with_adaptation(mut self, adaptation: adapt::Adaptation) -> Self {
@@ -83,7 +88,11 @@ impl Ensemble {
     }
     /// Names of the [`PowerModel::heavy`] models, in order.
     pub fn heavy_names(&self) -> Vec<String> {
-        self.models.iter().filter(|m| m.heavy()).map(|m| m.name().to_string()).collect()
+        self.models
+            .iter()
+            .filter(|m| m.heavy())
+            .map(|m| m.name().to_string())
+            .collect()
     }
     /// Names of the models, in order.
     pub fn names(&self) -> Vec<String> {
@@ -104,10 +113,20 @@ impl Ensemble {
     /// whose `heavy[i]` is true (all of them where `heavy` is shorter than `windows`); the
     /// others' estimates lack those models. Window `i` is vehicle `vehicles[i]`'s (0 where
     /// `vehicles` is shorter): it teaches and reads that vehicle's adaptation.
-    pub fn estimate_some(&mut self, windows: &[Window], heavy: &[bool], vehicles: &[u8]) -> Vec<Estimate> {
+    pub fn estimate_some(
+        &mut self,
+        windows: &[Window],
+        heavy: &[bool],
+        vehicles: &[u8],
+    ) -> Vec<Estimate> {
         let mut out: Vec<Estimate> = windows
             .iter()
-            .map(|w| Estimate { t_s: w.t_s(), sample: w.last().clone(), models: Vec::with_capacity(self.models.len()), arrived: w.arrived })
+            .map(|w| Estimate {
+                t_s: w.t_s(),
+                sample: w.last().clone(),
+                models: Vec::with_capacity(self.models.len()),
+                arrived: w.arrived,
+            })
             .collect();
         let all = heavy.len() < windows.len() || heavy.iter().all(|&h| h);
         let mut picked = Vec::new();
@@ -140,7 +159,10 @@ impl Ensemble {
                     if let Some(a) = ad.step(i, p.power_w, measured, in_range) {
                         me.adapted_w = Some(a.adapted_w);
                         me.reference_w = Some(a.reference_w);
-                        me.adapted_err = a.err_w.map(|err_w| crate::report::AdaptedError { err_w, evidence_s: a.evidence_s });
+                        me.adapted_err = a.err_w.map(|err_w| crate::report::AdaptedError {
+                            err_w,
+                            evidence_s: a.evidence_s,
+                        });
                     }
                 }
                 out[k].models.push(me);
@@ -191,7 +213,13 @@ pub fn build_ensemble(
     if !models.adapt.enabled {
         return Ok(ensemble);
     }
-    let adaptation = build_adaptation(&models.adapt, vehicle, telemetry, payload_g, &ensemble.names())?;
+    let adaptation = build_adaptation(
+        &models.adapt,
+        vehicle,
+        telemetry,
+        payload_g,
+        &ensemble.names(),
+    )?;
     Ok(ensemble.with_adaptation(adaptation))
 }
 
@@ -207,8 +235,18 @@ pub fn build_adaptation(
     cfg.validate().map_err(anyhow::Error::msg)?;
     let profile = load_profile(vehicle)?;
     let payload_kg = f64::from(payload_g.unwrap_or(0.0)).max(0.0) / 1000.0;
-    let hover_w = adapt::ideal_hover_w(profile.mass_kg(payload_kg), profile.air.g_m_s2, profile.air.rho_kg_m3, profile.disk_area_m2());
-    Ok(adapt::Adaptation::new(cfg, names, 1.0 / telemetry.rate_hz, hover_w))
+    let hover_w = adapt::ideal_hover_w(
+        profile.mass_kg(payload_kg),
+        profile.air.g_m_s2,
+        profile.air.rho_kg_m3,
+        profile.disk_area_m2(),
+    );
+    Ok(adapt::Adaptation::new(
+        cfg,
+        names,
+        1.0 / telemetry.rate_hz,
+        hover_w,
+    ))
 }
 
 /// The vehicle profile file, else the built-in M100.

@@ -31,7 +31,10 @@ pub const M100_TOML: &str = include_str!("../../config/vehicles/m100.toml");
 pub const BUILT_IN: [(&str, &str); 3] = [
     ("m100", M100_TOML),
     ("x500", include_str!("../../config/vehicles/x500.toml")),
-    ("quad-3s", include_str!("../../config/vehicles/quad-3s.toml")),
+    (
+        "quad-3s",
+        include_str!("../../config/vehicles/quad-3s.toml"),
+    ),
 ];
 
 /// One vehicle: airframe, air, and each physics model's parameters.
@@ -103,7 +106,11 @@ pub struct ForecastDefault {
 pub fn forecast_default(vehicle: Option<&Path>) -> Option<(String, String)> {
     let p = VehicleProfile::load(vehicle?).ok()?;
     let f = p.forecast?;
-    let why = if f.why.is_empty() { String::new() } else { format!(": {}", f.why) };
+    let why = if f.why.is_empty() {
+        String::new()
+    } else {
+        format!(": {}", f.why)
+    };
     Some((f.model, format!("vehicle profile {}{why}", p.name)))
 }
 
@@ -195,7 +202,11 @@ pub struct Battery {
 impl Battery {
     /// Rated energy at the mean of the OCV curve, Wh (capacity × cells × mean cell OCV).
     pub fn energy_wh(&self) -> f64 {
-        let area: f64 = self.ocv_cell_v.windows(2).map(|w| (w[1][0] - w[0][0]) * (w[0][1] + w[1][1]) / 2.0).sum();
+        let area: f64 = self
+            .ocv_cell_v
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]) * (w[0][1] + w[1][1]) / 2.0)
+            .sum();
         self.capacity_mah / 1000.0 * f64::from(self.cells) * area
     }
 
@@ -219,20 +230,31 @@ impl Battery {
             return Err("battery.cells = 0: must be ≥ 1".into());
         }
         if !(self.capacity_mah.is_finite() && self.capacity_mah > 0.0) {
-            return Err(format!("battery.capacity_mah = {}: must be > 0", self.capacity_mah));
+            return Err(format!(
+                "battery.capacity_mah = {}: must be > 0",
+                self.capacity_mah
+            ));
         }
         let r = self.internal_resistance_ohm;
         if !(r.is_finite() && r > 0.0) {
-            return Err(format!("battery.internal_resistance_ohm = {r}: must be > 0"));
+            return Err(format!(
+                "battery.internal_resistance_ohm = {r}: must be > 0"
+            ));
         }
         let c = &self.ocv_cell_v;
         let ends = c.first().map(|p| p[0]) == Some(0.0) && c.last().map(|p| p[0]) == Some(1.0);
         if c.len() < 2 || !ends {
-            return Err("battery.ocv_cell_v: needs at least two [soc, volts] points, from soc 0 to soc 1".into());
+            return Err(
+                "battery.ocv_cell_v: needs at least two [soc, volts] points, from soc 0 to soc 1"
+                    .into(),
+            );
         }
         for (i, w) in c.windows(2).enumerate() {
             if !(w[1][0] > w[0][0] && w[1][1] > w[0][1] && w[0][1] > 0.0) {
-                return Err(format!("battery.ocv_cell_v[{}]: soc and volts must both rise (and volts be > 0)", i + 1));
+                return Err(format!(
+                    "battery.ocv_cell_v[{}]: soc and volts must both rise (and volts be > 0)",
+                    i + 1
+                ));
             }
         }
         Ok(())
@@ -260,7 +282,8 @@ impl VehicleProfile {
 
     /// Parse and validate profile text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> anyhow::Result<Self> {
-        let p: VehicleProfile = toml::from_str(text).with_context(|| format!("{origin}: not a valid vehicle profile"))?;
+        let p: VehicleProfile = toml::from_str(text)
+            .with_context(|| format!("{origin}: not a valid vehicle profile"))?;
         p.validate().map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
         Ok(p)
     }
@@ -272,14 +295,18 @@ impl VehicleProfile {
             None if Path::new(name_or_path).exists() => Self::load(Path::new(name_or_path)),
             None => {
                 let names: Vec<&str> = BUILT_IN.iter().map(|b| b.0).collect();
-                anyhow::bail!("vehicle '{name_or_path}': neither a built-in profile ({}) nor a file", names.join(", "))
+                anyhow::bail!(
+                    "vehicle '{name_or_path}': neither a built-in profile ({}) nor a file",
+                    names.join(", ")
+                )
             }
         }
     }
 
     /// Read a profile file.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read vehicle profile", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read vehicle profile", path.display()))?;
         Self::from_toml(&text, &path.display().to_string())
     }
 
@@ -296,7 +323,13 @@ impl VehicleProfile {
 
     /// Range checks serde cannot express; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
-        let pos = |k: &str, v: f64| if v.is_finite() && v > 0.0 { Ok(()) } else { Err(format!("{k} = {v}: must be > 0")) };
+        let pos = |k: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{k} = {v}: must be > 0"))
+            }
+        };
         pos("vehicle.airframe_kg", self.vehicle.airframe_kg)?;
         pos("vehicle.battery_kg", self.vehicle.battery_kg)?;
         pos("vehicle.prop_diameter_m", self.vehicle.prop_diameter_m)?;
@@ -308,12 +341,21 @@ impl VehicleProfile {
         pos("dandrea.eta", self.dandrea.eta)?;
         pos("dandrea.lift_drag", self.dandrea.lift_drag)?;
         pos("dandrea_headwind.eta", self.dandrea_headwind.eta)?;
-        pos("dandrea_headwind.lift_drag", self.dandrea_headwind.lift_drag)?;
+        pos(
+            "dandrea_headwind.lift_drag",
+            self.dandrea_headwind.lift_drag,
+        )?;
         pos("dorling.eta", self.dorling.eta)?;
         pos("stolaroff.eta", self.stolaroff.eta)?;
         pos("kirschstein.eta", self.kirschstein.eta)?;
         pos("kirschstein.eta_c", self.kirschstein.eta_c)?;
-        let fin = |k: &str, v: f64| if v.is_finite() { Ok(()) } else { Err(format!("{k} = {v}: must be finite")) };
+        let fin = |k: &str, v: f64| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{k} = {v}: must be finite"))
+            }
+        };
         for (i, b) in self.tseng.beta.iter().enumerate() {
             fin(&format!("tseng.beta[{i}]"), *b)?;
         }
@@ -328,14 +370,23 @@ impl VehicleProfile {
         }
         if let Some(b) = &self.body {
             if !(b.drag_area_m2.is_finite() && b.drag_area_m2 >= 0.0) {
-                return Err(format!("body.drag_area_m2 = {}: must be ≥ 0", b.drag_area_m2));
+                return Err(format!(
+                    "body.drag_area_m2 = {}: must be ≥ 0",
+                    b.drag_area_m2
+                ));
             }
         }
         if let Some(p) = &self.powertrain {
             if !(p.efficiency > 0.0 && p.efficiency <= 1.0) {
-                return Err(format!("powertrain.efficiency = {}: must be in (0, 1]", p.efficiency));
+                return Err(format!(
+                    "powertrain.efficiency = {}: must be in (0, 1]",
+                    p.efficiency
+                ));
             }
-            for (k, v) in [("powertrain.avionics_w", p.avionics_w), ("powertrain.idle_w", p.idle_w)] {
+            for (k, v) in [
+                ("powertrain.avionics_w", p.avionics_w),
+                ("powertrain.idle_w", p.idle_w),
+            ] {
                 if !(v.is_finite() && v >= 0.0) {
                     return Err(format!("{k} = {v}: must be ≥ 0"));
                 }
@@ -386,18 +437,34 @@ mod tests {
         let e = VehicleProfile::from_toml(&bad, "bad.toml").unwrap_err();
         assert!(format!("{e:#}").contains("bad.toml"));
         let neg = text.replace("rho_kg_m3 = 1.225", "rho_kg_m3 = -1.0");
-        assert!(format!("{:#}", VehicleProfile::from_toml(&neg, "n").unwrap_err()).contains("rho_kg_m3"));
+        assert!(
+            format!("{:#}", VehicleProfile::from_toml(&neg, "n").unwrap_err())
+                .contains("rho_kg_m3")
+        );
     }
 
     #[test]
     fn every_built_in_profile_parses_and_matches_its_file() {
         for (name, text) in BUILT_IN {
             let p = VehicleProfile::named_or_file(name).unwrap_or_else(|e| panic!("{e:#}"));
-            let file = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("config/vehicles/{name}.toml"));
-            assert_eq!(std::fs::read_to_string(&file).unwrap(), text, "{name}: the compiled-in text is the file");
-            assert!(p.rotor.is_some() && p.body.is_some() && p.powertrain.is_some() && p.battery.is_some(), "{name}");
+            let file =
+                Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("config/vehicles/{name}.toml"));
+            assert_eq!(
+                std::fs::read_to_string(&file).unwrap(),
+                text,
+                "{name}: the compiled-in text is the file"
+            );
+            assert!(
+                p.rotor.is_some()
+                    && p.body.is_some()
+                    && p.powertrain.is_some()
+                    && p.battery.is_some(),
+                "{name}"
+            );
         }
-        let e = VehicleProfile::named_or_file("no-such-vehicle").unwrap_err().to_string();
+        let e = VehicleProfile::named_or_file("no-such-vehicle")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no-such-vehicle") && e.contains("x500"), "{e}");
     }
 
@@ -406,11 +473,27 @@ mod tests {
         let p = VehicleProfile::m100();
         let b = p.battery.as_ref().expect("m100.toml has [battery]");
         // DJI rates the TB48D at 129.96 Wh (5.7 Ah × 22.8 V); the OCV curve's mean gives the same within 3 %.
-        assert!((b.energy_wh() / 129.96 - 1.0).abs() < 0.03, "{} Wh", b.energy_wh());
-        assert!((b.ocv_cell_at(1.0) * 6.0 - 26.1).abs() < 1e-9, "charges to 26.1 V");
-        assert!((b.ocv_cell_at(0.55) - 3.90).abs() < 1e-9, "linear between points");
+        assert!(
+            (b.energy_wh() / 129.96 - 1.0).abs() < 0.03,
+            "{} Wh",
+            b.energy_wh()
+        );
+        assert!(
+            (b.ocv_cell_at(1.0) * 6.0 - 26.1).abs() < 1e-9,
+            "charges to 26.1 V"
+        );
+        assert!(
+            (b.ocv_cell_at(0.55) - 3.90).abs() < 1e-9,
+            "linear between points"
+        );
         // A profile for the models alone (no simulator sections) still loads.
-        let bare = VehicleProfile { rotor: None, body: None, powertrain: None, battery: None, ..p.clone() };
+        let bare = VehicleProfile {
+            rotor: None,
+            body: None,
+            powertrain: None,
+            battery: None,
+            ..p.clone()
+        };
         let text = toml::to_string(&bare).unwrap();
         assert!(!text.contains("[battery]"));
         assert_eq!(VehicleProfile::from_toml(&text, "bare").unwrap(), bare);
@@ -419,16 +502,25 @@ mod tests {
         if let Some(b) = bad.battery.as_mut() {
             b.ocv_cell_v[3][1] = 3.0;
         }
-        assert!(bad.validate().unwrap_err().contains("battery.ocv_cell_v[3]"));
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("battery.ocv_cell_v[3]"));
         let mut bad = p.clone();
         if let Some(b) = bad.battery.as_mut() {
             b.internal_resistance_ohm = 0.0;
         }
-        assert!(bad.validate().unwrap_err().contains("battery.internal_resistance_ohm"));
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("battery.internal_resistance_ohm"));
         let mut bad = p;
         if let Some(w) = bad.powertrain.as_mut() {
             w.efficiency = 1.5;
         }
-        assert!(bad.validate().unwrap_err().contains("powertrain.efficiency"));
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("powertrain.efficiency"));
     }
 }

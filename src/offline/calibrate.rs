@@ -26,10 +26,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use nalgebra::{DMatrix, DVector};
 
+use crate::config::Config;
 use crate::model::physics::{Kind, Kinematics};
 use crate::model::profile::{Calibration, VehicleProfile};
 use crate::offline::data::{load_flights, FlightWindows, TEST_FLIGHTS};
-use crate::config::Config;
 use crate::offline::metrics::{in_flight, IN_FLIGHT_W};
 
 /// Arguments of `dronewatt calibrate`.
@@ -39,7 +39,12 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "FILE")]
     pub data: Option<PathBuf>,
     /// Where to write the calibrated profile.
-    #[arg(long, short = 'o', value_name = "FILE", default_value = "config/vehicles/m100-calibrated.toml")]
+    #[arg(
+        long,
+        short = 'o',
+        value_name = "FILE",
+        default_value = "config/vehicles/m100-calibrated.toml"
+    )]
     pub output: PathBuf,
     /// Profile to start from (airframe facts and published parameters). Default: the
     /// configuration's `vehicle`, else the built-in M100.
@@ -76,18 +81,34 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     let mut text = String::from("# Written by `dronewatt calibrate`: the physics models' free parameters fitted by least squares\n");
     text.push_str(&format!("# on in-flight windows (measured > {IN_FLIGHT_W} W) of training flights only. Training RMSE, W (published → calibrated):\n"));
     for r in &report {
-        text.push_str(&format!("#   {:<18} {:>8.1} → {:>6.1}\n", r.model, r.rmse_before_w, r.rmse_after_w));
+        text.push_str(&format!(
+            "#   {:<18} {:>8.1} → {:>6.1}\n",
+            r.model, r.rmse_before_w, r.rmse_after_w
+        ));
     }
     text.push_str(&toml::to_string(&cal).context("cannot serialise the calibrated profile")?);
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create folder", dir.display()))?;
     }
-    std::fs::write(&args.output, text).with_context(|| format!("{}: cannot write", args.output.display()))?;
-    println!("{:<18} {:>14} {:>14}", "model", "RMSE pub (W)", "RMSE cal (W)");
+    std::fs::write(&args.output, text)
+        .with_context(|| format!("{}: cannot write", args.output.display()))?;
+    println!(
+        "{:<18} {:>14} {:>14}",
+        "model", "RMSE pub (W)", "RMSE cal (W)"
+    );
     for r in &report {
-        println!("{:<18} {:>14.1} {:>14.1}", r.model, r.rmse_before_w, r.rmse_after_w);
+        println!(
+            "{:<18} {:>14.1} {:>14.1}",
+            r.model, r.rmse_before_w, r.rmse_after_w
+        );
     }
-    println!("calibrated profile: {} ({} flights, {} windows)", args.output.display(), cal.calibration.as_ref().map_or(0, |c| c.flights.len()), cal.calibration.as_ref().map_or(0, |c| c.windows));
+    println!(
+        "calibrated profile: {} ({} flights, {} windows)",
+        args.output.display(),
+        cal.calibration.as_ref().map_or(0, |c| c.flights.len()),
+        cal.calibration.as_ref().map_or(0, |c| c.windows)
+    );
     Ok(())
 }
 
@@ -140,8 +161,20 @@ fn specs() -> Vec<Spec> {
             kind: Kind::Stolaroff,
             lo: vec![0.05, 0.0, 0.0],
             hi: vec![5.0, 5.0, 5e3],
-            get: |p| vec![p.stolaroff.eta, p.stolaroff.drag_area_m2, p.stolaroff.p_avio_w],
-            set: |p, x| (p.stolaroff.eta, p.stolaroff.drag_area_m2, p.stolaroff.p_avio_w) = (x[0], x[1], x[2]),
+            get: |p| {
+                vec![
+                    p.stolaroff.eta,
+                    p.stolaroff.drag_area_m2,
+                    p.stolaroff.p_avio_w,
+                ]
+            },
+            set: |p, x| {
+                (
+                    p.stolaroff.eta,
+                    p.stolaroff.drag_area_m2,
+                    p.stolaroff.p_avio_w,
+                ) = (x[0], x[1], x[2])
+            },
         },
         Spec {
             kind: Kind::Kirschstein,
@@ -153,10 +186,17 @@ fn specs() -> Vec<Spec> {
             },
             set: |p, x| {
                 let k = &mut p.kirschstein;
-                (k.kappa, k.kappa2, k.kappa3, k.drag_area_m2, k.p_avio_w) = (x[0], x[1], x[2], x[3], x[4]);
+                (k.kappa, k.kappa2, k.kappa3, k.drag_area_m2, k.p_avio_w) =
+                    (x[0], x[1], x[2], x[3], x[4]);
             },
         },
-        Spec { kind: Kind::Tseng, lo: vec![-INF; 9], hi: vec![INF; 9], get: |p| p.tseng.beta.to_vec(), set: |p, x| p.tseng.beta.copy_from_slice(x) },
+        Spec {
+            kind: Kind::Tseng,
+            lo: vec![-INF; 9],
+            hi: vec![INF; 9],
+            get: |p| p.tseng.beta.to_vec(),
+            set: |p, x| p.tseng.beta.copy_from_slice(x),
+        },
         Spec {
             kind: Kind::TsengSolo,
             lo: vec![-INF; 3],
@@ -170,8 +210,16 @@ fn specs() -> Vec<Spec> {
 /// Fit every physics model on these flights (test flights and ground tests are dropped
 /// here, whatever the caller passed) and return the calibrated profile and the training
 /// RMSE before and after.
-pub fn fit(flights: &[FlightWindows], base: &VehicleProfile, data_sha256: String, max_windows: usize) -> anyhow::Result<(VehicleProfile, Vec<FitReport>)> {
-    let train: Vec<&FlightWindows> = flights.iter().filter(|f| !TEST_FLIGHTS.contains(&f.flight) && !f.route.starts_with('A')).collect();
+pub fn fit(
+    flights: &[FlightWindows],
+    base: &VehicleProfile,
+    data_sha256: String,
+    max_windows: usize,
+) -> anyhow::Result<(VehicleProfile, Vec<FitReport>)> {
+    let train: Vec<&FlightWindows> = flights
+        .iter()
+        .filter(|f| !TEST_FLIGHTS.contains(&f.flight) && !f.route.starts_with('A'))
+        .collect();
     let mut states: Vec<(Kinematics, f64)> = Vec::new();
     for f in &train {
         for w in &f.windows {
@@ -181,46 +229,79 @@ pub fn fit(flights: &[FlightWindows], base: &VehicleProfile, data_sha256: String
         }
     }
     if states.len() < 50 {
-        anyhow::bail!("only {} in-flight windows in {} training flights: too few to calibrate", states.len(), train.len());
+        anyhow::bail!(
+            "only {} in-flight windows in {} training flights: too few to calibrate",
+            states.len(),
+            train.len()
+        );
     }
     let stride = states.len().div_ceil(max_windows.max(50));
     let states: Vec<(Kinematics, f64)> = states.into_iter().step_by(stride).collect();
-    tracing::info!(flights = train.len(), windows = states.len(), "calibrating physics models");
+    tracing::info!(
+        flights = train.len(),
+        windows = states.len(),
+        "calibrating physics models"
+    );
     let bar = indicatif::ProgressBar::new(specs().len() as u64).with_style(
-        indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut cal = base.clone();
     let mut report = Vec::new();
     for spec in specs() {
         bar.set_message(spec.kind.name());
         let rmse = |p: &VehicleProfile| {
-            let se: f64 = states.iter().map(|(k, m)| (spec.kind.power_w(k, p) - m).powi(2)).sum();
+            let se: f64 = states
+                .iter()
+                .map(|(k, m)| (spec.kind.power_w(k, p) - m).powi(2))
+                .sum();
             (se / states.len() as f64).sqrt()
         };
         let before = rmse(base);
         let mut scratch = base.clone();
-        let x = levenberg_marquardt((spec.get)(base), &spec.lo, &spec.hi, states.len(), |x, r| {
-            (spec.set)(&mut scratch, x);
-            for (ri, (k, m)) in r.iter_mut().zip(&states) {
-                *ri = spec.kind.power_w(k, &scratch) - m;
-            }
-        });
+        let x = levenberg_marquardt(
+            (spec.get)(base),
+            &spec.lo,
+            &spec.hi,
+            states.len(),
+            |x, r| {
+                (spec.set)(&mut scratch, x);
+                for (ri, (k, m)) in r.iter_mut().zip(&states) {
+                    *ri = spec.kind.power_w(k, &scratch) - m;
+                }
+            },
+        );
         (spec.set)(&mut cal, &x);
         let after = rmse(&cal);
-        report.push(FitReport { model: spec.kind.name(), rmse_before_w: before, rmse_after_w: after });
+        report.push(FitReport {
+            model: spec.kind.name(),
+            rmse_before_w: before,
+            rmse_after_w: after,
+        });
         bar.inc(1);
     }
     bar.finish_and_clear();
     cal.name = format!("{} (calibrated)", base.name);
-    cal.calibration = Some(Calibration { data_sha256, flights: train.iter().map(|f| f.flight).collect(), windows: states.len() });
-    cal.validate().map_err(|e| anyhow::anyhow!("calibration produced an invalid profile: {e}"))?;
+    cal.calibration = Some(Calibration {
+        data_sha256,
+        flights: train.iter().map(|f| f.flight).collect(),
+        windows: states.len(),
+    });
+    cal.validate()
+        .map_err(|e| anyhow::anyhow!("calibration produced an invalid profile: {e}"))?;
     Ok((cal, report))
 }
 
 /// Minimise Σ rᵢ(x)² over the box [lo, hi] by Levenberg–Marquardt with Marquardt's
 /// diagonal scaling and a forward-difference Jacobian; steps are projected onto the box.
 /// `resid(x, r)` fills the `n` residuals. Returns the best x seen.
-pub fn levenberg_marquardt(x0: Vec<f64>, lo: &[f64], hi: &[f64], n: usize, mut resid: impl FnMut(&[f64], &mut [f64])) -> Vec<f64> {
+pub fn levenberg_marquardt(
+    x0: Vec<f64>,
+    lo: &[f64],
+    hi: &[f64],
+    n: usize,
+    mut resid: impl FnMut(&[f64], &mut [f64]),
+) -> Vec<f64> {
     let k = x0.len();
     let clamp = |x: &mut [f64]| {
         for i in 0..k {
@@ -295,8 +376,17 @@ mod tests {
             }
         };
         let x = levenberg_marquardt(vec![1.0, -0.1, 0.0], &[-INF; 3], &[INF; 3], t.len(), f);
-        assert!((x[0] - 2.0).abs() < 1e-5 && (x[1] + 0.7).abs() < 1e-5 && (x[2] - 1.0).abs() < 1e-5, "{x:?}");
-        let x = levenberg_marquardt(vec![1.0, -0.1, 0.0], &[-INF, -INF, 0.0], &[1.5, INF, INF], t.len(), f);
+        assert!(
+            (x[0] - 2.0).abs() < 1e-5 && (x[1] + 0.7).abs() < 1e-5 && (x[2] - 1.0).abs() < 1e-5,
+            "{x:?}"
+        );
+        let x = levenberg_marquardt(
+            vec![1.0, -0.1, 0.0],
+            &[-INF, -INF, 0.0],
+            &[1.5, INF, INF],
+            t.len(),
+            f,
+        );
         assert!(x[0] <= 1.5 && x[2] >= 0.0, "{x:?}");
     }
 }

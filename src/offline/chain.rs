@@ -31,13 +31,13 @@
 
 use crate::alert::AlertEngine;
 use crate::config::Config;
-use crate::report::Report;
 use crate::energy::EnergyTracker;
-use crate::report::{Estimate, ModelEstimate};
+use crate::features::Sample;
 use crate::model::Ensemble;
 use crate::offline::data::FlightWindows;
 use crate::offline::metrics::{self, Aligned, Scores};
-use crate::features::Sample;
+use crate::report::Report;
+use crate::report::{Estimate, ModelEstimate};
 use crate::telemetry::window::Window;
 
 /// One window's pass through the chain.
@@ -74,7 +74,13 @@ impl Chain {
             names.extend(ensemble.names().iter().map(|n| format!("{n}~")));
             target_lags.extend(ensemble.target_lags());
         }
-        Ok(Self { names, target_lags, ensemble, config: cfg.clone(), keep_learning: false })
+        Ok(Self {
+            names,
+            target_lags,
+            ensemble,
+            config: cfg.clone(),
+            keep_learning: false,
+        })
     }
 
     /// Let each flight start from what the flights before it taught the adaptation (the
@@ -91,7 +97,15 @@ impl Chain {
 
     /// The chain the configuration runs live ([`crate::model::build_ensemble`]'s models).
     pub fn from_config(cfg: &Config) -> anyhow::Result<Self> {
-        Self::new(cfg, crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry, cfg.mission.payload_g)?)
+        Self::new(
+            cfg,
+            crate::model::build_ensemble(
+                &cfg.models,
+                cfg.vehicle.as_deref(),
+                &cfg.telemetry,
+                cfg.mission.payload_g,
+            )?,
+        )
     }
 
     /// The models' names, in order.
@@ -104,7 +118,11 @@ impl Chain {
         let tracker = || EnergyTracker::new(&self.config.energy, self.config.mission.speed_m_s);
         let mut energy = tracker()?;
         let mut alerts = AlertEngine::new(&self.config.alerts)?;
-        let mut model_energy = self.names.iter().map(|_| tracker()).collect::<anyhow::Result<Vec<_>>>()?;
+        let mut model_energy = self
+            .names
+            .iter()
+            .map(|_| tracker())
+            .collect::<anyhow::Result<Vec<_>>>()?;
         if !self.keep_learning {
             if let Some(ad) = self.ensemble.adaptation_mut(0) {
                 ad.reset();
@@ -116,17 +134,44 @@ impl Chain {
             let n = self.names.len();
             let (mut for_t_s, mut model_energy_wh) = (Vec::with_capacity(n), Vec::with_capacity(n));
             // The raw estimates, then (adapting) the adapted ones as their own models.
-            let adapted = est.models.iter().map(|m| ModelEstimate::new(format!("{}~", m.name), m.adapted_w.unwrap_or(f32::NAN), None));
-            let alone_models = est.models.iter().map(|m| ModelEstimate { adapted_w: None, reference_w: None, adapted_err: None, ..m.clone() }).chain(adapted);
+            let adapted = est.models.iter().map(|m| {
+                ModelEstimate::new(
+                    format!("{}~", m.name),
+                    m.adapted_w.unwrap_or(f32::NAN),
+                    None,
+                )
+            });
+            let alone_models = est
+                .models
+                .iter()
+                .map(|m| ModelEstimate {
+                    adapted_w: None,
+                    reference_w: None,
+                    adapted_err: None,
+                    ..m.clone()
+                })
+                .chain(adapted);
             for ((m, lag), tracker) in alone_models.zip(&self.target_lags).zip(&mut model_energy) {
                 let at = w.back(*lag);
-                let alone = Estimate { t_s: at.t_s, sample: Sample { measured_w: None, ..at.clone() }, models: vec![m], arrived: None };
+                let alone = Estimate {
+                    t_s: at.t_s,
+                    sample: Sample {
+                        measured_w: None,
+                        ..at.clone()
+                    },
+                    models: vec![m],
+                    arrived: None,
+                };
                 model_energy_wh.push(tracker.update(&alone).energy_used_wh);
                 for_t_s.push(at.t_s);
             }
             // The live energy + alerts step itself (a data-set flight has no system id: 1).
             let report = crate::pipeline::account(&mut energy, &mut alerts, est, 1);
-            steps.push(Step { report, for_t_s, model_energy_wh });
+            steps.push(Step {
+                report,
+                for_t_s,
+                model_energy_wh,
+            });
         }
         Ok(steps)
     }
@@ -134,7 +179,12 @@ impl Chain {
     /// [`Chain::run`] over a data-set flight, lined up for scoring.
     pub fn run_flight(&mut self, f: &FlightWindows) -> anyhow::Result<FlightSeries> {
         let steps = self.run(&f.windows)?;
-        Ok(FlightSeries::from_steps(f.flight, &self.names, &self.target_lags, &steps))
+        Ok(FlightSeries::from_steps(
+            f.flight,
+            &self.names,
+            &self.target_lags,
+            &steps,
+        ))
     }
 }
 
@@ -169,20 +219,40 @@ impl FlightSeries {
     /// Line up `steps` (from models named `names` with these target lags): a model with
     /// lag L is read from step i + L, whose estimate is for step i's instant when no gap
     /// lies between.
-    pub fn from_steps(flight: u32, names: &[String], target_lags: &[usize], steps: &[Step]) -> Self {
-        let keep: Vec<usize> = (0..steps.len()).filter(|&i| steps[i].report.estimate.sample.measured_w.is_some()).collect();
+    pub fn from_steps(
+        flight: u32,
+        names: &[String],
+        target_lags: &[usize],
+        steps: &[Step],
+    ) -> Self {
+        let keep: Vec<usize> = (0..steps.len())
+            .filter(|&i| steps[i].report.estimate.sample.measured_w.is_some())
+            .collect();
         let sample = |i: usize| &steps[i].report.estimate.sample;
         let mut s = FlightSeries {
             flight,
             names: names.to_vec(),
             t_s: keep.iter().map(|&i| sample(i).t_s).collect(),
-            measured_w: keep.iter().map(|&i| sample(i).measured_w.map_or(f64::NAN, f64::from)).collect(),
-            voltage_v: keep.iter().map(|&i| sample(i).voltage_v.map_or(f64::NAN, f64::from)).collect(),
-            measured_wh: keep.iter().map(|&i| steps[i].report.energy.energy_used_wh).collect(),
+            measured_w: keep
+                .iter()
+                .map(|&i| sample(i).measured_w.map_or(f64::NAN, f64::from))
+                .collect(),
+            voltage_v: keep
+                .iter()
+                .map(|&i| sample(i).voltage_v.map_or(f64::NAN, f64::from))
+                .collect(),
+            measured_wh: keep
+                .iter()
+                .map(|&i| steps[i].report.energy.energy_used_wh)
+                .collect(),
             pred_w: Vec::with_capacity(names.len()),
             band_w: Vec::with_capacity(names.len()),
             pred_wh: Vec::with_capacity(names.len()),
-            alerts_raised: steps.iter().flat_map(|s| &s.report.alerts).filter(|a| a.state == crate::report::AlertState::Raised).count(),
+            alerts_raised: steps
+                .iter()
+                .flat_map(|s| &s.report.alerts)
+                .filter(|a| a.state == crate::report::AlertState::Raised)
+                .count(),
         };
         for (j, &lag) in target_lags.iter().enumerate().take(names.len()) {
             // Column j is model j's raw estimate, or past the models, model j − n's adapted one.
@@ -195,24 +265,51 @@ impl FlightSeries {
                 };
                 let power_w = if adapted { m.adapted_w? } else { m.power_w };
                 let band_w = if adapted { None } else { m.band_w };
-                (st.for_t_s.get(j) == Some(&sample(i).t_s)).then_some((power_w, band_w, st.model_energy_wh[j]))
+                (st.for_t_s.get(j) == Some(&sample(i).t_s)).then_some((
+                    power_w,
+                    band_w,
+                    st.model_energy_wh[j],
+                ))
             };
-            s.pred_w.push(keep.iter().map(|&i| at(i).map_or(f64::NAN, |(p, _, _)| f64::from(p))).collect());
-            s.band_w.push(keep.iter().map(|&i| at(i).and_then(|(_, b, _)| b).map(|(lo, hi)| (f64::from(lo), f64::from(hi)))).collect());
-            s.pred_wh.push(keep.iter().map(|&i| at(i).map_or(f64::NAN, |(_, _, wh)| wh)).collect());
+            s.pred_w.push(
+                keep.iter()
+                    .map(|&i| at(i).map_or(f64::NAN, |(p, _, _)| f64::from(p)))
+                    .collect(),
+            );
+            s.band_w.push(
+                keep.iter()
+                    .map(|&i| {
+                        at(i)
+                            .and_then(|(_, b, _)| b)
+                            .map(|(lo, hi)| (f64::from(lo), f64::from(hi)))
+                    })
+                    .collect(),
+            );
+            s.pred_wh.push(
+                keep.iter()
+                    .map(|&i| at(i).map_or(f64::NAN, |(_, _, wh)| wh))
+                    .collect(),
+            );
         }
         s
     }
 
     /// Model `j`'s series, for [`metrics::score_over`].
     pub fn aligned(&self, j: usize) -> Aligned<'_> {
-        Aligned { measured_w: &self.measured_w, pred_w: &self.pred_w[j], measured_wh: &self.measured_wh, pred_wh: &self.pred_wh[j] }
+        Aligned {
+            measured_w: &self.measured_w,
+            pred_w: &self.pred_w[j],
+            measured_wh: &self.measured_wh,
+            pred_wh: &self.pred_wh[j],
+        }
     }
 
     /// Every model's scores (in order; `None` where nothing was in flight), in flight only
     /// or over every window.
     pub fn scores(&self, all_windows: bool) -> Vec<Option<Scores>> {
-        (0..self.pred_w.len()).map(|j| metrics::score_over(&self.aligned(j), all_windows)).collect()
+        (0..self.pred_w.len())
+            .map(|j| metrics::score_over(&self.aligned(j), all_windows))
+            .collect()
     }
 }
 
@@ -234,7 +331,10 @@ mod tests {
         }
         fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
             out.clear();
-            out.extend(windows.iter().map(|w| Prediction { power_w: self.gain * w.back(self.lag).measured_w.unwrap_or(f32::NAN), band_w: None }));
+            out.extend(windows.iter().map(|w| Prediction {
+                power_w: self.gain * w.back(self.lag).measured_w.unwrap_or(f32::NAN),
+                band_w: None,
+            }));
         }
         fn target_lag(&self) -> usize {
             self.lag
@@ -246,15 +346,28 @@ mod tests {
         let sample = |i: usize| Sample {
             t_s: i as f64 * 0.1,
             features: [0.0; crate::features::N_FEATURES],
-            measured_w: Some(if i < 10 { 20.0 } else { 300.0 + (i * i % 97) as f32 }),
+            measured_w: Some(if i < 10 {
+                20.0
+            } else {
+                300.0 + (i * i % 97) as f32
+            }),
             voltage_v: None,
             home: None,
             stale_mask: 0,
             battery_remaining_pct: None,
         };
         let all: Vec<Sample> = (0..60).map(sample).collect();
-        let windows = (9..60).map(|e| Window { samples: all[e - 9..=e].to_vec(), arrived: None }).collect();
-        FlightWindows { flight: 1, route: "R1".into(), windows }
+        let windows = (9..60)
+            .map(|e| Window {
+                samples: all[e - 9..=e].to_vec(),
+                arrived: None,
+            })
+            .collect();
+        FlightWindows {
+            flight: 1,
+            route: "R1".into(),
+            windows,
+        }
     }
 
     fn chain(cfg: &Config, models: Vec<Box<dyn PowerModel>>) -> Chain {
@@ -263,13 +376,32 @@ mod tests {
 
     #[test]
     fn a_lagged_model_is_scored_at_its_own_instant() {
-        let models: Vec<Box<dyn PowerModel>> =
-            vec![Box::new(Oracle { name: "now", lag: 0, gain: 1.0 }), Box::new(Oracle { name: "lagged", lag: 3, gain: 1.0 })];
-        let s = chain(&Config::default(), models).run_flight(&flight()).unwrap();
+        let models: Vec<Box<dyn PowerModel>> = vec![
+            Box::new(Oracle {
+                name: "now",
+                lag: 0,
+                gain: 1.0,
+            }),
+            Box::new(Oracle {
+                name: "lagged",
+                lag: 3,
+                gain: 1.0,
+            }),
+        ];
+        let s = chain(&Config::default(), models)
+            .run_flight(&flight())
+            .unwrap();
         for pred in &s.pred_w {
-            let scored: Vec<_> = pred.iter().zip(&s.measured_w).filter(|(p, _)| p.is_finite()).collect();
+            let scored: Vec<_> = pred
+                .iter()
+                .zip(&s.measured_w)
+                .filter(|(p, _)| p.is_finite())
+                .collect();
             assert!(scored.len() >= s.measured_w.len() - 3);
-            assert!(scored.iter().all(|(p, m)| p == m), "a perfect model scored imperfectly");
+            assert!(
+                scored.iter().all(|(p, m)| p == m),
+                "a perfect model scored imperfectly"
+            );
         }
         // The last three windows have no lagged estimate yet (as live).
         assert!(s.pred_w[1].iter().rev().take(3).all(|p| p.is_nan()));
@@ -278,8 +410,16 @@ mod tests {
     #[test]
     fn energy_is_scored_on_what_the_tracker_integrates() {
         let models: Vec<Box<dyn PowerModel>> = vec![
-            Box::new(Oracle { name: "exact", lag: 2, gain: 1.0 }),
-            Box::new(Oracle { name: "high", lag: 0, gain: 1.1 }),
+            Box::new(Oracle {
+                name: "exact",
+                lag: 2,
+                gain: 1.0,
+            }),
+            Box::new(Oracle {
+                name: "high",
+                lag: 0,
+                gain: 1.1,
+            }),
         ];
         let f = flight();
         let mut c = chain(&Config::default(), models);
@@ -289,13 +429,27 @@ mod tests {
         let last = &steps.last().unwrap().report.energy;
         assert_eq!(last.power_source, "measured");
         let t: Vec<f64> = f.windows.iter().map(|w| w.t_s()).collect();
-        let p: Vec<f64> = f.windows.iter().map(|w| f64::from(w.last().measured_w.unwrap())).collect();
-        let trapezoids: f64 = (1..t.len()).map(|i| 0.5 * (t[i] - t[i - 1]) * (p[i] + p[i - 1])).sum::<f64>() / 3600.0;
-        assert!((last.energy_used_wh - trapezoids).abs() < 1e-9, "{} vs {trapezoids}", last.energy_used_wh);
+        let p: Vec<f64> = f
+            .windows
+            .iter()
+            .map(|w| f64::from(w.last().measured_w.unwrap()))
+            .collect();
+        let trapezoids: f64 = (1..t.len())
+            .map(|i| 0.5 * (t[i] - t[i - 1]) * (p[i] + p[i - 1]))
+            .sum::<f64>()
+            / 3600.0;
+        assert!(
+            (last.energy_used_wh - trapezoids).abs() < 1e-9,
+            "{} vs {trapezoids}",
+            last.energy_used_wh
+        );
         let s = FlightSeries::from_steps(f.flight, c.names(), &[2, 0], &steps);
         let scores = s.scores(false);
         let (exact, high) = (scores[0].unwrap(), scores[1].unwrap());
-        assert!(exact.mae_w < 1e-3 && exact.energy_err_pct < 1e-6, "{exact:?}");
+        assert!(
+            exact.mae_w < 1e-3 && exact.energy_err_pct < 1e-6,
+            "{exact:?}"
+        );
         // 10 % high at every instant: 10 % too much energy, in flight and overall.
         assert!((high.energy_err_pct - 10.0).abs() < 1e-4, "{high:?}");
         assert!((s.scores(true)[1].unwrap().energy_err_pct - 10.0).abs() < 1e-4);
@@ -315,12 +469,27 @@ mod tests {
             "#,
         )
         .unwrap();
-        let models: Vec<Box<dyn PowerModel>> = vec![Box::new(Oracle { name: "exact", lag: 0, gain: 1.0 })];
+        let models: Vec<Box<dyn PowerModel>> = vec![Box::new(Oracle {
+            name: "exact",
+            lag: 0,
+            gain: 1.0,
+        })];
         let mut c = chain(&cfg, models);
         let f = flight();
         let steps = c.run(&f.windows).unwrap();
-        let raised = steps.iter().flat_map(|s| &s.report.alerts).filter(|a| a.rule == "hot").count();
+        let raised = steps
+            .iter()
+            .flat_map(|s| &s.report.alerts)
+            .filter(|a| a.rule == "hot")
+            .count();
         assert!(raised > 0, "power crosses 350 W and the rule never fired");
-        assert_eq!(c.run_flight(&f).unwrap().alerts_raised, steps.iter().flat_map(|s| &s.report.alerts).filter(|a| a.state == crate::report::AlertState::Raised).count());
+        assert_eq!(
+            c.run_flight(&f).unwrap().alerts_raised,
+            steps
+                .iter()
+                .flat_map(|s| &s.report.alerts)
+                .filter(|a| a.state == crate::report::AlertState::Raised)
+                .count()
+        );
     }
 }

@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use crate::source::dataset;
-use crate::telemetry::{MissionConfig, Telemetry, TelemetryConfig};
 use crate::telemetry::window::Window;
+use crate::telemetry::{MissionConfig, Telemetry, TelemetryConfig};
 
 /// One flight's windows, oldest first.
 #[derive(Debug, Clone)]
@@ -31,13 +31,25 @@ pub struct FlightWindows {
 ///
 /// Memory: every window owns its T samples (~130 bytes each), so the whole data set at
 /// 10 Hz and T = 10 is about 0.5 GB.
-pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig, mission: &MissionConfig) -> anyhow::Result<Vec<FlightWindows>> {
+pub fn load_flights(
+    path: &Path,
+    flights: Option<&[u32]>,
+    cfg: &TelemetryConfig,
+    mission: &MissionConfig,
+) -> anyhow::Result<Vec<FlightWindows>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     let ds = dataset::read_flights(path, flights)?;
     if let Some(want) = flights {
-        let missing: Vec<u32> = want.iter().copied().filter(|w| !ds.flights.iter().any(|f| f.flight == *w)).collect();
+        let missing: Vec<u32> = want
+            .iter()
+            .copied()
+            .filter(|w| !ds.flights.iter().any(|f| f.flight == *w))
+            .collect();
         if !missing.is_empty() {
-            anyhow::bail!("{}: flights {missing:?} are not in this file", path.display());
+            anyhow::bail!(
+                "{}: flights {missing:?} are not in this file",
+                path.display()
+            );
         }
     }
     let bar = if ds.flights.len() > 4 {
@@ -46,8 +58,10 @@ pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig,
         indicatif::ProgressBar::hidden()
     };
     bar.set_style(
-        indicatif::ProgressStyle::with_template("loading flights {bar:30} {pos}/{len} [{elapsed}<{eta}]")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template(
+            "loading flights {bar:30} {pos}/{len} [{elapsed}<{eta}]",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut results: Vec<(usize, FlightWindows)> = std::thread::scope(|s| {
@@ -65,7 +79,10 @@ pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig,
                 })
             })
             .collect();
-        workers.into_iter().flat_map(|w| w.join().unwrap_or_default()).collect()
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap_or_default())
+            .collect()
     });
     bar.finish_and_clear();
     results.sort_by_key(|(i, _)| *i);
@@ -74,7 +91,11 @@ pub fn load_flights(path: &Path, flights: Option<&[u32]>, cfg: &TelemetryConfig,
 
 /// One data-set flight through encoder → tlog bytes → decode → [`Telemetry`] → windows.
 /// The flight's own mission facts (NAMED_VALUE_FLOAT) override `mission` once they arrive.
-pub fn flight_windows(f: &dataset::Flight, cfg: &TelemetryConfig, mission: &MissionConfig) -> FlightWindows {
+pub fn flight_windows(
+    f: &dataset::Flight,
+    cfg: &TelemetryConfig,
+    mission: &MissionConfig,
+) -> FlightWindows {
     let bytes = dataset::encode_flight(f);
     let stats = crate::source::IngestStats::default();
     let mut tel = Telemetry::new(cfg, mission);
@@ -83,7 +104,11 @@ pub fn flight_windows(f: &dataset::Flight, cfg: &TelemetryConfig, mission: &Miss
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);
-    FlightWindows { flight: f.flight, route: f.route.clone(), windows }
+    FlightWindows {
+        flight: f.flight,
+        route: f.route.clone(),
+        windows,
+    }
 }
 
 /// A data-set flight's mission facts, as [`list_flights`] reports them.
@@ -129,7 +154,8 @@ pub fn list_flights(path: &Path) -> anyhow::Result<Vec<FlightInfo>> {
 pub fn sha256_file(path: &Path) -> anyhow::Result<String> {
     use sha2::Digest;
     use std::io::Read;
-    let mut f = std::fs::File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let mut f =
+        std::fs::File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     let mut h = sha2::Sha256::new();
     let mut buf = vec![0u8; 1 << 16];
     loop {

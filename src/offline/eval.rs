@@ -52,7 +52,11 @@ pub struct EvalArgs {
     pub plot: Option<PathBuf>,
     /// Calibrated vehicle profile whose physics models are scored as `<model>_cal`.
     /// Skipped with a warning when the file does not exist.
-    #[arg(long, value_name = "FILE", default_value = "config/vehicles/m100-calibrated.toml")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "config/vehicles/m100-calibrated.toml"
+    )]
     pub calibrated: PathBuf,
     /// Configuration file (vehicle profile, LSTM …). Default: built-in defaults.
     #[arg(long, short = 'c', value_name = "FILE")]
@@ -95,8 +99,12 @@ pub const PAPER_TABLE2: [(&str, f64, f64); 7] = [
 ];
 
 /// The models `eval` scores: the configured set, then the calibrated physics models.
-pub fn eval_models(cfg: &Config, calibrated: Option<&VehicleProfile>) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
-    let mut models = crate::model::build_models(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?;
+pub fn eval_models(
+    cfg: &Config,
+    calibrated: Option<&VehicleProfile>,
+) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
+    let mut models =
+        crate::model::build_models(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?;
     if let Some(cal) = calibrated {
         models.extend(physics::models(cal));
     }
@@ -120,7 +128,13 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let mut ensemble = Ensemble::new(eval_models(&cfg, cal.as_ref())?);
     if args.adapt {
         let payload = args.payload_g.or(cfg.mission.payload_g);
-        let ad = crate::model::build_adaptation(&cfg.models.adapt, cfg.vehicle.as_deref(), &cfg.telemetry, payload, &ensemble.names())?;
+        let ad = crate::model::build_adaptation(
+            &cfg.models.adapt,
+            cfg.vehicle.as_deref(),
+            &cfg.telemetry,
+            payload,
+            &ensemble.names(),
+        )?;
         ensemble = ensemble.with_adaptation(ad);
     }
     let mut chain = Chain::new(&cfg, ensemble)?;
@@ -129,47 +143,87 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         (Some(n), _) => Some(vec![n]),
         (None, Some(Split::Cvar)) => {
             let present = list_flights(&data)?;
-            let t: Vec<u32> = TEST_FLIGHTS.iter().copied().filter(|n| present.iter().any(|f| f.flight == *n)).collect();
+            let t: Vec<u32> = TEST_FLIGHTS
+                .iter()
+                .copied()
+                .filter(|n| present.iter().any(|f| f.flight == *n))
+                .collect();
             tracing::info!(flights = ?t, "cvar split: the test flights present in the file");
             Some(t)
         }
         (None, None) => None,
     };
-    let mut flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry, &cfg.mission).with_context(|| format!("{}: cannot load flights", data.display()))?;
+    let mut flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry, &cfg.mission)
+        .with_context(|| format!("{}: cannot load flights", data.display()))?;
     if let Some(g) = args.payload_g {
-        for s in flights.iter_mut().flat_map(|f| f.windows.iter_mut()).flat_map(|w| w.samples.iter_mut()) {
+        for s in flights
+            .iter_mut()
+            .flat_map(|f| f.windows.iter_mut())
+            .flat_map(|w| w.samples.iter_mut())
+        {
             s.features[crate::features::idx::PAYLOAD] = g;
         }
     }
     if flights.is_empty() {
-        anyhow::bail!("{}: none of the requested flights is in the file", data.display());
+        anyhow::bail!(
+            "{}: none of the requested flights is in the file",
+            data.display()
+        );
     }
     let bar = indicatif::ProgressBar::new(flights.len() as u64);
     let mut series = Vec::new();
     for f in &flights {
         let s = chain.run_flight(f)?;
         if s.alerts_raised > 0 {
-            tracing::info!(flight = f.flight, alerts = s.alerts_raised, "alert rules raised");
+            tracing::info!(
+                flight = f.flight,
+                alerts = s.alerts_raised,
+                "alert rules raised"
+            );
         }
         series.push(s);
         bar.inc(1);
     }
     bar.finish_and_clear();
     if let Some(dir) = &args.plot {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create plot folder", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create plot folder", dir.display()))?;
         for s in &series {
             // Published parameters (and any non-physics model) on top, calibrated below.
-            let lines = |cal: bool| names.iter().zip(&s.pred_w).filter(|(n, _)| n.ends_with("_cal") == cal).map(|(n, p)| plot::Series { label: n, power_w: p }).collect();
-            let mut panels = vec![plot::Panel { caption: "as published".into(), series: lines(false) }];
+            let lines = |cal: bool| {
+                names
+                    .iter()
+                    .zip(&s.pred_w)
+                    .filter(|(n, _)| n.ends_with("_cal") == cal)
+                    .map(|(n, p)| plot::Series {
+                        label: n,
+                        power_w: p,
+                    })
+                    .collect()
+            };
+            let mut panels = vec![plot::Panel {
+                caption: "as published".into(),
+                series: lines(false),
+            }];
             if cal.is_some() {
-                panels.push(plot::Panel { caption: "calibrated on training flights".into(), series: lines(true) });
+                panels.push(plot::Panel {
+                    caption: "calibrated on training flights".into(),
+                    series: lines(true),
+                });
             }
             let path = dir.join(format!("flight-{}.png", s.flight));
-            plot::power_over_flight(&path, &format!("Flight {}: models vs measured power", s.flight), &s.t_s, &s.measured_w, &panels)?;
+            plot::power_over_flight(
+                &path,
+                &format!("Flight {}: models vs measured power", s.flight),
+                &s.t_s,
+                &s.measured_w,
+                &panels,
+            )?;
             eprintln!("wrote {}", path.display());
         }
     }
-    let per_flight: Vec<Vec<Option<Scores>>> = series.iter().map(|s| s.scores(args.all_windows)).collect();
+    let per_flight: Vec<Vec<Option<Scores>>> =
+        series.iter().map(|s| s.scores(args.all_windows)).collect();
     let mut avg: BTreeMap<&str, Scores> = BTreeMap::new();
     let mut ordered: Vec<(&str, Scores)> = Vec::new();
     for (j, n) in names.iter().enumerate() {
@@ -186,7 +240,17 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             let pf: BTreeMap<String, BTreeMap<&str, Scores>> = series
                 .iter()
                 .zip(&per_flight)
-                .map(|(s, sc)| (s.flight.to_string(), names.iter().map(String::as_str).zip(sc.iter().copied()).filter_map(|(n, x)| x.map(|x| (n, x))).collect()))
+                .map(|(s, sc)| {
+                    (
+                        s.flight.to_string(),
+                        names
+                            .iter()
+                            .map(String::as_str)
+                            .zip(sc.iter().copied())
+                            .filter_map(|(n, x)| x.map(|x| (n, x)))
+                            .collect(),
+                    )
+                })
                 .collect();
             obj["per_flight"] = serde_json::to_value(pf)?;
         }
@@ -195,18 +259,32 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             println!("{text}");
             return Ok(());
         }
-        std::fs::write(target, text + "\n").with_context(|| format!("{target}: cannot write JSON"))?;
+        std::fs::write(target, text + "\n")
+            .with_context(|| format!("{target}: cannot write JSON"))?;
     }
     if args.per_flight {
         for (s, sc) in series.iter().zip(&per_flight) {
             println!("flight {} ({} windows)", s.flight, s.t_s.len());
-            let rows: Vec<(&str, Scores)> = names.iter().map(String::as_str).zip(sc.iter().copied()).filter_map(|(n, x)| x.map(|x| (n, x))).collect();
+            let rows: Vec<(&str, Scores)> = names
+                .iter()
+                .map(String::as_str)
+                .zip(sc.iter().copied())
+                .filter_map(|(n, x)| x.map(|x| (n, x)))
+                .collect();
             print_table(&rows, false);
             println!();
         }
     }
-    let what = if flight_ids.len() == 1 { format!("flight {}", flight_ids[0]) } else { format!("mean over {} flights", flight_ids.len()) };
-    let over = if args.all_windows { "every window, ground included (MAPE in flight)".to_string() } else { format!("in-flight windows (measured > {IN_FLIGHT_W} W)") };
+    let what = if flight_ids.len() == 1 {
+        format!("flight {}", flight_ids[0])
+    } else {
+        format!("mean over {} flights", flight_ids.len())
+    };
+    let over = if args.all_windows {
+        "every window, ground included (MAPE in flight)".to_string()
+    } else {
+        format!("in-flight windows (measured > {IN_FLIGHT_W} W)")
+    };
     println!("{what}: our scores in watts over {over}, beside the paper's Table 2 (flight 276)");
     print_table(&ordered, true);
     if args.paper_scales {
@@ -217,17 +295,26 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
 }
 
 fn paper_row(name: &str) -> Option<(f64, f64)> {
-    PAPER_TABLE2.iter().find(|(n, _, _)| *n == name).map(|&(_, r, m)| (r, m))
+    PAPER_TABLE2
+        .iter()
+        .find(|(n, _, _)| *n == name)
+        .map(|&(_, r, m)| (r, m))
 }
 
 fn print_table(rows: &[(&str, Scores)], paper: bool) {
-    print!("{:<22} {:>9} {:>9} {:>11} {:>8} {:>10}", "model", "MAE W", "RMSE W", "MSE W²", "MAPE %", "energy %");
+    print!(
+        "{:<22} {:>9} {:>9} {:>11} {:>8} {:>10}",
+        "model", "MAE W", "RMSE W", "MSE W²", "MAPE %", "energy %"
+    );
     if paper {
         print!("   {:>16} {:>13}", "paper \"RMSE\"", "paper MAE");
     }
     println!();
     for (n, s) in rows {
-        print!("{:<22} {:>9.1} {:>9.1} {:>11.0} {:>8.1} {:>10.1}", n, s.mae_w, s.rmse_w, s.mse_w2, s.mape_pct, s.energy_err_pct);
+        print!(
+            "{:<22} {:>9.1} {:>9.1} {:>11.0} {:>8.1} {:>10.1}",
+            n, s.mae_w, s.rmse_w, s.mse_w2, s.mape_pct, s.energy_err_pct
+        );
         if let (true, Some((r, m))) = (paper, paper_row(n)) {
             print!("   {:>16.2} {:>13.2}", r, m);
         }
@@ -273,27 +360,55 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
     use std::fmt::Write;
     let mut s = String::new();
     let n_windows: usize = series.iter().map(|f| f.t_s.len()).sum::<usize>() / series.len().max(1);
-    let _ = writeln!(s, "Evidence on the paper's Table 2 scale ({} flight(s), {} windows per flight on average)", series.len(), n_windows);
+    let _ = writeln!(
+        s,
+        "Evidence on the paper's Table 2 scale ({} flight(s), {} windows per flight on average)",
+        series.len(),
+        n_windows
+    );
     let _ = writeln!(s, "1. RMSE ≤ √N·MAE. With N = {n_windows}, √N = {:.1}. Paper \"RMSE\"/MAE and √(\"RMSE\")/MAE:", (n_windows as f64).sqrt());
     for (n, r, m) in PAPER_TABLE2 {
-        let _ = writeln!(s, "   {:<18} \"RMSE\"/MAE = {:>6.2}   √\"RMSE\"/MAE = {:.3}", n, r / m, r.sqrt() / m);
+        let _ = writeln!(
+            s,
+            "   {:<18} \"RMSE\"/MAE = {:>6.2}   √\"RMSE\"/MAE = {:.3}",
+            n,
+            r / m,
+            r.sqrt() / m
+        );
     }
     // Scores under candidate units, per model, mean over flights.
     for in_flight in [false, true] {
-        let what = if in_flight { format!("in-flight windows (measured > {IN_FLIGHT_W} W)") } else { "all windows, ground included (as the paper presumably scored)".to_string() };
+        let what = if in_flight {
+            format!("in-flight windows (measured > {IN_FLIGHT_W} W)")
+        } else {
+            "all windows, ground included (as the paper presumably scored)".to_string()
+        };
         let _ = writeln!(s, "2./3. Over {what}. Per model: MSE/MAE² (scale-free; paper's in brackets), MAE and MSE in candidate units: W, J per step (P·Δt), A (P/V); paper MAE / our MAE");
-        let _ = writeln!(s, "   {:<22} {:>14} {:>9} {:>9} {:>10} {:>9} {:>10}  {:>9}", "model", "MSE/MAE²", "MAE W", "MAE J/st", "MSE J²/st", "MAE A", "MSE A²", "paper/W");
+        let _ = writeln!(
+            s,
+            "   {:<22} {:>14} {:>9} {:>9} {:>10} {:>9} {:>10}  {:>9}",
+            "model", "MSE/MAE²", "MAE W", "MAE J/st", "MSE J²/st", "MAE A", "MSE A²", "paper/W"
+        );
         let (mut ours_pub, mut ours_cal, mut paper_mae) = (Vec::new(), Vec::new(), Vec::new());
         for (j, name) in names.iter().enumerate() {
             let mut acc = [0.0f64; 6];
             let mut nf = 0.0;
             for f in series {
-                let (mut ae, mut se, mut aj, mut sj, mut aa, mut sa, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+                let (mut ae, mut se, mut aj, mut sj, mut aa, mut sa, mut n) =
+                    (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
                 for i in 0..f.t_s.len() {
                     let e = f.pred_w[j][i] - f.measured_w[i];
-                    let dt = if i > 0 { f.t_s[i] - f.t_s[i - 1] } else if f.t_s.len() > 1 { f.t_s[1] - f.t_s[0] } else { 0.1 };
+                    let dt = if i > 0 {
+                        f.t_s[i] - f.t_s[i - 1]
+                    } else if f.t_s.len() > 1 {
+                        f.t_s[1] - f.t_s[0]
+                    } else {
+                        0.1
+                    };
                     let v = f.voltage_v[i];
-                    if !(e.is_finite() && dt.is_finite() && v.is_finite() && v > 1.0) || (in_flight && !metrics::in_flight(f.measured_w[i])) {
+                    if !(e.is_finite() && dt.is_finite() && v.is_finite() && v > 1.0)
+                        || (in_flight && !metrics::in_flight(f.measured_w[i]))
+                    {
                         continue;
                     }
                     ae += e.abs();
@@ -318,8 +433,14 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
             let base = name.trim_end_matches("_cal");
             let paper = paper_row(base);
             let ratio = mse / (mae * mae);
-            let pr = paper.map_or(String::from("        "), |(r, m)| format!("({:.2})", r / (m * m)));
-            let _ = write!(s, "   {:<22} {:>5.2} {:>8} {:>9.1} {:>9.2} {:>10.1} {:>9.2} {:>10.2}", name, ratio, pr, mae, maej, msej, maea, msea);
+            let pr = paper.map_or(String::from("        "), |(r, m)| {
+                format!("({:.2})", r / (m * m))
+            });
+            let _ = write!(
+                s,
+                "   {:<22} {:>5.2} {:>8} {:>9.1} {:>9.2} {:>10.1} {:>9.2} {:>10.2}",
+                name, ratio, pr, mae, maej, msej, maea, msea
+            );
             if let Some((r, m)) = paper {
                 let _ = write!(s, "  {:>9.3}  [paper {m:.2}, \"RMSE\" {r:.1}]", m / mae);
                 if base != "lstm" && base != name.as_str() {
@@ -332,9 +453,17 @@ pub fn paper_scales(names: &[String], series: &[FlightSeries]) -> String {
             let _ = writeln!(s);
         }
         if ours_pub.len() == paper_mae.len() && paper_mae.len() > 2 {
-            let _ = writeln!(s, "4. Ranking by MAE ({what}), Spearman ρ(paper, ours published) = {:.2}", spearman(&paper_mae, &ours_pub));
+            let _ = writeln!(
+                s,
+                "4. Ranking by MAE ({what}), Spearman ρ(paper, ours published) = {:.2}",
+                spearman(&paper_mae, &ours_pub)
+            );
             if ours_cal.len() == paper_mae.len() {
-                let _ = writeln!(s, "   Spearman ρ(paper, ours calibrated) = {:.2}", spearman(&paper_mae, &ours_cal));
+                let _ = writeln!(
+                    s,
+                    "   Spearman ρ(paper, ours calibrated) = {:.2}",
+                    spearman(&paper_mae, &ours_cal)
+                );
             }
         }
     }

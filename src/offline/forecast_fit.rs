@@ -8,7 +8,6 @@
 //! then applied to the test flights; `--json` writes everything, the fit and the training
 //! flights' own scores included.
 
-
 use anyhow::Context;
 
 use crate::config::Config;
@@ -16,14 +15,14 @@ use crate::mission::forecast::{forecast, Calibration, Member};
 use crate::mission::trajectory::{enu_of, fly, Conditions, Trajectory, Wind};
 use crate::model::profile::VehicleProfile;
 use crate::model::PowerModel;
-use crate::source::dataset::{self, Flight};
-use crate::offline::route::flight_plan;
-use crate::offline::route::ground_wind;
-use crate::offline::plan_eval::AIRBORNE_W;
 use crate::offline::plan_eval::gcs_left_s;
 use crate::offline::plan_eval::median;
-use crate::offline::plan_eval::score;
 use crate::offline::plan_eval::quantile;
+use crate::offline::plan_eval::score;
+use crate::offline::plan_eval::AIRBORNE_W;
+use crate::offline::route::flight_plan;
+use crate::offline::route::ground_wind;
+use crate::source::dataset::{self, Flight};
 
 /// One model's uncorrected forecast of a flight's plan, split for fitting: energy by
 /// phase ([`phase_of`]) up to the live point and after it, Wh.
@@ -78,15 +77,36 @@ pub(crate) struct Prepared {
     pub(crate) flight_mean_w: f64,
 }
 
-pub(crate) fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config, models: &mut [Box<dyn PowerModel>]) -> anyhow::Result<Prepared> {
+pub(crate) fn prepare(
+    f: &Flight,
+    geometry: &Flight,
+    ground: bool,
+    cfg: &Config,
+    models: &mut [Box<dyn PowerModel>],
+) -> anyhow::Result<Prepared> {
     let plan = flight_plan(f, geometry)?;
-    let wind = if ground { ground_wind(f) } else { Wind::default() };
-    let cond = Conditions { wind, payload_g: f.payload_g, speed_m_s: Some(f.speed_m_s), rate_hz: cfg.telemetry.rate_hz };
+    let wind = if ground {
+        ground_wind(f)
+    } else {
+        Wind::default()
+    };
+    let cond = Conditions {
+        wind,
+        payload_g: f.payload_g,
+        speed_m_s: Some(f.speed_m_s),
+        rate_hz: cfg.telemetry.rate_hz,
+    };
     let traj = fly(&plan, &cfg.forecast.kinematics, &cond);
     let mut fcs = Vec::new();
     for m in models.iter_mut() {
         let cal = Calibration::uncorrected(m.name());
-        fcs.push(forecast(&traj, std::slice::from_mut(m), &cal, cfg.telemetry.window, crate::mission::MODEL_STRIDE));
+        fcs.push(forecast(
+            &traj,
+            std::slice::from_mut(m),
+            &cal,
+            cfg.telemetry.window,
+            crate::mission::MODEL_STRIDE,
+        ));
     }
     // measured energy, cumulative by row (rectangle rule to the next row)
     let rows = &f.rows;
@@ -97,7 +117,10 @@ pub(crate) fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config,
     }
     let measured_wh = cum.last().copied().unwrap_or(0.0);
     let on = |r: &dataset::Row| r.voltage_v * r.current_a > AIRBORNE_W;
-    let i0 = rows.iter().position(on).with_context(|| format!("flight {}: never above {AIRBORNE_W} W", f.flight))?;
+    let i0 = rows
+        .iter()
+        .position(on)
+        .with_context(|| format!("flight {}: never above {AIRBORNE_W} W", f.flight))?;
     let i1 = rows.iter().rposition(on).unwrap_or(i0);
     let t_half = 0.5 * (rows[i0].time_s + rows[i1].time_s);
     let ih = rows.iter().position(|r| r.time_s >= t_half).unwrap_or(i1);
@@ -106,7 +129,11 @@ pub(crate) fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config,
     let horizon = (15.0 / traj.dt_s) as usize;
     for r in &rows[i0..=ih] {
         let (e, n) = enu_of(&home, r.lat_deg, r.lon_deg);
-        k = traj.locate(k, horizon, [e as f32, n as f32, (r.alt_m - home.alt_m) as f32]);
+        k = traj.locate(
+            k,
+            horizon,
+            [e as f32, n as f32, (r.alt_m - home.alt_m) as f32],
+        );
     }
     let so_far = cum[ih];
     let vehicle_kg = VehicleProfile::m100().mass_kg(0.0);
@@ -121,18 +148,33 @@ pub(crate) fn prepare(f: &Flight, geometry: &Flight, ground: bool, cfg: &Config,
                 let ph = phase_of(&traj.samples[j]);
                 let x = if j <= k { &mut first_wh } else { &mut rest_wh };
                 x[ph] += e;
-                let [up, down] = crate::mission::forecast::vertical_work_w(&traj.samples[j], vehicle_kg);
+                let [up, down] =
+                    crate::mission::forecast::vertical_work_w(&traj.samples[j], vehicle_kg);
                 x[3] += up * traj.dt_s / 3600.0;
                 x[4] += down * traj.dt_s / 3600.0;
             }
-            ModelRaw { name: fc.model.clone(), total_wh: fc.energy_p50_wh, first_wh, rest_wh, planned_left_s: fc.remaining_from(k, None, 0.0).time_s }
+            ModelRaw {
+                name: fc.model.clone(),
+                total_wh: fc.energy_p50_wh,
+                first_wh,
+                rest_wh,
+                planned_left_s: fc.remaining_from(k, None, 0.0).time_s,
+            }
         })
         .collect();
     let gcs_left = gcs_left_s(&traj, k, f.speed_m_s, &cfg.forecast.kinematics);
     let span = rows[ih].time_s - rows[i0].time_s;
-    let live_mean_w = if span > 0.0 { (cum[ih] - cum[i0]) * 3600.0 / span } else { 0.0 };
+    let live_mean_w = if span > 0.0 {
+        (cum[ih] - cum[i0]) * 3600.0 / span
+    } else {
+        0.0
+    };
     let air_s = rows[i1].time_s - rows[i0].time_s;
-    let flight_mean_w = if air_s > 0.0 { (cum[i1] - cum[i0]) * 3600.0 / air_s } else { 0.0 };
+    let flight_mean_w = if air_s > 0.0 {
+        (cum[i1] - cum[i0]) * 3600.0 / air_s
+    } else {
+        0.0
+    };
     Ok(Prepared {
         flight: f.flight,
         route: f.route.clone(),
@@ -169,8 +211,15 @@ fn recent_scale(train: &[Prepared], mi: usize, ks: &Terms, flight: u32, k: usize
         before = train.iter().filter(|p| p.flight != flight).collect();
     }
     before.sort_by_key(|p| std::cmp::Reverse(p.flight));
-    let take = if k == 0 { before.len() } else { k.min(before.len()) };
-    let mut r: Vec<f64> = before[..take].iter().map(|p| p.measured_wh / phased_wh(p, mi, ks).max(1e-9)).collect();
+    let take = if k == 0 {
+        before.len()
+    } else {
+        k.min(before.len())
+    };
+    let mut r: Vec<f64> = before[..take]
+        .iter()
+        .map(|p| p.measured_wh / phased_wh(p, mi, ks).max(1e-9))
+        .collect();
     median(&mut r)
 }
 
@@ -191,7 +240,10 @@ fn phased_wh(p: &Prepared, mi: usize, ks: &Terms) -> f64 {
 /// training route climbs only vertically, so the training flights cannot tell the two
 /// apart on what matters for a new route (R7 climbs on slanted legs), and only the
 /// climbing work carries over. The choice is made on that physics, not on the test flights.
-pub const BASES: [(&str, &[Terms]); 1] = [("vertical work", &[[1.0, 1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0]])];
+pub const BASES: [(&str, &[Terms]); 1] = [(
+    "vertical work",
+    &[[1.0, 1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0]],
+)];
 
 /// Weights for model `mi`: least squares over the training flights' two halves (energy
 /// to the live point, energy after it), each relative to its measured energy, so the
@@ -251,7 +303,17 @@ fn fit_member(train: &[Prepared], mi: usize, rows: &[Terms]) -> Candidate {
     let ks = phase_weights(train, mi, rows);
     let mut best: (f64, usize, Vec<f64>) = (f64::INFINITY, 0, Vec::new());
     for &k in &RECENT_CHOICES {
-        let e: Vec<f64> = train.iter().map(|p| 100.0 * (p.measured_wh / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k)).max(1e-9) - 1.0).abs()).collect();
+        let e: Vec<f64> = train
+            .iter()
+            .map(|p| {
+                100.0
+                    * (p.measured_wh
+                        / (phased_wh(p, mi, &ks) * recent_scale(train, mi, &ks, p.flight, k))
+                            .max(1e-9)
+                        - 1.0)
+                        .abs()
+            })
+            .collect();
         let m = median(&mut e.clone());
         if m < best.0 {
             best = (m, k, e);
@@ -259,29 +321,68 @@ fn fit_member(train: &[Prepared], mi: usize, rows: &[Terms]) -> Candidate {
     }
     let (err, k, errors) = best;
     let latest = train.iter().map(|p| p.flight).max().unwrap_or(0) + 1;
-    let name = train.first().map_or(String::new(), |p| p.raw[mi].name.clone());
-    let member = Member { model: name, scale: recent_scale(train, mi, &ks, latest, k), recent_flights: k, phase_scale: [ks[0], ks[1], ks[2]], climb_work: [ks[3], ks[4]] };
-    Candidate { err, member, errors }
+    let name = train
+        .first()
+        .map_or(String::new(), |p| p.raw[mi].name.clone());
+    let member = Member {
+        model: name,
+        scale: recent_scale(train, mi, &ks, latest, k),
+        recent_flights: k,
+        phase_scale: [ks[0], ks[1], ks[2]],
+        climb_work: [ks[3], ks[4]],
+    };
+    Candidate {
+        err,
+        member,
+        errors,
+    }
 }
 
 /// Each member's scale for flight `flight`: fitted on the training flights before it.
 pub(crate) fn rolling_scales(train: &[Prepared], cal: &Calibration, flight: u32) -> Vec<f64> {
-    let index = |name: &str| train.first().and_then(|p| p.raw.iter().position(|m| m.name == name));
-    cal.members.iter().map(|c| index(&c.model).map_or(c.scale, |mi| recent_scale(train, mi, &c.weights(), flight, c.recent_flights))).collect()
+    let index = |name: &str| {
+        train
+            .first()
+            .and_then(|p| p.raw.iter().position(|m| m.name == name))
+    };
+    cal.members
+        .iter()
+        .map(|c| {
+            index(&c.model).map_or(c.scale, |mi| {
+                recent_scale(train, mi, &c.weights(), flight, c.recent_flights)
+            })
+        })
+        .collect()
 }
 
 /// The P90 ratio and live weight for `members`, from the training flights forecast with
 /// the members' rolling scales: the 90th percentile of measured over forecast, and the
 /// live weight of 0, ¼, ½, ¾, 1 with the smallest median live error.
 pub(crate) fn finish(train: &[Prepared], members: Vec<Member>) -> Calibration {
-    let mut cal = Calibration { members, p90_ratio: 1.0, live_weight: 0.0, vehicle_kg: VehicleProfile::m100().mass_kg(0.0) };
-    let scales: Vec<Vec<f64>> = train.iter().map(|p| rolling_scales(train, &cal, p.flight)).collect();
-    let mut res: Vec<f64> = train.iter().zip(&scales).map(|(p, sc)| p.measured_wh / score(p, &cal, sc, 0.0).p50_wh.max(1e-9)).collect();
+    let mut cal = Calibration {
+        members,
+        p90_ratio: 1.0,
+        live_weight: 0.0,
+        vehicle_kg: VehicleProfile::m100().mass_kg(0.0),
+    };
+    let scales: Vec<Vec<f64>> = train
+        .iter()
+        .map(|p| rolling_scales(train, &cal, p.flight))
+        .collect();
+    let mut res: Vec<f64> = train
+        .iter()
+        .zip(&scales)
+        .map(|(p, sc)| p.measured_wh / score(p, &cal, sc, 0.0).p50_wh.max(1e-9))
+        .collect();
     cal.p90_ratio = quantile(&mut res, 0.9).max(1.0);
     let mut best_w = (f64::INFINITY, 0.0);
     for w in [0.0, 0.25, 0.5, 0.75, 1.0] {
         cal.live_weight = w;
-        let mut e: Vec<f64> = train.iter().zip(&scales).map(|(p, sc)| score(p, &cal, sc, 0.0).live_err_pct).collect();
+        let mut e: Vec<f64> = train
+            .iter()
+            .zip(&scales)
+            .map(|(p, sc)| score(p, &cal, sc, 0.0).live_err_pct)
+            .collect();
         let m = median(&mut e);
         if m < best_w.0 {
             best_w = (m, w);
@@ -334,8 +435,14 @@ fn tie_share(e: &[f64], best: &[f64]) -> f64 {
 /// kinematics default) and says nothing of a route none of them flew, where models of
 /// different structure err differently; their mean hedges that.
 pub(crate) fn fit(train: &[Prepared]) -> Fitted {
-    let names: Vec<String> = train.first().map(|p| p.raw.iter().map(|m| m.name.clone()).collect()).unwrap_or_default();
-    let mut per_model: Vec<(String, f64, f64)> = names.iter().map(|n| (n.clone(), 0.0, f64::INFINITY)).collect();
+    let names: Vec<String> = train
+        .first()
+        .map(|p| p.raw.iter().map(|m| m.name.clone()).collect())
+        .unwrap_or_default();
+    let mut per_model: Vec<(String, f64, f64)> = names
+        .iter()
+        .map(|n| (n.clone(), 0.0, f64::INFINITY))
+        .collect();
     let mut per_basis = Vec::new();
     // (best error, basis, its candidates)
     let mut best: (f64, usize, Vec<Candidate>) = (f64::INFINITY, 0, Vec::new());
@@ -359,9 +466,23 @@ pub(crate) fn fit(train: &[Prepared]) -> Fitted {
     }
     let (_, bi, cands) = best;
     let lead = cands.first().map(|c| c.errors.clone()).unwrap_or_default();
-    let ties: Vec<(String, f64)> = cands.iter().map(|c| (c.member.model.clone(), tie_share(&c.errors, &lead))).collect();
-    let members: Vec<Member> = cands.into_iter().zip(&ties).filter(|(_, t)| t.1 >= TIE_SHARE).map(|(c, _)| c.member).collect();
-    Fitted { cal: finish(train, members), basis: BASES[bi].0.to_string(), per_model, per_basis, ties }
+    let ties: Vec<(String, f64)> = cands
+        .iter()
+        .map(|c| (c.member.model.clone(), tie_share(&c.errors, &lead)))
+        .collect();
+    let members: Vec<Member> = cands
+        .into_iter()
+        .zip(&ties)
+        .filter(|(_, t)| t.1 >= TIE_SHARE)
+        .map(|(c, _)| c.member)
+        .collect();
+    Fitted {
+        cal: finish(train, members),
+        basis: BASES[bi].0.to_string(),
+        per_model,
+        per_basis,
+        ties,
+    }
 }
 
 /// A model's member and its median and per-flight rolling errors (%), a candidate of [`fit`].

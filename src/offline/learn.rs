@@ -140,7 +140,10 @@ fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 .collect();
             v.sort();
             if v.is_empty() {
-                tracing::warn!("{}: no .tlog, .bin or .ulg file in this folder", p.display());
+                tracing::warn!(
+                    "{}: no .tlog, .bin or .ulg file in this folder",
+                    p.display()
+                );
             }
             out.extend(v);
         } else if !p.exists() {
@@ -148,21 +151,31 @@ fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
         } else if is_log(p) {
             out.push(p.clone());
         } else {
-            bail!("{}: learn reads .tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg logs", p.display());
+            bail!(
+                "{}: learn reads .tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg logs",
+                p.display()
+            );
         }
     }
     Ok(out)
 }
 
 fn is_log(p: &Path) -> bool {
-    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog")) || crate::source::dataflash::is_dataflash(p) || crate::source::ulog::is_ulog(p)
+    p.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("tlog"))
+        || crate::source::dataflash::is_dataflash(p)
+        || crate::source::ulog::is_ulog(p)
 }
 
 /// One log through the live ingest path: its windows, numbered `flight`.
 pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindows> {
     let stats = crate::source::IngestStats::default();
-    let messages = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("tlog")) {
-        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let messages = if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("tlog"))
+    {
+        let bytes =
+            std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
         crate::source::tlog::decode_tlog(&bytes, &stats)
     } else {
         crate::source::decode_autopilot_log(path, &stats)?
@@ -173,7 +186,11 @@ pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindo
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);
-    Ok(FlightWindows { flight, route: "log".into(), windows })
+    Ok(FlightWindows {
+        flight,
+        route: "log".into(),
+        windows,
+    })
 }
 
 /// Each model's scores on one held-out log, published and learned, by base name.
@@ -186,7 +203,12 @@ struct LogScore {
 /// Score the profile's physics models and the LSTM (`lstm`: a fine-tuned model folder, else
 /// the configured one, when it runs) on one log through the live chain, from the first
 /// window (no adaptation), by base name.
-fn score(cfg: &Config, profile: &VehicleProfile, lstm: Option<&Path>, f: &FlightWindows) -> Result<Vec<(String, Option<Scores>)>> {
+fn score(
+    cfg: &Config,
+    profile: &VehicleProfile,
+    lstm: Option<&Path>,
+    f: &FlightWindows,
+) -> Result<Vec<(String, Option<Scores>)>> {
     let mut models = physics::models(profile);
     let lstm = match lstm {
         Some(p) => Some(crate::model::lstm::LstmModel::load(p, &cfg.telemetry)?),
@@ -197,7 +219,15 @@ fn score(cfg: &Config, profile: &VehicleProfile, lstm: Option<&Path>, f: &Flight
     }
     let mut chain = Chain::new(cfg, Ensemble::new(models))?;
     let s = chain.run_flight(f)?;
-    Ok(s.names.iter().map(|n| n.trim_end_matches("_cal").trim_end_matches("_ft").to_string()).zip(s.scores(false)).collect())
+    Ok(s.names
+        .iter()
+        .map(|n| {
+            n.trim_end_matches("_cal")
+                .trim_end_matches("_ft")
+                .to_string()
+        })
+        .zip(s.scores(false))
+        .collect())
 }
 
 /// Run `dronewatt learn`.
@@ -213,43 +243,88 @@ pub fn run(args: LearnArgs) -> Result<()> {
     let fine_tuner = match (args.fine_tune, FINE_TUNER.get()) {
         (false, _) => None,
         (true, Some(f)) => Some(*f),
-        (true, None) => return Err(crate::model::NeedsLibtorch { what: "fine-tuning the LSTM (learn --fine-tune)".into() }.into()),
+        (true, None) => {
+            return Err(crate::model::NeedsLibtorch {
+                what: "fine-tuning the LSTM (learn --fine-tune)".into(),
+            }
+            .into())
+        }
     };
     if args.holdout_every < 2 {
-        bail!("--holdout-every {}: must be at least 2 (one log in N is held out)", args.holdout_every);
+        bail!(
+            "--holdout-every {}: must be at least 2 (one log in N is held out)",
+            args.holdout_every
+        );
     }
     let logs = collect_logs(&args.logs)?;
     if logs.len() < 2 {
-        bail!("{} log(s): learn needs at least 2 (whole logs are held out for the score)", logs.len());
+        bail!(
+            "{} log(s): learn needs at least 2 (whole logs are held out for the score)",
+            logs.len()
+        );
     }
     let mut flights = Vec::with_capacity(logs.len());
     for (i, p) in logs.iter().enumerate() {
         let f = log_windows(p, FIRST_LOG_NUMBER + i as u32, &cfg)?;
-        let n = f.windows.iter().filter(|w| w.last().measured_w.is_some_and(|m| in_flight(f64::from(m)))).count();
+        let n = f
+            .windows
+            .iter()
+            .filter(|w| w.last().measured_w.is_some_and(|m| in_flight(f64::from(m))))
+            .count();
         if n == 0 {
             tracing::warn!("{}: no in-flight window with measured power (over {IN_FLIGHT_W} W): it teaches nothing", p.display());
         }
         flights.push((p, f, n));
     }
-    let mut held: Vec<usize> = (0..flights.len()).filter(|i| (i + 1) % args.holdout_every == 0).collect();
+    let mut held: Vec<usize> = (0..flights.len())
+        .filter(|i| (i + 1) % args.holdout_every == 0)
+        .collect();
     if held.is_empty() {
         held.push(flights.len() - 1);
     }
-    let train: Vec<FlightWindows> = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (_, f, _))| f.clone()).collect();
-    let sums: Vec<String> = logs.iter().map(|p| crate::offline::data::sha256_file(p)).collect::<Result<_>>()?;
-    let (learned, fit_report) = super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
+    let train: Vec<FlightWindows> = flights
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !held.contains(i))
+        .map(|(_, (_, f, _))| f.clone())
+        .collect();
+    let sums: Vec<String> = logs
+        .iter()
+        .map(|p| crate::offline::data::sha256_file(p))
+        .collect::<Result<_>>()?;
+    let (learned, fit_report) =
+        super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create", args.out.display()))?;
 
     // The LSTM fine-tuned from the shipped weights, early-stopping on the held-out logs.
     let mut learned = learned;
     let mut tuned = None;
     if let Some(fine_tune) = fine_tuner {
-        let shipped = crate::model::lstm::resolve_model_path(cfg.models.lstm.path.as_deref()).context("no LSTM model to fine-tune from")?;
+        let shipped = crate::model::lstm::resolve_model_path(cfg.models.lstm.path.as_deref())
+            .context("no LSTM model to fine-tune from")?;
         let held_windows: Vec<FlightWindows> = held.iter().map(|&i| flights[i].1.clone()).collect();
         let out = args.out.join("lstm");
-        std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
-        let train_logs = flights.iter().enumerate().filter(|(i, _)| !held.contains(i)).map(|(_, (p, _, _))| p.display().to_string()).collect();
-        let job = FineTuneJob { base: &shipped, train: &train, held_out: &held_windows, out: &out, epochs: args.ft_epochs, max_steps: args.ft_max_steps, lr: args.ft_lr, patience: args.ft_patience, dropout: args.ft_dropout, logs: train_logs };
+        std::fs::create_dir_all(&out)
+            .with_context(|| format!("{}: cannot create", out.display()))?;
+        let train_logs = flights
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !held.contains(i))
+            .map(|(_, (p, _, _))| p.display().to_string())
+            .collect();
+        let job = FineTuneJob {
+            base: &shipped,
+            train: &train,
+            held_out: &held_windows,
+            out: &out,
+            epochs: args.ft_epochs,
+            max_steps: args.ft_max_steps,
+            lr: args.ft_lr,
+            patience: args.ft_patience,
+            dropout: args.ft_dropout,
+            logs: train_logs,
+        };
         let done = fine_tune(&job)?;
         tracing::info!(
             "LSTM fine-tuned: {} epoch(s), kept epoch {}, held-out MAE {:.1} → {:.1} W",
@@ -271,7 +346,11 @@ pub fn run(args: LearnArgs) -> Result<()> {
             let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
             (name, b, a)
         });
-        scores.push(LogScore { log: p.display().to_string(), in_flight_windows: *n, rows: rows.collect() });
+        scores.push(LogScore {
+            log: p.display().to_string(),
+            in_flight_windows: *n,
+            rows: rows.collect(),
+        });
     }
 
     // The forecast model: the lowest mean held-out MAPE of the learned models.
@@ -284,7 +363,10 @@ pub fn run(args: LearnArgs) -> Result<()> {
         };
         learned.forecast = Some(crate::model::profile::ForecastDefault {
             model,
-            why: format!("lowest held-out MAPE of `dronewatt learn`, {mape:.1} % over {} log(s)", held.len()),
+            why: format!(
+                "lowest held-out MAPE of `dronewatt learn`, {mape:.1} % over {} log(s)",
+                held.len()
+            ),
         });
     }
 
@@ -298,23 +380,44 @@ pub fn run(args: LearnArgs) -> Result<()> {
     );
     text.push_str("# Training RMSE, W (published → learned):\n");
     for r in &fit_report {
-        text.push_str(&format!("#   {:<18} {:>8.1} → {:>6.1}\n", r.model, r.rmse_before_w, r.rmse_after_w));
+        text.push_str(&format!(
+            "#   {:<18} {:>8.1} → {:>6.1}\n",
+            r.model, r.rmse_before_w, r.rmse_after_w
+        ));
     }
     text.push_str(&toml::to_string(&learned).context("cannot serialise the learned profile")?);
-    std::fs::write(&profile_path, text).with_context(|| format!("{}: cannot write", profile_path.display()))?;
+    std::fs::write(&profile_path, text)
+        .with_context(|| format!("{}: cannot write", profile_path.display()))?;
     let card_path = args.out.join("model-card.md");
-    let mut card = model_card(&base, &logs, &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(), &held, &scores, tuned.as_ref().map(|(_, t)| t));
+    let mut card = model_card(
+        &base,
+        &logs,
+        &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(),
+        &held,
+        &scores,
+        tuned.as_ref().map(|(_, t)| t),
+    );
     if let Some(f) = &learned.forecast {
         card += &format!("\n## Forecast model\n\n`{}`: {} (written to the profile's `[forecast]`; `[energy] model` in the config overrides it, and online selection may still move it on the vehicle's own evidence).\n", f.model, f.why);
     }
-    std::fs::write(&card_path, &card).with_context(|| format!("{}: cannot write", card_path.display()))?;
+    std::fs::write(&card_path, &card)
+        .with_context(|| format!("{}: cannot write", card_path.display()))?;
     print!("{}", held_out_table(&scores));
     if let Some(f) = &learned.forecast {
         println!("forecast model: {} ({})", f.model, f.why);
     }
-    println!("wrote {} and {}", profile_path.display(), card_path.display());
+    println!(
+        "wrote {} and {}",
+        profile_path.display(),
+        card_path.display()
+    );
     if let Some(dir) = crate::vehicle::store::data_dir_from_env(args.data_dir.as_deref()) {
-        remember_profile(&dir, &logs, &profile_path, learned.forecast.as_ref().map(|f| f.model.as_str()));
+        remember_profile(
+            &dir,
+            &logs,
+            &profile_path,
+            learned.forecast.as_ref().map(|f| f.model.as_str()),
+        );
     }
     Ok(())
 }
@@ -329,7 +432,13 @@ fn pick_forecast(scores: &[LogScore]) -> Option<(String, f64)> {
         .filter_map(|(name, _, _)| {
             let per_log: Option<Vec<f64>> = scores
                 .iter()
-                .map(|l| l.rows.iter().find(|(n, _, _)| n == name).and_then(|(_, _, a)| a.map(|a| a.mape_pct)).filter(|v| v.is_finite()))
+                .map(|l| {
+                    l.rows
+                        .iter()
+                        .find(|(n, _, _)| n == name)
+                        .and_then(|(_, _, a)| a.map(|a| a.mape_pct))
+                        .filter(|v| v.is_finite())
+                })
                 .collect();
             let v = per_log?;
             Some((name.clone(), v.iter().sum::<f64>() / v.len() as f64))
@@ -344,14 +453,19 @@ fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model
     let profile = std::fs::canonicalize(profile).unwrap_or_else(|_| profile.to_path_buf());
     let mut ids: Vec<crate::vehicle::params::Identity> = Vec::new();
     for p in logs {
-        let Ok(bytes) = std::fs::read(p) else { continue };
+        let Ok(bytes) = std::fs::read(p) else {
+            continue;
+        };
         let stats = crate::source::IngestStats::default();
         let mut reader = crate::vehicle::params::ParamReader::passive();
         for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
             reader.on_message(&m);
         }
         if let Some(id) = reader.params().identity {
-            if !ids.iter().any(|i| crate::vehicle::store::VehicleKey::of(i) == crate::vehicle::store::VehicleKey::of(&id)) {
+            if !ids.iter().any(|i| {
+                crate::vehicle::store::VehicleKey::of(i)
+                    == crate::vehicle::store::VehicleKey::of(&id)
+            }) {
                 ids.push(id);
             }
         }
@@ -361,7 +475,10 @@ fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model
         return;
     }
     if ids.len() > 1 {
-        tracing::warn!("vehicle store: the logs come from {} vehicles; the profile is kept for each", ids.len());
+        tracing::warn!(
+            "vehicle store: the logs come from {} vehicles; the profile is kept for each",
+            ids.len()
+        );
     }
     for id in &ids {
         crate::vehicle::store::remember_profile(dir, id, &profile, forecast_model);
@@ -371,7 +488,10 @@ fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model
 fn held_out_table(scores: &[LogScore]) -> String {
     let mut s = String::new();
     for l in scores {
-        s += &format!("held out: {} ({} in-flight windows)\n", l.log, l.in_flight_windows);
+        s += &format!(
+            "held out: {} ({} in-flight windows)\n",
+            l.log, l.in_flight_windows
+        );
         s += "| model | MAPE % published | MAPE % learned | energy % published | energy % learned |\n|---|---|---|---|---|\n";
         for (name, b, a) in &l.rows {
             let f = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
@@ -387,12 +507,28 @@ fn held_out_table(scores: &[LogScore]) -> String {
     s
 }
 
-fn model_card(base: &VehicleProfile, logs: &[PathBuf], in_flight: &[usize], held: &[usize], scores: &[LogScore], tuned: Option<&FineTuned>) -> String {
+fn model_card(
+    base: &VehicleProfile,
+    logs: &[PathBuf],
+    in_flight: &[usize],
+    held: &[usize],
+    scores: &[LogScore],
+    tuned: Option<&FineTuned>,
+) -> String {
     let mut s = String::from("# Model card: physics models learned by `dronewatt learn`\n\n");
     s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt calibrate`) fitted by bounded least squares on the in-flight windows (measured power over {IN_FLIGHT_W} W) of the training logs.\n\n", base.name);
     s += "## Learned from\n\n| log | in-flight windows | role |\n|---|---|---|\n";
     for (i, p) in logs.iter().enumerate() {
-        s += &format!("| {} | {} | {} |\n", p.display(), in_flight[i], if held.contains(&i) { "held out (score)" } else { "training" });
+        s += &format!(
+            "| {} | {} | {} |\n",
+            p.display(),
+            in_flight[i],
+            if held.contains(&i) {
+                "held out (score)"
+            } else {
+                "training"
+            }
+        );
     }
     s += "\n## Inputs\n\nWhat the live link must deliver, as for every physics model: position and velocity (GLOBAL_POSITION_INT or LOCAL_POSITION_NED), attitude (ATTITUDE), acceleration (RAW_IMU/SCALED_IMU/HIGHRES_IMU or attitude), wind where sent (WIND, else none), and for the score and for adaptation the battery's voltage and current (SYS_STATUS or BATTERY_STATUS). No motor outputs, ESC telemetry or throttle.\n\n";
     s += "## Held-out score (whole logs, through the live chain)\n\n";
@@ -425,24 +561,49 @@ mod tests {
         // A .ulg that is not ULog is taken, and reading it is an error naming it.
         let ulg = dir.path().join("log_1.ulg");
         std::fs::write(&ulg, b"x").unwrap();
-        let err = format!("{:#}", log_windows(&ulg, 1, &Config::default()).unwrap_err());
-        assert!(err.contains("log_1.ulg") && err.contains("not a readable PX4 ULog"), "{err}");
+        let err = format!(
+            "{:#}",
+            log_windows(&ulg, 1, &Config::default()).unwrap_err()
+        );
+        assert!(
+            err.contains("log_1.ulg") && err.contains("not a readable PX4 ULog"),
+            "{err}"
+        );
         let txt = dir.path().join("notes.txt");
         std::fs::write(&txt, b"x").unwrap();
         let err = collect_logs(&[txt]).unwrap_err().to_string();
-        assert!(err.contains("notes.txt") && err.contains(".tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg"), "{err}");
-        assert!(collect_logs(&[dir.path().join("missing.tlog")]).unwrap_err().to_string().contains("no such file"));
+        assert!(
+            err.contains("notes.txt")
+                && err.contains(".tlog, ArduPilot DataFlash .bin and PX4 ULog .ulg"),
+            "{err}"
+        );
+        assert!(collect_logs(&[dir.path().join("missing.tlog")])
+            .unwrap_err()
+            .to_string()
+            .contains("no such file"));
         // A .bin that is not DataFlash is taken, and reading it is an error naming it.
         let bin = dir.path().join("00000001.BIN");
         std::fs::write(&bin, b"not a log").unwrap();
-        let err = format!("{:#}", log_windows(&bin, 1, &Config::default()).unwrap_err());
-        assert!(err.contains("00000001.BIN") && err.contains("not an ArduPilot DataFlash log"), "{err}");
+        let err = format!(
+            "{:#}",
+            log_windows(&bin, 1, &Config::default()).unwrap_err()
+        );
+        assert!(
+            err.contains("00000001.BIN") && err.contains("not an ArduPilot DataFlash log"),
+            "{err}"
+        );
         // A folder: its .tlog and .bin files in name order, the rest skipped.
         for n in ["b.tlog", "a.TLOG", "c.ulg"] {
             std::fs::write(dir.path().join(n), b"").unwrap();
         }
         let got = collect_logs(&[dir.path().to_path_buf()]).unwrap();
-        let names: Vec<_> = got.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-        assert_eq!(names, ["00000001.BIN", "a.TLOG", "b.tlog", "c.ulg", "log_1.ulg"]);
+        let names: Vec<_> = got
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            ["00000001.BIN", "a.TLOG", "b.tlog", "c.ulg", "log_1.ulg"]
+        );
     }
 }

@@ -80,10 +80,19 @@ pub fn score(s: &Aligned) -> Option<Scores> {
 /// scored window from the scored window just before it (none across an unscored one).
 pub fn score_over(s: &Aligned, all_windows: bool) -> Option<Scores> {
     let (measured, pred) = (s.measured_w, s.pred_w);
-    let finite = |i: usize| measured[i].is_finite() && pred[i].is_finite() && s.measured_wh[i].is_finite() && s.pred_wh[i].is_finite();
+    let finite = |i: usize| {
+        measured[i].is_finite()
+            && pred[i].is_finite()
+            && s.measured_wh[i].is_finite()
+            && s.pred_wh[i].is_finite()
+    };
     let flying = |i: usize| finite(i) && in_flight(measured[i]);
     let ok = |i: usize| if all_windows { finite(i) } else { flying(i) };
-    let n = measured.len().min(pred.len()).min(s.measured_wh.len()).min(s.pred_wh.len());
+    let n = measured
+        .len()
+        .min(pred.len())
+        .min(s.measured_wh.len())
+        .min(s.pred_wh.len());
     let (mut n_all, mut abs, mut sq, mut pct, mut n_pct) = (0usize, 0.0, 0.0, 0.0, 0usize);
     let (mut e_meas, mut e_pred) = (0.0, 0.0);
     for i in (0..n).filter(|&i| ok(i)) {
@@ -109,7 +118,11 @@ pub fn score_over(s: &Aligned, all_windows: bool) -> Option<Scores> {
         rmse_w: mse.sqrt(),
         mse_w2: mse,
         mape_pct: 100.0 * pct / n_pct as f64,
-        energy_err_pct: if e_meas > 0.0 { 100.0 * (e_pred - e_meas).abs() / e_meas } else { f64::NAN },
+        energy_err_pct: if e_meas > 0.0 {
+            100.0 * (e_pred - e_meas).abs() / e_meas
+        } else {
+            f64::NAN
+        },
         windows: n_all,
         in_flight_windows: n_pct,
     })
@@ -123,12 +136,24 @@ pub fn pooled(scores: &[Scores]) -> Option<Scores> {
     if n == 0 || n_pct == 0 {
         return None;
     }
-    let mse = scores.iter().map(|s| s.mse_w2 * s.windows as f64).sum::<f64>() / n as f64;
+    let mse = scores
+        .iter()
+        .map(|s| s.mse_w2 * s.windows as f64)
+        .sum::<f64>()
+        / n as f64;
     Some(Scores {
-        mae_w: scores.iter().map(|s| s.mae_w * s.windows as f64).sum::<f64>() / n as f64,
+        mae_w: scores
+            .iter()
+            .map(|s| s.mae_w * s.windows as f64)
+            .sum::<f64>()
+            / n as f64,
         rmse_w: mse.sqrt(),
         mse_w2: mse,
-        mape_pct: scores.iter().map(|s| s.mape_pct * s.in_flight_windows as f64).sum::<f64>() / n_pct as f64,
+        mape_pct: scores
+            .iter()
+            .map(|s| s.mape_pct * s.in_flight_windows as f64)
+            .sum::<f64>()
+            / n_pct as f64,
         energy_err_pct: mean(scores)?.energy_err_pct,
         windows: n,
         in_flight_windows: n_pct,
@@ -181,7 +206,12 @@ mod tests {
         let p = [460.0, 180.0, 330.0, 400.0];
         let (mw, pw) = (used_wh(&t, &m), used_wh(&t, &p));
         fn series<'a>(m: &'a [f64], p: &'a [f64], mw: &'a [f64], pw: &'a [f64]) -> Aligned<'a> {
-            Aligned { measured_w: m, pred_w: p, measured_wh: mw, pred_wh: pw }
+            Aligned {
+                measured_w: m,
+                pred_w: p,
+                measured_wh: mw,
+                pred_wh: pw,
+            }
         }
         let s = score(&series(&m, &p, &mw, &pw)).unwrap();
         assert!((s.mae_w - 50.0 / 3.0).abs() < 1e-12);
@@ -199,16 +229,48 @@ mod tests {
         assert!((a.mape_pct - s.mape_pct).abs() < 1e-12);
         // ∫meas = 125 + 600 = 725 W·s; ∫pred = 320 + 620 = 940.
         assert!((a.energy_err_pct - 100.0 * 215.0 / 725.0).abs() < 1e-9);
-        let m2 = mean(&[s, Scores { mae_w: 5.0, mape_pct: f64::NAN, ..s }]).unwrap();
-        assert!((m2.mae_w - (50.0 / 3.0 + 5.0) / 2.0).abs() < 1e-12 && (m2.mape_pct - s.mape_pct).abs() < 1e-12);
+        let m2 = mean(&[
+            s,
+            Scores {
+                mae_w: 5.0,
+                mape_pct: f64::NAN,
+                ..s
+            },
+        ])
+        .unwrap();
+        assert!(
+            (m2.mae_w - (50.0 / 3.0 + 5.0) / 2.0).abs() < 1e-12
+                && (m2.mape_pct - s.mape_pct).abs() < 1e-12
+        );
     }
 
     #[test]
     fn the_threshold_is_strict_and_pooling_weights_by_windows() {
-        assert!(!in_flight(IN_FLIGHT_W) && in_flight(IN_FLIGHT_W + 0.01) && !in_flight(f64::NAN) && !in_flight(f64::INFINITY));
+        assert!(
+            !in_flight(IN_FLIGHT_W)
+                && in_flight(IN_FLIGHT_W + 0.01)
+                && !in_flight(f64::NAN)
+                && !in_flight(f64::INFINITY)
+        );
         // Two flights: 1 window with error 10 W, 3 windows with error 2 W.
-        let a = Scores { mae_w: 10.0, rmse_w: 10.0, mse_w2: 100.0, mape_pct: 5.0, energy_err_pct: 1.0, windows: 1, in_flight_windows: 1 };
-        let b = Scores { mae_w: 2.0, rmse_w: 2.0, mse_w2: 4.0, mape_pct: 1.0, energy_err_pct: 3.0, windows: 3, in_flight_windows: 3 };
+        let a = Scores {
+            mae_w: 10.0,
+            rmse_w: 10.0,
+            mse_w2: 100.0,
+            mape_pct: 5.0,
+            energy_err_pct: 1.0,
+            windows: 1,
+            in_flight_windows: 1,
+        };
+        let b = Scores {
+            mae_w: 2.0,
+            rmse_w: 2.0,
+            mse_w2: 4.0,
+            mape_pct: 1.0,
+            energy_err_pct: 3.0,
+            windows: 3,
+            in_flight_windows: 3,
+        };
         let p = pooled(&[a, b]).unwrap();
         assert!((p.mae_w - 16.0 / 4.0).abs() < 1e-12 && (p.mse_w2 - 112.0 / 4.0).abs() < 1e-12);
         assert!((p.mape_pct - 8.0 / 4.0).abs() < 1e-12 && (p.energy_err_pct - 2.0).abs() < 1e-12);

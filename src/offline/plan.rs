@@ -46,7 +46,11 @@ pub struct PlanArgs {
     pub config: Option<PathBuf>,
     /// Calibrated vehicle profile for the `<model>_cal` physics models (the default forecast
     /// model is one). Skipped with a warning when missing.
-    #[arg(long, value_name = "FILE", default_value = "config/vehicles/m100-calibrated.toml")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "config/vehicles/m100-calibrated.toml"
+    )]
     pub calibrated: PathBuf,
     /// Write the forecast as JSON to PATH, or to standard output with '-' (then no table).
     #[arg(long, value_name = "PATH|-")]
@@ -63,11 +67,17 @@ pub(crate) fn load_config(path: Option<&Path>) -> anyhow::Result<Config> {
     })
 }
 
-pub(crate) fn models_for(cfg: &Config, calibrated: &Path) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
+pub(crate) fn models_for(
+    cfg: &Config,
+    calibrated: &Path,
+) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
     let cal = if calibrated.exists() {
         Some(VehicleProfile::load(calibrated)?)
     } else {
-        tracing::warn!("{}: no calibrated profile; only the published physics parameters run", calibrated.display());
+        tracing::warn!(
+            "{}: no calibrated profile; only the published physics parameters run",
+            calibrated.display()
+        );
         None
     };
     crate::offline::eval::eval_models(cfg, cal.as_ref())
@@ -121,8 +131,14 @@ struct PackForecast {
 }
 
 /// The vehicle `--vehicle` names: a built-in, a file, or a key in the vehicle store.
-fn resolve_vehicle(name: &str, data_dir: Option<&Path>) -> anyhow::Result<(VehicleProfile, Option<PathBuf>)> {
-    if crate::model::profile::BUILT_IN.iter().any(|(n, _)| *n == name) {
+fn resolve_vehicle(
+    name: &str,
+    data_dir: Option<&Path>,
+) -> anyhow::Result<(VehicleProfile, Option<PathBuf>)> {
+    if crate::model::profile::BUILT_IN
+        .iter()
+        .any(|(n, _)| *n == name)
+    {
         return Ok((VehicleProfile::named_or_file(name)?, None));
     }
     let path = Path::new(name);
@@ -140,7 +156,10 @@ fn resolve_vehicle(name: &str, data_dir: Option<&Path>) -> anyhow::Result<(Vehic
             }
         }
     }
-    let names: Vec<&str> = crate::model::profile::BUILT_IN.iter().map(|b| b.0).collect();
+    let names: Vec<&str> = crate::model::profile::BUILT_IN
+        .iter()
+        .map(|b| b.0)
+        .collect();
     anyhow::bail!("vehicle '{name}': neither a built-in profile ({}), nor a file, nor a vehicle in the store (`dronewatt vehicles` lists them)", names.join(", "))
 }
 
@@ -159,7 +178,10 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     }
     let is_m100 = profile.name == VehicleProfile::m100().name;
     let plan = Plan::load(&a.file)?;
-    let payload_g = a.payload_g.or(cfg.mission.payload_g.map(f64::from)).unwrap_or(0.0);
+    let payload_g = a
+        .payload_g
+        .or(cfg.mission.payload_g.map(f64::from))
+        .unwrap_or(0.0);
     if !(payload_g.is_finite() && payload_g >= 0.0) {
         anyhow::bail!("--payload-g {payload_g}: must be ≥ 0");
     }
@@ -168,35 +190,65 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             anyhow::bail!("--speed {s}: must be > 0 m/s");
         }
     }
-    let cond = Conditions { wind: a.wind.unwrap_or_default(), payload_g, speed_m_s: a.speed, rate_hz: cfg.telemetry.rate_hz };
+    let cond = Conditions {
+        wind: a.wind.unwrap_or_default(),
+        payload_g,
+        speed_m_s: a.speed,
+        rate_hz: cfg.telemetry.rate_hz,
+    };
     let tr = fly(&plan, &cfg.forecast.kinematics, &cond);
     if tr.samples.is_empty() {
-        anyhow::bail!("{}: the plan flies nowhere (no take-off, no waypoint)", a.file.display());
+        anyhow::bail!(
+            "{}: the plan flies nowhere (no take-off, no waypoint)",
+            a.file.display()
+        );
     }
     // The forecast is the vehicle's own: the M100 with its calibrated models and fitted
     // correction; another vehicle with its learned forecast model, else the mean of its own
     // physics models uncorrected, the P90 widened (the M100's correction is not its).
     let (mut models, calibration, forecast_from) = if is_m100 {
-        (models_for(&cfg, &a.calibrated)?, cfg.forecast.calibration.clone(), "the M100's calibrated models and fitted correction".to_string())
+        (
+            models_for(&cfg, &a.calibrated)?,
+            cfg.forecast.calibration.clone(),
+            "the M100's calibrated models and fitted correction".to_string(),
+        )
     } else {
         let models = match &profile_path {
             Some(p) => crate::model::build_models(&cfg.models, Some(p), &cfg.telemetry)?,
             None => crate::model::physics::models(&profile),
         };
-        match profile.forecast.as_ref().filter(|f| models.iter().any(|m| m.name() == f.model)) {
+        match profile
+            .forecast
+            .as_ref()
+            .filter(|f| models.iter().any(|m| m.name() == f.model))
+        {
             Some(fd) => {
                 let mut c = crate::mission::forecast::Calibration::uncorrected(&fd.model);
                 c.p90_ratio = OWN_MODEL_P90;
-                (models, c, format!("{}'s learned forecast model {} (uncorrected; P90 = {OWN_MODEL_P90} × P50)", profile.name, fd.model))
+                (
+                    models,
+                    c,
+                    format!(
+                        "{}'s learned forecast model {} (uncorrected; P90 = {OWN_MODEL_P90} × P50)",
+                        profile.name, fd.model
+                    ),
+                )
             }
             None => {
-                let names: Vec<String> = models.iter().map(|m| m.name().to_string()).filter(|n| PUBLISHED.contains(&n.as_str())).collect();
+                let names: Vec<String> = models
+                    .iter()
+                    .map(|m| m.name().to_string())
+                    .filter(|n| PUBLISHED.contains(&n.as_str()))
+                    .collect();
                 tracing::warn!(
                     "only the M100's forecast calibration exists; {} flies on its own published physics models, uncorrected, with the P90 widened to {UNCALIBRATED_P90} × P50",
                     profile.name
                 );
                 let c = crate::mission::forecast::Calibration {
-                    members: names.iter().map(|n| crate::mission::forecast::Member::of(n)).collect(),
+                    members: names
+                        .iter()
+                        .map(|n| crate::mission::forecast::Member::of(n))
+                        .collect(),
                     p90_ratio: UNCALIBRATED_P90,
                     live_weight: 0.0,
                     vehicle_kg: profile.vehicle.airframe_kg + profile.vehicle.battery_kg,
@@ -205,26 +257,46 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             }
         }
     };
-    let f = forecast(&tr, &mut models, &calibration, cfg.telemetry.window, crate::mission::MODEL_STRIDE);
+    let f = forecast(
+        &tr,
+        &mut models,
+        &calibration,
+        cfg.telemetry.window,
+        crate::mission::MODEL_STRIDE,
+    );
     let wanted = calibration.name();
     if f.model != wanted {
-        tracing::warn!("forecast models {wanted:?} did not all run; the P50 follows {:?}", f.model);
+        tracing::warn!(
+            "forecast models {wanted:?} did not all run; the P50 follows {:?}",
+            f.model
+        );
     }
     // Offline no vehicle answers: the configured pack, else the profile's, else the default.
     let mut battery_cfg = cfg.energy.battery();
     if let (false, Some(b)) = (is_m100, profile.battery.as_ref()) {
         battery_cfg.cell_count = battery_cfg.cell_count.or(Some(b.cells));
         if battery_cfg.capacity_wh.is_none() {
-            battery_cfg.capacity_wh = Some(b.capacity_mah / 1000.0 * f64::from(b.cells) * battery_cfg.chemistry.unwrap_or(crate::battery::Chemistry::LiPo).nominal_v());
+            battery_cfg.capacity_wh = Some(
+                b.capacity_mah / 1000.0
+                    * f64::from(b.cells)
+                    * battery_cfg
+                        .chemistry
+                        .unwrap_or(crate::battery::Chemistry::LiPo)
+                        .nominal_v(),
+            );
         }
     }
     let mut battery = crate::vehicle::battery_from_config(&battery_cfg);
     if !is_m100 && cfg.energy.capacity_wh.is_none() && profile.battery.is_some() {
-        battery.capacity_wh.source = crate::vehicle::Provenance::Parameter(format!("{} profile [battery]", profile.name));
+        battery.capacity_wh.source =
+            crate::vehicle::Provenance::Parameter(format!("{} profile [battery]", profile.name));
     }
     let capacity_wh = battery.capacity_wh.value;
     if battery.capacity_wh.source != crate::vehicle::Provenance::Config {
-        tracing::info!("capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack", battery.capacity_wh.source);
+        tracing::info!(
+            "capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack",
+            battery.capacity_wh.source
+        );
     }
     let pack = match a.battery_v {
         Some(v) => Some(pack_forecast(v, &battery, &f, &tr)?),
@@ -233,20 +305,31 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     // With a start state, the margins are over what the pack holds now.
     let (start_wh, reserve_of) = match &pack {
         Some(p) => {
-            let full = crate::energy::pack::pack_model(&battery).map_or(capacity_wh, |(c, _)| c.capacity());
+            let full = crate::energy::pack::pack_model(&battery)
+                .map_or(capacity_wh, |(c, _)| c.capacity());
             (p.start_wh, full)
         }
         None => (capacity_wh, capacity_wh),
     };
     let reserve_wh = reserve_of * cfg.energy.reserve_pct / 100.0;
-    let (m50, m90) = (start_wh - f.energy_p50_wh - reserve_wh, start_wh - f.energy_p90_wh - reserve_wh);
-    let speed_m_s = a.speed.or(plan.hover_speed_m_s).unwrap_or(cfg.forecast.kinematics.default_speed_m_s);
+    let (m50, m90) = (
+        start_wh - f.energy_p50_wh - reserve_wh,
+        start_wh - f.energy_p90_wh - reserve_wh,
+    );
+    let speed_m_s = a
+        .speed
+        .or(plan.hover_speed_m_s)
+        .unwrap_or(cfg.forecast.kinematics.default_speed_m_s);
     let report = PlanReport {
         plan: &plan.source,
         vehicle: profile.name.clone(),
         forecast_from,
         items: plan.items.len(),
-        not_modelled: plan.not_modelled().iter().map(|i| format!("item {} ({}): MAV_CMD {}", i.index, i.origin, i.command)).collect(),
+        not_modelled: plan
+            .not_modelled()
+            .iter()
+            .map(|i| format!("item {} ({}): MAV_CMD {}", i.index, i.origin, i.command))
+            .collect(),
         terrain_frame_items: plan.terrain_items().iter().map(|i| i.index).collect(),
         speed_m_s,
         payload_g,
@@ -259,7 +342,14 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         forecast: &f,
     };
     if let Some(png) = &a.plot {
-        plot_plan(png, &plan.source, &tr, &f, capacity_wh, cfg.energy.reserve_pct)?;
+        plot_plan(
+            png,
+            &plan.source,
+            &tr,
+            &f,
+            capacity_wh,
+            cfg.energy.reserve_pct,
+        )?;
     }
     publish(a.json.as_deref(), &report, || plan_table(&report))
 }
@@ -269,14 +359,27 @@ const OWN_MODEL_P90: f64 = 1.15;
 /// P90 ratio of a vehicle flown on published physics models no one calibrated for it.
 const UNCALIBRATED_P90: f64 = 1.3;
 /// The published physics models (the `_cal` ones are the M100's).
-const PUBLISHED: [&str; 5] = ["dandrea", "dorling", "kirschstein", "stolaroff", "tseng_solo"];
+const PUBLISHED: [&str; 5] = [
+    "dandrea",
+    "dorling",
+    "kirschstein",
+    "stolaroff",
+    "tseng_solo",
+];
 
 /// The pack flown along the plan at the forecast's P50 power, from a resting voltage.
-fn pack_forecast(rest_v: f64, battery: &crate::report::BatteryFacts, f: &MissionForecast, tr: &Trajectory) -> anyhow::Result<PackForecast> {
+fn pack_forecast(
+    rest_v: f64,
+    battery: &crate::report::BatteryFacts,
+    f: &MissionForecast,
+    tr: &Trajectory,
+) -> anyhow::Result<PackForecast> {
     let cells = battery.cell_count.value;
     let per_cell = rest_v / f64::from(cells);
-    let chem = crate::battery::Chemistry::from_name(&battery.chemistry.value).unwrap_or(crate::battery::Chemistry::LiPo);
-    if !(rest_v.is_finite() && per_cell >= chem.floor_v() - 0.3 && per_cell <= chem.full_v() + 0.1) {
+    let chem = crate::battery::Chemistry::from_name(&battery.chemistry.value)
+        .unwrap_or(crate::battery::Chemistry::LiPo);
+    if !(rest_v.is_finite() && per_cell >= chem.floor_v() - 0.3 && per_cell <= chem.full_v() + 0.1)
+    {
         anyhow::bail!(
             "--battery-v {rest_v}: {per_cell:.2} V a cell is not a resting {} voltage for {cells} cells ({:.2}-{:.2} V a cell); set [energy] cell_count / chemistry for this pack",
             battery.chemistry.value,
@@ -284,8 +387,10 @@ fn pack_forecast(rest_v: f64, battery: &crate::report::BatteryFacts, f: &Mission
             chem.full_v()
         );
     }
-    let (curve, params) = crate::energy::pack::pack_model(battery).context("no pack model for this battery")?;
-    let est = crate::battery::Estimator::new(params, curve.clone(), rest_v, 0.0).context("--battery-v: no pack state from this voltage")?;
+    let (curve, params) =
+        crate::energy::pack::pack_model(battery).context("no pack model for this battery")?;
+    let est = crate::battery::Estimator::new(params, curve.clone(), rest_v, 0.0)
+        .context("--battery-v: no pack state from this voltage")?;
     let mut prev = 0.0;
     let profile: Vec<(f64, f64)> = f
         .cum_p50_wh
@@ -298,10 +403,17 @@ fn pack_forecast(rest_v: f64, battery: &crate::report::BatteryFacts, f: &Mission
         .collect();
     let (low_v, low_source) = match &battery.low_voltage_v {
         Some(l) => (l.value, l.source.to_string()),
-        None => (crate::energy::pack::DEFAULT_LOW_V_CELL * f64::from(cells), format!("{} V a cell", crate::energy::pack::DEFAULT_LOW_V_CELL)),
+        None => (
+            crate::energy::pack::DEFAULT_LOW_V_CELL * f64::from(cells),
+            format!("{} V a cell", crate::energy::pack::DEFAULT_LOW_V_CELL),
+        ),
     };
     let fc = crate::battery::forecast(&est, &profile, &[low_v]);
-    let v_min_leg = tr.legs.iter().find(|l| l.t_end_s >= fc.t_v_min).map(|l| l.label.clone());
+    let v_min_leg = tr
+        .legs
+        .iter()
+        .find(|l| l.t_end_s >= fc.t_v_min)
+        .map(|l| l.label.clone());
     Ok(PackForecast {
         rest_v,
         cells,
@@ -323,14 +435,39 @@ fn plan_table(r: &PlanReport) -> String {
     use std::fmt::Write;
     let f = r.forecast;
     let mut s = String::new();
-    let _ = writeln!(s, "{}: {} items, {:.1} m/s, payload {:.0} g, wind {:.1} m/s from {:.0}°", r.plan, r.items, r.speed_m_s, r.payload_g, r.wind.speed_m_s, r.wind.from_deg);
+    let _ = writeln!(
+        s,
+        "{}: {} items, {:.1} m/s, payload {:.0} g, wind {:.1} m/s from {:.0}°",
+        r.plan, r.items, r.speed_m_s, r.payload_g, r.wind.speed_m_s, r.wind.from_deg
+    );
     let _ = writeln!(s, "vehicle: {}; forecast: {}", r.vehicle, r.forecast_from);
-    let _ = writeln!(s, "P50: {} (P90 = {:.3} × P50)", if f.model.contains(" + ") { format!("the mean of {}", f.model) } else { f.model.clone() }, f.p90_ratio);
-    let _ = writeln!(s, "{:>4} {:<18} {:>8} {:>8} {:>9} {:>9}", "item", "leg", "time s", "dist m", "P50 Wh", "P90 Wh");
+    let _ = writeln!(
+        s,
+        "P50: {} (P90 = {:.3} × P50)",
+        if f.model.contains(" + ") {
+            format!("the mean of {}", f.model)
+        } else {
+            f.model.clone()
+        },
+        f.p90_ratio
+    );
+    let _ = writeln!(
+        s,
+        "{:>4} {:<18} {:>8} {:>8} {:>9} {:>9}",
+        "item", "leg", "time s", "dist m", "P50 Wh", "P90 Wh"
+    );
     for l in &f.legs {
-        let _ = writeln!(s, "{:>4} {:<18} {:>8.1} {:>8.0} {:>9.2} {:>9.2}", l.item, l.label, l.duration_s, l.distance_m, l.energy_p50_wh, l.energy_p90_wh);
+        let _ = writeln!(
+            s,
+            "{:>4} {:<18} {:>8.1} {:>8.0} {:>9.2} {:>9.2}",
+            l.item, l.label, l.duration_s, l.distance_m, l.energy_p50_wh, l.energy_p90_wh
+        );
     }
-    let _ = writeln!(s, "{:>4} {:<18} {:>8.1} {:>8.0} {:>9.2} {:>9.2}", "", "total", f.duration_s, f.distance_m, f.energy_p50_wh, f.energy_p90_wh);
+    let _ = writeln!(
+        s,
+        "{:>4} {:<18} {:>8.1} {:>8.0} {:>9.2} {:>9.2}",
+        "", "total", f.duration_s, f.distance_m, f.energy_p50_wh, f.energy_p90_wh
+    );
     let _ = writeln!(
         s,
         "battery {:.1} Wh{}, reserve {:.0} %: margin over reserve {:.1} Wh at P50, {:.1} Wh at P90{}",
@@ -361,8 +498,12 @@ fn plan_table(r: &PlanReport) -> String {
             p.low_v,
             p.low_source,
             match p.low_crossed_at_s {
-                Some(t) => format!("crossed at {t:.0} s — the voltage failsafe would fire on this plan"),
-                None => format!("not crossed ({:.2} V above it at the lowest)", p.v_min_v - p.low_v),
+                Some(t) =>
+                    format!("crossed at {t:.0} s — the voltage failsafe would fire on this plan"),
+                None => format!(
+                    "not crossed ({:.2} V above it at the lowest)",
+                    p.v_min_v - p.low_v
+                ),
             }
         );
     }
@@ -370,18 +511,39 @@ fn plan_table(r: &PlanReport) -> String {
         let _ = writeln!(s, "not modelled: {n}");
     }
     if !r.terrain_frame_items.is_empty() {
-        let _ = writeln!(s, "terrain-relative altitudes flown as above home (flat terrain): items {:?}", r.terrain_frame_items);
+        let _ = writeln!(
+            s,
+            "terrain-relative altitudes flown as above home (flat terrain): items {:?}",
+            r.terrain_frame_items
+        );
     }
-    let _ = writeln!(s, "models (uncorrected, whole plan): {}", f.models_raw_wh.iter().map(|(n, e)| format!("{n} {e:.1}")).collect::<Vec<_>>().join(", "));
+    let _ = writeln!(
+        s,
+        "models (uncorrected, whole plan): {}",
+        f.models_raw_wh
+            .iter()
+            .map(|(n, e)| format!("{n} {e:.1}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     s
 }
 
 /// Cumulative energy along the route: P50 line, P50–P90 band, the usable-energy line
 /// (capacity − reserve), leg boundaries.
-fn plot_plan(path: &Path, title: &str, tr: &Trajectory, f: &MissionForecast, capacity_wh: f64, reserve_pct: f64) -> anyhow::Result<()> {
+fn plot_plan(
+    path: &Path,
+    title: &str,
+    tr: &Trajectory,
+    f: &MissionForecast,
+    capacity_wh: f64,
+    reserve_pct: f64,
+) -> anyhow::Result<()> {
     use plotters::prelude::*;
     crate::offline::plot::register_font();
-    let t: Vec<f64> = (0..f.cum_p50_wh.len()).map(|i| (i + 1) as f64 * f.dt_s).collect();
+    let t: Vec<f64> = (0..f.cum_p50_wh.len())
+        .map(|i| (i + 1) as f64 * f.dt_s)
+        .collect();
     let usable = capacity_wh * (1.0 - reserve_pct / 100.0);
     let ymax = (f.energy_p90_wh.max(usable) * 1.08).max(1.0);
     let xmax = t.last().copied().unwrap_or(1.0).max(1.0);
@@ -389,22 +551,62 @@ fn plot_plan(path: &Path, title: &str, tr: &Trajectory, f: &MissionForecast, cap
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
-            .caption(format!("{title}: cumulative energy along the plan"), ("sans-serif", 24))
+            .caption(
+                format!("{title}: cumulative energy along the plan"),
+                ("sans-serif", 24),
+            )
             .margin(14)
             .x_label_area_size(45)
             .y_label_area_size(70)
             .build_cartesian_2d(0.0..xmax, 0.0..ymax)?;
-        chart.configure_mesh().x_desc("time from the motors' start (s)").y_desc("energy (Wh)").label_style(("sans-serif", 16)).axis_desc_style(("sans-serif", 18)).draw()?;
-        let band: Vec<(f64, f64)> = t.iter().zip(&f.cum_p50_wh).map(|(&x, &e)| (x, e * f.p90_ratio)).chain(t.iter().zip(&f.cum_p50_wh).rev().map(|(&x, &e)| (x, e))).collect();
-        chart.draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.2))))?.label("P50–P90").legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLUE.mix(0.2).filled()));
-        chart.draw_series(LineSeries::new(t.iter().zip(&f.cum_p50_wh).map(|(&x, &e)| (x, e)), BLUE.stroke_width(2)))?.label("P50").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(3)));
-        chart.draw_series(LineSeries::new([(0.0, usable), (xmax, usable)], RED.stroke_width(2)))?.label(format!("capacity − {reserve_pct:.0} % reserve")).legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
+        chart
+            .configure_mesh()
+            .x_desc("time from the motors' start (s)")
+            .y_desc("energy (Wh)")
+            .label_style(("sans-serif", 16))
+            .axis_desc_style(("sans-serif", 18))
+            .draw()?;
+        let band: Vec<(f64, f64)> = t
+            .iter()
+            .zip(&f.cum_p50_wh)
+            .map(|(&x, &e)| (x, e * f.p90_ratio))
+            .chain(t.iter().zip(&f.cum_p50_wh).rev().map(|(&x, &e)| (x, e)))
+            .collect();
+        chart
+            .draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.2))))?
+            .label("P50–P90")
+            .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLUE.mix(0.2).filled()));
+        chart
+            .draw_series(LineSeries::new(
+                t.iter().zip(&f.cum_p50_wh).map(|(&x, &e)| (x, e)),
+                BLUE.stroke_width(2),
+            ))?
+            .label("P50")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(3)));
+        chart
+            .draw_series(LineSeries::new(
+                [(0.0, usable), (xmax, usable)],
+                RED.stroke_width(2),
+            ))?
+            .label(format!("capacity − {reserve_pct:.0} % reserve"))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
         for l in &tr.legs {
-            chart.draw_series(LineSeries::new([(l.t_end_s, 0.0), (l.t_end_s, ymax * 0.03)], BLACK))?;
+            chart.draw_series(LineSeries::new(
+                [(l.t_end_s, 0.0), (l.t_end_s, ymax * 0.03)],
+                BLACK,
+            ))?;
         }
-        chart.configure_series_labels().position(SeriesLabelPosition::UpperLeft).background_style(WHITE.mix(0.85)).border_style(BLACK).label_font(("sans-serif", 16)).draw()?;
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()?;
         root.present()?;
         Ok(())
     };
-    draw().map_err(|e| anyhow::anyhow!("{e}")).with_context(|| format!("{}: cannot write plot", path.display()))
+    draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))
+        .with_context(|| format!("{}: cannot write plot", path.display()))
 }

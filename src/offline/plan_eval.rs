@@ -24,19 +24,19 @@ use crate::mission::forecast::Calibration;
 use crate::mission::trajectory::{Trajectory, Wind};
 use crate::model::PowerModel;
 use crate::offline::data::TEST_FLIGHTS;
-use crate::source::dataset::{self, Flight};
-use crate::offline::forecast_fit::Prepared;
 use crate::offline::forecast_fit::dot5;
-use crate::offline::forecast_fit::prepare;
-use crate::offline::route::geometry_for;
-use crate::offline::forecast_fit::fit;
-use crate::offline::forecast_fit::Fitted;
-use crate::offline::forecast_fit::rolling_scales;
 use crate::offline::forecast_fit::finish;
-use crate::offline::forecast_fit::TIE_SHARE;
+use crate::offline::forecast_fit::fit;
+use crate::offline::forecast_fit::prepare;
+use crate::offline::forecast_fit::rolling_scales;
+use crate::offline::forecast_fit::Fitted;
+use crate::offline::forecast_fit::Prepared;
 use crate::offline::forecast_fit::BOOTSTRAP;
+use crate::offline::forecast_fit::TIE_SHARE;
 use crate::offline::plan::load_config;
 use crate::offline::plan::models_for;
+use crate::offline::route::geometry_for;
+use crate::source::dataset::{self, Flight};
 
 /// Electrical power above which the vehicle counts as flying (motors spun up), W.
 pub const AIRBORNE_W: f64 = 150.0;
@@ -60,7 +60,11 @@ pub struct PlanEvalArgs {
     #[arg(long, short = 'c', value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Calibrated vehicle profile for the `<model>_cal` physics models.
-    #[arg(long, value_name = "FILE", default_value = "config/vehicles/m100-calibrated.toml")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "config/vehicles/m100-calibrated.toml"
+    )]
     pub calibrated: PathBuf,
     /// Print one JSON object to PATH, or to standard output with '-' (then no table).
     #[arg(long, value_name = "PATH|-")]
@@ -129,12 +133,20 @@ pub struct FlightScore {
 /// accelerations, stops or spin-up, and a leg's climb or descent costs no time. The ascent
 /// and descent speeds are the vehicle's own (`climb_m_s`, `descent_m_s`), kinder to the
 /// baseline than QGroundControl's offline defaults.
-pub(crate) fn gcs_left_s(traj: &Trajectory, k: usize, speed_m_s: f64, kin: &crate::mission::trajectory::KinematicsConfig) -> f64 {
+pub(crate) fn gcs_left_s(
+    traj: &Trajectory,
+    k: usize,
+    speed_m_s: f64,
+    kin: &crate::mission::trajectory::KinematicsConfig,
+) -> f64 {
     let n = traj.enu_m.len();
     if k + 1 >= n {
         return 0.0;
     }
-    let horizontal: f64 = traj.enu_m[k..].windows(2).map(|w| f64::from(w[1][0] - w[0][0]).hypot(f64::from(w[1][1] - w[0][1]))).sum();
+    let horizontal: f64 = traj.enu_m[k..]
+        .windows(2)
+        .map(|w| f64::from(w[1][0] - w[0][0]).hypot(f64::from(w[1][1] - w[0][1])))
+        .sum();
     let z = |j: usize| f64::from(traj.enu_m[j.min(n - 1)][2]);
     let leg_at = traj.leg_of.get(k).map_or(0, |&l| l as usize);
     let mut t = horizontal / speed_m_s.max(0.1);
@@ -177,11 +189,18 @@ pub(crate) fn quantile(v: &mut [f64], q: f64) -> f64 {
 
 /// Flight `p` forecast with `cal`, each member `i` with the scale `scales[i]` (the one
 /// fitted before the flight) in place of its own.
-pub(crate) fn score(p: &Prepared, cal: &Calibration, scales: &[f64], baseline_w: f64) -> FlightScore {
+pub(crate) fn score(
+    p: &Prepared,
+    cal: &Calibration,
+    scales: &[f64],
+    baseline_w: f64,
+) -> FlightScore {
     let (mut done, mut left, mut n) = (0.0f64, 0.0f64, 0.0f64);
     let mut planned_left_s = 0.0;
     for (c, scale) in cal.members.iter().zip(scales) {
-        let Some(m) = p.raw.iter().find(|m| m.name == c.model) else { continue };
+        let Some(m) = p.raw.iter().find(|m| m.name == c.model) else {
+            continue;
+        };
         let ks = c.weights();
         done += scale * dot5(&ks, &m.first_wh);
         left += scale * dot5(&ks, &m.rest_wh);
@@ -212,7 +231,12 @@ pub(crate) fn score(p: &Prepared, cal: &Calibration, scales: &[f64], baseline_w:
         planned_s: p.traj.duration_s(),
         airborne_s: p.airborne_s,
         live_plan_t_s: p.live_k as f64 * p.traj.dt_s,
-        plan_legs: p.traj.legs.iter().map(|l| (l.label.clone(), l.t_start_s, l.t_end_s, l.distance_m)).collect(),
+        plan_legs: p
+            .traj
+            .legs
+            .iter()
+            .map(|l| (l.label.clone(), l.t_start_s, l.t_end_s, l.distance_m))
+            .collect(),
         live_t_s: p.live_t_s,
         measured_wh: p.measured_wh,
         models_raw_wh: p.raw.iter().map(|m| (m.name.clone(), m.total_wh)).collect(),
@@ -267,8 +291,20 @@ fn summarize(s: &[FlightScore], cal: &Calibration) -> Summary {
     let mut raw: Vec<f64> = s
         .iter()
         .filter_map(|x| {
-            let e: Vec<f64> = cal.members.iter().filter_map(|c| x.models_raw_wh.iter().find(|(n, _)| *n == c.model).map(|(_, e)| *e)).collect();
-            (!e.is_empty()).then(|| 100.0 * (e.iter().sum::<f64>() / e.len() as f64 - x.measured_wh).abs() / x.measured_wh)
+            let e: Vec<f64> = cal
+                .members
+                .iter()
+                .filter_map(|c| {
+                    x.models_raw_wh
+                        .iter()
+                        .find(|(n, _)| *n == c.model)
+                        .map(|(_, e)| *e)
+                })
+                .collect();
+            (!e.is_empty()).then(|| {
+                100.0 * (e.iter().sum::<f64>() / e.len() as f64 - x.measured_wh).abs()
+                    / x.measured_wh
+            })
         })
         .collect();
     let live_m = median(&mut live);
@@ -281,7 +317,8 @@ fn summarize(s: &[FlightScore], cal: &Calibration) -> Summary {
         flights: s.len(),
         preflight_median_err_pct: pre_m,
         preflight_max_err_pct: pre.iter().copied().fold(0.0, f64::max),
-        p90_coverage_pct: 100.0 * s.iter().filter(|x| x.p90_covers).count() as f64 / s.len().max(1) as f64,
+        p90_coverage_pct: 100.0 * s.iter().filter(|x| x.p90_covers).count() as f64
+            / s.len().max(1) as f64,
         live_median_err_pct: live_m,
         baseline_live_median_err_pct: base_m,
         live_advantage: base_m / live_m.max(1e-9),
@@ -342,12 +379,21 @@ pub struct PlanEvalOptions {
 }
 
 /// Run the evaluation (see the module docs).
-pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], opt: &PlanEvalOptions) -> anyhow::Result<PlanEvalReport> {
+pub fn plan_eval(
+    data: &Path,
+    cfg: &Config,
+    models: &mut [Box<dyn PowerModel>],
+    opt: &PlanEvalOptions,
+) -> anyhow::Result<PlanEvalReport> {
     let ds = dataset::read_flights(data, None)?;
     let is_route = |f: &Flight| f.route.starts_with('R');
     let test_ids: Vec<u32> = match &opt.test {
         Some(t) => t.clone(),
-        None => TEST_FLIGHTS.iter().copied().filter(|t| ds.flights.iter().any(|f| f.flight == *t)).collect(),
+        None => TEST_FLIGHTS
+            .iter()
+            .copied()
+            .filter(|t| ds.flights.iter().any(|f| f.flight == *t))
+            .collect(),
     };
     for t in &test_ids {
         if !TEST_FLIGHTS.contains(t) {
@@ -367,9 +413,18 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
         anyhow::bail!("no training flights to fit the forecast on");
     }
     // every route flight that may lend its track: training flights of the route, never the flight itself
-    let all_train: Vec<&Flight> = ds.flights.iter().filter(|f| is_route(f) && !TEST_FLIGHTS.contains(&f.flight)).collect();
+    let all_train: Vec<&Flight> = ds
+        .flights
+        .iter()
+        .filter(|f| is_route(f) && !TEST_FLIGHTS.contains(&f.flight))
+        .collect();
     let bar = indicatif::ProgressBar::new((train.len() + test_ids.len()) as u64);
-    bar.set_style(indicatif::ProgressStyle::with_template("forecasting flights {bar:30} {pos}/{len} [{elapsed}<{eta}]").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "forecasting flights {bar:30} {pos}/{len} [{elapsed}<{eta}]",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
     let mut prepared_train = Vec::new();
     for f in &train {
         match prepare(f, geometry_for(f, &all_train), opt.ground_wind, cfg, models) {
@@ -380,15 +435,42 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
     }
     let mut prepared_test = Vec::new();
     for t in &test_ids {
-        let f = ds.flights.iter().find(|f| f.flight == *t).with_context(|| format!("flight {t} missing"))?;
-        prepared_test.push(prepare(f, geometry_for(f, &all_train), opt.ground_wind, cfg, models)?);
+        let f = ds
+            .flights
+            .iter()
+            .find(|f| f.flight == *t)
+            .with_context(|| format!("flight {t} missing"))?;
+        prepared_test.push(prepare(
+            f,
+            geometry_for(f, &all_train),
+            opt.ground_wind,
+            cfg,
+            models,
+        )?);
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let Fitted { cal, basis, per_model: models_fit, per_basis: bases_fit, ties } = fit(&prepared_train);
+    let Fitted {
+        cal,
+        basis,
+        per_model: models_fit,
+        per_basis: bases_fit,
+        ties,
+    } = fit(&prepared_train);
     let mut mean_w: Vec<f64> = prepared_train.iter().map(|p| p.flight_mean_w).collect();
     let baseline_w = median(&mut mean_w);
-    let scores = |cal: &Calibration, set: &[Prepared]| -> Vec<FlightScore> { set.iter().map(|p| score(p, cal, &rolling_scales(&prepared_train, cal, p.flight), baseline_w)).collect() };
+    let scores = |cal: &Calibration, set: &[Prepared]| -> Vec<FlightScore> {
+        set.iter()
+            .map(|p| {
+                score(
+                    p,
+                    cal,
+                    &rolling_scales(&prepared_train, cal, p.flight),
+                    baseline_w,
+                )
+            })
+            .collect()
+    };
     let train_scores = scores(&cal, &prepared_train);
     let test_scores = scores(&cal, &prepared_test);
     // each member alone: the member as the fit made it, with its own P90 ratio and live weight
@@ -397,9 +479,21 @@ pub fn plan_eval(data: &Path, cfg: &Config, models: &mut [Box<dyn PowerModel>], 
             .iter()
             .map(|c| {
                 let one = finish(&prepared_train, vec![c.clone()]);
-                let training_err_pct = models_fit.iter().find(|m| m.0 == c.model).map_or(f64::NAN, |m| m.2);
-                let tie_share_pct = 100.0 * ties.iter().find(|t| t.0 == c.model).map_or(f64::NAN, |t| t.1);
-                Alone { model: c.model.clone(), training_err_pct, tie_share_pct, test: summarize(&scores(&one, &prepared_test), &one) }
+                let training_err_pct = models_fit
+                    .iter()
+                    .find(|m| m.0 == c.model)
+                    .map_or(f64::NAN, |m| m.2);
+                let tie_share_pct = 100.0
+                    * ties
+                        .iter()
+                        .find(|t| t.0 == c.model)
+                        .map_or(f64::NAN, |t| t.1);
+                Alone {
+                    model: c.model.clone(),
+                    training_err_pct,
+                    tie_share_pct,
+                    test: summarize(&scores(&one, &prepared_test), &one),
+                }
             })
             .collect()
     } else {
@@ -437,7 +531,11 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
         c.members.len()
     );
     for m in &c.members {
-        let err = r.models_fit.iter().find(|x| x.0 == m.model).map_or(f64::NAN, |x| x.2);
+        let err = r
+            .models_fit
+            .iter()
+            .find(|x| x.0 == m.model)
+            .map_or(f64::NAN, |x| x.2);
         let _ = writeln!(
             s,
             "  {:<16} training {:.2} %: power × {:.3}/{:.3}/{:.3} (climb/descent/other) + vertical work × {:.3}/{:.3} (up/down), × {:.4} (median measured/forecast of the {} training flights before each flight; latest)",
@@ -512,20 +610,29 @@ pub fn run_plan_eval(a: PlanEvalArgs) -> anyhow::Result<()> {
     let cfg = load_config(a.config.as_deref())?;
     let data = a.data.clone().unwrap_or_else(crate::default_data_path);
     let mut models = models_for(&cfg, &a.calibrated)?;
-    let opt = PlanEvalOptions { test: a.flights.clone(), train: a.train.clone(), ground_wind: !a.no_ground_wind };
+    let opt = PlanEvalOptions {
+        test: a.flights.clone(),
+        train: a.train.clone(),
+        ground_wind: !a.no_ground_wind,
+    };
     let r = plan_eval(&data, &cfg, &mut models, &opt)?;
     publish(a.json.as_deref(), &r, || eval_table(&r))
 }
 
 /// `--json -`: the JSON on standard output instead of the table; `--json PATH`: the table,
 /// and the JSON written to PATH; no `--json`: the table alone.
-pub(crate) fn publish(json: Option<&str>, report: &impl serde::Serialize, table: impl FnOnce() -> String) -> anyhow::Result<()> {
+pub(crate) fn publish(
+    json: Option<&str>,
+    report: &impl serde::Serialize,
+    table: impl FnOnce() -> String,
+) -> anyhow::Result<()> {
     match json {
         Some("-") => println!("{}", serde_json::to_string_pretty(report)?),
         other => {
             print!("{}", table());
             if let Some(p) = other {
-                std::fs::write(p, serde_json::to_string_pretty(report)?).with_context(|| format!("{p}: cannot write"))?;
+                std::fs::write(p, serde_json::to_string_pretty(report)?)
+                    .with_context(|| format!("{p}: cannot write"))?;
             }
         }
     }

@@ -19,13 +19,12 @@
 //!   over the rows before take-off (the ground wind a planner would look up), unless
 //!   `--no-ground-wind`.
 
-
 use anyhow::Context;
 
 use crate::mission::plan::{GeoPoint, Plan};
 use crate::mission::trajectory::{enu_of, Wind};
-use crate::source::dataset::{self, Flight};
 use crate::offline::plan_eval::AIRBORNE_W;
+use crate::source::dataset::{self, Flight};
 
 /// Corner tolerance of the track reduction, m.
 pub const RDP_TOL_M: f64 = 10.0;
@@ -41,7 +40,11 @@ pub fn rdp(points: &[(f64, f64)], tol: f64) -> Vec<usize> {
         let len = dx.hypot(dy);
         let mut worst = (0.0, a);
         for (i, &(x, y)) in p.iter().enumerate().take(b).skip(a + 1) {
-            let d = if len > 1e-9 { ((x - ax) * dy - (y - ay) * dx).abs() / len } else { (x - ax).hypot(y - ay) };
+            let d = if len > 1e-9 {
+                ((x - ax) * dy - (y - ay) * dx).abs() / len
+            } else {
+                (x - ax).hypot(y - ay)
+            };
             if d > worst.0 {
                 worst = (d, i);
             }
@@ -62,7 +65,12 @@ pub fn rdp(points: &[(f64, f64)], tol: f64) -> Vec<usize> {
 }
 
 fn stages(f: &Flight) -> Vec<f64> {
-    let s: Vec<f64> = f.altitude_text.split('-').filter_map(|x| x.trim().parse::<f64>().ok()).filter(|v| v.is_finite() && *v > 0.0).collect();
+    let s: Vec<f64> = f
+        .altitude_text
+        .split('-')
+        .filter_map(|x| x.trim().parse::<f64>().ok())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
     if s.is_empty() {
         vec![f.altitude_m]
     } else {
@@ -71,8 +79,15 @@ fn stages(f: &Flight) -> Vec<f64> {
 }
 
 fn home_of(f: &Flight) -> Option<GeoPoint> {
-    let r = f.rows.iter().find(|r| r.lat_deg != 0.0 || r.lon_deg != 0.0)?;
-    Some(GeoPoint { lat_deg: r.lat_deg, lon_deg: r.lon_deg, alt_m: r.alt_m })
+    let r = f
+        .rows
+        .iter()
+        .find(|r| r.lat_deg != 0.0 || r.lon_deg != 0.0)?;
+    Some(GeoPoint {
+        lat_deg: r.lat_deg,
+        lon_deg: r.lon_deg,
+        alt_m: r.alt_m,
+    })
 }
 
 /// The route's waypoints (lat, lon, and the height above home there, m) from a flight's
@@ -87,7 +102,10 @@ fn route_corners(f: &Flight) -> Option<Vec<(f64, f64, f64)>> {
     if b <= a {
         return None;
     }
-    let pts: Vec<(f64, f64)> = f.rows[a..=b].iter().map(|r| enu_of(&home, r.lat_deg, r.lon_deg)).collect();
+    let pts: Vec<(f64, f64)> = f.rows[a..=b]
+        .iter()
+        .map(|r| enu_of(&home, r.lat_deg, r.lon_deg))
+        .collect();
     let keep = rdp(&pts, RDP_TOL_M);
     Some(
         keep.into_iter()
@@ -104,16 +122,44 @@ fn route_corners(f: &Flight) -> Option<Vec<(f64, f64, f64)>> {
 /// track (another training flight of the route, or `f` itself).
 pub fn flight_plan(f: &Flight, geometry: &Flight) -> anyhow::Result<Plan> {
     let home = home_of(f).with_context(|| format!("flight {}: no GPS fix", f.flight))?;
-    let corners = route_corners(geometry).with_context(|| format!("flight {}: no cruise part to take waypoints from", geometry.flight))?;
+    let corners = route_corners(geometry).with_context(|| {
+        format!(
+            "flight {}: no cruise part to take waypoints from",
+            geometry.flight
+        )
+    })?;
     let st = stages(f);
-    let nearest = |h: f64| st.iter().copied().fold(st[0], |b, s| if (s - h).abs() < (b - h).abs() { s } else { b });
+    let nearest = |h: f64| {
+        st.iter().copied().fold(
+            st[0],
+            |b, s| if (s - h).abs() < (b - h).abs() { s } else { b },
+        )
+    };
     let single = st.len() == 1;
-    let mut wps: Vec<GeoPoint> = corners.iter().map(|&(lat, lon, h)| GeoPoint { lat_deg: lat, lon_deg: lon, alt_m: if single { st[0] } else { nearest(h) } }).collect();
+    let mut wps: Vec<GeoPoint> = corners
+        .iter()
+        .map(|&(lat, lon, h)| GeoPoint {
+            lat_deg: lat,
+            lon_deg: lon,
+            alt_m: if single { st[0] } else { nearest(h) },
+        })
+        .collect();
     let last = st[st.len() - 1];
     if wps.last().is_some_and(|w| (w.alt_m - last).abs() > 0.5) {
-        wps.push(GeoPoint { alt_m: last, ..home });
+        wps.push(GeoPoint {
+            alt_m: last,
+            ..home
+        });
     }
-    let mut plan = Plan::from_waypoints(&format!("flight {} ({}, waypoints from flight {})", f.flight, f.route, geometry.flight), home, &wps, f.speed_m_s);
+    let mut plan = Plan::from_waypoints(
+        &format!(
+            "flight {} ({}, waypoints from flight {})",
+            f.flight, f.route, geometry.flight
+        ),
+        home,
+        &wps,
+        f.speed_m_s,
+    );
     // take-off to the first stage (the first waypoint may be at a later stage)
     for it in plan.items.iter_mut() {
         if let crate::mission::plan::ItemKind::Takeoff { alt_m } = &mut it.kind {
@@ -126,12 +172,21 @@ pub fn flight_plan(f: &Flight, geometry: &Flight) -> anyhow::Result<Plan> {
 /// The flight whose track gives `f`'s waypoints: the nearest-numbered training flight of
 /// the same route other than `f`, else `f` itself.
 pub(crate) fn geometry_for<'a>(f: &'a Flight, all_train: &[&'a Flight]) -> &'a Flight {
-    all_train.iter().filter(|g| g.route == f.route && g.flight != f.flight).min_by_key(|g| g.flight.abs_diff(f.flight)).copied().unwrap_or(f)
+    all_train
+        .iter()
+        .filter(|g| g.route == f.route && g.flight != f.flight)
+        .min_by_key(|g| g.flight.abs_diff(f.flight))
+        .copied()
+        .unwrap_or(f)
 }
 
 /// Mean anemometer reading before take-off, as the wind (the ground wind a planner looks up).
 pub(crate) fn ground_wind(f: &Flight) -> Wind {
-    let pre: Vec<&dataset::Row> = f.rows.iter().take_while(|r| r.voltage_v * r.current_a < AIRBORNE_W).collect();
+    let pre: Vec<&dataset::Row> = f
+        .rows
+        .iter()
+        .take_while(|r| r.voltage_v * r.current_a < AIRBORNE_W)
+        .collect();
     if pre.is_empty() {
         return Wind::default();
     }
@@ -144,7 +199,10 @@ pub(crate) fn ground_wind(f: &Flight) -> Wind {
     }
     let k = pre.len() as f64;
     let (e, n) = (e / k, n / k);
-    Wind { speed_m_s: e.hypot(n).min(40.0), from_deg: e.atan2(n).to_degrees().rem_euclid(360.0) }
+    Wind {
+        speed_m_s: e.hypot(n).min(40.0),
+        from_deg: e.atan2(n).to_degrees().rem_euclid(360.0),
+    }
 }
 
 #[cfg(test)]

@@ -16,18 +16,26 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::model::lstm::{resolve_model_path, LstmModel};
 use crate::config::Config;
+use crate::features::idx;
+use crate::model::lstm::{resolve_model_path, LstmModel};
 use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
 use crate::offline::metrics::in_flight;
 use crate::offline::plot;
-use crate::features::idx;
 use crate::telemetry::window::Window;
 
 /// The paper's Table 3: input index, label, and the five steps (−1, −½, 0, +½, +1).
 pub const STEPS: [(usize, &str, [f32; 5]); 3] = [
-    (idx::ALTITUDE, "Altitude (m)", [25.0, 43.75, 62.5, 81.25, 100.0]),
-    (idx::PAYLOAD, "Payload (g)", [0.0, 187.5, 375.0, 562.5, 750.0]),
+    (
+        idx::ALTITUDE,
+        "Altitude (m)",
+        [25.0, 43.75, 62.5, 81.25, 100.0],
+    ),
+    (
+        idx::PAYLOAD,
+        "Payload (g)",
+        [0.0, 187.5, 375.0, 562.5, 750.0],
+    ),
     (idx::SPEED, "Speed (m/s)", [4.0, 6.0, 8.0, 10.0, 12.0]),
 ];
 
@@ -53,7 +61,12 @@ pub struct SensitivityArgs {
 }
 
 /// Mean predicted power (W) over `windows` with input `feature` set to `value` throughout.
-fn mean_power(model: &mut LstmModel, windows: &[Window], feature: usize, value: f32) -> anyhow::Result<f64> {
+fn mean_power(
+    model: &mut LstmModel,
+    windows: &[Window],
+    feature: usize,
+    value: f32,
+) -> anyhow::Result<f64> {
     let (mut sum, mut n) = (0.0, 0usize);
     for chunk in windows.chunks(1024) {
         let mut c = chunk.to_vec();
@@ -73,27 +86,46 @@ fn mean_power(model: &mut LstmModel, windows: &[Window], feature: usize, value: 
 /// Run `dronewatt sensitivity`.
 pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
     let cfg = Config::load_or_default(args.config.as_deref())?;
-    let model_path = resolve_model_path(args.model.as_deref().or(cfg.models.lstm.path.as_deref())).context("no model found: pass --model")?;
+    let model_path = resolve_model_path(args.model.as_deref().or(cfg.models.lstm.path.as_deref()))
+        .context("no model found: pass --model")?;
     let mut model = LstmModel::load(&model_path, &cfg.telemetry)?;
     let data = args.data.clone().unwrap_or_else(crate::default_data_path);
     let flights = match args.flights.clone() {
         Some(f) => f,
         None => {
             let held: Vec<u32> = list_flights(&data)?.iter().map(|f| f.flight).collect();
-            TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)).collect()
+            TEST_FLIGHTS
+                .into_iter()
+                .filter(|t| held.contains(t))
+                .collect()
         }
     };
     let loaded = load_flights(&data, Some(&flights), &cfg.telemetry, &cfg.mission)?;
-    let windows: Vec<Window> =
-        loaded.iter().flat_map(|f| f.windows.iter().filter(|w| w.last().measured_w.is_some_and(|p| in_flight(p.into()))).cloned()).collect();
-    anyhow::ensure!(!windows.is_empty(), "{}: no windows with measured power in flights {flights:?}", data.display());
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
+    let windows: Vec<Window> = loaded
+        .iter()
+        .flat_map(|f| {
+            f.windows
+                .iter()
+                .filter(|w| w.last().measured_w.is_some_and(|p| in_flight(p.into())))
+                .cloned()
+        })
+        .collect();
+    anyhow::ensure!(
+        !windows.is_empty(),
+        "{}: no windows with measured power in flights {flights:?}",
+        data.display()
+    );
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create", args.out.display()))?;
 
     let mut csv = String::from("feature,step,value,mean_power_w,change_w\n");
     println!("| | Step −1 | Step −½ | Step 0 | Step +½ | Step +1 |\n|---|---|---|---|---|---|");
     let mut bars = Vec::new();
     for (feature, label, steps) in STEPS {
-        let powers: Vec<f64> = steps.iter().map(|v| mean_power(&mut model, &windows, feature, *v)).collect::<anyhow::Result<_>>()?;
+        let powers: Vec<f64> = steps
+            .iter()
+            .map(|v| mean_power(&mut model, &windows, feature, *v))
+            .collect::<anyhow::Result<_>>()?;
         let mid = powers[2];
         let names = ["-1", "-1/2", "0", "+1/2", "+1"];
         let mut cells = Vec::new();
@@ -101,7 +133,10 @@ pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
             csv.push_str(&format!("{label},{},{v},{p:.2},{:.2}\n", names[i], p - mid));
             cells.push(format!("{v} → {p:.1} W ({:+.1})", p - mid));
             if i != 2 {
-                bars.push((format!("{} {}", label.split(' ').next().unwrap_or(label), names[i]), p - mid));
+                bars.push((
+                    format!("{} {}", label.split(' ').next().unwrap_or(label), names[i]),
+                    p - mid,
+                ));
             }
         }
         println!("| {label} | {} |", cells.join(" | "));

@@ -38,7 +38,10 @@ pub fn set_trainer(trainer: Trainer) {
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     match TRAINER.get() {
         Some(train) => train(args),
-        None => Err(crate::model::NeedsLibtorch { what: "training the LSTM".into() }.into()),
+        None => Err(crate::model::NeedsLibtorch {
+            what: "training the LSTM".into(),
+        }
+        .into()),
     }
 }
 
@@ -120,4 +123,3 @@ pub struct TrainArgs {
     #[arg(long, hide = true, value_name = "FILE")]
     pub export_csv: Option<PathBuf>,
 }
-

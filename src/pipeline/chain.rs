@@ -8,20 +8,22 @@ use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
+use super::{
+    relay, FleetEvent, Inference, Job, WarmStart, CHANNEL_DEPTH, HEALTH_EVERY, SILENT_TICK,
+};
 use crate::alert::AlertEngine;
 use crate::config::Config;
 use crate::energy::EnergyTracker;
 use crate::model::Ensemble;
+use crate::report::status::{ChainStatus, IngestStats};
 use crate::report::{EnergyState, Estimate, MissionUpdate, Report};
 use crate::sink::Fanout;
 use crate::source::{SourceSpec, TimedMessage};
-use crate::report::status::{ChainStatus, IngestStats};
+use crate::telemetry::window::Window;
 use crate::telemetry::Telemetry;
 use crate::vehicle::params::{Driver, Identity, ParamReader, VehicleParams};
 use crate::vehicle::store::FlightLog;
-use crate::telemetry::window::Window;
 use tokio::sync::watch;
-use super::{FleetEvent, Inference, Job, WarmStart, CHANNEL_DEPTH, HEALTH_EVERY, SILENT_TICK, relay};
 
 /// One vehicle's chain: telemetry → windows → inference → energy + alerts, each stage's
 /// state built from its own slice of the configuration.
@@ -91,8 +93,16 @@ impl ChainTasks {
 impl VehicleChain {
     /// Build and check every stage (profiles loaded, model cards matched, rules compiled).
     pub fn build(cfg: &Config) -> Result<Self> {
-        let models = crate::model::build_ensemble(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry, cfg.mission.payload_g)?;
-        Ok(Self { models, ..Self::another(cfg)? })
+        let models = crate::model::build_ensemble(
+            &cfg.models,
+            cfg.vehicle.as_deref(),
+            &cfg.telemetry,
+            cfg.mission.payload_g,
+        )?;
+        Ok(Self {
+            models,
+            ..Self::another(cfg)?
+        })
     }
 
     /// Another vehicle's chain on the same configuration: its own telemetry, energy and
@@ -100,12 +110,19 @@ impl VehicleChain {
     pub fn another(cfg: &Config) -> Result<Self> {
         let mut energy = EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?;
         // The vehicle profile's forecast model (`learn` picks it), when it names one.
-        if let Some((model, why)) = crate::model::profile::forecast_default(cfg.vehicle.as_deref()) {
+        if let Some((model, why)) = crate::model::profile::forecast_default(cfg.vehicle.as_deref())
+        {
             energy.set_default_model(&model, &why);
         }
         let rebuild = cfg.vehicle.is_none().then(|| {
-            let (models, telemetry, payload_g) = (cfg.models.clone(), cfg.telemetry.clone(), cfg.mission.payload_g);
-            Arc::new(move |path: &std::path::Path| crate::model::build_ensemble(&models, Some(path), &telemetry, payload_g)) as Rebuild
+            let (models, telemetry, payload_g) = (
+                cfg.models.clone(),
+                cfg.telemetry.clone(),
+                cfg.mission.payload_g,
+            );
+            Arc::new(move |path: &std::path::Path| {
+                crate::model::build_ensemble(&models, Some(path), &telemetry, payload_g)
+            }) as Rebuild
         });
         Ok(Self {
             telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
@@ -175,23 +192,64 @@ impl VehicleChain {
         let stats = status.stats.clone();
         let reports = own.subscribe();
         // On a live link the reader asks; replaying, it listens to the logged fetch.
-        let reader = if live { ParamReader::live() } else { self.vehicle };
-        let driver = Driver::new(reader, status.link.clone(), self.mav_ids.0.unwrap_or(vehicle), self.mav_ids.1);
+        let reader = if live {
+            ParamReader::live()
+        } else {
+            self.vehicle
+        };
+        let driver = Driver::new(
+            reader,
+            status.link.clone(),
+            self.mav_ids.0.unwrap_or(vehicle),
+            self.mav_ids.1,
+        );
         let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
         let (capacity_tx, capacity_rx) = watch::channel(StoreNews::default());
         let rebuild = self.rebuild;
-        let memory = self.memory.map(|dir| Memory { dir, vehicle, warm: inference.warm.clone(), capacity: Some(capacity_tx), rebuild });
+        let memory = self.memory.map(|dir| Memory {
+            dir,
+            vehicle,
+            warm: inference.warm.clone(),
+            capacity: Some(capacity_tx),
+            rebuild,
+        });
         let tasks = ChainTasks {
-            telemetry: tokio::spawn(telemetry_stage(self.telemetry, driver, msgs, win_tx, vehicle_tx, memory, status.clone())),
+            telemetry: tokio::spawn(telemetry_stage(
+                self.telemetry,
+                driver,
+                msgs,
+                win_tx,
+                vehicle_tx,
+                memory,
+                status.clone(),
+            )),
             windows: tokio::spawn(async move {
                 while let Some(window) = win_rx.recv().await {
-                    if jobs.send(Job { window, vehicle, reply: est_tx.clone() }).await.is_err() {
+                    if jobs
+                        .send(Job {
+                            window,
+                            vehicle,
+                            reply: est_tx.clone(),
+                        })
+                        .await
+                        .is_err()
+                    {
                         return;
                     }
                     stats.queues.observe(&jobs);
                 }
             }),
-            energy: tokio::spawn(energy_stage(self.energy, self.alerts, est_rx, self.mission, vehicle_rx, capacity_rx, own, status.clone(), live)),
+            energy: tokio::spawn(energy_stage(
+                self.energy,
+                self.alerts,
+                est_rx,
+                self.mission,
+                vehicle_rx,
+                capacity_rx,
+                own,
+                status.clone(),
+                live,
+            )),
             relay: tokio::spawn(relay(reports, ev_rx, fanout, status.latency.clone())),
         };
         (ev_tx, tasks)
@@ -214,13 +272,27 @@ struct Memory {
 /// The models built from the profile `learn` kept for the vehicle, and its forecast model
 /// with the reason; nothing without one, without a builder (a profile is configured), or
 /// when the profile does not load (a warning: the run goes on with the configured models).
-fn learned_models(learned: &crate::vehicle::store::Learned, rebuild: Option<&Rebuild>) -> (Option<Box<Ensemble>>, Option<(String, String)>) {
-    let (Some(p), Some(rebuild)) = (&learned.profile, rebuild) else { return (None, None) };
+fn learned_models(
+    learned: &crate::vehicle::store::Learned,
+    rebuild: Option<&Rebuild>,
+) -> (Option<Box<Ensemble>>, Option<(String, String)>) {
+    let (Some(p), Some(rebuild)) = (&learned.profile, rebuild) else {
+        return (None, None);
+    };
     match rebuild(&p.path) {
         Ok(models) => {
-            tracing::info!("vehicle store: the models start from the profile learned for this vehicle, {}", p.path.display());
-            let why = format!("vehicle profile learned for this vehicle ({})", p.path.display());
-            (Some(Box::new(models)), p.forecast_model.clone().map(|m| (m, why)))
+            tracing::info!(
+                "vehicle store: the models start from the profile learned for this vehicle, {}",
+                p.path.display()
+            );
+            let why = format!(
+                "vehicle profile learned for this vehicle ({})",
+                p.path.display()
+            );
+            (
+                Some(Box::new(models)),
+                p.forecast_model.clone().map(|m| (m, why)),
+            )
         }
         Err(e) => {
             tracing::warn!("vehicle store: the profile learned for this vehicle does not load ({e:#}); the configured models run");
@@ -252,15 +324,26 @@ async fn telemetry_stage(
                     if let (Some(id), Some(mem)) = (&params.identity, &mut memory) {
                         if let Some(capacity) = mem.capacity.take() {
                             let _ = mem.warm.send((mem.vehicle, WarmStart::Pending));
-                            let (dir, warm, id, vehicle, rebuild) = (mem.dir.clone(), mem.warm.clone(), id.clone(), mem.vehicle, mem.rebuild.clone());
+                            let (dir, warm, id, vehicle, rebuild) = (
+                                mem.dir.clone(),
+                                mem.warm.clone(),
+                                id.clone(),
+                                mem.vehicle,
+                                mem.rebuild.clone(),
+                            );
                             tokio::task::spawn_blocking(move || {
                                 let learned = crate::vehicle::store::lookup(&dir, &id);
                                 // The profile `learn` kept for it (no profile configured).
                                 let (models, forecast) = learned_models(&learned, rebuild.as_ref());
                                 // The store's news first: an estimate made with the warm
                                 // fits reaches the energy stage after it.
-                                let _ = capacity.send(StoreNews { capacity: learned.capacity_wh, forecast, pack: learned.pack });
-                                let _ = warm.send((vehicle, WarmStart::Ready(learned.fits, models)));
+                                let _ = capacity.send(StoreNews {
+                                    capacity: learned.capacity_wh,
+                                    forecast,
+                                    pack: learned.pack,
+                                });
+                                let _ =
+                                    warm.send((vehicle, WarmStart::Ready(learned.fits, models)));
                             });
                         }
                     }
@@ -271,7 +354,9 @@ async fn telemetry_stage(
                 // The windows this message completes: it is the newest that went in.
                 out.iter_mut().for_each(|w| w.arrived = Some(m.arrived));
                 if let Some(id) = telemetry.system_id() {
-                    status.system_id.store(id, std::sync::atomic::Ordering::Relaxed);
+                    status
+                        .system_id
+                        .store(id, std::sync::atomic::Ordering::Relaxed);
                 }
             }
             None => {
@@ -355,19 +440,30 @@ async fn energy_stage(
                 let report = account(&mut energy, &mut alerts, est, vehicle_id());
                 flight.observe(&report);
                 if live {
-                    last = Some((report.estimate.clone(), report.energy.clone(), Instant::now()));
+                    last = Some((
+                        report.estimate.clone(),
+                        report.energy.clone(),
+                        Instant::now(),
+                    ));
                 }
                 report
             }
             Ok(None) => break,
             Err(_silence) => {
-                let Some((est, state, at)) = &last else { continue };
+                let Some((est, state, at)) = &last else {
+                    continue;
+                };
                 let quiet = est.silent(est.t_s + at.elapsed().as_secs_f64());
                 let events = alerts.evaluate(&quiet, state);
                 if events.is_empty() {
                     continue;
                 }
-                Report { estimate: quiet, energy: state.clone(), alerts: events, system_id: vehicle_id() }
+                Report {
+                    estimate: quiet,
+                    energy: state.clone(),
+                    alerts: events,
+                    system_id: vehicle_id(),
+                }
             }
         };
         fanout.send(report).await;
@@ -378,7 +474,12 @@ async fn energy_stage(
 
 /// The mission statuses due by source time `t_s` into the energy tracker (the latest one
 /// wins): the tap runs ahead of the estimates, so each status waits for its time.
-fn take_mission(energy: &mut EnergyTracker, rx: &mut Option<mpsc::Receiver<MissionUpdate>>, next: &mut Option<MissionUpdate>, t_s: f64) {
+fn take_mission(
+    energy: &mut EnergyTracker,
+    rx: &mut Option<mpsc::Receiver<MissionUpdate>>,
+    next: &mut Option<MissionUpdate>,
+    t_s: f64,
+) {
     let Some(rx) = rx else { return };
     loop {
         if next.is_none() {
@@ -396,7 +497,11 @@ fn take_mission(energy: &mut EnergyTracker, rx: &mut Option<mpsc::Receiver<Missi
 
 /// What the live mission forecast needs, when the source can carry a mission (a live
 /// link, a `.tlog` or raw log; not the data set) and `[forecast.live] enabled`.
-pub(super) fn mission_setup(cfg: &Config, source: &SourceSpec, follows: &crate::source::fleet::VehicleFilter) -> Result<Option<crate::mission::live::LiveSetup>> {
+pub(super) fn mission_setup(
+    cfg: &Config,
+    source: &SourceSpec,
+    follows: &crate::source::fleet::VehicleFilter,
+) -> Result<Option<crate::mission::live::LiveSetup>> {
     if !cfg.forecast.live.enabled || matches!(source, SourceSpec::Dataset { .. }) {
         return Ok(None);
     }
@@ -406,7 +511,9 @@ pub(super) fn mission_setup(cfg: &Config, source: &SourceSpec, follows: &crate::
     };
     let mut models = crate::model::physics::models(&vehicle);
     if let Some(p) = &cfg.forecast.live.calibrated_profile {
-        models.extend(crate::model::physics::models(&crate::model::profile::VehicleProfile::load(p)?));
+        models.extend(crate::model::physics::models(
+            &crate::model::profile::VehicleProfile::load(p)?,
+        ));
     }
     Ok(Some(crate::mission::live::LiveSetup {
         forecast: cfg.forecast.clone(),
@@ -425,8 +532,18 @@ pub(super) fn mission_setup(cfg: &Config, source: &SourceSpec, follows: &crate::
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on
 /// it, into the report every sink gets.
-pub fn account(energy: &mut EnergyTracker, alerts: &mut AlertEngine, estimate: Estimate, system_id: u8) -> Report {
+pub fn account(
+    energy: &mut EnergyTracker,
+    alerts: &mut AlertEngine,
+    estimate: Estimate,
+    system_id: u8,
+) -> Report {
     let state = energy.update(&estimate);
     let events = alerts.evaluate(&estimate, &state);
-    Report { estimate, energy: state, alerts: events, system_id }
+    Report {
+        estimate,
+        energy: state,
+        alerts: events,
+        system_id,
+    }
 }

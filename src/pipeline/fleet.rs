@@ -26,12 +26,14 @@ use tokio::time::Instant;
 use crate::config::Config;
 use std::collections::BTreeMap;
 
-use crate::source::fleet::{is_vehicle_heartbeat, is_vehicle_telemetry, FleetConfig, VehicleFilter};
-use crate::MavMessage;
-use crate::sink::Fanout;
-use crate::source::TimedMessage;
-use crate::report::status::ChainStatus;
 use super::{ChainTasks, Inference, VehicleChain, CHANNEL_DEPTH, SILENT_TICK};
+use crate::report::status::ChainStatus;
+use crate::sink::Fanout;
+use crate::source::fleet::{
+    is_vehicle_heartbeat, is_vehicle_telemetry, FleetConfig, VehicleFilter,
+};
+use crate::source::TimedMessage;
+use crate::MavMessage;
 
 /// The demultiplexer and what it starts chains with.
 pub(super) struct Fleet {
@@ -100,14 +102,20 @@ impl Fleet {
             for ev in events.drain(..) {
                 match ev {
                     FleetEvent::Lost { id, silent_s, .. } => {
-                        tracing::warn!(vehicle = id, "vehicle lost: nothing heard for {silent_s:.1} s");
+                        tracing::warn!(
+                            vehicle = id,
+                            "vehicle lost: nothing heard for {silent_s:.1} s"
+                        );
                         if let Some(v) = chains.get(&id) {
                             let _ = v.events.send(ev);
                         }
                     }
                     FleetEvent::Back { .. } => {}
                     FleetEvent::Dropped { id, silent_s, .. } => {
-                        tracing::warn!(vehicle = id, "vehicle dropped: nothing heard for {silent_s:.1} s");
+                        tracing::warn!(
+                            vehicle = id,
+                            "vehicle dropped: nothing heard for {silent_s:.1} s"
+                        );
                         if let Some(v) = chains.remove(&id) {
                             let _ = v.events.send(ev);
                             // Its input closes: the chain drains, the relay says it was dropped.
@@ -133,7 +141,15 @@ impl Fleet {
         if let Some(dir) = self.data_dir {
             for (id, end) in ends {
                 let (dir, fits) = (dir.clone(), fits.remove(&id));
-                tokio::task::spawn_blocking(move || crate::vehicle::store::remember(&dir, end.identity.as_ref(), fits.as_deref(), &end.flight)).await?;
+                tokio::task::spawn_blocking(move || {
+                    crate::vehicle::store::remember(
+                        &dir,
+                        end.identity.as_ref(),
+                        fits.as_deref(),
+                        &end.flight,
+                    )
+                })
+                .await?;
             }
         }
         Ok(())
@@ -144,14 +160,25 @@ impl Fleet {
     fn start(&mut self, id: u8) -> Result<Vehicle> {
         let (chain, mut status) = match self.first.take() {
             Some(c) => (c, self.status.clone()),
-            None => (VehicleChain::another(&self.config)?, ChainStatus { health: Default::default(), ..self.status.clone() }),
+            None => (
+                VehicleChain::another(&self.config)?,
+                ChainStatus {
+                    health: Default::default(),
+                    ..self.status.clone()
+                },
+            ),
         };
         status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id));
         tracing::info!(vehicle = id, "vehicle heard: following it");
         let (tx, rx) = mpsc::channel(CHANNEL_DEPTH);
         let chain = chain.with_memory(self.data_dir.clone());
-        let (events, tasks) = chain.spawn(rx, &self.inference, self.fanout.clone(), &status, self.live);
-        Ok(Vehicle { msgs: tx, events, tasks })
+        let (events, tasks) =
+            chain.spawn(rx, &self.inference, self.fanout.clone(), &status, self.live);
+        Ok(Vehicle {
+            msgs: tx,
+            events,
+            tasks,
+        })
     }
 }
 
@@ -215,7 +242,9 @@ impl Demux {
     /// Where message `m` goes (and note when its vehicle was last heard).
     pub fn route(&mut self, m: &TimedMessage) -> Route {
         let sys = m.header.system_id;
-        let Ok(id) = u8::try_from(sys) else { return Route::Ignore };
+        let Ok(id) = u8::try_from(sys) else {
+            return Route::Ignore;
+        };
         if id == 0 {
             return Route::Ignore;
         }
@@ -226,7 +255,11 @@ impl Demux {
         if let Some(v) = self.vehicles.get_mut(&id) {
             v.last_t = v.last_t.max(m.t_s);
             let back = std::mem::take(&mut v.lost);
-            return Route::Vehicle { id, new: false, back };
+            return Route::Vehicle {
+                id,
+                new: false,
+                back,
+            };
         }
         let opens = match &m.msg {
             MavMessage::HEARTBEAT(h) if is_vehicle_heartbeat(h) => true,
@@ -239,8 +272,18 @@ impl Demux {
         if !opens || !m.t_s.is_finite() {
             return Route::Ignore;
         }
-        self.vehicles.insert(id, Seen { last_t: m.t_s, lost: false });
-        Route::Vehicle { id, new: true, back: false }
+        self.vehicles.insert(
+            id,
+            Seen {
+                last_t: m.t_s,
+                lost: false,
+            },
+        );
+        Route::Vehicle {
+            id,
+            new: true,
+            back: false,
+        }
     }
 
     /// Time is now `now_s` (the source's clock): push the vehicles that went lost or must be
@@ -250,12 +293,20 @@ impl Demux {
         self.vehicles.retain(|&id, v| {
             let silent_s = now_s - v.last_t;
             if silent_s >= drop_after {
-                out.push(FleetEvent::Dropped { id, t_s: now_s, silent_s });
+                out.push(FleetEvent::Dropped {
+                    id,
+                    t_s: now_s,
+                    silent_s,
+                });
                 return false;
             }
             if silent_s >= lost_after && !v.lost {
                 v.lost = true;
-                out.push(FleetEvent::Lost { id, t_s: now_s, silent_s });
+                out.push(FleetEvent::Lost {
+                    id,
+                    t_s: now_s,
+                    silent_s,
+                });
             }
             true
         });
@@ -283,10 +334,23 @@ mod tests {
     use crate::dialect::{MavAutopilot, MavType, HEARTBEAT_DATA};
 
     fn msg(sys: u32, t_s: f64, msg: MavMessage) -> TimedMessage {
-        TimedMessage { t_s, header: mavlink::MavHeader { system_id: sys, component_id: 1, sequence: 0 }, msg, arrived: std::time::Instant::now() }
+        TimedMessage {
+            t_s,
+            header: mavlink::MavHeader {
+                system_id: sys,
+                component_id: 1,
+                sequence: 0,
+            },
+            msg,
+            arrived: std::time::Instant::now(),
+        }
     }
     fn hb(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
-        MavMessage::HEARTBEAT(HEARTBEAT_DATA { mavtype, autopilot, ..Default::default() })
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            mavtype,
+            autopilot,
+            ..Default::default()
+        })
     }
 
     #[test]
@@ -296,46 +360,138 @@ mod tests {
         assert!(!f.contains(4) && !f.contains(21) && !f.contains(0) && !f.contains(300));
         assert!(VehicleFilter::parse("1-250").unwrap().contains(250));
         assert!(VehicleFilter::parse("0").unwrap_err().contains("\"0\""));
-        assert!(VehicleFilter::parse("20-10").unwrap_err().contains("backwards"));
+        assert!(VehicleFilter::parse("20-10")
+            .unwrap_err()
+            .contains("backwards"));
         assert!(VehicleFilter::parse("5,x").unwrap_err().contains("\"x\""));
-        let bad = FleetConfig { vehicles: Some("1-300".into()), drop_after_s: 1.0, ..Default::default() };
+        let bad = FleetConfig {
+            vehicles: Some("1-300".into()),
+            drop_after_s: 1.0,
+            ..Default::default()
+        };
         let e = bad.validate().unwrap_err();
-        assert!(e.contains("fleet.vehicles") && e.contains("fleet.drop_after_s"), "{e}");
+        assert!(
+            e.contains("fleet.vehicles") && e.contains("fleet.drop_after_s"),
+            "{e}"
+        );
     }
 
     #[test]
     fn only_vehicles_open_chains_and_silence_makes_them_lost_then_dropped() {
         let mut d = Demux::new(&FleetConfig::default(), None).unwrap();
-        let quad = || hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA);
+        let quad = || {
+            hb(
+                MavType::MAV_TYPE_QUADROTOR,
+                MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            )
+        };
         // A ground station and a companion are not vehicles; their telemetry-less chatter is ignored.
-        assert_eq!(d.route(&msg(255, 0.0, hb(MavType::MAV_TYPE_GCS, MavAutopilot::MAV_AUTOPILOT_INVALID))), Route::Ignore);
-        assert_eq!(d.route(&msg(255, 0.1, MavMessage::ATTITUDE(Default::default()))), Route::Ignore);
-        assert_eq!(d.route(&msg(9, 0.0, hb(MavType::MAV_TYPE_ONBOARD_CONTROLLER, MavAutopilot::MAV_AUTOPILOT_GENERIC))), Route::Ignore);
-        assert_eq!(d.route(&msg(1, 0.0, quad())), Route::Vehicle { id: 1, new: true, back: false });
-        assert_eq!(d.route(&msg(1, 0.1, quad())), Route::Vehicle { id: 1, new: false, back: false });
+        assert_eq!(
+            d.route(&msg(
+                255,
+                0.0,
+                hb(MavType::MAV_TYPE_GCS, MavAutopilot::MAV_AUTOPILOT_INVALID)
+            )),
+            Route::Ignore
+        );
+        assert_eq!(
+            d.route(&msg(255, 0.1, MavMessage::ATTITUDE(Default::default()))),
+            Route::Ignore
+        );
+        assert_eq!(
+            d.route(&msg(
+                9,
+                0.0,
+                hb(
+                    MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+                    MavAutopilot::MAV_AUTOPILOT_GENERIC
+                )
+            )),
+            Route::Ignore
+        );
+        assert_eq!(
+            d.route(&msg(1, 0.0, quad())),
+            Route::Vehicle {
+                id: 1,
+                new: true,
+                back: false
+            }
+        );
+        assert_eq!(
+            d.route(&msg(1, 0.1, quad())),
+            Route::Vehicle {
+                id: 1,
+                new: false,
+                back: false
+            }
+        );
         // Telemetry before a heartbeat opens a vehicle too (a log cut between heartbeats).
-        assert_eq!(d.route(&msg(2, 0.2, MavMessage::ATTITUDE(Default::default()))), Route::Vehicle { id: 2, new: true, back: false });
+        assert_eq!(
+            d.route(&msg(2, 0.2, MavMessage::ATTITUDE(Default::default()))),
+            Route::Vehicle {
+                id: 2,
+                new: true,
+                back: false
+            }
+        );
         assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![1, 2]);
         let mut ev = Vec::new();
         d.route(&msg(2, 9.0, quad()));
         d.advance(10.5, &mut ev);
-        assert!(matches!(ev.as_slice(), [FleetEvent::Lost { id: 1, .. }]), "{ev:?}");
+        assert!(
+            matches!(ev.as_slice(), [FleetEvent::Lost { id: 1, .. }]),
+            "{ev:?}"
+        );
         d.advance(11.0, &mut ev);
         assert_eq!(ev.len(), 1, "lost is said once");
-        assert_eq!(d.route(&msg(1, 11.0, quad())), Route::Vehicle { id: 1, new: false, back: true });
+        assert_eq!(
+            d.route(&msg(1, 11.0, quad())),
+            Route::Vehicle {
+                id: 1,
+                new: false,
+                back: true
+            }
+        );
         ev.clear();
         d.advance(70.0, &mut ev);
-        assert!(matches!(ev.as_slice(), [FleetEvent::Lost { id: 1, .. }, FleetEvent::Dropped { id: 2, .. }]), "{ev:?}");
+        assert!(
+            matches!(
+                ev.as_slice(),
+                [
+                    FleetEvent::Lost { id: 1, .. },
+                    FleetEvent::Dropped { id: 2, .. }
+                ]
+            ),
+            "{ev:?}"
+        );
         assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![1]);
-        assert_eq!(d.route(&msg(2, 72.0, quad())), Route::Vehicle { id: 2, new: true, back: false });
+        assert_eq!(
+            d.route(&msg(2, 72.0, quad())),
+            Route::Vehicle {
+                id: 2,
+                new: true,
+                back: false
+            }
+        );
     }
 
     #[test]
     fn a_filter_ignores_and_counts_other_vehicles() {
-        let mut d = Demux::new(&FleetConfig::default(), Some(VehicleFilter::parse("1-2").unwrap())).unwrap();
+        let mut d = Demux::new(
+            &FleetConfig::default(),
+            Some(VehicleFilter::parse("1-2").unwrap()),
+        )
+        .unwrap();
         let quad = hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
         assert_eq!(d.route(&msg(3, 0.0, quad.clone())), Route::Ignore);
-        assert_eq!(d.route(&msg(2, 0.0, quad)), Route::Vehicle { id: 2, new: true, back: false });
+        assert_eq!(
+            d.route(&msg(2, 0.0, quad)),
+            Route::Vehicle {
+                id: 2,
+                new: true,
+                back: false
+            }
+        );
         assert_eq!(d.filtered(), 1);
     }
 }

@@ -7,12 +7,12 @@ use anyhow::Result;
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
+use super::{CHANNEL_DEPTH, MAX_BATCH};
 use crate::config::Config;
 use crate::model::Ensemble;
-use crate::report::Estimate;
 use crate::report::status::IngestStats;
+use crate::report::Estimate;
 use crate::telemetry::window::Window;
-use super::{CHANNEL_DEPTH, MAX_BATCH};
 
 /// One window for the shared inference stage, whose it is, and where its estimate goes.
 pub struct Job {
@@ -33,8 +33,14 @@ pub struct Batching {
 impl Batching {
     /// From the configuration: the wait, and the LSTM's period in windows.
     pub fn from_config(cfg: &Config) -> Self {
-        let every = cfg.fleet.lstm_rate_hz.map_or(1.0, |r| (cfg.telemetry.rate_hz / r).round());
-        Self { wait: std::time::Duration::from_secs_f64(cfg.fleet.batch_wait_ms / 1e3), heavy_every: (every as u64).max(1) }
+        let every = cfg
+            .fleet
+            .lstm_rate_hz
+            .map_or(1.0, |r| (cfg.telemetry.rate_hz / r).round());
+        Self {
+            wait: std::time::Duration::from_secs_f64(cfg.fleet.batch_wait_ms / 1e3),
+            heavy_every: (every as u64).max(1),
+        }
     }
 }
 
@@ -50,12 +56,23 @@ pub struct Inference {
 impl Inference {
     /// Start the stage on its own thread with these models (on the tokio runtime it is
     /// called from). `live`: never wait for the vehicle store.
-    pub fn spawn(models: Ensemble, batching: Batching, live: bool, stats: Arc<IngestStats>) -> Self {
+    pub fn spawn(
+        models: Ensemble,
+        batching: Batching,
+        live: bool,
+        stats: Arc<IngestStats>,
+    ) -> Self {
         let (jobs, rx) = mpsc::channel::<Job>(CHANNEL_DEPTH);
         let (warm, warm_rx) = std::sync::mpsc::channel();
         let rt = tokio::runtime::Handle::current();
         // Model work is CPU-bound: one dedicated thread for the whole run, off the reactor.
-        Self { jobs, warm, task: tokio::task::spawn_blocking(move || inference_stage(models, rx, batching, rt, warm_rx, live, stats)) }
+        Self {
+            jobs,
+            warm,
+            task: tokio::task::spawn_blocking(move || {
+                inference_stage(models, rx, batching, rt, warm_rx, live, stats)
+            }),
+        }
     }
     /// Wait for it to drain and end, once every chain sending to it has ended; each
     /// vehicle's adaptation fits (adaptation on).
@@ -91,7 +108,8 @@ fn inference_stage(
     let heavy_names = models.heavy_names();
     let mut b = Batch::default();
     // Per vehicle: windows seen, and the heavy models' latest estimates.
-    let mut seen: std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)> = Default::default();
+    let mut seen: std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)> =
+        Default::default();
     // Vehicles known whose fits are being looked up.
     let mut waiting = std::collections::BTreeSet::new();
     let mut vehicles = Vec::new();
@@ -103,10 +121,12 @@ fn inference_stage(
             match jobs.try_recv() {
                 Ok(j) => b.take(j, &mut seen, batching.heavy_every),
                 // Wait a little for the other vehicles' windows of this tick.
-                Err(mpsc::error::TryRecvError::Empty) if wait => match rt.block_on(tokio::time::timeout_at(deadline, jobs.recv())) {
-                    Ok(Some(j)) => b.take(j, &mut seen, batching.heavy_every),
-                    _ => break,
-                },
+                Err(mpsc::error::TryRecvError::Empty) if wait => {
+                    match rt.block_on(tokio::time::timeout_at(deadline, jobs.recv())) {
+                        Ok(Some(j)) => b.take(j, &mut seen, batching.heavy_every),
+                        _ => break,
+                    }
+                }
                 Err(_) => break,
             }
         }
@@ -116,7 +136,8 @@ fn inference_stage(
         if !live {
             let until = std::time::Instant::now() + WARM_WAIT;
             while b.meta.iter().any(|(v, ..)| waiting.contains(v)) {
-                match warm.recv_timeout(until.saturating_duration_since(std::time::Instant::now())) {
+                match warm.recv_timeout(until.saturating_duration_since(std::time::Instant::now()))
+                {
                     Ok((id, news)) => warm_start(&mut models, id, news, &mut waiting, seen.len()),
                     Err(_) => {
                         tracing::warn!("vehicle store: no answer in {WARM_WAIT:?}; the replay goes on without a warm start");
@@ -131,7 +152,12 @@ fn inference_stage(
         for (mut e, (vehicle, full, reply)) in estimates.into_iter().zip(b.meta.drain(..)) {
             if let (true, Some((_, held))) = (batching.heavy_every > 1, seen.get_mut(&vehicle)) {
                 if full {
-                    *held = e.models.iter().filter(|m| heavy_names.contains(&m.name)).cloned().collect();
+                    *held = e
+                        .models
+                        .iter()
+                        .filter(|m| heavy_names.contains(&m.name))
+                        .cloned()
+                        .collect();
                 } else {
                     e.models.extend(held.iter().cloned());
                 }
@@ -143,7 +169,9 @@ fn inference_stage(
         b.windows.clear();
         b.heavy.clear();
     }
-    seen.keys().filter_map(|&id| Some((id, models.adaptation(id)?.fits().to_vec()))).collect()
+    seen.keys()
+        .filter_map(|&id| Some((id, models.adaptation(id)?.fits().to_vec())))
+        .collect()
 }
 
 /// The batch the inference stage is gathering: windows, whether the heavy models run on
@@ -156,7 +184,12 @@ struct Batch {
 }
 
 impl Batch {
-    fn take(&mut self, j: Job, seen: &mut std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)>, every: u64) {
+    fn take(
+        &mut self,
+        j: Job,
+        seen: &mut std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)>,
+        every: u64,
+    ) {
         let n = &mut seen.entry(j.vehicle).or_default().0;
         let full = n.is_multiple_of(every);
         *n += 1;
@@ -169,7 +202,13 @@ impl Batch {
 /// Take the warm start's news; whether the answer is still to come. `vehicles`: how many
 /// vehicles the stage has heard (a learned profile's models replace the run's only while
 /// one vehicle is: a fleet's vehicles share the models).
-fn warm_start(models: &mut Ensemble, vehicle: u8, news: WarmStart, waiting: &mut std::collections::BTreeSet<u8>, vehicles: usize) {
+fn warm_start(
+    models: &mut Ensemble,
+    vehicle: u8,
+    news: WarmStart,
+    waiting: &mut std::collections::BTreeSet<u8>,
+    vehicles: usize,
+) {
     match news {
         WarmStart::Pending => {
             waiting.insert(vehicle);

@@ -35,14 +35,14 @@ mod inference;
 mod shutdown;
 mod sinks;
 
+use chain::mission_setup;
 pub use chain::{account, ChainEnd, ChainTasks, Rebuild, VehicleChain};
+use fleet::Fleet;
 pub use fleet::{Demux, FleetEvent, Route};
 pub use inference::{Batching, Fits, Inference, Job, WarmStart};
 pub use shutdown::shutdown_on_signal;
-pub use sinks::{start_sinks, SinkTasks};
-use chain::mission_setup;
-use fleet::Fleet;
 use sinks::relay;
+pub use sinks::{start_sinks, SinkTasks};
 
 use std::sync::Arc;
 
@@ -52,9 +52,9 @@ use tokio_util::sync::CancellationToken;
 
 use crate::config::Config;
 use crate::model::Ensemble;
+use crate::report::status::{ChainStatus, LinkHandle, StatsSnapshot};
 use crate::sink::SinkSpec;
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
-use crate::report::status::{ChainStatus, LinkHandle, StatsSnapshot};
 
 /// Channel depth between stages. Deep enough to ride out a slow model for a few seconds
 /// at 10 Hz; a flat-out replay simply waits on the slowest stage (back-pressure).
@@ -85,9 +85,20 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let mut chain = VehicleChain::build(&p.config)?;
     let demux = Demux::new(&p.config.fleet, None).map_err(anyhow::Error::msg)?;
     // The signing key is read now: a missing or world-readable key fails before we listen.
-    let signing = p.config.link.load().map_err(anyhow::Error::msg)?.map(|s| Arc::new(LinkSigning::new(s)));
-    let signer = signing.clone().map(|s| s as Arc<dyn crate::report::status::FrameSigner>);
-    let status = ChainStatus { shutdown: shutdown.clone(), link: LinkHandle::with_signer(signer), ..ChainStatus::default() };
+    let signing = p
+        .config
+        .link
+        .load()
+        .map_err(anyhow::Error::msg)?
+        .map(|s| Arc::new(LinkSigning::new(s)));
+    let signer = signing
+        .clone()
+        .map(|s| s as Arc<dyn crate::report::status::FrameSigner>);
+    let status = ChainStatus {
+        shutdown: shutdown.clone(),
+        link: LinkHandle::with_signer(signer),
+        ..ChainStatus::default()
+    };
 
     // Sinks start first so they see every report.
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
@@ -95,20 +106,42 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let live = matches!(p.source, SourceSpec::Link(_));
     let mission = mission_setup(&p.config, &p.source, demux.filter())?;
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
-    let source = tokio::spawn(crate::source::run(p.source, msg_tx, status.stats.clone(), status.link.clone(), signing, shutdown));
+    let source = tokio::spawn(crate::source::run(
+        p.source,
+        msg_tx,
+        status.stats.clone(),
+        status.link.clone(),
+        signing,
+        shutdown,
+    ));
     // The mission tap between the source and the demultiplexer, when there is a mission
     // to follow: it follows the vehicle it first hears, whose chain (the first) gets it.
     let (msg_rx, mission_task) = match mission {
         Some(setup) => {
             let (status_tx, status_rx) = mpsc::channel(crate::mission::live::STATUS_DEPTH);
-            let (rx, task) = crate::mission::live::spawn(msg_rx, setup, status.link.clone(), status_tx);
+            let (rx, task) =
+                crate::mission::live::spawn(msg_rx, setup, status.link.clone(), status_tx);
             chain.mission = Some(status_rx);
             (rx, Some(task))
         }
         None => (msg_rx, None),
     };
-    let inference = Inference::spawn(std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())), Batching::from_config(&p.config), live, status.stats.clone());
-    let fleet = Fleet { config: p.config, demux, first: Some(chain), inference, fanout, status: status.clone(), live, data_dir: p.data_dir };
+    let inference = Inference::spawn(
+        std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())),
+        Batching::from_config(&p.config),
+        live,
+        status.stats.clone(),
+    );
+    let fleet = Fleet {
+        config: p.config,
+        demux,
+        first: Some(chain),
+        inference,
+        fanout,
+        status: status.clone(),
+        live,
+        data_dir: p.data_dir,
+    };
     let demux = tokio::spawn(fleet.run(msg_rx));
 
     let source_result = source.await?;

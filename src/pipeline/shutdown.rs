@@ -1,8 +1,6 @@
 //! Shutdown: the one stop signal (Ctrl-C or SIGTERM) every run ends on.
 
-
 use tokio_util::sync::CancellationToken;
-
 
 /// A token cancelled on Ctrl-C (SIGINT) or SIGTERM: the run's one stop signal.
 pub fn shutdown_on_signal() -> CancellationToken {

@@ -9,11 +9,11 @@ use tokio::task::JoinHandle;
 use tokio::time::Instant;
 use tokio_util::sync::CancellationToken;
 
+use super::{FleetEvent, UPLINK_FLUSH};
+use crate::report::status::{ChainStatus, LinkHandle};
 use crate::report::{AlertEvent, AlertState, Report, Severity};
 use crate::sink::mavlink::MavlinkSinkConfig;
 use crate::sink::{Fanout, ReportRx, SinkSpec};
-use crate::report::status::{ChainStatus, LinkHandle};
-use super::{FleetEvent, UPLINK_FLUSH};
 
 /// Start every sink: each gets its own queue on the returned [`Fanout`] and the chain's
 /// status. A MAVLink sink with an `address` of its own writes through an uplink opened
@@ -21,15 +21,28 @@ use super::{FleetEvent, UPLINK_FLUSH};
 /// runs when a sink cannot start.
 pub fn start_sinks(specs: Vec<SinkSpec>, status: &ChainStatus) -> Result<(Fanout, SinkTasks)> {
     let mut fanout = Fanout::default().gauged(status.stats.clone());
-    let mut tasks = SinkTasks { sinks: Vec::with_capacity(specs.len()), uplinks: Vec::new(), uplink_stop: status.shutdown.child_token() };
+    let mut tasks = SinkTasks {
+        sinks: Vec::with_capacity(specs.len()),
+        uplinks: Vec::new(),
+        uplink_stop: status.shutdown.child_token(),
+    };
     for spec in specs {
         let mut sink_status = status.clone();
-        if let SinkSpec::Mavlink(MavlinkSinkConfig { address: Some(a), .. }) = &spec {
-            let (link, task) = crate::source::link::spawn_uplink(a.parse()?, &status.link, tasks.uplink_stop.clone());
+        if let SinkSpec::Mavlink(MavlinkSinkConfig {
+            address: Some(a), ..
+        }) = &spec
+        {
+            let (link, task) = crate::source::link::spawn_uplink(
+                a.parse()?,
+                &status.link,
+                tasks.uplink_stop.clone(),
+            );
             sink_status.link = link.clone();
             tasks.uplinks.push((link, task));
         }
-        tasks.sinks.push(crate::sink::spawn(spec, fanout.subscribe(), sink_status)?);
+        tasks
+            .sinks
+            .push(crate::sink::spawn(spec, fanout.subscribe(), sink_status)?);
     }
     Ok((fanout, tasks))
 }
@@ -67,18 +80,30 @@ impl SinkTasks {
 /// vehicle's last report). Each is reported on the vehicle's last estimate and energy; a
 /// vehicle that never produced a report has nothing to report it on (it is logged).
 /// Each report's message → estimate latency is counted in `latency` as it goes to the sinks.
-pub(super) async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedReceiver<FleetEvent>, mut fanout: Fanout, latency: Arc<crate::report::status::LatencyHistogram>) {
+pub(super) async fn relay(
+    mut reports: ReportRx,
+    mut events: mpsc::UnboundedReceiver<FleetEvent>,
+    mut fanout: Fanout,
+    latency: Arc<crate::report::status::LatencyHistogram>,
+) {
     let mut last: Option<Arc<Report>> = None;
     let mut dropped = None;
     let mut open = true;
-    let event = |last: &Option<Arc<Report>>, rule: &str, state, severity, t_s: f64, message: String| {
-        last.as_ref().map(|r| Report {
-            estimate: r.estimate.silent(t_s.max(r.estimate.t_s)),
-            energy: r.energy.clone(),
-            alerts: vec![AlertEvent { t: t_s, rule: rule.into(), severity, state, message }],
-            system_id: r.system_id,
-        })
-    };
+    let event =
+        |last: &Option<Arc<Report>>, rule: &str, state, severity, t_s: f64, message: String| {
+            last.as_ref().map(|r| Report {
+                estimate: r.estimate.silent(t_s.max(r.estimate.t_s)),
+                energy: r.energy.clone(),
+                alerts: vec![AlertEvent {
+                    t: t_s,
+                    rule: rule.into(),
+                    severity,
+                    state,
+                    message,
+                }],
+                system_id: r.system_id,
+            })
+        };
     loop {
         tokio::select! {
             biased;
@@ -118,7 +143,14 @@ pub(super) async fn relay(mut reports: ReportRx, mut events: mpsc::UnboundedRece
     }
     if let Some(FleetEvent::Dropped { id, t_s, silent_s }) = dropped {
         let msg = format!("vehicle {id} dropped: nothing heard for {silent_s:.0} s");
-        if let Some(r) = event(&last, "vehicle_dropped", AlertState::Raised, Severity::Info, t_s, msg) {
+        if let Some(r) = event(
+            &last,
+            "vehicle_dropped",
+            AlertState::Raised,
+            Severity::Info,
+            t_s,
+            msg,
+        ) {
             fanout.send(r).await;
         }
     }

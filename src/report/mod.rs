@@ -51,7 +51,14 @@ pub struct AdaptedError {
 impl ModelEstimate {
     /// A raw estimate (no adaptation).
     pub fn new(name: impl Into<String>, power_w: f32, band_w: Option<(f32, f32)>) -> Self {
-        Self { name: name.into(), power_w, band_w, adapted_w: None, reference_w: None, adapted_err: None }
+        Self {
+            name: name.into(),
+            power_w,
+            band_w,
+            adapted_w: None,
+            reference_w: None,
+            adapted_err: None,
+        }
     }
 }
 
@@ -78,7 +85,12 @@ impl Estimate {
         sample.t_s = t_s;
         sample.stale_mask = u32::MAX;
         sample.measured_w = None;
-        Estimate { t_s, sample, models: Vec::new(), arrived: None }
+        Estimate {
+            t_s,
+            sample,
+            models: Vec::new(),
+            arrived: None,
+        }
     }
 }
 
@@ -397,7 +409,16 @@ impl Severity {
     ];
     /// Lower-case name.
     pub fn name(self) -> &'static str {
-        ["emergency", "alert", "critical", "error", "warning", "notice", "info", "debug"][self as usize]
+        [
+            "emergency",
+            "alert",
+            "critical",
+            "error",
+            "warning",
+            "notice",
+            "info",
+            "debug",
+        ][self as usize]
     }
 }
 
@@ -420,7 +441,9 @@ impl std::str::FromStr for Severity {
 
 impl<'de> serde::Deserialize<'de> for Severity {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        String::deserialize(d)?.parse().map_err(serde::de::Error::custom)
+        String::deserialize(d)?
+            .parse()
+            .map_err(serde::de::Error::custom)
     }
 }
 

@@ -84,14 +84,20 @@ impl QueueGauge {
     /// A queue just sent to: its depth now.
     pub fn observe<T>(&self, tx: &tokio::sync::mpsc::Sender<T>) {
         let depth = (tx.max_capacity() - tx.capacity()) as u64;
-        if depth > self.peak.load(Ordering::Relaxed) && self.peak.fetch_max(depth, Ordering::Relaxed) < depth {
+        if depth > self.peak.load(Ordering::Relaxed)
+            && self.peak.fetch_max(depth, Ordering::Relaxed) < depth
+        {
             let ms = self.started.get_or_init(Instant::now).elapsed().as_millis();
-            self.peak_at_ms.store(u64::try_from(ms).unwrap_or(u64::MAX), Ordering::Relaxed);
+            self.peak_at_ms
+                .store(u64::try_from(ms).unwrap_or(u64::MAX), Ordering::Relaxed);
         }
     }
     /// (deepest, seconds after the start when it was reached).
     pub fn peak(&self) -> (u64, f64) {
-        (self.peak.load(Ordering::Relaxed), self.peak_at_ms.load(Ordering::Relaxed) as f64 / 1000.0)
+        (
+            self.peak.load(Ordering::Relaxed),
+            self.peak_at_ms.load(Ordering::Relaxed) as f64 / 1000.0,
+        )
     }
 }
 
@@ -177,7 +183,10 @@ pub trait FrameSigner: Send + Sync + std::fmt::Debug {
 impl LinkHandle {
     /// A handle whose frames are signed by `signer` (none: sent as they are).
     pub fn with_signer(signer: Option<Arc<dyn FrameSigner>>) -> Self {
-        Self { writer: Arc::default(), signer }
+        Self {
+            writer: Arc::default(),
+            signer,
+        }
     }
     /// The signer this handle signs with.
     pub fn signer(&self) -> Option<Arc<dyn FrameSigner>> {
@@ -206,7 +215,11 @@ impl LinkHandle {
     }
     /// Frames queued and not yet written (0 without a link).
     pub fn pending(&self) -> usize {
-        self.writer.lock().ok().and_then(|g| g.as_ref().map(|tx| tx.max_capacity() - tx.capacity())).unwrap_or(0)
+        self.writer
+            .lock()
+            .ok()
+            .and_then(|g| g.as_ref().map(|tx| tx.max_capacity() - tx.capacity()))
+            .unwrap_or(0)
     }
     /// Whether a live link is attached.
     pub fn is_attached(&self) -> bool {
@@ -232,7 +245,11 @@ const LATENCY_BUCKETS: usize = (37 << SUB_BITS) as usize;
 
 impl Default for LatencyHistogram {
     fn default() -> Self {
-        Self { buckets: std::array::from_fn(|_| AtomicU64::new(0)), count: AtomicU64::new(0), max_us: AtomicU64::new(0) }
+        Self {
+            buckets: std::array::from_fn(|_| AtomicU64::new(0)),
+            count: AtomicU64::new(0),
+            max_us: AtomicU64::new(0),
+        }
     }
 }
 
@@ -269,7 +286,11 @@ impl LatencyHistogram {
     }
     /// Count, p50, p99 and maximum so far (`None` when nothing was counted).
     pub fn summary(&self) -> Option<LatencySummary> {
-        let counts: Vec<u64> = self.buckets.iter().map(|b| b.load(Ordering::Relaxed)).collect();
+        let counts: Vec<u64> = self
+            .buckets
+            .iter()
+            .map(|b| b.load(Ordering::Relaxed))
+            .collect();
         let count: u64 = counts.iter().sum();
         if count == 0 {
             return None;
@@ -287,7 +308,12 @@ impl LatencyHistogram {
             max_us
         };
         let ms = |us: u64| us as f64 / 1e3;
-        Some(LatencySummary { count, p50_ms: ms(quantile(0.50)), p99_ms: ms(quantile(0.99)), max_ms: ms(max_us) })
+        Some(LatencySummary {
+            count,
+            p50_ms: ms(quantile(0.50)),
+            p99_ms: ms(quantile(0.99)),
+            max_ms: ms(max_us),
+        })
     }
 }
 
@@ -304,7 +330,11 @@ pub struct LatencySummary {
 impl std::fmt::Display for LatencySummary {
     /// `message → estimate p50 0.41 ms, p99 3.2 ms, max 12.0 ms (18465 estimates)`
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "message → estimate p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} estimates)", self.p50_ms, self.p99_ms, self.max_ms, self.count)
+        write!(
+            f,
+            "message → estimate p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} estimates)",
+            self.p50_ms, self.p99_ms, self.max_ms, self.count
+        )
     }
 }
 
@@ -327,7 +357,11 @@ mod latency_tests {
         }
         for us in [0, 1, 7, 8, 9, 15, 16, 17, 1000, 12_345, 50_000, 10_000_000] {
             let i = bucket(us);
-            assert!(bucket_top(i) >= us && bucket_top(i) as f64 <= us as f64 * 1.125 + 1.0, "{us} in bucket {i} (top {})", bucket_top(i));
+            assert!(
+                bucket_top(i) >= us && bucket_top(i) as f64 <= us as f64 * 1.125 + 1.0,
+                "{us} in bucket {i} (top {})",
+                bucket_top(i)
+            );
         }
         assert_eq!(bucket(u64::MAX), LATENCY_BUCKETS - 1);
     }

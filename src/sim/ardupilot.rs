@@ -38,8 +38,13 @@ impl Style for ArduPilot {
     /// cells × 3.3);
     /// `FRAME_CLASS` 1 (quad, INT8).
     fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA> {
-        use d::MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_INT8 as INT8, MAV_PARAM_TYPE_REAL32 as REAL32};
-        let Some(b) = &opts.vehicle.battery else { return Vec::new() };
+        use d::MavParamType::{
+            MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_INT8 as INT8,
+            MAV_PARAM_TYPE_REAL32 as REAL32,
+        };
+        let Some(b) = &opts.vehicle.battery else {
+            return Vec::new();
+        };
         let (mah, cells) = (b.capacity_mah, f64::from(b.cells));
         let lihv = super::physics::Battery::facts(b).chemistry.value == "lihv";
         // LiHV: 4.35 V full; its failsafe a cell lower (3.5 / 3.4 V: the data set's M100
@@ -64,13 +69,25 @@ impl Style for ArduPilot {
         None
     }
 
-    fn attitude(&self, now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vector3<f64>, out: &mut Vec<MavMessage>) {
+    fn attitude(
+        &self,
+        now: &Instant,
+        (roll, pitch, yaw): (f64, f64, f64),
+        rates: &Vector3<f64>,
+        out: &mut Vec<MavMessage>,
+    ) {
         out.push(super::emit::attitude(now, (roll, pitch, yaw), rates));
     }
 
     /// RAW_IMU carries acceleration in mG, rates in mrad/s and the field in mgauss
     /// (ArduPilot's send_raw_imu scales by 1000/GRAVITY_MSS).
-    fn imu(&self, now: &Instant, f: &Vector3<f64>, w: &Vector3<f64>, mag: &Vector3<f64>) -> MavMessage {
+    fn imu(
+        &self,
+        now: &Instant,
+        f: &Vector3<f64>,
+        w: &Vector3<f64>,
+        mag: &Vector3<f64>,
+    ) -> MavMessage {
         let mg = |x: f64| (x * 1000.0 / G).round().clamp(-32768.0, 32767.0) as i16;
         let milli = |x: f64| (x * 1000.0).round().clamp(-32768.0, 32767.0) as i16;
         MavMessage::RAW_IMU(d::RAW_IMU_DATA {
@@ -92,7 +109,12 @@ impl Style for ArduPilot {
     /// WIND at 2 Hz: ArduPilot's direction is degrees(atan2(−wind.y, −wind.x)), where the
     /// wind comes from.
     fn air_data(&self, now: &Instant) -> Option<MavMessage> {
-        if !(Every { period_ms: 500, offset_ms: 70 }).due(now.t_ms) {
+        if !(Every {
+            period_ms: 500,
+            offset_ms: 70,
+        })
+        .due(now.t_ms)
+        {
             return None;
         }
         let w = now.wind_est;

@@ -33,7 +33,12 @@ use crate::MavMessage;
 fn mission_download(m: &super::SimMission) -> Vec<MavMessage> {
     use num_traits::FromPrimitive;
     let count = u16::try_from(m.items.len()).unwrap_or(u16::MAX);
-    let mut out = vec![MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA { count, target_system: 255, target_component: 190, ..Default::default() })];
+    let mut out = vec![MavMessage::MISSION_COUNT(d::MISSION_COUNT_DATA {
+        count,
+        target_system: 255,
+        target_component: 190,
+        ..Default::default()
+    })];
     for it in &m.items {
         out.push(MavMessage::MISSION_ITEM_INT(d::MISSION_ITEM_INT_DATA {
             param1: it.params[0] as f32,
@@ -112,10 +117,22 @@ pub trait Style {
     fn landed_state(&self, now: &Instant) -> Option<MavMessage>;
     /// Attitude messages, given the measured roll, pitch, yaw (rad) and body rates (rad/s),
     /// when the 10 Hz attitude slot is due.
-    fn attitude(&self, now: &Instant, rpy: (f64, f64, f64), rates: &Vector3<f64>, out: &mut Vec<MavMessage>);
+    fn attitude(
+        &self,
+        now: &Instant,
+        rpy: (f64, f64, f64),
+        rates: &Vector3<f64>,
+        out: &mut Vec<MavMessage>,
+    );
     /// The IMU message for specific force `f` (FRD, m/s²), rates `w` (rad/s) and field
     /// `mag` (gauss), when the 10 Hz IMU slot is due.
-    fn imu(&self, now: &Instant, f: &Vector3<f64>, w: &Vector3<f64>, mag: &Vector3<f64>) -> MavMessage;
+    fn imu(
+        &self,
+        now: &Instant,
+        f: &Vector3<f64>,
+        w: &Vector3<f64>,
+        mag: &Vector3<f64>,
+    ) -> MavMessage;
     /// Wind or altitude messages at the style's own rate; last in each step but HOME_POSITION.
     fn air_data(&self, now: &Instant) -> Option<MavMessage>;
 }
@@ -171,25 +188,39 @@ impl Emitter {
     }
 
     fn push(&mut self, t_ms: u64, msg: MavMessage) {
-        let header = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
+        let header = MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence: self.seq,
+        };
         self.seq = self.seq.wrapping_add(1);
-        self.records.push(SimRecord { t_us: EPOCH_START_US + t_ms * 1000, header, msg });
+        self.records.push(SimRecord {
+            t_us: EPOCH_START_US + t_ms * 1000,
+            header,
+            msg,
+        });
     }
 
     fn heartbeat(&self, armed: bool, phase: Phase) -> MavMessage {
-        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
+        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+            | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
         if armed {
             base |= d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
         }
         if !matches!(phase, Phase::PreArm | Phase::Done) {
-            base |= d::MavModeFlag::MAV_MODE_FLAG_GUIDED_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_AUTO_ENABLED;
+            base |= d::MavModeFlag::MAV_MODE_FLAG_GUIDED_ENABLED
+                | d::MavModeFlag::MAV_MODE_FLAG_AUTO_ENABLED;
         }
         MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
             custom_mode: self.style.custom_mode(phase),
             mavtype: d::MavType::MAV_TYPE_QUADROTOR,
             autopilot: self.style.autopilot(),
             base_mode: base,
-            system_status: if armed { d::MavState::MAV_STATE_ACTIVE } else { d::MavState::MAV_STATE_STANDBY },
+            system_status: if armed {
+                d::MavState::MAV_STATE_ACTIVE
+            } else {
+                d::MavState::MAV_STATE_STANDBY
+            },
             mavlink_version: 3,
         })
     }
@@ -207,13 +238,26 @@ impl Emitter {
             self.last_phase = Some(phase);
             self.push(t_ms, self.heartbeat(st.armed, phase));
         }
-        if (Every { period_ms: 1000, offset_ms: 0 }).due(t_ms) {
+        if (Every {
+            period_ms: 1000,
+            offset_ms: 0,
+        })
+        .due(t_ms)
+        {
             self.push(t_ms, self.heartbeat(st.armed, phase));
             let (speed_mps, alt_m) = self.route.commanded(phase);
-            for (name, value) in [("cmd_speed", speed_mps), ("payload_g", self.payload_g), ("cmd_alt", alt_m)] {
+            for (name, value) in [
+                ("cmd_speed", speed_mps),
+                ("payload_g", self.payload_g),
+                ("cmd_alt", alt_m),
+            ] {
                 self.push(
                     t_ms,
-                    MavMessage::NAMED_VALUE_FLOAT(d::NAMED_VALUE_FLOAT_DATA { time_boot_ms: boot_ms, value: value as f32, name: name.into() }),
+                    MavMessage::NAMED_VALUE_FLOAT(d::NAMED_VALUE_FLOAT_DATA {
+                        time_boot_ms: boot_ms,
+                        value: value as f32,
+                        name: name.into(),
+                    }),
                 );
             }
         }
@@ -230,25 +274,51 @@ impl Emitter {
                     self.push(t_ms, msg);
                 }
             }
-            if (Every { period_ms: 1000, offset_ms: 0 }).due(t_ms) {
+            if (Every {
+                period_ms: 1000,
+                offset_ms: 0,
+            })
+            .due(t_ms)
+            {
                 // total: the items after ArduPilot's home item; PX4 has none
-                let home_item = usize::from(m.items.first().is_some_and(|i| i.command == 16 && i.frame == 0));
+                let home_item = usize::from(
+                    m.items
+                        .first()
+                        .is_some_and(|i| i.command == 16 && i.frame == 0),
+                );
                 let total = u16::try_from(m.items.len() - home_item).unwrap_or(u16::MAX);
-                self.push(t_ms, MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA { seq: m.current_seq(phase), total, ..Default::default() }));
+                self.push(
+                    t_ms,
+                    MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA {
+                        seq: m.current_seq(phase),
+                        total,
+                        ..Default::default()
+                    }),
+                );
             }
         }
         if let Some(m) = self.style.landed_state(now) {
             self.push(t_ms, m);
         }
         // Battery: measured voltage and current carry sensor noise.
-        if (Every { period_ms: 500, offset_ms: 50 }).due(t_ms) {
+        if (Every {
+            period_ms: 500,
+            offset_ms: 50,
+        })
+        .due(t_ms)
+        {
             self.battery(now, rng);
         }
         // Position: GPS error (Gauss–Markov) on position, white noise on velocity.
         let (lat, lon, alt) = HOME.to_geodetic(&(st.pos + now.gps_err));
         let vel_meas = st.vel + Vector3::new(n(rng, 0.08), n(rng, 0.08), n(rng, 0.05));
         let hdg_deg = yaw.to_degrees().rem_euclid(360.0);
-        if (Every { period_ms: 200, offset_ms: 20 }).due(t_ms) {
+        if (Every {
+            period_ms: 200,
+            offset_ms: 20,
+        })
+        .due(t_ms)
+        {
             self.push(
                 t_ms,
                 MavMessage::GLOBAL_POSITION_INT(d::GLOBAL_POSITION_INT_DATA {
@@ -274,7 +344,9 @@ impl Emitter {
                     eph: 80,
                     epv: 120,
                     vel: (gs * 100.0).round() as u16,
-                    cog: ((vel_meas.y.atan2(vel_meas.x).to_degrees().rem_euclid(360.0) * 100.0).round() as u16) % 36000,
+                    cog: ((vel_meas.y.atan2(vel_meas.x).to_degrees().rem_euclid(360.0) * 100.0)
+                        .round() as u16)
+                        % 36000,
                     fix_type: d::GpsFixType::GPS_FIX_TYPE_3D_FIX,
                     satellites_visible: 14,
                     ..Default::default()
@@ -284,8 +356,17 @@ impl Emitter {
         // Attitude.
         let att_noise = Vector3::new(n(rng, 0.004), n(rng, 0.004), n(rng, 0.006));
         let rate_meas = st.rates + Vector3::new(n(rng, 0.015), n(rng, 0.015), n(rng, 0.01));
-        if (Every { period_ms: 100, offset_ms: 30 }).due(t_ms) {
-            let rpy = (roll + att_noise.x, pitch + att_noise.y, super::wrap_pi(yaw + att_noise.z));
+        if (Every {
+            period_ms: 100,
+            offset_ms: 30,
+        })
+        .due(t_ms)
+        {
+            let rpy = (
+                roll + att_noise.x,
+                pitch + att_noise.y,
+                super::wrap_pi(yaw + att_noise.z),
+            );
             let mut out = Vec::with_capacity(2);
             self.style.attitude(now, rpy, &rate_meas, &mut out);
             for m in out {
@@ -294,16 +375,37 @@ impl Emitter {
         }
         // IMU: specific force in the body frame (FRD), f = Rᵀ(a − g); ≈ (0, 0, −9.81) at
         // rest. Vibration noise grows when the props spin.
-        if (Every { period_ms: 100, offset_ms: 40 }).due(t_ms) {
-            let vib = if st.in_air { 0.3 } else if st.armed { 0.2 } else { 0.03 };
-            let f = st.rot.inverse() * (st.acc - Vector3::new(0.0, 0.0, G)) + Vector3::new(n(rng, vib), n(rng, vib), n(rng, vib));
+        if (Every {
+            period_ms: 100,
+            offset_ms: 40,
+        })
+        .due(t_ms)
+        {
+            let vib = if st.in_air {
+                0.3
+            } else if st.armed {
+                0.2
+            } else {
+                0.03
+            };
+            let f = st.rot.inverse() * (st.acc - Vector3::new(0.0, 0.0, G))
+                + Vector3::new(n(rng, vib), n(rng, vib), n(rng, vib));
             // Earth field near Pittsburgh ≈ (0.19, −0.03, 0.47) gauss NED.
             let mag = st.rot.inverse() * Vector3::new(0.19, -0.03, 0.47);
             let m = self.style.imu(now, &f, &rate_meas, &mag);
             self.push(t_ms, m);
         }
-        if (Every { period_ms: 250, offset_ms: 60 }).due(t_ms) {
-            let air = if st.in_air { (st.vel - now.wind_est).norm() } else { 0.0 };
+        if (Every {
+            period_ms: 250,
+            offset_ms: 60,
+        })
+        .due(t_ms)
+        {
+            let air = if st.in_air {
+                (st.vel - now.wind_est).norm()
+            } else {
+                0.0
+            };
             self.push(
                 t_ms,
                 MavMessage::VFR_HUD(d::VFR_HUD_DATA {
@@ -320,7 +422,13 @@ impl Emitter {
             self.push(t_ms, m);
         }
         // Home: once when armed, then every 5 s.
-        let home_due = st.armed && (!self.home_sent || (Every { period_ms: 5000, offset_ms: 90 }).due(t_ms));
+        let home_due = st.armed
+            && (!self.home_sent
+                || (Every {
+                    period_ms: 5000,
+                    offset_ms: 90,
+                })
+                .due(t_ms));
         if home_due {
             self.home_sent = true;
             let nan = f32::NAN;
@@ -398,7 +506,11 @@ impl Emitter {
 
 /// A PARAM_VALUE payload (index and count left for the emitter).
 /// ATTITUDE at `now`: Euler angles (rad) and body rates (rad/s), as both autopilots send it.
-pub fn attitude(now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vector3<f64>) -> MavMessage {
+pub fn attitude(
+    now: &Instant,
+    (roll, pitch, yaw): (f64, f64, f64),
+    rates: &Vector3<f64>,
+) -> MavMessage {
     MavMessage::ATTITUDE(d::ATTITUDE_DATA {
         time_boot_ms: now.boot_ms(),
         roll: roll as f32,
@@ -411,7 +523,13 @@ pub fn attitude(now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vect
 }
 
 pub fn param(name: &str, value: f32, kind: d::MavParamType) -> d::PARAM_VALUE_DATA {
-    d::PARAM_VALUE_DATA { param_value: value, param_count: 0, param_index: 0, param_id: name.into(), param_type: kind }
+    d::PARAM_VALUE_DATA {
+        param_value: value,
+        param_count: 0,
+        param_index: 0,
+        param_id: name.into(),
+        param_type: kind,
+    }
 }
 
 /// ISA static pressure at an altitude, Pa.

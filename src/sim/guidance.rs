@@ -75,7 +75,10 @@ impl Phase {
     }
     /// Off the ground.
     pub fn in_air(self) -> bool {
-        matches!(self, Phase::Climb | Phase::Leg(_) | Phase::Hold(_) | Phase::Descent)
+        matches!(
+            self,
+            Phase::Climb | Phase::Leg(_) | Phase::Hold(_) | Phase::Descent
+        )
     }
 }
 
@@ -119,15 +122,30 @@ impl Home {
     /// NED offset from home (m) → latitude, longitude (deg), altitude above sea level (m).
     pub fn to_geodetic(&self, ned: &Vector3<f64>) -> (f64, f64, f64) {
         let lat = self.lat_deg + (ned.x / R_EARTH_M).to_degrees();
-        let lon = self.lon_deg + (ned.y / (R_EARTH_M * self.lat_deg.to_radians().cos())).to_degrees();
+        let lon =
+            self.lon_deg + (ned.y / (R_EARTH_M * self.lat_deg.to_radians().cos())).to_degrees();
         (lat, lon, self.alt_amsl_m - ned.z)
     }
 
     /// A waypoint at a latitude/longitude (deg) and `alt_m` above home.
-    pub fn waypoint(&self, lat_deg: f64, lon_deg: f64, alt_m: f64, speed_mps: f64, hold_s: f64) -> Waypoint {
+    pub fn waypoint(
+        &self,
+        lat_deg: f64,
+        lon_deg: f64,
+        alt_m: f64,
+        speed_mps: f64,
+        hold_s: f64,
+    ) -> Waypoint {
         let north_m = (lat_deg - self.lat_deg).to_radians() * R_EARTH_M;
-        let east_m = (lon_deg - self.lon_deg).to_radians() * R_EARTH_M * self.lat_deg.to_radians().cos();
-        Waypoint { north_m, east_m, alt_m, speed_mps, hold_s }
+        let east_m =
+            (lon_deg - self.lon_deg).to_radians() * R_EARTH_M * self.lat_deg.to_radians().cos();
+        Waypoint {
+            north_m,
+            east_m,
+            alt_m,
+            speed_mps,
+            hold_s,
+        }
     }
 }
 
@@ -155,13 +173,22 @@ pub struct InvalidOption {
 }
 
 /// Check `lo ≤ v ≤ hi` (or `lo < v` with `open_lo`), naming `key`.
-pub(crate) fn in_range(key: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Result<(), InvalidOption> {
+pub(crate) fn in_range(
+    key: &str,
+    v: f64,
+    lo: f64,
+    hi: f64,
+    open_lo: bool,
+) -> Result<(), InvalidOption> {
     let ok = v.is_finite() && (if open_lo { v > lo } else { v >= lo }) && v <= hi;
     if ok {
         return Ok(());
     }
     let open = if open_lo { "(" } else { "[" };
-    Err(InvalidOption { key: key.into(), reason: format!("= {v}: must be in {open}{lo}, {hi}]") })
+    Err(InvalidOption {
+        key: key.into(),
+        reason: format!("= {v}: must be in {open}{lo}, {hi}]"),
+    })
 }
 
 /// Speed limits every leg obeys, m/s: above a walking pace, below what small multirotors fly.
@@ -188,8 +215,20 @@ pub struct Triangle {
 impl Triangle {
     /// Range checks; the error names the field.
     pub fn validate(&self) -> Result<(), InvalidOption> {
-        in_range("speed_mps", self.speed_mps, SPEED_RANGE_MPS.0, SPEED_RANGE_MPS.1, true)?;
-        in_range("altitude_m", self.altitude_m, ALT_RANGE_M.0, ALT_RANGE_M.1, false)?;
+        in_range(
+            "speed_mps",
+            self.speed_mps,
+            SPEED_RANGE_MPS.0,
+            SPEED_RANGE_MPS.1,
+            true,
+        )?;
+        in_range(
+            "altitude_m",
+            self.altitude_m,
+            ALT_RANGE_M.0,
+            ALT_RANGE_M.1,
+            false,
+        )?;
         in_range("leg_m", self.leg_m, 10.0, 5000.0, false)?;
         in_range("hover_s", self.hover_s, 0.0, MAX_HOLD_S, false)
     }
@@ -197,11 +236,21 @@ impl Triangle {
     /// The triangle as a route: climb at 2.5 m/s, descend at 1.5 m/s.
     pub fn route(&self) -> Route {
         let (l, alt, v) = (self.leg_m, self.altitude_m, self.speed_mps);
-        let wp = |north_m, east_m, hold_s| Waypoint { north_m, east_m, alt_m: alt, speed_mps: v, hold_s };
+        let wp = |north_m, east_m, hold_s| Waypoint {
+            north_m,
+            east_m,
+            alt_m: alt,
+            speed_mps: v,
+            hold_s,
+        };
         Route {
             takeoff_alt_m: alt,
             climb_mps: 2.5,
-            waypoints: vec![wp(l, 0.0, 0.0), wp(l / 2.0, l * 3f64.sqrt() / 2.0, 0.0), wp(0.0, 0.0, self.hover_s)],
+            waypoints: vec![
+                wp(l, 0.0, 0.0),
+                wp(l / 2.0, l * 3f64.sqrt() / 2.0, 0.0),
+                wp(0.0, 0.0, self.hover_s),
+            ],
             descent_mps: 1.5,
         }
     }
@@ -210,15 +259,30 @@ impl Triangle {
 impl Route {
     /// Range checks; the error names the field (`waypoints[i].speed_mps`).
     pub fn validate(&self) -> Result<(), InvalidOption> {
-        in_range("takeoff_alt_m", self.takeoff_alt_m, ALT_RANGE_M.0, ALT_RANGE_M.1, false)?;
+        in_range(
+            "takeoff_alt_m",
+            self.takeoff_alt_m,
+            ALT_RANGE_M.0,
+            ALT_RANGE_M.1,
+            false,
+        )?;
         in_range("climb_mps", self.climb_mps, 0.1, 10.0, false)?;
         in_range("descent_mps", self.descent_mps, 0.1, 10.0, false)?;
         if self.waypoints.is_empty() {
-            return Err(InvalidOption { key: "waypoints".into(), reason: "is empty: a route needs at least one".into() });
+            return Err(InvalidOption {
+                key: "waypoints".into(),
+                reason: "is empty: a route needs at least one".into(),
+            });
         }
         for (i, w) in self.waypoints.iter().enumerate() {
             let k = |f: &str| format!("waypoints[{i}].{f}");
-            in_range(&k("speed_mps"), w.speed_mps, SPEED_RANGE_MPS.0, SPEED_RANGE_MPS.1, true)?;
+            in_range(
+                &k("speed_mps"),
+                w.speed_mps,
+                SPEED_RANGE_MPS.0,
+                SPEED_RANGE_MPS.1,
+                true,
+            )?;
             in_range(&k("alt_m"), w.alt_m, ALT_RANGE_M.0, ALT_RANGE_M.1, false)?;
             in_range(&k("hold_s"), w.hold_s, 0.0, MAX_HOLD_S, false)?;
             in_range(&k("north_m"), w.north_m, -1e5, 1e5, false)?;
@@ -237,7 +301,11 @@ impl Route {
             Phase::Descent | Phase::Landed | Phase::Done => last,
         };
         let w = &self.waypoints[i];
-        let alt = if matches!(phase, Phase::PreArm | Phase::Spinup | Phase::Climb) { self.takeoff_alt_m } else { w.alt_m };
+        let alt = if matches!(phase, Phase::PreArm | Phase::Spinup | Phase::Climb) {
+            self.takeoff_alt_m
+        } else {
+            w.alt_m
+        };
         (w.speed_mps, alt)
     }
 }
@@ -261,14 +329,19 @@ impl Route {
     /// DO_CHANGE_SPEED; the plan's `hoverSpeed` wins over it), hold and loiter times as
     /// holds; LAND lands at its position (or where it is), RETURN_TO_LAUNCH flies home at
     /// the altitude it is at and lands. Positions are NED from the plan's home.
-    pub fn from_plan(plan: &crate::mission::plan::Plan, speed_mps: f64) -> Result<PlanRoute, InvalidOption> {
+    pub fn from_plan(
+        plan: &crate::mission::plan::Plan,
+        speed_mps: f64,
+    ) -> Result<PlanRoute, InvalidOption> {
         use crate::mission::plan::ItemKind as K;
         let mut speed = plan.hover_speed_m_s.unwrap_or(speed_mps);
         let mut waypoints: Vec<Waypoint> = Vec::new();
         let mut waypoint_items = Vec::new();
         let mut takeoff: Option<(usize, f64)> = None;
         let mut end_item = plan.items.len().saturating_sub(1);
-        let ned = |p: &crate::mission::plan::GeoPoint| crate::mission::trajectory::enu_of(&plan.home, p.lat_deg, p.lon_deg);
+        let ned = |p: &crate::mission::plan::GeoPoint| {
+            crate::mission::trajectory::enu_of(&plan.home, p.lat_deg, p.lon_deg)
+        };
         for it in &plan.items {
             let hold_s = match it.kind {
                 K::ChangeSpeed { speed_m_s } => {
@@ -289,15 +362,29 @@ impl Route {
                     if let Some(p) = &it.position {
                         let (e, n) = ned(p);
                         let alt = waypoints.last().map_or(p.alt_m, |w| w.alt_m);
-                        waypoints.push(Waypoint { north_m: n, east_m: e, alt_m: alt, speed_mps: speed, hold_s: 0.0 });
+                        waypoints.push(Waypoint {
+                            north_m: n,
+                            east_m: e,
+                            alt_m: alt,
+                            speed_mps: speed,
+                            hold_s: 0.0,
+                        });
                         waypoint_items.push(it.index);
                     }
                     end_item = it.index;
                     break;
                 }
                 K::ReturnToLaunch => {
-                    let alt = waypoints.last().map_or(takeoff.map_or(ALT_RANGE_M.0, |t| t.1), |w| w.alt_m);
-                    waypoints.push(Waypoint { north_m: 0.0, east_m: 0.0, alt_m: alt, speed_mps: speed, hold_s: 0.0 });
+                    let alt = waypoints
+                        .last()
+                        .map_or(takeoff.map_or(ALT_RANGE_M.0, |t| t.1), |w| w.alt_m);
+                    waypoints.push(Waypoint {
+                        north_m: 0.0,
+                        east_m: 0.0,
+                        alt_m: alt,
+                        speed_mps: speed,
+                        hold_s: 0.0,
+                    });
                     waypoint_items.push(it.index);
                     end_item = it.index;
                     break;
@@ -305,13 +392,29 @@ impl Route {
             };
             let Some(p) = &it.position else { continue };
             let (e, n) = ned(p);
-            waypoints.push(Waypoint { north_m: n, east_m: e, alt_m: p.alt_m, speed_mps: speed, hold_s });
+            waypoints.push(Waypoint {
+                north_m: n,
+                east_m: e,
+                alt_m: p.alt_m,
+                speed_mps: speed,
+                hold_s,
+            });
             waypoint_items.push(it.index);
         }
         let first_alt = waypoints.first().map_or(ALT_RANGE_M.0, |w| w.alt_m);
-        let route = Route { takeoff_alt_m: takeoff.map_or(first_alt, |t| t.1), climb_mps: 2.5, waypoints, descent_mps: 1.5 };
+        let route = Route {
+            takeoff_alt_m: takeoff.map_or(first_alt, |t| t.1),
+            climb_mps: 2.5,
+            waypoints,
+            descent_mps: 1.5,
+        };
         route.validate()?;
-        Ok(PlanRoute { route, takeoff_item: takeoff.map_or(0, |t| t.0), waypoint_items, end_item })
+        Ok(PlanRoute {
+            route,
+            takeoff_item: takeoff.map_or(0, |t| t.0),
+            waypoint_items,
+            end_item,
+        })
     }
 }
 
@@ -339,7 +442,11 @@ pub struct Guidance {
 impl Guidance {
     /// Start on the ground, disarmed. The route should have passed [`Route::validate`].
     pub fn new(route: Route) -> Self {
-        Self { route, phase: Phase::PreArm, phase_t_s: 0.0 }
+        Self {
+            route,
+            phase: Phase::PreArm,
+            phase_t_s: 0.0,
+        }
     }
 
     /// The route flown.
@@ -366,7 +473,12 @@ impl Guidance {
             Phase::Spinup if t >= SPINUP_S => next = Some(Phase::Climb),
             Phase::Climb => {
                 let h = -r.takeoff_alt_m;
-                v_des = Some(toward(pos, &Vector3::new(0.0, 0.0, h), r.waypoints[0].speed_mps, r.climb_mps));
+                v_des = Some(toward(
+                    pos,
+                    &Vector3::new(0.0, 0.0, h),
+                    r.waypoints[0].speed_mps,
+                    r.climb_mps,
+                ));
                 if (pos.z - h).abs() < 0.3 && vel.norm() < 0.3 {
                     next = Some(Phase::Leg(0));
                 }
@@ -376,22 +488,39 @@ impl Guidance {
                 let target = w.ned();
                 v_des = Some(toward(pos, &target, w.speed_mps, LEG_CLIMB_MPS));
                 if (target - pos).norm() < ARRIVAL_M {
-                    next = Some(if stops_at(i) { Phase::Hold(i) } else { Phase::Leg(i + 1) });
+                    next = Some(if stops_at(i) {
+                        Phase::Hold(i)
+                    } else {
+                        Phase::Leg(i + 1)
+                    });
                 }
             }
             Phase::Hold(i) => {
                 let w = &r.waypoints[i];
                 v_des = Some(toward(pos, &w.ned(), w.speed_mps, LEG_CLIMB_MPS));
                 if t >= w.hold_s {
-                    next = Some(if i < last { Phase::Leg(i + 1) } else { Phase::Descent });
+                    next = Some(if i < last {
+                        Phase::Leg(i + 1)
+                    } else {
+                        Phase::Descent
+                    });
                 }
             }
             Phase::Descent => {
                 let w = &r.waypoints[last];
                 let height = -pos.z;
                 // Below the flare height, aim 1 m under the ground so touch-down happens at LAND_MPS.
-                let (rate, z) = if height > FLARE_M { (r.descent_mps, 0.0) } else { (LAND_MPS, 1.0) };
-                v_des = Some(toward(pos, &Vector3::new(w.north_m, w.east_m, z), w.speed_mps, rate));
+                let (rate, z) = if height > FLARE_M {
+                    (r.descent_mps, 0.0)
+                } else {
+                    (LAND_MPS, 1.0)
+                };
+                v_des = Some(toward(
+                    pos,
+                    &Vector3::new(w.north_m, w.east_m, z),
+                    w.speed_mps,
+                    rate,
+                ));
                 if height <= 0.02 {
                     touchdown = true;
                     next = Some(Phase::Landed);
@@ -399,7 +528,12 @@ impl Guidance {
             }
             Phase::Landed if t >= LANDED_S => next = Some(Phase::Done),
             Phase::Done if t >= DONE_S => {
-                return Command { phase: Phase::Done, velocity_ned: None, touchdown: false, finished: true };
+                return Command {
+                    phase: Phase::Done,
+                    velocity_ned: None,
+                    touchdown: false,
+                    finished: true,
+                };
             }
             _ => {}
         }
@@ -408,7 +542,12 @@ impl Guidance {
             self.phase_t_s = 0.0;
         }
         self.phase_t_s += dt_s;
-        Command { phase: self.phase, velocity_ned: v_des, touchdown, finished: false }
+        Command {
+            phase: self.phase,
+            velocity_ned: v_des,
+            touchdown,
+            finished: false,
+        }
     }
 }
 
@@ -419,11 +558,15 @@ pub fn toward(pos: &Vector3<f64>, target: &Vector3<f64>, speed: f64, vz_max: f64
     let dh = (d.x * d.x + d.y * d.y).sqrt();
     let mut v = Vector3::zeros();
     if dh > 1e-6 {
-        let s = speed.min((2.0 * BRAKE_MPS2 * dh).sqrt()).min(dh * VELOCITY_GAIN_PER_S * 2.0);
+        let s = speed
+            .min((2.0 * BRAKE_MPS2 * dh).sqrt())
+            .min(dh * VELOCITY_GAIN_PER_S * 2.0);
         v.x = d.x / dh * s;
         v.y = d.y / dh * s;
     }
-    let vz = vz_max.min((2.0 * BRAKE_MPS2 * d.z.abs()).sqrt()).min(d.z.abs() * 2.0);
+    let vz = vz_max
+        .min((2.0 * BRAKE_MPS2 * d.z.abs()).sqrt())
+        .min(d.z.abs() * 2.0);
     v.z = vz * d.z.signum();
     v
 }
@@ -442,7 +585,11 @@ mod tests {
             if c.finished {
                 return out;
             }
-            vel = if c.phase.in_air() { c.velocity_ned.unwrap_or_else(Vector3::zeros) } else { Vector3::zeros() };
+            vel = if c.phase.in_air() {
+                c.velocity_ned.unwrap_or_else(Vector3::zeros)
+            } else {
+                Vector3::zeros()
+            };
             pos += vel * 0.01;
             if c.touchdown {
                 pos.z = 0.0;
@@ -454,13 +601,29 @@ mod tests {
 
     #[test]
     fn flies_every_waypoint_in_order_holds_and_lands_below_the_last() {
-        let home = Home { lat_deg: 40.0, lon_deg: -80.0, alt_amsl_m: 300.0 };
+        let home = Home {
+            lat_deg: 40.0,
+            lon_deg: -80.0,
+            alt_amsl_m: 300.0,
+        };
         let far = home.waypoint(40.0009, -80.0, 30.0, 8.0, 4.0); // ~100 m north
-        assert!((far.north_m - 100.2).abs() < 0.5 && far.east_m.abs() < 1e-9, "{far:?}");
+        assert!(
+            (far.north_m - 100.2).abs() < 0.5 && far.east_m.abs() < 1e-9,
+            "{far:?}"
+        );
         let route = Route {
             takeoff_alt_m: 20.0,
             climb_mps: 3.0,
-            waypoints: vec![far, Waypoint { north_m: 100.0, east_m: 60.0, alt_m: 15.0, speed_mps: 5.0, hold_s: 0.0 }],
+            waypoints: vec![
+                far,
+                Waypoint {
+                    north_m: 100.0,
+                    east_m: 60.0,
+                    alt_m: 15.0,
+                    speed_mps: 5.0,
+                    hold_s: 0.0,
+                },
+            ],
             descent_mps: 2.0,
         };
         route.validate().expect("valid");
@@ -472,39 +635,99 @@ mod tests {
             v
         });
         use Phase::*;
-        assert_eq!(phases, [PreArm, Spinup, Climb, Leg(0), Hold(0), Leg(1), Hold(1), Descent, Landed, Done]);
+        assert_eq!(
+            phases,
+            [
+                PreArm,
+                Spinup,
+                Climb,
+                Leg(0),
+                Hold(0),
+                Leg(1),
+                Hold(1),
+                Descent,
+                Landed,
+                Done
+            ]
+        );
         // The hold at waypoint 0 lasts its hold time, at the waypoint's altitude.
         let hold0: Vec<_> = track.iter().filter(|p| p.0 == Hold(0)).collect();
-        assert!((hold0.len() as f64 * 0.01 - 4.0).abs() < 0.02, "hold {} steps", hold0.len());
-        assert!(hold0.iter().all(|p| (p.1 - far.ned()).norm() < ARRIVAL_M + 0.1));
+        assert!(
+            (hold0.len() as f64 * 0.01 - 4.0).abs() < 0.02,
+            "hold {} steps",
+            hold0.len()
+        );
+        assert!(hold0
+            .iter()
+            .all(|p| (p.1 - far.ned()).norm() < ARRIVAL_M + 0.1));
         // Lands below the last waypoint, not at home.
         let end = track.last().expect("track").1;
-        assert!((end.x - 100.0).abs() < 1.6 && (end.y - 60.0).abs() < 1.6 && end.z == 0.0, "{end:?}");
+        assert!(
+            (end.x - 100.0).abs() < 1.6 && (end.y - 60.0).abs() < 1.6 && end.z == 0.0,
+            "{end:?}"
+        );
         // Leg 1 never faster than its 5 m/s.
-        let max_h = track.windows(2).filter(|w| w[1].0 == Leg(1)).map(|w| ((w[1].1 - w[0].1) / 0.01).xy().norm()).fold(0.0, f64::max);
+        let max_h = track
+            .windows(2)
+            .filter(|w| w[1].0 == Leg(1))
+            .map(|w| ((w[1].1 - w[0].1) / 0.01).xy().norm())
+            .fold(0.0, f64::max);
         assert!(max_h <= 5.0 + 1e-9 && max_h > 4.9, "leg 1 speed {max_h}");
     }
 
     #[test]
     fn geodetic_round_trip_and_triangle_shape() {
-        let home = Home { lat_deg: 40.459060, lon_deg: -79.782820, alt_amsl_m: 268.7 };
+        let home = Home {
+            lat_deg: 40.459060,
+            lon_deg: -79.782820,
+            alt_amsl_m: 268.7,
+        };
         let ned = Vector3::new(350.0, -120.0, -25.0);
         let (lat, lon, alt) = home.to_geodetic(&ned);
         let w = home.waypoint(lat, lon, alt - home.alt_amsl_m, 10.0, 0.0);
-        assert!((w.north_m - 350.0).abs() < 1e-6 && (w.east_m + 120.0).abs() < 1e-6 && (w.alt_m - 25.0).abs() < 1e-9, "{w:?}");
-        let r = Triangle { leg_m: 300.0, altitude_m: 25.0, speed_mps: 10.0, hover_s: 20.0 }.route();
+        assert!(
+            (w.north_m - 350.0).abs() < 1e-6
+                && (w.east_m + 120.0).abs() < 1e-6
+                && (w.alt_m - 25.0).abs() < 1e-9,
+            "{w:?}"
+        );
+        let r = Triangle {
+            leg_m: 300.0,
+            altitude_m: 25.0,
+            speed_mps: 10.0,
+            hover_s: 20.0,
+        }
+        .route();
         let p: Vec<_> = r.waypoints.iter().map(Waypoint::ned).collect();
         for (a, b) in [(0, 1), (1, 2), (2, 0)] {
             assert!(((p[a] - p[b]).norm() - 300.0).abs() < 1e-9, "equilateral");
         }
-        assert_eq!((r.waypoints[2].north_m, r.waypoints[2].east_m, r.waypoints[2].hold_s), (0.0, 0.0, 20.0));
+        assert_eq!(
+            (
+                r.waypoints[2].north_m,
+                r.waypoints[2].east_m,
+                r.waypoints[2].hold_s
+            ),
+            (0.0, 0.0, 20.0)
+        );
     }
 
     #[test]
     fn out_of_range_options_are_named() {
-        let bad = Triangle { leg_m: 300.0, altitude_m: 25.0, speed_mps: 30.0, hover_s: 0.0 };
+        let bad = Triangle {
+            leg_m: 300.0,
+            altitude_m: 25.0,
+            speed_mps: 30.0,
+            hover_s: 0.0,
+        };
         assert_eq!(bad.validate().unwrap_err().key, "speed_mps");
-        let mut r = Triangle { leg_m: 300.0, altitude_m: 25.0, speed_mps: 10.0, hover_s: 0.0 }.route();
+        let mut r = Triangle {
+            leg_m: 300.0,
+            altitude_m: 25.0,
+            speed_mps: 10.0,
+            hover_s: 0.0,
+        }
+        .route();
         r.waypoints[1].hold_s = -1.0;
         let e = r.validate().unwrap_err();
         assert_eq!(e.key, "waypoints[1].hold_s");

@@ -48,11 +48,11 @@ use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
-use crate::sim::guidance::{Guidance, Home, InvalidOption, Phase, Route};
 use crate::model::profile::VehicleProfile;
+use crate::sim::guidance::{Guidance, Home, InvalidOption, Phase, Route};
 use crate::MavMessage;
-use physics::{Airframe, Battery};
 pub use physics::BatteryStart;
+use physics::{Airframe, Battery};
 
 /// Whose message set and conventions the output follows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -106,7 +106,9 @@ impl SimMission {
     pub fn current_seq(&self, phase: Phase) -> u16 {
         match phase {
             Phase::PreArm | Phase::Spinup | Phase::Climb => self.takeoff_seq,
-            Phase::Leg(i) | Phase::Hold(i) => self.waypoint_seq.get(i).copied().unwrap_or(self.end_seq),
+            Phase::Leg(i) | Phase::Hold(i) => {
+                self.waypoint_seq.get(i).copied().unwrap_or(self.end_seq)
+            }
             Phase::Descent | Phase::Landed | Phase::Done => self.end_seq,
         }
     }
@@ -114,8 +116,16 @@ impl SimMission {
     /// A plan flown by the simulator: the plan moved to [`HOME`] (offsets kept), its route
     /// at `speed_mps` unless the plan says otherwise, and its items as the autopilot holds
     /// them (ArduPilot: item 0 is home; PX4: no home item).
-    pub fn from_plan(plan: &crate::mission::plan::Plan, speed_mps: f64, autopilot: Autopilot) -> Result<(Route, SimMission), InvalidOption> {
-        let plan = plan.relocated(crate::mission::plan::GeoPoint { lat_deg: HOME.lat_deg, lon_deg: HOME.lon_deg, alt_m: HOME.alt_amsl_m });
+    pub fn from_plan(
+        plan: &crate::mission::plan::Plan,
+        speed_mps: f64,
+        autopilot: Autopilot,
+    ) -> Result<(Route, SimMission), InvalidOption> {
+        let plan = plan.relocated(crate::mission::plan::GeoPoint {
+            lat_deg: HOME.lat_deg,
+            lon_deg: HOME.lon_deg,
+            alt_m: HOME.alt_amsl_m,
+        });
         let pr = Route::from_plan(&plan, speed_mps)?;
         let home_item = usize::from(autopilot == Autopilot::Ardupilot);
         let seq = |i: usize| u16::try_from(i + home_item).unwrap_or(u16::MAX);
@@ -142,7 +152,13 @@ impl Default for SimOptions {
     fn default() -> Self {
         Self {
             vehicle: VehicleProfile::m100(),
-            route: guidance::Triangle { leg_m: 300.0, altitude_m: 25.0, speed_mps: 10.0, hover_s: 20.0 }.route(),
+            route: guidance::Triangle {
+                leg_m: 300.0,
+                altitude_m: 25.0,
+                speed_mps: 10.0,
+                hover_s: 20.0,
+            }
+            .route(),
             payload_g: 500.0,
             wind_mps: 3.0,
             wind_dir_deg: 270.0,
@@ -161,13 +177,25 @@ impl SimOptions {
         let frame = Airframe::from_profile(&self.vehicle)?;
         Battery::from_profile(&self.vehicle, self.battery)?;
         let max_g = (frame.max_payload_kg() * 1000.0).floor().max(0.0);
-        guidance::in_range("payload_g", self.payload_g, 0.0, max_g, false).map_err(|e| InvalidOption {
-            reason: format!("{} ({}: {} kg MTOW − {:.3} kg empty)", e.reason, self.vehicle.name, frame.mtow_kg, frame.mass_kg(0.0)),
-            ..e
+        guidance::in_range("payload_g", self.payload_g, 0.0, max_g, false).map_err(|e| {
+            InvalidOption {
+                reason: format!(
+                    "{} ({}: {} kg MTOW − {:.3} kg empty)",
+                    e.reason,
+                    self.vehicle.name,
+                    frame.mtow_kg,
+                    frame.mass_kg(0.0)
+                ),
+                ..e
+            }
         })?;
         guidance::in_range("wind_mps", self.wind_mps, 0.0, 15.0, false)?;
         if !self.wind_dir_deg.is_finite() {
-            return Err(InvalidOption { key: "wind_dir_deg".into(), reason: format!("= {}: must be a number", self.wind_dir_deg) }.into());
+            return Err(InvalidOption {
+                key: "wind_dir_deg".into(),
+                reason: format!("= {}: must be a number", self.wind_dir_deg),
+            }
+            .into());
         }
         Ok(())
     }
@@ -175,7 +203,11 @@ impl SimOptions {
     /// Mean wind velocity (where the air moves TO), NED, m/s.
     fn wind_ned(&self) -> Vector3<f64> {
         let from = self.wind_dir_deg.to_radians();
-        Vector3::new(-self.wind_mps * from.cos(), -self.wind_mps * from.sin(), 0.0)
+        Vector3::new(
+            -self.wind_mps * from.cos(),
+            -self.wind_mps * from.sin(),
+            0.0,
+        )
     }
 }
 
@@ -238,7 +270,11 @@ pub const EPOCH_START_US: u64 = 1_571_923_920_000_000;
 
 /// Home: the data set's site near Pittsburgh (flight 276 starts at 40.459060 N,
 /// −79.782820 E, 268.7 m above sea level).
-pub const HOME: Home = Home { lat_deg: 40.459_060, lon_deg: -79.782_820, alt_amsl_m: 268.7 };
+pub const HOME: Home = Home {
+    lat_deg: 40.459_060,
+    lon_deg: -79.782_820,
+    alt_amsl_m: 268.7,
+};
 
 /// Disarmed on the ground the pack feeds a third of the avionics power (the flight
 /// controller and radios; the data set's M100 reads about 0 A before take-off), so a
@@ -315,15 +351,33 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
     let mut guide = Guidance::new(opts.route.clone());
     let mean_wind = opts.wind_ned();
     let gust_sigma = 0.1 * opts.wind_mps + 0.2;
-    let mut gust = [Markov { x: 0.0, sigma: gust_sigma, tau: 4.0 }; 3];
+    let mut gust = [Markov {
+        x: 0.0,
+        sigma: gust_sigma,
+        tau: 4.0,
+    }; 3];
     gust[2].sigma = 0.3 * gust_sigma;
     let mut gps_err = [
-        Markov { x: 0.0, sigma: 0.6, tau: 20.0 },
-        Markov { x: 0.0, sigma: 0.6, tau: 20.0 },
-        Markov { x: 0.0, sigma: 0.4, tau: 10.0 },
+        Markov {
+            x: 0.0,
+            sigma: 0.6,
+            tau: 20.0,
+        },
+        Markov {
+            x: 0.0,
+            sigma: 0.6,
+            tau: 20.0,
+        },
+        Markov {
+            x: 0.0,
+            sigma: 0.4,
+            tau: 10.0,
+        },
     ];
     let mut wind_est = mean_wind;
-    let hover_p = frame.power(mass, Vector3::zeros(), Vector3::zeros()).electrical_w;
+    let hover_p = frame
+        .power(mass, Vector3::zeros(), Vector3::zeros())
+        .electrical_w;
 
     let mut st = State {
         pos: Vector3::zeros(),
@@ -349,7 +403,11 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
         let t = step as f64 * DT;
         let t_ms = step * 10;
         // Wind with gusts.
-        let g = Vector3::new(gust[0].step(&mut rng, DT), gust[1].step(&mut rng, DT), gust[2].step(&mut rng, DT));
+        let g = Vector3::new(
+            gust[0].step(&mut rng, DT),
+            gust[1].step(&mut rng, DT),
+            gust[2].step(&mut rng, DT),
+        );
         st.wind = mean_wind + g;
         // The autopilot's wind estimate: a slow filter of the true wind.
         wind_est += (st.wind - wind_est) * (DT / 3.0);
@@ -409,15 +467,29 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
         };
         let d_rot = st.rot.inverse() * rot;
         let m = d_rot.matrix();
-        st.rates = Vector3::new(m[(2, 1)] - m[(1, 2)], m[(0, 2)] - m[(2, 0)], m[(1, 0)] - m[(0, 1)]) / (2.0 * DT);
+        st.rates = Vector3::new(
+            m[(2, 1)] - m[(1, 2)],
+            m[(0, 2)] - m[(2, 0)],
+            m[(1, 0)] - m[(0, 1)],
+        ) / (2.0 * DT);
         st.rot = rot;
         st.power_w = power;
         let (v, i) = battery.step(power, DT);
         st.voltage_v = v;
         st.current_a = i;
-        st.throttle = if st.in_air { (50.0 * (power / hover_p).sqrt()).clamp(0.0, 100.0) } else if st.armed { 8.0 } else { 0.0 };
+        st.throttle = if st.in_air {
+            (50.0 * (power / hover_p).sqrt()).clamp(0.0, 100.0)
+        } else if st.armed {
+            8.0
+        } else {
+            0.0
+        };
 
-        let gps = Vector3::new(gps_err[0].step(&mut rng, DT), gps_err[1].step(&mut rng, DT), gps_err[2].step(&mut rng, DT));
+        let gps = Vector3::new(
+            gps_err[0].step(&mut rng, DT),
+            gps_err[1].step(&mut rng, DT),
+            gps_err[2].step(&mut rng, DT),
+        );
         if t_ms.is_multiple_of(100) {
             truth.push(TruthSample {
                 t_s: t,
@@ -430,14 +502,30 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
                 east_m: st.pos.y,
             });
         }
-        emitter.emit(&emit::Instant { t_ms, st: &st, battery: &battery, gps_err: &gps, wind_est: &wind_est, phase }, &mut rng);
+        emitter.emit(
+            &emit::Instant {
+                t_ms,
+                st: &st,
+                battery: &battery,
+                gps_err: &gps,
+                wind_est: &wind_est,
+                phase,
+            },
+            &mut rng,
+        );
 
         step += 1;
         if step > max_steps {
-            anyhow::bail!("the simulated mission did not finish within 4 hours of flight ({} waypoints)", opts.route.waypoints.len());
+            anyhow::bail!(
+                "the simulated mission did not finish within 4 hours of flight ({} waypoints)",
+                opts.route.waypoints.len()
+            );
         }
     }
-    Ok(SimFlight { records: emitter.into_records(), truth })
+    Ok(SimFlight {
+        records: emitter.into_records(),
+        truth,
+    })
 }
 
 fn wrap_pi(a: f64) -> f64 {
@@ -478,7 +566,8 @@ pub fn simulate_fleet(opts: &SimOptions, n: u8) -> anyhow::Result<Vec<SimFlight>
             let mut o = opts.clone();
             o.seed = opts.seed.wrapping_add(u64::from(i));
             for w in &mut o.route.waypoints {
-                (w.north_m, w.east_m) = (c * w.north_m - s * w.east_m, s * w.north_m + c * w.east_m);
+                (w.north_m, w.east_m) =
+                    (c * w.north_m - s * w.east_m, s * w.north_m + c * w.east_m);
             }
             let mut f = simulate(&o)?;
             let delay_us = (u64::from(i) * 37_000) % 1_000_000;
@@ -493,7 +582,10 @@ pub fn simulate_fleet(opts: &SimOptions, n: u8) -> anyhow::Result<Vec<SimFlight>
 
 /// Every vehicle's messages as one stream in time order (ties: lower system id first).
 pub fn merge(flights: &[SimFlight]) -> Vec<SimRecord> {
-    let mut all: Vec<SimRecord> = flights.iter().flat_map(|f| f.records.iter().cloned()).collect();
+    let mut all: Vec<SimRecord> = flights
+        .iter()
+        .flat_map(|f| f.records.iter().cloned())
+        .collect();
     all.sort_by_key(|r| r.t_us);
     all
 }

@@ -15,7 +15,13 @@ impl SimFlight {
     pub fn to_tlog(&self) -> Vec<u8> {
         let mut buf = Vec::with_capacity(self.records.len() * 48);
         for r in &self.records {
-            crate::source::tlog::write_record(&mut buf, r.t_us, r.header, &r.msg, MavlinkVersion::V2);
+            crate::source::tlog::write_record(
+                &mut buf,
+                r.t_us,
+                r.header,
+                &r.msg,
+                MavlinkVersion::V2,
+            );
         }
         buf
     }
@@ -24,8 +30,10 @@ impl SimFlight {
 /// Write `flight` as a `.tlog` at `path`; returns the bytes written. Errors name the file.
 pub fn write_tlog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
     let bytes = flight.to_tlog();
-    let mut f = std::fs::File::create(path).with_context(|| format!("{}: cannot create the tlog", path.display()))?;
-    f.write_all(&bytes).with_context(|| format!("{}: cannot write the tlog", path.display()))?;
+    let mut f = std::fs::File::create(path)
+        .with_context(|| format!("{}: cannot create the tlog", path.display()))?;
+    f.write_all(&bytes)
+        .with_context(|| format!("{}: cannot write the tlog", path.display()))?;
     Ok(bytes.len())
 }
 
@@ -33,7 +41,8 @@ pub fn write_tlog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
 /// returns the bytes written. Errors name the file.
 pub fn write_dataflash(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
     let bytes = flight.to_dataflash();
-    std::fs::write(path, &bytes).with_context(|| format!("{}: cannot write the DataFlash log", path.display()))?;
+    std::fs::write(path, &bytes)
+        .with_context(|| format!("{}: cannot write the DataFlash log", path.display()))?;
     Ok(bytes.len())
 }
 
@@ -41,7 +50,8 @@ pub fn write_dataflash(path: &Path, flight: &SimFlight) -> anyhow::Result<usize>
 /// written. Errors name the file.
 pub fn write_ulog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
     let bytes = flight.to_ulog();
-    std::fs::write(path, &bytes).with_context(|| format!("{}: cannot write the ULog", path.display()))?;
+    std::fs::write(path, &bytes)
+        .with_context(|| format!("{}: cannot write the ULog", path.display()))?;
     Ok(bytes.len())
 }
 
@@ -53,8 +63,14 @@ pub async fn stream_udp(records: &[SimRecord], addr: &str, speed: Speed) -> anyh
         .with_context(|| format!("--udp {addr}: cannot resolve (expected HOST:PORT)"))?
         .next()
         .with_context(|| format!("--udp {addr}: no address"))?;
-    let bind = if target.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" };
-    let sock = tokio::net::UdpSocket::bind(bind).await.context("cannot open a UDP socket")?;
+    let bind = if target.is_ipv4() {
+        "0.0.0.0:0"
+    } else {
+        "[::]:0"
+    };
+    let sock = tokio::net::UdpSocket::bind(bind)
+        .await
+        .context("cannot open a UDP socket")?;
     let start = tokio::time::Instant::now();
     let t0 = records.first().map(|r| r.t_us).unwrap_or(0);
     let mut sent = 0;
@@ -65,7 +81,8 @@ pub async fn stream_udp(records: &[SimRecord], addr: &str, speed: Speed) -> anyh
             tokio::time::sleep_until(due).await;
         }
         frame.clear();
-        mavlink::write_versioned_msg(&mut frame, MavlinkVersion::V2, r.header, &r.msg).context("cannot encode a MAVLink frame")?;
+        mavlink::write_versioned_msg(&mut frame, MavlinkVersion::V2, r.header, &r.msg)
+            .context("cannot encode a MAVLink frame")?;
         match sock.send_to(&frame, target).await {
             Ok(_) => sent += 1,
             // Nobody listening yet (ICMP port unreachable): keep flying, as a drone would.

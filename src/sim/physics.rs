@@ -30,7 +30,7 @@ use std::f64::consts::PI;
 use anyhow::Context;
 use nalgebra::Vector3;
 
-use crate::battery::{CircuitParams, Chemistry, Estimator};
+use crate::battery::{Chemistry, CircuitParams, Estimator};
 use crate::energy::pack::pack_model;
 use crate::model::profile::{self, VehicleProfile};
 use crate::report::{BatteryFacts, Provenance, Sourced};
@@ -100,7 +100,11 @@ fn section<'a, T>(s: &'a Option<T>, name: &str, p: &VehicleProfile) -> anyhow::R
 impl Airframe {
     /// The airframe a profile describes; an error names a missing section.
     pub fn from_profile(p: &VehicleProfile) -> anyhow::Result<Self> {
-        let (rotor, body, power) = (section(&p.rotor, "rotor", p)?, section(&p.body, "body", p)?, section(&p.powertrain, "powertrain", p)?);
+        let (rotor, body, power) = (
+            section(&p.rotor, "rotor", p)?,
+            section(&p.body, "body", p)?,
+            section(&p.powertrain, "powertrain", p)?,
+        );
         Ok(Self {
             airframe_kg: p.vehicle.airframe_kg,
             battery_kg: p.vehicle.battery_kg,
@@ -145,15 +149,26 @@ impl Airframe {
     /// Thrust vector (NED, N) needed to give a mass `mass_kg` the acceleration `accel_ned`
     /// against gravity and the drag of the air-relative velocity `v_air_ned`:
     /// `T = m·(a − g) + ½ρ·f·|v_a|·v_a`.
-    pub fn thrust_ned(&self, mass_kg: f64, v_air_ned: Vector3<f64>, accel_ned: Vector3<f64>) -> Vector3<f64> {
-        mass_kg * (accel_ned - Vector3::new(0.0, 0.0, G)) + 0.5 * self.rho * self.drag_area_m2 * v_air_ned.norm() * v_air_ned
+    pub fn thrust_ned(
+        &self,
+        mass_kg: f64,
+        v_air_ned: Vector3<f64>,
+        accel_ned: Vector3<f64>,
+    ) -> Vector3<f64> {
+        mass_kg * (accel_ned - Vector3::new(0.0, 0.0, G))
+            + 0.5 * self.rho * self.drag_area_m2 * v_air_ned.norm() * v_air_ned
     }
 
     /// Electrical power for a vehicle of `mass_kg` moving at `v_air_ned` through the air
     /// (NED, m/s) while accelerating at `accel_ned` (NED, m/s²); the formulas are in the
     /// module docs. The floor `P_i/2` keeps a fast descent from drawing less than the
     /// rotors need to turn.
-    pub fn power(&self, mass_kg: f64, v_air_ned: Vector3<f64>, accel_ned: Vector3<f64>) -> PowerBreakdown {
+    pub fn power(
+        &self,
+        mass_kg: f64,
+        v_air_ned: Vector3<f64>,
+        accel_ned: Vector3<f64>,
+    ) -> PowerBreakdown {
         let t_vec = self.thrust_ned(mass_kg, v_air_ned, accel_ned);
         let thrust = t_vec.norm().max(1e-6);
         // Thrust axis points where the thrust pushes (up-ish: negative z in NED).
@@ -176,7 +191,11 @@ impl Airframe {
         let tip = (t_r / (self.ct * self.rho * a)).sqrt().max(1.0);
         let mu = v_p / tip;
         let induced_w = self.kappa * thrust * vi;
-        let profile_w = self.rotors * self.solidity * self.cd0 / 8.0 * self.rho * a * tip.powi(3) * (1.0 + 4.65 * mu * mu);
+        let profile_w = self.rotors * self.solidity * self.cd0 / 8.0
+            * self.rho
+            * a
+            * tip.powi(3)
+            * (1.0 + 4.65 * mu * mu);
         let va = v_air_ned.norm();
         let parasitic_w = 0.5 * self.rho * self.drag_area_m2 * va.powi(3);
         let climb_w = mass_kg * G * (-v_air_ned.z);
@@ -240,7 +259,11 @@ impl Battery {
     /// (from the profile's full cell voltage) and its capacity (mAh × cells × nominal).
     pub fn facts(spec: &profile::Battery) -> BatteryFacts {
         let full = spec.ocv_cell_v.last().map_or(4.2, |p| p[1]);
-        let chem = if full > 4.3 { Chemistry::LiHv } else { Chemistry::LiPo };
+        let chem = if full > 4.3 {
+            Chemistry::LiHv
+        } else {
+            Chemistry::LiPo
+        };
         let cap = spec.capacity_mah / 1000.0 * f64::from(spec.cells) * chem.nominal_v();
         BatteryFacts {
             capacity_wh: Sourced::new(cap, Provenance::Config),
@@ -251,25 +274,40 @@ impl Battery {
     }
 
     /// A pack of `spec` starting at `start`: the OCV curve and circuit of
-    /// [`pack_model`](crate::energy::pack::pack_model) for its facts, with no measurement
+    /// [`pack_model`] for its facts, with no measurement
     /// offset (`bias_v` 0: the simulated pack is the truth), cold (no heat).
     pub fn new(spec: profile::Battery, start: BatteryStart) -> anyhow::Result<Self> {
         let facts = Self::facts(&spec);
         let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
-        let (curve, params) = pack_model(&facts).with_context(|| format!("no pack model for {} cells of {}", spec.cells, chem.name()))?;
-        let params = CircuitParams { bias_v: 0.0, ..params };
+        let (curve, params) = pack_model(&facts).with_context(|| {
+            format!("no pack model for {} cells of {}", spec.cells, chem.name())
+        })?;
+        let params = CircuitParams {
+            bias_v: 0.0,
+            ..params
+        };
         let n = f64::from(spec.cells);
-        let (lo, hi) = (n * chem.floor_v(), n * (chem.full_v() + crate::battery::chemistry::FULL_TOL_V));
+        let (lo, hi) = (
+            n * chem.floor_v(),
+            n * (chem.full_v() + crate::battery::chemistry::FULL_TOL_V),
+        );
         let v_rest = match start {
             BatteryStart::Full => n * curve.v_cell(1.0),
             BatteryStart::Soc(s) if (0.0..=1.0).contains(&s) => n * curve.v_cell(s),
-            BatteryStart::Soc(s) => anyhow::bail!("state of charge {:.1} %: must be 0-100 %", s * 100.0),
+            BatteryStart::Soc(s) => {
+                anyhow::bail!("state of charge {:.1} %: must be 0-100 %", s * 100.0)
+            }
             BatteryStart::RestV(v) if v.is_finite() && (lo..=hi).contains(&v) => v,
             BatteryStart::RestV(v) => {
-                anyhow::bail!("resting voltage {v} V: a {}S {} pack rests between {lo:.2} and {hi:.2} V", spec.cells, chem.name())
+                anyhow::bail!(
+                    "resting voltage {v} V: a {}S {} pack rests between {lo:.2} and {hi:.2} V",
+                    spec.cells,
+                    chem.name()
+                )
             }
         };
-        let est = Estimator::new(params, curve, v_rest, 0.0).context("the pack model rejected the start state")?;
+        let est = Estimator::new(params, curve, v_rest, 0.0)
+            .context("the pack model rejected the start state")?;
         let mut b = Self {
             capacity_ah: spec.capacity_mah / 1000.0,
             cells: n,
@@ -286,7 +324,10 @@ impl Battery {
     }
 
     fn soc_now(&self) -> f64 {
-        self.est.curve.soc(self.est.ocv() / self.cells).clamp(0.0, 1.0)
+        self.est
+            .curve
+            .soc(self.est.ocv() / self.cells)
+            .clamp(0.0, 1.0)
     }
 
     /// Open-circuit pack voltage, V.

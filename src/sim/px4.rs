@@ -37,7 +37,9 @@ impl Style for Px4 {
     /// cell (PX4 1.14's defaults).
     fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA> {
         use d::MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_REAL32 as REAL32};
-        let Some(b) = &opts.vehicle.battery else { return Vec::new() };
+        let Some(b) = &opts.vehicle.battery else {
+            return Vec::new();
+        };
         vec![
             param("BAT1_CAPACITY", b.capacity_mah as f32, REAL32),
             param("BAT1_N_CELLS", f32::from_bits(b.cells), INT32),
@@ -47,7 +49,12 @@ impl Style for Px4 {
     }
 
     fn landed_state(&self, now: &Instant) -> Option<MavMessage> {
-        if !(Every { period_ms: 1000, offset_ms: 500 }).due(now.t_ms) {
+        if !(Every {
+            period_ms: 1000,
+            offset_ms: 500,
+        })
+        .due(now.t_ms)
+        {
             return None;
         }
         let landed = match now.phase {
@@ -62,25 +69,44 @@ impl Style for Px4 {
         }))
     }
 
-    fn attitude(&self, now: &Instant, (roll, pitch, yaw): (f64, f64, f64), rates: &Vector3<f64>, out: &mut Vec<MavMessage>) {
+    fn attitude(
+        &self,
+        now: &Instant,
+        (roll, pitch, yaw): (f64, f64, f64),
+        rates: &Vector3<f64>,
+        out: &mut Vec<MavMessage>,
+    ) {
         let q = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
-        out.push(MavMessage::ATTITUDE_QUATERNION(d::ATTITUDE_QUATERNION_DATA {
-            time_boot_ms: now.boot_ms(),
-            q1: q.w as f32,
-            q2: q.i as f32,
-            q3: q.j as f32,
-            q4: q.k as f32,
-            rollspeed: rates.x as f32,
-            pitchspeed: rates.y as f32,
-            yawspeed: rates.z as f32,
-            repr_offset_q: [0.0; 4],
-        }));
-        if (Every { period_ms: 200, offset_ms: 30 }).due(now.t_ms) {
+        out.push(MavMessage::ATTITUDE_QUATERNION(
+            d::ATTITUDE_QUATERNION_DATA {
+                time_boot_ms: now.boot_ms(),
+                q1: q.w as f32,
+                q2: q.i as f32,
+                q3: q.j as f32,
+                q4: q.k as f32,
+                rollspeed: rates.x as f32,
+                pitchspeed: rates.y as f32,
+                yawspeed: rates.z as f32,
+                repr_offset_q: [0.0; 4],
+            },
+        ));
+        if (Every {
+            period_ms: 200,
+            offset_ms: 30,
+        })
+        .due(now.t_ms)
+        {
             out.push(super::emit::attitude(now, (roll, pitch, yaw), rates));
         }
     }
 
-    fn imu(&self, now: &Instant, f: &Vector3<f64>, w: &Vector3<f64>, mag: &Vector3<f64>) -> MavMessage {
+    fn imu(
+        &self,
+        now: &Instant,
+        f: &Vector3<f64>,
+        w: &Vector3<f64>,
+        mag: &Vector3<f64>,
+    ) -> MavMessage {
         let alt = now.alt_amsl_m();
         MavMessage::HIGHRES_IMU(d::HIGHRES_IMU_DATA {
             time_usec: now.t_ms * 1000,
@@ -104,7 +130,12 @@ impl Style for Px4 {
 
     /// ALTITUDE at 5 Hz: the barometric altitude carries 30 % of the GNSS vertical error.
     fn air_data(&self, now: &Instant) -> Option<MavMessage> {
-        if !(Every { period_ms: 200, offset_ms: 80 }).due(now.t_ms) {
+        if !(Every {
+            period_ms: 200,
+            offset_ms: 80,
+        })
+        .due(now.t_ms)
+        {
             return None;
         }
         let amsl = (now.alt_amsl_m() + now.gps_err.z * 0.3) as f32;

@@ -22,15 +22,66 @@ const fn f(ty: &'static str, name: &'static str) -> Field {
     Field { ty, name }
 }
 
-const STATUS: Topic = Topic { id: 0, name: "vehicle_status", fields: &[f("uint8_t", "arming_state"), f("uint8_t", "nav_state")] };
-const RATES: Topic = Topic { id: 1, name: "vehicle_angular_velocity", fields: &[f("float[3]", "xyz")] };
-const ATT: Topic = Topic { id: 2, name: "vehicle_attitude", fields: &[f("float[4]", "q")] };
-const IMU: Topic = Topic { id: 3, name: "sensor_combined", fields: &[f("float[3]", "gyro_rad"), f("float[3]", "accelerometer_m_s2")] };
-const LPOS: Topic = Topic { id: 4, name: "vehicle_local_position", fields: &[f("float", "x"), f("float", "y"), f("float", "z"), f("float", "vx"), f("float", "vy"), f("float", "vz")] };
-const GPOS: Topic = Topic { id: 5, name: "vehicle_global_position", fields: &[f("double", "lat"), f("double", "lon"), f("float", "alt")] };
-const BAT: Topic = Topic { id: 6, name: "battery_status", fields: &[f("float", "voltage_v"), f("float", "current_a"), f("float", "discharged_mah"), f("float", "remaining")] };
-const AIR: Topic = Topic { id: 8, name: "airspeed_validated", fields: &[f("float", "true_airspeed_m_s")] };
-const KV: Topic = Topic { id: 7, name: "debug_key_value", fields: &[f("char[10]", "key"), f("float", "value")] };
+const STATUS: Topic = Topic {
+    id: 0,
+    name: "vehicle_status",
+    fields: &[f("uint8_t", "arming_state"), f("uint8_t", "nav_state")],
+};
+const RATES: Topic = Topic {
+    id: 1,
+    name: "vehicle_angular_velocity",
+    fields: &[f("float[3]", "xyz")],
+};
+const ATT: Topic = Topic {
+    id: 2,
+    name: "vehicle_attitude",
+    fields: &[f("float[4]", "q")],
+};
+const IMU: Topic = Topic {
+    id: 3,
+    name: "sensor_combined",
+    fields: &[
+        f("float[3]", "gyro_rad"),
+        f("float[3]", "accelerometer_m_s2"),
+    ],
+};
+const LPOS: Topic = Topic {
+    id: 4,
+    name: "vehicle_local_position",
+    fields: &[
+        f("float", "x"),
+        f("float", "y"),
+        f("float", "z"),
+        f("float", "vx"),
+        f("float", "vy"),
+        f("float", "vz"),
+    ],
+};
+const GPOS: Topic = Topic {
+    id: 5,
+    name: "vehicle_global_position",
+    fields: &[f("double", "lat"), f("double", "lon"), f("float", "alt")],
+};
+const BAT: Topic = Topic {
+    id: 6,
+    name: "battery_status",
+    fields: &[
+        f("float", "voltage_v"),
+        f("float", "current_a"),
+        f("float", "discharged_mah"),
+        f("float", "remaining"),
+    ],
+};
+const AIR: Topic = Topic {
+    id: 8,
+    name: "airspeed_validated",
+    fields: &[f("float", "true_airspeed_m_s")],
+};
+const KV: Topic = Topic {
+    id: 7,
+    name: "debug_key_value",
+    fields: &[f("char[10]", "key"), f("float", "value")],
+};
 
 impl SimFlight {
     /// The flight as ULog `.ulg` bytes (module docs).
@@ -41,23 +92,37 @@ impl SimFlight {
             .iter()
             .filter_map(|r| match &r.msg {
                 MavMessage::PARAM_VALUE(p) => {
-                    let name = p.param_id.to_str().unwrap_or("").trim_end_matches('\0').to_string();
+                    let name = p
+                        .param_id
+                        .to_str()
+                        .unwrap_or("")
+                        .trim_end_matches('\0')
+                        .to_string();
                     let int = p.param_type == d::MavParamType::MAV_PARAM_TYPE_INT32;
                     // PX4 sends an integer parameter as the float's bits.
-                    let v = if int { f64::from(p.param_value.to_bits() as i32) } else { f64::from(p.param_value) };
+                    let v = if int {
+                        f64::from(p.param_value.to_bits() as i32)
+                    } else {
+                        f64::from(p.param_value)
+                    };
                     Some((name, v, int))
                 }
                 _ => None,
             })
             .collect();
-        let mut w = Writer::new(&[STATUS, RATES, ATT, IMU, LPOS, GPOS, BAT, KV, AIR], &params);
+        let mut w = Writer::new(
+            &[STATUS, RATES, ATT, IMU, LPOS, GPOS, BAT, KV, AIR],
+            &params,
+        );
         let t0 = self.records.first().map_or(0, |r| r.t_us);
         let mut last_status = None;
         for r in &self.records {
             let t = r.t_us - t0;
             match &r.msg {
                 MavMessage::HEARTBEAT(h) => {
-                    let armed = h.base_mode.contains(d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+                    let armed = h
+                        .base_mode
+                        .contains(d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
                     let s = (if armed { 2.0 } else { 1.0 }, f64::from(h.custom_mode));
                     if last_status != Some(s) {
                         last_status = Some(s);
@@ -65,25 +130,77 @@ impl SimFlight {
                     }
                 }
                 MavMessage::ATTITUDE_QUATERNION(a) => {
-                    w.data(&RATES, t, &[N(&[a.rollspeed, a.pitchspeed, a.yawspeed].map(f64::from))]);
+                    w.data(
+                        &RATES,
+                        t,
+                        &[N(&[a.rollspeed, a.pitchspeed, a.yawspeed].map(f64::from))],
+                    );
                     w.data(&ATT, t, &[N(&[a.q1, a.q2, a.q3, a.q4].map(f64::from))]);
                 }
                 MavMessage::HIGHRES_IMU(m) => {
-                    w.data(&IMU, t, &[N(&[m.xgyro, m.ygyro, m.zgyro].map(f64::from)), N(&[m.xacc, m.yacc, m.zacc].map(f64::from))]);
+                    w.data(
+                        &IMU,
+                        t,
+                        &[
+                            N(&[m.xgyro, m.ygyro, m.zgyro].map(f64::from)),
+                            N(&[m.xacc, m.yacc, m.zacc].map(f64::from)),
+                        ],
+                    );
                 }
                 MavMessage::GLOBAL_POSITION_INT(m) => {
                     let v = [m.vx, m.vy, m.vz].map(|x| f64::from(x) * 0.01);
-                    w.data(&LPOS, t, &[N(&[0.0]), N(&[0.0]), N(&[-f64::from(m.relative_alt) * 1e-3]), N(&v[..1]), N(&v[1..2]), N(&v[2..])]);
-                    w.data(&GPOS, t, &[N(&[f64::from(m.lat) * 1e-7]), N(&[f64::from(m.lon) * 1e-7]), N(&[f64::from(m.alt) * 1e-3])]);
+                    w.data(
+                        &LPOS,
+                        t,
+                        &[
+                            N(&[0.0]),
+                            N(&[0.0]),
+                            N(&[-f64::from(m.relative_alt) * 1e-3]),
+                            N(&v[..1]),
+                            N(&v[1..2]),
+                            N(&v[2..]),
+                        ],
+                    );
+                    w.data(
+                        &GPOS,
+                        t,
+                        &[
+                            N(&[f64::from(m.lat) * 1e-7]),
+                            N(&[f64::from(m.lon) * 1e-7]),
+                            N(&[f64::from(m.alt) * 1e-3]),
+                        ],
+                    );
                 }
                 MavMessage::BATTERY_STATUS(b) if b.id == 0 => {
-                    let volt = if b.voltages[0] == u16::MAX { 0.0 } else { f64::from(b.voltages[0]) * 1e-3 };
-                    let rem = if b.battery_remaining < 0 { -1.0 } else { f64::from(b.battery_remaining) * 0.01 };
-                    w.data(&BAT, t, &[N(&[volt]), N(&[f64::from(b.current_battery) * 0.01]), N(&[f64::from(b.current_consumed)]), N(&[rem])]);
+                    let volt = if b.voltages[0] == u16::MAX {
+                        0.0
+                    } else {
+                        f64::from(b.voltages[0]) * 1e-3
+                    };
+                    let rem = if b.battery_remaining < 0 {
+                        -1.0
+                    } else {
+                        f64::from(b.battery_remaining) * 0.01
+                    };
+                    w.data(
+                        &BAT,
+                        t,
+                        &[
+                            N(&[volt]),
+                            N(&[f64::from(b.current_battery) * 0.01]),
+                            N(&[f64::from(b.current_consumed)]),
+                            N(&[rem]),
+                        ],
+                    );
                 }
                 MavMessage::VFR_HUD(h) => w.data(&AIR, t, &[N(&[f64::from(h.airspeed)])]),
                 MavMessage::NAMED_VALUE_FLOAT(n) => {
-                    let key = n.name.to_str().unwrap_or("").trim_end_matches('\0').to_string();
+                    let key = n
+                        .name
+                        .to_str()
+                        .unwrap_or("")
+                        .trim_end_matches('\0')
+                        .to_string();
                     w.data(&KV, t, &[Text(&key), N(&[f64::from(n.value)])]);
                 }
                 _ => {}

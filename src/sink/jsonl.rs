@@ -53,8 +53,8 @@ use tokio::task::JoinHandle;
 
 use super::{JsonTarget, ReportRx};
 use crate::features::FEATURE_NAMES;
-use crate::report::{Provenance, Report};
 use crate::report::status::{ChainStatus, LatencySummary, StatsSnapshot};
+use crate::report::{Provenance, Report};
 
 /// Open the target now (so a bad path fails before the run) and write on a blocking thread.
 pub fn spawn(
@@ -65,7 +65,10 @@ pub fn spawn(
     let (out, name): (Box<dyn Write + Send>, String) = match &target {
         JsonTarget::Stdout => (Box::new(std::io::stdout()), "standard output".into()),
         JsonTarget::File(p) => (
-            Box::new(std::fs::File::create(p).with_context(|| format!("{}: cannot create the JSON file", p.display()))?),
+            Box::new(
+                std::fs::File::create(p)
+                    .with_context(|| format!("{}: cannot create the JSON file", p.display()))?,
+            ),
             p.display().to_string(),
         ),
     };
@@ -80,7 +83,8 @@ pub fn spawn(
                     w.flush()?; // live: each report shows up as it happens
                 }
             }
-            let summary = Summary::new(status.stats.snapshot(), reports, rx.missed()).with_queues(status.stats.queues.peak());
+            let summary = Summary::new(status.stats.snapshot(), reports, rx.missed())
+                .with_queues(status.stats.queues.peak());
             write_line(&mut w, &summary.with_latency(status.latency.summary()))?;
             w.flush()
         })();
@@ -92,7 +96,16 @@ pub fn spawn(
 pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     let e = &r.estimate;
     let s = &e.sample;
-    write_line(w, &WindowLine { kind: "window", system_id: r.system_id, t: e.t_s, measured_w: s.measured_w, features: Features(&s.features) })?;
+    write_line(
+        w,
+        &WindowLine {
+            kind: "window",
+            system_id: r.system_id,
+            t: e.t_s,
+            measured_w: s.measured_w,
+            features: Features(&s.features),
+        },
+    )?;
     write_estimate(w, r)?;
     for a in &r.alerts {
         write_alert(w, r.system_id, a)?;
@@ -141,14 +154,42 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
 }
 
 /// Write one `alert` line about vehicle `system_id`.
-pub fn write_alert(w: &mut impl Write, system_id: u8, a: &crate::report::AlertEvent) -> std::io::Result<()> {
-    write_line(w, &AlertLine { kind: "alert", system_id, t: a.t, rule: &a.rule, severity: a.severity, state: a.state, message: &a.message })
+pub fn write_alert(
+    w: &mut impl Write,
+    system_id: u8,
+    a: &crate::report::AlertEvent,
+) -> std::io::Result<()> {
+    write_line(
+        w,
+        &AlertLine {
+            kind: "alert",
+            system_id,
+            t: a.t,
+            rule: &a.rule,
+            severity: a.severity,
+            state: a.state,
+            message: &a.message,
+        },
+    )
 }
 
 /// Write one `state` line (the MQTT sink's retained state): the energy at report time `t`
 /// and the alert rules currently raised.
-pub fn write_state(w: &mut impl Write, t: f64, energy: &crate::report::EnergyState, active_alerts: &[String]) -> std::io::Result<()> {
-    write_line(w, &StateLine { kind: "state", t, energy, active_alerts })
+pub fn write_state(
+    w: &mut impl Write,
+    t: f64,
+    energy: &crate::report::EnergyState,
+    active_alerts: &[String],
+) -> std::io::Result<()> {
+    write_line(
+        w,
+        &StateLine {
+            kind: "state",
+            t,
+            energy,
+            active_alerts,
+        },
+    )
 }
 
 fn write_line(w: &mut impl Write, v: &impl Serialize) -> std::io::Result<()> {
@@ -340,11 +381,23 @@ pub struct Summary {
 impl Summary {
     /// The summary for these counters.
     pub fn new(s: StatsSnapshot, reports: u64, missed_reports: u64) -> Self {
-        Self { kind: "summary", ingest: s, reports, missed_reports, queue_peak: 0, queue_peak_at_s: 0.0, latency: None }
+        Self {
+            kind: "summary",
+            ingest: s,
+            reports,
+            missed_reports,
+            queue_peak: 0,
+            queue_peak_at_s: 0.0,
+            latency: None,
+        }
     }
     /// With the queues' high-water mark.
     pub fn with_queues(self, (queue_peak, queue_peak_at_s): (u64, f64)) -> Self {
-        Self { queue_peak, queue_peak_at_s, ..self }
+        Self {
+            queue_peak,
+            queue_peak_at_s,
+            ..self
+        }
     }
     /// With the message → estimate latency.
     pub fn with_latency(self, latency: Option<LatencySummary>) -> Self {
@@ -355,16 +408,23 @@ impl Summary {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::report::{AlertEvent, AlertState};
-    use crate::report::EnergyState;
-    use crate::report::{Estimate, ModelEstimate};
     use crate::features::{Sample, N_FEATURES};
+    use crate::report::EnergyState;
+    use crate::report::{AlertEvent, AlertState};
+    use crate::report::{Estimate, ModelEstimate};
 
     fn report() -> Report {
         let mut features = [0.5f32; N_FEATURES];
         features[0] = f32::NAN;
-        let sample =
-            Sample { t_s: 12.5, features, measured_w: Some(240.0), voltage_v: Some(22.8), home: None, stale_mask: 0, battery_remaining_pct: None };
+        let sample = Sample {
+            t_s: 12.5,
+            features,
+            measured_w: Some(240.0),
+            voltage_v: Some(22.8),
+            home: None,
+            stale_mask: 0,
+            battery_remaining_pct: None,
+        };
         Report {
             estimate: Estimate {
                 arrived: None,
@@ -375,7 +435,13 @@ mod tests {
                     ModelEstimate::new("lstm", f32::INFINITY, None),
                 ],
             },
-            energy: EnergyState { energy_used_wh: 1.5, remaining_wh: Some(80.0), time_to_empty_s: None, home_margin_wh: None, ..Default::default() },
+            energy: EnergyState {
+                energy_used_wh: 1.5,
+                remaining_wh: Some(80.0),
+                time_to_empty_s: None,
+                home_margin_wh: None,
+                ..Default::default()
+            },
             alerts: vec![AlertEvent {
                 t: 12.5,
                 rule: "low_margin".into(),
@@ -391,12 +457,25 @@ mod tests {
     fn lines_have_exactly_the_documented_shapes_and_nan_is_null() {
         let mut out = Vec::new();
         write_report(&mut out, &report()).unwrap();
-        let lines: Vec<serde_json::Value> =
-            String::from_utf8(out).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        let lines: Vec<serde_json::Value> = String::from_utf8(out)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
         assert_eq!(lines.len(), 3);
-        assert!(lines.iter().all(|l| l["system_id"] == 7), "every line names its vehicle: {lines:?}");
+        assert!(
+            lines.iter().all(|l| l["system_id"] == 7),
+            "every line names its vehicle: {lines:?}"
+        );
         let w = &lines[0];
-        assert_eq!((w["type"].as_str(), w["t"].as_f64(), w["measured_w"].as_f64()), (Some("window"), Some(12.5), Some(240.0)));
+        assert_eq!(
+            (
+                w["type"].as_str(),
+                w["t"].as_f64(),
+                w["measured_w"].as_f64()
+            ),
+            (Some("window"), Some(12.5), Some(240.0))
+        );
         let f = w["features"].as_object().unwrap();
         assert_eq!(f.len(), N_FEATURES);
         assert!(f["wind_speed"].is_null(), "NaN is written as null");
@@ -405,12 +484,25 @@ mod tests {
         assert_eq!(e["type"], "estimate");
         assert_eq!(e["models"]["dandrea"], 230.0);
         assert!(e["models"]["lstm"].is_null());
-        assert_eq!((e["energy_used_wh"].as_f64(), e["remaining_wh"].as_f64()), (Some(1.5), Some(80.0)));
+        assert_eq!(
+            (e["energy_used_wh"].as_f64(), e["remaining_wh"].as_f64()),
+            (Some(1.5), Some(80.0))
+        );
         assert!(e["time_to_empty_s"].is_null() && e["home_margin_wh"].is_null());
         let a = &lines[2];
         assert_eq!(
-            (a["type"].as_str(), a["rule"].as_str(), a["severity"].as_str(), a["state"].as_str()),
-            (Some("alert"), Some("low_margin"), Some("warning"), Some("raised"))
+            (
+                a["type"].as_str(),
+                a["rule"].as_str(),
+                a["severity"].as_str(),
+                a["state"].as_str()
+            ),
+            (
+                Some("alert"),
+                Some("low_margin"),
+                Some("warning"),
+                Some("raised")
+            )
         );
         assert_eq!(a["message"], "margin below 10 Wh");
     }
@@ -423,17 +515,39 @@ mod tests {
         let text = String::from_utf8(out).unwrap();
         assert!(text.ends_with('\n') && text.lines().count() == 1, "{text}");
         let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-        assert_eq!((v["type"].as_str(), v["t"].as_f64()), (Some("state"), Some(12.5)));
-        assert_eq!((v["energy_used_wh"].as_f64(), v["remaining_wh"].as_f64()), (Some(1.5), Some(80.0)));
+        assert_eq!(
+            (v["type"].as_str(), v["t"].as_f64()),
+            (Some("state"), Some(12.5))
+        );
+        assert_eq!(
+            (v["energy_used_wh"].as_f64(), v["remaining_wh"].as_f64()),
+            (Some(1.5), Some(80.0))
+        );
         assert!(v["time_to_empty_s"].is_null() && v["home_margin_wh"].is_null());
         assert_eq!(v["active_alerts"], serde_json::json!(["low_margin"]));
-        let energy_keys = serde_json::to_value(&r.energy).unwrap().as_object().unwrap().len();
-        assert_eq!(v.as_object().unwrap().len(), energy_keys + 3, "type, t, the energy fields, active_alerts: {v}");
+        let energy_keys = serde_json::to_value(&r.energy)
+            .unwrap()
+            .as_object()
+            .unwrap()
+            .len();
+        assert_eq!(
+            v.as_object().unwrap().len(),
+            energy_keys + 3,
+            "type, t, the energy fields, active_alerts: {v}"
+        );
     }
 
     #[test]
     fn the_summary_starts_with_the_contract_fields_in_order() {
-        let s = serde_json::to_string(&Summary::new(StatsSnapshot { frames_ok: 3, ..Default::default() }, 0, 0)).unwrap();
+        let s = serde_json::to_string(&Summary::new(
+            StatsSnapshot {
+                frames_ok: 3,
+                ..Default::default()
+            },
+            0,
+            0,
+        ))
+        .unwrap();
         assert!(s.starts_with(r#"{"type":"summary","frames_ok":3,"frames_bad":0,"unknown":0,"gaps":0,"windows":0,"#), "{s}");
     }
 }

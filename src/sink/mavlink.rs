@@ -53,8 +53,8 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Result};
 use ::mavlink::{MavHeader, MavlinkVersion};
+use anyhow::{bail, Result};
 
 use crate::dialect::{self, MavSeverity};
 use crate::report::Report;
@@ -86,7 +86,14 @@ pub struct MavlinkSinkConfig {
 
 impl Default for MavlinkSinkConfig {
     fn default() -> Self {
-        Self { enabled: None, address: None, system_id: None, component_id: 191, rate_hz: 2.0, battery_id: 9 }
+        Self {
+            enabled: None,
+            address: None,
+            system_id: None,
+            component_id: 191,
+            rate_hz: 2.0,
+            battery_id: 9,
+        }
     }
 }
 
@@ -95,7 +102,10 @@ impl MavlinkSinkConfig {
     pub fn validate(&self) -> Result<(), String> {
         let mut errs = Vec::new();
         if !(self.rate_hz > 0.0 && self.rate_hz <= 50.0) {
-            errs.push(format!("sinks.mavlink.rate_hz = {}: must be in (0, 50] per second", self.rate_hz));
+            errs.push(format!(
+                "sinks.mavlink.rate_hz = {}: must be in (0, 50] per second",
+                self.rate_hz
+            ));
         }
         if self.system_id == Some(0) {
             errs.push("sinks.mavlink.system_id = 0: 0 is the broadcast id; use 1..=255".into());
@@ -111,7 +121,11 @@ impl MavlinkSinkConfig {
                 errs.push(format!("sinks.mavlink.address: {e}"));
             }
         }
-        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
     }
 }
 
@@ -126,12 +140,21 @@ pub struct Encoder {
 impl Encoder {
     /// An encoder sending as this system and component.
     pub fn new(system_id: u8, component_id: u8) -> Self {
-        Self { system_id: u32::from(system_id), component_id, seq: 0, start: Instant::now() }
+        Self {
+            system_id: u32::from(system_id),
+            component_id,
+            seq: 0,
+            start: Instant::now(),
+        }
     }
 
     /// One MAVLink 2 frame.
     pub fn frame(&mut self, msg: &MavMessage) -> Vec<u8> {
-        let header = MavHeader { system_id: self.system_id, component_id: self.component_id, sequence: self.seq };
+        let header = MavHeader {
+            system_id: self.system_id,
+            component_id: self.component_id,
+            sequence: self.seq,
+        };
         self.seq = self.seq.wrapping_add(1);
         let mut buf = Vec::with_capacity(64);
         // Writing into a Vec cannot fail.
@@ -168,18 +191,32 @@ impl Encoder {
     /// A NAMED_VALUE_FLOAT (`name` ≤ 10 bytes).
     pub fn named_value(&mut self, name: &str, value: f32) -> Vec<u8> {
         let time_boot_ms = self.boot_ms();
-        self.frame(&MavMessage::NAMED_VALUE_FLOAT(dialect::NAMED_VALUE_FLOAT_DATA {
-            time_boot_ms,
-            value,
-            name: truncate_bytes(name, 10).into(),
-        }))
+        self.frame(&MavMessage::NAMED_VALUE_FLOAT(
+            dialect::NAMED_VALUE_FLOAT_DATA {
+                time_boot_ms,
+                value,
+                name: truncate_bytes(name, 10).into(),
+            },
+        ))
     }
 
     /// Every NAMED_VALUE_FLOAT of one report (see the module's table).
     pub fn estimates(&mut self, r: &Report) -> Vec<Vec<u8>> {
         let e = &r.energy;
-        let model = |n: &str| r.estimate.models.iter().find(|m| m.name == n).map(|m| f64::from(m.power_w));
-        let adapted = |n: &str| r.estimate.models.iter().find(|m| m.name == n).map(|m| f64::from(m.adapted_w.unwrap_or(m.power_w)));
+        let model = |n: &str| {
+            r.estimate
+                .models
+                .iter()
+                .find(|m| m.name == n)
+                .map(|m| f64::from(m.power_w))
+        };
+        let adapted = |n: &str| {
+            r.estimate
+                .models
+                .iter()
+                .find(|m| m.name == n)
+                .map(|m| f64::from(m.adapted_w.unwrap_or(m.power_w)))
+        };
         let values = [
             ("dw_meas_w", r.estimate.sample.measured_w.map(f64::from)),
             ("dw_pred_w", e.forecast_model.as_deref().and_then(adapted)),
@@ -197,16 +234,31 @@ impl Encoder {
         ];
         values
             .into_iter()
-            .filter_map(|(n, v)| v.filter(|v| v.is_finite()).map(|v| self.named_value(n, v as f32)))
+            .filter_map(|(n, v)| {
+                v.filter(|v| v.is_finite())
+                    .map(|v| self.named_value(n, v as f32))
+            })
             .collect()
     }
 
     /// dronewatt's own BATTERY_STATUS for one report (see the module docs).
     pub fn battery_status(&mut self, battery_id: u8, r: &Report) -> Vec<u8> {
         let e = &r.energy;
-        let pct = e.remaining_pct.filter(|p| p.is_finite()).map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
-        let time_remaining = e.time_to_empty_s.filter(|t| t.is_finite() && *t >= 0.0).map_or(0, |t| t.round().clamp(1.0, f64::from(i32::MAX)) as i32);
-        let energy_consumed = if e.energy_used_wh.is_finite() { (e.energy_used_wh * 36.0).round().clamp(0.0, f64::from(i32::MAX)) as i32 } else { -1 };
+        let pct = e
+            .remaining_pct
+            .filter(|p| p.is_finite())
+            .map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
+        let time_remaining = e
+            .time_to_empty_s
+            .filter(|t| t.is_finite() && *t >= 0.0)
+            .map_or(0, |t| t.round().clamp(1.0, f64::from(i32::MAX)) as i32);
+        let energy_consumed = if e.energy_used_wh.is_finite() {
+            (e.energy_used_wh * 36.0)
+                .round()
+                .clamp(0.0, f64::from(i32::MAX)) as i32
+        } else {
+            -1
+        };
         self.frame(&MavMessage::BATTERY_STATUS(dialect::BATTERY_STATUS_DATA {
             id: battery_id,
             battery_remaining: pct,
@@ -278,7 +330,8 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
     let mut dropped = 0u64;
     let enc_for = |encs: &mut std::collections::BTreeMap<u8, (Encoder, Instant)>, id: u8| {
         let id = cfg.system_id.unwrap_or(id);
-        encs.entry(id).or_insert_with(|| (Encoder::new(id, cfg.component_id), Instant::now()));
+        encs.entry(id)
+            .or_insert_with(|| (Encoder::new(id, cfg.component_id), Instant::now()));
         id
     };
     loop {
@@ -331,16 +384,32 @@ mod tests {
 
     #[test]
     fn addresses_and_ids_are_checked() {
-        for ok in ["udpout:127.0.0.1:14550", "tcpout:gcs.local:5760", "udpin:0.0.0.0:14550"] {
-            let c = MavlinkSinkConfig { address: Some(ok.into()), ..Default::default() };
+        for ok in [
+            "udpout:127.0.0.1:14550",
+            "tcpout:gcs.local:5760",
+            "udpin:0.0.0.0:14550",
+        ] {
+            let c = MavlinkSinkConfig {
+                address: Some(ok.into()),
+                ..Default::default()
+            };
             assert_eq!(c.validate(), Ok(()), "{ok}");
         }
         for bad in ["udpout:nohost", "quic:host:1"] {
-            let c = MavlinkSinkConfig { address: Some(bad.into()), ..Default::default() };
+            let c = MavlinkSinkConfig {
+                address: Some(bad.into()),
+                ..Default::default()
+            };
             let e = c.validate().unwrap_err();
-            assert!(e.contains("sinks.mavlink.address") && e.contains(bad), "{e}");
+            assert!(
+                e.contains("sinks.mavlink.address") && e.contains(bad),
+                "{e}"
+            );
         }
-        let bad = MavlinkSinkConfig { component_id: 1, ..Default::default() };
+        let bad = MavlinkSinkConfig {
+            component_id: 1,
+            ..Default::default()
+        };
         assert!(bad.validate().unwrap_err().contains("component_id"));
     }
 

@@ -34,8 +34,8 @@ use std::time::Duration;
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
-use crate::report::Report;
 use crate::report::status::ChainStatus;
+use crate::report::Report;
 
 /// Reports a sink's queue holds before the energy stage waits for it.
 pub const SINK_DEPTH: usize = 1024;
@@ -69,7 +69,11 @@ pub enum SinkSpec {
 /// Start one sink as its own task, reading `rx`. The task ends when the chain closes its
 /// queue, after flushing (and, for JSON, writing the summary line). Fails before anything
 /// runs when the sink cannot start (a JSON file that cannot be created, a port in use).
-pub fn spawn(spec: SinkSpec, rx: ReportRx, status: ChainStatus) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
+pub fn spawn(
+    spec: SinkSpec,
+    rx: ReportRx,
+    status: ChainStatus,
+) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
     match spec {
         SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, status))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, status),
@@ -127,14 +131,21 @@ struct Outlet {
 impl Fanout {
     /// Watch the depth of every queue of this fanout in `stats`.
     pub fn gauged(self, stats: Arc<crate::report::status::IngestStats>) -> Self {
-        Self { stats: Some(stats), ..self }
+        Self {
+            stats: Some(stats),
+            ..self
+        }
     }
 
     /// A new sink's queue.
     pub fn subscribe(&mut self) -> ReportRx {
         let (tx, rx) = mpsc::channel(SINK_DEPTH);
         let missed = Arc::new(AtomicU64::new(0));
-        self.outs.push(Outlet { tx, missed: missed.clone(), stuck: false });
+        self.outs.push(Outlet {
+            tx,
+            missed: missed.clone(),
+            stuck: false,
+        });
         ReportRx { rx, missed }
     }
 
@@ -148,12 +159,18 @@ impl Fanout {
         for o in &mut self.outs {
             if o.stuck && o.tx.capacity() >= SINK_DEPTH / 2 {
                 o.stuck = false;
-                tracing::info!("a sink caught up after missing {} reports", o.missed.load(Ordering::Relaxed));
+                tracing::info!(
+                    "a sink caught up after missing {} reports",
+                    o.missed.load(Ordering::Relaxed)
+                );
             }
             match o.tx.try_send(report.clone()) {
                 Ok(()) | Err(mpsc::error::TrySendError::Closed(_)) => {}
                 Err(mpsc::error::TrySendError::Full(r)) if !o.stuck => {
-                    if tokio::time::timeout(SINK_PATIENCE, o.tx.send(r)).await.is_err() {
+                    if tokio::time::timeout(SINK_PATIENCE, o.tx.send(r))
+                        .await
+                        .is_err()
+                    {
                         o.stuck = true;
                         o.missed.fetch_add(1, Ordering::Relaxed);
                         tracing::warn!("a sink is stuck (no room for {} s): it misses reports until it catches up", SINK_PATIENCE.as_secs_f64());

@@ -37,7 +37,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use rumqttc::{AsyncClient, ConnectionError, Event, EventLoop, LastWill, MqttOptions, Outgoing, Packet, QoS, Transport};
+use rumqttc::{
+    AsyncClient, ConnectionError, Event, EventLoop, LastWill, MqttOptions, Outgoing, Packet, QoS,
+    Transport,
+};
 use tokio::task::JoinHandle;
 
 use crate::report::AlertState;
@@ -124,7 +127,12 @@ impl MqttSinkConfig {
             return Err("sinks.mqtt.port = 0: must be 1..=65535".into());
         }
         let p = &self.prefix;
-        if p.is_empty() || p.starts_with('/') || p.ends_with('/') || p.contains("//") || !topic_safe(p) {
+        if p.is_empty()
+            || p.starts_with('/')
+            || p.ends_with('/')
+            || p.contains("//")
+            || !topic_safe(p)
+        {
             return Err(format!("sinks.mqtt.prefix = '{p}': must be topic levels like 'dronewatt' or 'fleet/dronewatt' (no leading, trailing or double '/', no '+' or '#')"));
         }
         if let Some(i) = &self.instance {
@@ -135,23 +143,41 @@ impl MqttSinkConfig {
         if self.password_env.is_some() && self.password_file.is_some() {
             return Err("sinks.mqtt: set password_env or password_file, not both".into());
         }
-        if self.username.is_none() && (self.password_env.is_some() || self.password_file.is_some()) {
+        if self.username.is_none() && (self.password_env.is_some() || self.password_file.is_some())
+        {
             return Err("sinks.mqtt.username: required when a password is given (password_env or password_file)".into());
         }
         if self.ca_file.is_some() && !self.tls {
-            return Err("sinks.mqtt.ca_file: set, but tls = false (set tls = true to use it)".into());
+            return Err(
+                "sinks.mqtt.ca_file: set, but tls = false (set tls = true to use it)".into(),
+            );
         }
         if !(1..=65_535).contains(&self.keep_alive_s) {
-            return Err(format!("sinks.mqtt.keep_alive_s = {}: must be 1..=65535 s", self.keep_alive_s));
+            return Err(format!(
+                "sinks.mqtt.keep_alive_s = {}: must be 1..=65535 s",
+                self.keep_alive_s
+            ));
         }
         if !(10..=10_000_000).contains(&self.queue) {
-            return Err(format!("sinks.mqtt.queue = {}: must be 10..=10000000 messages", self.queue));
+            return Err(format!(
+                "sinks.mqtt.queue = {}: must be 10..=10000000 messages",
+                self.queue
+            ));
         }
         if !(self.state_interval_s.is_finite() && self.state_interval_s >= 0.0) {
-            return Err(format!("sinks.mqtt.state_interval_s = {}: must be ≥ 0", self.state_interval_s));
+            return Err(format!(
+                "sinks.mqtt.state_interval_s = {}: must be ≥ 0",
+                self.state_interval_s
+            ));
         }
-        if !(self.reconnect_max_s.is_finite() && self.reconnect_max_s >= RECONNECT_MIN.as_secs_f64()) {
-            return Err(format!("sinks.mqtt.reconnect_max_s = {}: must be ≥ {}", self.reconnect_max_s, RECONNECT_MIN.as_secs_f64()));
+        if !(self.reconnect_max_s.is_finite()
+            && self.reconnect_max_s >= RECONNECT_MIN.as_secs_f64())
+        {
+            return Err(format!(
+                "sinks.mqtt.reconnect_max_s = {}: must be ≥ {}",
+                self.reconnect_max_s,
+                RECONNECT_MIN.as_secs_f64()
+            ));
         }
         Ok(())
     }
@@ -166,8 +192,15 @@ impl MqttSinkConfig {
         if let Some(i) = &self.instance {
             return i.clone();
         }
-        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").ok().or_else(|| std::env::var("HOSTNAME").ok()).unwrap_or_default();
-        let host: String = host.trim().chars().filter(|c| !matches!(c, '/' | '+' | '#' | '\0')).collect();
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .ok()
+            .or_else(|| std::env::var("HOSTNAME").ok())
+            .unwrap_or_default();
+        let host: String = host
+            .trim()
+            .chars()
+            .filter(|c| !matches!(c, '/' | '+' | '#' | '\0'))
+            .collect();
         if host.is_empty() {
             "dronewatt".into()
         } else {
@@ -178,11 +211,17 @@ impl MqttSinkConfig {
     /// The password, from the environment or the file; `None` when neither is set.
     fn password(&self) -> Result<Option<String>> {
         if let Some(var) = &self.password_env {
-            let v = std::env::var(var).with_context(|| format!("sinks.mqtt.password_env: environment variable {var} is not set (or not UTF-8)"))?;
+            let v = std::env::var(var).with_context(|| {
+                format!(
+                    "sinks.mqtt.password_env: environment variable {var} is not set (or not UTF-8)"
+                )
+            })?;
             return Ok(Some(v));
         }
         if let Some(file) = &self.password_file {
-            let text = std::fs::read_to_string(file).with_context(|| format!("sinks.mqtt.password_file: cannot read {}", file.display()))?;
+            let text = std::fs::read_to_string(file).with_context(|| {
+                format!("sinks.mqtt.password_file: cannot read {}", file.display())
+            })?;
             return Ok(Some(text.lines().next().unwrap_or("").to_string()));
         }
         Ok(None)
@@ -192,12 +231,19 @@ impl MqttSinkConfig {
     fn tls_transport(&self) -> Result<Transport> {
         use rustls::pki_types::pem::PemObject;
         use rustls::pki_types::CertificateDer;
-        let ca = self.ca_file.clone().unwrap_or_else(|| SYSTEM_CA_FILE.into());
+        let ca = self
+            .ca_file
+            .clone()
+            .unwrap_or_else(|| SYSTEM_CA_FILE.into());
         let what = || format!("sinks.mqtt.ca_file: {}", ca.display());
         let mut roots = rustls::RootCertStore::empty();
-        for cert in CertificateDer::pem_file_iter(&ca).with_context(|| format!("{}: cannot read", what()))? {
+        for cert in CertificateDer::pem_file_iter(&ca)
+            .with_context(|| format!("{}: cannot read", what()))?
+        {
             let cert = cert.with_context(|| format!("{}: not a PEM certificate file", what()))?;
-            roots.add(cert).with_context(|| format!("{}: a certificate rustls cannot use", what()))?;
+            roots
+                .add(cert)
+                .with_context(|| format!("{}: a certificate rustls cannot use", what()))?;
         }
         anyhow::ensure!(!roots.is_empty(), "{}: no certificates in it", what());
         let provider = Arc::new(rustls::crypto::ring::default_provider());
@@ -206,17 +252,28 @@ impl MqttSinkConfig {
             .context("sinks.mqtt: TLS set-up")?
             .with_root_certificates(roots)
             .with_no_client_auth();
-        Ok(Transport::tls_with_config(rumqttc::TlsConfiguration::Rustls(Arc::new(config))))
+        Ok(Transport::tls_with_config(
+            rumqttc::TlsConfiguration::Rustls(Arc::new(config)),
+        ))
     }
 
     /// The client's options: id, credentials, keep-alive, Last Will, transport.
     fn options(&self, instance: &str) -> Result<MqttOptions> {
-        let mut o = MqttOptions::new(format!("dronewatt-{instance}"), self.host.clone(), self.port());
+        let mut o = MqttOptions::new(
+            format!("dronewatt-{instance}"),
+            self.host.clone(),
+            self.port(),
+        );
         o.set_keep_alive(Duration::from_secs(self.keep_alive_s));
         o.set_clean_session(true);
         // A report's estimate line is ~0.5 KiB; leave room for many models.
         o.set_max_packet_size(256 * 1024, 256 * 1024);
-        o.set_last_will(LastWill::new(status_topic(&self.prefix, instance), "offline", QoS::AtLeastOnce, true));
+        o.set_last_will(LastWill::new(
+            status_topic(&self.prefix, instance),
+            "offline",
+            QoS::AtLeastOnce,
+            true,
+        ));
         if let Some(user) = &self.username {
             o.set_credentials(user.clone(), self.password()?.unwrap_or_default());
         }
@@ -264,9 +321,22 @@ pub fn spawn(cfg: MqttSinkConfig, rx: super::ReportRx) -> Result<JoinHandle<Resu
     let options = cfg.options(&instance)?;
     let (client, events) = AsyncClient::new(options, cfg.queue);
     let counters = Arc::new(Counters::default());
-    let connection = tokio::spawn(drive(events, client.clone(), cfg.clone(), instance.clone(), counters.clone()));
-    tracing::info!("mqtt: publishing to {}:{} under {}/ as instance {instance}", cfg.host, cfg.port(), cfg.prefix);
-    Ok(tokio::spawn(publish(cfg, instance, client, connection, counters, rx)))
+    let connection = tokio::spawn(drive(
+        events,
+        client.clone(),
+        cfg.clone(),
+        instance.clone(),
+        counters.clone(),
+    ));
+    tracing::info!(
+        "mqtt: publishing to {}:{} under {}/ as instance {instance}",
+        cfg.host,
+        cfg.port(),
+        cfg.prefix
+    );
+    Ok(tokio::spawn(publish(
+        cfg, instance, client, connection, counters, rx,
+    )))
 }
 
 /// Per vehicle: what the state topic last said and which alerts are raised.
@@ -287,18 +357,35 @@ async fn publish(
     counters: Arc<Counters>,
     mut rx: super::ReportRx,
 ) -> Result<()> {
-    let queue = Queue { client: client.clone(), counters: counters.clone() };
+    let queue = Queue {
+        client: client.clone(),
+        counters: counters.clone(),
+    };
     let mut vehicles: std::collections::BTreeMap<u8, VehicleState> = Default::default();
     let mut buf = Vec::with_capacity(1024);
     while let Some(r) = rx.next().await {
         let v = vehicles.entry(r.system_id).or_default();
         buf.clear();
         super::jsonl::write_estimate(&mut buf, &r)?;
-        queue.put(vehicle_topic(&cfg.prefix, r.system_id, "estimate"), QoS::AtMostOnce, false, line(&buf)).await;
+        queue
+            .put(
+                vehicle_topic(&cfg.prefix, r.system_id, "estimate"),
+                QoS::AtMostOnce,
+                false,
+                line(&buf),
+            )
+            .await;
         for a in &r.alerts {
             buf.clear();
             super::jsonl::write_alert(&mut buf, r.system_id, a)?;
-            queue.put(vehicle_topic(&cfg.prefix, r.system_id, "alert"), QoS::AtLeastOnce, false, line(&buf)).await;
+            queue
+                .put(
+                    vehicle_topic(&cfg.prefix, r.system_id, "alert"),
+                    QoS::AtLeastOnce,
+                    false,
+                    line(&buf),
+                )
+                .await;
             v.active.retain(|rule| rule != &a.rule);
             if a.state == AlertState::Raised {
                 v.active.push(a.rule.clone());
@@ -312,7 +399,16 @@ async fn publish(
         if due {
             v.last_state_t = Some(t);
             v.pending = None;
-            put_state(&queue, &cfg.prefix, r.system_id, t, &r.energy, &v.active, &mut buf).await?;
+            put_state(
+                &queue,
+                &cfg.prefix,
+                r.system_id,
+                t,
+                &r.energy,
+                &v.active,
+                &mut buf,
+            )
+            .await?;
         } else {
             v.pending = Some((t, r.energy.clone()));
         }
@@ -324,7 +420,14 @@ async fn publish(
             put_state(&queue, &cfg.prefix, *id, *t, energy, &v.active, &mut buf).await?;
         }
     }
-    queue.put(status_topic(&cfg.prefix, &instance), QoS::AtLeastOnce, true, b"offline".to_vec()).await;
+    queue
+        .put(
+            status_topic(&cfg.prefix, &instance),
+            QoS::AtLeastOnce,
+            true,
+            b"offline".to_vec(),
+        )
+        .await;
     // Disconnect only once the broker has acknowledged the last QoS 1 message (`offline`,
     // so everything before it too): closing a socket with acknowledgements still unread
     // resets the connection, and the broker then discards what it had not yet read.
@@ -341,7 +444,8 @@ async fn publish(
         tracing::warn!("mqtt: {}:{}: could not deliver everything within {FLUSH_TIMEOUT:?} of the end; giving up", cfg.host, cfg.port());
     }
     let (published, dropped) = (load(&counters.published), load(&counters.dropped));
-    let undelivered = (load(&counters.queued) + load(&counters.announced)).saturating_sub(published);
+    let undelivered =
+        (load(&counters.queued) + load(&counters.announced)).saturating_sub(published);
     tracing::info!(
         "mqtt summary: {published} messages published, {dropped} dropped (queue full), {undelivered} undelivered at exit, {} reports missed",
         rx.missed()
@@ -354,10 +458,25 @@ fn line(buf: &[u8]) -> Vec<u8> {
     buf.strip_suffix(b"\n").unwrap_or(buf).to_vec()
 }
 
-async fn put_state(queue: &Queue, prefix: &str, id: u8, t: f64, energy: &crate::report::EnergyState, active: &[String], buf: &mut Vec<u8>) -> Result<()> {
+async fn put_state(
+    queue: &Queue,
+    prefix: &str,
+    id: u8,
+    t: f64,
+    energy: &crate::report::EnergyState,
+    active: &[String],
+    buf: &mut Vec<u8>,
+) -> Result<()> {
     buf.clear();
     super::jsonl::write_state(buf, t, energy, active)?;
-    queue.put(vehicle_topic(prefix, id, "state"), QoS::AtLeastOnce, true, line(buf)).await;
+    queue
+        .put(
+            vehicle_topic(prefix, id, "state"),
+            QoS::AtLeastOnce,
+            true,
+            line(buf),
+        )
+        .await;
     Ok(())
 }
 
@@ -370,11 +489,21 @@ struct Queue {
 impl Queue {
     async fn put(&self, topic: String, qos: QoS, retain: bool, payload: Vec<u8>) {
         let c = &self.counters;
-        let sent = match self.client.try_publish(topic.clone(), qos, retain, payload.clone()) {
+        let sent = match self
+            .client
+            .try_publish(topic.clone(), qos, retain, payload.clone())
+        {
             Ok(()) => true,
             // Full while connected: the broker is draining it, wait a little for room.
             Err(rumqttc::ClientError::TryRequest(_)) if c.connected.load(Ordering::Relaxed) => {
-                matches!(tokio::time::timeout(CONNECTED_PATIENCE, self.client.publish(topic, qos, retain, payload)).await, Ok(Ok(())))
+                matches!(
+                    tokio::time::timeout(
+                        CONNECTED_PATIENCE,
+                        self.client.publish(topic, qos, retain, payload)
+                    )
+                    .await,
+                    Ok(Ok(()))
+                )
             }
             Err(_) => false,
         };
@@ -396,7 +525,13 @@ impl Queue {
 /// next poll after an error, and writes the queue out), announces `online` on every
 /// connect, counts what it writes, and backs off between failed attempts. Ends after the
 /// clean disconnect, or when every client handle is gone.
-async fn drive(mut events: EventLoop, client: AsyncClient, cfg: MqttSinkConfig, instance: String, counters: Arc<Counters>) {
+async fn drive(
+    mut events: EventLoop,
+    client: AsyncClient,
+    cfg: MqttSinkConfig,
+    instance: String,
+    counters: Arc<Counters>,
+) {
     let status = status_topic(&cfg.prefix, &instance);
     let max = Duration::from_secs_f64(cfg.reconnect_max_s);
     let mut backoff = RECONNECT_MIN;
@@ -406,12 +541,19 @@ async fn drive(mut events: EventLoop, client: AsyncClient, cfg: MqttSinkConfig, 
             Ok(Event::Incoming(Packet::ConnAck(_))) => {
                 counters.connected.store(true, Ordering::Relaxed);
                 if failures > 0 {
-                    tracing::info!("mqtt: reconnected to {}:{} after {failures} failed attempt(s)", cfg.host, cfg.port());
+                    tracing::info!(
+                        "mqtt: reconnected to {}:{} after {failures} failed attempt(s)",
+                        cfg.host,
+                        cfg.port()
+                    );
                 }
                 backoff = RECONNECT_MIN;
                 failures = 0;
                 // After every (re)connect: a dropped connection set it `offline` (the Will).
-                if client.try_publish(status.clone(), QoS::AtLeastOnce, true, "online").is_ok() {
+                if client
+                    .try_publish(status.clone(), QoS::AtLeastOnce, true, "online")
+                    .is_ok()
+                {
                     counters.announced.fetch_add(1, Ordering::Relaxed);
                 } else {
                     // The queue is full: announce as soon as there is room.
@@ -438,7 +580,11 @@ async fn drive(mut events: EventLoop, client: AsyncClient, cfg: MqttSinkConfig, 
                 // The first failure and then every tenth: a broker down for an hour should
                 // not fill the log.
                 if failures == 1 || failures.is_multiple_of(10) {
-                    tracing::warn!("mqtt: {}:{}: {e} (attempt {failures}); retrying in {backoff:?}", cfg.host, cfg.port());
+                    tracing::warn!(
+                        "mqtt: {}:{}: {e} (attempt {failures}); retrying in {backoff:?}",
+                        cfg.host,
+                        cfg.port()
+                    );
                 }
                 tokio::time::sleep(backoff).await;
                 backoff = (backoff * 2).min(max);
@@ -454,7 +600,10 @@ mod tests {
 
     #[test]
     fn validate_names_the_key() {
-        let ok = MqttSinkConfig { enabled: true, ..Default::default() };
+        let ok = MqttSinkConfig {
+            enabled: true,
+            ..Default::default()
+        };
         assert_eq!(ok.validate(), Ok(()));
         let bad = |f: fn(&mut MqttSinkConfig), key: &str| {
             let mut c = ok.clone();
@@ -477,13 +626,18 @@ mod tests {
         bad(|c| c.ca_file = Some("ca.pem".into()), "sinks.mqtt.ca_file");
         bad(|c| c.queue = 0, "sinks.mqtt.queue");
         bad(|c| c.keep_alive_s = 0, "sinks.mqtt.keep_alive_s");
-        bad(|c| c.state_interval_s = f64::NAN, "sinks.mqtt.state_interval_s");
+        bad(
+            |c| c.state_interval_s = f64::NAN,
+            "sinks.mqtt.state_interval_s",
+        );
         bad(|c| c.reconnect_max_s = 0.1, "sinks.mqtt.reconnect_max_s");
     }
 
     #[test]
     fn unknown_keys_are_errors() {
-        let e = toml::from_str::<MqttSinkConfig>("prefx = \"a\"").unwrap_err().to_string();
+        let e = toml::from_str::<MqttSinkConfig>("prefx = \"a\"")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("prefx"), "{e}");
     }
 
@@ -492,12 +646,26 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("pw");
         std::fs::write(&file, "s3cret\nignored\n").unwrap();
-        let c = MqttSinkConfig { username: Some("u".into()), password_file: Some(file), ..Default::default() };
+        let c = MqttSinkConfig {
+            username: Some("u".into()),
+            password_file: Some(file),
+            ..Default::default()
+        };
         assert_eq!(c.password().unwrap().as_deref(), Some("s3cret"));
-        let c = MqttSinkConfig { username: Some("u".into()), password_file: Some(dir.path().join("none")), ..Default::default() };
+        let c = MqttSinkConfig {
+            username: Some("u".into()),
+            password_file: Some(dir.path().join("none")),
+            ..Default::default()
+        };
         assert!(format!("{:#}", c.password().unwrap_err()).contains("sinks.mqtt.password_file"));
-        let c = MqttSinkConfig { username: Some("u".into()), password_env: Some("DRONEWATT_TEST_SURELY_UNSET_PW".into()), ..Default::default() };
-        assert!(format!("{:#}", c.password().unwrap_err()).contains("DRONEWATT_TEST_SURELY_UNSET_PW"));
+        let c = MqttSinkConfig {
+            username: Some("u".into()),
+            password_env: Some("DRONEWATT_TEST_SURELY_UNSET_PW".into()),
+            ..Default::default()
+        };
+        assert!(
+            format!("{:#}", c.password().unwrap_err()).contains("DRONEWATT_TEST_SURELY_UNSET_PW")
+        );
     }
 
     #[test]
@@ -505,7 +673,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let ca = dir.path().join("ca.pem");
         std::fs::write(&ca, "not a certificate").unwrap();
-        let c = MqttSinkConfig { tls: true, ca_file: Some(ca), ..Default::default() };
+        let c = MqttSinkConfig {
+            tls: true,
+            ca_file: Some(ca),
+            ..Default::default()
+        };
         let e = format!("{:#}", c.tls_transport().err().expect("no certificates"));
         assert!(e.contains("sinks.mqtt.ca_file"), "{e}");
         assert_eq!(c.port(), 8883);
@@ -513,7 +685,10 @@ mod tests {
 
     #[test]
     fn topics() {
-        assert_eq!(vehicle_topic("fleet/dw", 42, "estimate"), "fleet/dw/42/estimate");
+        assert_eq!(
+            vehicle_topic("fleet/dw", 42, "estimate"),
+            "fleet/dw/42/estimate"
+        );
         assert_eq!(status_topic("dronewatt", "gcs-1"), "dronewatt/status/gcs-1");
     }
 }

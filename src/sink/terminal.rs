@@ -23,19 +23,24 @@ use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crossterm::style::Stylize;
 use super::ReportRx;
 use crate::features::FEATURE_NAMES;
-use crate::report::{AlertEvent, AlertState, Report, Severity};
 use crate::report::status::{ChainStatus, IngestStats, SignalHealth};
+use crate::report::{AlertEvent, AlertState, Report, Severity};
+use crossterm::style::Stylize;
 
 /// Run the view until the report channel closes.
 pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
-    let ChainStatus { stats, health, latency, .. } = status;
+    let ChainStatus {
+        stats,
+        health,
+        latency,
+        ..
+    } = status;
     let colour = std::io::stderr().is_terminal();
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     tick.tick().await; // the first tick is immediate: nothing to show yet
-    // The newest report and the alerts standing, per vehicle.
+                       // The newest report and the alerts standing, per vehicle.
     let mut fleet: BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)> = BTreeMap::new();
     let mut last = (Instant::now(), 0u64);
     let mut feeds_shown = String::new();
@@ -95,7 +100,11 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
         s.clock_jumps,
         s.junk_bytes,
         s.windows,
-        if missed > 0 { format!(", {missed} reports missed by the terminal view") } else { String::new() }
+        if missed > 0 {
+            format!(", {missed} reports missed by the terminal view")
+        } else {
+            String::new()
+        }
     );
     if let Some(l) = latency.summary() {
         eprintln!("      {l}");
@@ -138,12 +147,21 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
             }
             if let Some(left) = en.remaining_wh {
                 let b = &en.battery;
-                s.push_str(&format!("left {} of {} Wh [{}; {}]", num(left, 1), num(b.capacity_wh.value, 1), b.capacity_wh.source, en.remaining_source));
+                s.push_str(&format!(
+                    "left {} of {} Wh [{}; {}]",
+                    num(left, 1),
+                    num(b.capacity_wh.value, 1),
+                    b.capacity_wh.source,
+                    en.remaining_source
+                ));
                 if let Some(t) = en.time_to_empty_s {
                     s.push_str(&format!(" ({} min", num(t / 60.0, 0)));
                     // Which model the forecast follows: "(12 min on lstm~)".
                     if let Some(m) = &en.forecast_model {
-                        s.push_str(&format!(" on {m}{}", if en.forecast_adapted { "~" } else { "" }));
+                        s.push_str(&format!(
+                            " on {m}{}",
+                            if en.forecast_adapted { "~" } else { "" }
+                        ));
                     }
                     s.push(')');
                 }
@@ -161,17 +179,37 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                 }
                 if let (Some(lo), Some(low)) = (pk.v_min_forecast_v, pk.low_threshold_v) {
                     let txt = format!(" min {} V", num(lo, 2));
-                    s.push_str(&if colour && lo < low { txt.red().to_string() } else { txt });
+                    s.push_str(&if colour && lo < low {
+                        txt.red().to_string()
+                    } else {
+                        txt
+                    });
                 }
                 s.push_str("  ");
             }
             if let Some(h) = en.home_margin_wh {
                 let txt = format!("home {}{} Wh  ", if h >= 0.0 { "+" } else { "" }, num(h, 1));
-                s.push_str(&if colour && h < 0.0 { txt.red().to_string() } else { txt });
+                s.push_str(&if colour && h < 0.0 {
+                    txt.red().to_string()
+                } else {
+                    txt
+                });
             }
             if let (Some(m), Some(mm)) = (&en.mission, en.mission_margin_wh) {
-                let txt = format!("mission item {}/{} {}% needs {} Wh margin {}{} Wh  ", m.current_seq, m.items, num(m.progress_pct, 0), num(m.energy_p50_wh, 1), if mm >= 0.0 { "+" } else { "" }, num(mm, 1));
-                s.push_str(&if colour && mm < 0.0 { txt.red().to_string() } else { txt });
+                let txt = format!(
+                    "mission item {}/{} {}% needs {} Wh margin {}{} Wh  ",
+                    m.current_seq,
+                    m.items,
+                    num(m.progress_pct, 0),
+                    num(m.energy_p50_wh, 1),
+                    if mm >= 0.0 { "+" } else { "" },
+                    num(mm, 1)
+                );
+                s.push_str(&if colour && mm < 0.0 {
+                    txt.red().to_string()
+                } else {
+                    txt
+                });
             }
         }
     }
@@ -186,21 +224,38 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
     ));
     if stats.silent.load(Relaxed) {
         let txt = "  SILENT (no valid frame for 5 s)";
-        s.push_str(&if colour { txt.red().bold().to_string() } else { txt.to_string() });
+        s.push_str(&if colour {
+            txt.red().bold().to_string()
+        } else {
+            txt.to_string()
+        });
     }
     if let Some(r) = r {
-        let stale: Vec<&str> =
-            FEATURE_NAMES.iter().enumerate().filter(|(i, _)| r.estimate.sample.stale_mask & (1 << i) != 0).map(|(_, n)| *n).collect();
+        let stale: Vec<&str> = FEATURE_NAMES
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| r.estimate.sample.stale_mask & (1 << i) != 0)
+            .map(|(_, n)| *n)
+            .collect();
         if !stale.is_empty() {
             let txt = format!("  stale: {}", stale.join(","));
-            s.push_str(&if colour { txt.yellow().to_string() } else { txt });
+            s.push_str(&if colour {
+                txt.yellow().to_string()
+            } else {
+                txt
+            });
         }
     }
     s
 }
 
 /// The fleet view: the link's line, then one row per vehicle (see the module docs).
-pub fn fleet_view(fleet: &BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)>, stats: &IngestStats, rate: f64, colour: bool) -> String {
+pub fn fleet_view(
+    fleet: &BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)>,
+    stats: &IngestStats,
+    rate: f64,
+    colour: bool,
+) -> String {
     let n = stats.snapshot();
     let mut s = format!(
         "fleet: {} vehicles  link {} msg/s ok {} bad {} unk {} gaps {}\n{:>8} {:>9} {:>8} {:>9} {:>8}  worst alert",
@@ -220,8 +275,12 @@ pub fn fleet_view(fleet: &BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)
     for (id, (r, active)) in fleet {
         let e = &r.energy;
         let power = r.estimate.sample.measured_w.map(f64::from).or(e.forecast_w);
-        let tte = e.time_to_empty_s.map_or("—".to_string(), |t| format!("{} min", num(t / 60.0, 0)));
-        let home = e.home_margin_wh.map_or("—".to_string(), |h| format!("{}{}", if h >= 0.0 { "+" } else { "" }, num(h, 1)));
+        let tte = e
+            .time_to_empty_s
+            .map_or("—".to_string(), |t| format!("{} min", num(t / 60.0, 0)));
+        let home = e.home_margin_wh.map_or("—".to_string(), |h| {
+            format!("{}{}", if h >= 0.0 { "+" } else { "" }, num(h, 1))
+        });
         // Severity orders most severe first.
         let worst = active.iter().min_by_key(|(_, &sev)| sev);
         let alert = worst.map_or("—".to_string(), |(rule, sev)| format!("{rule} ({sev})"));
@@ -245,8 +304,15 @@ pub fn feeds_line(health: &[SignalHealth]) -> String {
     if health.is_empty() {
         return String::new();
     }
-    let feeds: Vec<String> = health.iter().map(|h| format!("{}←{}", h.signal, h.source.unwrap_or("none"))).collect();
-    let stale: Vec<&str> = health.iter().filter(|h| h.stale).map(|h| h.signal).collect();
+    let feeds: Vec<String> = health
+        .iter()
+        .map(|h| format!("{}←{}", h.signal, h.source.unwrap_or("none")))
+        .collect();
+    let stale: Vec<&str> = health
+        .iter()
+        .filter(|h| h.stale)
+        .map(|h| h.signal)
+        .collect();
     let mut s = format!("feeds: {}", feeds.join(" "));
     if !stale.is_empty() {
         s.push_str(&format!(" (stale: {})", stale.join(", ")));
@@ -257,8 +323,20 @@ pub fn feeds_line(health: &[SignalHealth]) -> String {
 /// One alert event, coloured by severity (cleared alerts green).
 pub fn alert_line(a: &AlertEvent, colour: bool) -> String {
     let (tag, txt) = match a.state {
-        AlertState::Raised => ("ALERT", format!("[{}] {} at t {} s: {}", a.severity, a.rule, num(a.t, 1), a.message)),
-        AlertState::Cleared => ("clear", format!("{} cleared at t {} s: {}", a.rule, num(a.t, 1), a.message)),
+        AlertState::Raised => (
+            "ALERT",
+            format!(
+                "[{}] {} at t {} s: {}",
+                a.severity,
+                a.rule,
+                num(a.t, 1),
+                a.message
+            ),
+        ),
+        AlertState::Cleared => (
+            "clear",
+            format!("{} cleared at t {} s: {}", a.rule, num(a.t, 1), a.message),
+        ),
     };
     let line = format!("{tag} {txt}");
     if !colour {
@@ -283,7 +361,10 @@ mod tests {
         IngestStats::add(&stats.frames_bad, 2);
         stats.silent.store(true, Relaxed);
         let line = status_line(None, &stats, f64::NAN, false);
-        assert!(line.contains("ok 120 bad 2") && line.contains("SILENT") && line.contains("? msg/s"), "{line}");
+        assert!(
+            line.contains("ok 120 bad 2") && line.contains("SILENT") && line.contains("? msg/s"),
+            "{line}"
+        );
     }
 }
 
@@ -294,8 +375,17 @@ mod feeds_tests {
 
     #[test]
     fn feeds_name_each_source_and_the_stale_signals() {
-        let h = |signal, source, stale| SignalHealth { signal, features: vec![], source, age_s: None, stale };
-        let line = feeds_line(&[h("attitude", Some("ATTITUDE"), false), h("wind", None, true)]);
+        let h = |signal, source, stale| SignalHealth {
+            signal,
+            features: vec![],
+            source,
+            age_s: None,
+            stale,
+        };
+        let line = feeds_line(&[
+            h("attitude", Some("ATTITUDE"), false),
+            h("wind", None, true),
+        ]);
         assert_eq!(line, "feeds: attitude←ATTITUDE wind←none (stale: wind)");
         assert_eq!(feeds_line(&[]), "");
     }

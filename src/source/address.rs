@@ -7,7 +7,8 @@
 
 use anyhow::Result;
 
-const ACCEPTED: &str = "udpin:HOST:PORT, udpout:HOST:PORT, tcpin:HOST:PORT, tcpout:HOST:PORT or serial:DEVICE:BAUD";
+const ACCEPTED: &str =
+    "udpin:HOST:PORT, udpout:HOST:PORT, tcpin:HOST:PORT, tcpout:HOST:PORT or serial:DEVICE:BAUD";
 
 /// A parsed link address.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -28,7 +29,12 @@ impl std::str::FromStr for LinkAddress {
     type Err = anyhow::Error;
     /// Errors name the address and list the accepted forms.
     fn from_str(s: &str) -> Result<Self> {
-        let fail = |why: &str| anyhow::anyhow!("link address '{}': {why}; expected {ACCEPTED}", s.escape_debug());
+        let fail = |why: &str| {
+            anyhow::anyhow!(
+                "link address '{}': {why}; expected {ACCEPTED}",
+                s.escape_debug()
+            )
+        };
         let Some((kind, rest)) = s.split_once(':') else {
             return Err(fail("no transport"));
         };
@@ -40,8 +46,13 @@ impl std::str::FromStr for LinkAddress {
         }
         if kind == "serial" {
             return match port.parse::<u32>() {
-                Ok(baud) if baud > 0 => Ok(Self::Serial { device: host.to_string(), baud }),
-                _ => Err(fail(&format!("baud rate '{port}' is not a positive number"))),
+                Ok(baud) if baud > 0 => Ok(Self::Serial {
+                    device: host.to_string(),
+                    baud,
+                }),
+                _ => Err(fail(&format!(
+                    "baud rate '{port}' is not a positive number"
+                ))),
             };
         }
         if port.parse::<u16>().is_err() {

@@ -40,7 +40,9 @@ pub const FMT_TYPE: u8 = 128;
 /// What is wrong with a file that is not a readable DataFlash log.
 #[derive(Debug, thiserror::Error)]
 pub enum DataflashError {
-    #[error("not an ArduPilot DataFlash log (it does not start with the 0xA3 0x95 message header)")]
+    #[error(
+        "not an ArduPilot DataFlash log (it does not start with the 0xA3 0x95 message header)"
+    )]
     NotDataflash,
     #[error("no timestamped message (no FMT-described entry with TimeUS or TimeMS): an empty or corrupt log")]
     NoMessages,
@@ -48,7 +50,8 @@ pub enum DataflashError {
 
 /// Whether `path` names a DataFlash log (`.bin`, any case).
 pub fn is_dataflash(path: &std::path::Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bin"))
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("bin"))
 }
 
 /// Whether the file at `path` starts with a DataFlash message header (a `.bin` may also be
@@ -56,12 +59,18 @@ pub fn is_dataflash(path: &std::path::Path) -> bool {
 pub fn starts_as_dataflash(path: &std::path::Path) -> bool {
     use std::io::Read;
     let mut head = [0u8; 2];
-    std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head)).is_ok() && head == MAGIC
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && head == MAGIC
 }
 
 /// Decode a whole in-memory DataFlash log into MAVLink messages (see the module docs).
 /// Clock jumps are counted in `stats`.
-pub fn decode_dataflash(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, DataflashError> {
+pub fn decode_dataflash(
+    bytes: &[u8],
+    stats: &IngestStats,
+) -> Result<Vec<TimedMessage>, DataflashError> {
     if !bytes.starts_with(&MAGIC) {
         return Err(DataflashError::NotDataflash);
     }
@@ -72,7 +81,13 @@ pub fn decode_dataflash(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMe
             frame_class = e.get_f64("Value");
         }
     }
-    let mut s = State { syn: Synth::new(d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA, mav_type(frame_class)), ..State::default() };
+    let mut s = State {
+        syn: Synth::new(
+            d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            mav_type(frame_class),
+        ),
+        ..State::default()
+    };
     let mut out = Vec::with_capacity(bytes.len() / 60);
     let mut records = Reader::new(bytes);
     for e in &mut records {
@@ -127,14 +142,24 @@ impl State {
 
     fn entry(&mut self, e: &Entry, stats: &IngestStats, out: &mut Vec<TimedMessage>) {
         // TimeUS (TimeMS in logs before ArduPilot 3.3, scaled to µs by the reader).
-        if let Some(us) = e.timestamp_usec.filter(|_| e.labels().first().is_some_and(|l| l == "TimeUS" || l == "TimeMS")) {
+        if let Some(us) = e.timestamp_usec.filter(|_| {
+            e.labels()
+                .first()
+                .is_some_and(|l| l == "TimeUS" || l == "TimeMS")
+        }) {
             self.syn.at(us, stats, out);
         }
         let (n, boot_ms) = (e.name.as_str(), self.syn.boot_ms);
         match n {
             "PARM" => {
                 if let (Some(name), Some(v)) = (e.get_str("Name"), e.get_f64("Value")) {
-                    let p = d::PARAM_VALUE_DATA { param_value: v as f32, param_count: 0, param_index: u16::MAX, param_id: name.into(), param_type: d::MavParamType::MAV_PARAM_TYPE_REAL32 };
+                    let p = d::PARAM_VALUE_DATA {
+                        param_value: v as f32,
+                        param_count: 0,
+                        param_index: u16::MAX,
+                        param_id: name.into(),
+                        param_type: d::MavParamType::MAV_PARAM_TYPE_REAL32,
+                    };
                     self.syn.push(MavMessage::PARAM_VALUE(p), out);
                 }
             }
@@ -153,35 +178,78 @@ impl State {
             "IMU" if Self::first(e, "I") => {
                 let g = ["GyrX", "GyrY", "GyrZ"].map(|l| self.f(e, l));
                 let a = ["AccX", "AccY", "AccZ"].map(|l| self.f(e, l));
-                let (Some(g), Some(a)) = (all(g), all(a)) else { return };
+                let (Some(g), Some(a)) = (all(g), all(a)) else {
+                    return;
+                };
                 self.gyro = g.map(|x| x as f32);
                 let [xgyro, ygyro, zgyro] = self.gyro;
                 let [xacc, yacc, zacc] = a.map(|x| x as f32);
-                let m = d::HIGHRES_IMU_DATA { time_usec: u64::from(boot_ms) * 1000, xacc, yacc, zacc, xgyro, ygyro, zgyro, ..Default::default() };
+                let m = d::HIGHRES_IMU_DATA {
+                    time_usec: u64::from(boot_ms) * 1000,
+                    xacc,
+                    yacc,
+                    zacc,
+                    xgyro,
+                    ygyro,
+                    zgyro,
+                    ..Default::default()
+                };
                 self.syn.push(MavMessage::HIGHRES_IMU(m), out);
             }
             "ATT" => {
-                let Some([roll, pitch, yaw]) = all(["Roll", "Pitch", "Yaw"].map(|l| self.f(e, l))) else { return };
+                let Some([roll, pitch, yaw]) = all(["Roll", "Pitch", "Yaw"].map(|l| self.f(e, l)))
+                else {
+                    return;
+                };
                 let [rollspeed, pitchspeed, yawspeed] = self.gyro;
                 let rad = |deg: f64| deg.to_radians() as f32;
-                let m = d::ATTITUDE_DATA { time_boot_ms: boot_ms, roll: rad(roll), pitch: rad(pitch), yaw: rad(yaw), rollspeed, pitchspeed, yawspeed };
+                let m = d::ATTITUDE_DATA {
+                    time_boot_ms: boot_ms,
+                    roll: rad(roll),
+                    pitch: rad(pitch),
+                    yaw: rad(yaw),
+                    rollspeed,
+                    pitchspeed,
+                    yawspeed,
+                };
                 self.syn.push(MavMessage::ATTITUDE(m), out);
             }
             "XKF1" | "NKF1" if Self::first(e, "C") => {
-                let Some(v) = all(["VN", "VE", "VD"].map(|l| self.f(e, l))) else { return };
+                let Some(v) = all(["VN", "VE", "VD"].map(|l| self.f(e, l))) else {
+                    return;
+                };
                 self.ekf_vel = Some(v);
                 let p = ["PN", "PE", "PD"].map(|l| e.get_f64(l).unwrap_or(0.0) as f32);
                 let [vx, vy, vz] = v.map(|x| x as f32);
-                let m = d::LOCAL_POSITION_NED_DATA { time_boot_ms: boot_ms, x: p[0], y: p[1], z: p[2], vx, vy, vz };
+                let m = d::LOCAL_POSITION_NED_DATA {
+                    time_boot_ms: boot_ms,
+                    x: p[0],
+                    y: p[1],
+                    z: p[2],
+                    vx,
+                    vy,
+                    vz,
+                };
                 self.syn.push(MavMessage::LOCAL_POSITION_NED(m), out);
             }
             "XKF2" | "NKF2" if Self::first(e, "C") => {
-                let Some([n, e_]) = all(["VWN", "VWE"].map(|l| self.f(e, l))) else { return };
-                let m = d::WIND_COV_DATA { time_usec: u64::from(boot_ms) * 1000, wind_x: n as f32, wind_y: e_ as f32, ..Default::default() };
+                let Some([n, e_]) = all(["VWN", "VWE"].map(|l| self.f(e, l))) else {
+                    return;
+                };
+                let m = d::WIND_COV_DATA {
+                    time_usec: u64::from(boot_ms) * 1000,
+                    wind_x: n as f32,
+                    wind_y: e_ as f32,
+                    ..Default::default()
+                };
                 self.syn.push(MavMessage::WIND_COV(m), out);
             }
             "GPS" if Self::first(e, "I") => {
-                let (Some(status), Some(lat), Some(lng)) = (self.f(e, "Status"), self.f(e, "Lat"), self.f(e, "Lng")) else { return };
+                let (Some(status), Some(lat), Some(lng)) =
+                    (self.f(e, "Status"), self.f(e, "Lat"), self.f(e, "Lng"))
+                else {
+                    return;
+                };
                 let alt = e.get_f64("Alt").unwrap_or(0.0);
                 let (spd, crs, vz) = (e.get_f64("Spd"), e.get_f64("GCrs"), e.get_f64("VZ"));
                 if let (Some(s), Some(c)) = (spd, crs) {
@@ -213,10 +281,16 @@ impl State {
                 self.syn.push(MavMessage::GPS_RAW_INT(m), out);
             }
             "POS" => {
-                let (Some(lat), Some(lng), Some(alt)) = (self.f(e, "Lat"), self.f(e, "Lng"), self.f(e, "Alt")) else { return };
+                let (Some(lat), Some(lng), Some(alt)) =
+                    (self.f(e, "Lat"), self.f(e, "Lng"), self.f(e, "Alt"))
+                else {
+                    return;
+                };
                 // POS carries no velocity: the EKF's, else the GPS's (no velocity at all:
                 // none is offered from here).
-                let Some(v) = self.ekf_vel.or(self.gps_vel) else { return };
+                let Some(v) = self.ekf_vel.or(self.gps_vel) else {
+                    return;
+                };
                 let [vx, vy, vz] = v.map(|x| (x * 100.0).clamp(-32768.0, 32767.0) as i16);
                 let rel = e.get_f64("RelHomeAlt").unwrap_or(0.0);
                 let m = d::GLOBAL_POSITION_INT_DATA {
@@ -233,14 +307,29 @@ impl State {
                 self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
             }
             "BAT" if Self::first(e, "Inst") || Self::first(e, "Instance") => {
-                let Some(volt) = self.f(e, "Volt") else { return };
+                let Some(volt) = self.f(e, "Volt") else {
+                    return;
+                };
                 let amps = self.f(e, "Curr");
-                let remaining = e.get_f64("RemPct").map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
-                self.syn.battery(volt, amps, remaining, e.get_f64("CurrTot"), e.get_f64("EnrgTot"), out);
+                let remaining = e
+                    .get_f64("RemPct")
+                    .map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
+                self.syn.battery(
+                    volt,
+                    amps,
+                    remaining,
+                    e.get_f64("CurrTot"),
+                    e.get_f64("EnrgTot"),
+                    out,
+                );
             }
             "NVF" => {
                 if let (Some(name), Some(v)) = (e.get_str("Name"), e.get_f64("Value")) {
-                    let m = d::NAMED_VALUE_FLOAT_DATA { time_boot_ms: boot_ms, value: v as f32, name: name.into() };
+                    let m = d::NAMED_VALUE_FLOAT_DATA {
+                        time_boot_ms: boot_ms,
+                        value: v as f32,
+                        name: name.into(),
+                    };
                     self.syn.push(MavMessage::NAMED_VALUE_FLOAT(m), out);
                 }
             }
@@ -250,7 +339,9 @@ impl State {
 }
 
 fn all<const N: usize>(v: [Option<f64>; N]) -> Option<[f64; N]> {
-    v.iter().all(Option::is_some).then(|| v.map(|x| x.unwrap_or(0.0)))
+    v.iter()
+        .all(Option::is_some)
+        .then(|| v.map(|x| x.unwrap_or(0.0)))
 }
 
 /// A DataFlash field's value, written as its format character says.
@@ -287,7 +378,10 @@ impl Default for Writer {
 
 impl Writer {
     pub fn new() -> Self {
-        Self { buf: Vec::new(), defined: [false; 256] }
+        Self {
+            buf: Vec::new(),
+            defined: [false; 256],
+        }
     }
 
     /// The log's bytes.
@@ -301,12 +395,31 @@ impl Writer {
         if !self.defined[def.id as usize] {
             self.defined[def.id as usize] = true;
             let len = 3 + def.format.chars().map(field_size).sum::<usize>();
-            let fmt = MsgDef { id: FMT_TYPE, name: "FMT", format: "BBnNZ", labels: "Type,Length,Name,Format,Labels" };
-            self.write(&fmt, &[Value::Int(def.id.into()), Value::Int(len as i64), Value::Str(def.name), Value::Str(def.format), Value::Str(def.labels)]);
+            let fmt = MsgDef {
+                id: FMT_TYPE,
+                name: "FMT",
+                format: "BBnNZ",
+                labels: "Type,Length,Name,Format,Labels",
+            };
+            self.write(
+                &fmt,
+                &[
+                    Value::Int(def.id.into()),
+                    Value::Int(len as i64),
+                    Value::Str(def.name),
+                    Value::Str(def.format),
+                    Value::Str(def.labels),
+                ],
+            );
         }
         self.buf.extend_from_slice(&MAGIC);
         self.buf.push(def.id);
-        for (c, v) in def.format.chars().zip(values.iter().copied().chain(std::iter::repeat(Value::Int(0)))) {
+        for (c, v) in def.format.chars().zip(
+            values
+                .iter()
+                .copied()
+                .chain(std::iter::repeat(Value::Int(0))),
+        ) {
             let (i, f) = match v {
                 Value::Int(i) => (i, i as f64),
                 Value::Float(f) => (f.round() as i64, f),
@@ -318,19 +431,32 @@ impl Writer {
                 'B' | 'M' => b.push(i.clamp(0, 255) as u8),
                 'h' => b.extend((i.clamp(-32768, 32767) as i16).to_le_bytes()),
                 'H' => b.extend((i.clamp(0, 65535) as u16).to_le_bytes()),
-                'i' | 'L' => b.extend((i.clamp(i32::MIN.into(), i32::MAX.into()) as i32).to_le_bytes()),
+                'i' | 'L' => {
+                    b.extend((i.clamp(i32::MIN.into(), i32::MAX.into()) as i32).to_le_bytes())
+                }
                 'I' => b.extend((i.clamp(0, u32::MAX.into()) as u32).to_le_bytes()),
                 'q' => b.extend(i.to_le_bytes()),
                 'Q' => b.extend((i.max(0) as u64).to_le_bytes()),
                 'f' => b.extend((f as f32).to_le_bytes()),
                 'd' => b.extend(f.to_le_bytes()),
-                'c' => b.extend(((f * 100.0).round().clamp(-32768.0, 32767.0) as i16).to_le_bytes()),
+                'c' => {
+                    b.extend(((f * 100.0).round().clamp(-32768.0, 32767.0) as i16).to_le_bytes())
+                }
                 'C' => b.extend(((f * 100.0).round().clamp(0.0, 65535.0) as u16).to_le_bytes()),
-                'e' => b.extend(((f * 100.0).round().clamp(i32::MIN.into(), i32::MAX.into()) as i32).to_le_bytes()),
-                'E' => b.extend(((f * 100.0).round().clamp(0.0, u32::MAX.into()) as u32).to_le_bytes()),
+                'e' => b.extend(
+                    ((f * 100.0).round().clamp(i32::MIN.into(), i32::MAX.into()) as i32)
+                        .to_le_bytes(),
+                ),
+                'E' => {
+                    b.extend(((f * 100.0).round().clamp(0.0, u32::MAX.into()) as u32).to_le_bytes())
+                }
                 'n' | 'N' | 'Z' => {
                     let n = field_size(c);
-                    let s = if let Value::Str(s) = v { s.as_bytes() } else { &[] };
+                    let s = if let Value::Str(s) = v {
+                        s.as_bytes()
+                    } else {
+                        &[]
+                    };
                     let s = &s[..s.len().min(n)];
                     b.extend_from_slice(s);
                     b.extend(std::iter::repeat_n(0u8, n - s.len()));
@@ -359,10 +485,25 @@ mod tests {
     use super::*;
     use Value::{Float as F, Int as I, Str as S};
 
-    const BAT: MsgDef = MsgDef { id: 80, name: "BAT", format: "QBff", labels: "TimeUS,Inst,Volt,Curr" };
-    const PARM: MsgDef = MsgDef { id: 81, name: "PARM", format: "QNf", labels: "TimeUS,Name,Value" };
+    const BAT: MsgDef = MsgDef {
+        id: 80,
+        name: "BAT",
+        format: "QBff",
+        labels: "TimeUS,Inst,Volt,Curr",
+    };
+    const PARM: MsgDef = MsgDef {
+        id: 81,
+        name: "PARM",
+        format: "QNf",
+        labels: "TimeUS,Name,Value",
+    };
     /// ATT without Yaw: a log from a version whose fields differ.
-    const ATT: MsgDef = MsgDef { id: 82, name: "ATT", format: "Qcc", labels: "TimeUS,Roll,Pitch" };
+    const ATT: MsgDef = MsgDef {
+        id: 82,
+        name: "ATT",
+        format: "Qcc",
+        labels: "TimeUS,Roll,Pitch",
+    };
 
     fn decode(bytes: &[u8]) -> Result<Vec<TimedMessage>, DataflashError> {
         decode_dataflash(bytes, &IngestStats::default())
@@ -376,9 +517,26 @@ mod tests {
         w.write(&ATT, &[I(1_100_000), F(5.0), F(-3.0)]);
         w.write(&BAT, &[I(2_000_000), I(0), F(22.1), F(12.5)]);
         let m = decode(&w.into_bytes()).unwrap();
-        let MavMessage::HEARTBEAT(h) = &m[0].msg else { panic!("{:?}", m[0]) };
-        assert_eq!((h.mavtype, h.autopilot), (d::MavType::MAV_TYPE_HEXAROTOR, d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA));
-        let sys: Vec<(f64, u16, i16)> = m.iter().filter_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some((m.t_s, s.voltage_battery, s.current_battery)) } else { None }).collect();
+        let MavMessage::HEARTBEAT(h) = &m[0].msg else {
+            panic!("{:?}", m[0])
+        };
+        assert_eq!(
+            (h.mavtype, h.autopilot),
+            (
+                d::MavType::MAV_TYPE_HEXAROTOR,
+                d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA
+            )
+        );
+        let sys: Vec<(f64, u16, i16)> = m
+            .iter()
+            .filter_map(|m| {
+                if let MavMessage::SYS_STATUS(s) = &m.msg {
+                    Some((m.t_s, s.voltage_battery, s.current_battery))
+                } else {
+                    None
+                }
+            })
+            .collect();
         // The writer pads a value left out (Curr 0 A); stamps are seconds from the first.
         assert_eq!(sys, [(1.0, 22200, 0), (2.0, 22100, 1250)]);
         // No Yaw: no ATTITUDE (said once), no panic.
@@ -387,29 +545,58 @@ mod tests {
 
     #[test]
     fn old_logs_stamped_in_milliseconds_are_timed() {
-        const OLD: MsgDef = MsgDef { id: 84, name: "BAT", format: "Iff", labels: "TimeMS,Volt,Curr" };
+        const OLD: MsgDef = MsgDef {
+            id: 84,
+            name: "BAT",
+            format: "Iff",
+            labels: "TimeMS,Volt,Curr",
+        };
         let mut w = Writer::new();
         w.write(&OLD, &[I(2000), F(12.0), F(5.0)]);
         w.write(&OLD, &[I(2250), F(11.9), F(5.5)]);
         let m = decode(&w.into_bytes()).unwrap();
-        let t: Vec<f64> = m.iter().filter(|m| matches!(m.msg, MavMessage::SYS_STATUS(_))).map(|m| m.t_s).collect();
+        let t: Vec<f64> = m
+            .iter()
+            .filter(|m| matches!(m.msg, MavMessage::SYS_STATUS(_)))
+            .map(|m| m.t_s)
+            .collect();
         assert_eq!(t, [0.0, 0.25]);
     }
 
     #[test]
     fn a_field_the_format_lacks_is_unknown_not_zero() {
-        const BAT2: MsgDef = MsgDef { id: 83, name: "BAT", format: "QBf", labels: "TimeUS,Inst,Volt" };
+        const BAT2: MsgDef = MsgDef {
+            id: 83,
+            name: "BAT",
+            format: "QBf",
+            labels: "TimeUS,Inst,Volt",
+        };
         let mut w = Writer::new();
         w.write(&BAT2, &[I(5), I(0), F(11.1)]);
         let m = decode(&w.into_bytes()).unwrap();
-        let s = m.iter().find_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some(s.clone()) } else { None }).unwrap();
-        assert_eq!((s.voltage_battery, s.current_battery, s.battery_remaining), (11100, -1, -1));
+        let s = m
+            .iter()
+            .find_map(|m| {
+                if let MavMessage::SYS_STATUS(s) = &m.msg {
+                    Some(s.clone())
+                } else {
+                    None
+                }
+            })
+            .unwrap();
+        assert_eq!(
+            (s.voltage_battery, s.current_battery, s.battery_remaining),
+            (11100, -1, -1)
+        );
     }
 
     #[test]
     fn corrupt_or_foreign_files_are_errors_and_never_panic() {
         assert!(matches!(decode(b""), Err(DataflashError::NotDataflash)));
-        assert!(matches!(decode(&[0xFD, 9, 0, 0]), Err(DataflashError::NotDataflash)));
+        assert!(matches!(
+            decode(&[0xFD, 9, 0, 0]),
+            Err(DataflashError::NotDataflash)
+        ));
         // Only FMT records: nothing timed.
         let mut w = Writer::new();
         w.write(&PARM, &[I(0), S("X"), F(1.0)]);
@@ -429,7 +616,11 @@ mod tests {
             bad[i] ^= 0x5A;
         }
         let _ = decode(&bad);
-        let n = decode(&good).unwrap().iter().filter(|m| matches!(m.msg, MavMessage::SYS_STATUS(_))).count();
+        let n = decode(&good)
+            .unwrap()
+            .iter()
+            .filter(|m| matches!(m.msg, MavMessage::SYS_STATUS(_)))
+            .count();
         assert_eq!(n, 50);
     }
 }

@@ -44,7 +44,10 @@ impl Entry {
         &self.labels
     }
     fn get(&self, label: &str) -> Option<&Value> {
-        self.labels.iter().position(|l| l == label).and_then(|i| self.values.get(i))
+        self.labels
+            .iter()
+            .position(|l| l == label)
+            .and_then(|i| self.values.get(i))
     }
     /// A numeric field (the `c C e E` centi-units scaled to units, as ArduPilot means them).
     pub fn get_f64(&self, label: &str) -> Option<f64> {
@@ -128,13 +131,21 @@ pub struct Reader<'a> {
 
 impl<'a> Reader<'a> {
     pub fn new(bytes: &'a [u8]) -> Self {
-        Self { bytes, pos: 0, formats: HashMap::new(), skipped: 0 }
+        Self {
+            bytes,
+            pos: 0,
+            formats: HashMap::new(),
+            skipped: 0,
+        }
     }
 
     /// Skip `n` bytes, then on to the next record header.
     fn skip(&mut self, n: usize) {
         let from = (self.pos + n).min(self.bytes.len());
-        let next = self.bytes[from..].windows(2).position(|w| w == MAGIC).map_or(self.bytes.len(), |i| from + i);
+        let next = self.bytes[from..]
+            .windows(2)
+            .position(|w| w == MAGIC)
+            .map_or(self.bytes.len(), |i| from + i);
         self.skipped += next - self.pos;
         self.pos = next;
     }
@@ -149,7 +160,15 @@ impl<'a> Reader<'a> {
             return false;
         }
         let labels: Arc<[String]> = text(&p[22..86]).split(',').map(str::to_string).collect();
-        self.formats.insert(kind, Format { name: text(&p[2..6]), len, types, labels });
+        self.formats.insert(
+            kind,
+            Format {
+                name: text(&p[2..6]),
+                len,
+                types,
+                labels,
+            },
+        );
         true
     }
 }
@@ -193,10 +212,17 @@ impl Iterator for Reader<'_> {
             let first = |label: &str| f.labels.first().is_some_and(|l| l == label);
             let timestamp_usec = match values.first() {
                 Some(Value::Num(v)) if first("TimeUS") && *v >= 0.0 => Some(*v as u64),
-                Some(Value::Num(v)) if first("TimeMS") && *v >= 0.0 => Some((*v as u64).saturating_mul(1000)),
+                Some(Value::Num(v)) if first("TimeMS") && *v >= 0.0 => {
+                    Some((*v as u64).saturating_mul(1000))
+                }
                 _ => None,
             };
-            let entry = Entry { name: f.name.clone(), timestamp_usec, labels: f.labels.clone(), values };
+            let entry = Entry {
+                name: f.name.clone(),
+                timestamp_usec,
+                labels: f.labels.clone(),
+                values,
+            };
             self.pos += f.len;
             return Some(entry);
         }
@@ -233,10 +259,20 @@ mod tests {
         log.extend([1, 2, 3]); // junk
         let mut r = Reader::new(&log);
         let e = r.next().expect("the BAT record");
-        assert_eq!((e.name.as_str(), e.timestamp_usec), ("BAT", Some(1_500_000)));
-        assert_eq!((e.get_f64("Volt"), e.get_f64("Curr"), e.get_f64("Nope")), (Some(12.5), Some(12.34), None));
+        assert_eq!(
+            (e.name.as_str(), e.timestamp_usec),
+            ("BAT", Some(1_500_000))
+        );
+        assert_eq!(
+            (e.get_f64("Volt"), e.get_f64("Curr"), e.get_f64("Nope")),
+            (Some(12.5), Some(12.34), None)
+        );
         assert!(r.next().is_none());
-        assert_eq!(r.skipped, 89 + 9, "the bad FMT, the undefined record and the junk");
+        assert_eq!(
+            r.skipped,
+            89 + 9,
+            "the bad FMT, the undefined record and the junk"
+        );
     }
 
     #[test]
@@ -248,6 +284,9 @@ mod tests {
         log.extend([0xA3, 0x95, 140, 1, 2]);
         let e: Vec<Entry> = Reader::new(&log).collect();
         assert_eq!(e.len(), 1);
-        assert_eq!((e[0].timestamp_usec, e[0].get_str("Name")), (Some(2_500_000), Some("BATT")));
+        assert_eq!(
+            (e[0].timestamp_usec, e[0].get_str("Name")),
+            (Some(2_500_000), Some("BATT"))
+        );
     }
 }

@@ -120,7 +120,12 @@ impl Row {
     }
     /// The data-set quaternion as `[w, x, y, z]`.
     pub fn q_wxyz(&self) -> frames::Quat {
-        [self.q_xyzw[3], self.q_xyzw[0], self.q_xyzw[1], self.q_xyzw[2]]
+        [
+            self.q_xyzw[3],
+            self.q_xyzw[0],
+            self.q_xyzw[1],
+            self.q_xyzw[2],
+        ]
     }
 }
 
@@ -176,7 +181,11 @@ fn summarise(v: &[u32]) -> String {
         while j + 1 < v.len() && v[j + 1] == v[j] + 1 {
             j += 1;
         }
-        parts.push(if j > i { format!("{}-{}", v[i], v[j]) } else { v[i].to_string() });
+        parts.push(if j > i {
+            format!("{}-{}", v[i], v[j])
+        } else {
+            v[i].to_string()
+        });
         i = j + 1;
     }
     parts.join(", ")
@@ -206,7 +215,9 @@ fn read_maybe_gz(path: &Path) -> Result<Vec<u8>> {
 }
 
 fn parse_altitude(s: &str) -> Option<f64> {
-    s.split('-').map(|p| p.trim().parse::<f64>().ok().filter(|x| x.is_finite())).try_fold(f64::NEG_INFINITY, |m, x| x.map(|x| m.max(x)))
+    s.split('-')
+        .map(|p| p.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+        .try_fold(f64::NEG_INFINITY, |m, x| x.map(|x| m.max(x)))
 }
 
 /// Read the flights of an official `flights.csv[.gz]` (those in `want`, or all). See the
@@ -220,18 +231,25 @@ pub fn read_flights(path: &Path, want: Option<&[u32]>) -> Result<DataSet> {
 /// and warnings. Separate so the fuzz targets can feed it bytes without a file.
 pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result<DataSet> {
     let path = std::path::Path::new(origin);
-    let text = std::str::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", path.display()))?;
+    let text = std::str::from_utf8(bytes)
+        .with_context(|| format!("{}: not UTF-8 text", path.display()))?;
     let mut lines = text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
     let header = lines.next().unwrap_or("");
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
     let col = |name: &str| -> Result<usize> {
         names.iter().position(|n| *n == name).with_context(|| {
-            format!("{}: line 1: no '{name}' column in the header (is this the M100 flights.csv?)", path.display())
+            format!(
+                "{}: line 1: no '{name}' column in the header (is this the M100 flights.csv?)",
+                path.display()
+            )
         })
     };
     let c_flight = col("flight")?;
     let c_time = col("time")?;
-    let c_sensor: Vec<usize> = SENSOR_COLUMNS.iter().map(|n| col(n)).collect::<Result<_>>()?;
+    let c_sensor: Vec<usize> = SENSOR_COLUMNS
+        .iter()
+        .map(|n| col(n))
+        .collect::<Result<_>>()?;
     let c_meta: Vec<usize> = META_COLUMNS.iter().map(|n| col(n)).collect::<Result<_>>()?;
 
     let mut flights: std::collections::BTreeMap<u32, Flight> = Default::default();
@@ -245,13 +263,25 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
         }
         fields.clear();
         fields.extend(line.split(','));
-        let mut skip = |reason: String| skipped.push(SkippedRow { line: lineno, reason });
+        let mut skip = |reason: String| {
+            skipped.push(SkippedRow {
+                line: lineno,
+                reason,
+            })
+        };
         if fields.len() != names.len() {
-            skip(format!("{} fields, the header has {}", fields.len(), names.len()));
+            skip(format!(
+                "{} fields, the header has {}",
+                fields.len(),
+                names.len()
+            ));
             continue;
         }
         let Ok(flight) = fields[c_flight].trim().parse::<u32>() else {
-            skip(format!("column 'flight': '{}' is not a flight number", fields[c_flight]));
+            skip(format!(
+                "column 'flight': '{}' is not a flight number",
+                fields[c_flight]
+            ));
             continue;
         };
         if all.last() != Some(&flight) {
@@ -263,7 +293,10 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
         let num = |c: usize, name: &str| -> std::result::Result<f64, String> {
             match fields[c].trim().parse::<f64>() {
                 Ok(x) if x.is_finite() => Ok(x),
-                _ => Err(format!("column '{name}': '{}' is not a finite number", fields[c])),
+                _ => Err(format!(
+                    "column '{name}': '{}' is not a finite number",
+                    fields[c]
+                )),
             }
         };
         let time = match num(c_time, "time") {
@@ -300,7 +333,9 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
                 };
                 let alt_text = fields[c_meta[2]].trim();
                 let Some(altitude) = parse_altitude(alt_text) else {
-                    skip(format!("column 'altitude': '{alt_text}' is not an altitude"));
+                    skip(format!(
+                        "column 'altitude': '{alt_text}' is not an altitude"
+                    ));
                     continue;
                 };
                 e.insert(Flight {
@@ -317,20 +352,31 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
             }
         };
         if f.rows.last().is_some_and(|r| r.time_s >= time) {
-            skip(format!("column 'time': {time} does not increase within flight {flight}"));
+            skip(format!(
+                "column 'time': {time} does not increase within flight {flight}"
+            ));
             continue;
         }
         f.rows.push(Row::from_values(time, &v));
     }
     for s in skipped.iter().take(5) {
-        tracing::warn!("{}: line {}: row skipped: {}", path.display(), s.line, s.reason);
+        tracing::warn!(
+            "{}: line {}: row skipped: {}",
+            path.display(),
+            s.line,
+            s.reason
+        );
     }
     if skipped.len() > 5 {
         tracing::warn!("{}: {} rows skipped in all", path.display(), skipped.len());
     }
     all.sort_unstable();
     all.dedup();
-    Ok(DataSet { flights: flights.into_values().collect(), skipped, all_flights: all })
+    Ok(DataSet {
+        flights: flights.into_values().collect(),
+        skipped,
+        all_flights: all,
+    })
 }
 
 /// Days from 1970-01-01 to a civil date (H. Hinnant's algorithm).
@@ -346,10 +392,18 @@ fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
 /// The flight's tlog clock base, µs since the Unix epoch (see the module docs).
 pub fn epoch_base_us(f: &Flight) -> u64 {
     let d: Vec<i64> = f.date.split('-').filter_map(|x| x.parse().ok()).collect();
-    let t: Vec<i64> = f.time_day.split(':').filter_map(|x| x.parse().ok()).collect();
+    let t: Vec<i64> = f
+        .time_day
+        .split(':')
+        .filter_map(|x| x.parse().ok())
+        .collect();
     match (d.as_slice(), t.as_slice()) {
         ([y, m, dd], [hh, mm, ..])
-            if (1..=12).contains(m) && (1..=31).contains(dd) && (1970..=9999).contains(y) && (0..24).contains(hh) && (0..60).contains(mm) =>
+            if (1..=12).contains(m)
+                && (1..=31).contains(dd)
+                && (1970..=9999).contains(y)
+                && (0..24).contains(hh)
+                && (0..60).contains(mm) =>
         {
             let s = days_from_civil(*y, *m, *dd) * 86_400 + hh * 3600 + mm * 60;
             (s.max(0) as u64) * 1_000_000
@@ -360,7 +414,12 @@ pub fn epoch_base_us(f: &Flight) -> u64 {
 
 /// Encode one flight as tlog bytes (see the module docs for the mapping).
 pub fn encode_flight(f: &Flight) -> Vec<u8> {
-    let mut enc = Encoder { buf: Vec::with_capacity(f.rows.len() * 500), seq: 0, t_us: 0, boot_ms: 0 };
+    let mut enc = Encoder {
+        buf: Vec::with_capacity(f.rows.len() * 500),
+        seq: 0,
+        t_us: 0,
+        boot_ms: 0,
+    };
     let base = epoch_base_us(f);
     let mut last_hb: Option<f64> = None;
     let mut home: Option<[f64; 3]> = None;
@@ -411,7 +470,11 @@ struct Encoder {
 
 impl Encoder {
     fn send(&mut self, msg: MavMessage) {
-        let h = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
+        let h = MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence: self.seq,
+        };
         self.seq = self.seq.wrapping_add(1);
         crate::source::tlog::write_record(&mut self.buf, self.t_us, h, &msg, MavlinkVersion::V2);
     }
@@ -478,7 +541,9 @@ impl Encoder {
             ..Default::default()
         }));
         let v = frames::body_to_ned_vel(r.vel, yaw);
-        let (n, e) = home.map_or((0.0, 0.0), |h| frames::ne_offset_m(h[0], h[1], r.lat_deg, r.lon_deg));
+        let (n, e) = home.map_or((0.0, 0.0), |h| {
+            frames::ne_offset_m(h[0], h[1], r.lat_deg, r.lon_deg)
+        });
         let home_alt = home.map_or(r.alt_m, |h| h[2]);
         self.send(MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
             time_boot_ms: t,
@@ -503,7 +568,11 @@ impl Encoder {
         }));
         let apparent = frames::wind_from_to_vec(r.wind_speed, r.wind_angle);
         let [ws, wd] = frames::wind_vec_to_from([apparent[0] + v[0], apparent[1] + v[1]]);
-        self.send(MavMessage::WIND(WIND_DATA { direction: wd as f32, speed: ws as f32, speed_z: 0.0 }));
+        self.send(MavMessage::WIND(WIND_DATA {
+            direction: wd as f32,
+            speed: ws as f32,
+            speed_z: 0.0,
+        }));
         self.send(MavMessage::VFR_HUD(VFR_HUD_DATA {
             airspeed: r.wind_speed as f32,
             groundspeed: v[0].hypot(v[1]) as f32,
@@ -572,7 +641,13 @@ pub struct ConvertArgs {
 /// Run `dronewatt convert`: write one data-set flight as a `.tlog`.
 pub fn run(args: ConvertArgs) -> Result<()> {
     let bytes = flight_tlog(&args.file, args.flight)?;
-    std::fs::write(&args.output, &bytes).with_context(|| format!("{}: cannot write", args.output.display()))?;
-    eprintln!("flight {} → {} ({} bytes)", args.flight, args.output.display(), bytes.len());
+    std::fs::write(&args.output, &bytes)
+        .with_context(|| format!("{}: cannot write", args.output.display()))?;
+    eprintln!(
+        "flight {} → {} ({} bytes)",
+        args.flight,
+        args.output.display(),
+        bytes.len()
+    );
     Ok(())
 }

@@ -38,7 +38,13 @@ pub struct FleetConfig {
 
 impl Default for FleetConfig {
     fn default() -> Self {
-        Self { lost_after_s: 10.0, drop_after_s: 60.0, vehicles: None, batch_wait_ms: 2.0, lstm_rate_hz: None }
+        Self {
+            lost_after_s: 10.0,
+            drop_after_s: 60.0,
+            vehicles: None,
+            batch_wait_ms: 2.0,
+            lstm_rate_hz: None,
+        }
     }
 }
 
@@ -47,13 +53,22 @@ impl FleetConfig {
     pub fn validate(&self) -> Result<(), String> {
         let mut errs = Vec::new();
         if !(self.lost_after_s > 0.0 && self.lost_after_s.is_finite()) {
-            errs.push(format!("fleet.lost_after_s = {}: must be > 0", self.lost_after_s));
+            errs.push(format!(
+                "fleet.lost_after_s = {}: must be > 0",
+                self.lost_after_s
+            ));
         }
         if !(self.drop_after_s > self.lost_after_s && self.drop_after_s.is_finite()) {
-            errs.push(format!("fleet.drop_after_s = {}: must be longer than fleet.lost_after_s ({})", self.drop_after_s, self.lost_after_s));
+            errs.push(format!(
+                "fleet.drop_after_s = {}: must be longer than fleet.lost_after_s ({})",
+                self.drop_after_s, self.lost_after_s
+            ));
         }
         if !(0.0..=100.0).contains(&self.batch_wait_ms) {
-            errs.push(format!("fleet.batch_wait_ms = {}: must be 0..=100 ms", self.batch_wait_ms));
+            errs.push(format!(
+                "fleet.batch_wait_ms = {}: must be 0..=100 ms",
+                self.batch_wait_ms
+            ));
         }
         if let Some(r) = self.lstm_rate_hz {
             if !(r > 0.0 && r <= 100.0) {
@@ -65,7 +80,11 @@ impl FleetConfig {
                 errs.push(format!("fleet.vehicles = {v:?}: {e}"));
             }
         }
-        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
     }
 }
 
@@ -103,13 +122,19 @@ impl VehicleFilter {
             if lo > hi {
                 return Err(format!("range {:?} runs backwards", part.trim()));
             }
-            ids[usize::from(lo)..=usize::from(hi)].iter_mut().for_each(|b| *b = true);
+            ids[usize::from(lo)..=usize::from(hi)]
+                .iter_mut()
+                .for_each(|b| *b = true);
         }
         Ok(Self { ids })
     }
     /// Whether `id` is in the set.
     pub fn contains(&self, id: u32) -> bool {
-        usize::try_from(id).ok().and_then(|i| self.ids.get(i)).copied().unwrap_or(false)
+        usize::try_from(id)
+            .ok()
+            .and_then(|i| self.ids.get(i))
+            .copied()
+            .unwrap_or(false)
     }
 }
 
@@ -118,7 +143,10 @@ impl VehicleFilter {
 pub fn is_vehicle_heartbeat(h: &crate::dialect::HEARTBEAT_DATA) -> bool {
     use crate::dialect::{MavAutopilot, MavType};
     h.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
-        && !matches!(h.mavtype, MavType::MAV_TYPE_GCS | MavType::MAV_TYPE_ONBOARD_CONTROLLER)
+        && !matches!(
+            h.mavtype,
+            MavType::MAV_TYPE_GCS | MavType::MAV_TYPE_ONBOARD_CONTROLLER
+        )
 }
 
 /// Telemetry only a vehicle sends (what the telemetry stage reads its signals from).

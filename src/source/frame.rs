@@ -165,7 +165,12 @@ struct Claim {
 #[allow(clippy::large_enum_variant)]
 enum At {
     /// A frame of `len` bytes whose CRC checked and whose payload decoded.
-    Good { len: usize, header: MavHeader, version: MavlinkVersion, msg: MavMessage },
+    Good {
+        len: usize,
+        header: MavHeader,
+        version: MavlinkVersion,
+        msg: MavMessage,
+    },
     /// A frame layout of `len` bytes with an unknown message id.
     Unknown { len: usize, header: MavHeader },
     /// A frame layout of `len` bytes with a bad CRC or a payload that did not decode.
@@ -198,12 +203,21 @@ fn decode_at(b: &[u8]) -> At {
             if b.len() < V2_HEADER {
                 return At::NeedMore;
             }
-            (MavlinkVersion::V2, V2_HEADER, u32::from_le_bytes([b[7], b[8], b[9], 0]), b[2])
+            (
+                MavlinkVersion::V2,
+                V2_HEADER,
+                u32::from_le_bytes([b[7], b[8], b[9], 0]),
+                b[2],
+            )
         }
         _ => return At::NotFrame,
     };
     let payload_len = b[1] as usize;
-    let sig = if incompat & IFLAG_SIGNED != 0 { SIGNATURE_LEN } else { 0 };
+    let sig = if incompat & IFLAG_SIGNED != 0 {
+        SIGNATURE_LEN
+    } else {
+        0
+    };
     let len = hdr + payload_len + 2 + sig;
     if b.len() < len {
         return At::NeedMore;
@@ -212,7 +226,11 @@ fn decode_at(b: &[u8]) -> At {
         MavlinkVersion::V1 => (b[2], b[3], b[4]),
         MavlinkVersion::V2 => (b[4], b[5], b[6]),
     };
-    let header = MavHeader { system_id: system_id as u32, component_id, sequence };
+    let header = MavHeader {
+        system_id: system_id as u32,
+        component_id,
+        sequence,
+    };
     let Some(extra) = crc_extra(id) else {
         return At::Unknown { len, header };
     };
@@ -222,7 +240,12 @@ fn decode_at(b: &[u8]) -> At {
         return At::Bad { len };
     }
     match MavMessage::parse(version, id, &b[hdr..crc_at]) {
-        Ok(msg) => At::Good { len, header, version, msg },
+        Ok(msg) => At::Good {
+            len,
+            header,
+            version,
+            msg,
+        },
         Err(_) => At::Bad { len },
     }
 }
@@ -441,9 +464,21 @@ impl FrameDecoder {
             At::Good { .. } => Some(true),
             At::Unknown { len, .. } => match self.buf.get(end + len) {
                 Some(&b) => Some(b == STX_V1 || b == STX_V2),
-                None => if self.eof { Some(true) } else { None },
+                None => {
+                    if self.eof {
+                        Some(true)
+                    } else {
+                        None
+                    }
+                }
             },
-            At::NeedMore => if self.eof { Some(true) } else { None },
+            At::NeedMore => {
+                if self.eof {
+                    Some(true)
+                } else {
+                    None
+                }
+            }
             At::Bad { .. } | At::NotFrame => Some(false),
         }
     }
@@ -460,7 +495,12 @@ impl FrameDecoder {
             self.junk(stats, self.pos, q);
             self.pos = q;
             match decode_at(&self.buf[q..]) {
-                At::Good { len, header, version, msg } => {
+                At::Good {
+                    len,
+                    header,
+                    version,
+                    msg,
+                } => {
                     self.pos = q + len;
                     self.close_claim(q);
                     self.tally.ok += len as u64;
@@ -469,7 +509,12 @@ impl FrameDecoder {
                     }
                     IngestStats::add(&stats.frames_ok, 1);
                     self.track_seq(&header, stats);
-                    return Some(Frame { header, version, msg, stamp_us: None });
+                    return Some(Frame {
+                        header,
+                        version,
+                        msg,
+                        stamp_us: None,
+                    });
                 }
                 At::Unknown { len, header } => {
                     if q >= self.counted_until {
@@ -534,7 +579,12 @@ impl FrameDecoder {
                 }
                 let rec = self.pos;
                 match decode_at(&self.buf[rec + TLOG_STAMP_LEN..]) {
-                    At::Good { len, header, version, msg } => {
+                    At::Good {
+                        len,
+                        header,
+                        version,
+                        msg,
+                    } => {
                         let stamp = self.stamp_at(rec);
                         self.pos = rec + TLOG_STAMP_LEN + len;
                         self.close_claim(rec);
@@ -542,7 +592,12 @@ impl FrameDecoder {
                         self.last_stamp_us = Some(stamp);
                         IngestStats::add(&stats.frames_ok, 1);
                         self.track_seq(&header, stats);
-                        return Some(Frame { header, version, msg, stamp_us: Some(stamp) });
+                        return Some(Frame {
+                            header,
+                            version,
+                            msg,
+                            stamp_us: Some(stamp),
+                        });
                     }
                     At::Unknown { len, header } => {
                         IngestStats::add(&stats.unknown, 1);
@@ -589,7 +644,12 @@ impl FrameDecoder {
             let b = self.buf[q];
             if b == STX_V1 || b == STX_V2 {
                 match decode_at(&self.buf[q..]) {
-                    At::Good { len, header, version, msg } => {
+                    At::Good {
+                        len,
+                        header,
+                        version,
+                        msg,
+                    } => {
                         let rec = q - TLOG_STAMP_LEN;
                         self.junk(stats, self.pos, rec);
                         let stamp = self.stamp_at(rec);
@@ -600,7 +660,12 @@ impl FrameDecoder {
                         self.last_stamp_us = Some(stamp);
                         IngestStats::add(&stats.frames_ok, 1);
                         self.track_seq(&header, stats);
-                        return Some(Frame { header, version, msg, stamp_us: Some(stamp) });
+                        return Some(Frame {
+                            header,
+                            version,
+                            msg,
+                            stamp_us: Some(stamp),
+                        });
                     }
                     At::Unknown { .. } | At::Bad { .. } if q >= self.counted_until => {
                         let stamp = self.stamp_at(q - TLOG_STAMP_LEN);
@@ -629,7 +694,11 @@ impl FrameDecoder {
             q += 1;
         }
         // Nothing yet: all but the last 8 bytes (a possible stamp) are junk.
-        let keep_from = if self.eof { self.buf.len() } else { self.buf.len().saturating_sub(TLOG_STAMP_LEN) };
+        let keep_from = if self.eof {
+            self.buf.len()
+        } else {
+            self.buf.len().saturating_sub(TLOG_STAMP_LEN)
+        };
         if keep_from > self.pos {
             self.junk(stats, self.pos, keep_from);
             self.pos = keep_from;

@@ -25,8 +25,8 @@ use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
-use super::timed::TimedReader;
 use super::frame::SharedVerifier;
+use super::timed::TimedReader;
 use super::{IngestStats, LinkHandle, TimedMessage};
 use crate::dialect::{MavAutopilot, MavModeFlag, MavState, MavType, HEARTBEAT_DATA};
 use crate::MavMessage;
@@ -68,7 +68,11 @@ const WRITE_QUEUE: usize = 256;
 /// to a start-up race. What the other side sends is read and dropped; no ground-station
 /// heartbeat goes out (the sink sends its own). Frames are signed as `base` signs them (the
 /// monitored link's key). Runs until `stop`.
-pub fn spawn_uplink(addr: LinkAddress, base: &LinkHandle, stop: CancellationToken) -> (LinkHandle, tokio::task::JoinHandle<Result<()>>) {
+pub fn spawn_uplink(
+    addr: LinkAddress,
+    base: &LinkHandle,
+    stop: CancellationToken,
+) -> (LinkHandle, tokio::task::JoinHandle<Result<()>>) {
     let (wtx, wrx) = mpsc::channel::<Vec<u8>>(WRITE_QUEUE);
     let link = LinkHandle::with_signer(base.signer());
     link.attach(wtx);
@@ -76,7 +80,17 @@ pub fn spawn_uplink(addr: LinkAddress, base: &LinkHandle, stop: CancellationToke
     let task = tokio::spawn(async move {
         let (tx, mut rx) = mpsc::channel::<TimedMessage>(64);
         let drain = tokio::spawn(async move { while rx.recv().await.is_some() {} });
-        let r = serve(addr, tx, Arc::new(IngestStats::default()), writer, None, wrx, stop, false).await;
+        let r = serve(
+            addr,
+            tx,
+            Arc::new(IngestStats::default()),
+            writer,
+            None,
+            wrx,
+            stop,
+            false,
+        )
+        .await;
         let _ = drain.await;
         r
     });
@@ -105,7 +119,11 @@ async fn serve(
         stats,
         shutdown,
         start: Instant::now(),
-        watchdog: Watchdog { last_count: 0, last_change: Instant::now(), silent: false },
+        watchdog: Watchdog {
+            last_count: 0,
+            last_change: Instant::now(),
+            silent: false,
+        },
         monitored,
     };
     match addr {
@@ -184,14 +202,20 @@ impl Watchdog {
         let n = stats.frames_ok.load(Relaxed);
         if n != self.last_count {
             if self.silent {
-                info!("{label}: frames again after {:.0} s of silence", self.last_change.elapsed().as_secs_f64());
+                info!(
+                    "{label}: frames again after {:.0} s of silence",
+                    self.last_change.elapsed().as_secs_f64()
+                );
                 self.silent = false;
                 stats.silent.store(false, Relaxed);
             }
             self.last_count = n;
             self.last_change = Instant::now();
         } else if !self.silent && self.last_change.elapsed() >= SILENCE {
-            warn!("{label}: silent: no valid MAVLink frame for {} s", SILENCE.as_secs());
+            warn!(
+                "{label}: silent: no valid MAVLink frame for {} s",
+                SILENCE.as_secs()
+            );
             self.silent = true;
             stats.silent.store(true, Relaxed);
             IngestStats::add(&stats.silences, 1);
@@ -200,8 +224,9 @@ impl Watchdog {
 }
 
 async fn resolve(label: &str, hostport: &str) -> Result<SocketAddr> {
-    let mut addrs =
-        tokio::net::lookup_host(hostport).await.with_context(|| format!("{label}: cannot resolve '{hostport}'"))?;
+    let mut addrs = tokio::net::lookup_host(hostport)
+        .await
+        .with_context(|| format!("{label}: cannot resolve '{hostport}'"))?;
     match addrs.next() {
         Some(a) => Ok(a),
         None => bail!("{label}: '{hostport}' resolves to no address"),
@@ -218,23 +243,51 @@ fn heartbeat(sequence: u8) -> Vec<u8> {
         system_status: MavState::MAV_STATE_ACTIVE,
         mavlink_version: 3,
     });
-    let header = MavHeader { system_id: GCS_SYSTEM_ID as u32, component_id: GCS_COMPONENT_ID, sequence };
+    let header = MavHeader {
+        system_id: GCS_SYSTEM_ID as u32,
+        component_id: GCS_COMPONENT_ID,
+        sequence,
+    };
     let mut out = Vec::with_capacity(32);
     let _ = mavlink::write_versioned_msg(&mut out, MavlinkVersion::V2, header, &msg);
     out
 }
 
-async fn udp(ctx: &mut Ctx, hostport: &str, out: bool, mut wrx: mpsc::Receiver<Vec<u8>>) -> Result<()> {
+async fn udp(
+    ctx: &mut Ctx,
+    hostport: &str,
+    out: bool,
+    mut wrx: mpsc::Receiver<Vec<u8>>,
+) -> Result<()> {
     let label = ctx.label.clone();
     let there = resolve(&label, hostport).await?;
     let (sock, mut peer) = if out {
-        let local: SocketAddr = if there.is_ipv6() { "[::]:0" } else { "0.0.0.0:0" }.parse()?;
-        let s = UdpSocket::bind(local).await.with_context(|| format!("{label}: cannot open a UDP socket"))?;
+        let local: SocketAddr = if there.is_ipv6() {
+            "[::]:0"
+        } else {
+            "0.0.0.0:0"
+        }
+        .parse()?;
+        let s = UdpSocket::bind(local)
+            .await
+            .with_context(|| format!("{label}: cannot open a UDP socket"))?;
         (s, Some(there))
     } else {
-        (UdpSocket::bind(there).await.with_context(|| format!("{label}: cannot bind {there}"))?, None)
+        (
+            UdpSocket::bind(there)
+                .await
+                .with_context(|| format!("{label}: cannot bind {there}"))?,
+            None,
+        )
     };
-    info!("{label}: {}", if out { format!("sending to {there}") } else { format!("listening on {there}") });
+    info!(
+        "{label}: {}",
+        if out {
+            format!("sending to {there}")
+        } else {
+            format!("listening on {there}")
+        }
+    );
     let mut reader = ctx.reader();
     let mut buf = vec![0u8; 65_536];
     let mut tick = tokio::time::interval(Duration::from_secs(1));
@@ -278,7 +331,9 @@ async fn udp(ctx: &mut Ctx, hostport: &str, out: bool, mut wrx: mpsc::Receiver<V
 async fn tcp_in(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>) -> Result<()> {
     let label = ctx.label.clone();
     let at = resolve(&label, hostport).await?;
-    let listener = TcpListener::bind(at).await.with_context(|| format!("{label}: cannot listen on {at}"))?;
+    let listener = TcpListener::bind(at)
+        .await
+        .with_context(|| format!("{label}: cannot listen on {at}"))?;
     info!("{label}: listening on {at}");
     let mut clients: Vec<mpsc::Sender<Vec<u8>>> = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
@@ -333,9 +388,15 @@ async fn tcp_out(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>
                 if ctx.shutdown.is_cancelled() || ctx.tx.is_closed() {
                     return Ok(());
                 }
-                warn!("{label}: connection {why}; reconnecting in {:.1} s", backoff.as_secs_f64());
+                warn!(
+                    "{label}: connection {why}; reconnecting in {:.1} s",
+                    backoff.as_secs_f64()
+                );
             }
-            Err(e) => warn!("{label}: cannot connect ({e:#}); retrying in {:.1} s", backoff.as_secs_f64()),
+            Err(e) => warn!(
+                "{label}: cannot connect ({e:#}); retrying in {:.1} s",
+                backoff.as_secs_f64()
+            ),
         }
         if !wait_backoff(ctx, &mut backoff, &mut wrx).await {
             return Ok(());
@@ -343,7 +404,12 @@ async fn tcp_out(ctx: &mut Ctx, hostport: &str, mut wrx: mpsc::Receiver<Vec<u8>>
     }
 }
 
-async fn serial(ctx: &mut Ctx, device: &str, baud: u32, mut wrx: mpsc::Receiver<Vec<u8>>) -> Result<()> {
+async fn serial(
+    ctx: &mut Ctx,
+    device: &str,
+    baud: u32,
+    mut wrx: mpsc::Receiver<Vec<u8>>,
+) -> Result<()> {
     use tokio_serial::SerialPortBuilderExt;
     let label = ctx.label.clone();
     let open = || tokio_serial::new(device, baud).open_native_async();
@@ -358,21 +424,31 @@ async fn serial(ctx: &mut Ctx, device: &str, baud: u32, mut wrx: mpsc::Receiver<
             if ctx.shutdown.is_cancelled() || ctx.tx.is_closed() {
                 return Ok(());
             }
-            warn!("{label}: port {why}; reopening in {:.1} s", backoff.as_secs_f64());
+            warn!(
+                "{label}: port {why}; reopening in {:.1} s",
+                backoff.as_secs_f64()
+            );
         }
         if !wait_backoff(ctx, &mut backoff, &mut wrx).await {
             return Ok(());
         }
         match open() {
             Ok(p) => port = Some(p),
-            Err(e) => warn!("{label}: cannot open ({e}); retrying in {:.1} s", backoff.as_secs_f64()),
+            Err(e) => warn!(
+                "{label}: cannot open ({e}); retrying in {:.1} s",
+                backoff.as_secs_f64()
+            ),
         }
     }
 }
 
 /// Sleep the back-off (dropping frames queued for a link that is down, keeping the
 /// watchdog going) and double it. False on shutdown.
-async fn wait_backoff(ctx: &mut Ctx, backoff: &mut Duration, wrx: &mut mpsc::Receiver<Vec<u8>>) -> bool {
+async fn wait_backoff(
+    ctx: &mut Ctx,
+    backoff: &mut Duration,
+    wrx: &mut mpsc::Receiver<Vec<u8>>,
+) -> bool {
     let until = tokio::time::Instant::now() + *backoff;
     *backoff = (*backoff * 2).min(BACKOFF_MAX);
     let mut tick = tokio::time::interval(Duration::from_secs(1));
@@ -475,7 +551,13 @@ mod tests {
 
     #[test]
     fn addresses_parse_and_print_back() {
-        for s in ["udpin:0.0.0.0:14550", "udpout:127.0.0.1:14550", "tcpin:[::1]:5760", "tcpout:localhost:5760", "serial:/dev/ttyUSB0:57600"] {
+        for s in [
+            "udpin:0.0.0.0:14550",
+            "udpout:127.0.0.1:14550",
+            "tcpin:[::1]:5760",
+            "tcpout:localhost:5760",
+            "serial:/dev/ttyUSB0:57600",
+        ] {
             let a: LinkAddress = s.parse().unwrap();
             assert_eq!(a.to_string(), s);
         }
@@ -483,9 +565,19 @@ mod tests {
 
     #[test]
     fn bad_addresses_name_the_address_and_the_forms() {
-        for s in ["bogus", "udpin:14550", "tcpout:host:notaport", "quic:host:1", "serial:/dev/ttyS0:fast", "udpin::14550"] {
+        for s in [
+            "bogus",
+            "udpin:14550",
+            "tcpout:host:notaport",
+            "quic:host:1",
+            "serial:/dev/ttyS0:fast",
+            "udpin::14550",
+        ] {
             let e = s.parse::<LinkAddress>().unwrap_err().to_string();
-            assert!(e.contains(s) && e.contains("udpin:HOST:PORT") && e.contains("serial:DEVICE:BAUD"), "{e}");
+            assert!(
+                e.contains(s) && e.contains("udpin:HOST:PORT") && e.contains("serial:DEVICE:BAUD"),
+                "{e}"
+            );
         }
     }
 }

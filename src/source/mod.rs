@@ -12,13 +12,13 @@
 pub mod address;
 pub mod dataflash;
 mod dataflash_records;
-mod synth;
 pub mod dataset;
 pub mod fleet;
 pub mod frame;
 pub mod link;
 pub mod raw;
 pub mod signing;
+mod synth;
 pub mod timed;
 pub mod tlog;
 pub mod ulog;
@@ -85,14 +85,27 @@ pub enum SourceSpec {
     /// A live link: `udpin:`/`udpout:`/`tcpin:`/`tcpout:`/`serial:` address.
     Link(String),
     /// A `.tlog` (8-byte big-endian µs timestamp before each frame).
-    Tlog { path: std::path::PathBuf, speed: Speed },
+    Tlog {
+        path: std::path::PathBuf,
+        speed: Speed,
+    },
     /// An autopilot's own log, ArduPilot DataFlash `.bin` ([`dataflash`]) or PX4 ULog
     /// `.ulg` ([`ulog`]), as the MAVLink a tlog gives.
-    AutopilotLog { path: std::path::PathBuf, speed: Speed },
+    AutopilotLog {
+        path: std::path::PathBuf,
+        speed: Speed,
+    },
     /// A raw MAVLink byte stream with no timestamps.
-    Raw { path: std::path::PathBuf, speed: Speed },
+    Raw {
+        path: std::path::PathBuf,
+        speed: Speed,
+    },
     /// One flight of the M100 data set's `flights.csv[.gz]`, encoded as MAVLink.
-    Dataset { path: std::path::PathBuf, flight: u32, speed: Speed },
+    Dataset {
+        path: std::path::PathBuf,
+        flight: u32,
+        speed: Speed,
+    },
 }
 
 /// A live link's signing set-up (`[link] signing_key_file`): the signer for what
@@ -151,15 +164,41 @@ pub async fn run(
     match spec {
         SourceSpec::Link(address) => {
             let addr: link::LinkAddress = address.parse()?;
-            link::run(addr, tx, stats, link, signing.map(|s| s.verifier()), shutdown).await
+            link::run(
+                addr,
+                tx,
+                stats,
+                link,
+                signing.map(|s| s.verifier()),
+                shutdown,
+            )
+            .await
         }
         SourceSpec::Tlog { path, speed } => {
             let f = open(&path).await?;
-            replay(f, &path.display().to_string(), TimedReader::tlog(), speed, tx, &stats, shutdown).await
+            replay(
+                f,
+                &path.display().to_string(),
+                TimedReader::tlog(),
+                speed,
+                tx,
+                &stats,
+                shutdown,
+            )
+            .await
         }
         SourceSpec::Raw { path, speed } => {
             let f = open(&path).await?;
-            replay(f, &path.display().to_string(), TimedReader::raw(), speed, tx, &stats, shutdown).await
+            replay(
+                f,
+                &path.display().to_string(),
+                TimedReader::raw(),
+                speed,
+                tx,
+                &stats,
+                shutdown,
+            )
+            .await
         }
         SourceSpec::AutopilotLog { path, speed } => {
             let msgs = {
@@ -168,23 +207,42 @@ pub async fn run(
             };
             let start = tokio::time::Instant::now();
             for mut m in msgs {
-                if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, &stats, &shutdown).await {
+                if !pace(start, &mut m, speed, &shutdown).await
+                    || !send(&tx, m, &stats, &shutdown).await
+                {
                     return Ok(());
                 }
             }
             Ok(())
         }
-        SourceSpec::Dataset { path, flight, speed } => {
+        SourceSpec::Dataset {
+            path,
+            flight,
+            speed,
+        } => {
             let name = format!("{} flight {flight}", path.display());
-            let bytes = tokio::task::spawn_blocking(move || dataset::flight_tlog(&path, flight)).await??;
-            replay(&bytes[..], &name, TimedReader::tlog(), speed, tx, &stats, shutdown).await
+            let bytes =
+                tokio::task::spawn_blocking(move || dataset::flight_tlog(&path, flight)).await??;
+            replay(
+                &bytes[..],
+                &name,
+                TimedReader::tlog(),
+                speed,
+                tx,
+                &stats,
+                shutdown,
+            )
+            .await
         }
     }
 }
 
 /// Read a DataFlash `.bin` or ULog `.ulg` (by its name) whole into the MAVLink a tlog
 /// gives. Errors name the file and what is wrong.
-pub fn decode_autopilot_log(path: &std::path::Path, stats: &IngestStats) -> anyhow::Result<Vec<TimedMessage>> {
+pub fn decode_autopilot_log(
+    path: &std::path::Path,
+    stats: &IngestStats,
+) -> anyhow::Result<Vec<TimedMessage>> {
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let name = path.display();
     if ulog::is_ulog(path) {
@@ -195,7 +253,9 @@ pub fn decode_autopilot_log(path: &std::path::Path, stats: &IngestStats) -> anyh
 }
 
 async fn open(path: &std::path::Path) -> anyhow::Result<tokio::fs::File> {
-    tokio::fs::File::open(path).await.with_context(|| format!("{}: cannot open", path.display()))
+    tokio::fs::File::open(path)
+        .await
+        .with_context(|| format!("{}: cannot open", path.display()))
 }
 
 /// Feed `input` through `reader`, pacing by `t_s` at `speed`, until the input ends, the
@@ -215,7 +275,8 @@ async fn replay<R: AsyncRead + Unpin>(
     let mut bytes_read = 0u64;
     loop {
         while let Some(mut m) = reader.next_message(stats) {
-            if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, stats, &shutdown).await {
+            if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, stats, &shutdown).await
+            {
                 return Ok(());
             }
         }
@@ -251,7 +312,12 @@ async fn replay<R: AsyncRead + Unpin>(
 /// Wait until a recorded message is due at `speed` (from `start`); it arrives then, as on
 /// a live link (a replay running late counts its own delay in the latency). False when
 /// shutdown came first.
-async fn pace(start: tokio::time::Instant, m: &mut TimedMessage, speed: Speed, shutdown: &CancellationToken) -> bool {
+async fn pace(
+    start: tokio::time::Instant,
+    m: &mut TimedMessage,
+    speed: Speed,
+    shutdown: &CancellationToken,
+) -> bool {
     if let Speed::Factor(f) = speed {
         // t_s is finite and never negative (timed::Clock), f is bounded (Speed).
         let due = start + Duration::try_from_secs_f64(m.t_s / f).unwrap_or(Duration::ZERO);
@@ -268,7 +334,12 @@ async fn pace(start: tokio::time::Instant, m: &mut TimedMessage, speed: Speed, s
 
 /// Send one message, waiting for room (back-pressure) unless shutdown comes first.
 /// False when the run is over (shutdown, or nobody listens any more).
-async fn send(tx: &mpsc::Sender<TimedMessage>, m: TimedMessage, stats: &IngestStats, shutdown: &CancellationToken) -> bool {
+async fn send(
+    tx: &mpsc::Sender<TimedMessage>,
+    m: TimedMessage,
+    stats: &IngestStats,
+    shutdown: &CancellationToken,
+) -> bool {
     if shutdown.is_cancelled() {
         return false;
     }

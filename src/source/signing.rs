@@ -73,16 +73,26 @@ impl LinkConfig {
     /// Cross-field checks; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
         if self.require_signing && self.signing_key_file.is_none() {
-            return Err("link.require_signing = true needs link.signing_key_file (the key to verify with)".into());
+            return Err(
+                "link.require_signing = true needs link.signing_key_file (the key to verify with)"
+                    .into(),
+            );
         }
         Ok(())
     }
 
     /// Read the key file, if one is configured. Errors name the key and the file.
     pub fn load(&self) -> Result<Option<Signing>, String> {
-        let Some(path) = &self.signing_key_file else { return Ok(None) };
-        let key = read_key_file(path).map_err(|e| format!("link.signing_key_file = '{}': {e}", path.display()))?;
-        Ok(Some(Signing { key, require: self.require_signing, link_id: self.signing_link_id }))
+        let Some(path) = &self.signing_key_file else {
+            return Ok(None);
+        };
+        let key = read_key_file(path)
+            .map_err(|e| format!("link.signing_key_file = '{}': {e}", path.display()))?;
+        Ok(Some(Signing {
+            key,
+            require: self.require_signing,
+            link_id: self.signing_link_id,
+        }))
     }
 }
 
@@ -100,7 +110,11 @@ pub struct Signing {
 impl std::fmt::Debug for Signing {
     /// Never prints the key.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Signing").field("key", &"<secret>").field("require", &self.require).field("link_id", &self.link_id).finish()
+        f.debug_struct("Signing")
+            .field("key", &"<secret>")
+            .field("require", &self.require)
+            .field("link_id", &self.link_id)
+            .finish()
     }
 }
 
@@ -111,7 +125,10 @@ pub fn read_key_file(path: &Path) -> Result<[u8; KEY_LEN], String> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path).map_err(|e| format!("cannot stat: {e}"))?.permissions().mode();
+        let mode = std::fs::metadata(path)
+            .map_err(|e| format!("cannot stat: {e}"))?
+            .permissions()
+            .mode();
         if mode & 0o077 != 0 {
             return Err(format!(
                 "the key file is accessible to group or others (mode {:03o}); make it private: chmod 600 {}",
@@ -130,15 +147,29 @@ pub fn parse_key(bytes: &[u8]) -> Result<[u8; KEY_LEN], String> {
         k.copy_from_slice(bytes);
         return Ok(k);
     }
-    let text = std::str::from_utf8(bytes).map_err(|_| format!("{} bytes that are neither a raw 32-byte key nor text", bytes.len()))?.trim();
+    let text = std::str::from_utf8(bytes)
+        .map_err(|_| {
+            format!(
+                "{} bytes that are neither a raw 32-byte key nor text",
+                bytes.len()
+            )
+        })?
+        .trim();
     let decoded = if text.len() == 2 * KEY_LEN && text.bytes().all(|b| b.is_ascii_hexdigit()) {
-        (0..KEY_LEN).map(|i| u8::from_str_radix(&text[2 * i..2 * i + 2], 16).unwrap_or(0)).collect()
+        (0..KEY_LEN)
+            .map(|i| u8::from_str_radix(&text[2 * i..2 * i + 2], 16).unwrap_or(0))
+            .collect()
     } else {
         base64_decode(text).ok_or_else(|| {
             format!("expected 32 raw bytes, 64 hex digits or base64 of 32 bytes; found {} characters of text", text.len())
         })?
     };
-    <[u8; KEY_LEN]>::try_from(decoded.as_slice()).map_err(|_| format!("the key decodes to {} bytes; a MAVLink key is 32", decoded.len()))
+    <[u8; KEY_LEN]>::try_from(decoded.as_slice()).map_err(|_| {
+        format!(
+            "the key decodes to {} bytes; a MAVLink key is 32",
+            decoded.len()
+        )
+    })
 }
 
 /// Standard base64 (RFC 4648, `+/`, padding optional). `None` on anything else.
@@ -167,7 +198,9 @@ fn base64_decode(s: &str) -> Option<Vec<u8>> {
 
 /// This machine's clock as a signing timestamp: 10 µs units since 2015-01-01 UTC.
 pub fn now_10us() -> u64 {
-    let unix = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let unix = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
     (unix.as_micros() as u64 / 10).saturating_sub(EPOCH_2015_UNIX_S * 100_000)
 }
 
@@ -217,14 +250,23 @@ impl Verifier {
 
     /// A verifier whose newest-seen timestamp starts at `now_10us` (tests use a fixed one).
     pub fn starting_at(signing: Signing, now_10us: u64) -> Self {
-        Self { signing, streams: HashMap::new(), newest: now_10us }
+        Self {
+            signing,
+            streams: HashMap::new(),
+            newest: now_10us,
+        }
     }
 
     /// Judge one whole frame (STX through signature) whose CRC has already checked.
     pub fn check(&mut self, frame: &[u8]) -> Verdict {
-        let signed = frame.first() == Some(&STX_V2) && frame.get(2).is_some_and(|f| f & IFLAG_SIGNED != 0);
+        let signed =
+            frame.first() == Some(&STX_V2) && frame.get(2).is_some_and(|f| f & IFLAG_SIGNED != 0);
         if !signed {
-            return if self.signing.require { Verdict::UnsignedRefused } else { Verdict::Unsigned };
+            return if self.signing.require {
+                Verdict::UnsignedRefused
+            } else {
+                Verdict::Unsigned
+            };
         }
         if frame.len() < V2_HEADER + 2 + SIGNATURE_BLOCK_LEN {
             return Verdict::BadSignature;
@@ -236,7 +278,12 @@ impl Verifier {
         let ts = u64::from_le_bytes(ts_bytes);
         let expected = mac(&self.signing.key, body, link_id, ts);
         // Constant time: every byte compared whatever the first difference.
-        if expected.iter().zip(&block[7..13]).fold(0u8, |d, (a, b)| d | (a ^ b)) != 0 {
+        if expected
+            .iter()
+            .zip(&block[7..13])
+            .fold(0u8, |d, (a, b)| d | (a ^ b))
+            != 0
+        {
             return Verdict::BadSignature;
         }
         let stream = (link_id, frame[5], frame[6]);
@@ -263,7 +310,11 @@ pub struct Signer {
 impl Signer {
     /// A signer for this set-up.
     pub fn new(signing: &Signing) -> Self {
-        Self { key: signing.key, link_id: signing.link_id, last_ts: 0 }
+        Self {
+            key: signing.key,
+            link_id: signing.link_id,
+            last_ts: 0,
+        }
     }
 
     /// Turn one unsigned MAVLink 2 frame (as `mavlink::write_versioned_msg` writes it) into
@@ -279,7 +330,9 @@ impl Signer {
             return false;
         }
         let id = u32::from_le_bytes([frame[7], frame[8], frame[9], 0]);
-        let Some(extra) = super::frame::crc_extra(id) else { return false };
+        let Some(extra) = super::frame::crc_extra(id) else {
+            return false;
+        };
         frame[2] |= IFLAG_SIGNED;
         let crc = crc16(&frame[1..crc_at], extra);
         frame[crc_at..crc_at + 2].copy_from_slice(&crc.to_le_bytes());
@@ -298,12 +351,20 @@ mod tests {
     use super::*;
 
     fn signing(require: bool) -> Signing {
-        Signing { key: core::array::from_fn(|i| i as u8), require, link_id: 7 }
+        Signing {
+            key: core::array::from_fn(|i| i as u8),
+            require,
+            link_id: 7,
+        }
     }
 
     fn heartbeat_v2(seq: u8) -> Vec<u8> {
         let msg = crate::MavMessage::HEARTBEAT(crate::dialect::HEARTBEAT_DATA::default());
-        let h = mavlink::MavHeader { system_id: 1, component_id: 1, sequence: seq };
+        let h = mavlink::MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence: seq,
+        };
         let mut out = Vec::new();
         mavlink::write_versioned_msg(&mut out, mavlink::MavlinkVersion::V2, h, &msg).unwrap();
         out
@@ -318,7 +379,10 @@ mod tests {
         assert_eq!(parse_key(&key).unwrap(), key);
         assert_eq!(parse_key(format!("{hex}\n").as_bytes()).unwrap(), key);
         assert_eq!(parse_key(b64.as_bytes()).unwrap(), key);
-        assert_eq!(parse_key(b64.trim_end_matches('=').as_bytes()).unwrap(), key);
+        assert_eq!(
+            parse_key(b64.trim_end_matches('=').as_bytes()).unwrap(),
+            key
+        );
         assert!(parse_key(b"too short").unwrap_err().contains("32"));
         assert!(parse_key(&[0xff; 33]).unwrap_err().contains("33 bytes"));
     }
@@ -378,9 +442,18 @@ mod tests {
             f.extend_from_slice(&m);
             f
         };
-        assert_eq!(v.check(&frame_at(now - REPLAY_WINDOW_10US - 1)), Verdict::Replay);
-        assert_eq!(v.check(&frame_at(now - REPLAY_WINDOW_10US + 5)), Verdict::Signed);
-        assert_eq!(v.check(&frame_at(now - REPLAY_WINDOW_10US + 5)), Verdict::Replay);
+        assert_eq!(
+            v.check(&frame_at(now - REPLAY_WINDOW_10US - 1)),
+            Verdict::Replay
+        );
+        assert_eq!(
+            v.check(&frame_at(now - REPLAY_WINDOW_10US + 5)),
+            Verdict::Signed
+        );
+        assert_eq!(
+            v.check(&frame_at(now - REPLAY_WINDOW_10US + 5)),
+            Verdict::Replay
+        );
         assert_eq!(v.check(&frame_at(now + 10)), Verdict::Signed);
     }
 }

@@ -30,14 +30,27 @@ pub(super) struct Synth {
 
 impl Synth {
     pub fn new(autopilot: d::MavAutopilot, mavtype: d::MavType) -> Self {
-        Self { autopilot, mavtype, ..Self::default() }
+        Self {
+            autopilot,
+            mavtype,
+            ..Self::default()
+        }
     }
 
     /// One message at the current log time.
     pub fn push(&mut self, msg: MavMessage, out: &mut Vec<TimedMessage>) {
-        let header = MavHeader { system_id: 1, component_id: 1, sequence: self.seq };
+        let header = MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence: self.seq,
+        };
         self.seq = self.seq.wrapping_add(1);
-        out.push(TimedMessage { t_s: self.t_s, header, msg, arrived: std::time::Instant::now() });
+        out.push(TimedMessage {
+            t_s: self.t_s,
+            header,
+            msg,
+            arrived: std::time::Instant::now(),
+        });
     }
 
     /// A record stamped `us` (µs of log time): the clock moves (a jump is counted in
@@ -64,10 +77,23 @@ impl Synth {
 
     /// The battery as a ground station hears it: SYS_STATUS and BATTERY_STATUS from the
     /// voltage (V), current (A, when known), remaining % and what was consumed (mAh, Wh).
-    pub fn battery(&mut self, volt: f64, amps: Option<f64>, remaining: i8, consumed_mah: Option<f64>, consumed_wh: Option<f64>, out: &mut Vec<TimedMessage>) {
+    pub fn battery(
+        &mut self,
+        volt: f64,
+        amps: Option<f64>,
+        remaining: i8,
+        consumed_mah: Option<f64>,
+        consumed_wh: Option<f64>,
+        out: &mut Vec<TimedMessage>,
+    ) {
         let mv = (volt * 1000.0).round().clamp(0.0, 65534.0) as u16;
         let ca = amps.map_or(-1, |c| (c * 100.0).round().clamp(-32768.0, 32767.0) as i16);
-        let s = d::SYS_STATUS_DATA { voltage_battery: mv, current_battery: ca, battery_remaining: remaining, ..Default::default() };
+        let s = d::SYS_STATUS_DATA {
+            voltage_battery: mv,
+            current_battery: ca,
+            battery_remaining: remaining,
+            ..Default::default()
+        };
         self.push(MavMessage::SYS_STATUS(s), out);
         let mut voltages = [u16::MAX; 10];
         voltages[0] = mv;
@@ -86,7 +112,8 @@ impl Synth {
     }
 
     fn heartbeat(&self) -> MavMessage {
-        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
+        let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+            | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
         if self.armed {
             base |= d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
         }
@@ -95,7 +122,11 @@ impl Synth {
             mavtype: self.mavtype,
             autopilot: self.autopilot,
             base_mode: base,
-            system_status: if self.armed { d::MavState::MAV_STATE_ACTIVE } else { d::MavState::MAV_STATE_STANDBY },
+            system_status: if self.armed {
+                d::MavState::MAV_STATE_ACTIVE
+            } else {
+                d::MavState::MAV_STATE_STANDBY
+            },
             mavlink_version: 3,
         })
     }

@@ -74,7 +74,11 @@ pub enum TimeBase {
     /// the first message that carried it. Only the first (system, component) seen with a
     /// boot time sets the clock (the autopilot, normally); messages without one, or from
     /// other components, take the latest known time (0 before any).
-    BootTime { clock: Clock, owner: Option<(u32, u8)>, now: f64 },
+    BootTime {
+        clock: Clock,
+        owner: Option<(u32, u8)>,
+        now: f64,
+    },
     /// Arrival time on this machine (live links): seconds since `start`, monotonic.
     Arrival { start: Instant },
 }
@@ -88,18 +92,28 @@ pub struct TimedReader {
 impl TimedReader {
     /// A `.tlog` reader.
     pub fn tlog() -> Self {
-        Self { decoder: FrameDecoder::new(Framing::Tlog), base: TimeBase::TlogStamp(Clock::default()) }
+        Self {
+            decoder: FrameDecoder::new(Framing::Tlog),
+            base: TimeBase::TlogStamp(Clock::default()),
+        }
     }
     /// A raw-stream reader timed by `time_boot_ms`.
     pub fn raw() -> Self {
         Self {
             decoder: FrameDecoder::new(Framing::Stream),
-            base: TimeBase::BootTime { clock: Clock::default(), owner: None, now: 0.0 },
+            base: TimeBase::BootTime {
+                clock: Clock::default(),
+                owner: None,
+                now: 0.0,
+            },
         }
     }
     /// A live-link reader timed by arrival since `start`.
     pub fn arrival(start: Instant) -> Self {
-        Self { decoder: FrameDecoder::new(Framing::Stream), base: TimeBase::Arrival { start } }
+        Self {
+            decoder: FrameDecoder::new(Framing::Stream),
+            base: TimeBase::Arrival { start },
+        }
     }
     /// The input format this reader expects, in words (for "no MAVLink in this file").
     pub fn expected_format(&self) -> &'static str {
@@ -134,7 +148,12 @@ impl TimedReader {
     /// The next message, with everything skipped counted in `stats` (clock jumps count
     /// as gaps and as `clock_jumps`).
     pub fn next_message(&mut self, stats: &IngestStats) -> Option<TimedMessage> {
-        let Frame { header, msg, stamp_us, .. } = self.decoder.next_frame(stats)?;
+        let Frame {
+            header,
+            msg,
+            stamp_us,
+            ..
+        } = self.decoder.next_frame(stats)?;
         let (t_s, jumped) = match &mut self.base {
             TimeBase::TlogStamp(clock) => clock.map(stamp_us.unwrap_or(0) as f64 * 1e-6),
             TimeBase::BootTime { clock, owner, now } => {
@@ -158,7 +177,12 @@ impl TimedReader {
             IngestStats::add(&stats.gaps, 1);
             IngestStats::add(&stats.clock_jumps, 1);
         }
-        Some(TimedMessage { t_s, header, msg, arrived: std::time::Instant::now() })
+        Some(TimedMessage {
+            t_s,
+            header,
+            msg,
+            arrived: std::time::Instant::now(),
+        })
     }
 }
 

@@ -12,7 +12,13 @@ use mavlink::{MavHeader, MavlinkVersion};
 use crate::MavMessage;
 
 /// Append one message to `buf` as a tlog record: the µs timestamp, then the encoded frame.
-pub fn write_record(buf: &mut Vec<u8>, t_us: u64, header: MavHeader, msg: &MavMessage, version: MavlinkVersion) {
+pub fn write_record(
+    buf: &mut Vec<u8>,
+    t_us: u64,
+    header: MavHeader,
+    msg: &MavMessage,
+    version: MavlinkVersion,
+) {
     buf.extend_from_slice(&t_us.to_be_bytes());
     // Writing into a Vec cannot fail.
     let _ = mavlink::write_versioned_msg(buf, version, header, msg);
@@ -22,7 +28,10 @@ pub fn write_record(buf: &mut Vec<u8>, t_us: u64, header: MavHeader, msg: &MavMe
 /// frames, unknown ids and gaps counted in `stats`. `t_s` is seconds since the first
 /// record's stamp (see the module docs for how a broken stamp is handled). Offline work
 /// uses it to walk data-set flights through the live ingest path.
-pub fn decode_tlog(bytes: &[u8], stats: &crate::source::IngestStats) -> Vec<crate::source::TimedMessage> {
+pub fn decode_tlog(
+    bytes: &[u8],
+    stats: &crate::source::IngestStats,
+) -> Vec<crate::source::TimedMessage> {
     let mut r = super::timed::TimedReader::tlog();
     r.push(bytes);
     r.finish();

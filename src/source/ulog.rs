@@ -41,7 +41,8 @@ pub enum UlogError {
 
 /// Whether `path` names a ULog (`.ulg`, any case).
 pub fn is_ulog(path: &std::path::Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ulg"))
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ulg"))
 }
 
 /// A field as numbers (a scalar is one).
@@ -80,7 +81,12 @@ fn vec3(f: &Format, name: &str) -> Option<[f32; 3]> {
 
 fn text(f: &Format, name: &str) -> Option<String> {
     match &f.fields.iter().find(|x| x.name.as_ref() == name)?.value {
-        V::ArrayChar(a) => Some(a.iter().map(|c| c.as_char()).take_while(|&c| c != '\0').collect()),
+        V::ArrayChar(a) => Some(
+            a.iter()
+                .map(|c| c.as_char())
+                .take_while(|&c| c != '\0')
+                .collect(),
+        ),
         _ => None,
     }
 }
@@ -88,7 +94,9 @@ fn text(f: &Format, name: &str) -> Option<String> {
 /// PX4's `MAV_TYPE` parameter as a MAVLink vehicle type (quadrotor when unknown).
 fn mav_type(v: Option<i32>) -> d::MavType {
     use num_traits::FromPrimitive;
-    v.and_then(d::MavType::from_i32).filter(|t| *t != d::MavType::MAV_TYPE_GCS).unwrap_or(d::MavType::MAV_TYPE_QUADROTOR)
+    v.and_then(d::MavType::from_i32)
+        .filter(|t| *t != d::MavType::MAV_TYPE_GCS)
+        .unwrap_or(d::MavType::MAV_TYPE_QUADROTOR)
 }
 
 #[derive(Default)]
@@ -107,11 +115,23 @@ impl State {
             ParameterValue::FLOAT(x) => (*x, T::MAV_PARAM_TYPE_REAL32),
             ParameterValue::INT32(i) => (f32::from_bits(*i as u32), T::MAV_PARAM_TYPE_INT32),
         };
-        let p = d::PARAM_VALUE_DATA { param_value: v, param_count: 0, param_index: u16::MAX, param_id: key.into(), param_type: t };
+        let p = d::PARAM_VALUE_DATA {
+            param_value: v,
+            param_count: 0,
+            param_index: u16::MAX,
+            param_id: key.into(),
+            param_type: t,
+        };
         self.syn.push(MavMessage::PARAM_VALUE(p), out);
     }
 
-    fn data(&mut self, timestamp: u64, f: &Format, stats: &IngestStats, out: &mut Vec<TimedMessage>) {
+    fn data(
+        &mut self,
+        timestamp: u64,
+        f: &Format,
+        stats: &IngestStats,
+        out: &mut Vec<TimedMessage>,
+    ) {
         if f.multi_id_index.is_some_and(|i| i != 0) {
             return;
         }
@@ -132,31 +152,73 @@ impl State {
                 }
             }
             "vehicle_attitude" => {
-                let Some(q) = nums(f, "q").filter(|q| q.len() == 4) else { return };
+                let Some(q) = nums(f, "q").filter(|q| q.len() == 4) else {
+                    return;
+                };
                 let [rollspeed, pitchspeed, yawspeed] = self.rates;
-                let yaw = (2.0 * (q[0] * q[3] + q[1] * q[2])).atan2(1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
+                let yaw = (2.0 * (q[0] * q[3] + q[1] * q[2]))
+                    .atan2(1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
                 self.heading_deg = Some(yaw.to_degrees().rem_euclid(360.0));
                 let [q1, q2, q3, q4] = [q[0], q[1], q[2], q[3]].map(|x| x as f32);
-                let m = d::ATTITUDE_QUATERNION_DATA { time_boot_ms: boot_ms, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed, ..Default::default() };
+                let m = d::ATTITUDE_QUATERNION_DATA {
+                    time_boot_ms: boot_ms,
+                    q1,
+                    q2,
+                    q3,
+                    q4,
+                    rollspeed,
+                    pitchspeed,
+                    yawspeed,
+                    ..Default::default()
+                };
                 self.syn.push(MavMessage::ATTITUDE_QUATERNION(m), out);
             }
             "sensor_combined" => {
-                let (Some([xgyro, ygyro, zgyro]), Some([xacc, yacc, zacc])) = (vec3(f, "gyro_rad"), vec3(f, "accelerometer_m_s2")) else { return };
-                let m = d::HIGHRES_IMU_DATA { time_usec: timestamp, xacc, yacc, zacc, xgyro, ygyro, zgyro, ..Default::default() };
+                let (Some([xgyro, ygyro, zgyro]), Some([xacc, yacc, zacc])) =
+                    (vec3(f, "gyro_rad"), vec3(f, "accelerometer_m_s2"))
+                else {
+                    return;
+                };
+                let m = d::HIGHRES_IMU_DATA {
+                    time_usec: timestamp,
+                    xacc,
+                    yacc,
+                    zacc,
+                    xgyro,
+                    ygyro,
+                    zgyro,
+                    ..Default::default()
+                };
                 self.syn.push(MavMessage::HIGHRES_IMU(m), out);
             }
             "vehicle_local_position" => {
-                let (Some(vx), Some(vy), Some(vz)) = (num(f, "vx"), num(f, "vy"), num(f, "vz")) else { return };
+                let (Some(vx), Some(vy), Some(vz)) = (num(f, "vx"), num(f, "vy"), num(f, "vz"))
+                else {
+                    return;
+                };
                 let [vx, vy, vz] = [vx, vy, vz].map(|x| x as f32);
                 self.vel = Some([vx, vy, vz]);
                 let p = ["x", "y", "z"].map(|k| num(f, k).unwrap_or(0.0) as f32);
-                let m = d::LOCAL_POSITION_NED_DATA { time_boot_ms: boot_ms, x: p[0], y: p[1], z: p[2], vx, vy, vz };
+                let m = d::LOCAL_POSITION_NED_DATA {
+                    time_boot_ms: boot_ms,
+                    x: p[0],
+                    y: p[1],
+                    z: p[2],
+                    vx,
+                    vy,
+                    vz,
+                };
                 self.syn.push(MavMessage::LOCAL_POSITION_NED(m), out);
             }
             "vehicle_global_position" => {
-                let (Some(lat), Some(lon), Some(alt)) = (num(f, "lat"), num(f, "lon"), num(f, "alt")) else { return };
+                let (Some(lat), Some(lon), Some(alt)) =
+                    (num(f, "lat"), num(f, "lon"), num(f, "alt"))
+                else {
+                    return;
+                };
                 let Some(v) = self.vel else { return };
-                let [vx, vy, vz] = v.map(|x| (f64::from(x) * 100.0).clamp(-32768.0, 32767.0) as i16);
+                let [vx, vy, vz] =
+                    v.map(|x| (f64::from(x) * 100.0).clamp(-32768.0, 32767.0) as i16);
                 let m = d::GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: boot_ms,
                     lat: (lat * 1e7).round() as i32,
@@ -171,25 +233,49 @@ impl State {
                 self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
             }
             "wind" | "wind_estimate" => {
-                let (Some(n), Some(e)) = (num(f, "windspeed_north"), num(f, "windspeed_east")) else { return };
-                let m = d::WIND_COV_DATA { time_usec: timestamp, wind_x: n as f32, wind_y: e as f32, ..Default::default() };
+                let (Some(n), Some(e)) = (num(f, "windspeed_north"), num(f, "windspeed_east"))
+                else {
+                    return;
+                };
+                let m = d::WIND_COV_DATA {
+                    time_usec: timestamp,
+                    wind_x: n as f32,
+                    wind_y: e as f32,
+                    ..Default::default()
+                };
                 self.syn.push(MavMessage::WIND_COV(m), out);
             }
             "battery_status" => {
-                let Some(volt) = num(f, "voltage_v") else { return };
+                let Some(volt) = num(f, "voltage_v") else {
+                    return;
+                };
                 let amps = num(f, "current_a").filter(|&c| c >= 0.0);
-                let remaining = num(f, "remaining").filter(|r| (0.0..=1.0).contains(r)).map_or(-1, |r| (r * 100.0).round() as i8);
-                self.syn.battery(volt, amps, remaining, num(f, "discharged_mah"), None, out);
+                let remaining = num(f, "remaining")
+                    .filter(|r| (0.0..=1.0).contains(r))
+                    .map_or(-1, |r| (r * 100.0).round() as i8);
+                self.syn
+                    .battery(volt, amps, remaining, num(f, "discharged_mah"), None, out);
             }
             "airspeed_validated" => {
-                let (Some(air), Some(hdg)) = (num(f, "true_airspeed_m_s"), self.heading_deg) else { return };
+                let (Some(air), Some(hdg)) = (num(f, "true_airspeed_m_s"), self.heading_deg) else {
+                    return;
+                };
                 let ground = self.vel.map_or(0.0, |v| v[0].hypot(v[1]));
-                let m = d::VFR_HUD_DATA { airspeed: air as f32, groundspeed: ground, heading: hdg.round() as i16 % 360, ..Default::default() };
+                let m = d::VFR_HUD_DATA {
+                    airspeed: air as f32,
+                    groundspeed: ground,
+                    heading: hdg.round() as i16 % 360,
+                    ..Default::default()
+                };
                 self.syn.push(MavMessage::VFR_HUD(m), out);
             }
             "debug_key_value" => {
                 if let (Some(k), Some(v)) = (text(f, "key"), num(f, "value")) {
-                    let m = d::NAMED_VALUE_FLOAT_DATA { time_boot_ms: boot_ms, value: v as f32, name: k.as_str().into() };
+                    let m = d::NAMED_VALUE_FLOAT_DATA {
+                        time_boot_ms: boot_ms,
+                        value: v as f32,
+                        name: k.as_str().into(),
+                    };
                     self.syn.push(MavMessage::NAMED_VALUE_FLOAT(m), out);
                 }
             }
@@ -205,14 +291,26 @@ impl State {
 /// format definition's array length): the whole decode runs under `catch_unwind`, and such
 /// a file is an error like any other ([`UlogError::ParserPanicked`]).
 pub fn decode_ulog(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode(bytes, stats))).unwrap_or_else(|p| {
-        let why = p.downcast_ref::<String>().map(String::as_str).or_else(|| p.downcast_ref::<&str>().copied()).unwrap_or("a panic");
-        Err(UlogError::ParserPanicked(why.to_string()))
-    })
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode(bytes, stats))).unwrap_or_else(
+        |p| {
+            let why = p
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| p.downcast_ref::<&str>().copied())
+                .unwrap_or("a panic");
+            Err(UlogError::ParserPanicked(why.to_string()))
+        },
+    )
 }
 
 fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
-    let mut s = State { syn: Synth::new(d::MavAutopilot::MAV_AUTOPILOT_PX4, d::MavType::MAV_TYPE_QUADROTOR), ..State::default() };
+    let mut s = State {
+        syn: Synth::new(
+            d::MavAutopilot::MAV_AUTOPILOT_PX4,
+            d::MavType::MAV_TYPE_QUADROTOR,
+        ),
+        ..State::default()
+    };
     let mut out = Vec::with_capacity(bytes.len() / 60);
     let mut params = Vec::new();
     let mut mav_type_param = None;
@@ -366,35 +464,82 @@ mod tests {
     use super::*;
     use Value::Nums as N;
 
-    const BAT: Topic = Topic { id: 0, name: "battery_status", fields: &[Field { ty: "float", name: "voltage_v" }, Field { ty: "float", name: "current_a" }] };
+    const BAT: Topic = Topic {
+        id: 0,
+        name: "battery_status",
+        fields: &[
+            Field {
+                ty: "float",
+                name: "voltage_v",
+            },
+            Field {
+                ty: "float",
+                name: "current_a",
+            },
+        ],
+    };
     /// battery_status without current_a: a log of a version whose fields differ.
-    const BAT_V: Topic = Topic { id: 0, name: "battery_status", fields: &[Field { ty: "float", name: "voltage_v" }] };
+    const BAT_V: Topic = Topic {
+        id: 0,
+        name: "battery_status",
+        fields: &[Field {
+            ty: "float",
+            name: "voltage_v",
+        }],
+    };
 
     fn decode(bytes: &[u8]) -> Result<Vec<TimedMessage>, UlogError> {
         decode_ulog(bytes, &IngestStats::default())
     }
 
     fn sys(m: &[TimedMessage]) -> Vec<(f64, u16, i16)> {
-        m.iter().filter_map(|m| if let MavMessage::SYS_STATUS(s) = &m.msg { Some((m.t_s, s.voltage_battery, s.current_battery)) } else { None }).collect()
+        m.iter()
+            .filter_map(|m| {
+                if let MavMessage::SYS_STATUS(s) = &m.msg {
+                    Some((m.t_s, s.voltage_battery, s.current_battery))
+                } else {
+                    None
+                }
+            })
+            .collect()
     }
 
     #[test]
     fn mav_type_names_the_vehicle_and_a_missing_current_degrades() {
-        let mut w = Writer::new(&[BAT_V], &[("MAV_TYPE".into(), 13.0, true), ("BAT1_CAPACITY".into(), 2200.0, false)]);
+        let mut w = Writer::new(
+            &[BAT_V],
+            &[
+                ("MAV_TYPE".into(), 13.0, true),
+                ("BAT1_CAPACITY".into(), 2200.0, false),
+            ],
+        );
         w.data(&BAT_V, 1_000_000, &[N(&[11.1])]);
         w.data(&BAT_V, 1_500_000, &[N(&[11.0])]);
         let m = decode(&w.into_bytes()).unwrap();
-        let MavMessage::HEARTBEAT(h) = &m[0].msg else { panic!("{:?}", m[0]) };
-        assert_eq!((h.mavtype, h.autopilot), (d::MavType::MAV_TYPE_HEXAROTOR, d::MavAutopilot::MAV_AUTOPILOT_PX4));
+        let MavMessage::HEARTBEAT(h) = &m[0].msg else {
+            panic!("{:?}", m[0])
+        };
+        assert_eq!(
+            (h.mavtype, h.autopilot),
+            (
+                d::MavType::MAV_TYPE_HEXAROTOR,
+                d::MavAutopilot::MAV_AUTOPILOT_PX4
+            )
+        );
         assert_eq!(sys(&m), [(0.0, 11100, -1), (0.5, 11000, -1)]);
-        assert!(m.iter().any(|m| matches!(&m.msg, MavMessage::PARAM_VALUE(p) if p.param_value == 2200.0)));
+        assert!(m
+            .iter()
+            .any(|m| matches!(&m.msg, MavMessage::PARAM_VALUE(p) if p.param_value == 2200.0)));
     }
 
     #[test]
     fn corrupt_or_foreign_files_are_errors_and_never_panic() {
         assert!(decode(b"").is_err());
         assert!(decode(b"\xA3\x95not ulog at all").is_err());
-        assert!(matches!(decode(&Writer::new(&[BAT], &[]).into_bytes()), Err(UlogError::NoMessages)));
+        assert!(matches!(
+            decode(&Writer::new(&[BAT], &[]).into_bytes()),
+            Err(UlogError::NoMessages)
+        ));
         let mut w = Writer::new(&[BAT], &[]);
         for i in 0..50 {
             w.data(&BAT, i * 100_000, &[N(&[16.0]), N(&[3.0])]);

@@ -88,7 +88,12 @@ pub struct TelemetryConfig {
 
 impl Default for TelemetryConfig {
     fn default() -> Self {
-        Self { rate_hz: 10.0, window: crate::telemetry::window::DEFAULT_T, stale_after_s: 1.5, max_gap_s: 1.0 }
+        Self {
+            rate_hz: 10.0,
+            window: crate::telemetry::window::DEFAULT_T,
+            stale_after_s: 1.5,
+            max_gap_s: 1.0,
+        }
     }
 }
 
@@ -97,13 +102,22 @@ impl TelemetryConfig {
     pub fn validate(&self) -> Result<(), String> {
         let mut errs = Vec::new();
         if !(self.rate_hz > 0.0 && self.rate_hz <= 100.0) {
-            errs.push(format!("telemetry.rate_hz = {}: must be in (0, 100] Hz", self.rate_hz));
+            errs.push(format!(
+                "telemetry.rate_hz = {}: must be in (0, 100] Hz",
+                self.rate_hz
+            ));
         }
         if !(1..=1000).contains(&self.window) {
-            errs.push(format!("telemetry.window = {}: must be 1..=1000 samples", self.window));
+            errs.push(format!(
+                "telemetry.window = {}: must be 1..=1000 samples",
+                self.window
+            ));
         }
         if !(self.stale_after_s > 0.0 && self.stale_after_s.is_finite()) {
-            errs.push(format!("telemetry.stale_after_s = {}: must be > 0", self.stale_after_s));
+            errs.push(format!(
+                "telemetry.stale_after_s = {}: must be > 0",
+                self.stale_after_s
+            ));
         }
         if !(self.max_gap_s > 1.0 / self.rate_hz && self.max_gap_s.is_finite()) {
             errs.push(format!(
@@ -111,7 +125,11 @@ impl TelemetryConfig {
                 self.max_gap_s
             ));
         }
-        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
     }
 }
 
@@ -121,7 +139,13 @@ const SOURCES: [&[&str]; N_SIGNALS] = [
     &["GLOBAL_POSITION_INT", "GPS_RAW_INT"],
     &["ATTITUDE_QUATERNION", "ATTITUDE"],
     &["LOCAL_POSITION_NED", "ODOMETRY", "GLOBAL_POSITION_INT"],
-    &["ATTITUDE_QUATERNION", "ATTITUDE", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU"],
+    &[
+        "ATTITUDE_QUATERNION",
+        "ATTITUDE",
+        "HIGHRES_IMU",
+        "SCALED_IMU",
+        "RAW_IMU",
+    ],
     &["HIGHRES_IMU", "SCALED_IMU", "RAW_IMU"],
     &["BATTERY_STATUS", "SYS_STATUS"],
 ];
@@ -284,7 +308,11 @@ impl Telemetry {
         if v.iter().any(|x| !x.is_finite()) {
             self.nonfinite += 1;
             if self.nonfinite == 1 {
-                tracing::warn!(signal = sig.name(), source = SOURCES[sig as usize][rank], "non-finite telemetry value ignored (further ones are counted)");
+                tracing::warn!(
+                    signal = sig.name(),
+                    source = SOURCES[sig as usize][rank],
+                    "non-finite telemetry value ignored (further ones are counted)"
+                );
             }
             return;
         }
@@ -304,7 +332,9 @@ impl Telemetry {
 
     fn refresh_mission(&mut self) {
         let d = [10.0, 0.0, 25.0];
-        let m: Vec<f32> = (0..3).map(|i| self.mission_msg[i].or(self.mission_cfg[i]).unwrap_or(d[i])).collect();
+        let m: Vec<f32> = (0..3)
+            .map(|i| self.mission_msg[i].or(self.mission_cfg[i]).unwrap_or(d[i]))
+            .collect();
         self.resampler.set_mission(m[0], m[1], m[2]);
     }
 
@@ -343,7 +373,11 @@ impl Telemetry {
     }
 
     fn position(&mut self, rank: usize, t_us: i64, lat_e7: i32, lon_e7: i32, alt_mm: i32) {
-        let p = [lon_e7 as f64 * 1e-7, lat_e7 as f64 * 1e-7, alt_mm as f64 * 1e-3];
+        let p = [
+            lon_e7 as f64 * 1e-7,
+            lat_e7 as f64 * 1e-7,
+            alt_mm as f64 * 1e-3,
+        ];
         if !self.home_known && (lat_e7 != 0 || lon_e7 != 0) {
             self.home_known = true;
             self.resampler.set_home([p[1], p[0], p[2]]);
@@ -364,22 +398,66 @@ impl Telemetry {
             }
             MavMessage::HIGHRES_IMU(m) => {
                 let f = m.fields_updated;
-                if f.is_empty() || f.contains(F::HIGHRES_IMU_UPDATED_XGYRO | F::HIGHRES_IMU_UPDATED_YGYRO | F::HIGHRES_IMU_UPDATED_ZGYRO) {
-                    self.offer(Signal::Rates, 2, t, &[m.xgyro, m.ygyro, m.zgyro].map(f64::from));
+                if f.is_empty()
+                    || f.contains(
+                        F::HIGHRES_IMU_UPDATED_XGYRO
+                            | F::HIGHRES_IMU_UPDATED_YGYRO
+                            | F::HIGHRES_IMU_UPDATED_ZGYRO,
+                    )
+                {
+                    self.offer(
+                        Signal::Rates,
+                        2,
+                        t,
+                        &[m.xgyro, m.ygyro, m.zgyro].map(f64::from),
+                    );
                 }
-                if f.is_empty() || f.contains(F::HIGHRES_IMU_UPDATED_XACC | F::HIGHRES_IMU_UPDATED_YACC | F::HIGHRES_IMU_UPDATED_ZACC) {
-                    self.offer(Signal::Accel, 0, t, &[m.xacc, m.yacc, m.zacc].map(f64::from));
+                if f.is_empty()
+                    || f.contains(
+                        F::HIGHRES_IMU_UPDATED_XACC
+                            | F::HIGHRES_IMU_UPDATED_YACC
+                            | F::HIGHRES_IMU_UPDATED_ZACC,
+                    )
+                {
+                    self.offer(
+                        Signal::Accel,
+                        0,
+                        t,
+                        &[m.xacc, m.yacc, m.zacc].map(f64::from),
+                    );
                 }
             }
             MavMessage::SCALED_IMU(m) => {
-                self.offer(Signal::Rates, 3, t, &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3));
-                self.offer(Signal::Accel, 1, t, &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G));
+                self.offer(
+                    Signal::Rates,
+                    3,
+                    t,
+                    &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3),
+                );
+                self.offer(
+                    Signal::Accel,
+                    1,
+                    t,
+                    &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G),
+                );
             }
             MavMessage::RAW_IMU(m) => {
-                self.offer(Signal::Rates, 4, t, &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3));
-                self.offer(Signal::Accel, 2, t, &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G));
+                self.offer(
+                    Signal::Rates,
+                    4,
+                    t,
+                    &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3),
+                );
+                self.offer(
+                    Signal::Accel,
+                    2,
+                    t,
+                    &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G),
+                );
             }
-            MavMessage::LOCAL_POSITION_NED(m) => self.velocity(0, t, [m.vx, m.vy, m.vz].map(f64::from)),
+            MavMessage::LOCAL_POSITION_NED(m) => {
+                self.velocity(0, t, [m.vx, m.vy, m.vz].map(f64::from))
+            }
             MavMessage::ODOMETRY(m) => {
                 let v = [m.vx, m.vy, m.vz].map(f64::from);
                 let q = m.q.map(f64::from);
@@ -395,12 +473,18 @@ impl Telemetry {
                 self.velocity(2, t, [m.vx, m.vy, m.vz].map(|x| x as f64 * 0.01));
                 self.position(0, t, m.lat, m.lon, m.alt);
             }
-            MavMessage::GPS_RAW_INT(m) if m.fix_type as u8 >= crate::dialect::GpsFixType::GPS_FIX_TYPE_3D_FIX as u8 => {
+            MavMessage::GPS_RAW_INT(m)
+                if m.fix_type as u8 >= crate::dialect::GpsFixType::GPS_FIX_TYPE_3D_FIX as u8 =>
+            {
                 self.position(1, t, m.lat, m.lon, m.alt);
             }
             MavMessage::HOME_POSITION(h) => {
                 self.home_known = true;
-                self.resampler.set_home([h.latitude as f64 * 1e-7, h.longitude as f64 * 1e-7, h.altitude as f64 * 1e-3]);
+                self.resampler.set_home([
+                    h.latitude as f64 * 1e-7,
+                    h.longitude as f64 * 1e-7,
+                    h.altitude as f64 * 1e-3,
+                ]);
             }
             MavMessage::WIND(w) => {
                 let v = frames::wind_from_to_vec(w.speed as f64, w.direction as f64);
@@ -424,8 +508,17 @@ impl Telemetry {
             }
             MavMessage::BATTERY_STATUS(b) if b.id == 0 => {
                 self.battery_remaining(b.battery_remaining);
-                let mv: f64 = b.voltages.iter().filter(|&&c| c != u16::MAX).map(|&c| c as f64).sum::<f64>()
-                    + b.voltages_ext.iter().filter(|&&c| c != 0).map(|&c| c as f64).sum::<f64>();
+                let mv: f64 = b
+                    .voltages
+                    .iter()
+                    .filter(|&&c| c != u16::MAX)
+                    .map(|&c| c as f64)
+                    .sum::<f64>()
+                    + b.voltages_ext
+                        .iter()
+                        .filter(|&&c| c != 0)
+                        .map(|&c| c as f64)
+                        .sum::<f64>();
                 if b.current_battery != -1 && mv > 0.0 {
                     self.power(0, t, mv * 1e-3, b.current_battery as f64 * 0.01);
                 }
@@ -433,7 +526,12 @@ impl Telemetry {
             MavMessage::SYS_STATUS(s) => {
                 self.battery_remaining(s.battery_remaining);
                 if s.voltage_battery != u16::MAX && s.current_battery != -1 {
-                    self.power(1, t, s.voltage_battery as f64 * 1e-3, s.current_battery as f64 * 0.01);
+                    self.power(
+                        1,
+                        t,
+                        s.voltage_battery as f64 * 1e-3,
+                        s.current_battery as f64 * 0.01,
+                    );
                 }
             }
             MavMessage::NAMED_VALUE_FLOAT(n) => {

@@ -55,13 +55,28 @@ pub enum Signal {
 /// Number of [`Signal`]s.
 pub const N_SIGNALS: usize = 7;
 /// Every signal, in index order.
-pub const SIGNALS: [Signal; N_SIGNALS] =
-    [Signal::Wind, Signal::Position, Signal::Attitude, Signal::Velocity, Signal::Rates, Signal::Accel, Signal::Power];
+pub const SIGNALS: [Signal; N_SIGNALS] = [
+    Signal::Wind,
+    Signal::Position,
+    Signal::Attitude,
+    Signal::Velocity,
+    Signal::Rates,
+    Signal::Accel,
+    Signal::Power,
+];
 
 impl Signal {
     /// Human name (terminal health view).
     pub fn name(self) -> &'static str {
-        ["wind", "position", "attitude", "velocity", "angular rate", "acceleration", "power"][self as usize]
+        [
+            "wind",
+            "position",
+            "attitude",
+            "velocity",
+            "angular rate",
+            "acceleration",
+            "power",
+        ][self as usize]
     }
     /// Number of values an update carries.
     pub fn dims(self) -> usize {
@@ -175,7 +190,10 @@ impl Resampler {
         self.epoch_us = t_us;
         self.restart = true;
         self.restarts += 1;
-        tracing::debug!(t_s = t_us as f64 / 1e6, "telemetry gap: restarting the window ring");
+        tracing::debug!(
+            t_s = t_us as f64 / 1e6,
+            "telemetry gap: restarting the window ring"
+        );
     }
 
     /// True once after each gap restart: the window builder must start a new ring.
@@ -202,7 +220,9 @@ impl Resampler {
 
     /// Age of the newest update of `sig` at the newest time seen, seconds.
     pub fn age_s(&self, sig: Signal) -> Option<f64> {
-        self.tracks[sig as usize].last.map(|(t, _)| (self.now_us - t) as f64 / 1e6)
+        self.tracks[sig as usize]
+            .last
+            .map(|(t, _)| (self.now_us - t) as f64 / 1e6)
     }
 
     /// Emit every grid sample that is ready.
@@ -279,7 +299,15 @@ impl Resampler {
             Some((v, false)) => (Some(v[2] as f32), Some(v[0] as f32)),
             _ => (None, None),
         };
-        Sample { t_s: g as f64 / 1e6, features, measured_w, voltage_v, home, stale_mask, battery_remaining_pct: None }
+        Sample {
+            t_s: g as f64 / 1e6,
+            features,
+            measured_w,
+            voltage_v,
+            home,
+            stale_mask,
+            battery_remaining_pct: None,
+        }
     }
 
     /// Value of one signal at grid time `g`, and whether it is stale there.
@@ -295,7 +323,10 @@ impl Resampler {
             // The bracket spans a silence longer than the stale limit: hold, never bridge.
             (Some(p), Some(_)) => (canonical(sig, p.1), true),
             // No newer update: the signal went quiet (or the stream ended).
-            (Some(p), None) => (canonical(sig, p.1), self.is_quiet(sig) || g - p.0 > self.stale_us),
+            (Some(p), None) => (
+                canonical(sig, p.1),
+                self.is_quiet(sig) || g - p.0 > self.stale_us,
+            ),
             (None, Some(n)) => (canonical(sig, n.1), true),
             (None, None) => match tr.last {
                 Some(l) => (canonical(sig, l.1), true),

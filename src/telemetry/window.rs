@@ -47,7 +47,10 @@ impl WindowRing {
     /// A ring of `t` samples (at least 1).
     pub fn new(t: usize) -> Self {
         let t = t.max(1);
-        Self { t, ring: std::collections::VecDeque::with_capacity(t + 1) }
+        Self {
+            t,
+            ring: std::collections::VecDeque::with_capacity(t + 1),
+        }
     }
     /// Add a sample; returns the window it completes, if the ring is full.
     pub fn push(&mut self, s: Sample) -> Option<Window> {
@@ -55,7 +58,10 @@ impl WindowRing {
             self.ring.pop_front();
         }
         self.ring.push_back(s);
-        (self.ring.len() == self.t).then(|| Window { samples: self.ring.iter().cloned().collect(), arrived: None })
+        (self.ring.len() == self.t).then(|| Window {
+            samples: self.ring.iter().cloned().collect(),
+            arrived: None,
+        })
     }
     /// Forget the held samples (after a gap).
     pub fn clear(&mut self) {

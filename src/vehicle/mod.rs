@@ -26,7 +26,9 @@
 pub mod params;
 pub mod store;
 
-pub use crate::report::{BatteryFacts, Provenance, Sourced, DEFAULT_CAPACITY_WH, DEFAULT_CELL_COUNT};
+pub use crate::report::{
+    BatteryFacts, Provenance, Sourced, DEFAULT_CAPACITY_WH, DEFAULT_CELL_COUNT,
+};
 
 use crate::battery::{cell_candidates, Chemistry};
 
@@ -54,7 +56,11 @@ fn cells_from(v: f64, per_cell: f64, tol: f64) -> Option<u32> {
 /// Resolve each figure, best first (module docs), from the config, the vehicle's
 /// parameters and the first battery voltage seen (V, whole pack). Out-of-range
 /// parameters are skipped, and each skip is returned as a message for a warning.
-pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_voltage_v: Option<f64>) -> (BatteryFacts, Vec<String>) {
+pub fn resolve_battery(
+    cfg: &BatteryConfig,
+    p: &params::VehicleParams,
+    first_voltage_v: Option<f64>,
+) -> (BatteryFacts, Vec<String>) {
     let mut notes = Vec::new();
     let mut checked = |name: &str, lo: f64, hi: f64, unit: &str| -> Option<f64> {
         let v = p.get(name)?;
@@ -66,20 +72,26 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
         }
     };
     let cells_param = checked("BAT1_N_CELLS", 1.0, 24.0, "cells").map(|v| v.round() as u32);
-    let cap_param = ["BATT_CAPACITY", "BAT1_CAPACITY"].into_iter().find_map(|n| {
-        // PX4's BAT1_CAPACITY is −1 when unset: "absent", not an error.
-        if p.get(n).is_some_and(|v| v == -1.0) {
-            return None;
-        }
-        checked(n, 1.0, 1_000_000.0, "mAh").map(|v| (n, v))
-    });
-    let low = checked("BATT_LOW_VOLT", 0.1, 100.0, "V").map(|v| Sourced::new(v, Provenance::Parameter("BATT_LOW_VOLT".into())));
-    let crt = checked("BATT_CRT_VOLT", 0.1, 100.0, "V").map(|v| Sourced::new(v, Provenance::Parameter("BATT_CRT_VOLT".into())));
+    let cap_param = ["BATT_CAPACITY", "BAT1_CAPACITY"]
+        .into_iter()
+        .find_map(|n| {
+            // PX4's BAT1_CAPACITY is −1 when unset: "absent", not an error.
+            if p.get(n).is_some_and(|v| v == -1.0) {
+                return None;
+            }
+            checked(n, 1.0, 1_000_000.0, "mAh").map(|v| (n, v))
+        });
+    let low = checked("BATT_LOW_VOLT", 0.1, 100.0, "V")
+        .map(|v| Sourced::new(v, Provenance::Parameter("BATT_LOW_VOLT".into())));
+    let crt = checked("BATT_CRT_VOLT", 0.1, 100.0, "V")
+        .map(|v| Sourced::new(v, Provenance::Parameter("BATT_CRT_VOLT".into())));
     let v_empty = checked("BAT1_V_EMPTY", 2.0, 4.5, "V per cell");
     // ArduCopter's thrust-scaling voltages: 0 (the default) means off, not a pack.
     let volt_param = |name: &str| p.get(name).filter(|v| v.is_finite() && *v > 0.0);
     let max_cells = volt_param("MOT_BAT_VOLT_MAX").and_then(|v| {
-        cells_from(v, 4.2, 0.03).map(|n| (n, Chemistry::LiPo)).or_else(|| cells_from(v, 4.35, 0.03).map(|n| (n, Chemistry::LiHv)))
+        cells_from(v, 4.2, 0.03)
+            .map(|n| (n, Chemistry::LiPo))
+            .or_else(|| cells_from(v, 4.35, 0.03).map(|n| (n, Chemistry::LiHv)))
     });
     let min_cells = volt_param("MOT_BAT_VOLT_MIN").and_then(|v| cells_from(v, 3.3, 0.1));
 
@@ -87,7 +99,9 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
         (Some(c), _) => Sourced::new(c, Provenance::Config),
         (None, Some((_, c))) => Sourced::new(c, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
         // The default pack is the TB48D, a LiHV pack; any other pack a LiPo unless said.
-        (None, None) if cfg.capacity_wh.is_none() && cap_param.is_none() => Sourced::new(Chemistry::LiHv, Provenance::Default),
+        (None, None) if cfg.capacity_wh.is_none() && cap_param.is_none() => {
+            Sourced::new(Chemistry::LiHv, Provenance::Default)
+        }
         (None, None) => Sourced::new(Chemistry::LiPo, Provenance::Default),
     };
     let from_voltage = first_voltage_v.filter(|v| v.is_finite() && *v > 1.0).and_then(|v| {
@@ -105,28 +119,59 @@ pub fn resolve_battery(cfg: &BatteryConfig, p: &params::VehicleParams, first_vol
         fits.first().copied()
     });
     let monitor_cells = p.battery_cells.filter(|n| (2..=24).contains(n));
-    let cell_count = match (cfg.cell_count, cells_param.or(monitor_cells), max_cells, min_cells, from_voltage) {
+    let cell_count = match (
+        cfg.cell_count,
+        cells_param.or(monitor_cells),
+        max_cells,
+        min_cells,
+        from_voltage,
+    ) {
         (Some(n), ..) => Sourced::new(n, Provenance::Config),
-        (None, Some(n), ..) if cells_param.is_some() => Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into())),
-        (None, Some(n), ..) => Sourced::new(n, Provenance::Parameter("BATTERY_STATUS cell voltages".into())),
-        (None, None, Some((n, _)), ..) => Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
-        (None, None, None, Some(n), _) => Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MIN".into())),
+        (None, Some(n), ..) if cells_param.is_some() => {
+            Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into()))
+        }
+        (None, Some(n), ..) => Sourced::new(
+            n,
+            Provenance::Parameter("BATTERY_STATUS cell voltages".into()),
+        ),
+        (None, None, Some((n, _)), ..) => {
+            Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MAX".into()))
+        }
+        (None, None, None, Some(n), _) => {
+            Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MIN".into()))
+        }
         (None, None, None, None, Some(n)) => Sourced::new(n, Provenance::FirstVoltage),
         (None, None, None, None, None) => Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
     };
     let nominal_cell_v = cfg.nominal_cell_v.unwrap_or(chemistry.value.nominal_v());
     let capacity_wh = match (cfg.capacity_wh, cap_param) {
         (Some(wh), _) => Sourced::new(wh, Provenance::Config),
-        (None, Some((name, mah))) => {
-            Sourced::new(mah / 1000.0 * f64::from(cell_count.value) * nominal_cell_v, Provenance::Parameter(name.into()))
-        }
+        (None, Some((name, mah))) => Sourced::new(
+            mah / 1000.0 * f64::from(cell_count.value) * nominal_cell_v,
+            Provenance::Parameter(name.into()),
+        ),
         (None, None) => Sourced::new(DEFAULT_CAPACITY_WH, Provenance::Default),
     };
     let critical_voltage_v = crt.or_else(|| {
-        v_empty.map(|v| Sourced::new(v * f64::from(cell_count.value), Provenance::Parameter("BAT1_V_EMPTY".into())))
+        v_empty.map(|v| {
+            Sourced::new(
+                v * f64::from(cell_count.value),
+                Provenance::Parameter("BAT1_V_EMPTY".into()),
+            )
+        })
     });
     let chemistry = Sourced::new(chemistry.value.name().to_string(), chemistry.source);
-    (BatteryFacts { capacity_wh, cell_count, chemistry, low_voltage_v: low, critical_voltage_v, rated_capacity_wh: None }, notes)
+    (
+        BatteryFacts {
+            capacity_wh,
+            cell_count,
+            chemistry,
+            low_voltage_v: low,
+            critical_voltage_v,
+            rated_capacity_wh: None,
+        },
+        notes,
+    )
 }
 
 /// The facts with nothing from the vehicle: config, else defaults.
@@ -140,34 +185,59 @@ mod tests {
     use super::*;
 
     fn cfg(capacity_wh: Option<f64>, cell_count: Option<u32>) -> BatteryConfig {
-        BatteryConfig { capacity_wh, cell_count, nominal_cell_v: Some(3.7), chemistry: None }
+        BatteryConfig {
+            capacity_wh,
+            cell_count,
+            nominal_cell_v: Some(3.7),
+            chemistry: None,
+        }
     }
 
     #[test]
     fn config_beats_vehicle_beats_default() {
-        let p = VehicleParams::from_pairs(&[("BATT_CAPACITY", 3300.0), ("BATT_LOW_VOLT", 10.5), ("BATT_CRT_VOLT", 9.9)]);
+        let p = VehicleParams::from_pairs(&[
+            ("BATT_CAPACITY", 3300.0),
+            ("BATT_LOW_VOLT", 10.5),
+            ("BATT_CRT_VOLT", 9.9),
+        ]);
         // Nothing configured: 3300 mAh, 3 cells from the first voltage (12.4 V), 3.7 V a cell.
         let (f, notes) = resolve_battery(&cfg(None, None), &p, Some(12.4));
         assert!(notes.is_empty());
         assert_eq!(f.cell_count, Sourced::new(3, Provenance::FirstVoltage));
         assert!((f.capacity_wh.value - 3.3 * 3.0 * 3.7).abs() < 1e-9);
-        assert_eq!(f.capacity_wh.source.to_string(), "vehicle parameter BATT_CAPACITY");
+        assert_eq!(
+            f.capacity_wh.source.to_string(),
+            "vehicle parameter BATT_CAPACITY"
+        );
         assert_eq!(f.low_voltage_v.as_ref().map(|s| s.value), Some(10.5));
         // The config wins where it speaks.
         let (f, _) = resolve_battery(&cfg(Some(50.0), Some(4)), &p, Some(12.4));
-        assert_eq!((f.capacity_wh.value, f.capacity_wh.source.clone()), (50.0, Provenance::Config));
+        assert_eq!(
+            (f.capacity_wh.value, f.capacity_wh.source.clone()),
+            (50.0, Provenance::Config)
+        );
         assert_eq!(f.cell_count.source, Provenance::Config);
         // Nothing at all: the M100's pack, said so.
         let f = battery_from_config(&cfg(None, None));
-        assert_eq!((f.capacity_wh.value, f.cell_count.value), (DEFAULT_CAPACITY_WH, 6));
+        assert_eq!(
+            (f.capacity_wh.value, f.cell_count.value),
+            (DEFAULT_CAPACITY_WH, 6)
+        );
         assert_eq!(f.capacity_wh.source.to_string(), "default");
     }
 
     #[test]
     fn px4_cells_and_empty_voltage() {
-        let p = VehicleParams::from_pairs(&[("BAT1_CAPACITY", 5000.0), ("BAT1_N_CELLS", 4.0), ("BAT1_V_EMPTY", 3.5)]);
+        let p = VehicleParams::from_pairs(&[
+            ("BAT1_CAPACITY", 5000.0),
+            ("BAT1_N_CELLS", 4.0),
+            ("BAT1_V_EMPTY", 3.5),
+        ]);
         let (f, _) = resolve_battery(&cfg(None, None), &p, Some(12.0));
-        assert_eq!(f.cell_count, Sourced::new(4, Provenance::Parameter("BAT1_N_CELLS".into())));
+        assert_eq!(
+            f.cell_count,
+            Sourced::new(4, Provenance::Parameter("BAT1_N_CELLS".into()))
+        );
         assert!((f.capacity_wh.value - 5.0 * 4.0 * 3.7).abs() < 1e-9);
         assert_eq!(f.critical_voltage_v.map(|s| s.value), Some(14.0));
         // PX4's "unset" capacity (−1) is absent, quietly.
@@ -179,13 +249,20 @@ mod tests {
 
     #[test]
     fn wrong_parameters_degrade_with_a_message() {
-        let p = VehicleParams::from_pairs(&[("BATT_CAPACITY", 0.0), ("BAT1_N_CELLS", 99.0), ("BATT_LOW_VOLT", f64::NAN)]);
+        let p = VehicleParams::from_pairs(&[
+            ("BATT_CAPACITY", 0.0),
+            ("BAT1_N_CELLS", 99.0),
+            ("BATT_LOW_VOLT", f64::NAN),
+        ]);
         let (f, notes) = resolve_battery(&cfg(None, None), &p, Some(f64::NAN));
         assert_eq!(f.capacity_wh.source, Provenance::Default);
         assert_eq!(f.cell_count.source, Provenance::Default);
         assert!(f.low_voltage_v.is_none());
         assert_eq!(notes.len(), 3, "{notes:?}");
-        assert!(notes.iter().any(|n| n.contains("BATT_CAPACITY = 0")), "{notes:?}");
+        assert!(
+            notes.iter().any(|n| n.contains("BATT_CAPACITY = 0")),
+            "{notes:?}"
+        );
     }
 
     #[test]
@@ -193,18 +270,42 @@ mod tests {
         // A full 3S pack at exactly 12.6 V is 3 cells (12.6 / 4.2 = 3.0000000000000004).
         let ardu = VehicleParams::from_pairs(&[("BATT_CAPACITY", 3300.0)]);
         let (f, notes) = resolve_battery(&cfg(None, None), &ardu, Some(12.6));
-        assert_eq!(f.cell_count, Sourced::new(3, Provenance::FirstVoltage), "{notes:?}");
+        assert_eq!(
+            f.cell_count,
+            Sourced::new(3, Provenance::FirstVoltage),
+            "{notes:?}"
+        );
         // ArduCopter's default 3300 mAh on 3S: 36-44 Wh.
-        assert!((36.0..=44.0).contains(&f.capacity_wh.value), "{}", f.capacity_wh.value);
+        assert!(
+            (36.0..=44.0).contains(&f.capacity_wh.value),
+            "{}",
+            f.capacity_wh.value
+        );
         assert_eq!(f.chemistry.value, "lipo");
         // MOT_BAT_VOLT_MAX says the cells and, at 4.35 V a cell, the chemistry; 0 is off.
-        let p = VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 16.8), ("MOT_BAT_VOLT_MIN", 13.2)]);
-        assert_eq!(resolve_battery(&cfg(None, None), &p, Some(12.0)).0.cell_count.value, 4);
+        let p =
+            VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 16.8), ("MOT_BAT_VOLT_MIN", 13.2)]);
+        assert_eq!(
+            resolve_battery(&cfg(None, None), &p, Some(12.0))
+                .0
+                .cell_count
+                .value,
+            4
+        );
         let p = VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 26.1)]);
         let (f, _) = resolve_battery(&cfg(None, None), &p, None);
-        assert_eq!((f.cell_count.value, f.chemistry.value.as_str()), (6, "lihv"));
+        assert_eq!(
+            (f.cell_count.value, f.chemistry.value.as_str()),
+            (6, "lihv")
+        );
         let p = VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 0.0), ("MOT_BAT_VOLT_MIN", 9.9)]);
-        assert_eq!(resolve_battery(&cfg(None, None), &p, None).0.cell_count.source, Provenance::Parameter("MOT_BAT_VOLT_MIN".into()));
+        assert_eq!(
+            resolve_battery(&cfg(None, None), &p, None)
+                .0
+                .cell_count
+                .source,
+            Provenance::Parameter("MOT_BAT_VOLT_MIN".into())
+        );
         // A voltage that fits two counts is said, not picked silently: a full 6S LiHV (the
         // default pack) at 26.1 V could be a low 7S.
         let (f, notes) = resolve_battery(&cfg(None, None), &VehicleParams::default(), Some(26.1));
@@ -229,11 +330,13 @@ mod tests {
         }
     }
 
-
     #[test]
     fn cells_the_battery_monitor_reports_one_by_one() {
         use crate::dialect::BATTERY_STATUS_DATA;
-        let mut b = BATTERY_STATUS_DATA { voltages: [u16::MAX; 10], ..Default::default() };
+        let mut b = BATTERY_STATUS_DATA {
+            voltages: [u16::MAX; 10],
+            ..Default::default()
+        };
         // A monitor that knows only the pack: one entry, the whole pack. No cell count.
         b.voltages[0] = 16_400;
         assert_eq!(params::cells_reported(&b), None);
@@ -247,9 +350,17 @@ mod tests {
         // A nonsense entry (0.1 V) is no cell voltage: no count.
         b.voltages[3] = 100;
         assert_eq!(params::cells_reported(&b), None);
-        let p = VehicleParams { battery_cells: Some(4), ..Default::default() };
+        let p = VehicleParams {
+            battery_cells: Some(4),
+            ..Default::default()
+        };
         let (f, _) = resolve_battery(&cfg(None, None), &p, Some(12.6));
-        assert_eq!(f.cell_count, Sourced::new(4, Provenance::Parameter("BATTERY_STATUS cell voltages".into())));
+        assert_eq!(
+            f.cell_count,
+            Sourced::new(
+                4,
+                Provenance::Parameter("BATTERY_STATUS cell voltages".into())
+            )
+        );
     }
-
 }

@@ -47,7 +47,12 @@ pub const ARDUPILOT_PARAMS: [&str; 9] = [
 ];
 /// PX4 parameters that matter to energy: capacity (mAh), cells, full and empty cell
 /// voltage (V).
-pub const PX4_PARAMS: [&str; 4] = ["BAT1_CAPACITY", "BAT1_N_CELLS", "BAT1_V_CHARGED", "BAT1_V_EMPTY"];
+pub const PX4_PARAMS: [&str; 4] = [
+    "BAT1_CAPACITY",
+    "BAT1_N_CELLS",
+    "BAT1_V_CHARGED",
+    "BAT1_V_EMPTY",
+];
 /// Seconds before an unanswered request is sent again.
 pub const RESEND_S: f64 = 1.5;
 /// Requests sent for one item before it counts as absent.
@@ -121,7 +126,15 @@ pub struct RawParam {
 pub fn decode(autopilot: Autopilot, raw: RawParam) -> f64 {
     use MavParamType as T;
     let bits = raw.value.to_bits();
-    let int = matches!(raw.param_type, T::MAV_PARAM_TYPE_UINT8 | T::MAV_PARAM_TYPE_INT8 | T::MAV_PARAM_TYPE_UINT16 | T::MAV_PARAM_TYPE_INT16 | T::MAV_PARAM_TYPE_UINT32 | T::MAV_PARAM_TYPE_INT32);
+    let int = matches!(
+        raw.param_type,
+        T::MAV_PARAM_TYPE_UINT8
+            | T::MAV_PARAM_TYPE_INT8
+            | T::MAV_PARAM_TYPE_UINT16
+            | T::MAV_PARAM_TYPE_INT16
+            | T::MAV_PARAM_TYPE_UINT32
+            | T::MAV_PARAM_TYPE_INT32
+    );
     if autopilot != Autopilot::Px4 || !int {
         return f64::from(raw.value);
     }
@@ -156,7 +169,10 @@ impl VehicleParams {
     }
     /// Parameters from (name, value) pairs (tests, logs).
     pub fn from_pairs(pairs: &[(&str, f64)]) -> Self {
-        Self { values: pairs.iter().map(|(n, v)| (n.to_string(), *v)).collect(), ..Default::default() }
+        Self {
+            values: pairs.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+            ..Default::default()
+        }
     }
 }
 
@@ -190,8 +206,15 @@ pub struct ParamReader {
 /// cell's voltage (2.5-4.5 V). A monitor that knows only the pack puts it all in the first
 /// entry: that is no cell count.
 pub fn cells_reported(b: &crate::dialect::BATTERY_STATUS_DATA) -> Option<u32> {
-    let cells: Vec<u16> = b.voltages.iter().copied().filter(|&c| c != u16::MAX).chain(b.voltages_ext.iter().copied().filter(|&c| c != 0)).collect();
-    (cells.len() >= 2 && cells.iter().all(|c| (2500..=4500).contains(c))).then_some(cells.len() as u32)
+    let cells: Vec<u16> = b
+        .voltages
+        .iter()
+        .copied()
+        .filter(|&c| c != u16::MAX)
+        .chain(b.voltages_ext.iter().copied().filter(|&c| c != 0))
+        .collect();
+    (cells.len() >= 2 && cells.iter().all(|c| (2500..=4500).contains(c)))
+        .then_some(cells.len() as u32)
 }
 
 /// The key the AUTOPILOT_VERSION request is kept under in the request table.
@@ -200,11 +223,21 @@ const VERSION_KEY: &str = "AUTOPILOT_VERSION";
 impl ParamReader {
     /// A reader that asks the vehicle (a live link).
     pub fn live() -> Self {
-        Self { live: true, identity: None, raw: BTreeMap::new(), asks: BTreeMap::new(), changed: false, cells: None }
+        Self {
+            live: true,
+            identity: None,
+            raw: BTreeMap::new(),
+            asks: BTreeMap::new(),
+            changed: false,
+            cells: None,
+        }
     }
     /// A reader that only listens (a replayed log).
     pub fn passive() -> Self {
-        Self { live: false, ..Self::live() }
+        Self {
+            live: false,
+            ..Self::live()
+        }
     }
 
     /// Take in one message: the first autopilot HEARTBEAT fixes the vehicle; its
@@ -213,7 +246,9 @@ impl ParamReader {
         let (sys, comp) = (m.header.system_id as u8, m.header.component_id);
         match &m.msg {
             MavMessage::HEARTBEAT(h) if self.identity.is_none() => {
-                let Some(autopilot) = Autopilot::from_mav(h.autopilot) else { return };
+                let Some(autopilot) = Autopilot::from_mav(h.autopilot) else {
+                    return;
+                };
                 if h.mavtype == MavType::MAV_TYPE_GCS {
                     return;
                 }
@@ -233,7 +268,9 @@ impl ParamReader {
                 self.asks.insert(VERSION_KEY, Ask::Got);
                 self.changed = true;
             }
-            MavMessage::BATTERY_STATUS(b) if b.id == 0 && self.identity.as_ref().is_none_or(|id| id.system_id == sys) => {
+            MavMessage::BATTERY_STATUS(b)
+                if b.id == 0 && self.identity.as_ref().is_none_or(|id| id.system_id == sys) =>
+            {
                 let cells = cells_reported(b);
                 if cells.is_some() && cells != self.cells {
                     self.cells = cells;
@@ -247,17 +284,31 @@ impl ParamReader {
                     Some(id) => id.system_id == sys && id.component_id == comp,
                     None => comp == 1,
                 };
-                let Ok(name) = p.param_id.to_str() else { return };
+                let Ok(name) = p.param_id.to_str() else {
+                    return;
+                };
                 let name = name.trim_end_matches('\0');
-                if !ours || !ARDUPILOT_PARAMS.iter().chain(&PX4_PARAMS).any(|n| *n == name) {
+                if !ours
+                    || !ARDUPILOT_PARAMS
+                        .iter()
+                        .chain(&PX4_PARAMS)
+                        .any(|n| *n == name)
+                {
                     return;
                 }
-                let raw = RawParam { value: p.param_value, param_type: p.param_type };
+                let raw = RawParam {
+                    value: p.param_value,
+                    param_type: p.param_type,
+                };
                 if self.raw.get(name) != Some(&raw) {
                     self.raw.insert(name.to_string(), raw);
                     self.changed = true;
                 }
-                if let Some(key) = ARDUPILOT_PARAMS.iter().chain(&PX4_PARAMS).find(|n| **n == name) {
+                if let Some(key) = ARDUPILOT_PARAMS
+                    .iter()
+                    .chain(&PX4_PARAMS)
+                    .find(|n| **n == name)
+                {
                     self.asks.insert(key, Ask::Got);
                 }
             }
@@ -266,7 +317,9 @@ impl ParamReader {
     }
 
     fn is_vehicle(&self, sys: u8, comp: u8) -> bool {
-        self.identity.as_ref().is_some_and(|id| id.system_id == sys && id.component_id == comp)
+        self.identity
+            .as_ref()
+            .is_some_and(|id| id.system_id == sys && id.component_id == comp)
     }
 
     /// The requests due at `t_s` (none for a passive reader or before the heartbeat):
@@ -274,7 +327,9 @@ impl ParamReader {
     /// [`MAX_TRIES`] times become absent; their names are returned in `gave_up`.
     pub fn poll(&mut self, t_s: f64, gave_up: &mut Vec<&'static str>) -> Vec<MavMessage> {
         let mut out = Vec::new();
-        let Some(id) = self.identity.clone().filter(|_| self.live) else { return out };
+        let Some(id) = self.identity.clone().filter(|_| self.live) else {
+            return out;
+        };
         let items = id.autopilot.wanted().iter().copied().chain([VERSION_KEY]);
         for name in items {
             let due = match self.asks.get(name) {
@@ -301,7 +356,10 @@ impl ParamReader {
 
     /// Whether every request has been answered or given up (always true when passive).
     pub fn settled(&self) -> bool {
-        !self.live || self.identity.as_ref().is_some_and(|_| self.asks.values().all(|a| !matches!(a, Ask::Sent { .. })) && !self.asks.is_empty())
+        !self.live
+            || self.identity.as_ref().is_some_and(|_| {
+                self.asks.values().all(|a| !matches!(a, Ask::Sent { .. })) && !self.asks.is_empty()
+            })
     }
 
     /// True once after anything new was learned (a heartbeat, a value, a give-up).
@@ -312,11 +370,23 @@ impl ParamReader {
     /// What has been read so far, decoded by the vehicle's autopilot (ArduPilot's cast
     /// before any heartbeat).
     pub fn params(&self) -> VehicleParams {
-        let autopilot = self.identity.as_ref().map_or(Autopilot::ArduPilot, |id| id.autopilot);
+        let autopilot = self
+            .identity
+            .as_ref()
+            .map_or(Autopilot::ArduPilot, |id| id.autopilot);
         VehicleParams {
             identity: self.identity.clone(),
-            values: self.raw.iter().map(|(n, r)| (n.clone(), decode(autopilot, *r))).collect(),
-            absent: self.asks.iter().filter(|(_, a)| **a == Ask::Absent).map(|(n, _)| n.to_string()).collect(),
+            values: self
+                .raw
+                .iter()
+                .map(|(n, r)| (n.clone(), decode(autopilot, *r)))
+                .collect(),
+            absent: self
+                .asks
+                .iter()
+                .filter(|(_, a)| **a == Ask::Absent)
+                .map(|(n, _)| n.to_string())
+                .collect(),
             battery_cells: self.cells,
         }
     }
@@ -362,8 +432,20 @@ pub struct Driver {
 
 impl Driver {
     /// A driver for `reader`, sending on `link` as (`system_id`, `component_id`).
-    pub fn new(reader: ParamReader, link: crate::report::status::LinkHandle, system_id: u8, component_id: u8) -> Self {
-        Self { reader, link, system_id, component_id, seq: 0, unsent: 0 }
+    pub fn new(
+        reader: ParamReader,
+        link: crate::report::status::LinkHandle,
+        system_id: u8,
+        component_id: u8,
+    ) -> Self {
+        Self {
+            reader,
+            link,
+            system_id,
+            component_id,
+            seq: 0,
+            unsent: 0,
+        }
     }
 
     /// Take in one message, send what is due; `Some(params)` when something new was
@@ -372,11 +454,16 @@ impl Driver {
         self.reader.on_message(m);
         let mut gave_up = Vec::new();
         for req in self.reader.poll(m.t_s, &mut gave_up) {
-            let header = mavlink::MavHeader { system_id: u32::from(self.system_id), component_id: self.component_id, sequence: self.seq };
+            let header = mavlink::MavHeader {
+                system_id: u32::from(self.system_id),
+                component_id: self.component_id,
+                sequence: self.seq,
+            };
             self.seq = self.seq.wrapping_add(1);
             let mut buf = Vec::with_capacity(64);
             // Writing into a Vec cannot fail.
-            let _ = mavlink::write_versioned_msg(&mut buf, mavlink::MavlinkVersion::V2, header, &req);
+            let _ =
+                mavlink::write_versioned_msg(&mut buf, mavlink::MavlinkVersion::V2, header, &req);
             if !self.link.try_send(buf) {
                 self.unsent += 1;
             }
@@ -401,7 +488,16 @@ mod tests {
     use super::*;
 
     fn msg(t_s: f64, sys: u32, comp: u8, msg: MavMessage) -> TimedMessage {
-        TimedMessage { t_s, header: mavlink::MavHeader { system_id: sys, component_id: comp, sequence: 0 }, msg, arrived: std::time::Instant::now() }
+        TimedMessage {
+            t_s,
+            header: mavlink::MavHeader {
+                system_id: sys,
+                component_id: comp,
+                sequence: 0,
+            },
+            msg,
+            arrived: std::time::Instant::now(),
+        }
     }
 
     fn heartbeat(autopilot: MavAutopilot) -> MavMessage {
@@ -416,7 +512,13 @@ mod tests {
     }
 
     fn value(name: &str, v: f32, t: MavParamType) -> MavMessage {
-        MavMessage::PARAM_VALUE(dialect::PARAM_VALUE_DATA { param_value: v, param_count: 1000, param_index: 0, param_id: name.into(), param_type: t })
+        MavMessage::PARAM_VALUE(dialect::PARAM_VALUE_DATA {
+            param_value: v,
+            param_count: 1000,
+            param_index: 0,
+            param_id: name.into(),
+            param_type: t,
+        })
     }
 
     fn names(reqs: &[MavMessage]) -> Vec<String> {
@@ -431,39 +533,81 @@ mod tests {
 
     #[test]
     fn decodes_ardupilot_casts_and_px4_bits() {
-        let cast = RawParam { value: 3300.0, param_type: MavParamType::MAV_PARAM_TYPE_INT32 };
+        let cast = RawParam {
+            value: 3300.0,
+            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+        };
         assert_eq!(decode(Autopilot::ArduPilot, cast), 3300.0);
-        let packed = RawParam { value: f32::from_bits(4), param_type: MavParamType::MAV_PARAM_TYPE_INT32 };
+        let packed = RawParam {
+            value: f32::from_bits(4),
+            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+        };
         assert_eq!(decode(Autopilot::Px4, packed), 4.0);
-        let neg = RawParam { value: f32::from_bits((-1i32) as u32), param_type: MavParamType::MAV_PARAM_TYPE_INT32 };
+        let neg = RawParam {
+            value: f32::from_bits((-1i32) as u32),
+            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+        };
         assert_eq!(decode(Autopilot::Px4, neg), -1.0);
         // Floats are floats on both.
-        let f = RawParam { value: 3.5, param_type: MavParamType::MAV_PARAM_TYPE_REAL32 };
-        assert_eq!((decode(Autopilot::Px4, f), decode(Autopilot::ArduPilot, f)), (3.5, 3.5));
+        let f = RawParam {
+            value: 3.5,
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        };
+        assert_eq!(
+            (decode(Autopilot::Px4, f), decode(Autopilot::ArduPilot, f)),
+            (3.5, 3.5)
+        );
     }
 
     #[test]
     fn asks_after_the_heartbeat_resends_then_gives_up() {
         let mut r = ParamReader::live();
         let mut gave_up = Vec::new();
-        assert!(r.poll(0.0, &mut gave_up).is_empty(), "nothing before the vehicle is known");
+        assert!(
+            r.poll(0.0, &mut gave_up).is_empty(),
+            "nothing before the vehicle is known"
+        );
         // A ground station's heartbeat is not the vehicle.
-        r.on_message(&msg(0.0, 255, 190, heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID)));
+        r.on_message(&msg(
+            0.0,
+            255,
+            190,
+            heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID),
+        ));
         assert!(r.poll(0.1, &mut gave_up).is_empty());
-        r.on_message(&msg(0.2, 1, 1, heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA)));
+        r.on_message(&msg(
+            0.2,
+            1,
+            1,
+            heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA),
+        ));
         let first = names(&r.poll(0.2, &mut gave_up));
         assert_eq!(first.len(), ARDUPILOT_PARAMS.len() + 1, "{first:?}");
-        assert!(first.contains(&"BATT_CAPACITY".to_string()) && first.contains(&VERSION_KEY.to_string()));
+        assert!(
+            first.contains(&"BATT_CAPACITY".to_string())
+                && first.contains(&VERSION_KEY.to_string())
+        );
         // Nothing new until RESEND_S has passed.
         assert!(r.poll(1.0, &mut gave_up).is_empty());
         // The vehicle answers all but BATT_CRT_MAH (dropped) and the version request.
         for n in ARDUPILOT_PARAMS.iter().filter(|n| **n != "BATT_CRT_MAH") {
-            r.on_message(&msg(1.2, 1, 1, value(n, 1.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
+            r.on_message(&msg(
+                1.2,
+                1,
+                1,
+                value(n, 1.0, MavParamType::MAV_PARAM_TYPE_REAL32),
+            ));
         }
         assert!(r.take_changed());
-        assert_eq!(names(&r.poll(1.8, &mut gave_up)), ["BATT_CRT_MAH", VERSION_KEY]);
+        assert_eq!(
+            names(&r.poll(1.8, &mut gave_up)),
+            ["BATT_CRT_MAH", VERSION_KEY]
+        );
         assert!(!r.settled());
-        assert_eq!(names(&r.poll(3.4, &mut gave_up)), ["BATT_CRT_MAH", VERSION_KEY]);
+        assert_eq!(
+            names(&r.poll(3.4, &mut gave_up)),
+            ["BATT_CRT_MAH", VERSION_KEY]
+        );
         // Third try was the last: the next due time gives up, once.
         assert!(r.poll(5.0, &mut gave_up).is_empty());
         assert_eq!(gave_up, ["BATT_CRT_MAH", VERSION_KEY]);
@@ -481,15 +625,43 @@ mod tests {
         let mut r = ParamReader::live();
         r.on_message(&msg(0.0, 7, 1, heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4)));
         let mut gave_up = Vec::new();
-        assert_eq!(names(&r.poll(0.0, &mut gave_up)).len(), PX4_PARAMS.len() + 1);
-        r.on_message(&msg(0.5, 7, 1, value("BAT1_N_CELLS", f32::from_bits(4), MavParamType::MAV_PARAM_TYPE_INT32)));
+        assert_eq!(
+            names(&r.poll(0.0, &mut gave_up)).len(),
+            PX4_PARAMS.len() + 1
+        );
+        r.on_message(&msg(
+            0.5,
+            7,
+            1,
+            value(
+                "BAT1_N_CELLS",
+                f32::from_bits(4),
+                MavParamType::MAV_PARAM_TYPE_INT32,
+            ),
+        ));
         // Another system's value is not ours.
-        r.on_message(&msg(0.5, 8, 1, value("BAT1_CAPACITY", 9999.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
-        r.on_message(&msg(0.5, 7, 1, value("BAT1_CAPACITY", 5000.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
-        let v = dialect::AUTOPILOT_VERSION_DATA { uid: 0xDEAD_BEEF, ..Default::default() };
+        r.on_message(&msg(
+            0.5,
+            8,
+            1,
+            value("BAT1_CAPACITY", 9999.0, MavParamType::MAV_PARAM_TYPE_REAL32),
+        ));
+        r.on_message(&msg(
+            0.5,
+            7,
+            1,
+            value("BAT1_CAPACITY", 5000.0, MavParamType::MAV_PARAM_TYPE_REAL32),
+        ));
+        let v = dialect::AUTOPILOT_VERSION_DATA {
+            uid: 0xDEAD_BEEF,
+            ..Default::default()
+        };
         r.on_message(&msg(0.6, 7, 1, MavMessage::AUTOPILOT_VERSION(v)));
         let p = r.params();
-        assert_eq!((p.get("BAT1_N_CELLS"), p.get("BAT1_CAPACITY")), (Some(4.0), Some(5000.0)));
+        assert_eq!(
+            (p.get("BAT1_N_CELLS"), p.get("BAT1_CAPACITY")),
+            (Some(4.0), Some(5000.0))
+        );
         assert_eq!(p.identity.unwrap().uid, Some(0xDEAD_BEEF));
     }
 
@@ -497,9 +669,24 @@ mod tests {
     fn a_passive_reader_listens_only() {
         let mut r = ParamReader::passive();
         // A logged fetch may come before the first heartbeat.
-        r.on_message(&msg(0.0, 1, 1, value("BATT_CAPACITY", 3300.0, MavParamType::MAV_PARAM_TYPE_INT32)));
-        r.on_message(&msg(0.1, 1, 1, value("SOME_OTHER", 1.0, MavParamType::MAV_PARAM_TYPE_REAL32)));
-        r.on_message(&msg(0.2, 1, 1, heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA)));
+        r.on_message(&msg(
+            0.0,
+            1,
+            1,
+            value("BATT_CAPACITY", 3300.0, MavParamType::MAV_PARAM_TYPE_INT32),
+        ));
+        r.on_message(&msg(
+            0.1,
+            1,
+            1,
+            value("SOME_OTHER", 1.0, MavParamType::MAV_PARAM_TYPE_REAL32),
+        ));
+        r.on_message(&msg(
+            0.2,
+            1,
+            1,
+            heartbeat(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA),
+        ));
         assert!(r.poll(10.0, &mut Vec::new()).is_empty());
         assert!(r.settled());
         let p = r.params();

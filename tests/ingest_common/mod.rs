@@ -114,7 +114,8 @@ pub fn flight(n: usize) -> Vec<Rec> {
                 custom_mode: 10,
                 mavtype: MavType::MAV_TYPE_QUADROTOR,
                 autopilot: MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
-                base_mode: MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED,
+                base_mode: MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+                    | MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED,
                 system_status: MavState::MAV_STATE_ACTIVE,
                 mavlink_version: 3,
             }));
@@ -136,7 +137,11 @@ pub fn flight(n: usize) -> Vec<Rec> {
             if out.len() == n {
                 break;
             }
-            let header = MavHeader { system_id: 1, component_id: 1, sequence: seq };
+            let header = MavHeader {
+                system_id: 1,
+                component_id: 1,
+                sequence: seq,
+            };
             seq = seq.wrapping_add(1);
             out.push((T0_US + tick * 100_000 + i as u64 * 400, header, msg));
         }
@@ -191,7 +196,8 @@ pub fn sign_v2(frame: &[u8], msg: &MavMessage) -> Vec<u8> {
     let mut b = frame.to_vec();
     b[2] |= 0x01;
     let crc_at = 10 + b[1] as usize;
-    let crc = dronewatt::source::frame::crc16(&b[1..crc_at], MavMessage::extra_crc(msg.message_id()));
+    let crc =
+        dronewatt::source::frame::crc16(&b[1..crc_at], MavMessage::extra_crc(msg.message_id()));
     b[crc_at..crc_at + 2].copy_from_slice(&crc.to_le_bytes());
     b.extend_from_slice(&[7, 1, 2, 3, 4, 5, 6, 0xFD, 0xFE, 9, 10, 11, 12]);
     b
@@ -209,17 +215,33 @@ pub fn peer() -> std::path::PathBuf {
 
 /// Run the pymavlink peer to completion; its stdout (one JSON object) parsed.
 pub fn run_peer(args: &[&str]) -> serde_json::Value {
-    let out = std::process::Command::new(python()).arg(peer()).args(args).output().expect("run the pymavlink peer");
-    assert!(out.status.success(), "peer {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    let out = std::process::Command::new(python())
+        .arg(peer())
+        .args(args)
+        .output()
+        .expect("run the pymavlink peer");
+    assert!(
+        out.status.success(),
+        "peer {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).expect("peer prints one JSON object")
 }
 
 /// A free local port (bound then released: good enough for tests).
 pub fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
 }
 
 /// A free local TCP port.
 pub fn free_tcp_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
 }

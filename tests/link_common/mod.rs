@@ -29,24 +29,41 @@ pub struct Run {
 impl Run {
     /// The `t` of every real estimate.
     pub fn times(&self) -> Vec<f64> {
-        self.estimates.iter().map(|e| e["t"].as_f64().unwrap()).collect()
+        self.estimates
+            .iter()
+            .map(|e| e["t"].as_f64().unwrap())
+            .collect()
     }
     /// A summary counter.
     pub fn count(&self, key: &str) -> u64 {
-        self.summary[key].as_u64().unwrap_or_else(|| panic!("no {key} in the summary {}", self.summary))
+        self.summary[key]
+            .as_u64()
+            .unwrap_or_else(|| panic!("no {key} in the summary {}", self.summary))
     }
     /// Gaps between consecutive real estimates longer than `s`.
     pub fn holes_over(&self, s: f64) -> Vec<(f64, f64)> {
-        self.times().windows(2).filter(|w| w[1] - w[0] > s).map(|w| (w[0], w[1])).collect()
+        self.times()
+            .windows(2)
+            .filter(|w| w[1] - w[0] > s)
+            .map(|w| (w[0], w[1]))
+            .collect()
     }
 }
 
 pub fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
 }
 
 pub fn free_tcp_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
 }
 
 /// Wait until dronewatt holds `port` (UDP: our bind fails; TCP: a connect succeeds), so no
@@ -67,7 +84,10 @@ pub fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
             let _ = std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err);
             panic!("dronewatt exited with {status} before listening: {err}");
         }
-        assert!(start.elapsed() < Duration::from_secs(60), "dronewatt never listened on port {port}");
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "dronewatt never listened on port {port}"
+        );
         std::thread::sleep(Duration::from_millis(50));
     }
 }
@@ -78,18 +98,28 @@ pub fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
 /// dronewatt's stderr.
 pub fn peer_then_stop(mut dw: std::process::Child, script: &str, args: &[&str]) -> (Value, String) {
     let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(format!("{}/tests/peers/{script}", env!("CARGO_MANIFEST_DIR")))
+        .arg(format!(
+            "{}/tests/peers/{script}",
+            env!("CARGO_MANIFEST_DIR")
+        ))
         .args(args)
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill").args(["-TERM", &dw.id().to_string()]).status();
+    let _ = Command::new("kill")
+        .args(["-TERM", &dw.id().to_string()])
+        .status();
     let status = dw.wait().unwrap();
     let mut stderr = String::new();
     std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
-    assert!(peer.status.success(), "peer failed: {}", String::from_utf8_lossy(&peer.stderr));
+    assert!(
+        peer.status.success(),
+        "peer failed: {}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
     assert!(status.success(), "dronewatt exited with {status}: {stderr}");
     let out = String::from_utf8_lossy(&peer.stdout);
-    let peer: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {stderr}"));
+    let peer: Value = serde_json::from_str(out.trim())
+        .unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {stderr}"));
     (peer, stderr)
 }
 
@@ -100,7 +130,11 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
     let cfg = dir.path().join("dw.toml");
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
-    let port = if tcp { free_tcp_port() } else { free_udp_port() };
+    let port = if tcp {
+        free_tcp_port()
+    } else {
+        free_udp_port()
+    };
     let address = format!("{}:127.0.0.1:{port}", if tcp { "tcpin" } else { "udpin" });
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .args(["monitor", &address, "-q", "--config"])
@@ -113,12 +147,17 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
         .unwrap();
     wait_listening(port, tcp, &mut dw);
     let to = format!("{}:127.0.0.1:{port}", if tcp { "tcp" } else { "udpout" });
-    let args: Vec<&str> = ["--to", &to, "--plan", plan].into_iter().chain(peer_args.iter().copied()).collect();
+    let args: Vec<&str> = ["--to", &to, "--plan", plan]
+        .into_iter()
+        .chain(peer_args.iter().copied())
+        .collect();
     let (peer, stderr) = peer_then_stop(dw, "vehicle.py", &args);
     let text = std::fs::read_to_string(&json).unwrap();
-    let (mut estimates, mut alerts, mut summary, mut estimate_lines) = (Vec::new(), Vec::new(), Value::Null, 0);
+    let (mut estimates, mut alerts, mut summary, mut estimate_lines) =
+        (Vec::new(), Vec::new(), Value::Null, 0);
     for line in text.lines() {
-        let v: Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("bad JSON line {line:?}: {e}"));
+        let v: Value =
+            serde_json::from_str(line).unwrap_or_else(|e| panic!("bad JSON line {line:?}: {e}"));
         match v["type"].as_str() {
             Some("estimate") => {
                 estimate_lines += 1;
@@ -132,7 +171,14 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
         }
     }
     assert!(summary.is_object(), "no summary line; dronewatt: {stderr}");
-    Run { estimates, alerts, summary, estimate_lines, peer, stderr }
+    Run {
+        estimates,
+        alerts,
+        summary,
+        estimate_lines,
+        peer,
+        stderr,
+    }
 }
 
 /// What every run must show: every report written and none missed, real estimates in
@@ -140,12 +186,22 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
 /// 22.2 V, rounded to the centiamp): nothing from another vehicle, nothing made up.
 pub fn check_consistent(r: &Run) {
     assert_eq!(r.count("missed_reports"), 0, "{}", r.summary);
-    assert_eq!(r.count("reports") as usize, r.estimate_lines, "every report is one estimate line");
+    assert_eq!(
+        r.count("reports") as usize,
+        r.estimate_lines,
+        "every report is one estimate line"
+    );
     let t = r.times();
-    assert!(t.windows(2).all(|w| w[1] > w[0]), "estimate times must strictly increase");
+    assert!(
+        t.windows(2).all(|w| w[1] > w[0]),
+        "estimate times must strictly increase"
+    );
     for e in &r.estimates {
         if let Some(w) = e["measured_w"].as_f64() {
-            assert!((455.0..=545.0).contains(&w), "measured {w} W is not on the flown profile: {e}");
+            assert!(
+                (455.0..=545.0).contains(&w),
+                "measured {w} W is not on the flown profile: {e}"
+            );
         }
     }
 }

@@ -11,8 +11,8 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use dronewatt::model::lstm::{resolve_model_path, LstmModel};
 use dronewatt::model::PowerModel;
-use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
 use dronewatt::telemetry::window::Window;
+use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
 
 /// A plausible in-flight window (values near the data set's means).
 fn window(i: usize) -> Window {
@@ -29,27 +29,51 @@ fn window(i: usize) -> Window {
             f[18] = 10.0;
             f[19] = 250.0;
             f[20] = 50.0;
-            Sample { t_s: (i * 10 + k) as f64 * 0.1, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
+            Sample {
+                t_s: (i * 10 + k) as f64 * 0.1,
+                features: f,
+                measured_w: None,
+                voltage_v: None,
+                home: None,
+                stale_mask: 0,
+                battery_remaining_pct: None,
+            }
         })
         .collect();
-    Window { samples, arrived: None }
+    Window {
+        samples,
+        arrived: None,
+    }
 }
 
 fn bench(c: &mut Criterion) {
-    let threads = std::env::var("DRONEWATT_BENCH_THREADS").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let threads = std::env::var("DRONEWATT_BENCH_THREADS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
     tch::set_num_threads(threads);
     let path = resolve_model_path(None).expect("no shipped model under config/models/lstm-m100");
-    let kernel = LstmModel::load(&path, &TelemetryConfig::default()).expect("load the shipped model");
-    let torch = LstmModel::load_with(&path, &TelemetryConfig::default(), Some(dronewatt_torch::load_on_libtorch)).expect("load the shipped model on libtorch");
+    let kernel =
+        LstmModel::load(&path, &TelemetryConfig::default()).expect("load the shipped model");
+    let torch = LstmModel::load_with(
+        &path,
+        &TelemetryConfig::default(),
+        Some(dronewatt_torch::load_on_libtorch),
+    )
+    .expect("load the shipped model on libtorch");
     let mut models = [("hand_written", kernel), ("libtorch", torch)];
     let windows: Vec<Window> = (0..1024).map(window).collect();
     let mut out = Vec::new();
     let mut g = c.benchmark_group("lstm_batch");
-    g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
+    g.sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
     for b in [1usize, 4, 32, 256, 1024] {
         g.throughput(Throughput::Elements(b as u64));
         for (name, model) in &mut models {
-            g.bench_with_input(BenchmarkId::new(*name, b), &windows[..b], |bch, ws| bch.iter(|| model.predict(ws, &mut out)));
+            g.bench_with_input(BenchmarkId::new(*name, b), &windows[..b], |bch, ws| {
+                bch.iter(|| model.predict(ws, &mut out))
+            });
         }
     }
     g.finish();

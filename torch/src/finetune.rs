@@ -48,24 +48,50 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
     let started = Instant::now();
     let card_path = job.base.join("card.toml");
     let card = ModelCard::load(&card_path)?;
-    anyhow::ensure!(card.weights_format == WeightsFormat::Safetensors, "{}: only .safetensors weights can be fine-tuned", card_path.display());
+    anyhow::ensure!(
+        card.weights_format == WeightsFormat::Safetensors,
+        "{}: only .safetensors weights can be fine-tuned",
+        card_path.display()
+    );
     let device = Device::cuda_if_available();
-    let scaling = Scaling { mean: card.feature_mean.clone(), std: card.feature_std.clone(), power_scale_w: card.power_scale_w };
+    let scaling = Scaling {
+        mean: card.feature_mean.clone(),
+        std: card.feature_std.clone(),
+        power_scale_w: card.power_scale_w,
+    };
     let (xr, yr) = gather(job.train, &card);
     let (xv, yv) = gather(job.held_out, &card);
-    anyhow::ensure!(!yr.is_empty() && !yv.is_empty(), "fine-tuning: no training or held-out windows with measured power");
+    anyhow::ensure!(
+        !yr.is_empty() && !yv.is_empty(),
+        "fine-tuning: no training or held-out windows with measured power"
+    );
     let (x, y) = to_tensors(&xr, &yr, &scaling, card.window, device);
     let (vx, vy) = to_tensors(&xv, &yv, &scaling, card.window, device);
 
     tch::manual_seed(SEED as i64);
     let mut vs = nn::VarStore::new(device);
-    let net = Net::new(&vs.root(), card.hidden, card.layers, job.dropout.unwrap_or(card.training.dropout));
+    let net = Net::new(
+        &vs.root(),
+        card.hidden,
+        card.layers,
+        job.dropout.unwrap_or(card.training.dropout),
+    );
     let weights = job.base.join(&card.weights);
-    vs.load(&weights).with_context(|| format!("{}: cannot load the weights to fine-tune", weights.display()))?;
+    vs.load(&weights).with_context(|| {
+        format!(
+            "{}: cannot load the weights to fine-tune",
+            weights.display()
+        )
+    })?;
     let mut opt = nn::Adam::default().build(&vs, job.lr)?;
 
     let (_, shipped_mae, _) = validate(&net, &vx, &vy, scaling.power_scale_w);
-    let snapshot = |vs: &nn::VarStore| -> Vec<Tensor> { vs.trainable_variables().iter().map(|v| v.detach().copy()).collect() };
+    let snapshot = |vs: &nn::VarStore| -> Vec<Tensor> {
+        vs.trainable_variables()
+            .iter()
+            .map(|v| v.detach().copy())
+            .collect()
+    };
     let mut best = (shipped_mae, 0usize, snapshot(&vs));
     let mut rng = rand::rngs::StdRng::seed_from_u64(SEED);
     let mut order: Vec<i64> = (0..yr.len() as i64).collect();
@@ -84,7 +110,9 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
         }
         epochs_run = epoch;
         let (_, mae, _) = validate(&net, &vx, &vy, scaling.power_scale_w);
-        tracing::info!("fine-tuning epoch {epoch}: held-out MAE {mae:.1} W (shipped {shipped_mae:.1} W)");
+        tracing::info!(
+            "fine-tuning epoch {epoch}: held-out MAE {mae:.1} W (shipped {shipped_mae:.1} W)"
+        );
         if mae < best.0 {
             best = (mae, epoch, snapshot(&vs));
         } else if epoch - best.1 >= job.patience {
@@ -101,7 +129,12 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
         }
     });
     let weights_out = job.out.join("model.safetensors");
-    vs.save(&weights_out).with_context(|| format!("{}: cannot save the fine-tuned weights", weights_out.display()))?;
+    vs.save(&weights_out).with_context(|| {
+        format!(
+            "{}: cannot save the fine-tuned weights",
+            weights_out.display()
+        )
+    })?;
     let train_time_s = started.elapsed().as_secs_f64();
     let mut out_card = card.clone();
     out_card.name = NAME.into();
@@ -124,5 +157,11 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
     // Scored on the M100's test flights no more: `learn`'s card has the by-log scores.
     out_card.metrics = None;
     out_card.save(&job.out.join("card.toml"))?;
-    Ok(FineTuned { epochs_run, best_epoch, held_out_mae_w: (shipped_mae, best_mae), train_windows: yr.len(), train_time_s })
+    Ok(FineTuned {
+        epochs_run,
+        best_epoch,
+        held_out_mae_w: (shipped_mae, best_mae),
+        train_windows: yr.len(),
+        train_time_s,
+    })
 }

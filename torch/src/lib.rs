@@ -35,10 +35,19 @@ pub struct Net {
 impl Net {
     /// Build the network's variables under `p` (`p/lstm`, `p/head`).
     pub fn new(p: &nn::Path, hidden: i64, layers: i64, dropout: f64) -> Net {
-        let cfg = nn::RNNConfig { num_layers: layers, bidirectional: true, batch_first: true, ..Default::default() };
+        let cfg = nn::RNNConfig {
+            num_layers: layers,
+            bidirectional: true,
+            batch_first: true,
+            ..Default::default()
+        };
         let lstm = nn::lstm(p / "lstm", N_FEATURES as i64, hidden, cfg);
         let head = nn::linear(p / "head", 2 * hidden, 3, Default::default());
-        Net { lstm, head, dropout }
+        Net {
+            lstm,
+            head,
+            dropout,
+        }
     }
 
     /// `x`: `[batch, T, 21]` standardised → `[batch, 3]` tanh-scaled (point, low, high).
@@ -52,7 +61,9 @@ impl Net {
     }
 }
 
-/// A network on libtorch.
+/// A network on libtorch. (One per loaded model, made once: the size difference between the
+/// variants costs nothing worth a box.)
+#[allow(clippy::large_enum_variant)]
 enum Backend {
     Native { _vs: nn::VarStore, net: Net },
     Script(tch::CModule),
@@ -71,12 +82,14 @@ impl TorchNet {
             WeightsFormat::Safetensors => {
                 let mut vs = nn::VarStore::new(device);
                 let net = Net::new(&vs.root(), card.hidden, card.layers, card.training.dropout);
-                vs.load(weights).with_context(|| format!("{}: cannot load LSTM weights", weights.display()))?;
+                vs.load(weights)
+                    .with_context(|| format!("{}: cannot load LSTM weights", weights.display()))?;
                 Backend::Native { _vs: vs, net }
             }
             WeightsFormat::Torchscript => {
-                let mut m = tch::CModule::load_on_device(weights, device)
-                    .with_context(|| format!("{}: cannot load TorchScript module", weights.display()))?;
+                let mut m = tch::CModule::load_on_device(weights, device).with_context(|| {
+                    format!("{}: cannot load TorchScript module", weights.display())
+                })?;
                 m.set_eval();
                 Backend::Script(m)
             }
@@ -90,13 +103,19 @@ impl ExternalNet for TorchNet {
         // One intra-op thread (per OS thread, so here, where inference runs): this network
         // is small, and at batch 1 a thread team costs more than it gains.
         tch::set_num_threads(1);
-        let x = Tensor::from_slice(x).view([b as i64, t as i64, N_FEATURES as i64]).to_device(self.device);
+        let x = Tensor::from_slice(x)
+            .view([b as i64, t as i64, N_FEATURES as i64])
+            .to_device(self.device);
         let y = tch::no_grad(|| match &self.backend {
             Backend::Native { net, .. } => Ok(net.forward_t(&x, false)),
             Backend::Script(m) => m.forward_ts(&[&x]),
         })?;
         let y = y.to_device(Device::Cpu).to_kind(Kind::Float).contiguous();
-        let cols = if y.dim() == 2 { y.size()[1] as usize } else { 1 };
+        let cols = if y.dim() == 2 {
+            y.size()[1] as usize
+        } else {
+            1
+        };
         Ok((Vec::<f32>::try_from(y.view([-1]))?, cols))
     }
 
@@ -121,6 +140,9 @@ pub fn load(weights: &Path, card: &ModelCard) -> anyhow::Result<Option<Box<dyn E
 
 /// A loader that puts every model on libtorch (CPU): benchmarks and the checks of the
 /// kernel against libtorch.
-pub fn load_on_libtorch(weights: &Path, card: &ModelCard) -> anyhow::Result<Option<Box<dyn ExternalNet>>> {
+pub fn load_on_libtorch(
+    weights: &Path,
+    card: &ModelCard,
+) -> anyhow::Result<Option<Box<dyn ExternalNet>>> {
     Ok(Some(Box::new(TorchNet::load(weights, card, Device::Cpu)?)))
 }

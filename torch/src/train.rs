@@ -82,22 +82,36 @@ pub(crate) struct Scaling {
 
 /// Run `dronewatt train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
-    let data_path = args.data.clone().unwrap_or_else(dronewatt::default_data_path);
+    let data_path = args
+        .data
+        .clone()
+        .unwrap_or_else(dronewatt::default_data_path);
     let cfg = Config::load_or_default(args.config.as_deref())?;
     let tcfg = &cfg.telemetry;
-    tracing::info!("loading flights from {} through the ingest path", data_path.display());
+    tracing::info!(
+        "loading flights from {} through the ingest path",
+        data_path.display()
+    );
     tch::set_num_threads(args.threads);
     // The chosen flights plus whichever test flights the file holds (273 is withheld from
     // the shared copy, and a file may hold none of them).
     let wanted: Option<Vec<u32>> = match &args.flights {
         Some(k) => {
-            let held: Vec<u32> = dronewatt::offline::data::list_flights(&data_path)?.iter().map(|f| f.flight).collect();
-            Some(k.iter().copied().chain(TEST_FLIGHTS.into_iter().filter(|t| held.contains(t))).collect())
+            let held: Vec<u32> = dronewatt::offline::data::list_flights(&data_path)?
+                .iter()
+                .map(|f| f.flight)
+                .collect();
+            Some(
+                k.iter()
+                    .copied()
+                    .chain(TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)))
+                    .collect(),
+            )
         }
         None => None,
     };
-    let mut flights =
-        load_flights(&data_path, wanted.as_deref(), tcfg, &cfg.mission).with_context(|| format!("{}: loading flights", data_path.display()))?;
+    let mut flights = load_flights(&data_path, wanted.as_deref(), tcfg, &cfg.mission)
+        .with_context(|| format!("{}: loading flights", data_path.display()))?;
     if let Some(keep) = &wanted {
         flights.retain(|f| keep.contains(&f.flight));
     }
@@ -108,20 +122,44 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         return export_csv(&flights, csv, tcfg.window);
     }
     let t = tcfg.window;
-    let per_flight: BTreeMap<u32, FlightData> =
-        flights.iter().map(|f| (f.flight, flight_data(f, args.features, t, args.target_lag))).collect();
+    let per_flight: BTreeMap<u32, FlightData> = flights
+        .iter()
+        .map(|f| (f.flight, flight_data(f, args.features, t, args.target_lag)))
+        .collect();
     let pool: Vec<u32> = flights
         .iter()
-        .filter(|f| !TEST_FLIGHTS.contains(&f.flight) && !f.route.starts_with('A') && !per_flight[&f.flight].y.is_empty())
+        .filter(|f| {
+            !TEST_FLIGHTS.contains(&f.flight)
+                && !f.route.starts_with('A')
+                && !per_flight[&f.flight].y.is_empty()
+        })
         .map(|f| f.flight)
         .collect();
-    anyhow::ensure!(args.target_lag < t, "--target-lag {} must be below the window length {t}", args.target_lag);
-    anyhow::ensure!(pool.len() >= 2, "{}: need at least two non-test flights with measured power to train, found {}", data_path.display(), pool.len());
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create output folder", args.out.display()))?;
+    anyhow::ensure!(
+        args.target_lag < t,
+        "--target-lag {} must be below the window length {t}",
+        args.target_lag
+    );
+    anyhow::ensure!(
+        pool.len() >= 2,
+        "{}: need at least two non-test flights with measured power to train, found {}",
+        data_path.display(),
+        pool.len()
+    );
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create output folder", args.out.display()))?;
     let device = Device::cuda_if_available();
-    tracing::info!("{} training-eligible flights, device {:?}", pool.len(), device);
+    tracing::info!(
+        "{} training-eligible flights, device {:?}",
+        pool.len(),
+        device
+    );
 
-    let base = Hyper { dropout: args.dropout, lr: args.lr, batch: args.batch };
+    let base = Hyper {
+        dropout: args.dropout,
+        lr: args.lr,
+        batch: args.batch,
+    };
     let chosen = if args.grid || args.cv > 0 {
         cross_validate(&args, &pool, &per_flight, base, t, device)?
     } else {
@@ -137,12 +175,24 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     val_flights.sort_unstable();
     train_flights.sort_unstable();
     let started = Instant::now();
-    let (scaling, outcome, n_train) = train_split(&args, &train_flights, &val_flights, &per_flight, chosen, t, device, "final")?;
+    let (scaling, outcome, n_train) = train_split(
+        &args,
+        &train_flights,
+        &val_flights,
+        &per_flight,
+        chosen,
+        t,
+        device,
+        "final",
+    )?;
     let train_time_s = started.elapsed().as_secs_f64();
 
     write_curve(&args.out, &outcome.curve)?;
     let weights = "model.safetensors";
-    outcome.vs.save(args.out.join(weights)).with_context(|| format!("{}: cannot save weights", args.out.display()))?;
+    outcome
+        .vs
+        .save(args.out.join(weights))
+        .with_context(|| format!("{}: cannot save weights", args.out.display()))?;
     let card = ModelCard {
         format: 1,
         name: "lstm".into(),
@@ -160,7 +210,10 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         hidden: args.hidden,
         layers: 2,
         training: TrainingInfo {
-            data_file: data_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+            data_file: data_path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             data_sha256: sha256_file(&data_path)?,
             loader: "ingest".into(),
             seed: args.seed,
@@ -183,7 +236,11 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     card.save(&card_path)?;
 
     score_model_dir(&args.out, &data_path, &cfg)?;
-    println!("model written to {} (training took {:.0} s)", args.out.display(), train_time_s);
+    println!(
+        "model written to {} (training took {:.0} s)",
+        args.out.display(),
+        train_time_s
+    );
     Ok(())
 }
 
@@ -194,12 +251,25 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
 pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Result<Metrics> {
     let model = LstmModel::load(dir, &cfg.telemetry)?;
     let mut card = model.card().clone();
-    let held: Vec<u32> = dronewatt::offline::data::list_flights(data_path)?.iter().map(|f| f.flight).collect();
-    let tests: Vec<u32> = TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)).collect();
-    anyhow::ensure!(!tests.is_empty(), "{}: holds none of the test flights {TEST_FLIGHTS:?}", data_path.display());
+    let held: Vec<u32> = dronewatt::offline::data::list_flights(data_path)?
+        .iter()
+        .map(|f| f.flight)
+        .collect();
+    let tests: Vec<u32> = TEST_FLIGHTS
+        .into_iter()
+        .filter(|t| held.contains(t))
+        .collect();
+    anyhow::ensure!(
+        !tests.is_empty(),
+        "{}: holds none of the test flights {TEST_FLIGHTS:?}",
+        data_path.display()
+    );
     let flights = load_flights(data_path, Some(&tests), &cfg.telemetry, &cfg.mission)?;
     let mut chain = Chain::new(cfg, Ensemble::new(vec![Box::new(model)]))?;
-    let series = flights.iter().map(|f| chain.run_flight(f)).collect::<anyhow::Result<Vec<_>>>()?;
+    let series = flights
+        .iter()
+        .map(|f| chain.run_flight(f))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let (metrics, per) = score(&series)?;
     write_test_table(dir, &per)?;
     if let Some(f276) = series.iter().find(|s| s.flight == 276) {
@@ -262,11 +332,27 @@ fn cross_validate(
     for (si, hp) in settings.iter().enumerate() {
         let (mut maes, mut rmses) = (Vec::new(), Vec::new());
         for fold in 0..k {
-            let mut val: Vec<u32> = shuffled.iter().enumerate().filter(|(i, _)| i % k == fold).map(|(_, f)| *f).collect();
-            let mut train: Vec<u32> = shuffled.iter().enumerate().filter(|(i, _)| i % k != fold).map(|(_, f)| *f).collect();
+            let mut val: Vec<u32> = shuffled
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| i % k == fold)
+                .map(|(_, f)| *f)
+                .collect();
+            let mut train: Vec<u32> = shuffled
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| i % k != fold)
+                .map(|(_, f)| *f)
+                .collect();
             val.sort_unstable();
             train.sort_unstable();
-            let label = format!("setting {}/{} fold {}/{}", si + 1, settings.len(), fold + 1, k);
+            let label = format!(
+                "setting {}/{} fold {}/{}",
+                si + 1,
+                settings.len(),
+                fold + 1,
+                k
+            );
             let (_, out, _) = train_split(args, &train, &val, per_flight, *hp, t, device, &label)?;
             maes.push(out.best_val_mae_w);
             rmses.push(out.best_val_rmse_w);
@@ -275,20 +361,40 @@ fn cross_validate(
         rows.push((*hp, mean(&rmses), mean(&maes)));
     }
     let mut csv = String::from("dropout,learning_rate,batch_size,folds,avg_rmse_w,avg_mae_w\n");
-    println!("| Dropout | Learning rate | Batch | Avg. RMSE (W) | Avg. MAE (W) |\n|---|---|---|---|---|");
+    println!(
+        "| Dropout | Learning rate | Batch | Avg. RMSE (W) | Avg. MAE (W) |\n|---|---|---|---|---|"
+    );
     for (hp, rmse, mae) in &rows {
-        csv.push_str(&format!("{},{},{},{k},{rmse:.3},{mae:.3}\n", hp.dropout, hp.lr, hp.batch));
-        println!("| {} | {} | {} | {rmse:.2} | {mae:.2} |", hp.dropout, hp.lr, hp.batch);
+        csv.push_str(&format!(
+            "{},{},{},{k},{rmse:.3},{mae:.3}\n",
+            hp.dropout, hp.lr, hp.batch
+        ));
+        println!(
+            "| {} | {} | {} | {rmse:.2} | {mae:.2} |",
+            hp.dropout, hp.lr, hp.batch
+        );
     }
     let path = args.out.join("cv.csv");
     std::fs::write(&path, csv).with_context(|| format!("{}: cannot write", path.display()))?;
-    let best = rows.iter().min_by(|a, b| a.2.total_cmp(&b.2)).map(|r| r.0).unwrap_or(base);
-    println!("best setting: dropout {} lr {} batch {} ({k}-fold by-flight CV)", best.dropout, best.lr, best.batch);
+    let best = rows
+        .iter()
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .map(|r| r.0)
+        .unwrap_or(base);
+    println!(
+        "best setting: dropout {} lr {} batch {} ({k}-fold by-flight CV)",
+        best.dropout, best.lr, best.batch
+    );
     Ok(best)
 }
 
 /// Stack these flights' windows (every `stride`-th) into raw inputs and targets.
-fn gather(flights: &[u32], per_flight: &BTreeMap<u32, FlightData>, t: usize, stride: usize) -> (Vec<f32>, Vec<f32>) {
+fn gather(
+    flights: &[u32],
+    per_flight: &BTreeMap<u32, FlightData>,
+    t: usize,
+    stride: usize,
+) -> (Vec<f32>, Vec<f32>) {
     let (mut x, mut y) = (Vec::new(), Vec::new());
     let w = t * N_FEATURES;
     for f in flights {
@@ -318,19 +424,34 @@ fn fit_scaling(x: &[f32], y: &[f32]) -> Scaling {
         .map(|f| {
             let var = (sq[f] / n - (sum[f] / n).powi(2)).max(0.0);
             let s = var.sqrt() as f32;
-            if s > 1e-6 { s } else { 1.0 }
+            if s > 1e-6 {
+                s
+            } else {
+                1.0
+            }
         })
         .collect();
     let max_p = y.iter().cloned().fold(1.0f32, f32::max);
-    Scaling { mean, std, power_scale_w: 1.2 * max_p }
+    Scaling {
+        mean,
+        std,
+        power_scale_w: 1.2 * max_p,
+    }
 }
 
 /// Standardised `[n, T, 21]` inputs and scaled `[n]` targets on `device`.
-pub(crate) fn to_tensors(x: &[f32], y: &[f32], s: &Scaling, t: usize, device: Device) -> (Tensor, Tensor) {
+pub(crate) fn to_tensors(
+    x: &[f32],
+    y: &[f32],
+    s: &Scaling,
+    t: usize,
+    device: Device,
+) -> (Tensor, Tensor) {
     let n = y.len() as i64;
     let mean = Tensor::from_slice(&s.mean).view([1, 1, N_FEATURES as i64]);
     let std = Tensor::from_slice(&s.std).view([1, 1, N_FEATURES as i64]);
-    let xt = ((Tensor::from_slice(x).view([n, t as i64, N_FEATURES as i64]) - mean) / std).to_device(device);
+    let xt = ((Tensor::from_slice(x).view([n, t as i64, N_FEATURES as i64]) - mean) / std)
+        .to_device(device);
     let yt = (Tensor::from_slice(y) / s.power_scale_w as f64).to_device(device);
     (xt, yt)
 }
@@ -362,7 +483,10 @@ fn train_split(
 ) -> anyhow::Result<(Scaling, RunOutcome, usize)> {
     let (xr, yr) = gather(train, per_flight, t, args.stride);
     let (xv, yv) = gather(val, per_flight, t, 2);
-    anyhow::ensure!(!yr.is_empty() && !yv.is_empty(), "{label}: no training or validation windows");
+    anyhow::ensure!(
+        !yr.is_empty() && !yv.is_empty(),
+        "{label}: no training or validation windows"
+    );
     let scaling = fit_scaling(&xr, &yr);
     let (x, y) = to_tensors(&xr, &yr, &scaling, t, device);
     let (vx, vy) = to_tensors(&xv, &yv, &scaling, t, device);
@@ -377,15 +501,20 @@ fn train_split(
     let max_steps = args.max_steps.unwrap_or(usize::MAX);
     let pb = ProgressBar::new((steps_per_epoch * args.epochs).min(max_steps) as u64);
     pb.set_style(
-        ProgressStyle::with_template("{prefix} [{elapsed_precise}] {wide_bar} {pos}/{len} steps ({eta}) {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{prefix} [{elapsed_precise}] {wide_bar} {pos}/{len} steps ({eta}) {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     pb.set_prefix(label.to_string());
     let mut curve = Vec::new();
     let mut best: Option<(f64, f64, usize, Vec<Tensor>)> = None;
     let mut steps = 0;
     let started = Instant::now();
-    let out_of_time = || args.time_budget_s.is_some_and(|b| started.elapsed().as_secs_f64() > b);
+    let out_of_time = || {
+        args.time_budget_s
+            .is_some_and(|b| started.elapsed().as_secs_f64() > b)
+    };
     'epochs: for epoch in 1..=args.epochs {
         order.shuffle(&mut rng);
         let (mut sum, mut count) = (0.0, 0usize);
@@ -404,11 +533,23 @@ fn train_split(
         }
         let (val_loss, mae, rmse) = validate(&net, &vx, &vy, scaling.power_scale_w);
         let train_loss = sum / count.max(1) as f64;
-        curve.push(CurvePoint { epoch, step: steps, train_loss, val_loss, val_mae_w: mae });
-        pb.set_message(format!("epoch {epoch}: train {train_loss:.4} val {val_loss:.4} val MAE {mae:.1} W"));
+        curve.push(CurvePoint {
+            epoch,
+            step: steps,
+            train_loss,
+            val_loss,
+            val_mae_w: mae,
+        });
+        pb.set_message(format!(
+            "epoch {epoch}: train {train_loss:.4} val {val_loss:.4} val MAE {mae:.1} W"
+        ));
         tracing::info!("{label} epoch {epoch}: train loss {train_loss:.5} val loss {val_loss:.5} val MAE {mae:.2} W");
         if best.as_ref().is_none_or(|b| mae < b.0) {
-            let snapshot = vs.trainable_variables().iter().map(|v| v.detach().copy()).collect();
+            let snapshot = vs
+                .trainable_variables()
+                .iter()
+                .map(|v| v.detach().copy())
+                .collect();
             best = Some((mae, rmse, epoch, snapshot));
         } else if best.as_ref().is_some_and(|b| epoch - b.2 >= args.patience) {
             break 'epochs;
@@ -425,8 +566,21 @@ fn train_split(
         }
     });
     vs.freeze();
-    tracing::info!("{label}: best validation MAE {best_mae:.2} W at epoch {best_epoch} ({steps} steps)");
-    Ok((scaling, RunOutcome { vs, curve, best_epoch, best_val_mae_w: best_mae, best_val_rmse_w: best_rmse, steps }, n))
+    tracing::info!(
+        "{label}: best validation MAE {best_mae:.2} W at epoch {best_epoch} ({steps} steps)"
+    );
+    Ok((
+        scaling,
+        RunOutcome {
+            vs,
+            curve,
+            best_epoch,
+            best_val_mae_w: best_mae,
+            best_val_rmse_w: best_rmse,
+            steps,
+        },
+        n,
+    ))
 }
 
 /// Validation loss, MAE (W) and RMSE (W) with dropout off, in batches.
@@ -468,7 +622,9 @@ pub struct FlightScore {
 pub fn score(series: &[FlightSeries]) -> anyhow::Result<(Metrics, Vec<FlightScore>)> {
     let (mut per, mut scores, mut inside, mut banded) = (Vec::new(), Vec::new(), 0usize, 0usize);
     for s in series.iter().filter(|s| !s.pred_w.is_empty()) {
-        let Some(sc) = metrics::score_over(&s.aligned(0), true) else { continue };
+        let Some(sc) = metrics::score_over(&s.aligned(0), true) else {
+            continue;
+        };
         let (mut fin, mut n) = (0usize, 0usize);
         for ((p, m), band) in s.pred_w[0].iter().zip(&s.measured_w).zip(&s.band_w[0]) {
             if p.is_finite() && m.is_finite() {
@@ -502,11 +658,18 @@ pub fn score(series: &[FlightSeries]) -> anyhow::Result<(Metrics, Vec<FlightScor
 }
 
 fn write_test_table(out: &Path, per: &[FlightScore]) -> anyhow::Result<()> {
-    let mut s = String::from("flight,windows,mae_w,mape_in_flight_pct,energy_error_pct,band_coverage_pct\n");
+    let mut s = String::from(
+        "flight,windows,mae_w,mape_in_flight_pct,energy_error_pct,band_coverage_pct\n",
+    );
     for p in per {
         s.push_str(&format!(
             "{},{},{:.3},{:.3},{:.3},{:.2}\n",
-            p.flight, p.windows, p.mae_w, p.mape_in_flight_pct, p.energy_error_pct, p.band_coverage_pct
+            p.flight,
+            p.windows,
+            p.mae_w,
+            p.mape_in_flight_pct,
+            p.energy_error_pct,
+            p.band_coverage_pct
         ));
     }
     let path = out.join("test_flights.csv");
@@ -516,13 +679,25 @@ fn write_test_table(out: &Path, per: &[FlightScore]) -> anyhow::Result<()> {
 fn write_curve(out: &Path, curve: &[CurvePoint]) -> anyhow::Result<()> {
     let mut s = String::from("epoch,step,train_loss,val_loss,val_mae_w\n");
     for c in curve {
-        s.push_str(&format!("{},{},{:.6},{:.6},{:.3}\n", c.epoch, c.step, c.train_loss, c.val_loss, c.val_mae_w));
+        s.push_str(&format!(
+            "{},{},{:.6},{:.6},{:.3}\n",
+            c.epoch, c.step, c.train_loss, c.val_loss, c.val_mae_w
+        ));
     }
     let path = out.join("loss.csv");
     std::fs::write(&path, s).with_context(|| format!("{}: cannot write", path.display()))?;
-    let train: Vec<(f64, f64)> = curve.iter().map(|c| (c.epoch as f64, c.train_loss)).collect();
+    let train: Vec<(f64, f64)> = curve
+        .iter()
+        .map(|c| (c.epoch as f64, c.train_loss))
+        .collect();
     let val: Vec<(f64, f64)> = curve.iter().map(|c| (c.epoch as f64, c.val_loss)).collect();
-    plot::lines(&out.join("loss.png"), "Training and validation loss", "epoch", "loss (scaled)", &[("training", train), ("validation", val)])
+    plot::lines(
+        &out.join("loss.png"),
+        "Training and validation loss",
+        "epoch",
+        "loss (scaled)",
+        &[("training", train), ("validation", val)],
+    )
 }
 
 /// Plot the first model of `s` (its estimate and band) against measured power, each
@@ -530,15 +705,31 @@ fn write_curve(out: &Path, curve: &[CurvePoint]) -> anyhow::Result<()> {
 fn plot_flight(s: &FlightSeries, path: &Path) -> anyhow::Result<()> {
     let t0 = s.t_s.first().copied().unwrap_or(0.0);
     let points = |v: &mut dyn Iterator<Item = f64>| -> Vec<(f64, f64)> {
-        s.t_s.iter().zip(v).filter(|(_, y)| y.is_finite()).map(|(t, y)| (t - t0, y)).collect()
+        s.t_s
+            .iter()
+            .zip(v)
+            .filter(|(_, y)| y.is_finite())
+            .map(|(t, y)| (t - t0, y))
+            .collect()
     };
-    let band = |hi: bool| points(&mut s.band_w[0].iter().map(|b| b.map_or(f64::NAN, |(lo, h)| if hi { h } else { lo })));
+    let band = |hi: bool| {
+        points(
+            &mut s.band_w[0]
+                .iter()
+                .map(|b| b.map_or(f64::NAN, |(lo, h)| if hi { h } else { lo })),
+        )
+    };
     plot::lines(
         path,
         &format!("Flight {}: LSTM vs measured power", s.flight),
         "time (s)",
         "power (W)",
-        &[("measured", points(&mut s.measured_w.iter().copied())), ("LSTM", points(&mut s.pred_w[0].iter().copied())), ("band low", band(false)), ("band high", band(true))],
+        &[
+            ("measured", points(&mut s.measured_w.iter().copied())),
+            ("LSTM", points(&mut s.pred_w[0].iter().copied())),
+            ("band low", band(false)),
+            ("band high", band(true)),
+        ],
     )
 }
 
@@ -548,12 +739,23 @@ const EXPORT_LAGS: [usize; 3] = [1, 3, 9];
 /// Write each window's newest sample and lagged copies to a CSV for the LightGBM baseline.
 fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> anyhow::Result<()> {
     use std::io::Write;
-    let file = std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?;
+    let file = std::fs::File::create(path)
+        .with_context(|| format!("{}: cannot create", path.display()))?;
     let mut w = std::io::BufWriter::new(file);
-    let mut header = vec!["flight".to_string(), "route".into(), "test".into(), "t_s".into(), "measured_w".into()];
+    let mut header = vec![
+        "flight".to_string(),
+        "route".into(),
+        "test".into(),
+        "t_s".into(),
+        "measured_w".into(),
+    ];
     for lag in std::iter::once(0).chain(EXPORT_LAGS) {
         for n in dronewatt::features::FEATURE_NAMES {
-            header.push(if lag == 0 { n.to_string() } else { format!("{n}_lag{lag}") });
+            header.push(if lag == 0 {
+                n.to_string()
+            } else {
+                format!("{n}_lag{lag}")
+            });
         }
     }
     writeln!(w, "{}", header.join(","))?;
@@ -561,12 +763,22 @@ fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> anyhow::Resul
     for f in flights {
         let test = TEST_FLIGHTS.contains(&f.flight) as u8;
         for win in &f.windows {
-            let Some(p) = win.last().measured_w.filter(|p| p.is_finite()) else { continue };
+            let Some(p) = win.last().measured_w.filter(|p| p.is_finite()) else {
+                continue;
+            };
             let s = &win.samples;
             if s.len() < t {
                 continue;
             }
-            write!(w, "{},{},{},{:.2},{:.3}", f.flight, f.route, test, win.t_s(), p)?;
+            write!(
+                w,
+                "{},{},{},{:.2},{:.3}",
+                f.flight,
+                f.route,
+                test,
+                win.t_s(),
+                p
+            )?;
             for lag in std::iter::once(0).chain(EXPORT_LAGS) {
                 for v in s[s.len() - 1 - lag.min(s.len() - 1)].features {
                     write!(w, ",{v}")?;
@@ -580,4 +792,3 @@ fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> anyhow::Resul
     eprintln!("{}: {rows} windows written", path.display());
     Ok(())
 }
-

@@ -10,7 +10,12 @@ use tch::{Device, Kind, Tensor};
 /// A randomly initialised network (non-zero biases, so their sum is exercised) saved to a
 /// `.safetensors` file, its libtorch outputs for `windows` random windows of T = 10, and
 /// those windows' inputs.
-fn random_net(seed: i64, hidden: i64, layers: i64, windows: i64) -> (tempfile::TempDir, std::path::PathBuf, Vec<f32>, Vec<f32>) {
+fn random_net(
+    seed: i64,
+    hidden: i64,
+    layers: i64,
+    windows: i64,
+) -> (tempfile::TempDir, std::path::PathBuf, Vec<f32>, Vec<f32>) {
     tch::manual_seed(seed);
     let mut vs = VarStore::new(Device::Cpu);
     let net = Net::new(&vs.root(), hidden, layers, 0.2);
@@ -23,7 +28,8 @@ fn random_net(seed: i64, hidden: i64, layers: i64, windows: i64) -> (tempfile::T
     });
     vs.freeze();
     let x = Tensor::randn([windows, 10, 21], (Kind::Float, Device::Cpu)) * 1.5;
-    let want = Vec::<f32>::try_from(tch::no_grad(|| net.forward_t(&x, false)).view([-1])).expect("libtorch output");
+    let want = Vec::<f32>::try_from(tch::no_grad(|| net.forward_t(&x, false)).view([-1]))
+        .expect("libtorch output");
     let xs = Vec::<f32>::try_from(x.view([-1])).expect("input");
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("net.safetensors");
@@ -37,7 +43,12 @@ fn check_batch(m: &mut CpuLstm, xs: &[f32], want: &[f32], b: usize, what: &str) 
     let mut out = vec![f32::NAN; b * o];
     m.forward_batch(&xs[..b * per], 10, &mut out);
     for (i, (got, exp)) in out.iter().zip(&want[..b * o]).enumerate() {
-        assert!((got - exp).abs() < 1e-5, "{what}, batch {b}: window {} output {}: {got} vs libtorch {exp}", i / o, i % o);
+        assert!(
+            (got - exp).abs() < 1e-5,
+            "{what}, batch {b}: window {} output {}: {got} vs libtorch {exp}",
+            i / o,
+            i % o
+        );
     }
 }
 
@@ -83,8 +94,12 @@ fn matches_libtorch_on_another_shape() {
 #[test]
 fn wrong_shape_is_an_error() {
     let (_dir, path, _, _) = random_net(5, 24, 2, 1);
-    let err = CpuLstm::from_safetensors(&path, 2, 32).err().expect("24 cells read as 32 must fail");
+    let err = CpuLstm::from_safetensors(&path, 2, 32)
+        .err()
+        .expect("24 cells read as 32 must fail");
     assert!(format!("{err:#}").contains("net.safetensors"), "{err:#}");
-    let err = CpuLstm::from_safetensors(&path, 3, 24).err().expect("2 layers read as 3 must fail");
+    let err = CpuLstm::from_safetensors(&path, 3, 24)
+        .err()
+        .expect("2 layers read as 3 must fail");
     assert!(format!("{err:#}").contains("3-layer"), "{err:#}");
 }

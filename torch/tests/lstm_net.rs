@@ -4,10 +4,10 @@
 
 use dronewatt::model::card::{FeatureSet, ModelCard, TrainingInfo, WeightsFormat};
 use dronewatt::model::lstm::{push_inputs, LstmModel};
-use dronewatt_torch::Net;
 use dronewatt::model::PowerModel;
-use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
 use dronewatt::telemetry::window::Window;
+use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
+use dronewatt_torch::Net;
 use tch::nn::{self, OptimizerConfig};
 use tch::{Device, Kind, Tensor};
 
@@ -21,10 +21,21 @@ fn synthetic_window(i: usize) -> Window {
             f[19] = payload;
             f[17] = -9.81;
             let p = 200.0 + 0.1 * payload + 3.0 * f[9];
-            Sample { t_s: k as f64 * 0.1, features: f, measured_w: Some(p), voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
+            Sample {
+                t_s: k as f64 * 0.1,
+                features: f,
+                measured_w: Some(p),
+                voltage_v: None,
+                home: None,
+                stale_mask: 0,
+                battery_remaining_pct: None,
+            }
         })
         .collect();
-    Window { samples, arrived: None }
+    Window {
+        samples,
+        arrived: None,
+    }
 }
 
 fn card(dir: &std::path::Path, window: usize) -> ModelCard {
@@ -44,7 +55,10 @@ fn card(dir: &std::path::Path, window: usize) -> ModelCard {
         band_quantiles: (0.05, 0.95),
         hidden: 16,
         layers: 2,
-        training: TrainingInfo { dropout: 0.2, ..Default::default() },
+        training: TrainingInfo {
+            dropout: 0.2,
+            ..Default::default()
+        },
         metrics: None,
     }
     .tap_save(dir)
@@ -70,7 +84,12 @@ fn network_learns_saves_and_reloads() {
         push_inputs(w, FeatureSet::Paper, 10, &mut x);
     }
     let x = Tensor::from_slice(&x).view([256, 10, N_FEATURES as i64]) / 100.0;
-    let y = Tensor::from_slice(&windows.iter().map(|w| w.last().measured_w.unwrap() / 500.0).collect::<Vec<_>>());
+    let y = Tensor::from_slice(
+        &windows
+            .iter()
+            .map(|w| w.last().measured_w.unwrap() / 500.0)
+            .collect::<Vec<_>>(),
+    );
     let mut vs = nn::VarStore::new(Device::Cpu);
     let net = Net::new(&vs.root(), 16, 2, 0.2);
     let mut opt = nn::Adam::default().build(&vs, 1e-2).unwrap();
@@ -82,7 +101,10 @@ fn network_learns_saves_and_reloads() {
         losses.push(loss.double_value(&[]) * 500.0);
     }
     let (first, last) = (losses[0], *losses.last().unwrap());
-    assert!(last < first / 3.0, "MAE should fall: {first:.1} W → {last:.1} W");
+    assert!(
+        last < first / 3.0,
+        "MAE should fall: {first:.1} W → {last:.1} W"
+    );
 
     let dir = tempfile::tempdir().unwrap();
     vs.freeze();
@@ -95,7 +117,11 @@ fn network_learns_saves_and_reloads() {
     assert_eq!(out.len(), 4);
     for (i, p) in out.iter().enumerate() {
         let d = direct.double_value(&[i as i64]) as f32;
-        assert!((p.power_w - d).abs() < 1e-2, "reloaded model disagrees: {} vs {d}", p.power_w);
+        assert!(
+            (p.power_w - d).abs() < 1e-2,
+            "reloaded model disagrees: {} vs {d}",
+            p.power_w
+        );
         let (lo, hi) = p.band_w.expect("band heads give a band");
         assert!(lo <= p.power_w && p.power_w <= hi);
     }
@@ -108,19 +134,40 @@ fn card_mismatch_names_the_key() {
     let _net = Net::new(&vs.root(), 16, 2, 0.2);
     vs.save(dir.path().join("model.safetensors")).unwrap();
     card(dir.path(), 20);
-    let err = LstmModel::load(dir.path(), &TelemetryConfig::default()).err().expect("window 20 vs 10 must fail");
+    let err = LstmModel::load(dir.path(), &TelemetryConfig::default())
+        .err()
+        .expect("window 20 vs 10 must fail");
     let msg = format!("{err:#}");
-    assert!(msg.contains("window = 20") && msg.contains("telemetry.window = 10"), "{msg}");
+    assert!(
+        msg.contains("window = 20") && msg.contains("telemetry.window = 10"),
+        "{msg}"
+    );
 
     let mut c = card(dir.path(), 10);
     c.feature_names.swap(0, 1);
     c.save(&dir.path().join("card.toml")).unwrap();
-    let msg = format!("{:#}", LstmModel::load(dir.path(), &TelemetryConfig::default()).err().expect("swapped names must fail"));
+    let msg = format!(
+        "{:#}",
+        LstmModel::load(dir.path(), &TelemetryConfig::default())
+            .err()
+            .expect("swapped names must fail")
+    );
     assert!(msg.contains("feature_names[0] is 'wind_angle'"), "{msg}");
 
-    let tcfg = TelemetryConfig { rate_hz: 5.0, ..Default::default() };
+    let tcfg = TelemetryConfig {
+        rate_hz: 5.0,
+        ..Default::default()
+    };
     c.feature_names.swap(0, 1);
     c.save(&dir.path().join("card.toml")).unwrap();
-    let msg = format!("{:#}", LstmModel::load(dir.path(), &tcfg).err().expect("rate 5 vs 10 must fail"));
-    assert!(msg.contains("rate_hz = 10") && msg.contains("telemetry.rate_hz = 5"), "{msg}");
+    let msg = format!(
+        "{:#}",
+        LstmModel::load(dir.path(), &tcfg)
+            .err()
+            .expect("rate 5 vs 10 must fail")
+    );
+    assert!(
+        msg.contains("rate_hz = 10") && msg.contains("telemetry.rate_hz = 5"),
+        "{msg}"
+    );
 }

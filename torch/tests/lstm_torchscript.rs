@@ -8,8 +8,8 @@ use std::process::Command;
 use dronewatt::model::card::{FeatureSet, ModelCard, TrainingInfo, WeightsFormat};
 use dronewatt::model::lstm::LstmModel;
 use dronewatt::model::PowerModel;
-use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
 use dronewatt::telemetry::window::Window;
+use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
 
 const EXPORT: &str = r#"
 import sys, torch
@@ -30,14 +30,22 @@ fn torchscript_module_loads_with_its_card() {
     let script = dir.path().join("export.py");
     std::fs::write(&script, EXPORT).unwrap();
     let exported = python.is_file()
-        && Command::new(&python).arg(&script).arg(&pt).stderr(std::process::Stdio::null()).status().is_ok_and(|s| s.success());
+        && Command::new(&python)
+            .arg(&script)
+            .arg(&pt)
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
     if exported {
         eprintln!("module exported by PyTorch ({})", python.display());
     } else {
         // No importable PyTorch (`.venv-torch` holds libtorch only); trace the same
         // module through libtorch so the TorchScript loading path is still exercised.
         eprintln!("no PyTorch to export with: tracing the module with libtorch instead");
-        let x = tch::Tensor::zeros([2, 10, N_FEATURES as i64], (tch::Kind::Float, tch::Device::Cpu));
+        let x = tch::Tensor::zeros(
+            [2, 10, N_FEATURES as i64],
+            (tch::Kind::Float, tch::Device::Cpu),
+        );
         let m = tch::CModule::create_by_tracing("Tiny", "forward", &[x], &mut |xs| {
             let p = (xs[0].mean_dim(&[1i64, 2][..], false, tch::Kind::Float) * 0.1).tanh();
             vec![tch::Tensor::stack(&[&p, &(&p - 0.1), &(&p + 0.1)], 1)]
@@ -67,11 +75,18 @@ fn torchscript_module_loads_with_its_card() {
     card.save(&dir.path().join("card.toml")).unwrap();
     // Without libtorch (the `dronewatt` binary) the module is refused with the error that
     // hands the command to `dronewatt-torch`.
-    let err = LstmModel::load_with(&pt, &TelemetryConfig::default(), None).err().expect("TorchScript needs libtorch");
+    let err = LstmModel::load_with(&pt, &TelemetryConfig::default(), None)
+        .err()
+        .expect("TorchScript needs libtorch");
     assert!(err.is::<dronewatt::model::NeedsLibtorch>(), "{err:#}");
     assert!(format!("{err:#}").contains("dronewatt-torch"), "{err:#}");
     // Load through the weights file path, as `--model tiny.pt` does, with libtorch's loader.
-    let mut model = LstmModel::load_with(&pt, &TelemetryConfig::default(), Some(dronewatt_torch::load)).unwrap();
+    let mut model = LstmModel::load_with(
+        &pt,
+        &TelemetryConfig::default(),
+        Some(dronewatt_torch::load),
+    )
+    .unwrap();
     assert!(!model.on_kernel());
     assert_eq!(model.name(), "byo");
     let windows: Vec<Window> = (0..3)
@@ -96,17 +111,34 @@ fn torchscript_module_loads_with_its_card() {
     for (i, p) in out.iter().enumerate() {
         let mean = (0..10).map(|k| (i * 10 + k) as f32).sum::<f32>() / 10.0;
         let want = 100.0 * (mean * 0.1).tanh();
-        assert!((p.power_w - want).abs() < 1e-3, "window {i}: {} W, want {want} W", p.power_w);
+        assert!(
+            (p.power_w - want).abs() < 1e-3,
+            "window {i}: {} W, want {want} W",
+            p.power_w
+        );
         // The module's band heads are p ∓ 0.1 before scaling: exactly 10 W either side.
         let (lo, hi) = p.band_w.expect("the module has band heads");
-        assert!((lo - (want - 10.0)).abs() < 1e-3, "window {i}: band low {lo} W, want {} W", want - 10.0);
-        assert!((hi - (want + 10.0)).abs() < 1e-3, "window {i}: band high {hi} W, want {} W", want + 10.0);
+        assert!(
+            (lo - (want - 10.0)).abs() < 1e-3,
+            "window {i}: band low {lo} W, want {} W",
+            want - 10.0
+        );
+        assert!(
+            (hi - (want + 10.0)).abs() < 1e-3,
+            "window {i}: band high {hi} W, want {} W",
+            want + 10.0
+        );
     }
 
     // End to end: `dronewatt` itself (no libtorch) is asked to replay with this module; it
     // hands the whole command to `dronewatt-torch`, whose estimates carry the module's name.
-    let lean = std::path::Path::new(env!("CARGO_BIN_EXE_dronewatt-torch")).with_file_name("dronewatt");
-    assert!(lean.is_file(), "{}: not built (cargo test --workspace builds it)", lean.display());
+    let lean =
+        std::path::Path::new(env!("CARGO_BIN_EXE_dronewatt-torch")).with_file_name("dronewatt");
+    assert!(
+        lean.is_file(),
+        "{}: not built (cargo test --workspace builds it)",
+        lean.display()
+    );
     let demo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../replay/demo.tlog");
     let out = Command::new(&lean)
         .arg("replay")
@@ -116,9 +148,18 @@ fn torchscript_module_loads_with_its_card() {
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "replay with a TorchScript model failed: {stderr}");
-    assert!(stderr.contains("dronewatt-torch"), "the hand-off is logged: {stderr}");
+    assert!(
+        out.status.success(),
+        "replay with a TorchScript model failed: {stderr}"
+    );
+    assert!(
+        stderr.contains("dronewatt-torch"),
+        "the hand-off is logged: {stderr}"
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    let byo = stdout.lines().filter(|l| l.contains("\"estimate\"") && l.contains("\"byo\"")).count();
+    let byo = stdout
+        .lines()
+        .filter(|l| l.contains("\"estimate\"") && l.contains("\"byo\""))
+        .count();
     assert!(byo > 1000, "{byo} estimates from the TorchScript model");
 }

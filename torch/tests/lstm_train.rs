@@ -13,11 +13,39 @@ use dronewatt::telemetry::{MissionConfig, TelemetryConfig};
 fn smoke_training_loss_falls() {
     let out = tempfile::tempdir().unwrap();
     // Through `dronewatt` itself, which hands training to `dronewatt-torch` beside it.
-    let lean = std::path::Path::new(env!("CARGO_BIN_EXE_dronewatt-torch")).with_file_name("dronewatt");
-    assert!(lean.is_file(), "{}: not built (cargo test --workspace builds it)", lean.display());
+    let lean =
+        std::path::Path::new(env!("CARGO_BIN_EXE_dronewatt-torch")).with_file_name("dronewatt");
+    assert!(
+        lean.is_file(),
+        "{}: not built (cargo test --workspace builds it)",
+        lean.display()
+    );
     let status = std::process::Command::new(&lean)
-        .args(["train", "--flights", "100,150,200", "--stride", "1", "--epochs", "8", "--patience", "8"])
-        .args(["--max-steps", "300", "--hidden", "32", "--batch", "64", "--lr", "3e-3", "--seed", "3", "--target-lag", "2"])
+        .args([
+            "train",
+            "--flights",
+            "100,150,200",
+            "--stride",
+            "1",
+            "--epochs",
+            "8",
+            "--patience",
+            "8",
+        ])
+        .args([
+            "--max-steps",
+            "300",
+            "--hidden",
+            "32",
+            "--batch",
+            "64",
+            "--lr",
+            "3e-3",
+            "--seed",
+            "3",
+            "--target-lag",
+            "2",
+        ])
         .arg("--data")
         .arg(dronewatt::default_data_path())
         .arg("--out")
@@ -26,32 +54,64 @@ fn smoke_training_loss_falls() {
         .unwrap();
     assert!(status.success(), "dronewatt train failed");
     let curve = std::fs::read_to_string(out.path().join("loss.csv")).unwrap();
-    let losses: Vec<f64> = curve.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().parse().unwrap()).collect();
+    let losses: Vec<f64> = curve
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
     assert!(losses.len() >= 3, "{curve}");
-    assert!(losses.last().unwrap() < &(losses[0] * 0.7), "training loss did not fall: {losses:?}");
+    assert!(
+        losses.last().unwrap() < &(losses[0] * 0.7),
+        "training loss did not fall: {losses:?}"
+    );
     let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
-    assert_eq!(card.training.train_flights.len() + card.training.validation_flights.len(), 3);
-    assert_eq!(card.target_lag, 2, "the card records the target lag the model was trained for");
-    assert!(out.path().join("loss.png").is_file() && out.path().join("model.safetensors").is_file());
+    assert_eq!(
+        card.training.train_flights.len() + card.training.validation_flights.len(),
+        3
+    );
+    assert_eq!(
+        card.target_lag, 2,
+        "the card records the target lag the model was trained for"
+    );
+    assert!(
+        out.path().join("loss.png").is_file() && out.path().join("model.safetensors").is_file()
+    );
 }
 
 /// The committed weights, loaded as the binary loads them, score flight 276 (never
 /// trained on) within 35 W MAE.
 #[test]
 fn shipped_weights_flight_276() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(DEFAULT_MODEL_DIR);
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(DEFAULT_MODEL_DIR);
     let cfg = TelemetryConfig::default();
     let mut model = LstmModel::load(&dir, &cfg).unwrap();
     assert!(!model.card().training.train_flights.contains(&276));
     assert!(!model.card().training.validation_flights.contains(&276));
-    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg, &MissionConfig::default()).unwrap();
+    let flights = load_flights(
+        &dronewatt::default_data_path(),
+        Some(&[276]),
+        &cfg,
+        &MissionConfig::default(),
+    )
+    .unwrap();
     // Each estimate is for the sample the card's target lag before the window's newest.
     let lag = model.card().target_lag;
-    let windows: Vec<_> = flights[0].windows.iter().filter(|w| w.back(lag).measured_w.is_some()).cloned().collect();
+    let windows: Vec<_> = flights[0]
+        .windows
+        .iter()
+        .filter(|w| w.back(lag).measured_w.is_some())
+        .cloned()
+        .collect();
     assert!(windows.len() > 1000);
     let mut out = Vec::new();
     model.predict(&windows, &mut out);
-    let mae = windows.iter().zip(&out).map(|(w, p)| (p.power_w - w.back(lag).measured_w.unwrap()).abs() as f64).sum::<f64>()
+    let mae = windows
+        .iter()
+        .zip(&out)
+        .map(|(w, p)| (p.power_w - w.back(lag).measured_w.unwrap()).abs() as f64)
+        .sum::<f64>()
         / windows.len() as f64;
     assert!(mae <= 35.0, "flight 276 MAE {mae:.1} W");
 }
@@ -61,13 +121,22 @@ fn shipped_weights_flight_276() {
 /// weights over flight 276.
 #[test]
 fn live_forward_matches_libtorch_on_shipped_weights() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(DEFAULT_MODEL_DIR);
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(DEFAULT_MODEL_DIR);
     let cfg = TelemetryConfig::default();
     let mut model = LstmModel::load(&dir, &cfg).unwrap();
     assert!(model.on_kernel());
-    let mut torch = LstmModel::load_with(&dir, &cfg, Some(dronewatt_torch::load_on_libtorch)).unwrap();
+    let mut torch =
+        LstmModel::load_with(&dir, &cfg, Some(dronewatt_torch::load_on_libtorch)).unwrap();
     assert!(!torch.on_kernel());
-    let flights = load_flights(&dronewatt::default_data_path(), Some(&[276]), &cfg, &MissionConfig::default()).unwrap();
+    let flights = load_flights(
+        &dronewatt::default_data_path(),
+        Some(&[276]),
+        &cfg,
+        &MissionConfig::default(),
+    )
+    .unwrap();
     let windows: Vec<_> = flights[0].windows.iter().step_by(7).cloned().collect();
     assert!(windows.len() > 100);
     let mut batched = Vec::new();
@@ -76,16 +145,33 @@ fn live_forward_matches_libtorch_on_shipped_weights() {
     model.predict(&windows, &mut all);
     assert_eq!(all.len(), batched.len());
     for (got, want) in all.iter().zip(&batched) {
-        assert!((got.power_w - want.power_w).abs() < 0.05, "batched: {} W vs libtorch {} W", got.power_w, want.power_w);
+        assert!(
+            (got.power_w - want.power_w).abs() < 0.05,
+            "batched: {} W vs libtorch {} W",
+            got.power_w,
+            want.power_w
+        );
         let (gb, wb) = (got.band_w.unwrap(), want.band_w.unwrap());
-        assert!((gb.0 - wb.0).abs() < 0.05 && (gb.1 - wb.1).abs() < 0.05, "batched band {gb:?} vs {wb:?}");
+        assert!(
+            (gb.0 - wb.0).abs() < 0.05 && (gb.1 - wb.1).abs() < 0.05,
+            "batched band {gb:?} vs {wb:?}"
+        );
     }
     let mut one = Vec::new();
     for (w, want) in windows.iter().zip(&batched) {
         model.predict(std::slice::from_ref(w), &mut one);
         let got = &one[0];
-        assert!((got.power_w - want.power_w).abs() < 0.05, "t = {}: {} W vs libtorch {} W", w.last().t_s, got.power_w, want.power_w);
+        assert!(
+            (got.power_w - want.power_w).abs() < 0.05,
+            "t = {}: {} W vs libtorch {} W",
+            w.last().t_s,
+            got.power_w,
+            want.power_w
+        );
         let (gb, wb) = (got.band_w.unwrap(), want.band_w.unwrap());
-        assert!((gb.0 - wb.0).abs() < 0.05 && (gb.1 - wb.1).abs() < 0.05, "band {gb:?} vs {wb:?}");
+        assert!(
+            (gb.0 - wb.0).abs() < 0.05 && (gb.1 - wb.1).abs() < 0.05,
+            "band {gb:?} vs {wb:?}"
+        );
     }
 }

@@ -37,8 +37,8 @@
 //! longitude out of range, a non-finite number, no items at all.
 mod formats;
 
-pub use formats::{parse_qgc_plan, parse_waypoints};
 use formats::{build_item, RawItem};
+pub use formats::{parse_qgc_plan, parse_waypoints};
 
 use std::path::Path;
 
@@ -143,7 +143,11 @@ impl Plan {
     /// Read a plan file, by content: `QGC WPL 110` text, else QGroundControl JSON.
     pub fn load(path: &Path) -> Result<Plan, PlanError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| PlanError { file: file.clone(), at: "file".into(), why: format!("cannot read: {e}") })?;
+        let text = std::fs::read_to_string(path).map_err(|e| PlanError {
+            file: file.clone(),
+            at: "file".into(),
+            why: format!("cannot read: {e}"),
+        })?;
         if text.trim_start().starts_with("QGC WPL") {
             parse_waypoints(&text, &file)
         } else {
@@ -153,23 +157,45 @@ impl Plan {
 
     /// Items the trajectory model does not model, for listing.
     pub fn not_modelled(&self) -> Vec<&Item> {
-        self.items.iter().filter(|i| matches!(i.kind, ItemKind::NotModelled { .. })).collect()
+        self.items
+            .iter()
+            .filter(|i| matches!(i.kind, ItemKind::NotModelled { .. }))
+            .collect()
     }
 
     /// Items whose altitude was given above terrain (flown as above home).
     pub fn terrain_items(&self) -> Vec<&Item> {
-        self.items.iter().filter(|i| i.frame == AltFrame::Terrain).collect()
+        self.items
+            .iter()
+            .filter(|i| i.frame == AltFrame::Terrain)
+            .collect()
     }
 
     /// A plan from a home and waypoints (altitudes above home), flown at `speed_m_s`:
     /// take-off to the first waypoint's altitude, the waypoints, return to launch. What
     /// the evaluation builds from the data set's routes, and what tests and benches fly.
-    pub fn from_waypoints(source: &str, home: GeoPoint, waypoints: &[GeoPoint], speed_m_s: f64) -> Plan {
+    pub fn from_waypoints(
+        source: &str,
+        home: GeoPoint,
+        waypoints: &[GeoPoint],
+        speed_m_s: f64,
+    ) -> Plan {
         let mut items = Vec::with_capacity(waypoints.len() + 3);
         let mut push = |command: u16, kind: ItemKind, position: Option<GeoPoint>| {
             let index = items.len();
-            let frame = if position.is_some() { AltFrame::Relative } else { AltFrame::None };
-            items.push(Item { index, origin: format!("waypoint {index}"), command, kind, position, frame });
+            let frame = if position.is_some() {
+                AltFrame::Relative
+            } else {
+                AltFrame::None
+            };
+            items.push(Item {
+                index,
+                origin: format!("waypoint {index}"),
+                command,
+                kind,
+                position,
+                frame,
+            });
         };
         push(178, ItemKind::ChangeSpeed { speed_m_s }, None);
         let first_alt = waypoints.first().map_or(25.0, |w| w.alt_m);
@@ -178,7 +204,13 @@ impl Plan {
             push(16, ItemKind::Waypoint { hold_s: 0.0 }, Some(*w));
         }
         push(20, ItemKind::ReturnToLaunch, None);
-        Plan { source: source.to_string(), home, items, hover_speed_m_s: Some(speed_m_s), cruise_speed_m_s: None }
+        Plan {
+            source: source.to_string(),
+            home,
+            items,
+            hover_speed_m_s: Some(speed_m_s),
+            cruise_speed_m_s: None,
+        }
     }
 }
 
@@ -190,22 +222,66 @@ impl Plan {
     /// NAV item no LAND or RETURN_TO_LAUNCH) gets a RETURN_TO_LAUNCH appended (origin
     /// `added: return and land`): the forecast is of the mission *and* the way home.
     /// Plan item `i` is mission `seq` `i + seq_offset` (1 with a home item, else 0).
-    pub fn from_mission(source: &str, m: &super::protocol::Mission, home: Option<GeoPoint>) -> Result<(Plan, u16), PlanError> {
-        let err = |at: String, why: String| PlanError { file: source.to_string(), at, why };
+    pub fn from_mission(
+        source: &str,
+        m: &super::protocol::Mission,
+        home: Option<GeoPoint>,
+    ) -> Result<(Plan, u16), PlanError> {
+        let err = |at: String, why: String| PlanError {
+            file: source.to_string(),
+            at,
+            why,
+        };
         let (home, rest, seq_offset) = match (m.home_is_item0, m.items.split_first()) {
             (true, Some((h, rest))) => {
-                if !h.lat_deg.is_finite() || !h.lon_deg.is_finite() || !h.alt_m.is_finite() || !(-90.0..=90.0).contains(&h.lat_deg) || !(-180.0..=180.0).contains(&h.lon_deg) {
-                    return Err(err("item 0 (seq 0, home)".into(), format!("home position ({}, {}, {}) is not a valid position", h.lat_deg, h.lon_deg, h.alt_m)));
+                if !h.lat_deg.is_finite()
+                    || !h.lon_deg.is_finite()
+                    || !h.alt_m.is_finite()
+                    || !(-90.0..=90.0).contains(&h.lat_deg)
+                    || !(-180.0..=180.0).contains(&h.lon_deg)
+                {
+                    return Err(err(
+                        "item 0 (seq 0, home)".into(),
+                        format!(
+                            "home position ({}, {}, {}) is not a valid position",
+                            h.lat_deg, h.lon_deg, h.alt_m
+                        ),
+                    ));
                 }
-                (GeoPoint { lat_deg: h.lat_deg, lon_deg: h.lon_deg, alt_m: h.alt_m }, rest, 1u16)
+                (
+                    GeoPoint {
+                        lat_deg: h.lat_deg,
+                        lon_deg: h.lon_deg,
+                        alt_m: h.alt_m,
+                    },
+                    rest,
+                    1u16,
+                )
             }
-            _ => (home.ok_or_else(|| err("file".into(), "no home: no home item, HOME_POSITION or vehicle position heard".into()))?, &m.items[..], 0u16),
+            _ => (
+                home.ok_or_else(|| {
+                    err(
+                        "file".into(),
+                        "no home: no home item, HOME_POSITION or vehicle position heard".into(),
+                    )
+                })?,
+                &m.items[..],
+                0u16,
+            ),
         };
         let mut items = Vec::with_capacity(rest.len() + 1);
         for it in rest {
-            let raw = RawItem { command: it.command, frame: it.frame, params: it.params, lat: it.lat_deg, lon: it.lon_deg, alt: it.alt_m };
+            let raw = RawItem {
+                command: it.command,
+                frame: it.frame,
+                params: it.params,
+                lat: it.lat_deg,
+                lon: it.lon_deg,
+                alt: it.alt_m,
+            };
             let origin = format!("seq {}", it.seq);
-            let built = build_item(&raw, items.len(), origin.clone(), Some(home.alt_m)).map_err(|why| err(format!("item {} ({origin})", items.len()), why))?;
+            let built = build_item(&raw, items.len(), origin.clone(), Some(home.alt_m))
+                .map_err(|why| err(format!("item {} ({origin})", items.len()), why))?;
             items.push(built);
         }
         if items.is_empty() {
@@ -218,9 +294,25 @@ impl Plan {
             .is_some_and(|i| matches!(i.kind, ItemKind::Land | ItemKind::ReturnToLaunch));
         if !lands {
             let index = items.len();
-            items.push(Item { index, origin: "added: return and land".into(), command: 20, kind: ItemKind::ReturnToLaunch, position: None, frame: AltFrame::None });
+            items.push(Item {
+                index,
+                origin: "added: return and land".into(),
+                command: 20,
+                kind: ItemKind::ReturnToLaunch,
+                position: None,
+                frame: AltFrame::None,
+            });
         }
-        Ok((Plan { source: source.to_string(), home, items, hover_speed_m_s: None, cruise_speed_m_s: None }, seq_offset))
+        Ok((
+            Plan {
+                source: source.to_string(),
+                home,
+                items,
+                hover_speed_m_s: None,
+                cruise_speed_m_s: None,
+            },
+            seq_offset,
+        ))
     }
 }
 
@@ -231,7 +323,15 @@ impl Plan {
     /// altitude); items with no position in the mission frame (2).
     pub fn to_mission_items(&self) -> Vec<super::protocol::MissionItem> {
         use super::protocol::MissionItem;
-        let mut out = vec![MissionItem { seq: 0, frame: 0, command: 16, params: [0.0; 4], lat_deg: self.home.lat_deg, lon_deg: self.home.lon_deg, alt_m: self.home.alt_m }];
+        let mut out = vec![MissionItem {
+            seq: 0,
+            frame: 0,
+            command: 16,
+            params: [0.0; 4],
+            lat_deg: self.home.lat_deg,
+            lon_deg: self.home.lon_deg,
+            alt_m: self.home.alt_m,
+        }];
         for it in &self.items {
             let mut params = [0.0; 4];
             let mut alt = it.position.map_or(0.0, |p| p.alt_m);
@@ -261,7 +361,11 @@ impl Plan {
     /// from home (flat earth, as the trajectory flies it).
     pub fn relocated(&self, home: GeoPoint) -> Plan {
         let mut p = self.clone();
-        let (m_lat, m_lon_old, m_lon_new) = (111_320.0, 111_320.0 * self.home.lat_deg.to_radians().cos(), 111_320.0 * home.lat_deg.to_radians().cos());
+        let (m_lat, m_lon_old, m_lon_new) = (
+            111_320.0,
+            111_320.0 * self.home.lat_deg.to_radians().cos(),
+            111_320.0 * home.lat_deg.to_radians().cos(),
+        );
         for it in &mut p.items {
             if let Some(pos) = &mut it.position {
                 let n = (pos.lat_deg - self.home.lat_deg) * m_lat;
@@ -292,7 +396,14 @@ mod tests {
     #[test]
     fn waypoints_file_reads_home_items_frames_and_not_modelled() {
         let p = parse_waypoints(WPL, "t.waypoints").unwrap();
-        assert_eq!(p.home, GeoPoint { lat_deg: 40.44, lon_deg: -79.94, alt_m: 300.0 });
+        assert_eq!(
+            p.home,
+            GeoPoint {
+                lat_deg: 40.44,
+                lon_deg: -79.94,
+                alt_m: 300.0
+            }
+        );
         assert_eq!(p.items.len(), 7, "row 0 is home, every other row an item");
         assert_eq!(p.items[0].kind, ItemKind::Takeoff { alt_m: 25.0 });
         assert_eq!(p.items[1].kind, ItemKind::ChangeSpeed { speed_m_s: 8.0 });
@@ -302,7 +413,13 @@ mod tests {
         assert_eq!(p.items[3].frame, AltFrame::Absolute);
         assert!((p.items[3].position.unwrap().alt_m - 50.0).abs() < 1e-9);
         // DO_SET_CAM_TRIGG_DIST: kept, listed, flies nothing
-        assert_eq!(p.items[4].kind, ItemKind::NotModelled { command: 206, flown_through: false });
+        assert_eq!(
+            p.items[4].kind,
+            ItemKind::NotModelled {
+                command: 206,
+                flown_through: false
+            }
+        );
         assert_eq!(p.not_modelled().len(), 1);
         assert_eq!(p.items[5].frame, AltFrame::Terrain);
         assert_eq!(p.terrain_items().len(), 1);
@@ -311,22 +428,48 @@ mod tests {
     }
 
     fn bad(text: &str) -> String {
-        parse_waypoints(text, "bad.waypoints").unwrap_err().to_string()
+        parse_waypoints(text, "bad.waypoints")
+            .unwrap_err()
+            .to_string()
     }
 
     #[test]
     fn bad_waypoints_files_name_the_item_and_why() {
         let home = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t40.44\t-79.94\t300\t1\n";
-        let e = bad(&format!("{home}1\t0\t3\t9999\t0\t0\t0\t0\t40.44\t-79.94\t25\t1\n"));
-        assert!(e.contains("bad.waypoints") && e.contains("item 1 (line 3)") && e.contains("command 9999 is not a MAV_CMD"), "{e}");
-        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\t95.0\t-79.94\t25\t1\n"));
-        assert!(e.contains("item 1 (line 3)") && e.contains("latitude 95 is out of range"), "{e}");
-        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\t40.0\t-190\t25\t1\n"));
+        let e = bad(&format!(
+            "{home}1\t0\t3\t9999\t0\t0\t0\t0\t40.44\t-79.94\t25\t1\n"
+        ));
+        assert!(
+            e.contains("bad.waypoints")
+                && e.contains("item 1 (line 3)")
+                && e.contains("command 9999 is not a MAV_CMD"),
+            "{e}"
+        );
+        let e = bad(&format!(
+            "{home}1\t0\t3\t16\t0\t0\t0\t0\t95.0\t-79.94\t25\t1\n"
+        ));
+        assert!(
+            e.contains("item 1 (line 3)") && e.contains("latitude 95 is out of range"),
+            "{e}"
+        );
+        let e = bad(&format!(
+            "{home}1\t0\t3\t16\t0\t0\t0\t0\t40.0\t-190\t25\t1\n"
+        ));
         assert!(e.contains("longitude -190 is out of range"), "{e}");
-        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\tNaN\t-79.94\t25\t1\n"));
-        assert!(e.contains("item 1 (line 3)") && e.contains("not finite"), "{e}");
-        let e = bad(&format!("{home}1\t0\t3\t16\t0\t0\t0\t0\tabc\t-79.94\t25\t1\n"));
-        assert!(e.contains("line 3") && e.contains("latitude \"abc\" is not a number"), "{e}");
+        let e = bad(&format!(
+            "{home}1\t0\t3\t16\t0\t0\t0\t0\tNaN\t-79.94\t25\t1\n"
+        ));
+        assert!(
+            e.contains("item 1 (line 3)") && e.contains("not finite"),
+            "{e}"
+        );
+        let e = bad(&format!(
+            "{home}1\t0\t3\t16\t0\t0\t0\t0\tabc\t-79.94\t25\t1\n"
+        ));
+        assert!(
+            e.contains("line 3") && e.contains("latitude \"abc\" is not a number"),
+            "{e}"
+        );
         let e = bad(home);
         assert!(e.contains("no mission items"), "{e}");
         let e = bad("");
@@ -343,31 +486,64 @@ mod tests {
         // round trip through the protocol's items (home first), minus its RTL
         let mut items = p.to_mission_items();
         assert_eq!(items.len(), p.items.len() + 1);
-        assert_eq!((items[0].lat_deg, items[0].alt_m, items[0].frame), (40.44, 300.0, 0));
+        assert_eq!(
+            (items[0].lat_deg, items[0].alt_m, items[0].frame),
+            (40.44, 300.0, 0)
+        );
         items.pop();
-        let m = crate::mission::protocol::Mission { items, mission_id: 7, origin: crate::mission::protocol::Origin::Downloaded, home_is_item0: true };
+        let m = crate::mission::protocol::Mission {
+            items,
+            mission_id: 7,
+            origin: crate::mission::protocol::Origin::Downloaded,
+            home_is_item0: true,
+        };
         let (back, offset) = Plan::from_mission("vehicle", &m, None).unwrap();
         assert_eq!(offset, 1);
         assert_eq!(back.home, p.home);
-        assert_eq!(back.items.len(), p.items.len(), "the RTL it lost is added back");
+        assert_eq!(
+            back.items.len(),
+            p.items.len(),
+            "the RTL it lost is added back"
+        );
         assert_eq!(back.items.last().unwrap().kind, ItemKind::ReturnToLaunch);
         assert_eq!(back.items.last().unwrap().origin, "added: return and land");
         for (a, b) in p.items.iter().zip(&back.items).take(p.items.len() - 1) {
             assert_eq!(a.kind, b.kind, "{} vs {}", a.origin, b.origin);
-            let (pa, pb) = (a.position.map(|q| (q.lat_deg, q.lon_deg)), b.position.map(|q| (q.lat_deg, q.lon_deg)));
+            let (pa, pb) = (
+                a.position.map(|q| (q.lat_deg, q.lon_deg)),
+                b.position.map(|q| (q.lat_deg, q.lon_deg)),
+            );
             assert_eq!(pa, pb);
         }
-        assert_eq!(back.not_modelled().len(), 1, "the DO_ command is kept and listed");
+        assert_eq!(
+            back.not_modelled().len(),
+            1,
+            "the DO_ command is kept and listed"
+        );
         // a bad item names its seq; no home item and no home heard: an error
         let mut bad = m.clone();
         bad.items[3].lat_deg = 95.0;
-        let e = Plan::from_mission("vehicle", &bad, None).unwrap_err().to_string();
-        assert!(e.contains("item 2 (seq 3)") && e.contains("latitude 95"), "{e}");
-        let px4 = crate::mission::protocol::Mission { home_is_item0: false, ..m };
-        let e = Plan::from_mission("vehicle", &px4, None).unwrap_err().to_string();
+        let e = Plan::from_mission("vehicle", &bad, None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("item 2 (seq 3)") && e.contains("latitude 95"),
+            "{e}"
+        );
+        let px4 = crate::mission::protocol::Mission {
+            home_is_item0: false,
+            ..m
+        };
+        let e = Plan::from_mission("vehicle", &px4, None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no home"), "{e}");
         let (flown, offset) = Plan::from_mission("vehicle", &px4, Some(p.home)).unwrap();
-        assert_eq!((offset, flown.items[0].command), (0, 16), "without a home item, item 0 is flown");
+        assert_eq!(
+            (offset, flown.items[0].command),
+            (0, 16),
+            "without a home item, item 0 is flown"
+        );
     }
 
     const PLAN: &str = r#"{
@@ -408,27 +584,71 @@ mod tests {
         assert_eq!(p.hover_speed_m_s, Some(6.0));
         assert_eq!(p.cruise_speed_m_s, Some(15.0));
         let cmds: Vec<u16> = p.items.iter().map(|i| i.command).collect();
-        assert_eq!(cmds, [22, 16, 16, 206, 16, 16, 16, 20], "survey Items expanded; corridor from VisualTransectPoints");
+        assert_eq!(
+            cmds,
+            [22, 16, 16, 206, 16, 16, 16, 20],
+            "survey Items expanded; corridor from VisualTransectPoints"
+        );
         assert_eq!(p.items[1].kind, ItemKind::Waypoint { hold_s: 3.0 });
-        assert_eq!(p.items[2].origin, "mission.items[2].TransectStyleComplexItem.Items[0]");
+        assert_eq!(
+            p.items[2].origin,
+            "mission.items[2].TransectStyleComplexItem.Items[0]"
+        );
         assert_eq!(p.items[2].position.unwrap().alt_m, 40.0);
-        assert_eq!(p.items[5].position.unwrap().alt_m, 35.0, "corridor points at the item's Altitude");
+        assert_eq!(
+            p.items[5].position.unwrap().alt_m,
+            35.0,
+            "corridor points at the item's Altitude"
+        );
         assert_eq!(p.not_modelled().len(), 1);
     }
 
     #[test]
     fn bad_qgc_plans_name_the_item_and_why() {
-        let e = parse_qgc_plan("{\"fileType\": \"Plan\", ", "x.plan").unwrap_err().to_string();
+        let e = parse_qgc_plan("{\"fileType\": \"Plan\", ", "x.plan")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("x.plan") && e.contains("malformed JSON"), "{e}");
-        let e = parse_qgc_plan(&PLAN.replace("\"command\": 16, \"doJumpId\": 2", "\"command\": 31337, \"doJumpId\": 2"), "x.plan").unwrap_err().to_string();
-        assert!(e.contains("item 1 (mission.items[1])") && e.contains("31337 is not a MAV_CMD"), "{e}");
-        let e = parse_qgc_plan(&PLAN.replace("47.3985, 8.5456", "47.3985, 181.0"), "x.plan").unwrap_err().to_string();
-        assert!(e.contains("mission.items[1]") && e.contains("longitude 181 is out of range"), "{e}");
-        let p = parse_qgc_plan(&PLAN.replace("[47.3981, 8.5461], [47.3989", "[97.3981, 8.5461], [47.3989"), "x.plan");
-        assert_eq!(p.map(|p| p.items.len()).ok(), Some(8), "the saved Items win over the drawing");
-        let e = parse_qgc_plan(r#"{"fileType": "Plan", "mission": {"items": []}}"#, "x.plan").unwrap_err().to_string();
+        let e = parse_qgc_plan(
+            &PLAN.replace(
+                "\"command\": 16, \"doJumpId\": 2",
+                "\"command\": 31337, \"doJumpId\": 2",
+            ),
+            "x.plan",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("item 1 (mission.items[1])") && e.contains("31337 is not a MAV_CMD"),
+            "{e}"
+        );
+        let e = parse_qgc_plan(&PLAN.replace("47.3985, 8.5456", "47.3985, 181.0"), "x.plan")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("mission.items[1]") && e.contains("longitude 181 is out of range"),
+            "{e}"
+        );
+        let p = parse_qgc_plan(
+            &PLAN.replace("[47.3981, 8.5461], [47.3989", "[97.3981, 8.5461], [47.3989"),
+            "x.plan",
+        );
+        assert_eq!(
+            p.map(|p| p.items.len()).ok(),
+            Some(8),
+            "the saved Items win over the drawing"
+        );
+        let e = parse_qgc_plan(
+            r#"{"fileType": "Plan", "mission": {"items": []}}"#,
+            "x.plan",
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("no mission items"), "{e}");
         let e = parse_qgc_plan(r#"{"fileType": "Plan", "mission": {"items": [{"type": "SimpleItem", "command": 16, "frame": 3, "params": [0, 0, 0]}]}}"#, "x.plan").unwrap_err().to_string();
-        assert!(e.contains("mission.items[0]") && e.contains("expected 7"), "{e}");
+        assert!(
+            e.contains("mission.items[0]") && e.contains("expected 7"),
+            "{e}"
+        );
     }
 }

@@ -56,7 +56,10 @@ pub fn power_w(k: &Kinematics, p: &VehicleProfile, m: &Params) -> f64 {
     let t = k.thrust_n(p, m.drag_area_m2);
     let w = induced_velocity(t, p.air.rho_kg_m3, p.disk_area_m2(), va, 0.0);
     let wt = k.weight_n(p);
-    let aero = m.kappa * t * w + 0.5 * p.air.rho_kg_m3 * m.drag_area_m2 * va.powi(3) + m.kappa2 * wt.powf(1.5) + m.kappa3 * wt.sqrt() * va * va;
+    let aero = m.kappa * t * w
+        + 0.5 * p.air.rho_kg_m3 * m.drag_area_m2 * va.powi(3)
+        + m.kappa2 * wt.powf(1.5)
+        + m.kappa3 * wt.sqrt() * va * va;
     aero.max(0.0) / m.eta + m.p_avio_w / m.eta_c
 }
 

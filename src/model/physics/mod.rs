@@ -76,7 +76,12 @@ fn feat(s: &Sample, i: usize) -> f64 {
 }
 
 fn attitude(s: &Sample) -> UnitQuaternion<f64> {
-    let q = Quaternion::new(feat(s, idx::QW), feat(s, idx::QX), feat(s, idx::QY), feat(s, idx::QZ));
+    let q = Quaternion::new(
+        feat(s, idx::QW),
+        feat(s, idx::QX),
+        feat(s, idx::QY),
+        feat(s, idx::QZ),
+    );
     if q.norm() > 1e-6 {
         UnitQuaternion::from_quaternion(q)
     } else {
@@ -150,7 +155,8 @@ impl Kinematics {
     /// The paper prints the scalar sum W + D, an upper bound that ignores that the two act
     /// at right angles in level flight; the vector sum is the physical form.
     pub fn thrust_n(&self, p: &VehicleProfile, drag_area_m2: f64) -> f64 {
-        let drag = 0.5 * p.air.rho_kg_m3 * drag_area_m2.max(0.0) * self.air_m_s.norm() * self.air_m_s;
+        let drag =
+            0.5 * p.air.rho_kg_m3 * drag_area_m2.max(0.0) * self.air_m_s.norm() * self.air_m_s;
         (Vector3::new(0.0, 0.0, self.weight_n(p)) + drag).norm()
     }
 }
@@ -173,10 +179,16 @@ pub fn induced_velocity(thrust_n: f64, rho: f64, area_m2: f64, v_t: f64, v_n: f6
         return 0.0;
     }
     let vh2 = thrust_n / (2.0 * rho * area_m2);
-    let (v_t, v_n) = (if v_t.is_finite() { v_t } else { 0.0 }, if v_n.is_finite() { v_n } else { 0.0 });
+    let (v_t, v_n) = (
+        if v_t.is_finite() { v_t } else { 0.0 },
+        if v_n.is_finite() { v_n } else { 0.0 },
+    );
     let g = |v: f64| {
         let s = (v_t * v_t + (v_n + v) * (v_n + v)).sqrt();
-        (v * s - vh2, if s > 0.0 { s + v * (v_n + v) / s } else { 0.0 })
+        (
+            v * s - vh2,
+            if s > 0.0 { s + v * (v_n + v) / s } else { 0.0 },
+        )
     };
     let (mut lo, mut hi) = (0.0, vh2.sqrt() + (-v_n).max(0.0));
     let mut v = hi;
@@ -191,7 +203,11 @@ pub fn induced_velocity(thrust_n: f64, rho: f64, area_m2: f64, v_t: f64, v_n: f6
             lo = v;
         }
         let newton = v - f / df;
-        v = if df > 0.0 && newton > lo && newton < hi { newton } else { 0.5 * (lo + hi) };
+        v = if df > 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
         if hi - lo < 1e-12 * (1.0 + hi) {
             break;
         }
@@ -213,8 +229,15 @@ pub enum Kind {
 
 impl Kind {
     /// Every physics model, in the order tables show them (the paper's order).
-    pub const ALL: [Kind; 7] =
-        [Kind::DAndrea, Kind::DAndreaHeadwind, Kind::Dorling, Kind::Stolaroff, Kind::Kirschstein, Kind::Tseng, Kind::TsengSolo];
+    pub const ALL: [Kind; 7] = [
+        Kind::DAndrea,
+        Kind::DAndreaHeadwind,
+        Kind::Dorling,
+        Kind::Stolaroff,
+        Kind::Kirschstein,
+        Kind::Tseng,
+        Kind::TsengSolo,
+    ];
 
     /// The model's base name (without `_cal`).
     pub fn name(self) -> &'static str {
@@ -258,11 +281,16 @@ pub struct PhysicsModel {
 impl PhysicsModel {
     /// This model with this profile; named `kind.name()` plus `_cal` for a calibrated profile.
     pub fn new(kind: Kind, profile: VehicleProfile) -> Self {
-        Self { kind, name: format!("{}{}", kind.name(), profile.name_suffix()), profile }
+        Self {
+            kind,
+            name: format!("{}{}", kind.name(), profile.name_suffix()),
+            profile,
+        }
     }
     /// Power for one window, W.
     pub fn power_w(&self, w: &Window) -> f64 {
-        self.kind.power_w(&Kinematics::from_window(w, &self.profile), &self.profile)
+        self.kind
+            .power_w(&Kinematics::from_window(w, &self.profile), &self.profile)
     }
 }
 
@@ -272,13 +300,19 @@ impl PowerModel for PhysicsModel {
     }
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
         out.clear();
-        out.extend(windows.iter().map(|w| Prediction { power_w: self.power_w(w) as f32, band_w: None }));
+        out.extend(windows.iter().map(|w| Prediction {
+            power_w: self.power_w(w) as f32,
+            band_w: None,
+        }));
     }
 }
 
 /// Every physics model for this profile, in [`Kind::ALL`] order.
 pub fn models(profile: &VehicleProfile) -> Vec<Box<dyn PowerModel>> {
-    Kind::ALL.iter().map(|&k| Box::new(PhysicsModel::new(k, profile.clone())) as Box<dyn PowerModel>).collect()
+    Kind::ALL
+        .iter()
+        .map(|&k| Box::new(PhysicsModel::new(k, profile.clone())) as Box<dyn PowerModel>)
+        .collect()
 }
 
 #[cfg(test)]
@@ -288,7 +322,14 @@ pub(crate) mod testutil {
 
     /// A level sample: velocity along body (x, y, up), anemometer speed and bearing (deg),
     /// payload g, and yaw (deg, ENU bearing of body x from east: 90° = body x north).
-    pub fn sample(t_s: f64, v_body: [f32; 3], wind_speed: f32, wind_angle_deg: f32, payload_g: f32, yaw_deg: f32) -> Sample {
+    pub fn sample(
+        t_s: f64,
+        v_body: [f32; 3],
+        wind_speed: f32,
+        wind_angle_deg: f32,
+        payload_g: f32,
+        yaw_deg: f32,
+    ) -> Sample {
         let mut f = [0.0f32; N_FEATURES];
         let h = yaw_deg.to_radians() / 2.0;
         f[idx::QW] = h.cos();
@@ -300,13 +341,24 @@ pub(crate) mod testutil {
         f[idx::WIND_ANGLE] = wind_angle_deg;
         f[idx::PAYLOAD] = payload_g;
         f[idx::AZ] = -9.81;
-        Sample { t_s, features: f, measured_w: None, voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None }
+        Sample {
+            t_s,
+            features: f,
+            measured_w: None,
+            voltage_v: None,
+            home: None,
+            stale_mask: 0,
+            battery_remaining_pct: None,
+        }
     }
 
     pub fn window(s: Sample) -> Window {
         let mut a = s.clone();
         a.t_s -= 0.9;
-        Window { samples: vec![a, s], arrived: None }
+        Window {
+            samples: vec![a, s],
+            arrived: None,
+        }
     }
 }
 
@@ -332,10 +384,19 @@ mod tests {
         let exact = -vc / 2.0 + (vc * vc / 4.0 + vh2).sqrt();
         assert!((induced_velocity(t, rho, a, 0.0, vc) - exact).abs() < 1e-9);
         // Forward flight: the root satisfies the quartic, and is below hover's.
-        for (vt, vn) in [(10.0, 1.5), (20.0, 3.0), (3.0, -2.0), (0.0, -12.0), (1e-9, 0.0)] {
+        for (vt, vn) in [
+            (10.0, 1.5),
+            (20.0, 3.0),
+            (3.0, -2.0),
+            (0.0, -12.0),
+            (1e-9, 0.0),
+        ] {
             let v = induced_velocity(t, rho, a, vt, vn);
             let q = v.powi(4) + 2.0 * vn * v.powi(3) + (vt * vt + vn * vn) * v * v - vh2 * vh2;
-            assert!(q.abs() < 1e-7 * vh2 * vh2, "({vt},{vn}) → {v}: residual {q}");
+            assert!(
+                q.abs() < 1e-7 * vh2 * vh2,
+                "({vt},{vn}) → {v}: residual {q}"
+            );
             assert!(v.is_finite() && v >= 0.0);
         }
     }
@@ -345,7 +406,10 @@ mod tests {
         let p = VehicleProfile::m100();
         // Body x north (yaw 90° ENU), 10 m/s along it, anemometer 13 m/s bearing 0° (north):
         // the air moves past at 13 m/s while the ground track is 10 m/s → 3 m/s headwind.
-        let k = Kinematics::from_window(&window(sample(1.0, [10.0, 0.0, 0.0], 13.0, 0.0, 500.0, 90.0)), &p);
+        let k = Kinematics::from_window(
+            &window(sample(1.0, [10.0, 0.0, 0.0], 13.0, 0.0, 500.0, 90.0)),
+            &p,
+        );
         assert!((k.ground_m_s - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-5);
         assert!((k.air_m_s - Vector3::new(0.0, 13.0, 0.0)).norm() < 1e-5);
         assert!((k.headwind() - 3.0).abs() < 1e-5);

@@ -71,7 +71,10 @@ mod tests {
         // Vertical climb at 2 m/s (drag 0.5·1.225·0.1·4 = 0.245 N adds to T = 24.09311 N):
         // v_h² = 24.09311/0.839210 = 28.70929; v_i = −1 + √(1 + 28.70929) = 4.45062;
         // P = 24.09311 × (2 + 4.45062) / 0.5 = 310.83 W.
-        let k = Kinematics::from_window(&window(sample(1.0, [0.0, 0.0, 2.0], 0.0, 0.0, 0.0, 0.0)), &p);
+        let k = Kinematics::from_window(
+            &window(sample(1.0, [0.0, 0.0, 2.0], 0.0, 0.0, 0.0, 0.0)),
+            &p,
+        );
         let w = power_w(&k, &p, &p.stolaroff);
         assert!((w - 310.83).abs() < 0.05, "{w}");
     }

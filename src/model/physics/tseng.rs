@@ -46,7 +46,17 @@ pub fn features(k: &Kinematics) -> [f64; 9] {
     let a = k.accel_m_s2.xy().norm();
     let vz = k.ground_m_s.z.abs();
     let az = k.accel_m_s2.z.abs();
-    [v, a, v * a, vz, az, vz * az, k.payload_g, k.ground_m_s.xy().dot(&k.wind_m_s.xy()), 1.0]
+    [
+        v,
+        a,
+        v * a,
+        vz,
+        az,
+        vz * az,
+        k.payload_g,
+        k.ground_m_s.xy().dot(&k.wind_m_s.xy()),
+        1.0,
+    ]
 }
 
 /// The three regressors of the Solo form, in c order.
@@ -61,7 +71,11 @@ pub fn power_w(k: &Kinematics, m: &Params) -> f64 {
 
 /// Solo form power, W.
 pub fn solo_power_w(k: &Kinematics, m: &SoloParams) -> f64 {
-    solo_features(k).iter().zip(&m.coef).map(|(x, b)| x * b).sum()
+    solo_features(k)
+        .iter()
+        .zip(&m.coef)
+        .map(|(x, b)| x * b)
+        .sum()
 }
 
 #[cfg(test)]
@@ -76,7 +90,10 @@ mod tests {
         // Heading north at 10 m/s, anemometer 12 m/s north → wind (0, −2): v·w = −20 m²/s².
         // Window: 0.9 s earlier the same velocity → a = 0. Payload 500 g.
         // P = −1.526·10 + 0.220·500 + 1.332·(−20) + 433.9 = −15.26 + 110 − 26.64 + 433.9 = 502.0 W.
-        let k = Kinematics::from_window(&window(sample(1.0, [10.0, 0.0, 0.0], 12.0, 0.0, 500.0, 90.0)), &p);
+        let k = Kinematics::from_window(
+            &window(sample(1.0, [10.0, 0.0, 0.0], 12.0, 0.0, 500.0, 90.0)),
+            &p,
+        );
         assert!((power_w(&k, &p.tseng) - 502.0).abs() < 1e-3);
         // Solo: −2.595·12 + 0.197·500 + 251.7 = −31.14 + 98.5 + 251.7 = 319.06 W.
         assert!((solo_power_w(&k, &p.tseng_solo) - 319.06).abs() < 1e-3);

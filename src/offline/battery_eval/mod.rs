@@ -34,7 +34,8 @@ use crate::offline::data::TEST_FLIGHTS;
 use crate::source::dataset;
 
 use prep::{
-    fill_grid, heat_carry, link_chains, median, prepare, previous_pack_scale, Prepared, DT, RELAX_C_V, RELAX_K_S,
+    fill_grid, heat_carry, link_chains, median, prepare, previous_pack_scale, Prepared, DT,
+    RELAX_C_V, RELAX_K_S,
 };
 use score::{score_flight, FlightFigures, Traces, THR_V};
 

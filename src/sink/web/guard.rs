@@ -33,7 +33,10 @@ impl Rules {
     /// `<style>` of `page` (by hash), so nothing injected could run.
     pub fn new(token: Option<String>, max_request_bytes: usize, page: &str) -> Self {
         let hash = |open: &str, close: &str| {
-            let body = page.split_once(open).and_then(|(_, rest)| rest.split_once(close)).map_or("", |(b, _)| b);
+            let body = page
+                .split_once(open)
+                .and_then(|(_, rest)| rest.split_once(close))
+                .map_or("", |(b, _)| b);
             format!("'sha256-{}'", base64(&Sha256::digest(body.as_bytes())))
         };
         let csp = format!(
@@ -43,8 +46,13 @@ impl Rules {
             hash("<style>", "</style>")
         );
         // A hash and fixed words: always a valid header value.
-        let csp = HeaderValue::from_str(&csp).unwrap_or_else(|_| HeaderValue::from_static("default-src 'none'"));
-        Self { token, max_request_bytes, csp }
+        let csp = HeaderValue::from_str(&csp)
+            .unwrap_or_else(|_| HeaderValue::from_static("default-src 'none'"));
+        Self {
+            token,
+            max_request_bytes,
+            csp,
+        }
     }
 }
 
@@ -56,41 +64,80 @@ pub async fn check(State(rules): State<Arc<Rules>>, req: Request, next: Next) ->
     };
     let h = resp.headers_mut();
     h.insert(header::CONTENT_SECURITY_POLICY, rules.csp.clone());
-    h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
-    h.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
+    h.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
+    );
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
     h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
-    h.insert("cross-origin-resource-policy", HeaderValue::from_static("same-origin"));
+    h.insert(
+        "cross-origin-resource-policy",
+        HeaderValue::from_static("same-origin"),
+    );
     resp
 }
 
 /// `Some(refusal)` when the request breaks a rule.
 fn admit(rules: &Rules, req: &Request) -> Option<Response> {
     let head_bytes = req.uri().to_string().len()
-        + req.headers().iter().map(|(k, v)| k.as_str().len() + v.as_bytes().len() + 4).sum::<usize>();
+        + req
+            .headers()
+            .iter()
+            .map(|(k, v)| k.as_str().len() + v.as_bytes().len() + 4)
+            .sum::<usize>();
     if head_bytes > rules.max_request_bytes {
-        return Some((StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE, "request too large\n").into_response());
+        return Some(
+            (
+                StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+                "request too large\n",
+            )
+                .into_response(),
+        );
     }
     let has_body = req.headers().contains_key(header::TRANSFER_ENCODING)
-        || req.headers().get(header::CONTENT_LENGTH).is_some_and(|v| v.as_bytes() != b"0");
+        || req
+            .headers()
+            .get(header::CONTENT_LENGTH)
+            .is_some_and(|v| v.as_bytes() != b"0");
     if has_body {
-        return Some((StatusCode::PAYLOAD_TOO_LARGE, "this dashboard takes no request bodies\n").into_response());
+        return Some(
+            (
+                StatusCode::PAYLOAD_TOO_LARGE,
+                "this dashboard takes no request bodies\n",
+            )
+                .into_response(),
+        );
     }
     if req.method() != Method::GET && req.method() != Method::HEAD {
         let mut r = (StatusCode::METHOD_NOT_ALLOWED, "read only\n").into_response();
-        r.headers_mut().insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
+        r.headers_mut()
+            .insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
         return Some(r);
     }
     let token = rules.token.as_deref()?;
     if !req.uri().path().starts_with("/api/") {
         return None; // the page itself holds no data
     }
-    let presented = req.headers().get(header::AUTHORIZATION).and_then(|v| v.as_bytes().strip_prefix(b"Bearer "));
+    let presented = req
+        .headers()
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.as_bytes().strip_prefix(b"Bearer "));
     if presented.is_some_and(|p| same(p, token.as_bytes())) {
         return None;
     }
-    let mut r = (StatusCode::UNAUTHORIZED, "a token is needed: Authorization: Bearer TOKEN\n").into_response();
-    r.headers_mut().insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer realm=\"dronewatt\""));
+    let mut r = (
+        StatusCode::UNAUTHORIZED,
+        "a token is needed: Authorization: Bearer TOKEN\n",
+    )
+        .into_response();
+    r.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        HeaderValue::from_static("Bearer realm=\"dronewatt\""),
+    );
     Some(r)
 }
 
@@ -104,7 +151,9 @@ fn base64(bytes: &[u8]) -> String {
     const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
     for c in bytes.chunks(3) {
-        let n = (u32::from(c[0]) << 16) | (u32::from(*c.get(1).unwrap_or(&0)) << 8) | u32::from(*c.get(2).unwrap_or(&0));
+        let n = (u32::from(c[0]) << 16)
+            | (u32::from(*c.get(1).unwrap_or(&0)) << 8)
+            | u32::from(*c.get(2).unwrap_or(&0));
         for i in 0..4 {
             if i <= c.len() {
                 out.push(A[(n >> (18 - 6 * i)) as usize & 63] as char);
@@ -121,7 +170,10 @@ pub fn read_private(path: &Path) -> Result<String, String> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?.permissions().mode();
+        let mode = std::fs::metadata(path)
+            .map_err(|e| format!("cannot read: {e}"))?
+            .permissions()
+            .mode();
         if mode & 0o077 != 0 {
             return Err(format!(
                 "the token file is accessible to group or others (mode {:03o}); make it private: chmod 600 {}",
@@ -144,7 +196,10 @@ pub struct Limited {
 impl Limited {
     /// Wrap `inner`, allowing `max` connections at once.
     pub fn new(inner: TcpListener, max: usize) -> Self {
-        Self { inner, permits: Arc::new(Semaphore::new(max)) }
+        Self {
+            inner,
+            permits: Arc::new(Semaphore::new(max)),
+        }
     }
 }
 
@@ -155,12 +210,21 @@ impl axum::serve::Listener for Limited {
     async fn accept(&mut self) -> (Guarded, std::net::SocketAddr) {
         loop {
             // The semaphore is never closed, so this only waits.
-            let Ok(permit) = self.permits.clone().acquire_owned().await else { continue };
+            let Ok(permit) = self.permits.clone().acquire_owned().await else {
+                continue;
+            };
             match self.inner.accept().await {
                 Ok((io, addr)) => {
                     let _ = io.set_nodelay(true);
                     let idle = Box::pin(tokio::time::sleep(IDLE_TIMEOUT));
-                    return (Guarded { io, idle, _permit: permit }, addr);
+                    return (
+                        Guarded {
+                            io,
+                            idle,
+                            _permit: permit,
+                        },
+                        addr,
+                    );
                 }
                 Err(e) => {
                     // Out of file descriptors and the like: wait a little, as axum does.
@@ -201,14 +265,22 @@ impl Guarded {
 }
 
 impl AsyncRead for Guarded {
-    fn poll_read(mut self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<io::Result<()>> {
         let r = Pin::new(&mut self.io).poll_read(cx, buf);
         self.watch(cx, r)
     }
 }
 
 impl AsyncWrite for Guarded {
-    fn poll_write(mut self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<io::Result<usize>> {
         let r = Pin::new(&mut self.io).poll_write(cx, buf);
         self.watch(cx, r)
     }
@@ -226,7 +298,13 @@ mod tests {
 
     #[test]
     fn base64_matches_rfc4648_vectors() {
-        for (raw, enc) in [("", ""), ("f", "Zg=="), ("fo", "Zm8="), ("foo", "Zm9v"), ("foobar", "Zm9vYmFy")] {
+        for (raw, enc) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foobar", "Zm9vYmFy"),
+        ] {
             assert_eq!(base64(raw.as_bytes()), enc);
         }
     }
@@ -238,6 +316,10 @@ mod tests {
         let csp = rules.csp.to_str().unwrap();
         let script = format!("script-src 'sha256-{}'", base64(&Sha256::digest(b"go()")));
         assert!(csp.contains(&script) && !csp.contains("unsafe"), "{csp}");
-        assert!(!same(b"secret-token-0001", b"secret-token-0002") && same(b"abc", b"abc") && !same(b"ab", b"abc"));
+        assert!(
+            !same(b"secret-token-0001", b"secret-token-0002")
+                && same(b"abc", b"abc")
+                && !same(b"ab", b"abc")
+        );
     }
 }

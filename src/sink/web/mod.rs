@@ -97,24 +97,46 @@ impl WebSinkConfig {
     pub fn validate(&self) -> Result<(), String> {
         let mut errs = Vec::new();
         if self.bind.parse::<std::net::SocketAddr>().is_err() {
-            errs.push(format!("sinks.web.bind = '{}': expected IP:PORT, e.g. 127.0.0.1:8787", self.bind));
+            errs.push(format!(
+                "sinks.web.bind = '{}': expected IP:PORT, e.g. 127.0.0.1:8787",
+                self.bind
+            ));
         }
         if !(10..=1_000_000).contains(&self.history) {
-            errs.push(format!("sinks.web.history = {}: must be 10..=1000000 points", self.history));
+            errs.push(format!(
+                "sinks.web.history = {}: must be 10..=1000000 points",
+                self.history
+            ));
         }
         if !(self.min_step_s.is_finite() && self.min_step_s >= 0.0) {
-            errs.push(format!("sinks.web.min_step_s = {}: must be ≥ 0", self.min_step_s));
+            errs.push(format!(
+                "sinks.web.min_step_s = {}: must be ≥ 0",
+                self.min_step_s
+            ));
         }
         if !(self.linger_s.is_finite() && self.linger_s >= 0.0) {
-            errs.push(format!("sinks.web.linger_s = {}: must be ≥ 0", self.linger_s));
+            errs.push(format!(
+                "sinks.web.linger_s = {}: must be ≥ 0",
+                self.linger_s
+            ));
         }
         if !(1..=10_000).contains(&self.max_connections) {
-            errs.push(format!("sinks.web.max_connections = {}: must be 1..=10000", self.max_connections));
+            errs.push(format!(
+                "sinks.web.max_connections = {}: must be 1..=10000",
+                self.max_connections
+            ));
         }
         if !(1024..=1_048_576).contains(&self.max_request_bytes) {
-            errs.push(format!("sinks.web.max_request_bytes = {}: must be 1024..=1048576", self.max_request_bytes));
+            errs.push(format!(
+                "sinks.web.max_request_bytes = {}: must be 1024..=1048576",
+                self.max_request_bytes
+            ));
         }
-        if errs.is_empty() { Ok(()) } else { Err(errs.join("\n")) }
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
     }
 
     /// The access token: `DRONEWATT_WEB_TOKEN`, else `token_file`, else none. Refuses to
@@ -125,7 +147,10 @@ impl WebSinkConfig {
             _ => match &self.token_file {
                 Some(p) => {
                     let key = format!("sinks.web.token_file = '{}'", p.display());
-                    Some((guard::read_private(p).map_err(|e| format!("{key}: {e}"))?, key))
+                    Some((
+                        guard::read_private(p).map_err(|e| format!("{key}: {e}"))?,
+                        key,
+                    ))
                 }
                 None => None,
             },
@@ -135,7 +160,10 @@ impl WebSinkConfig {
                 return Err(format!("{from}: the dashboard token must be at least {MIN_TOKEN_LEN} characters, no spaces"));
             }
         }
-        let loopback = self.bind.parse::<std::net::SocketAddr>().is_ok_and(|a| a.ip().is_loopback());
+        let loopback = self
+            .bind
+            .parse::<std::net::SocketAddr>()
+            .is_ok_and(|a| a.ip().is_loopback());
         if token.is_none() && !loopback {
             return Err(format!(
                 "sinks.web.bind = '{}' is beyond loopback: the dashboard needs an access token ({TOKEN_ENV} in the environment, or sinks.web.token_file)",
@@ -207,7 +235,10 @@ struct Fleet {
 
 impl Fleet {
     fn add(&mut self, r: &Report, cfg: &WebSinkConfig) {
-        let dropped = r.alerts.iter().any(|a| a.rule == "vehicle_dropped" && a.state == crate::report::AlertState::Raised);
+        let dropped = r
+            .alerts
+            .iter()
+            .any(|a| a.rule == "vehicle_dropped" && a.state == crate::report::AlertState::Raised);
         if dropped {
             self.vehicles.remove(&r.system_id);
         } else {
@@ -229,7 +260,11 @@ impl Fleet {
                     time_to_empty_s: l.energy.time_to_empty_s,
                     home_margin_wh: l.energy.home_margin_wh,
                     // Severity orders most severe first.
-                    worst: d.active.iter().min_by_key(|(_, &s)| s).map(|(r, &s)| (r.clone(), s)),
+                    worst: d
+                        .active
+                        .iter()
+                        .min_by_key(|(_, &s)| s)
+                        .map(|(r, &s)| (r.clone(), s)),
                 })
             })
             .collect()
@@ -273,9 +308,15 @@ impl Dash {
             measured_w: est.sample.measured_w,
             models: est.models.clone(),
             energy: r.energy.clone(),
-            route: r.energy.mission.as_ref().map(|m| RouteView { points: m.route_en_m.to_vec(), at: m.route_at }),
+            route: r.energy.mission.as_ref().map(|m| RouteView {
+                points: m.route_en_m.to_vec(),
+                at: m.route_at,
+            }),
         });
-        let due = self.points.back().is_none_or(|p| est.t_s - p.t >= cfg.min_step_s || est.t_s < p.t);
+        let due = self
+            .points
+            .back()
+            .is_none_or(|p| est.t_s - p.t >= cfg.min_step_s || est.t_s < p.t);
         if !due && r.alerts.is_empty() {
             return;
         }
@@ -285,7 +326,11 @@ impl Dash {
             }
         }
         self.seq += 1;
-        let models = self.models.iter().map(|n| est.models.iter().find(|m| &m.name == n).map(|m| m.power_w)).collect();
+        let models = self
+            .models
+            .iter()
+            .map(|n| est.models.iter().find(|m| &m.name == n).map(|m| m.power_w))
+            .collect();
         if self.points.len() >= cfg.history {
             self.points.pop_front();
         }
@@ -346,24 +391,47 @@ async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoR
 
 /// Bind the configured address now (so a taken port fails the run before it starts),
 /// then serve on a task (see [`serve`]).
-pub fn spawn(cfg: WebSinkConfig, rx: super::ReportRx, shutdown: CancellationToken) -> Result<tokio::task::JoinHandle<Result<()>>> {
+pub fn spawn(
+    cfg: WebSinkConfig,
+    rx: super::ReportRx,
+    shutdown: CancellationToken,
+) -> Result<tokio::task::JoinHandle<Result<()>>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     // Before binding: a public dashboard without a token never listens at all.
     cfg.token().map_err(anyhow::Error::msg)?;
-    let bind_err = || format!("web dashboard: cannot listen on {} (sinks.web.bind)", cfg.bind);
+    let bind_err = || {
+        format!(
+            "web dashboard: cannot listen on {} (sinks.web.bind)",
+            cfg.bind
+        )
+    };
     let std_listener = std::net::TcpListener::bind(&cfg.bind).with_context(bind_err)?;
     std_listener.set_nonblocking(true).with_context(bind_err)?;
     let listener = tokio::net::TcpListener::from_std(std_listener).with_context(bind_err)?;
-    tracing::info!("web dashboard on http://{}/", listener.local_addr().map_or(cfg.bind.clone(), |a| a.to_string()));
+    tracing::info!(
+        "web dashboard on http://{}/",
+        listener
+            .local_addr()
+            .map_or(cfg.bind.clone(), |a| a.to_string())
+    );
     Ok(tokio::spawn(serve(cfg, listener, rx, shutdown)))
 }
 
 /// Serve the dashboard on `listener`, fed by `rx`, until the report channel closes and
 /// `linger_s` has passed, or the run's `shutdown` (Ctrl-C, SIGTERM) ends the lingering.
-pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx: super::ReportRx, shutdown: CancellationToken) -> Result<()> {
+pub async fn serve(
+    cfg: WebSinkConfig,
+    listener: tokio::net::TcpListener,
+    mut rx: super::ReportRx,
+    shutdown: CancellationToken,
+) -> Result<()> {
     let token = cfg.token().map_err(anyhow::Error::msg)?;
     let dash: Shared = Arc::default();
-    let rules = Arc::new(guard::Rules::new(token, cfg.max_request_bytes, include_str!("index.html")));
+    let rules = Arc::new(guard::Rules::new(
+        token,
+        cfg.max_request_bytes,
+        include_str!("index.html"),
+    ));
     let app = Router::new()
         .route("/", get(index))
         .route("/api/state", get(state))
@@ -373,7 +441,9 @@ pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx
     let done = tokio_util::sync::CancellationToken::new();
     let stop = done.clone();
     let server = tokio::spawn(async move {
-        axum::serve(listener, app).with_graceful_shutdown(async move { stop.cancelled().await }).await
+        axum::serve(listener, app)
+            .with_graceful_shutdown(async move { stop.cancelled().await })
+            .await
     });
     while let Some(r) = rx.next().await {
         if let Ok(mut d) = dash.lock() {
@@ -381,7 +451,10 @@ pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx
         }
     }
     if cfg.linger_s > 0.0 {
-        tracing::info!("web dashboard: source ended; serving {} s more (Ctrl-C ends it)", cfg.linger_s);
+        tracing::info!(
+            "web dashboard: source ended; serving {} s more (Ctrl-C ends it)",
+            cfg.linger_s
+        );
         tokio::select! {
             _ = tokio::time::sleep(std::time::Duration::from_secs_f64(cfg.linger_s)) => {}
             _ = shutdown.cancelled() => {}
@@ -390,7 +463,9 @@ pub async fn serve(cfg: WebSinkConfig, listener: tokio::net::TcpListener, mut rx
     done.cancel();
     // A browser holding a connection open must not keep the run from ending.
     match tokio::time::timeout(std::time::Duration::from_secs(2), server).await {
-        Ok(r) => r.context("web dashboard task")?.context("web dashboard server")?,
+        Ok(r) => r
+            .context("web dashboard task")?
+            .context("web dashboard server")?,
         Err(_) => tracing::debug!("web dashboard: connections still open at shutdown; closed"),
     }
     Ok(())

@@ -3,8 +3,6 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-
-
 /// The environment variable that overrides the data directory (`off`: no store).
 pub const HOME_ENV: &str = "DRONEWATT_HOME";
 /// The database's file name in the data directory.
@@ -18,9 +16,17 @@ pub(crate) const BUSY_WAIT: Duration = Duration::from_secs(2);
 /// `$XDG_DATA_HOME/dronewatt`, else `$HOME/.local/share/dronewatt`. `None`: the store is
 /// off (`off` given, or no home directory at all). The environment is passed in, so the
 /// rule is testable.
-pub fn data_dir(flag: Option<&Path>, home_env: Option<&str>, xdg_data_home: Option<&str>, home: Option<&str>) -> Option<PathBuf> {
+pub fn data_dir(
+    flag: Option<&Path>,
+    home_env: Option<&str>,
+    xdg_data_home: Option<&str>,
+    home: Option<&str>,
+) -> Option<PathBuf> {
     let nonempty = |s: Option<&str>| s.filter(|s| !s.is_empty()).map(str::to_string);
-    let chosen = flag.map(|p| p.to_string_lossy().into_owned()).filter(|s| !s.is_empty()).or_else(|| nonempty(home_env));
+    let chosen = flag
+        .map(|p| p.to_string_lossy().into_owned())
+        .filter(|s| !s.is_empty())
+        .or_else(|| nonempty(home_env));
     if let Some(dir) = chosen {
         return (dir != "off").then(|| PathBuf::from(dir));
     }
@@ -33,5 +39,10 @@ pub fn data_dir(flag: Option<&Path>, home_env: Option<&str>, xdg_data_home: Opti
 /// [`data_dir`] from this process's environment.
 pub fn data_dir_from_env(flag: Option<&Path>) -> Option<PathBuf> {
     let var = |k: &str| std::env::var(k).ok();
-    data_dir(flag, var(HOME_ENV).as_deref(), var("XDG_DATA_HOME").as_deref(), var("HOME").as_deref())
+    data_dir(
+        flag,
+        var(HOME_ENV).as_deref(),
+        var("XDG_DATA_HOME").as_deref(),
+        var("HOME").as_deref(),
+    )
 }

@@ -1,8 +1,6 @@
 //! One run summed up for the store: the vehicle's key and the flight log built from its
 //! reports in bounded memory.
 
-
-
 use crate::report::Report;
 use crate::vehicle::params::Identity;
 use crate::vehicle::store::dir::MIN_PCT_DROP;
@@ -20,8 +18,14 @@ impl VehicleKey {
     /// The key of this vehicle (module docs).
     pub fn of(id: &Identity) -> Self {
         match id.uid {
-            Some(uid) => Self { key: format!("uid:{uid:016x}"), kind: "uid" },
-            None => Self { key: format!("sys{}-{}-{}", id.system_id, id.autopilot, id.vehicle_type), kind: "heartbeat" },
+            Some(uid) => Self {
+                key: format!("uid:{uid:016x}"),
+                kind: "uid",
+            },
+            None => Self {
+                key: format!("sys{}-{}-{}", id.system_id, id.autopilot, id.vehicle_type),
+                kind: "heartbeat",
+            },
         }
     }
 }
@@ -94,7 +98,11 @@ impl PowerBins {
 
     /// A bin's power: its geometric centre (0 for the bin below 1 W).
     pub(crate) fn power(bin: u16) -> f64 {
-        if bin == 0 { 0.0 } else { 1.01f64.powf(f64::from(bin) - 0.5) }
+        if bin == 0 {
+            0.0
+        } else {
+            1.01f64.powf(f64::from(bin) - 0.5)
+        }
     }
 
     fn add(&mut self, p: f32, dt_s: f64) {
@@ -121,7 +129,11 @@ impl PowerBins {
 
     /// Seconds covered by reports with a power above `w`, to the bin.
     fn seconds_above(&self, w: f64) -> f64 {
-        self.0.iter().filter(|(&bin, _)| Self::power(bin) > w).map(|(_, e)| e.1).sum()
+        self.0
+            .iter()
+            .filter(|(&bin, _)| Self::power(bin) > w)
+            .map(|(_, e)| e.1)
+            .sum()
     }
 }
 
@@ -137,7 +149,11 @@ impl FlightLog {
             self.last_t = Some(t);
         }
         self.energy_wh = r.energy.energy_used_wh;
-        if let Some(pct) = s.battery_remaining_pct.map(f64::from).filter(|p| (0.0..=100.0).contains(p)) {
+        if let Some(pct) = s
+            .battery_remaining_pct
+            .map(f64::from)
+            .filter(|p| (0.0..=100.0).contains(p))
+        {
             self.pct = Some((self.pct.map_or(pct, |(a, _)| a), pct));
         }
         // The rated capacity (config, parameter or default), not one learned from this store.
@@ -164,7 +180,8 @@ impl FlightLog {
         }
         let p90 = self.power.rank((n - 1) * 9 / 10);
         let airborne_s = self.power.seconds_above(0.3 * p90);
-        let (rated_capacity_wh, capacity_source) = self.capacity.clone().unwrap_or((0.0, "unknown".into()));
+        let (rated_capacity_wh, capacity_source) =
+            self.capacity.clone().unwrap_or((0.0, "unknown".into()));
         let effective_capacity_wh = self
             .pct
             .map(|(a, b)| a - b)
@@ -174,7 +191,8 @@ impl FlightLog {
         let pk = &self.pack;
         let pack_health_pct = match (self.pack_start, pk.end_rest_soc_pct, pk.curve_wh) {
             (Some((_, soc0)), Some(soc1), Some(curve)) if soc0 - soc1 >= MIN_SOC_DROP_PCT => {
-                Some(100.0 * self.energy_wh / (curve * (soc0 - soc1) / 100.0)).filter(|h| h.is_finite() && *h > 0.0)
+                Some(100.0 * self.energy_wh / (curve * (soc0 - soc1) / 100.0))
+                    .filter(|h| h.is_finite() && *h > 0.0)
             }
             _ => None,
         };

@@ -12,7 +12,14 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
     use std::fmt::Write;
     let path = dir.join(DB_FILE);
     if !path.exists() {
-        return Ok(if json { "[]\n".into() } else { format!("{}: no vehicle store yet (nothing flown with the store on)\n", path.display()) });
+        return Ok(if json {
+            "[]\n".into()
+        } else {
+            format!(
+                "{}: no vehicle store yet (nothing flown with the store on)\n",
+                path.display()
+            )
+        });
     }
     let store = Store::open(dir)?;
     let vehicles = store.vehicles()?;
@@ -20,7 +27,12 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
         return Ok(serde_json::to_string_pretty(&vehicles)? + "\n");
     }
     let mut s = String::new();
-    let _ = writeln!(s, "{}: {} vehicle(s)", store.path().display(), vehicles.len());
+    let _ = writeln!(
+        s,
+        "{}: {} vehicle(s)",
+        store.path().display(),
+        vehicles.len()
+    );
     let _ = writeln!(
         s,
         "{:<34} {:<9} {:<10} {:<22} {:>7} {:>9} {:>9}  capacity delivered / rated, by flight",
@@ -33,7 +45,11 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
         let trend = if trend.is_empty() {
             "—".to_string()
         } else {
-            trend.iter().map(|p| format!("{p:.0} %")).collect::<Vec<_>>().join(" → ")
+            trend
+                .iter()
+                .map(|p| format!("{p:.0} %"))
+                .collect::<Vec<_>>()
+                .join(" → ")
         };
         let _ = writeln!(
             s,
@@ -44,12 +60,17 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
             v.vehicle_type.trim_start_matches("MAV_TYPE_"),
             v.flights.len(),
             airborne / 60.0,
-            v.wh_per_min().map_or("—".to_string(), |w| format!("{w:.2}")),
+            v.wh_per_min()
+                .map_or("—".to_string(), |w| format!("{w:.2}")),
             trend
         );
         let pack = pack_trend(&v.flights);
         if !pack.is_empty() {
-            let _ = writeln!(s, "{:<34} pack (per vehicle: no pack id heard), by flight: {pack}", "");
+            let _ = writeln!(
+                s,
+                "{:<34} pack (per vehicle: no pack id heard), by flight: {pack}",
+                ""
+            );
         }
         if let Some(p) = &v.profile {
             let _ = writeln!(
@@ -67,8 +88,16 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
 /// The pack's trend over flights, oldest first: health (energy delivered between the
 /// resting voltages over what the OCV curve holds between them) and series resistance.
 fn pack_trend(flights: &[super::FlightRecord]) -> String {
-    let health: Vec<String> = flights.iter().filter_map(|f| f.summary.pack_health_pct).map(|h| format!("{h:.0} %")).collect();
-    let r: Vec<String> = flights.iter().filter_map(|f| f.summary.internal_r_ohm).map(|r| format!("{:.0}", 1000.0 * r)).collect();
+    let health: Vec<String> = flights
+        .iter()
+        .filter_map(|f| f.summary.pack_health_pct)
+        .map(|h| format!("{h:.0} %"))
+        .collect();
+    let r: Vec<String> = flights
+        .iter()
+        .filter_map(|f| f.summary.internal_r_ohm)
+        .map(|r| format!("{:.0}", 1000.0 * r))
+        .collect();
     let mut parts = Vec::new();
     if !health.is_empty() {
         parts.push(format!("health {}", health.join(" → ")));

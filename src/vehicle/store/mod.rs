@@ -44,7 +44,7 @@ mod flight;
 mod list;
 
 pub use dir::{data_dir, data_dir_from_env, DB_FILE, HOME_ENV, MIN_PCT_DROP};
-pub use flight::{FlightLog, FlightSummary, VehicleKey};
+pub use flight::{FlightLog, FlightSummary, VehicleKey, MIN_SOC_DROP_PCT};
 pub use list::list;
 
 use std::path::{Path, PathBuf};
@@ -99,7 +99,9 @@ pub struct FlightRecord {
 impl VehicleRecord {
     /// Energy per airborne minute over every flight, Wh/min.
     pub fn wh_per_min(&self) -> Option<f64> {
-        let (wh, s) = self.flights.iter().fold((0.0, 0.0), |(wh, s), f| (wh + f.summary.energy_wh, s + f.summary.airborne_s));
+        let (wh, s) = self.flights.iter().fold((0.0, 0.0), |(wh, s), f| {
+            (wh + f.summary.energy_wh, s + f.summary.airborne_s)
+        });
         (s > 0.0).then(|| wh / (s / 60.0))
     }
 
@@ -107,7 +109,10 @@ impl VehicleRecord {
     pub fn capacity_trend_pct(&self) -> Vec<f64> {
         self.flights
             .iter()
-            .filter_map(|f| Some(100.0 * f.summary.effective_capacity_wh? / f.summary.rated_capacity_wh).filter(|v| v.is_finite()))
+            .filter_map(|f| {
+                Some(100.0 * f.summary.effective_capacity_wh? / f.summary.rated_capacity_wh)
+                    .filter(|v| v.is_finite())
+            })
             .collect()
     }
 }
@@ -155,7 +160,14 @@ CREATE TABLE IF NOT EXISTS profiles (
 pub const SCHEMA_VERSION: i64 = 2;
 
 /// The columns schema 2 adds to `flights`.
-const PACK_COLUMNS: [&str; 6] = ["rest_v_start", "rest_v_end", "r_scale", "internal_r_ohm", "heat_a2s", "pack_health_pct"];
+const PACK_COLUMNS: [&str; 6] = [
+    "rest_v_start",
+    "rest_v_end",
+    "r_scale",
+    "internal_r_ohm",
+    "heat_a2s",
+    "pack_health_pct",
+];
 
 /// Bring an older store up to [`SCHEMA_VERSION`] in one transaction; refuse a newer one (a
 /// later dronewatt wrote it: reading it could lose what that one keeps).
@@ -167,9 +179,15 @@ fn migrate(conn: &Connection) -> Result<()> {
     if version == SCHEMA_VERSION {
         return Ok(());
     }
-    let have: Vec<String> = conn.prepare("SELECT name FROM pragma_table_info('flights')")?.query_map([], |r| r.get(0))?.collect::<rusqlite::Result<_>>()?;
+    let have: Vec<String> = conn
+        .prepare("SELECT name FROM pragma_table_info('flights')")?
+        .query_map([], |r| r.get(0))?
+        .collect::<rusqlite::Result<_>>()?;
     let mut sql = String::from("BEGIN;");
-    for c in PACK_COLUMNS.iter().filter(|c| !have.iter().any(|h| h == *c)) {
+    for c in PACK_COLUMNS
+        .iter()
+        .filter(|c| !have.iter().any(|h| h == *c))
+    {
         sql.push_str(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"));
     }
     sql.push_str(&format!("PRAGMA user_version = {SCHEMA_VERSION}; COMMIT;"));
@@ -178,7 +196,9 @@ fn migrate(conn: &Connection) -> Result<()> {
 }
 
 fn now_s() -> i64 {
-    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() as i64)
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() as i64)
 }
 
 impl Store {
@@ -186,12 +206,24 @@ impl Store {
     /// is not a database, or one another run holds locked past `BUSY_WAIT`, fails here
     /// with the path in the message.
     pub fn open(dir: &Path) -> Result<Self> {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the data directory", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create the data directory", dir.display()))?;
         let path = dir.join(DB_FILE);
-        let conn = Connection::open(&path).with_context(|| format!("{}: cannot open the vehicle store", path.display()))?;
+        let conn = Connection::open(&path)
+            .with_context(|| format!("{}: cannot open the vehicle store", path.display()))?;
         conn.busy_timeout(BUSY_WAIT)?;
-        conn.execute_batch(SCHEMA).with_context(|| format!("{}: not a dronewatt vehicle store (corrupt?)", path.display()))?;
-        migrate(&conn).with_context(|| format!("{}: cannot bring the vehicle store to schema {SCHEMA_VERSION}", path.display()))?;
+        conn.execute_batch(SCHEMA).with_context(|| {
+            format!(
+                "{}: not a dronewatt vehicle store (corrupt?)",
+                path.display()
+            )
+        })?;
+        migrate(&conn).with_context(|| {
+            format!(
+                "{}: cannot bring the vehicle store to schema {SCHEMA_VERSION}",
+                path.display()
+            )
+        })?;
         Ok(Self { conn, path })
     }
 
@@ -203,13 +235,25 @@ impl Store {
     /// The fits learned on earlier flights of this vehicle, if any. Fits that do not parse
     /// (another version wrote them) are no fits, with a warning.
     pub fn learned_fits(&self, key: &VehicleKey) -> Result<Option<Vec<(String, ModelFit)>>> {
-        let text: Option<Option<String>> =
-            self.conn.query_row("SELECT fits FROM vehicles WHERE key = ?1", params![key.key], |r| r.get(0)).optional()?;
-        let Some(Some(text)) = text else { return Ok(None) };
+        let text: Option<Option<String>> = self
+            .conn
+            .query_row(
+                "SELECT fits FROM vehicles WHERE key = ?1",
+                params![key.key],
+                |r| r.get(0),
+            )
+            .optional()?;
+        let Some(Some(text)) = text else {
+            return Ok(None);
+        };
         match serde_json::from_str(&text) {
             Ok(f) => Ok(Some(f)),
             Err(e) => {
-                tracing::warn!("{}: the learned fits of {} do not parse ({e}); starting afresh", self.path.display(), key.key);
+                tracing::warn!(
+                    "{}: the learned fits of {} do not parse ({e}); starting afresh",
+                    self.path.display(),
+                    key.key
+                );
                 Ok(None)
             }
         }
@@ -221,7 +265,9 @@ impl Store {
         let mut st = self.conn.prepare(
             "SELECT effective_capacity_wh FROM flights WHERE vehicle = ?1 AND effective_capacity_wh > 0 ORDER BY ended_at DESC, id DESC LIMIT ?2",
         )?;
-        let mut v: Vec<f64> = st.query_map(params![key.key, CAPACITY_FLIGHTS as i64], |r| r.get(0))?.collect::<rusqlite::Result<_>>()?;
+        let mut v: Vec<f64> = st
+            .query_map(params![key.key, CAPACITY_FLIGHTS as i64], |r| r.get(0))?
+            .collect::<rusqlite::Result<_>>()?;
         v.retain(|c| c.is_finite());
         if v.is_empty() {
             return Ok(None);
@@ -240,17 +286,24 @@ impl Store {
                 |r| Ok((r.get::<_, i64>(0)?, r.get::<_, Option<f64>>(1)?, r.get::<_, Option<f64>>(2)?, r.get::<_, Option<f64>>(3)?)),
             )
             .optional()?;
-        Ok(row.map(|(ended, r_scale, heat, end_rest_v)| crate::battery::PackHistory {
-            gap_s: (now_s() - ended) as f64,
-            r_scale,
-            heat: heat.filter(|h| h.is_finite() && *h >= 0.0).unwrap_or(0.0),
-            end_rest_v,
-        }))
+        Ok(row.map(
+            |(ended, r_scale, heat, end_rest_v)| crate::battery::PackHistory {
+                gap_s: (now_s() - ended) as f64,
+                r_scale,
+                heat: heat.filter(|h| h.is_finite() && *h >= 0.0).unwrap_or(0.0),
+                end_rest_v,
+            },
+        ))
     }
 
     /// Record a run of this vehicle: the vehicle (created or updated, with the fits learned
     /// when given) and, when it flew, its flight. One transaction.
-    pub fn record(&mut self, id: &Identity, fits: Option<&[(String, ModelFit)]>, flight: Option<&FlightSummary>) -> Result<()> {
+    pub fn record(
+        &mut self,
+        id: &Identity,
+        fits: Option<&[(String, ModelFit)]>,
+        flight: Option<&FlightSummary>,
+    ) -> Result<()> {
         let key = VehicleKey::of(id);
         let now = now_s();
         let fits = fits.map(serde_json::to_string).transpose()?;
@@ -290,7 +343,12 @@ impl Store {
     }
 
     /// Keep the profile `dronewatt learn` wrote for this vehicle (replacing an earlier one).
-    pub fn record_profile(&mut self, id: &Identity, path: &Path, forecast_model: Option<&str>) -> Result<()> {
+    pub fn record_profile(
+        &mut self,
+        id: &Identity,
+        path: &Path,
+        forecast_model: Option<&str>,
+    ) -> Result<()> {
         self.record(id, None, None)?;
         self.conn.execute(
             "INSERT INTO profiles (vehicle, path, forecast_model, learned_at) VALUES (?1, ?2, ?3, ?4)
@@ -304,9 +362,17 @@ impl Store {
     pub fn learned_profile(&self, key: &str) -> Result<Option<LearnedProfile>> {
         Ok(self
             .conn
-            .query_row("SELECT path, forecast_model, learned_at FROM profiles WHERE vehicle = ?1", params![key], |r| {
-                Ok(LearnedProfile { path: PathBuf::from(r.get::<_, String>(0)?), forecast_model: r.get(1)?, learned_at: r.get(2)? })
-            })
+            .query_row(
+                "SELECT path, forecast_model, learned_at FROM profiles WHERE vehicle = ?1",
+                params![key],
+                |r| {
+                    Ok(LearnedProfile {
+                        path: PathBuf::from(r.get::<_, String>(0)?),
+                        forecast_model: r.get(1)?,
+                        learned_at: r.get(2)?,
+                    })
+                },
+            )
             .optional()?)
     }
 
@@ -319,7 +385,9 @@ impl Store {
             let fits: Option<String> = r.get(7)?;
             let learned_models = fits
                 .and_then(|f| serde_json::from_str::<Vec<(String, ModelFit)>>(&f).ok())
-                .map_or(0, |f| f.iter().filter(|(_, m)| m.adapted.taught > 0).count());
+                .map_or(0, |f| {
+                    f.iter().filter(|(_, m)| m.adapted.taught > 0).count()
+                });
             Ok(VehicleRecord {
                 key: r.get(0)?,
                 key_kind: r.get(1)?,
@@ -388,21 +456,35 @@ pub const CAPACITY_FLIGHTS: usize = 3;
 /// a warning and nothing learned (the run goes on as a first flight).
 pub fn lookup(dir: &Path, id: &Identity) -> Learned {
     let key = VehicleKey::of(id);
-    let got = Store::open(dir)
-        .and_then(|s| {
-            Ok(Learned { fits: s.learned_fits(&key)?, capacity_wh: s.learned_capacity(&key)?, profile: s.learned_profile(&key.key)?, pack: s.pack_history(&key)? })
-        });
+    let got = Store::open(dir).and_then(|s| {
+        Ok(Learned {
+            fits: s.learned_fits(&key)?,
+            capacity_wh: s.learned_capacity(&key)?,
+            profile: s.learned_profile(&key.key)?,
+            pack: s.pack_history(&key)?,
+        })
+    });
     match got {
         Ok(l) if l.fits.is_some() || l.capacity_wh.is_some() || l.profile.is_some() => {
-            tracing::info!("vehicle {} ({}): found what earlier flights learned", key.key, key.kind);
+            tracing::info!(
+                "vehicle {} ({}): found what earlier flights learned",
+                key.key,
+                key.kind
+            );
             l
         }
         Ok(l) => {
-            tracing::info!("vehicle {} ({}): first flight in the store", key.key, key.kind);
+            tracing::info!(
+                "vehicle {} ({}): first flight in the store",
+                key.key,
+                key.kind
+            );
             l
         }
         Err(e) => {
-            tracing::warn!("vehicle store: {e:#}; this run neither starts from nor keeps what was learned");
+            tracing::warn!(
+                "vehicle store: {e:#}; this run neither starts from nor keeps what was learned"
+            );
             Learned::default()
         }
     }
@@ -410,7 +492,12 @@ pub fn lookup(dir: &Path, id: &Identity) -> Learned {
 
 /// At the end of a run: keep the vehicle, its fits and the flight. Any store problem is a
 /// warning (the run's results stand without it).
-pub fn remember(dir: &Path, id: Option<&Identity>, fits: Option<&[(String, ModelFit)]>, log: &FlightLog) {
+pub fn remember(
+    dir: &Path,
+    id: Option<&Identity>,
+    fits: Option<&[(String, ModelFit)]>,
+    log: &FlightLog,
+) {
     let Some(id) = id else {
         tracing::info!("vehicle store: no autopilot heartbeat heard, so no vehicle to remember");
         return;
@@ -425,7 +512,10 @@ pub fn remember(dir: &Path, id: Option<&Identity>, fits: Option<&[(String, Model
             "vehicle {}: {} in {}",
             VehicleKey::of(id).key,
             match &flight {
-                Some(f) => format!("flight remembered ({:.2} Wh, {:.0} s airborne)", f.energy_wh, f.airborne_s),
+                Some(f) => format!(
+                    "flight remembered ({:.2} Wh, {:.0} s airborne)",
+                    f.energy_wh, f.airborne_s
+                ),
                 None => "seen (no power measured, no flight)".to_string(),
             },
             path.display()
@@ -442,8 +532,15 @@ pub fn remember_profile(dir: &Path, id: &Identity, path: &Path, forecast_model: 
         s.record_profile(id, path, forecast_model)?;
         Ok(s.path().to_path_buf())
     }) {
-        Ok(db) => tracing::info!("vehicle {}: the next run starts from {} (kept in {})", key.key, path.display(), db.display()),
-        Err(e) => tracing::warn!("vehicle store: {e:#}; the learned profile is not kept for the vehicle"),
+        Ok(db) => tracing::info!(
+            "vehicle {}: the next run starts from {} (kept in {})",
+            key.key,
+            path.display(),
+            db.display()
+        ),
+        Err(e) => {
+            tracing::warn!("vehicle store: {e:#}; the learned profile is not kept for the vehicle")
+        }
     }
 }
 
@@ -451,38 +548,74 @@ pub fn remember_profile(dir: &Path, id: &Identity, path: &Path, forecast_model: 
 mod tests {
     use super::*;
     use crate::report::Report;
-    use flight::PowerBins;
     use crate::vehicle::params::Autopilot;
+    use flight::PowerBins;
 
     fn id(uid: Option<u64>) -> Identity {
-        Identity { system_id: 1, component_id: 1, autopilot: Autopilot::ArduPilot, vehicle_type: "MAV_TYPE_QUADROTOR".into(), uid }
+        Identity {
+            system_id: 1,
+            component_id: 1,
+            autopilot: Autopilot::ArduPilot,
+            vehicle_type: "MAV_TYPE_QUADROTOR".into(),
+            uid,
+        }
     }
 
     #[test]
     fn data_dir_rule() {
         let flag = Path::new("/tmp/x");
-        assert_eq!(data_dir(Some(flag), Some("/e"), Some("/x"), Some("/h")), Some(PathBuf::from("/tmp/x")));
-        assert_eq!(data_dir(None, Some("/e"), Some("/x"), Some("/h")), Some(PathBuf::from("/e")));
-        assert_eq!(data_dir(None, None, Some("/x"), Some("/h")), Some(PathBuf::from("/x/dronewatt")));
+        assert_eq!(
+            data_dir(Some(flag), Some("/e"), Some("/x"), Some("/h")),
+            Some(PathBuf::from("/tmp/x"))
+        );
+        assert_eq!(
+            data_dir(None, Some("/e"), Some("/x"), Some("/h")),
+            Some(PathBuf::from("/e"))
+        );
+        assert_eq!(
+            data_dir(None, None, Some("/x"), Some("/h")),
+            Some(PathBuf::from("/x/dronewatt"))
+        );
         // XDG says a relative XDG_DATA_HOME is invalid and to be ignored.
-        assert_eq!(data_dir(None, Some(""), Some("rel"), Some("/h")), Some(PathBuf::from("/h/.local/share/dronewatt")));
+        assert_eq!(
+            data_dir(None, Some(""), Some("rel"), Some("/h")),
+            Some(PathBuf::from("/h/.local/share/dronewatt"))
+        );
         assert_eq!(data_dir(None, Some("off"), Some("/x"), Some("/h")), None);
-        assert_eq!(data_dir(Some(Path::new("off")), None, None, Some("/h")), None);
+        assert_eq!(
+            data_dir(Some(Path::new("off")), None, None, Some("/h")),
+            None
+        );
         assert_eq!(data_dir(None, None, None, None), None);
     }
 
     #[test]
     fn keys_prefer_the_uid() {
-        assert_eq!(VehicleKey::of(&id(Some(0xdead_beef))).key, "uid:00000000deadbeef");
+        assert_eq!(
+            VehicleKey::of(&id(Some(0xdead_beef))).key,
+            "uid:00000000deadbeef"
+        );
         let k = VehicleKey::of(&id(None));
-        assert_eq!((k.key.as_str(), k.kind), ("sys1-ardupilot-MAV_TYPE_QUADROTOR", "heartbeat"));
+        assert_eq!(
+            (k.key.as_str(), k.kind),
+            ("sys1-ardupilot-MAV_TYPE_QUADROTOR", "heartbeat")
+        );
     }
 
     #[test]
     fn a_corrupt_file_fails_to_open_with_its_path() {
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join(DB_FILE), b"this is not sqlite, just forty-odd bytes of text").unwrap();
-        let err = format!("{:#}", Store::open(dir.path()).err().expect("opened a corrupt file"));
+        std::fs::write(
+            dir.path().join(DB_FILE),
+            b"this is not sqlite, just forty-odd bytes of text",
+        )
+        .unwrap();
+        let err = format!(
+            "{:#}",
+            Store::open(dir.path())
+                .err()
+                .expect("opened a corrupt file")
+        );
         assert!(err.contains(DB_FILE), "{err}");
     }
 
@@ -501,22 +634,37 @@ mod tests {
             ..Default::default()
         };
         let fits = vec![("lstm".to_string(), ModelFit::default())];
-        st.record(&id(None), Some(&fits), Some(&flight(Some(37.5)))).unwrap();
-        st.record(&id(None), None, Some(&flight(Some(34.0)))).unwrap();
+        st.record(&id(None), Some(&fits), Some(&flight(Some(37.5))))
+            .unwrap();
+        st.record(&id(None), None, Some(&flight(Some(34.0))))
+            .unwrap();
         let v = st.vehicles().unwrap();
         assert_eq!(v.len(), 1);
         assert_eq!(v[0].flights.len(), 2);
         assert_eq!(v[0].capacity_trend_pct(), vec![93.75, 85.0]);
         assert!((v[0].wh_per_min().unwrap() - 3.0).abs() < 1e-9);
         let text = list(dir.path(), false).unwrap();
-        assert!(text.contains("sys1-ardupilot-MAV_TYPE_QUADROTOR") && text.contains("94 % → 85 %"), "{text}");
+        assert!(
+            text.contains("sys1-ardupilot-MAV_TYPE_QUADROTOR") && text.contains("94 % → 85 %"),
+            "{text}"
+        );
         // A record without fits keeps the ones learned before.
-        assert_eq!(st.learned_fits(&VehicleKey::of(&id(None))).unwrap(), Some(fits));
+        assert_eq!(
+            st.learned_fits(&VehicleKey::of(&id(None))).unwrap(),
+            Some(fits)
+        );
         // The capacity learned: the median of the last three flights that measured one.
         st.record(&id(None), None, Some(&flight(None))).unwrap();
-        st.record(&id(None), None, Some(&flight(Some(36.0)))).unwrap();
-        assert_eq!(st.learned_capacity(&VehicleKey::of(&id(None))).unwrap(), Some((36.0, 3)));
-        assert_eq!(st.learned_capacity(&VehicleKey::of(&id(Some(7)))).unwrap(), None);
+        st.record(&id(None), None, Some(&flight(Some(36.0))))
+            .unwrap();
+        assert_eq!(
+            st.learned_capacity(&VehicleKey::of(&id(None))).unwrap(),
+            Some((36.0, 3))
+        );
+        assert_eq!(
+            st.learned_capacity(&VehicleKey::of(&id(Some(7)))).unwrap(),
+            None
+        );
     }
 
     #[test]
@@ -527,21 +675,42 @@ mod tests {
             estimate: Estimate {
                 arrived: None,
                 t_s: t,
-                sample: Sample { t_s: t, features: [0.0; N_FEATURES], measured_w: Some(300.0), voltage_v: Some(12.0), home: None, stale_mask: 0, battery_remaining_pct: Some(pct) },
+                sample: Sample {
+                    t_s: t,
+                    features: [0.0; N_FEATURES],
+                    measured_w: Some(300.0),
+                    voltage_v: Some(12.0),
+                    home: None,
+                    stale_mask: 0,
+                    battery_remaining_pct: Some(pct),
+                },
                 models: vec![],
             },
-            energy: EnergyState { energy_used_wh: used, ..Default::default() },
+            energy: EnergyState {
+                energy_used_wh: used,
+                ..Default::default()
+            },
             alerts: vec![],
             system_id: 1,
         };
         let mut log = FlightLog::default();
         log.observe(&report(0.0, 90.0, 0.0));
         log.observe(&report(60.0, 85.0, 5.0));
-        assert_eq!(log.summary().unwrap().effective_capacity_wh, None, "5 % is the gauge's noise");
+        assert_eq!(
+            log.summary().unwrap().effective_capacity_wh,
+            None,
+            "5 % is the gauge's noise"
+        );
         log.observe(&report(120.0, 70.0, 10.0));
         let s = log.summary().unwrap();
-        assert!((s.effective_capacity_wh.unwrap() - 50.0).abs() < 1e-9, "{s:?}");
-        assert!((s.airborne_s - 2.0).abs() < 1e-9, "steps are capped at 1 s: {s:?}");
+        assert!(
+            (s.effective_capacity_wh.unwrap() - 50.0).abs() < 1e-9,
+            "{s:?}"
+        );
+        assert!(
+            (s.airborne_s - 2.0).abs() < 1e-9,
+            "steps are capped at 1 s: {s:?}"
+        );
     }
 
     /// Ten hours at 10 Hz: 60 s on the ground at 20 W, then hover around 350 W with a
@@ -555,17 +724,48 @@ mod tests {
         let n = 360_000;
         for i in 0..n {
             let t = f64::from(i) * 0.1;
-            let p = if t < 60.0 { 20.0 } else if i % 600 < 50 { 600.0 } else { 350.0 + (i % 37) as f32 };
-            let sample = Sample { t_s: t, features: [0.0; N_FEATURES], measured_w: Some(p), voltage_v: None, home: None, stale_mask: 0, battery_remaining_pct: None };
-            log.observe(&Report { estimate: Estimate { t_s: t, sample, models: vec![], arrived: None }, energy: EnergyState::default(), alerts: vec![], system_id: 1 });
+            let p = if t < 60.0 {
+                20.0
+            } else if i % 600 < 50 {
+                600.0
+            } else {
+                350.0 + (i % 37) as f32
+            };
+            let sample = Sample {
+                t_s: t,
+                features: [0.0; N_FEATURES],
+                measured_w: Some(p),
+                voltage_v: None,
+                home: None,
+                stale_mask: 0,
+                battery_remaining_pct: None,
+            };
+            log.observe(&Report {
+                estimate: Estimate {
+                    t_s: t,
+                    sample,
+                    models: vec![],
+                    arrived: None,
+                },
+                energy: EnergyState::default(),
+                alerts: vec![],
+                system_id: 1,
+            });
         }
         let s = log.summary().unwrap();
         let flown = f64::from(n - 1) * 0.1 - 60.0;
-        assert!((s.airborne_s - flown).abs() < 0.2, "airborne {} s, flown {flown} s", s.airborne_s);
+        assert!(
+            (s.airborne_s - flown).abs() < 0.2,
+            "airborne {} s, flown {flown} s",
+            s.airborne_s
+        );
         assert!(log.power.0.len() < 100, "{} bins", log.power.0.len());
         // Every bin is where its power is: the centre within half a bin (0.5 %).
         for p in [1.0f32, 20.0, 350.0, 5_000.0] {
-            assert!((PowerBins::power(PowerBins::bin(p)) / f64::from(p) - 1.0).abs() < 0.0051, "{p} W");
+            assert!(
+                (PowerBins::power(PowerBins::bin(p)) / f64::from(p) - 1.0).abs() < 0.0051,
+                "{p} W"
+            );
         }
         assert_eq!(PowerBins::bin(0.3), 0);
         assert_eq!(PowerBins::bin(1e9), PowerBins::MAX - 1);
@@ -591,7 +791,10 @@ mod tests {
             .unwrap();
         }
         let mut st = Store::open(dir.path()).expect("an old store opens");
-        let version: i64 = st.conn.query_row("PRAGMA user_version", [], |r| r.get(0)).unwrap();
+        let version: i64 = st
+            .conn
+            .query_row("PRAGMA user_version", [], |r| r.get(0))
+            .unwrap();
         assert_eq!(version, SCHEMA_VERSION);
         let v = st.vehicles().unwrap();
         assert_eq!(v[0].flights.len(), 1);
@@ -612,17 +815,31 @@ mod tests {
         };
         st.record(&id, None, Some(&pack)).unwrap();
         let h = st.pack_history(&key).unwrap().expect("a history");
-        assert_eq!((h.r_scale, h.end_rest_v, h.heat), (Some(1.2), Some(23.3), 90_000.0));
+        assert_eq!(
+            (h.r_scale, h.end_rest_v, h.heat),
+            (Some(1.2), Some(23.3), 90_000.0)
+        );
         assert!(h.gap_s >= 0.0 && h.gap_s < 60.0, "{h:?}");
-        assert!(h.same_pack(23.35, 6) && !h.same_pack(25.9, 6), "a recharged pack is another");
+        assert!(
+            h.same_pack(23.35, 6) && !h.same_pack(25.9, 6),
+            "a recharged pack is another"
+        );
         let listing = list::list(dir.path(), false).unwrap();
-        assert!(listing.contains("health 97 %") && listing.contains("R 45 mΩ"), "{listing}");
+        assert!(
+            listing.contains("health 97 %") && listing.contains("R 45 mΩ"),
+            "{listing}"
+        );
         drop(st);
         let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
         conn.execute_batch("PRAGMA user_version = 99").unwrap();
         drop(conn);
-        let err = Store::open(dir.path()).err().expect("a newer store is refused").to_string();
-        assert!(err.contains("newer dronewatt") || format!("{err:#}").contains("schema"), "{err}");
+        let err = Store::open(dir.path())
+            .err()
+            .expect("a newer store is refused")
+            .to_string();
+        assert!(
+            err.contains("newer dronewatt") || format!("{err:#}").contains("schema"),
+            "{err}"
+        );
     }
-
 }
