@@ -21,6 +21,23 @@ pub struct FlightWindows {
     pub windows: Vec<Window>,
 }
 
+/// Every flight of `want` is among `read` (else the error names the file and the missing).
+pub fn require_flights(read: &[dataset::Flight], want: &[u32], path: &Path) -> anyhow::Result<()> {
+    let missing: Vec<u32> = want
+        .iter()
+        .copied()
+        .filter(|w| !read.iter().any(|f| f.flight == *w))
+        .collect();
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        anyhow::bail!(
+            "{}: flights {missing:?} are not in this file",
+            path.display()
+        )
+    }
+}
+
 /// Load these flights (all when `flights` is `None`) from the official file, plain or gzip.
 ///
 /// Each flight walks the live path: [`dataset::encode_flight`] (rows → MAVLink tlog bytes) →
@@ -40,17 +57,7 @@ pub fn load_flights(
     cfg.validate().map_err(anyhow::Error::msg)?;
     let ds = dataset::read_flights(path, flights)?;
     if let Some(want) = flights {
-        let missing: Vec<u32> = want
-            .iter()
-            .copied()
-            .filter(|w| !ds.flights.iter().any(|f| f.flight == *w))
-            .collect();
-        if !missing.is_empty() {
-            anyhow::bail!(
-                "{}: flights {missing:?} are not in this file",
-                path.display()
-            );
-        }
+        require_flights(&ds.flights, want, path)?;
     }
     let bar = if ds.flights.len() > 4 {
         indicatif::ProgressBar::new(ds.flights.len() as u64)

@@ -184,6 +184,37 @@ pub fn mean(scores: &[Scores]) -> Option<Scores> {
     })
 }
 
+/// The median of `v` (sorted in place; the mean of the middle two for an even count), NaN
+/// for none: the one median of the offline reports (plan-eval's fit, battery-eval).
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// The median of the finite values of `x`; NaN if none.
+pub fn median_finite(x: impl IntoIterator<Item = f64>) -> f64 {
+    median(&mut x.into_iter().filter(|a| a.is_finite()).collect::<Vec<_>>())
+}
+
+/// The `q` quantile of `v` (sorted in place), linear between ranks; NaN for none.
+pub fn quantile(v: &mut [f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let pos = q * (v.len() - 1) as f64;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -33,6 +33,7 @@ use crate::offline::forecast_fit::Fitted;
 use crate::offline::forecast_fit::Prepared;
 use crate::offline::forecast_fit::BOOTSTRAP;
 use crate::offline::forecast_fit::TIE_SHARE;
+use crate::offline::metrics::median;
 use crate::offline::plan::load_config;
 use crate::offline::plan::models_for;
 use crate::offline::route::geometry_for;
@@ -162,29 +163,6 @@ pub(crate) fn gcs_left_s(
         }
     }
     t
-}
-
-pub(crate) fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-pub(crate) fn quantile(v: &mut [f64], q: f64) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let pos = q * (v.len() - 1) as f64;
-    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-    v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
 }
 
 /// Flight `p` forecast with `cal`, each member `i` with the scale `scales[i]` (the one

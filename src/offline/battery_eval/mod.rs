@@ -241,17 +241,7 @@ pub fn battery_eval(
         );
     }
     if let Some(want) = only {
-        let missing: Vec<u32> = want
-            .iter()
-            .copied()
-            .filter(|w| !ds.flights.iter().any(|f| f.flight == *w))
-            .collect();
-        if !missing.is_empty() {
-            anyhow::bail!(
-                "{}: flights {missing:?} are not in this file",
-                data.display()
-            );
-        }
+        crate::offline::data::require_flights(&ds.flights, want, data)?;
     }
     let mut all: Vec<Prepared> = ds
         .flights

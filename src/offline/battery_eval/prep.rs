@@ -74,17 +74,7 @@ impl Prepared {
 
 /// Median of the finite values (mean of the middle two for an even count); NaN if none.
 pub fn median(x: impl IntoIterator<Item = f64>) -> f64 {
-    let mut v: Vec<f64> = x.into_iter().filter(|a| a.is_finite()).collect();
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
+    crate::offline::metrics::median_finite(x)
 }
 
 fn median_where(t: &[f64], v: &[f64], keep: impl Fn(usize) -> bool, min_n: usize) -> f64 {
