@@ -181,7 +181,7 @@ fn check(code: i32, out: &str) {
         "Pack",
         "Link",
         "Alerts",
-        "lastmin",
+        "last5min",
     ] {
         assert!(s.contains(title), "no {title} tile: {out:?}");
     }
@@ -204,7 +204,7 @@ fn check(code: i32, out: &str) {
         "nothing hides the cursor again"
     );
     // Only the closing lines after that: the run's counters, no more drawing.
-    let tail = &out[shown..];
+    let tail = &out[shown + SHOW_CURSOR.len()..];
     assert!(tail.contains("done: frames ok"), "closing lines: {tail:?}");
     assert!(
         !tail.contains("\x1b[?"),
