@@ -44,6 +44,10 @@ struct RunArgs {
     /// No live terminal view.
     #[arg(long, short = 'q')]
     quiet: bool,
+    /// The one-line terminal view instead of the full screen (which is drawn only when
+    /// standard output is a terminal).
+    #[arg(long)]
+    plain: bool,
     /// Run this LSTM instead of the shipped one: a model folder, its card.toml, or a
     /// weights file (.safetensors, or a TorchScript .pt) with card.toml beside it.
     #[arg(long, value_name = "FILE")]
@@ -259,7 +263,13 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     }
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {
-        sinks.push(SinkSpec::Terminal);
+        // The full screen on a terminal; lines on stderr with --plain or a piped stdout.
+        let tty = std::io::IsTerminal::is_terminal(&std::io::stdout());
+        sinks.push(if tty && !run.plain {
+            SinkSpec::Screen
+        } else {
+            SinkSpec::Terminal
+        });
     }
     if let Some(j) = &run.json {
         sinks.push(SinkSpec::Json(if j == "-" {

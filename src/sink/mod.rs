@@ -1,4 +1,4 @@
-//! Where reports go: terminal, JSON lines, MAVLink back to the ground station, web, MQTT.
+//! Where reports go: terminal (the line view or the full screen), JSON lines, MAVLink back to the ground station, web, MQTT.
 //! Each sink is its own task with its own bounded queue of [`Report`]s ([`Fanout`],
 //! [`ReportRx`]), and one typed handle, [`ChainStatus`], for what the chain says about
 //! itself beside the reports (ingest counters, signal health, the uplink). Sinks read
@@ -9,6 +9,7 @@
 //! counts them ([`ReportRx::missed`]) and says so, never silently.
 
 pub mod jsonl;
+pub mod screen;
 pub mod terminal;
 
 pub mod mavlink;
@@ -54,8 +55,10 @@ pub enum JsonTarget {
 /// One publisher a run feeds.
 #[derive(Debug, Clone)]
 pub enum SinkSpec {
-    /// The compact live terminal view.
+    /// The compact live terminal view (lines on stderr).
     Terminal,
+    /// The full live screen on a terminal stdout ([`screen`]).
+    Screen,
     /// JSON lines.
     Json(JsonTarget),
     /// STATUSTEXT and NAMED_VALUE_FLOAT back to the ground station.
@@ -76,6 +79,7 @@ pub fn spawn(
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
     match spec {
         SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, status))),
+        SinkSpec::Screen => Ok(tokio::spawn(screen::run(rx, status))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, status),
         SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, status.link))),
         SinkSpec::Web(c) => web::spawn(c, rx, status.shutdown),

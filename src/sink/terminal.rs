@@ -89,8 +89,19 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
             }
         }
     }
+    print_summary(&stats, rx.missed(), "the terminal view", &latency);
+    Ok(())
+}
+
+/// The closing lines on stderr: the run's counters (and the reports `view` missed), then
+/// the message → estimate latency.
+pub fn print_summary(
+    stats: &IngestStats,
+    missed: u64,
+    view: &str,
+    latency: &crate::report::status::LatencyHistogram,
+) {
     let s = stats.snapshot();
-    let missed = rx.missed();
     eprintln!(
         "done: frames ok {} bad {} unknown {} gaps {} (clock jumps {}) junk bytes {} windows {}{}",
         s.frames_ok,
@@ -101,7 +112,7 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
         s.junk_bytes,
         s.windows,
         if missed > 0 {
-            format!(", {missed} reports missed by the terminal view")
+            format!(", {missed} reports missed by {view}")
         } else {
             String::new()
         }
@@ -109,7 +120,6 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
     if let Some(l) = latency.summary() {
         eprintln!("      {l}");
     }
-    Ok(())
 }
 
 /// A number, or `?` for NaN/infinity (a sensor glitch must not look like a value).
