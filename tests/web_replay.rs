@@ -181,16 +181,17 @@ fn dashboard_of_the_demo_replay_in_chromium() {
             "tile {id} holds no number: {t:?}"
         );
     };
-    for id in [
-        "v-mission",
-        "v-mmargin",
-        "v-batt",
-        "v-batt-model",
-        "v-soc",
-        "v-vmin",
-        "v-tlow",
-    ] {
+    for id in ["v-mission", "v-mmargin", "v-batt", "v-batt-model", "v-soc"] {
         number(id);
+    }
+    // The page is read after the landing: no rest of the flight is left to forecast, so the
+    // forecast tiles say so (the "Sag" alert above is the forecast made in flight).
+    for id in ["v-vmin", "v-tlow"] {
+        let t = tile(id);
+        assert!(
+            t == "–" || t.starts_with(|c: char| c.is_ascii_digit()),
+            "tile {id}: {t:?}"
+        );
     }
     assert_eq!(
         tile("v-batt"),
