@@ -18,7 +18,7 @@
 //! and the sinks flush); SIGINT/SIGTERM from outside, and the end of a replay, end it too.
 //!
 //! The terminal is always given back (raw mode off, alternate screen left, cursor shown):
-//! by [`Screen`]'s `Drop` when the screen ends or its task is dropped, and by a panic hook
+//! by `Screen`'s `Drop` when the screen ends or its task is dropped, and by a panic hook
 //! before any panic message is printed. While the screen is up, stderr (the log) goes into
 //! a pipe: its newest line shows at the bottom of the screen, and every line is written
 //! to the real stderr once the screen is gone, so no log line scribbles over the screen
