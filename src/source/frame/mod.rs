@@ -46,13 +46,16 @@
 //! it lost; a frame counted bad therefore usually shows as one gap too. Clock jumps are
 //! counted by the time bases in [`super::timed`].
 
-use std::sync::OnceLock;
-
 use mavlink::{MavHeader, MavlinkVersion, Message};
 
 use super::signing::{Verdict, Verifier};
+
+mod crc;
+
 use super::IngestStats;
 use crate::MavMessage;
+pub use crc::crc16;
+pub(crate) use crc::crc_extra;
 
 /// A link's signature verifier, shared by every connection of the link (a replay through
 /// a second TCP client is still a replay).
@@ -95,49 +98,6 @@ pub struct Frame {
     pub msg: MavMessage,
     /// The tlog record's timestamp, µs ([`Framing::Tlog`] only).
     pub stamp_us: Option<u64>,
-}
-
-/// The MAVLink checksum (CRC-16/MCRF4XX, "X.25") over `data` then the message's
-/// `crc_extra`. Public so tests and tools can build frames by hand.
-#[inline]
-pub fn crc16(data: &[u8], extra: u8) -> u16 {
-    #[inline(always)]
-    fn acc(crc: u16, b: u8) -> u16 {
-        let mut t = b ^ (crc as u8);
-        t ^= t << 4;
-        let t = t as u16;
-        (crc >> 8) ^ (t << 8) ^ (t << 3) ^ (t >> 4)
-    }
-    let mut crc = 0xFFFF;
-    for &b in data {
-        crc = acc(crc, b);
-    }
-    acc(crc, extra)
-}
-
-/// `crc_extra` of every message id below 65536 that the dialect knows (bit 8 set = known).
-/// Built once: `MavMessage::extra_crc` answers 0 for an unknown id, which a known message
-/// may also have, so knowing is asked of `default_message_from_id`.
-fn id_table() -> &'static [u16] {
-    static TABLE: OnceLock<Vec<u16>> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        (0..=u16::MAX as u32)
-            .map(|id| match MavMessage::default_message_from_id(id) {
-                Some(_) => 0x100 | MavMessage::extra_crc(id) as u16,
-                None => 0,
-            })
-            .collect()
-    })
-}
-
-/// The `crc_extra` of `id`, or `None` when this dialect does not know the message.
-#[inline]
-pub(crate) fn crc_extra(id: u32) -> Option<u8> {
-    match id_table().get(id as usize) {
-        Some(&e) if e & 0x100 != 0 => Some(e as u8),
-        Some(_) => None,
-        None => MavMessage::default_message_from_id(id).map(|_| MavMessage::extra_crc(id)),
-    }
 }
 
 /// Input bytes by what they turned out to be (see the module docs): with `junk_bytes`
@@ -708,46 +668,4 @@ impl FrameDecoder {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn crc_matches_rust_mavlink() {
-        let data = [1u8, 2, 3, 250, 251, 0, 7];
-        assert_eq!(crc16(&data, 50), mavlink::calculate_crc(&data, 50));
-    }
-
-    #[test]
-    fn crc_is_mcrf4xx_and_crc_extra_is_the_published_table() {
-        // CRC-16/MCRF4XX check value: "123456789" → 0x6F91 (the last byte rides as `extra`).
-        assert_eq!(crc16(b"12345678", b'9'), 0x6F91);
-        // CRC_EXTRA of the messages dronewatt reads, as common.xml / ardupilotmega.xml
-        // generate them (pymavlink's mavlink_map and the C headers agree).
-        for (id, extra) in [
-            (0, 50),    // HEARTBEAT
-            (1, 124),   // SYS_STATUS
-            (24, 24),   // GPS_RAW_INT
-            (27, 144),  // RAW_IMU
-            (30, 39),   // ATTITUDE
-            (32, 185),  // LOCAL_POSITION_NED
-            (33, 104),  // GLOBAL_POSITION_INT
-            (36, 222),  // SERVO_OUTPUT_RAW
-            (74, 20),   // VFR_HUD
-            (147, 154), // BATTERY_STATUS
-            (168, 1),   // WIND (ardupilotmega)
-            (242, 104), // HOME_POSITION
-            (251, 170), // NAMED_VALUE_FLOAT
-            (253, 83),  // STATUSTEXT
-        ] {
-            assert_eq!(crc_extra(id), Some(extra), "message id {id}");
-        }
-    }
-
-    #[test]
-    fn unknown_ids_are_unknown_and_known_ones_known() {
-        assert!(crc_extra(0).is_some()); // HEARTBEAT
-        assert!(crc_extra(147).is_some()); // BATTERY_STATUS
-        assert!(crc_extra(60_000).is_none());
-        assert!(crc_extra(0xFF_FFFF).is_none());
-    }
-}
+mod tests;

@@ -1,0 +1,191 @@
+//! Tests of the parent module.
+
+use super::*;
+use crate::features::{HomeVector, Sample, N_FEATURES};
+
+fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
+    Estimate {
+        arrived: None,
+        t_s,
+        sample: Sample {
+            t_s,
+            features: [0.0; N_FEATURES],
+            measured_w,
+            voltage_v: Some(22.8),
+            home: None,
+            stale_mask: 0,
+            battery_remaining_pct: None,
+        },
+        models: models
+            .iter()
+            .map(|(n, p)| ModelEstimate::new(n.to_string(), *p, None))
+            .collect(),
+    }
+}
+
+fn tracker(energy: EnergyConfig) -> EnergyTracker {
+    EnergyTracker::new(&energy, None).unwrap()
+}
+
+#[test]
+fn integrates_measured_power_and_caps_gaps() {
+    let mut tr = tracker(EnergyConfig::default());
+    // 360 W for 10 s at 10 Hz = 1 Wh.
+    let mut st = EnergyState::default();
+    for i in 0..=100 {
+        st = tr.update(&est(i as f64 * 0.1, Some(360.0), &[("tseng", 100.0)]));
+    }
+    assert!(
+        (st.energy_used_wh - 1.0).abs() < 1e-9,
+        "{}",
+        st.energy_used_wh
+    );
+    assert_eq!(st.power_source, "measured");
+    // A 100 s gap counts as max_dt_s (1 s): 0.1 Wh, not 10 Wh.
+    let st = tr.update(&est(110.0, Some(360.0), &[]));
+    assert!((st.energy_used_wh - 1.1).abs() < 1e-9);
+    // A jump backwards integrates nothing.
+    let st = tr.update(&est(5.0, Some(360.0), &[]));
+    assert!((st.energy_used_wh - 1.1).abs() < 1e-9);
+    // Voltage per cell from the 6S default.
+    assert!((st.cell_voltage_v.unwrap() - 3.8).abs() < 1e-6);
+}
+
+#[test]
+fn falls_back_to_the_preferred_model_and_says_so() {
+    let mut tr = tracker(EnergyConfig::default());
+    let mut st = EnergyState::default();
+    for i in 0..=10 {
+        st = tr.update(&est(i as f64, None, &[("tseng", 100.0), ("lstm", 720.0)]));
+    }
+    assert_eq!(st.power_source, "lstm");
+    assert_eq!(st.forecast_model.as_deref(), Some("lstm"));
+    assert!((st.energy_used_wh - 2.0).abs() < 1e-9);
+    // Physics models only: measured power is the forecast, the first model is what is
+    // integrated when nothing is measured.
+    let mut tr = tracker(EnergyConfig::default());
+    let st = tr.update(&est(
+        0.0,
+        Some(300.0),
+        &[("dandrea", 100.0), ("tseng", 500.0)],
+    ));
+    assert_eq!((st.forecast_model, st.forecast_w), (None, Some(300.0)));
+    let st = tr.update(&est(1.0, None, &[("dandrea", 100.0), ("tseng", 500.0)]));
+    assert_eq!(st.power_source, "dandrea");
+    // Nothing at all: nothing integrated, nothing forecast, and it says "none".
+    let mut tr = tracker(EnergyConfig::default());
+    let st = tr.update(&est(0.0, None, &[]));
+    assert_eq!(st.power_source, "none");
+    assert_eq!(st.time_to_empty_s, None);
+    assert_eq!(st.remaining_wh, Some(129.96));
+}
+
+#[test]
+fn remaining_time_and_home_margin() {
+    let cfg = EnergyConfig {
+        capacity_wh: Some(100.0),
+        reserve_pct: 10.0,
+        landing_s: 0.0,
+        ..Default::default()
+    };
+    let mut tr = tracker(cfg);
+    let mut e = est(0.0, Some(360.0), &[("m", 360.0)]);
+    e.sample.home = Some(HomeVector {
+        distance_m: 1000.0,
+        height_m: 20.0,
+    });
+    e.sample.features[idx::VX] = 10.0;
+    let st = tr.update(&e);
+    // 100 Wh at 360 W: 1000 s.
+    assert!((st.time_to_empty_s.unwrap() - 1000.0).abs() < 1e-6);
+    // Home: 1000 m at 10 m/s = 100 s, 20 m at 2 m/s = 10 s, at 360 W: 11 Wh.
+    assert!((st.home_energy_wh.unwrap() - 11.0).abs() < 1e-9);
+    assert!((st.home_margin_wh.unwrap() - (100.0 - 11.0 - 10.0)).abs() < 1e-9);
+    // The autopilot's percentage wins over capacity − used.
+    let st = tr.update_with_battery(&e, Some(40.0));
+    assert_eq!(st.remaining_wh, Some(40.0));
+    assert_eq!(st.remaining_source, "battery");
+    // Unless the configuration says not to trust it.
+    tr.cfg.use_battery_pct = false;
+    assert_eq!(
+        tr.update_with_battery(&e, Some(40.0)).remaining_source,
+        "assumed full"
+    );
+}
+
+/// A half-used TB48D resting at 23.2 V before take-off, with an autopilot that says 100 %
+/// (ArduPilot counts from "full at boot").
+#[test]
+fn the_resting_voltage_starts_the_pack_and_beats_a_full_at_boot_gauge() {
+    let mut tr = tracker(EnergyConfig::default());
+    let mut st = EnergyState::default();
+    for k in 0..600 {
+        let t = f64::from(k) * 0.1;
+        let (v, amps) = if t < 4.0 { (23.2, 0.1) } else { (21.9, 20.0) };
+        let mut e = est(t, Some((v * amps) as f32), &[("m", (v * amps) as f32)]);
+        e.sample.voltage_v = Some(v as f32);
+        st = tr.update_with_battery(&e, Some(100.0));
+    }
+    assert_eq!(st.remaining_source, "resting voltage");
+    assert_eq!(st.pack.battery_rest_v, Some(f64::from(23.2f32)));
+    // 3.87 V a cell at rest: well under full, and the usable energy less again.
+    let soc = st.pack.soc_pct.expect("a state of charge");
+    assert!(soc > 25.0 && soc < 55.0, "{soc}");
+    assert!(st.remaining_pct.is_some_and(|p| p < soc), "{st:?}");
+    assert!(
+        st.pack.battery_pct_disagreement.is_some_and(|d| d > 40.0),
+        "{st:?}"
+    );
+    assert!(st.pack.internal_r_ohm.is_some_and(|r| r > 0.0), "{st:?}");
+    assert!(st.pack.v_min_forecast_v.is_some_and(|v| v < 21.9), "{st:?}");
+    // The time to empty is the time to the low-voltage threshold (3.5 V a cell, 21 V).
+    assert_eq!(st.pack.low_threshold_v, Some(21.0));
+    assert_eq!(st.time_to_empty_s, st.pack.time_to_low_v_s);
+}
+
+#[test]
+fn learned_capacity_beats_the_vehicle_but_not_the_config() {
+    let mut tr = tracker(EnergyConfig::default());
+    tr.set_vehicle(VehicleParams::from_pairs(&[("BATT_CAPACITY", 5000.0)]));
+    tr.set_learned_capacity(Some((100.0, 2)));
+    let st = tr.update_with_battery(&est(0.0, Some(300.0), &[]), Some(50.0));
+    assert_eq!(
+        st.battery.capacity_wh.source.to_string(),
+        "learned over 2 flight(s)"
+    );
+    // remaining = the learned capacity × the gauge's %.
+    assert_eq!(st.remaining_wh, Some(50.0));
+    let rated = st
+        .battery
+        .rated_capacity_wh
+        .expect("the rated capacity is kept beside");
+    assert_eq!(rated.source.to_string(), "vehicle parameter BATT_CAPACITY");
+    // Nonsense learned is ignored; the config always wins.
+    tr.set_learned_capacity(Some((f64::NAN, 1)));
+    assert_eq!(
+        tr.battery().capacity_wh.source.to_string(),
+        "vehicle parameter BATT_CAPACITY"
+    );
+    let mut tr = tracker(EnergyConfig {
+        capacity_wh: Some(80.0),
+        ..Default::default()
+    });
+    tr.set_learned_capacity(Some((100.0, 2)));
+    assert_eq!(
+        (
+            tr.battery().capacity_wh.value,
+            tr.battery().capacity_wh.source.to_string()
+        ),
+        (80.0, "config".to_string())
+    );
+}
+
+#[test]
+fn rejects_nonsense_config() {
+    let cfg = EnergyConfig {
+        capacity_wh: Some(-1.0),
+        ..Default::default()
+    };
+    let err = EnergyTracker::new(&cfg, None).err().unwrap().to_string();
+    assert!(err.contains("energy.capacity_wh"), "{err}");
+}

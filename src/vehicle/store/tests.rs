@@ -1,0 +1,298 @@
+//! Tests of the parent module.
+
+use super::*;
+use crate::report::Report;
+use crate::vehicle::params::Autopilot;
+use flight::PowerBins;
+
+fn id(uid: Option<u64>) -> Identity {
+    Identity {
+        system_id: 1,
+        component_id: 1,
+        autopilot: Autopilot::ArduPilot,
+        vehicle_type: "MAV_TYPE_QUADROTOR".into(),
+        uid,
+    }
+}
+
+#[test]
+fn data_dir_rule() {
+    let flag = Path::new("/tmp/x");
+    assert_eq!(
+        data_dir(Some(flag), Some("/e"), Some("/x"), Some("/h")),
+        Some(PathBuf::from("/tmp/x"))
+    );
+    assert_eq!(
+        data_dir(None, Some("/e"), Some("/x"), Some("/h")),
+        Some(PathBuf::from("/e"))
+    );
+    assert_eq!(
+        data_dir(None, None, Some("/x"), Some("/h")),
+        Some(PathBuf::from("/x/dronewatt"))
+    );
+    // XDG says a relative XDG_DATA_HOME is invalid and to be ignored.
+    assert_eq!(
+        data_dir(None, Some(""), Some("rel"), Some("/h")),
+        Some(PathBuf::from("/h/.local/share/dronewatt"))
+    );
+    assert_eq!(data_dir(None, Some("off"), Some("/x"), Some("/h")), None);
+    assert_eq!(
+        data_dir(Some(Path::new("off")), None, None, Some("/h")),
+        None
+    );
+    assert_eq!(data_dir(None, None, None, None), None);
+}
+
+#[test]
+fn keys_prefer_the_uid() {
+    assert_eq!(
+        VehicleKey::of(&id(Some(0xdead_beef))).key,
+        "uid:00000000deadbeef"
+    );
+    let k = VehicleKey::of(&id(None));
+    assert_eq!(
+        (k.key.as_str(), k.kind),
+        ("sys1-ardupilot-MAV_TYPE_QUADROTOR", "heartbeat")
+    );
+}
+
+#[test]
+fn a_corrupt_file_fails_to_open_with_its_path() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join(DB_FILE),
+        b"this is not sqlite, just forty-odd bytes of text",
+    )
+    .unwrap();
+    let err = format!(
+        "{:#}",
+        Store::open(dir.path())
+            .err()
+            .expect("opened a corrupt file")
+    );
+    assert!(err.contains(DB_FILE), "{err}");
+}
+
+#[test]
+fn records_and_lists_with_the_capacity_trend() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut st = Store::open(dir.path()).unwrap();
+    let flight = |eff: Option<f64>| FlightSummary {
+        airborne_s: 600.0,
+        energy_wh: 30.0,
+        pct_start: Some(100.0),
+        pct_end: Some(20.0),
+        effective_capacity_wh: eff,
+        rated_capacity_wh: 40.0,
+        capacity_source: "vehicle parameter BATT_CAPACITY".into(),
+        ..Default::default()
+    };
+    let fits = vec![("lstm".to_string(), ModelFit::default())];
+    st.record(&id(None), Some(&fits), Some(&flight(Some(37.5))))
+        .unwrap();
+    st.record(&id(None), None, Some(&flight(Some(34.0))))
+        .unwrap();
+    let v = st.vehicles().unwrap();
+    assert_eq!(v.len(), 1);
+    assert_eq!(v[0].flights.len(), 2);
+    assert_eq!(v[0].capacity_trend_pct(), vec![93.75, 85.0]);
+    assert!((v[0].wh_per_min().unwrap() - 3.0).abs() < 1e-9);
+    let text = list(dir.path(), false).unwrap();
+    assert!(
+        text.contains("sys1-ardupilot-MAV_TYPE_QUADROTOR") && text.contains("94 % → 85 %"),
+        "{text}"
+    );
+    // A record without fits keeps the ones learned before.
+    assert_eq!(
+        st.learned_fits(&VehicleKey::of(&id(None))).unwrap(),
+        Some(fits)
+    );
+    // The capacity learned: the median of the last three flights that measured one.
+    st.record(&id(None), None, Some(&flight(None))).unwrap();
+    st.record(&id(None), None, Some(&flight(Some(36.0))))
+        .unwrap();
+    assert_eq!(
+        st.learned_capacity(&VehicleKey::of(&id(None))).unwrap(),
+        Some((36.0, 3))
+    );
+    assert_eq!(
+        st.learned_capacity(&VehicleKey::of(&id(Some(7)))).unwrap(),
+        None
+    );
+}
+
+#[test]
+fn effective_capacity_needs_a_real_drop() {
+    use crate::features::{Sample, N_FEATURES};
+    use crate::report::{EnergyState, Estimate};
+    let report = |t: f64, pct: f32, used: f64| Report {
+        estimate: Estimate {
+            arrived: None,
+            t_s: t,
+            sample: Sample {
+                t_s: t,
+                features: [0.0; N_FEATURES],
+                measured_w: Some(300.0),
+                voltage_v: Some(12.0),
+                home: None,
+                stale_mask: 0,
+                battery_remaining_pct: Some(pct),
+            },
+            models: vec![],
+        },
+        energy: EnergyState {
+            energy_used_wh: used,
+            ..Default::default()
+        },
+        alerts: vec![],
+        system_id: 1,
+    };
+    let mut log = FlightLog::default();
+    log.observe(&report(0.0, 90.0, 0.0));
+    log.observe(&report(60.0, 85.0, 5.0));
+    assert_eq!(
+        log.summary().unwrap().effective_capacity_wh,
+        None,
+        "5 % is the gauge's noise"
+    );
+    log.observe(&report(120.0, 70.0, 10.0));
+    let s = log.summary().unwrap();
+    assert!(
+        (s.effective_capacity_wh.unwrap() - 50.0).abs() < 1e-9,
+        "{s:?}"
+    );
+    assert!(
+        (s.airborne_s - 2.0).abs() < 1e-9,
+        "steps are capped at 1 s: {s:?}"
+    );
+}
+
+/// Ten hours at 10 Hz: 60 s on the ground at 20 W, then hover around 350 W with a
+/// climb at 600 W every minute, repeated. The motors-turning time is the flight's
+/// (everything but the ground idle), and the log's memory stays a few hundred bins.
+#[test]
+fn a_long_flight_is_summed_in_bounded_memory() {
+    use crate::features::{Sample, N_FEATURES};
+    use crate::report::{EnergyState, Estimate};
+    let mut log = FlightLog::default();
+    let n = 360_000;
+    for i in 0..n {
+        let t = f64::from(i) * 0.1;
+        let p = if t < 60.0 {
+            20.0
+        } else if i % 600 < 50 {
+            600.0
+        } else {
+            350.0 + (i % 37) as f32
+        };
+        let sample = Sample {
+            t_s: t,
+            features: [0.0; N_FEATURES],
+            measured_w: Some(p),
+            voltage_v: None,
+            home: None,
+            stale_mask: 0,
+            battery_remaining_pct: None,
+        };
+        log.observe(&Report {
+            estimate: Estimate {
+                t_s: t,
+                sample,
+                models: vec![],
+                arrived: None,
+            },
+            energy: EnergyState::default(),
+            alerts: vec![],
+            system_id: 1,
+        });
+    }
+    let s = log.summary().unwrap();
+    let flown = f64::from(n - 1) * 0.1 - 60.0;
+    assert!(
+        (s.airborne_s - flown).abs() < 0.2,
+        "airborne {} s, flown {flown} s",
+        s.airborne_s
+    );
+    assert!(log.power.0.len() < 100, "{} bins", log.power.0.len());
+    // Every bin is where its power is: the centre within half a bin (0.5 %).
+    for p in [1.0f32, 20.0, 350.0, 5_000.0] {
+        assert!(
+            (PowerBins::power(PowerBins::bin(p)) / f64::from(p) - 1.0).abs() < 0.0051,
+            "{p} W"
+        );
+    }
+    assert_eq!(PowerBins::bin(0.3), 0);
+    assert_eq!(PowerBins::bin(1e9), PowerBins::MAX - 1);
+}
+
+/// A store written by the first schema (no version, no pack columns) opens, keeps its
+/// flights, and takes the pack's from then on; a store from a newer dronewatt is refused.
+#[test]
+fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
+        conn.execute_batch(SCHEMA).unwrap();
+        conn.execute(
+            "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 'system id', 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
+            [],
+        )
+        .unwrap();
+        conn.execute(
+            "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, rated_capacity_wh, capacity_source) VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 1, 300, 20, 40, 'default')",
+            [],
+        )
+        .unwrap();
+    }
+    let mut st = Store::open(dir.path()).expect("an old store opens");
+    let version: i64 = st
+        .conn
+        .query_row("PRAGMA user_version", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(version, SCHEMA_VERSION);
+    let v = st.vehicles().unwrap();
+    assert_eq!(v[0].flights.len(), 1);
+    assert_eq!(v[0].flights[0].summary.rest_v_start, None);
+    let id = id(None);
+    let key = VehicleKey::of(&id);
+    assert_eq!(key.key, "sys1-ardupilot-MAV_TYPE_QUADROTOR");
+    let pack = FlightSummary {
+        airborne_s: 500.0,
+        energy_wh: 30.0,
+        rest_v_start: Some(24.3),
+        rest_v_end: Some(23.3),
+        r_scale: Some(1.2),
+        internal_r_ohm: Some(0.045),
+        heat_a2s: Some(90_000.0),
+        pack_health_pct: Some(97.0),
+        ..Default::default()
+    };
+    st.record(&id, None, Some(&pack)).unwrap();
+    let h = st.pack_history(&key).unwrap().expect("a history");
+    assert_eq!(
+        (h.r_scale, h.end_rest_v, h.heat),
+        (Some(1.2), Some(23.3), 90_000.0)
+    );
+    assert!(h.gap_s >= 0.0 && h.gap_s < 60.0, "{h:?}");
+    assert!(
+        h.same_pack(23.35, 6) && !h.same_pack(25.9, 6),
+        "a recharged pack is another"
+    );
+    let listing = list::list(dir.path(), false).unwrap();
+    assert!(
+        listing.contains("health 97 %") && listing.contains("R 45 mΩ"),
+        "{listing}"
+    );
+    drop(st);
+    let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
+    conn.execute_batch("PRAGMA user_version = 99").unwrap();
+    drop(conn);
+    let err = Store::open(dir.path())
+        .err()
+        .expect("a newer store is refused")
+        .to_string();
+    assert!(
+        err.contains("newer dronewatt") || format!("{err:#}").contains("schema"),
+        "{err}"
+    );
+}
