@@ -36,6 +36,16 @@ pub const FEATURE_NAMES: [&str; N_FEATURES] = [
     "altitude", // m commanded cruise altitude (mission)
 ];
 
+/// The names of the features a stale mask marks (bit i: feature i), in feature order.
+pub fn stale_names(mask: u32) -> Vec<&'static str> {
+    FEATURE_NAMES
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| mask & (1 << i) != 0)
+        .map(|(_, n)| *n)
+        .collect()
+}
+
 /// Index of each feature in [`FEATURE_NAMES`].
 #[allow(missing_docs)]
 pub mod idx {

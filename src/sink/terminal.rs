@@ -24,7 +24,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::ReportRx;
-use crate::features::FEATURE_NAMES;
 use crate::report::status::{ChainStatus, IngestStats, SignalHealth};
 use crate::report::{AlertEvent, AlertState, Report, Severity};
 use crossterm::style::Stylize;
@@ -241,12 +240,7 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
         });
     }
     if let Some(r) = r {
-        let stale: Vec<&str> = FEATURE_NAMES
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| r.estimate.sample.stale_mask & (1 << i) != 0)
-            .map(|(_, n)| *n)
-            .collect();
+        let stale = crate::features::stale_names(r.estimate.sample.stale_mask);
         if !stale.is_empty() {
             let txt = format!("  stale: {}", stale.join(","));
             s.push_str(&if colour {

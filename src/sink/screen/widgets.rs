@@ -14,7 +14,6 @@ use ratatui::widgets::{
 use ratatui::Frame;
 
 use super::state::{ScreenState, VehicleView, HISTORY_S};
-use crate::features::FEATURE_NAMES;
 use crate::report::status::StatsSnapshot;
 use crate::report::{AlertState, RemainingSource, Report, Severity};
 
@@ -349,12 +348,7 @@ fn link_lines(s: &ScreenState, link: &LinkView, r: Option<&Report>) -> Vec<Line<
         state,
     ];
     if let Some(r) = r {
-        let stale: Vec<&str> = FEATURE_NAMES
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| r.estimate.sample.stale_mask & (1 << i) != 0)
-            .map(|(_, n)| *n)
-            .collect();
+        let stale = crate::features::stale_names(r.estimate.sample.stale_mask);
         if !stale.is_empty() {
             lines[2].push_span(Span::styled(
                 format!("  stale: {}", stale.join(",")),
