@@ -42,15 +42,18 @@ pub struct Step {
 /// The steps of flying `profile` = [(dt_s, power_w)] from the estimator's present state (not
 /// modified), lazily: a caller that wants only the first crossing stops there. Non-finite or
 /// non-positive dt steps are skipped; NaN power is 0 W, negative power clamped to 0 W.
-pub fn steps<'a>(state: &Estimator, profile: &'a [(f64, f64)]) -> impl Iterator<Item = Step> + 'a {
+pub fn steps(
+    state: &Estimator,
+    profile: impl IntoIterator<Item = (f64, f64)>,
+) -> impl Iterator<Item = Step> {
     let mut s = state.clone();
     let p = s.p;
     let [r0, r1, b] = s.theta;
     let mut t = 0.0;
     profile
-        .iter()
+        .into_iter()
         .filter(|(dt, _)| dt.is_finite() && *dt > 0.0)
-        .map(move |&(dt, pw)| {
+        .map(move |(dt, pw)| {
             let pw = if pw.is_finite() { pw.max(0.0) } else { 0.0 };
             let eh = (-dt / p.tau_heat_s).exp();
             s.heat *= eh;
@@ -78,8 +81,18 @@ pub fn steps<'a>(state: &Estimator, profile: &'a [(f64, f64)]) -> impl Iterator<
         })
 }
 
+/// A constant power `power_w` for `span_s`, in steps of `dt_s` (the last step whole): a
+/// profile for [`steps`] that allocates nothing.
+pub fn constant(power_w: f64, dt_s: f64, span_s: f64) -> impl Iterator<Item = (f64, f64)> {
+    std::iter::repeat_n((dt_s, power_w), (span_s / dt_s).ceil() as usize)
+}
+
 /// The first step whose loaded voltage falls below `threshold_v` (stops there), if any.
-pub fn first_crossing(state: &Estimator, profile: &[(f64, f64)], threshold_v: f64) -> Option<Step> {
+pub fn first_crossing(
+    state: &Estimator,
+    profile: impl IntoIterator<Item = (f64, f64)>,
+    threshold_v: f64,
+) -> Option<Step> {
     steps(state, profile).find(|s| s.v < threshold_v)
 }
 
@@ -96,7 +109,7 @@ pub fn forecast(state: &Estimator, profile: &[(f64, f64)], thresholds_v: &[f64])
         power_limited: false,
         energy_end_wh: state.energy,
     };
-    for st in steps(state, profile) {
+    for st in steps(state, profile.iter().copied()) {
         out.power_limited |= st.power_limited;
         if out.v_min.is_nan() || st.v < out.v_min {
             out.v_min = st.v;

@@ -250,7 +250,7 @@ impl EnergyTracker {
             warned_pct: false,
             warned_full: false,
             selector: select::Selector::new(&cfg.select, cfg.model.as_deref(), None),
-            pack: pack::Pack::default(),
+            pack: pack::Pack::new(cfg.reserve_pct / 100.0),
         })
     }
 
@@ -417,7 +417,6 @@ impl EnergyTracker {
                 )
             })
             .or(forecast.map(|p| (p, None)));
-        self.pack.reserve_frac = self.cfg.reserve_pct / 100.0;
         let pk = self
             .pack
             .update(t, volts, amps, rest_of_flight, &self.battery);

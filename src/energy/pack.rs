@@ -24,8 +24,8 @@
 //! Nothing here does I/O; a sample with no voltage, a NaN, or a current under −2 A
 //! leaves the state as it was.
 
-use crate::battery::forecast::first_crossing;
-use crate::battery::{forecast, Chemistry, CircuitParams, Estimator, OcvCurve, PackHistory};
+use crate::battery::forecast::{constant, first_crossing, steps};
+use crate::battery::{Chemistry, CircuitParams, Estimator, OcvCurve, PackHistory};
 use crate::report::{BatteryFacts, Provenance};
 
 /// Current under which the pack counts as resting, A.
@@ -136,6 +136,14 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
 }
 
 impl Pack {
+    /// A pack whose flights end at `reserve_frac` of the curve's energy when no mission says.
+    pub fn new(reserve_frac: f64) -> Self {
+        Self {
+            reserve_frac,
+            ..Self::default()
+        }
+    }
+
     /// Take one sample: time (s), pack voltage (V) and current (A, discharge positive);
     /// `rest_of_flight` is the power the forecast flies at (W) and for how long (s; None:
     /// until the reserve); `facts` say which pack.
@@ -293,12 +301,13 @@ impl Pack {
         let rest_s = horizon
             .unwrap_or(3600.0 * (e_now - reserve_wh) / p)
             .clamp(0.0, FORECAST_HORIZON_S);
-        let steps =
-            |span: f64| vec![(FORECAST_STEP_S, p); (span / FORECAST_STEP_S).ceil() as usize];
-        let f = forecast(est, &steps(rest_s), &[]);
-        self.now.v_min_forecast = f.v_min.is_finite().then_some((f.v_min, f.t_v_min));
+        // The lowest loaded voltage over the rest of the flight, and when.
+        let lowest = steps(est, constant(p, FORECAST_STEP_S, rest_s))
+            .min_by(|a, b| a.v.total_cmp(&b.v))
+            .filter(|s| s.v.is_finite());
+        self.now.v_min_forecast = lowest.map(|s| (s.v, s.t_s));
         // Flying on at that power, stopping where it crosses the low threshold.
-        let on = first_crossing(est, &steps(FORECAST_HORIZON_S), low);
+        let on = first_crossing(est, constant(p, FORECAST_STEP_S, FORECAST_HORIZON_S), low);
         self.now.time_to_low_v_s = on.map(|s| s.t_s);
         self.now.usable_wh = Some(match on {
             Some(s) => (e_now - s.energy).max(0.0),
