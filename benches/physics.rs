@@ -32,6 +32,8 @@ fn cruise_window() -> Window {
                 home: None,
                 stale_mask: 0,
                 battery_remaining_pct: None,
+                vehicle: Default::default(),
+                air: Default::default(),
             }
         })
         .collect();

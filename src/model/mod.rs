@@ -8,6 +8,7 @@ pub mod lstm_cpu;
 pub mod physics;
 pub mod profile;
 
+pub use crate::features::Lift;
 pub use crate::report::{Estimate, ModelEstimate};
 use crate::telemetry::window::Window;
 
@@ -45,6 +46,14 @@ pub trait PowerModel: Send {
     /// range); the LSTM says false for a window far outside its training data.
     fn in_training_range(&self, _window: &Window) -> bool {
         true
+    }
+    /// What carries the vehicle when this model applies ([`Lift`]): `Rotor` for the
+    /// multirotor models and the LSTM (the default), `Wing` for the fixed-wing model. A
+    /// model runs only on windows whose newest sample flies on its lift
+    /// ([`crate::features::VehicleKind::lift`]), so an estimate's `models` hold only
+    /// the models that apply to the vehicle's class (none for a rover, boat or sub).
+    fn lift(&self) -> Lift {
+        Lift::Rotor
     }
 }
 
@@ -132,13 +141,19 @@ impl Ensemble {
         let mut picked = Vec::new();
         let mut at = Vec::new();
         for (i, m) in self.models.iter_mut().enumerate() {
-            // The windows this model runs on (indices into `windows`).
+            // The windows this model runs on (indices into `windows`): those of its
+            // airframe, and for a heavy model those picked for it.
             at.clear();
-            if !m.heavy() || all {
+            let lift = m.lift();
+            let fits = |k: usize| windows[k].last().vehicle.lift() == lift;
+            let every = (!m.heavy() || all) && (0..windows.len()).all(fits);
+            if every {
                 at.extend(0..windows.len());
                 m.predict(windows, &mut self.scratch);
             } else {
-                at.extend((0..windows.len()).filter(|&k| heavy[k]));
+                at.extend(
+                    (0..windows.len()).filter(|&k| fits(k) && (!m.heavy() || all || heavy[k])),
+                );
                 if at.is_empty() {
                     continue;
                 }

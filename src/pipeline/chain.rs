@@ -125,7 +125,9 @@ impl VehicleChain {
             }) as Rebuild
         });
         Ok(Self {
-            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
+            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission).with_class(
+                crate::model::profile::class_override(cfg.vehicle.as_deref()),
+            ),
             models: Ensemble::new(Vec::new()),
             energy,
             alerts: AlertEngine::new(&cfg.alerts)?,

@@ -20,6 +20,9 @@ Phase keys (all optional but one of send_s / quiet_s):
 instead of the fixed 22.2 V: a LiPo with its own OCV table, a series resistance and one RC pair,
 the current solved from the power each tick (P = V·I); the voltage falls as the pack drains.
 
+--mav-type N sends HEARTBEAT type N (12 a submarine, 1 a plane, 99 a type MAVLink does not
+define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor).
+
 Signing: --sign-key HEX signs every MAVLink 2 frame (pymavlink's setup_signing; it then also
 verifies what it hears and drops what fails). --link-id N its link id.
 
@@ -157,10 +160,14 @@ class Vehicle:
         volts, current = self.pack.draw(power, dt) if self.pack else (VOLTS, power / VOLTS)
         msgs = []
         if self.n % 10 == 0:
-            msgs.append(mav.MAVLink_heartbeat_message(mav.MAV_TYPE_QUADROTOR, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, mav.MAV_STATE_ACTIVE, 3))
+            msgs.append(mav.MAVLink_heartbeat_message(self.a.mav_type, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, mav.MAV_STATE_ACTIVE, 3))
             msgs.append(mav.MAVLink_home_position_message(int(self.home_lat * 1e7), int(LON0 * 1e7), 400_000, 0.0, 0.0, 0.0,
                                                           [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0))
-        msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(current * 100), -1, 0, 0, 0, 0, 0, 0))
+        if self.a.no_battery:
+            # No battery monitor: voltage unknown (UINT16_MAX), current unknown (-1).
+            msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, 65535, -1, -1, 0, 0, 0, 0, 0, 0))
+        else:
+            msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(current * 100), -1, 0, 0, 0, 0, 0, 0))
         vz = 0.0 if ground else (5.0 if t_flight < 5.0 else 0.0)
         msgs.append(mav.MAVLink_global_position_int_message(boot_ms, int(lat * 1e7), int(LON0 * 1e7), int((400.0 + alt) * 1000),
                                                             int(alt * 1000), int(speed * 100), 0, int(-vz * 100), 0))
@@ -244,6 +251,9 @@ def main():
     ap.add_argument("--link-id", type=int, default=1)
     ap.add_argument("--pack", default=None, help="JSON: fly a sagging pack (see the module docs)")
     ap.add_argument("--listen-after-s", type=float, default=1.5)
+    ap.add_argument("--mav-type", type=int, default=mav.MAV_TYPE_QUADROTOR,
+                    help="HEARTBEAT type (MAV_TYPE number; any 0-255, defined or not)")
+    ap.add_argument("--no-battery", action="store_true", help="send no voltage or current (no battery monitor)")
     a = ap.parse_args()
     Vehicle(a).run(json.loads(a.plan))
 

@@ -349,6 +349,8 @@ pub(crate) mod testutil {
             home: None,
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         }
     }
 
