@@ -98,20 +98,34 @@ fn an_unknown_mav_type_is_other_with_its_number() {
 }
 
 #[test]
-fn a_plane_gets_no_multirotor_model_and_not_the_m100_pack() {
-    let r = fly("", false, r#"[{"send_s": 6}]"#, &["--mav-type", "1"]);
-    for e in after_heartbeat(&r) {
+fn a_plane_gets_fixed_wing_estimates_and_not_the_m100_models_or_pack() {
+    let r = fly("", false, r#"[{"send_s": 8}]"#, &["--mav-type", "1"]);
+    let lines = after_heartbeat(&r);
+    for e in &lines {
         assert_eq!(e["vehicle_class"], "fixed_wing", "{e}");
-        for m in models(e) {
-            assert!(
-                m.starts_with("fixed_wing"),
-                "multirotor model {m} on a plane: {e}"
-            );
-        }
+        assert_eq!(models(e), ["fixed_wing"], "{e}");
         // The M100's 129.96 Wh is not shown as this vehicle's pack.
         assert!(e["capacity_wh"].is_null(), "{e}");
         assert_eq!(e["remaining_source"], "unknown pack", "{e}");
     }
+    // Cruising north at 10 m/s into a 2 m/s wind from the south: 8 m/s through the air
+    // (ground − WIND: the peer has no airspeed sensor), level, about 425 m up: a 2 kg foam
+    // plane's ~33 W (by hand: (3.95 + 9.9) W / 0.5 + 5 W at sea level; a little less
+    // dense air up there).
+    let cruise: Vec<f64> = lines
+        .iter()
+        .filter(|e| e["t"].as_f64().unwrap() - lines[0]["t"].as_f64().unwrap() > 6.0)
+        .map(|e| e["models"]["fixed_wing"].as_f64().unwrap())
+        .collect();
+    assert!(!cruise.is_empty());
+    for p in &cruise {
+        assert!((28.0..38.0).contains(p), "fixed_wing {p} W in cruise");
+    }
+    assert!(
+        r.stderr.contains("vehicle class: fixed_wing"),
+        "{}",
+        r.stderr
+    );
 }
 
 #[test]
@@ -134,4 +148,50 @@ fn no_battery_telemetry_takes_the_models_power_against_the_pack_and_says_so() {
     assert!(used > 0.0, "{last}");
     let left = last["remaining_wh"].as_f64().unwrap();
     assert!((left + used - 60.0).abs() < 1e-6, "{last}");
+}
+
+#[test]
+fn a_quadplane_switching_to_forward_flight_is_followed_and_each_phase_gets_its_models() {
+    // HEARTBEAT FIXED_WING (as ArduPlane quadplanes may say), QHOVER and vtol_state MC for
+    // 4 s, a 1 s transition, then AUTO and FW.
+    let r = fly(
+        "",
+        false,
+        r#"[{"send_s": 9}]"#,
+        &["--mav-type", "1", "--vtol-fw-after-s", "4"],
+    );
+    let lines = after_heartbeat(&r);
+    let state = |e: &Value| e["vtol_state"].as_str().unwrap_or("").to_string();
+    for e in &lines {
+        assert_eq!(e["vehicle_class"], "vtol", "{e}");
+        let m = models(e);
+        match state(e).as_str() {
+            "fw" => assert_eq!(m, ["fixed_wing"], "{e}"),
+            "mc" | "transition_to_fw" => {
+                assert!(m.iter().any(|n| n == "dandrea"), "{e}");
+                assert!(!m.iter().any(|n| n == "fixed_wing"), "{e}");
+            }
+            other => panic!("vtol_state {other:?}: {e}"),
+        }
+    }
+    let seen: Vec<String> = lines.iter().map(|e| state(e)).collect();
+    let first_fw = seen.iter().position(|s| s == "fw").expect("a FW phase");
+    assert!(seen[..first_fw].iter().any(|s| s == "mc"), "{seen:?}");
+    assert!(seen[first_fw..].iter().all(|s| s == "fw"), "{seen:?}");
+    for switch in [
+        "vtol (mc) → vtol (transition_to_fw)",
+        "vtol (transition_to_fw) → vtol (fw)",
+    ] {
+        assert_eq!(
+            r.stderr.matches(switch).count(),
+            1,
+            "{switch}: {}",
+            r.stderr
+        );
+    }
+    let kinds = &r.summary["vehicle_kinds"];
+    assert!(
+        kinds.as_array().unwrap().iter().any(|k| k == "vtol (fw)"),
+        "{kinds}"
+    );
 }

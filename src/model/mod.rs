@@ -55,6 +55,12 @@ pub trait PowerModel: Send {
     fn lift(&self) -> Lift {
         Lift::Rotor
     }
+    /// The least measured power, W, at which online adaptation may learn from a window of
+    /// this model (the motors turn); `None`: the adaptation's own threshold (a share of the
+    /// profile's ideal hover power, made for rotors).
+    fn min_teach_w(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// The set of models the inference stage runs side by side.
@@ -171,7 +177,8 @@ impl Ensemble {
                     // The prediction is for the sample `lag` back: teach with its power.
                     let measured = w.back(lag).measured_w;
                     let in_range = measured.is_some() && m.in_training_range(w);
-                    if let Some(a) = ad.step(i, p.power_w, measured, in_range) {
+                    if let Some(a) = ad.step_from(i, p.power_w, measured, in_range, m.min_teach_w())
+                    {
                         me.adapted_w = Some(a.adapted_w);
                         me.reference_w = Some(a.reference_w);
                         me.adapted_err = a.err_w.map(|err_w| crate::report::AdaptedError {
@@ -224,7 +231,41 @@ pub fn build_ensemble(
     telemetry: &crate::telemetry::TelemetryConfig,
     payload_g: Option<f32>,
 ) -> anyhow::Result<Ensemble> {
-    let ensemble = Ensemble::new(build_models(models, vehicle, telemetry)?);
+    ensemble_of(
+        build_models(models, vehicle, telemetry)?,
+        models,
+        vehicle,
+        telemetry,
+        payload_g,
+    )
+}
+
+/// [`build_ensemble`] and the fixed-wing model after it (profile `[fixed_wing]`, else a
+/// generic 2 kg foam plane): what a live or replayed vehicle runs, whatever its class
+/// turns out to be. Each model runs only on the windows of its lift ([`PowerModel::lift`]).
+/// The offline scoring of the M100 data set (`eval`, `offline::chain`) keeps
+/// [`build_ensemble`]: its columns are every model on every window.
+pub fn build_live_ensemble(
+    models: &ModelsConfig,
+    vehicle: Option<&std::path::Path>,
+    telemetry: &crate::telemetry::TelemetryConfig,
+    payload_g: Option<f32>,
+) -> anyhow::Result<Ensemble> {
+    let mut list = build_models(models, vehicle, telemetry)?;
+    let wing = load_profile(vehicle)?.fixed_wing.unwrap_or_default();
+    wing.validate().map_err(anyhow::Error::msg)?;
+    list.push(Box::new(physics::fixed_wing::FixedWing::new(wing)));
+    ensemble_of(list, models, vehicle, telemetry, payload_g)
+}
+
+fn ensemble_of(
+    list: Vec<Box<dyn PowerModel>>,
+    models: &ModelsConfig,
+    vehicle: Option<&std::path::Path>,
+    telemetry: &crate::telemetry::TelemetryConfig,
+    payload_g: Option<f32>,
+) -> anyhow::Result<Ensemble> {
+    let ensemble = Ensemble::new(list);
     if !models.adapt.enabled {
         return Ok(ensemble);
     }

@@ -61,6 +61,10 @@ pub struct VehicleProfile {
     pub tseng: tseng::Params,
     /// Tseng et al., simplified 3DR Solo form as printed in the paper: `[tseng_solo]`.
     pub tseng_solo: tseng::SoloParams,
+    /// `[fixed_wing]`: the plane's figures for the fixed-wing model (optional: a generic
+    /// 2 kg foam plane's without it; [`crate::model::physics::fixed_wing::Params`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_wing: Option<crate::model::physics::fixed_wing::Params>,
     /// `[rotor]`: the simulator's rotor aerodynamics (optional; see the module docs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotor: Option<Rotor>,

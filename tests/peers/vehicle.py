@@ -21,7 +21,8 @@ instead of the fixed 22.2 V: a LiPo with its own OCV table, a series resistance 
 the current solved from the power each tick (P = V·I); the voltage falls as the pack drains.
 
 --mav-type N sends HEARTBEAT type N (12 a submarine, 1 a plane, 99 a type MAVLink does not
-define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor).
+define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor);
+--vtol-fw-after-s T flies an ArduPlane quadplane (Q mode and vtol_state MC, then FW after T s).
 
 Signing: --sign-key HEX signs every MAVLink 2 frame (pymavlink's setup_signing; it then also
 verifies what it hears and drops what fails). --link-id N its link id.
@@ -159,8 +160,18 @@ class Vehicle:
         power = 2.0 if ground else self.a.power_w + self.a.power_swing_w * math.sin(2 * math.pi * t_flight / 3.0)
         volts, current = self.pack.draw(power, dt) if self.pack else (VOLTS, power / VOLTS)
         msgs = []
-        if self.n % 10 == 0:
-            msgs.append(mav.MAVLink_heartbeat_message(self.a.mav_type, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, mav.MAV_STATE_ACTIVE, 3))
+        vtol = self.a.vtol_fw_after_s
+        custom_mode = 0
+        if vtol is not None:
+            # An ArduPlane quadplane: QHOVER (18) on its lift rotors, then AUTO (10) on the wing,
+            # with a one-second transition between (EXTENDED_SYS_STATE says which, every tick).
+            state = (mav.MAV_VTOL_STATE_MC if t_flight < vtol else
+                     mav.MAV_VTOL_STATE_TRANSITION_TO_FW if t_flight < vtol + 1.0 else mav.MAV_VTOL_STATE_FW)
+            custom_mode = 18 if state == mav.MAV_VTOL_STATE_MC else 10
+            msgs.append(mav.MAVLink_extended_sys_state_message(state, mav.MAV_LANDED_STATE_IN_AIR))
+        if self.n % 10 == 0 or (vtol is not None and abs(t_flight - vtol) < dt / 2):
+            msgs.append(mav.MAVLink_heartbeat_message(self.a.mav_type, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, custom_mode,
+                                                      mav.MAV_STATE_ACTIVE, 3))
             msgs.append(mav.MAVLink_home_position_message(int(self.home_lat * 1e7), int(LON0 * 1e7), 400_000, 0.0, 0.0, 0.0,
                                                           [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0))
         if self.a.no_battery:
@@ -254,6 +265,8 @@ def main():
     ap.add_argument("--mav-type", type=int, default=mav.MAV_TYPE_QUADROTOR,
                     help="HEARTBEAT type (MAV_TYPE number; any 0-255, defined or not)")
     ap.add_argument("--no-battery", action="store_true", help="send no voltage or current (no battery monitor)")
+    ap.add_argument("--vtol-fw-after-s", type=float, default=None,
+                    help="a quadplane: QHOVER and vtol_state MC until this many seconds of flight, then a 1 s transition, then AUTO and FW")
     a = ap.parse_args()
     Vehicle(a).run(json.loads(a.plan))
 

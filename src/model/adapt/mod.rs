@@ -369,11 +369,24 @@ impl Adaptation {
         measured_w: Option<f32>,
         in_range: bool,
     ) -> Option<Adapted> {
+        self.step_from(i, p_model_w, measured_w, in_range, None)
+    }
+
+    /// [`Adaptation::step`] with the model's own teaching threshold, W, where it has one
+    /// ([`super::PowerModel::min_teach_w`]: a plane's cruise is below a rotor's hover).
+    pub fn step_from(
+        &mut self,
+        i: usize,
+        p_model_w: f32,
+        measured_w: Option<f32>,
+        in_range: bool,
+        min_teach_w: Option<f64>,
+    ) -> Option<Adapted> {
         let (lambda, lambda_ref, lambda_score, min_w, dt_s) = (
             self.lambda,
             self.lambda_ref,
             self.lambda_score,
-            self.min_teach_w,
+            min_teach_w.unwrap_or(self.min_teach_w),
             self.dt_s,
         );
         let cfg = &self.cfg;

@@ -36,6 +36,7 @@
 
 pub mod dandrea;
 pub mod dorling;
+pub mod fixed_wing;
 pub mod kirschstein;
 pub mod stolaroff;
 pub mod tseng;
