@@ -195,3 +195,92 @@ fn a_quadplane_switching_to_forward_flight_is_followed_and_each_phase_gets_its_m
         "{kinds}"
     );
 }
+
+#[test]
+fn a_replayed_quadplane_log_shows_vtol_both_phases_and_no_m100_pack() {
+    // The pymavlink quadplane writes its own telemetry log (to a UDP port nobody holds),
+    // which `dronewatt replay` then reads like any ground station's .tlog.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("quadplane.tlog");
+    let port = link_common::free_udp_port();
+    let peer =
+        std::process::Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/peers/vehicle.py"
+            ))
+            .args([
+                "--to",
+                &format!("udpout:127.0.0.1:{port}"),
+                "--plan",
+                r#"[{"send_s": 9}]"#,
+            ])
+            .args([
+                "--mav-type",
+                "1",
+                "--vtol-fw-after-s",
+                "4",
+                "--listen-after-s",
+                "0",
+            ])
+            .arg("--tlog")
+            .arg(&log)
+            .output()
+            .expect("run .venv-py/bin/python (make setup creates it)");
+    assert!(
+        peer.status.success(),
+        "{}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .arg("replay")
+        .arg(&log)
+        .args(["--speed", "max", "--json", "-", "--data-dir", "off"])
+        .env("RUST_LOG", "info")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let lines: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let estimates: Vec<&Value> = lines
+        .iter()
+        .filter(|l| l["type"] == "estimate" && l.get("mav_type").is_some())
+        .collect();
+    assert!(
+        estimates.len() > 50,
+        "{} estimates; {stderr}",
+        estimates.len()
+    );
+    let mut phases = Vec::new();
+    for e in &estimates {
+        assert_eq!(e["vehicle_class"], "vtol", "{e}");
+        assert!(
+            e["capacity_wh"].is_null(),
+            "the M100's pack on a quadplane: {e}"
+        );
+        let state = e["vtol_state"].as_str().unwrap().to_string();
+        let m = models(e);
+        if state == "fw" {
+            assert_eq!(m, ["fixed_wing"], "{e}");
+        } else {
+            assert!(!m.iter().any(|n| n == "fixed_wing"), "{e}");
+        }
+        if phases.last() != Some(&state) {
+            phases.push(state);
+        }
+    }
+    assert_eq!(phases, ["mc", "transition_to_fw", "fw"], "{stderr}");
+    let summary = lines.last().unwrap();
+    assert_eq!(
+        summary["vehicle_kinds"],
+        serde_json::json!(["vtol (mc)", "vtol (transition_to_fw)", "vtol (fw)"]),
+        "{summary}"
+    );
+    assert!(
+        stderr.contains("vtol (transition_to_fw) → vtol (fw)"),
+        "{stderr}"
+    );
+}

@@ -22,7 +22,8 @@ the current solved from the power each tick (P = V·I); the voltage falls as the
 
 --mav-type N sends HEARTBEAT type N (12 a submarine, 1 a plane, 99 a type MAVLink does not
 define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor);
---vtol-fw-after-s T flies an ArduPlane quadplane (Q mode and vtol_state MC, then FW after T s).
+--vtol-fw-after-s T flies an ArduPlane quadplane (Q mode and vtol_state MC, then FW after T s);
+--tlog PATH also writes every frame sent to a telemetry log, for replay tests.
 
 Signing: --sign-key HEX signs every MAVLink 2 frame (pymavlink's setup_signing; it then also
 verifies what it hears and drops what fails). --link-id N its link id.
@@ -35,6 +36,7 @@ import json
 import math
 import os
 import select
+import struct
 import time
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -90,6 +92,7 @@ class Vehicle:
         self.home_lat = LAT0
         self.stray = mav.MAVLink(None, srcSystem=2, srcComponent=1)
         self.pack = Pack(**json.loads(a.pack)) if a.pack else None
+        self.tlog = open(a.tlog, "wb") if a.tlog else None
         self.open()
 
     def open(self):
@@ -105,6 +108,9 @@ class Vehicle:
         def recording(buf):
             if len(self.recorded) < 400:
                 self.recorded.append(bytes(buf))
+            if self.tlog is not None:
+                # A telemetry log as ground stations write it: big-endian µs since the epoch, then the frame.
+                self.tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + bytes(buf))
             write(buf)
         self.conn.write = recording
 
@@ -239,6 +245,8 @@ class Vehicle:
         self.wait_until(time.monotonic() + self.a.listen_after_s)
         self.count_signing()
         self.conn.close()
+        if self.tlog is not None:
+            self.tlog.close()
         h = self.heard
         print(json.dumps({
             "phases": report,
@@ -265,6 +273,7 @@ def main():
     ap.add_argument("--mav-type", type=int, default=mav.MAV_TYPE_QUADROTOR,
                     help="HEARTBEAT type (MAV_TYPE number; any 0-255, defined or not)")
     ap.add_argument("--no-battery", action="store_true", help="send no voltage or current (no battery monitor)")
+    ap.add_argument("--tlog", default=None, help="also write every frame sent to this telemetry log (.tlog)")
     ap.add_argument("--vtol-fw-after-s", type=float, default=None,
                     help="a quadplane: QHOVER and vtol_state MC until this many seconds of flight, then a 1 s transition, then AUTO and FW")
     a = ap.parse_args()
