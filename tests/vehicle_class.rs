@@ -284,3 +284,46 @@ fn a_replayed_quadplane_log_shows_vtol_both_phases_and_no_m100_pack() {
         "{stderr}"
     );
 }
+
+#[test]
+fn the_profiles_class_wins_over_the_heartbeat() {
+    // The X500 profile told it is a boat (`[vehicle] class = "other"`): a quadrotor's
+    // HEARTBEAT, but no model runs.
+    let dir = tempfile::tempdir().unwrap();
+    let x500 = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/vehicles/x500.toml"
+    ))
+    .unwrap();
+    let profile = dir.path().join("boat.toml");
+    std::fs::write(
+        &profile,
+        x500.replacen("[vehicle]\n", "[vehicle]\nclass = \"other\"\n", 1),
+    )
+    .unwrap();
+    let r = fly(
+        &format!("vehicle = {:?}\n", profile.to_str().unwrap()),
+        false,
+        r#"[{"send_s": 5}]"#,
+        &[],
+    );
+    assert!(
+        r.stderr
+            .contains("vehicle class: other (from the vehicle profile's [vehicle] class)"),
+        "{}",
+        r.stderr
+    );
+    let lines = after_heartbeat(&r);
+    for e in &lines {
+        assert_eq!(e["vehicle_class"], "other", "{e}");
+        assert_eq!(e["mav_type"], 2, "{e}");
+        assert!(models(e).is_empty(), "{e}");
+    }
+    // A class that does not exist is an error naming the key.
+    let bad = x500.replacen("[vehicle]\n", "[vehicle]\nclass = \"blimp\"\n", 1);
+    let err = format!(
+        "{:#}",
+        dronewatt::model::profile::VehicleProfile::from_toml(&bad, "boat.toml").unwrap_err()
+    );
+    assert!(err.contains("class") && err.contains("blimp"), "{err}");
+}
