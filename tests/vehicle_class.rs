@@ -327,3 +327,51 @@ fn the_profiles_class_wins_over_the_heartbeat() {
     );
     assert!(err.contains("class") && err.contains("blimp"), "{err}");
 }
+
+#[test]
+fn learn_takes_only_the_windows_flown_on_rotors() {
+    // A quadplane's log: `learn` (which fits the multirotor models) keeps its hover and
+    // transition windows and leaves its forward flight out.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("quadplane.tlog");
+    let port = link_common::free_udp_port();
+    let peer =
+        std::process::Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/peers/vehicle.py"
+            ))
+            .args([
+                "--to",
+                &format!("udpout:127.0.0.1:{port}"),
+                "--plan",
+                r#"[{"send_s": 8}]"#,
+            ])
+            .args([
+                "--mav-type",
+                "1",
+                "--vtol-fw-after-s",
+                "4",
+                "--listen-after-s",
+                "0",
+            ])
+            .arg("--tlog")
+            .arg(&log)
+            .output()
+            .expect("run .venv-py/bin/python (make setup creates it)");
+    assert!(
+        peer.status.success(),
+        "{}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
+    let cfg = dronewatt::config::Config::default();
+    let f = dronewatt::offline::learn::log_windows(&log, 1, &cfg).unwrap();
+    assert!(f.windows.len() > 20, "{} windows", f.windows.len());
+    for w in &f.windows {
+        let k = w.last().vehicle;
+        assert_eq!(k.class, dronewatt::features::VehicleClass::Vtol);
+        assert_ne!(k.vtol_state, dronewatt::features::VtolState::Fw, "{k:?}");
+    }
+    // About 5 of the 8 s (hover and transition) at 10 windows a second, not the FW 3 s.
+    assert!(f.windows.len() < 60, "{} windows", f.windows.len());
+}
