@@ -99,7 +99,13 @@ fn an_unknown_mav_type_is_other_with_its_number() {
 
 #[test]
 fn a_plane_gets_fixed_wing_estimates_and_not_the_m100_models_or_pack() {
-    let r = fly("", false, r#"[{"send_s": 8}]"#, &["--mav-type", "1"]);
+    // A plane drawing 60 ± 5 W.
+    let r = fly(
+        "",
+        false,
+        r#"[{"send_s": 12}]"#,
+        &["--mav-type", "1", "--power-w", "60", "--power-swing-w", "5"],
+    );
     let lines = after_heartbeat(&r);
     for e in &lines {
         assert_eq!(e["vehicle_class"], "fixed_wing", "{e}");
@@ -125,6 +131,16 @@ fn a_plane_gets_fixed_wing_estimates_and_not_the_m100_models_or_pack() {
         r.stderr.contains("vehicle class: fixed_wing"),
         "{}",
         r.stderr
+    );
+    // Adapted on this plane (its own regression, then the affine fit): nearer the measured
+    // ~60 W than the generic plane's ~33 W by the end.
+    let last = lines.last().unwrap();
+    let adapted = last["adapted"]["fixed_wing"].as_f64().unwrap();
+    let raw = last["models"]["fixed_wing"].as_f64().unwrap();
+    let measured = last["measured_w"].as_f64().unwrap();
+    assert!(
+        (adapted - measured).abs() < 0.5 * (raw - measured).abs(),
+        "adapted {adapted} W, raw {raw} W, measured {measured} W"
     );
 }
 

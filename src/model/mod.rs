@@ -61,6 +61,13 @@ pub trait PowerModel: Send {
     fn min_teach_w(&self) -> Option<f64> {
         None
     }
+    /// For a model linear in its own regressors: the regressors φ at the window's newest
+    /// sample and the model's own coefficients θ₀ (its prediction is θ₀·φ), so that online
+    /// adaptation fits θ itself ([`adapt::regression`]); `None` (the default) where the
+    /// model is not, or not for this window.
+    fn regressors(&self, _window: &Window) -> Option<([f64; 4], [f64; 4])> {
+        None
+    }
 }
 
 /// The set of models the inference stage runs side by side.
@@ -177,8 +184,17 @@ impl Ensemble {
                     // The prediction is for the sample `lag` back: teach with its power.
                     let measured = w.back(lag).measured_w;
                     let in_range = measured.is_some() && m.in_training_range(w);
-                    if let Some(a) = ad.step_from(i, p.power_w, measured, in_range, m.min_teach_w())
-                    {
+                    // A model with its own regression: that fitted first, the affine fit on
+                    // top of its (out-of-sample) prediction.
+                    let p_in = match m.regressors(w) {
+                        Some((phi, theta0)) => {
+                            let floor = m.min_teach_w().unwrap_or(ad.min_teach_w());
+                            let motor = measured.is_some_and(|y| f64::from(y) >= floor);
+                            ad.regress(i, &phi, theta0, measured, in_range && motor) as f32
+                        }
+                        None => p.power_w,
+                    };
+                    if let Some(a) = ad.step_from(i, p_in, measured, in_range, m.min_teach_w()) {
                         me.adapted_w = Some(a.adapted_w);
                         me.reference_w = Some(a.reference_w);
                         me.adapted_err = a.err_w.map(|err_w| crate::report::AdaptedError {

@@ -31,9 +31,11 @@
 //! A missing airspeed falls back the same way, said once.
 //!
 //! The model is linear in its own four regressors ([`regressors`]: ρV³, (n·m·g)²/(ρV),
-//! m·g·v_z, 1), with the coefficients S·C_D0/(2η), 2/(S·π·e·AR·η), 1/η and P_0. Online
-//! adaptation (`model::adapt`) corrects its output like every model's (a·P + b, bounded),
-//! teaching while the motor runs (measured power over twice `offset_w`). Airspeeds over
+//! m·g·v_z, 1), with the coefficients S·C_D0/(2η), 2/(S·π·e·AR·η), 1/η and P_0
+//! ([`FixedWing::coefficients`]). Online adaptation fits those four coefficients on the
+//! vehicle (`model::adapt::regression`: bounded, the published ones as the prior), then
+//! corrects the result like every model's (a·P + b, bounded), teaching while the motor
+//! runs (measured power over twice `offset_w`). Airspeeds over
 //! [`MAX_AIRSPEED_M_S`] and climb rates beyond ±[`MAX_CLIMB_M_S`] are clamped.
 //!
 //! Defaults: a generic ~2 kg foam plane of 1.8 m span (see [`Params::default`] for the
@@ -264,6 +266,32 @@ impl FixedWing {
         self.failures
     }
 
+    /// The conditions at `s` for airspeed `v`: (ρ, V, n, mass, climb), `None` on the ground.
+    fn conditions(&self, s: &Sample, v: f64) -> Option<(f64, f64, f64, f64, f64)> {
+        if v < MIN_FLYING_M_S && ground_speed(s) < MIN_FLYING_M_S {
+            return None;
+        }
+        let rho = air_density(feat(s, idx::POS_Z), s.air.temperature_c.map(f64::from));
+        let mass = self.params.mass_kg + feat(s, idx::PAYLOAD).max(0.0) / 1000.0;
+        // No small plane flies these: a glitch must not read as megawatts.
+        let v = v.min(MAX_AIRSPEED_M_S);
+        let climb = feat(s, idx::VZ).clamp(-MAX_CLIMB_M_S, MAX_CLIMB_M_S);
+        Some((rho, v, load_factor(s), mass, climb))
+    }
+
+    /// The model's own coefficients θ₀ on [`regressors`]: S·C_D0/(2η), 2/(S·π·e·AR·η),
+    /// 1/η and P_0.
+    pub fn coefficients(&self) -> [f64; 4] {
+        let p = &self.params;
+        let s = p.wing_area_m2;
+        [
+            0.5 * s * p.cd0 / p.eta,
+            2.0 / (s * std::f64::consts::PI * p.oswald_e * p.aspect_ratio() * p.eta),
+            1.0 / p.eta,
+            p.offset_w,
+        ]
+    }
+
     /// The power for the window's newest sample, W.
     pub fn predict_one(&mut self, s: &Sample) -> f64 {
         let (v, from, failed) = airspeed(s);
@@ -277,15 +305,10 @@ impl FixedWing {
             self.said_fallback = true;
             tracing::warn!("fixed_wing: no airspeed (no airspeed sensor, no VFR_HUD airspeed, no WIND): the ground speed stands in for it");
         }
-        if v < MIN_FLYING_M_S && ground_speed(s) < MIN_FLYING_M_S {
-            return self.params.offset_w;
+        match self.conditions(s, v) {
+            Some((rho, v, n, mass, climb)) => power_w(&self.params, rho, v, n, mass, climb),
+            None => self.params.offset_w,
         }
-        // No small plane flies these: a glitch must not read as megawatts.
-        let v = v.min(MAX_AIRSPEED_M_S);
-        let climb = feat(s, idx::VZ).clamp(-MAX_CLIMB_M_S, MAX_CLIMB_M_S);
-        let rho = air_density(feat(s, idx::POS_Z), s.air.temperature_c.map(f64::from));
-        let mass = self.params.mass_kg + feat(s, idx::PAYLOAD).max(0.0) / 1000.0;
-        power_w(&self.params, rho, v, load_factor(s), mass, climb)
     }
 }
 
@@ -310,6 +333,18 @@ impl PowerModel for FixedWing {
     /// is far below the multirotor hover the other models' threshold is made of).
     fn min_teach_w(&self) -> Option<f64> {
         Some(2.0 * self.params.offset_w)
+    }
+
+    /// Linear in [`regressors`] while it flies and the motor pulls (not on the ground, not
+    /// in a glide, where the model is its floor P_0 and not θ·φ).
+    fn regressors(&self, window: &Window) -> Option<([f64; 4], [f64; 4])> {
+        let s = window.last();
+        let (v, _, _) = airspeed(s);
+        let (rho, v, n, mass, climb) = self.conditions(s, v)?;
+        let phi = regressors(rho, v, n, mass, climb);
+        let theta0 = self.coefficients();
+        let aero: f64 = (0..3).map(|k| theta0[k] * phi[k]).sum();
+        (aero > 0.0 && phi.iter().all(|x| x.is_finite())).then_some((phi, theta0))
     }
 }
 

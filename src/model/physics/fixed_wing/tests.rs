@@ -186,3 +186,26 @@ fn finite_and_never_below_the_offset_on_any_input() {
     }
     assert!(n > 60_000, "{n} cases");
 }
+
+#[test]
+fn the_model_is_its_own_regression_where_the_motor_pulls() {
+    let mut m = FixedWing::new(Params::default());
+    let window = |s: Sample| Window {
+        samples: vec![s],
+        arrived: None,
+    };
+    for (roll, vz) in [(0.0, 0.0), (35.0, 1.5), (10.0, -0.5)] {
+        let s = sample(14.0, 420.0, roll, vz, sensor(13.0));
+        let (phi, theta0) = m.regressors(&window(s.clone())).expect("flying, motor on");
+        let linear: f64 = (0..4).map(|k| theta0[k] * phi[k]).sum();
+        let p = m.predict_one(&s);
+        assert!((linear - p).abs() < 1e-9 * p, "{linear} vs {p}");
+    }
+    // On the ground and in a steep glide the model is its floor, not θ·φ.
+    assert!(m
+        .regressors(&window(sample(0.0, 0.0, 0.0, 0.0, sensor(0.0))))
+        .is_none());
+    assert!(m
+        .regressors(&window(sample(14.0, 0.0, 0.0, -5.0, sensor(14.0))))
+        .is_none());
+}
