@@ -209,3 +209,20 @@ fn the_model_is_its_own_regression_where_the_motor_pulls() {
         .regressors(&window(sample(14.0, 0.0, 0.0, -5.0, sensor(14.0))))
         .is_none());
 }
+
+#[test]
+fn a_profile_carries_its_plane_and_its_class() {
+    use crate::model::profile::VehicleProfile;
+    let mut text = toml::to_string(&VehicleProfile::m100()).unwrap();
+    text = text.replacen("[vehicle]\n", "[vehicle]\nclass = \"fixed_wing\"\n", 1);
+    text.push_str("\n[fixed_wing]\nmass_kg = 2.4\nwing_area_m2 = 0.42\nspan_m = 2.0\n");
+    let p = VehicleProfile::from_toml(&text, "plane.toml").unwrap();
+    assert_eq!(p.vehicle.class, Some(VehicleClass::FixedWing));
+    let w = p.fixed_wing.unwrap();
+    // What the section leaves out is the generic plane's.
+    assert_eq!((w.mass_kg, w.wing_area_m2, w.span_m), (2.4, 0.42, 2.0));
+    assert_eq!(w.cd0, Params::default().cd0);
+    // An unknown key is an error.
+    let bad = format!("{text}wingspan = 3.0\n");
+    assert!(VehicleProfile::from_toml(&bad, "plane.toml").is_err());
+}
