@@ -22,6 +22,7 @@
 //! | power | `measured_w`, `voltage_v` | BATTERY_STATUS (battery id 0; cell voltages summed), SYS_STATUS |
 //! | mission | `speed`, `payload`, `altitude` | NAMED_VALUE_FLOAT `cmd_speed` (m/s), `payload_g` (g), `cmd_alt` (m) — the data-set encoder sends these — then `[mission]` config, then defaults 10 m/s, 0 g, 25 m |
 //! | home | [`Sample::home`] | HOME_POSITION, else the first GPS fix (non-zero latitude/longitude) |
+//! | vehicle class, air data | [`Sample::vehicle`], [`Sample::air`] | HEARTBEAT `type`, EXTENDED_SYS_STATE `vtol_state`, ArduPlane's Q modes, the profile's `[vehicle] class`; VFR_HUD airspeed, SYS_STATUS's airspeed sensor, WIND, SCALED_PRESSURE temperature ([`kind`]) |
 //!
 //! A worse source is used only while every better one is quiet (no update for
 //! `stale_after_s`). ArduPilot's default streams (ATTITUDE, RAW_IMU/SCALED_IMU,
