@@ -169,6 +169,8 @@ fn main() {
             }),
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         },
         models: vec![],
     };

@@ -1,5 +1,6 @@
 //! All physics models on one window: the live inference stage runs them on every window.
-//! Goal: the six models (plus Tseng's Solo form) together in under 5 µs.
+//! Goal: the six models (plus Tseng's Solo form) together in under 5 µs; the fixed-wing
+//! model (`model::physics::fixed_wing`) in under 2 µs a window.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::model::physics::{Kind, PhysicsModel};
@@ -32,6 +33,8 @@ fn cruise_window() -> Window {
                 home: None,
                 stale_mask: 0,
                 battery_remaining_pct: None,
+                vehicle: Default::default(),
+                air: Default::default(),
             }
         })
         .collect();
@@ -52,5 +55,37 @@ fn bench(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench);
+/// A plane's window: the cruise above, flown by a fixed-wing with an airspeed sensor, a
+/// 20° bank and the air's temperature.
+fn fixed_wing(c: &mut Criterion) {
+    use dronewatt::features::{AirData, VehicleClass, VehicleKind};
+    use dronewatt::model::physics::fixed_wing::{FixedWing, Params};
+    use dronewatt::model::PowerModel;
+    let mut w = cruise_window();
+    for s in &mut w.samples {
+        s.vehicle = VehicleKind {
+            class: VehicleClass::FixedWing,
+            mav_type: Some(1),
+            ..Default::default()
+        };
+        s.air = AirData {
+            airspeed_m_s: Some(14.0),
+            airspeed_sensor: true,
+            wind_airspeed_m_s: Some(13.5),
+            temperature_c: Some(18.0),
+        };
+        s.features[idx::POS_Z] = 420.0;
+    }
+    let windows = vec![w];
+    let mut model = FixedWing::new(Params::default());
+    let mut out = Vec::with_capacity(1);
+    c.bench_function("physics: fixed_wing, one window", |b| {
+        b.iter(|| {
+            model.predict(black_box(&windows), &mut out);
+            out[0].power_w
+        })
+    });
+}
+
+criterion_group!(benches, bench, fixed_wing);
 criterion_main!(benches);

@@ -38,6 +38,8 @@ fn window(t_s: f64, demand_w: f32, measured_w: f32) -> Window {
         home: None,
         stale_mask: 0,
         battery_remaining_pct: None,
+        vehicle: Default::default(),
+        air: Default::default(),
     };
     Window {
         samples: vec![s],

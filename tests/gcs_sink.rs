@@ -75,6 +75,8 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
                 home: None,
                 stale_mask: 0,
                 battery_remaining_pct: None,
+                vehicle: Default::default(),
+                air: Default::default(),
             },
             models: vec![ModelEstimate::new("lstm", 480.0, None)],
         };

@@ -468,6 +468,8 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
         home: None,
         stale_mask: 0,
         battery_remaining_pct: None,
+        vehicle: Default::default(),
+        air: Default::default(),
     };
     let est = Estimate {
         t_s: 1.0,

@@ -124,6 +124,8 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
                 }),
                 stale_mask: 0,
                 battery_remaining_pct: None,
+                vehicle: Default::default(),
+                air: Default::default(),
             },
             models: vec![
                 ModelEstimate::new("tseng", 470.0, None),

@@ -211,6 +211,10 @@ pub struct EnergyTracker {
     warned_pct: bool,
     /// Warned once: flying with the pack assumed full.
     warned_full: bool,
+    /// Warned once: no battery telemetry (remaining from the model's power), and no pack
+    /// known for a vehicle that is not a multirotor.
+    warned_model_power: bool,
+    warned_no_pack: bool,
     /// Which model the forecast follows ([`select`]).
     selector: select::Selector,
     /// The pack: start state from the resting voltage, equivalent circuit, voltage forecast.
@@ -249,6 +253,8 @@ impl EnergyTracker {
             warned: Vec::new(),
             warned_pct: false,
             warned_full: false,
+            warned_model_power: false,
+            warned_no_pack: false,
             selector: select::Selector::new(&cfg.select, cfg.model.as_deref(), None),
             pack: pack::Pack::new(cfg.reserve_pct / 100.0),
         })
@@ -456,6 +462,8 @@ impl EnergyTracker {
                 cap,
             ),
         };
+        let (remaining, remaining_source) =
+            self.pack_known(s, &power_source, reported_pct, remaining, remaining_source);
         if remaining_source == RemainingSource::AssumedFull
             && amps.is_some_and(|i| i >= pack::LOAD_CURRENT_A)
             && !self.warned_full
@@ -524,6 +532,46 @@ impl EnergyTracker {
                 curve_wh: pk.curve_wh,
             },
             battery: self.battery.clone(),
+        }
+    }
+
+    /// Remaining energy where the pack or the battery telemetry is missing: nothing for a
+    /// vehicle other than a multirotor with no pack known (the M100's TB48D, the default,
+    /// is a multirotor's pack: never assumed for a plane, a VTOL, a rover, a boat or a
+    /// sub), and the model's power against the configured pack when the vehicle sends no
+    /// battery telemetry at all. Each said once in a warning.
+    fn pack_known(
+        &mut self,
+        s: &crate::features::Sample,
+        power_source: &PowerSource,
+        reported_pct: Option<f64>,
+        remaining: Option<f64>,
+        source: RemainingSource,
+    ) -> (Option<f64>, RemainingSource) {
+        let class = s.vehicle.class;
+        if class != crate::features::VehicleClass::Multirotor
+            && self.battery.capacity_wh.source == Provenance::Default
+        {
+            if !self.warned_no_pack {
+                self.warned_no_pack = true;
+                tracing::warn!("battery: no pack known for this {class} vehicle (set [energy] capacity_wh, or the vehicle's BATT_CAPACITY / BAT1_CAPACITY): remaining energy and time are unknown (the M100's pack is a multirotor default, never assumed here)");
+            }
+            return (None, RemainingSource::UnknownPack);
+        }
+        let silent = s.measured_w.is_none() && s.voltage_v.is_none() && reported_pct.is_none();
+        match (source, power_source) {
+            (RemainingSource::AssumedFull, PowerSource::Model(model)) if silent => {
+                if !self.warned_model_power {
+                    self.warned_model_power = true;
+                    tracing::warn!(
+                        "battery: the vehicle sends no battery telemetry: remaining energy is the pack's {:.1} Wh ({}) minus the energy of the {model} model's power, the pack taken as full at the start",
+                        self.battery.capacity_wh.value,
+                        self.battery.capacity_wh.source
+                    );
+                }
+                (remaining, RemainingSource::ModelPower)
+            }
+            _ => (remaining, source),
         }
     }
 

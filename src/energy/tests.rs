@@ -15,6 +15,8 @@ fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
             home: None,
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         },
         models: models
             .iter()

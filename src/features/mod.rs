@@ -1,10 +1,14 @@
 //! The floor every stage stands on: the fixed-rate [`Sample`] the telemetry stage builds
 //! and every later stage reads, the paper's 21 feature names in model order, their indices
 //! ([`idx`]), the home vector, and the frame and unit conversions between MAVLink and the
-//! M100 data set's columns ([`frames`]). It imports nothing of ours, so any stage may use
-//! it without tying itself to another.
+//! M100 data set's columns ([`frames`]), and what kind of vehicle a sample is from
+//! ([`class`]). It imports nothing of ours, so any stage may use it without tying itself
+//! to another.
 
+pub mod class;
 pub mod frames;
+
+pub use class::{Lift, VehicleClass, VehicleKind, VtolState};
 
 /// Number of model input features (the paper's 21).
 pub const N_FEATURES: usize = 21;
@@ -95,6 +99,29 @@ pub struct Sample {
     /// SYS_STATUS `battery_remaining`; −1 there means unknown and gives `None`). The latest
     /// value, not interpolated.
     pub battery_remaining_pct: Option<f32>,
+    /// The vehicle's class and, for a VTOL, its flight state at this sample (the latest
+    /// HEARTBEAT / EXTENDED_SYS_STATE, or the config): what picks the models that apply.
+    pub vehicle: VehicleKind,
+    /// Air data a fixed-wing model reads beside the features (latest values, not
+    /// interpolated; each `None` while its source is stale).
+    pub air: AirData,
+}
+
+/// What the autopilot says about the air the vehicle flies through.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AirData {
+    /// VFR_HUD `airspeed`, m/s: the autopilot's airspeed (from its sensor where
+    /// [`AirData::airspeed_sensor`], else its own estimate).
+    pub airspeed_m_s: Option<f32>,
+    /// SYS_STATUS says a differential-pressure (airspeed) sensor is present, enabled and
+    /// healthy: the VFR_HUD airspeed is measured.
+    pub airspeed_sensor: bool,
+    /// Horizontal ground velocity minus the WIND estimate, m/s (the airspeed without a
+    /// sensor), while WIND is live.
+    pub wind_airspeed_m_s: Option<f32>,
+    /// Air temperature, °C, where the vehicle sends one (SCALED_PRESSURE `temperature`,
+    /// taken only within −60…60 °C).
+    pub temperature_c: Option<f32>,
 }
 
 /// Where home is from the vehicle.

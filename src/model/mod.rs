@@ -8,6 +8,7 @@ pub mod lstm_cpu;
 pub mod physics;
 pub mod profile;
 
+pub use crate::features::Lift;
 pub use crate::report::{Estimate, ModelEstimate};
 use crate::telemetry::window::Window;
 
@@ -45,6 +46,27 @@ pub trait PowerModel: Send {
     /// range); the LSTM says false for a window far outside its training data.
     fn in_training_range(&self, _window: &Window) -> bool {
         true
+    }
+    /// What carries the vehicle when this model applies ([`Lift`]): `Rotor` for the
+    /// multirotor models and the LSTM (the default), `Wing` for the fixed-wing model. A
+    /// model runs only on windows whose newest sample flies on its lift
+    /// ([`crate::features::VehicleKind::lift`]), so an estimate's `models` hold only
+    /// the models that apply to the vehicle's class (none for a rover, boat or sub).
+    fn lift(&self) -> Lift {
+        Lift::Rotor
+    }
+    /// The least measured power, W, at which online adaptation may learn from a window of
+    /// this model (the motors turn); `None`: the adaptation's own threshold (a share of the
+    /// profile's ideal hover power, made for rotors).
+    fn min_teach_w(&self) -> Option<f64> {
+        None
+    }
+    /// For a model linear in its own regressors: the regressors φ at the window's newest
+    /// sample and the model's own coefficients θ₀ (its prediction is θ₀·φ), so that online
+    /// adaptation fits θ itself ([`adapt::regression`]); `None` (the default) where the
+    /// model is not, or not for this window.
+    fn regressors(&self, _window: &Window) -> Option<([f64; 4], [f64; 4])> {
+        None
     }
 }
 
@@ -132,13 +154,19 @@ impl Ensemble {
         let mut picked = Vec::new();
         let mut at = Vec::new();
         for (i, m) in self.models.iter_mut().enumerate() {
-            // The windows this model runs on (indices into `windows`).
+            // The windows this model runs on (indices into `windows`): those of its
+            // airframe, and for a heavy model those picked for it.
             at.clear();
-            if !m.heavy() || all {
+            let lift = m.lift();
+            let fits = |k: usize| windows[k].last().vehicle.lift() == lift;
+            let every = (!m.heavy() || all) && (0..windows.len()).all(fits);
+            if every {
                 at.extend(0..windows.len());
                 m.predict(windows, &mut self.scratch);
             } else {
-                at.extend((0..windows.len()).filter(|&k| heavy[k]));
+                at.extend(
+                    (0..windows.len()).filter(|&k| fits(k) && (!m.heavy() || all || heavy[k])),
+                );
                 if at.is_empty() {
                     continue;
                 }
@@ -156,7 +184,17 @@ impl Ensemble {
                     // The prediction is for the sample `lag` back: teach with its power.
                     let measured = w.back(lag).measured_w;
                     let in_range = measured.is_some() && m.in_training_range(w);
-                    if let Some(a) = ad.step(i, p.power_w, measured, in_range) {
+                    // A model with its own regression: that fitted first, the affine fit on
+                    // top of its (out-of-sample) prediction.
+                    let p_in = match m.regressors(w) {
+                        Some((phi, theta0)) => {
+                            let floor = m.min_teach_w().unwrap_or(ad.min_teach_w());
+                            let motor = measured.is_some_and(|y| f64::from(y) >= floor);
+                            ad.regress(i, &phi, theta0, measured, in_range && motor) as f32
+                        }
+                        None => p.power_w,
+                    };
+                    if let Some(a) = ad.step_from(i, p_in, measured, in_range, m.min_teach_w()) {
                         me.adapted_w = Some(a.adapted_w);
                         me.reference_w = Some(a.reference_w);
                         me.adapted_err = a.err_w.map(|err_w| crate::report::AdaptedError {
@@ -209,7 +247,41 @@ pub fn build_ensemble(
     telemetry: &crate::telemetry::TelemetryConfig,
     payload_g: Option<f32>,
 ) -> anyhow::Result<Ensemble> {
-    let ensemble = Ensemble::new(build_models(models, vehicle, telemetry)?);
+    ensemble_of(
+        build_models(models, vehicle, telemetry)?,
+        models,
+        vehicle,
+        telemetry,
+        payload_g,
+    )
+}
+
+/// [`build_ensemble`] and the fixed-wing model after it (profile `[fixed_wing]`, else a
+/// generic 2 kg foam plane): what a live or replayed vehicle runs, whatever its class
+/// turns out to be. Each model runs only on the windows of its lift ([`PowerModel::lift`]).
+/// The offline scoring of the M100 data set (`eval`, `offline::chain`) keeps
+/// [`build_ensemble`]: its columns are every model on every window.
+pub fn build_live_ensemble(
+    models: &ModelsConfig,
+    vehicle: Option<&std::path::Path>,
+    telemetry: &crate::telemetry::TelemetryConfig,
+    payload_g: Option<f32>,
+) -> anyhow::Result<Ensemble> {
+    let mut list = build_models(models, vehicle, telemetry)?;
+    let wing = load_profile(vehicle)?.fixed_wing.unwrap_or_default();
+    wing.validate().map_err(anyhow::Error::msg)?;
+    list.push(Box::new(physics::fixed_wing::FixedWing::new(wing)));
+    ensemble_of(list, models, vehicle, telemetry, payload_g)
+}
+
+fn ensemble_of(
+    list: Vec<Box<dyn PowerModel>>,
+    models: &ModelsConfig,
+    vehicle: Option<&std::path::Path>,
+    telemetry: &crate::telemetry::TelemetryConfig,
+    payload_g: Option<f32>,
+) -> anyhow::Result<Ensemble> {
+    let ensemble = Ensemble::new(list);
     if !models.adapt.enabled {
         return Ok(ensemble);
     }

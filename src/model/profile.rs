@@ -61,6 +61,10 @@ pub struct VehicleProfile {
     pub tseng: tseng::Params,
     /// Tseng et al., simplified 3DR Solo form as printed in the paper: `[tseng_solo]`.
     pub tseng_solo: tseng::SoloParams,
+    /// `[fixed_wing]`: the plane's figures for the fixed-wing model (optional: a generic
+    /// 2 kg foam plane's without it; [`crate::model::physics::fixed_wing::Params`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_wing: Option<crate::model::physics::fixed_wing::Params>,
     /// `[rotor]`: the simulator's rotor aerodynamics (optional; see the module docs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotor: Option<Rotor>,
@@ -114,6 +118,12 @@ pub fn forecast_default(vehicle: Option<&Path>) -> Option<(String, String)> {
     Some((f.model, format!("vehicle profile {}{why}", p.name)))
 }
 
+/// The `[vehicle] class` of the profile file `vehicle`, when it sets one (None: no file, no
+/// class, or a file that does not load: the chain's own load reports that).
+pub fn class_override(vehicle: Option<&Path>) -> Option<crate::features::VehicleClass> {
+    VehicleProfile::load(vehicle?).ok()?.vehicle.class
+}
+
 /// Airframe facts (DJI's published figures for the M100).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -131,6 +141,10 @@ pub struct Airframe {
     /// Maximum take-off mass, kg (no model uses it; the simulator's payload limit is
     /// `mtow_kg − airframe_kg − battery_kg`).
     pub mtow_kg: f64,
+    /// The vehicle class, `multirotor`, `fixed_wing`, `vtol` or `other`: wins over the
+    /// HEARTBEAT's type (which picks it when this is absent). Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub class: Option<crate::features::VehicleClass>,
 }
 
 /// The atmosphere the models assume.

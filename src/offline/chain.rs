@@ -355,6 +355,8 @@ mod tests {
             home: None,
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         };
         let all: Vec<Sample> = (0..60).map(sample).collect();
         let windows = (9..60)

@@ -167,7 +167,9 @@ fn is_log(p: &Path) -> bool {
         || crate::source::ulog::is_ulog(p)
 }
 
-/// One log through the live ingest path: its windows, numbered `flight`.
+/// One log through the live ingest path: its windows, numbered `flight`; only those flown
+/// on rotors (a multirotor's, a VTOL's hover and transitions: what `learn` fits), the
+/// others left out with a warning.
 pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindows> {
     let stats = crate::source::IngestStats::default();
     let messages = if path
@@ -180,12 +182,26 @@ pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindo
     } else {
         crate::source::decode_autopilot_log(path, &stats)?
     };
-    let mut tel = Telemetry::new(&cfg.telemetry, &cfg.mission);
+    let mut tel = Telemetry::new(&cfg.telemetry, &cfg.mission).with_class(
+        crate::model::profile::class_override(cfg.vehicle.as_deref()),
+    );
     let mut windows = Vec::new();
     for m in messages {
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);
+    // `learn` fits the multirotor models and the LSTM: a plane's, a VTOL's forward flight
+    // or a rover's windows would teach them what they do not model. Left out, said so.
+    let all = windows.len();
+    windows.retain(|w| w.last().vehicle.lift() == crate::features::Lift::Rotor);
+    if windows.len() < all {
+        tracing::warn!(
+            "{}: {} of {all} windows left out: the vehicle flies them as {} (learn fits the multirotor models)",
+            path.display(),
+            all - windows.len(),
+            tel.vehicle_kind().describe()
+        );
+    }
     Ok(FlightWindows {
         flight,
         route: "log".into(),

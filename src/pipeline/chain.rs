@@ -93,7 +93,7 @@ impl ChainTasks {
 impl VehicleChain {
     /// Build and check every stage (profiles loaded, model cards matched, rules compiled).
     pub fn build(cfg: &Config) -> Result<Self> {
-        let models = crate::model::build_ensemble(
+        let models = crate::model::build_live_ensemble(
             &cfg.models,
             cfg.vehicle.as_deref(),
             &cfg.telemetry,
@@ -121,11 +121,13 @@ impl VehicleChain {
                 cfg.mission.payload_g,
             );
             Arc::new(move |path: &std::path::Path| {
-                crate::model::build_ensemble(&models, Some(path), &telemetry, payload_g)
+                crate::model::build_live_ensemble(&models, Some(path), &telemetry, payload_g)
             }) as Rebuild
         });
         Ok(Self {
-            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission),
+            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission).with_class(
+                crate::model::profile::class_override(cfg.vehicle.as_deref()),
+            ),
             models: Ensemble::new(Vec::new()),
             energy,
             alerts: AlertEngine::new(&cfg.alerts)?,

@@ -132,6 +132,16 @@ pub enum RemainingSource {
     /// equivalent circuit, down to the usable floor (the low-voltage threshold under load).
     #[serde(rename = "resting voltage")]
     RestingVoltage,
+    /// No battery telemetry at all (no voltage, no current, no %): the configured pack's
+    /// capacity minus the energy of the forecast model's power, the pack taken as full at
+    /// the start (said once in a warning).
+    #[serde(rename = "model power")]
+    ModelPower,
+    /// No pack is known for this vehicle: a vehicle other than a multirotor whose capacity
+    /// neither the config nor the vehicle gives (the M100's pack, the multirotor default,
+    /// is never assumed for it). Remaining energy and time are unknown.
+    #[serde(rename = "unknown pack")]
+    UnknownPack,
 }
 
 impl RemainingSource {
@@ -141,6 +151,8 @@ impl RemainingSource {
             RemainingSource::AssumedFull => "assumed full",
             RemainingSource::Battery => "battery",
             RemainingSource::RestingVoltage => "resting voltage",
+            RemainingSource::ModelPower => "model power",
+            RemainingSource::UnknownPack => "unknown pack",
         }
     }
 }

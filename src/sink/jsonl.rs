@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! {"type":"window","system_id":…,"t":…,"measured_w":…,"features":{"wind_speed":…,…}}
-//! {"type":"estimate","system_id":…,"t":…,"measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
+//! {"type":"estimate","system_id":…,"t":…,"vehicle_class":"multirotor"|"fixed_wing"|"vtol"|"other",["mav_type":…,]["vtol_state":"mc"|"fw"|…,]
+//!  "measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
 //!  "energy_used_wh":…,"remaining_wh":…,"remaining_source":"resting voltage"|"battery"|"assumed full","time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
 //!  "capacity_wh":…,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"default"|…,"cell_count":…,"cell_count_source":…,
 //!  "chemistry":"lipo"|"lihv"|"liion","chemistry_source":…,"battery_v":…,"battery_v_model":…,"battery_ocv_v":…,"battery_rest_v":…,
@@ -20,7 +21,8 @@
 //! {"type":"summary","frames_ok":…,"frames_bad":…,"unknown":…,"gaps":…,"windows":…,
 //!  "junk_bytes":…,"clock_jumps":…,"silences":…,"reports":…,"missed_reports":…,
 //!  "signed_ok":…,"signature_bad":…,"signature_replay":…,"unsigned_refused":…,
-//!  "queue_peak":…,"queue_peak_at_s":…,"latency":{"count":…,"p50_ms":…,"p99_ms":…,"max_ms":…}|null}
+//!  "queue_peak":…,"queue_peak_at_s":…,"latency":{"count":…,"p50_ms":…,"p99_ms":…,"max_ms":…}|null,
+//!  "vehicle_kinds":["multirotor"|"fixed_wing"|"vtol (mc)"|"vtol (fw)"|"other: SUBMARINE (12)"|…]}
 //! ```
 //!
 //! `latency` is the message → estimate latency over the run's reports: from the arrival of
@@ -33,7 +35,7 @@
 //! its retained per-vehicle state as one more kind, never written to the file:
 //!
 //! ```text
-//! {"type":"state","t":…,"energy_used_wh":…,"power_source":…,"remaining_wh":…,"remaining_pct":…,
+//! {"type":"state","t":…,"vehicle_class":…,"energy_used_wh":…,"power_source":…,"remaining_wh":…,"remaining_pct":…,
 //!  "remaining_source":…,"forecast_w":…,"forecast_model":…,"time_to_empty_s":…,"home_energy_wh":…,
 //!  "home_margin_wh":…,"cell_voltage_v":…,"active_alerts":["<rule>",…]}
 //! ```
@@ -75,16 +77,22 @@ pub fn spawn(
     Ok(tokio::task::spawn_blocking(move || {
         let mut w = std::io::BufWriter::new(out);
         let mut reports = 0u64;
+        let mut kinds: Vec<String> = Vec::new();
         let run = (|| -> std::io::Result<()> {
             while let Some(r) = rx.blocking_next() {
                 reports += 1;
+                let kind = r.estimate.sample.vehicle.describe();
+                if !kinds.contains(&kind) {
+                    kinds.push(kind);
+                }
                 write_report(&mut w, &r)?;
                 if rx.is_empty() {
                     w.flush()?; // live: each report shows up as it happens
                 }
             }
-            let summary = Summary::new(status.stats.snapshot(), reports, rx.missed())
+            let mut summary = Summary::new(status.stats.snapshot(), reports, rx.missed())
                 .with_queues(status.stats.queues.peak());
+            summary.vehicle_kinds = std::mem::take(&mut kinds);
             write_line(&mut w, &summary.with_latency(status.latency.summary()))?;
             w.flush()
         })();
@@ -124,6 +132,10 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             kind: "estimate",
             system_id: r.system_id,
             t: e.t_s,
+            vehicle_class: s.vehicle.class,
+            mav_type: s.vehicle.mav_type,
+            vtol_state: (s.vehicle.class == crate::features::VehicleClass::Vtol)
+                .then(|| s.vehicle.vtol_state.as_str()),
             measured_w: s.measured_w,
             models: Models(&e.models),
             bands: Bands(&e.models),
@@ -138,7 +150,10 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             forecast_adapted: r.energy.forecast_adapted,
             forecast_model: r.energy.forecast_model.as_deref(),
             forecast_why: r.energy.forecast_why.as_deref(),
-            capacity_wh: b.capacity_wh.value,
+            // No pack known (a vehicle other than a multirotor): the multirotor default
+            // is not this vehicle's, so it is not shown as if it were.
+            capacity_wh: (r.energy.remaining_source != crate::report::RemainingSource::UnknownPack)
+                .then_some(b.capacity_wh.value),
             capacity_source: &b.capacity_wh.source,
             cell_count: b.cell_count.value,
             cell_count_source: &b.cell_count.source,
@@ -178,6 +193,7 @@ pub fn write_alert(
 pub fn write_state(
     w: &mut impl Write,
     t: f64,
+    vehicle_class: crate::features::VehicleClass,
     energy: &crate::report::EnergyState,
     active_alerts: &[String],
 ) -> std::io::Result<()> {
@@ -186,6 +202,7 @@ pub fn write_state(
         &StateLine {
             kind: "state",
             t,
+            vehicle_class,
             energy,
             active_alerts,
         },
@@ -226,6 +243,15 @@ struct EstimateLine<'a> {
     kind: &'static str,
     system_id: u8,
     t: f64,
+    /// The vehicle class (`features::class`): which models apply.
+    vehicle_class: crate::features::VehicleClass,
+    /// The HEARTBEAT's MAV_TYPE number; absent before one is heard.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mav_type: Option<u8>,
+    /// A VTOL's state (`mc`, `fw`, `transition_to_fw`, `transition_to_mc`, `undefined`);
+    /// absent for other classes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    vtol_state: Option<&'static str>,
     measured_w: Option<f32>,
     models: Models<'a>,
     /// `{"<name>": [low_w, high_w]}` for the models that give an uncertainty band (the LSTM's
@@ -254,8 +280,9 @@ struct EstimateLine<'a> {
     forecast_model: Option<&'a str>,
     forecast_why: Option<&'a str>,
     /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
-    /// `vehicle parameter BATT_CAPACITY`, `default` …).
-    capacity_wh: f64,
+    /// `vehicle parameter BATT_CAPACITY`, `default` …); null when no pack is known for
+    /// the vehicle (`remaining_source` `unknown pack`).
+    capacity_wh: Option<f64>,
     capacity_source: &'a Provenance,
     /// Cells in series, and where that came from.
     cell_count: u32,
@@ -340,6 +367,7 @@ struct StateLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
     t: f64,
+    vehicle_class: crate::features::VehicleClass,
     #[serde(flatten)]
     energy: &'a crate::report::EnergyState,
     active_alerts: &'a [String],
@@ -376,6 +404,10 @@ pub struct Summary {
     pub queue_peak_at_s: f64,
     /// Message → estimate latency over the run's reports (`null`: none made).
     pub latency: Option<LatencySummary>,
+    /// The vehicle kinds the reports were made for, in the order first seen (`multirotor`,
+    /// `fixed_wing`, `vtol (mc)`, `vtol (fw)`, `other: SUBMARINE (12)` …): a VTOL's phases
+    /// and any change of class.
+    pub vehicle_kinds: Vec<String>,
 }
 
 impl Summary {
@@ -389,6 +421,7 @@ impl Summary {
             queue_peak: 0,
             queue_peak_at_s: 0.0,
             latency: None,
+            vehicle_kinds: Vec::new(),
         }
     }
     /// With the queues' high-water mark.
@@ -424,6 +457,8 @@ mod tests {
             home: None,
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         };
         Report {
             estimate: Estimate {
@@ -511,7 +546,14 @@ mod tests {
     fn the_state_line_is_the_energy_state_flat_with_the_active_alerts() {
         let r = report();
         let mut out = Vec::new();
-        write_state(&mut out, 12.5, &r.energy, &["low_margin".to_string()]).unwrap();
+        write_state(
+            &mut out,
+            12.5,
+            Default::default(),
+            &r.energy,
+            &["low_margin".to_string()],
+        )
+        .unwrap();
         let text = String::from_utf8(out).unwrap();
         assert!(text.ends_with('\n') && text.lines().count() == 1, "{text}");
         let v: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -532,8 +574,8 @@ mod tests {
             .len();
         assert_eq!(
             v.as_object().unwrap().len(),
-            energy_keys + 3,
-            "type, t, the energy fields, active_alerts: {v}"
+            energy_keys + 4,
+            "type, t, vehicle_class, the energy fields, active_alerts: {v}"
         );
     }
 

@@ -43,6 +43,7 @@ use rumqttc::{
 };
 use tokio::task::JoinHandle;
 
+use crate::features::VehicleClass;
 use crate::report::AlertState;
 
 /// First wait before reconnecting; doubles per failure up to `reconnect_max_s`.
@@ -345,7 +346,7 @@ struct VehicleState {
     last_state_t: Option<f64>,
     active: Vec<String>,
     /// The latest report's state was not published yet.
-    pending: Option<(f64, crate::report::EnergyState)>,
+    pending: Option<((f64, VehicleClass), crate::report::EnergyState)>,
 }
 
 /// The report loop: turn each report into messages and queue them.
@@ -392,6 +393,7 @@ async fn publish(
             }
         }
         let t = r.estimate.t_s;
+        let class = r.estimate.sample.vehicle.class;
         let due = match v.last_state_t {
             None => true,
             Some(last) => !r.alerts.is_empty() || t - last >= cfg.state_interval_s || t < last,
@@ -403,14 +405,14 @@ async fn publish(
                 &queue,
                 &cfg.prefix,
                 r.system_id,
-                t,
+                (t, class),
                 &r.energy,
                 &v.active,
                 &mut buf,
             )
             .await?;
         } else {
-            v.pending = Some((t, r.energy.clone()));
+            v.pending = Some(((t, class), r.energy.clone()));
         }
     }
     // The run is over: the last state of every vehicle, then `offline`, then a clean
@@ -462,13 +464,13 @@ async fn put_state(
     queue: &Queue,
     prefix: &str,
     id: u8,
-    t: f64,
+    (t, class): (f64, VehicleClass),
     energy: &crate::report::EnergyState,
     active: &[String],
     buf: &mut Vec<u8>,
 ) -> Result<()> {
     buf.clear();
-    super::jsonl::write_state(buf, t, energy, active)?;
+    super::jsonl::write_state(buf, t, class, energy, active)?;
     queue
         .put(
             vehicle_topic(prefix, id, "state"),

@@ -3,7 +3,7 @@
 //! and a closing line with the run's counters. Colour when stderr is a terminal.
 //!
 //! ```text
-//! t 312.4 s  measured 241.7 W  dandrea 236.0  lstm 244.1 W  used 12.80 Wh  left 88.1 Wh (21 min)  home +31.2 Wh  link 52 msg/s ok 16211 bad 2 unk 0 gaps 3  stale: wind_speed
+//! t 312.4 s  multirotor  measured 241.7 W  dandrea 236.0  lstm 244.1 W  used 12.80 Wh  left 88.1 Wh (21 min)  home +31.2 Wh  link 52 msg/s ok 16211 bad 2 unk 0 gaps 3  stale: wind_speed
 //! ```
 //!
 //! With more than one vehicle on the link, the status line becomes a fleet view: one row
@@ -89,6 +89,12 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
         }
     }
     print_summary(&stats, rx.missed(), "the terminal view", &latency);
+    for (id, (r, _)) in &fleet {
+        eprintln!(
+            "      vehicle {id}: {}",
+            r.estimate.sample.vehicle.describe()
+        );
+    }
     Ok(())
 }
 
@@ -138,6 +144,8 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
         Some(r) => {
             let e = &r.estimate;
             s.push_str(&format!("t {} s  ", num(e.t_s, 1)));
+            // The class (which models apply): "fixed_wing", "vtol (fw)", "other: SUBMARINE (12)".
+            s.push_str(&format!("{}  ", e.sample.vehicle.describe()));
             match e.sample.measured_w {
                 Some(w) => s.push_str(&format!("measured {} W  ", num(w as f64, 1))),
                 None => s.push_str("measured — W  "),

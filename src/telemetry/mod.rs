@@ -22,6 +22,7 @@
 //! | power | `measured_w`, `voltage_v` | BATTERY_STATUS (battery id 0; cell voltages summed), SYS_STATUS |
 //! | mission | `speed`, `payload`, `altitude` | NAMED_VALUE_FLOAT `cmd_speed` (m/s), `payload_g` (g), `cmd_alt` (m) — the data-set encoder sends these — then `[mission]` config, then defaults 10 m/s, 0 g, 25 m |
 //! | home | [`Sample::home`] | HOME_POSITION, else the first GPS fix (non-zero latitude/longitude) |
+//! | vehicle class, air data | [`Sample::vehicle`], [`Sample::air`] | HEARTBEAT `type`, EXTENDED_SYS_STATE `vtol_state`, ArduPlane's Q modes, the profile's `[vehicle] class`; VFR_HUD airspeed, SYS_STATUS's airspeed sensor, WIND, SCALED_PRESSURE temperature ([`kind`]) |
 //!
 //! A worse source is used only while every better one is quiet (no update for
 //! `stale_after_s`). ArduPilot's default streams (ATTITUDE, RAW_IMU/SCALED_IMU,
@@ -46,6 +47,7 @@
 //!
 //! See [`frames`] for the per-column conventions and the checks behind them.
 
+pub mod kind;
 pub mod resample;
 pub mod window;
 
@@ -173,6 +175,10 @@ pub struct Telemetry {
     samples: Vec<Sample>,
     /// The autopilot's latest `battery_remaining`, %, if it reports one.
     battery_pct: Option<f32>,
+    /// The vehicle's class and air data ([`kind`]).
+    kind: kind::KindTracker,
+    /// Time of the newest message taken, µs.
+    now_us: i64,
 }
 
 impl Telemetry {
@@ -193,9 +199,28 @@ impl Telemetry {
             foreign: 0,
             samples: Vec::new(),
             battery_pct: None,
+            kind: kind::KindTracker::new(None),
+            now_us: 0,
         };
         t.refresh_mission();
         t
+    }
+
+    /// The class the vehicle profile's `[vehicle] class` sets, which wins over the
+    /// HEARTBEAT's type ([`kind`]); `None` leaves it to the vehicle.
+    pub fn with_class(mut self, class: Option<crate::features::VehicleClass>) -> Self {
+        self.kind = kind::KindTracker::new(class);
+        self
+    }
+
+    /// The vehicle's kind as it stands (class, MAV_TYPE, VTOL state).
+    pub fn vehicle_kind(&self) -> crate::features::VehicleKind {
+        self.kind.kind()
+    }
+
+    /// Changes of class or VTOL state followed so far (after the first HEARTBEAT).
+    pub fn class_switches(&self) -> u64 {
+        self.kind.switches()
     }
 
     /// Feed one message; push any windows it completes onto `out`.
@@ -204,6 +229,8 @@ impl Telemetry {
             return;
         }
         let t_us = (m.t_s * 1e6).round() as i64;
+        self.now_us = t_us;
+        self.kind.ingest(t_us, self.stale_us, &m.msg);
         self.ingest(t_us, &m.msg);
         if self.resampler.take_restart() {
             self.ring.clear();
@@ -274,8 +301,12 @@ impl Telemetry {
 
     fn windows_from(&mut self, samples: &mut Vec<Sample>, out: &mut Vec<Window>) {
         let pct = self.battery_pct;
+        let vehicle = self.kind.kind();
+        let air = self.kind.air(self.now_us, self.stale_us);
         out.extend(samples.drain(..).filter_map(|mut s| {
             s.battery_remaining_pct = pct;
+            s.vehicle = vehicle;
+            s.air = air;
             self.ring.push(s)
         }));
     }
@@ -367,6 +398,7 @@ impl Telemetry {
 
     fn true_wind(&mut self, rank: usize, t_us: i64, wind_ne: [f64; 2]) {
         if let Some(v) = self.vel_ned {
+            self.kind.wind_airspeed(t_us, v, wind_ne);
             let w = frames::apparent_wind(wind_ne, [v[0], v[1]]);
             self.offer(Signal::Wind, rank, t_us, &w);
         }

@@ -307,6 +307,8 @@ impl Resampler {
             home,
             stale_mask,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         }
     }
 

@@ -20,6 +20,9 @@ pub struct Run {
     pub summary: Value,
     /// Every `estimate` line, real or not.
     pub estimate_lines: usize,
+    /// Every `estimate` line itself (those with no model output too: a vehicle no model
+    /// applies to).
+    pub all_estimates: Vec<Value>,
     /// What `vehicle.py` printed.
     pub peer: Value,
     /// dronewatt's standard error.
@@ -155,6 +158,7 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
     let text = std::fs::read_to_string(&json).unwrap();
     let (mut estimates, mut alerts, mut summary, mut estimate_lines) =
         (Vec::new(), Vec::new(), Value::Null, 0);
+    let mut all_estimates = Vec::new();
     for line in text.lines() {
         let v: Value =
             serde_json::from_str(line).unwrap_or_else(|e| panic!("bad JSON line {line:?}: {e}"));
@@ -162,8 +166,9 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
             Some("estimate") => {
                 estimate_lines += 1;
                 if v["models"].as_object().is_some_and(|m| !m.is_empty()) {
-                    estimates.push(v);
+                    estimates.push(v.clone());
                 }
+                all_estimates.push(v);
             }
             Some("alert") => alerts.push(v),
             Some("summary") => summary = v,
@@ -176,6 +181,7 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
         alerts,
         summary,
         estimate_lines,
+        all_estimates,
         peer,
         stderr,
     }

@@ -20,6 +20,11 @@ Phase keys (all optional but one of send_s / quiet_s):
 instead of the fixed 22.2 V: a LiPo with its own OCV table, a series resistance and one RC pair,
 the current solved from the power each tick (P = V·I); the voltage falls as the pack drains.
 
+--mav-type N sends HEARTBEAT type N (12 a submarine, 1 a plane, 99 a type MAVLink does not
+define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor);
+--vtol-fw-after-s T flies an ArduPlane quadplane (Q mode and vtol_state MC, then FW after T s);
+--tlog PATH also writes every frame sent to a telemetry log, for replay tests.
+
 Signing: --sign-key HEX signs every MAVLink 2 frame (pymavlink's setup_signing; it then also
 verifies what it hears and drops what fails). --link-id N its link id.
 
@@ -31,6 +36,7 @@ import json
 import math
 import os
 import select
+import struct
 import time
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -86,6 +92,7 @@ class Vehicle:
         self.home_lat = LAT0
         self.stray = mav.MAVLink(None, srcSystem=2, srcComponent=1)
         self.pack = Pack(**json.loads(a.pack)) if a.pack else None
+        self.tlog = open(a.tlog, "wb") if a.tlog else None
         self.open()
 
     def open(self):
@@ -101,6 +108,9 @@ class Vehicle:
         def recording(buf):
             if len(self.recorded) < 400:
                 self.recorded.append(bytes(buf))
+            if self.tlog is not None:
+                # A telemetry log as ground stations write it: big-endian µs since the epoch, then the frame.
+                self.tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + bytes(buf))
             write(buf)
         self.conn.write = recording
 
@@ -156,11 +166,25 @@ class Vehicle:
         power = 2.0 if ground else self.a.power_w + self.a.power_swing_w * math.sin(2 * math.pi * t_flight / 3.0)
         volts, current = self.pack.draw(power, dt) if self.pack else (VOLTS, power / VOLTS)
         msgs = []
-        if self.n % 10 == 0:
-            msgs.append(mav.MAVLink_heartbeat_message(mav.MAV_TYPE_QUADROTOR, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, mav.MAV_STATE_ACTIVE, 3))
+        vtol = self.a.vtol_fw_after_s
+        custom_mode = 0
+        if vtol is not None:
+            # An ArduPlane quadplane: QHOVER (18) on its lift rotors, then AUTO (10) on the wing,
+            # with a one-second transition between (EXTENDED_SYS_STATE says which, every tick).
+            state = (mav.MAV_VTOL_STATE_MC if t_flight < vtol else
+                     mav.MAV_VTOL_STATE_TRANSITION_TO_FW if t_flight < vtol + 1.0 else mav.MAV_VTOL_STATE_FW)
+            custom_mode = 18 if state == mav.MAV_VTOL_STATE_MC else 10
+            msgs.append(mav.MAVLink_extended_sys_state_message(state, mav.MAV_LANDED_STATE_IN_AIR))
+        if self.n % 10 == 0 or (vtol is not None and abs(t_flight - vtol) < dt / 2):
+            msgs.append(mav.MAVLink_heartbeat_message(self.a.mav_type, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, custom_mode,
+                                                      mav.MAV_STATE_ACTIVE, 3))
             msgs.append(mav.MAVLink_home_position_message(int(self.home_lat * 1e7), int(LON0 * 1e7), 400_000, 0.0, 0.0, 0.0,
                                                           [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0))
-        msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(current * 100), -1, 0, 0, 0, 0, 0, 0))
+        if self.a.no_battery:
+            # No battery monitor: voltage unknown (UINT16_MAX), current unknown (-1).
+            msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, 65535, -1, -1, 0, 0, 0, 0, 0, 0))
+        else:
+            msgs.append(mav.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(current * 100), -1, 0, 0, 0, 0, 0, 0))
         vz = 0.0 if ground else (5.0 if t_flight < 5.0 else 0.0)
         msgs.append(mav.MAVLink_global_position_int_message(boot_ms, int(lat * 1e7), int(LON0 * 1e7), int((400.0 + alt) * 1000),
                                                             int(alt * 1000), int(speed * 100), 0, int(-vz * 100), 0))
@@ -221,6 +245,8 @@ class Vehicle:
         self.wait_until(time.monotonic() + self.a.listen_after_s)
         self.count_signing()
         self.conn.close()
+        if self.tlog is not None:
+            self.tlog.close()
         h = self.heard
         print(json.dumps({
             "phases": report,
@@ -244,6 +270,12 @@ def main():
     ap.add_argument("--link-id", type=int, default=1)
     ap.add_argument("--pack", default=None, help="JSON: fly a sagging pack (see the module docs)")
     ap.add_argument("--listen-after-s", type=float, default=1.5)
+    ap.add_argument("--mav-type", type=int, default=mav.MAV_TYPE_QUADROTOR,
+                    help="HEARTBEAT type (MAV_TYPE number; any 0-255, defined or not)")
+    ap.add_argument("--no-battery", action="store_true", help="send no voltage or current (no battery monitor)")
+    ap.add_argument("--tlog", default=None, help="also write every frame sent to this telemetry log (.tlog)")
+    ap.add_argument("--vtol-fw-after-s", type=float, default=None,
+                    help="a quadplane: QHOVER and vtol_state MC until this many seconds of flight, then a 1 s transition, then AUTO and FW")
     a = ap.parse_args()
     Vehicle(a).run(json.loads(a.plan))
 

@@ -37,6 +37,8 @@ fn window(i: usize) -> Window {
                 home: None,
                 stale_mask: 0,
                 battery_remaining_pct: None,
+                vehicle: Default::default(),
+                air: Default::default(),
             }
         })
         .collect();

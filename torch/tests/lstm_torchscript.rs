@@ -100,6 +100,8 @@ fn torchscript_module_loads_with_its_card() {
                     home: None,
                     stale_mask: 0,
                     battery_remaining_pct: None,
+                    vehicle: Default::default(),
+                    air: Default::default(),
                 })
                 .collect(),
             arrived: None,

@@ -548,6 +548,8 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
             }),
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         });
         enu_m.push([p.x as f32, p.y as f32, p.z as f32]);
         leg_of.push(seg.leg as u32);

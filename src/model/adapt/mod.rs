@@ -44,6 +44,14 @@
 //! published with how many seconds of flight it rests on ([`Adapted::err_w`],
 //! [`Adapted::evidence_s`]): the forecast picks its model by it (`energy::select`).
 //!
+//! ## A model's own regression
+//!
+//! A model linear in its own regressors (the fixed-wing model: ρV³, (n·m·g)²/(ρV),
+//! m·g·v_z, 1; [`super::PowerModel::regressors`]) has those coefficients fitted too, the
+//! same way (forgetting `memory_s`, its published coefficients as a fixed prior, bounded
+//! within ×¼…×4): [`regression`]. Its prediction, made before the window teaches it, is
+//! what the affine fit below then corrects, scores and publishes.
+//!
 //! ## Two fits per model: the published one and the reference
 //!
 //! - **adapted** (`memory_s`, default 30 s): published beside the raw estimate
@@ -81,6 +89,8 @@
 //! is the fit while its error is no worse than the raw model's, else the raw prediction.
 
 use serde::{Deserialize, Serialize};
+
+pub mod regression;
 
 /// Measured power above this is not a multirotor's (a corrupt current reading), W.
 pub const MAX_POWER_W: f64 = 50_000.0;
@@ -332,6 +342,9 @@ pub struct Adaptation {
     /// published value's absolute error, W, and λⁿ (the evidence behind its recent error; a
     /// warm start restores fits, not evidence).
     scored: Vec<(u64, f64, f64)>,
+    /// Per model, for the models linear in their own regressors
+    /// ([`super::PowerModel::regressors`]): that regression fitted online ([`regression`]).
+    regressions: Vec<Option<regression::RegressionFit>>,
 }
 
 impl Adaptation {
@@ -351,7 +364,34 @@ impl Adaptation {
             dt_s,
             lambda_score: lambda_of(cfg.score_memory_s),
             scored: vec![(0, 0.0, 1.0); names.len()],
+            regressions: Vec::new(),
         }
+    }
+
+    /// Model `i`'s own regression on this vehicle, started at its coefficients `theta0`:
+    /// its prediction for regressors `phi`, W, made before this window teaches it; then,
+    /// when `teach` and the measured power is finite and at most [`MAX_POWER_W`], taught
+    /// with it (forgotten like the published fit, `memory_s`). The caller decides `teach`
+    /// as for [`Adaptation::step`] (the motors turn, the window in range).
+    pub fn regress(
+        &mut self,
+        i: usize,
+        phi: &[f64; regression::N],
+        theta0: [f64; regression::N],
+        measured_w: Option<f32>,
+        teach: bool,
+    ) -> f64 {
+        if self.regressions.len() <= i {
+            self.regressions.resize(i + 1, None);
+        }
+        let fit = self.regressions[i].get_or_insert_with(|| regression::RegressionFit::new(theta0));
+        let out = fit.predict(phi);
+        if let Some(y) = measured_w.map(f64::from) {
+            if teach && y.is_finite() && y > 0.0 && y <= MAX_POWER_W {
+                fit.teach(phi, y, self.lambda);
+            }
+        }
+        out
     }
 
     /// Measured power below which nothing teaches, W.
@@ -369,11 +409,24 @@ impl Adaptation {
         measured_w: Option<f32>,
         in_range: bool,
     ) -> Option<Adapted> {
+        self.step_from(i, p_model_w, measured_w, in_range, None)
+    }
+
+    /// [`Adaptation::step`] with the model's own teaching threshold, W, where it has one
+    /// ([`super::PowerModel::min_teach_w`]: a plane's cruise is below a rotor's hover).
+    pub fn step_from(
+        &mut self,
+        i: usize,
+        p_model_w: f32,
+        measured_w: Option<f32>,
+        in_range: bool,
+        min_teach_w: Option<f64>,
+    ) -> Option<Adapted> {
         let (lambda, lambda_ref, lambda_score, min_w, dt_s) = (
             self.lambda,
             self.lambda_ref,
             self.lambda_score,
-            self.min_teach_w,
+            min_teach_w.unwrap_or(self.min_teach_w),
             self.dt_s,
         );
         let cfg = &self.cfg;

@@ -36,6 +36,7 @@
 
 pub mod dandrea;
 pub mod dorling;
+pub mod fixed_wing;
 pub mod kirschstein;
 pub mod stolaroff;
 pub mod tseng;
@@ -349,6 +350,8 @@ pub(crate) mod testutil {
             home: None,
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         }
     }
 

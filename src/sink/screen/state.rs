@@ -204,6 +204,8 @@ mod tests {
                     home: None,
                     stale_mask: 0,
                     battery_remaining_pct: None,
+                    vehicle: Default::default(),
+                    air: Default::default(),
                 },
                 models: vec![ModelEstimate::new("dandrea", 180.0, None), lstm],
                 arrived: None,

@@ -125,8 +125,9 @@ fn draw_title(f: &mut Frame, area: Rect, s: &ScreenState) {
     )];
     match s.selected() {
         Some(v) => spans.push(Span::raw(format!(
-            "  vehicle {}  t {} s",
+            "  vehicle {} ({})  t {} s",
             v.report.system_id,
+            v.report.estimate.sample.vehicle.describe(),
             num(v.report.estimate.t_s, 1)
         ))),
         None => spans.push(Span::raw("  waiting for the first window")),
@@ -155,6 +156,12 @@ fn power_lines(r: Option<&Report>) -> Vec<Line<'static>> {
     let forecast = r.energy.forecast_model.as_deref();
     let mut models: Vec<_> = r.estimate.models.iter().collect();
     models.sort_by_key(|m| Some(m.name.as_str()) != forecast);
+    if models.is_empty() && r.estimate.sample.vehicle.lift() == crate::features::Lift::Unmodelled {
+        lines.push(Line::styled(
+            "no power model for this vehicle class",
+            Style::default().fg(Color::DarkGray),
+        ));
+    }
     for m in models {
         let is_forecast = forecast == Some(m.name.as_str());
         let mut txt = format!("{} {}", m.name, num(f64::from(m.power_w), 1));

@@ -218,6 +218,8 @@ struct Dash {
 struct FleetRow {
     system_id: u8,
     t: f64,
+    /// The vehicle's kind in words (`multirotor`, `vtol (fw)`, …).
+    vehicle: String,
     measured_w: Option<f32>,
     forecast_w: Option<f64>,
     remaining_wh: Option<f64>,
@@ -254,6 +256,7 @@ impl Fleet {
                 Some(FleetRow {
                     system_id,
                     t: l.t,
+                    vehicle: l.vehicle.clone(),
                     measured_w: l.measured_w,
                     forecast_w: l.energy.forecast_w,
                     remaining_wh: l.energy.remaining_wh,
@@ -274,6 +277,10 @@ impl Fleet {
 #[derive(Debug, Clone, serde::Serialize)]
 struct Latest {
     t: f64,
+    /// The vehicle class (`multirotor`, `fixed_wing`, `vtol`, `other`) and, in words, the
+    /// kind (`vtol (fw)`, `other: SUBMARINE (12)`).
+    vehicle_class: crate::features::VehicleClass,
+    vehicle: String,
     measured_w: Option<f32>,
     models: Vec<crate::report::ModelEstimate>,
     energy: EnergyState,
@@ -305,6 +312,8 @@ impl Dash {
         let est = &r.estimate;
         self.latest = Some(Latest {
             t: est.t_s,
+            vehicle_class: est.sample.vehicle.class,
+            vehicle: est.sample.vehicle.describe(),
             measured_w: est.sample.measured_w,
             models: est.models.clone(),
             energy: r.energy.clone(),

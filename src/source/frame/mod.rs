@@ -51,6 +51,7 @@ use mavlink::{MavHeader, MavlinkVersion, Message};
 use super::signing::{Verdict, Verifier};
 
 mod crc;
+mod lenient;
 
 use super::IngestStats;
 use crate::MavMessage;
@@ -206,7 +207,15 @@ fn decode_at(b: &[u8]) -> At {
             version,
             msg,
         },
-        Err(_) => At::Bad { len },
+        Err(_) => match lenient::unknown_type_heartbeat(version, id, &b[hdr..crc_at]) {
+            Some(msg) => At::Good {
+                len,
+                header,
+                version,
+                msg,
+            },
+            None => At::Bad { len },
+        },
     }
 }
 

@@ -35,8 +35,8 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
     );
     let _ = writeln!(
         s,
-        "{:<34} {:<9} {:<10} {:<22} {:>7} {:>9} {:>9}  capacity delivered / rated, by flight",
-        "vehicle", "told by", "autopilot", "type", "flights", "airborne", "Wh/min"
+        "{:<34} {:<9} {:<10} {:<22} {:<10} {:>7} {:>9} {:>9}  capacity delivered / rated, by flight",
+        "vehicle", "told by", "autopilot", "type", "class", "flights", "airborne", "Wh/min"
     );
     for v in &vehicles {
         // (+ 0.0: an empty sum is −0.0.)
@@ -53,11 +53,12 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
         };
         let _ = writeln!(
             s,
-            "{:<34} {:<9} {:<10} {:<22} {:>7} {:>7.1} m {:>9}  {}",
+            "{:<34} {:<9} {:<10} {:<22} {:<10} {:>7} {:>7.1} m {:>9}  {}",
             v.key,
             v.key_kind,
             v.autopilot,
             v.vehicle_type.trim_start_matches("MAV_TYPE_"),
+            v.vehicle_class,
             v.flights.len(),
             airborne / 60.0,
             v.wh_per_min()

@@ -64,6 +64,8 @@ pub struct VehicleRecord {
     pub key_kind: String,
     pub autopilot: String,
     pub vehicle_type: String,
+    /// The class its HEARTBEAT type says (`multirotor`, `fixed_wing`, `vtol`, `other`).
+    pub vehicle_class: crate::features::VehicleClass,
     pub system_id: u8,
     /// Unix seconds.
     pub first_seen: i64,
@@ -394,6 +396,9 @@ impl Store {
                 system_id: r.get(2)?,
                 autopilot: r.get(3)?,
                 vehicle_type: r.get(4)?,
+                vehicle_class: crate::features::class::class_of_mav_type_name(
+                    &r.get::<_, String>(4)?,
+                ),
                 first_seen: r.get(5)?,
                 last_seen: r.get(6)?,
                 learned_models,

@@ -137,6 +137,8 @@ fn effective_capacity_needs_a_real_drop() {
                 home: None,
                 stale_mask: 0,
                 battery_remaining_pct: Some(pct),
+                vehicle: Default::default(),
+                air: Default::default(),
             },
             models: vec![],
         },
@@ -193,6 +195,8 @@ fn a_long_flight_is_summed_in_bounded_memory() {
             home: None,
             stale_mask: 0,
             battery_remaining_pct: None,
+            vehicle: Default::default(),
+            air: Default::default(),
         };
         log.observe(&Report {
             estimate: Estimate {
