@@ -53,23 +53,18 @@ impl Config {
         let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
         let mut cfg: Config =
             toml::from_str(&text).map_err(|e| err(e.to_string().trim_end().to_string()))?;
-        if let (Some(v), Some(dir)) = (cfg.vehicle.as_mut(), path.parent()) {
-            if v.is_relative() {
-                *v = dir.join(&*v);
-            }
-        }
-        let dir = path.parent().unwrap_or(Path::new(""));
-        for p in [
-            cfg.link.signing_key_file.as_mut(),
-            cfg.sinks.web.token_file.as_mut(),
+        // Every path the file names, against the file's folder (one resolver: a key added
+        // here and nowhere else resolves like the rest).
+        for field in [
+            cfg.vehicle.as_mut(),
+            cfg.models.lstm.path.as_mut(),
             cfg.forecast.live.calibrated_profile.as_mut(),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            if p.is_relative() {
-                *p = dir.join(&*p);
-            }
+            cfg.sinks.web.token_file.as_mut(),
+            cfg.sinks.mqtt.password_file.as_mut(),
+            cfg.sinks.mqtt.ca_file.as_mut(),
+            cfg.link.signing_key_file.as_mut(),
+        ] {
+            crate::files::resolve(path, field);
         }
         cfg.validate().map_err(err)?;
         Ok(cfg)

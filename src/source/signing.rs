@@ -121,23 +121,7 @@ impl std::fmt::Debug for Signing {
 /// Read a key file: 32 raw bytes, 64 hex digits or base64 of 32 bytes. On Unix the file
 /// must be private to its owner.
 pub fn read_key_file(path: &Path) -> Result<[u8; KEY_LEN], String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path)
-            .map_err(|e| format!("cannot stat: {e}"))?
-            .permissions()
-            .mode();
-        if mode & 0o077 != 0 {
-            return Err(format!(
-                "the key file is accessible to group or others (mode {:03o}); make it private: chmod 600 {}",
-                mode & 0o777,
-                path.display()
-            ));
-        }
-    }
-    parse_key(&bytes)
+    parse_key(&crate::files::read_private(path)?)
 }
 
 /// A key from a file's bytes (see [`read_key_file`]).
