@@ -216,6 +216,10 @@ impl State {
                 else {
                     return;
                 };
+                // NaN (no estimate yet) or (0, 0) is no fix: nothing to send on as a position.
+                if !crate::features::frames::is_fix(lat, lon) || !alt.is_finite() {
+                    return;
+                }
                 let Some(v) = self.vel else { return };
                 let [vx, vy, vz] =
                     v.map(|x| (f64::from(x) * 100.0).clamp(-32768.0, 32767.0) as i16);
@@ -554,5 +558,68 @@ mod tests {
             bad[i] ^= 0x5A;
         }
         let _ = decode(&bad);
+    }
+
+    #[test]
+    fn a_position_without_a_fix_is_never_sent_on_as_one() {
+        const LOCAL: Topic = Topic {
+            id: 0,
+            name: "vehicle_local_position",
+            fields: &[
+                Field {
+                    ty: "float",
+                    name: "vx",
+                },
+                Field {
+                    ty: "float",
+                    name: "vy",
+                },
+                Field {
+                    ty: "float",
+                    name: "vz",
+                },
+            ],
+        };
+        const GLOBAL: Topic = Topic {
+            id: 1,
+            name: "vehicle_global_position",
+            fields: &[
+                Field {
+                    ty: "double",
+                    name: "lat",
+                },
+                Field {
+                    ty: "double",
+                    name: "lon",
+                },
+                Field {
+                    ty: "float",
+                    name: "alt",
+                },
+            ],
+        };
+        let mut w = Writer::new(&[LOCAL, GLOBAL], &[]);
+        w.data(&LOCAL, 1_000_000, &[N(&[1.0]), N(&[0.0]), N(&[0.0])]);
+        // PX4 before its estimator has a global position: NaN; then (0, 0); then a fix.
+        w.data(
+            &GLOBAL,
+            1_100_000,
+            &[N(&[f64::NAN]), N(&[f64::NAN]), N(&[f64::NAN])],
+        );
+        w.data(&GLOBAL, 1_200_000, &[N(&[0.0]), N(&[0.0]), N(&[0.0])]);
+        w.data(
+            &GLOBAL,
+            1_300_000,
+            &[N(&[47.397_742_1]), N(&[8.545_594]), N(&[488.0])],
+        );
+        let m = decode(&w.into_bytes()).unwrap();
+        let fixes: Vec<(i32, i32, i32)> = m
+            .iter()
+            .filter_map(|m| match &m.msg {
+                MavMessage::GLOBAL_POSITION_INT(p) => Some((p.lat, p.lon, p.alt)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(fixes, [(473_977_421, 85_455_940, 488_000)]);
     }
 }
