@@ -1,10 +1,12 @@
 //! The floor every stage stands on: the fixed-rate [`Sample`] the telemetry stage builds
 //! and every later stage reads, the paper's 21 feature names in model order, their indices
 //! ([`idx`]), the home vector, and the frame and unit conversions between MAVLink and the
-//! M100 data set's columns ([`frames`]). It imports nothing of ours, so any stage may use
+//! M100 data set's columns ([`frames`]), and the float ↔ integer scaling every
+//! reader and sink shares ([`units`]). It imports nothing of ours, so any stage may use
 //! it without tying itself to another.
 
 pub mod frames;
+pub mod units;
 
 /// Number of model input features (the paper's 21).
 pub const N_FEATURES: usize = 21;

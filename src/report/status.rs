@@ -297,7 +297,9 @@ impl LatencyHistogram {
         }
         let max_us = self.max_us.load(Ordering::Relaxed);
         let quantile = |q: f64| {
-            let rank = ((q * count as f64).ceil() as u64).clamp(1, count);
+            let rank = crate::features::units::ceil_ratio(q * count as f64, 1.0)
+                .map_or(count, |r| r as u64)
+                .clamp(1, count);
             let mut seen = 0;
             for (i, c) in counts.iter().enumerate() {
                 seen += c;

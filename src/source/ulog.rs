@@ -20,6 +20,7 @@
 //! A missing topic or field leaves its signal to the other sources; a file that is not
 //! ULog, or has no logged data, is an error.
 
+use crate::features::units::{scaled, whole_degrees};
 use yule_log::model::inst::{FieldValue as V, Format, ParameterValue};
 use yule_log::model::msg::UlogMessage;
 
@@ -221,13 +222,12 @@ impl State {
                     return;
                 }
                 let Some(v) = self.vel else { return };
-                let [vx, vy, vz] =
-                    v.map(|x| (f64::from(x) * 100.0).clamp(-32768.0, 32767.0) as i16);
+                let [vx, vy, vz] = v.map(|x| scaled(f64::from(x), 100.0).unwrap_or(0));
                 let m = d::GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: boot_ms,
-                    lat: (lat * 1e7).round() as i32,
-                    lon: (lon * 1e7).round() as i32,
-                    alt: (alt * 1000.0).round() as i32,
+                    lat: scaled(lat, 1e7).unwrap_or(0),
+                    lon: scaled(lon, 1e7).unwrap_or(0),
+                    alt: scaled(alt, 1000.0).unwrap_or(0),
                     relative_alt: 0,
                     vx,
                     vy,
@@ -256,7 +256,8 @@ impl State {
                 let amps = num(f, "current_a").filter(|&c| c >= 0.0);
                 let remaining = num(f, "remaining")
                     .filter(|r| (0.0..=1.0).contains(r))
-                    .map_or(-1, |r| (r * 100.0).round() as i8);
+                    .and_then(|r| scaled(r, 100.0))
+                    .unwrap_or(-1);
                 self.syn
                     .battery(volt, amps, remaining, num(f, "discharged_mah"), None, out);
             }
@@ -268,7 +269,7 @@ impl State {
                 let m = d::VFR_HUD_DATA {
                     airspeed: air as f32,
                     groundspeed: ground,
-                    heading: hdg.round() as i16 % 360,
+                    heading: whole_degrees(hdg).unwrap_or(0),
                     ..Default::default()
                 };
                 self.syn.push(MavMessage::VFR_HUD(m), out);

@@ -467,7 +467,7 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
     let segs = segments(plan, k, speed0, &mut legs);
     let dt = 1.0 / c.rate_hz;
     let total: f64 = segs.iter().map(|s| s.duration_s).sum();
-    let n = (total / dt).floor() as usize + 1;
+    let n = crate::features::units::floor_ratio(total, dt).unwrap_or(0.0) as usize + 1;
     let cmd_alt = plan.items.iter().filter_map(|i| match i.kind {
         ItemKind::Takeoff { alt_m } => Some(alt_m),
         _ => i.position.map(|p| p.alt_m),
