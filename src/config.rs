@@ -33,6 +33,18 @@ pub struct Config {
     /// Many vehicles on one link: when a silent vehicle is lost and dropped, which system
     /// ids this instance watches.
     pub fleet: crate::source::fleet::FleetConfig,
+    /// The links `monitor` reads when no address is given on its command line, `[[links]]`
+    /// tables: several are merged, deduplicated, and watched per link (`source::links`).
+    pub links: Vec<LinkEntry>,
+}
+
+/// One `[[links]]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkEntry {
+    /// A link address, as on `monitor`'s command line (`udpin:0.0.0.0:14550`,
+    /// `serial:/dev/ttyUSB0:57600`, …).
+    pub address: String,
 }
 
 /// A configuration error that names the file, the key and why.
@@ -86,6 +98,25 @@ impl Config {
         }
     }
 
+    fn links_valid(&self) -> Result<(), String> {
+        let errs: Vec<String> = self
+            .links
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| {
+                l.address
+                    .parse::<crate::source::link::LinkAddress>()
+                    .err()
+                    .map(|e| format!("links[{i}].address: {e}"))
+            })
+            .collect();
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
+    }
+
     /// Every validation error, one message per broken key, in file order of the sections.
     pub fn errors(&self) -> Vec<String> {
         let mut out = Vec::new();
@@ -100,6 +131,7 @@ impl Config {
             self.sinks.mqtt.validate(),
             self.link.validate(),
             self.fleet.validate(),
+            self.links_valid(),
         ];
         for e in checks.into_iter().filter_map(Result::err) {
             out.extend(e.lines().map(str::to_string));

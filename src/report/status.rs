@@ -63,6 +63,33 @@ pub struct IngestStats {
     pub unsigned_refused: AtomicU64,
     /// How deep the queues between the stages have been.
     pub queues: QueueGauge,
+    /// Several links: copies of a message already heard on another link, dropped.
+    pub duplicates: AtomicU64,
+    /// Several links: each link's health, refreshed about once a second (empty with one).
+    pub links: std::sync::Mutex<Vec<LinkHealth>>,
+}
+
+/// One link's health when a source reads several (`source::links`): what the summary,
+/// the terminal and the dashboard show per link.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct LinkHealth {
+    /// The link's address as given.
+    pub name: String,
+    /// Messages it brought, copies included.
+    pub frames: u64,
+    /// Of those, copies of a message another link brought first.
+    pub duplicates: u64,
+    /// Messages it brought in the last second.
+    pub rate_hz: f64,
+    /// The share of the last second's merged stream it did not bring, %.
+    pub loss_pct: f64,
+    /// How far behind the first copy its messages came in the last second (0 for the ones
+    /// it brought first), mean, ms.
+    pub latency_ms: f64,
+    /// Seconds since it last brought a message; `None` before the first.
+    pub last_heard_s: Option<f64>,
+    /// Heard within the silence limit.
+    pub live: bool,
 }
 
 /// The deepest any bounded queue between the stages has been (items waiting in one queue),
@@ -106,6 +133,10 @@ impl IngestStats {
     pub fn add(counter: &AtomicU64, n: u64) {
         counter.fetch_add(n, Ordering::Relaxed);
     }
+    /// Each link's health, when the source reads several (empty otherwise).
+    pub fn links(&self) -> Vec<LinkHealth> {
+        self.links.lock().map(|g| g.clone()).unwrap_or_default()
+    }
     /// A plain copy of the counters.
     pub fn snapshot(&self) -> StatsSnapshot {
         StatsSnapshot {
@@ -121,6 +152,7 @@ impl IngestStats {
             signature_bad: self.signature_bad.load(Ordering::Relaxed),
             signature_replay: self.signature_replay.load(Ordering::Relaxed),
             unsigned_refused: self.unsigned_refused.load(Ordering::Relaxed),
+            duplicates: self.duplicates.load(Ordering::Relaxed),
         }
     }
 }
@@ -141,6 +173,7 @@ pub struct StatsSnapshot {
     pub signature_bad: u64,
     pub signature_replay: u64,
     pub unsigned_refused: u64,
+    pub duplicates: u64,
 }
 
 /// The telemetry stage's latest `Telemetry::health`, shared with the terminal view (the

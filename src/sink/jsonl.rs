@@ -83,8 +83,9 @@ pub fn spawn(
                     w.flush()?; // live: each report shows up as it happens
                 }
             }
-            let summary = Summary::new(status.stats.snapshot(), reports, rx.missed())
+            let mut summary = Summary::new(status.stats.snapshot(), reports, rx.missed())
                 .with_queues(status.stats.queues.peak());
+            summary.links = status.stats.links();
             write_line(&mut w, &summary.with_latency(status.latency.summary()))?;
             w.flush()
         })();
@@ -376,6 +377,9 @@ pub struct Summary {
     pub queue_peak_at_s: f64,
     /// Message → estimate latency over the run's reports (`null`: none made).
     pub latency: Option<LatencySummary>,
+    /// Several links: each link's health at the end (absent with one link).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub links: Vec<crate::report::status::LinkHealth>,
 }
 
 impl Summary {
@@ -389,6 +393,7 @@ impl Summary {
             queue_peak: 0,
             queue_peak_at_s: 0.0,
             latency: None,
+            links: Vec::new(),
         }
     }
     /// With the queues' high-water mark.
