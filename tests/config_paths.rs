@@ -100,3 +100,28 @@ async fn an_mqtt_password_file_others_can_read_is_refused() {
     let task = dronewatt::sink::mqtt::spawn(cfg, fanout.subscribe()).expect("a private file");
     task.abort();
 }
+
+/// `[[links]]`: the links `monitor` reads with no address on its command line; a bad
+/// address is an error naming the table, like every other key.
+#[test]
+fn links_tables_are_read_and_a_bad_address_names_its_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("links.toml");
+    std::fs::write(
+        &p,
+        "[[links]]\naddress = \"udpin:0.0.0.0:14550\"\n[[links]]\naddress = \"serial:/dev/ttyUSB0:57600\"\n",
+    )
+    .unwrap();
+    let cfg = Config::load(&p).unwrap_or_else(|e| panic!("{e}"));
+    let a: Vec<&str> = cfg.links.iter().map(|l| l.address.as_str()).collect();
+    assert_eq!(a, ["udpin:0.0.0.0:14550", "serial:/dev/ttyUSB0:57600"]);
+    std::fs::write(&p, "[[links]]\naddress = \"quic:host:1\"\n").unwrap();
+    let e = Config::load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("links[0].address") && e.contains("quic:host:1"),
+        "{e}"
+    );
+    std::fs::write(&p, "[[links]]\nadress = \"udpin:0.0.0.0:1\"\n").unwrap();
+    let e = Config::load(&p).unwrap_err().to_string();
+    assert!(e.contains("adress"), "{e}");
+}
