@@ -158,6 +158,7 @@ pub async fn run(
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     let mut first_arrival: HashMap<(u32, u8, u8, u32), Instant> = HashMap::new();
     let mut unique = 0u64;
+    let mut last_t = 0.0f64;
     loop {
         tokio::select! {
             _ = shutdown.cancelled() => break,
@@ -169,7 +170,10 @@ pub async fn run(
             }
             m = merged_rx.recv() => {
                 let Some((i, mut m)) = m else { break };
-                m.t_s = m.arrived.saturating_duration_since(start).as_secs_f64();
+                // One clock for the merged stream, never backwards (two links' messages
+                // can reach the merge a few microseconds out of their arrival order).
+                m.t_s = m.arrived.saturating_duration_since(start).as_secs_f64().max(last_t);
+                last_t = m.t_s;
                 let id = m.msg.message_id();
                 let key = (m.header.system_id, m.header.component_id, m.header.sequence, id);
                 let t = &mut tallies[i];
