@@ -10,15 +10,20 @@ use std::process::{Command, Stdio};
 
 use serde_json::Value;
 
-/// Run `monitor` on two free ports; (peer JSON, dronewatt's JSON lines, its stderr).
-fn run(peer_args: &[&str]) -> (Value, Vec<Value>, String) {
+/// Run `monitor` on two free ports with `config`; (peer JSON, dronewatt's JSON lines, its
+/// stderr).
+fn run_with(config: &str, peer_args: &[&str]) -> (Value, Vec<Value>, String) {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("out.jsonl");
+    let cfg = dir.path().join("dw.toml");
+    std::fs::write(&cfg, config).unwrap();
     let ports = [link_common::free_udp_port(), link_common::free_udp_port()];
     let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .arg("monitor")
         .args(ports.map(|p| format!("udpin:127.0.0.1:{p}")))
         .arg("-q")
+        .arg("--config")
+        .arg(&cfg)
         .arg("--json")
         .arg(&json)
         .env("RUST_LOG", "dronewatt=info")
@@ -41,6 +46,10 @@ fn run(peer_args: &[&str]) -> (Value, Vec<Value>, String) {
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
     (peer, lines, stderr)
+}
+
+fn run(peer_args: &[&str]) -> (Value, Vec<Value>, String) {
+    run_with("", peer_args)
 }
 
 fn summary(lines: &[Value]) -> &Value {
@@ -136,5 +145,26 @@ fn estimates_keep_coming_while_one_link_is_cut() {
         t.len() > 50 && holes.is_empty(),
         "{} estimates, holes {holes:?}: {ctx}",
         t.len()
+    );
+}
+
+#[test]
+fn with_every_link_dronewatt_answers_on_both_links() {
+    let (peer, _, stderr) = run_with(
+        "[link]\nevery_link = true\n",
+        &["--seconds", "6", "--loss", "0.3,0.3", "--seed", "5"],
+    );
+    let back: Vec<u64> = peer["heard_back"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_u64().unwrap())
+        .collect();
+    // Every frame on both: about as many on each (a link answers once it has heard its
+    // peer; the peer stops counting at its end while dronewatt still sends).
+    let (lo, hi) = (back[0].min(back[1]), back[0].max(back[1]));
+    assert!(
+        lo > 20 && lo as f64 >= 0.85 * hi as f64,
+        "heard back {back:?}; peer {peer}; dronewatt {stderr}"
     );
 }

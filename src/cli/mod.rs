@@ -230,7 +230,10 @@ fn real_main(cli: Cli) -> Result<()> {
                 Err(many) if many.is_empty() => {
                     anyhow::bail!("monitor: give a link address (or [[links]] in the config)")
                 }
-                Err(many) => SourceSpec::Links(many),
+                Err(many) => SourceSpec::Links {
+                    addresses: many,
+                    every_link: false,
+                },
             };
             run_pipeline(source, run)
         }
@@ -264,8 +267,11 @@ fn real_main(cli: Cli) -> Result<()> {
     }
 }
 
-fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
+fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
     let mut config = Config::load_or_default(run.config.as_deref())?;
+    if let SourceSpec::Links { every_link, .. } = &mut source {
+        *every_link = config.link.every_link;
+    }
     if let Some(m) = &run.model {
         config.models.lstm.path = Some(m.clone());
     }
@@ -298,7 +304,7 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     // `monitor udpin:…` answers the ground station with no config at all), or wherever
     // the config gives an address.
     let mav = &config.sinks.mavlink;
-    let live = matches!(source, SourceSpec::Link(_) | SourceSpec::Links(_));
+    let live = matches!(source, SourceSpec::Link(_) | SourceSpec::Links { .. });
     if mav.enabled.unwrap_or(live || mav.address.is_some()) {
         sinks.push(SinkSpec::Mavlink(mav.clone()));
     }

@@ -16,7 +16,7 @@
 //! - **Failover.** The merged stream flows while any link lives. dronewatt's own frames (the
 //!   sink, the parameter reader, the mission client, all numbered by the one writer of their
 //!   identity) go out on the best live link: the live one with the least loss, the first
-//!   given on a tie.
+//!   given on a tie; or on every link with `[link] every_link = true`.
 //!
 //! The merged stream's counters are the source's: `frames_ok` counts messages handed on
 //! (each once), `gaps` breaks in the merged sequence of a sender (what no link brought);
@@ -97,10 +97,12 @@ struct Tally {
 }
 
 /// Run every link in `addrs` until `shutdown`, handing the merged, deduplicated stream to
-/// `tx`. `link` is the chain's handle: what is sent on it goes out on the best live link.
+/// `tx`. `link` is the chain's handle: what is sent on it goes out on the best live link,
+/// or on each with `every_link`.
 /// Fails only when a link cannot be set up at all.
 pub async fn run(
     addrs: Vec<LinkAddress>,
+    every_link: bool,
     tx: mpsc::Sender<TimedMessage>,
     stats: Arc<IngestStats>,
     link: LinkHandle,
@@ -146,9 +148,12 @@ pub async fn run(
     let pick = best.clone();
     tokio::spawn(async move {
         while let Some(frame) = wrx.recv().await {
-            let i = pick.load(Relaxed).min(outs.len().saturating_sub(1));
-            if let Some(o) = outs.get(i) {
-                // Already numbered and signed by the chain's writer: sent as it is.
+            // Already numbered and signed by the chain's writer: sent as it is.
+            if every_link {
+                for o in &outs {
+                    let _ = o.try_send(frame.clone());
+                }
+            } else if let Some(o) = outs.get(pick.load(Relaxed)) {
                 let _ = o.try_send(frame);
             }
         }

@@ -85,8 +85,12 @@ impl std::str::FromStr for Speed {
 pub enum SourceSpec {
     /// A live link: `udpin:`/`udpout:`/`tcpin:`/`tcpout:`/`serial:` address.
     Link(String),
-    /// Several live links, merged and deduplicated ([`links`]).
-    Links(Vec<String>),
+    /// Several live links, merged and deduplicated ([`links`]); dronewatt's own frames on
+    /// the best live one, or on `every_link`.
+    Links {
+        addresses: Vec<String>,
+        every_link: bool,
+    },
     /// A `.tlog` (8-byte big-endian µs timestamp before each frame).
     Tlog {
         path: std::path::PathBuf,
@@ -177,13 +181,17 @@ pub async fn run(
             )
             .await
         }
-        SourceSpec::Links(addresses) => {
+        SourceSpec::Links {
+            addresses,
+            every_link,
+        } => {
             let addrs = addresses
                 .iter()
                 .map(|a| a.parse::<link::LinkAddress>())
                 .collect::<Result<Vec<_>, _>>()?;
             links::run(
                 addrs,
+                every_link,
                 tx,
                 stats,
                 link,

@@ -67,6 +67,9 @@ pub struct LinkConfig {
     pub require_signing: bool,
     /// Link id dronewatt puts in the frames it signs, 0–255. Default 0.
     pub signing_link_id: u8,
+    /// Several links: dronewatt's own frames (the MAVLink sink's, the parameter reader's,
+    /// the mission client's) go on every link instead of the best live one. Default false.
+    pub every_link: bool,
 }
 
 impl LinkConfig {
