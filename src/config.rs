@@ -33,6 +33,18 @@ pub struct Config {
     /// Many vehicles on one link: when a silent vehicle is lost and dropped, which system
     /// ids this instance watches.
     pub fleet: crate::source::fleet::FleetConfig,
+    /// The links `monitor` reads when no address is given on its command line, `[[links]]`
+    /// tables: several are merged, deduplicated, and watched per link (`source::links`).
+    pub links: Vec<LinkEntry>,
+}
+
+/// One `[[links]]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkEntry {
+    /// A link address, as on `monitor`'s command line (`udpin:0.0.0.0:14550`,
+    /// `serial:/dev/ttyUSB0:57600`, …).
+    pub address: String,
 }
 
 /// A configuration error that names the file, the key and why.
@@ -53,23 +65,18 @@ impl Config {
         let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
         let mut cfg: Config =
             toml::from_str(&text).map_err(|e| err(e.to_string().trim_end().to_string()))?;
-        if let (Some(v), Some(dir)) = (cfg.vehicle.as_mut(), path.parent()) {
-            if v.is_relative() {
-                *v = dir.join(&*v);
-            }
-        }
-        let dir = path.parent().unwrap_or(Path::new(""));
-        for p in [
-            cfg.link.signing_key_file.as_mut(),
-            cfg.sinks.web.token_file.as_mut(),
+        // Every path the file names, against the file's folder (one resolver: a key added
+        // here and nowhere else resolves like the rest).
+        for field in [
+            cfg.vehicle.as_mut(),
+            cfg.models.lstm.path.as_mut(),
             cfg.forecast.live.calibrated_profile.as_mut(),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            if p.is_relative() {
-                *p = dir.join(&*p);
-            }
+            cfg.sinks.web.token_file.as_mut(),
+            cfg.sinks.mqtt.password_file.as_mut(),
+            cfg.sinks.mqtt.ca_file.as_mut(),
+            cfg.link.signing_key_file.as_mut(),
+        ] {
+            crate::files::resolve(path, field);
         }
         cfg.validate().map_err(err)?;
         Ok(cfg)
@@ -91,6 +98,25 @@ impl Config {
         }
     }
 
+    fn links_valid(&self) -> Result<(), String> {
+        let errs: Vec<String> = self
+            .links
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| {
+                l.address
+                    .parse::<crate::source::link::LinkAddress>()
+                    .err()
+                    .map(|e| format!("links[{i}].address: {e}"))
+            })
+            .collect();
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(errs.join("\n"))
+        }
+    }
+
     /// Every validation error, one message per broken key, in file order of the sections.
     pub fn errors(&self) -> Vec<String> {
         let mut out = Vec::new();
@@ -105,6 +131,7 @@ impl Config {
             self.sinks.mqtt.validate(),
             self.link.validate(),
             self.fleet.validate(),
+            self.links_valid(),
         ];
         for e in checks.into_iter().filter_map(Result::err) {
             out.extend(e.lines().map(str::to_string));

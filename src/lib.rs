@@ -22,7 +22,7 @@
 //! ## Modules
 //!
 //! The folders are the diagram. The floor (imports nothing of ours but the floor):
-//! [`features`], [`report`] (with [`report::status`]). Each stage imports the floor and the
+//! [`features`], [`files`], [`report`] (with [`report::status`]). Each stage imports the floor and the
 //! stages before it, never one after it; [`config`] gathers each part's own config and no
 //! part imports it (`python3 ../shared/tools/module-cycles.py src` checks there is no cycle).
 //!
@@ -44,6 +44,7 @@
 //! | [`offline`] | one file a command: eval, train, calibrate, learn, sensitivity, plan, plan-eval (with the route rebuilding and the forecast's fit) |
 //! | [`cli`] | the command line both binaries' `main` call |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
+//! | [`files`] | the floor for files a config names: one path resolver (relative to the file that names it), one reader of private secrets |
 //! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_corpus.rs` |
 
 pub mod alert;
@@ -52,6 +53,7 @@ pub mod cli;
 pub mod config;
 pub mod energy;
 pub mod features;
+pub mod files;
 pub mod fuzz_props;
 pub mod mission;
 pub mod model;

@@ -582,3 +582,48 @@ fn the_autopilots_state_of_charge_rides_along_when_it_reports_one() {
         Some(57.0)
     );
 }
+
+#[test]
+fn a_position_without_a_fix_is_never_used_as_a_position_or_home() {
+    let f = Flight {
+        v_ned: [8.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
+    let mut mix = ardupilot(f, 5.0);
+    // No fix yet: an autopilot sends (0, 0) first, and a HOME_POSITION of (0, 0); then,
+    // mid-flight, a GPS glitch of (0, 0) and a position beyond the poles.
+    let zero = |_: f64| {
+        MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            vx: 800,
+            ..Default::default()
+        })
+    };
+    mix.at(-0.2, 1, zero(0.0));
+    mix.at(
+        -0.1,
+        1,
+        MavMessage::HOME_POSITION(HOME_POSITION_DATA::default()),
+    );
+    mix.every(2.0, 1.07, 5.0, zero);
+    mix.every(1.0, 1.09, 5.0, |t| {
+        let mut m = gpi(f, t);
+        if let MavMessage::GLOBAL_POSITION_INT(p) = &mut m {
+            p.lat = 95 * 10_000_000;
+        }
+        m
+    });
+    let (tel, out) = mix.run(&TelemetryConfig::default(), &MissionConfig::default());
+    assert!(!out.is_empty());
+    for s in out.iter().flat_map(|w| &w.samples) {
+        let (lon, lat) = (s.features[idx::POS_X], s.features[idx::POS_Y]);
+        assert!(
+            close(lat, LAT0, 0.01) && close(lon, LON0, 0.01),
+            "{lat} {lon}"
+        );
+        let home = s.home.expect("home from the first real fix");
+        assert!(home.distance_m < 100.0, "home {} m away", home.distance_m);
+    }
+    // Counted: the first (0, 0), 8 mid-flight ones and 4 beyond the poles (HOME_POSITION
+    // of (0, 0) is ignored too).
+    assert_eq!(tel.no_fix(), 1 + 8 + 4 + 1);
+}

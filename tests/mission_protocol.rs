@@ -155,3 +155,39 @@ fn the_mission_is_downloaded_with_a_resend_acked_redownloaded_on_change_and_fore
         "time_remaining from dronewatt's forecast: {ctx}"
     );
 }
+
+/// One MAVLink identity, one writer: the sink (HEARTBEAT, NAMED_VALUE_FLOAT,
+/// BATTERY_STATUS), the parameter reader (PARAM_REQUEST_READ) and the mission client
+/// (MISSION_REQUEST_LIST, MISSION_REQUEST_INT, MISSION_ACK) all send as (1, 191) on the one
+/// link; pymavlink, the vehicle, sees one unbroken sequence across them (with a counter
+/// each, it saw three interleaved ones: losses that never happened).
+#[test]
+fn the_sink_the_parameter_reader_and_the_mission_client_share_one_sequence() {
+    let (peer, _, stderr) = run("", &["--seconds", "8", "--drop-seq", "99"]);
+    let ctx = format!("peer: {peer}\ndronewatt: {stderr}");
+    let frames = peer["from_191"].as_array().unwrap();
+    let kinds: std::collections::BTreeSet<&str> =
+        frames.iter().map(|f| f[2].as_str().unwrap()).collect();
+    for k in [
+        "HEARTBEAT",
+        "NAMED_VALUE_FLOAT",
+        "PARAM_REQUEST_READ",
+        "MISSION_REQUEST_LIST",
+        "MISSION_REQUEST_INT",
+    ] {
+        assert!(kinds.contains(k), "no {k} from (1, 191): {kinds:?}; {ctx}");
+    }
+    assert!(frames.iter().all(|f| f[0] == 1), "{ctx}");
+    let seq: Vec<u64> = frames.iter().map(|f| f[1].as_u64().unwrap()).collect();
+    let breaks: Vec<(usize, u64, u64)> = seq
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| w[1] != (w[0] + 1) % 256)
+        .map(|(i, w)| (i, w[0], w[1]))
+        .collect();
+    assert!(
+        seq.len() > 50 && breaks.is_empty(),
+        "{} frames from (1, 191), sequence breaks (index, from, to): {breaks:?}",
+        seq.len()
+    );
+}

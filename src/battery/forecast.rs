@@ -84,7 +84,8 @@ pub fn steps(
 /// A constant power `power_w` for `span_s`, in steps of `dt_s` (the last step whole): a
 /// profile for [`steps`] that allocates nothing.
 pub fn constant(power_w: f64, dt_s: f64, span_s: f64) -> impl Iterator<Item = (f64, f64)> {
-    std::iter::repeat_n((dt_s, power_w), (span_s / dt_s).ceil() as usize)
+    let n = crate::features::units::ceil_ratio(span_s, dt_s).unwrap_or(0.0);
+    std::iter::repeat_n((dt_s, power_w), n as usize)
 }
 
 /// The first step whose loaded voltage falls below `threshold_v` (stops there), if any.

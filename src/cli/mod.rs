@@ -90,8 +90,10 @@ enum Command {
     },
     /// Watch a live link: udpin:HOST:PORT, udpout:HOST:PORT, tcpin:, tcpout:, serial:DEV:BAUD.
     Monitor {
-        /// The link address, as MAVProxy and rust-mavlink spell it.
-        address: String,
+        /// The link address, as MAVProxy and rust-mavlink spell it; several for several
+        /// links (one vehicle over redundant radios, or fleets on several links), else the
+        /// config's `[[links]]`.
+        address: Vec<String>,
         #[command(flatten)]
         run: RunArgs,
     },
@@ -214,9 +216,26 @@ fn real_main(cli: Cli) -> Result<()> {
             run_pipeline(source, run)
         }
         Command::Monitor { address, run } => {
+            let mut address = address;
+            if address.is_empty() {
+                let config = Config::load_or_default(run.config.as_deref())?;
+                address = config.links.iter().map(|l| l.address.clone()).collect();
+            }
             // A malformed address fails here, before anything starts, with one line.
-            address.parse::<crate::source::link::LinkAddress>()?;
-            run_pipeline(SourceSpec::Link(address), run)
+            for a in &address {
+                a.parse::<crate::source::link::LinkAddress>()?;
+            }
+            let source = match <[String; 1]>::try_from(address) {
+                Ok([one]) => SourceSpec::Link(one),
+                Err(many) if many.is_empty() => {
+                    anyhow::bail!("monitor: give a link address (or [[links]] in the config)")
+                }
+                Err(many) => SourceSpec::Links {
+                    addresses: many,
+                    every_link: false,
+                },
+            };
+            run_pipeline(source, run)
         }
         Command::Convert(a) => crate::source::dataset::run(a),
         Command::Simulate(a) => simulate::simulate(a),
@@ -248,8 +267,11 @@ fn real_main(cli: Cli) -> Result<()> {
     }
 }
 
-fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
+fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
     let mut config = Config::load_or_default(run.config.as_deref())?;
+    if let SourceSpec::Links { every_link, .. } = &mut source {
+        *every_link = config.link.every_link;
+    }
     if let Some(m) = &run.model {
         config.models.lstm.path = Some(m.clone());
     }
@@ -282,7 +304,7 @@ fn run_pipeline(source: SourceSpec, run: RunArgs) -> Result<()> {
     // `monitor udpin:…` answers the ground station with no config at all), or wherever
     // the config gives an address.
     let mav = &config.sinks.mavlink;
-    let live = matches!(source, SourceSpec::Link(_));
+    let live = matches!(source, SourceSpec::Link(_) | SourceSpec::Links { .. });
     if mav.enabled.unwrap_or(live || mav.address.is_some()) {
         sinks.push(SinkSpec::Mavlink(mav.clone()));
     }

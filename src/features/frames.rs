@@ -147,6 +147,17 @@ pub fn apparent_wind(true_wind_ne: [f64; 2], ground_ne: [f64; 2]) -> [f64; 2] {
     ])
 }
 
+/// The one Earth radius of every flat-earth conversion (the mean radius, to the km), m. The
+/// readers, the simulator and the mission forecast all convert through the functions
+/// below, so a position written by one reads back where it was.
+pub const EARTH_RADIUS_M: f64 = 6_371_000.0;
+
+/// Whether a latitude/longitude (degrees) is a position fix: finite, on the globe, and not
+/// (0, 0), which autopilots send before they have a fix (and which no drone flies at).
+pub fn is_fix(lat_deg: f64, lon_deg: f64) -> bool {
+    lat_deg.abs() <= 90.0 && lon_deg.abs() <= 180.0 && (lat_deg != 0.0 || lon_deg != 0.0)
+}
+
 /// Horizontal distance between two WGS84 points (degrees), metres: equirectangular, good to
 /// well under 0.1 % over the few kilometres a delivery drone flies.
 pub fn ground_distance_m(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> f64 {
@@ -154,14 +165,23 @@ pub fn ground_distance_m(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> f64 {
     dn.hypot(de)
 }
 
-/// North and east offset (m) of point 2 from point 1 (equirectangular).
+/// North and east offset (m) of point 2 from point 1 (equirectangular, at the mean
+/// latitude). [`offset_ne`] is its exact inverse.
 pub fn ne_offset_m(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> (f64, f64) {
-    const R: f64 = 6_371_000.0;
     let lat_m = ((lat1 + lat2) / 2.0).to_radians();
     (
-        (lat2 - lat1).to_radians() * R,
-        (lon2 - lon1).to_radians() * R * lat_m.cos(),
+        (lat2 - lat1).to_radians() * EARTH_RADIUS_M,
+        (lon2 - lon1).to_radians() * EARTH_RADIUS_M * lat_m.cos(),
     )
+}
+
+/// The point `north_m`, `east_m` from (`lat_deg`, `lon_deg`): latitude, longitude (deg).
+/// The inverse of [`ne_offset_m`].
+pub fn offset_ne(lat_deg: f64, lon_deg: f64, north_m: f64, east_m: f64) -> (f64, f64) {
+    let lat = lat_deg + (north_m / EARTH_RADIUS_M).to_degrees();
+    let lat_m = ((lat_deg + lat) / 2.0).to_radians();
+    let lon = lon_deg + (east_m / (EARTH_RADIUS_M * lat_m.cos())).to_degrees();
+    (lat, lon)
 }
 
 #[cfg(test)]

@@ -1,12 +1,13 @@
 //! The floor every stage stands on: the fixed-rate [`Sample`] the telemetry stage builds
 //! and every later stage reads, the paper's 21 feature names in model order, their indices
 //! ([`idx`]), the home vector, and the frame and unit conversions between MAVLink and the
-//! M100 data set's columns ([`frames`]), and what kind of vehicle a sample is from
-//! ([`class`]). It imports nothing of ours, so any stage may use it without tying itself
-//! to another.
+//! M100 data set's columns ([`frames`]), the float ↔ integer scaling every reader and
+//! sink shares ([`units`]), and what kind of vehicle a sample is from ([`class`]). It
+//! imports nothing of ours, so any stage may use it without tying itself to another.
 
 pub mod class;
 pub mod frames;
+pub mod units;
 
 pub use class::{Lift, VehicleClass, VehicleKind, VtolState};
 

@@ -467,7 +467,6 @@ pub fn spawn(
         let mut tick = tokio::time::interval(TICK);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut out = Vec::new();
-        let mut seq = 0u8;
         loop {
             tokio::select! {
                 m = msgs.recv() => {
@@ -489,21 +488,8 @@ pub fn spawn(
                 continue;
             };
             for msg in out.drain(..) {
-                let header = mavlink::MavHeader {
-                    system_id: sys.into(),
-                    component_id: comp,
-                    sequence: seq,
-                };
-                seq = seq.wrapping_add(1);
-                let mut buf = Vec::with_capacity(64);
-                // Writing into a Vec cannot fail.
-                let _ = mavlink::write_versioned_msg(
-                    &mut buf,
-                    mavlink::MavlinkVersion::V2,
-                    header,
-                    &msg,
-                );
-                if !link.try_send(buf) {
+                // Numbered by the link's one writer of this identity.
+                if !link.send_as(sys, comp, &msg) {
                     tracing::debug!("mission protocol frame not sent (no link or link full)");
                 }
             }

@@ -49,7 +49,7 @@ pub struct LstmConfig {
     /// Run the LSTM. Default: true (skipped with a warning when no model is found).
     pub enabled: bool,
     /// A model folder (holding `card.toml`), a card, or a weights file with `card.toml`
-    /// beside it; relative to the working directory. Default: the shipped model (see the
+    /// beside it; relative to the config file. Default: the shipped model (see the
     /// module docs for the search order).
     pub path: Option<PathBuf>,
 }

@@ -347,7 +347,7 @@ pub fn build_models(
     // shipped one.
     let mut lstm_cfg = models.lstm.clone();
     if let (None, Some(dir), Some(path)) = (&lstm_cfg.path, &profile.lstm, vehicle) {
-        lstm_cfg.path = Some(path.parent().unwrap_or(std::path::Path::new(".")).join(dir));
+        lstm_cfg.path = Some(crate::files::relative_to(path, dir));
     }
     if let Some(m) = lstm::from_config(&lstm_cfg, telemetry)? {
         out.push(Box::new(m));

@@ -524,7 +524,7 @@ pub(super) fn mission_setup(
         window: cfg.telemetry.window,
         payload_g: cfg.mission.payload_g.map_or(0.0, f64::from),
         speed_m_s: cfg.mission.speed_m_s.map(f64::from),
-        active: matches!(source, SourceSpec::Link(_)),
+        active: matches!(source, SourceSpec::Link(_) | SourceSpec::Links { .. }),
         // Requests go out as the configured id, else as the vehicle's companion computer.
         system_id: cfg.sinks.mavlink.system_id,
         component_id: cfg.sinks.mavlink.component_id,

@@ -103,7 +103,7 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     // Sinks start first so they see every report.
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
-    let live = matches!(p.source, SourceSpec::Link(_));
+    let live = matches!(p.source, SourceSpec::Link(_) | SourceSpec::Links { .. });
     let mission = mission_setup(&p.config, &p.source, demux.filter())?;
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(

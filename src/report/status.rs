@@ -63,6 +63,33 @@ pub struct IngestStats {
     pub unsigned_refused: AtomicU64,
     /// How deep the queues between the stages have been.
     pub queues: QueueGauge,
+    /// Several links: copies of a message already heard on another link, dropped.
+    pub duplicates: AtomicU64,
+    /// Several links: each link's health, refreshed about once a second (empty with one).
+    pub links: std::sync::Mutex<Vec<LinkHealth>>,
+}
+
+/// One link's health when a source reads several (`source::links`): what the summary,
+/// the terminal and the dashboard show per link.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct LinkHealth {
+    /// The link's address as given.
+    pub name: String,
+    /// Messages it brought, copies included.
+    pub frames: u64,
+    /// Of those, copies of a message another link brought first.
+    pub duplicates: u64,
+    /// Messages it brought in the last second.
+    pub rate_hz: f64,
+    /// The share of the last second's merged stream it did not bring, %.
+    pub loss_pct: f64,
+    /// How far behind the first copy its messages came in the last second (0 for the ones
+    /// it brought first), mean, ms.
+    pub latency_ms: f64,
+    /// Seconds since it last brought a message; `None` before the first.
+    pub last_heard_s: Option<f64>,
+    /// Heard within the silence limit.
+    pub live: bool,
 }
 
 /// The deepest any bounded queue between the stages has been (items waiting in one queue),
@@ -106,6 +133,10 @@ impl IngestStats {
     pub fn add(counter: &AtomicU64, n: u64) {
         counter.fetch_add(n, Ordering::Relaxed);
     }
+    /// Each link's health, when the source reads several (empty otherwise).
+    pub fn links(&self) -> Vec<LinkHealth> {
+        self.links.lock().map(|g| g.clone()).unwrap_or_default()
+    }
     /// A plain copy of the counters.
     pub fn snapshot(&self) -> StatsSnapshot {
         StatsSnapshot {
@@ -121,6 +152,7 @@ impl IngestStats {
             signature_bad: self.signature_bad.load(Ordering::Relaxed),
             signature_replay: self.signature_replay.load(Ordering::Relaxed),
             unsigned_refused: self.unsigned_refused.load(Ordering::Relaxed),
+            duplicates: self.duplicates.load(Ordering::Relaxed),
         }
     }
 }
@@ -141,6 +173,7 @@ pub struct StatsSnapshot {
     pub signature_bad: u64,
     pub signature_replay: u64,
     pub unsigned_refused: u64,
+    pub duplicates: u64,
 }
 
 /// The telemetry stage's latest `Telemetry::health`, shared with the terminal view (the
@@ -168,10 +201,24 @@ pub struct SignalHealth {
 /// goes is the link's business (see `source::link`): the last UDP peer heard (`udpin:`), the
 /// target (`udpout:`), every TCP client (`tcpin:`), the open connection (`tcpout:`,
 /// `serial:`). Frames are whole encoded MAVLink frames.
+///
+/// It is also the one writer of dronewatt's own MAVLink identities on its link
+/// ([`LinkHandle::send_as`]): the sink, the parameter reader and the mission client all
+/// send as (the vehicle's system id, component 191), and one counter per identity on the
+/// link numbers their frames, in the order they are queued, so a receiver counts no loss
+/// that did not happen.
 #[derive(Debug, Clone, Default)]
 pub struct LinkHandle {
-    writer: Arc<std::sync::Mutex<Option<tokio::sync::mpsc::Sender<Vec<u8>>>>>,
+    writer: Arc<std::sync::Mutex<Writer>>,
     signer: Option<Arc<dyn FrameSigner>>,
+}
+
+/// The link's queue and the next sequence number of each identity sent as on it: one lock,
+/// so a frame's number and its place in the queue are taken together.
+#[derive(Debug, Default)]
+struct Writer {
+    tx: Option<tokio::sync::mpsc::Sender<Vec<u8>>>,
+    seq: std::collections::HashMap<(u8, u8), u8>,
 }
 
 /// Signs outgoing MAVLink 2 frames with a link's key (MAVLink 1 or already signed frames
@@ -201,29 +248,60 @@ impl LinkHandle {
     /// Called by a live-link source once it can write.
     pub fn attach(&self, tx: tokio::sync::mpsc::Sender<Vec<u8>>) {
         if let Ok(mut g) = self.writer.lock() {
-            *g = Some(tx);
+            g.tx = Some(tx);
         }
     }
     /// Queue one encoded frame for the link (signed first when the link has a key); false
-    /// if there is no link or it is full.
+    /// if there is no link or it is full. A frame of dronewatt's own goes through
+    /// [`LinkHandle::send_as`] instead, which numbers it.
     pub fn try_send(&self, mut frame: Vec<u8>) -> bool {
         self.sign(&mut frame);
         match self.writer.lock() {
-            Ok(g) => g.as_ref().is_some_and(|tx| tx.try_send(frame).is_ok()),
+            Ok(g) => g.tx.as_ref().is_some_and(|tx| tx.try_send(frame).is_ok()),
             Err(_) => false,
         }
+    }
+    /// Send `msg` as (`system_id`, `component_id`): MAVLink 2, numbered by this link's one
+    /// counter for that identity, signed when the link has a key, queued. False (and no
+    /// number used) if there is no link or it is full.
+    pub fn send_as(
+        &self,
+        system_id: u8,
+        component_id: u8,
+        msg: &mavlink::dialects::ardupilotmega::MavMessage,
+    ) -> bool {
+        let Ok(mut g) = self.writer.lock() else {
+            return false;
+        };
+        let Writer { tx, seq } = &mut *g;
+        let Some(permit) = tx.as_ref().and_then(|tx| tx.try_reserve().ok()) else {
+            return false;
+        };
+        let seq = seq.entry((system_id, component_id)).or_insert(0);
+        let header = mavlink::MavHeader {
+            system_id: u32::from(system_id),
+            component_id,
+            sequence: *seq,
+        };
+        *seq = seq.wrapping_add(1);
+        let mut frame = Vec::with_capacity(64);
+        // Writing into a Vec cannot fail.
+        let _ = mavlink::write_versioned_msg(&mut frame, mavlink::MavlinkVersion::V2, header, msg);
+        self.sign(&mut frame);
+        permit.send(frame);
+        true
     }
     /// Frames queued and not yet written (0 without a link).
     pub fn pending(&self) -> usize {
         self.writer
             .lock()
             .ok()
-            .and_then(|g| g.as_ref().map(|tx| tx.max_capacity() - tx.capacity()))
+            .and_then(|g| g.tx.as_ref().map(|tx| tx.max_capacity() - tx.capacity()))
             .unwrap_or(0)
     }
     /// Whether a live link is attached.
     pub fn is_attached(&self) -> bool {
-        self.writer.lock().map(|g| g.is_some()).unwrap_or(false)
+        self.writer.lock().map(|g| g.tx.is_some()).unwrap_or(false)
     }
 }
 
@@ -297,7 +375,9 @@ impl LatencyHistogram {
         }
         let max_us = self.max_us.load(Ordering::Relaxed);
         let quantile = |q: f64| {
-            let rank = ((q * count as f64).ceil() as u64).clamp(1, count);
+            let rank = crate::features::units::ceil_ratio(q * count as f64, 1.0)
+                .map_or(count, |r| r as u64)
+                .clamp(1, count);
             let mut seen = 0;
             for (i, c) in counts.iter().enumerate() {
                 seen += c;

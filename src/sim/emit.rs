@@ -19,6 +19,7 @@
 //! (≈ 35–40 W) and its ±0.3 A offsets at rest. Every noise draw comes from the one seeded
 //! RNG in a fixed order, so a seed gives the same bytes.
 
+use crate::features::units::{centidegrees, scaled, whole_degrees};
 use mavlink::MavHeader;
 use nalgebra::Vector3;
 use rand::rngs::StdRng;
@@ -323,14 +324,14 @@ impl Emitter {
                 t_ms,
                 MavMessage::GLOBAL_POSITION_INT(d::GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: boot_ms,
-                    lat: (lat * 1e7).round() as i32,
-                    lon: (lon * 1e7).round() as i32,
-                    alt: (alt * 1000.0).round() as i32,
-                    relative_alt: ((alt - HOME.alt_amsl_m) * 1000.0).round() as i32,
-                    vx: (vel_meas.x * 100.0).round() as i16,
-                    vy: (vel_meas.y * 100.0).round() as i16,
-                    vz: (vel_meas.z * 100.0).round() as i16,
-                    hdg: ((hdg_deg * 100.0).round() as u16) % 36000,
+                    lat: scaled(lat, 1e7).unwrap_or(0),
+                    lon: scaled(lon, 1e7).unwrap_or(0),
+                    alt: scaled(alt, 1000.0).unwrap_or(0),
+                    relative_alt: scaled(alt - HOME.alt_amsl_m, 1000.0).unwrap_or(0),
+                    vx: scaled(vel_meas.x, 100.0).unwrap_or(0),
+                    vy: scaled(vel_meas.y, 100.0).unwrap_or(0),
+                    vz: scaled(vel_meas.z, 100.0).unwrap_or(0),
+                    hdg: centidegrees(hdg_deg).unwrap_or(u16::MAX),
                 }),
             );
             let gs = (vel_meas.x.powi(2) + vel_meas.y.powi(2)).sqrt();
@@ -338,15 +339,14 @@ impl Emitter {
                 t_ms,
                 MavMessage::GPS_RAW_INT(d::GPS_RAW_INT_DATA {
                     time_usec: t_ms * 1000,
-                    lat: (lat * 1e7).round() as i32,
-                    lon: (lon * 1e7).round() as i32,
-                    alt: (alt * 1000.0).round() as i32,
+                    lat: scaled(lat, 1e7).unwrap_or(0),
+                    lon: scaled(lon, 1e7).unwrap_or(0),
+                    alt: scaled(alt, 1000.0).unwrap_or(0),
                     eph: 80,
                     epv: 120,
-                    vel: (gs * 100.0).round() as u16,
-                    cog: ((vel_meas.y.atan2(vel_meas.x).to_degrees().rem_euclid(360.0) * 100.0)
-                        .round() as u16)
-                        % 36000,
+                    vel: scaled(gs, 100.0).unwrap_or(u16::MAX),
+                    cog: centidegrees(vel_meas.y.atan2(vel_meas.x).to_degrees())
+                        .unwrap_or(u16::MAX),
                     fix_type: d::GpsFixType::GPS_FIX_TYPE_3D_FIX,
                     satellites_visible: 14,
                     ..Default::default()
@@ -413,7 +413,7 @@ impl Emitter {
                     groundspeed: (vel_meas.x.powi(2) + vel_meas.y.powi(2)).sqrt() as f32,
                     alt: alt as f32,
                     climb: (-vel_meas.z) as f32,
-                    heading: hdg_deg.round() as i16 % 360,
+                    heading: whole_degrees(hdg_deg).unwrap_or(0),
                     throttle: st.throttle.round() as u16,
                 }),
             );

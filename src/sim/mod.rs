@@ -176,7 +176,9 @@ impl SimOptions {
         self.route.validate()?;
         let frame = Airframe::from_profile(&self.vehicle)?;
         Battery::from_profile(&self.vehicle, self.battery)?;
-        let max_g = (frame.max_payload_kg() * 1000.0).floor().max(0.0);
+        let max_g = crate::features::units::floor_ratio(frame.max_payload_kg() * 1000.0, 1.0)
+            .unwrap_or(0.0)
+            .max(0.0);
         guidance::in_range("payload_g", self.payload_g, 0.0, max_g, false).map_err(|e| {
             InvalidOption {
                 reason: format!(

@@ -93,6 +93,7 @@ pub fn spawn(
             let mut summary = Summary::new(status.stats.snapshot(), reports, rx.missed())
                 .with_queues(status.stats.queues.peak());
             summary.vehicle_kinds = std::mem::take(&mut kinds);
+            summary.links = status.stats.links();
             write_line(&mut w, &summary.with_latency(status.latency.summary()))?;
             w.flush()
         })();
@@ -408,6 +409,9 @@ pub struct Summary {
     /// `fixed_wing`, `vtol (mc)`, `vtol (fw)`, `other: SUBMARINE (12)` …): a VTOL's phases
     /// and any change of class.
     pub vehicle_kinds: Vec<String>,
+    /// Several links: each link's health at the end (absent with one link).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub links: Vec<crate::report::status::LinkHealth>,
 }
 
 impl Summary {
@@ -422,6 +426,7 @@ impl Summary {
             queue_peak_at_s: 0.0,
             latency: None,
             vehicle_kinds: Vec::new(),
+            links: Vec::new(),
         }
     }
     /// With the queues' high-water mark.

@@ -53,7 +53,6 @@
 
 use std::time::{Duration, Instant};
 
-use ::mavlink::{MavHeader, MavlinkVersion};
 use anyhow::{bail, Result};
 
 use crate::dialect::{self, MavSeverity};
@@ -129,11 +128,12 @@ impl MavlinkSinkConfig {
     }
 }
 
-/// Frames dronewatt's messages with its ids and a running sequence number.
+/// Composes dronewatt's messages for one identity (system id, component). The link
+/// numbers and frames them ([`LinkHandle::send_as`]: one sequence per identity on a link,
+/// shared with the parameter reader and the mission client).
 pub struct Encoder {
-    system_id: u32,
+    system_id: u8,
     component_id: u8,
-    seq: u8,
     start: Instant,
 }
 
@@ -141,25 +141,15 @@ impl Encoder {
     /// An encoder sending as this system and component.
     pub fn new(system_id: u8, component_id: u8) -> Self {
         Self {
-            system_id: u32::from(system_id),
+            system_id,
             component_id,
-            seq: 0,
             start: Instant::now(),
         }
     }
 
-    /// One MAVLink 2 frame.
-    pub fn frame(&mut self, msg: &MavMessage) -> Vec<u8> {
-        let header = MavHeader {
-            system_id: self.system_id,
-            component_id: self.component_id,
-            sequence: self.seq,
-        };
-        self.seq = self.seq.wrapping_add(1);
-        let mut buf = Vec::with_capacity(64);
-        // Writing into a Vec cannot fail.
-        let _ = ::mavlink::write_versioned_msg(&mut buf, MavlinkVersion::V2, header, msg);
-        buf
+    /// The identity its messages go out as: (system id, component id).
+    pub fn identity(&self) -> (u8, u8) {
+        (self.system_id, self.component_id)
     }
 
     fn boot_ms(&self) -> u32 {
@@ -167,41 +157,39 @@ impl Encoder {
     }
 
     /// The heartbeat of an onboard computer that is not an autopilot.
-    pub fn heartbeat(&mut self) -> Vec<u8> {
-        self.frame(&MavMessage::HEARTBEAT(dialect::HEARTBEAT_DATA {
+    pub fn heartbeat(&mut self) -> MavMessage {
+        MavMessage::HEARTBEAT(dialect::HEARTBEAT_DATA {
             custom_mode: 0,
             mavtype: dialect::MavType::MAV_TYPE_ONBOARD_CONTROLLER,
             autopilot: dialect::MavAutopilot::MAV_AUTOPILOT_INVALID,
             base_mode: dialect::MavModeFlag::empty(),
             system_status: dialect::MavState::MAV_STATE_ACTIVE,
             mavlink_version: 3,
-        }))
+        })
     }
 
     /// A STATUSTEXT, cut to MAVLink's 50 bytes on a character boundary.
-    pub fn statustext(&mut self, severity: MavSeverity, text: &str) -> Vec<u8> {
-        self.frame(&MavMessage::STATUSTEXT(dialect::STATUSTEXT_DATA {
+    pub fn statustext(&mut self, severity: MavSeverity, text: &str) -> MavMessage {
+        MavMessage::STATUSTEXT(dialect::STATUSTEXT_DATA {
             severity,
             text: truncate_bytes(text, 50).into(),
             id: 0,
             chunk_seq: 0,
-        }))
+        })
     }
 
     /// A NAMED_VALUE_FLOAT (`name` ≤ 10 bytes).
-    pub fn named_value(&mut self, name: &str, value: f32) -> Vec<u8> {
+    pub fn named_value(&mut self, name: &str, value: f32) -> MavMessage {
         let time_boot_ms = self.boot_ms();
-        self.frame(&MavMessage::NAMED_VALUE_FLOAT(
-            dialect::NAMED_VALUE_FLOAT_DATA {
-                time_boot_ms,
-                value,
-                name: truncate_bytes(name, 10).into(),
-            },
-        ))
+        MavMessage::NAMED_VALUE_FLOAT(dialect::NAMED_VALUE_FLOAT_DATA {
+            time_boot_ms,
+            value,
+            name: truncate_bytes(name, 10).into(),
+        })
     }
 
     /// Every NAMED_VALUE_FLOAT of one report (see the module's table).
-    pub fn estimates(&mut self, r: &Report) -> Vec<Vec<u8>> {
+    pub fn estimates(&mut self, r: &Report) -> Vec<MavMessage> {
         let e = &r.energy;
         let model = |n: &str| {
             r.estimate
@@ -242,7 +230,7 @@ impl Encoder {
     }
 
     /// dronewatt's own BATTERY_STATUS for one report (see the module docs).
-    pub fn battery_status(&mut self, battery_id: u8, r: &Report) -> Vec<u8> {
+    pub fn battery_status(&mut self, battery_id: u8, r: &Report) -> MavMessage {
         let e = &r.energy;
         let pct = e
             .remaining_pct
@@ -259,7 +247,7 @@ impl Encoder {
         } else {
             -1
         };
-        self.frame(&MavMessage::BATTERY_STATUS(dialect::BATTERY_STATUS_DATA {
+        MavMessage::BATTERY_STATUS(dialect::BATTERY_STATUS_DATA {
             id: battery_id,
             battery_remaining: pct,
             time_remaining,
@@ -270,12 +258,12 @@ impl Encoder {
             voltages: [u16::MAX; 10],
             voltages_ext: [0; 4],
             ..Default::default()
-        }))
+        })
     }
 
     /// The STATUSTEXTs of one report's alerts: raised ones at the rule's severity, cleared
     /// ones at INFO (news, not a warning).
-    pub fn alerts(&mut self, r: &Report) -> Vec<Vec<u8>> {
+    pub fn alerts(&mut self, r: &Report) -> Vec<MavMessage> {
         r.alerts
             .iter()
             .map(|a| {
@@ -322,7 +310,7 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
     if let Err(e) = cfg.validate() {
         bail!("{e}");
     }
-    // One encoder (its own sequence numbers) and one estimate clock per system id sent as.
+    // One encoder and one estimate clock per system id sent as (the link numbers frames).
     let mut encs: std::collections::BTreeMap<u8, (Encoder, Instant)> = Default::default();
     let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
     let mut heartbeat = tokio::time::interval(Duration::from_secs(1));
@@ -342,7 +330,7 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
                 if let Some(id) = cfg.system_id {
                     enc_for(&mut encs, id);
                 }
-                encs.values_mut().map(|(e, _)| e.heartbeat()).collect()
+                encs.values_mut().map(|(e, _)| (e.identity(), e.heartbeat())).collect::<Vec<_>>()
             }
             r = rx.next() => match r {
                 Some(report) => {
@@ -361,13 +349,14 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
                     if report.alerts.iter().any(|a| a.rule == "vehicle_dropped") && cfg.system_id.is_none() {
                         encs.remove(&id);
                     }
-                    f
+                    let who = (id, cfg.component_id);
+                    f.into_iter().map(|m| (who, m)).collect()
                 }
                 None => break,
             },
         };
-        for f in frames {
-            if !link.try_send(f) {
+        for ((sys, comp), m) in frames {
+            if !link.send_as(sys, comp, &m) {
                 dropped += 1;
             }
         }

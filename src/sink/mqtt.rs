@@ -74,11 +74,12 @@ pub struct MqttSinkConfig {
     pub username: Option<String>,
     /// Name of the environment variable holding the password.
     pub password_env: Option<String>,
-    /// File whose first line is the password (keep it mode 0600).
+    /// File whose first line is the password; refused unless private to its owner (mode
+    /// 0600). Relative to the config file.
     pub password_file: Option<PathBuf>,
     /// Connect with TLS (rustls). Default false.
     pub tls: bool,
-    /// CA certificates to trust for TLS, PEM. Default the system bundle
+    /// CA certificates to trust for TLS, PEM, relative to the config file. Default the system bundle
     /// (`/etc/ssl/certs/ca-certificates.crt`).
     pub ca_file: Option<PathBuf>,
     /// MQTT keep-alive, s: how soon the broker notices a dead connection (and publishes
@@ -220,9 +221,8 @@ impl MqttSinkConfig {
             return Ok(Some(v));
         }
         if let Some(file) = &self.password_file {
-            let text = std::fs::read_to_string(file).with_context(|| {
-                format!("sinks.mqtt.password_file: cannot read {}", file.display())
-            })?;
+            let text = crate::files::read_private_text(file)
+                .map_err(|e| anyhow::anyhow!("sinks.mqtt.password_file: {e}"))?;
             return Ok(Some(text.lines().next().unwrap_or("").to_string()));
         }
         Ok(None)
@@ -650,9 +650,12 @@ mod tests {
         std::fs::write(&file, "s3cret\nignored\n").unwrap();
         let c = MqttSinkConfig {
             username: Some("u".into()),
-            password_file: Some(file),
+            password_file: Some(file.clone()),
             ..Default::default()
         };
+        #[cfg(unix)] // private, or refused (tests/config_paths.rs)
+        std::fs::set_permissions(&file, std::os::unix::fs::PermissionsExt::from_mode(0o600))
+            .unwrap();
         assert_eq!(c.password().unwrap().as_deref(), Some("s3cret"));
         let c = MqttSinkConfig {
             username: Some("u".into()),

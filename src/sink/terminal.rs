@@ -122,9 +122,45 @@ pub fn print_summary(
             String::new()
         }
     );
+    for l in stats.links() {
+        eprintln!(
+            "      link {}: frames {} (copies {}), last heard {}",
+            l.name,
+            l.frames,
+            l.duplicates,
+            l.last_heard_s
+                .map_or("never".to_string(), |t| format!("{} s ago", num(t, 1)))
+        );
+    }
+    if s.duplicates > 0 {
+        eprintln!(
+            "      copies dropped (heard on two links): {}",
+            s.duplicates
+        );
+    }
     if let Some(l) = latency.summary() {
         eprintln!("      {l}");
     }
+}
+
+/// Several links: each one's rate and loss this second, or SILENT (empty with one link).
+fn links_line(stats: &IngestStats) -> String {
+    stats
+        .links()
+        .iter()
+        .map(|l| {
+            if l.live {
+                format!(
+                    "  [{} {}/s loss {}%]",
+                    l.name,
+                    num(l.rate_hz, 0),
+                    num(l.loss_pct, 0)
+                )
+            } else {
+                format!("  [{} SILENT]", l.name)
+            }
+        })
+        .collect()
 }
 
 /// A number, or `?` for NaN/infinity (a sensor glitch must not look like a value).
@@ -239,6 +275,7 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
         n.unknown,
         n.gaps
     ));
+    s.push_str(&links_line(stats));
     if stats.silent.load(Relaxed) {
         let txt = "  SILENT (no valid frame for 5 s)";
         s.push_str(&if colour {
@@ -270,13 +307,14 @@ pub fn fleet_view(
 ) -> String {
     let n = stats.snapshot();
     let mut s = format!(
-        "fleet: {} vehicles  link {} msg/s ok {} bad {} unk {} gaps {}\n{:>8} {:>9} {:>8} {:>9} {:>8}  worst alert",
+        "fleet: {} vehicles  link {} msg/s ok {} bad {} unk {} gaps {}{}\n{:>8} {:>9} {:>8} {:>9} {:>8}  worst alert",
         fleet.len(),
         num(rate, 0),
         n.frames_ok,
         n.frames_bad,
         n.unknown,
         n.gaps,
+        links_line(stats),
         "vehicle",
         "power W",
         "left Wh",

@@ -23,6 +23,7 @@
 //! sources, as a tlog without it would (the telemetry stage degrades and says so); a file
 //! that is not DataFlash, or has no timestamped message, is an error.
 
+use crate::features::units::{centidegrees, scaled};
 use std::collections::HashMap;
 
 use super::dataflash_records::{Entry, Reader};
@@ -268,12 +269,17 @@ impl State {
                 let m = d::GPS_RAW_INT_DATA {
                     time_usec: u64::from(boot_ms) * 1000,
                     fix_type: fix,
-                    lat: lat as i32,
-                    lon: lng as i32,
-                    alt: (alt * 1000.0) as i32,
-                    vel: spd.map_or(u16::MAX, |s| (s * 100.0).clamp(0.0, 65534.0) as u16),
-                    cog: crs.map_or(u16::MAX, |c| (c.rem_euclid(360.0) * 100.0) as u16),
-                    satellites_visible: e.get_f64("NSats").map_or(u8::MAX, |n| n as u8),
+                    lat: scaled(lat, 1.0).unwrap_or(0),
+                    lon: scaled(lng, 1.0).unwrap_or(0),
+                    alt: scaled(alt, 1000.0).unwrap_or(0),
+                    vel: spd
+                        .and_then(|s| scaled::<u16>(s.max(0.0), 100.0))
+                        .map_or(u16::MAX, |v| v.min(65_534)),
+                    cog: crs.and_then(centidegrees).unwrap_or(u16::MAX),
+                    satellites_visible: e
+                        .get_f64("NSats")
+                        .and_then(|n| scaled(n, 1.0))
+                        .unwrap_or(u8::MAX),
                     eph: u16::MAX,
                     epv: u16::MAX,
                     ..Default::default()
@@ -291,14 +297,14 @@ impl State {
                 let Some(v) = self.ekf_vel.or(self.gps_vel) else {
                     return;
                 };
-                let [vx, vy, vz] = v.map(|x| (x * 100.0).clamp(-32768.0, 32767.0) as i16);
+                let [vx, vy, vz] = v.map(|x| scaled(x, 100.0).unwrap_or(0));
                 let rel = e.get_f64("RelHomeAlt").unwrap_or(0.0);
                 let m = d::GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: boot_ms,
-                    lat: lat as i32,
-                    lon: lng as i32,
-                    alt: (alt * 1000.0) as i32,
-                    relative_alt: (rel * 1000.0) as i32,
+                    lat: scaled(lat, 1.0).unwrap_or(0),
+                    lon: scaled(lng, 1.0).unwrap_or(0),
+                    alt: scaled(alt, 1000.0).unwrap_or(0),
+                    relative_alt: scaled(rel, 1000.0).unwrap_or(0),
                     vx,
                     vy,
                     vz,
@@ -313,7 +319,8 @@ impl State {
                 let amps = self.f(e, "Curr");
                 let remaining = e
                     .get_f64("RemPct")
-                    .map_or(-1, |p| p.round().clamp(0.0, 100.0) as i8);
+                    .and_then(|p| scaled::<i8>(p.clamp(0.0, 100.0), 1.0))
+                    .unwrap_or(-1);
                 self.syn.battery(
                     volt,
                     amps,
@@ -439,17 +446,10 @@ impl Writer {
                 'Q' => b.extend((i.max(0) as u64).to_le_bytes()),
                 'f' => b.extend((f as f32).to_le_bytes()),
                 'd' => b.extend(f.to_le_bytes()),
-                'c' => {
-                    b.extend(((f * 100.0).round().clamp(-32768.0, 32767.0) as i16).to_le_bytes())
-                }
-                'C' => b.extend(((f * 100.0).round().clamp(0.0, 65535.0) as u16).to_le_bytes()),
-                'e' => b.extend(
-                    ((f * 100.0).round().clamp(i32::MIN.into(), i32::MAX.into()) as i32)
-                        .to_le_bytes(),
-                ),
-                'E' => {
-                    b.extend(((f * 100.0).round().clamp(0.0, u32::MAX.into()) as u32).to_le_bytes())
-                }
+                'c' => b.extend(scaled::<i16>(f, 100.0).unwrap_or(0).to_le_bytes()),
+                'C' => b.extend(scaled::<u16>(f, 100.0).unwrap_or(0).to_le_bytes()),
+                'e' => b.extend(scaled::<i32>(f, 100.0).unwrap_or(0).to_le_bytes()),
+                'E' => b.extend(scaled::<u32>(f, 100.0).unwrap_or(0).to_le_bytes()),
                 'n' | 'N' | 'Z' => {
                     let n = field_size(c);
                     let s = if let Value::Str(s) = v {
@@ -587,6 +587,45 @@ mod tests {
         assert_eq!(
             (s.voltage_battery, s.current_battery, s.battery_remaining),
             (11100, -1, -1)
+        );
+    }
+
+    #[test]
+    fn gps_course_wraps_below_360_and_scaling_rounds_never_truncates() {
+        const GPS: MsgDef = MsgDef {
+            id: 85,
+            name: "GPS",
+            format: "QBBLLffff",
+            labels: "TimeUS,I,Status,Lat,Lng,Alt,Spd,GCrs,VZ",
+        };
+        let mut w = Writer::new();
+        // A course a hair below north: rem_euclid(360) of -1e-20 is 360.0 exactly, and
+        // 359.9999° rounds to 360.00; both are north, cog 0. An altitude of 0.29 m (as
+        // f32, 0.2899999916…) is 290 mm.
+        for (k, crs) in [-1e-20, 359.9999, 90.004, 359.994].into_iter().enumerate() {
+            let t = 1_000_000 * (k as i64 + 1);
+            let fix = [I(t), I(0), I(3), I(473_977_421), I(85_455_940)];
+            w.write(
+                &GPS,
+                &[fix.as_slice(), &[F(0.29), F(5.0), F(crs), F(0.0)]].concat(),
+            );
+        }
+        let m = decode(&w.into_bytes()).unwrap();
+        let gps: Vec<(u16, i32, u16)> = m
+            .iter()
+            .filter_map(|m| match &m.msg {
+                MavMessage::GPS_RAW_INT(g) => Some((g.cog, g.alt, g.vel)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            gps,
+            [
+                (0, 290, 500),
+                (0, 290, 500),
+                (9000, 290, 500),
+                (35999, 290, 500)
+            ]
         );
     }
 

@@ -38,6 +38,7 @@
 //! Multi-stage `altitude` text such as `25-50-100-25` (flights 278 and 279) is taken as
 //! its highest stage, the altitude the mission climbs to.
 
+use crate::features::units::{centidegrees, scaled, whole_degrees};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -452,13 +453,13 @@ pub fn encode_flight(f: &Flight) -> Vec<u8> {
 }
 
 fn deg_e7(x: f64) -> i32 {
-    (x * 1e7).round().clamp(i32::MIN as f64, i32::MAX as f64) as i32
+    scaled(x, 1e7).unwrap_or(0)
 }
 fn mm(x: f64) -> i32 {
-    (x * 1e3).round().clamp(i32::MIN as f64, i32::MAX as f64) as i32
+    scaled(x, 1e3).unwrap_or(0)
 }
 fn i16_scaled(x: f64, k: f64) -> i16 {
-    (x * k).round().clamp(i16::MIN as f64, i16::MAX as f64) as i16
+    scaled(x, k).unwrap_or(0)
 }
 
 struct Encoder {
@@ -564,7 +565,7 @@ impl Encoder {
             vx: i16_scaled(v[0], 100.0),
             vy: i16_scaled(v[1], 100.0),
             vz: i16_scaled(v[2], 100.0),
-            hdg: ((hdg * 100.0).round() as u16) % 36_000,
+            hdg: centidegrees(hdg).unwrap_or(u16::MAX),
         }));
         let apparent = frames::wind_from_to_vec(r.wind_speed, r.wind_angle);
         let [ws, wd] = frames::wind_vec_to_from([apparent[0] + v[0], apparent[1] + v[1]]);
@@ -578,10 +579,10 @@ impl Encoder {
             groundspeed: v[0].hypot(v[1]) as f32,
             alt: r.alt_m as f32,
             climb: r.vel[2] as f32,
-            heading: (hdg.round() as i16) % 360,
+            heading: whole_degrees(hdg).unwrap_or(0),
             throttle: 0,
         }));
-        let mv = (r.voltage_v * 1e3).round().clamp(0.0, 65_534.0) as u16;
+        let mv = scaled::<u16>(r.voltage_v.max(0.0), 1e3).map_or(0, |v| v.min(65_534));
         let ca = match i16_scaled(r.current_a, 100.0) {
             -1 => 0,
             c => c,

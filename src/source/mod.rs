@@ -16,6 +16,7 @@ pub mod dataset;
 pub mod fleet;
 pub mod frame;
 pub mod link;
+pub mod links;
 pub mod raw;
 pub mod signing;
 mod synth;
@@ -84,6 +85,12 @@ impl std::str::FromStr for Speed {
 pub enum SourceSpec {
     /// A live link: `udpin:`/`udpout:`/`tcpin:`/`tcpout:`/`serial:` address.
     Link(String),
+    /// Several live links, merged and deduplicated ([`links`]); dronewatt's own frames on
+    /// the best live one, or on `every_link`.
+    Links {
+        addresses: Vec<String>,
+        every_link: bool,
+    },
     /// A `.tlog` (8-byte big-endian µs timestamp before each frame).
     Tlog {
         path: std::path::PathBuf,
@@ -166,6 +173,25 @@ pub async fn run(
             let addr: link::LinkAddress = address.parse()?;
             link::run(
                 addr,
+                tx,
+                stats,
+                link,
+                signing.map(|s| s.verifier()),
+                shutdown,
+            )
+            .await
+        }
+        SourceSpec::Links {
+            addresses,
+            every_link,
+        } => {
+            let addrs = addresses
+                .iter()
+                .map(|a| a.parse::<link::LinkAddress>())
+                .collect::<Result<Vec<_>, _>>()?;
+            links::run(
+                addrs,
+                every_link,
                 tx,
                 stats,
                 link,

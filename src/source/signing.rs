@@ -67,6 +67,9 @@ pub struct LinkConfig {
     pub require_signing: bool,
     /// Link id dronewatt puts in the frames it signs, 0–255. Default 0.
     pub signing_link_id: u8,
+    /// Several links: dronewatt's own frames (the MAVLink sink's, the parameter reader's,
+    /// the mission client's) go on every link instead of the best live one. Default false.
+    pub every_link: bool,
 }
 
 impl LinkConfig {
@@ -121,23 +124,7 @@ impl std::fmt::Debug for Signing {
 /// Read a key file: 32 raw bytes, 64 hex digits or base64 of 32 bytes. On Unix the file
 /// must be private to its owner.
 pub fn read_key_file(path: &Path) -> Result<[u8; KEY_LEN], String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path)
-            .map_err(|e| format!("cannot stat: {e}"))?
-            .permissions()
-            .mode();
-        if mode & 0o077 != 0 {
-            return Err(format!(
-                "the key file is accessible to group or others (mode {:03o}); make it private: chmod 600 {}",
-                mode & 0o777,
-                path.display()
-            ));
-        }
-    }
-    parse_key(&bytes)
+    parse_key(&crate::files::read_private(path)?)
 }
 
 /// A key from a file's bytes (see [`read_key_file`]).

@@ -20,6 +20,7 @@
 //! A missing topic or field leaves its signal to the other sources; a file that is not
 //! ULog, or has no logged data, is an error.
 
+use crate::features::units::{scaled, whole_degrees};
 use yule_log::model::inst::{FieldValue as V, Format, ParameterValue};
 use yule_log::model::msg::UlogMessage;
 
@@ -216,14 +217,17 @@ impl State {
                 else {
                     return;
                 };
+                // NaN (no estimate yet) or (0, 0) is no fix: nothing to send on as a position.
+                if !crate::features::frames::is_fix(lat, lon) || !alt.is_finite() {
+                    return;
+                }
                 let Some(v) = self.vel else { return };
-                let [vx, vy, vz] =
-                    v.map(|x| (f64::from(x) * 100.0).clamp(-32768.0, 32767.0) as i16);
+                let [vx, vy, vz] = v.map(|x| scaled(f64::from(x), 100.0).unwrap_or(0));
                 let m = d::GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: boot_ms,
-                    lat: (lat * 1e7).round() as i32,
-                    lon: (lon * 1e7).round() as i32,
-                    alt: (alt * 1000.0).round() as i32,
+                    lat: scaled(lat, 1e7).unwrap_or(0),
+                    lon: scaled(lon, 1e7).unwrap_or(0),
+                    alt: scaled(alt, 1000.0).unwrap_or(0),
                     relative_alt: 0,
                     vx,
                     vy,
@@ -252,7 +256,8 @@ impl State {
                 let amps = num(f, "current_a").filter(|&c| c >= 0.0);
                 let remaining = num(f, "remaining")
                     .filter(|r| (0.0..=1.0).contains(r))
-                    .map_or(-1, |r| (r * 100.0).round() as i8);
+                    .and_then(|r| scaled(r, 100.0))
+                    .unwrap_or(-1);
                 self.syn
                     .battery(volt, amps, remaining, num(f, "discharged_mah"), None, out);
             }
@@ -264,7 +269,7 @@ impl State {
                 let m = d::VFR_HUD_DATA {
                     airspeed: air as f32,
                     groundspeed: ground,
-                    heading: hdg.round() as i16 % 360,
+                    heading: whole_degrees(hdg).unwrap_or(0),
                     ..Default::default()
                 };
                 self.syn.push(MavMessage::VFR_HUD(m), out);
@@ -554,5 +559,68 @@ mod tests {
             bad[i] ^= 0x5A;
         }
         let _ = decode(&bad);
+    }
+
+    #[test]
+    fn a_position_without_a_fix_is_never_sent_on_as_one() {
+        const LOCAL: Topic = Topic {
+            id: 0,
+            name: "vehicle_local_position",
+            fields: &[
+                Field {
+                    ty: "float",
+                    name: "vx",
+                },
+                Field {
+                    ty: "float",
+                    name: "vy",
+                },
+                Field {
+                    ty: "float",
+                    name: "vz",
+                },
+            ],
+        };
+        const GLOBAL: Topic = Topic {
+            id: 1,
+            name: "vehicle_global_position",
+            fields: &[
+                Field {
+                    ty: "double",
+                    name: "lat",
+                },
+                Field {
+                    ty: "double",
+                    name: "lon",
+                },
+                Field {
+                    ty: "float",
+                    name: "alt",
+                },
+            ],
+        };
+        let mut w = Writer::new(&[LOCAL, GLOBAL], &[]);
+        w.data(&LOCAL, 1_000_000, &[N(&[1.0]), N(&[0.0]), N(&[0.0])]);
+        // PX4 before its estimator has a global position: NaN; then (0, 0); then a fix.
+        w.data(
+            &GLOBAL,
+            1_100_000,
+            &[N(&[f64::NAN]), N(&[f64::NAN]), N(&[f64::NAN])],
+        );
+        w.data(&GLOBAL, 1_200_000, &[N(&[0.0]), N(&[0.0]), N(&[0.0])]);
+        w.data(
+            &GLOBAL,
+            1_300_000,
+            &[N(&[47.397_742_1]), N(&[8.545_594]), N(&[488.0])],
+        );
+        let m = decode(&w.into_bytes()).unwrap();
+        let fixes: Vec<(i32, i32, i32)> = m
+            .iter()
+            .filter_map(|m| match &m.msg {
+                MavMessage::GLOBAL_POSITION_INT(p) => Some((p.lat, p.lon, p.alt)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(fixes, [(473_977_421, 85_455_940, 488_000)]);
     }
 }

@@ -34,7 +34,8 @@
 //! Messages are taken from one vehicle: the system id of the first autopilot HEARTBEAT
 //! (or of the first telemetry message, if that comes first); others are counted and
 //! ignored. A non-finite value makes its whole update be dropped and counted
-//! ([`Telemetry::nonfinite`]), never propagated. The time of a message is its
+//! ([`Telemetry::nonfinite`]), never propagated; a position or home of (0, 0) or off the
+//! globe is no fix, ignored and counted ([`Telemetry::no_fix`]). The time of a message is its
 //! [`TimedMessage::t_s`] (the tlog stamp or the arrival time), rounded to the microsecond.
 //!
 //! Conversions that need another signal use its newest value at message time: body
@@ -171,6 +172,7 @@ pub struct Telemetry {
     mission_msg: [Option<f32>; 3],
     mission_cfg: [Option<f32>; 3],
     nonfinite: u64,
+    no_fix: u64,
     foreign: u64,
     samples: Vec<Sample>,
     /// The autopilot's latest `battery_remaining`, %, if it reports one.
@@ -196,6 +198,7 @@ impl Telemetry {
             mission_msg: [None; 3],
             mission_cfg: [mission.speed_m_s, mission.payload_g, mission.altitude_m],
             nonfinite: 0,
+            no_fix: 0,
             foreign: 0,
             samples: Vec::new(),
             battery_pct: None,
@@ -287,6 +290,11 @@ impl Telemetry {
     /// Updates dropped because a field was NaN or infinite.
     pub fn nonfinite(&self) -> u64 {
         self.nonfinite
+    }
+
+    /// Positions (and homes) ignored because they were no fix: (0, 0), or off the globe.
+    pub fn no_fix(&self) -> u64 {
+        self.no_fix
     }
 
     /// Messages ignored because another system sent them.
@@ -404,13 +412,35 @@ impl Telemetry {
         }
     }
 
+    /// Whether (lat, lon) in 1e-7 degrees is a fix: not (0, 0), which autopilots send
+    /// before they have one, and on the globe. Counts and warns (once) when not.
+    fn is_fix(&mut self, what: &'static str, lat_e7: i32, lon_e7: i32) -> bool {
+        let fix =
+            crate::features::frames::is_fix(f64::from(lat_e7) * 1e-7, f64::from(lon_e7) * 1e-7);
+        if !fix {
+            self.no_fix += 1;
+            if self.no_fix == 1 {
+                tracing::warn!(
+                    message = what,
+                    lat_e7,
+                    lon_e7,
+                    "position without a fix ignored (further ones are counted)"
+                );
+            }
+        }
+        fix
+    }
+
     fn position(&mut self, rank: usize, t_us: i64, lat_e7: i32, lon_e7: i32, alt_mm: i32) {
+        if !self.is_fix(SOURCES[Signal::Position as usize][rank], lat_e7, lon_e7) {
+            return;
+        }
         let p = [
             lon_e7 as f64 * 1e-7,
             lat_e7 as f64 * 1e-7,
             alt_mm as f64 * 1e-3,
         ];
-        if !self.home_known && (lat_e7 != 0 || lon_e7 != 0) {
+        if !self.home_known {
             self.home_known = true;
             self.resampler.set_home([p[1], p[0], p[2]]);
         }
@@ -510,7 +540,9 @@ impl Telemetry {
             {
                 self.position(1, t, m.lat, m.lon, m.alt);
             }
-            MavMessage::HOME_POSITION(h) => {
+            MavMessage::HOME_POSITION(h)
+                if self.is_fix("HOME_POSITION", h.latitude, h.longitude) =>
+            {
                 self.home_known = true;
                 self.resampler.set_home([
                     h.latitude as f64 * 1e-7,

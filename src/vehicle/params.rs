@@ -425,7 +425,6 @@ pub struct Driver {
     link: crate::report::status::LinkHandle,
     system_id: u8,
     component_id: u8,
-    seq: u8,
     /// Requests the link could not take (none attached, or full).
     pub unsent: u64,
 }
@@ -443,7 +442,6 @@ impl Driver {
             link,
             system_id,
             component_id,
-            seq: 0,
             unsent: 0,
         }
     }
@@ -454,17 +452,9 @@ impl Driver {
         self.reader.on_message(m);
         let mut gave_up = Vec::new();
         for req in self.reader.poll(m.t_s, &mut gave_up) {
-            let header = mavlink::MavHeader {
-                system_id: u32::from(self.system_id),
-                component_id: self.component_id,
-                sequence: self.seq,
-            };
-            self.seq = self.seq.wrapping_add(1);
-            let mut buf = Vec::with_capacity(64);
-            // Writing into a Vec cannot fail.
-            let _ =
-                mavlink::write_versioned_msg(&mut buf, mavlink::MavlinkVersion::V2, header, &req);
-            if !self.link.try_send(buf) {
+            // Numbered by the link's one writer of this identity (the sink and the
+            // mission client send as it too).
+            if !self.link.send_as(self.system_id, self.component_id, &req) {
                 self.unsent += 1;
             }
         }

@@ -16,7 +16,8 @@ download it again.
 Prints one JSON object: every MISSION_REQUEST_LIST and MISSION_REQUEST_INT heard (time,
 seq), the dropped request, the MISSION_ACKs (type), the NAMED_VALUE_FLOATs heard (last
 value per name), the BATTERY_STATUS frames heard (id, time_remaining, battery_remaining)
-and every sender heard.
+every sender heard, and every frame from component 191 ([system, sequence, type], in
+arrival order).
 """
 import argparse
 import json
@@ -59,7 +60,8 @@ def main():
 
     conn = mavutil.mavlink_connection(a.to, source_system=1, source_component=1)
     m = conn.mav
-    heard = {"request_list": [], "requests": [], "dropped": [], "acks": [], "named": {}, "battery": [], "senders": set()}
+    heard = {"request_list": [], "requests": [], "dropped": [], "acks": [], "named": {}, "battery": [], "senders": set(),
+             "from_191": []}
     boot0 = time.monotonic()
     changed = False
     rows = mission(False)
@@ -69,6 +71,9 @@ def main():
         nonlocal dropped
         heard["senders"].add((r.get_srcSystem(), r.get_srcComponent()))
         k = r.get_type()
+        # Every frame from dronewatt's identity (component 191), in arrival order.
+        if r.get_srcComponent() == 191:
+            heard["from_191"].append([r.get_srcSystem(), r.get_seq(), k])
         if k == "MISSION_REQUEST_LIST":
             heard["request_list"].append(round(t, 3))
             m.mission_count_send(r.get_srcSystem(), r.get_srcComponent(), len(rows), 0)

@@ -360,18 +360,17 @@ impl Plan {
     /// The same plan moved to another home: every position keeps its east/north offset
     /// from home (flat earth, as the trajectory flies it).
     pub fn relocated(&self, home: GeoPoint) -> Plan {
+        use crate::features::frames::{ne_offset_m, offset_ne};
         let mut p = self.clone();
-        let (m_lat, m_lon_old, m_lon_new) = (
-            111_320.0,
-            111_320.0 * self.home.lat_deg.to_radians().cos(),
-            111_320.0 * home.lat_deg.to_radians().cos(),
-        );
         for it in &mut p.items {
             if let Some(pos) = &mut it.position {
-                let n = (pos.lat_deg - self.home.lat_deg) * m_lat;
-                let e = (pos.lon_deg - self.home.lon_deg) * m_lon_old;
-                pos.lat_deg = home.lat_deg + n / m_lat;
-                pos.lon_deg = home.lon_deg + e / m_lon_new;
+                let (n, e) = ne_offset_m(
+                    self.home.lat_deg,
+                    self.home.lon_deg,
+                    pos.lat_deg,
+                    pos.lon_deg,
+                );
+                (pos.lat_deg, pos.lon_deg) = offset_ne(home.lat_deg, home.lon_deg, n, e);
             }
         }
         p.home = home;

@@ -62,8 +62,6 @@ use crate::telemetry::{idx, HomeVector, Sample, N_FEATURES};
 
 /// Standard gravity, m/s².
 const G_M_S2: f64 = 9.81;
-/// Metres per degree of latitude (WGS-84 mean).
-const M_PER_DEG: f64 = 111_320.0;
 
 /// One leg: the part of the flight that serves one plan item (climb, flight to a
 /// waypoint and the stop there, descent).
@@ -204,10 +202,10 @@ fn wrap_pi(a: f64) -> f64 {
     (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
-/// East/north offset of `p` from `home`, m (flat earth: fine over a mission's kilometres).
+/// East/north offset of `p` from `home`, m (flat earth: fine over a mission's kilometres;
+/// [`crate::features::frames::ne_offset_m`], the one conversion every part uses).
 pub fn enu_of(home: &GeoPoint, lat_deg: f64, lon_deg: f64) -> (f64, f64) {
-    let n = (lat_deg - home.lat_deg) * M_PER_DEG;
-    let e = (lon_deg - home.lon_deg) * M_PER_DEG * home.lat_deg.to_radians().cos();
+    let (n, e) = crate::features::frames::ne_offset_m(home.lat_deg, home.lon_deg, lat_deg, lon_deg);
     (e, n)
 }
 
@@ -469,7 +467,7 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
     let segs = segments(plan, k, speed0, &mut legs);
     let dt = 1.0 / c.rate_hz;
     let total: f64 = segs.iter().map(|s| s.duration_s).sum();
-    let n = (total / dt).floor() as usize + 1;
+    let n = crate::features::units::floor_ratio(total, dt).unwrap_or(0.0) as usize + 1;
     let cmd_alt = plan.items.iter().filter_map(|i| match i.kind {
         ItemKind::Takeoff { alt_m } => Some(alt_m),
         _ => i.position.map(|p| p.alt_m),
@@ -484,7 +482,6 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
     let mut seg_i = 0usize;
     let mut seg_t0 = 0.0f64;
     let mut cur_speed = speed0;
-    let coslat = plan.home.lat_deg.to_radians().cos().max(1e-6);
     // memo keys start as NaN: never equal, the first sample computes them
     let (mut att_key, mut att) = ([f64::NAN; 3], attitude(0.0, nalgebra::Vector2::zeros()));
     let mut anemo = ([f64::NAN; 2], 0.0f32, 0.0f32);
@@ -523,8 +520,10 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
         let mut f = [0.0f32; N_FEATURES];
         f[idx::WIND_SPEED] = anemo.1;
         f[idx::WIND_ANGLE] = anemo.2;
-        f[idx::POS_X] = (plan.home.lon_deg + p.x / (M_PER_DEG * coslat)) as f32;
-        f[idx::POS_Y] = (plan.home.lat_deg + p.y / M_PER_DEG) as f32;
+        let (lat, lon) =
+            crate::features::frames::offset_ne(plan.home.lat_deg, plan.home.lon_deg, p.y, p.x);
+        f[idx::POS_X] = lon as f32;
+        f[idx::POS_Y] = lat as f32;
         f[idx::POS_Z] = (plan.home.alt_m + p.z) as f32;
         [f[idx::QX], f[idx::QY], f[idx::QZ], f[idx::QW]] = att.q_xyzw;
         f[idx::VX] = vx as f32;

@@ -194,7 +194,7 @@ pub fn prepare(f: &Flight, test: bool) -> Prepared {
 pub fn fill_grid(p: &mut Prepared) {
     let tl = p.t.last().copied().unwrap_or(0.0);
     let n = if tl > 0.0 {
-        (tl / DT).ceil() as usize
+        crate::features::units::ceil_ratio(tl, DT).unwrap_or(0.0) as usize
     } else {
         0
     };

@@ -115,15 +115,11 @@ pub struct Home {
     pub alt_amsl_m: f64,
 }
 
-/// Equatorial earth radius (WGS-84), m.
-const R_EARTH_M: f64 = 6_378_137.0;
-
 impl Home {
     /// NED offset from home (m) → latitude, longitude (deg), altitude above sea level (m).
     pub fn to_geodetic(&self, ned: &Vector3<f64>) -> (f64, f64, f64) {
-        let lat = self.lat_deg + (ned.x / R_EARTH_M).to_degrees();
-        let lon =
-            self.lon_deg + (ned.y / (R_EARTH_M * self.lat_deg.to_radians().cos())).to_degrees();
+        let (lat, lon) =
+            crate::features::frames::offset_ne(self.lat_deg, self.lon_deg, ned.x, ned.y);
         (lat, lon, self.alt_amsl_m - ned.z)
     }
 
@@ -136,9 +132,8 @@ impl Home {
         speed_mps: f64,
         hold_s: f64,
     ) -> Waypoint {
-        let north_m = (lat_deg - self.lat_deg).to_radians() * R_EARTH_M;
-        let east_m =
-            (lon_deg - self.lon_deg).to_radians() * R_EARTH_M * self.lat_deg.to_radians().cos();
+        let (north_m, east_m) =
+            crate::features::frames::ne_offset_m(self.lat_deg, self.lon_deg, lat_deg, lon_deg);
         Waypoint {
             north_m,
             east_m,

@@ -167,23 +167,7 @@ fn base64(bytes: &[u8]) -> String {
 
 /// A secret from a file private to its owner (Unix: no group or other access), trimmed.
 pub fn read_private(path: &Path) -> Result<String, String> {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path)
-            .map_err(|e| format!("cannot read: {e}"))?
-            .permissions()
-            .mode();
-        if mode & 0o077 != 0 {
-            return Err(format!(
-                "the token file is accessible to group or others (mode {:03o}); make it private: chmod 600 {}",
-                mode & 0o777,
-                path.display()
-            ));
-        }
-    }
-    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read: {e}"))?;
-    Ok(text.trim().to_string())
+    Ok(crate::files::read_private_text(path)?.trim().to_string())
 }
 
 /// A listener that holds at most `max` connections open: the next accept waits for a

@@ -1,0 +1,321 @@
+//! Several live links in one source: `monitor ADDR ADDR …` or the config's `[[links]]`.
+//!
+//! Each link runs as [`super::link::run`] does alone, with its own counters. Their messages
+//! meet in one merged stream, keyed by the vehicle's system id across links (the same
+//! vehicle over a radio and LTE is one vehicle):
+//!
+//! - **Deduplicated.** A message whose (system id, component id, sequence, message id) was
+//!   already handed on within [`DEDUP_WINDOW_S`] is a copy from a redundant link and is
+//!   dropped (counted in `duplicates`). The window is far shorter than a sequence's wrap
+//!   (256 frames of one component: 2.5 s at 100 Hz), so a new frame is never taken for a copy.
+//! - **Per-link health** ([`LinkHealth`]), refreshed every second and published with the
+//!   source's counters (the JSON summary's `links`): frames, rate, loss (the share of the
+//!   merged stream this link did not bring), latency (how far behind the first copy its
+//!   copies came), seconds since last heard, live or silent. A link that goes silent and
+//!   comes back is logged once each way by its own transport.
+//! - **Failover.** The merged stream flows while any link lives. dronewatt's own frames (the
+//!   sink, the parameter reader, the mission client, all numbered by the one writer of their
+//!   identity) go out on the best live link: the live one with the least loss, the first
+//!   given on a tie; or on every link with `[link] every_link = true`.
+//!
+//! The merged stream's counters are the source's: `frames_ok` counts messages handed on
+//! (each once), `gaps` breaks in the merged sequence of a sender (what no link brought);
+//! bad frames, junk and signature counters are the links' summed.
+
+use std::collections::HashMap;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use mavlink::Message;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+use super::frame::SharedVerifier;
+use super::link::{LinkAddress, SILENCE};
+use super::{IngestStats, LinkHandle, TimedMessage};
+
+pub use crate::report::status::LinkHealth;
+
+/// A copy of a message heard again within this many seconds is a duplicate.
+pub const DEDUP_WINDOW_S: f64 = 1.0;
+
+/// (arrival time, message id) of each of a sender's 256 sequence numbers.
+type Slots = Box<[(f64, u32); 256]>;
+
+/// The merge's memory of what it handed on: per sender (system, component), the arrival
+/// time and message id of each of the 256 sequence numbers.
+#[derive(Default)]
+pub struct Dedup {
+    seen: HashMap<(u32, u8), Slots>,
+    last_seq: HashMap<(u32, u8), u8>,
+}
+
+/// What the merge made of one message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Heard {
+    /// The first copy: handed on; `gap` when the sender's sequence broke before it.
+    First { gap: bool },
+    /// A copy of a message already handed on.
+    Duplicate,
+}
+
+impl Dedup {
+    /// Whether this message, heard at `t_s`, is new or a copy.
+    pub fn hear(&mut self, t_s: f64, header: &mavlink::MavHeader, msg_id: u32) -> Heard {
+        let key = (header.system_id, header.component_id);
+        let slot = &mut self
+            .seen
+            .entry(key)
+            .or_insert_with(|| Box::new([(f64::NEG_INFINITY, u32::MAX); 256]))
+            [usize::from(header.sequence)];
+        if slot.1 == msg_id && t_s - slot.0 < DEDUP_WINDOW_S {
+            return Heard::Duplicate;
+        }
+        *slot = (t_s, msg_id);
+        let gap = self
+            .last_seq
+            .insert(key, header.sequence)
+            .is_some_and(|last| header.sequence != last.wrapping_add(1));
+        Heard::First { gap }
+    }
+}
+
+/// One link's running tally, turned into its [`LinkHealth`] each second.
+struct Tally {
+    name: String,
+    frames: u64,
+    duplicates: u64,
+    /// This second: messages brought, their summed delay behind the first copy.
+    got: u64,
+    delay_s: f64,
+    last_heard: Option<Instant>,
+    stats: Arc<IngestStats>,
+    out: LinkHandle,
+    health: LinkHealth,
+}
+
+/// Run every link in `addrs` until `shutdown`, handing the merged, deduplicated stream to
+/// `tx`. `link` is the chain's handle: what is sent on it goes out on the best live link,
+/// or on each with `every_link`.
+/// Fails only when a link cannot be set up at all.
+pub async fn run(
+    addrs: Vec<LinkAddress>,
+    every_link: bool,
+    tx: mpsc::Sender<TimedMessage>,
+    stats: Arc<IngestStats>,
+    link: LinkHandle,
+    verifier: Option<SharedVerifier>,
+    shutdown: CancellationToken,
+) -> Result<()> {
+    let start = Instant::now();
+    let (merged_tx, mut merged_rx) = mpsc::channel::<(usize, TimedMessage)>(1024);
+    let mut tallies = Vec::new();
+    let mut tasks = tokio::task::JoinSet::new();
+    for (i, addr) in addrs.into_iter().enumerate() {
+        let (ltx, mut lrx) = mpsc::channel::<TimedMessage>(256);
+        let own = Arc::new(IngestStats::default());
+        let out = LinkHandle::with_signer(link.signer());
+        tallies.push(Tally {
+            name: addr.to_string(),
+            frames: 0,
+            duplicates: 0,
+            got: 0,
+            delay_s: 0.0,
+            last_heard: None,
+            stats: own.clone(),
+            out: out.clone(),
+            health: LinkHealth::default(),
+        });
+        let fwd = merged_tx.clone();
+        tokio::spawn(async move {
+            while let Some(m) = lrx.recv().await {
+                if fwd.send((i, m)).await.is_err() {
+                    break;
+                }
+            }
+        });
+        let (v, stop) = (verifier.clone(), shutdown.clone());
+        tasks.spawn(super::link::run(addr, ltx, own, out, v, stop));
+    }
+    drop(merged_tx);
+    // What the chain sends goes to the best live link.
+    let (wtx, mut wrx) = mpsc::channel::<Vec<u8>>(256);
+    link.attach(wtx);
+    let best = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let outs: Vec<LinkHandle> = tallies.iter().map(|t| t.out.clone()).collect();
+    let pick = best.clone();
+    tokio::spawn(async move {
+        while let Some(frame) = wrx.recv().await {
+            // Already numbered and signed by the chain's writer: sent as it is.
+            if every_link {
+                for o in &outs {
+                    let _ = o.try_send(frame.clone());
+                }
+            } else if let Some(o) = outs.get(pick.load(Relaxed)) {
+                let _ = o.try_send(frame);
+            }
+        }
+    });
+
+    let mut dedup = Dedup::default();
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    let mut first_arrival: HashMap<(u32, u8, u8, u32), Instant> = HashMap::new();
+    let mut unique = 0u64;
+    let mut last_t = 0.0f64;
+    loop {
+        tokio::select! {
+            _ = shutdown.cancelled() => break,
+            Some(r) = tasks.join_next() => {
+                if let Ok(Err(e)) = r {
+                    shutdown.cancel();
+                    return Err(e);
+                }
+            }
+            m = merged_rx.recv() => {
+                let Some((i, mut m)) = m else { break };
+                // One clock for the merged stream, never backwards (two links' messages
+                // can reach the merge a few microseconds out of their arrival order).
+                m.t_s = m.arrived.saturating_duration_since(start).as_secs_f64().max(last_t);
+                last_t = m.t_s;
+                let id = m.msg.message_id();
+                let key = (m.header.system_id, m.header.component_id, m.header.sequence, id);
+                let t = &mut tallies[i];
+                t.frames += 1;
+                t.got += 1;
+                t.last_heard = Some(m.arrived);
+                match dedup.hear(m.t_s, &m.header, id) {
+                    Heard::Duplicate => {
+                        t.duplicates += 1;
+                        if let Some(first) = first_arrival.get(&key) {
+                            t.delay_s += m.arrived.saturating_duration_since(*first).as_secs_f64();
+                        }
+                        IngestStats::add(&stats.duplicates, 1);
+                    }
+                    Heard::First { gap } => {
+                        first_arrival.insert(key, m.arrived);
+                        unique += 1;
+                        IngestStats::add(&stats.frames_ok, 1);
+                        if gap {
+                            IngestStats::add(&stats.gaps, 1);
+                        }
+                        if !super::send(&tx, m, &stats, &shutdown).await {
+                            break;
+                        }
+                    }
+                }
+            }
+            _ = tick.tick() => {
+                let cutoff = Instant::now() - Duration::from_secs_f64(DEDUP_WINDOW_S * 2.0);
+                first_arrival.retain(|_, t| *t >= cutoff);
+                publish(&mut tallies, std::mem::take(&mut unique), &stats, &best);
+            }
+        }
+    }
+    publish(&mut tallies, unique, &stats, &best);
+    tasks.shutdown().await;
+    Ok(())
+}
+
+/// Refresh every link's health, the summed counters and the best live link.
+fn publish(
+    tallies: &mut [Tally],
+    unique: u64,
+    stats: &IngestStats,
+    best: &std::sync::atomic::AtomicUsize,
+) {
+    let now = Instant::now();
+    for t in tallies.iter_mut() {
+        let last = t
+            .last_heard
+            .map(|l| now.saturating_duration_since(l).as_secs_f64());
+        t.health = LinkHealth {
+            name: t.name.clone(),
+            frames: t.frames,
+            duplicates: t.duplicates,
+            rate_hz: t.got as f64,
+            loss_pct: if unique > 0 {
+                100.0 * (1.0 - (t.got as f64 / unique as f64).min(1.0))
+            } else {
+                0.0
+            },
+            latency_ms: if t.got > 0 {
+                1000.0 * t.delay_s / t.got as f64
+            } else {
+                0.0
+            },
+            last_heard_s: last,
+            live: last.is_some_and(|s| s < SILENCE.as_secs_f64()),
+        };
+        t.got = 0;
+        t.delay_s = 0.0;
+    }
+    let pick = tallies
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| t.health.live)
+        .min_by(|a, b| a.1.health.loss_pct.total_cmp(&b.1.health.loss_pct))
+        .map_or(0, |(i, _)| i);
+    best.store(pick, Relaxed);
+    // The links' own counters of what never made a message, summed.
+    let sum = |f: fn(&IngestStats) -> &std::sync::atomic::AtomicU64| {
+        tallies
+            .iter()
+            .map(|t| f(&t.stats).load(Relaxed))
+            .sum::<u64>()
+    };
+    stats.frames_bad.store(sum(|s| &s.frames_bad), Relaxed);
+    stats.unknown.store(sum(|s| &s.unknown), Relaxed);
+    stats.junk_bytes.store(sum(|s| &s.junk_bytes), Relaxed);
+    stats.signed_ok.store(sum(|s| &s.signed_ok), Relaxed);
+    stats
+        .signature_bad
+        .store(sum(|s| &s.signature_bad), Relaxed);
+    stats
+        .signature_replay
+        .store(sum(|s| &s.signature_replay), Relaxed);
+    stats
+        .unsigned_refused
+        .store(sum(|s| &s.unsigned_refused), Relaxed);
+    stats.silences.store(sum(|s| &s.silences), Relaxed);
+    stats.silent.store(
+        tallies.iter().all(|t| t.stats.silent.load(Relaxed)),
+        Relaxed,
+    );
+    if let Ok(mut g) = stats.links.lock() {
+        *g = tallies.iter().map(|t| t.health.clone()).collect();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn h(sys: u32, comp: u8, seq: u8) -> mavlink::MavHeader {
+        mavlink::MavHeader {
+            system_id: sys,
+            component_id: comp,
+            sequence: seq,
+        }
+    }
+
+    #[test]
+    fn a_copy_within_the_window_is_a_duplicate_and_nothing_else_is() {
+        let mut d = Dedup::default();
+        assert_eq!(d.hear(0.0, &h(1, 1, 7), 0), Heard::First { gap: false });
+        // The same frame from the other radio, 40 ms later.
+        assert_eq!(d.hear(0.04, &h(1, 1, 7), 0), Heard::Duplicate);
+        // Another message with the same numbers (another sender's stream): not a copy.
+        assert_eq!(d.hear(0.05, &h(1, 1, 7), 33), Heard::First { gap: true });
+        assert_eq!(d.hear(0.05, &h(1, 2, 7), 0), Heard::First { gap: false });
+        // The next frame; then one after a lost one.
+        assert_eq!(d.hear(0.1, &h(1, 1, 8), 30), Heard::First { gap: false });
+        assert_eq!(d.hear(0.2, &h(1, 1, 10), 30), Heard::First { gap: true });
+        // The sequence wrapped and the number came round again: new, not a copy.
+        assert_eq!(
+            d.hear(0.04 + DEDUP_WINDOW_S, &h(1, 1, 7), 0),
+            Heard::First { gap: true }
+        );
+    }
+}
