@@ -29,6 +29,14 @@ pub struct CircuitParams {
     pub bias_v: f64,
     /// RLS forgetting factor per accepted sample.
     pub lambda: f64,
+    /// How a resistance learned in flight relaxes back toward this circuit's as the pack
+    /// warms on, in the forecast: the learned excess (RLS R0 over `r0`, minus 1) shrinks by
+    /// exp(−Q/`relax_heat`), Q = ∫I²dt since the forecast started (A²·s; infinite: it holds).
+    /// A cold pack's resistance keeps falling faster than the heat term says. Default
+    /// 1e5 A²·s (about 4 min at 20 A), chosen by nested 5-fold by-flight CV on the M100
+    /// training flights: the half-time lowest-voltage error 0.112 → 0.100 V
+    /// (`scripts/battery/NOTES-min-voltage.md`).
+    pub relax_heat: f64,
 }
 
 impl Default for CircuitParams {
@@ -43,6 +51,7 @@ impl Default for CircuitParams {
             tau_heat_s: 600.0,
             bias_v: -0.0226429840582387,
             lambda: 0.995,
+            relax_heat: 1e5,
         }
     }
 }
