@@ -134,12 +134,12 @@ def battery_params(r):
         "tau_heat_s": ("τh, heat proxy time constant", "s"),
         "bias_v": ("b, loaded-voltage offset", "V"),
         "lambda": ("RLS forgetting factor", ""),
-        "relax_heat_a2s": ("a learned resistance's excess relaxes over ∫I²dt of", "A²·s"),
+        "relax_heat_a2s": ("what the RLS learned relaxes over ∫I²dt of (none: off)", "A²·s"),
     }
     rows = []
     for k, v in p.items():
         label, unit = names.get(k, (k, ""))
-        val = str(v) if isinstance(v, int) else f"{v:.6g}"
+        val = str(v) if isinstance(v, int) else ("off" if v is None else f"{v:.6g}")
         rows.append([label, f"`{k}`", val, unit])
     md += table(["parameter", "JSON", "value", "unit"], rows)
     cv, ce = r.get("curve_v_cell", []), r.get("curve_energy_wh", [])

@@ -104,6 +104,16 @@ TARGETS = {
         lambda f: num(f["preflight_plan_min_v_err"]),
         lambda f: num(f["preflight_plan_sag_v"]),
     ),
+    "pre-flight, plan power, raw (no sag term)": (
+        lambda f: num(f["preflight_plan_v_min_smooth"]) is not None and num(f["measured_min_v"]) is not None
+        and f["preflight_plan_v_min_smooth"] - f["measured_min_v"] or None,
+        lambda f: num(f["preflight_plan_sag_v"]),
+    ),
+    "half time, plan's rest, raw": (
+        lambda f: num(f.get("halftime_plan_v_min_smooth")) is not None and num(f.get("halftime_measured_min_v")) is not None
+        and f["halftime_plan_v_min_smooth"] - f["halftime_measured_min_v"] or None,
+        lambda f: num(f.get("halftime_plan_sag_v")),
+    ),
     "pre-flight, measured power": (
         lambda f: num(f["preflight_min_v_err"]),
         lambda f: num(f["preflight_sag_v"]),

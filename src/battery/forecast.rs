@@ -57,9 +57,9 @@ pub struct Step {
 /// M100 training flights, the plan's power as `plan-eval` builds it: median |error| of the
 /// lowest loaded voltage 0.465 → 0.261 V).
 pub const SAG_PREFLIGHT: f64 = 0.24;
-/// The same from a state in flight (from half time along the rest of the plan: 0.523 →
-/// 0.162 V in CV).
-pub const SAG_IN_FLIGHT: f64 = 0.34;
+/// The same from a state in flight (from half time along the rest of the plan: 0.547 →
+/// 0.134 V in CV).
+pub const SAG_IN_FLIGHT: f64 = 0.32;
 
 /// A step's voltage with its sag below the open-circuit voltage deepened by `frac` (the
 /// transients a smooth power forecast lacks): `v − frac·(ocv − v)`.
@@ -90,7 +90,7 @@ pub fn steps(
     let mut s = state.clone();
     let p = s.p;
     let [r0, r1, b] = s.theta;
-    // the learned excess over the start circuit, relaxing as the pack warms on
+    // what the RLS learned beyond the start circuit, relaxing as the pack warms on
     let m0 = if p.r0 > 0.0 { r0 / p.r0 } else { 1.0 };
     let mut q2 = 0.0;
     let relax = p.relax_heat.is_finite() && p.relax_heat > 0.0 && m0.is_finite() && m0 > 0.0;
@@ -108,7 +108,16 @@ pub fn steps(
             } else {
                 1.0
             };
-            let (r0, r1) = (r0 * g, r1 * g);
+            // the offset b relaxes with them: the RLS trades R against b
+            let (r0, r1, b) = if relax {
+                (
+                    r0 * g,
+                    r1 * g,
+                    p.bias_v + (b - p.bias_v) * (-q2 / p.relax_heat).exp(),
+                )
+            } else {
+                (r0, r1, b)
+            };
             let e1 = (-dt / p.tau1_s).exp();
             let c = s.ocv() - b - r1 * s.x1 * e1;
             let re = (f * r0 + r1 * f * (1.0 - e1)).max(1e-6);

@@ -28,10 +28,9 @@
 //!
 //! The online estimator runs a 3×3 RLS with forgetting on θ = [R0, R1, b], so warm-up,
 //! ageing and OCV offsets are tracked in flight. The forecast solves P = V·I (a quadratic
-//! in I) each step. In a forecast, a resistance the RLS learned relaxes back toward the start
-//! circuit's as the pack warms on ([`CircuitParams::relax_heat`]), and the lowest point of a
-//! smooth power forecast is deepened by the transients it lacks ([`forecast::dip`]).
-//! Both were chosen by by-flight CV on the training flights (`scripts/battery/NOTES-min-voltage.md`).
+//! in I) each step. The lowest point of a smooth power forecast is deepened by the
+//! transients it lacks ([`forecast::dip`]; chosen by by-flight CV on the training flights,
+//! `scripts/battery/NOTES-min-voltage.md`).
 
 pub mod chemistry;
 pub mod circuit;

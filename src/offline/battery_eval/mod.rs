@@ -156,7 +156,8 @@ pub struct ParamsOut {
     pub tau_heat_s: f64,
     pub bias_v: f64,
     pub lambda: f64,
-    pub relax_heat_a2s: f64,
+    /// `None`: off (infinite).
+    pub relax_heat_a2s: Option<f64>,
 }
 
 fn abs_median<'a>(fl: &'a [&'a FlightFigures], f: impl Fn(&FlightFigures) -> f64 + 'a) -> f64 {
@@ -343,12 +344,12 @@ pub fn battery_eval(
             tau_heat_s: params.tau_heat_s,
             bias_v: params.bias_v,
             lambda: params.lambda,
-            relax_heat_a2s: params.relax_heat,
+            relax_heat_a2s: params.relax_heat.is_finite().then_some(params.relax_heat),
         },
         curve_v_cell: crate::battery::ocv::TB48D_V.to_vec(),
         curve_energy_wh: crate::battery::ocv::TB48D_E_WH.to_vec(),
         relax,
-        heat_carry_over: "from the previous flight on the same pack (consecutive flight, same date, start ≤ 25 min later, rest voltages consistent), decayed over the gap; so is the pack's resistance scale k, R·(1 + 0.555·(k − 1)); a resistance learned in flight relaxes toward the start circuit's over the forecast, exp(−∫I²dt / 1e5 A²·s)".into(),
+        heat_carry_over: "from the previous flight on the same pack (consecutive flight, same date, start ≤ 25 min later, rest voltages consistent), decayed over the gap; so is the pack's resistance scale k, R·(1 + 0.555·(k − 1))".into(),
         power_profile: format!(
             "pre-flight along the plan as plan-eval builds it (route flights: {} training, {} test), the smooth path's sag deepened by {SAG_PREFLIGHT} (from half time {SAG_IN_FLIGHT}) for the transients it lacks; the rows marked 'measured power' are given the flight's own measured power (a perfect power forecast: the pack model alone, no sag term)",
             train.n_plan, test.n_plan

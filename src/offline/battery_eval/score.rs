@@ -87,6 +87,8 @@ pub struct FlightFigures {
     /// From half time along the rest of the plan (its power × the live factor): the lowest
     /// loaded voltage (V), its sag (V), the error with the sag term (V).
     pub halftime_plan_v_min_smooth: f64,
+    /// The measured lowest loaded voltage after half time (V).
+    pub halftime_measured_min_v: f64,
     pub halftime_plan_sag_v: f64,
     pub halftime_plan_min_v_err: f64,
     pub halftime_k_err: f64,
@@ -207,6 +209,7 @@ pub fn score_flight(
         &mut o.halftime_sag_v,
         &mut o.halftime_k_err,
         &mut o.halftime_plan_v_min_smooth,
+        &mut o.halftime_measured_min_v,
         &mut o.halftime_plan_sag_v,
         &mut o.halftime_plan_min_v_err,
         &mut o.halftime_s,
@@ -322,6 +325,7 @@ pub fn score_flight(
             .filter(|&n| m[n])
             .map(|n| vg[n])
             .fold(f64::INFINITY, f64::min);
+        o.halftime_measured_min_v = rest_min_v;
         o.halftime_relax_err = RELAX_GRID
             .iter()
             .map(|&h| {
