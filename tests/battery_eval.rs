@@ -1,7 +1,8 @@
 //! `dronewatt battery-eval` on the real M100 data set: the pack model's resting-voltage
 //! energy and end-voltage figures meet their targets on the test flights, the model beats
 //! the autopilots' rules by a wide margin, and the JSON and the plot are written.
-//! Skipped (with a message) when the data set is absent. About a second in a dev build.
+//! Skipped (with a message) when the data set is absent. About 10 s in a dev build (the
+//! pre-flight plans of the route flights are built and forecast as `plan-eval` does).
 
 use std::process::Command;
 
