@@ -75,9 +75,11 @@ BATTERY_ROWS = [
     ("loaded V RMSE, open loop, I > 3 A (V)", "ecm_median_rmse_v", 3, "measured V"),
     ("loaded V RMSE, online estimator, one-step a-priori (V)", "online_onestep_rmse_v", 3, "measured V"),
     ("loaded V RMSE, online, 10 s ahead with measured current (V)", "online_10s_rmse_v", 3, "measured V"),
+    ("lowest loaded V, pre-flight, the plan's power (V)", "preflight_plan_min_v_mae", 3, "measured lowest V (I > 3 A)"),
     ("lowest loaded V, pre-flight, measured power (V)", "preflight_min_v_mae", 3, "measured lowest V (I > 3 A)"),
     ("lowest loaded V, pre-flight, 5-s-averaged power (V)", "preflight_ma5_min_v_mae", 3, "measured lowest V (I > 3 A)"),
     ("lowest loaded V from half time, measured power (V)", "halftime_min_v_mae", 3, "measured lowest V after half time"),
+    ("lowest loaded V from half time, the plan's rest (V)", "halftime_plan_min_v_mae", 3, "measured lowest V after half time"),
     ("first 3.5 V/cell crossing from half time (s)", "cross35_halftime_mae_s", 1, "measured first crossing (I > 3 A)"),
     ("first 3.5 V/cell crossing, pre-flight (s)", "cross35_preflight_mae_s", 1, "measured first crossing (I > 3 A)"),
     ("rest V read at the last in-flight sample, ours (V)", "rest_under_load_ours_mae_v", 3, "end rest V (relaxation-corrected)"),
@@ -132,11 +134,12 @@ def battery_params(r):
         "tau_heat_s": ("τh, heat proxy time constant", "s"),
         "bias_v": ("b, loaded-voltage offset", "V"),
         "lambda": ("RLS forgetting factor", ""),
+        "relax_heat_a2s": ("what the RLS learned relaxes over ∫I²dt of (none: off)", "A²·s"),
     }
     rows = []
     for k, v in p.items():
         label, unit = names.get(k, (k, ""))
-        val = str(v) if isinstance(v, int) else f"{v:.6g}"
+        val = str(v) if isinstance(v, int) else ("off" if v is None else f"{v:.6g}")
         rows.append([label, f"`{k}`", val, unit])
     md += table(["parameter", "JSON", "value", "unit"], rows)
     cv, ce = r.get("curve_v_cell", []), r.get("curve_energy_wh", [])

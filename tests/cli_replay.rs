@@ -423,12 +423,18 @@ fn a_half_used_pack_replays_well_under_full_from_its_resting_voltage() {
         mid["battery_v_model"].as_f64().unwrap(),
     );
     assert!((v - m).abs() < 0.5, "measured {v} V, modelled {m} V");
-    // The lowest forecast for the rest of the flight is a loaded voltage near the one now
-    // (at the smoothed forecast power, not this moment's), far under the resting voltage.
+    // The lowest forecast for the rest of the flight is under the voltage now and near the
+    // lowest the flight then measured (the smooth forecast's sag deepened by the transients
+    // it lacks, battery::forecast::dip): 20.15 V forecast, 20.42 V measured at 1 Hz.
+    let k = flying.len() / 2;
+    let measured_low = flying[k..]
+        .iter()
+        .filter_map(|l| l["battery_v"].as_f64())
+        .fold(f64::INFINITY, f64::min);
     assert!(
         mid["v_min_forecast_v"]
             .as_f64()
-            .is_some_and(|lo| (lo - v).abs() < 0.6 && lo < 22.5),
-        "{mid}"
+            .is_some_and(|lo| (lo - measured_low).abs() < 0.4 && lo < v),
+        "measured lowest {measured_low} V: {mid}"
     );
 }

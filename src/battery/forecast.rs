@@ -6,6 +6,17 @@
 //! i.e. R·I² − C·I + P = 0, taking the smaller root (the stable operating point).
 //! If C² < 4·R·P the pack cannot deliver P: the current is set to the maximum-power point
 //! C/(2R) and `power_limited` is set.
+//!
+//! **The lowest voltage of a smooth forecast.** A power forecast (the plan's, or a constant
+//! power) is smooth; the measured voltage dips lower under the short power transients it
+//! lacks (gusts, manoeuvres, the controller's corrections). The forecast of the *measured*
+//! lowest voltage is therefore the forecast path's lowest point with its sag below the
+//! open-circuit voltage deepened by a fraction ([`dip`]): [`SAG_PREFLIGHT`] from a state at
+//! rest before take-off, [`SAG_IN_FLIGHT`] from a state in flight. Both were chosen by 5-fold
+//! by-flight cross-validation on the M100 training flights (`scripts/battery/lab_minv.py`,
+//! `scripts/battery/NOTES-min-voltage.md`). Crossing times are those of the smooth path: the
+//! autopilots' low-voltage failsafes act on a filtered voltage held under the threshold for
+//! seconds, not on a transient.
 
 use super::circuit::Estimator;
 
@@ -37,6 +48,36 @@ pub struct Step {
     pub v: f64,
     pub energy: f64,
     pub power_limited: bool,
+    /// The open-circuit voltage after the step (V): `ocv − v` is the step's sag.
+    pub ocv: f64,
+}
+
+/// The measured lowest voltage dips under a smooth forecast's lowest point by this fraction
+/// of the forecast's sag there, from a state at rest before take-off (by-flight CV on the
+/// M100 training flights, the plan's power as `plan-eval` builds it: median |error| of the
+/// lowest loaded voltage 0.465 → 0.261 V).
+pub const SAG_PREFLIGHT: f64 = 0.24;
+/// The same from a state in flight (from half time along the rest of the plan: 0.547 →
+/// 0.134 V in CV).
+pub const SAG_IN_FLIGHT: f64 = 0.32;
+
+/// A step's voltage with its sag below the open-circuit voltage deepened by `frac` (the
+/// transients a smooth power forecast lacks): `v − frac·(ocv − v)`.
+pub fn dip(s: &Step, frac: f64) -> f64 {
+    s.v - frac * (s.ocv - s.v).max(0.0)
+}
+
+/// The step with the lowest [`dip`] (a smooth forecast's lowest measured voltage), and that
+/// voltage; `None` for an empty profile.
+pub fn lowest_dip(
+    state: &Estimator,
+    profile: impl IntoIterator<Item = (f64, f64)>,
+    frac: f64,
+) -> Option<(Step, f64)> {
+    steps(state, profile)
+        .map(|s| (s, dip(&s, frac)))
+        .filter(|(_, v)| v.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 /// The steps of flying `profile` = [(dt_s, power_w)] from the estimator's present state (not
@@ -49,6 +90,10 @@ pub fn steps(
     let mut s = state.clone();
     let p = s.p;
     let [r0, r1, b] = s.theta;
+    // what the RLS learned beyond the start circuit, relaxing as the pack warms on
+    let m0 = if p.r0 > 0.0 { r0 / p.r0 } else { 1.0 };
+    let mut q2 = 0.0;
+    let relax = p.relax_heat.is_finite() && p.relax_heat > 0.0 && m0.is_finite() && m0 > 0.0;
     let mut t = 0.0;
     profile
         .into_iter()
@@ -58,6 +103,21 @@ pub fn steps(
             let eh = (-dt / p.tau_heat_s).exp();
             s.heat *= eh;
             let f = 1.0 + p.warm_a * (-s.heat / p.heat_scale).exp();
+            let g = if relax {
+                (1.0 + (m0 - 1.0) * (-q2 / p.relax_heat).exp()) / m0
+            } else {
+                1.0
+            };
+            // the offset b relaxes with them: the RLS trades R against b
+            let (r0, r1, b) = if relax {
+                (
+                    r0 * g,
+                    r1 * g,
+                    p.bias_v + (b - p.bias_v) * (-q2 / p.relax_heat).exp(),
+                )
+            } else {
+                (r0, r1, b)
+            };
             let e1 = (-dt / p.tau1_s).exp();
             let c = s.ocv() - b - r1 * s.x1 * e1;
             let re = (f * r0 + r1 * f * (1.0 - e1)).max(1e-6);
@@ -69,6 +129,7 @@ pub fn steps(
             };
             let v = c - re * i;
             s.heat += i * i * p.tau_heat_s * (1.0 - eh);
+            q2 += i * i * dt;
             s.x1 = s.x1 * e1 + f * i * (1.0 - e1);
             s.energy = (s.energy - v * i * dt / 3600.0).max(0.0);
             t += dt;
@@ -77,6 +138,7 @@ pub fn steps(
                 v,
                 energy: s.energy,
                 power_limited,
+                ocv: s.ocv(),
             }
         })
 }

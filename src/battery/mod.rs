@@ -28,7 +28,9 @@
 //!
 //! The online estimator runs a 3×3 RLS with forgetting on θ = [R0, R1, b], so warm-up,
 //! ageing and OCV offsets are tracked in flight. The forecast solves P = V·I (a quadratic
-//! in I) each step.
+//! in I) each step. The lowest point of a smooth power forecast is deepened by the
+//! transients it lacks ([`forecast::dip`]; chosen by by-flight CV on the training flights,
+//! `scripts/battery/NOTES-min-voltage.md`).
 
 pub mod chemistry;
 pub mod circuit;

@@ -16,7 +16,8 @@
 //!   steps of [`FORECAST_STEP_S`]:
 //!   - the lowest over the rest of the flight, and when: the rest of the mission at its mean
 //!     power when one is known, else the forecast power until the energy left reaches the
-//!     reserve (where a pilot lands);
+//!     reserve (where a pilot lands); the smooth path's sag deepened by the transients it
+//!     lacks ([`crate::battery::forecast::dip`]);
 //!   - the time until it crosses the low threshold (the autopilot's `BATT_LOW_VOLT`, else
 //!     3.5 V a cell) flying on at that power (up to [`FORECAST_HORIZON_S`]), and the energy
 //!     usable before it: the remaining energy to the usable floor.
@@ -24,7 +25,9 @@
 //! Nothing here does I/O; a sample with no voltage, a NaN, or a current under −2 A
 //! leaves the state as it was.
 
-use crate::battery::forecast::{constant, first_crossing, steps};
+use crate::battery::forecast::{
+    constant, first_crossing, lowest_dip, SAG_IN_FLIGHT, SAG_PREFLIGHT,
+};
 use crate::battery::{Chemistry, CircuitParams, Estimator, OcvCurve, PackHistory};
 use crate::report::{BatteryFacts, Provenance};
 
@@ -301,11 +304,15 @@ impl Pack {
         let rest_s = horizon
             .unwrap_or(3600.0 * (e_now - reserve_wh) / p)
             .clamp(0.0, FORECAST_HORIZON_S);
-        // The lowest loaded voltage over the rest of the flight, and when.
-        let lowest = steps(est, constant(p, FORECAST_STEP_S, rest_s))
-            .min_by(|a, b| a.v.total_cmp(&b.v))
-            .filter(|s| s.v.is_finite());
-        self.now.v_min_forecast = lowest.map(|s| (s.v, s.t_s));
+        // The lowest loaded voltage over the rest of the flight, and when: the constant
+        // power's path dipped by the transients it lacks (battery::forecast::dip).
+        let frac = if self.flown {
+            SAG_IN_FLIGHT
+        } else {
+            SAG_PREFLIGHT
+        };
+        let lowest = lowest_dip(est, constant(p, FORECAST_STEP_S, rest_s), frac);
+        self.now.v_min_forecast = lowest.map(|(s, v)| (v, s.t_s));
         // Flying on at that power, stopping where it crosses the low threshold.
         let on = first_crossing(est, constant(p, FORECAST_STEP_S, FORECAST_HORIZON_S), low);
         self.now.time_to_low_v_s = on.map(|s| s.t_s);

@@ -116,7 +116,9 @@ struct PackForecast {
     soc_pct: f64,
     /// Energy to the curve's floor at the start, Wh.
     start_wh: f64,
-    /// The lowest loaded voltage, V, when (s from the motors' start) and on which leg.
+    /// The lowest loaded voltage, V, when (s from the motors' start) and on which leg: the
+    /// P50 path's lowest point with the transients it lacks
+    /// ([`crate::battery::forecast::SAG_PREFLIGHT`]).
     v_min_v: f64,
     v_min_at_s: f64,
     v_min_leg: Option<String>,
@@ -409,10 +411,17 @@ fn pack_forecast(
         ),
     };
     let fc = crate::battery::forecast(&est, &profile, &[low_v]);
+    // the lowest measured voltage: the smooth path's sag deepened by the transients it lacks
+    let (v_min_v, v_min_at_s) = crate::battery::forecast::lowest_dip(
+        &est,
+        profile.iter().copied(),
+        crate::battery::forecast::SAG_PREFLIGHT,
+    )
+    .map_or((fc.v_min, fc.t_v_min), |(st, v)| (v, st.t_s));
     let v_min_leg = tr
         .legs
         .iter()
-        .find(|l| l.t_end_s >= fc.t_v_min)
+        .find(|l| l.t_end_s >= v_min_at_s)
         .map(|l| l.label.clone());
     Ok(PackForecast {
         rest_v,
@@ -420,8 +429,8 @@ fn pack_forecast(
         chemistry: battery.chemistry.value.clone(),
         soc_pct: 100.0 * curve.soc(per_cell),
         start_wh: est.energy_wh(),
-        v_min_v: fc.v_min,
-        v_min_at_s: fc.t_v_min,
+        v_min_v,
+        v_min_at_s,
         v_min_leg,
         landing_v: fc.v_end,
         low_v,

@@ -60,6 +60,9 @@ struct StoreNews {
     forecast: Option<(String, String)>,
     /// What the vehicle's last flight left of its pack.
     pack: Option<crate::battery::PackHistory>,
+    /// A replayed log's first stamp, Unix s (reports' times count from it): the flight's end
+    /// on the log's clock for the store.
+    log_origin_s: Option<f64>,
 }
 
 /// The running stages of one [`VehicleChain`].
@@ -333,8 +336,11 @@ async fn telemetry_stage(
                                 mem.vehicle,
                                 mem.rebuild.clone(),
                             );
+                            // a replayed log's clock: its first stamp + the time since
+                            let origin = status.stats.log_origin_s();
+                            let now_log_s = origin.map(|o| o + m.t_s);
                             tokio::task::spawn_blocking(move || {
-                                let learned = crate::vehicle::store::lookup(&dir, &id);
+                                let learned = crate::vehicle::store::lookup(&dir, &id, now_log_s);
                                 // The profile `learn` kept for it (no profile configured).
                                 let (models, forecast) = learned_models(&learned, rebuild.as_ref());
                                 // The store's news first: an estimate made with the warm
@@ -343,6 +349,7 @@ async fn telemetry_stage(
                                     capacity: learned.capacity_wh,
                                     forecast,
                                     pack: learned.pack,
+                                    log_origin_s: origin,
                                 });
                                 let _ =
                                     warm.send((vehicle, WarmStart::Ready(learned.fits, models)));
@@ -431,6 +438,7 @@ async fn energy_stage(
             let news = learned.borrow_and_update().clone();
             energy.set_learned_capacity(news.capacity);
             energy.set_pack_history(news.pack);
+            flight.set_log_origin(news.log_origin_s);
             if let Some((model, why)) = news.forecast {
                 energy.set_default_model(&model, &why);
             }

@@ -67,6 +67,20 @@ pub struct IngestStats {
     pub duplicates: AtomicU64,
     /// Several links: each link's health, refreshed about once a second (empty with one).
     pub links: std::sync::Mutex<Vec<LinkHealth>>,
+    /// A recorded log's first timestamp, µs since the Unix epoch (0: none, or not a Unix
+    /// clock): messages' times count from it. The vehicle store measures the gap between two
+    /// replayed flights on it.
+    pub log_origin_us: AtomicU64,
+}
+
+impl IngestStats {
+    /// [`Self::log_origin_us`] in seconds, when it is a Unix time.
+    pub fn log_origin_s(&self) -> Option<f64> {
+        let us = self
+            .log_origin_us
+            .load(std::sync::atomic::Ordering::Relaxed);
+        crate::vehicle::store::unix_clock(us as f64 * 1e-6)
+    }
 }
 
 /// One link's health when a source reads several (`source::links`): what the summary,

@@ -155,7 +155,16 @@ impl TimedReader {
             ..
         } = self.decoder.next_frame(stats)?;
         let (t_s, jumped) = match &mut self.base {
-            TimeBase::TlogStamp(clock) => clock.map(stamp_us.unwrap_or(0) as f64 * 1e-6),
+            TimeBase::TlogStamp(clock) => {
+                // the first stamp is the log's origin (its Unix time, for the vehicle store)
+                let _ = stats.log_origin_us.compare_exchange(
+                    0,
+                    stamp_us.unwrap_or(0),
+                    std::sync::atomic::Ordering::Relaxed,
+                    std::sync::atomic::Ordering::Relaxed,
+                );
+                clock.map(stamp_us.unwrap_or(0) as f64 * 1e-6)
+            }
             TimeBase::BootTime { clock, owner, now } => {
                 let mut jumped = false;
                 if let Some(ms) = super::raw::boot_time_ms(&msg) {

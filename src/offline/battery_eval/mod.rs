@@ -9,9 +9,11 @@
 //!   end rest V from the start rest V and the measured energy, V;
 //! - loaded-voltage RMSE on rows with I > 3 A: open loop (current in, voltage out) and the
 //!   online estimator (one step a-priori; 10 s ahead with the measured current), V;
-//! - lowest loaded voltage forecast pre-flight and from half the airborne time, and the
-//!   first 3.5 V/cell crossing, given the flight's **measured** power profile (a perfect
-//!   power forecast: this isolates the pack model from the power model);
+//! - lowest loaded voltage forecast pre-flight **along the plan** as `plan-eval` builds it
+//!   (route flights; [`plan`]) from the start resting voltage, with the sag term of
+//!   [`crate::battery::forecast::dip`]; beside it, and from half the airborne time, the same
+//!   given the flight's **measured** power profile (a perfect power forecast: this isolates
+//!   the pack model from the power model), and the first 3.5 V/cell crossing;
 //! - baselines: PX4's linear rules (3.6 and older 3.5 → 4.05 V/cell, × 129.96 Wh rated,
 //!   5 mΩ/cell load compensation, τ = 1 s), "full pack at take-off", ArduPilot (full at
 //!   boot, mAh counting; resting V = V + I·R). Each row of the table names its truth.
@@ -20,6 +22,7 @@
 //! with that flight's heat proxy, decayed over the gap (dates/times from `flights.csv`,
 //! which carries parameters.csv's), as in fit.py.
 
+pub mod plan;
 pub mod prep;
 pub mod score;
 
@@ -29,6 +32,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
+use crate::battery::forecast::{SAG_IN_FLIGHT, SAG_PREFLIGHT};
 use crate::battery::{forecast, CircuitParams, OcvCurve, PACK_SCALE_CARRY};
 use crate::offline::data::TEST_FLIGHTS;
 use crate::source::dataset;
@@ -44,7 +48,7 @@ pub const TARGETS: [(&str, f64); 5] = [
     ("ocv_energy_mae_wh", 1.0),
     ("ocv_end_v_mae_v", 0.05),
     ("ecm_median_rmse_v", 0.20),
-    ("preflight_min_v_mae", 0.30),
+    ("preflight_plan_min_v_mae", 0.30),
     ("halftime_min_v_mae", 0.15),
 ];
 
@@ -63,6 +67,13 @@ pub struct BatteryEvalArgs {
     /// Write a PNG of one test flight: measured and open-loop loaded voltage, and the forecast from half time.
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
+    /// Calibrated vehicle profile for the pre-flight plan's power (`plan-eval`'s models).
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "config/vehicles/m100-calibrated.toml"
+    )]
+    pub calibrated: PathBuf,
 }
 
 /// Medians over one set of flights (names as in fit.py's results.json).
@@ -83,7 +94,13 @@ pub struct SetSummary {
     pub online_10s_rmse_v: f64,
     pub preflight_min_v_mae: f64,
     pub preflight_ma5_min_v_mae: f64,
+    /// Route flights with a plan scored under load, and the median |error| of the lowest
+    /// loaded voltage forecast pre-flight along the plan (`plan-eval`'s power), V.
+    pub n_plan: usize,
+    pub preflight_plan_min_v_mae: f64,
     pub halftime_min_v_mae: f64,
+    /// From half time along the rest of the plan (× the live factor), V.
+    pub halftime_plan_min_v_mae: f64,
     /// Flights that cross 3.5 V/cell under load; median |error| over those where a crossing
     /// was forecast; how many crossings were not forecast at all.
     pub n_cross: usize,
@@ -139,6 +156,8 @@ pub struct ParamsOut {
     pub tau_heat_s: f64,
     pub bias_v: f64,
     pub lambda: f64,
+    /// `None`: off (infinite).
+    pub relax_heat_a2s: Option<f64>,
 }
 
 fn abs_median<'a>(fl: &'a [&'a FlightFigures], f: impl Fn(&FlightFigures) -> f64 + 'a) -> f64 {
@@ -178,7 +197,13 @@ fn summarise(fl: &[&FlightFigures]) -> SetSummary {
         online_10s_rmse_v: m(|f| f.online_10s_rmse_v),
         preflight_min_v_mae: m(|f| f.preflight_min_v_err),
         preflight_ma5_min_v_mae: m(|f| f.preflight_ma5_min_v_err),
+        n_plan: ecm
+            .iter()
+            .filter(|f| f.preflight_plan_min_v_err.is_finite())
+            .count(),
+        preflight_plan_min_v_mae: m(|f| f.preflight_plan_min_v_err),
         halftime_min_v_mae: m(|f| f.halftime_min_v_err),
+        halftime_plan_min_v_mae: m(|f| f.halftime_plan_min_v_err),
         n_cross: cross.len(),
         cross35_preflight_mae_s: abs_median(&cross, |f| f.cross35_preflight_err_s),
         cross35_preflight_missed: cross.iter().filter(|f| f.cross35_preflight_missed).count(),
@@ -230,6 +255,7 @@ fn relax_check(all: &[Prepared]) -> RelaxCheck {
 pub fn battery_eval(
     data: &Path,
     only: Option<&[u32]>,
+    calibrated: &Path,
 ) -> anyhow::Result<(BatteryEvalReport, Vec<Prepared>, HashMap<u32, Traces>)> {
     let ds = dataset::read_flights(data, None)
         .with_context(|| format!("{}: cannot read the data set", data.display()))?;
@@ -248,6 +274,7 @@ pub fn battery_eval(
         .iter()
         .map(|f| prepare(f, TEST_FLIGHTS.contains(&f.flight)))
         .collect();
+    let plans = plan::plan_powers(&ds.flights, calibrated)?;
     drop(ds);
     link_chains(&mut all);
     for p in all.iter_mut().filter(|p| p.ecm_ok()) {
@@ -284,7 +311,7 @@ pub fn battery_eval(
         // The pack's resistance as its previous flight showed it, when there was one.
         let k_prev = previous_pack_scale(p.flight, &by_id, &prev, params, &curve, &mut cache);
         let flight_params = k_prev.map_or(params, |k| params.carried_over(k, PACK_SCALE_CARRY));
-        let (mut f, tr) = score_flight(p, h0, flight_params, &curve);
+        let (mut f, tr) = score_flight(p, h0, flight_params, &curve, plans.get(&p.flight));
         f.k_prev = k_prev;
         if f.ecm_rmse_v.is_finite() || f.ocv_energy_err_wh.is_finite() {
             traces.insert(p.flight, tr);
@@ -317,12 +344,16 @@ pub fn battery_eval(
             tau_heat_s: params.tau_heat_s,
             bias_v: params.bias_v,
             lambda: params.lambda,
+            relax_heat_a2s: params.relax_heat.is_finite().then_some(params.relax_heat),
         },
         curve_v_cell: crate::battery::ocv::TB48D_V.to_vec(),
         curve_energy_wh: crate::battery::ocv::TB48D_E_WH.to_vec(),
         relax,
         heat_carry_over: "from the previous flight on the same pack (consecutive flight, same date, start ≤ 25 min later, rest voltages consistent), decayed over the gap; so is the pack's resistance scale k, R·(1 + 0.555·(k − 1))".into(),
-        power_profile: "forecasts are given the flight's own measured power (a perfect power forecast)".into(),
+        power_profile: format!(
+            "pre-flight along the plan as plan-eval builds it (route flights: {} training, {} test), the smooth path's sag deepened by {SAG_PREFLIGHT} (from half time {SAG_IN_FLIGHT}) for the transients it lacks; the rows marked 'measured power' are given the flight's own measured power (a perfect power forecast: the pack model alone, no sag term)",
+            train.n_plan, test.n_plan
+        ),
         targets: TARGETS.iter().map(|(k, v)| ((*k).to_string(), *v)).collect(),
         train,
         test,
@@ -441,8 +472,15 @@ pub fn table(r: &BatteryEvalReport) -> String {
         "measured V",
     );
     row(
+        "lowest loaded V, pre-flight, the plan's power (V)",
+        "preflight_plan_min_v_mae",
+        a.preflight_plan_min_v_mae,
+        b.preflight_plan_min_v_mae,
+        "measured lowest V (I > 3 A)",
+    );
+    row(
         "lowest loaded V, pre-flight, measured power (V)",
-        "preflight_min_v_mae",
+        "",
         a.preflight_min_v_mae,
         b.preflight_min_v_mae,
         "measured lowest V (I > 3 A)",
@@ -459,6 +497,13 @@ pub fn table(r: &BatteryEvalReport) -> String {
         "halftime_min_v_mae",
         a.halftime_min_v_mae,
         b.halftime_min_v_mae,
+        "measured lowest V after half time",
+    );
+    row(
+        "lowest loaded V from half time, the plan's rest (V)",
+        "",
+        a.halftime_plan_min_v_mae,
+        b.halftime_plan_min_v_mae,
         "measured lowest V after half time",
     );
     row(
@@ -541,7 +586,7 @@ fn plot(path: &Path, p: &Prepared, tr: &Traces) -> anyhow::Result<()> {
 /// `dronewatt battery-eval`.
 pub fn run(a: BatteryEvalArgs) -> anyhow::Result<()> {
     let data = a.data.clone().unwrap_or_else(crate::default_data_path);
-    let (report, all, traces) = battery_eval(&data, a.flights.as_deref())?;
+    let (report, all, traces) = battery_eval(&data, a.flights.as_deref(), &a.calibrated)?;
     if let Some(png) = &a.plot {
         let pick = report.test_flights.first().or_else(|| {
             report

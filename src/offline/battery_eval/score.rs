@@ -2,8 +2,10 @@
 //! the same definitions as fit.py's `evaluate` (signed errors here; the summary takes the
 //! median of their absolute values). Volts are pack volts (6S) unless a name says cell.
 
+use crate::battery::forecast::{lowest_dip, steps, SAG_IN_FLIGHT, SAG_PREFLIGHT};
 use crate::battery::{forecast, CircuitParams, Estimator, OcvCurve};
 
+use super::plan::PlanPower;
 use super::prep::{Prepared, DT};
 
 /// Cells in series (TB48D: 6S).
@@ -13,6 +15,8 @@ pub const RATED_WH: f64 = 129.96;
 pub const RATED_AH: f64 = 5.7;
 /// The 3.5 V/cell threshold under load, V pack.
 pub const THR_V: f64 = NC * 3.5;
+/// `relax_heat` values the lab scores (A²·s).
+pub const RELAX_GRID: [f64; 8] = [f64::INFINITY, 1.6e6, 8e5, 4e5, 2e5, 1e5, 5e4, 2.5e4];
 /// Rows with more current than this are "in flight" for loaded-voltage errors, A.
 pub const IN_FLIGHT_A: f64 = 3.0;
 
@@ -62,6 +66,32 @@ pub struct FlightFigures {
     pub preflight_min_v_err: f64,
     pub preflight_ma5_min_v_err: f64,
     pub halftime_min_v_err: f64,
+    /// Pre-flight from the plan (route flights, [`super::plan`]): the flight whose track gave
+    /// the waypoints, the planned energy (Wh), the lowest loaded voltage of the pack flown
+    /// along the planned power from the start resting voltage (V), the sag below the
+    /// open-circuit voltage there (V), and the forecast's error once its sag term is added
+    /// (forecast − measured lowest, V).
+    pub plan_geometry_from: Option<u32>,
+    pub plan_energy_wh: f64,
+    pub preflight_plan_v_min_smooth: f64,
+    pub preflight_plan_sag_v: f64,
+    pub preflight_plan_min_v_err: f64,
+    /// The same raw figures with the measured power (the sag below the OCV at the lowest
+    /// forecast step, V) and from half time.
+    pub preflight_sag_v: f64,
+    pub halftime_sag_v: f64,
+    /// Lab (round 3): the half-time lowest-voltage error with the learned resistance relaxing
+    /// toward the start circuit, per `relax_heat` of [`RELAX_GRID`]; and with the first half's
+    /// least-squares resistance scale in place of the RLS estimate.
+    pub halftime_relax_err: Vec<f64>,
+    /// From half time along the rest of the plan (its power × the live factor): the lowest
+    /// loaded voltage (V), its sag (V), the error with the sag term (V).
+    pub halftime_plan_v_min_smooth: f64,
+    /// The measured lowest loaded voltage after half time (V).
+    pub halftime_measured_min_v: f64,
+    pub halftime_plan_sag_v: f64,
+    pub halftime_plan_min_v_err: f64,
+    pub halftime_k_err: f64,
     /// Half time (s from the recording's start) the forecast starts at.
     pub halftime_s: f64,
     /// First 3.5 V/cell crossing under load: measured time (s; NaN if the flight never
@@ -111,6 +141,15 @@ fn moving_average_same(x: &[f64], n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The lowest loaded voltage flying `profile` from `est` (V), and its sag below the
+/// open-circuit voltage there (V); NaN for an empty profile.
+fn lowest(est: &Estimator, profile: impl IntoIterator<Item = (f64, f64)>) -> (f64, f64) {
+    steps(est, profile)
+        .filter(|s| s.v.is_finite())
+        .min_by(|a, b| a.v.total_cmp(&b.v))
+        .map_or((f64::NAN, f64::NAN), |s| (s.v, s.ocv - s.v))
+}
+
 /// Energy-between-rests figures (flights with both rest voltages).
 fn rest_figures(p: &Prepared, curve: &OcvCurve, out: &mut FlightFigures) {
     let (vs, ve) = (p.v_start / NC, p.v_end_rest / NC);
@@ -131,6 +170,7 @@ pub fn score_flight(
     heat0: f64,
     params: CircuitParams,
     curve: &OcvCurve,
+    plan: Option<&PlanPower>,
 ) -> (FlightFigures, Traces) {
     let nan = f64::NAN;
     let mut o = FlightFigures {
@@ -161,6 +201,17 @@ pub fn score_flight(
         &mut o.preflight_min_v_err,
         &mut o.preflight_ma5_min_v_err,
         &mut o.halftime_min_v_err,
+        &mut o.plan_energy_wh,
+        &mut o.preflight_plan_v_min_smooth,
+        &mut o.preflight_plan_sag_v,
+        &mut o.preflight_plan_min_v_err,
+        &mut o.preflight_sag_v,
+        &mut o.halftime_sag_v,
+        &mut o.halftime_k_err,
+        &mut o.halftime_plan_v_min_smooth,
+        &mut o.halftime_measured_min_v,
+        &mut o.halftime_plan_sag_v,
+        &mut o.halftime_plan_min_v_err,
         &mut o.halftime_s,
         &mut o.cross35_measured_s,
         &mut o.cross35_preflight_err_s,
@@ -208,6 +259,18 @@ pub fn score_flight(
     let s0 = new_est();
     let fc = forecast(&s0, &prof, &[THR_V]);
     o.preflight_min_v_err = fc.v_min - o.measured_min_v;
+    o.preflight_sag_v = lowest(&s0, prof.iter().copied()).1;
+    if let Some(pl) = plan {
+        let prof = || pl.power_w.iter().map(|&w| (pl.dt_s, w));
+        let (v, sag) = lowest(&s0, prof());
+        o.plan_geometry_from = Some(pl.geometry_from);
+        o.plan_energy_wh = pl.energy_wh;
+        o.preflight_plan_v_min_smooth = v;
+        o.preflight_plan_sag_v = sag;
+        if let Some((_, v)) = lowest_dip(&s0, prof(), SAG_PREFLIGHT) {
+            o.preflight_plan_min_v_err = v - o.measured_min_v;
+        }
+    }
     let prof5: Vec<(f64, f64)> = moving_average_same(&pw, 50)
         .into_iter()
         .map(|w| (DT, w))
@@ -257,6 +320,39 @@ pub fn score_flight(
         let j = tg.partition_point(|&x| x < tk);
         o.halftime_s = tk;
         let fcm = forecast(&sm, &prof[j..], &[THR_V]);
+        o.halftime_sag_v = lowest(&sm, prof[j..].iter().copied()).1;
+        let rest_min_v = (j..tg.len())
+            .filter(|&n| m[n])
+            .map(|n| vg[n])
+            .fold(f64::INFINITY, f64::min);
+        o.halftime_measured_min_v = rest_min_v;
+        o.halftime_relax_err = RELAX_GRID
+            .iter()
+            .map(|&h| {
+                let mut q = sm.clone();
+                q.p.relax_heat = h;
+                lowest(&q, prof[j..].iter().copied()).0 - rest_min_v
+            })
+            .collect();
+        if let Some(pl) = plan {
+            let rest = || {
+                pl.power_w
+                    .iter()
+                    .skip(pl.live_k + 1)
+                    .map(|&w| (pl.dt_s, w * pl.live_scale))
+            };
+            let (v, sag) = lowest(&sm, rest());
+            o.halftime_plan_v_min_smooth = v;
+            o.halftime_plan_sag_v = sag;
+            if let Some((_, v)) = lowest_dip(&sm, rest(), SAG_IN_FLIGHT) {
+                o.halftime_plan_min_v_err = v - rest_min_v;
+            }
+        }
+        if let Some(k) = sm.pack_scale() {
+            let mut q = sm.clone();
+            q.theta = [q.p.r0 * k, q.p.r1 * k, q.p.bias_v];
+            o.halftime_k_err = lowest(&q, prof[j..].iter().copied()).0 - rest_min_v;
+        }
         let rest_min = (j..tg.len())
             .filter(|&n| m[n])
             .map(|n| vg[n])

@@ -56,6 +56,9 @@ pub struct FlightSummary {
     /// its OCV curve holds between them, % (flights that used at least
     /// [`MIN_SOC_DROP_PCT`] of it).
     pub pack_health_pct: Option<f64>,
+    /// The flight's last report on the source's clock when that is a Unix time (a replayed
+    /// log), s: the gap to the next flight on the same pack is then the logs' own.
+    pub ended_log_s: Option<f64>,
 }
 
 /// The least state-of-charge drop, %, for a flight's pack health (smaller is noise).
@@ -71,6 +74,9 @@ pub struct FlightLog {
     pub(super) power: PowerBins,
     /// Time of the previous report with a measured power.
     last_t: Option<f64>,
+    /// Time of the last report, and the source's time its reports count from.
+    end_t: Option<f64>,
+    log_origin_s: Option<f64>,
     energy_wh: f64,
     pct: Option<(f64, f64)>,
     capacity: Option<(f64, String)>,
@@ -138,9 +144,16 @@ impl PowerBins {
 }
 
 impl FlightLog {
+    /// The source's time at its first message, s: reports' times count from it. When it is a
+    /// Unix time (a replayed log), the flight's end is kept on the log's clock.
+    pub fn set_log_origin(&mut self, t_s: Option<f64>) {
+        self.log_origin_s = t_s;
+    }
+
     /// Take one report in.
     pub fn observe(&mut self, r: &Report) {
         let s = &r.estimate.sample;
+        self.end_t = Some(r.estimate.t_s);
         if let Some(p) = s.measured_w.filter(|p| p.is_finite() && *p >= 0.0) {
             let t = r.estimate.t_s;
             // A report's seconds: since the previous one, at most 1 s (a gap is not flight).
@@ -210,6 +223,12 @@ impl FlightLog {
             internal_r_ohm: pk.internal_r_ohm,
             heat_a2s: pk.heat_a2s,
             pack_health_pct,
+            ended_log_s: self
+                .log_origin_s
+                .and_then(super::unix_clock)
+                .zip(self.end_t)
+                .map(|(a, b)| a + b)
+                .and_then(super::unix_clock),
         })
     }
 }

@@ -158,18 +158,26 @@ CREATE TABLE IF NOT EXISTS profiles (
 ";
 
 /// The schema this build writes (`PRAGMA user_version`): 1 the first stores (no version
-/// set, read as 0), 2 adds each flight's pack (resting voltages, resistance, heat, health).
-pub const SCHEMA_VERSION: i64 = 2;
+/// set, read as 0), 2 adds each flight's pack (resting voltages, resistance, heat, health),
+/// 3 the flight's end on the log's own clock (`ended_log_s`, a replay's).
+pub const SCHEMA_VERSION: i64 = 3;
 
-/// The columns schema 2 adds to `flights`.
-const PACK_COLUMNS: [&str; 6] = [
+/// The columns schemas 2 and 3 add to `flights` (all `REAL`).
+const ADDED_COLUMNS: [&str; 7] = [
     "rest_v_start",
     "rest_v_end",
     "r_scale",
     "internal_r_ohm",
     "heat_a2s",
     "pack_health_pct",
+    "ended_log_s",
 ];
+
+/// A source time that is a Unix time, s (a tlog's or the data set's clock, 2001–2286), not
+/// a time since boot or since the run started.
+pub fn unix_clock(t_s: f64) -> Option<f64> {
+    (t_s.is_finite() && (1e9..1e10).contains(&t_s)).then_some(t_s)
+}
 
 /// Bring an older store up to [`SCHEMA_VERSION`] in one transaction; refuse a newer one (a
 /// later dronewatt wrote it: reading it could lose what that one keeps).
@@ -186,7 +194,7 @@ fn migrate(conn: &Connection) -> Result<()> {
         .query_map([], |r| r.get(0))?
         .collect::<rusqlite::Result<_>>()?;
     let mut sql = String::from("BEGIN;");
-    for c in PACK_COLUMNS
+    for c in ADDED_COLUMNS
         .iter()
         .filter(|c| !have.iter().any(|h| h == *c))
     {
@@ -278,19 +286,32 @@ impl Store {
         Ok(Some((v[v.len() / 2], v.len())))
     }
 
-    /// What the vehicle's last flight left of its pack, for the next flight on it.
-    pub fn pack_history(&self, key: &VehicleKey) -> Result<Option<crate::battery::PackHistory>> {
+    /// What the vehicle's last flight left of its pack, for the next flight on it. The gap
+    /// since that flight is measured on the logs' clock when both runs had one (`now_log_s`,
+    /// this run's source time, and the last flight's end, both Unix times: replays of
+    /// recorded flights), else on the wall clock (a live run).
+    pub fn pack_history(
+        &self,
+        key: &VehicleKey,
+        now_log_s: Option<f64>,
+    ) -> Result<Option<crate::battery::PackHistory>> {
         let row = self
             .conn
             .query_row(
-                "SELECT ended_at, r_scale, heat_a2s, rest_v_end FROM flights WHERE vehicle = ?1 ORDER BY ended_at DESC, id DESC LIMIT 1",
+                "SELECT id, ended_at, r_scale, heat_a2s, rest_v_end, ended_log_s FROM flights WHERE vehicle = ?1 ORDER BY id DESC LIMIT 1",
                 params![key.key],
-                |r| Ok((r.get::<_, i64>(0)?, r.get::<_, Option<f64>>(1)?, r.get::<_, Option<f64>>(2)?, r.get::<_, Option<f64>>(3)?)),
+                |r| Ok((r.get::<_, i64>(1)?, r.get::<_, Option<f64>>(2)?, r.get::<_, Option<f64>>(3)?, r.get::<_, Option<f64>>(4)?, r.get::<_, Option<f64>>(5)?)),
             )
             .optional()?;
         Ok(row.map(
-            |(ended, r_scale, heat, end_rest_v)| crate::battery::PackHistory {
-                gap_s: (now_s() - ended) as f64,
+            |(ended, r_scale, heat, end_rest_v, ended_log)| crate::battery::PackHistory {
+                gap_s: match (
+                    ended_log.and_then(unix_clock),
+                    now_log_s.and_then(unix_clock),
+                ) {
+                    (Some(end), Some(now)) => now - end,
+                    _ => (now_s() - ended) as f64,
+                },
                 r_scale,
                 heat: heat.filter(|h| h.is_finite() && *h >= 0.0).unwrap_or(0.0),
                 end_rest_v,
@@ -319,8 +340,8 @@ impl Store {
         if let Some(f) = flight {
             tx.execute(
                 "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
-                                      rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)",
+                                      rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
                 params![
                     key.key,
                     now,
@@ -336,7 +357,8 @@ impl Store {
                     f.r_scale,
                     f.internal_r_ohm,
                     f.heat_a2s,
-                    f.pack_health_pct
+                    f.pack_health_pct,
+                    f.ended_log_s
                 ],
             )?;
         }
@@ -409,7 +431,7 @@ impl Store {
         let mut out = rows.collect::<rusqlite::Result<Vec<_>>>()?;
         let mut fl = self.conn.prepare(
             "SELECT ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
-                    rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct
+                    rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s
              FROM flights WHERE vehicle = ?1 ORDER BY ended_at, id",
         )?;
         for v in &mut out {
@@ -430,6 +452,7 @@ impl Store {
                         internal_r_ohm: r.get(11)?,
                         heat_a2s: r.get(12)?,
                         pack_health_pct: r.get(13)?,
+                        ended_log_s: r.get(14)?,
                     },
                 })
             })?;
@@ -459,14 +482,16 @@ pub const CAPACITY_FLIGHTS: usize = 3;
 
 /// What earlier flights taught about this vehicle, for the warm start; any store problem is
 /// a warning and nothing learned (the run goes on as a first flight).
-pub fn lookup(dir: &Path, id: &Identity) -> Learned {
+/// `now_log_s`: the source's time now (its clock is used for the gap since the last flight
+/// when it is a Unix time: [`Store::pack_history`]).
+pub fn lookup(dir: &Path, id: &Identity, now_log_s: Option<f64>) -> Learned {
     let key = VehicleKey::of(id);
     let got = Store::open(dir).and_then(|s| {
         Ok(Learned {
             fits: s.learned_fits(&key)?,
             capacity_wh: s.learned_capacity(&key)?,
             profile: s.learned_profile(&key.key)?,
-            pack: s.pack_history(&key)?,
+            pack: s.pack_history(&key, now_log_s)?,
         })
     });
     match got {

@@ -272,7 +272,7 @@ fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
         ..Default::default()
     };
     st.record(&id, None, Some(&pack)).unwrap();
-    let h = st.pack_history(&key).unwrap().expect("a history");
+    let h = st.pack_history(&key, None).unwrap().expect("a history");
     assert_eq!(
         (h.r_scale, h.end_rest_v, h.heat),
         (Some(1.2), Some(23.3), 90_000.0)
@@ -299,4 +299,91 @@ fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
         err.contains("newer dronewatt") || format!("{err:#}").contains("schema"),
         "{err}"
     );
+}
+
+/// A store written by schema 2 (the pack's columns, no log clock) opens, migrates to the
+/// current schema keeping its flights and their packs, and its last flight's gap falls back
+/// to the wall clock.
+#[test]
+fn a_schema_2_store_migrates() {
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
+        conn.execute_batch(SCHEMA).unwrap();
+        for c in &ADDED_COLUMNS[..6] {
+            conn.execute_batch(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"))
+                .unwrap();
+        }
+        conn.execute_batch("PRAGMA user_version = 2").unwrap();
+        conn.execute(
+            "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 'heartbeat', 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
+            [],
+        )
+        .unwrap();
+        let ended = now_s() - 120;
+        conn.execute(
+            "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, rated_capacity_wh, capacity_source, rest_v_start, rest_v_end, r_scale, heat_a2s)
+             VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', ?1, 300, 20, 40, 'default', 12.4, 11.6, 1.1, 5000.0)",
+            params![ended],
+        )
+        .unwrap();
+    }
+    let st = Store::open(dir.path()).expect("a schema 2 store opens");
+    let version: i64 = st
+        .conn
+        .query_row("PRAGMA user_version", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(version, SCHEMA_VERSION);
+    let v = st.vehicles().unwrap();
+    let f = &v[0].flights[0].summary;
+    assert_eq!(
+        (f.rest_v_start, f.rest_v_end, f.r_scale, f.ended_log_s),
+        (Some(12.4), Some(11.6), Some(1.1), None)
+    );
+    let key = VehicleKey::of(&id(None));
+    // no log clock on the old flight: the wall clock's 2 minutes, whatever this run's clock
+    for now in [None, Some(1.7e9)] {
+        let h = st.pack_history(&key, now).unwrap().expect("a history");
+        assert!((115.0..200.0).contains(&h.gap_s), "{h:?}");
+        assert_eq!(h.r_scale, Some(1.1));
+    }
+}
+
+/// Replays measure the gap between two flights on the logs' clock: a flight logged years
+/// ago and replayed now, followed by the replay of the next flight on the same pack, is
+/// 7 minutes before it, not years; a live run (no Unix clock) uses the wall clock.
+#[test]
+fn replays_measure_the_gap_by_log_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut st = Store::open(dir.path()).unwrap();
+    let id = id(None);
+    let key = VehicleKey::of(&id);
+    let logged_end = 1_500_000_000.0; // July 2017
+    let flight = FlightSummary {
+        airborne_s: 400.0,
+        energy_wh: 40.0,
+        rest_v_end: Some(23.3),
+        r_scale: Some(1.3),
+        heat_a2s: Some(80_000.0),
+        ended_log_s: Some(logged_end),
+        ..Default::default()
+    };
+    st.record(&id, None, Some(&flight)).unwrap();
+    let h = st
+        .pack_history(&key, Some(logged_end + 420.0))
+        .unwrap()
+        .expect("a history");
+    assert_eq!(h.gap_s, 420.0);
+    assert!(h.same_pack(23.35, 6), "{h:?}");
+    // the same log replayed before the other (its clock runs backwards): not this pack's next
+    let h = st
+        .pack_history(&key, Some(logged_end - 3600.0))
+        .unwrap()
+        .unwrap();
+    assert!(!h.same_pack(23.35, 6), "{h:?}");
+    // a live run's clock is no Unix time: the wall clock since the record, seconds
+    let h = st.pack_history(&key, Some(35.0)).unwrap().unwrap();
+    assert!((0.0..60.0).contains(&h.gap_s), "{h:?}");
+    assert_eq!(unix_clock(f64::NAN), None);
+    assert_eq!(unix_clock(1.7e9), Some(1.7e9));
 }
