@@ -100,36 +100,28 @@ impl Default for TelemetryConfig {
 impl TelemetryConfig {
     /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
-        if !(self.rate_hz > 0.0 && self.rate_hz <= 100.0) {
-            errs.push(format!(
-                "telemetry.rate_hz = {}: must be in (0, 100] Hz",
-                self.rate_hz
-            ));
-        }
-        if !(1..=1000).contains(&self.window) {
-            errs.push(format!(
-                "telemetry.window = {}: must be 1..=1000 samples",
-                self.window
-            ));
-        }
-        if !(self.stale_after_s > 0.0 && self.stale_after_s.is_finite()) {
-            errs.push(format!(
-                "telemetry.stale_after_s = {}: must be > 0",
-                self.stale_after_s
-            ));
-        }
+        use crate::validate::{above, above_to};
+        let mut errs = crate::validate::Errors::new();
+        errs.range(
+            "telemetry.rate_hz",
+            self.rate_hz,
+            above_to(0.0, 100.0),
+            "Hz",
+        );
+        errs.range("telemetry.window", self.window, 1..=1000, "samples");
+        errs.range(
+            "telemetry.stale_after_s",
+            self.stale_after_s,
+            above(0.0),
+            "s",
+        );
         if !(self.max_gap_s > 1.0 / self.rate_hz && self.max_gap_s.is_finite()) {
             errs.push(format!(
                 "telemetry.max_gap_s = {}: must be longer than one sample period (1/rate_hz)",
                 self.max_gap_s
             ));
         }
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        errs.into_result()
     }
 }
 
