@@ -341,6 +341,24 @@ impl Telemetry {
         self.offer(Signal::Rates, rank, t_us, &rates.map(f64::from));
     }
 
+    /// SCALED_IMU and RAW_IMU: rates in mrad/s and acceleration in mG, offered at
+    /// `(rates rank, acceleration rank)`.
+    fn milli_imu(
+        &mut self,
+        (rates, accel): (usize, usize),
+        t_us: i64,
+        gyro: [i16; 3],
+        acc: [i16; 3],
+    ) {
+        self.offer(Signal::Rates, rates, t_us, &gyro.map(|x| x as f64 * 1e-3));
+        self.offer(
+            Signal::Accel,
+            accel,
+            t_us,
+            &acc.map(|x| x as f64 * 1e-3 * G),
+        );
+    }
+
     fn velocity(&mut self, rank: usize, t_us: i64, v_ned: [f64; 3]) {
         if !v_ned.iter().all(|x| x.is_finite()) {
             self.nonfinite += 1;
@@ -419,34 +437,18 @@ impl Telemetry {
                     );
                 }
             }
-            MavMessage::SCALED_IMU(m) => {
-                self.offer(
-                    Signal::Rates,
-                    3,
-                    t,
-                    &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3),
-                );
-                self.offer(
-                    Signal::Accel,
-                    1,
-                    t,
-                    &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G),
-                );
-            }
-            MavMessage::RAW_IMU(m) => {
-                self.offer(
-                    Signal::Rates,
-                    4,
-                    t,
-                    &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3),
-                );
-                self.offer(
-                    Signal::Accel,
-                    2,
-                    t,
-                    &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G),
-                );
-            }
+            MavMessage::SCALED_IMU(m) => self.milli_imu(
+                (3, 1),
+                t,
+                [m.xgyro, m.ygyro, m.zgyro],
+                [m.xacc, m.yacc, m.zacc],
+            ),
+            MavMessage::RAW_IMU(m) => self.milli_imu(
+                (4, 2),
+                t,
+                [m.xgyro, m.ygyro, m.zgyro],
+                [m.xacc, m.yacc, m.zacc],
+            ),
             MavMessage::LOCAL_POSITION_NED(m) => {
                 self.velocity(0, t, [m.vx, m.vy, m.vz].map(f64::from))
             }
