@@ -1,5 +1,5 @@
 //! Parse-speed benchmark: decode a `.tlog` of 100 000 realistic autopilot messages
-//! (MAVLink 2, the mix of `tests/mavlink_common`: attitude, positions, IMU, servo, GPS,
+//! (MAVLink 2, the mix of `tests/it/mavlink_common`: attitude, positions, IMU, servo, GPS,
 //! VFR_HUD, SYS_STATUS, HEARTBEAT, BATTERY_STATUS) with [`decode_tlog`], the path every
 //! replay and offline run takes.
 //!
@@ -11,7 +11,7 @@
 //! .venv-py/bin/python scripts/bench_pymavlink.py target/bench-parse.tlog
 //! ```
 
-#[path = "../tests/mavlink_common/mod.rs"]
+#[path = "../tests/it/mavlink_common/mod.rs"]
 mod mavlink_common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};

@@ -45,7 +45,7 @@
 //! | [`cli`] | the command line both binaries' `main` call |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
 //! | [`validate`] | the floor: range checks with one message shape (`KEY = VALUE: must be in (0, 100] Hz`) for the config's sections, the vehicle profile and the simulator's options |
-//! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_props.rs` |
+//! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/it/fuzz_props.rs` |
 
 pub mod alert;
 pub mod battery;

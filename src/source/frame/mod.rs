@@ -36,7 +36,7 @@
 //! once the input is finished and drained, `ok + bad + unknown + junk == bytes pushed`.
 //! A bad or unknown frame's span ends where a good frame found inside it begins (the
 //! resynchronisation above), so no byte is counted twice. The fuzz targets and
-//! `tests/fuzz_props.rs` check this on every input (`crate::fuzz_props`).
+//! `tests/it/fuzz_props.rs` check this on every input (`crate::fuzz_props`).
 //!
 //! ## Gaps
 //!

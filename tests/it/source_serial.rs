@@ -1,7 +1,7 @@
 //! `serial:` on a pseudo-terminal pair (no hardware): frames written at one end arrive
 //! decoded at the other, and frames a sink queues go back out.
 
-mod mavlink_common;
+use crate::mavlink_common;
 
 use std::sync::Arc;
 use std::time::Duration;

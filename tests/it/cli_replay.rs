@@ -1,6 +1,6 @@
 //! The `dronewatt` binary end to end: replay, monitor, errors, Ctrl-C.
 
-mod mavlink_common;
+use crate::mavlink_common;
 
 use std::io::Read;
 use std::process::{Command, Stdio};

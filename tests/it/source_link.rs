@@ -1,7 +1,7 @@
 //! Live links on 127.0.0.1 with real sockets: pymavlink as the peer for UDP and TCP, a
 //! tokio server that drops the connection for the tcpout reconnect test.
 
-mod mavlink_common;
+use crate::mavlink_common;
 
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;

@@ -1,7 +1,7 @@
 //! The frame decoder on streams built with rust-mavlink: exact counts for every kind of
 //! damage (the tlog and pymavlink sides are in source_tlog.rs).
 
-mod mavlink_common;
+use crate::mavlink_common;
 
 use dronewatt::source::frame::{FrameDecoder, Framing};
 use dronewatt::source::{IngestStats, StatsSnapshot};

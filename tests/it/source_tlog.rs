@@ -1,7 +1,7 @@
 //! `.tlog` and raw-stream reading: timestamps, clock jumps, corruption, and tlogs written
 //! by pymavlink (the independent peer) with MAVLink 1, 2 and signed frames.
 
-mod mavlink_common;
+use crate::mavlink_common;
 
 use dronewatt::source::raw::decode_raw;
 use dronewatt::source::timed::TimedReader;
