@@ -127,7 +127,7 @@ fn dashboard_of_the_demo_replay_in_chromium() {
         "no mission margin alert in:\n{html}"
     );
     assert!(
-        html.contains("WARNING  Sag 21.1V"),
+        html.contains("WARNING  Sag 20.8V"),
         "no voltage forecast alert in:\n{html}"
     );
     assert!(
