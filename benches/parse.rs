@@ -1,5 +1,5 @@
 //! Parse-speed benchmark: decode a `.tlog` of 100 000 realistic autopilot messages
-//! (MAVLink 2, the mix of `tests/ingest_common`: attitude, positions, IMU, servo, GPS,
+//! (MAVLink 2, the mix of `tests/it/mavlink_common`: attitude, positions, IMU, servo, GPS,
 //! VFR_HUD, SYS_STATUS, HEARTBEAT, BATTERY_STATUS) with [`decode_tlog`], the path every
 //! replay and offline run takes.
 //!
@@ -11,8 +11,8 @@
 //! .venv-py/bin/python scripts/bench_pymavlink.py target/bench-parse.tlog
 //! ```
 
-#[path = "../tests/ingest_common/mod.rs"]
-mod ingest_common;
+#[path = "../tests/it/mavlink_common/mod.rs"]
+mod mavlink_common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use dronewatt::source::frame::{FrameDecoder, Framing};
@@ -22,7 +22,7 @@ use dronewatt::source::IngestStats;
 const N: usize = 100_000;
 
 fn bench(c: &mut Criterion) {
-    let bytes = ingest_common::tlog(&ingest_common::flight(N), mavlink::MavlinkVersion::V2);
+    let bytes = mavlink_common::tlog(&mavlink_common::flight(N), mavlink::MavlinkVersion::V2);
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-parse.tlog");
     if let Err(e) = std::fs::write(&path, &bytes) {
         eprintln!("cannot write {}: {e}", path.display());

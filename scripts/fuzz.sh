@@ -10,7 +10,7 @@
 # (src/fuzz_props.rs) and debug assertions do the catching. libFuzzer works on a scratch
 # copy of the committed seeds (fuzz/corpus/TARGET, git-ignored); a crash lands in
 # fuzz/artifacts/TARGET/. Copy it to fuzz/regressions/TARGET/ once fixed, and
-# `cargo test --test fuzz_corpus` replays it for ever after.
+# `cargo test --test it fuzz_props::` replays it for ever after.
 #
 # FUZZ_RUNS=N stops a target after N executions (whichever comes first with SECONDS):
 #   FUZZ_RUNS=10000000 scripts/fuzz.sh decoder 1800

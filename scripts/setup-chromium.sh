@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Idempotent: headless Chromium for the web dashboard test (tests/web_dashboard.rs).
+# Idempotent: headless Chromium for the web dashboard test (tests/it/sink_web.rs).
 # Debian's `chromium` package. Without root or network this fails and the test says so
 # loudly and skips; everything else still runs. Under CI (CI=true) a missing chromium is
 # an error here and in the tests: CI must not go green with the dashboard untested.

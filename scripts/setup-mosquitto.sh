@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Idempotent: Debian's Mosquitto broker and its command-line clients, for the MQTT sink's
-# tests (tests/mqtt_sink.rs). The tests start their own broker on a free loopback port
+# tests (tests/it/sink_mqtt/). The tests start their own broker on a free loopback port
 # with a throwaway config; nothing here starts or enables a system service.
 # Without root or network this fails and says so; the MQTT tests then skip, except
 # under CI=true, where a missing broker fails them.

@@ -260,11 +260,13 @@ impl AlertRule {
                 margin_v,
                 clear_margin_v,
             } => {
-                if below_v.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
-                    return Err(format!(
-                        "below_v = {}: must be a positive voltage (whole pack)",
-                        below_v.unwrap_or(f64::NAN)
-                    ));
+                if let Some(v) = below_v {
+                    crate::validate::in_range(
+                        "below_v",
+                        *v,
+                        crate::validate::above(0.0),
+                        "V (whole pack)",
+                    )?;
                 }
                 lv(
                     Dir::Below,
@@ -284,15 +286,8 @@ impl AlertRule {
         if self.name.trim().is_empty() {
             return Err("name: must not be empty".into());
         }
-        if !(self.for_s.is_finite() && self.for_s >= 0.0) {
-            return Err(format!("for_s = {}: must be ≥ 0 s", self.for_s));
-        }
-        if !(self.repeat_s.is_finite() && self.repeat_s >= 0.0) {
-            return Err(format!(
-                "repeat_s = {}: must be ≥ 0 s (0: say it once)",
-                self.repeat_s
-            ));
-        }
+        crate::validate::in_range("for_s", self.for_s, 0.0.., "s")?;
+        crate::validate::in_range("repeat_s", self.repeat_s, 0.0.., "s (0: say it once)")?;
         if matches!(self.kind, AlertKind::TelemetryLost {}) && self.for_s <= 0.0 {
             return Err(
                 "for_s: telemetry_lost needs for_s > 0 (how long before the link counts as lost)"

@@ -1,5 +1,5 @@
 //! Properties the readers keep on *any* input whatsoever: the checks the fuzz targets in
-//! `fuzz/` run on every input libFuzzer makes up, and that `tests/fuzz_corpus.rs` replays
+//! `fuzz/` run on every input libFuzzer makes up, and that `tests/it/fuzz_props.rs` replays
 //! on the committed corpus and regression inputs (so `cargo test` keeps a fixed crash
 //! fixed, with no nightly toolchain and no sanitizer).
 //!

@@ -22,7 +22,7 @@
 //! ## Modules
 //!
 //! The folders are the diagram. The floor (imports nothing of ours but the floor):
-//! [`features`], [`files`], [`report`] (with [`report::status`]). Each stage imports the floor and the
+//! [`features`], [`files`], [`report`] (with [`report::status`]), [`validate`]. Each stage imports the floor and the
 //! stages before it, never one after it; [`config`] gathers each part's own config and no
 //! part imports it (`python3 ../shared/tools/module-cycles.py src` checks there is no cycle).
 //!
@@ -45,7 +45,8 @@
 //! | [`cli`] | the command line both binaries' `main` call |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
 //! | [`files`] | the floor for files a config names: one path resolver (relative to the file that names it), one reader of private secrets |
-//! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/fuzz_corpus.rs` |
+//! | [`validate`] | the floor: range checks with one message shape (`KEY = VALUE: must be in (0, 100] Hz`) for the config's sections, the vehicle profile and the simulator's options |
+//! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/it/fuzz_props.rs` |
 
 pub mod alert;
 pub mod battery;
@@ -64,6 +65,7 @@ pub mod sim;
 pub mod sink;
 pub mod source;
 pub mod telemetry;
+pub mod validate;
 pub mod vehicle;
 
 /// The MAVLink dialect dronewatt speaks: ArduPilot's, which includes `common`.

@@ -1,5 +1,5 @@
 //! Fuzz target: [`dronewatt::fuzz_props::check_decoder`] on every input (the properties
-//! are documented there; `tests/fuzz_corpus.rs` replays the corpus through the same check).
+//! are documented there; `tests/it/fuzz_props.rs` replays the corpus through the same check).
 #![no_main]
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {

@@ -1,5 +1,5 @@
 //! Fuzz target: [`dronewatt::fuzz_props::check_plan`] on every input: the `.plan` and
-//! `.waypoints` readers (the properties are documented there; `tests/fuzz_corpus.rs`
+//! `.waypoints` readers (the properties are documented there; `tests/it/fuzz_props.rs`
 //! replays the corpus through the same check).
 #![no_main]
 

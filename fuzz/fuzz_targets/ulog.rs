@@ -1,5 +1,5 @@
 //! Fuzz target: [`dronewatt::fuzz_props::check_ulog`] on every input (the properties
-//! are documented there; `tests/fuzz_corpus.rs` replays the corpus through the same check).
+//! are documented there; `tests/it/fuzz_props.rs` replays the corpus through the same check).
 //!
 //! The `yule_log` parser panics on some malformed files; `decode_ulog` catches that and
 //! returns an error. libFuzzer's panic hook aborts on every panic, caught or not, so the

@@ -4,8 +4,19 @@
 use super::ocv::OcvCurve;
 
 /// Cell chemistry. Windows are *resting* (open-circuit) voltages per cell.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    serde::Deserialize,
+    serde::Serialize,
+    strum::IntoStaticStr,
+    strum::EnumString,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Chemistry {
     /// LiPo / LiCoO2-class, 4.20 V full.
     LiPo,
@@ -54,17 +65,11 @@ const LIION: [(f64, f64); 12] = [
 impl Chemistry {
     /// As the config writes it: `lipo`, `lihv`, `liion`.
     pub fn name(self) -> &'static str {
-        match self {
-            Chemistry::LiPo => "lipo",
-            Chemistry::LiHv => "lihv",
-            Chemistry::LiIon => "liion",
-        }
+        self.into()
     }
-    /// The inverse of [`Chemistry::name`].
+    /// The inverse of [`Chemistry::name`] (exact, lower case).
     pub fn from_name(name: &str) -> Option<Self> {
-        [Chemistry::LiPo, Chemistry::LiHv, Chemistry::LiIon]
-            .into_iter()
-            .find(|c| c.name() == name)
+        name.parse().ok()
     }
     /// Full-charge resting voltage per cell.
     pub fn full_v(self) -> f64 {
@@ -169,5 +174,21 @@ mod tests {
                 last = s;
             }
         }
+    }
+
+    /// The names the config and the vehicle store write (strum's derive, as the
+    /// hand-written match was): lower case, exact.
+    #[test]
+    fn names_round_trip() {
+        for (c, name) in [
+            (Chemistry::LiPo, "lipo"),
+            (Chemistry::LiHv, "lihv"),
+            (Chemistry::LiIon, "liion"),
+        ] {
+            assert_eq!(c.name(), name);
+            assert_eq!(Chemistry::from_name(name), Some(c));
+        }
+        assert_eq!(Chemistry::from_name("LiPo"), None);
+        assert_eq!(Chemistry::from_name("nimh"), None);
     }
 }

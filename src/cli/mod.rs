@@ -63,7 +63,7 @@ struct RunArgs {
     vehicle: Option<PathBuf>,
     /// Keep the vehicle store (what was learned about each vehicle, its flights) in DIR;
     /// `off`: none. Default: $DRONEWATT_HOME, else $XDG_DATA_HOME/dronewatt, else
-    /// ~/.local/share/dronewatt.
+    /// ~/.local/share/dronewatt (Linux; elsewhere the platform's data directory).
     #[arg(long, value_name = "DIR")]
     data_dir: Option<PathBuf>,
 }

@@ -115,48 +115,32 @@ impl Default for EnergyConfig {
 impl EnergyConfig {
     /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
-        let mut positive = |key: &str, v: f64| {
-            if !(v.is_finite() && v > 0.0) {
-                errs.push(format!("energy.{key} = {v}: must be a positive number"));
-            }
-        };
+        use crate::validate::above;
+        let mut errs = crate::validate::Errors::new();
         if let Some(v) = self.capacity_wh {
-            positive("capacity_wh", v);
+            errs.range("energy.capacity_wh", v, above(0.0), "Wh");
         }
-        positive("smoothing_s", self.smoothing_s);
-        positive("descent_speed_m_s", self.descent_speed_m_s);
-        positive("max_dt_s", self.max_dt_s);
+        errs.range("energy.smoothing_s", self.smoothing_s, above(0.0), "s");
+        errs.range(
+            "energy.descent_speed_m_s",
+            self.descent_speed_m_s,
+            above(0.0),
+            "m/s",
+        );
+        errs.range("energy.max_dt_s", self.max_dt_s, above(0.0), "s");
         if let Some(v) = self.cruise_speed_m_s {
-            positive("cruise_speed_m_s", v);
+            errs.range("energy.cruise_speed_m_s", v, above(0.0), "m/s");
         }
-        if !(self.landing_s.is_finite() && self.landing_s >= 0.0) {
-            errs.push(format!(
-                "energy.landing_s = {}: must be ≥ 0",
-                self.landing_s
-            ));
+        errs.range("energy.landing_s", self.landing_s, 0.0.., "s");
+        errs.range("energy.reserve_pct", self.reserve_pct, 0.0..100.0, "%");
+        if let Some(n) = self.cell_count {
+            errs.range("energy.cell_count", n, 1..=24, "cells");
         }
-        if !(0.0..100.0).contains(&self.reserve_pct) {
-            errs.push(format!(
-                "energy.reserve_pct = {}: must be in [0, 100)",
-                self.reserve_pct
-            ));
-        }
-        if let Some(n) = self.cell_count.filter(|n| !(1..=24).contains(n)) {
-            errs.push(format!("energy.cell_count = {n}: must be 1..=24 cells"));
-        }
-        if let Some(v) = self
-            .nominal_cell_v
-            .filter(|v| !(v.is_finite() && (1.0..=5.0).contains(v)))
-        {
-            errs.push(format!("energy.nominal_cell_v = {v}: must be 1..=5 V"));
+        if let Some(v) = self.nominal_cell_v {
+            errs.range("energy.nominal_cell_v", v, 1.0..=5.0, "V");
         }
         errs.extend(self.select.validate());
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        errs.into_result()
     }
 }
 

@@ -61,21 +61,17 @@ impl Default for SelectConfig {
 impl SelectConfig {
     /// Range checks; each message names the key.
     pub fn validate(&self) -> Vec<String> {
-        let mut errs = Vec::new();
-        for (k, v) in [("evidence_s", self.evidence_s), ("hold_s", self.hold_s)] {
-            if !(v.is_finite() && v >= 0.0) {
-                errs.push(format!("energy.select.{k} = {v}: must be ≥ 0"));
-            }
-        }
-        for (k, v) in [
-            ("margin", self.margin),
-            ("profile_margin", self.profile_margin),
-        ] {
-            if !(v.is_finite() && (0.0..1.0).contains(&v)) {
-                errs.push(format!("energy.select.{k} = {v}: must be in [0, 1)"));
-            }
-        }
-        errs
+        let mut errs = crate::validate::Errors::new();
+        errs.range("energy.select.evidence_s", self.evidence_s, 0.0.., "s");
+        errs.range("energy.select.hold_s", self.hold_s, 0.0.., "s");
+        errs.range("energy.select.margin", self.margin, 0.0..1.0, "");
+        errs.range(
+            "energy.select.profile_margin",
+            self.profile_margin,
+            0.0..1.0,
+            "",
+        );
+        errs.into_vec()
     }
 }
 

@@ -1,7 +1,7 @@
 //! Frame and unit conversions between MAVLink (NED world, FRD body, SI units) and the M100
 //! data set's columns, which do not share one frame (`../shared/data/m100/SOURCE.md`).
 //!
-//! ## What the data show (flights 100, 150, 276; `tests/features_frames.rs` re-checks it)
+//! ## What the data show (flights 100, 150, 276; `tests/it/telemetry_frames.rs` re-checks it)
 //!
 //! Write `q_v` for the vehicle's attitude as MAVLink has it (FRD body → NED) and derive it
 //! from the data-set quaternion by `q_v = Q ⊗ q_ds ⊗ Q`, `Q = (w 0, x √½, y √½, z 0)`, the

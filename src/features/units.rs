@@ -3,7 +3,7 @@
 //! centidegrees and degrees ([`centidegrees`], [`whole_degrees`]), and counts of steps that
 //! a quotient should give exactly ([`ceil_ratio`], [`floor_ratio`]).
 //!
-//! Each has a property test in `tests/conversions_props.rs`.
+//! Each has a property test in `tests/it/features_units.rs`.
 
 use num_traits::{Bounded, NumCast, ToPrimitive};
 

@@ -186,22 +186,11 @@ impl ModelCard {
                 return Err(format!("{key} has {len} entries, expected {N_FEATURES}"));
             }
         }
-        if let Some(i) = self
-            .feature_std
-            .iter()
-            .position(|s| !(s.is_finite() && *s > 0.0))
-        {
-            return Err(format!(
-                "feature_std[{i}] = {}: must be a positive number",
-                self.feature_std[i]
-            ));
+        use crate::validate::{above, in_range};
+        for (i, s) in self.feature_std.iter().enumerate() {
+            in_range(&format!("feature_std[{i}]"), *s, above(0.0), "")?;
         }
-        if !(self.power_scale_w.is_finite() && self.power_scale_w > 0.0) {
-            return Err(format!(
-                "power_scale_w = {}: must be positive",
-                self.power_scale_w
-            ));
-        }
+        in_range("power_scale_w", self.power_scale_w, above(0.0), "W")?;
         Ok(())
     }
 

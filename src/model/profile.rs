@@ -240,21 +240,15 @@ impl Battery {
     }
 
     fn validate(&self) -> Result<(), String> {
-        if self.cells == 0 {
-            return Err("battery.cells = 0: must be ≥ 1".into());
-        }
-        if !(self.capacity_mah.is_finite() && self.capacity_mah > 0.0) {
-            return Err(format!(
-                "battery.capacity_mah = {}: must be > 0",
-                self.capacity_mah
-            ));
-        }
-        let r = self.internal_resistance_ohm;
-        if !(r.is_finite() && r > 0.0) {
-            return Err(format!(
-                "battery.internal_resistance_ohm = {r}: must be > 0"
-            ));
-        }
+        use crate::validate::{above, in_range};
+        in_range("battery.cells", self.cells, 1.., "")?;
+        in_range("battery.capacity_mah", self.capacity_mah, above(0.0), "mAh")?;
+        in_range(
+            "battery.internal_resistance_ohm",
+            self.internal_resistance_ohm,
+            above(0.0),
+            "Ω",
+        )?;
         let c = &self.ocv_cell_v;
         let ends = c.first().map(|p| p[0]) == Some(0.0) && c.last().map(|p| p[0]) == Some(1.0);
         if c.len() < 2 || !ends {
@@ -337,21 +331,14 @@ impl VehicleProfile {
 
     /// Range checks serde cannot express; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
-        let pos = |k: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(format!("{k} = {v}: must be > 0"))
-            }
-        };
+        use crate::validate::{above, in_range};
+        let pos = |k: &str, v: f64| in_range(k, v, above(0.0), "");
         pos("vehicle.airframe_kg", self.vehicle.airframe_kg)?;
         pos("vehicle.battery_kg", self.vehicle.battery_kg)?;
         pos("vehicle.prop_diameter_m", self.vehicle.prop_diameter_m)?;
         pos("air.rho_kg_m3", self.air.rho_kg_m3)?;
         pos("air.g_m_s2", self.air.g_m_s2)?;
-        if self.vehicle.rotors == 0 {
-            return Err("vehicle.rotors = 0: must be ≥ 1".into());
-        }
+        in_range("vehicle.rotors", self.vehicle.rotors, 1.., "")?;
         pos("dandrea.eta", self.dandrea.eta)?;
         pos("dandrea.lift_drag", self.dandrea.lift_drag)?;
         pos("dandrea_headwind.eta", self.dandrea_headwind.eta)?;
@@ -363,13 +350,7 @@ impl VehicleProfile {
         pos("stolaroff.eta", self.stolaroff.eta)?;
         pos("kirschstein.eta", self.kirschstein.eta)?;
         pos("kirschstein.eta_c", self.kirschstein.eta_c)?;
-        let fin = |k: &str, v: f64| {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(format!("{k} = {v}: must be finite"))
-            }
-        };
+        let fin = |k: &str, v: f64| in_range(k, v, .., "");
         for (i, b) in self.tseng.beta.iter().enumerate() {
             fin(&format!("tseng.beta[{i}]"), *b)?;
         }
@@ -383,28 +364,17 @@ impl VehicleProfile {
             pos("rotor.thrust_coefficient", r.thrust_coefficient)?;
         }
         if let Some(b) = &self.body {
-            if !(b.drag_area_m2.is_finite() && b.drag_area_m2 >= 0.0) {
-                return Err(format!(
-                    "body.drag_area_m2 = {}: must be ≥ 0",
-                    b.drag_area_m2
-                ));
-            }
+            in_range("body.drag_area_m2", b.drag_area_m2, 0.0.., "m²")?;
         }
         if let Some(p) = &self.powertrain {
-            if !(p.efficiency > 0.0 && p.efficiency <= 1.0) {
-                return Err(format!(
-                    "powertrain.efficiency = {}: must be in (0, 1]",
-                    p.efficiency
-                ));
-            }
-            for (k, v) in [
-                ("powertrain.avionics_w", p.avionics_w),
-                ("powertrain.idle_w", p.idle_w),
-            ] {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(format!("{k} = {v}: must be ≥ 0"));
-                }
-            }
+            in_range(
+                "powertrain.efficiency",
+                p.efficiency,
+                crate::validate::above_to(0.0, 1.0),
+                "",
+            )?;
+            in_range("powertrain.avionics_w", p.avionics_w, 0.0.., "W")?;
+            in_range("powertrain.idle_w", p.idle_w, 0.0.., "W")?;
         }
         if let Some(b) = &self.battery {
             b.validate()?;

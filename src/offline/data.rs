@@ -172,7 +172,7 @@ pub fn sha256_file(path: &Path) -> anyhow::Result<String> {
         }
         h.update(&buf[..n]);
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(hex::encode(h.finalize()))
 }
 
 /// The test flights of Choudhry et al. (ICRA 2021): never trained or validated on.

@@ -118,42 +118,43 @@ impl PowerSource {
 }
 
 /// Where `remaining_wh` comes from.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, strum::IntoStaticStr, strum::Display,
+)]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum RemainingSource {
     /// No start state known: the capacity minus the energy used, as if the pack had
     /// started full (said so, never silently).
     #[default]
     #[serde(rename = "assumed full")]
+    #[strum(serialize = "assumed full")]
     AssumedFull,
     /// The autopilot's reported state of charge × the capacity.
-    #[serde(rename = "battery")]
     Battery,
     /// The resting voltage before take-off through the pack's OCV curve, then the
     /// equivalent circuit, down to the usable floor (the low-voltage threshold under load).
     #[serde(rename = "resting voltage")]
+    #[strum(serialize = "resting voltage")]
     RestingVoltage,
     /// No battery telemetry at all (no voltage, no current, no %): the configured pack's
     /// capacity minus the energy of the forecast model's power, the pack taken as full at
     /// the start (said once in a warning).
     #[serde(rename = "model power")]
+    #[strum(serialize = "model power")]
     ModelPower,
     /// No pack is known for this vehicle: a vehicle other than a multirotor whose capacity
     /// neither the config nor the vehicle gives (the M100's pack, the multirotor default,
     /// is never assumed for it). Remaining energy and time are unknown.
     #[serde(rename = "unknown pack")]
+    #[strum(serialize = "unknown pack")]
     UnknownPack,
 }
 
 impl RemainingSource {
     /// As JSON and the terminal say it.
     pub fn as_str(self) -> &'static str {
-        match self {
-            RemainingSource::AssumedFull => "assumed full",
-            RemainingSource::Battery => "battery",
-            RemainingSource::RestingVoltage => "resting voltage",
-            RemainingSource::ModelPower => "model power",
-            RemainingSource::UnknownPack => "unknown pack",
-        }
+        self.into()
     }
 }
 
@@ -394,8 +395,21 @@ impl MissionStatus {
 
 /// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML
 /// either the short lower-case name (`warning`) or the enum name (`MAV_SEVERITY_WARNING`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    PartialOrd,
+    Ord,
+    Serialize,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::Display,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Severity {
     Emergency,
     Alert,
@@ -409,34 +423,10 @@ pub enum Severity {
 
 impl Severity {
     /// Every severity, most severe first (MAV_SEVERITY's order and values).
-    pub const ALL: [Severity; 8] = [
-        Severity::Emergency,
-        Severity::Alert,
-        Severity::Critical,
-        Severity::Error,
-        Severity::Warning,
-        Severity::Notice,
-        Severity::Info,
-        Severity::Debug,
-    ];
-    /// Lower-case name.
+    pub const ALL: &'static [Severity] = <Severity as strum::VariantArray>::VARIANTS;
+    /// Lower-case name (also its `Display`).
     pub fn name(self) -> &'static str {
-        [
-            "emergency",
-            "alert",
-            "critical",
-            "error",
-            "warning",
-            "notice",
-            "info",
-            "debug",
-        ][self as usize]
-    }
-}
-
-impl fmt::Display for Severity {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
+        self.into()
     }
 }
 
@@ -445,7 +435,7 @@ impl std::str::FromStr for Severity {
     fn from_str(s: &str) -> Result<Self, String> {
         let short = s.trim().to_ascii_lowercase();
         let short = short.strip_prefix("mav_severity_").unwrap_or(&short);
-        Self::ALL.into_iter().find(|v| v.name() == short).ok_or_else(|| {
+        Self::ALL.iter().copied().find(|v| v.name() == short).ok_or_else(|| {
             format!("severity '{s}': expected one of emergency, alert, critical, error, warning, notice, info, debug")
         })
     }
@@ -503,11 +493,6 @@ impl fmt::Display for PowerSource {
         f.write_str(self.as_str())
     }
 }
-impl fmt::Display for RemainingSource {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
 impl PartialEq<&str> for PowerSource {
     fn eq(&self, other: &&str) -> bool {
         self.as_str() == *other
@@ -521,5 +506,48 @@ impl PartialEq<&str> for RemainingSource {
 impl PartialEq<&str> for Severity {
     fn eq(&self, other: &&str) -> bool {
         self.name() == *other
+    }
+}
+
+#[cfg(test)]
+mod name_tests {
+    use super::*;
+
+    /// The names JSON, the terminal and the config use (strum's derives, as the
+    /// hand-written ones were).
+    #[test]
+    fn enum_names_are_as_written_before() {
+        let names: Vec<&str> = Severity::ALL.iter().map(|s| s.name()).collect();
+        assert_eq!(
+            names,
+            [
+                "emergency",
+                "alert",
+                "critical",
+                "error",
+                "warning",
+                "notice",
+                "info",
+                "debug"
+            ]
+        );
+        for (i, s) in Severity::ALL.iter().enumerate() {
+            assert_eq!(*s as usize, i, "MAV_SEVERITY's value");
+            assert_eq!(s.to_string(), s.name());
+            assert_eq!(s.name().parse::<Severity>(), Ok(*s));
+        }
+        assert_eq!(" MAV_SEVERITY_Warning".parse(), Ok(Severity::Warning));
+        assert!("warn"
+            .parse::<Severity>()
+            .unwrap_err()
+            .contains("expected one of"));
+        for (r, name) in [
+            (RemainingSource::AssumedFull, "assumed full"),
+            (RemainingSource::Battery, "battery"),
+            (RemainingSource::RestingVoltage, "resting voltage"),
+        ] {
+            assert_eq!((r.as_str(), r.to_string()), (name, name.to_string()));
+            assert_eq!(serde_json::to_value(r).unwrap(), name);
+        }
     }
 }

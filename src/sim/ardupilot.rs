@@ -109,12 +109,7 @@ impl Style for ArduPilot {
     /// WIND at 2 Hz: ArduPilot's direction is degrees(atan2(−wind.y, −wind.x)), where the
     /// wind comes from.
     fn air_data(&self, now: &Instant) -> Option<MavMessage> {
-        if !(Every {
-            period_ms: 500,
-            offset_ms: 70,
-        })
-        .due(now.t_ms)
-        {
+        if !Every::new(500, 70).due(now.t_ms) {
             return None;
         }
         let w = now.wind_est;

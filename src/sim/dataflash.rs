@@ -118,12 +118,7 @@ impl SimFlight {
                     }
                 }
                 MavMessage::PARAM_VALUE(p) => {
-                    let name = p
-                        .param_id
-                        .to_str()
-                        .unwrap_or("")
-                        .trim_end_matches('\0')
-                        .to_string();
+                    let name = super::emit::name_text(&p.param_id);
                     w.write(&PARM, &[t, S(&name), F(p.param_value.into())]);
                 }
                 MavMessage::ATTITUDE(a) => {
@@ -257,12 +252,7 @@ impl SimFlight {
                     );
                 }
                 MavMessage::NAMED_VALUE_FLOAT(n) => {
-                    let name = n
-                        .name
-                        .to_str()
-                        .unwrap_or("")
-                        .trim_end_matches('\0')
-                        .to_string();
+                    let name = super::emit::name_text(&n.name);
                     w.write(&NVF, &[t, S(&name), F(n.value.into())]);
                 }
                 _ => {}

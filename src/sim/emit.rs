@@ -71,6 +71,13 @@ pub struct Every {
 }
 
 impl Every {
+    /// Every `period_ms`, the first at `offset_ms`.
+    pub const fn new(period_ms: u64, offset_ms: u64) -> Self {
+        Self {
+            period_ms,
+            offset_ms,
+        }
+    }
     /// Whether a message on this schedule is due at `t_ms`.
     pub fn due(&self, t_ms: u64) -> bool {
         t_ms >= self.offset_ms && (t_ms - self.offset_ms).is_multiple_of(self.period_ms)
@@ -239,12 +246,7 @@ impl Emitter {
             self.last_phase = Some(phase);
             self.push(t_ms, self.heartbeat(st.armed, phase));
         }
-        if (Every {
-            period_ms: 1000,
-            offset_ms: 0,
-        })
-        .due(t_ms)
-        {
+        if Every::new(1000, 0).due(t_ms) {
             self.push(t_ms, self.heartbeat(st.armed, phase));
             let (speed_mps, alt_m) = self.route.commanded(phase);
             for (name, value) in [
@@ -275,12 +277,7 @@ impl Emitter {
                     self.push(t_ms, msg);
                 }
             }
-            if (Every {
-                period_ms: 1000,
-                offset_ms: 0,
-            })
-            .due(t_ms)
-            {
+            if Every::new(1000, 0).due(t_ms) {
                 // total: the items after ArduPilot's home item; PX4 has none
                 let home_item = usize::from(
                     m.items
@@ -302,24 +299,14 @@ impl Emitter {
             self.push(t_ms, m);
         }
         // Battery: measured voltage and current carry sensor noise.
-        if (Every {
-            period_ms: 500,
-            offset_ms: 50,
-        })
-        .due(t_ms)
-        {
+        if Every::new(500, 50).due(t_ms) {
             self.battery(now, rng);
         }
         // Position: GPS error (Gauss–Markov) on position, white noise on velocity.
         let (lat, lon, alt) = HOME.to_geodetic(&(st.pos + now.gps_err));
         let vel_meas = st.vel + Vector3::new(n(rng, 0.08), n(rng, 0.08), n(rng, 0.05));
         let hdg_deg = yaw.to_degrees().rem_euclid(360.0);
-        if (Every {
-            period_ms: 200,
-            offset_ms: 20,
-        })
-        .due(t_ms)
-        {
+        if Every::new(200, 20).due(t_ms) {
             self.push(
                 t_ms,
                 MavMessage::GLOBAL_POSITION_INT(d::GLOBAL_POSITION_INT_DATA {
@@ -356,12 +343,7 @@ impl Emitter {
         // Attitude.
         let att_noise = Vector3::new(n(rng, 0.004), n(rng, 0.004), n(rng, 0.006));
         let rate_meas = st.rates + Vector3::new(n(rng, 0.015), n(rng, 0.015), n(rng, 0.01));
-        if (Every {
-            period_ms: 100,
-            offset_ms: 30,
-        })
-        .due(t_ms)
-        {
+        if Every::new(100, 30).due(t_ms) {
             let rpy = (
                 roll + att_noise.x,
                 pitch + att_noise.y,
@@ -375,12 +357,7 @@ impl Emitter {
         }
         // IMU: specific force in the body frame (FRD), f = Rᵀ(a − g); ≈ (0, 0, −9.81) at
         // rest. Vibration noise grows when the props spin.
-        if (Every {
-            period_ms: 100,
-            offset_ms: 40,
-        })
-        .due(t_ms)
-        {
+        if Every::new(100, 40).due(t_ms) {
             let vib = if st.in_air {
                 0.3
             } else if st.armed {
@@ -395,12 +372,7 @@ impl Emitter {
             let m = self.style.imu(now, &f, &rate_meas, &mag);
             self.push(t_ms, m);
         }
-        if (Every {
-            period_ms: 250,
-            offset_ms: 60,
-        })
-        .due(t_ms)
-        {
+        if Every::new(250, 60).due(t_ms) {
             let air = if st.in_air {
                 (st.vel - now.wind_est).norm()
             } else {
@@ -422,13 +394,7 @@ impl Emitter {
             self.push(t_ms, m);
         }
         // Home: once when armed, then every 5 s.
-        let home_due = st.armed
-            && (!self.home_sent
-                || (Every {
-                    period_ms: 5000,
-                    offset_ms: 90,
-                })
-                .due(t_ms));
+        let home_due = st.armed && (!self.home_sent || Every::new(5000, 90).due(t_ms));
         if home_due {
             self.home_sent = true;
             let nan = f32::NAN;
@@ -520,6 +486,12 @@ pub fn attitude(
         pitchspeed: rates.y as f32,
         yawspeed: rates.z as f32,
     })
+}
+
+/// A MAVLink name field (PARAM_VALUE's `param_id`, NAMED_VALUE_FLOAT's `name`) as text,
+/// for the log writers; empty when it is not UTF-8.
+pub fn name_text<const N: usize>(s: &mavlink::types::CharArray<N>) -> String {
+    s.to_str().unwrap_or("").trim_end_matches('\0').to_string()
 }
 
 pub fn param(name: &str, value: f32, kind: d::MavParamType) -> d::PARAM_VALUE_DATA {

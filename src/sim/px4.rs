@@ -49,12 +49,7 @@ impl Style for Px4 {
     }
 
     fn landed_state(&self, now: &Instant) -> Option<MavMessage> {
-        if !(Every {
-            period_ms: 1000,
-            offset_ms: 500,
-        })
-        .due(now.t_ms)
-        {
+        if !Every::new(1000, 500).due(now.t_ms) {
             return None;
         }
         let landed = match now.phase {
@@ -90,12 +85,7 @@ impl Style for Px4 {
                 repr_offset_q: [0.0; 4],
             },
         ));
-        if (Every {
-            period_ms: 200,
-            offset_ms: 30,
-        })
-        .due(now.t_ms)
-        {
+        if Every::new(200, 30).due(now.t_ms) {
             out.push(super::emit::attitude(now, (roll, pitch, yaw), rates));
         }
     }
@@ -130,12 +120,7 @@ impl Style for Px4 {
 
     /// ALTITUDE at 5 Hz: the barometric altitude carries 30 % of the GNSS vertical error.
     fn air_data(&self, now: &Instant) -> Option<MavMessage> {
-        if !(Every {
-            period_ms: 200,
-            offset_ms: 80,
-        })
-        .due(now.t_ms)
-        {
+        if !Every::new(200, 80).due(now.t_ms) {
             return None;
         }
         let amsl = (now.alt_amsl_m() + now.gps_err.z * 0.3) as f32;

@@ -92,12 +92,7 @@ impl SimFlight {
             .iter()
             .filter_map(|r| match &r.msg {
                 MavMessage::PARAM_VALUE(p) => {
-                    let name = p
-                        .param_id
-                        .to_str()
-                        .unwrap_or("")
-                        .trim_end_matches('\0')
-                        .to_string();
+                    let name = super::emit::name_text(&p.param_id);
                     let int = p.param_type == d::MavParamType::MAV_PARAM_TYPE_INT32;
                     // PX4 sends an integer parameter as the float's bits.
                     let v = if int {
@@ -195,12 +190,7 @@ impl SimFlight {
                 }
                 MavMessage::VFR_HUD(h) => w.data(&AIR, t, &[N(&[f64::from(h.airspeed)])]),
                 MavMessage::NAMED_VALUE_FLOAT(n) => {
-                    let key = n
-                        .name
-                        .to_str()
-                        .unwrap_or("")
-                        .trim_end_matches('\0')
-                        .to_string();
+                    let key = super::emit::name_text(&n.name);
                     w.data(&KV, t, &[Text(&key), N(&[f64::from(n.value)])]);
                 }
                 _ => {}

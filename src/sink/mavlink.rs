@@ -99,13 +99,13 @@ impl Default for MavlinkSinkConfig {
 impl MavlinkSinkConfig {
     /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
-        if !(self.rate_hz > 0.0 && self.rate_hz <= 50.0) {
-            errs.push(format!(
-                "sinks.mavlink.rate_hz = {}: must be in (0, 50] per second",
-                self.rate_hz
-            ));
-        }
+        let mut errs = crate::validate::Errors::new();
+        errs.range(
+            "sinks.mavlink.rate_hz",
+            self.rate_hz,
+            crate::validate::above_to(0.0, 50.0),
+            "per second",
+        );
         if self.system_id == Some(0) {
             errs.push("sinks.mavlink.system_id = 0: 0 is the broadcast id; use 1..=255".into());
         }
@@ -120,11 +120,7 @@ impl MavlinkSinkConfig {
                 errs.push(format!("sinks.mavlink.address: {e}"));
             }
         }
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        errs.into_result()
     }
 }
 

@@ -122,11 +122,12 @@ fn topic_safe(s: &str) -> bool {
 impl MqttSinkConfig {
     /// Range and shape checks; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
+        use crate::validate::in_range;
         if self.host.trim().is_empty() {
             return Err("sinks.mqtt.host: must not be empty".into());
         }
-        if self.port == Some(0) {
-            return Err("sinks.mqtt.port = 0: must be 1..=65535".into());
+        if let Some(port) = self.port {
+            in_range("sinks.mqtt.port", port, 1..=65_535, "")?;
         }
         let p = &self.prefix;
         if p.is_empty()
@@ -154,34 +155,25 @@ impl MqttSinkConfig {
                 "sinks.mqtt.ca_file: set, but tls = false (set tls = true to use it)".into(),
             );
         }
-        if !(1..=65_535).contains(&self.keep_alive_s) {
-            return Err(format!(
-                "sinks.mqtt.keep_alive_s = {}: must be 1..=65535 s",
-                self.keep_alive_s
-            ));
-        }
-        if !(10..=10_000_000).contains(&self.queue) {
-            return Err(format!(
-                "sinks.mqtt.queue = {}: must be 10..=10000000 messages",
-                self.queue
-            ));
-        }
-        if !(self.state_interval_s.is_finite() && self.state_interval_s >= 0.0) {
-            return Err(format!(
-                "sinks.mqtt.state_interval_s = {}: must be ≥ 0",
-                self.state_interval_s
-            ));
-        }
-        if !(self.reconnect_max_s.is_finite()
-            && self.reconnect_max_s >= RECONNECT_MIN.as_secs_f64())
-        {
-            return Err(format!(
-                "sinks.mqtt.reconnect_max_s = {}: must be ≥ {}",
-                self.reconnect_max_s,
-                RECONNECT_MIN.as_secs_f64()
-            ));
-        }
-        Ok(())
+        in_range(
+            "sinks.mqtt.keep_alive_s",
+            self.keep_alive_s,
+            1..=65_535,
+            "s",
+        )?;
+        in_range("sinks.mqtt.queue", self.queue, 10..=10_000_000, "messages")?;
+        in_range(
+            "sinks.mqtt.state_interval_s",
+            self.state_interval_s,
+            0.0..,
+            "s",
+        )?;
+        in_range(
+            "sinks.mqtt.reconnect_max_s",
+            self.reconnect_max_s,
+            RECONNECT_MIN.as_secs_f64()..,
+            "s",
+        )
     }
 
     /// The port to connect to.
@@ -653,7 +645,7 @@ mod tests {
             password_file: Some(file.clone()),
             ..Default::default()
         };
-        #[cfg(unix)] // private, or refused (tests/config_paths.rs)
+        #[cfg(unix)] // private, or refused (tests/it/config_paths.rs)
         std::fs::set_permissions(&file, std::os::unix::fs::PermissionsExt::from_mode(0o600))
             .unwrap();
         assert_eq!(c.password().unwrap().as_deref(), Some("s3cret"));

@@ -154,14 +154,8 @@ impl State {
         match n {
             "PARM" => {
                 if let (Some(name), Some(v)) = (e.get_str("Name"), e.get_f64("Value")) {
-                    let p = d::PARAM_VALUE_DATA {
-                        param_value: v as f32,
-                        param_count: 0,
-                        param_index: u16::MAX,
-                        param_id: name.into(),
-                        param_type: d::MavParamType::MAV_PARAM_TYPE_REAL32,
-                    };
-                    self.syn.push(MavMessage::PARAM_VALUE(p), out);
+                    let real = d::MavParamType::MAV_PARAM_TYPE_REAL32;
+                    self.syn.param(name, v as f32, real, out);
                 }
             }
             "MODE" => {
@@ -183,19 +177,8 @@ impl State {
                     return;
                 };
                 self.gyro = g.map(|x| x as f32);
-                let [xgyro, ygyro, zgyro] = self.gyro;
-                let [xacc, yacc, zacc] = a.map(|x| x as f32);
-                let m = d::HIGHRES_IMU_DATA {
-                    time_usec: u64::from(boot_ms) * 1000,
-                    xacc,
-                    yacc,
-                    zacc,
-                    xgyro,
-                    ygyro,
-                    zgyro,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::HIGHRES_IMU(m), out);
+                let time_usec = u64::from(boot_ms) * 1000;
+                self.syn.imu(time_usec, a.map(|x| x as f32), self.gyro, out);
             }
             "ATT" => {
                 let Some([roll, pitch, yaw]) = all(["Roll", "Pitch", "Yaw"].map(|l| self.f(e, l)))
@@ -221,29 +204,13 @@ impl State {
                 };
                 self.ekf_vel = Some(v);
                 let p = ["PN", "PE", "PD"].map(|l| e.get_f64(l).unwrap_or(0.0) as f32);
-                let [vx, vy, vz] = v.map(|x| x as f32);
-                let m = d::LOCAL_POSITION_NED_DATA {
-                    time_boot_ms: boot_ms,
-                    x: p[0],
-                    y: p[1],
-                    z: p[2],
-                    vx,
-                    vy,
-                    vz,
-                };
-                self.syn.push(MavMessage::LOCAL_POSITION_NED(m), out);
+                self.syn.local_ned(p, v.map(|x| x as f32), out);
             }
             "XKF2" | "NKF2" if Self::first(e, "C") => {
                 let Some([n, e_]) = all(["VWN", "VWE"].map(|l| self.f(e, l))) else {
                     return;
                 };
-                let m = d::WIND_COV_DATA {
-                    time_usec: u64::from(boot_ms) * 1000,
-                    wind_x: n as f32,
-                    wind_y: e_ as f32,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::WIND_COV(m), out);
+                self.syn.wind(u64::from(boot_ms) * 1000, n, e_, out);
             }
             "GPS" if Self::first(e, "I") => {
                 let (Some(status), Some(lat), Some(lng)) =

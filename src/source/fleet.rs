@@ -51,40 +51,25 @@ impl Default for FleetConfig {
 impl FleetConfig {
     /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
-        if !(self.lost_after_s > 0.0 && self.lost_after_s.is_finite()) {
-            errs.push(format!(
-                "fleet.lost_after_s = {}: must be > 0",
-                self.lost_after_s
-            ));
-        }
+        use crate::validate::{above, above_to};
+        let mut errs = crate::validate::Errors::new();
+        errs.range("fleet.lost_after_s", self.lost_after_s, above(0.0), "s");
         if !(self.drop_after_s > self.lost_after_s && self.drop_after_s.is_finite()) {
             errs.push(format!(
                 "fleet.drop_after_s = {}: must be longer than fleet.lost_after_s ({})",
                 self.drop_after_s, self.lost_after_s
             ));
         }
-        if !(0.0..=100.0).contains(&self.batch_wait_ms) {
-            errs.push(format!(
-                "fleet.batch_wait_ms = {}: must be 0..=100 ms",
-                self.batch_wait_ms
-            ));
-        }
+        errs.range("fleet.batch_wait_ms", self.batch_wait_ms, 0.0..=100.0, "ms");
         if let Some(r) = self.lstm_rate_hz {
-            if !(r > 0.0 && r <= 100.0) {
-                errs.push(format!("fleet.lstm_rate_hz = {r}: must be in (0, 100] Hz"));
-            }
+            errs.range("fleet.lstm_rate_hz", r, above_to(0.0, 100.0), "Hz");
         }
         if let Some(v) = &self.vehicles {
             if let Err(e) = VehicleFilter::parse(v) {
                 errs.push(format!("fleet.vehicles = {v:?}: {e}"));
             }
         }
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        errs.into_result()
     }
 }
 

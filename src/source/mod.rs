@@ -200,31 +200,15 @@ pub async fn run(
             )
             .await
         }
-        SourceSpec::Tlog { path, speed } => {
-            let f = open(&path).await?;
-            replay(
-                f,
-                &path.display().to_string(),
-                TimedReader::tlog(),
-                speed,
-                tx,
-                &stats,
-                shutdown,
-            )
-            .await
-        }
-        SourceSpec::Raw { path, speed } => {
-            let f = open(&path).await?;
-            replay(
-                f,
-                &path.display().to_string(),
-                TimedReader::raw(),
-                speed,
-                tx,
-                &stats,
-                shutdown,
-            )
-            .await
+        SourceSpec::Tlog { ref path, speed } | SourceSpec::Raw { ref path, speed } => {
+            let reader = if matches!(spec, SourceSpec::Tlog { .. }) {
+                TimedReader::tlog()
+            } else {
+                TimedReader::raw()
+            };
+            let f = open(path).await?;
+            let name = path.display().to_string();
+            replay(f, &name, reader, speed, tx, &stats, shutdown).await
         }
         SourceSpec::AutopilotLog { path, speed } => {
             let msgs = {

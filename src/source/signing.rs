@@ -143,9 +143,7 @@ pub fn parse_key(bytes: &[u8]) -> Result<[u8; KEY_LEN], String> {
         })?
         .trim();
     let decoded = if text.len() == 2 * KEY_LEN && text.bytes().all(|b| b.is_ascii_hexdigit()) {
-        (0..KEY_LEN)
-            .map(|i| u8::from_str_radix(&text[2 * i..2 * i + 2], 16).unwrap_or(0))
-            .collect()
+        hex::decode(text).map_err(|e| format!("64 hex digits that do not decode: {e}"))?
     } else {
         base64_decode(text).ok_or_else(|| {
             format!("expected 32 raw bytes, 64 hex digits or base64 of 32 bytes; found {} characters of text", text.len())
@@ -159,28 +157,18 @@ pub fn parse_key(bytes: &[u8]) -> Result<[u8; KEY_LEN], String> {
     })
 }
 
-/// Standard base64 (RFC 4648, `+/`, padding optional). `None` on anything else.
+/// Standard base64 (RFC 4648, `+/`, padding optional, unused trailing bits ignored).
+/// `None` on anything else.
 fn base64_decode(s: &str) -> Option<Vec<u8>> {
-    let s = s.trim_end_matches('=');
-    let mut out = Vec::with_capacity(s.len() * 3 / 4);
-    let (mut acc, mut bits) = (0u32, 0u32);
-    for c in s.bytes() {
-        let v = match c {
-            b'A'..=b'Z' => c - b'A',
-            b'a'..=b'z' => c - b'a' + 26,
-            b'0'..=b'9' => c - b'0' + 52,
-            b'+' => 62,
-            b'/' => 63,
-            _ => return None,
-        };
-        acc = (acc << 6) | u32::from(v);
-        bits += 6;
-        if bits >= 8 {
-            bits -= 8;
-            out.push((acc >> bits) as u8);
-        }
-    }
-    (bits < 6).then_some(out)
+    use base64::engine::{DecodePaddingMode, GeneralPurpose, GeneralPurposeConfig};
+    use base64::Engine;
+    const LENIENT: GeneralPurpose = GeneralPurpose::new(
+        &base64::alphabet::STANDARD,
+        GeneralPurposeConfig::new()
+            .with_decode_padding_mode(DecodePaddingMode::Indifferent)
+            .with_decode_allow_trailing_bits(true),
+    );
+    LENIENT.decode(s.trim_end_matches('=')).ok()
 }
 
 /// This machine's clock as a signing timestamp: 10 µs units since 2015-01-01 UTC.
@@ -265,12 +253,7 @@ impl Verifier {
         let ts = u64::from_le_bytes(ts_bytes);
         let expected = mac(&self.signing.key, body, link_id, ts);
         // Constant time: every byte compared whatever the first difference.
-        if expected
-            .iter()
-            .zip(&block[7..13])
-            .fold(0u8, |d, (a, b)| d | (a ^ b))
-            != 0
-        {
+        if !bool::from(subtle::ConstantTimeEq::ct_eq(&expected[..], &block[7..13])) {
             return Verdict::BadSignature;
         }
         let stream = (link_id, frame[5], frame[6]);
@@ -372,6 +355,22 @@ mod tests {
         );
         assert!(parse_key(b"too short").unwrap_err().contains("32"));
         assert!(parse_key(&[0xff; 33]).unwrap_err().contains("33 bytes"));
+    }
+
+    /// The base64 a key file may hold, as lenient as the hand-written reader was: padding
+    /// optional (any amount), unused trailing bits ignored; a length that cannot be base64
+    /// or a character outside the standard alphabet is refused.
+    #[test]
+    fn base64_keys_read_leniently_and_nothing_else() {
+        assert_eq!(base64_decode("QQ"), Some(b"A".to_vec()));
+        assert_eq!(base64_decode("QQ=="), Some(b"A".to_vec()));
+        assert_eq!(base64_decode("QQ===="), Some(b"A".to_vec()));
+        assert_eq!(base64_decode("QR=="), Some(b"A".to_vec()), "trailing bits");
+        assert_eq!(base64_decode("+/8"), Some(vec![0xfb, 0xff]));
+        assert_eq!(base64_decode(""), Some(vec![]));
+        for bad in ["Q", "QUJDR", "Q Q=", "-_8", "QQ=A"] {
+            assert_eq!(base64_decode(bad), None, "{bad}");
+        }
     }
 
     #[cfg(unix)]

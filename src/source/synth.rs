@@ -111,6 +111,72 @@ impl Synth {
         self.push(MavMessage::BATTERY_STATUS(b), out);
     }
 
+    /// A parameter as PARAM_VALUE (its value's bits as the type says, index unknown).
+    pub fn param(
+        &mut self,
+        name: &str,
+        value: f32,
+        ty: d::MavParamType,
+        out: &mut Vec<TimedMessage>,
+    ) {
+        let p = d::PARAM_VALUE_DATA {
+            param_value: value,
+            param_count: 0,
+            param_index: u16::MAX,
+            param_id: name.into(),
+            param_type: ty,
+        };
+        self.push(MavMessage::PARAM_VALUE(p), out);
+    }
+
+    /// HIGHRES_IMU: specific force (m/s²) and rates (rad/s), body frame.
+    pub fn imu(
+        &mut self,
+        time_usec: u64,
+        acc: [f32; 3],
+        gyro: [f32; 3],
+        out: &mut Vec<TimedMessage>,
+    ) {
+        let ([xacc, yacc, zacc], [xgyro, ygyro, zgyro]) = (acc, gyro);
+        let m = d::HIGHRES_IMU_DATA {
+            time_usec,
+            xacc,
+            yacc,
+            zacc,
+            xgyro,
+            ygyro,
+            zgyro,
+            ..Default::default()
+        };
+        self.push(MavMessage::HIGHRES_IMU(m), out);
+    }
+
+    /// LOCAL_POSITION_NED at the log's time: position (m) and velocity (m/s), NED.
+    pub fn local_ned(&mut self, pos: [f32; 3], vel: [f32; 3], out: &mut Vec<TimedMessage>) {
+        let ([x, y, z], [vx, vy, vz]) = (pos, vel);
+        let m = d::LOCAL_POSITION_NED_DATA {
+            time_boot_ms: self.boot_ms,
+            x,
+            y,
+            z,
+            vx,
+            vy,
+            vz,
+        };
+        self.push(MavMessage::LOCAL_POSITION_NED(m), out);
+    }
+
+    /// WIND_COV: the wind's north and east components, m/s (where it blows to).
+    pub fn wind(&mut self, time_usec: u64, north: f64, east: f64, out: &mut Vec<TimedMessage>) {
+        let m = d::WIND_COV_DATA {
+            time_usec,
+            wind_x: north as f32,
+            wind_y: east as f32,
+            ..Default::default()
+        };
+        self.push(MavMessage::WIND_COV(m), out);
+    }
+
     fn heartbeat(&self) -> MavMessage {
         let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
             | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;

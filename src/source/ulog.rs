@@ -116,14 +116,7 @@ impl State {
             ParameterValue::FLOAT(x) => (*x, T::MAV_PARAM_TYPE_REAL32),
             ParameterValue::INT32(i) => (f32::from_bits(*i as u32), T::MAV_PARAM_TYPE_INT32),
         };
-        let p = d::PARAM_VALUE_DATA {
-            param_value: v,
-            param_count: 0,
-            param_index: u16::MAX,
-            param_id: key.into(),
-            param_type: t,
-        };
-        self.syn.push(MavMessage::PARAM_VALUE(p), out);
+        self.syn.param(key, v, t, out);
     }
 
     fn data(
@@ -175,41 +168,21 @@ impl State {
                 self.syn.push(MavMessage::ATTITUDE_QUATERNION(m), out);
             }
             "sensor_combined" => {
-                let (Some([xgyro, ygyro, zgyro]), Some([xacc, yacc, zacc])) =
-                    (vec3(f, "gyro_rad"), vec3(f, "accelerometer_m_s2"))
+                let (Some(gyro), Some(acc)) = (vec3(f, "gyro_rad"), vec3(f, "accelerometer_m_s2"))
                 else {
                     return;
                 };
-                let m = d::HIGHRES_IMU_DATA {
-                    time_usec: timestamp,
-                    xacc,
-                    yacc,
-                    zacc,
-                    xgyro,
-                    ygyro,
-                    zgyro,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::HIGHRES_IMU(m), out);
+                self.syn.imu(timestamp, acc, gyro, out);
             }
             "vehicle_local_position" => {
                 let (Some(vx), Some(vy), Some(vz)) = (num(f, "vx"), num(f, "vy"), num(f, "vz"))
                 else {
                     return;
                 };
-                let [vx, vy, vz] = [vx, vy, vz].map(|x| x as f32);
-                self.vel = Some([vx, vy, vz]);
+                let v = [vx, vy, vz].map(|x| x as f32);
+                self.vel = Some(v);
                 let p = ["x", "y", "z"].map(|k| num(f, k).unwrap_or(0.0) as f32);
-                let m = d::LOCAL_POSITION_NED_DATA {
-                    time_boot_ms: boot_ms,
-                    x: p[0],
-                    y: p[1],
-                    z: p[2],
-                    vx,
-                    vy,
-                    vz,
-                };
-                self.syn.push(MavMessage::LOCAL_POSITION_NED(m), out);
+                self.syn.local_ned(p, v, out);
             }
             "vehicle_global_position" => {
                 let (Some(lat), Some(lon), Some(alt)) =
@@ -241,13 +214,7 @@ impl State {
                 else {
                     return;
                 };
-                let m = d::WIND_COV_DATA {
-                    time_usec: timestamp,
-                    wind_x: n as f32,
-                    wind_y: e as f32,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::WIND_COV(m), out);
+                self.syn.wind(timestamp, n, e, out);
             }
             "battery_status" => {
                 let Some(volt) = num(f, "voltage_v") else {

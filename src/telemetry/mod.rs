@@ -103,36 +103,28 @@ impl Default for TelemetryConfig {
 impl TelemetryConfig {
     /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
-        if !(self.rate_hz > 0.0 && self.rate_hz <= 100.0) {
-            errs.push(format!(
-                "telemetry.rate_hz = {}: must be in (0, 100] Hz",
-                self.rate_hz
-            ));
-        }
-        if !(1..=1000).contains(&self.window) {
-            errs.push(format!(
-                "telemetry.window = {}: must be 1..=1000 samples",
-                self.window
-            ));
-        }
-        if !(self.stale_after_s > 0.0 && self.stale_after_s.is_finite()) {
-            errs.push(format!(
-                "telemetry.stale_after_s = {}: must be > 0",
-                self.stale_after_s
-            ));
-        }
+        use crate::validate::{above, above_to};
+        let mut errs = crate::validate::Errors::new();
+        errs.range(
+            "telemetry.rate_hz",
+            self.rate_hz,
+            above_to(0.0, 100.0),
+            "Hz",
+        );
+        errs.range("telemetry.window", self.window, 1..=1000, "samples");
+        errs.range(
+            "telemetry.stale_after_s",
+            self.stale_after_s,
+            above(0.0),
+            "s",
+        );
         if !(self.max_gap_s > 1.0 / self.rate_hz && self.max_gap_s.is_finite()) {
             errs.push(format!(
                 "telemetry.max_gap_s = {}: must be longer than one sample period (1/rate_hz)",
                 self.max_gap_s
             ));
         }
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        errs.into_result()
     }
 }
 
@@ -388,6 +380,24 @@ impl Telemetry {
         self.offer(Signal::Rates, rank, t_us, &rates.map(f64::from));
     }
 
+    /// SCALED_IMU and RAW_IMU: rates in mrad/s and acceleration in mG, offered at
+    /// `(rates rank, acceleration rank)`.
+    fn milli_imu(
+        &mut self,
+        (rates, accel): (usize, usize),
+        t_us: i64,
+        gyro: [i16; 3],
+        acc: [i16; 3],
+    ) {
+        self.offer(Signal::Rates, rates, t_us, &gyro.map(|x| x as f64 * 1e-3));
+        self.offer(
+            Signal::Accel,
+            accel,
+            t_us,
+            &acc.map(|x| x as f64 * 1e-3 * G),
+        );
+    }
+
     fn velocity(&mut self, rank: usize, t_us: i64, v_ned: [f64; 3]) {
         if !v_ned.iter().all(|x| x.is_finite()) {
             self.nonfinite += 1;
@@ -489,34 +499,18 @@ impl Telemetry {
                     );
                 }
             }
-            MavMessage::SCALED_IMU(m) => {
-                self.offer(
-                    Signal::Rates,
-                    3,
-                    t,
-                    &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3),
-                );
-                self.offer(
-                    Signal::Accel,
-                    1,
-                    t,
-                    &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G),
-                );
-            }
-            MavMessage::RAW_IMU(m) => {
-                self.offer(
-                    Signal::Rates,
-                    4,
-                    t,
-                    &[m.xgyro, m.ygyro, m.zgyro].map(|x| x as f64 * 1e-3),
-                );
-                self.offer(
-                    Signal::Accel,
-                    2,
-                    t,
-                    &[m.xacc, m.yacc, m.zacc].map(|x| x as f64 * 1e-3 * G),
-                );
-            }
+            MavMessage::SCALED_IMU(m) => self.milli_imu(
+                (3, 1),
+                t,
+                [m.xgyro, m.ygyro, m.zgyro],
+                [m.xacc, m.yacc, m.zacc],
+            ),
+            MavMessage::RAW_IMU(m) => self.milli_imu(
+                (4, 2),
+                t,
+                [m.xgyro, m.ygyro, m.zgyro],
+                [m.xacc, m.yacc, m.zacc],
+            ),
             MavMessage::LOCAL_POSITION_NED(m) => {
                 self.velocity(0, t, [m.vx, m.vy, m.vz].map(f64::from))
             }

@@ -61,8 +61,9 @@ pub const MAX_TRIES: u32 = 3;
 const AUTOPILOT_VERSION_ID: f32 = 148.0;
 
 /// Which autopilot firmware: it decides how integer parameters are encoded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, strum::Display)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Autopilot {
     ArduPilot,
     Px4,
@@ -87,16 +88,6 @@ impl Autopilot {
             Autopilot::Px4 => &PX4_PARAMS,
             Autopilot::Other => &[],
         }
-    }
-}
-
-impl std::fmt::Display for Autopilot {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Autopilot::ArduPilot => "ardupilot",
-            Autopilot::Px4 => "px4",
-            Autopilot::Other => "other",
-        })
     }
 }
 

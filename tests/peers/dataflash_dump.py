@@ -1,4 +1,4 @@
-"""Independent reader for tests/sim_dataflash.rs: reads a DataFlash .bin with pymavlink's
+"""Independent reader for tests/it/sim_dataflash.rs: reads a DataFlash .bin with pymavlink's
 DFReader and the same flight's .tlog with mavutil, and prints one JSON object: per-type
 counts of each, and the series the test compares (battery, attitude, position, parameters).
 

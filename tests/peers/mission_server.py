@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """A pymavlink ArduPilot-style vehicle that serves its mission over the MAVLink mission
-protocol to `dronewatt monitor`, for tests/mission_protocol.rs.
+protocol to `dronewatt monitor`, for tests/it/mission_protocol.rs.
 
   mission_server.py --to udpout:127.0.0.1:PORT --seconds 12 --drop-seq 2 --change-at 6
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""One pymavlink vehicle on two radios, for tests/link_redundant.rs.
+"""One pymavlink vehicle on two radios, for tests/it/source_links.rs.
 
   redundant.py --ports P1,P2 --seconds 12 --loss 0.3,0.3 --seed 7 [--cut 0:4:4]
 

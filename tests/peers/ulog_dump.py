@@ -1,4 +1,4 @@
-"""Independent reader for tests/sim_ulog.rs: reads a PX4 .ulg with pyulog and the same
+"""Independent reader for tests/it/sim_ulog.rs: reads a PX4 .ulg with pyulog and the same
 flight's .tlog with pymavlink's mavutil, and prints one JSON object: per-topic sample counts
 and parameters of the .ulg, per-type counts of the .tlog, and the battery and attitude
 series of each (µs from the first record).

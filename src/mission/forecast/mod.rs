@@ -164,8 +164,9 @@ impl Calibration {
             if m.model.is_empty() {
                 return Err(format!("{key}: model: missing"));
             }
-            if !(m.scale.is_finite() && m.scale > 0.0) {
-                return Err(format!("{key}: scale = {}: must be > 0", m.scale));
+            if let Some(why) = crate::validate::violation(m.scale, &crate::validate::above(0.0), "")
+            {
+                return Err(format!("{key}: scale = {}: {why}", m.scale));
             }
             if !m.climb_work.iter().all(|w| w.is_finite()) {
                 return Err(format!(
@@ -180,25 +181,20 @@ impl Calibration {
                 ));
             }
         }
-        if !(self.p90_ratio.is_finite() && self.p90_ratio >= 1.0) {
-            return Err(format!(
-                "forecast.calibration.p90_ratio = {}: must be ≥ 1",
-                self.p90_ratio
-            ));
-        }
-        if !(self.vehicle_kg.is_finite() && self.vehicle_kg > 0.0) {
-            return Err(format!(
-                "forecast.calibration.vehicle_kg = {}: must be > 0",
-                self.vehicle_kg
-            ));
-        }
-        if !(0.0..=1.0).contains(&self.live_weight) {
-            return Err(format!(
-                "forecast.calibration.live_weight = {}: must be in [0, 1]",
-                self.live_weight
-            ));
-        }
-        Ok(())
+        use crate::validate::{above, in_range};
+        in_range("forecast.calibration.p90_ratio", self.p90_ratio, 1.0.., "")?;
+        in_range(
+            "forecast.calibration.vehicle_kg",
+            self.vehicle_kg,
+            above(0.0),
+            "kg",
+        )?;
+        in_range(
+            "forecast.calibration.live_weight",
+            self.live_weight,
+            0.0..=1.0,
+            "",
+        )
     }
 }
 

@@ -47,27 +47,24 @@ impl Default for KinematicsConfig {
 impl KinematicsConfig {
     /// Range checks; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
-        let pos = |k: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(format!("forecast.kinematics.{k} = {v}: must be > 0"))
-            }
-        };
-        pos("climb_m_s", self.climb_m_s)?;
-        pos("descent_m_s", self.descent_m_s)?;
-        pos("land_m_s", self.land_m_s)?;
-        pos("accel_m_s2", self.accel_m_s2)?;
-        pos("default_speed_m_s", self.default_speed_m_s)?;
-        for (k, v) in [
-            ("spinup_s", self.spinup_s),
-            ("slow_below_m", self.slow_below_m),
-            ("waypoint_pause_s", self.waypoint_pause_s),
-            ("tilt_per_airspeed2", self.tilt_per_airspeed2),
+        use crate::validate::{above, in_range};
+        let key = |k: &str| format!("forecast.kinematics.{k}");
+        for (k, v, unit) in [
+            ("climb_m_s", self.climb_m_s, "m/s"),
+            ("descent_m_s", self.descent_m_s, "m/s"),
+            ("land_m_s", self.land_m_s, "m/s"),
+            ("accel_m_s2", self.accel_m_s2, "m/s²"),
+            ("default_speed_m_s", self.default_speed_m_s, "m/s"),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("forecast.kinematics.{k} = {v}: must be ≥ 0"));
-            }
+            in_range(&key(k), v, above(0.0), unit)?;
+        }
+        for (k, v, unit) in [
+            ("spinup_s", self.spinup_s, "s"),
+            ("slow_below_m", self.slow_below_m, "m"),
+            ("waypoint_pause_s", self.waypoint_pause_s, "s"),
+            ("tilt_per_airspeed2", self.tilt_per_airspeed2, ""),
+        ] {
+            in_range(&key(k), v, 0.0.., unit)?;
         }
         Ok(())
     }

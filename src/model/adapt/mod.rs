@@ -149,18 +149,22 @@ impl Default for AdaptConfig {
 impl AdaptConfig {
     /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
-        let mut pos = |k: &str, v: f64| {
-            if !(v.is_finite() && v > 0.0) {
-                errs.push(format!("models.adapt.{k} = {v}: must be a positive number"));
-            }
-        };
-        pos("memory_s", self.memory_s);
-        pos("reference_memory_s", self.reference_memory_s);
-        pos("gain_min", self.gain_min);
-        pos("gain_max", self.gain_max);
-        pos("offset_max_w", self.offset_max_w);
-        pos("score_memory_s", self.score_memory_s);
+        let mut errs = crate::validate::Errors::new();
+        for (k, v, unit) in [
+            ("memory_s", self.memory_s, "s"),
+            ("reference_memory_s", self.reference_memory_s, "s"),
+            ("gain_min", self.gain_min, ""),
+            ("gain_max", self.gain_max, ""),
+            ("offset_max_w", self.offset_max_w, "W"),
+            ("score_memory_s", self.score_memory_s, "s"),
+        ] {
+            errs.range(
+                &format!("models.adapt.{k}"),
+                v,
+                crate::validate::above(0.0),
+                unit,
+            );
+        }
         if self.reference_memory_s < 5.0 * self.memory_s {
             errs.push(format!(
                 "models.adapt.reference_memory_s = {}: must be ≥ 5 × memory_s = {} (the deviation alert's reference must adapt much slower than the forecast)",
@@ -168,23 +172,19 @@ impl AdaptConfig {
                 5.0 * self.memory_s
             ));
         }
-        if !(self.min_power_frac.is_finite() && (0.0..1.0).contains(&self.min_power_frac)) {
-            errs.push(format!(
-                "models.adapt.min_power_frac = {}: must be in [0, 1)",
-                self.min_power_frac
-            ));
-        }
+        errs.range(
+            "models.adapt.min_power_frac",
+            self.min_power_frac,
+            0.0..1.0,
+            "",
+        );
         if self.gain_min > 1.0 || self.gain_max < 1.0 {
             errs.push(format!(
                 "models.adapt.gain_min = {}, gain_max = {}: the range must contain 1 (the model as it is)",
                 self.gain_min, self.gain_max
             ));
         }
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        errs.into_result()
     }
 }
 

@@ -216,10 +216,14 @@ pub fn induced_velocity(thrust_n: f64, rho: f64, area_m2: f64, v_t: f64, v_n: f6
     v
 }
 
-/// Which physics model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Which physics model. Its name (strum's `IntoStaticStr`) is the snake-case variant,
+/// but for D'Andrea's, written without the underscore.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, strum::IntoStaticStr, strum::VariantArray)]
+#[strum(serialize_all = "snake_case")]
 pub enum Kind {
+    #[strum(serialize = "dandrea")]
     DAndrea,
+    #[strum(serialize = "dandrea_headwind")]
     DAndreaHeadwind,
     Dorling,
     Stolaroff,
@@ -230,27 +234,12 @@ pub enum Kind {
 
 impl Kind {
     /// Every physics model, in the order tables show them (the paper's order).
-    pub const ALL: [Kind; 7] = [
-        Kind::DAndrea,
-        Kind::DAndreaHeadwind,
-        Kind::Dorling,
-        Kind::Stolaroff,
-        Kind::Kirschstein,
-        Kind::Tseng,
-        Kind::TsengSolo,
-    ];
+    pub const ALL: &'static [Kind] = <Kind as strum::VariantArray>::VARIANTS;
 
-    /// The model's base name (without `_cal`).
+    /// The model's base name (without `_cal`): `dandrea`, `dandrea_headwind`, `dorling`,
+    /// `stolaroff`, `kirschstein`, `tseng`, `tseng_solo`.
     pub fn name(self) -> &'static str {
-        match self {
-            Kind::DAndrea => "dandrea",
-            Kind::DAndreaHeadwind => "dandrea_headwind",
-            Kind::Dorling => "dorling",
-            Kind::Stolaroff => "stolaroff",
-            Kind::Kirschstein => "kirschstein",
-            Kind::Tseng => "tseng",
-            Kind::TsengSolo => "tseng_solo",
-        }
+        self.into()
     }
 
     /// Predicted electrical power, W, for this state under this profile.
@@ -314,6 +303,27 @@ pub fn models(profile: &VehicleProfile) -> Vec<Box<dyn PowerModel>> {
         .iter()
         .map(|&k| Box::new(PhysicsModel::new(k, profile.clone())) as Box<dyn PowerModel>)
         .collect()
+}
+
+#[cfg(test)]
+mod name_tests {
+    /// The models' names, as tables, JSON and the config write them.
+    #[test]
+    fn kinds_are_named_in_the_papers_order() {
+        let names: Vec<&str> = super::Kind::ALL.iter().map(|k| k.name()).collect();
+        assert_eq!(
+            names,
+            [
+                "dandrea",
+                "dandrea_headwind",
+                "dorling",
+                "stolaroff",
+                "kirschstein",
+                "tseng",
+                "tseng_solo"
+            ]
+        );
+    }
 }
 
 #[cfg(test)]

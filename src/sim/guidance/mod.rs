@@ -175,15 +175,15 @@ pub(crate) fn in_range(
     hi: f64,
     open_lo: bool,
 ) -> Result<(), InvalidOption> {
-    let ok = v.is_finite() && (if open_lo { v > lo } else { v >= lo }) && v <= hi;
-    if ok {
-        return Ok(());
+    use std::ops::Bound::{Excluded, Included};
+    let start = if open_lo { Excluded(lo) } else { Included(lo) };
+    match crate::validate::violation(v, &(start, Included(hi)), "") {
+        None => Ok(()),
+        Some(why) => Err(InvalidOption {
+            key: key.into(),
+            reason: format!("= {v}: {why}"),
+        }),
     }
-    let open = if open_lo { "(" } else { "[" };
-    Err(InvalidOption {
-        key: key.into(),
-        reason: format!("= {v}: must be in {open}{lo}, {hi}]"),
-    })
 }
 
 /// Speed limits every leg obeys, m/s: above a walking pace, below what small multirotors fly.

@@ -95,48 +95,29 @@ impl Default for WebSinkConfig {
 impl WebSinkConfig {
     /// Range checks; each message names the key (several errors: one per line).
     pub fn validate(&self) -> Result<(), String> {
-        let mut errs = Vec::new();
+        let mut errs = crate::validate::Errors::new();
         if self.bind.parse::<std::net::SocketAddr>().is_err() {
             errs.push(format!(
                 "sinks.web.bind = '{}': expected IP:PORT, e.g. 127.0.0.1:8787",
                 self.bind
             ));
         }
-        if !(10..=1_000_000).contains(&self.history) {
-            errs.push(format!(
-                "sinks.web.history = {}: must be 10..=1000000 points",
-                self.history
-            ));
-        }
-        if !(self.min_step_s.is_finite() && self.min_step_s >= 0.0) {
-            errs.push(format!(
-                "sinks.web.min_step_s = {}: must be ≥ 0",
-                self.min_step_s
-            ));
-        }
-        if !(self.linger_s.is_finite() && self.linger_s >= 0.0) {
-            errs.push(format!(
-                "sinks.web.linger_s = {}: must be ≥ 0",
-                self.linger_s
-            ));
-        }
-        if !(1..=10_000).contains(&self.max_connections) {
-            errs.push(format!(
-                "sinks.web.max_connections = {}: must be 1..=10000",
-                self.max_connections
-            ));
-        }
-        if !(1024..=1_048_576).contains(&self.max_request_bytes) {
-            errs.push(format!(
-                "sinks.web.max_request_bytes = {}: must be 1024..=1048576",
-                self.max_request_bytes
-            ));
-        }
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        errs.range("sinks.web.history", self.history, 10..=1_000_000, "points");
+        errs.range("sinks.web.min_step_s", self.min_step_s, 0.0.., "s");
+        errs.range("sinks.web.linger_s", self.linger_s, 0.0.., "s");
+        errs.range(
+            "sinks.web.max_connections",
+            self.max_connections,
+            1..=10_000,
+            "",
+        );
+        errs.range(
+            "sinks.web.max_request_bytes",
+            self.max_request_bytes,
+            1024..=1_048_576,
+            "bytes",
+        );
+        errs.into_result()
     }
 
     /// The access token: `DRONEWATT_WEB_TOKEN`, else `token_file`, else none. Refuses to

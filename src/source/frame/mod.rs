@@ -36,7 +36,7 @@
 //! once the input is finished and drained, `ok + bad + unknown + junk == bytes pushed`.
 //! A bad or unknown frame's span ends where a good frame found inside it begins (the
 //! resynchronisation above), so no byte is counted twice. The fuzz targets and
-//! `tests/fuzz_corpus.rs` check this on every input (`crate::fuzz_props`).
+//! `tests/it/fuzz_props.rs` check this on every input (`crate::fuzz_props`).
 //!
 //! ## Gaps
 //!
@@ -534,6 +534,34 @@ impl FrameDecoder {
         u64::from_be_bytes(s)
     }
 
+    /// The good record at `rec` (a `len`-byte frame after its stamp): step past it, count
+    /// it, note its stamp and sequence; the reader is aligned after it.
+    #[inline]
+    fn accept_tlog(
+        &mut self,
+        rec: usize,
+        len: usize,
+        header: MavHeader,
+        version: MavlinkVersion,
+        msg: MavMessage,
+        stats: &IngestStats,
+    ) -> Frame {
+        let stamp = self.stamp_at(rec);
+        self.pos = rec + TLOG_STAMP_LEN + len;
+        self.close_claim(rec);
+        self.tally.ok += (TLOG_STAMP_LEN + len) as u64;
+        self.aligned = true;
+        self.last_stamp_us = Some(stamp);
+        IngestStats::add(&stats.frames_ok, 1);
+        self.track_seq(&header, stats);
+        Frame {
+            header,
+            version,
+            msg,
+            stamp_us: Some(stamp),
+        }
+    }
+
     fn next_tlog(&mut self, stats: &IngestStats) -> Option<Frame> {
         loop {
             let avail = self.buf.len() - self.pos;
@@ -553,21 +581,7 @@ impl FrameDecoder {
                         header,
                         version,
                         msg,
-                    } => {
-                        let stamp = self.stamp_at(rec);
-                        self.pos = rec + TLOG_STAMP_LEN + len;
-                        self.close_claim(rec);
-                        self.tally.ok += (TLOG_STAMP_LEN + len) as u64;
-                        self.last_stamp_us = Some(stamp);
-                        IngestStats::add(&stats.frames_ok, 1);
-                        self.track_seq(&header, stats);
-                        return Some(Frame {
-                            header,
-                            version,
-                            msg,
-                            stamp_us: Some(stamp),
-                        });
-                    }
+                    } => return Some(self.accept_tlog(rec, len, header, version, msg, stats)),
                     At::Unknown { len, header } => {
                         IngestStats::add(&stats.unknown, 1);
                         self.track_seq(&header, stats);
@@ -621,20 +635,7 @@ impl FrameDecoder {
                     } => {
                         let rec = q - TLOG_STAMP_LEN;
                         self.junk(stats, self.pos, rec);
-                        let stamp = self.stamp_at(rec);
-                        self.pos = q + len;
-                        self.close_claim(rec);
-                        self.tally.ok += (TLOG_STAMP_LEN + len) as u64;
-                        self.aligned = true;
-                        self.last_stamp_us = Some(stamp);
-                        IngestStats::add(&stats.frames_ok, 1);
-                        self.track_seq(&header, stats);
-                        return Some(Frame {
-                            header,
-                            version,
-                            msg,
-                            stamp_us: Some(stamp),
-                        });
+                        return Some(self.accept_tlog(rec, len, header, version, msg, stats));
                     }
                     At::Unknown { .. } | At::Bad { .. } if q >= self.counted_until => {
                         let stamp = self.stamp_at(q - TLOG_STAMP_LEN);

@@ -13,36 +13,32 @@ pub const MIN_PCT_DROP: f64 = 10.0;
 pub(crate) const BUSY_WAIT: Duration = Duration::from_secs(2);
 
 /// The data directory: `flag` (`--data-dir`), else `home_env` (`$DRONEWATT_HOME`), else
-/// `$XDG_DATA_HOME/dronewatt`, else `$HOME/.local/share/dronewatt`. `None`: the store is
-/// off (`off` given, or no home directory at all). The environment is passed in, so the
-/// rule is testable.
+/// `dronewatt` in `platform`, the platform's data directory (on Linux, the XDG rule:
+/// `$XDG_DATA_HOME` when it is absolute, else `~/.local/share`). `None`: the store is off
+/// (`off` given, or no data directory at all). The environment is passed in, so the rule
+/// is testable.
 pub fn data_dir(
     flag: Option<&Path>,
     home_env: Option<&str>,
-    xdg_data_home: Option<&str>,
-    home: Option<&str>,
+    platform: Option<PathBuf>,
 ) -> Option<PathBuf> {
-    let nonempty = |s: Option<&str>| s.filter(|s| !s.is_empty()).map(str::to_string);
     let chosen = flag
         .map(|p| p.to_string_lossy().into_owned())
         .filter(|s| !s.is_empty())
-        .or_else(|| nonempty(home_env));
+        .or_else(|| home_env.filter(|s| !s.is_empty()).map(str::to_string));
     if let Some(dir) = chosen {
         return (dir != "off").then(|| PathBuf::from(dir));
     }
-    if let Some(x) = nonempty(xdg_data_home).filter(|x| Path::new(x).is_absolute()) {
-        return Some(Path::new(&x).join("dronewatt"));
-    }
-    nonempty(home).map(|h| Path::new(&h).join(".local/share/dronewatt"))
+    platform.map(|d| d.join("dronewatt"))
 }
 
-/// [`data_dir`] from this process's environment.
+/// [`data_dir`] from this process's environment; the platform's data directory from the
+/// `dirs` crate (XDG on Linux, `~/Library/Application Support` on macOS, `%APPDATA%` on
+/// Windows).
 pub fn data_dir_from_env(flag: Option<&Path>) -> Option<PathBuf> {
-    let var = |k: &str| std::env::var(k).ok();
     data_dir(
         flag,
-        var(HOME_ENV).as_deref(),
-        var("XDG_DATA_HOME").as_deref(),
-        var("HOME").as_deref(),
+        std::env::var(HOME_ENV).ok().as_deref(),
+        dirs::data_dir(),
     )
 }

@@ -18,29 +18,26 @@ fn id(uid: Option<u64>) -> Identity {
 #[test]
 fn data_dir_rule() {
     let flag = Path::new("/tmp/x");
+    let platform = || Some(PathBuf::from("/x"));
     assert_eq!(
-        data_dir(Some(flag), Some("/e"), Some("/x"), Some("/h")),
+        data_dir(Some(flag), Some("/e"), platform()),
         Some(PathBuf::from("/tmp/x"))
     );
     assert_eq!(
-        data_dir(None, Some("/e"), Some("/x"), Some("/h")),
+        data_dir(None, Some("/e"), platform()),
         Some(PathBuf::from("/e"))
     );
     assert_eq!(
-        data_dir(None, None, Some("/x"), Some("/h")),
+        data_dir(None, None, platform()),
         Some(PathBuf::from("/x/dronewatt"))
     );
-    // XDG says a relative XDG_DATA_HOME is invalid and to be ignored.
     assert_eq!(
-        data_dir(None, Some(""), Some("rel"), Some("/h")),
-        Some(PathBuf::from("/h/.local/share/dronewatt"))
+        data_dir(None, Some(""), platform()),
+        Some(PathBuf::from("/x/dronewatt"))
     );
-    assert_eq!(data_dir(None, Some("off"), Some("/x"), Some("/h")), None);
-    assert_eq!(
-        data_dir(Some(Path::new("off")), None, None, Some("/h")),
-        None
-    );
-    assert_eq!(data_dir(None, None, None, None), None);
+    assert_eq!(data_dir(None, Some("off"), platform()), None);
+    assert_eq!(data_dir(Some(Path::new("off")), None, platform()), None);
+    assert_eq!(data_dir(None, None, None), None);
 }
 
 #[test]
@@ -492,4 +489,11 @@ fn each_pack_keeps_its_own_history() {
     let last = packs.pick(None).expect("the vehicle's last flight");
     assert_eq!(last.r_scale, Some(1.6));
     assert!(!last.same_pack(23.35, 6), "no identity, 23 h: the gap rule");
+}
+
+/// The autopilot as the store's `vehicles` table writes it (strum's `Display`).
+#[test]
+fn autopilots_are_stored_by_their_lower_case_names() {
+    let names = [Autopilot::ArduPilot, Autopilot::Px4, Autopilot::Other].map(|a| a.to_string());
+    assert_eq!(names, ["ardupilot", "px4", "other"]);
 }

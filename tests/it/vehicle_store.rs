@@ -218,3 +218,54 @@ fn a_corrupt_or_locked_store_degrades_with_a_message() {
         "{err}"
     );
 }
+
+/// Where `dronewatt vehicles` looks, as the environment says: `$DRONEWATT_HOME`, else the
+/// XDG rule (`$XDG_DATA_HOME` when absolute, else `$HOME/.local/share`), `off` for none.
+#[test]
+fn the_data_dir_follows_the_environment() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let run = |home_env: Option<&str>, xdg: &str| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
+        c.arg("vehicles")
+            .env_remove("DRONEWATT_HOME")
+            .env("XDG_DATA_HOME", xdg)
+            .env("HOME", d.join("home"));
+        if let Some(h) = home_env {
+            c.env("DRONEWATT_HOME", h);
+        }
+        c.output().unwrap()
+    };
+    let listed = |out: Output| {
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8(out.stdout).unwrap();
+        text.split(": ").next().unwrap().to_string()
+    };
+    let xdg = d.join("xdg");
+    assert_eq!(
+        listed(run(None, xdg.to_str().unwrap())),
+        xdg.join("dronewatt/dronewatt.sqlite").to_str().unwrap()
+    );
+    // A relative XDG_DATA_HOME is invalid (the XDG spec) and passed over.
+    assert_eq!(
+        listed(run(None, "relative/xdg")),
+        d.join("home/.local/share/dronewatt/dronewatt.sqlite")
+            .to_str()
+            .unwrap()
+    );
+    let own = d.join("own");
+    assert_eq!(
+        listed(run(Some(own.to_str().unwrap()), xdg.to_str().unwrap())),
+        own.join("dronewatt.sqlite").to_str().unwrap()
+    );
+    let off = run(Some("off"), xdg.to_str().unwrap());
+    assert!(
+        !off.status.success()
+            && String::from_utf8_lossy(&off.stderr).contains("the vehicle store is off"),
+        "{off:?}"
+    );
+}

@@ -1,14 +1,14 @@
 //! `serial:` on a pseudo-terminal pair (no hardware): frames written at one end arrive
 //! decoded at the other, and frames a sink queues go back out.
 
-mod ingest_common;
+use crate::mavlink_common;
 
 use std::sync::Arc;
 use std::time::Duration;
 
 use dronewatt::source::{IngestStats, LinkHandle, SourceSpec};
-use ingest_common::*;
 use mavlink::MavlinkVersion::{V1, V2};
+use mavlink_common::*;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio_serial::SerialPort;
 use tokio_util::sync::CancellationToken;

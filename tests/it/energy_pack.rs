@@ -3,7 +3,7 @@
 //! resting voltage as the start state and raise `voltage_forecast_below` before the measured
 //! voltage crosses the low threshold (3.5 V a cell: 10.5 V).
 
-mod link_common;
+use crate::link_common;
 
 use link_common::*;
 

@@ -1,15 +1,15 @@
 //! Live links on 127.0.0.1 with real sockets: pymavlink as the peer for UDP and TCP, a
 //! tokio server that drops the connection for the tcpout reconnect test.
 
-mod ingest_common;
+use crate::mavlink_common;
 
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
 use std::time::Duration;
 
 use dronewatt::source::{IngestStats, LinkHandle, SourceSpec, TimedMessage};
-use ingest_common::*;
 use mavlink::MavlinkVersion::V2;
+use mavlink_common::*;
 use tokio::io::AsyncWriteExt;
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;

@@ -1,13 +1,13 @@
 //! The frame decoder on streams built with rust-mavlink: exact counts for every kind of
-//! damage (the tlog and pymavlink sides are in ingest_tlog.rs).
+//! damage (the tlog and pymavlink sides are in source_tlog.rs).
 
-mod ingest_common;
+use crate::mavlink_common;
 
 use dronewatt::source::frame::{FrameDecoder, Framing};
 use dronewatt::source::{IngestStats, StatsSnapshot};
 use dronewatt::MavMessage;
-use ingest_common::*;
 use mavlink::MavlinkVersion::{self, V1, V2};
+use mavlink_common::*;
 
 /// Decode `bytes` pushed in chunks of `chunk`; the messages and the counters.
 fn decode(bytes: &[u8], chunk: usize) -> (Vec<MavMessage>, StatsSnapshot) {

@@ -4,7 +4,7 @@
 //! that at least one link brought, each exactly once; the per-link health must say what
 //! each link brought; estimates must keep coming while one link is cut.
 
-mod link_common;
+use crate::link_common;
 
 use std::process::{Command, Stdio};
 

@@ -11,7 +11,7 @@
 //! - the terminal shows the fleet view (one row per vehicle);
 //! - `--vehicles` keeps only the vehicles asked for.
 
-mod link_common;
+use crate::link_common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::process::{Command, Stdio};

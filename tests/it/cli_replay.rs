@@ -1,13 +1,13 @@
 //! The `dronewatt` binary end to end: replay, monitor, errors, Ctrl-C.
 
-mod ingest_common;
+use crate::mavlink_common;
 
 use std::io::Read;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use ingest_common::*;
 use mavlink::MavlinkVersion::V2;
+use mavlink_common::*;
 
 fn dronewatt() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));

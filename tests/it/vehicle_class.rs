@@ -4,7 +4,7 @@
 //! the M100's pack; a quadrotor with no battery monitor gets its remaining energy from the
 //! model's power, said so.
 
-mod link_common;
+use crate::link_common;
 
 use link_common::{fly, Run};
 use serde_json::Value;

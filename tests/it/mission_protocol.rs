@@ -4,7 +4,7 @@
 //! / MISSION_ACK, drops one request, and changes the mission halfway. What the vehicle saw
 //! dronewatt ask and say, and what the operator sees (`--json`), are checked.
 
-mod link_common;
+use crate::link_common;
 
 use std::process::{Command, Stdio};
 

@@ -2,7 +2,7 @@
 //! with bytes flipped at random (seeded) at rates 1e-3 and 1e-2, decoded by the tlog reader.
 //! Every record the flips left whole must still be decoded, every byte must be accounted
 //! for, and nothing may be invented. The kept/total figures are printed for the README:
-//! `cargo test --test tlog_corruption -- --nocapture`.
+//! `cargo test --test it source_tlog_corruption:: -- --nocapture`.
 
 use dronewatt::source::frame::good_frame_len;
 use dronewatt::source::timed::TimedReader;

@@ -4,7 +4,7 @@
 //! or crashed (`fuzz/regressions/TARGET/`) must pass, so a fixed crash stays fixed.
 //!
 //! The seeds are made by this project's own encoder and by hand (nothing cut from the M100
-//! data set); `cargo test --test fuzz_corpus -- --ignored write_seeds` rewrites them.
+//! data set); `cargo test --test it fuzz_props:: -- --ignored write_seeds` rewrites them.
 
 use std::path::{Path, PathBuf};
 

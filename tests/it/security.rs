@@ -9,7 +9,7 @@
 //!   request size, the token beyond loopback, the connection limit; and in headless
 //!   Chromium with a token.
 
-mod link_common;
+use crate::link_common;
 
 use std::io::{Read, Write};
 use std::net::TcpStream;

@@ -1,14 +1,14 @@
 //! `.tlog` and raw-stream reading: timestamps, clock jumps, corruption, and tlogs written
 //! by pymavlink (the independent peer) with MAVLink 1, 2 and signed frames.
 
-mod ingest_common;
+use crate::mavlink_common;
 
 use dronewatt::source::raw::decode_raw;
 use dronewatt::source::timed::TimedReader;
 use dronewatt::source::tlog::decode_tlog;
 use dronewatt::source::{IngestStats, StatsSnapshot, TimedMessage};
-use ingest_common::*;
 use mavlink::MavlinkVersion::{V1, V2};
+use mavlink_common::*;
 
 fn tlog_decode(bytes: &[u8]) -> (Vec<TimedMessage>, StatsSnapshot) {
     let stats = IngestStats::default();

@@ -5,7 +5,7 @@
 //! messages (with `[fleet] vehicles` set to the one watched). Every test also checks that no report is lost and no estimate invented
 //! ([`link_common::check_consistent`]).
 
-mod link_common;
+use crate::link_common;
 
 use link_common::*;
 
@@ -239,7 +239,7 @@ fn mavlink_1_and_2_interleaved_are_one_stream() {
 
 #[test]
 fn a_second_vehicles_stray_messages_are_counted_and_ignored() {
-    // A second vehicle gets a chain of its own (tests/fleet_link.rs); an instance told to
+    // A second vehicle gets a chain of its own (tests/it/pipeline_fleet.rs); an instance told to
     // watch vehicle 1 only reads every frame and estimates nothing from the other's.
     let r = fly(
         "[fleet]\nvehicles = \"1\"\n",

@@ -1,7 +1,7 @@
 //! The MAVLink sink against an independent ground station: pymavlink
 //! (`tests/peers/gcs_listen.py`) listens on 127.0.0.1 and the sink sends to it with
 //! `udpout:`, fed by the real energy tracker and alert engine over a synthetic flight.
-//! The end-to-end version through `dronewatt monitor` is `tests/gcs_monitor.rs`.
+//! The end-to-end version through `dronewatt monitor` is `tests/it/sink_mavlink_monitor.rs`.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
