@@ -1,12 +1,17 @@
 //! What one flight leaves of its pack for the next: the resistance it showed, its warmth,
 //! the resting voltage it landed at, and how long ago. Kept by the vehicle store, carried in
 //! when the same pack flies again soon (the data set's packs flown again within
-//! [`SAME_PACK_GAP_S`] were the same pack).
+//! [`SAME_PACK_GAP_S`] were the same pack). Where the vehicle identifies its pack
+//! (BATTERY_INFO's serial), the history is that pack's own last flight and the gap rule is
+//! not needed: any gap is the same pack (its warmth has decayed over the gap).
 
 /// What the last flight of a vehicle left of its pack: carried into the next flight when it
 /// starts soon after on what looks like the same pack.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PackHistory {
+    /// That flight was of the pack flying now by its identity (BATTERY_INFO's serial), not
+    /// just the vehicle's last flight: the gap rule does not apply.
+    pub identified: bool,
     /// Seconds since that flight ended.
     pub gap_s: f64,
     /// Its resistance scale.
@@ -27,9 +32,80 @@ impl PackHistory {
     pub fn same_pack(&self, rest_v: f64, cells: u32) -> bool {
         let n = f64::from(cells);
         self.gap_s.is_finite()
-            && (0.0..=SAME_PACK_GAP_S).contains(&self.gap_s)
+            && self.gap_s >= 0.0
+            && (self.identified || self.gap_s <= SAME_PACK_GAP_S)
             && self
                 .end_rest_v
                 .is_none_or(|end| rest_v >= end - 0.02 * n && rest_v <= end + 0.15 * n)
+    }
+}
+
+/// What the vehicle store holds of a vehicle's packs, for the energy stage to pick from once
+/// it knows which pack flies ([`PackHistories::pick`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PackHistories {
+    /// The vehicle's last flight, whatever its pack.
+    pub last: Option<PackHistory>,
+    /// Each identified pack's last flight on this vehicle, by pack id.
+    pub by_pack: Vec<(String, PackHistory)>,
+}
+
+impl PackHistories {
+    /// The history for the pack flying now: with an identity, that pack's own last flight
+    /// (none when it never flew here: the vehicle's last flight was another pack, or one it
+    /// did not identify); without one, the vehicle's last flight under the gap rule.
+    pub fn pick(&self, pack_id: Option<&str>) -> Option<PackHistory> {
+        match pack_id {
+            Some(id) => self
+                .by_pack
+                .iter()
+                .find(|(p, _)| p == id)
+                .map(|(_, h)| PackHistory {
+                    identified: true,
+                    ..*h
+                }),
+            None => self.last.map(|h| PackHistory {
+                identified: false,
+                ..h
+            }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hist(gap_s: f64) -> PackHistory {
+        PackHistory {
+            identified: false,
+            gap_s,
+            r_scale: Some(1.3),
+            heat: 0.0,
+            end_rest_v: Some(23.3),
+        }
+    }
+
+    #[test]
+    fn a_known_pack_carries_over_any_gap_an_unknown_one_only_a_short_one() {
+        let day = hist(86_400.0);
+        assert!(
+            !day.same_pack(23.35, 6),
+            "a day later, no identity: another pack"
+        );
+        let h = PackHistories {
+            last: Some(hist(60.0)),
+            by_pack: vec![("A".into(), day)],
+        };
+        let a = h.pick(Some("A")).expect("pack A flew here");
+        assert!(a.identified && a.same_pack(23.35, 6), "{a:?}");
+        assert!(!a.same_pack(25.9, 6), "recharged: its state is not carried");
+        assert!(
+            !PackHistory { gap_s: -60.0, ..a }.same_pack(23.35, 6),
+            "an earlier flight"
+        );
+        assert_eq!(h.pick(Some("B")), None, "pack B never flew here");
+        let v = h.pick(None).expect("the vehicle's last flight");
+        assert!(!v.identified && v.same_pack(23.35, 6));
     }
 }

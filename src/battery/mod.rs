@@ -41,5 +41,5 @@ pub mod ocv;
 pub use chemistry::{cell_candidates, Chemistry};
 pub use circuit::{CircuitParams, Estimate, Estimator, PACK_SCALE_CARRY};
 pub use forecast::{forecast, Forecast};
-pub use history::{PackHistory, SAME_PACK_GAP_S};
+pub use history::{PackHistories, PackHistory, SAME_PACK_GAP_S};
 pub use ocv::OcvCurve;

@@ -425,6 +425,7 @@ mod tests {
     fn the_same_pack_soon_after_carries_its_resistance_and_warmth() {
         let f = tb48d();
         let hist = |gap_s: f64| PackHistory {
+            identified: false,
             gap_s,
             r_scale: Some(1.4),
             heat: 100_000.0,

@@ -58,8 +58,8 @@ struct StoreNews {
     capacity: Option<(f64, usize)>,
     /// The forecast model of the learned profile the models now run from, and why.
     forecast: Option<(String, String)>,
-    /// What the vehicle's last flight left of its pack.
-    pack: Option<crate::battery::PackHistory>,
+    /// What the vehicle's last flight, and each identified pack's, left of its pack.
+    pack: crate::battery::PackHistories,
     /// A replayed log's first stamp, Unix s (reports' times count from it): the flight's end
     /// on the log's clock for the store.
     log_origin_s: Option<f64>,
@@ -418,6 +418,10 @@ async fn energy_stage(
     // Whether the vehicle's last word (its sender gone: the telemetry stage done) was taken.
     let mut vehicle_final = false;
     let mut capacity_final = false;
+    // The store's pack histories and the pack flying (BATTERY_INFO): the carry-over is
+    // picked again when either changes ([`crate::battery::PackHistories::pick`]).
+    let mut packs = crate::battery::PackHistories::default();
+    let mut pack_id: Option<String> = None;
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
@@ -427,8 +431,15 @@ async fn energy_stage(
         // Capacity and cells from the vehicle where the config is silent. A closed channel (a
         // fast replay whose telemetry stage is done) still holds the last word: take it once.
         let (changed, closed) = vehicle.has_changed().map_or((true, true), |c| (c, false));
+        let mut repick = false;
         if changed && !vehicle_final {
-            energy.set_vehicle(vehicle.borrow_and_update().clone());
+            let params = vehicle.borrow_and_update().clone();
+            if params.pack_id.is_some() && params.pack_id != pack_id {
+                pack_id.clone_from(&params.pack_id);
+                flight.set_pack_id(pack_id.clone());
+                repick = true;
+            }
+            energy.set_vehicle(params);
             vehicle_final = closed;
         }
         // The pack's effective capacity from earlier flights (the vehicle store), and the
@@ -437,12 +448,16 @@ async fn energy_stage(
         if changed && !capacity_final {
             let news = learned.borrow_and_update().clone();
             energy.set_learned_capacity(news.capacity);
-            energy.set_pack_history(news.pack);
+            packs = news.pack;
+            repick = true;
             flight.set_log_origin(news.log_origin_s);
             if let Some((model, why)) = news.forecast {
                 energy.set_default_model(&model, &why);
             }
             capacity_final = closed;
+        }
+        if repick {
+            energy.set_pack_history(packs.pick(pack_id.as_deref()));
         }
         let report = match next {
             Ok(Some(est)) => {

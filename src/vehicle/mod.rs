@@ -179,10 +179,41 @@ pub fn battery_from_config(cfg: &BatteryConfig) -> BatteryFacts {
     resolve_battery(cfg, &params::VehicleParams::default(), None).0
 }
 
+/// The pack's identity from BATTERY_INFO: its `serial_number` (ASCII, 0-terminated),
+/// trimmed of blanks. Empty, all zeros, blanks or not text is no identity: such a monitor
+/// does not tell its packs apart (BATTERY_INFO and BATTERY_STATUS `id` only says which of
+/// the vehicle's batteries, not which pack is in it). Control characters are dropped (the
+/// identity goes to the store and the terminal).
+pub fn pack_identity(b: &crate::dialect::BATTERY_INFO_DATA) -> Option<String> {
+    let raw: &[u8] = &b.serial_number[..];
+    let end = raw.iter().position(|&c| c == 0).unwrap_or(raw.len());
+    let text = std::str::from_utf8(&raw[..end]).ok()?;
+    let id: String = text.trim().chars().filter(|c| !c.is_control()).collect();
+    (!id.is_empty() && id.chars().any(|c| c != '0')).then_some(id)
+}
+
 #[cfg(test)]
 mod tests {
     use super::params::VehicleParams;
     use super::*;
+
+    #[test]
+    fn a_pack_is_told_by_its_serial_and_a_blank_one_is_no_pack() {
+        let info = |serial: &str| crate::dialect::BATTERY_INFO_DATA {
+            serial_number: serial.into(),
+            ..Default::default()
+        };
+        assert_eq!(
+            pack_identity(&info("TB48D-0042 ")).as_deref(),
+            Some("TB48D-0042")
+        );
+        for blank in ["", "   ", "0000", "\t\n"] {
+            assert_eq!(pack_identity(&info(blank)), None, "{blank:?}");
+        }
+        let mut bad = info("");
+        bad.serial_number = [0xff_u8; 32].into();
+        assert_eq!(pack_identity(&bad), None, "not text");
+    }
 
     fn cfg(capacity_wh: Option<f64>, cell_count: Option<u32>) -> BatteryConfig {
         BatteryConfig {

@@ -151,6 +151,8 @@ pub struct VehicleParams {
     /// Cells the battery monitor reports one by one (BATTERY_STATUS `voltages`: two or more
     /// entries, each a cell's voltage; 65535 is "no cell"), when it does.
     pub battery_cells: Option<u32>,
+    /// The pack, where the vehicle identifies it ([`crate::vehicle::pack_identity`]).
+    pub pack_id: Option<String>,
 }
 
 impl VehicleParams {
@@ -190,6 +192,7 @@ pub struct ParamReader {
     changed: bool,
     /// Cells BATTERY_STATUS reports one by one ([`cells_reported`]).
     cells: Option<u32>,
+    pack_id: Option<String>,
 }
 
 /// The cells a BATTERY_STATUS reports one by one: its entries that are not "no cell"
@@ -221,6 +224,7 @@ impl ParamReader {
             asks: BTreeMap::new(),
             changed: false,
             cells: None,
+            pack_id: None,
         }
     }
     /// A reader that only listens (a replayed log).
@@ -267,6 +271,13 @@ impl ParamReader {
                     self.cells = cells;
                     self.changed = true;
                 }
+            }
+            MavMessage::BATTERY_INFO(b)
+                if b.id == 0 && self.identity.as_ref().is_none_or(|id| id.system_id == sys) =>
+            {
+                let id = crate::vehicle::pack_identity(b);
+                self.changed |= id.is_some() && id != self.pack_id;
+                self.pack_id = id.or(self.pack_id.take());
             }
             MavMessage::PARAM_VALUE(p) => {
                 // Before the heartbeat, take an autopilot's (component 1) values; after it,
@@ -379,6 +390,7 @@ impl ParamReader {
                 .map(|(n, _)| n.to_string())
                 .collect(),
             battery_cells: self.cells,
+            pack_id: self.pack_id.clone(),
         }
     }
 }

@@ -106,3 +106,112 @@ fn a_sagging_pack_warns_before_its_voltage_crosses_the_low_threshold() {
         "{texts:?}"
     );
 }
+
+/// One `dronewatt monitor` run with the vehicle store in `data_dir`: the peer flies `plan`
+/// with `peer_args`; the estimates with models.
+fn fly_stored(
+    data_dir: &std::path::Path,
+    plan: &str,
+    peer_args: &[&str],
+) -> Vec<serde_json::Value> {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("dw.toml");
+    std::fs::write(&cfg, CONFIG).unwrap();
+    let json = dir.path().join("out.jsonl");
+    let port = free_udp_port();
+    let mut dw = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args([
+            "monitor",
+            &format!("udpin:127.0.0.1:{port}"),
+            "-q",
+            "--config",
+        ])
+        .arg(&cfg)
+        .arg("--data-dir")
+        .arg(data_dir)
+        .arg("--json")
+        .arg(&json)
+        .env("RUST_LOG", "dronewatt=info")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_listening(port, false, &mut dw);
+    let to = format!("udpout:127.0.0.1:{port}");
+    let args: Vec<&str> = ["--to", &to, "--plan", plan]
+        .into_iter()
+        .chain(peer_args.iter().copied())
+        .collect();
+    let (_, stderr) = peer_then_stop(dw, "vehicle.py", &args);
+    let text = std::fs::read_to_string(&json).unwrap();
+    let est: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["type"] == "estimate" && v["battery_rest_v"].is_number())
+        .collect();
+    assert!(!est.is_empty(), "no start state read; dronewatt: {stderr}");
+    est
+}
+
+/// Pack health per pack over a real socket: the vehicle identifies its pack (BATTERY_INFO
+/// `serial_number`, `vehicle.py --pack-serial`). Pack A flies, then pack B on the same
+/// vehicle moments later: B never flew here, so nothing carries over to it (per vehicle, the
+/// last flight so soon would have). Pack A again carries over from A's own flight, past B's;
+/// a run with no identity falls back to the vehicle's last flight (the gap rule).
+/// `dronewatt vehicles` lists each pack's flights in a row of its own.
+#[test]
+fn the_pack_history_follows_the_packs_serial() {
+    let store = tempfile::tempdir().unwrap();
+    let pack = r#"{"cells": 3, "wh": 4, "rest_v": 11.40, "r0": 0.12, "r1": 0.08, "tau_s": 10}"#;
+    let plan = r#"[{"send_s": 3, "ground": true}, {"send_s": 6}, {"send_s": 3, "ground": true}]"#;
+    let base = ["--pack", pack, "--power-w", "50", "--power-swing-w", "5"];
+    let carried = |serial: Option<&str>| {
+        let mut args = base.to_vec();
+        if let Some(s) = serial {
+            args.extend(["--pack-serial", s]);
+        }
+        let est = fly_stored(store.path(), plan, &args);
+        est.iter()
+            .any(|e| e["pack_carried_over"].as_bool() == Some(true))
+    };
+    assert!(!carried(Some("A-0001")), "the store was empty");
+    assert!(
+        !carried(Some("B-0002")),
+        "pack B never flew on this vehicle"
+    );
+    assert!(
+        carried(Some("A-0001")),
+        "pack A's own last flight carries over"
+    );
+    assert!(
+        carried(None),
+        "no identity: the vehicle's last flight, moments ago"
+    );
+
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["vehicles", "--data-dir"])
+        .arg(store.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let listing = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        listing.contains("pack A-0001 (2 flight(s))")
+            && listing.contains("pack B-0002 (1 flight(s))")
+            && listing.contains("pack (per vehicle: no pack id heard)"),
+        "{listing}"
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args(["vehicles", "--json", "--data-dir"])
+        .arg(store.path())
+        .output()
+        .unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let ids: Vec<_> = v[0]["flights"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["pack_id"].as_str())
+        .collect();
+    assert_eq!(ids, [Some("A-0001"), Some("B-0002"), Some("A-0001"), None]);
+}

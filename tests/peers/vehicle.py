@@ -24,6 +24,8 @@ the current solved from the power each tick (P = V·I); the voltage falls as the
 define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor);
 --vtol-fw-after-s T flies an ArduPlane quadplane (Q mode and vtol_state MC, then FW after T s);
 --tlog PATH also writes every frame sent to a telemetry log, for replay tests.
+--pack-serial S sends BATTERY_INFO (battery 0, serial_number S) with each heartbeat: the pack's
+identity (pymavlink's dialects here lack message 372, so it is packed by hand: BatteryInfo).
 
 Signing: --sign-key HEX signs every MAVLink 2 frame (pymavlink's setup_signing; it then also
 verifies what it hears and drops what fails). --link-id N its link id.
@@ -58,6 +60,27 @@ def interp(x, xs, ys):
         if x <= x1:
             return y0 + (x - x0) / (x1 - x0) * (y1 - y0)
     return ys[-1]
+
+
+class BatteryInfo(mav.MAVLink_message):
+    """MAVLink common BATTERY_INFO (372; crc_extra 26, 140-byte payload in wire order), which this
+    pymavlink's dialects do not define: battery 0, a 6S LiHV pack, the given serial."""
+
+    msg_id, crc = 372, 26
+
+    def __init__(self, serial):
+        mav.MAVLink_message.__init__(self, BatteryInfo.msg_id, "BATTERY_INFO")
+        self._fieldnames = ["serial_number"]
+        self.serial_number = serial
+
+    def pack(self, m, force_mavlink1=False):
+        nan = float("nan")
+        payload = struct.pack("<10f2H5B9s32s50s",
+                              3.3, 0, 3.8, 4.35, 0, 22.8, 0, 0, 5.7, nan,  # V, A, Ah (NAN: not given)
+                              65535, 0,                                   # cycle count unknown, weight
+                              0, 0, 0, 255, 6,                            # id, function, type, SoH unknown, cells
+                              b"", self.serial_number.encode(), b"Test_Pack")
+        return self._pack(m, BatteryInfo.crc, payload, force_mavlink1=force_mavlink1)
 
 
 class Pack:
@@ -178,6 +201,8 @@ class Vehicle:
         if self.n % 10 == 0 or (vtol is not None and abs(t_flight - vtol) < dt / 2):
             msgs.append(mav.MAVLink_heartbeat_message(self.a.mav_type, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, custom_mode,
                                                       mav.MAV_STATE_ACTIVE, 3))
+            if self.a.pack_serial is not None:
+                msgs.append(BatteryInfo(self.a.pack_serial))
             msgs.append(mav.MAVLink_home_position_message(int(self.home_lat * 1e7), int(LON0 * 1e7), 400_000, 0.0, 0.0, 0.0,
                                                           [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0))
         if self.a.no_battery:
@@ -272,6 +297,7 @@ def main():
     ap.add_argument("--listen-after-s", type=float, default=1.5)
     ap.add_argument("--mav-type", type=int, default=mav.MAV_TYPE_QUADROTOR,
                     help="HEARTBEAT type (MAV_TYPE number; any 0-255, defined or not)")
+    ap.add_argument("--pack-serial", default=None, help="send BATTERY_INFO with this serial_number")
     ap.add_argument("--no-battery", action="store_true", help="send no voltage or current (no battery monitor)")
     ap.add_argument("--tlog", default=None, help="also write every frame sent to this telemetry log (.tlog)")
     ap.add_argument("--vtol-fw-after-s", type=float, default=None,

@@ -59,6 +59,9 @@ pub struct FlightSummary {
     /// The flight's last report on the source's clock when that is a Unix time (a replayed
     /// log), s: the gap to the next flight on the same pack is then the logs' own.
     pub ended_log_s: Option<f64>,
+    /// The pack flown, where the vehicle identified it (BATTERY_INFO's serial,
+    /// [`crate::vehicle::pack_identity`]); `None`: the flight counts for the vehicle.
+    pub pack_id: Option<String>,
 }
 
 /// The least state-of-charge drop, %, for a flight's pack health (smaller is noise).
@@ -83,6 +86,7 @@ pub struct FlightLog {
     /// The pack as the last report had it (the start state is kept from the first).
     pack: crate::report::PackState,
     pack_start: Option<(f64, f64)>,
+    pack_id: Option<String>,
 }
 
 /// Measured powers binned on a log scale: bin 0 below 1 W, bin k ≥ 1 for
@@ -148,6 +152,13 @@ impl FlightLog {
     /// Unix time (a replayed log), the flight's end is kept on the log's clock.
     pub fn set_log_origin(&mut self, t_s: Option<f64>) {
         self.log_origin_s = t_s;
+    }
+
+    /// The pack flown, once the vehicle identified it.
+    pub fn set_pack_id(&mut self, id: Option<String>) {
+        if id.is_some() {
+            self.pack_id = id;
+        }
     }
 
     /// Take one report in.
@@ -229,6 +240,7 @@ impl FlightLog {
                 .zip(self.end_t)
                 .map(|(a, b)| a + b)
                 .and_then(super::unix_clock),
+            pack_id: self.pack_id.clone(),
         })
     }
 }

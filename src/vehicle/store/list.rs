@@ -65,13 +65,31 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
                 .map_or("—".to_string(), |w| format!("{w:.2}")),
             trend
         );
-        let pack = pack_trend(&v.flights);
-        if !pack.is_empty() {
-            let _ = writeln!(
-                s,
-                "{:<34} pack (per vehicle: no pack id heard), by flight: {pack}",
-                ""
-            );
+        // One row per pack the vehicle identified (BATTERY_INFO's serial), in the order
+        // first flown; the flights with no pack id heard in one row for the vehicle.
+        let mut packs: Vec<Option<&str>> = Vec::new();
+        for f in &v.flights {
+            let id = f.summary.pack_id.as_deref();
+            if !packs.contains(&id) {
+                packs.push(id);
+            }
+        }
+        for id in packs {
+            let flights: Vec<_> = v
+                .flights
+                .iter()
+                .filter(|f| f.summary.pack_id.as_deref() == id)
+                .cloned()
+                .collect();
+            let pack = pack_trend(&flights);
+            let who = match id {
+                Some(id) => format!("pack {id} ({} flight(s))", flights.len()),
+                None => "pack (per vehicle: no pack id heard)".to_string(),
+            };
+            if !pack.is_empty() || id.is_some() {
+                let pack = if pack.is_empty() { "—".into() } else { pack };
+                let _ = writeln!(s, "{:<34} {who}, by flight: {pack}", "");
+            }
         }
         if let Some(p) = &v.profile {
             let _ = writeln!(

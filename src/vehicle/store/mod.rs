@@ -22,7 +22,7 @@
 //! | table | one row per | holds |
 //! |---|---|---|
 //! | `vehicles` | vehicle | its key and identity, first and last seen, the adaptation fits learned so far (JSON) |
-//! | `flights` | run of the chain with power seen | end time, seconds with the motors turning, energy used (Wh), the autopilot's battery % at start and end, effective capacity, the rated capacity and where it came from |
+//! | `flights` | run of the chain with power seen | end time, seconds with the motors turning, energy used (Wh), the autopilot's battery % at start and end, effective capacity, the rated capacity and where it came from, the pack (resting voltages, resistance, heat, health) and its id where the vehicle identified it (BATTERY_INFO's serial) |
 //!
 //! **Effective capacity** = energy used ÷ (battery % drop / 100): what the pack delivered
 //! per the autopilot's own gauge. The next flight of the vehicle takes the median of the last
@@ -159,8 +159,9 @@ CREATE TABLE IF NOT EXISTS profiles (
 
 /// The schema this build writes (`PRAGMA user_version`): 1 the first stores (no version
 /// set, read as 0), 2 adds each flight's pack (resting voltages, resistance, heat, health),
-/// 3 the flight's end on the log's own clock (`ended_log_s`, a replay's).
-pub const SCHEMA_VERSION: i64 = 3;
+/// 3 the flight's end on the log's own clock (`ended_log_s`, a replay's), 4 the pack's
+/// identity (`pack_id`, BATTERY_INFO's serial; `NULL` when the vehicle sent none).
+pub const SCHEMA_VERSION: i64 = 4;
 
 /// The columns schemas 2 and 3 add to `flights` (all `REAL`).
 const ADDED_COLUMNS: [&str; 7] = [
@@ -172,6 +173,9 @@ const ADDED_COLUMNS: [&str; 7] = [
     "pack_health_pct",
     "ended_log_s",
 ];
+
+/// The `TEXT` columns schema 4 adds to `flights`.
+const ADDED_TEXT_COLUMNS: [&str; 1] = ["pack_id"];
 
 /// A source time that is a Unix time, s (a tlog's or the data set's clock, 2001–2286), not
 /// a time since boot or since the run started.
@@ -199,6 +203,12 @@ fn migrate(conn: &Connection) -> Result<()> {
         .filter(|c| !have.iter().any(|h| h == *c))
     {
         sql.push_str(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"));
+    }
+    for c in ADDED_TEXT_COLUMNS
+        .iter()
+        .filter(|c| !have.iter().any(|h| h == *c))
+    {
+        sql.push_str(&format!("ALTER TABLE flights ADD COLUMN {c} TEXT;"));
     }
     sql.push_str(&format!("PRAGMA user_version = {SCHEMA_VERSION}; COMMIT;"));
     conn.execute_batch(&sql)?;
@@ -286,25 +296,29 @@ impl Store {
         Ok(Some((v[v.len() / 2], v.len())))
     }
 
-    /// What the vehicle's last flight left of its pack, for the next flight on it. The gap
-    /// since that flight is measured on the logs' clock when both runs had one (`now_log_s`,
-    /// this run's source time, and the last flight's end, both Unix times: replays of
-    /// recorded flights), else on the wall clock (a live run).
+    /// What the vehicle's last flight left of its pack, for the next flight on it: the last
+    /// flight of pack `pack_id` when given (identified: [`crate::battery::PackHistory`]),
+    /// else the vehicle's last flight whatever its pack. The gap since that flight is
+    /// measured on the logs' clock when both runs had one (`now_log_s`, this run's source
+    /// time, and the last flight's end, both Unix times: replays of recorded flights), else
+    /// on the wall clock (a live run).
     pub fn pack_history(
         &self,
         key: &VehicleKey,
+        pack_id: Option<&str>,
         now_log_s: Option<f64>,
     ) -> Result<Option<crate::battery::PackHistory>> {
         let row = self
             .conn
             .query_row(
-                "SELECT id, ended_at, r_scale, heat_a2s, rest_v_end, ended_log_s FROM flights WHERE vehicle = ?1 ORDER BY id DESC LIMIT 1",
-                params![key.key],
+                "SELECT id, ended_at, r_scale, heat_a2s, rest_v_end, ended_log_s FROM flights WHERE vehicle = ?1 AND (?2 IS NULL OR pack_id = ?2) ORDER BY id DESC LIMIT 1",
+                params![key.key, pack_id],
                 |r| Ok((r.get::<_, i64>(1)?, r.get::<_, Option<f64>>(2)?, r.get::<_, Option<f64>>(3)?, r.get::<_, Option<f64>>(4)?, r.get::<_, Option<f64>>(5)?)),
             )
             .optional()?;
         Ok(row.map(
             |(ended, r_scale, heat, end_rest_v, ended_log)| crate::battery::PackHistory {
+                identified: pack_id.is_some(),
                 gap_s: match (
                     ended_log.and_then(unix_clock),
                     now_log_s.and_then(unix_clock),
@@ -317,6 +331,32 @@ impl Store {
                 end_rest_v,
             },
         ))
+    }
+
+    /// What the vehicle's last flight left of its pack, and the last flight of each pack it
+    /// identified (the vehicle's pack is known only once its BATTERY_INFO comes, after the
+    /// lookup: the energy stage picks, [`crate::battery::PackHistories::pick`]).
+    pub fn pack_histories(
+        &self,
+        key: &VehicleKey,
+        now_log_s: Option<f64>,
+    ) -> Result<crate::battery::PackHistories> {
+        let mut st = self.conn.prepare(
+            "SELECT DISTINCT pack_id FROM flights WHERE vehicle = ?1 AND pack_id IS NOT NULL",
+        )?;
+        let ids: Vec<String> = st
+            .query_map(params![key.key], |r| r.get(0))?
+            .collect::<rusqlite::Result<_>>()?;
+        let mut by_pack = Vec::with_capacity(ids.len());
+        for id in ids {
+            if let Some(h) = self.pack_history(key, Some(&id), now_log_s)? {
+                by_pack.push((id, h));
+            }
+        }
+        Ok(crate::battery::PackHistories {
+            last: self.pack_history(key, None, now_log_s)?,
+            by_pack,
+        })
     }
 
     /// Record a run of this vehicle: the vehicle (created or updated, with the fits learned
@@ -340,8 +380,8 @@ impl Store {
         if let Some(f) = flight {
             tx.execute(
                 "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
-                                      rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
+                                      rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s, pack_id)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)",
                 params![
                     key.key,
                     now,
@@ -358,7 +398,8 @@ impl Store {
                     f.internal_r_ohm,
                     f.heat_a2s,
                     f.pack_health_pct,
-                    f.ended_log_s
+                    f.ended_log_s,
+                    f.pack_id
                 ],
             )?;
         }
@@ -431,7 +472,7 @@ impl Store {
         let mut out = rows.collect::<rusqlite::Result<Vec<_>>>()?;
         let mut fl = self.conn.prepare(
             "SELECT ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
-                    rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s
+                    rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s, pack_id
              FROM flights WHERE vehicle = ?1 ORDER BY ended_at, id",
         )?;
         for v in &mut out {
@@ -453,6 +494,7 @@ impl Store {
                         heat_a2s: r.get(12)?,
                         pack_health_pct: r.get(13)?,
                         ended_log_s: r.get(14)?,
+                        pack_id: r.get(15)?,
                     },
                 })
             })?;
@@ -473,8 +515,8 @@ pub struct Learned {
     pub capacity_wh: Option<(f64, usize)>,
     /// The profile `dronewatt learn` wrote for it.
     pub profile: Option<LearnedProfile>,
-    /// What its last flight left of its pack.
-    pub pack: Option<crate::battery::PackHistory>,
+    /// What its last flight left of its pack, and each identified pack's last flight.
+    pub pack: crate::battery::PackHistories,
 }
 
 /// Flights the learned capacity is the median of.
@@ -491,7 +533,7 @@ pub fn lookup(dir: &Path, id: &Identity, now_log_s: Option<f64>) -> Learned {
             fits: s.learned_fits(&key)?,
             capacity_wh: s.learned_capacity(&key)?,
             profile: s.learned_profile(&key.key)?,
-            pack: s.pack_history(&key, now_log_s)?,
+            pack: s.pack_histories(&key, now_log_s)?,
         })
     });
     match got {

@@ -269,7 +269,10 @@ fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
         ..Default::default()
     };
     st.record(&id, None, Some(&pack)).unwrap();
-    let h = st.pack_history(&key, None).unwrap().expect("a history");
+    let h = st
+        .pack_history(&key, None, None)
+        .unwrap()
+        .expect("a history");
     assert_eq!(
         (h.r_scale, h.end_rest_v, h.heat),
         (Some(1.2), Some(23.3), 90_000.0)
@@ -340,7 +343,10 @@ fn a_schema_2_store_migrates() {
     let key = VehicleKey::of(&id(None));
     // no log clock on the old flight: the wall clock's 2 minutes, whatever this run's clock
     for now in [None, Some(1.7e9)] {
-        let h = st.pack_history(&key, now).unwrap().expect("a history");
+        let h = st
+            .pack_history(&key, None, now)
+            .unwrap()
+            .expect("a history");
         assert!((115.0..200.0).contains(&h.gap_s), "{h:?}");
         assert_eq!(h.r_scale, Some(1.1));
     }
@@ -367,22 +373,122 @@ fn replays_measure_the_gap_by_log_time() {
     };
     st.record(&id, None, Some(&flight)).unwrap();
     let h = st
-        .pack_history(&key, Some(logged_end + 420.0))
+        .pack_history(&key, None, Some(logged_end + 420.0))
         .unwrap()
         .expect("a history");
     assert_eq!(h.gap_s, 420.0);
     assert!(h.same_pack(23.35, 6), "{h:?}");
     // the same log replayed before the other (its clock runs backwards): not this pack's next
     let h = st
-        .pack_history(&key, Some(logged_end - 3600.0))
+        .pack_history(&key, None, Some(logged_end - 3600.0))
         .unwrap()
         .unwrap();
     assert!(!h.same_pack(23.35, 6), "{h:?}");
     // a live run's clock is no Unix time: the wall clock since the record, seconds
-    let h = st.pack_history(&key, Some(35.0)).unwrap().unwrap();
+    let h = st.pack_history(&key, None, Some(35.0)).unwrap().unwrap();
     assert!((0.0..60.0).contains(&h.gap_s), "{h:?}");
     assert_eq!(unix_clock(f64::NAN), None);
     assert_eq!(unix_clock(1.7e9), Some(1.7e9));
+}
+
+/// A store written by schema 3 (the pack's columns and the log clock, no pack id) opens,
+/// migrates to schema 4 keeping its flights (no pack id: they count for the vehicle), and
+/// takes the pack id of the flights after.
+#[test]
+fn a_schema_3_store_migrates_and_its_flights_count_for_the_vehicle() {
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
+        conn.execute_batch(SCHEMA).unwrap();
+        for c in &ADDED_COLUMNS {
+            conn.execute_batch(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"))
+                .unwrap();
+        }
+        conn.execute_batch("PRAGMA user_version = 3").unwrap();
+        conn.execute(
+            "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 'heartbeat', 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
+            [],
+        )
+        .unwrap();
+        conn.execute(
+            "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, rated_capacity_wh, capacity_source, rest_v_end, r_scale, internal_r_ohm, pack_health_pct, ended_log_s)
+             VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 1, 300, 20, 40, 'default', 11.6, 1.1, 0.05, 96.0, 1500000000.0)",
+            [],
+        )
+        .unwrap();
+    }
+    let mut st = Store::open(dir.path()).expect("a schema 3 store opens");
+    let version: i64 = st
+        .conn
+        .query_row("PRAGMA user_version", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!((version, SCHEMA_VERSION), (4, 4));
+    let f = st.vehicles().unwrap()[0].flights[0].summary.clone();
+    assert_eq!(
+        (f.rest_v_end, f.r_scale, f.ended_log_s, f.pack_id),
+        (Some(11.6), Some(1.1), Some(1.5e9), None)
+    );
+    let id = id(None);
+    let key = VehicleKey::of(&id);
+    let packs = st.pack_histories(&key, Some(1.5e9 + 60.0)).unwrap();
+    assert!(packs.by_pack.is_empty(), "{packs:?}");
+    assert_eq!(packs.pick(None).and_then(|h| h.r_scale), Some(1.1));
+    assert_eq!(
+        packs.pick(Some("A1")),
+        None,
+        "an identified pack never flown here"
+    );
+    let flight = FlightSummary {
+        airborne_s: 400.0,
+        r_scale: Some(1.4),
+        internal_r_ohm: Some(0.06),
+        pack_health_pct: Some(93.0),
+        pack_id: Some("A1".into()),
+        ..Default::default()
+    };
+    st.record(&id, None, Some(&flight)).unwrap();
+    let packs = st.pack_histories(&key, None).unwrap();
+    assert_eq!(packs.by_pack.len(), 1);
+    assert_eq!(packs.pick(Some("A1")).and_then(|h| h.r_scale), Some(1.4));
+    let listing = list::list(dir.path(), false).unwrap();
+    assert!(
+        listing.contains("pack A1 (1 flight(s)), by flight: health 93 %; R 60 mΩ")
+            && listing
+                .contains("pack (per vehicle: no pack id heard), by flight: health 96 %; R 50 mΩ"),
+        "{listing}"
+    );
+}
+
+/// Two packs on one vehicle: each keeps its own history, and a day-old flight of the same
+/// pack still carries over (its identity makes it the same pack), while the vehicle's last
+/// flight, of the other pack, does not.
+#[test]
+fn each_pack_keeps_its_own_history() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut st = Store::open(dir.path()).unwrap();
+    let id = id(Some(0xdead_beef));
+    let key = VehicleKey::of(&id);
+    let t0 = 1_500_000_000.0;
+    for (pack, r, end) in [("A", 1.2, t0), ("B", 1.6, t0 + 3600.0)] {
+        let f = FlightSummary {
+            airborne_s: 300.0,
+            rest_v_end: Some(23.3),
+            r_scale: Some(r),
+            ended_log_s: Some(end),
+            pack_id: Some(pack.into()),
+            ..Default::default()
+        };
+        st.record(&id, None, Some(&f)).unwrap();
+    }
+    let packs = st.pack_histories(&key, Some(t0 + 86_400.0)).unwrap();
+    let a = packs.pick(Some("A")).expect("pack A");
+    assert_eq!((a.r_scale, a.gap_s), (Some(1.2), 86_400.0));
+    assert!(a.same_pack(23.35, 6), "pack A a day later is pack A: {a:?}");
+    let b = packs.pick(Some("B")).expect("pack B");
+    assert_eq!(b.r_scale, Some(1.6));
+    let last = packs.pick(None).expect("the vehicle's last flight");
+    assert_eq!(last.r_scale, Some(1.6));
+    assert!(!last.same_pack(23.35, 6), "no identity, 23 h: the gap rule");
 }
 
 /// The autopilot as the store's `vehicles` table writes it (strum's `Display`).
