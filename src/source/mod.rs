@@ -23,6 +23,7 @@ mod synth;
 pub mod timed;
 pub mod tlog;
 pub mod ulog;
+mod ulog_formats;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -256,7 +257,15 @@ pub fn decode_autopilot_log(
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let name = path.display();
     if ulog::is_ulog(path) {
-        ulog::decode_ulog(&bytes, stats).with_context(|| format!("{name}"))
+        let (msgs, fault) = ulog::read_ulog(&bytes, stats).with_context(|| format!("{name}"))?;
+        if let Some(e) = fault {
+            let secs = msgs.last().map_or(0.0, |m| m.t_s);
+            tracing::warn!(
+                "{name}: a corrupt or truncated PX4 ULog: {} messages ({secs:.1} s of log time) read up to the fault, the rest of the file skipped: {e}",
+                msgs.len()
+            );
+        }
+        Ok(msgs)
     } else {
         dataflash::decode_dataflash(&bytes, stats).with_context(|| format!("{name}"))
     }

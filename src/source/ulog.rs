@@ -38,6 +38,28 @@ pub enum UlogError {
     Read(#[from] yule_log::errors::ULogError),
     #[error("not a readable PX4 ULog: the ULog parser (yule_log) gave up on it: {0}")]
     ParserPanicked(String),
+    #[error("not a readable PX4 ULog: {0} (refused before parsing: the parser would crash on it)")]
+    UnsafeFormats(String),
+    #[error("cut short: its last record runs past the end of the file ({len} bytes; the records end at byte {at})")]
+    CutShort { at: usize, len: usize },
+}
+
+/// Where the records of a log that ends in the middle of one end (the parser stops there
+/// without a word): `None` when the records end with the file. A ULog is a 16-byte header,
+/// then records of a 2-byte size, a type byte and the body.
+fn cut_short(bytes: &[u8]) -> Option<UlogError> {
+    let mut at = 16;
+    while let Some(&[a, b, _]) = bytes.get(at..at + 3) {
+        let next = at + 3 + usize::from(u16::from_le_bytes([a, b]));
+        if next > bytes.len() {
+            break;
+        }
+        at = next;
+    }
+    (at < bytes.len()).then_some(UlogError::CutShort {
+        at,
+        len: bytes.len(),
+    })
 }
 
 /// Whether `path` names a ULog (`.ulg`, any case).
@@ -257,25 +279,27 @@ impl State {
 }
 
 /// Decode a whole in-memory ULog into MAVLink messages (see the module docs). Clock jumps
-/// are counted in `stats`.
-///
-/// The `yule_log` parser panics on some malformed files (fuzzing found an `unwrap` on a
-/// format definition's array length): the whole decode runs under `catch_unwind`, and such
-/// a file is an error like any other ([`UlogError::ParserPanicked`]).
+/// are counted in `stats`. A log that breaks after some data (see [`read_ulog`]) gives
+/// what was read before the fault.
 pub fn decode_ulog(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode(bytes, stats))).unwrap_or_else(
-        |p| {
-            let why = p
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| p.downcast_ref::<&str>().copied())
-                .unwrap_or("a panic");
-            Err(UlogError::ParserPanicked(why.to_string()))
-        },
-    )
+    read_ulog(bytes, stats).map(|(m, _)| m)
 }
 
-fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogError> {
+/// [`decode_ulog`], and the fault that ended the log early, if one did.
+///
+/// The `yule_log` parser panics on some malformed files (fuzzing found an `unwrap` on a
+/// format definition's array length), returns an error on others and stops without one
+/// at a record cut short by the end of the file ([`UlogError::CutShort`]):
+/// the parse runs under `catch_unwind`, and either way the messages decoded before the
+/// fault are kept, the fault is counted once in `stats.frames_bad` and returned beside
+/// them. A file that breaks before its first logged data is an error
+/// ([`UlogError::ParserPanicked`], [`UlogError::Read`] or [`UlogError::NoMessages`]), and
+/// so is one whose formats would make the parser abort, which no `catch_unwind` contains
+/// ([`UlogError::UnsafeFormats`]: a type that contains itself, an array without bound).
+pub fn read_ulog(
+    bytes: &[u8],
+    stats: &IngestStats,
+) -> Result<(Vec<TimedMessage>, Option<UlogError>), UlogError> {
     let mut s = State {
         syn: Synth::new(
             d::MavAutopilot::MAV_AUTOPILOT_PX4,
@@ -283,7 +307,41 @@ fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogEr
         ),
         ..State::default()
     };
+    if let Some(why) = super::ulog_formats::unsafe_formats(bytes) {
+        return Err(UlogError::UnsafeFormats(why));
+    }
     let mut out = Vec::with_capacity(bytes.len() / 60);
+    let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        decode(bytes, stats, &mut s, &mut out)
+    }));
+    let fault = match run {
+        Ok(r) => r.err().or_else(|| cut_short(bytes)),
+        Err(p) => {
+            let why = p
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| p.downcast_ref::<&str>().copied())
+                .unwrap_or("a panic");
+            Some(UlogError::ParserPanicked(why.to_string()))
+        }
+    };
+    if !s.syn.timed {
+        return Err(fault.unwrap_or(UlogError::NoMessages));
+    }
+    if fault.is_some() {
+        stats
+            .frames_bad
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+    Ok((out, fault))
+}
+
+fn decode(
+    bytes: &[u8],
+    stats: &IngestStats,
+    s: &mut State,
+    out: &mut Vec<TimedMessage>,
+) -> Result<(), UlogError> {
     let mut params = Vec::new();
     let mut mav_type_param = None;
     let parser = yule_log::builder::ULogParserBuilder::new(bytes).build()?;
@@ -302,21 +360,18 @@ fn decode(bytes: &[u8], stats: &IngestStats) -> Result<Vec<TimedMessage>, UlogEr
                     // The definitions section is over: the vehicle, then its parameters.
                     s.syn.mavtype = mav_type(mav_type_param);
                     let t = ld.timestamp;
-                    s.data(t, &ld.data, stats, &mut out);
+                    s.data(t, &ld.data, stats, out);
                     for (k, v) in std::mem::take(&mut params) {
-                        s.param(&k, &v, &mut out);
+                        s.param(&k, &v, out);
                     }
                 } else {
-                    s.data(ld.timestamp, &ld.data, stats, &mut out);
+                    s.data(ld.timestamp, &ld.data, stats, out);
                 }
             }
             _ => {}
         }
     }
-    if !s.syn.timed {
-        return Err(UlogError::NoMessages);
-    }
-    Ok(out)
+    Ok(())
 }
 
 /// One field of a ULog topic: its C type (`uint64_t`, `float`, `double`, `uint8_t`,
