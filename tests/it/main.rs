@@ -52,6 +52,7 @@ mod source_links;
 mod source_serial;
 mod source_tlog;
 mod source_tlog_corruption;
+mod source_ulog_fault;
 mod start_fast;
 mod telemetry;
 mod telemetry_frames;

@@ -135,7 +135,7 @@ fn formats_that_would_abort_the_parser_are_refused() {
 /// How libFuzzer's corpus (`fuzz/corpus/ulog`, after `scripts/fuzz.sh ulog SECONDS`) fares:
 /// how many inputs read, read in part, are errors, and on which the parser panicked (caught),
 /// by panic message. The figures in docs/src/reliability.md come from it:
-/// `cargo test --test ulog_fault -- --ignored --nocapture corpus_faults`.
+/// `cargo test --test it source_ulog_fault:: -- --ignored --nocapture corpus_faults`.
 #[test]
 #[ignore]
 fn corpus_faults() {
