@@ -74,3 +74,9 @@ fn quotient(a: f64, b: f64) -> Option<f64> {
     let q = a / b;
     (b > 0.0 && q.is_finite()).then_some(q)
 }
+
+/// A source time that is a Unix time, s (a tlog's or the data set's clock, 2001–2286), not
+/// a time since boot or since the run started.
+pub fn unix_clock(t_s: f64) -> Option<f64> {
+    (t_s.is_finite() && (1e9..1e10).contains(&t_s)).then_some(t_s)
+}

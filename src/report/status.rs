@@ -79,7 +79,7 @@ impl IngestStats {
         let us = self
             .log_origin_us
             .load(std::sync::atomic::Ordering::Relaxed);
-        crate::vehicle::store::unix_clock(us as f64 * 1e-6)
+        crate::features::units::unix_clock(us as f64 * 1e-6)
     }
 }
 

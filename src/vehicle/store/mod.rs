@@ -177,11 +177,7 @@ const ADDED_COLUMNS: [&str; 7] = [
 /// The `TEXT` columns schema 4 adds to `flights`.
 const ADDED_TEXT_COLUMNS: [&str; 1] = ["pack_id"];
 
-/// A source time that is a Unix time, s (a tlog's or the data set's clock, 2001–2286), not
-/// a time since boot or since the run started.
-pub fn unix_clock(t_s: f64) -> Option<f64> {
-    (t_s.is_finite() && (1e9..1e10).contains(&t_s)).then_some(t_s)
-}
+pub use crate::features::units::unix_clock;
 
 /// Bring an older store up to [`SCHEMA_VERSION`] in one transaction; refuse a newer one (a
 /// later dronewatt wrote it: reading it could lose what that one keeps).
