@@ -218,36 +218,7 @@ fn a_replayed_quadplane_log_shows_vtol_both_phases_and_no_m100_pack() {
     // which `dronewatt replay` then reads like any ground station's .tlog.
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("quadplane.tlog");
-    let port = link_common::free_udp_port();
-    let peer =
-        std::process::Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/peers/vehicle.py"
-            ))
-            .args([
-                "--to",
-                &format!("udpout:127.0.0.1:{port}"),
-                "--plan",
-                r#"[{"send_s": 9}]"#,
-            ])
-            .args([
-                "--mav-type",
-                "1",
-                "--vtol-fw-after-s",
-                "4",
-                "--listen-after-s",
-                "0",
-            ])
-            .arg("--tlog")
-            .arg(&log)
-            .output()
-            .expect("run .venv-py/bin/python (make setup creates it)");
-    assert!(
-        peer.status.success(),
-        "{}",
-        String::from_utf8_lossy(&peer.stderr)
-    );
+    record_quadplane_tlog(&log, 9);
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
         .arg("replay")
         .arg(&log)
@@ -350,36 +321,7 @@ fn learn_takes_only_the_windows_flown_on_rotors() {
     // transition windows and leaves its forward flight out.
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("quadplane.tlog");
-    let port = link_common::free_udp_port();
-    let peer =
-        std::process::Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/peers/vehicle.py"
-            ))
-            .args([
-                "--to",
-                &format!("udpout:127.0.0.1:{port}"),
-                "--plan",
-                r#"[{"send_s": 8}]"#,
-            ])
-            .args([
-                "--mav-type",
-                "1",
-                "--vtol-fw-after-s",
-                "4",
-                "--listen-after-s",
-                "0",
-            ])
-            .arg("--tlog")
-            .arg(&log)
-            .output()
-            .expect("run .venv-py/bin/python (make setup creates it)");
-    assert!(
-        peer.status.success(),
-        "{}",
-        String::from_utf8_lossy(&peer.stderr)
-    );
+    record_quadplane_tlog(&log, 8);
     let cfg = dronewatt::config::Config::default();
     let f = dronewatt::offline::learn::log_windows(&log, 1, &cfg).unwrap();
     assert!(f.windows.len() > 20, "{} windows", f.windows.len());
@@ -390,4 +332,35 @@ fn learn_takes_only_the_windows_flown_on_rotors() {
     }
     // About 5 of the 8 s (hover and transition) at 10 windows a second, not the FW 3 s.
     assert!(f.windows.len() < 60, "{} windows", f.windows.len());
+}
+
+/// The pymavlink quadplane (MAV_TYPE 1, forward flight after 4 s) flying `send_s` seconds
+/// and writing its own telemetry log to `log` (sent to a UDP port nobody holds).
+fn record_quadplane_tlog(log: &std::path::Path, send_s: u32) {
+    let port = link_common::free_udp_port();
+    let plan = format!(r#"[{{"send_s": {send_s}}}]"#);
+    let peer =
+        std::process::Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/peers/vehicle.py"
+            ))
+            .args(["--to", &format!("udpout:127.0.0.1:{port}"), "--plan", &plan])
+            .args([
+                "--mav-type",
+                "1",
+                "--vtol-fw-after-s",
+                "4",
+                "--listen-after-s",
+                "0",
+            ])
+            .arg("--tlog")
+            .arg(log)
+            .output()
+            .expect("run .venv-py/bin/python (make setup creates it)");
+    assert!(
+        peer.status.success(),
+        "{}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
 }
