@@ -125,8 +125,13 @@ struct Claim {
 /// would allocate once a frame on the decoder's hot path, for a value that lives a moment.)
 #[allow(clippy::large_enum_variant)]
 enum At {
-    /// A frame of `len` bytes whose CRC checked and whose payload decoded (no stamp yet).
-    Good { len: usize, frame: Frame },
+    /// A frame of `len` bytes whose CRC checked and whose payload decoded.
+    Good {
+        len: usize,
+        header: MavHeader,
+        version: MavlinkVersion,
+        msg: MavMessage,
+    },
     /// A frame layout of `len` bytes with an unknown message id.
     Unknown { len: usize, header: MavHeader },
     /// A frame layout of `len` bytes with a bad CRC or a payload that did not decode.
@@ -195,20 +200,23 @@ fn decode_at(b: &[u8]) -> At {
     if crc16(&b[1..crc_at], extra) != sent {
         return At::Bad { len };
     }
-    let msg = match MavMessage::parse(version, id, &b[hdr..crc_at]) {
-        Ok(msg) => msg,
-        Err(_) => match lenient::unknown_type_heartbeat(version, id, &b[hdr..crc_at]) {
-            Some(msg) => msg,
-            None => return At::Bad { len },
+    match MavMessage::parse(version, id, &b[hdr..crc_at]) {
+        Ok(msg) => At::Good {
+            len,
+            header,
+            version,
+            msg,
         },
-    };
-    let frame = Frame {
-        header,
-        version,
-        msg,
-        stamp_us: None,
-    };
-    At::Good { len, frame }
+        Err(_) => match lenient::unknown_type_heartbeat(version, id, &b[hdr..crc_at]) {
+            Some(msg) => At::Good {
+                len,
+                header,
+                version,
+                msg,
+            },
+            None => At::Bad { len },
+        },
+    }
 }
 
 /// The length of the frame starting at `b[0]` if it is one that checks out (CRC and
@@ -456,7 +464,12 @@ impl FrameDecoder {
             self.junk(stats, self.pos, q);
             self.pos = q;
             match decode_at(&self.buf[q..]) {
-                At::Good { len, frame } => {
+                At::Good {
+                    len,
+                    header,
+                    version,
+                    msg,
+                } => {
                     self.pos = q + len;
                     self.close_claim(q);
                     self.tally.ok += len as u64;
@@ -464,8 +477,13 @@ impl FrameDecoder {
                         continue; // dropped whole: counted as a signing failure, not junk
                     }
                     IngestStats::add(&stats.frames_ok, 1);
-                    self.track_seq(&frame.header, stats);
-                    return Some(frame);
+                    self.track_seq(&header, stats);
+                    return Some(Frame {
+                        header,
+                        version,
+                        msg,
+                        stamp_us: None,
+                    });
                 }
                 At::Unknown { len, header } => {
                     if q >= self.counted_until {
@@ -519,7 +537,15 @@ impl FrameDecoder {
     /// The good record at `rec` (a `len`-byte frame after its stamp): step past it, count
     /// it, note its stamp and sequence; the reader is aligned after it.
     #[inline]
-    fn accept_tlog(&mut self, rec: usize, len: usize, frame: Frame, stats: &IngestStats) -> Frame {
+    fn accept_tlog(
+        &mut self,
+        rec: usize,
+        len: usize,
+        header: MavHeader,
+        version: MavlinkVersion,
+        msg: MavMessage,
+        stats: &IngestStats,
+    ) -> Frame {
         let stamp = self.stamp_at(rec);
         self.pos = rec + TLOG_STAMP_LEN + len;
         self.close_claim(rec);
@@ -527,10 +553,12 @@ impl FrameDecoder {
         self.aligned = true;
         self.last_stamp_us = Some(stamp);
         IngestStats::add(&stats.frames_ok, 1);
-        self.track_seq(&frame.header, stats);
+        self.track_seq(&header, stats);
         Frame {
+            header,
+            version,
+            msg,
             stamp_us: Some(stamp),
-            ..frame
         }
     }
 
@@ -548,9 +576,12 @@ impl FrameDecoder {
                 }
                 let rec = self.pos;
                 match decode_at(&self.buf[rec + TLOG_STAMP_LEN..]) {
-                    At::Good { len, frame } => {
-                        return Some(self.accept_tlog(rec, len, frame, stats))
-                    }
+                    At::Good {
+                        len,
+                        header,
+                        version,
+                        msg,
+                    } => return Some(self.accept_tlog(rec, len, header, version, msg, stats)),
                     At::Unknown { len, header } => {
                         IngestStats::add(&stats.unknown, 1);
                         self.track_seq(&header, stats);
@@ -596,10 +627,15 @@ impl FrameDecoder {
             let b = self.buf[q];
             if b == STX_V1 || b == STX_V2 {
                 match decode_at(&self.buf[q..]) {
-                    At::Good { len, frame } => {
+                    At::Good {
+                        len,
+                        header,
+                        version,
+                        msg,
+                    } => {
                         let rec = q - TLOG_STAMP_LEN;
                         self.junk(stats, self.pos, rec);
-                        return Some(self.accept_tlog(rec, len, frame, stats));
+                        return Some(self.accept_tlog(rec, len, header, version, msg, stats));
                     }
                     At::Unknown { .. } | At::Bad { .. } if q >= self.counted_until => {
                         let stamp = self.stamp_at(q - TLOG_STAMP_LEN);
