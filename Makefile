@@ -37,12 +37,14 @@ test: setup
 
 # The code gates CI runs before the tests: rustfmt, clippy with warnings as errors, rustdoc
 # with warnings as errors (broken intra-doc links), over the whole workspace (the torch crate
-# too, so libtorch first); then no import cycle between src/'s top-level modules (the
-# shared tool, where ../shared is beside the checkout, as in CI).
+# too, so libtorch first); the links of the book's Markdown and README.md (no build, under a
+# second; `make docs` checks the built book); then no import cycle between src/'s top-level
+# modules (the shared tool, where ../shared is beside the checkout, as in CI).
 lint: setup
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps --locked
+	python3 scripts/docs-linkcheck.py --sources
 	@if [ -f ../shared/tools/module-cycles.py ]; then python3 ../shared/tools/module-cycles.py src | tail -1; \
 	  python3 ../shared/tools/module-cycles.py src >/dev/null; else echo "module-cycles.py not beside the checkout: import cycles not checked"; fi
 

@@ -8,7 +8,14 @@ must not leave docs/src (mdbook would not copy the target), and every relative l
 README.md must name a file of the repository (and, for docs/src/*.md#anchor, a heading).
 Exit status 1 on any broken link, with a list.
 
+With --sources it reads the Markdown only, no book needed (what `make lint` runs, in well
+under a second): the checks above on docs/src and README.md, plus each chapter-to-chapter
+link's file must be a chapter of SUMMARY.md (mdbook renders no other) and its #anchor a
+heading of that chapter. The built-book check stays the final word: it also sees the ids
+mdbook makes unique and the links inside included files.
+
     scripts/docs-linkcheck.py [BOOK_DIR]     # default docs/book
+    scripts/docs-linkcheck.py --sources      # docs/src and README.md, without building
 """
 
 import html.parser
@@ -103,17 +110,32 @@ def md_links(path):
             yield n, m.group(1)
 
 
-def check_markdown():
+def chapters():
+    """The chapters SUMMARY.md lists, resolved."""
+    summary = SRC / "SUMMARY.md"
+    return {(SRC / u.partition("#")[0]).resolve() for _, u in md_links(summary) if not external(u)}
+
+
+def check_markdown(sources_only=False):
     bad = []
+    listed = chapters() if sources_only else set()
     for md in sorted(SRC.rglob("*.md")):
         for n, u in md_links(md):
-            if external(u) or u.startswith("#"):
+            if external(u):
                 continue
-            target = (md.parent / u.partition("#")[0]).resolve()
+            path, _, frag = u.partition("#")
+            if not path and not sources_only:
+                continue  # the built page's ids are checked in check_book
+            target = (md.parent / path).resolve() if path else md.resolve()
             if SRC.resolve() not in target.parents:
                 bad.append(f"{md.relative_to(ROOT)}:{n}: {u}: leaves docs/src (the book would not have it)")
             elif not target.exists():
                 bad.append(f"{md.relative_to(ROOT)}:{n}: {u}: no such file")
+            elif sources_only and target.suffix == ".md" and md.name != "SUMMARY.md":
+                if target not in listed:
+                    bad.append(f"{md.relative_to(ROOT)}:{n}: {u}: not a chapter of SUMMARY.md (mdbook would not render it)")
+                elif frag and frag not in md_anchors(target):
+                    bad.append(f"{md.relative_to(ROOT)}:{n}: {u}: no heading '{frag}' in {target.name}")
         for n, line in enumerate(md.read_text().splitlines(), 1):
             for inc in re.findall(r"\{\{#include ([^}:\s]+)", line):
                 if not (md.parent / inc).exists():
@@ -132,6 +154,12 @@ def check_markdown():
 
 
 def main():
+    if sys.argv[1:] == ["--sources"]:
+        bad = check_markdown(sources_only=True)
+        for b in bad:
+            print(f"broken link: {b}", file=sys.stderr)
+        print(f"docs-linkcheck --sources: {len(bad)} broken link(s) in docs/src and README.md", file=sys.stderr)
+        return 1 if bad else 0
     book = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "docs" / "book"
     bad = check_markdown() + check_book(book)
     for b in bad:

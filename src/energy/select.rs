@@ -250,6 +250,15 @@ mod tests {
         }
     }
 
+    /// Steps `ks` at 10 Hz, each model with its error and as much evidence as time passed.
+    fn feed(s: &mut Selector, ks: std::ops::Range<u32>, errs: &[(&str, f32)]) {
+        for k in ks {
+            let t = f64::from(k) * 0.1;
+            let models: Vec<ModelEstimate> = errs.iter().map(|&(n, e)| m(n, e, t as f32)).collect();
+            s.update(t, &models);
+        }
+    }
+
     #[test]
     fn stays_on_the_default_until_the_evidence_says_otherwise() {
         let mut s = Selector::new(&SelectConfig::default(), None, None);
@@ -321,16 +330,11 @@ mod tests {
             Some("dandrea"),
             Some(("stolaroff_cal", "profile")),
         );
-        for k in 0..1000 {
-            let t = f64::from(k) * 0.1;
-            s.update(
-                t,
-                &[
-                    m("dandrea", 90.0, t as f32),
-                    m("stolaroff_cal", 1.0, t as f32),
-                ],
-            );
-        }
+        feed(
+            &mut s,
+            0..1000,
+            &[("dandrea", 90.0), ("stolaroff_cal", 1.0)],
+        );
         assert_eq!(
             (s.current().model.as_str(), &s.current().why),
             ("dandrea", &Why::Config)
@@ -352,27 +356,13 @@ mod tests {
             None,
             Some(("stolaroff_cal", "profile")),
         );
-        for k in 0..1000 {
-            let t = f64::from(k) * 0.1;
-            s.update(
-                t,
-                &[
-                    m("lstm", 15.0, t as f32),
-                    m("stolaroff_cal", 20.0, t as f32),
-                ],
-            );
-        }
+        feed(&mut s, 0..1000, &[("lstm", 15.0), ("stolaroff_cal", 20.0)]);
         assert_eq!(s.current().model, "stolaroff_cal");
-        for k in 1000..1200 {
-            let t = f64::from(k) * 0.1;
-            s.update(
-                t,
-                &[
-                    m("lstm", 12.0, t as f32),
-                    m("stolaroff_cal", 20.0, t as f32),
-                ],
-            );
-        }
+        feed(
+            &mut s,
+            1000..1200,
+            &[("lstm", 12.0), ("stolaroff_cal", 20.0)],
+        );
         assert_eq!(s.current().model, "lstm");
         // Off: never moves.
         let mut s = Selector::new(

@@ -8,15 +8,8 @@ fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
         arrived: None,
         t_s,
         sample: Sample {
-            t_s,
-            features: [0.0; N_FEATURES],
-            measured_w,
             voltage_v: Some(22.8),
-            home: None,
-            stale_mask: 0,
-            battery_remaining_pct: None,
-            vehicle: Default::default(),
-            air: Default::default(),
+            ..Sample::new(t_s, [0.0; N_FEATURES], measured_w)
         },
         models: models
             .iter()

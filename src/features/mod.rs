@@ -108,6 +108,25 @@ pub struct Sample {
     pub air: AirData,
 }
 
+impl Sample {
+    /// A sample with these features and this measured power and nothing else known: no
+    /// voltage, home or state of charge, nothing stale, the default vehicle class and no air
+    /// data. What tests and tools build one from; set the rest with `..Sample::new(…)`.
+    pub fn new(t_s: f64, features: [f32; N_FEATURES], measured_w: Option<f32>) -> Self {
+        Self {
+            t_s,
+            features,
+            measured_w,
+            voltage_v: None,
+            home: None,
+            stale_mask: 0,
+            battery_remaining_pct: None,
+            vehicle: VehicleKind::default(),
+            air: AirData::default(),
+        }
+    }
+}
+
 /// What the autopilot says about the air the vehicle flies through.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AirData {

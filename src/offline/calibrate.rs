@@ -123,87 +123,84 @@ pub struct FitReport {
     pub rmse_after_w: f64,
 }
 
-/// Which parameters of a model are free, their bounds, and how to read/write them.
+/// Which parameters of a model are free, their bounds, and where they sit in a profile.
 struct Spec {
     kind: Kind,
     lo: Vec<f64>,
     hi: Vec<f64>,
-    get: fn(&VehicleProfile) -> Vec<f64>,
-    set: fn(&mut VehicleProfile, &[f64]),
+    /// The free parameters of a profile, in the order of `lo` and `hi`.
+    params: fn(&mut VehicleProfile) -> Vec<&mut f64>,
+}
+
+impl Spec {
+    fn new(
+        kind: Kind,
+        lo: &[f64],
+        hi: &[f64],
+        params: fn(&mut VehicleProfile) -> Vec<&mut f64>,
+    ) -> Self {
+        Self {
+            kind,
+            lo: lo.to_vec(),
+            hi: hi.to_vec(),
+            params,
+        }
+    }
+
+    fn get(&self, p: &VehicleProfile) -> Vec<f64> {
+        (self.params)(&mut p.clone())
+            .into_iter()
+            .map(|v| *v)
+            .collect()
+    }
+
+    fn set(&self, p: &mut VehicleProfile, x: &[f64]) {
+        for (v, x) in (self.params)(p).into_iter().zip(x) {
+            *v = *x;
+        }
+    }
 }
 
 const INF: f64 = f64::INFINITY;
 
 fn specs() -> Vec<Spec> {
+    let spec = Spec::new;
     vec![
-        Spec {
-            kind: Kind::DAndrea,
-            lo: vec![0.05, 0.0],
-            hi: vec![1e4, 5e3],
-            get: |p| vec![p.dandrea.lift_drag, p.dandrea.p_avio_w],
-            set: |p, x| (p.dandrea.lift_drag, p.dandrea.p_avio_w) = (x[0], x[1]),
-        },
-        Spec {
-            kind: Kind::DAndreaHeadwind,
-            lo: vec![0.05, 0.0],
-            hi: vec![1e4, 5e3],
-            get: |p| vec![p.dandrea_headwind.lift_drag, p.dandrea_headwind.p_avio_w],
-            set: |p, x| (p.dandrea_headwind.lift_drag, p.dandrea_headwind.p_avio_w) = (x[0], x[1]),
-        },
-        Spec {
-            kind: Kind::Dorling,
-            lo: vec![0.05, 0.0],
-            hi: vec![5.0, 5e3],
-            get: |p| vec![p.dorling.eta, p.dorling.p_avio_w],
-            set: |p, x| (p.dorling.eta, p.dorling.p_avio_w) = (x[0], x[1]),
-        },
-        Spec {
-            kind: Kind::Stolaroff,
-            lo: vec![0.05, 0.0, 0.0],
-            hi: vec![5.0, 5.0, 5e3],
-            get: |p| {
+        spec(Kind::DAndrea, &[0.05, 0.0], &[1e4, 5e3], |p| {
+            vec![&mut p.dandrea.lift_drag, &mut p.dandrea.p_avio_w]
+        }),
+        spec(Kind::DAndreaHeadwind, &[0.05, 0.0], &[1e4, 5e3], |p| {
+            let m = &mut p.dandrea_headwind;
+            vec![&mut m.lift_drag, &mut m.p_avio_w]
+        }),
+        spec(Kind::Dorling, &[0.05, 0.0], &[5.0, 5e3], |p| {
+            vec![&mut p.dorling.eta, &mut p.dorling.p_avio_w]
+        }),
+        spec(Kind::Stolaroff, &[0.05, 0.0, 0.0], &[5.0, 5.0, 5e3], |p| {
+            let m = &mut p.stolaroff;
+            vec![&mut m.eta, &mut m.drag_area_m2, &mut m.p_avio_w]
+        }),
+        spec(
+            Kind::Kirschstein,
+            &[0.1, 0.0, 0.0, 0.0, 0.0],
+            &[20.0, 50.0, 10.0, 5.0, 5e3],
+            |p| {
+                let k = &mut p.kirschstein;
                 vec![
-                    p.stolaroff.eta,
-                    p.stolaroff.drag_area_m2,
-                    p.stolaroff.p_avio_w,
+                    &mut k.kappa,
+                    &mut k.kappa2,
+                    &mut k.kappa3,
+                    &mut k.drag_area_m2,
+                    &mut k.p_avio_w,
                 ]
             },
-            set: |p, x| {
-                (
-                    p.stolaroff.eta,
-                    p.stolaroff.drag_area_m2,
-                    p.stolaroff.p_avio_w,
-                ) = (x[0], x[1], x[2])
-            },
-        },
-        Spec {
-            kind: Kind::Kirschstein,
-            lo: vec![0.1, 0.0, 0.0, 0.0, 0.0],
-            hi: vec![20.0, 50.0, 10.0, 5.0, 5e3],
-            get: |p| {
-                let k = &p.kirschstein;
-                vec![k.kappa, k.kappa2, k.kappa3, k.drag_area_m2, k.p_avio_w]
-            },
-            set: |p, x| {
-                let k = &mut p.kirschstein;
-                (k.kappa, k.kappa2, k.kappa3, k.drag_area_m2, k.p_avio_w) =
-                    (x[0], x[1], x[2], x[3], x[4]);
-            },
-        },
-        Spec {
-            kind: Kind::Tseng,
-            lo: vec![-INF; 9],
-            hi: vec![INF; 9],
-            get: |p| p.tseng.beta.to_vec(),
-            set: |p, x| p.tseng.beta.copy_from_slice(x),
-        },
-        Spec {
-            kind: Kind::TsengSolo,
-            lo: vec![-INF; 3],
-            hi: vec![INF; 3],
-            get: |p| p.tseng_solo.coef.to_vec(),
-            set: |p, x| p.tseng_solo.coef.copy_from_slice(x),
-        },
+        ),
+        spec(Kind::Tseng, &[-INF; 9], &[INF; 9], |p| {
+            p.tseng.beta.iter_mut().collect()
+        }),
+        spec(Kind::TsengSolo, &[-INF; 3], &[INF; 3], |p| {
+            p.tseng_solo.coef.iter_mut().collect()
+        }),
     ]
 }
 
@@ -259,19 +256,13 @@ pub fn fit(
         };
         let before = rmse(base);
         let mut scratch = base.clone();
-        let x = levenberg_marquardt(
-            (spec.get)(base),
-            &spec.lo,
-            &spec.hi,
-            states.len(),
-            |x, r| {
-                (spec.set)(&mut scratch, x);
-                for (ri, (k, m)) in r.iter_mut().zip(&states) {
-                    *ri = spec.kind.power_w(k, &scratch) - m;
-                }
-            },
-        );
-        (spec.set)(&mut cal, &x);
+        let x = levenberg_marquardt(spec.get(base), &spec.lo, &spec.hi, states.len(), |x, r| {
+            spec.set(&mut scratch, x);
+            for (ri, (k, m)) in r.iter_mut().zip(&states) {
+                *ri = spec.kind.power_w(k, &scratch) - m;
+            }
+        });
+        spec.set(&mut cal, &x);
         let after = rmse(&cal);
         report.push(FitReport {
             model: spec.kind.name(),

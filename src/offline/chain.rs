@@ -343,20 +343,13 @@ mod tests {
 
     /// 6 s at 10 Hz: 1 s on the ground at 20 W, then a varying 300–400 W.
     fn flight() -> FlightWindows {
-        let sample = |i: usize| Sample {
-            t_s: i as f64 * 0.1,
-            features: [0.0; crate::features::N_FEATURES],
-            measured_w: Some(if i < 10 {
+        let sample = |i: usize| {
+            let p = if i < 10 {
                 20.0
             } else {
                 300.0 + (i * i % 97) as f32
-            }),
-            voltage_v: None,
-            home: None,
-            stale_mask: 0,
-            battery_remaining_pct: None,
-            vehicle: Default::default(),
-            air: Default::default(),
+            };
+            Sample::new(i as f64 * 0.1, [0.0; crate::features::N_FEATURES], Some(p))
         };
         let all: Vec<Sample> = (0..60).map(sample).collect();
         let windows = (9..60)

@@ -455,15 +455,8 @@ mod tests {
         let mut features = [0.5f32; N_FEATURES];
         features[0] = f32::NAN;
         let sample = Sample {
-            t_s: 12.5,
-            features,
-            measured_w: Some(240.0),
             voltage_v: Some(22.8),
-            home: None,
-            stale_mask: 0,
-            battery_remaining_pct: None,
-            vehicle: Default::default(),
-            air: Default::default(),
+            ..Sample::new(12.5, features, Some(240.0))
         };
         Report {
             estimate: Estimate {

@@ -449,6 +449,7 @@ fn field_size(c: char) -> usize {
 
 #[cfg(test)]
 mod tests {
+    use super::super::synth::testutil::{first_heartbeat, sys_status};
     use super::*;
     use Value::{Float as F, Int as I, Str as S};
 
@@ -484,26 +485,14 @@ mod tests {
         w.write(&ATT, &[I(1_100_000), F(5.0), F(-3.0)]);
         w.write(&BAT, &[I(2_000_000), I(0), F(22.1), F(12.5)]);
         let m = decode(&w.into_bytes()).unwrap();
-        let MavMessage::HEARTBEAT(h) = &m[0].msg else {
-            panic!("{:?}", m[0])
-        };
         assert_eq!(
-            (h.mavtype, h.autopilot),
+            first_heartbeat(&m),
             (
                 d::MavType::MAV_TYPE_HEXAROTOR,
                 d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA
             )
         );
-        let sys: Vec<(f64, u16, i16)> = m
-            .iter()
-            .filter_map(|m| {
-                if let MavMessage::SYS_STATUS(s) = &m.msg {
-                    Some((m.t_s, s.voltage_battery, s.current_battery))
-                } else {
-                    None
-                }
-            })
-            .collect();
+        let sys = sys_status(&m);
         // The writer pads a value left out (Curr 0 A); stamps are seconds from the first.
         assert_eq!(sys, [(1.0, 22200, 0), (2.0, 22100, 1250)]);
         // No Yaw: no ATTITUDE (said once), no panic.

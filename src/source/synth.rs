@@ -197,3 +197,28 @@ impl Synth {
         })
     }
 }
+
+/// What the tests of both readers check their output with.
+#[cfg(test)]
+pub(super) mod testutil {
+    use super::*;
+
+    /// `(t_s, voltage_battery, current_battery)` of every SYS_STATUS sent.
+    pub fn sys_status(m: &[TimedMessage]) -> Vec<(f64, u16, i16)> {
+        m.iter()
+            .filter_map(|m| match &m.msg {
+                MavMessage::SYS_STATUS(s) => Some((m.t_s, s.voltage_battery, s.current_battery)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The vehicle type and autopilot of the first message, which must be the HEARTBEAT
+    /// naming the vehicle.
+    pub fn first_heartbeat(m: &[TimedMessage]) -> (d::MavType, d::MavAutopilot) {
+        let MavMessage::HEARTBEAT(h) = &m[0].msg else {
+            panic!("{:?}", m[0])
+        };
+        (h.mavtype, h.autopilot)
+    }
+}

@@ -488,6 +488,7 @@ impl Writer {
 
 #[cfg(test)]
 mod tests {
+    use super::super::synth::testutil::{first_heartbeat, sys_status};
     use super::*;
     use Value::Nums as N;
 
@@ -519,18 +520,6 @@ mod tests {
         decode_ulog(bytes, &IngestStats::default())
     }
 
-    fn sys(m: &[TimedMessage]) -> Vec<(f64, u16, i16)> {
-        m.iter()
-            .filter_map(|m| {
-                if let MavMessage::SYS_STATUS(s) = &m.msg {
-                    Some((m.t_s, s.voltage_battery, s.current_battery))
-                } else {
-                    None
-                }
-            })
-            .collect()
-    }
-
     #[test]
     fn mav_type_names_the_vehicle_and_a_missing_current_degrades() {
         let mut w = Writer::new(
@@ -543,17 +532,14 @@ mod tests {
         w.data(&BAT_V, 1_000_000, &[N(&[11.1])]);
         w.data(&BAT_V, 1_500_000, &[N(&[11.0])]);
         let m = decode(&w.into_bytes()).unwrap();
-        let MavMessage::HEARTBEAT(h) = &m[0].msg else {
-            panic!("{:?}", m[0])
-        };
         assert_eq!(
-            (h.mavtype, h.autopilot),
+            first_heartbeat(&m),
             (
                 d::MavType::MAV_TYPE_HEXAROTOR,
                 d::MavAutopilot::MAV_AUTOPILOT_PX4
             )
         );
-        assert_eq!(sys(&m), [(0.0, 11100, -1), (0.5, 11000, -1)]);
+        assert_eq!(sys_status(&m), [(0.0, 11100, -1), (0.5, 11000, -1)]);
         assert!(m
             .iter()
             .any(|m| matches!(&m.msg, MavMessage::PARAM_VALUE(p) if p.param_value == 2200.0)));
@@ -572,7 +558,7 @@ mod tests {
             w.data(&BAT, i * 100_000, &[N(&[16.0]), N(&[3.0])]);
         }
         let good = w.into_bytes();
-        assert_eq!(sys(&decode(&good).unwrap()).len(), 50);
+        assert_eq!(sys_status(&decode(&good).unwrap()).len(), 50);
         for cut in [10, 16, 60, good.len() / 2, good.len() - 1] {
             let _ = decode(&good[..cut]);
         }

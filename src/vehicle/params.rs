@@ -479,6 +479,7 @@ impl Driver {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_REAL32 as REAL32};
 
     fn msg(t_s: f64, sys: u32, comp: u8, msg: MavMessage) -> TimedMessage {
         TimedMessage {
@@ -514,6 +515,11 @@ mod tests {
         })
     }
 
+    /// A PARAM_VALUE from component 1 of system `sys`.
+    fn param(t_s: f64, sys: u32, name: &str, v: f32, ty: MavParamType) -> TimedMessage {
+        msg(t_s, sys, 1, value(name, v, ty))
+    }
+
     fn names(reqs: &[MavMessage]) -> Vec<String> {
         reqs.iter()
             .map(|r| match r {
@@ -528,23 +534,23 @@ mod tests {
     fn decodes_ardupilot_casts_and_px4_bits() {
         let cast = RawParam {
             value: 3300.0,
-            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+            param_type: INT32,
         };
         assert_eq!(decode(Autopilot::ArduPilot, cast), 3300.0);
         let packed = RawParam {
             value: f32::from_bits(4),
-            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+            param_type: INT32,
         };
         assert_eq!(decode(Autopilot::Px4, packed), 4.0);
         let neg = RawParam {
             value: f32::from_bits((-1i32) as u32),
-            param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+            param_type: INT32,
         };
         assert_eq!(decode(Autopilot::Px4, neg), -1.0);
         // Floats are floats on both.
         let f = RawParam {
             value: 3.5,
-            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+            param_type: REAL32,
         };
         assert_eq!(
             (decode(Autopilot::Px4, f), decode(Autopilot::ArduPilot, f)),
@@ -584,12 +590,7 @@ mod tests {
         assert!(r.poll(1.0, &mut gave_up).is_empty());
         // The vehicle answers all but BATT_CRT_MAH (dropped) and the version request.
         for n in ARDUPILOT_PARAMS.iter().filter(|n| **n != "BATT_CRT_MAH") {
-            r.on_message(&msg(
-                1.2,
-                1,
-                1,
-                value(n, 1.0, MavParamType::MAV_PARAM_TYPE_REAL32),
-            ));
+            r.on_message(&param(1.2, 1, n, 1.0, REAL32));
         }
         assert!(r.take_changed());
         assert_eq!(
@@ -622,29 +623,10 @@ mod tests {
             names(&r.poll(0.0, &mut gave_up)).len(),
             PX4_PARAMS.len() + 1
         );
-        r.on_message(&msg(
-            0.5,
-            7,
-            1,
-            value(
-                "BAT1_N_CELLS",
-                f32::from_bits(4),
-                MavParamType::MAV_PARAM_TYPE_INT32,
-            ),
-        ));
+        r.on_message(&param(0.5, 7, "BAT1_N_CELLS", f32::from_bits(4), INT32));
         // Another system's value is not ours.
-        r.on_message(&msg(
-            0.5,
-            8,
-            1,
-            value("BAT1_CAPACITY", 9999.0, MavParamType::MAV_PARAM_TYPE_REAL32),
-        ));
-        r.on_message(&msg(
-            0.5,
-            7,
-            1,
-            value("BAT1_CAPACITY", 5000.0, MavParamType::MAV_PARAM_TYPE_REAL32),
-        ));
+        r.on_message(&param(0.5, 8, "BAT1_CAPACITY", 9999.0, REAL32));
+        r.on_message(&param(0.5, 7, "BAT1_CAPACITY", 5000.0, REAL32));
         let v = dialect::AUTOPILOT_VERSION_DATA {
             uid: 0xDEAD_BEEF,
             ..Default::default()
@@ -662,18 +644,8 @@ mod tests {
     fn a_passive_reader_listens_only() {
         let mut r = ParamReader::passive();
         // A logged fetch may come before the first heartbeat.
-        r.on_message(&msg(
-            0.0,
-            1,
-            1,
-            value("BATT_CAPACITY", 3300.0, MavParamType::MAV_PARAM_TYPE_INT32),
-        ));
-        r.on_message(&msg(
-            0.1,
-            1,
-            1,
-            value("SOME_OTHER", 1.0, MavParamType::MAV_PARAM_TYPE_REAL32),
-        ));
+        r.on_message(&param(0.0, 1, "BATT_CAPACITY", 3300.0, INT32));
+        r.on_message(&param(0.1, 1, "SOME_OTHER", 1.0, REAL32));
         r.on_message(&msg(
             0.2,
             1,

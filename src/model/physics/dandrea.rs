@@ -66,20 +66,14 @@ mod tests {
         let p = VehicleProfile::m100();
         // m = 1.755 + 0.676 + 0.5 = 2.931 kg; W = 28.753 N. Anemometer 12 m/s.
         // P = 28.753 N × 12 m/s / (0.5 × 3) + 100 W = 230.02 + 100 = 330.02 W.
-        let k = Kinematics::from_window(
-            &window(sample(1.0, [10.0, 0.0, 0.0], 12.0, 0.0, 500.0, 90.0)),
-            &p,
-        );
+        let k = kinematics(north_at_10(12.0, 0.0), &p);
         let w = power_w(&k, &p, &p.dandrea, false);
         assert!((w - 330.0244).abs() < 1e-3, "{w}");
         // Headwind: ground 10 m/s north, air 12 m/s north → 2 m/s headwind, v = 12 m/s again.
         assert!((power_w(&k, &p, &p.dandrea_headwind, true) - w).abs() < 1e-3);
         // Crosswind: air 12 m/s toward 30° east of north while tracking north at 10 m/s:
         // w = (−6, 10 − 10.392) → headwind 0.392 m/s; v = 10.392 m/s; P = 28.753·10.392/1.5 + 100.
-        let k = Kinematics::from_window(
-            &window(sample(1.0, [10.0, 0.0, 0.0], 12.0, 30.0, 500.0, 90.0)),
-            &p,
-        );
+        let k = kinematics(north_at_10(12.0, 30.0), &p);
         let hw = power_w(&k, &p, &p.dandrea_headwind, true);
         assert!(
             (hw - (28.75311 * 10.392305 / 1.5 + 100.0)).abs() < 1e-2,

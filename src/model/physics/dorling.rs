@@ -53,7 +53,7 @@ mod tests {
         let p = VehicleProfile::m100();
         // m = 2.431 kg (no payload): W = 23.84811 N; W^1.5 = 116.4626;
         // 2·n·ρ·ζ = 2 × 1.225 × 0.342530 m² = 0.839199; √ = 0.916079; P = 127.131 W.
-        let k = Kinematics::from_window(&window(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0)), &p);
+        let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), &p);
         let w = power_w(&k, &p, &p.dorling);
         assert!((w - 127.13).abs() < 0.02, "{w}");
         // Hover induced power T·v_h equals it (same physics).

@@ -74,7 +74,7 @@ mod tests {
         // Hover, no payload: W = T = 23.84811 N, w = 5.33078 m/s.
         // κTw = 1.15 × 127.129 = 146.198 W; κ₂W^1.5 = 0.23 × 116.4611 = 26.786 W; others 0.
         // P = (146.198 + 26.786)/0.7 + 10/0.9 = 247.120 + 11.111 = 258.23 W.
-        let k = Kinematics::from_window(&window(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0)), &p);
+        let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), &p);
         let w = power_w(&k, &p, &p.kirschstein);
         assert!((w - 258.23).abs() < 0.05, "{w}");
     }

@@ -328,7 +328,9 @@ mod name_tests {
 
 #[cfg(test)]
 pub(crate) mod testutil {
+    use super::Kinematics;
     use crate::features::{idx, Sample, N_FEATURES};
+    use crate::model::profile::VehicleProfile;
     use crate::telemetry::window::Window;
 
     /// A level sample: velocity along body (x, y, up), anemometer speed and bearing (deg),
@@ -352,17 +354,25 @@ pub(crate) mod testutil {
         f[idx::WIND_ANGLE] = wind_angle_deg;
         f[idx::PAYLOAD] = payload_g;
         f[idx::AZ] = -9.81;
-        Sample {
-            t_s,
-            features: f,
-            measured_w: None,
-            voltage_v: None,
-            home: None,
-            stale_mask: 0,
-            battery_remaining_pct: None,
-            vehicle: Default::default(),
-            air: Default::default(),
-        }
+        Sample::new(t_s, f, None)
+    }
+
+    /// Level flight with body x north at 10 m/s carrying 500 g, the anemometer at
+    /// `wind_speed` m/s, bearing `wind_angle_deg`: the hand-computed cases' flight.
+    pub fn north_at_10(wind_speed: f32, wind_angle_deg: f32) -> Sample {
+        sample(
+            1.0,
+            [10.0, 0.0, 0.0],
+            wind_speed,
+            wind_angle_deg,
+            500.0,
+            90.0,
+        )
+    }
+
+    /// What every model reads from a window of `s` (and `s` 0.9 s earlier), for `p`.
+    pub fn kinematics(s: Sample, p: &VehicleProfile) -> Kinematics {
+        Kinematics::from_window(&window(s), p)
     }
 
     pub fn window(s: Sample) -> Window {
@@ -419,10 +429,7 @@ mod tests {
         let p = VehicleProfile::m100();
         // Body x north (yaw 90° ENU), 10 m/s along it, anemometer 13 m/s bearing 0° (north):
         // the air moves past at 13 m/s while the ground track is 10 m/s → 3 m/s headwind.
-        let k = Kinematics::from_window(
-            &window(sample(1.0, [10.0, 0.0, 0.0], 13.0, 0.0, 500.0, 90.0)),
-            &p,
-        );
+        let k = kinematics(north_at_10(13.0, 0.0), &p);
         assert!((k.ground_m_s - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-5);
         assert!((k.air_m_s - Vector3::new(0.0, 13.0, 0.0)).norm() < 1e-5);
         assert!((k.headwind() - 3.0).abs() < 1e-5);

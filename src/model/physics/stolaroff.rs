@@ -65,16 +65,13 @@ mod tests {
         let p = VehicleProfile::m100();
         // Hover, no payload: T = W = 23.84811 N, v_i = v_h = √(T/(2ρA)) = √(23.84811/0.839210)
         // = 5.33078 m/s; P = T·v_h/η = 127.129 W / 0.5 = 254.26 W.
-        let k = Kinematics::from_window(&window(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0)), &p);
+        let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), &p);
         let w = power_w(&k, &p, &p.stolaroff);
         assert!((w - 254.26).abs() < 0.05, "{w}");
         // Vertical climb at 2 m/s (drag 0.5·1.225·0.1·4 = 0.245 N adds to T = 24.09311 N):
         // v_h² = 24.09311/0.839210 = 28.70929; v_i = −1 + √(1 + 28.70929) = 4.45062;
         // P = 24.09311 × (2 + 4.45062) / 0.5 = 310.83 W.
-        let k = Kinematics::from_window(
-            &window(sample(1.0, [0.0, 0.0, 2.0], 0.0, 0.0, 0.0, 0.0)),
-            &p,
-        );
+        let k = kinematics(sample(1.0, [0.0, 0.0, 2.0], 0.0, 0.0, 0.0, 0.0), &p);
         let w = power_w(&k, &p, &p.stolaroff);
         assert!((w - 310.83).abs() < 0.05, "{w}");
     }

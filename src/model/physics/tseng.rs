@@ -90,15 +90,12 @@ mod tests {
         // Heading north at 10 m/s, anemometer 12 m/s north → wind (0, −2): v·w = −20 m²/s².
         // Window: 0.9 s earlier the same velocity → a = 0. Payload 500 g.
         // P = −1.526·10 + 0.220·500 + 1.332·(−20) + 433.9 = −15.26 + 110 − 26.64 + 433.9 = 502.0 W.
-        let k = Kinematics::from_window(
-            &window(sample(1.0, [10.0, 0.0, 0.0], 12.0, 0.0, 500.0, 90.0)),
-            &p,
-        );
+        let k = kinematics(north_at_10(12.0, 0.0), &p);
         assert!((power_w(&k, &p.tseng) - 502.0).abs() < 1e-3);
         // Solo: −2.595·12 + 0.197·500 + 251.7 = −31.14 + 98.5 + 251.7 = 319.06 W.
         assert!((solo_power_w(&k, &p.tseng_solo) - 319.06).abs() < 1e-3);
         // Acceleration 1 m/s² forward over the window adds β₂·1 + β₃·10·1 = 3.934 + 9.68.
-        let mut w = window(sample(1.0, [10.0, 0.0, 0.0], 12.0, 0.0, 500.0, 90.0));
+        let mut w = window(north_at_10(12.0, 0.0));
         w.samples[0].features[crate::features::idx::VX] = 9.1;
         let k = Kinematics::from_window(&w, &p);
         assert!((power_w(&k, &p.tseng) - (502.0 + 3.934 + 9.68)).abs() < 1e-3);

@@ -196,17 +196,7 @@ mod tests {
         Arc::new(Report {
             estimate: Estimate {
                 t_s,
-                sample: Sample {
-                    t_s,
-                    features: [0.0; crate::features::N_FEATURES],
-                    measured_w: Some(measured),
-                    voltage_v: None,
-                    home: None,
-                    stale_mask: 0,
-                    battery_remaining_pct: None,
-                    vehicle: Default::default(),
-                    air: Default::default(),
-                },
+                sample: Sample::new(t_s, [0.0; crate::features::N_FEATURES], Some(measured)),
                 models: vec![ModelEstimate::new("dandrea", 180.0, None), lstm],
                 arrived: None,
             },

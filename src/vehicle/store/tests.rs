@@ -127,15 +127,9 @@ fn effective_capacity_needs_a_real_drop() {
             arrived: None,
             t_s: t,
             sample: Sample {
-                t_s: t,
-                features: [0.0; N_FEATURES],
-                measured_w: Some(300.0),
                 voltage_v: Some(12.0),
-                home: None,
-                stale_mask: 0,
                 battery_remaining_pct: Some(pct),
-                vehicle: Default::default(),
-                air: Default::default(),
+                ..Sample::new(t, [0.0; N_FEATURES], Some(300.0))
             },
             models: vec![],
         },
@@ -184,17 +178,7 @@ fn a_long_flight_is_summed_in_bounded_memory() {
         } else {
             350.0 + (i % 37) as f32
         };
-        let sample = Sample {
-            t_s: t,
-            features: [0.0; N_FEATURES],
-            measured_w: Some(p),
-            voltage_v: None,
-            home: None,
-            stale_mask: 0,
-            battery_remaining_pct: None,
-            vehicle: Default::default(),
-            air: Default::default(),
-        };
+        let sample = Sample::new(t, [0.0; N_FEATURES], Some(p));
         log.observe(&Report {
             estimate: Estimate {
                 t_s: t,
@@ -226,19 +210,42 @@ fn a_long_flight_is_summed_in_bounded_memory() {
     assert_eq!(PowerBins::bin(1e9), PowerBins::MAX - 1);
 }
 
+/// A store as an older dronewatt left it: the first schema, then `added` columns of
+/// `flights`, `user_version` (none for the first schema) and one quadrotor heard as
+/// `heard_by`. Its flights are the test's to insert.
+fn old_store(dir: &Path, version: Option<i64>, added: &[&str], heard_by: &str) -> Connection {
+    let conn = Connection::open(dir.join(DB_FILE)).unwrap();
+    conn.execute_batch(SCHEMA).unwrap();
+    for c in added {
+        conn.execute_batch(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"))
+            .unwrap();
+    }
+    if let Some(v) = version {
+        conn.execute_batch(&format!("PRAGMA user_version = {v}"))
+            .unwrap();
+    }
+    conn.execute(
+        "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', ?1, 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
+        params![heard_by],
+    )
+    .unwrap();
+    conn
+}
+
+/// The schema version a store is at.
+fn user_version(st: &Store) -> i64 {
+    st.conn
+        .query_row("PRAGMA user_version", [], |r| r.get(0))
+        .unwrap()
+}
+
 /// A store written by the first schema (no version, no pack columns) opens, keeps its
 /// flights, and takes the pack's from then on; a store from a newer dronewatt is refused.
 #[test]
 fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
     let dir = tempfile::tempdir().unwrap();
     {
-        let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
-        conn.execute_batch(SCHEMA).unwrap();
-        conn.execute(
-            "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 'system id', 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
-            [],
-        )
-        .unwrap();
+        let conn = old_store(dir.path(), None, &[], "system id");
         conn.execute(
             "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, rated_capacity_wh, capacity_source) VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 1, 300, 20, 40, 'default')",
             [],
@@ -246,11 +253,7 @@ fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
         .unwrap();
     }
     let mut st = Store::open(dir.path()).expect("an old store opens");
-    let version: i64 = st
-        .conn
-        .query_row("PRAGMA user_version", [], |r| r.get(0))
-        .unwrap();
-    assert_eq!(version, SCHEMA_VERSION);
+    assert_eq!(user_version(&st), SCHEMA_VERSION);
     let v = st.vehicles().unwrap();
     assert_eq!(v[0].flights.len(), 1);
     assert_eq!(v[0].flights[0].summary.rest_v_start, None);
@@ -308,18 +311,7 @@ fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
 fn a_schema_2_store_migrates() {
     let dir = tempfile::tempdir().unwrap();
     {
-        let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
-        conn.execute_batch(SCHEMA).unwrap();
-        for c in &ADDED_COLUMNS[..6] {
-            conn.execute_batch(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"))
-                .unwrap();
-        }
-        conn.execute_batch("PRAGMA user_version = 2").unwrap();
-        conn.execute(
-            "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 'heartbeat', 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
-            [],
-        )
-        .unwrap();
+        let conn = old_store(dir.path(), Some(2), &ADDED_COLUMNS[..6], "heartbeat");
         let ended = now_s() - 120;
         conn.execute(
             "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, rated_capacity_wh, capacity_source, rest_v_start, rest_v_end, r_scale, heat_a2s)
@@ -329,11 +321,7 @@ fn a_schema_2_store_migrates() {
         .unwrap();
     }
     let st = Store::open(dir.path()).expect("a schema 2 store opens");
-    let version: i64 = st
-        .conn
-        .query_row("PRAGMA user_version", [], |r| r.get(0))
-        .unwrap();
-    assert_eq!(version, SCHEMA_VERSION);
+    assert_eq!(user_version(&st), SCHEMA_VERSION);
     let v = st.vehicles().unwrap();
     let f = &v[0].flights[0].summary;
     assert_eq!(
@@ -398,18 +386,7 @@ fn replays_measure_the_gap_by_log_time() {
 fn a_schema_3_store_migrates_and_its_flights_count_for_the_vehicle() {
     let dir = tempfile::tempdir().unwrap();
     {
-        let conn = Connection::open(dir.path().join(DB_FILE)).unwrap();
-        conn.execute_batch(SCHEMA).unwrap();
-        for c in &ADDED_COLUMNS {
-            conn.execute_batch(&format!("ALTER TABLE flights ADD COLUMN {c} REAL;"))
-                .unwrap();
-        }
-        conn.execute_batch("PRAGMA user_version = 3").unwrap();
-        conn.execute(
-            "INSERT INTO vehicles VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 'heartbeat', 1, 'ardupilot', 'MAV_TYPE_QUADROTOR', 1, 1, NULL)",
-            [],
-        )
-        .unwrap();
+        let conn = old_store(dir.path(), Some(3), &ADDED_COLUMNS, "heartbeat");
         conn.execute(
             "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, rated_capacity_wh, capacity_source, rest_v_end, r_scale, internal_r_ohm, pack_health_pct, ended_log_s)
              VALUES ('sys1-ardupilot-MAV_TYPE_QUADROTOR', 1, 300, 20, 40, 'default', 11.6, 1.1, 0.05, 96.0, 1500000000.0)",
@@ -418,11 +395,7 @@ fn a_schema_3_store_migrates_and_its_flights_count_for_the_vehicle() {
         .unwrap();
     }
     let mut st = Store::open(dir.path()).expect("a schema 3 store opens");
-    let version: i64 = st
-        .conn
-        .query_row("PRAGMA user_version", [], |r| r.get(0))
-        .unwrap();
-    assert_eq!((version, SCHEMA_VERSION), (4, 4));
+    assert_eq!((user_version(&st), SCHEMA_VERSION), (4, 4));
     let f = st.vehicles().unwrap()[0].flights[0].summary.clone();
     assert_eq!(
         (f.rest_v_end, f.r_scale, f.ended_log_s, f.pack_id),

@@ -15,19 +15,13 @@ fn sample(ground: f32, alt: f32, roll_deg: f64, vz: f32, air: AirData) -> Sample
     f[idx::VZ] = vz;
     f[idx::POS_Z] = alt;
     Sample {
-        t_s: 1.0,
-        features: f,
-        measured_w: None,
-        voltage_v: None,
-        home: None,
-        stale_mask: 0,
-        battery_remaining_pct: None,
         vehicle: VehicleKind {
             class: VehicleClass::FixedWing,
             mav_type: Some(1),
             ..Default::default()
         },
         air,
+        ..Sample::new(1.0, f, None)
     }
 }
 
