@@ -521,6 +521,7 @@ mod tests {
             },
             msg,
             arrived: std::time::Instant::now(),
+            network: 0,
         }
     }
 

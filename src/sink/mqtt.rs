@@ -3,7 +3,8 @@
 //! the client is rumqttc (pure Rust, on tokio).
 //!
 //! Topics, under `prefix` (default `dronewatt`); `<vehicle>` is the vehicle's MAVLink
-//! system id ([`crate::report::Report::system_id`]), so several instances watching different vehicles can
+//! system id, or `network:system id` where the links are separate networks
+//! ([`crate::report::VehicleId`]), so several instances watching different vehicles can
 //! share one broker:
 //!
 //! | topic | payload | QoS | retained | when |
@@ -282,9 +283,10 @@ pub fn status_topic(prefix: &str, instance: &str) -> String {
     format!("{prefix}/status/{instance}")
 }
 
-/// `<prefix>/<vehicle>/<kind>`, kind one of `estimate`, `state`, `alert`.
-pub fn vehicle_topic(prefix: &str, system_id: u8, kind: &str) -> String {
-    format!("{prefix}/{system_id}/{kind}")
+/// `<prefix>/<vehicle>/<kind>`, kind one of `estimate`, `state`, `alert`; the vehicle as
+/// [`crate::report::VehicleId`] reads (`7`, or `2:7` on network 2 of separate networks).
+pub fn vehicle_topic(prefix: &str, vehicle: crate::report::VehicleId, kind: &str) -> String {
+    format!("{prefix}/{vehicle}/{kind}")
 }
 
 /// What the sink counted, shared with its connection task.
@@ -354,15 +356,15 @@ async fn publish(
         client: client.clone(),
         counters: counters.clone(),
     };
-    let mut vehicles: std::collections::BTreeMap<u8, VehicleState> = Default::default();
+    let mut vehicles: std::collections::BTreeMap<crate::report::VehicleId, VehicleState> = Default::default();
     let mut buf = Vec::with_capacity(1024);
     while let Some(r) = rx.next().await {
-        let v = vehicles.entry(r.system_id).or_default();
+        let v = vehicles.entry(r.vehicle).or_default();
         buf.clear();
         super::jsonl::write_estimate(&mut buf, &r)?;
         queue
             .put(
-                vehicle_topic(&cfg.prefix, r.system_id, "estimate"),
+                vehicle_topic(&cfg.prefix, r.vehicle, "estimate"),
                 QoS::AtMostOnce,
                 false,
                 line(&buf),
@@ -370,10 +372,10 @@ async fn publish(
             .await;
         for a in &r.alerts {
             buf.clear();
-            super::jsonl::write_alert(&mut buf, r.system_id, a)?;
+            super::jsonl::write_alert(&mut buf, r.vehicle, a)?;
             queue
                 .put(
-                    vehicle_topic(&cfg.prefix, r.system_id, "alert"),
+                    vehicle_topic(&cfg.prefix, r.vehicle, "alert"),
                     QoS::AtLeastOnce,
                     false,
                     line(&buf),
@@ -396,7 +398,7 @@ async fn publish(
             put_state(
                 &queue,
                 &cfg.prefix,
-                r.system_id,
+                r.vehicle,
                 (t, class),
                 &r.energy,
                 &v.active,
@@ -455,7 +457,7 @@ fn line(buf: &[u8]) -> Vec<u8> {
 async fn put_state(
     queue: &Queue,
     prefix: &str,
-    id: u8,
+    id: crate::report::VehicleId,
     (t, class): (f64, VehicleClass),
     energy: &crate::report::EnergyState,
     active: &[String],
@@ -683,8 +685,16 @@ mod tests {
     #[test]
     fn topics() {
         assert_eq!(
-            vehicle_topic("fleet/dw", 42, "estimate"),
+            vehicle_topic("fleet/dw", 42.into(), "estimate"),
             "fleet/dw/42/estimate"
+        );
+        let on_two = crate::report::VehicleId {
+            network: 2,
+            system_id: 42,
+        };
+        assert_eq!(
+            vehicle_topic("fleet/dw", on_two, "state"),
+            "fleet/dw/2:42/state"
         );
         assert_eq!(status_topic("dronewatt", "gcs-1"), "dronewatt/status/gcs-1");
     }

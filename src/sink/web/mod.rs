@@ -197,7 +197,8 @@ struct Dash {
 /// One vehicle's row of the fleet table.
 #[derive(Debug, Clone, serde::Serialize)]
 struct FleetRow {
-    system_id: u8,
+    /// The vehicle: its system id, or `"2:7"` on network 2 of separate networks.
+    system_id: crate::report::VehicleId,
     t: f64,
     /// The vehicle's kind in words (`multirotor`, `vtol (fw)`, …).
     vehicle: String,
@@ -213,7 +214,7 @@ struct FleetRow {
 /// Every vehicle's dashboard, by system id.
 #[derive(Debug, Default)]
 struct Fleet {
-    vehicles: std::collections::BTreeMap<u8, Dash>,
+    vehicles: std::collections::BTreeMap<crate::report::VehicleId, Dash>,
 }
 
 impl Fleet {
@@ -223,9 +224,9 @@ impl Fleet {
             .iter()
             .any(|a| a.rule == "vehicle_dropped" && a.state == crate::report::AlertState::Raised);
         if dropped {
-            self.vehicles.remove(&r.system_id);
+            self.vehicles.remove(&r.vehicle);
         } else {
-            self.vehicles.entry(r.system_id).or_default().add(r, cfg);
+            self.vehicles.entry(r.vehicle).or_default().add(r, cfg);
         }
     }
 
@@ -346,7 +347,8 @@ type Shared = Arc<Mutex<Fleet>>;
 #[derive(serde::Deserialize)]
 struct Since {
     since: Option<u64>,
-    vehicle: Option<u8>,
+    /// `7`, or `2:7` on network 2 (a vehicle that does not parse: the default).
+    vehicle: Option<String>,
 }
 
 async fn index() -> impl IntoResponse {
@@ -361,6 +363,7 @@ async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoR
             // The vehicle asked for, else the lowest heard (a dropped one: the lowest left).
             let (vehicle, d) = q
                 .vehicle
+                .and_then(|v| v.parse::<crate::report::VehicleId>().ok())
                 .and_then(|v| f.vehicles.get_key_value(&v))
                 .or_else(|| f.vehicles.iter().next())
                 .map_or((None, &empty), |(&v, d)| (Some(v), d));

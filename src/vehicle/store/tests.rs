@@ -12,6 +12,7 @@ fn id(uid: Option<u64>) -> Identity {
         autopilot: Autopilot::ArduPilot,
         vehicle_type: "MAV_TYPE_QUADROTOR".into(),
         uid,
+        network: 0,
     }
 }
 
@@ -51,6 +52,20 @@ fn keys_prefer_the_uid() {
         (k.key.as_str(), k.kind),
         ("sys1-ardupilot-MAV_TYPE_QUADROTOR", "heartbeat")
     );
+    // System id 1 of a second network (separate networks): another vehicle.
+    let other = Identity {
+        network: 2,
+        ..id(None)
+    };
+    assert_eq!(
+        VehicleKey::of(&other).key,
+        "sys1-ardupilot-MAV_TYPE_QUADROTOR@net2"
+    );
+    let uid = Identity {
+        network: 2,
+        ..id(Some(7))
+    };
+    assert_eq!(VehicleKey::of(&uid).key, "uid:0000000000000007", "a uid is the board's own");
 }
 
 #[test]
