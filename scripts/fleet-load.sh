@@ -35,6 +35,11 @@
 # (seed k, real time) into `dronewatt monitor udpin:127.0.0.1:PORT` (label live-…; the
 # simulators' CPU is not counted, but they share the machine).
 #
+# ONE_PROCESS=1 (with LIVE=1): the K links into ONE `monitor`, its config's `[[links]]`
+# one per link, each its own network (`network = "link<k>"`: the simulators' system ids
+# collide, 1..M on every link), so one process serves every link with one batched
+# inference (label live-…-1proc, instances 1). Its CPU and peak RSS are that process's.
+#
 # Appends rows to OUT/fleet-load.csv (OUT default target/fleet-load; a new file gets the
 # header) and plots it (`cargo run --example fleet_load_plot`): fleet-load.png (CPU per
 # vehicle-second), fleet-load-rss.png (peak RSS per vehicle), fleet-load-latency.png (p99
@@ -69,6 +74,11 @@ HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,
 
 LABEL=10hz
 [ "${LIVE:-0}" = 1 ] && LABEL=live-10hz
+ONE=${ONE_PROCESS:-0}
+if [ "$ONE" = 1 ] && [ "${LIVE:-0}" != 1 ]; then
+  echo "ONE_PROCESS=1 needs LIVE=1 (replay reads one tlog: one link)" >&2
+  exit 2
+fi
 CFG="$TMP/base.toml"
 : > "$CFG"
 if [ -n "${LSTM_RATE:-}" ]; then
@@ -93,6 +103,42 @@ run_size() {  # $1 = N
   m=$(( n / k ))
   if [ $(( m * k )) -ne "$n" ]; then echo "$n vehicles do not split evenly over $k links of ≤ $PER_LINK" >&2; exit 2; fi
   local i pids=() greps=() sub=
+  if [ "$ONE" = 1 ]; then
+    # One monitor, K links, each its own network; MQTT (if on) under one prefix.
+    cp "$CFG" "$TMP/one.toml"
+    if [ -n "$MQTT_PORT" ]; then
+      printf '[sinks.mqtt]\nenabled = true\nport = %s\nprefix = "dronewatt/link1"\ninstance = "link1"\n' "$MQTT_PORT" >> "$TMP/one.toml"
+    fi
+    local ports=()
+    for i in $(seq 1 "$k"); do
+      ports+=("$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')")
+      printf '[[links]]\naddress = "udpin:127.0.0.1:%s"\nnetwork = "link%s"\n' "${ports[$((i - 1))]}" "$i" >> "$TMP/one.toml"
+    done
+    rm -rf "$TMP/summary1.json"
+    if [ -n "$MQTT_PORT" ]; then
+      mosquitto_sub -h 127.0.0.1 -p "$MQTT_PORT" -t 'dronewatt/#' -F '%t' > "$TMP/sub.txt" &
+      sub=$!
+      sleep 0.5
+    fi
+    mkfifo "$TMP/json1"
+    grep -F '"type":"summary"' < "$TMP/json1" > "$TMP/summary1.json" &
+    greps+=($!)
+    RUST_LOG=dronewatt=info "$BIN" monitor -q --config "$TMP/one.toml" \
+      --data-dir "${STORE:-off}" --json "$TMP/json1" 2> "$TMP/paced1.err" &
+    pids+=($!)
+    for i in $(seq 1 "$k"); do
+      until grep -qs "listening on.*:${ports[$((i - 1))]}" "$TMP/paced1.err"; do sleep 0.1; done
+    done
+    local sims=()
+    for i in $(seq 1 "$k"); do
+      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:${ports[$((i - 1))]}" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null &
+      sims+=($!)
+    done
+    sleep "$DUR"
+    for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
+    finish_size "$n" 1 "$LABEL-1proc" "$sub" "${pids[@]}" -- "${greps[@]}"
+    return
+  fi
   for i in $(seq 1 "$k"); do
     local tlog="$TLOGS/fleet${m}-seed$i.tlog"
     [ -f "$tlog" ] || "$BIN" simulate --vehicles "$m" --out "$tlog" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null
@@ -130,6 +176,19 @@ run_size() {  # $1 = N
   done
   sleep "$DUR"
   for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
+  finish_size "$n" "$k" "$LABEL" "$sub" "${pids[@]}" -- "${greps[@]}"
+}
+
+# Measure the instances, stop them, and append the row.
+# $1 = N, $2 = instances, $3 = label, $4 = subscriber pid (or ""), then the instances'
+# pids, `--`, the summary pipes' pids.
+finish_size() {
+  local n=$1 k=$2 label=$3 sub=$4 pids=() greps=() p
+  shift 4
+  while [ "$1" != -- ]; do pids+=("$1"); shift; done
+  shift
+  greps=("$@")
+  local m=$(( n / k ))
   local cpu=0 hwm=0 p
   for p in "${pids[@]}"; do
     cpu=$(awk -v t="$TICK" -v c="$cpu" '{print c + ($14 + $15) / t}' "/proc/$p/stat")
@@ -146,7 +205,7 @@ run_size() {  # $1 = N
     while [ "$now" != "$was" ]; do was=$now; sleep 2; now=$(wc -l < "$TMP/sub.txt"); done
     kill "$sub"; wait "$sub" 2> /dev/null || true
     grep -i "drop" "$TMP/mosquitto.log" >&2 || true
-    received="$(wc -l < "$TMP/sub.txt"),$(grep -c '^dronewatt/link[0-9]*/[0-9]*/estimate$' "$TMP/sub.txt" || true)"
+    received="$(wc -l < "$TMP/sub.txt"),$(grep -c '^dronewatt/link[0-9]*/[0-9:]*/estimate$' "$TMP/sub.txt" || true)"
   fi
   # Flat out (FLAT=1): every link's whole tlog at once.
   local t0=0 t1=0
@@ -160,7 +219,7 @@ run_size() {  # $1 = N
     for p in "${pids[@]}"; do wait "$p"; done
     t1=$(date +%s.%N)
   fi
-  python3 - "$TMP" "$n" "$k" "$DUR" "$cpu" "$hwm" "$t0" "$t1" "$LABEL" "$received" >> "$CSV" <<'PY'
+  python3 - "$TMP" "$n" "$k" "$DUR" "$cpu" "$hwm" "$t0" "$t1" "$label" "$received" >> "$CSV" <<'PY'
 import json, re, sys, glob, os
 tmp, n, k, dur, cpu, hwm, t0, t1, label, received = sys.argv[1:]
 n, k, dur, cpu, hwm = int(n), int(k), float(dur), float(cpu), int(hwm)

@@ -66,12 +66,17 @@ pub struct Networks {
 }
 
 impl Networks {
-    /// Number the networks `names` gives each link (`""`: the default network). One name
+    /// Number the networks `names` gives each link (`""`: the network named `default`). One name
     /// (the usual case) is one network, numbered 0, and every vehicle reads as its system
     /// id alone. Fails beyond 255 networks.
     pub fn number(names: &[String]) -> Result<Self> {
+        // The unnamed network reads `default` beside named ones.
+        let names: Vec<String> = names
+            .iter()
+            .map(|n| if n.is_empty() { "default".into() } else { n.clone() })
+            .collect();
         let mut distinct: Vec<String> = Vec::new();
-        for n in names {
+        for n in &names {
             if !distinct.contains(n) {
                 distinct.push(n.clone());
             }
@@ -472,6 +477,8 @@ mod tests {
         assert_eq!(same.of_link, [0, 0], "one name is one network, read as today");
         let two = Networks::number(&names(&["", "", "lte"])).unwrap();
         assert_eq!(two.of_link, [1, 1, 2]);
-        assert_eq!((two.name(1), two.name(2)), (Some(""), Some("lte")));
+        assert_eq!((two.name(1), two.name(2)), (Some("default"), Some("lte")));
+        let named = Networks::number(&names(&["lte", "default", "lte"])).unwrap();
+        assert_eq!(named.of_link, [1, 2, 1]);
     }
 }

@@ -159,7 +159,7 @@ fn effective_capacity_needs_a_real_drop() {
             ..Default::default()
         },
         alerts: vec![],
-        system_id: 1,
+        vehicle: 1.into(),
     };
     let mut log = FlightLog::default();
     log.observe(&report(0.0, 90.0, 0.0));
@@ -219,7 +219,7 @@ fn a_long_flight_is_summed_in_bounded_memory() {
             },
             energy: EnergyState::default(),
             alerts: vec![],
-            system_id: 1,
+            vehicle: 1.into(),
         });
     }
     let s = log.summary().unwrap();
