@@ -33,7 +33,11 @@
 #
 # LIVE=1: live links instead of replays: link k is `dronewatt simulate --vehicles M --udp`
 # (seed k, real time) into `dronewatt monitor udpin:127.0.0.1:PORT` (label live-…; the
-# simulators' CPU is not counted, but they share the machine).
+# simulators' CPU is not counted, but they share the machine). A simulator computes its
+# whole flight before it sends (~5 s for 250 vehicles on an idle machine, far longer on a
+# busy one), so live the CPU is measured over a window of SECONDS that opens once every
+# simulator sends (cpu_us_per_vs = the monitors' CPU in that window / (N × SECONDS)); the
+# estimates, latency and misses are the whole run's.
 #
 # ONE_PROCESS=1 (with LIVE=1): the K links into ONE `monitor`, its config's `[[links]]`
 # one per link, each its own network (`network = "link<k>"`: the simulators' system ids
@@ -47,6 +51,7 @@
 # (default OUT/tlogs; ~68 MB per 250 vehicles).
 #
 # Usage: scripts/fleet-load.sh [SECONDS] [N ...]      (default: 30, 1 10 100 250)
+#        LIVE=1 ONE_PROCESS=1 LSTM_RATE=2 scripts/fleet-load.sh 30 1000   (4 links, one process)
 #        LSTM_RATE=2 scripts/fleet-load.sh 30 1 10 100 250 1000
 #        LSTM_RATE=2 MQTT=1 scripts/fleet-load.sh 30 1000
 set -euo pipefail
@@ -68,6 +73,24 @@ cleanup() {
 }
 trap cleanup EXIT
 TICK=$(getconf CLK_TCK)
+# CPU seconds (user+sys) of these processes so far.
+cpu_of() {
+  local c=0 p
+  for p in "$@"; do c=$(awk -v t="$TICK" -v c="$c" '{print c + ($14 + $15) / t}' "/proc/$p/stat"); done
+  echo "$c"
+}
+# Live: wait until simulators 1..$1 have their flights ready (they send from then on), then
+# measure the monitors ($2…) over DUR seconds into WINDOW_CPU.
+live_window() {
+  local k=$1 i c0
+  shift
+  for i in $(seq 1 "$k"); do until grep -qs "simulated mission" "$TMP/sim$i.err"; do sleep 0.2; done; done
+  sleep 1
+  c0=$(cpu_of "$@")
+  sleep "$DUR"
+  WINDOW_CPU=$(awk -v a="$c0" -v b="$(cpu_of "$@")" 'BEGIN {print b - a}')
+}
+WINDOW_CPU=
 CSV="$OUT/fleet-load.csv"
 HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,estimates,missed,gaps,p50_ms,p99_ms,max_ms,flat_windows_per_s,max_vehicles_10hz,mqtt_published,mqtt_dropped,mqtt_received,mqtt_estimates_received"
 [ -s "$CSV" ] || echo "$HEAD" > "$CSV"
@@ -131,10 +154,10 @@ run_size() {  # $1 = N
     done
     local sims=()
     for i in $(seq 1 "$k"); do
-      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:${ports[$((i - 1))]}" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null &
+      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:${ports[$((i - 1))]}" --seed "$i" --leg-m 200 --hover-s 10 2> "$TMP/sim$i.err" &
       sims+=($!)
     done
-    sleep "$DUR"
+    live_window "$k" "${pids[@]}"
     for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
     finish_size "$n" 1 "$LABEL-1proc" "$sub" "${pids[@]}" -- "${greps[@]}"
     return
@@ -166,7 +189,7 @@ run_size() {  # $1 = N
         --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
       pids+=($!)
       until grep -qs "listening on" "$TMP/paced$i.err"; do sleep 0.1; done
-      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:$port" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null &
+      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:$port" --seed "$i" --leg-m 200 --hover-s 10 2> "$TMP/sim$i.err" &
       sims+=($!)
     else
       RUST_LOG=dronewatt=info "$BIN" replay "$TLOGS/fleet${m}-seed$i.tlog" --speed 1 -q --config "$TMP/link$i.toml" \
@@ -174,7 +197,7 @@ run_size() {  # $1 = N
       pids+=($!)
     fi
   done
-  sleep "$DUR"
+  if [ "${LIVE:-0}" = 1 ]; then live_window "$k" "${pids[@]}"; else sleep "$DUR"; fi
   for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
   finish_size "$n" "$k" "$LABEL" "$sub" "${pids[@]}" -- "${greps[@]}"
 }
@@ -189,9 +212,10 @@ finish_size() {
   shift
   greps=("$@")
   local m=$(( n / k ))
-  local cpu=0 hwm=0 p
+  local cpu hwm=0 p
+  cpu=${WINDOW_CPU:-$(cpu_of "${pids[@]}")}
+  WINDOW_CPU=
   for p in "${pids[@]}"; do
-    cpu=$(awk -v t="$TICK" -v c="$cpu" '{print c + ($14 + $15) / t}' "/proc/$p/stat")
     hwm=$(awk -v h="$hwm" '/^VmHWM/ {print h + $2}' "/proc/$p/status")
   done
   for p in "${pids[@]}"; do kill -INT "$p" || true; done
@@ -251,5 +275,8 @@ PY
 }
 
 for n in $SIZES; do run_size "$n"; done
-cargo run --locked --quiet --example fleet_load_plot -- "$CSV" "$OUT/fleet-load.png"
-echo "wrote $CSV and $OUT/fleet-load.png (load average: $(cut -d' ' -f1-3 /proc/loadavg))"
+# PLOT=0: the rows only (the plot builds an example).
+if [ "${PLOT:-1}" = 1 ]; then
+  cargo run --locked --quiet --example fleet_load_plot -- "$CSV" "$OUT/fleet-load.png"
+fi
+echo "wrote $CSV (load average: $(cut -d' ' -f1-3 /proc/loadavg))"
