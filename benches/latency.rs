@@ -181,7 +181,12 @@ fn main() {
             t += 0.1;
             let mut e = est.clone();
             e.t_s = t;
-            let r = account(&mut chain.chain.energy, &mut chain.chain.alerts, e, dronewatt::report::VehicleId::single(1));
+            let r = account(
+                &mut chain.chain.energy,
+                &mut chain.chain.alerts,
+                e,
+                dronewatt::report::VehicleId::single(1),
+            );
             black_box(chain.enc.estimates(&r).len() + chain.enc.alerts(&r).len())
         })
     });

@@ -104,7 +104,10 @@ impl Ensemble {
     }
     /// Vehicle `vehicle`'s adaptation, to restore what an earlier flight learned or to
     /// start a new flight afresh.
-    pub fn adaptation_mut(&mut self, vehicle: crate::report::VehicleId) -> Option<&mut adapt::Adaptation> {
+    pub fn adaptation_mut(
+        &mut self,
+        vehicle: crate::report::VehicleId,
+    ) -> Option<&mut adapt::Adaptation> {
         let start = self.adapt.as_ref()?;
         Some(self.adapted.entry(vehicle).or_insert_with(|| start.clone()))
     }

@@ -166,7 +166,12 @@ impl Chain {
                 for_t_s.push(at.t_s);
             }
             // The live energy + alerts step itself (a data-set flight has no system id: 1).
-            let report = crate::pipeline::account(&mut energy, &mut alerts, est, crate::report::VehicleId::single(1));
+            let report = crate::pipeline::account(
+                &mut energy,
+                &mut alerts,
+                est,
+                crate::report::VehicleId::single(1),
+            );
             steps.push(Step {
                 report,
                 for_t_s,

@@ -194,7 +194,11 @@ pub enum Route {
     /// Not about a vehicle this instance watches.
     Ignore,
     /// To vehicle `id`'s chain; `new`: start that chain first; `back`: it had been lost.
-    Vehicle { id: VehicleId, new: bool, back: bool },
+    Vehicle {
+        id: VehicleId,
+        new: bool,
+        back: bool,
+    },
 }
 
 /// What the demultiplexer noticed as time went by.
@@ -520,12 +524,7 @@ mod tests {
     #[test]
     fn the_same_system_id_on_two_networks_is_two_vehicles() {
         let mut d = Demux::new(&FleetConfig::default(), None).unwrap();
-        let quad = || {
-            hb(
-                MavType::MAV_TYPE_QUADROTOR,
-                MavAutopilot::MAV_AUTOPILOT_PX4,
-            )
-        };
+        let quad = || hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
         let on = |net: u8, t: f64| TimedMessage {
             network: net,
             ..msg(1, t, quad())

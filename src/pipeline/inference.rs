@@ -217,7 +217,9 @@ fn warm_start(
             waiting.remove(&vehicle);
             match profile_models {
                 Some(m) if vehicles <= 1 => *models = *m,
-                Some(_) => tracing::warn!(vehicle = %vehicle, "vehicle store: a learned profile is not applied in a fleet (the vehicles share the models)"),
+                Some(_) => {
+                    tracing::warn!(vehicle = %vehicle, "vehicle store: a learned profile is not applied in a fleet (the vehicles share the models)")
+                }
                 None => {}
             }
             if let (Some(l), Some(ad)) = (learned, models.adaptation_mut(vehicle)) {

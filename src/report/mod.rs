@@ -599,13 +599,19 @@ mod vehicle_id_tests {
             network: 2,
             system_id: 7,
         };
-        assert_eq!((one.to_string(), two.to_string()), ("7".into(), "2:7".into()));
+        assert_eq!(
+            (one.to_string(), two.to_string()),
+            ("7".into(), "2:7".into())
+        );
         assert_eq!(format!("{two:>5}|"), "  2:7|");
         assert_eq!(serde_json::to_value(one).unwrap(), serde_json::json!(7));
         assert_eq!(serde_json::to_value(two).unwrap(), serde_json::json!("2:7"));
         assert_eq!("7".parse::<VehicleId>(), Ok(one));
         assert_eq!("2:7".parse::<VehicleId>(), Ok(two));
-        assert!("2:x".parse::<VehicleId>().unwrap_err().contains("NETWORK:SYSID"));
+        assert!("2:x"
+            .parse::<VehicleId>()
+            .unwrap_err()
+            .contains("NETWORK:SYSID"));
         assert_eq!((one.network_field(), two.network_field()), (None, Some(2)));
     }
 }

@@ -290,7 +290,13 @@ pub fn status_topic(prefix: &str, instance: &str) -> String {
 pub fn link_topic(prefix: &str, link: &str) -> String {
     let level: String = link
         .chars()
-        .map(|c| if matches!(c, '/' | '+' | '#' | '\0') { '_' } else { c })
+        .map(|c| {
+            if matches!(c, '/' | '+' | '#' | '\0') {
+                '_'
+            } else {
+                c
+            }
+        })
         .collect();
     format!("{prefix}/links/{level}/health")
 }
@@ -379,7 +385,8 @@ async fn publish(
         client: client.clone(),
         counters: counters.clone(),
     };
-    let mut vehicles: std::collections::BTreeMap<crate::report::VehicleId, VehicleState> = Default::default();
+    let mut vehicles: std::collections::BTreeMap<crate::report::VehicleId, VehicleState> =
+        Default::default();
     let mut buf = Vec::with_capacity(1024);
     let mut health = tokio::time::interval(Duration::from_secs(1));
     health.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);

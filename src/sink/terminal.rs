@@ -40,7 +40,8 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     tick.tick().await; // the first tick is immediate: nothing to show yet
                        // The newest report and the alerts standing, per vehicle.
-    let mut fleet: BTreeMap<crate::report::VehicleId, (Arc<Report>, BTreeMap<String, Severity>)> = BTreeMap::new();
+    let mut fleet: BTreeMap<crate::report::VehicleId, (Arc<Report>, BTreeMap<String, Severity>)> =
+        BTreeMap::new();
     let mut last = (Instant::now(), 0u64);
     let mut feeds_shown = String::new();
     loop {

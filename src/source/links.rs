@@ -73,7 +73,13 @@ impl Networks {
         // The unnamed network reads `default` beside named ones.
         let names: Vec<String> = names
             .iter()
-            .map(|n| if n.is_empty() { "default".into() } else { n.clone() })
+            .map(|n| {
+                if n.is_empty() {
+                    "default".into()
+                } else {
+                    n.clone()
+                }
+            })
             .collect();
         let mut distinct: Vec<String> = Vec::new();
         for n in &names {
@@ -474,7 +480,11 @@ mod tests {
         assert_eq!(one.of_link, [0, 0]);
         assert_eq!(one.name(0), None);
         let same = Networks::number(&names(&["radio", "radio"])).unwrap();
-        assert_eq!(same.of_link, [0, 0], "one name is one network, read as today");
+        assert_eq!(
+            same.of_link,
+            [0, 0],
+            "one name is one network, read as today"
+        );
         let two = Networks::number(&names(&["", "", "lte"])).unwrap();
         assert_eq!(two.of_link, [1, 1, 2]);
         assert_eq!((two.name(1), two.name(2)), (Some("default"), Some("lte")));

@@ -221,9 +221,17 @@ fn estimates_keep_coming_at_their_rate_while_one_link_is_cut_for_10_s() {
         format!("udpin:127.0.0.1:{}:", r.ports[0]),
         format!("udpin:127.0.0.1:{}:", r.ports[1]),
     );
-    assert_eq!(logged(stderr, &cut_link, "silent: no valid MAVLink frame"), 1, "{ctx}");
+    assert_eq!(
+        logged(stderr, &cut_link, "silent: no valid MAVLink frame"),
+        1,
+        "{ctx}"
+    );
     assert_eq!(logged(stderr, &cut_link, "frames again after"), 1, "{ctx}");
-    assert_eq!(logged(stderr, &other, "silent: no valid MAVLink frame"), 0, "{ctx}");
+    assert_eq!(
+        logged(stderr, &other, "silent: no valid MAVLink frame"),
+        0,
+        "{ctx}"
+    );
     assert_eq!(logged(stderr, &other, "frames again after"), 0, "{ctx}");
     assert_eq!(s["silences"].as_u64(), Some(1), "{ctx}");
 }
@@ -249,13 +257,18 @@ fn two_fleets_with_the_same_system_id_on_separate_networks_are_never_mixed() {
     assert_eq!(get(s, "frames_ok"), union + fleet, "{ctx}");
     assert_eq!(get(s, "duplicates"), both, "{ctx}");
     let merged_loss = 1.0 - union as f64 / get(peer, "packed") as f64;
-    assert!(merged_loss < 0.3 * 0.3 + 0.05, "merged loss {merged_loss:.3}: {ctx}");
+    assert!(
+        merged_loss < 0.3 * 0.3 + 0.05,
+        "merged loss {merged_loss:.3}: {ctx}"
+    );
     // Each vehicle (both system id 1) has its own estimates, from its own power: network 1
     // (the pair, 500 W), network 2 (the third link, 300 W). Never one without its network.
     let mut seen = [0usize; 3];
     for e in estimates(lines) {
         assert_eq!(e["system_id"], 1, "{e}");
-        let net = e["network"].as_u64().unwrap_or_else(|| panic!("no network: {e}"));
+        let net = e["network"]
+            .as_u64()
+            .unwrap_or_else(|| panic!("no network: {e}"));
         let w = e["measured_w"].as_f64().unwrap_or(f64::NAN);
         let want = match net {
             1 => 500.0,
@@ -265,7 +278,10 @@ fn two_fleets_with_the_same_system_id_on_separate_networks_are_never_mixed() {
         assert!((w - want).abs() < 2.0, "network {net} measured {w} W: {e}");
         seen[net as usize] += 1;
     }
-    assert!(seen[1] > 80 && seen[2] > 80, "estimates per network {seen:?}: {ctx}");
+    assert!(
+        seen[1] > 80 && seen[2] > 80,
+        "estimates per network {seen:?}: {ctx}"
+    );
     // Their batteries: the pair's 80 %, the other's 60 %, each in its own energy line.
     for (net, pct) in [(1, 80.0), (2, 60.0)] {
         let last = estimates(lines)
@@ -275,14 +291,23 @@ fn two_fleets_with_the_same_system_id_on_separate_networks_are_never_mixed() {
         let rem = last["remaining_wh"].as_f64().unwrap();
         let cap = last["capacity_wh"].as_f64().unwrap();
         let got = 100.0 * rem / cap;
-        assert!((got - pct).abs() < 15.0, "network {net}: {got:.0} % left: {last}");
+        assert!(
+            (got - pct).abs() < 15.0,
+            "network {net}: {got:.0} % left: {last}"
+        );
     }
     // Each link says its network.
-    let links = s["links"].as_array().unwrap_or_else(|| panic!("no links: {ctx}"));
+    let links = s["links"]
+        .as_array()
+        .unwrap_or_else(|| panic!("no links: {ctx}"));
     let nets: Vec<&Value> = links.iter().map(|l| &l["network"]).collect();
     assert_eq!(
         nets,
-        [&json!(["default", 1]), &json!(["default", 1]), &json!(["fleet2", 2])],
+        [
+            &json!(["default", 1]),
+            &json!(["default", 1]),
+            &json!(["fleet2", 2])
+        ],
         "{ctx}"
     );
     assert!(stderr.contains("network 2 is \"fleet2\""), "{ctx}");

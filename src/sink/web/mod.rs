@@ -369,11 +369,7 @@ async fn index() -> impl IntoResponse {
 
 async fn state(State(served): State<Served>, Query(q): Query<Since>) -> impl IntoResponse {
     let since = q.since.unwrap_or(0);
-    let links = served
-        .stats
-        .as_ref()
-        .map(|s| s.links())
-        .unwrap_or_default();
+    let links = served.stats.as_ref().map(|s| s.links()).unwrap_or_default();
     let dash = served.dash;
     let empty = Dash::default();
     let body = match dash.lock() {

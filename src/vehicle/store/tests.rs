@@ -65,7 +65,11 @@ fn keys_prefer_the_uid() {
         network: 2,
         ..id(Some(7))
     };
-    assert_eq!(VehicleKey::of(&uid).key, "uid:0000000000000007", "a uid is the board's own");
+    assert_eq!(
+        VehicleKey::of(&uid).key,
+        "uid:0000000000000007",
+        "a uid is the board's own"
+    );
 }
 
 #[test]

@@ -49,7 +49,8 @@ fn each_link_has_a_retained_health_topic_and_a_row_on_the_dashboard() {
             std::thread::sleep(Duration::from_millis(200));
         };
         let dom = crate::sink_web::chromium().map(|c| {
-            let out = crate::sink_web::headless(c, &format!("http://127.0.0.1:{web}/"), &["--dump-dom"]);
+            let out =
+                crate::sink_web::headless(c, &format!("http://127.0.0.1:{web}/"), &["--dump-dom"]);
             String::from_utf8_lossy(&out.stdout).into_owned()
         });
         (state, dom)
@@ -58,7 +59,16 @@ fn each_link_has_a_retained_health_topic_and_a_row_on_the_dashboard() {
     let (peer, stderr) = link_common::peer_then_stop(
         dw,
         "redundant.py",
-        &["--ports", &p, "--seconds", "10", "--loss", "0.3,0.3", "--seed", "11"],
+        &[
+            "--ports",
+            &p,
+            "--seconds",
+            "10",
+            "--loss",
+            "0.3,0.3",
+            "--seed",
+            "11",
+        ],
     );
     let (state, dom) = page.join().unwrap();
     let ctx = format!("peer: {peer}\nstate: {state}\ndronewatt: {stderr}");
@@ -76,7 +86,10 @@ fn each_link_has_a_retained_health_topic_and_a_row_on_the_dashboard() {
         let h: serde_json::Value = serde_json::from_str(&m.payload).unwrap();
         assert_eq!(h["name"], a.as_str(), "{h}");
         assert_eq!(h["frames"].as_u64(), peer["sent"][i].as_u64(), "{h}\n{ctx}");
-        assert!(h["loss_pct"].as_f64().is_some() && h["rate_hz"].as_f64().is_some(), "{h}");
+        assert!(
+            h["loss_pct"].as_f64().is_some() && h["rate_hz"].as_f64().is_some(),
+            "{h}"
+        );
         assert!(h.get("network").is_none(), "one network: none named: {h}");
     }
 
@@ -90,10 +103,15 @@ fn each_link_has_a_retained_health_topic_and_a_row_on_the_dashboard() {
             std::env::var("CI").is_err(),
             "CI must test the dashboard (scripts/setup-chromium.sh)"
         );
-        eprintln!("\n!!!!!!!! SKIPPED: no chromium; the dashboard's links panel is NOT tested !!!!!!!!\n");
+        eprintln!(
+            "\n!!!!!!!! SKIPPED: no chromium; the dashboard's links panel is NOT tested !!!!!!!!\n"
+        );
         return;
     };
-    assert!(dom.contains("id=\"links-box\">"), "the links panel is hidden: {dom}");
+    assert!(
+        dom.contains("id=\"links-box\">"),
+        "the links panel is hidden: {dom}"
+    );
     for a in &addrs {
         let row = format!("<tr data-link=\"{a}\"><td>{a}</td><td>–</td><td class=\"up\">live</td>");
         assert!(dom.contains(&row), "no live row for {a}: {dom}");
