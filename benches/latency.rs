@@ -76,6 +76,7 @@ fn tick(t_s: f64) -> Vec<TimedMessage> {
             },
             msg,
             arrived: std::time::Instant::now(),
+            network: 0,
         })
         .collect()
 }
@@ -180,7 +181,12 @@ fn main() {
             t += 0.1;
             let mut e = est.clone();
             e.t_s = t;
-            let r = account(&mut chain.chain.energy, &mut chain.chain.alerts, e, 1);
+            let r = account(
+                &mut chain.chain.energy,
+                &mut chain.chain.alerts,
+                e,
+                dronewatt::report::VehicleId::single(1),
+            );
             black_box(chain.enc.estimates(&r).len() + chain.enc.alerts(&r).len())
         })
     });

@@ -33,7 +33,16 @@
 #
 # LIVE=1: live links instead of replays: link k is `dronewatt simulate --vehicles M --udp`
 # (seed k, real time) into `dronewatt monitor udpin:127.0.0.1:PORT` (label live-…; the
-# simulators' CPU is not counted, but they share the machine).
+# simulators' CPU is not counted, but they share the machine). A simulator computes its
+# whole flight before it sends (~5 s for 250 vehicles on an idle machine, far longer on a
+# busy one), so live the CPU is measured over a window of SECONDS that opens once every
+# simulator sends (cpu_us_per_vs = the monitors' CPU in that window / (N × SECONDS)); the
+# estimates, latency and misses are the whole run's.
+#
+# ONE_PROCESS=1 (with LIVE=1): the K links into ONE `monitor`, its config's `[[links]]`
+# one per link, each its own network (`network = "link<k>"`: the simulators' system ids
+# collide, 1..M on every link), so one process serves every link with one batched
+# inference (label live-…-1proc, instances 1). Its CPU and peak RSS are that process's.
 #
 # Appends rows to OUT/fleet-load.csv (OUT default target/fleet-load; a new file gets the
 # header) and plots it (`cargo run --example fleet_load_plot`): fleet-load.png (CPU per
@@ -42,6 +51,7 @@
 # (default OUT/tlogs; ~68 MB per 250 vehicles).
 #
 # Usage: scripts/fleet-load.sh [SECONDS] [N ...]      (default: 30, 1 10 100 250)
+#        LIVE=1 ONE_PROCESS=1 LSTM_RATE=2 scripts/fleet-load.sh 30 1000   (4 links, one process)
 #        LSTM_RATE=2 scripts/fleet-load.sh 30 1 10 100 250 1000
 #        LSTM_RATE=2 MQTT=1 scripts/fleet-load.sh 30 1000
 set -euo pipefail
@@ -63,12 +73,35 @@ cleanup() {
 }
 trap cleanup EXIT
 TICK=$(getconf CLK_TCK)
+# CPU seconds (user+sys) of these processes so far.
+cpu_of() {
+  local c=0 p
+  for p in "$@"; do c=$(awk -v t="$TICK" -v c="$c" '{print c + ($14 + $15) / t}' "/proc/$p/stat"); done
+  echo "$c"
+}
+# Live: wait until simulators 1..$1 have their flights ready (they send from then on), then
+# measure the monitors ($2…) over DUR seconds into WINDOW_CPU.
+live_window() {
+  local k=$1 i c0
+  shift
+  for i in $(seq 1 "$k"); do until grep -qs "simulated mission" "$TMP/sim$i.err"; do sleep 0.2; done; done
+  sleep 1
+  c0=$(cpu_of "$@")
+  sleep "$DUR"
+  WINDOW_CPU=$(awk -v a="$c0" -v b="$(cpu_of "$@")" 'BEGIN {print b - a}')
+}
+WINDOW_CPU=
 CSV="$OUT/fleet-load.csv"
 HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,estimates,missed,gaps,p50_ms,p99_ms,max_ms,flat_windows_per_s,max_vehicles_10hz,mqtt_published,mqtt_dropped,mqtt_received,mqtt_estimates_received"
 [ -s "$CSV" ] || echo "$HEAD" > "$CSV"
 
 LABEL=10hz
 [ "${LIVE:-0}" = 1 ] && LABEL=live-10hz
+ONE=${ONE_PROCESS:-0}
+if [ "$ONE" = 1 ] && [ "${LIVE:-0}" != 1 ]; then
+  echo "ONE_PROCESS=1 needs LIVE=1 (replay reads one tlog: one link)" >&2
+  exit 2
+fi
 CFG="$TMP/base.toml"
 : > "$CFG"
 if [ -n "${LSTM_RATE:-}" ]; then
@@ -93,6 +126,42 @@ run_size() {  # $1 = N
   m=$(( n / k ))
   if [ $(( m * k )) -ne "$n" ]; then echo "$n vehicles do not split evenly over $k links of ≤ $PER_LINK" >&2; exit 2; fi
   local i pids=() greps=() sub=
+  if [ "$ONE" = 1 ]; then
+    # One monitor, K links, each its own network; MQTT (if on) under one prefix.
+    cp "$CFG" "$TMP/one.toml"
+    if [ -n "$MQTT_PORT" ]; then
+      printf '[sinks.mqtt]\nenabled = true\nport = %s\nprefix = "dronewatt/link1"\ninstance = "link1"\n' "$MQTT_PORT" >> "$TMP/one.toml"
+    fi
+    local ports=()
+    for i in $(seq 1 "$k"); do
+      ports+=("$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')")
+      printf '[[links]]\naddress = "udpin:127.0.0.1:%s"\nnetwork = "link%s"\n' "${ports[$((i - 1))]}" "$i" >> "$TMP/one.toml"
+    done
+    rm -rf "$TMP/summary1.json"
+    if [ -n "$MQTT_PORT" ]; then
+      mosquitto_sub -h 127.0.0.1 -p "$MQTT_PORT" -t 'dronewatt/#' -F '%t' > "$TMP/sub.txt" &
+      sub=$!
+      sleep 0.5
+    fi
+    mkfifo "$TMP/json1"
+    grep -F '"type":"summary"' < "$TMP/json1" > "$TMP/summary1.json" &
+    greps+=($!)
+    RUST_LOG=dronewatt=info "$BIN" monitor -q --config "$TMP/one.toml" \
+      --data-dir "${STORE:-off}" --json "$TMP/json1" 2> "$TMP/paced1.err" &
+    pids+=($!)
+    for i in $(seq 1 "$k"); do
+      until grep -qs "listening on.*:${ports[$((i - 1))]}" "$TMP/paced1.err"; do sleep 0.1; done
+    done
+    local sims=()
+    for i in $(seq 1 "$k"); do
+      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:${ports[$((i - 1))]}" --seed "$i" --leg-m 200 --hover-s 10 2> "$TMP/sim$i.err" &
+      sims+=($!)
+    done
+    live_window "$k" "${pids[@]}"
+    for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
+    finish_size "$n" 1 "$LABEL-1proc" "$sub" "${pids[@]}" -- "${greps[@]}"
+    return
+  fi
   for i in $(seq 1 "$k"); do
     local tlog="$TLOGS/fleet${m}-seed$i.tlog"
     [ -f "$tlog" ] || "$BIN" simulate --vehicles "$m" --out "$tlog" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null
@@ -120,7 +189,7 @@ run_size() {  # $1 = N
         --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
       pids+=($!)
       until grep -qs "listening on" "$TMP/paced$i.err"; do sleep 0.1; done
-      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:$port" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null &
+      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:$port" --seed "$i" --leg-m 200 --hover-s 10 2> "$TMP/sim$i.err" &
       sims+=($!)
     else
       RUST_LOG=dronewatt=info "$BIN" replay "$TLOGS/fleet${m}-seed$i.tlog" --speed 1 -q --config "$TMP/link$i.toml" \
@@ -128,11 +197,25 @@ run_size() {  # $1 = N
       pids+=($!)
     fi
   done
-  sleep "$DUR"
+  if [ "${LIVE:-0}" = 1 ]; then live_window "$k" "${pids[@]}"; else sleep "$DUR"; fi
   for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
-  local cpu=0 hwm=0 p
+  finish_size "$n" "$k" "$LABEL" "$sub" "${pids[@]}" -- "${greps[@]}"
+}
+
+# Measure the instances, stop them, and append the row.
+# $1 = N, $2 = instances, $3 = label, $4 = subscriber pid (or ""), then the instances'
+# pids, `--`, the summary pipes' pids.
+finish_size() {
+  local n=$1 k=$2 label=$3 sub=$4 pids=() greps=() p
+  shift 4
+  while [ "$1" != -- ]; do pids+=("$1"); shift; done
+  shift
+  greps=("$@")
+  local m=$(( n / k ))
+  local cpu hwm=0 p
+  cpu=${WINDOW_CPU:-$(cpu_of "${pids[@]}")}
+  WINDOW_CPU=
   for p in "${pids[@]}"; do
-    cpu=$(awk -v t="$TICK" -v c="$cpu" '{print c + ($14 + $15) / t}' "/proc/$p/stat")
     hwm=$(awk -v h="$hwm" '/^VmHWM/ {print h + $2}' "/proc/$p/status")
   done
   for p in "${pids[@]}"; do kill -INT "$p" || true; done
@@ -146,7 +229,7 @@ run_size() {  # $1 = N
     while [ "$now" != "$was" ]; do was=$now; sleep 2; now=$(wc -l < "$TMP/sub.txt"); done
     kill "$sub"; wait "$sub" 2> /dev/null || true
     grep -i "drop" "$TMP/mosquitto.log" >&2 || true
-    received="$(wc -l < "$TMP/sub.txt"),$(grep -c '^dronewatt/link[0-9]*/[0-9]*/estimate$' "$TMP/sub.txt" || true)"
+    received="$(wc -l < "$TMP/sub.txt"),$(grep -c '^dronewatt/link[0-9]*/[0-9:]*/estimate$' "$TMP/sub.txt" || true)"
   fi
   # Flat out (FLAT=1): every link's whole tlog at once.
   local t0=0 t1=0
@@ -160,7 +243,7 @@ run_size() {  # $1 = N
     for p in "${pids[@]}"; do wait "$p"; done
     t1=$(date +%s.%N)
   fi
-  python3 - "$TMP" "$n" "$k" "$DUR" "$cpu" "$hwm" "$t0" "$t1" "$LABEL" "$received" >> "$CSV" <<'PY'
+  python3 - "$TMP" "$n" "$k" "$DUR" "$cpu" "$hwm" "$t0" "$t1" "$label" "$received" >> "$CSV" <<'PY'
 import json, re, sys, glob, os
 tmp, n, k, dur, cpu, hwm, t0, t1, label, received = sys.argv[1:]
 n, k, dur, cpu, hwm = int(n), int(k), float(dur), float(cpu), int(hwm)
@@ -192,5 +275,8 @@ PY
 }
 
 for n in $SIZES; do run_size "$n"; done
-cargo run --locked --quiet --example fleet_load_plot -- "$CSV" "$OUT/fleet-load.png"
-echo "wrote $CSV and $OUT/fleet-load.png (load average: $(cut -d' ' -f1-3 /proc/loadavg))"
+# PLOT=0: the rows only (the plot builds an example).
+if [ "${PLOT:-1}" = 1 ]; then
+  cargo run --locked --quiet --example fleet_load_plot -- "$CSV" "$OUT/fleet-load.png"
+fi
+echo "wrote $CSV (load average: $(cut -d' ' -f1-3 /proc/loadavg))"

@@ -45,6 +45,14 @@ pub struct LinkEntry {
     /// A link address, as on `monitor`'s command line (`udpin:0.0.0.0:14550`,
     /// `serial:/dev/ttyUSB0:57600`, …).
     pub address: String,
+    /// The network the link belongs to. Links with the same name (by default all of them:
+    /// one vehicle over redundant radios, a fleet over several) are one network, merged and
+    /// deduplicated, a vehicle being its system id. Links with different names are separate
+    /// networks (two fleets that may both use system id 1): a vehicle is then its network
+    /// and system id, shown `N:SYSID` (networks numbered from 1 in the order first named
+    /// here), and what dronewatt sends it goes on its own network's links only. Default `""`.
+    #[serde(default)]
+    pub network: String,
 }
 
 /// A configuration error that names the file, the key and why.

@@ -217,9 +217,12 @@ fn real_main(cli: Cli) -> Result<()> {
         }
         Command::Monitor { address, run } => {
             let mut address = address;
+            // Addresses on the command line are one network; the config's may name several.
+            let mut networks = vec![String::new(); address.len()];
             if address.is_empty() {
                 let config = Config::load_or_default(run.config.as_deref())?;
                 address = config.links.iter().map(|l| l.address.clone()).collect();
+                networks = config.links.iter().map(|l| l.network.clone()).collect();
             }
             // A malformed address fails here, before anything starts, with one line.
             for a in &address {
@@ -232,6 +235,7 @@ fn real_main(cli: Cli) -> Result<()> {
                 }
                 Err(many) => SourceSpec::Links {
                     addresses: many,
+                    networks,
                     every_link: false,
                 },
             };

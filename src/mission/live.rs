@@ -467,14 +467,23 @@ pub fn spawn(
         let mut tick = tokio::time::interval(TICK);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut out = Vec::new();
+        // Where the links are separate networks, the mission follows one: the network its
+        // target vehicle was first heard on (another network's system id 1 is another
+        // vehicle), and its frames go out on that network's links only.
+        let mut network: Option<u8> = None;
         loop {
             tokio::select! {
                 m = msgs.recv() => {
                     let Some(m) = m else { break };
                     let now = if active { start.elapsed().as_secs_f64() } else { m.t_s };
-                    if let Some(s) = live.on_message(now, &m, &mut out) {
-                        if statuses.try_send(s).is_err() {
-                            tracing::debug!("mission status dropped (the energy stage is far behind)");
+                    if network.is_none_or(|n| n == m.network) {
+                        if let Some(s) = live.on_message(now, &m, &mut out) {
+                            if statuses.try_send(s).is_err() {
+                                tracing::debug!("mission status dropped (the energy stage is far behind)");
+                            }
+                        }
+                        if network.is_none() && live.client().target().is_some() {
+                            network = Some(m.network);
                         }
                     }
                     if tx.send(m).await.is_err() {
@@ -487,9 +496,10 @@ pub fn spawn(
                 out.clear();
                 continue;
             };
+            let uplink = link.network(network.unwrap_or(0));
             for msg in out.drain(..) {
-                // Numbered by the link's one writer of this identity.
-                if !link.send_as(sys, comp, &msg) {
+                // Numbered by the link's (its network's) one writer of this identity.
+                if !uplink.send_as(sys, comp, &msg) {
                     tracing::debug!("mission protocol frame not sent (no link or link full)");
                 }
             }
@@ -521,6 +531,7 @@ mod tests {
             },
             msg,
             arrived: std::time::Instant::now(),
+            network: 0,
         }
     }
 

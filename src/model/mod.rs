@@ -77,9 +77,9 @@ pub struct Ensemble {
     /// Online adaptation to measured power, when on ([`Ensemble::with_adaptation`]): the
     /// state every vehicle starts from.
     adapt: Option<adapt::Adaptation>,
-    /// Each vehicle's adaptation, by MAVLink system id: a fleet's vehicles share the
+    /// Each vehicle's adaptation, by network and system id: a fleet's vehicles share the
     /// models, never what the models learned about each of them.
-    adapted: std::collections::BTreeMap<u8, adapt::Adaptation>,
+    adapted: std::collections::BTreeMap<crate::report::VehicleId, adapt::Adaptation>,
 }
 
 impl Ensemble {
@@ -99,12 +99,15 @@ impl Ensemble {
     }
     /// Vehicle `vehicle`'s adaptation, when adaptation is on (the starting state before its
     /// first window).
-    pub fn adaptation(&self, vehicle: u8) -> Option<&adapt::Adaptation> {
+    pub fn adaptation(&self, vehicle: crate::report::VehicleId) -> Option<&adapt::Adaptation> {
         self.adapted.get(&vehicle).or(self.adapt.as_ref())
     }
     /// Vehicle `vehicle`'s adaptation, to restore what an earlier flight learned or to
     /// start a new flight afresh.
-    pub fn adaptation_mut(&mut self, vehicle: u8) -> Option<&mut adapt::Adaptation> {
+    pub fn adaptation_mut(
+        &mut self,
+        vehicle: crate::report::VehicleId,
+    ) -> Option<&mut adapt::Adaptation> {
         let start = self.adapt.as_ref()?;
         Some(self.adapted.entry(vehicle).or_insert_with(|| start.clone()))
     }
@@ -125,7 +128,7 @@ impl Ensemble {
     pub fn target_lags(&self) -> Vec<usize> {
         self.models.iter().map(|m| m.target_lag()).collect()
     }
-    /// Run every model on every window of one vehicle (key 0 of the adaptation; a batch
+    /// Run every model on every window of one vehicle (the default vehicle of the adaptation; a batch
     /// when a replay runs flat out).
     pub fn estimate(&mut self, windows: &[Window]) -> Vec<Estimate> {
         self.estimate_some(windows, &[], &[])
@@ -133,13 +136,13 @@ impl Ensemble {
 
     /// [`Ensemble::estimate`], but the [`PowerModel::heavy`] models run only on the windows
     /// whose `heavy[i]` is true (all of them where `heavy` is shorter than `windows`); the
-    /// others' estimates lack those models. Window `i` is vehicle `vehicles[i]`'s (0 where
+    /// others' estimates lack those models. Window `i` is vehicle `vehicles[i]`'s (the default where
     /// `vehicles` is shorter): it teaches and reads that vehicle's adaptation.
     pub fn estimate_some(
         &mut self,
         windows: &[Window],
         heavy: &[bool],
-        vehicles: &[u8],
+        vehicles: &[crate::report::VehicleId],
     ) -> Vec<Estimate> {
         let mut out: Vec<Estimate> = windows
             .iter()
@@ -179,7 +182,7 @@ impl Ensemble {
                 let mut me = ModelEstimate::new(m.name(), p.power_w, p.band_w);
                 if let Some(start) = &self.adapt {
                     let w = &windows[k];
-                    let vehicle = vehicles.get(k).copied().unwrap_or(0);
+                    let vehicle = vehicles.get(k).copied().unwrap_or_default();
                     let ad = self.adapted.entry(vehicle).or_insert_with(|| start.clone());
                     // The prediction is for the sample `lag` back: teach with its power.
                     let measured = w.back(lag).measured_w;

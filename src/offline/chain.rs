@@ -70,7 +70,7 @@ impl Chain {
         EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?;
         AlertEngine::new(&cfg.alerts)?;
         let (mut names, mut target_lags) = (ensemble.names(), ensemble.target_lags());
-        if ensemble.adaptation(0).is_some() {
+        if ensemble.adaptation(Default::default()).is_some() {
             names.extend(ensemble.names().iter().map(|n| format!("{n}~")));
             target_lags.extend(ensemble.target_lags());
         }
@@ -124,7 +124,7 @@ impl Chain {
             .map(|_| tracker())
             .collect::<anyhow::Result<Vec<_>>>()?;
         if !self.keep_learning {
-            if let Some(ad) = self.ensemble.adaptation_mut(0) {
+            if let Some(ad) = self.ensemble.adaptation_mut(Default::default()) {
                 ad.reset();
             }
         }
@@ -166,7 +166,12 @@ impl Chain {
                 for_t_s.push(at.t_s);
             }
             // The live energy + alerts step itself (a data-set flight has no system id: 1).
-            let report = crate::pipeline::account(&mut energy, &mut alerts, est, 1);
+            let report = crate::pipeline::account(
+                &mut energy,
+                &mut alerts,
+                est,
+                crate::report::VehicleId::single(1),
+            );
             steps.push(Step {
                 report,
                 for_t_s,

@@ -16,7 +16,7 @@ use crate::config::Config;
 use crate::energy::EnergyTracker;
 use crate::model::Ensemble;
 use crate::report::status::{ChainStatus, IngestStats};
-use crate::report::{EnergyState, Estimate, MissionUpdate, Report};
+use crate::report::{EnergyState, Estimate, MissionUpdate, Report, VehicleId};
 use crate::sink::Fanout;
 use crate::source::{SourceSpec, TimedMessage};
 use crate::telemetry::window::Window;
@@ -170,9 +170,9 @@ impl VehicleChain {
         if windows.is_empty() {
             return;
         }
-        let system_id = self.telemetry.system_id().unwrap_or(1);
+        let vehicle = VehicleId::single(self.telemetry.system_id().unwrap_or(1));
         for est in self.models.estimate(&windows) {
-            out.push(account(&mut self.energy, &mut self.alerts, est, system_id));
+            out.push(account(&mut self.energy, &mut self.alerts, est, vehicle));
         }
     }
 
@@ -192,7 +192,11 @@ impl VehicleChain {
         let (est_tx, est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
         let (ev_tx, ev_rx) = mpsc::unbounded_channel();
         let jobs = inference.jobs.clone();
-        let vehicle = status.system_id.load(std::sync::atomic::Ordering::Relaxed);
+        let system_id = status.system_id.load(std::sync::atomic::Ordering::Relaxed);
+        let vehicle = VehicleId {
+            network: status.network,
+            system_id,
+        };
         let mut own = Fanout::default().gauged(status.stats.clone());
         let stats = status.stats.clone();
         let reports = own.subscribe();
@@ -205,7 +209,7 @@ impl VehicleChain {
         let driver = Driver::new(
             reader,
             status.link.clone(),
-            self.mav_ids.0.unwrap_or(vehicle),
+            self.mav_ids.0.unwrap_or(system_id),
             self.mav_ids.1,
         );
         let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
@@ -265,9 +269,9 @@ impl VehicleChain {
 /// fits to the inference stage, the pack's effective capacity to the energy stage).
 struct Memory {
     dir: std::path::PathBuf,
-    /// The vehicle's system id (the inference stage's key for its adaptation).
-    vehicle: u8,
-    warm: std::sync::mpsc::Sender<(u8, WarmStart)>,
+    /// The vehicle (the inference stage's key for its adaptation).
+    vehicle: VehicleId,
+    warm: std::sync::mpsc::Sender<(VehicleId, WarmStart)>,
     /// Taken by the one lookup.
     capacity: Option<watch::Sender<StoreNews>>,
     /// Builds the models from a learned profile the store keeps for the vehicle.
@@ -408,9 +412,12 @@ async fn energy_stage(
     live: bool,
 ) -> (FlightLog, Option<Identity>) {
     let mut flight = FlightLog::default();
-    let vehicle_id = || match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
-        0 => 1,
-        id => id,
+    let vehicle_id = || VehicleId {
+        network: status.network,
+        system_id: match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
+            0 => 1,
+            id => id,
+        },
     };
     // The last real estimate, its energy, and when it came: the base of a silent tick.
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
@@ -487,7 +494,7 @@ async fn energy_stage(
                     estimate: quiet,
                     energy: state.clone(),
                     alerts: events,
-                    system_id: vehicle_id(),
+                    vehicle: vehicle_id(),
                 }
             }
         };
@@ -561,7 +568,7 @@ pub fn account(
     energy: &mut EnergyTracker,
     alerts: &mut AlertEngine,
     estimate: Estimate,
-    system_id: u8,
+    vehicle: VehicleId,
 ) -> Report {
     let state = energy.update(&estimate);
     let events = alerts.evaluate(&estimate, &state);
@@ -569,6 +576,6 @@ pub fn account(
         estimate,
         energy: state,
         alerts: events,
-        system_id,
+        vehicle,
     }
 }

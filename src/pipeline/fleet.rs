@@ -1,7 +1,9 @@
 //! Many vehicles on one link: which senders are vehicles, which vehicle a message is
 //! about, which vehicles this instance watches (`--vehicles`), and when a vehicle counts
 //! as lost and when it is dropped. Pure: no I/O, no clocks (the caller passes the time).
-//! [`crate::pipeline`] puts a [`Demux`] in front of one vehicle chain per system id.
+//! [`crate::pipeline`] puts a [`Demux`] in front of one vehicle chain per vehicle: per system
+//! id, or per network and system id where the links are separate networks
+//! ([`VehicleId`]; `crate::source::links`).
 //!
 //! A vehicle appears with its first HEARTBEAT from a vehicle: not a ground station
 //! (`MAV_TYPE_GCS`), not a companion or other onboard component (`MAV_TYPE_ONBOARD_CONTROLLER`,
@@ -28,6 +30,7 @@ use std::collections::BTreeMap;
 
 use super::{ChainTasks, Inference, VehicleChain, CHANNEL_DEPTH, SILENT_TICK};
 use crate::report::status::ChainStatus;
+use crate::report::VehicleId;
 use crate::sink::Fanout;
 use crate::source::fleet::{
     is_vehicle_heartbeat, is_vehicle_telemetry, FleetConfig, VehicleFilter,
@@ -61,7 +64,7 @@ impl Fleet {
     /// report vehicles gone silent, and end dropped vehicles' chains. Ends when the source
     /// does, after every chain and the inference stage have drained.
     pub(super) async fn run(mut self, mut msgs: mpsc::Receiver<TimedMessage>) -> Result<()> {
-        let mut chains: std::collections::HashMap<u8, Vehicle> = Default::default();
+        let mut chains: std::collections::HashMap<VehicleId, Vehicle> = Default::default();
         let mut ended = Vec::new();
         let mut events = Vec::new();
         // The source's clock: its newest time, and (live) the wall-clock instant it came.
@@ -78,12 +81,12 @@ impl Fleet {
                         if new {
                             match self.start(id) {
                                 Ok(v) => { chains.insert(id, v); }
-                                Err(e) => tracing::error!(vehicle = id, "cannot start a chain for this vehicle: {e:#}"),
+                                Err(e) => tracing::error!(vehicle = %id, "cannot start a chain for this vehicle: {e:#}"),
                             }
                         }
                         if let Some(v) = chains.get(&id) {
                             if back {
-                                tracing::info!(vehicle = id, "vehicle heard again");
+                                tracing::info!(vehicle = %id, "vehicle heard again");
                                 let _ = v.events.send(FleetEvent::Back { id, t_s: m.t_s });
                             }
                             // A chain that ended early (it cannot) would only lose this message.
@@ -103,7 +106,7 @@ impl Fleet {
                 match ev {
                     FleetEvent::Lost { id, silent_s, .. } => {
                         tracing::warn!(
-                            vehicle = id,
+                            vehicle = %id,
                             "vehicle lost: nothing heard for {silent_s:.1} s"
                         );
                         if let Some(v) = chains.get(&id) {
@@ -113,7 +116,7 @@ impl Fleet {
                     FleetEvent::Back { .. } => {}
                     FleetEvent::Dropped { id, silent_s, .. } => {
                         tracing::warn!(
-                            vehicle = id,
+                            vehicle = %id,
                             "vehicle dropped: nothing heard for {silent_s:.1} s"
                         );
                         if let Some(v) = chains.remove(&id) {
@@ -156,8 +159,9 @@ impl Fleet {
     }
 
     /// Start vehicle `id`'s chain: the chain built before the run for the first vehicle
-    /// (it reports the signal health the terminal shows), a fresh one for the others.
-    fn start(&mut self, id: u8) -> Result<Vehicle> {
+    /// (it reports the signal health the terminal shows), a fresh one for the others. It
+    /// sends on its own network's links.
+    fn start(&mut self, id: VehicleId) -> Result<Vehicle> {
         let (chain, mut status) = match self.first.take() {
             Some(c) => (c, self.status.clone()),
             None => (
@@ -168,8 +172,10 @@ impl Fleet {
                 },
             ),
         };
-        status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id));
-        tracing::info!(vehicle = id, "vehicle heard: following it");
+        status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id.system_id));
+        status.network = id.network;
+        status.link = status.link.network(id.network);
+        tracing::info!(vehicle = %id, "vehicle heard: following it");
         let (tx, rx) = mpsc::channel(CHANNEL_DEPTH);
         let chain = chain.with_memory(self.data_dir.clone());
         let (events, tasks) =
@@ -188,18 +194,30 @@ pub enum Route {
     /// Not about a vehicle this instance watches.
     Ignore,
     /// To vehicle `id`'s chain; `new`: start that chain first; `back`: it had been lost.
-    Vehicle { id: u8, new: bool, back: bool },
+    Vehicle {
+        id: VehicleId,
+        new: bool,
+        back: bool,
+    },
 }
 
 /// What the demultiplexer noticed as time went by.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FleetEvent {
     /// Nothing heard from vehicle `id` for `silent_s` (≥ `lost_after_s`), at time `t_s`.
-    Lost { id: u8, t_s: f64, silent_s: f64 },
+    Lost {
+        id: VehicleId,
+        t_s: f64,
+        silent_s: f64,
+    },
     /// A lost vehicle was heard again at `t_s` ([`Route::Vehicle`]'s `back`).
-    Back { id: u8, t_s: f64 },
+    Back { id: VehicleId, t_s: f64 },
     /// Nothing heard for `silent_s` (≥ `drop_after_s`): its chain ends.
-    Dropped { id: u8, t_s: f64, silent_s: f64 },
+    Dropped {
+        id: VehicleId,
+        t_s: f64,
+        silent_s: f64,
+    },
 }
 
 #[derive(Debug)]
@@ -214,8 +232,8 @@ pub struct Demux {
     lost_after_s: f64,
     drop_after_s: f64,
     filter: VehicleFilter,
-    vehicles: BTreeMap<u8, Seen>,
-    not_vehicles: [bool; 256],
+    vehicles: BTreeMap<VehicleId, Seen>,
+    not_vehicles: std::collections::HashSet<VehicleId>,
     filtered: u64,
 }
 
@@ -234,7 +252,7 @@ impl Demux {
             drop_after_s: cfg.drop_after_s,
             filter,
             vehicles: BTreeMap::new(),
-            not_vehicles: [false; 256],
+            not_vehicles: Default::default(),
             filtered: 0,
         })
     }
@@ -242,12 +260,16 @@ impl Demux {
     /// Where message `m` goes (and note when its vehicle was last heard).
     pub fn route(&mut self, m: &TimedMessage) -> Route {
         let sys = m.header.system_id;
-        let Ok(id) = u8::try_from(sys) else {
+        let Ok(system_id) = u8::try_from(sys) else {
             return Route::Ignore;
         };
-        if id == 0 {
+        if system_id == 0 {
             return Route::Ignore;
         }
+        let id = VehicleId {
+            network: m.network,
+            system_id,
+        };
         if !self.filter.contains(sys) {
             self.filtered += 1;
             return Route::Ignore;
@@ -264,10 +286,10 @@ impl Demux {
         let opens = match &m.msg {
             MavMessage::HEARTBEAT(h) if is_vehicle_heartbeat(h) => true,
             MavMessage::HEARTBEAT(_) => {
-                self.not_vehicles[usize::from(id)] = true;
+                self.not_vehicles.insert(id);
                 false
             }
-            msg => is_vehicle_telemetry(msg) && !self.not_vehicles[usize::from(id)],
+            msg => is_vehicle_telemetry(msg) && !self.not_vehicles.contains(&id),
         };
         if !opens || !m.t_s.is_finite() {
             return Route::Ignore;
@@ -312,8 +334,8 @@ impl Demux {
         });
     }
 
-    /// The vehicles present now, by system id.
-    pub fn vehicles(&self) -> impl Iterator<Item = u8> + '_ {
+    /// The vehicles present now, by network and system id.
+    pub fn vehicles(&self) -> impl Iterator<Item = VehicleId> + '_ {
         self.vehicles.keys().copied()
     }
 
@@ -333,6 +355,9 @@ mod tests {
     use super::*;
     use crate::dialect::{MavAutopilot, MavType, HEARTBEAT_DATA};
 
+    const ONE: VehicleId = VehicleId::single(1);
+    const TWO: VehicleId = VehicleId::single(2);
+
     fn msg(sys: u32, t_s: f64, msg: MavMessage) -> TimedMessage {
         TimedMessage {
             t_s,
@@ -343,6 +368,7 @@ mod tests {
             },
             msg,
             arrived: std::time::Instant::now(),
+            network: 0,
         }
     }
     fn hb(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
@@ -412,7 +438,7 @@ mod tests {
         assert_eq!(
             d.route(&msg(1, 0.0, quad())),
             Route::Vehicle {
-                id: 1,
+                id: VehicleId::single(1),
                 new: true,
                 back: false
             }
@@ -420,7 +446,7 @@ mod tests {
         assert_eq!(
             d.route(&msg(1, 0.1, quad())),
             Route::Vehicle {
-                id: 1,
+                id: VehicleId::single(1),
                 new: false,
                 back: false
             }
@@ -429,17 +455,17 @@ mod tests {
         assert_eq!(
             d.route(&msg(2, 0.2, MavMessage::ATTITUDE(Default::default()))),
             Route::Vehicle {
-                id: 2,
+                id: VehicleId::single(2),
                 new: true,
                 back: false
             }
         );
-        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![1, 2]);
+        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![ONE, TWO]);
         let mut ev = Vec::new();
         d.route(&msg(2, 9.0, quad()));
         d.advance(10.5, &mut ev);
         assert!(
-            matches!(ev.as_slice(), [FleetEvent::Lost { id: 1, .. }]),
+            matches!(ev.as_slice(), [FleetEvent::Lost { id: ONE, .. }]),
             "{ev:?}"
         );
         d.advance(11.0, &mut ev);
@@ -447,7 +473,7 @@ mod tests {
         assert_eq!(
             d.route(&msg(1, 11.0, quad())),
             Route::Vehicle {
-                id: 1,
+                id: VehicleId::single(1),
                 new: false,
                 back: true
             }
@@ -458,17 +484,17 @@ mod tests {
             matches!(
                 ev.as_slice(),
                 [
-                    FleetEvent::Lost { id: 1, .. },
-                    FleetEvent::Dropped { id: 2, .. }
+                    FleetEvent::Lost { id: ONE, .. },
+                    FleetEvent::Dropped { id: TWO, .. }
                 ]
             ),
             "{ev:?}"
         );
-        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![1]);
+        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![ONE]);
         assert_eq!(
             d.route(&msg(2, 72.0, quad())),
             Route::Vehicle {
-                id: 2,
+                id: VehicleId::single(2),
                 new: true,
                 back: false
             }
@@ -487,11 +513,48 @@ mod tests {
         assert_eq!(
             d.route(&msg(2, 0.0, quad)),
             Route::Vehicle {
-                id: 2,
+                id: VehicleId::single(2),
                 new: true,
                 back: false
             }
         );
         assert_eq!(d.filtered(), 1);
+    }
+
+    #[test]
+    fn the_same_system_id_on_two_networks_is_two_vehicles() {
+        let mut d = Demux::new(&FleetConfig::default(), None).unwrap();
+        let quad = || hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
+        let on = |net: u8, t: f64| TimedMessage {
+            network: net,
+            ..msg(1, t, quad())
+        };
+        let a = VehicleId {
+            network: 1,
+            system_id: 1,
+        };
+        let b = VehicleId {
+            network: 2,
+            system_id: 1,
+        };
+        assert_eq!(
+            d.route(&on(1, 0.0)),
+            Route::Vehicle {
+                id: a,
+                new: true,
+                back: false
+            }
+        );
+        assert_eq!(
+            d.route(&on(2, 0.1)),
+            Route::Vehicle {
+                id: b,
+                new: true,
+                back: false
+            }
+        );
+        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![a, b]);
+        assert_eq!((a.to_string(), b.to_string()), ("1:1".into(), "2:1".into()));
+        assert_eq!(ONE.to_string(), "1", "on the only network, as always");
     }
 }

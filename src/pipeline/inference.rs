@@ -11,13 +11,13 @@ use super::{CHANNEL_DEPTH, MAX_BATCH};
 use crate::config::Config;
 use crate::model::Ensemble;
 use crate::report::status::IngestStats;
-use crate::report::Estimate;
+use crate::report::{Estimate, VehicleId};
 use crate::telemetry::window::Window;
 
 /// One window for the shared inference stage, whose it is, and where its estimate goes.
 pub struct Job {
     pub window: Window,
-    pub vehicle: u8,
+    pub vehicle: VehicleId,
     pub reply: mpsc::Sender<Estimate>,
 }
 
@@ -48,9 +48,9 @@ impl Batching {
 /// so the windows of all vehicles that queue up together run as one batch.
 pub struct Inference {
     pub(super) jobs: mpsc::Sender<Job>,
-    /// What the vehicle store remembers of a vehicle, for its adaptation (by system id).
-    pub(super) warm: std::sync::mpsc::Sender<(u8, WarmStart)>,
-    task: JoinHandle<std::collections::BTreeMap<u8, Fits>>,
+    /// What the vehicle store remembers of a vehicle, for its adaptation (by network and system id).
+    pub(super) warm: std::sync::mpsc::Sender<(VehicleId, WarmStart)>,
+    task: JoinHandle<std::collections::BTreeMap<VehicleId, Fits>>,
 }
 
 impl Inference {
@@ -76,7 +76,7 @@ impl Inference {
     }
     /// Wait for it to drain and end, once every chain sending to it has ended; each
     /// vehicle's adaptation fits (adaptation on).
-    pub async fn join(self) -> Result<std::collections::BTreeMap<u8, Fits>> {
+    pub async fn join(self) -> Result<std::collections::BTreeMap<VehicleId, Fits>> {
         drop(self.jobs);
         drop(self.warm);
         Ok(self.task.await?)
@@ -101,14 +101,14 @@ fn inference_stage(
     mut jobs: mpsc::Receiver<Job>,
     batching: Batching,
     rt: tokio::runtime::Handle,
-    warm: std::sync::mpsc::Receiver<(u8, WarmStart)>,
+    warm: std::sync::mpsc::Receiver<(VehicleId, WarmStart)>,
     live: bool,
     stats: Arc<IngestStats>,
-) -> std::collections::BTreeMap<u8, Fits> {
+) -> std::collections::BTreeMap<VehicleId, Fits> {
     let heavy_names = models.heavy_names();
     let mut b = Batch::default();
     // Per vehicle: windows seen, and the heavy models' latest estimates.
-    let mut seen: std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)> =
+    let mut seen: std::collections::HashMap<VehicleId, (u64, Vec<crate::report::ModelEstimate>)> =
         Default::default();
     // Vehicles known whose fits are being looked up.
     let mut waiting = std::collections::BTreeSet::new();
@@ -180,14 +180,14 @@ fn inference_stage(
 struct Batch {
     windows: Vec<Window>,
     heavy: Vec<bool>,
-    meta: Vec<(u8, bool, mpsc::Sender<Estimate>)>,
+    meta: Vec<(VehicleId, bool, mpsc::Sender<Estimate>)>,
 }
 
 impl Batch {
     fn take(
         &mut self,
         j: Job,
-        seen: &mut std::collections::HashMap<u8, (u64, Vec<crate::report::ModelEstimate>)>,
+        seen: &mut std::collections::HashMap<VehicleId, (u64, Vec<crate::report::ModelEstimate>)>,
         every: u64,
     ) {
         let n = &mut seen.entry(j.vehicle).or_default().0;
@@ -204,9 +204,9 @@ impl Batch {
 /// one vehicle is: a fleet's vehicles share the models).
 fn warm_start(
     models: &mut Ensemble,
-    vehicle: u8,
+    vehicle: VehicleId,
     news: WarmStart,
-    waiting: &mut std::collections::BTreeSet<u8>,
+    waiting: &mut std::collections::BTreeSet<VehicleId>,
     vehicles: usize,
 ) {
     match news {
@@ -217,12 +217,14 @@ fn warm_start(
             waiting.remove(&vehicle);
             match profile_models {
                 Some(m) if vehicles <= 1 => *models = *m,
-                Some(_) => tracing::warn!(vehicle, "vehicle store: a learned profile is not applied in a fleet (the vehicles share the models)"),
+                Some(_) => {
+                    tracing::warn!(vehicle = %vehicle, "vehicle store: a learned profile is not applied in a fleet (the vehicles share the models)")
+                }
                 None => {}
             }
             if let (Some(l), Some(ad)) = (learned, models.adaptation_mut(vehicle)) {
                 let n = ad.restore(&l);
-                tracing::info!(vehicle, "warm start: {n} model(s) start from what earlier flights of this vehicle taught");
+                tracing::info!(vehicle = %vehicle, "warm start: {n} model(s) start from what earlier flights of this vehicle taught");
             }
         }
     }

@@ -101,7 +101,7 @@ pub(super) async fn relay(
                     state,
                     message,
                 }],
-                system_id: r.system_id,
+                vehicle: r.vehicle,
             })
         };
     loop {

@@ -477,9 +477,88 @@ pub struct Report {
     pub estimate: Estimate,
     pub energy: EnergyState,
     pub alerts: Vec<AlertEvent>,
-    /// The vehicle this is about: the MAVLink system id the telemetry stage locked onto
-    /// (1 when the source has none, e.g. a data-set replay, or before one is heard).
+    /// The vehicle this is about: its network and the MAVLink system id the telemetry
+    /// stage locked onto (system id 1 when the source has none, e.g. a data-set replay, or
+    /// before one is heard).
+    pub vehicle: VehicleId,
+}
+
+/// Who a vehicle is across links: its MAVLink system id, and the network it flies on where
+/// the links are separate networks (two fleets may both use system id 1).
+///
+/// `network` is 0 when every link is one network (the usual case, and every recorded
+/// source): the vehicle is then its system id alone and reads as it always did (`7`).
+/// With separate networks (`[[links]] network = "…"` naming more than one), networks are
+/// numbered from 1 in the order the config first names them, and a vehicle reads
+/// `network:system id` (`2:1`), in the terminal, JSON (`network` beside `system_id`), MQTT
+/// topics and the dashboard alike.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct VehicleId {
+    /// 0: the only network; else the network's number (from 1).
+    pub network: u8,
+    /// The MAVLink system id.
     pub system_id: u8,
+}
+
+impl VehicleId {
+    /// A vehicle on the only network.
+    pub const fn single(system_id: u8) -> Self {
+        Self {
+            network: 0,
+            system_id,
+        }
+    }
+    /// `network` as JSON carries it: absent on the only network.
+    pub fn network_field(&self) -> Option<u8> {
+        (self.network != 0).then_some(self.network)
+    }
+}
+
+impl Serialize for VehicleId {
+    /// The system id as a number on the only network (as JSON always carried it), else the
+    /// string `"2:7"`.
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self.network {
+            0 => s.serialize_u8(self.system_id),
+            _ => s.collect_str(self),
+        }
+    }
+}
+
+impl std::str::FromStr for VehicleId {
+    type Err = String;
+    /// `7` or `2:7`, as [`VehicleId`] displays.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let num = |p: &str| {
+            p.trim()
+                .parse::<u8>()
+                .map_err(|_| format!("vehicle {s:?}: expected SYSID or NETWORK:SYSID (0-255 each)"))
+        };
+        match s.split_once(':') {
+            Some((n, id)) => Ok(Self {
+                network: num(n)?,
+                system_id: num(id)?,
+            }),
+            None => Ok(Self::single(num(s)?)),
+        }
+    }
+}
+
+impl From<u8> for VehicleId {
+    fn from(system_id: u8) -> Self {
+        Self::single(system_id)
+    }
+}
+
+impl fmt::Display for VehicleId {
+    /// `7` on the only network, `2:7` on network 2.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // Padded as a string is, so a table's `{:>8}` lines it up.
+        match self.network {
+            0 => f.pad(&self.system_id.to_string()),
+            n => f.pad(&format!("{n}:{}", self.system_id)),
+        }
+    }
 }
 
 // The enums read as the strings JSON has always carried, in code and in tests.
@@ -506,6 +585,34 @@ impl PartialEq<&str> for RemainingSource {
 impl PartialEq<&str> for Severity {
     fn eq(&self, other: &&str) -> bool {
         self.name() == *other
+    }
+}
+
+#[cfg(test)]
+mod vehicle_id_tests {
+    use super::*;
+
+    #[test]
+    fn the_only_network_reads_as_the_system_id_and_others_as_network_colon_id() {
+        let one = VehicleId::single(7);
+        let two = VehicleId {
+            network: 2,
+            system_id: 7,
+        };
+        assert_eq!(
+            (one.to_string(), two.to_string()),
+            ("7".into(), "2:7".into())
+        );
+        assert_eq!(format!("{two:>5}|"), "  2:7|");
+        assert_eq!(serde_json::to_value(one).unwrap(), serde_json::json!(7));
+        assert_eq!(serde_json::to_value(two).unwrap(), serde_json::json!("2:7"));
+        assert_eq!("7".parse::<VehicleId>(), Ok(one));
+        assert_eq!("2:7".parse::<VehicleId>(), Ok(two));
+        assert!("2:x"
+            .parse::<VehicleId>()
+            .unwrap_err()
+            .contains("NETWORK:SYSID"));
+        assert_eq!((one.network_field(), two.network_field()), (None, Some(2)));
     }
 }
 

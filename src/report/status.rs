@@ -23,6 +23,9 @@ pub struct ChainStatus {
     /// The MAVLink system id of the vehicle the chain follows, once the telemetry stage has
     /// locked onto one (0 until then).
     pub system_id: Arc<std::sync::atomic::AtomicU8>,
+    /// The network the chain's vehicle flies on (`crate::report::VehicleId::network`; 0: the
+    /// only one). Set when the chain starts, with [`ChainStatus::link`] that network's.
+    pub network: u8,
     /// Message → estimate latency of every report (all vehicles), for the run's summary.
     pub latency: Arc<LatencyHistogram>,
 }
@@ -89,6 +92,10 @@ impl IngestStats {
 pub struct LinkHealth {
     /// The link's address as given.
     pub name: String,
+    /// The network it belongs to (`[[links]] network`), when the links are separate
+    /// networks: its name and number (`crate::report::VehicleId::network`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub network: Option<(String, u8)>,
     /// Messages it brought, copies included.
     pub frames: u64,
     /// Of those, copies of a message another link brought first.
@@ -221,10 +228,17 @@ pub struct SignalHealth {
 /// send as (the vehicle's system id, component 191), and one counter per identity on the
 /// link numbers their frames, in the order they are queued, so a receiver counts no loss
 /// that did not happen.
+///
+/// Where the links are separate networks (`source::links`), the handle a source was given
+/// also holds one handle per network ([`LinkHandle::network`]): a vehicle's chain, the
+/// sink and the mission client send to a vehicle on its own network's links only, each
+/// network's writer numbering its own identities.
 #[derive(Debug, Clone, Default)]
 pub struct LinkHandle {
     writer: Arc<std::sync::Mutex<Writer>>,
     signer: Option<Arc<dyn FrameSigner>>,
+    /// Per network (index = network number; index 0 unused), once the source has set them.
+    networks: Arc<OnceLock<Vec<LinkHandle>>>,
 }
 
 /// The link's queue and the next sequence number of each identity sent as on it: one lock,
@@ -247,7 +261,23 @@ impl LinkHandle {
         Self {
             writer: Arc::default(),
             signer,
+            networks: Arc::default(),
         }
+    }
+    /// The handle for network `n` (`crate::report::VehicleId::network`): its own when the
+    /// source has separate networks and `n` is one of them, else this one.
+    pub fn network(&self, n: u8) -> LinkHandle {
+        self.networks
+            .get()
+            .and_then(|v| v.get(usize::from(n)))
+            .filter(|_| n != 0)
+            .cloned()
+            .unwrap_or_else(|| self.clone())
+    }
+    /// Called once by a source with separate networks: one handle per network, index =
+    /// network number (index 0: this handle's own place, unused).
+    pub fn set_networks(&self, handles: Vec<LinkHandle>) {
+        let _ = self.networks.set(handles);
     }
     /// The signer this handle signs with.
     pub fn signer(&self) -> Option<Arc<dyn FrameSigner>> {

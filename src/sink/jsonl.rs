@@ -13,7 +13,9 @@
 //! ```
 //!
 //! `system_id` is the MAVLink system id of the vehicle the line is about (a link may carry
-//! a fleet; see [`crate::pipeline::Demux`]).
+//! a fleet; see [`crate::pipeline::Demux`]). Where the links are separate networks
+//! (`[[links]] network`), `"network":N` follows it (networks numbered from 1; absent on the
+//! only network, so such a run's lines are as they always were).
 //!
 //! and last, once the run is over (end of a replay, Ctrl-C, a source error):
 //!
@@ -109,7 +111,8 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
         w,
         &WindowLine {
             kind: "window",
-            system_id: r.system_id,
+            system_id: r.vehicle.system_id,
+            network: r.vehicle.network_field(),
             t: e.t_s,
             measured_w: s.measured_w,
             features: Features(&s.features),
@@ -117,7 +120,7 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     )?;
     write_estimate(w, r)?;
     for a in &r.alerts {
-        write_alert(w, r.system_id, a)?;
+        write_alert(w, r.vehicle, a)?;
     }
     Ok(())
 }
@@ -131,7 +134,8 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
         w,
         &EstimateLine {
             kind: "estimate",
-            system_id: r.system_id,
+            system_id: r.vehicle.system_id,
+            network: r.vehicle.network_field(),
             t: e.t_s,
             vehicle_class: s.vehicle.class,
             mav_type: s.vehicle.mav_type,
@@ -169,17 +173,18 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     )
 }
 
-/// Write one `alert` line about vehicle `system_id`.
+/// Write one `alert` line about `vehicle`.
 pub fn write_alert(
     w: &mut impl Write,
-    system_id: u8,
+    vehicle: crate::report::VehicleId,
     a: &crate::report::AlertEvent,
 ) -> std::io::Result<()> {
     write_line(
         w,
         &AlertLine {
             kind: "alert",
-            system_id,
+            system_id: vehicle.system_id,
+            network: vehicle.network_field(),
             t: a.t,
             rule: &a.rule,
             severity: a.severity,
@@ -220,6 +225,9 @@ struct WindowLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
     system_id: u8,
+    /// The vehicle's network, where the links are separate networks.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    network: Option<u8>,
     t: f64,
     measured_w: Option<f32>,
     features: Features<'a>,
@@ -243,6 +251,9 @@ struct EstimateLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
     system_id: u8,
+    /// The vehicle's network, where the links are separate networks.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    network: Option<u8>,
     t: f64,
     /// The vehicle class (`features::class`): which models apply.
     vehicle_class: crate::features::VehicleClass,
@@ -379,6 +390,9 @@ struct AlertLine<'a> {
     #[serde(rename = "type")]
     kind: &'static str,
     system_id: u8,
+    /// The vehicle's network, where the links are separate networks.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    network: Option<u8>,
     t: f64,
     rule: &'a str,
     severity: crate::report::Severity,
@@ -482,7 +496,7 @@ mod tests {
                 state: AlertState::Raised,
                 message: "margin below 10 Wh".into(),
             }],
-            system_id: 7,
+            vehicle: 7.into(),
         }
     }
 

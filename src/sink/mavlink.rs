@@ -56,7 +56,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Result};
 
 use crate::dialect::{self, MavSeverity};
-use crate::report::Report;
+use crate::report::{Report, VehicleId};
 use crate::source::LinkHandle;
 use crate::MavMessage;
 
@@ -306,16 +306,21 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
     if let Err(e) = cfg.validate() {
         bail!("{e}");
     }
-    // One encoder and one estimate clock per system id sent as (the link numbers frames).
-    let mut encs: std::collections::BTreeMap<u8, (Encoder, Instant)> = Default::default();
+    // One encoder and one estimate clock per vehicle sent as (the link numbers frames);
+    // each vehicle's frames go out on its own network's links.
+    type Encs = std::collections::BTreeMap<VehicleId, (Encoder, Instant)>;
+    let mut encs: Encs = Default::default();
     let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
     let mut heartbeat = tokio::time::interval(Duration::from_secs(1));
     heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut dropped = 0u64;
-    let enc_for = |encs: &mut std::collections::BTreeMap<u8, (Encoder, Instant)>, id: u8| {
-        let id = cfg.system_id.unwrap_or(id);
+    let enc_for = |encs: &mut Encs, v: VehicleId| {
+        let id = VehicleId {
+            system_id: cfg.system_id.unwrap_or(v.system_id),
+            ..v
+        };
         encs.entry(id)
-            .or_insert_with(|| (Encoder::new(id, cfg.component_id), Instant::now()));
+            .or_insert_with(|| (Encoder::new(id.system_id, cfg.component_id), Instant::now()));
         id
     };
     loop {
@@ -324,13 +329,15 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
             // configured id's from the start.
             _ = heartbeat.tick() => {
                 if let Some(id) = cfg.system_id {
-                    enc_for(&mut encs, id);
+                    if encs.is_empty() {
+                        enc_for(&mut encs, VehicleId::single(id));
+                    }
                 }
-                encs.values_mut().map(|(e, _)| (e.identity(), e.heartbeat())).collect::<Vec<_>>()
+                encs.iter_mut().map(|(v, (e, _))| (v.network, e.identity(), e.heartbeat())).collect::<Vec<_>>()
             }
             r = rx.next() => match r {
                 Some(report) => {
-                    let id = enc_for(&mut encs, report.system_id);
+                    let id = enc_for(&mut encs, report.vehicle);
                     let Some((enc, next_values)) = encs.get_mut(&id) else { continue };
                     let mut f = enc.alerts(&report);
                     let now = Instant::now();
@@ -345,14 +352,14 @@ pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHand
                     if report.alerts.iter().any(|a| a.rule == "vehicle_dropped") && cfg.system_id.is_none() {
                         encs.remove(&id);
                     }
-                    let who = (id, cfg.component_id);
-                    f.into_iter().map(|m| (who, m)).collect()
+                    let who = (id.system_id, cfg.component_id);
+                    f.into_iter().map(|m| (id.network, who, m)).collect()
                 }
                 None => break,
             },
         };
-        for ((sys, comp), m) in frames {
-            if !link.send_as(sys, comp, &m) {
+        for (network, (sys, comp), m) in frames {
+            if !link.network(network).send_as(sys, comp, &m) {
                 dropped += 1;
             }
         }

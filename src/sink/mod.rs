@@ -82,8 +82,8 @@ pub fn spawn(
         SinkSpec::Screen => Ok(tokio::spawn(screen::run(rx, status))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, status),
         SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, status.link))),
-        SinkSpec::Web(c) => web::spawn(c, rx, status.shutdown),
-        SinkSpec::Mqtt(c) => mqtt::spawn(c, rx),
+        SinkSpec::Web(c) => web::spawn(c, rx, status.shutdown, status.stats),
+        SinkSpec::Mqtt(c) => mqtt::spawn_with_links(c, rx, Some(status.stats)),
     }
 }
 

@@ -3,7 +3,8 @@
 //! the client is rumqttc (pure Rust, on tokio).
 //!
 //! Topics, under `prefix` (default `dronewatt`); `<vehicle>` is the vehicle's MAVLink
-//! system id ([`crate::report::Report::system_id`]), so several instances watching different vehicles can
+//! system id, or `network:system id` where the links are separate networks
+//! ([`crate::report::VehicleId`]), so several instances watching different vehicles can
 //! share one broker:
 //!
 //! | topic | payload | QoS | retained | when |
@@ -12,6 +13,7 @@
 //! | `<prefix>/<vehicle>/state` | the `state` object: energy, margins, raised alerts | 1 | yes | at most once per `state_interval_s` of flight time; at once when an alert is raised or cleared; the last one at the end |
 //! | `<prefix>/<vehicle>/alert` | the JSON-lines `alert` object | 1 | no | each raised or cleared event |
 //! | `<prefix>/status/<instance>` | `online` / `offline` | 1 | yes | `online` on every (re)connect; `offline` on a clean exit, and as the Last Will when the process dies or its connection drops |
+//! | `<prefix>/links/<link>/health` | one link's health (the summary's `links` object: `name`, `frames`, `duplicates`, `rate_hz`, `loss_pct`, `latency_ms`, `last_heard_s`, `live`, and `network` with separate networks) | 1 | yes | with several links (`monitor ADDR ADDR …`, `[[links]]`), every second and once at the end; `<link>` is the address with `/`, `+` and `#` as `_` (`udpin:0.0.0.0:14550`, `serial:_dev_ttyUSB0:57600`) |
 //!
 //! Payloads are one JSON object each, serialised by [`super::jsonl`] (the same bytes as the
 //! `--json` lines, without the newline).
@@ -44,6 +46,7 @@ use rumqttc::{
 use tokio::task::JoinHandle;
 
 use crate::features::VehicleClass;
+use crate::report::status::IngestStats;
 use crate::report::AlertState;
 
 /// First wait before reconnecting; doubles per failure up to `reconnect_max_s`.
@@ -282,9 +285,26 @@ pub fn status_topic(prefix: &str, instance: &str) -> String {
     format!("{prefix}/status/{instance}")
 }
 
-/// `<prefix>/<vehicle>/<kind>`, kind one of `estimate`, `state`, `alert`.
-pub fn vehicle_topic(prefix: &str, system_id: u8, kind: &str) -> String {
-    format!("{prefix}/{system_id}/{kind}")
+/// `<prefix>/links/<link>/health`: `link` as its address reads, with the characters a topic
+/// level cannot hold (`/`, `+`, `#`, NUL) as `_`.
+pub fn link_topic(prefix: &str, link: &str) -> String {
+    let level: String = link
+        .chars()
+        .map(|c| {
+            if matches!(c, '/' | '+' | '#' | '\0') {
+                '_'
+            } else {
+                c
+            }
+        })
+        .collect();
+    format!("{prefix}/links/{level}/health")
+}
+
+/// `<prefix>/<vehicle>/<kind>`, kind one of `estimate`, `state`, `alert`; the vehicle as
+/// [`crate::report::VehicleId`] reads (`7`, or `2:7` on network 2 of separate networks).
+pub fn vehicle_topic(prefix: &str, vehicle: crate::report::VehicleId, kind: &str) -> String {
+    format!("{prefix}/{vehicle}/{kind}")
 }
 
 /// What the sink counted, shared with its connection task.
@@ -309,6 +329,16 @@ struct Counters {
 /// Check the configuration, read credentials and TLS roots now (so a bad file fails the
 /// run before it starts), then publish on a task until the report channel closes.
 pub fn spawn(cfg: MqttSinkConfig, rx: super::ReportRx) -> Result<JoinHandle<Result<()>>> {
+    spawn_with_links(cfg, rx, None)
+}
+
+/// [`spawn`], also publishing each link's health from `links` (the source's counters:
+/// [`IngestStats::links`], filled when it reads several links).
+pub fn spawn_with_links(
+    cfg: MqttSinkConfig,
+    rx: super::ReportRx,
+    links: Option<Arc<IngestStats>>,
+) -> Result<JoinHandle<Result<()>>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     let instance = cfg.instance();
     let options = cfg.options(&instance)?;
@@ -328,7 +358,7 @@ pub fn spawn(cfg: MqttSinkConfig, rx: super::ReportRx) -> Result<JoinHandle<Resu
         cfg.prefix
     );
     Ok(tokio::spawn(publish(
-        cfg, instance, client, connection, counters, rx,
+        cfg, instance, client, connection, counters, rx, links,
     )))
 }
 
@@ -349,20 +379,34 @@ async fn publish(
     connection: JoinHandle<()>,
     counters: Arc<Counters>,
     mut rx: super::ReportRx,
+    links: Option<Arc<IngestStats>>,
 ) -> Result<()> {
     let queue = Queue {
         client: client.clone(),
         counters: counters.clone(),
     };
-    let mut vehicles: std::collections::BTreeMap<u8, VehicleState> = Default::default();
+    let mut vehicles: std::collections::BTreeMap<crate::report::VehicleId, VehicleState> =
+        Default::default();
     let mut buf = Vec::with_capacity(1024);
-    while let Some(r) = rx.next().await {
-        let v = vehicles.entry(r.system_id).or_default();
+    let mut health = tokio::time::interval(Duration::from_secs(1));
+    health.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        let r = tokio::select! {
+            r = rx.next() => match r {
+                Some(r) => r,
+                None => break,
+            },
+            _ = health.tick() => {
+                put_links(&queue, &cfg.prefix, links.as_deref()).await?;
+                continue;
+            }
+        };
+        let v = vehicles.entry(r.vehicle).or_default();
         buf.clear();
         super::jsonl::write_estimate(&mut buf, &r)?;
         queue
             .put(
-                vehicle_topic(&cfg.prefix, r.system_id, "estimate"),
+                vehicle_topic(&cfg.prefix, r.vehicle, "estimate"),
                 QoS::AtMostOnce,
                 false,
                 line(&buf),
@@ -370,10 +414,10 @@ async fn publish(
             .await;
         for a in &r.alerts {
             buf.clear();
-            super::jsonl::write_alert(&mut buf, r.system_id, a)?;
+            super::jsonl::write_alert(&mut buf, r.vehicle, a)?;
             queue
                 .put(
-                    vehicle_topic(&cfg.prefix, r.system_id, "alert"),
+                    vehicle_topic(&cfg.prefix, r.vehicle, "alert"),
                     QoS::AtLeastOnce,
                     false,
                     line(&buf),
@@ -396,7 +440,7 @@ async fn publish(
             put_state(
                 &queue,
                 &cfg.prefix,
-                r.system_id,
+                r.vehicle,
                 (t, class),
                 &r.energy,
                 &v.active,
@@ -407,13 +451,14 @@ async fn publish(
             v.pending = Some(((t, class), r.energy.clone()));
         }
     }
-    // The run is over: the last state of every vehicle, then `offline`, then a clean
-    // disconnect (after everything queued before it).
+    // The run is over: the last state of every vehicle and link, then `offline`, then a
+    // clean disconnect (after everything queued before it).
     for (id, v) in &vehicles {
         if let Some((t, energy)) = &v.pending {
             put_state(&queue, &cfg.prefix, *id, *t, energy, &v.active, &mut buf).await?;
         }
     }
+    put_links(&queue, &cfg.prefix, links.as_deref()).await?;
     queue
         .put(
             status_topic(&cfg.prefix, &instance),
@@ -452,10 +497,25 @@ fn line(buf: &[u8]) -> Vec<u8> {
     buf.strip_suffix(b"\n").unwrap_or(buf).to_vec()
 }
 
+/// Every link's health, retained (nothing with one link).
+async fn put_links(queue: &Queue, prefix: &str, stats: Option<&IngestStats>) -> Result<()> {
+    for l in stats.map(IngestStats::links).unwrap_or_default() {
+        queue
+            .put(
+                link_topic(prefix, &l.name),
+                QoS::AtLeastOnce,
+                true,
+                serde_json::to_vec(&l)?,
+            )
+            .await;
+    }
+    Ok(())
+}
+
 async fn put_state(
     queue: &Queue,
     prefix: &str,
-    id: u8,
+    id: crate::report::VehicleId,
     (t, class): (f64, VehicleClass),
     energy: &crate::report::EnergyState,
     active: &[String],
@@ -683,9 +743,25 @@ mod tests {
     #[test]
     fn topics() {
         assert_eq!(
-            vehicle_topic("fleet/dw", 42, "estimate"),
+            vehicle_topic("fleet/dw", 42.into(), "estimate"),
             "fleet/dw/42/estimate"
         );
+        let on_two = crate::report::VehicleId {
+            network: 2,
+            system_id: 42,
+        };
+        assert_eq!(
+            vehicle_topic("fleet/dw", on_two, "state"),
+            "fleet/dw/2:42/state"
+        );
         assert_eq!(status_topic("dronewatt", "gcs-1"), "dronewatt/status/gcs-1");
+        assert_eq!(
+            link_topic("dronewatt", "serial:/dev/ttyUSB0:57600"),
+            "dronewatt/links/serial:_dev_ttyUSB0:57600/health"
+        );
+        assert_eq!(
+            link_topic("dw", "udpin:0.0.0.0:14550"),
+            "dw/links/udpin:0.0.0.0:14550/health"
+        );
     }
 }

@@ -40,23 +40,24 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
     let mut tick = tokio::time::interval(Duration::from_secs(1));
     tick.tick().await; // the first tick is immediate: nothing to show yet
                        // The newest report and the alerts standing, per vehicle.
-    let mut fleet: BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)> = BTreeMap::new();
+    let mut fleet: BTreeMap<crate::report::VehicleId, (Arc<Report>, BTreeMap<String, Severity>)> =
+        BTreeMap::new();
     let mut last = (Instant::now(), 0u64);
     let mut feeds_shown = String::new();
     loop {
         tokio::select! {
             r = rx.next() => match r {
                 Some(r) => {
-                    let many = fleet.len() > 1 || fleet.keys().any(|&id| id != r.system_id);
+                    let many = fleet.len() > 1 || fleet.keys().any(|&id| id != r.vehicle);
                     for a in &r.alerts {
                         let line = alert_line(a, colour);
-                        if many { eprintln!("vehicle {}: {line}", r.system_id) } else { eprintln!("{line}") }
+                        if many { eprintln!("vehicle {}: {line}", r.vehicle) } else { eprintln!("{line}") }
                     }
                     if r.alerts.iter().any(|a| a.rule == "vehicle_dropped" && a.state == AlertState::Raised) {
-                        fleet.remove(&r.system_id);
+                        fleet.remove(&r.vehicle);
                         continue;
                     }
-                    let entry = fleet.entry(r.system_id).or_insert_with(|| (r.clone(), BTreeMap::new()));
+                    let entry = fleet.entry(r.vehicle).or_insert_with(|| (r.clone(), BTreeMap::new()));
                     for a in &r.alerts {
                         match a.state {
                             AlertState::Raised => entry.1.insert(a.rule.clone(), a.severity),
@@ -300,7 +301,7 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
 
 /// The fleet view: the link's line, then one row per vehicle (see the module docs).
 pub fn fleet_view(
-    fleet: &BTreeMap<u8, (Arc<Report>, BTreeMap<String, Severity>)>,
+    fleet: &BTreeMap<crate::report::VehicleId, (Arc<Report>, BTreeMap<String, Severity>)>,
     stats: &IngestStats,
     rate: f64,
     colour: bool,

@@ -2,8 +2,15 @@
 //!
 //! Each link runs as [`super::link::run`] does alone, with its own counters. Their messages
 //! meet in one merged stream, keyed by the vehicle's system id across links (the same
-//! vehicle over a radio and LTE is one vehicle):
+//! vehicle over a radio and LTE is one vehicle), or by network and system id where the
+//! config names separate networks ([`Networks`]: two fleets may both use system id 1):
 //!
+//! - **Networks.** Links that share a `network` name (by default all of them) are one
+//!   network: deduplicated together, one vehicle per system id. Links on different networks
+//!   never merge: every message carries its network's number
+//!   ([`super::TimedMessage::network`]), the fleet keys vehicles by
+//!   [`crate::report::VehicleId`], and what dronewatt sends a vehicle goes out on its own
+//!   network's links only (one writer per network: [`LinkHandle::network`]).
 //! - **Deduplicated.** A message whose (system id, component id, sequence, message id) was
 //!   already handed on within [`DEDUP_WINDOW_S`] is a copy from a redundant link and is
 //!   dropped (counted in `duplicates`). The window is far shorter than a sequence's wrap
@@ -15,15 +22,16 @@
 //!   comes back is logged once each way by its own transport.
 //! - **Failover.** The merged stream flows while any link lives. dronewatt's own frames (the
 //!   sink, the parameter reader, the mission client, all numbered by the one writer of their
-//!   identity) go out on the best live link: the live one with the least loss, the first
-//!   given on a tie; or on every link with `[link] every_link = true`.
+//!   identity) go out on the best live link of the vehicle's network: the live one with the
+//!   least loss, the first given on a tie; or on every link of it with
+//!   `[link] every_link = true`.
 //!
 //! The merged stream's counters are the source's: `frames_ok` counts messages handed on
 //! (each once), `gaps` breaks in the merged sequence of a sender (what no link brought);
 //! bad frames, junk and signature counters are the links' summed.
 
 use std::collections::HashMap;
-use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -44,12 +52,77 @@ pub const DEDUP_WINDOW_S: f64 = 1.0;
 /// (arrival time, message id) of each of a sender's 256 sequence numbers.
 type Slots = Box<[(f64, u32); 256]>;
 
-/// The merge's memory of what it handed on: per sender (system, component), the arrival
-/// time and message id of each of the 256 sequence numbers.
+/// A sender: (network, system, component).
+type Sender = (u8, u32, u8);
+
+/// Which network each link is on: links sharing a name are one network.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Networks {
+    /// Each link's network number, in link order: all 0 when every link is one network,
+    /// else 1.. in the order the names first appear.
+    pub of_link: Vec<u8>,
+    /// The names, by number − 1 (empty when there is one network).
+    pub names: Vec<String>,
+}
+
+impl Networks {
+    /// Number the networks `names` gives each link (`""`: the network named `default`). One name
+    /// (the usual case) is one network, numbered 0, and every vehicle reads as its system
+    /// id alone. Fails beyond 255 networks.
+    pub fn number(names: &[String]) -> Result<Self> {
+        // The unnamed network reads `default` beside named ones.
+        let names: Vec<String> = names
+            .iter()
+            .map(|n| {
+                if n.is_empty() {
+                    "default".into()
+                } else {
+                    n.clone()
+                }
+            })
+            .collect();
+        let mut distinct: Vec<String> = Vec::new();
+        for n in &names {
+            if !distinct.contains(n) {
+                distinct.push(n.clone());
+            }
+        }
+        if distinct.len() <= 1 {
+            return Ok(Self {
+                of_link: vec![0; names.len()],
+                names: Vec::new(),
+            });
+        }
+        if distinct.len() > 255 {
+            anyhow::bail!("links: {} networks named; at most 255", distinct.len());
+        }
+        let of_link = names
+            .iter()
+            .map(|n| {
+                let i = distinct.iter().position(|d| d == n).unwrap_or(0);
+                u8::try_from(i + 1).unwrap_or(u8::MAX)
+            })
+            .collect();
+        Ok(Self {
+            of_link,
+            names: distinct,
+        })
+    }
+    /// Network `n`'s name (`None` on the only network).
+    pub fn name(&self, n: u8) -> Option<&str> {
+        usize::from(n)
+            .checked_sub(1)
+            .and_then(|i| self.names.get(i))
+            .map(String::as_str)
+    }
+}
+
+/// The merge's memory of what it handed on: per sender (network, system, component), the
+/// arrival time and message id of each of the 256 sequence numbers.
 #[derive(Default)]
 pub struct Dedup {
-    seen: HashMap<(u32, u8), Slots>,
-    last_seq: HashMap<(u32, u8), u8>,
+    seen: HashMap<Sender, Slots>,
+    last_seq: HashMap<Sender, u8>,
 }
 
 /// What the merge made of one message.
@@ -62,9 +135,15 @@ pub enum Heard {
 }
 
 impl Dedup {
-    /// Whether this message, heard at `t_s`, is new or a copy.
-    pub fn hear(&mut self, t_s: f64, header: &mavlink::MavHeader, msg_id: u32) -> Heard {
-        let key = (header.system_id, header.component_id);
+    /// Whether this message, heard at `t_s` on `network`, is new or a copy.
+    pub fn hear(
+        &mut self,
+        t_s: f64,
+        network: u8,
+        header: &mavlink::MavHeader,
+        msg_id: u32,
+    ) -> Heard {
+        let key = (network, header.system_id, header.component_id);
         let slot = &mut self
             .seen
             .entry(key)
@@ -85,6 +164,7 @@ impl Dedup {
 /// One link's running tally, turned into its [`LinkHealth`] each second.
 struct Tally {
     name: String,
+    network: u8,
     frames: u64,
     duplicates: u64,
     /// This second: messages brought, their summed delay behind the first copy.
@@ -97,11 +177,15 @@ struct Tally {
 }
 
 /// Run every link in `addrs` until `shutdown`, handing the merged, deduplicated stream to
-/// `tx`. `link` is the chain's handle: what is sent on it goes out on the best live link,
-/// or on each with `every_link`.
+/// `tx`. `networks` names each link's network (`""`: the default; [`Networks::number`]).
+/// `link` is the chain's handle: what is sent on it goes out on the best live link, or on
+/// each with `every_link`; with separate networks, on each network's best live link, and
+/// [`LinkHandle::network`] gives the handle of one network's links.
 /// Fails only when a link cannot be set up at all.
+#[allow(clippy::too_many_arguments)] // a source: its links, its channel, its counters, its stop
 pub async fn run(
     addrs: Vec<LinkAddress>,
+    networks: &[String],
     every_link: bool,
     tx: mpsc::Sender<TimedMessage>,
     stats: Arc<IngestStats>,
@@ -110,15 +194,25 @@ pub async fn run(
     shutdown: CancellationToken,
 ) -> Result<()> {
     let start = Instant::now();
+    let nets = Networks::number(networks)?;
+    for (n, name) in nets.names.iter().enumerate() {
+        tracing::info!(
+            "links: network {} is {name:?} (its vehicles read {}:SYSID)",
+            n + 1,
+            n + 1
+        );
+    }
     let (merged_tx, mut merged_rx) = mpsc::channel::<(usize, TimedMessage)>(1024);
     let mut tallies = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
     for (i, addr) in addrs.into_iter().enumerate() {
+        let network = nets.of_link.get(i).copied().unwrap_or(0);
         let (ltx, mut lrx) = mpsc::channel::<TimedMessage>(256);
         let own = Arc::new(IngestStats::default());
         let out = LinkHandle::with_signer(link.signer());
         tallies.push(Tally {
             name: addr.to_string(),
+            network,
             frames: 0,
             duplicates: 0,
             got: 0,
@@ -130,7 +224,8 @@ pub async fn run(
         });
         let fwd = merged_tx.clone();
         tokio::spawn(async move {
-            while let Some(m) = lrx.recv().await {
+            while let Some(mut m) = lrx.recv().await {
+                m.network = network;
                 if fwd.send((i, m)).await.is_err() {
                     break;
                 }
@@ -140,29 +235,44 @@ pub async fn run(
         tasks.spawn(super::link::run(addr, ltx, own, out, v, stop));
     }
     drop(merged_tx);
-    // What the chain sends goes to the best live link.
-    let (wtx, mut wrx) = mpsc::channel::<Vec<u8>>(256);
-    link.attach(wtx);
-    let best = Arc::new(std::sync::atomic::AtomicUsize::new(0));
-    let outs: Vec<LinkHandle> = tallies.iter().map(|t| t.out.clone()).collect();
-    let pick = best.clone();
-    tokio::spawn(async move {
-        while let Some(frame) = wrx.recv().await {
-            // Already numbered and signed by the chain's writer: sent as it is.
-            if every_link {
-                for o in &outs {
-                    let _ = o.try_send(frame.clone());
-                }
-            } else if let Some(o) = outs.get(pick.load(Relaxed)) {
-                let _ = o.try_send(frame);
+    // What the chain sends goes to the best live link (of each network: the main handle's
+    // own frames, with separate networks, go to every network's best link).
+    let count = nets.names.len();
+    let best: Arc<Vec<AtomicUsize>> = Arc::new(
+        (0..=count)
+            .map(|n| AtomicUsize::new(first_of(&tallies, n as u8).unwrap_or(0)))
+            .collect(),
+    );
+    let outs: Vec<(u8, LinkHandle)> = tallies.iter().map(|t| (t.network, t.out.clone())).collect();
+    let writer = |net: Option<u8>, handle: &LinkHandle| {
+        let (wtx, mut wrx) = mpsc::channel::<Vec<u8>>(256);
+        handle.attach(wtx);
+        let (outs, best) = (outs.clone(), best.clone());
+        tokio::spawn(async move {
+            while let Some(frame) = wrx.recv().await {
+                // Already numbered and signed by the chain's writer: sent as it is.
+                route(&outs, &best, net, every_link, frame);
             }
+        });
+    };
+    if count == 0 {
+        writer(Some(0), &link);
+    } else {
+        writer(None, &link);
+        let mut handles = vec![link.clone()];
+        for n in 1..=count {
+            let h = LinkHandle::with_signer(link.signer());
+            writer(u8::try_from(n).ok(), &h);
+            handles.push(h);
         }
-    });
+        link.set_networks(handles);
+    }
 
     let mut dedup = Dedup::default();
     let mut tick = tokio::time::interval(Duration::from_secs(1));
-    let mut first_arrival: HashMap<(u32, u8, u8, u32), Instant> = HashMap::new();
-    let mut unique = 0u64;
+    let mut first_arrival: HashMap<(u8, u32, u8, u8, u32), Instant> = HashMap::new();
+    // Messages handed on this second, per network.
+    let mut unique = vec![0u64; count + 1];
     let mut last_t = 0.0f64;
     loop {
         tokio::select! {
@@ -180,12 +290,12 @@ pub async fn run(
                 m.t_s = m.arrived.saturating_duration_since(start).as_secs_f64().max(last_t);
                 last_t = m.t_s;
                 let id = m.msg.message_id();
-                let key = (m.header.system_id, m.header.component_id, m.header.sequence, id);
+                let key = (m.network, m.header.system_id, m.header.component_id, m.header.sequence, id);
                 let t = &mut tallies[i];
                 t.frames += 1;
                 t.got += 1;
                 t.last_heard = Some(m.arrived);
-                match dedup.hear(m.t_s, &m.header, id) {
+                match dedup.hear(m.t_s, m.network, &m.header, id) {
                     Heard::Duplicate => {
                         t.duplicates += 1;
                         if let Some(first) = first_arrival.get(&key) {
@@ -195,7 +305,7 @@ pub async fn run(
                     }
                     Heard::First { gap } => {
                         first_arrival.insert(key, m.arrived);
-                        unique += 1;
+                        unique[usize::from(m.network)] += 1;
                         IngestStats::add(&stats.frames_ok, 1);
                         if gap {
                             IngestStats::add(&stats.gaps, 1);
@@ -209,29 +319,65 @@ pub async fn run(
             _ = tick.tick() => {
                 let cutoff = Instant::now() - Duration::from_secs_f64(DEDUP_WINDOW_S * 2.0);
                 first_arrival.retain(|_, t| *t >= cutoff);
-                publish(&mut tallies, std::mem::take(&mut unique), &stats, &best);
+                publish(&mut tallies, &nets, &unique, &stats, &best);
+                unique.iter_mut().for_each(|u| *u = 0);
             }
         }
     }
-    publish(&mut tallies, unique, &stats, &best);
+    publish(&mut tallies, &nets, &unique, &stats, &best);
     tasks.shutdown().await;
     Ok(())
 }
 
-/// Refresh every link's health, the summed counters and the best live link.
+/// The first link of network `net`.
+fn first_of(tallies: &[Tally], net: u8) -> Option<usize> {
+    tallies.iter().position(|t| t.network == net)
+}
+
+/// Send one of dronewatt's frames: on network `net`'s best live link (every network's with
+/// `None`), or on each of its links with `every_link`.
+fn route(
+    outs: &[(u8, LinkHandle)],
+    best: &[AtomicUsize],
+    net: Option<u8>,
+    every_link: bool,
+    frame: Vec<u8>,
+) {
+    let mine = |n: u8| net.is_none_or(|w| w == n);
+    if every_link {
+        for (_, o) in outs.iter().filter(|(n, _)| mine(*n)) {
+            let _ = o.try_send(frame.clone());
+        }
+        return;
+    }
+    let picks = match net {
+        Some(n) => vec![best.get(usize::from(n)).map(|b| b.load(Relaxed))],
+        None => best.iter().skip(1).map(|b| Some(b.load(Relaxed))).collect(),
+    };
+    for i in picks.into_iter().flatten() {
+        if let Some((_, o)) = outs.get(i) {
+            let _ = o.try_send(frame.clone());
+        }
+    }
+}
+
+/// Refresh every link's health, the summed counters and each network's best live link.
 fn publish(
     tallies: &mut [Tally],
-    unique: u64,
+    nets: &Networks,
+    unique: &[u64],
     stats: &IngestStats,
-    best: &std::sync::atomic::AtomicUsize,
+    best: &[AtomicUsize],
 ) {
     let now = Instant::now();
     for t in tallies.iter_mut() {
+        let unique = unique.get(usize::from(t.network)).copied().unwrap_or(0);
         let last = t
             .last_heard
             .map(|l| now.saturating_duration_since(l).as_secs_f64());
         t.health = LinkHealth {
             name: t.name.clone(),
+            network: nets.name(t.network).map(|n| (n.to_string(), t.network)),
             frames: t.frames,
             duplicates: t.duplicates,
             rate_hz: t.got as f64,
@@ -251,13 +397,18 @@ fn publish(
         t.got = 0;
         t.delay_s = 0.0;
     }
-    let pick = tallies
-        .iter()
-        .enumerate()
-        .filter(|(_, t)| t.health.live)
-        .min_by(|a, b| a.1.health.loss_pct.total_cmp(&b.1.health.loss_pct))
-        .map_or(0, |(i, _)| i);
-    best.store(pick, Relaxed);
+    for (n, b) in best.iter().enumerate() {
+        let pick = tallies
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| usize::from(t.network) == n && t.health.live)
+            .min_by(|a, b| a.1.health.loss_pct.total_cmp(&b.1.health.loss_pct))
+            .map(|(i, _)| i)
+            .or_else(|| first_of(tallies, n as u8));
+        if let Some(p) = pick {
+            b.store(p, Relaxed);
+        }
+    }
     // The links' own counters of what never made a message, summed.
     let sum = |f: fn(&IngestStats) -> &std::sync::atomic::AtomicU64| {
         tallies
@@ -303,19 +454,41 @@ mod tests {
     #[test]
     fn a_copy_within_the_window_is_a_duplicate_and_nothing_else_is() {
         let mut d = Dedup::default();
-        assert_eq!(d.hear(0.0, &h(1, 1, 7), 0), Heard::First { gap: false });
+        assert_eq!(d.hear(0.0, 0, &h(1, 1, 7), 0), Heard::First { gap: false });
         // The same frame from the other radio, 40 ms later.
-        assert_eq!(d.hear(0.04, &h(1, 1, 7), 0), Heard::Duplicate);
+        assert_eq!(d.hear(0.04, 0, &h(1, 1, 7), 0), Heard::Duplicate);
         // Another message with the same numbers (another sender's stream): not a copy.
-        assert_eq!(d.hear(0.05, &h(1, 1, 7), 33), Heard::First { gap: true });
-        assert_eq!(d.hear(0.05, &h(1, 2, 7), 0), Heard::First { gap: false });
+        assert_eq!(d.hear(0.05, 0, &h(1, 1, 7), 33), Heard::First { gap: true });
+        assert_eq!(d.hear(0.05, 0, &h(1, 2, 7), 0), Heard::First { gap: false });
         // The next frame; then one after a lost one.
-        assert_eq!(d.hear(0.1, &h(1, 1, 8), 30), Heard::First { gap: false });
-        assert_eq!(d.hear(0.2, &h(1, 1, 10), 30), Heard::First { gap: true });
+        assert_eq!(d.hear(0.1, 0, &h(1, 1, 8), 30), Heard::First { gap: false });
+        assert_eq!(d.hear(0.2, 0, &h(1, 1, 10), 30), Heard::First { gap: true });
         // The sequence wrapped and the number came round again: new, not a copy.
         assert_eq!(
-            d.hear(0.04 + DEDUP_WINDOW_S, &h(1, 1, 7), 0),
+            d.hear(0.04 + DEDUP_WINDOW_S, 0, &h(1, 1, 7), 0),
             Heard::First { gap: true }
         );
+        // The same numbers on another network: another vehicle, never a copy.
+        assert_eq!(d.hear(1.1, 0, &h(1, 1, 9), 0), Heard::First { gap: true });
+        assert_eq!(d.hear(1.1, 2, &h(1, 1, 9), 0), Heard::First { gap: false });
+    }
+
+    #[test]
+    fn links_sharing_a_name_are_one_network_and_others_are_numbered_in_order() {
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let one = Networks::number(&names(&["", ""])).unwrap();
+        assert_eq!(one.of_link, [0, 0]);
+        assert_eq!(one.name(0), None);
+        let same = Networks::number(&names(&["radio", "radio"])).unwrap();
+        assert_eq!(
+            same.of_link,
+            [0, 0],
+            "one name is one network, read as today"
+        );
+        let two = Networks::number(&names(&["", "", "lte"])).unwrap();
+        assert_eq!(two.of_link, [1, 1, 2]);
+        assert_eq!((two.name(1), two.name(2)), (Some("default"), Some("lte")));
+        let named = Networks::number(&names(&["lte", "default", "lte"])).unwrap();
+        assert_eq!(named.of_link, [1, 2, 1]);
     }
 }

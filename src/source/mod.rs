@@ -52,6 +52,9 @@ pub struct TimedMessage {
     /// paced replay at its due time. What the message → estimate latency is measured from
     /// ([`crate::report::status::LatencyHistogram`]).
     pub arrived: std::time::Instant,
+    /// The network it came on (`crate::report::VehicleId::network`): 0 unless the links
+    /// are separate networks ([`links`]).
+    pub network: u8,
 }
 
 /// How fast a recorded source plays (replay), or a simulated one is sent (`simulate --udp`).
@@ -90,6 +93,9 @@ pub enum SourceSpec {
     /// the best live one, or on `every_link`.
     Links {
         addresses: Vec<String>,
+        /// Each address's network (`[[links]] network`; `""`: the default). Links on one
+        /// network are one set of vehicles; on different ones, separate fleets.
+        networks: Vec<String>,
         every_link: bool,
     },
     /// A `.tlog` (8-byte big-endian µs timestamp before each frame).
@@ -184,6 +190,7 @@ pub async fn run(
         }
         SourceSpec::Links {
             addresses,
+            networks,
             every_link,
         } => {
             let addrs = addresses
@@ -192,6 +199,7 @@ pub async fn run(
                 .collect::<Result<Vec<_>, _>>()?;
             links::run(
                 addrs,
+                &networks,
                 every_link,
                 tx,
                 stats,

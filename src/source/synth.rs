@@ -50,6 +50,7 @@ impl Synth {
             header,
             msg,
             arrived: std::time::Instant::now(),
+            network: 0,
         });
     }
 

@@ -191,6 +191,7 @@ impl TimedReader {
             header,
             msg,
             arrived: std::time::Instant::now(),
+            network: 0,
         })
     }
 }

@@ -103,6 +103,14 @@ pub struct Identity {
     pub vehicle_type: String,
     /// AUTOPILOT_VERSION's board uid, where the vehicle sends one (non-zero).
     pub uid: Option<u64>,
+    /// The network it was heard on (`crate::report::VehicleId::network`; 0: the only one):
+    /// with no uid, the vehicle store tells two fleets' system id 1 apart by it.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub network: u8,
+}
+
+fn is_zero(n: &u8) -> bool {
+    *n == 0
 }
 
 /// One parameter's value as the vehicle sent it, before decoding.
@@ -253,6 +261,7 @@ impl ParamReader {
                     autopilot,
                     vehicle_type: format!("{:?}", h.mavtype),
                     uid: None,
+                    network: m.network,
                 });
                 self.changed = true;
             }
@@ -491,6 +500,7 @@ mod tests {
             },
             msg,
             arrived: std::time::Instant::now(),
+            network: 0,
         }
     }
 

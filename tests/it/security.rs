@@ -481,7 +481,7 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
         estimate: est,
         energy: EnergyState::default(),
         alerts: vec![],
-        system_id: 1,
+        vehicle: 1.into(),
     })
     .await;
     let dump = move |url: String| {

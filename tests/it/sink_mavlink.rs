@@ -87,7 +87,7 @@ async fn fly(capacity_wh: f64) -> serde_json::Value {
                 estimate: est,
                 energy: state,
                 alerts: events,
-                system_id: 1,
+                vehicle: 1.into(),
             })
             .await;
         tokio::time::sleep(std::time::Duration::from_millis(2)).await;

@@ -14,7 +14,7 @@ use dronewatt::report::MissionStatus;
 use dronewatt::sink::web;
 use dronewatt::telemetry::{HomeVector, Sample, N_FEATURES};
 
-fn chromium() -> Option<&'static str> {
+pub(crate) fn chromium() -> Option<&'static str> {
     ["chromium", "chromium-browser"].into_iter().find(|c| {
         Command::new(c)
             .arg("--version")
@@ -23,7 +23,7 @@ fn chromium() -> Option<&'static str> {
     })
 }
 
-fn headless(browser: &str, url: &str, extra: &[&str]) -> std::process::Output {
+pub(crate) fn headless(browser: &str, url: &str, extra: &[&str]) -> std::process::Output {
     Command::new(browser)
         .args([
             "--headless",
@@ -142,7 +142,7 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
                 estimate: est,
                 energy: state,
                 alerts: events,
-                system_id: 1,
+                vehicle: 1.into(),
             })
             .await;
     }

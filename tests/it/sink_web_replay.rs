@@ -234,7 +234,7 @@ fn dashboard_of_the_demo_replay_in_chromium() {
 }
 
 /// GET `path` from the dashboard; the body as JSON.
-fn get_json(port: u16, path: &str) -> serde_json::Value {
+pub(crate) fn get_json(port: u16, path: &str) -> serde_json::Value {
     use std::io::{Read, Write};
     let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
     write!(

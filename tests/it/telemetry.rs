@@ -65,6 +65,7 @@ impl Mix {
                     header,
                     msg,
                     arrived: std::time::Instant::now(),
+                    network: 0,
                 },
                 &mut out,
             );
@@ -392,6 +393,7 @@ fn a_quiet_source_is_held_and_marked_stale_without_stalling_the_stream() {
                 header,
                 msg,
                 arrived: std::time::Instant::now(),
+                network: 0,
             },
             &mut out,
         );

@@ -6,7 +6,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
-use crate::report::{AlertEvent, AlertState, Report, Severity};
+use crate::report::{AlertEvent, AlertState, Report, Severity, VehicleId};
 
 /// Seconds of power history the chart shows (source clock).
 pub const HISTORY_S: f64 = 300.0;
@@ -48,18 +48,18 @@ impl VehicleView {
 /// An alert as it fired, with the vehicle it is about.
 #[derive(Debug, Clone)]
 pub struct FiredAlert {
-    pub system_id: u8,
+    pub vehicle: VehicleId,
     pub event: AlertEvent,
 }
 
 /// Everything the screen draws from.
 #[derive(Debug, Default)]
 pub struct ScreenState {
-    pub vehicles: BTreeMap<u8, VehicleView>,
+    pub vehicles: BTreeMap<VehicleId, VehicleView>,
     /// Newest first.
     pub alerts: VecDeque<FiredAlert>,
-    /// The selected vehicle's system id (the first one until a key picks another).
-    selected: Option<u8>,
+    /// The selected vehicle (the first one until a key picks another).
+    selected: Option<VehicleId>,
     /// Link messages a second, from the ingest counters.
     pub rate: f64,
     /// The newest log lines (stderr while the screen is up), newest last.
@@ -85,7 +85,7 @@ impl ScreenState {
     pub fn push(&mut self, r: Arc<Report>) {
         for a in &r.alerts {
             self.alerts.push_front(FiredAlert {
-                system_id: r.system_id,
+                vehicle: r.vehicle,
                 event: a.clone(),
             });
         }
@@ -94,7 +94,7 @@ impl ScreenState {
             .iter()
             .any(|a| a.rule == "vehicle_dropped" && a.state == AlertState::Raised)
         {
-            self.vehicles.remove(&r.system_id);
+            self.vehicles.remove(&r.vehicle);
             return;
         }
         let point = PowerPoint {
@@ -110,7 +110,7 @@ impl ScreenState {
         };
         let v = self
             .vehicles
-            .entry(r.system_id)
+            .entry(r.vehicle)
             .or_insert_with(|| VehicleView {
                 report: r.clone(),
                 active: BTreeMap::new(),
@@ -142,7 +142,7 @@ impl ScreenState {
 
     /// The selected vehicle's system id (the first vehicle when none was picked, or the
     /// picked one is gone).
-    pub fn selected_id(&self) -> Option<u8> {
+    pub fn selected_id(&self) -> Option<VehicleId> {
         match self.selected {
             Some(id) if self.vehicles.contains_key(&id) => Some(id),
             _ => self.vehicles.keys().next().copied(),
@@ -207,7 +207,7 @@ mod tests {
                 ..Default::default()
             },
             alerts,
-            system_id: id,
+            vehicle: id.into(),
         })
     }
 
@@ -249,13 +249,13 @@ mod tests {
         ));
         s.push(report(2, 1.0, 1.0, vec![]));
         assert!(s.is_fleet());
-        assert_eq!(s.selected_id(), Some(1));
+        assert_eq!(s.selected_id(), Some(VehicleId::single(1)));
         s.move_selection(1);
-        assert_eq!(s.selected_id(), Some(2));
+        assert_eq!(s.selected_id(), Some(VehicleId::single(2)));
         s.move_selection(5);
-        assert_eq!(s.selected_id(), Some(3));
+        assert_eq!(s.selected_id(), Some(VehicleId::single(3)));
         s.move_selection(-9);
-        assert_eq!(s.selected_id(), Some(1));
+        assert_eq!(s.selected_id(), Some(VehicleId::single(1)));
         assert_eq!(
             s.selected().unwrap().worst(),
             Some(("home_margin", Severity::Critical))
@@ -278,6 +278,6 @@ mod tests {
             vec![alert("vehicle_dropped", AlertState::Raised)],
         ));
         assert_eq!(s.vehicles.len(), 2);
-        assert_eq!(s.selected_id(), Some(1));
+        assert_eq!(s.selected_id(), Some(VehicleId::single(1)));
     }
 }

@@ -126,7 +126,7 @@ fn draw_title(f: &mut Frame, area: Rect, s: &ScreenState) {
     match s.selected() {
         Some(v) => spans.push(Span::raw(format!(
             "  vehicle {} ({})  t {} s",
-            v.report.system_id,
+            v.report.vehicle,
             v.report.estimate.sample.vehicle.describe(),
             num(v.report.estimate.t_s, 1)
         ))),
@@ -452,7 +452,7 @@ fn draw_alerts(f: &mut Frame, area: Rect, s: &ScreenState) {
                 AlertState::Cleared => ("cleared", Style::default().fg(Color::Green)),
             };
             let who = if fleet {
-                format!("v{} ", a.system_id)
+                format!("v{} ", a.vehicle)
             } else {
                 String::new()
             };

@@ -11,6 +11,10 @@
 //!   (`system_id`, `t`, `measured_w`, `forecast_w`, `remaining_wh`, `time_to_empty_s`,
 //!   `home_margin_wh`, `worst`: the most severe alert standing). With more than one
 //!   vehicle the page shows that table above the charts; a click selects the vehicle.
+//!   Where the links are separate networks a vehicle is `"N:SYSID"` (a string) in
+//!   `vehicle`, `system_id` and the `vehicle=` parameter ([`crate::report::VehicleId`]).
+//!   `links`: each link's health when the source reads several (the summary's `links`
+//!   objects; empty otherwise), shown as a small table of links.
 //!
 //! Bound to `127.0.0.1:8787` unless `[sinks.web] bind` says otherwise: a dashboard of the
 //! vehicle's battery is nobody else's business until you choose so. The history keeps one
@@ -197,7 +201,8 @@ struct Dash {
 /// One vehicle's row of the fleet table.
 #[derive(Debug, Clone, serde::Serialize)]
 struct FleetRow {
-    system_id: u8,
+    /// The vehicle: its system id, or `"2:7"` on network 2 of separate networks.
+    system_id: crate::report::VehicleId,
     t: f64,
     /// The vehicle's kind in words (`multirotor`, `vtol (fw)`, …).
     vehicle: String,
@@ -213,7 +218,7 @@ struct FleetRow {
 /// Every vehicle's dashboard, by system id.
 #[derive(Debug, Default)]
 struct Fleet {
-    vehicles: std::collections::BTreeMap<u8, Dash>,
+    vehicles: std::collections::BTreeMap<crate::report::VehicleId, Dash>,
 }
 
 impl Fleet {
@@ -223,9 +228,9 @@ impl Fleet {
             .iter()
             .any(|a| a.rule == "vehicle_dropped" && a.state == crate::report::AlertState::Raised);
         if dropped {
-            self.vehicles.remove(&r.system_id);
+            self.vehicles.remove(&r.vehicle);
         } else {
-            self.vehicles.entry(r.system_id).or_default().add(r, cfg);
+            self.vehicles.entry(r.vehicle).or_default().add(r, cfg);
         }
     }
 
@@ -343,24 +348,36 @@ impl Dash {
 
 type Shared = Arc<Mutex<Fleet>>;
 
+/// What the state endpoint reads: the dashboards, and the source's counters (each link's
+/// health), when the run has a source.
+#[derive(Clone)]
+struct Served {
+    dash: Shared,
+    stats: Option<Arc<crate::report::status::IngestStats>>,
+}
+
 #[derive(serde::Deserialize)]
 struct Since {
     since: Option<u64>,
-    vehicle: Option<u8>,
+    /// `7`, or `2:7` on network 2 (a vehicle that does not parse: the default).
+    vehicle: Option<String>,
 }
 
 async fn index() -> impl IntoResponse {
     Html(include_str!("index.html"))
 }
 
-async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoResponse {
+async fn state(State(served): State<Served>, Query(q): Query<Since>) -> impl IntoResponse {
     let since = q.since.unwrap_or(0);
+    let links = served.stats.as_ref().map(|s| s.links()).unwrap_or_default();
+    let dash = served.dash;
     let empty = Dash::default();
     let body = match dash.lock() {
         Ok(f) => {
             // The vehicle asked for, else the lowest heard (a dropped one: the lowest left).
             let (vehicle, d) = q
                 .vehicle
+                .and_then(|v| v.parse::<crate::report::VehicleId>().ok())
                 .and_then(|v| f.vehicles.get_key_value(&v))
                 .or_else(|| f.vehicles.iter().next())
                 .map_or((None, &empty), |(&v, d)| (Some(v), d));
@@ -372,6 +389,7 @@ async fn state(State(dash): State<Shared>, Query(q): Query<Since>) -> impl IntoR
                 "points": d.points.iter().filter(|p| p.seq > since).collect::<Vec<_>>(),
                 "alerts": d.alerts,
                 "fleet": f.rows(),
+                "links": links,
             })
         }
         Err(_) => serde_json::json!({"error": "dashboard state unavailable"}),
@@ -385,6 +403,7 @@ pub fn spawn(
     cfg: WebSinkConfig,
     rx: super::ReportRx,
     shutdown: CancellationToken,
+    stats: Arc<crate::report::status::IngestStats>,
 ) -> Result<tokio::task::JoinHandle<Result<()>>> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     // Before binding: a public dashboard without a token never listens at all.
@@ -404,7 +423,13 @@ pub fn spawn(
             .local_addr()
             .map_or(cfg.bind.clone(), |a| a.to_string())
     );
-    Ok(tokio::spawn(serve(cfg, listener, rx, shutdown)))
+    Ok(tokio::spawn(serve_with_links(
+        cfg,
+        listener,
+        rx,
+        shutdown,
+        Some(stats),
+    )))
 }
 
 /// Serve the dashboard on `listener`, fed by `rx`, until the report channel closes and
@@ -412,8 +437,19 @@ pub fn spawn(
 pub async fn serve(
     cfg: WebSinkConfig,
     listener: tokio::net::TcpListener,
+    rx: super::ReportRx,
+    shutdown: CancellationToken,
+) -> Result<()> {
+    serve_with_links(cfg, listener, rx, shutdown, None).await
+}
+
+/// [`serve`], with each link's health from `stats` (the source's counters) on the page.
+pub async fn serve_with_links(
+    cfg: WebSinkConfig,
+    listener: tokio::net::TcpListener,
     mut rx: super::ReportRx,
     shutdown: CancellationToken,
+    stats: Option<Arc<crate::report::status::IngestStats>>,
 ) -> Result<()> {
     let token = cfg.token().map_err(anyhow::Error::msg)?;
     let dash: Shared = Arc::default();
@@ -425,7 +461,10 @@ pub async fn serve(
     let app = Router::new()
         .route("/", get(index))
         .route("/api/state", get(state))
-        .with_state(dash.clone())
+        .with_state(Served {
+            dash: dash.clone(),
+            stats,
+        })
         .layer(axum::middleware::from_fn_with_state(rules, guard::check));
     let listener = guard::Limited::new(listener, cfg.max_connections);
     let done = tokio_util::sync::CancellationToken::new();

@@ -8,7 +8,7 @@ use crate::vehicle::store::dir::MIN_PCT_DROP;
 /// A vehicle's key in the store, and how strong it is.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct VehicleKey {
-    /// `uid:…` or `sysN-autopilot-TYPE`.
+    /// `uid:…` or `sysN-autopilot-TYPE` (`…@netM` on network M of separate networks).
     pub key: String,
     /// `uid` (the board's own id) or `heartbeat` (system id, autopilot, type).
     pub kind: &'static str,
@@ -21,6 +21,15 @@ impl VehicleKey {
             Some(uid) => Self {
                 key: format!("uid:{uid:016x}"),
                 kind: "uid",
+            },
+            // On a separate network (`[[links]] network`), suffixed with its number: two
+            // fleets' system id 1 are two vehicles. The only network's keys are as always.
+            None if id.network != 0 => Self {
+                key: format!(
+                    "sys{}-{}-{}@net{}",
+                    id.system_id, id.autopilot, id.vehicle_type, id.network
+                ),
+                kind: "heartbeat",
             },
             None => Self {
                 key: format!("sys{}-{}-{}", id.system_id, id.autopilot, id.vehicle_type),

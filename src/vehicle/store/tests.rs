@@ -12,6 +12,7 @@ fn id(uid: Option<u64>) -> Identity {
         autopilot: Autopilot::ArduPilot,
         vehicle_type: "MAV_TYPE_QUADROTOR".into(),
         uid,
+        network: 0,
     }
 }
 
@@ -50,6 +51,24 @@ fn keys_prefer_the_uid() {
     assert_eq!(
         (k.key.as_str(), k.kind),
         ("sys1-ardupilot-MAV_TYPE_QUADROTOR", "heartbeat")
+    );
+    // System id 1 of a second network (separate networks): another vehicle.
+    let other = Identity {
+        network: 2,
+        ..id(None)
+    };
+    assert_eq!(
+        VehicleKey::of(&other).key,
+        "sys1-ardupilot-MAV_TYPE_QUADROTOR@net2"
+    );
+    let uid = Identity {
+        network: 2,
+        ..id(Some(7))
+    };
+    assert_eq!(
+        VehicleKey::of(&uid).key,
+        "uid:0000000000000007",
+        "a uid is the board's own"
     );
 }
 
@@ -138,7 +157,7 @@ fn effective_capacity_needs_a_real_drop() {
             ..Default::default()
         },
         alerts: vec![],
-        system_id: 1,
+        vehicle: 1.into(),
     };
     let mut log = FlightLog::default();
     log.observe(&report(0.0, 90.0, 0.0));
@@ -188,7 +207,7 @@ fn a_long_flight_is_summed_in_bounded_memory() {
             },
             energy: EnergyState::default(),
             alerts: vec![],
-            system_id: 1,
+            vehicle: 1.into(),
         });
     }
     let s = log.summary().unwrap();

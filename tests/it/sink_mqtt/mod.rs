@@ -515,4 +515,5 @@ fn a_long_flight_flat_out_is_published_without_drops() {
 
 /// Run a command in `dir`, asserting it succeeds.
 // The TLS login and the fleet split, with their own helpers.
+mod links;
 mod tls_and_fleet;
