@@ -51,7 +51,7 @@ for e in est:
     f = forecast(e)
     if tr is None or f is None or tr <= fly_w:
         continue
-    rows.append((t, e.get("vtol_state") or "plane", f, tr, e.get("measured_w"), e.get("adapted", {}).get("fixed_wing")))
+    rows.append((t, e.get("vtol_state") or "plane", f, tr, e.get("measured_w"), e.get("adapted", {}).get("fixed_wing"), e.get("models", {}).get("fixed_wing")))
 
 
 def mape(pairs):
@@ -65,6 +65,7 @@ out["forecast_mape_vs_truth_pct"], out["windows"] = mape([(r[2], r[3]) for r in 
 out["forecast_mape_vs_measured_pct"], _ = mape([(r[2], r[4]) for r in after])
 out["measured_mape_vs_truth_pct"], _ = mape([(r[4], r[3]) for r in after])
 out["fixed_wing_adapted_mape_vs_truth_pct"], out["fixed_wing_windows"] = mape([(r[5], r[3]) for r in after])
+out["fixed_wing_raw_mape_vs_truth_pct"], _ = mape([(r[6], r[3]) for r in after])
 by = {}
 for state in sorted({r[1] for r in rows}):
     m, n = mape([(r[2], r[3]) for r in rows if r[1] == state])

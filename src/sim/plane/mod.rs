@@ -14,7 +14,8 @@
 //!   60°/s at most;
 //! - TECS-like height and speed: the climb rate asked is 0.25/s × the height error, within
 //!   +3 / −3 m/s and a 15° path (a pitch limit); the thrust holds the airspeed
-//!   (`T = D + m·g·sin γ + m·0.5·(V_cmd − V)`, τ 0.3 s) up to the propeller's thrust at that
+//!   (`T = D + m·g·sin γ + m·0.5·(V_cmd − V)`, lagged τ = 1.5 s: TECS moves the throttle
+//!   smoothly and does not chase each gust) up to the propeller's thrust at that
 //!   speed, and the climb gives way when the airspeed sags below 1.15 × stall (a power limit);
 //! - take-off: a ground roll at full throttle (rolling friction 0.05) toward the first
 //!   waypoint, rotation at 1.25 × stall, the climb straight ahead to 15 m, then toward the
@@ -193,8 +194,9 @@ impl Pusher {
 /// Bank-angle time constant, s, and roll-rate limit, rad/s.
 const TAU_PHI: f64 = 0.5;
 const ROLL_RATE_MAX: f64 = 60.0 * PI / 180.0;
-/// Thrust lag, s.
-const TAU_T: f64 = 0.3;
+/// Thrust lag, s: TECS moves the throttle smoothly (ArduPlane's `TECS_TIME_CONST` is 5 s
+/// and its airspeed is filtered), it does not chase each gust.
+const TAU_T: f64 = 1.5;
 /// Climb and sink limits, m/s, and the path-angle (pitch) limit, rad.
 const CLIMB_MAX: f64 = 3.0;
 const SINK_MAX: f64 = 3.0;
