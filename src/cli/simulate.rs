@@ -14,7 +14,7 @@ use crate::source::Speed;
 pub(crate) struct SimulateArgs {
     /// Write the flight to this file: a `.tlog`, or with `.bin` the ArduPilot vehicle's own
     /// DataFlash log (one vehicle, `--autopilot ardupilot`), with `.ulg` the PX4 vehicle's
-    /// own ULog (one vehicle, `--autopilot px4`).
+    /// own ULog (one vehicle, `--autopilot px4`); a plane or a quadplane: `.tlog` only.
     #[arg(
         long,
         value_name = "FILE.tlog|FILE.bin|FILE.ulg",
@@ -181,6 +181,13 @@ pub(crate) fn simulate(args: SimulateArgs) -> Result<()> {
         "simulated mission"
     );
     if let Some(path) = &args.out {
+        let own_log =
+            crate::source::dataflash::is_dataflash(path) || crate::source::ulog::is_ulog(path);
+        if own_log && sim::Frame::of(&opts.vehicle) != sim::Frame::Multirotor {
+            // The readers give a .bin or .ulg the HEARTBEAT of a multirotor: a plane's would
+            // be read as one.
+            bail!("{}: a plane's or quadplane's flight is written as a .tlog only (dronewatt reads a .bin or .ulg as a multirotor's)", path.display());
+        }
         let bytes = if crate::source::dataflash::is_dataflash(path) {
             // The autopilot's own log: one ArduPilot vehicle (PX4 writes ULog, not DataFlash).
             if args.vehicles > 1 || args.autopilot != Autopilot::Ardupilot {

@@ -483,7 +483,6 @@ impl Recorder {
     }
 
     /// Record step `step` (10 ms each) of the flight.
-    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &mut self,
         step: u64,

@@ -3,7 +3,7 @@
 //! models in each; a plane streamed over real UDP into `dronewatt monitor` gets fixed-wing
 //! estimates; PX4's telemetry says the same; the energy used matches the simulator's truth.
 
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 use serde_json::Value;
 
@@ -29,11 +29,9 @@ fn simulate(dir: &std::path::Path, name: &str, args: &[&str]) -> (std::path::Pat
         .arg(&truth)
         .output()
         .expect("run dronewatt simulate");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    if !out.status.success() {
+        panic!("simulate failed: {}", String::from_utf8_lossy(&out.stderr));
+    }
     let text = std::fs::read_to_string(&truth).expect("truth CSV");
     let wh: f64 = text
         .lines()
@@ -160,19 +158,7 @@ fn a_simulated_plane_over_udp_into_monitor_gets_fixed_wing_estimates() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("out.jsonl");
     let port = link_common::free_udp_port();
-    let mut dw = dronewatt()
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--json",
-        ])
-        .arg(&json)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    link_common::wait_listening(port, false, &mut dw);
+    let mut dw = link_common::monitor_udp(port, &json, &[("DRONEWATT_HOME", "off")]);
     // A ~80 s flight at 4× real time (the live chain makes its windows on the arrival clock).
     let sim = dronewatt()
         .args([

@@ -26,7 +26,7 @@
 //!   stop braking at 2 m/s².
 //!
 //! ## The quadplane
-//! VTOL take-off on the lift rotors (the multirotor loop of [`super::mc_velocity_step`],
+//! VTOL take-off on the lift rotors (the multirotor simulator's velocity loop,
 //! `vtol_state` MC); the forward transition (TRANSITION_TO_FW: the pusher accelerating at up
 //! to 2 m/s² while the rotors carry what the wing cannot yet, until `[plane]
 //! transition_mps` and then a 3 s blend); forward flight as a plane (FW); at the last
@@ -251,19 +251,27 @@ pub struct Ask {
     pub idle: bool,
 }
 
+/// The plane's wing and pusher in the air it flies, on a pack of `cells`.
+pub struct Craft<'a> {
+    pub wing: &'a Wing,
+    pub pusher: &'a Pusher,
+    /// Air density, kg/m³.
+    pub rho: f64,
+    pub cells: f64,
+}
+
 /// One fixed-wing step of `st` (inertial velocity, position) and `fl` (bank, thrust) in the
-/// air `wind`, asked `ask`; returns the pusher's draw. The formulas are the module docs'.
+/// air `st.wind`, asked `ask`, the autopilot's wind estimate `wind_est`, the pack at `bus_v`;
+/// returns the pusher's draw. The formulas are the module docs'.
 fn fw_step(
     st: &mut State,
     fl: &mut Flight,
-    wing: &Wing,
-    pusher: &Pusher,
+    craft: &Craft,
     ask: &Ask,
     wind_est: &Vector3<f64>,
-    rho: f64,
     bus_v: f64,
-    cells: f64,
 ) -> (PusherDraw, Aero) {
+    let (wing, pusher, rho, cells) = (craft.wing, craft.pusher, craft.rho, craft.cells);
     let m = wing.mass_kg;
     let va = st.vel - st.wind;
     let v = va.norm().max(1.0);
@@ -710,17 +718,14 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
                     next = Some(Phase::Landed);
                 }
             } else {
-                let (draw, aero) = fw_step(
-                    &mut st,
-                    &mut fl,
-                    &wing,
-                    &pusher,
-                    &ask,
-                    &weather.wind_est,
+                let craft = Craft {
+                    wing: &wing,
+                    pusher: &pusher,
                     rho,
-                    bus_v,
                     cells,
-                );
+                };
+                let (draw, aero) =
+                    fw_step(&mut st, &mut fl, &craft, &ask, &weather.wind_est, bus_v);
                 pusher_w = draw.electrical_w;
                 throttle = draw.throttle;
                 let va = st.vel - st.wind;

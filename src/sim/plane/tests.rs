@@ -7,6 +7,17 @@ fn plane() -> (VehicleProfile, PlaneSim) {
     (v, p)
 }
 
+/// One step of `fw_step` in still air, sea level, a 12 V 3S bus.
+fn fly(st: &mut State, fl: &mut Flight, wing: &Wing, pusher: &Pusher, ask: &Ask) -> Aero {
+    let craft = Craft {
+        wing,
+        pusher,
+        rho: 1.225,
+        cells: 3.0,
+    };
+    fw_step(st, fl, &craft, ask, &Vector3::zeros(), 12.0).1
+}
+
 /// A plane in level flight at `v` m/s heading north, 100 m up, in still air.
 fn cruising(v: f64) -> (State, Flight) {
     let mut st = State::at_home(0.0, 12.0);
@@ -28,7 +39,6 @@ fn a_steady_coordinated_turn_has_the_radius_v2_over_g_tan_phi() {
     let wing = Wing::new(&p, v.mass_kg(0.0));
     let pusher = Pusher::new(&p, 3.0);
     let (mut st, mut fl) = cruising(14.0);
-    let calm = Vector3::zeros();
     let mut track = Vec::new();
     let mut last = (0.0, 0.0);
     for i in 0..6000 {
@@ -41,9 +51,7 @@ fn a_steady_coordinated_turn_has_the_radius_v2_over_g_tan_phi() {
             airspeed_mps: 14.0,
             idle: false,
         };
-        let (_, aero) = fw_step(
-            &mut st, &mut fl, &wing, &pusher, &ask, &calm, 1.225, 12.0, 3.0,
-        );
+        let aero = fly(&mut st, &mut fl, &wing, &pusher, &ask);
         if i >= 3000 {
             track.push((st.pos.x, st.pos.y));
             last = (aero.v, fl.phi);
@@ -79,7 +87,6 @@ fn thrust_work_equals_drag_work_plus_kinetic_and_potential_energy() {
     let m = wing.mass_kg;
     let pusher = Pusher::new(&p, 3.0);
     let (mut st, mut fl) = cruising(14.0);
-    let calm = Vector3::zeros();
     let energy = |st: &State| 0.5 * m * st.vel.norm_squared() + m * G * (-st.pos.z);
     let e0 = energy(&st);
     let (mut thrust_j, mut drag_j) = (0.0, 0.0);
@@ -93,9 +100,7 @@ fn thrust_work_equals_drag_work_plus_kinetic_and_potential_energy() {
             idle: i >= 7000,
         };
         let t = fl.thrust_n;
-        let (_, aero) = fw_step(
-            &mut st, &mut fl, &wing, &pusher, &ask, &calm, 1.225, 12.0, 3.0,
-        );
+        let aero = fly(&mut st, &mut fl, &wing, &pusher, &ask);
         // the step integrates with the thrust after its lag update
         let _ = t;
         thrust_j += fl.thrust_n * aero.v * DT;
