@@ -255,3 +255,77 @@ fn a_px4_plane_is_fixed_wing_and_its_energy_matches_the_simulators_truth() {
         "used {used} Wh, truth {truth_wh} Wh"
     );
 }
+
+#[test]
+fn learn_fits_the_fixed_wing_model_from_plane_logs_and_scores_it_held_out() {
+    // Three simulated plane flights (other seeds and payloads); learn fits on two, scores the
+    // third. The plane's logs have no rotor windows: the multirotor fit is skipped, not failed.
+    let dir = tempfile::tempdir().unwrap();
+    let logs = dir.path().join("logs");
+    std::fs::create_dir(&logs).unwrap();
+    for (i, payload) in ["0", "300", "150"].iter().enumerate() {
+        let seed = (31 + i).to_string();
+        simulate(
+            &logs,
+            &format!("f{i}"),
+            &[
+                "--vehicle",
+                "plane",
+                "--seed",
+                &seed,
+                "--payload-g",
+                payload,
+                "--leg-m",
+                "600",
+                "--hover-s",
+                "30",
+            ],
+        );
+    }
+    let out_dir = dir.path().join("learned");
+    let out = dronewatt()
+        .arg("learn")
+        .arg(&logs)
+        .args([
+            "--vehicle",
+            "plane",
+            "--holdout-every",
+            "3",
+            "--data-dir",
+            "off",
+            "--out",
+        ])
+        .arg(&out_dir)
+        .output()
+        .expect("run dronewatt learn");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    // The held-out table's fixed_wing row: published → learned, the learned one better.
+    let row = stdout
+        .lines()
+        .find(|l| l.starts_with("| fixed_wing |"))
+        .unwrap_or_else(|| panic!("no fixed_wing row: {stdout}"));
+    let cells: Vec<f64> = row
+        .split('|')
+        .filter_map(|c| c.trim().parse().ok())
+        .collect();
+    assert!(
+        cells[1] < cells[0],
+        "MAPE published {} → learned {}: {row}",
+        cells[0],
+        cells[1]
+    );
+    assert!(stdout.contains("forecast model: fixed_wing"), "{stdout}");
+    // The learned figures in the profile's [fixed_wing], within its ranges, the geometry kept.
+    let p = dronewatt::model::profile::VehicleProfile::load(&out_dir.join("profile.toml")).unwrap();
+    let shipped = dronewatt::model::profile::VehicleProfile::named_or_file("plane").unwrap();
+    let (fw, fw0) = (p.fixed_wing.unwrap(), shipped.fixed_wing.unwrap());
+    assert_eq!(
+        (fw.wing_area_m2, fw.span_m, fw.mass_kg),
+        (fw0.wing_area_m2, fw0.span_m, fw0.mass_kg)
+    );
+    assert_ne!(fw, fw0, "nothing was fitted");
+    assert!(fw.validate().is_ok());
+    assert!(stderr.contains("fixed_wing fitted"), "{stderr}");
+}
