@@ -168,9 +168,22 @@ fn is_log(p: &Path) -> bool {
 }
 
 /// One log through the live ingest path: its windows, numbered `flight`; only those flown
-/// on rotors (a multirotor's, a VTOL's hover and transitions: what `learn` fits), the
-/// others left out with a warning.
+/// on rotors (a multirotor's, a VTOL's hover and transitions: what the multirotor fit
+/// takes), the others left out with a warning. [`log_windows_by_lift`] keeps both.
 pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindows> {
+    Ok(log_windows_by_lift(path, flight, cfg)?.0)
+}
+
+/// One log through the live ingest path, its windows split by what carries the vehicle:
+/// (on rotors: the multirotor models' and the LSTM's; on a wing: a plane's and a VTOL's
+/// forward flight, the fixed-wing model's). A rover's or a boat's windows are in neither,
+/// said once.
+pub fn log_windows_by_lift(
+    path: &Path,
+    flight: u32,
+    cfg: &Config,
+) -> Result<(FlightWindows, FlightWindows)> {
+    use crate::features::Lift;
     let stats = crate::source::IngestStats::default();
     let messages = if path
         .extension()
@@ -190,22 +203,103 @@ pub fn log_windows(path: &Path, flight: u32, cfg: &Config) -> Result<FlightWindo
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);
-    // `learn` fits the multirotor models and the LSTM: a plane's, a VTOL's forward flight
-    // or a rover's windows would teach them what they do not model. Left out, said so.
     let all = windows.len();
-    windows.retain(|w| w.last().vehicle.lift() == crate::features::Lift::Rotor);
-    if windows.len() < all {
-        tracing::warn!(
-            "{}: {} of {all} windows left out: the vehicle flies them as {} (learn fits the multirotor models)",
+    let (rotor, rest): (Vec<_>, Vec<_>) = windows
+        .into_iter()
+        .partition(|w| w.last().vehicle.lift() == Lift::Rotor);
+    let wing: Vec<_> = rest
+        .into_iter()
+        .filter(|w| w.last().vehicle.lift() == Lift::Wing)
+        .collect();
+    if rotor.len() < all {
+        tracing::info!(
+            "{}: {} of {all} windows flown on rotors (the multirotor fit), {} on a wing (the fixed-wing fit); the vehicle: {}",
             path.display(),
-            all - windows.len(),
+            rotor.len(),
+            wing.len(),
             tel.vehicle_kind().describe()
         );
     }
-    Ok(FlightWindows {
+    if rotor.len() + wing.len() < all {
+        tracing::warn!(
+            "{}: {} of {all} windows left out: no power model for this vehicle",
+            path.display(),
+            all - rotor.len() - wing.len()
+        );
+    }
+    let fw = |windows| FlightWindows {
         flight,
         route: "log".into(),
         windows,
+    };
+    Ok((fw(rotor), fw(wing)))
+}
+
+/// The fixed-wing model's (regressors, measured power) on the windows a wing flies with the
+/// motor running (measured power over twice `offset_w`, the model's own teaching threshold)
+/// and well above the stall (airspeed over 1.2 × the level stall speed at C_L 1.2, sea
+/// level: the take-off roll at full throttle and low airspeed is no flight the model
+/// describes, and would teach it a negative drag).
+fn wing_data(
+    p: &crate::model::physics::fixed_wing::Params,
+    f: &FlightWindows,
+) -> Vec<([f64; 4], f64)> {
+    use crate::model::physics::fixed_wing::{airspeed, FixedWing};
+    use crate::model::PowerModel;
+    let m = FixedWing::new(*p);
+    let v_min = 1.2 * (2.0 * p.mass_kg * 9.80665 / (1.225 * p.wing_area_m2 * 1.2)).sqrt();
+    f.windows
+        .iter()
+        .filter_map(|w| {
+            let y = w
+                .last()
+                .measured_w
+                .map(f64::from)
+                .filter(|y| y.is_finite() && *y > 2.0 * p.offset_w)?;
+            if airspeed(w.last()).0 < v_min {
+                return None;
+            }
+            Some((m.regressors(w)?.0, y))
+        })
+        .collect()
+}
+
+/// The fixed-wing model's scores on one log's wing windows from its first window (no
+/// adaptation): MAPE and MAE over the windows the motor runs in (measured over twice the
+/// published `offset_w`), energy error over the same windows. None without 10 of them.
+fn wing_score(
+    p: &crate::model::physics::fixed_wing::Params,
+    mask_w: f64,
+    f: &FlightWindows,
+) -> Option<crate::offline::metrics::Scores> {
+    let mut m = crate::model::physics::fixed_wing::FixedWing::new(*p);
+    let (mut n, mut abs, mut sq, mut pct, mut e_m, mut e_p) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for w in &f.windows {
+        let pred = m.predict_one(w.last());
+        let Some(y) = w
+            .last()
+            .measured_w
+            .map(f64::from)
+            .filter(|y| y.is_finite() && *y > mask_w)
+        else {
+            continue;
+        };
+        let e = pred - y;
+        n += 1;
+        abs += e.abs();
+        sq += e * e;
+        pct += (e / y).abs();
+        e_m += y;
+        e_p += pred;
+    }
+    (n >= 10).then(|| crate::offline::metrics::Scores {
+        mae_w: abs / n as f64,
+        rmse_w: (sq / n as f64).sqrt(),
+        mse_w2: sq / n as f64,
+        mape_pct: 100.0 * pct / n as f64,
+        energy_err_pct: 100.0 * (e_p - e_m) / e_m,
+        windows: n,
+        in_flight_windows: n,
     })
 }
 
@@ -279,18 +373,22 @@ pub fn run(args: LearnArgs) -> Result<()> {
             logs.len()
         );
     }
+    let wing0 = base.fixed_wing.unwrap_or_default();
     let mut flights = Vec::with_capacity(logs.len());
+    let mut wings = Vec::with_capacity(logs.len());
     for (i, p) in logs.iter().enumerate() {
-        let f = log_windows(p, FIRST_LOG_NUMBER + i as u32, &cfg)?;
+        let (f, wing) = log_windows_by_lift(p, FIRST_LOG_NUMBER + i as u32, &cfg)?;
         let n = f
             .windows
             .iter()
             .filter(|w| w.last().measured_w.is_some_and(|m| in_flight(f64::from(m))))
             .count();
-        if n == 0 {
-            tracing::warn!("{}: no in-flight window with measured power (over {IN_FLIGHT_W} W): it teaches nothing", p.display());
+        let n_wing = wing_data(&wing0, &wing).len();
+        if n == 0 && n_wing == 0 {
+            tracing::warn!("{}: no in-flight window with measured power (over {IN_FLIGHT_W} W on rotors, over {:.0} W on a wing): it teaches nothing", p.display(), 2.0 * wing0.offset_w);
         }
-        flights.push((p, f, n));
+        flights.push((p, f, n + n_wing));
+        wings.push(wing);
     }
     let mut held: Vec<usize> = (0..flights.len())
         .filter(|i| (i + 1) % args.holdout_every == 0)
@@ -308,13 +406,65 @@ pub fn run(args: LearnArgs) -> Result<()> {
         .iter()
         .map(|p| crate::offline::data::sha256_file(p))
         .collect::<Result<_>>()?;
-    let (learned, fit_report) =
-        super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?;
+    // The multirotor models on the windows flown on rotors, where there are any (a plane's
+    // logs have none: its profile's multirotor sections are kept as they are).
+    let rotor_windows: usize = flights
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !held.contains(i))
+        .map(|(_, (_, f, _))| {
+            f.windows
+                .iter()
+                .filter(|w| w.last().measured_w.is_some_and(|m| in_flight(f64::from(m))))
+                .count()
+        })
+        .sum();
+    let (learned, mut fit_report) = if rotor_windows > 0 {
+        super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?
+    } else {
+        tracing::info!("no training window flown on rotors: the multirotor models are not fitted");
+        (base.clone(), Vec::new())
+    };
+    // The fixed-wing model on the windows flown on a wing.
+    let wing_train: Vec<([f64; 4], f64)> = wings
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !held.contains(i))
+        .flat_map(|(_, w)| wing_data(&wing0, w))
+        .collect();
+    let wing_fit = crate::model::physics::fixed_wing::fit(&wing0, &wing_train);
+    let mut learned = learned;
+    if let Some(f) = &wing_fit {
+        learned.fixed_wing = Some(f.params);
+        fit_report.push(super::calibrate::FitReport {
+            model: "fixed_wing",
+            rmse_before_w: f.rmse_before_w,
+            rmse_after_w: f.rmse_after_w,
+        });
+        tracing::info!(
+            windows = f.windows,
+            "fixed_wing fitted: C_D0 {:.4} → {:.4}, e {:.2} → {:.2}, η {:.2} → {:.2}, P_0 {:.1} → {:.1} W{}",
+            wing0.cd0,
+            f.params.cd0,
+            wing0.oswald_e,
+            f.params.oswald_e,
+            wing0.eta,
+            f.params.eta,
+            wing0.offset_w,
+            f.params.offset_w,
+            if f.clamped.is_empty() {
+                String::new()
+            } else {
+                format!(" (held at the edge of its range: {})", f.clamped.join(", "))
+            }
+        );
+    } else if !wing_train.is_empty() {
+        tracing::warn!("{} training windows flown on a wing: too few to fit the fixed-wing model (20 at least)", wing_train.len());
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
 
     // The LSTM fine-tuned from the shipped weights, early-stopping on the held-out logs.
-    let mut learned = learned;
     let mut tuned = None;
     if let Some(fine_tune) = fine_tuner {
         let shipped = crate::model::lstm::resolve_model_path(cfg.models.lstm.path.as_deref())
@@ -356,16 +506,25 @@ pub fn run(args: LearnArgs) -> Result<()> {
     let mut scores = Vec::new();
     for &i in &held {
         let (p, f, n) = &flights[i];
-        let before = score(&cfg, &base, None, f)?;
-        let after = score(&cfg, &learned, tuned.as_ref().map(|(p, _)| p.as_path()), f)?;
-        let rows = before.into_iter().map(|(name, b)| {
-            let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
-            (name, b, a)
-        });
+        let mut rows = Vec::new();
+        if !f.windows.is_empty() {
+            let before = score(&cfg, &base, None, f)?;
+            let after = score(&cfg, &learned, tuned.as_ref().map(|(p, _)| p.as_path()), f)?;
+            rows.extend(before.into_iter().map(|(name, b)| {
+                let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
+                (name, b, a)
+            }));
+        }
+        let wing = &wings[i];
+        let mask = 2.0 * wing0.offset_w;
+        if let Some(b) = wing_score(&wing0, mask, wing) {
+            let a = wing_score(&learned.fixed_wing.unwrap_or(wing0), mask, wing);
+            rows.push(("fixed_wing".into(), Some(b), a));
+        }
         scores.push(LogScore {
             log: p.display().to_string(),
             in_flight_windows: *n,
-            rows: rows.collect(),
+            rows,
         });
     }
 
@@ -374,7 +533,7 @@ pub fn run(args: LearnArgs) -> Result<()> {
     if let Some((name, mape)) = &pick {
         let model = match (name.as_str(), &tuned) {
             ("lstm", Some(_)) => "lstm_ft".to_string(),
-            ("lstm", None) => name.clone(),
+            ("lstm" | "fixed_wing", _) => name.clone(),
             _ => format!("{name}{}", learned.name_suffix()),
         };
         learned.forecast = Some(crate::model::profile::ForecastDefault {
@@ -440,11 +599,15 @@ pub fn run(args: LearnArgs) -> Result<()> {
 
 /// The model with the lowest mean held-out MAPE over the held-out logs (learned scores; a
 /// model missing a score on any held-out log is not a candidate), and that MAPE.
+/// A VTOL's rotor models and its fixed-wing model score different windows: the pick is among
+/// the rotor models then (on the wing the forecast follows `fixed_wing` anyway).
 fn pick_forecast(scores: &[LogScore]) -> Option<(String, f64)> {
     let first = scores.first()?;
+    let rotors = first.rows.iter().any(|(n, _, _)| n != "fixed_wing");
     first
         .rows
         .iter()
+        .filter(|(name, _, _)| !(rotors && name == "fixed_wing"))
         .filter_map(|(name, _, _)| {
             let per_log: Option<Vec<f64>> = scores
                 .iter()
@@ -532,7 +695,7 @@ fn model_card(
     tuned: Option<&FineTuned>,
 ) -> String {
     let mut s = String::from("# Model card: physics models learned by `dronewatt learn`\n\n");
-    s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt calibrate`) fitted by bounded least squares on the in-flight windows (measured power over {IN_FLIGHT_W} W) of the training logs.\n\n", base.name);
+    s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt calibrate`) fitted by bounded least squares on the in-flight windows flown on rotors (measured power over {IN_FLIGHT_W} W) of the training logs; the fixed-wing model's four coefficients (C_D0, e, η, P_0 with the wing's geometry and mass kept) on the windows flown on a wing with the motor running and the airspeed 1.2 × the stall speed or more (`model::physics::fixed_wing::fit`).\n\n", base.name);
     s += "## Learned from\n\n| log | in-flight windows | role |\n|---|---|---|\n";
     for (i, p) in logs.iter().enumerate() {
         s += &format!(

@@ -353,34 +353,32 @@ impl Route {
                 K::LoiterTime { time_s } => time_s,
                 K::NotModelled { flown_through, .. } if flown_through => 0.0,
                 K::NotModelled { .. } => continue,
-                K::Land => {
-                    if let Some(p) = &it.position {
-                        let (e, n) = ned(p);
-                        let alt = waypoints.last().map_or(p.alt_m, |w| w.alt_m);
+                K::Land | K::ReturnToLaunch => {
+                    // The flight ends here: LAND at its position (or where it is), RETURN_TO_LAUNCH
+                    // over home at the altitude it is at.
+                    let last_alt = waypoints.last().map(|w| w.alt_m);
+                    let end = match (matches!(it.kind, K::Land), &it.position) {
+                        (true, Some(p)) => {
+                            let (e, n) = ned(p);
+                            Some((n, e, last_alt.unwrap_or(p.alt_m)))
+                        }
+                        (true, None) => None,
+                        (false, _) => Some((
+                            0.0,
+                            0.0,
+                            last_alt.unwrap_or(takeoff.map_or(ALT_RANGE_M.0, |t| t.1)),
+                        )),
+                    };
+                    if let Some((north_m, east_m, alt_m)) = end {
                         waypoints.push(Waypoint {
-                            north_m: n,
-                            east_m: e,
-                            alt_m: alt,
+                            north_m,
+                            east_m,
+                            alt_m,
                             speed_mps: speed,
                             hold_s: 0.0,
                         });
                         waypoint_items.push(it.index);
                     }
-                    end_item = it.index;
-                    break;
-                }
-                K::ReturnToLaunch => {
-                    let alt = waypoints
-                        .last()
-                        .map_or(takeoff.map_or(ALT_RANGE_M.0, |t| t.1), |w| w.alt_m);
-                    waypoints.push(Waypoint {
-                        north_m: 0.0,
-                        east_m: 0.0,
-                        alt_m: alt,
-                        speed_mps: speed,
-                        hold_s: 0.0,
-                    });
-                    waypoint_items.push(it.index);
                     end_item = it.index;
                     break;
                 }

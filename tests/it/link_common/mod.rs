@@ -69,6 +69,26 @@ pub fn free_tcp_port() -> u16 {
         .port()
 }
 
+/// `dronewatt monitor udpin:127.0.0.1:PORT -q --json JSON` with `env` set, stdout dropped,
+/// stderr piped, once it holds the port.
+pub fn monitor_udp(port: u16, json: &std::path::Path, env: &[(&str, &str)]) -> std::process::Child {
+    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        .args([
+            "monitor",
+            &format!("udpin:127.0.0.1:{port}"),
+            "-q",
+            "--json",
+        ])
+        .arg(json)
+        .envs(env.iter().copied())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run dronewatt monitor");
+    wait_listening(port, false, &mut dw);
+    dw
+}
+
 /// Wait until dronewatt holds `port` (UDP: our bind fails; TCP: a connect succeeds), so no
 /// frame the peer sends is lost to a socket not bound yet.
 pub fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {

@@ -348,5 +348,117 @@ impl PowerModel for FixedWing {
     }
 }
 
+/// What [`fit`] did: the coefficients before and after, the windows, the RMSE before and
+/// after on them, and the physical figures that hit their range (clamped).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fit {
+    pub params: Params,
+    pub theta_before: [f64; 4],
+    pub theta_after: [f64; 4],
+    pub windows: usize,
+    pub rmse_before_w: f64,
+    pub rmse_after_w: f64,
+    pub clamped: Vec<&'static str>,
+}
+
+/// Fit the model's four coefficients ([`FixedWing::coefficients`]) to `data`, pairs of
+/// [`regressors`] and measured power (W), by least squares with the published figures as a
+/// weak prior (σ = 50 % of each coefficient, 20 % of P_0, against σ_y = 20 W per window, as
+/// online adaptation's; it only decides directions the data leave open) and within ×¼…×4;
+/// then back to the figures, the geometry (S, b) and the mass kept:
+/// η = 1/θ₃, C_D0 = 2η·θ₁/S, e = 2/(S·π·AR·η·θ₂), P_0 = θ₄, each within
+/// [`Params::validate`]'s range (the clamped ones are named). None under 20 windows.
+pub fn fit(params: &Params, data: &[([f64; 4], f64)]) -> Option<Fit> {
+    if data.len() < 20 {
+        return None;
+    }
+    let theta0 = FixedWing::new(*params).coefficients();
+    let sigma_y2 = 20.0f64 * 20.0;
+    let mut a = nalgebra::Matrix4::<f64>::zeros();
+    let mut b = nalgebra::Vector4::<f64>::zeros();
+    for (phi, y) in data {
+        let x = nalgebra::Vector4::from_column_slice(phi);
+        a += x * x.transpose() / sigma_y2;
+        b += x * (*y / sigma_y2);
+    }
+    for k in 0..4 {
+        // P_0 (avionics, servos) is what a bench measures: held close (σ 20 %, at least
+        // 1 W); in steady cruise 1, V³ and 1/V barely differ and a free offset would soak
+        // up the drag.
+        let sd = if k == 3 {
+            (0.2 * theta0[k]).max(1.0)
+        } else {
+            (0.5 * theta0[k]).max(1e-9)
+        };
+        a[(k, k)] += 1.0 / (sd * sd);
+        b[k] += theta0[k] / (sd * sd);
+    }
+    let sol = a.lu().solve(&b)?;
+    let mut theta = [0.0; 4];
+    for k in 0..4 {
+        let (lo, hi) = if k == 3 {
+            (0.0, 4.0 * theta0[k] + 50.0)
+        } else {
+            (0.25 * theta0[k], 4.0 * theta0[k])
+        };
+        theta[k] = if sol[k].is_finite() {
+            sol[k].clamp(lo, hi)
+        } else {
+            theta0[k]
+        };
+    }
+    let rmse = |t: &[f64; 4]| {
+        let se: f64 = data
+            .iter()
+            .map(|(phi, y)| {
+                let aero: f64 = (0..3).map(|k| t[k] * phi[k]).sum();
+                let p = aero.max(0.0) + t[3];
+                (p - y).powi(2)
+            })
+            .sum();
+        (se / data.len() as f64).sqrt()
+    };
+    let s = params.wing_area_m2;
+    let mut clamped = Vec::new();
+    let mut keep = |name: &'static str, v: f64, lo: f64, hi: f64| {
+        if v.is_finite() && (lo..=hi).contains(&v) {
+            v
+        } else {
+            clamped.push(name);
+            if v.is_finite() {
+                v.clamp(lo, hi)
+            } else {
+                lo
+            }
+        }
+    };
+    let eta = keep("eta", 1.0 / theta[2], 0.05, 1.0);
+    let cd0 = keep("cd0", 2.0 * eta * theta[0] / s, 0.005, 0.5);
+    let e = keep(
+        "oswald_e",
+        2.0 / (s * std::f64::consts::PI * params.aspect_ratio() * eta * theta[1]),
+        0.3,
+        1.0,
+    );
+    let offset = keep("offset_w", theta[3], 0.0, 5000.0);
+    let fitted = Params {
+        eta,
+        cd0,
+        oswald_e: e,
+        offset_w: offset,
+        ..*params
+    };
+    let theta_after = FixedWing::new(fitted).coefficients();
+    Some(Fit {
+        params: fitted,
+        theta_before: theta0,
+        theta_after,
+        windows: data.len(),
+        rmse_before_w: rmse(&theta0),
+        rmse_after_w: rmse(&theta_after),
+        clamped,
+    })
+}
+
 #[cfg(test)]
 mod tests;
