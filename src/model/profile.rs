@@ -65,6 +65,12 @@ pub struct VehicleProfile {
     /// 2 kg foam plane's without it; [`crate::model::physics::fixed_wing::Params`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fixed_wing: Option<crate::model::physics::fixed_wing::Params>,
+    /// `[fixed_wing_flight]`: how the plane flies a mission (cruise airspeed, bank limit,
+    /// climb and sink, loiter radius, glide slope; a VTOL's hover climb, landing and
+    /// transitions), for the mission forecast (optional: the autopilots' defaults without
+    /// it; [`crate::model::physics::fixed_wing::Flight`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_wing_flight: Option<crate::model::physics::fixed_wing::Flight>,
     /// `[rotor]`: the simulator's rotor aerodynamics (optional; see the module docs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotor: Option<Rotor>,
@@ -378,6 +384,9 @@ impl VehicleProfile {
         }
         if let Some(b) = &self.battery {
             b.validate()?;
+        }
+        if let Some(f) = &self.fixed_wing_flight {
+            f.validate()?;
         }
         Ok(())
     }

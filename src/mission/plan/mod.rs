@@ -11,7 +11,12 @@
 //! |---|---|---|
 //! | 22 NAV_TAKEOFF | [`ItemKind::Takeoff`] | altitude (climbed to vertically; latitude/longitude 0 = here) |
 //! | 16 NAV_WAYPOINT, 82 NAV_SPLINE_WAYPOINT | [`ItemKind::Waypoint`] | p1 hold time (s); position (a spline is flown straight) |
-//! | 19 NAV_LOITER_TIME | [`ItemKind::LoiterTime`] | p1 time (s), hovered at the position |
+//! | 19 NAV_LOITER_TIME | [`ItemKind::LoiterTime`] | p1 time (s), hovered at the position (a plane circles; p3 radius) |
+//! | 18 NAV_LOITER_TURNS | [`ItemKind::LoiterTurns`] | p1 turns, p3 radius (m; a plane circles, a multirotor flies through) |
+//! | 17 NAV_LOITER_UNLIM | [`ItemKind::LoiterUnlimited`] | position (flown through: no forecast for "forever") |
+//! | 84 NAV_VTOL_TAKEOFF | [`ItemKind::VtolTakeoff`] | altitude (a VTOL climbs on its rotors; a multirotor as TAKEOFF) |
+//! | 85 NAV_VTOL_LAND | [`ItemKind::VtolLand`] | position (a VTOL lands on its rotors; a multirotor as LAND) |
+//! | 3000 DO_VTOL_TRANSITION | [`ItemKind::VtolTransition`] | p1 state (3 MC, 4 FW) |
 //! | 178 DO_CHANGE_SPEED | [`ItemKind::ChangeSpeed`] | p2 speed (m/s; −1 or 0 = no change) |
 //! | 21 NAV_LAND | [`ItemKind::Land`] | position (fly there, then descend to the ground) |
 //! | 20 NAV_RETURN_TO_LAUNCH | [`ItemKind::ReturnToLaunch`] | fly home at the current altitude, then land |
@@ -79,8 +84,19 @@ pub enum ItemKind {
     Takeoff { alt_m: f64 },
     /// Fly to `position`, then hover `hold_s`.
     Waypoint { hold_s: f64 },
-    /// Fly to `position`, then hover `time_s`.
+    /// Fly to `position`, then hover `time_s` (a plane circles).
     LoiterTime { time_s: f64 },
+    /// Fly to `position`, then circle `turns` times (a plane; a multirotor flies through).
+    LoiterTurns { turns: f64 },
+    /// Fly to `position` and circle for ever: flown through (a forecast cannot hold "for ever").
+    LoiterUnlimited,
+    /// VTOL: climb on the lift rotors to `alt_m` above home (a multirotor: as TAKEOFF).
+    VtolTakeoff { alt_m: f64 },
+    /// VTOL: fly to `position` (when given), change to hover and land on the rotors (a
+    /// multirotor: as LAND).
+    VtolLand,
+    /// VTOL: change to forward flight (`to_fw`) or to hover.
+    VtolTransition { to_fw: bool },
     /// Cruise ground speed from here on, m/s.
     ChangeSpeed { speed_m_s: f64 },
     /// Fly to `position` (when given), descend and land.
@@ -108,6 +124,9 @@ pub struct Item {
     pub position: Option<GeoPoint>,
     /// How the altitude was given.
     pub frame: AltFrame,
+    /// A loiter's radius (NAV_LOITER_* param3, m, unsigned), when it gives one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loiter_radius_m: Option<f64>,
 }
 
 /// A mission plan: home, items, default speeds.
@@ -195,6 +214,7 @@ impl Plan {
                 kind,
                 position,
                 frame,
+                loiter_radius_m: None,
             });
         };
         push(178, ItemKind::ChangeSpeed { speed_m_s }, None);
@@ -301,6 +321,7 @@ impl Plan {
                 kind: ItemKind::ReturnToLaunch,
                 position: None,
                 frame: AltFrame::None,
+                loiter_radius_m: None,
             });
         }
         Ok((
@@ -338,10 +359,13 @@ impl Plan {
             match it.kind {
                 ItemKind::Waypoint { hold_s } => params[0] = hold_s,
                 ItemKind::LoiterTime { time_s } => params[0] = time_s,
+                ItemKind::LoiterTurns { turns } => params[0] = turns,
                 ItemKind::ChangeSpeed { speed_m_s } => params[1] = speed_m_s,
-                ItemKind::Takeoff { alt_m } => alt = alt_m,
+                ItemKind::Takeoff { alt_m } | ItemKind::VtolTakeoff { alt_m } => alt = alt_m,
+                ItemKind::VtolTransition { to_fw } => params[0] = if to_fw { 4.0 } else { 3.0 },
                 _ => {}
             }
+            params[2] = it.loiter_radius_m.unwrap_or(params[2]);
             let positioned = it.command < 100 && it.command != 20;
             let (lat, lon) = it.position.map_or((0.0, 0.0), |p| (p.lat_deg, p.lon_deg));
             out.push(MissionItem {

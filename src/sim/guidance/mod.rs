@@ -345,15 +345,16 @@ impl Route {
                     }
                     continue;
                 }
-                K::Takeoff { alt_m } => {
+                K::Takeoff { alt_m } | K::VtolTakeoff { alt_m } => {
                     takeoff.get_or_insert((it.index, alt_m));
                     continue;
                 }
                 K::Waypoint { hold_s } => hold_s,
                 K::LoiterTime { time_s } => time_s,
+                K::LoiterTurns { .. } | K::LoiterUnlimited => 0.0,
                 K::NotModelled { flown_through, .. } if flown_through => 0.0,
-                K::NotModelled { .. } => continue,
-                K::Land => {
+                K::NotModelled { .. } | K::VtolTransition { .. } => continue,
+                K::Land | K::VtolLand => {
                     if let Some(p) = &it.position {
                         let (e, n) = ned(p);
                         let alt = waypoints.last().map_or(p.alt_m, |w| w.alt_m);

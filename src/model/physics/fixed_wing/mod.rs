@@ -43,6 +43,9 @@
 
 use serde::{Deserialize, Serialize};
 
+mod flight;
+pub use flight::{bank_for_radius, Flight};
+
 use crate::features::{frames, idx, Lift, Sample};
 use crate::model::{PowerModel, Prediction};
 use crate::telemetry::window::Window;
