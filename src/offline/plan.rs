@@ -387,8 +387,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
 
 /// P90 ratio of a vehicle flown on its learned forecast model, which has no fitted spread.
 const OWN_MODEL_P90: f64 = 1.15;
-/// P90 ratio of a vehicle flown on published physics models no one calibrated for it.
-const UNCALIBRATED_P90: f64 = 1.3;
+use crate::mission::forecast::UNCALIBRATED_P90;
 /// The published physics models (the `_cal` ones are the M100's).
 const PUBLISHED: [&str; 5] = [
     "dandrea",

@@ -45,6 +45,10 @@ use crate::model::{PowerModel, Prediction};
 use crate::telemetry::idx;
 use crate::telemetry::window::Window;
 
+/// P90 over P50 of a vehicle flown on models no one calibrated for it (a plane, a VTOL, a
+/// multirotor other than the M100): wide, for what its uncorrected models may miss.
+pub const UNCALIBRATED_P90: f64 = 1.3;
+
 /// One model of the forecast with its own fitted correction (an entry of
 /// `[forecast.calibration] members`).
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
