@@ -450,6 +450,44 @@ mod tests {
         assert_eq!(p.items[6].origin, "line 9");
     }
 
+    #[test]
+    fn vtol_commands_and_loiter_turns_are_kept_with_their_parameters() {
+        let text = "QGC WPL 110\n\
+0\t1\t0\t16\t0\t0\t0\t0\t40.4400\t-79.9400\t300.0\t1\n\
+1\t0\t3\t84\t0\t0\t0\t0\t0\t0\t30\t1\n\
+2\t0\t2\t3000\t4\t0\t0\t0\t0\t0\t0\t1\n\
+3\t0\t3\t18\t3\t0\t-120\t0\t40.4410\t-79.9400\t50\t1\n\
+4\t0\t3\t17\t0\t0\t0\t0\t40.4420\t-79.9400\t50\t1\n\
+5\t0\t2\t3000\t3\t0\t0\t0\t0\t0\t0\t1\n\
+6\t0\t3\t85\t0\t0\t0\t0\t0\t0\t0\t1\n";
+        let p = parse_waypoints(text, "vtol.waypoints").unwrap();
+        let kinds: Vec<ItemKind> = p.items.iter().map(|i| i.kind).collect();
+        assert_eq!(
+            kinds,
+            [
+                ItemKind::VtolTakeoff { alt_m: 30.0 },
+                ItemKind::VtolTransition { to_fw: true },
+                ItemKind::LoiterTurns { turns: 3.0 },
+                ItemKind::LoiterUnlimited,
+                ItemKind::VtolTransition { to_fw: false },
+                ItemKind::VtolLand,
+            ]
+        );
+        assert_eq!(
+            p.items[2].loiter_radius_m,
+            Some(120.0),
+            "the radius, unsigned"
+        );
+        assert_eq!(p.items[0].position, None, "VTOL_TAKEOFF at 0, 0: here");
+        assert!(p.not_modelled().is_empty(), "84, 85 and 3000 are modelled");
+        // and back through the protocol's items
+        let items = p.to_mission_items();
+        assert_eq!(
+            (items[1].command, items[2].params[0], items[3].params[2]),
+            (84, 4.0, 120.0)
+        );
+    }
+
     fn bad(text: &str) -> String {
         parse_waypoints(text, "bad.waypoints")
             .unwrap_err()
@@ -459,40 +497,36 @@ mod tests {
     #[test]
     fn bad_waypoints_files_name_the_item_and_why() {
         let home = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t40.44\t-79.94\t300\t1\n";
-        let e = bad(&format!(
-            "{home}1\t0\t3\t9999\t0\t0\t0\t0\t40.44\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("bad.waypoints")
-                && e.contains("item 1 (line 3)")
-                && e.contains("command 9999 is not a MAV_CMD"),
-            "{e}"
-        );
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\t95.0\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("item 1 (line 3)") && e.contains("latitude 95 is out of range"),
-            "{e}"
-        );
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\t40.0\t-190\t25\t1\n"
-        ));
-        assert!(e.contains("longitude -190 is out of range"), "{e}");
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\tNaN\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("item 1 (line 3)") && e.contains("not finite"),
-            "{e}"
-        );
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\tabc\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("line 3") && e.contains("latitude \"abc\" is not a number"),
-            "{e}"
-        );
+        // each bad row names its item and line, and why
+        for (row, why) in [
+            (
+                "9999\t0\t0\t0\t0\t40.44\t-79.94\t25",
+                "command 9999 is not a MAV_CMD",
+            ),
+            (
+                "16\t0\t0\t0\t0\t95.0\t-79.94\t25",
+                "latitude 95 is out of range",
+            ),
+            (
+                "16\t0\t0\t0\t0\t40.0\t-190\t25",
+                "longitude -190 is out of range",
+            ),
+            ("16\t0\t0\t0\t0\tNaN\t-79.94\t25", "not finite"),
+            (
+                "16\t0\t0\t0\t0\tabc\t-79.94\t25",
+                "latitude \"abc\" is not a number",
+            ),
+            (
+                "3000\t2\t0\t0\t0\t0\t0\t0",
+                "must be 3 (MAV_VTOL_STATE_MC) or 4",
+            ),
+        ] {
+            let e = bad(&format!("{home}1\t0\t3\t{row}\t1\n"));
+            assert!(
+                e.contains("bad.waypoints") && e.contains("line 3") && e.contains(why),
+                "{e}"
+            );
+        }
         let e = bad(home);
         assert!(e.contains("no mission items"), "{e}");
         let e = bad("");

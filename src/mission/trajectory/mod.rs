@@ -630,31 +630,51 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
     let mut legs = Vec::new();
     let segs = segments(plan, k, speed0, &mut legs);
     let dt = 1.0 / c.rate_hz;
-    let total: f64 = segs.iter().map(|s| s.duration_s).sum();
-    let n = crate::features::units::floor_ratio(total, dt).unwrap_or(0.0) as usize + 1;
     let mut feats = RotorFeatures::new(plan, k, c);
-    let mut samples = Vec::with_capacity(n);
-    let mut enu_m = Vec::with_capacity(n);
-    let mut leg_of = Vec::with_capacity(n);
     // Commanded speed feature per segment: the speed in force (changes are rare; the
     // segment's own top speed where it has one).
-    let mut seg_i = 0usize;
-    let mut seg_t0 = 0.0f64;
     let mut cur_speed = speed0;
-    for j in 0..n {
-        let t = j as f64 * dt;
-        while seg_i + 1 < segs.len() && t >= seg_t0 + segs[seg_i].duration_s {
-            seg_t0 += segs[seg_i].duration_s;
-            seg_i += 1;
-        }
-        let Some(seg) = segs.get(seg_i) else { break };
+    let durations: Vec<f64> = segs.iter().map(|s| s.duration_s).collect();
+    sampled(&durations, dt, legs, |_, t, i, local_t| {
+        let seg = &segs[i];
         if let Motion::Line { v, .. } = seg.motion {
             cur_speed = v;
         }
-        let (p, v, a, heading, yaw_rate) = state(seg, t - seg_t0);
-        samples.push(feats.sample(t, p, v, a, heading, yaw_rate, cur_speed));
+        let (p, v, a, heading, yaw_rate) = state(seg, local_t);
+        let s = feats.sample(t, p, v, a, heading, yaw_rate, cur_speed);
+        (s, p, seg.leg)
+    })
+}
+
+/// Sample segments of `durations` every `dt` from 0 to their end: `at(j, t, segment,
+/// local time)` gives sample `j`, its ENU position and its leg; then the legs' times and
+/// sample ranges.
+fn sampled(
+    durations: &[f64],
+    dt: f64,
+    mut legs: Vec<Leg>,
+    mut at: impl FnMut(usize, f64, usize, f64) -> (Sample, Vector3<f64>, usize),
+) -> Trajectory {
+    let total: f64 = durations.iter().sum();
+    let n = if durations.is_empty() {
+        0
+    } else {
+        crate::features::units::floor_ratio(total, dt).unwrap_or(0.0) as usize + 1
+    };
+    let mut samples = Vec::with_capacity(n);
+    let mut enu_m = Vec::with_capacity(n);
+    let mut leg_of = Vec::with_capacity(n);
+    let (mut seg_i, mut seg_t0) = (0usize, 0.0f64);
+    for j in 0..n {
+        let t = j as f64 * dt;
+        while seg_i + 1 < durations.len() && t >= seg_t0 + durations[seg_i] {
+            seg_t0 += durations[seg_i];
+            seg_i += 1;
+        }
+        let (s, p, leg) = at(j, t, seg_i, t - seg_t0);
+        samples.push(s);
         enu_m.push([p.x as f32, p.y as f32, p.z as f32]);
-        leg_of.push(seg.leg as u32);
+        leg_of.push(leg as u32);
     }
     close_legs(&mut legs, &leg_of, dt);
     Trajectory {

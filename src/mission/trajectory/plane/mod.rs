@@ -51,8 +51,7 @@
 use nalgebra::{Vector2, Vector3};
 
 use super::{
-    close_legs, enu_of, mission_sample, Conditions, KinematicsConfig, Leg, RotorFeatures,
-    Trajectory,
+    enu_of, mission_sample, sampled, Conditions, KinematicsConfig, Leg, RotorFeatures, Trajectory,
 };
 use crate::features::{frames, idx, AirData, Sample, VehicleClass, VehicleKind, VtolState};
 use crate::mission::plan::{ItemKind, Plan};
@@ -728,16 +727,10 @@ pub fn fly_plane(
         .speed_m_s
         .or(plan.cruise_speed_m_s)
         .unwrap_or(flight.cruise_m_s);
-    let (segs, mut legs) = segments(plan, flight, vtol, c, speed0);
+    let (segs, legs) = segments(plan, flight, vtol, c, speed0);
     let w = c.wind.velocity_enu();
     let wind = V2::new(w.x, w.y);
     let dt = 1.0 / c.rate_hz;
-    let total: f64 = segs.iter().map(|s| s.duration_s).sum();
-    let n = if segs.is_empty() {
-        0
-    } else {
-        crate::features::units::floor_ratio(total, dt).unwrap_or(0.0) as usize + 1
-    };
     let class = if vtol {
         VehicleClass::Vtol
     } else {
@@ -751,19 +744,11 @@ pub fn fly_plane(
     };
     let mut rotor = RotorFeatures::new(plan, k, c);
     let cmd_alt = rotor.cmd_alt;
-    let mut samples = Vec::with_capacity(n);
-    let mut enu_m = Vec::with_capacity(n);
-    let mut leg_of = Vec::with_capacity(n);
     let mut given_w: Vec<(std::ops::Range<usize>, f64)> = Vec::new();
-    let (mut seg_i, mut seg_t0) = (0usize, 0.0f64);
-    for j in 0..n {
-        let t = j as f64 * dt;
-        while seg_i + 1 < segs.len() && t >= seg_t0 + segs[seg_i].duration_s {
-            seg_t0 += segs[seg_i].duration_s;
-            seg_i += 1;
-        }
-        let Some(seg) = segs.get(seg_i) else { break };
-        let (s, p) = match state(seg, t - seg_t0, flight, wind) {
+    let durations: Vec<f64> = segs.iter().map(|s| s.duration_s).collect();
+    let mut tr = sampled(&durations, dt, legs, |j, t, i, local_t| {
+        let seg = &segs[i];
+        match state(seg, local_t, flight, wind) {
             At::Wing {
                 p,
                 v,
@@ -784,6 +769,7 @@ pub fn fly_plane(
                     airspeed,
                 ),
                 p,
+                seg.leg,
             ),
             At::Rotor {
                 p,
@@ -808,22 +794,12 @@ pub fn fly_plane(
                         _ => given_w.push((j..j + 1, w)),
                     }
                 }
-                (s, p)
+                (s, p, seg.leg)
             }
-        };
-        samples.push(s);
-        enu_m.push([p.x as f32, p.y as f32, p.z as f32]);
-        leg_of.push(seg.leg as u32);
-    }
-    close_legs(&mut legs, &leg_of, dt);
-    Trajectory {
-        samples,
-        enu_m,
-        leg_of,
-        legs,
-        dt_s: dt,
-        given_w,
-    }
+        }
+    });
+    tr.given_w = given_w;
+    tr
 }
 
 #[cfg(test)]

@@ -101,16 +101,7 @@ impl Flight {
                 100_000.0,
             ),
         ];
-        let errs: Vec<String> = checks
-            .iter()
-            .filter(|(_, v, lo, hi)| !(v.is_finite() && v >= lo && v <= hi))
-            .map(|(k, v, lo, hi)| format!("fixed_wing_flight.{k} = {v}: must be in [{lo}, {hi}]"))
-            .collect();
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        super::check_ranges("fixed_wing_flight", &checks)
     }
 
     /// The radius of a turn at airspeed `v` m/s and the bank limit, m: V²/(g·tan φ_max).
