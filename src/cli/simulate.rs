@@ -22,12 +22,17 @@ pub(crate) struct SimulateArgs {
         required_unless_present = "udp"
     )]
     out: Option<PathBuf>,
+    /// Also write the simulator's ground truth at 10 Hz to this CSV (`t_s,phase,power_w,
+    /// voltage_v,ground_speed_mps,north_m,east_m,height_m,vtol`): what a replay is scored against.
+    #[arg(long, value_name = "FILE.csv")]
+    truth: Option<PathBuf>,
     /// Stream the flight's MAVLink frames to this UDP address (`dronewatt monitor udpin:…`).
     #[arg(long, value_name = "HOST:PORT")]
     udp: Option<String>,
-    /// Commanded cruise ground speed, m/s.
-    #[arg(long, default_value_t = 10.0)]
-    speed_mps: f64,
+    /// Commanded cruise speed, m/s: a multirotor's ground speed (default 10), a plane's
+    /// airspeed (default its `[plane] cruise_mps`; never under 1.25 × its stall speed).
+    #[arg(long)]
+    speed_mps: Option<f64>,
     /// Cruise altitude above home, m.
     #[arg(long, default_value_t = 25.0)]
     altitude_m: f64,
@@ -62,8 +67,9 @@ pub(crate) struct SimulateArgs {
     /// Whose telemetry style to imitate.
     #[arg(long, value_enum, default_value_t = Autopilot::Ardupilot)]
     autopilot: Autopilot,
-    /// The airframe and battery: a built-in profile (m100, x500, quad-3s) or a vehicle
-    /// profile file with the simulator's sections ([rotor], [body], [powertrain], [battery]).
+    /// The airframe and battery: a built-in profile (m100, x500, quad-3s, plane, quadplane)
+    /// or a vehicle profile file with the simulator's sections ([rotor], [body],
+    /// [powertrain], [battery]; [plane] for a plane, and all of them for a quadplane).
     #[arg(long, value_name = "PROFILE", default_value = "m100")]
     vehicle: String,
     /// Fly this many vehicles at once on the one link or tlog: system ids 1..=N, each its own
@@ -84,19 +90,22 @@ impl SimulateArgs {
     /// The library's options; an out-of-range value is named by its flag.
     fn options(&self) -> Result<SimOptions> {
         let flag = |e: InvalidOption| anyhow::anyhow!("--{} {}", e.key.replace('_', "-"), e.reason);
+        let vehicle = crate::model::profile::VehicleProfile::named_or_file(&self.vehicle)?;
+        let speed_mps = self
+            .speed_mps
+            .unwrap_or_else(|| vehicle.plane.as_ref().map_or(10.0, |p| p.cruise_mps));
         let (route, mission) = match &self.plan {
             Some(path) => {
                 let plan = crate::mission::plan::Plan::load(path)?;
-                let (route, mission) =
-                    sim::SimMission::from_plan(&plan, self.speed_mps, self.autopilot)
-                        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                let (route, mission) = sim::SimMission::from_plan(&plan, speed_mps, self.autopilot)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
                 (route, Some(mission))
             }
             None => {
                 let triangle = Triangle {
                     leg_m: self.leg_m,
                     altitude_m: self.altitude_m,
-                    speed_mps: self.speed_mps,
+                    speed_mps,
                     hover_s: self.hover_s,
                 };
                 triangle.validate().map_err(flag)?;
@@ -104,7 +113,7 @@ impl SimulateArgs {
             }
         };
         let opts = SimOptions {
-            vehicle: crate::model::profile::VehicleProfile::named_or_file(&self.vehicle)?,
+            vehicle,
             route,
             mission,
             payload_g: self.payload_g,
@@ -162,6 +171,9 @@ pub(crate) fn simulate(args: SimulateArgs) -> Result<()> {
         )
     };
     let duration_s = flight.duration_s();
+    if let Some(path) = &args.truth {
+        sim::output::write_truth(path, &flight)?;
+    }
     tracing::info!(
         messages = flight.records.len(),
         duration_s,
@@ -192,7 +204,7 @@ pub(crate) fn simulate(args: SimulateArgs) -> Result<()> {
         } else {
             String::new()
         };
-        eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.1} Wh drawn{who}, {bytes} bytes", path.display());
+        eprintln!("{}: {n} messages, {duration_s:.1} s of flight, {energy_wh:.3} Wh drawn{who}, {bytes} bytes", path.display());
         return Ok(());
     }
     let addr = args

@@ -562,7 +562,11 @@ impl EnergyTracker {
     /// The model whose prediction is the forecast ([`select`]), when it ran.
     fn forecast_model<'a>(&self, est: &'a Estimate) -> Option<&'a ModelEstimate> {
         let name = &self.selector.current().model;
-        est.models.iter().find(|m| m.name == *name)
+        est.models
+            .iter()
+            .find(|m| m.name == *name)
+            // On a wing (a plane, a VTOL in forward flight) only the fixed-wing model runs.
+            .or_else(|| est.models.iter().find(|m| m.name == "fixed_wing"))
     }
 }
 

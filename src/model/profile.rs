@@ -27,13 +27,18 @@ use super::physics::{dandrea, dorling, kirschstein, stolaroff, tseng};
 pub const M100_TOML: &str = include_str!("../../config/vehicles/m100.toml");
 
 /// The profiles compiled in, by the name `--vehicle` takes: the M100, a Holybro X500 V2
-/// class 4S quad, a 1 kg 3S quad (`config/vehicles/NAME.toml`).
-pub const BUILT_IN: [(&str, &str); 3] = [
+/// class 4S quad, a 1 kg 3S quad, a 2 kg foam plane, a quadplane (`config/vehicles/NAME.toml`).
+pub const BUILT_IN: [(&str, &str); 5] = [
     ("m100", M100_TOML),
     ("x500", include_str!("../../config/vehicles/x500.toml")),
     (
         "quad-3s",
         include_str!("../../config/vehicles/quad-3s.toml"),
+    ),
+    ("plane", include_str!("../../config/vehicles/plane.toml")),
+    (
+        "quadplane",
+        include_str!("../../config/vehicles/quadplane.toml"),
     ),
 ];
 
@@ -83,6 +88,10 @@ pub struct VehicleProfile {
     /// `[battery]`: the pack (optional; the simulator needs it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub battery: Option<Battery>,
+    /// `[plane]`: the simulator's wing and forward-flight powertrain, the truth a simulated
+    /// plane or quadplane flies (optional; `simulate` flies a plane when it is present).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plane: Option<PlaneSim>,
     /// Present only in a profile written by `dronewatt calibrate`: models built from it
     /// are named with a `_cal` suffix.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -203,6 +212,96 @@ pub struct Powertrain {
     pub idle_w: f64,
 }
 
+/// `[plane]`: what a simulated plane (or a quadplane's wing and pusher) really is, the
+/// simulator's truth (`crate::sim::plane`; never read by the power models, whose figures
+/// are `[fixed_wing]`). The mass is `[vehicle] airframe_kg + battery_kg` (+ payload).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneSim {
+    /// Wing area S, m².
+    pub wing_area_m2: f64,
+    /// Span b, m.
+    pub span_m: f64,
+    /// Zero-lift drag coefficient at `cd0_ref_mps` (skin friction falls as Re^-0.2 above it), 1.
+    pub cd0: f64,
+    /// Airspeed at which `cd0` holds, m/s.
+    pub cd0_ref_mps: f64,
+    /// Oswald efficiency of the real wing, 1.
+    pub oswald_e: f64,
+    /// Maximum lift coefficient (sets the stall speed), 1.
+    pub cl_max: f64,
+    /// Cruise airspeed, m/s (the default commanded speed).
+    pub cruise_mps: f64,
+    /// Bank limit, deg (ArduPlane `ROLL_LIMIT_DEG`).
+    pub bank_limit_deg: f64,
+    /// Forward propeller diameter, m.
+    pub prop_diameter_m: f64,
+    /// Forward propeller pitch, m.
+    pub prop_pitch_m: f64,
+    /// Best blade (profile) efficiency of the propeller, 1 (ideal momentum loss apart).
+    pub prop_blade_eff: f64,
+    /// Static thrust at full throttle, N.
+    pub max_thrust_n: f64,
+    /// Motor velocity constant, rpm/V.
+    pub motor_kv: f64,
+    /// Motor winding resistance, Ω.
+    pub motor_r_ohm: f64,
+    /// Motor no-load current, A.
+    pub motor_i0_a: f64,
+    /// ESC efficiency, 1.
+    pub esc_eff: f64,
+    /// Flight controller, GNSS, radios, W.
+    pub avionics_w: f64,
+    /// Servos holding the surfaces in calm air, W (more in turbulence and turns).
+    pub servo_w: f64,
+    /// The quadplane's transition airspeed (ArduPlane `ARSPD_FBW_MIN`), m/s; unused on a plane.
+    #[serde(default)]
+    pub transition_mps: f64,
+}
+
+impl PlaneSim {
+    fn validate(&self) -> Result<(), String> {
+        use crate::validate::{above, in_range};
+        for (k, v) in [
+            ("plane.wing_area_m2", self.wing_area_m2),
+            ("plane.span_m", self.span_m),
+            ("plane.cd0", self.cd0),
+            ("plane.cd0_ref_mps", self.cd0_ref_mps),
+            ("plane.cl_max", self.cl_max),
+            ("plane.cruise_mps", self.cruise_mps),
+            ("plane.prop_diameter_m", self.prop_diameter_m),
+            ("plane.prop_pitch_m", self.prop_pitch_m),
+            ("plane.max_thrust_n", self.max_thrust_n),
+            ("plane.motor_kv", self.motor_kv),
+        ] {
+            in_range(k, v, above(0.0), "")?;
+        }
+        for (k, v) in [
+            ("plane.oswald_e", self.oswald_e),
+            ("plane.prop_blade_eff", self.prop_blade_eff),
+            ("plane.esc_eff", self.esc_eff),
+        ] {
+            in_range(k, v, crate::validate::above_to(0.0, 1.0), "")?;
+        }
+        in_range(
+            "plane.bank_limit_deg",
+            self.bank_limit_deg,
+            5.0..=75.0,
+            "deg",
+        )?;
+        for (k, v) in [
+            ("plane.motor_r_ohm", self.motor_r_ohm),
+            ("plane.motor_i0_a", self.motor_i0_a),
+            ("plane.avionics_w", self.avionics_w),
+            ("plane.servo_w", self.servo_w),
+            ("plane.transition_mps", self.transition_mps),
+        ] {
+            in_range(k, v, 0.0.., "")?;
+        }
+        Ok(())
+    }
+}
+
 /// `[battery]`: a pack of `cells` in series behind an internal resistance. Terminal voltage
 /// `V = OCV(SoC)·cells − I·R`; a power draw P gives the current that solves `V·I = P`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -317,8 +416,14 @@ impl VehicleProfile {
         }
     }
 
-    /// Read a profile file.
+    /// Read a profile file; a bare built-in name (`plane`, `x500`, …) that is not a file
+    /// names the built-in profile, so `--vehicle plane` works everywhere.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
+        if !path.exists() {
+            if let Some((n, text)) = BUILT_IN.iter().find(|(n, _)| Path::new(n) == path) {
+                return Self::from_toml(text, &format!("built-in {n}.toml"));
+            }
+        }
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("{}: cannot read vehicle profile", path.display()))?;
         Self::from_toml(&text, &path.display().to_string())
@@ -388,6 +493,9 @@ impl VehicleProfile {
         if let Some(f) = &self.fixed_wing_flight {
             f.validate()?;
         }
+        if let Some(p) = &self.plane {
+            p.validate()?;
+        }
         Ok(())
     }
 
@@ -447,13 +555,13 @@ mod tests {
                 text,
                 "{name}: the compiled-in text is the file"
             );
+            // What the simulator flies it with: rotors, or a wing ([plane]), or both.
+            let rotors = p.rotor.is_some() && p.body.is_some() && p.powertrain.is_some();
             assert!(
-                p.rotor.is_some()
-                    && p.body.is_some()
-                    && p.powertrain.is_some()
-                    && p.battery.is_some(),
+                (rotors || p.plane.is_some()) && p.battery.is_some(),
                 "{name}"
             );
+            assert_eq!(p.plane.is_some(), p.fixed_wing.is_some(), "{name}");
         }
         let e = VehicleProfile::named_or_file("no-such-vehicle")
             .unwrap_err()

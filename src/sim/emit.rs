@@ -4,14 +4,14 @@
 //!
 //! | message | rate | noise |
 //! |---|---|---|
-//! | HEARTBEAT | 1 Hz, and at once on each phase change | — |
+//! | HEARTBEAT | 1 Hz, and at once on each phase or mode change | — |
 //! | NAMED_VALUE_FLOAT `cmd_speed`, `payload_g`, `cmd_alt` | 1 Hz | — |
 //! | PARAM_VALUE: battery capacity, cells or voltage thresholds, … ([`Style::parameters`]) | once, at start | — |
 //! | SYS_STATUS, BATTERY_STATUS | 2 Hz | σ_V = 0.05 V; σ_I = 0.1 A + 7 % of the current |
 //! | GLOBAL_POSITION_INT, GPS_RAW_INT | 5 Hz | Gauss–Markov position error; σ_v = 8/8/5 cm/s |
 //! | attitude ([`Style::attitude`]) | 10 Hz | σ = 0.004/0.004/0.006 rad; rates 0.015/0.015/0.01 rad/s |
 //! | IMU ([`Style::imu`]) | 10 Hz | vibration σ 0.03 (disarmed), 0.2 (idling), 0.3 m/s² (flying) |
-//! | VFR_HUD | 4 Hz | σ_airspeed 0.1 m/s |
+//! | VFR_HUD | 4 Hz | σ_airspeed 0.1 m/s (a plane's: its airspeed sensor's true airspeed) |
 //! | air data ([`Style::air_data`]) | the style's | — |
 //! | HOME_POSITION | once armed, then every 5 s | — |
 //!
@@ -25,7 +25,7 @@ use nalgebra::Vector3;
 use rand::rngs::StdRng;
 
 use super::physics::{Battery, G};
-use super::{std_normal, Autopilot, SimOptions, SimRecord, State, EPOCH_START_US, HOME};
+use super::{std_normal, Autopilot, Frame, SimOptions, SimRecord, State, EPOCH_START_US, HOME};
 use crate::dialect as d;
 use crate::sim::guidance::{Phase, Route};
 use crate::MavMessage;
@@ -98,6 +98,8 @@ pub struct Instant<'a> {
     pub wind_est: &'a Vector3<f64>,
     /// Mission phase.
     pub phase: Phase,
+    /// The airframe (HEARTBEAT type, modes, airspeed sensor).
+    pub frame: Frame,
 }
 
 impl Instant<'_> {
@@ -116,12 +118,14 @@ impl Instant<'_> {
 pub trait Style {
     /// HEARTBEAT's `autopilot`.
     fn autopilot(&self) -> d::MavAutopilot;
-    /// HEARTBEAT's `custom_mode` for a phase.
-    fn custom_mode(&self, phase: Phase) -> u32;
+    /// HEARTBEAT's `custom_mode` in `now`'s phase, for its frame and VTOL state.
+    fn custom_mode(&self, now: &Instant) -> u32;
+    /// HEARTBEAT's `type` for a frame.
+    fn mav_type(&self, frame: Frame) -> d::MavType;
     /// The battery and frame parameters a ground station reads at connection, as
     /// PARAM_VALUE payloads (index and count are filled in by the emitter).
     fn parameters(&self, opts: &SimOptions) -> Vec<d::PARAM_VALUE_DATA>;
-    /// Landed state (PX4's EXTENDED_SYS_STATE); before the battery messages.
+    /// Landed and VTOL state (EXTENDED_SYS_STATE); before the battery messages.
     fn landed_state(&self, now: &Instant) -> Option<MavMessage>;
     /// Attitude messages, given the measured roll, pitch, yaw (rad) and body rates (rad/s),
     /// when the 10 Hz attitude slot is due.
@@ -162,7 +166,7 @@ pub struct Emitter {
     seq: u8,
     records: Vec<SimRecord>,
     home_sent: bool,
-    last_phase: Option<Phase>,
+    last_mode: Option<(Phase, u32)>,
     mission: Option<super::SimMission>,
     mission_logged: bool,
 }
@@ -184,7 +188,7 @@ impl Emitter {
             seq: 0,
             records: Vec::new(),
             home_sent: false,
-            last_phase: None,
+            last_mode: None,
             mission: opts.mission.clone(),
             mission_logged: false,
         }
@@ -209,7 +213,8 @@ impl Emitter {
         });
     }
 
-    fn heartbeat(&self, armed: bool, phase: Phase) -> MavMessage {
+    fn heartbeat(&self, now: &Instant) -> MavMessage {
+        let (armed, phase) = (now.st.armed, now.phase);
         let mut base = d::MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
             | d::MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
         if armed {
@@ -220,8 +225,8 @@ impl Emitter {
                 | d::MavModeFlag::MAV_MODE_FLAG_AUTO_ENABLED;
         }
         MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
-            custom_mode: self.style.custom_mode(phase),
-            mavtype: d::MavType::MAV_TYPE_QUADROTOR,
+            custom_mode: self.style.custom_mode(now),
+            mavtype: self.style.mav_type(now.frame),
             autopilot: self.style.autopilot(),
             base_mode: base,
             system_status: if armed {
@@ -242,12 +247,13 @@ impl Emitter {
 
         // Heartbeat at 1 Hz, and at once when the mode or arming changes (so HOME_POSITION
         // never precedes the armed heartbeat).
-        if self.last_phase != Some(phase) {
-            self.last_phase = Some(phase);
-            self.push(t_ms, self.heartbeat(st.armed, phase));
+        let mode = self.style.custom_mode(now);
+        if self.last_mode != Some((phase, mode)) {
+            self.last_mode = Some((phase, mode));
+            self.push(t_ms, self.heartbeat(now));
         }
         if Every::new(1000, 0).due(t_ms) {
-            self.push(t_ms, self.heartbeat(st.armed, phase));
+            self.push(t_ms, self.heartbeat(now));
             let (speed_mps, alt_m) = self.route.commanded(phase);
             for (name, value) in [
                 ("cmd_speed", speed_mps),
@@ -373,10 +379,12 @@ impl Emitter {
             self.push(t_ms, m);
         }
         if Every::new(250, 60).due(t_ms) {
-            let air = if st.in_air {
-                (st.vel - now.wind_est).norm()
-            } else {
-                0.0
+            // A plane's airspeed sensor reads the true airspeed; a multirotor's autopilot
+            // says its ground velocity less its wind estimate.
+            let air = match (st.airspeed_mps, st.in_air) {
+                (Some(a), _) => a,
+                (None, true) => (st.vel - now.wind_est).norm(),
+                (None, false) => 0.0,
             };
             self.push(
                 t_ms,
@@ -429,12 +437,16 @@ impl Emitter {
         let mv = (v_meas * 1000.0).round().clamp(0.0, 65534.0) as u16;
         let ca = (i_meas * 100.0).round().clamp(-32768.0, 32767.0) as i16;
         let remaining = (bat.soc * 100.0).round().clamp(0.0, 100.0) as i8;
-        let sensors = d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_3D_GYRO
+        let mut sensors = d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_3D_GYRO
             | d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_3D_ACCEL
             | d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_3D_MAG
             | d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
             | d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_GPS
             | d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_BATTERY;
+        if now.frame != Frame::Multirotor {
+            // A plane's airspeed sensor: present, enabled, healthy.
+            sensors |= d::MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE;
+        }
         self.push(
             t_ms,
             MavMessage::SYS_STATUS(d::SYS_STATUS_DATA {
@@ -468,6 +480,28 @@ impl Emitter {
             }),
         );
     }
+}
+
+/// EXTENDED_SYS_STATE at `now`: the landed state from the phase, the VTOL state.
+pub fn extended_sys_state(now: &Instant) -> MavMessage {
+    use crate::features::VtolState as V;
+    let landed = match now.phase {
+        Phase::Climb => d::MavLandedState::MAV_LANDED_STATE_TAKEOFF,
+        Phase::Descent => d::MavLandedState::MAV_LANDED_STATE_LANDING,
+        _ if now.st.in_air => d::MavLandedState::MAV_LANDED_STATE_IN_AIR,
+        _ => d::MavLandedState::MAV_LANDED_STATE_ON_GROUND,
+    };
+    let vtol_state = match now.st.vtol {
+        V::Undefined => d::MavVtolState::MAV_VTOL_STATE_UNDEFINED,
+        V::Mc => d::MavVtolState::MAV_VTOL_STATE_MC,
+        V::Fw => d::MavVtolState::MAV_VTOL_STATE_FW,
+        V::TransitionToFw => d::MavVtolState::MAV_VTOL_STATE_TRANSITION_TO_FW,
+        V::TransitionToMc => d::MavVtolState::MAV_VTOL_STATE_TRANSITION_TO_MC,
+    };
+    MavMessage::EXTENDED_SYS_STATE(d::EXTENDED_SYS_STATE_DATA {
+        vtol_state,
+        landed_state: landed,
+    })
 }
 
 /// A PARAM_VALUE payload (index and count left for the emitter).

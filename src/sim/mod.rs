@@ -12,6 +12,7 @@
 //! | [`crate::sim::guidance`] | the route: take-off, waypoints, holds, landing → desired velocity |
 //! | this module | the loop: wind and gusts, the velocity loop and its lag, attitude, sensor errors |
 //! | [`physics`] | rotor power by momentum theory and the battery, from the [`VehicleProfile`] |
+//! | [`plane`] | a plane and a quadplane: fixed-wing flight (coordinated turns, TECS-like climb, loiter, approach), transitions, their truth power |
 //! | [`emit`] | the state → MAVLink at an autopilot's rates, with sensor noise |
 //! | [`ardupilot`], [`px4`] | what differs between the two: modes, attitude and IMU messages, parameters |
 //! | [`output`] | `.tlog` bytes and the paced UDP stream |
@@ -37,6 +38,7 @@ pub mod emit;
 pub mod guidance;
 pub mod output;
 pub mod physics;
+pub mod plane;
 pub mod px4;
 pub mod ulog;
 
@@ -61,6 +63,29 @@ pub enum Autopilot {
     Ardupilot,
     /// PX4: ATTITUDE_QUATERNION, HIGHRES_IMU (SI), ALTITUDE, EXTENDED_SYS_STATE, no WIND.
     Px4,
+}
+
+/// What airframe the profile describes, and so which flight model flies it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Frame {
+    /// Rotors only (the profile has no `[plane]`).
+    Multirotor,
+    /// A plane: `[plane]`, class not `vtol`.
+    Plane,
+    /// A quadplane: `[plane]` for the wing and pusher, `[rotor]`… for the lift rotors,
+    /// `[vehicle] class = "vtol"`.
+    Quadplane,
+}
+
+impl Frame {
+    /// The frame a profile describes.
+    pub fn of(p: &VehicleProfile) -> Self {
+        match (&p.plane, p.vehicle.class) {
+            (None, _) => Frame::Multirotor,
+            (Some(_), Some(crate::features::VehicleClass::Vtol)) => Frame::Quadplane,
+            (Some(_), _) => Frame::Plane,
+        }
+    }
 }
 
 /// What to simulate: a vehicle, a route, the payload and the weather.
@@ -174,19 +199,20 @@ impl SimOptions {
     /// Range checks; the error names the option (`payload_g`, `waypoints[1].speed_mps`).
     pub fn validate(&self) -> anyhow::Result<()> {
         self.route.validate()?;
-        let frame = Airframe::from_profile(&self.vehicle)?;
+        if Frame::of(&self.vehicle) != Frame::Plane {
+            Airframe::from_profile(&self.vehicle)?;
+        }
         Battery::from_profile(&self.vehicle, self.battery)?;
-        let max_g = crate::features::units::floor_ratio(frame.max_payload_kg() * 1000.0, 1.0)
+        let v = &self.vehicle.vehicle;
+        let empty_kg = self.vehicle.mass_kg(0.0);
+        let max_g = crate::features::units::floor_ratio((v.mtow_kg - empty_kg) * 1000.0, 1.0)
             .unwrap_or(0.0)
             .max(0.0);
         guidance::in_range("payload_g", self.payload_g, 0.0, max_g, false).map_err(|e| {
             InvalidOption {
                 reason: format!(
                     "{} ({}: {} kg MTOW − {:.3} kg empty)",
-                    e.reason,
-                    self.vehicle.name,
-                    frame.mtow_kg,
-                    frame.mass_kg(0.0)
+                    e.reason, self.vehicle.name, v.mtow_kg, empty_kg
                 ),
                 ..e
             }
@@ -243,6 +269,8 @@ pub struct TruthSample {
     pub east_m: f64,
     /// Height above home, m.
     pub height_m: f64,
+    /// A VTOL's state (`Undefined` for others).
+    pub vtol: crate::features::VtolState,
 }
 
 /// A simulated flight: every message in time order, plus the ground truth.
@@ -341,79 +369,189 @@ pub struct State {
     pub in_air: bool,
     /// Throttle, %.
     pub throttle: f64,
+    /// A VTOL's state (`Undefined` for others).
+    pub vtol: crate::features::VtolState,
+    /// True airspeed an airspeed sensor reads (planes), m/s; None: no sensor.
+    pub airspeed_mps: Option<f64>,
 }
 
-/// Fly `opts` and return every message and the ground truth. Pure computation.
+/// The weather and the GNSS error: mean wind plus Gauss–Markov gusts, the autopilot's slow
+/// wind estimate, and the GNSS position error. One per flight, drawn from the flight's RNG.
+pub(crate) struct Weather {
+    mean: Vector3<f64>,
+    gust: [Markov; 3],
+    gps_err: [Markov; 3],
+    /// The autopilot's wind estimate, NED m/s.
+    pub wind_est: Vector3<f64>,
+}
+
+impl Weather {
+    /// Gusts of σ = 0.1·wind + 0.2 m/s horizontally (30 % of it vertically), τ = 4 s; GNSS
+    /// error σ 0.6/0.6/0.4 m, τ 20/20/10 s.
+    pub fn new(opts: &SimOptions) -> Self {
+        let mean = opts.wind_ned();
+        let gust_sigma = 0.1 * opts.wind_mps + 0.2;
+        let mut gust = [Markov {
+            x: 0.0,
+            sigma: gust_sigma,
+            tau: 4.0,
+        }; 3];
+        gust[2].sigma = 0.3 * gust_sigma;
+        let m = |sigma, tau| Markov { x: 0.0, sigma, tau };
+        Self {
+            mean,
+            gust,
+            gps_err: [m(0.6, 20.0), m(0.6, 20.0), m(0.4, 10.0)],
+            wind_est: mean,
+        }
+    }
+
+    /// The wind this step (mean + gust), and the estimate's filter (τ = 3 s) stepped.
+    pub fn wind(&mut self, rng: &mut StdRng) -> Vector3<f64> {
+        let g = Vector3::new(
+            self.gust[0].step(rng, DT),
+            self.gust[1].step(rng, DT),
+            self.gust[2].step(rng, DT),
+        );
+        let w = self.mean + g;
+        self.wind_est += (w - self.wind_est) * (DT / 3.0);
+        w
+    }
+
+    /// The GNSS position error this step, NED m.
+    pub fn gps(&mut self, rng: &mut StdRng) -> Vector3<f64> {
+        Vector3::new(
+            self.gps_err[0].step(rng, DT),
+            self.gps_err[1].step(rng, DT),
+            self.gps_err[2].step(rng, DT),
+        )
+    }
+}
+
+/// A multirotor's velocity loop for one step: the acceleration `K_v·(v_des − v)`, clipped
+/// ([`A_MAX_H`], [`A_MAX_V`]), lagged (τ [`TAU_A`]) and integrated; the ground is a floor;
+/// the yaw follows the desired track (45°/s at most) when moving.
+pub(crate) fn mc_velocity_step(st: &mut State, vd: Vector3<f64>) {
+    let mut a_cmd = (vd - st.vel) * guidance::VELOCITY_GAIN_PER_S;
+    let ah = (a_cmd.x * a_cmd.x + a_cmd.y * a_cmd.y).sqrt();
+    if ah > A_MAX_H {
+        a_cmd.x *= A_MAX_H / ah;
+        a_cmd.y *= A_MAX_H / ah;
+    }
+    a_cmd.z = a_cmd.z.clamp(-A_MAX_V, A_MAX_V);
+    st.acc += (a_cmd - st.acc) * (DT / TAU_A);
+    st.vel += st.acc * DT;
+    st.pos += st.vel * DT;
+    if st.pos.z > 0.0 {
+        st.pos.z = 0.0;
+        st.vel.z = st.vel.z.min(0.0);
+    }
+    let vh = (vd.x * vd.x + vd.y * vd.y).sqrt();
+    if vh > 1.0 {
+        let want = vd.y.atan2(vd.x);
+        let err = wrap_pi(want - st.yaw);
+        st.yaw = wrap_pi(st.yaw + err.clamp(-YAW_RATE_MAX * DT, YAW_RATE_MAX * DT));
+    }
+}
+
+/// Set the attitude, the body rates from the change since the last step.
+pub(crate) fn set_attitude(st: &mut State, rot: Rotation3<f64>) {
+    let d_rot = st.rot.inverse() * rot;
+    let m = d_rot.matrix();
+    st.rates = Vector3::new(
+        m[(2, 1)] - m[(1, 2)],
+        m[(0, 2)] - m[(2, 0)],
+        m[(1, 0)] - m[(0, 1)],
+    ) / (2.0 * DT);
+    st.rot = rot;
+}
+
+/// What one step leaves behind: the truth at 10 Hz and the telemetry.
+pub(crate) struct Recorder {
+    pub emitter: emit::Emitter,
+    pub truth: Vec<TruthSample>,
+    pub frame: Frame,
+}
+
+impl Recorder {
+    pub fn new(opts: &SimOptions) -> Self {
+        Self {
+            emitter: emit::Emitter::new(opts),
+            truth: Vec::new(),
+            frame: Frame::of(&opts.vehicle),
+        }
+    }
+
+    /// Record step `step` (10 ms each) of the flight.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record(
+        &mut self,
+        step: u64,
+        phase: Phase,
+        st: &State,
+        battery: &Battery,
+        weather: &mut Weather,
+        rng: &mut StdRng,
+    ) {
+        let t_ms = step * 10;
+        let gps = weather.gps(rng);
+        if t_ms.is_multiple_of(100) {
+            self.truth.push(TruthSample {
+                t_s: step as f64 * DT,
+                phase,
+                power_w: st.power_w,
+                voltage_v: st.voltage_v,
+                ground_speed_mps: (st.vel.x * st.vel.x + st.vel.y * st.vel.y).sqrt(),
+                height_m: -st.pos.z,
+                north_m: st.pos.x,
+                east_m: st.pos.y,
+                vtol: st.vtol,
+            });
+        }
+        self.emitter.emit(
+            &emit::Instant {
+                t_ms,
+                st,
+                battery,
+                gps_err: &gps,
+                wind_est: &weather.wind_est,
+                phase,
+                frame: self.frame,
+            },
+            rng,
+        );
+    }
+
+    pub fn finish(self) -> SimFlight {
+        SimFlight {
+            records: self.emitter.into_records(),
+            truth: self.truth,
+        }
+    }
+}
+
+/// Fly `opts` and return every message and the ground truth. Pure computation. A profile
+/// with a `[plane]` section flies as a plane or a quadplane ([`plane`]).
 pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
     opts.validate()?;
+    if Frame::of(&opts.vehicle) != Frame::Multirotor {
+        return plane::simulate(opts);
+    }
     let frame = Airframe::from_profile(&opts.vehicle)?;
     let mut battery = Battery::from_profile(&opts.vehicle, opts.battery)?;
     let mut rng = StdRng::seed_from_u64(opts.seed);
     let mass = frame.mass_kg(opts.payload_g / 1000.0);
     let mut guide = Guidance::new(opts.route.clone());
-    let mean_wind = opts.wind_ned();
-    let gust_sigma = 0.1 * opts.wind_mps + 0.2;
-    let mut gust = [Markov {
-        x: 0.0,
-        sigma: gust_sigma,
-        tau: 4.0,
-    }; 3];
-    gust[2].sigma = 0.3 * gust_sigma;
-    let mut gps_err = [
-        Markov {
-            x: 0.0,
-            sigma: 0.6,
-            tau: 20.0,
-        },
-        Markov {
-            x: 0.0,
-            sigma: 0.6,
-            tau: 20.0,
-        },
-        Markov {
-            x: 0.0,
-            sigma: 0.4,
-            tau: 10.0,
-        },
-    ];
-    let mut wind_est = mean_wind;
+    let mut weather = Weather::new(opts);
     let hover_p = frame
         .power(mass, Vector3::zeros(), Vector3::zeros())
         .electrical_w;
 
-    let mut st = State {
-        pos: Vector3::zeros(),
-        vel: Vector3::zeros(),
-        acc: Vector3::zeros(),
-        yaw: 0.0,
-        rot: Rotation3::identity(),
-        rates: Vector3::zeros(),
-        wind: mean_wind,
-        power_w: frame.avionics_w,
-        voltage_v: battery.ocv_v(),
-        current_a: 0.0,
-        armed: false,
-        in_air: false,
-        throttle: 0.0,
-    };
-    let mut emitter = emit::Emitter::new(opts);
-    let mut truth = Vec::new();
+    let mut st = State::at_home(frame.avionics_w, battery.ocv_v());
+    let mut rec = Recorder::new(opts);
     let mut step: u64 = 0;
-    let max_steps = (4.0 * 3600.0 / DT) as u64;
-
     loop {
-        let t = step as f64 * DT;
-        let t_ms = step * 10;
-        // Wind with gusts.
-        let g = Vector3::new(
-            gust[0].step(&mut rng, DT),
-            gust[1].step(&mut rng, DT),
-            gust[2].step(&mut rng, DT),
-        );
-        st.wind = mean_wind + g;
-        // The autopilot's wind estimate: a slow filter of the true wind.
-        wind_est += (st.wind - wind_est) * (DT / 3.0);
-
+        st.wind = weather.wind(&mut rng);
         let cmd = guide.step(&st.pos, &st.vel, DT);
         if cmd.finished {
             break;
@@ -427,27 +565,7 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
 
         // Kinematics: lagged acceleration toward the commanded one.
         if let (true, Some(vd)) = (st.in_air, cmd.velocity_ned) {
-            let mut a_cmd = (vd - st.vel) * guidance::VELOCITY_GAIN_PER_S;
-            let ah = (a_cmd.x * a_cmd.x + a_cmd.y * a_cmd.y).sqrt();
-            if ah > A_MAX_H {
-                a_cmd.x *= A_MAX_H / ah;
-                a_cmd.y *= A_MAX_H / ah;
-            }
-            a_cmd.z = a_cmd.z.clamp(-A_MAX_V, A_MAX_V);
-            st.acc += (a_cmd - st.acc) * (DT / TAU_A);
-            st.vel += st.acc * DT;
-            st.pos += st.vel * DT;
-            if st.pos.z > 0.0 {
-                st.pos.z = 0.0;
-                st.vel.z = st.vel.z.min(0.0);
-            }
-            // Yaw follows the desired track when moving.
-            let vh = (vd.x * vd.x + vd.y * vd.y).sqrt();
-            if vh > 1.0 {
-                let want = vd.y.atan2(vd.x);
-                let err = wrap_pi(want - st.yaw);
-                st.yaw = wrap_pi(st.yaw + err.clamp(-YAW_RATE_MAX * DT, YAW_RATE_MAX * DT));
-            }
+            mc_velocity_step(&mut st, vd);
         } else {
             st.acc = Vector3::zeros();
             st.vel = Vector3::zeros();
@@ -467,18 +585,9 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
             };
             (Rotation3::from_euler_angles(0.0, 0.0, st.yaw), p)
         };
-        let d_rot = st.rot.inverse() * rot;
-        let m = d_rot.matrix();
-        st.rates = Vector3::new(
-            m[(2, 1)] - m[(1, 2)],
-            m[(0, 2)] - m[(2, 0)],
-            m[(1, 0)] - m[(0, 1)],
-        ) / (2.0 * DT);
-        st.rot = rot;
+        set_attitude(&mut st, rot);
         st.power_w = power;
-        let (v, i) = battery.step(power, DT);
-        st.voltage_v = v;
-        st.current_a = i;
+        (st.voltage_v, st.current_a) = battery.step(power, DT);
         st.throttle = if st.in_air {
             (50.0 * (power / hover_p).sqrt()).clamp(0.0, 100.0)
         } else if st.armed {
@@ -486,48 +595,48 @@ pub fn simulate(opts: &SimOptions) -> anyhow::Result<SimFlight> {
         } else {
             0.0
         };
-
-        let gps = Vector3::new(
-            gps_err[0].step(&mut rng, DT),
-            gps_err[1].step(&mut rng, DT),
-            gps_err[2].step(&mut rng, DT),
-        );
-        if t_ms.is_multiple_of(100) {
-            truth.push(TruthSample {
-                t_s: t,
-                phase,
-                power_w: power,
-                voltage_v: v,
-                ground_speed_mps: (st.vel.x * st.vel.x + st.vel.y * st.vel.y).sqrt(),
-                height_m: -st.pos.z,
-                north_m: st.pos.x,
-                east_m: st.pos.y,
-            });
-        }
-        emitter.emit(
-            &emit::Instant {
-                t_ms,
-                st: &st,
-                battery: &battery,
-                gps_err: &gps,
-                wind_est: &wind_est,
-                phase,
-            },
-            &mut rng,
-        );
-
+        rec.record(step, phase, &st, &battery, &mut weather, &mut rng);
         step += 1;
-        if step > max_steps {
-            anyhow::bail!(
-                "the simulated mission did not finish within 4 hours of flight ({} waypoints)",
-                opts.route.waypoints.len()
-            );
+        check_steps(step, opts)?;
+    }
+    Ok(rec.finish())
+}
+
+/// The longest flight simulated, steps.
+const MAX_STEPS: u64 = (4.0 * 3600.0 / DT) as u64;
+
+/// An error once a flight passes 4 hours.
+pub(crate) fn check_steps(step: u64, opts: &SimOptions) -> anyhow::Result<()> {
+    if step > MAX_STEPS {
+        anyhow::bail!(
+            "the simulated mission did not finish within 4 hours of flight ({} waypoints)",
+            opts.route.waypoints.len()
+        );
+    }
+    Ok(())
+}
+
+impl State {
+    /// On the ground at home, level, disarmed, drawing `power_w` from a pack at `ocv_v`.
+    pub fn at_home(power_w: f64, ocv_v: f64) -> Self {
+        Self {
+            pos: Vector3::zeros(),
+            vel: Vector3::zeros(),
+            acc: Vector3::zeros(),
+            yaw: 0.0,
+            rot: Rotation3::identity(),
+            rates: Vector3::zeros(),
+            wind: Vector3::zeros(),
+            power_w,
+            voltage_v: ocv_v,
+            current_a: 0.0,
+            armed: false,
+            in_air: false,
+            throttle: 0.0,
+            vtol: crate::features::VtolState::Undefined,
+            airspeed_mps: None,
         }
     }
-    Ok(SimFlight {
-        records: emitter.into_records(),
-        truth,
-    })
 }
 
 fn wrap_pi(a: f64) -> f64 {

@@ -37,6 +37,30 @@ pub fn write_tlog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
     Ok(bytes.len())
 }
 
+/// Write `flight`'s ground truth (10 Hz) as CSV at `path`: `t_s,phase,power_w,voltage_v,
+/// ground_speed_mps,north_m,east_m,height_m,vtol`, the phase as `{:?}` (`Leg(2)`), the VTOL
+/// state as the JSON lines say it (`transition_to_fw`). Errors name the file.
+pub fn write_truth(path: &Path, flight: &SimFlight) -> anyhow::Result<()> {
+    let mut out =
+        String::from("t_s,phase,power_w,voltage_v,ground_speed_mps,north_m,east_m,height_m,vtol\n");
+    for s in &flight.truth {
+        out.push_str(&format!(
+            "{:.2},{:?},{:.3},{:.3},{:.3},{:.2},{:.2},{:.2},{}\n",
+            s.t_s,
+            s.phase,
+            s.power_w,
+            s.voltage_v,
+            s.ground_speed_mps,
+            s.north_m,
+            s.east_m,
+            s.height_m,
+            s.vtol.as_str()
+        ));
+    }
+    std::fs::write(path, out)
+        .with_context(|| format!("{}: cannot write the truth CSV", path.display()))
+}
+
 /// Write `flight` as an ArduPilot DataFlash `.bin` at `path` ([`super::dataflash`]);
 /// returns the bytes written. Errors name the file.
 pub fn write_dataflash(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {

@@ -6,7 +6,7 @@
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::emit::{param, pressure_pa, Every, Instant, Style};
-use super::{SimOptions, HOME};
+use super::{Frame, SimOptions, HOME};
 use crate::dialect as d;
 use crate::sim::guidance::Phase;
 use crate::MavMessage;
@@ -21,15 +21,25 @@ impl Style for Px4 {
     }
 
     /// PX4: main mode in bits 16..24, sub mode in 24..32. AUTO = 4; sub: TAKEOFF 2,
-    /// MISSION 4, LAND 6. Disarmed: POSCTL (3).
-    fn custom_mode(&self, phase: Phase) -> u32 {
-        let (main, sub) = match phase {
+    /// MISSION 4, LAND 6. Disarmed: POSCTL (3). The same for planes and VTOLs (PX4 says a
+    /// VTOL's state in EXTENDED_SYS_STATE, not in its modes).
+    fn custom_mode(&self, now: &Instant) -> u32 {
+        let (main, sub) = match now.phase {
             Phase::Spinup | Phase::Climb => (4u32, 2u32),
             Phase::Descent | Phase::Landed => (4, 6),
             Phase::Leg(_) | Phase::Hold(_) => (4, 4),
             Phase::PreArm | Phase::Done => (3, 0),
         };
         (main << 16) | (sub << 24)
+    }
+
+    /// PX4: QUADROTOR, FIXED_WING, and VTOL_FIXEDROTOR (22, the standard VTOL) for a quadplane.
+    fn mav_type(&self, frame: Frame) -> d::MavType {
+        match frame {
+            Frame::Multirotor => d::MavType::MAV_TYPE_QUADROTOR,
+            Frame::Plane => d::MavType::MAV_TYPE_FIXED_WING,
+            Frame::Quadplane => d::MavType::MAV_TYPE_VTOL_FIXEDROTOR,
+        }
     }
 
     /// From the profile's `[battery]`: `BAT1_CAPACITY` (mAh, REAL32), `BAT1_N_CELLS`
@@ -48,20 +58,16 @@ impl Style for Px4 {
         ]
     }
 
+    /// EXTENDED_SYS_STATE at 1 Hz (2 Hz for a VTOL: its transitions last seconds).
     fn landed_state(&self, now: &Instant) -> Option<MavMessage> {
-        if !Every::new(1000, 500).due(now.t_ms) {
-            return None;
-        }
-        let landed = match now.phase {
-            Phase::Climb => d::MavLandedState::MAV_LANDED_STATE_TAKEOFF,
-            Phase::Descent => d::MavLandedState::MAV_LANDED_STATE_LANDING,
-            _ if now.st.in_air => d::MavLandedState::MAV_LANDED_STATE_IN_AIR,
-            _ => d::MavLandedState::MAV_LANDED_STATE_ON_GROUND,
+        let every = if now.frame == Frame::Quadplane {
+            Every::new(500, 0)
+        } else {
+            Every::new(1000, 500)
         };
-        Some(MavMessage::EXTENDED_SYS_STATE(d::EXTENDED_SYS_STATE_DATA {
-            vtol_state: d::MavVtolState::MAV_VTOL_STATE_UNDEFINED,
-            landed_state: landed,
-        }))
+        every
+            .due(now.t_ms)
+            .then(|| super::emit::extended_sys_state(now))
     }
 
     fn attitude(

@@ -36,6 +36,7 @@ mod sim_airframes;
 mod sim_dataflash;
 mod sim_fleet;
 mod sim_physics;
+mod sim_plane;
 mod sim_tlog;
 mod sim_udp;
 mod sim_ulog;
