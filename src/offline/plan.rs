@@ -242,14 +242,46 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             .filter(|f| models.iter().any(|m| m.name() == f.model))
         {
             Some(fd) => {
-                let mut c = crate::mission::forecast::Calibration::uncorrected(&fd.model);
-                c.p90_ratio = OWN_MODEL_P90;
+                // its own forecast model, the others its profile scales (a VTOL's rotor
+                // model) and the fixed-wing model on the wing, each with its fitted scale
+                let mut names = vec![fd.model.clone()];
+                let wing_model = wing.then(|| "fixed_wing".to_string());
+                for n in fd.scale.keys().chain(wing_model.iter()) {
+                    if !names.contains(n) && models.iter().any(|m| m.name() == n) {
+                        names.push(n.clone());
+                    }
+                }
+                let p90 = fd.p90_ratio.unwrap_or(OWN_MODEL_P90);
+                let members: Vec<_> = names
+                    .iter()
+                    .map(|n| crate::mission::forecast::Member {
+                        scale: fd.scale.get(n).copied().unwrap_or(1.0),
+                        ..crate::mission::forecast::Member::of(n)
+                    })
+                    .collect();
+                let how = members
+                    .iter()
+                    .map(|m| format!("{} × {}", m.model, m.scale))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                let c = crate::mission::forecast::Calibration {
+                    members,
+                    p90_ratio: p90,
+                    ..crate::mission::forecast::Calibration::uncorrected(&fd.model)
+                };
+                c.validate().map_err(anyhow::Error::msg)?;
                 (
                     models,
                     c,
                     format!(
-                        "{}'s learned forecast model {} (uncorrected; P90 = {OWN_MODEL_P90} × P50)",
-                        profile.name, fd.model
+                        "{}'s forecast model{} {how} (P90 = {p90} × P50){}",
+                        profile.name,
+                        if names.len() > 1 { "s" } else { "" },
+                        if fd.why.is_empty() {
+                            String::new()
+                        } else {
+                            format!(": {}", fd.why)
+                        }
                     ),
                 )
             }

@@ -23,9 +23,12 @@
 //!   forecast can hold "for ever").
 //! - **Take-off** (NAV_TAKEOFF): a climb at `climb_m_s` and airspeed V toward the next
 //!   position, to the item's altitude (no ground run or launch: a few seconds).
-//! - **Landing** (NAV_LAND, RETURN_TO_LAUNCH): level to the start of a glide of
-//!   `land_glide_deg`, then the glide to the ground at the landing point (or home), the
-//!   fixed-wing model's power with the climb term negative: little more than the avionics.
+//! - **Landing** (NAV_LAND, RETURN_TO_LAUNCH): into the wind where there is one
+//!   (`land_into_wind`: over the landing point, out downwind to `land_straight_m` before
+//!   the glide's start, back), else straight in from the previous position; then the glide
+//!   of `land_glide_deg` at `land_airspeed_m_s` to the ground at the landing point (or
+//!   home), the fixed-wing model's power with the climb term negative: little more than
+//!   the avionics. No flare, no roll-out.
 //!   ArduPlane's RTL loiters at home unless RTL_AUTOLAND: the forecast lands there.
 //! - **VTOL** (class `vtol`): VTOL_TAKEOFF climbs vertically on the lift rotors
 //!   (`vtol_climb_m_s`, the multirotor models on the vehicle's own mass and rotors), then a
@@ -476,16 +479,34 @@ impl Builder<'_> {
         let glide = h / self.f.land_glide_deg.to_radians().tan();
         let p = at.unwrap_or_else(|| self.pos.xy() + glide * unit(self.psi));
         self.to_wing(p);
-        self.turn_toward(p);
-        let to = p - self.pos.xy();
-        if to.norm() > glide {
-            let start = p - to.normalize() * glide;
+        if self.f.land_into_wind && self.wind.norm() > 1.0 {
+            // over the point, out downwind, and back into the wind down the glide
+            self.turn_toward(p);
+            self.straight_to(V3::new(p.x, p.y, h));
+            let u = -self.wind / self.wind.norm();
+            let start = p - u * (glide + self.f.land_straight_m);
+            self.turn_toward(start);
             self.straight_to(V3::new(start.x, start.y, h));
+            let straight = p - u * glide;
+            self.turn_toward(straight);
+            self.straight_to(V3::new(straight.x, straight.y, h));
+        } else {
+            self.turn_toward(p);
+            let to = p - self.pos.xy();
+            if to.norm() > glide {
+                let start = p - to.normalize() * glide;
+                self.straight_to(V3::new(start.x, start.y, h));
+            }
+        }
+        let cruise = self.airspeed;
+        if let Some(v) = self.f.land_airspeed_m_s {
+            self.airspeed = v;
         }
         // the glide, whatever its slope, down to the ground at the point
         self.straight_to_within(V3::new(p.x, p.y, 0.0), f64::INFINITY);
         self.pos.z = 0.0;
         self.airborne = false;
+        self.airspeed = cruise;
     }
 }
 

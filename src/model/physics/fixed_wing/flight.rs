@@ -30,6 +30,17 @@ pub struct Flight {
     /// Glide slope of a NAV_LAND approach, deg. Default 5: PX4 `FW_LND_ANG` (ArduPlane
     /// glides from the last waypoint's height, no single parameter).
     pub land_glide_deg: f64,
+    /// Airspeed on the landing approach, m/s. Default none: the cruise airspeed (ArduPlane's
+    /// `TECS_LAND_ARSPD` −1 flies the approach between cruise and the minimum).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub land_airspeed_m_s: Option<f64>,
+    /// The landing is flown into the wind when there is one (over 1 m/s): over the landing
+    /// point, out downwind to the start of the approach, back down the glide slope. Default
+    /// true (what a pilot plans, and the simulated autopilot flies); false: the glide
+    /// starts on the way in from the previous position.
+    pub land_into_wind: bool,
+    /// Level straight before the glide on an into-wind approach, m. Default 80.
+    pub land_straight_m: f64,
     /// VTOL: climb rate of VTOL_TAKEOFF on the lift rotors, m/s. Default 2.5: ArduPlane
     /// `Q_WP_SPEED_UP` 250 cm/s (PX4 `MPC_Z_V_AUTO_UP` 3).
     pub vtol_climb_m_s: f64,
@@ -64,6 +75,9 @@ impl Default for Flight {
             sink_m_s: 5.0,
             loiter_radius_m: 60.0,
             land_glide_deg: 5.0,
+            land_airspeed_m_s: None,
+            land_into_wind: true,
+            land_straight_m: 80.0,
             vtol_climb_m_s: 2.5,
             vtol_descent_m_s: 1.5,
             vtol_land_final_m: 6.0,
@@ -88,6 +102,13 @@ impl Flight {
             ("sink_m_s", self.sink_m_s, 0.1, 30.0),
             ("loiter_radius_m", self.loiter_radius_m, 1.0, 10_000.0),
             ("land_glide_deg", self.land_glide_deg, 0.5, 45.0),
+            (
+                "land_airspeed_m_s",
+                self.land_airspeed_m_s.unwrap_or(self.cruise_m_s),
+                3.0,
+                100.0,
+            ),
+            ("land_straight_m", self.land_straight_m, 0.0, 10_000.0),
             ("vtol_climb_m_s", self.vtol_climb_m_s, 0.1, 20.0),
             ("vtol_descent_m_s", self.vtol_descent_m_s, 0.1, 20.0),
             ("vtol_land_final_m", self.vtol_land_final_m, 0.0, 1000.0),
