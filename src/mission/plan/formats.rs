@@ -62,8 +62,8 @@ pub(crate) fn build_item(
         85 => ItemKind::VtolLand,
         3000 => ItemKind::VtolTransition {
             to_fw: match p[0] {
-                s if s == 4.0 => true,
-                s if s == 3.0 => false,
+                4.0 => true,
+                3.0 => false,
                 s => {
                     return Err(format!(
                     "state (param1) = {s}: must be 3 (MAV_VTOL_STATE_MC) or 4 (MAV_VTOL_STATE_FW)"

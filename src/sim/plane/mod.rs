@@ -251,6 +251,7 @@ pub struct Ask {
 
 /// One fixed-wing step of `st` (inertial velocity, position) and `fl` (bank, thrust) in the
 /// air `wind`, asked `ask`; returns the pusher's draw. The formulas are the module docs'.
+#[allow(clippy::too_many_arguments)]
 fn fw_step(
     st: &mut State,
     fl: &mut Flight,

@@ -370,7 +370,7 @@ impl Builder<'_> {
 
     /// A VTOL on its rotors changes to forward flight (facing `toward`); a plane on the
     /// ground is taken to be airborne (it was launched).
-    fn to_wing(&mut self, toward: V2) {
+    fn onto_wing(&mut self, toward: V2) {
         if self.on_rotors {
             let to = toward - self.pos.xy();
             if to.norm() > 0.5 {
@@ -447,7 +447,7 @@ impl Builder<'_> {
         let h = self.pos.z;
         if self.vtol && vtol_land {
             if let Some(p) = at {
-                self.to_wing(p);
+                self.onto_wing(p);
                 self.turn_toward(p);
                 self.straight_to(V3::new(p.x, p.y, h));
             }
@@ -478,7 +478,7 @@ impl Builder<'_> {
         }
         let glide = h / self.f.land_glide_deg.to_radians().tan();
         let p = at.unwrap_or_else(|| self.pos.xy() + glide * unit(self.psi));
-        self.to_wing(p);
+        self.onto_wing(p);
         if self.f.land_into_wind && self.wind.norm() > 1.0 {
             // over the point, out downwind, and back into the wind down the glide
             self.turn_toward(p);
@@ -611,7 +611,7 @@ fn segments(
             }
             | ItemKind::LoiterUnlimited => match target {
                 Some(t) => {
-                    b.to_wing(t.xy());
+                    b.onto_wing(t.xy());
                     b.turn_toward(t.xy());
                     b.straight_to(t);
                     match item.kind {
@@ -624,13 +624,13 @@ fn segments(
             },
             ItemKind::LoiterTime { time_s } => {
                 let c0 = target.unwrap_or(b.pos);
-                b.to_wing(c0.xy());
+                b.onto_wing(c0.xy());
                 b.loiter(c0, radius, None, time_s);
                 "loiter".into()
             }
             ItemKind::LoiterTurns { turns } => {
                 let c0 = target.unwrap_or(b.pos);
-                b.to_wing(c0.xy());
+                b.onto_wing(c0.xy());
                 b.loiter(c0, radius, Some(turns), 0.0);
                 "loiter turns".into()
             }

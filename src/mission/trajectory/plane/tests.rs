@@ -23,8 +23,11 @@ fn cond(wind: Wind) -> Conditions {
     }
 }
 
-/// A plan of `kinds` at (north, east, alt) offsets from home (`None`: no position).
-fn plan(items: &[(u16, ItemKind, Option<(f64, f64, f64)>)]) -> Plan {
+/// A plan item: MAV_CMD, kind, (north, east, alt) offset from home (`None`: no position).
+type Spec = (u16, ItemKind, Option<(f64, f64, f64)>);
+
+/// A plan of these items.
+fn plan(items: &[Spec]) -> Plan {
     Plan {
         source: "test".into(),
         home: HOME,
