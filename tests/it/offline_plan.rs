@@ -511,13 +511,7 @@ fn plan_flies_a_plane_and_a_quadplane_as_they_fly() {
             if json {
                 c.args(["--json", "-"]);
             }
-            let out = c.output().unwrap();
-            assert!(
-                out.status.success(),
-                "{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            String::from_utf8(out.stdout).unwrap()
+            succeeds(&mut c)
         };
         (serde_json::from_str(&go(true)).unwrap(), go(false))
     };
@@ -543,27 +537,16 @@ fn plan_flies_a_plane_and_a_quadplane_as_they_fly() {
     );
     // the simulator flies the same plan; its energy against the forecast's
     let truth = dir.path().join("truth.csv");
-    let out = bin()
-        .args(["simulate", "--vehicle", "plane", "--plan"])
-        .arg(dir.path().join("plane.waypoints"))
-        .arg("--out")
-        .arg(dir.path().join("plane.tlog"))
-        .arg("--truth")
-        .arg(&truth)
-        .args([
-            "--wind-mps",
-            "4",
-            "--wind-dir-deg",
-            "270",
-            "--payload-g",
-            "0",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeds(
+        bin()
+            .args(["simulate", "--vehicle", "plane", "--plan"])
+            .arg(dir.path().join("plane.waypoints"))
+            .arg("--out")
+            .arg(dir.path().join("plane.tlog"))
+            .arg("--truth")
+            .arg(&truth)
+            .args(["--wind-mps", "4", "--wind-dir-deg", "270"])
+            .args(["--payload-g", "0"]),
     );
     let csv = std::fs::read_to_string(&truth).unwrap();
     let rows: Vec<(f64, f64)> = csv
@@ -604,4 +587,12 @@ fn plan_flies_a_plane_and_a_quadplane_as_they_fly() {
         watts(0),
         watts(2)
     );
+}
+
+/// Run `c`; it must succeed (its standard error shown when not). Its standard output.
+fn succeeds(c: &mut Command) -> String {
+    let out = c.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    String::from_utf8(out.stdout).unwrap()
 }

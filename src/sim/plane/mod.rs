@@ -25,7 +25,7 @@
 //!   stop braking at 2 m/s².
 //!
 //! ## The quadplane
-//! VTOL take-off on the lift rotors (the multirotor loop of [`super::mc_velocity_step`],
+//! VTOL take-off on the lift rotors (the multirotor loop of `super::mc_velocity_step`,
 //! `vtol_state` MC); the forward transition (TRANSITION_TO_FW: the pusher accelerating at up
 //! to 2 m/s² while the rotors carry what the wing cannot yet, until `[plane]
 //! transition_mps` and then a 3 s blend); forward flight as a plane (FW); at the last
