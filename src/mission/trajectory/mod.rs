@@ -1,5 +1,6 @@
 //! Fly a plan on paper: a kinematic model of how a multirotor flies a waypoint mission,
-//! sampled at the models' rate into the 21 features they read.
+//! sampled at the models' rate into the 21 features they read. A plane and a VTOL fly it
+//! as [`plane`] does ([`fly_as`] picks by the vehicle class).
 //!
 //! ## The flight
 //!
