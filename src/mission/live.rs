@@ -29,7 +29,8 @@ use tokio::task::JoinHandle;
 use super::forecast::{forecast, MissionForecast};
 use super::plan::{GeoPoint, Plan};
 use super::protocol::{Event, MissionClient};
-use super::trajectory::{enu_of, fly, Conditions, Trajectory, Wind};
+use super::trajectory::{enu_of, fly_as, Conditions, Trajectory, Wind};
+use crate::features::VehicleClass;
 use crate::model::PowerModel;
 use crate::report::status::LinkHandle;
 use crate::report::{MissionStatus, MissionUpdate};
@@ -74,6 +75,12 @@ pub struct LiveSetup {
     /// heartbeat, position or MISSION_CURRENT is not looked at (a ground station's mission
     /// messages still are: a logged upload).
     pub follows: crate::source::fleet::VehicleFilter,
+    /// The vehicle profile's `[vehicle] class`, when it sets one: wins over the HEARTBEAT's
+    /// type, which picks how the plan is flown otherwise (a plane and a VTOL as
+    /// [`super::trajectory::plane`] flies them; the fixed-wing model must be among `models`).
+    pub class: Option<VehicleClass>,
+    /// The profile's `[fixed_wing_flight]`: how a plane or VTOL flies the plan.
+    pub flight: crate::model::physics::fixed_wing::Flight,
 }
 
 /// A mission flown on paper.
@@ -85,6 +92,8 @@ struct Flown {
     forecast: MissionForecast,
     /// The wind it was flown in, and when (source time).
     wind: Wind,
+    /// The class it was flown as.
+    class: VehicleClass,
     flown_at: f64,
     /// The route for a map: every `route_stride`-th trajectory point, east/north.
     route: std::sync::Arc<Vec<[f32; 2]>>,
@@ -105,6 +114,10 @@ pub struct LiveMission {
     wind: Wind,
     /// A mission heard before any home (PX4: no home item), flown once a home is known.
     waiting_for_home: Option<super::protocol::Mission>,
+    /// The vehicle's class from its HEARTBEAT type, and whether a fixed-wing was seen to be
+    /// a VTOL (EXTENDED_SYS_STATE `vtol_state`, an ArduPlane Q mode).
+    heard_class: Option<VehicleClass>,
+    vtol_seen: bool,
 }
 
 impl LiveMission {
@@ -121,7 +134,52 @@ impl LiveMission {
             last_published: None,
             wind: Wind::default(),
             waiting_for_home: None,
+            heard_class: None,
+            vtol_seen: false,
         }
+    }
+
+    /// The class the plan is flown as: the profile's, else the HEARTBEAT's (a fixed-wing
+    /// seen to hover is a VTOL), else a multirotor.
+    pub fn class(&self) -> VehicleClass {
+        let heard = match self.heard_class {
+            Some(VehicleClass::FixedWing) if self.vtol_seen => Some(VehicleClass::Vtol),
+            c => c,
+        };
+        self.setup.class.or(heard).unwrap_or_default()
+    }
+
+    /// Take the class from a HEARTBEAT or EXTENDED_SYS_STATE; fly the mission in hand again
+    /// when it changes how the plan is flown.
+    fn learn_class(&mut self, m: &MavMessage, t_s: f64) -> Option<MissionStatus> {
+        let before = self.class();
+        match m {
+            MavMessage::HEARTBEAT(h) if crate::source::fleet::is_vehicle_heartbeat(h) => {
+                let t = h.mavtype as u8;
+                self.heard_class = Some(crate::features::class::class_of_mav_type(t));
+                self.vtol_seen |= h.autopilot
+                    == crate::dialect::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA
+                    && t == 1
+                    && crate::features::class::arduplane_q_mode(h.custom_mode);
+            }
+            MavMessage::EXTENDED_SYS_STATE(e) => {
+                self.vtol_seen |= crate::features::VtolState::from_mav(e.vtol_state as u8)
+                    != crate::features::VtolState::Undefined;
+            }
+            _ => return None,
+        }
+        let now = self.class();
+        let fl = self.flown.as_ref()?;
+        if now == before || now == fl.class {
+            return None;
+        }
+        tracing::info!(
+            "mission forecast: the vehicle is a {now}; the mission is flown again as one"
+        );
+        let (plan, seq_offset, items) = (fl.plan.clone(), fl.seq_offset, fl.items);
+        let source = plan.source.clone();
+        self.flown = self.fly(&source, plan, seq_offset, items, t_s);
+        self.status(t_s, true)
     }
 
     /// The protocol client (its counters).
@@ -175,6 +233,9 @@ impl LiveMission {
             return self.status(m.t_s, true);
         }
         match &m.msg {
+            MavMessage::HEARTBEAT(_) | MavMessage::EXTENDED_SYS_STATE(_) => {
+                self.learn_class(&m.msg, m.t_s)
+            }
             MavMessage::MISSION_CURRENT(c) => {
                 let changed = self.current_seq != Some(c.seq);
                 self.current_seq = Some(c.seq);
@@ -264,7 +325,8 @@ impl LiveMission {
             speed_m_s: s.speed_m_s,
             rate_hz: s.rate_hz,
         };
-        let traj = fly(&plan, &s.forecast.kinematics, &cond);
+        let class = self.class();
+        let traj = fly_as(class, &plan, &s.forecast.kinematics, &s.flight, &cond);
         if traj.samples.is_empty() {
             tracing::warn!("{source}: the mission flies nowhere (no take-off, no waypoint); no mission forecast");
             return None;
@@ -280,7 +342,7 @@ impl LiveMission {
             .map(|m| m.model.as_str())
             .filter(|n| !runs(n))
             .collect();
-        let cal = if missing.len() < fitted.members.len() {
+        let mut cal = if missing.len() < fitted.members.len() {
             if !missing.is_empty() {
                 tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile?); the P50 is the mean of the others");
             }
@@ -306,6 +368,15 @@ impl LiveMission {
                 ..super::forecast::Calibration::uncorrected(&first)
             }
         };
+        // A plane's wing-borne samples: the fixed-wing model, uncorrected (the fitted
+        // correction and spread are the M100's); a plane has nothing else.
+        if matches!(class, VehicleClass::FixedWing | VehicleClass::Vtol) && runs("fixed_wing") {
+            if class == VehicleClass::FixedWing {
+                cal.members.clear();
+            }
+            cal.members.push(super::forecast::Member::of("fixed_wing"));
+            cal.p90_ratio = cal.p90_ratio.max(super::forecast::UNCALIBRATED_P90);
+        }
         // only the members run (the slice `forecast` is given); the models' order is restored after
         let (ran, rest): (Vec<_>, Vec<_>) = std::mem::take(&mut self.setup.models)
             .into_iter()
@@ -350,6 +421,7 @@ impl LiveMission {
             traj,
             forecast: f,
             wind: self.wind,
+            class,
             flown_at: t_s,
             route,
             route_stride,
@@ -547,11 +619,18 @@ mod tests {
             active: false,
             system_id: Some(1),
             component_id: 191,
+            class: None,
+            flight: Default::default(),
         })
     }
 
     /// Feed a logged download of an out-and-back (1 km north) into `l`; the status after it.
     fn download(l: &mut LiveMission) -> Option<MissionUpdate> {
+        download_from(l, d::MavType::MAV_TYPE_GENERIC)
+    }
+
+    /// [`download`] from a vehicle whose HEARTBEAT says `mavtype`.
+    fn download_from(l: &mut LiveMission, mavtype: d::MavType) -> Option<MissionUpdate> {
         let home = GeoPoint {
             lat_deg: 40.0,
             lon_deg: -80.0,
@@ -566,6 +645,7 @@ mod tests {
         let mut out = Vec::new();
         let hb = MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
             autopilot: d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            mavtype,
             ..Default::default()
         });
         l.on_message(0.0, &msg(0.0, hb), &mut out);
@@ -596,6 +676,52 @@ mod tests {
         }
         assert!(out.is_empty(), "a replay sends nothing");
         last
+    }
+
+    #[test]
+    fn a_plane_heard_in_its_heartbeat_flies_the_mission_as_a_plane_and_a_vtol_as_one() {
+        let mut l = live();
+        l.setup
+            .models
+            .push(Box::new(crate::model::physics::fixed_wing::FixedWing::new(
+                Default::default(),
+            )));
+        let start = download_from(&mut l, d::MavType::MAV_TYPE_FIXED_WING)
+            .and_then(|u| u.status)
+            .expect("a status once the mission is whole");
+        assert_eq!(l.class(), VehicleClass::FixedWing);
+        let fl = l.flown.as_ref().expect("flown");
+        assert_eq!(fl.class, VehicleClass::FixedWing);
+        assert_eq!(fl.forecast.model, "fixed_wing");
+        assert!(fl
+            .traj
+            .samples
+            .iter()
+            .all(|s| s.vehicle.lift() == crate::features::Lift::Wing));
+        assert!((fl.forecast.p90_ratio - super::super::forecast::UNCALIBRATED_P90).abs() < 1e-12);
+        // 2 km out and back and a glide: a few Wh for a 2 kg plane, far under a multirotor's
+        assert!(
+            start.energy_p50_wh > 0.5 && start.energy_p50_wh < 5.0,
+            "{start:?}"
+        );
+        // the vehicle says it hovers (EXTENDED_SYS_STATE MC): a VTOL, flown again as one
+        let ess = MavMessage::EXTENDED_SYS_STATE(d::EXTENDED_SYS_STATE_DATA {
+            vtol_state: d::MavVtolState::MAV_VTOL_STATE_MC,
+            ..Default::default()
+        });
+        let mut out = Vec::new();
+        let again = l.on_message(1.0, &msg(1.0, ess), &mut out);
+        assert!(
+            again.and_then(|u| u.status).is_some(),
+            "flown again, published"
+        );
+        let fl = l.flown.as_ref().expect("flown");
+        assert_eq!(fl.class, VehicleClass::Vtol);
+        assert!(
+            fl.forecast.model.contains("fixed_wing"),
+            "{}",
+            fl.forecast.model
+        );
     }
 
     #[test]

@@ -8,6 +8,8 @@
 //!   QGroundControl `.plan` and `QGC WPL 110` `.waypoints`;
 //! - [`trajectory`]: the plan flown on paper (climb, stop-to-stop legs, turns, holds,
 //!   descent, landing) into the 21 features the power models read, with wind and payload;
+//!   a plane and a VTOL as they fly ([`trajectory::plane`]: airspeed cruise, turns at the
+//!   bank limit, loiter circles, the glide or the VTOL landing, transitions);
 //! - [`forecast`]: every power model along the trajectory, energy per leg, P50 and P90,
 //!   and the live re-forecast of what is left from the current item and position;
 //! - [`protocol`]: the MAVLink mission protocol's client as a pure state machine

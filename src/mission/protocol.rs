@@ -58,6 +58,21 @@ pub struct MissionItem {
     pub alt_m: f64,
 }
 
+impl MissionItem {
+    /// An item from a MISSION_ITEM(_INT)'s fields, latitude and longitude in degrees.
+    fn of(seq: u16, frame: u32, command: u32, p: [f32; 4], lat_lon: [f64; 2], z: f32) -> Self {
+        Self {
+            seq,
+            frame,
+            command,
+            params: p.map(f64::from),
+            lat_deg: lat_lon[0],
+            lon_deg: lat_lon[1],
+            alt_m: f64::from(z),
+        }
+    }
+}
+
 /// Where a finished mission came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -239,28 +254,17 @@ impl MissionClient {
                 }
                 None
             }
+            // the same item, positions in 1e-7 degrees or in degrees
             MavMessage::MISSION_ITEM_INT(i) if is_mission(i.mission_type) => {
-                let item = MissionItem {
-                    seq: i.seq,
-                    frame: i.frame as u32,
-                    command: i.command as u32,
-                    params: [i.param1, i.param2, i.param3, i.param4].map(f64::from),
-                    lat_deg: f64::from(i.x) * 1e-7,
-                    lon_deg: f64::from(i.y) * 1e-7,
-                    alt_m: f64::from(i.z),
-                };
+                let at = [f64::from(i.x) * 1e-7, f64::from(i.y) * 1e-7];
+                let p = [i.param1, i.param2, i.param3, i.param4];
+                let item = MissionItem::of(i.seq, i.frame as u32, i.command as u32, p, at, i.z);
                 self.on_item(now_s, from_target, item, out)
             }
             MavMessage::MISSION_ITEM(i) if is_mission(i.mission_type) => {
-                let item = MissionItem {
-                    seq: i.seq,
-                    frame: i.frame as u32,
-                    command: i.command as u32,
-                    params: [i.param1, i.param2, i.param3, i.param4].map(f64::from),
-                    lat_deg: f64::from(i.x),
-                    lon_deg: f64::from(i.y),
-                    alt_m: f64::from(i.z),
-                };
+                let at = [f64::from(i.x), f64::from(i.y)];
+                let p = [i.param1, i.param2, i.param3, i.param4];
+                let item = MissionItem::of(i.seq, i.frame as u32, i.command as u32, p, at, i.z);
                 self.on_item(now_s, from_target, item, out)
             }
             MavMessage::MISSION_ACK(a)

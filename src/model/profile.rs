@@ -70,6 +70,12 @@ pub struct VehicleProfile {
     /// 2 kg foam plane's without it; [`crate::model::physics::fixed_wing::Params`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fixed_wing: Option<crate::model::physics::fixed_wing::Params>,
+    /// `[fixed_wing_flight]`: how the plane flies a mission (cruise airspeed, bank limit,
+    /// climb and sink, loiter radius, glide slope; a VTOL's hover climb, landing and
+    /// transitions), for the mission forecast (optional: the autopilots' defaults without
+    /// it; [`crate::model::physics::fixed_wing::Flight`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_wing_flight: Option<crate::model::physics::fixed_wing::Flight>,
     /// `[rotor]`: the simulator's rotor aerodynamics (optional; see the module docs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotor: Option<Rotor>,
@@ -112,6 +118,14 @@ pub struct ForecastDefault {
     /// Why it was picked (shown as the forecast's reason).
     #[serde(default)]
     pub why: String,
+    /// Multipliers on models' power in the pre-flight forecast (`dronewatt plan`), by model
+    /// name (a VTOL's rotor model and `fixed_wing`), fitted on fit plans
+    /// (`scripts/plane-mission-eval.py --set fit` for the simulated planes); absent: 1.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub scale: std::collections::BTreeMap<String, f64>,
+    /// P90 over P50 of the pre-flight forecast, fitted beside `scale`; absent: 1.15.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub p90_ratio: Option<f64>,
 }
 
 /// The `[forecast]` default of the profile file `vehicle` (None: no file, no section, or a
@@ -483,6 +497,9 @@ impl VehicleProfile {
         }
         if let Some(b) = &self.battery {
             b.validate()?;
+        }
+        if let Some(f) = &self.fixed_wing_flight {
+            f.validate()?;
         }
         if let Some(p) = &self.plane {
             p.validate()?;

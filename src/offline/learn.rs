@@ -542,6 +542,8 @@ pub fn run(args: LearnArgs) -> Result<()> {
                 "lowest held-out MAPE of `dronewatt learn`, {mape:.1} % over {} log(s)",
                 held.len()
             ),
+            scale: Default::default(),
+            p90_ratio: None,
         });
     }
 

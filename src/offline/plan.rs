@@ -5,9 +5,10 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::config::Config;
+use crate::features::VehicleClass;
 use crate::mission::forecast::{forecast, MissionForecast};
 use crate::mission::plan::Plan;
-use crate::mission::trajectory::{fly, Conditions, Trajectory, Wind};
+use crate::mission::trajectory::{fly_as, Conditions, Trajectory, Wind};
 use crate::model::profile::VehicleProfile;
 use crate::model::PowerModel;
 use crate::offline::plan_eval::publish;
@@ -198,7 +199,15 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         speed_m_s: a.speed,
         rate_hz: cfg.telemetry.rate_hz,
     };
-    let tr = fly(&plan, &cfg.forecast.kinematics, &cond);
+    // A plane and a VTOL fly the plan as they do ([`crate::mission::trajectory::plane`]);
+    // the M100, and a profile that names no class, as a multirotor.
+    let class = if is_m100 {
+        VehicleClass::Multirotor
+    } else {
+        profile.vehicle.class.unwrap_or_default()
+    };
+    let flight = profile.fixed_wing_flight.unwrap_or_default();
+    let tr = fly_as(class, &plan, &cfg.forecast.kinematics, &flight, &cond);
     if tr.samples.is_empty() {
         anyhow::bail!(
             "{}: the plan flies nowhere (no take-off, no waypoint)",
@@ -215,35 +224,80 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             "the M100's calibrated models and fitted correction".to_string(),
         )
     } else {
-        let models = match &profile_path {
+        let mut models = match &profile_path {
             Some(p) => crate::model::build_models(&cfg.models, Some(p), &cfg.telemetry)?,
             None => crate::model::physics::models(&profile),
         };
+        let wing = !matches!(class, VehicleClass::Multirotor | VehicleClass::Other);
+        if wing {
+            let params = profile.fixed_wing.unwrap_or_default();
+            params.validate().map_err(anyhow::Error::msg)?;
+            models.push(Box::new(crate::model::physics::fixed_wing::FixedWing::new(
+                params,
+            )));
+        }
         match profile
             .forecast
             .as_ref()
             .filter(|f| models.iter().any(|m| m.name() == f.model))
         {
             Some(fd) => {
-                let mut c = crate::mission::forecast::Calibration::uncorrected(&fd.model);
-                c.p90_ratio = OWN_MODEL_P90;
+                // its own forecast model, the others its profile scales (a VTOL's rotor
+                // model) and the fixed-wing model on the wing, each with its fitted scale
+                let mut names = vec![fd.model.clone()];
+                let wing_model = wing.then(|| "fixed_wing".to_string());
+                for n in fd.scale.keys().chain(wing_model.iter()) {
+                    if !names.contains(n) && models.iter().any(|m| m.name() == n) {
+                        names.push(n.clone());
+                    }
+                }
+                let p90 = fd.p90_ratio.unwrap_or(OWN_MODEL_P90);
+                let members: Vec<_> = names
+                    .iter()
+                    .map(|n| crate::mission::forecast::Member {
+                        scale: fd.scale.get(n).copied().unwrap_or(1.0),
+                        ..crate::mission::forecast::Member::of(n)
+                    })
+                    .collect();
+                let how = members
+                    .iter()
+                    .map(|m| format!("{} × {}", m.model, m.scale))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                let c = crate::mission::forecast::Calibration {
+                    members,
+                    p90_ratio: p90,
+                    ..crate::mission::forecast::Calibration::uncorrected(&fd.model)
+                };
+                c.validate().map_err(anyhow::Error::msg)?;
                 (
                     models,
                     c,
                     format!(
-                        "{}'s learned forecast model {} (uncorrected; P90 = {OWN_MODEL_P90} × P50)",
-                        profile.name, fd.model
+                        "{}'s forecast model{} {how} (P90 = {p90} × P50){}",
+                        profile.name,
+                        if names.len() > 1 { "s" } else { "" },
+                        if fd.why.is_empty() {
+                            String::new()
+                        } else {
+                            format!(": {}", fd.why)
+                        }
                     ),
                 )
             }
             None => {
+                // a plane: the fixed-wing model alone; a VTOL: the rotor models on its
+                // rotor-borne samples, the fixed-wing model on the rest
                 let names: Vec<String> = models
                     .iter()
                     .map(|m| m.name().to_string())
-                    .filter(|n| PUBLISHED.contains(&n.as_str()))
+                    .filter(|n| {
+                        (class != VehicleClass::FixedWing && PUBLISHED.contains(&n.as_str()))
+                            || (wing && n == "fixed_wing")
+                    })
                     .collect();
                 tracing::warn!(
-                    "only the M100's forecast calibration exists; {} flies on its own published physics models, uncorrected, with the P90 widened to {UNCALIBRATED_P90} × P50",
+                    "only the M100's forecast calibration exists; {} ({class}) flies on its own published models, uncorrected, with the P90 widened to {UNCALIBRATED_P90} × P50",
                     profile.name
                 );
                 let c = crate::mission::forecast::Calibration {
@@ -255,7 +309,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
                     live_weight: 0.0,
                     vehicle_kg: profile.vehicle.airframe_kg + profile.vehicle.battery_kg,
                 };
-                (models, c, format!("the mean of {}'s published physics models {} (uncorrected: only the M100 is calibrated; P90 = {UNCALIBRATED_P90} × P50)", profile.name, names.join(", ")))
+                (models, c, format!("the mean of {}'s published models that apply ({class}: {}) (uncorrected: only the M100 is calibrated; P90 = {UNCALIBRATED_P90} × P50)", profile.name, names.join(", ")))
             }
         }
     };
@@ -318,10 +372,17 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         start_wh - f.energy_p50_wh - reserve_wh,
         start_wh - f.energy_p90_wh - reserve_wh,
     );
-    let speed_m_s = a
-        .speed
-        .or(plan.hover_speed_m_s)
-        .unwrap_or(cfg.forecast.kinematics.default_speed_m_s);
+    let speed_m_s = match class {
+        // a plane's cruise airspeed
+        VehicleClass::FixedWing | VehicleClass::Vtol => a
+            .speed
+            .or(plan.cruise_speed_m_s)
+            .unwrap_or(flight.cruise_m_s),
+        _ => a
+            .speed
+            .or(plan.hover_speed_m_s)
+            .unwrap_or(cfg.forecast.kinematics.default_speed_m_s),
+    };
     let report = PlanReport {
         plan: &plan.source,
         vehicle: profile.name.clone(),
@@ -358,8 +419,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
 
 /// P90 ratio of a vehicle flown on its learned forecast model, which has no fitted spread.
 const OWN_MODEL_P90: f64 = 1.15;
-/// P90 ratio of a vehicle flown on published physics models no one calibrated for it.
-const UNCALIBRATED_P90: f64 = 1.3;
+use crate::mission::forecast::UNCALIBRATED_P90;
 /// The published physics models (the `_cal` ones are the M100's).
 const PUBLISHED: [&str; 5] = [
     "dandrea",

@@ -542,6 +542,12 @@ pub(super) fn mission_setup(
         None => crate::model::profile::VehicleProfile::m100(),
     };
     let mut models = crate::model::physics::models(&vehicle);
+    // a plane's and a VTOL's wing-borne samples (only run where the class asks for it)
+    let wing = vehicle.fixed_wing.unwrap_or_default();
+    wing.validate().map_err(anyhow::Error::msg)?;
+    models.push(Box::new(crate::model::physics::fixed_wing::FixedWing::new(
+        wing,
+    )));
     if let Some(p) = &cfg.forecast.live.calibrated_profile {
         models.extend(crate::model::physics::models(
             &crate::model::profile::VehicleProfile::load(p)?,
@@ -559,6 +565,8 @@ pub(super) fn mission_setup(
         system_id: cfg.sinks.mavlink.system_id,
         component_id: cfg.sinks.mavlink.component_id,
         follows: follows.clone(),
+        class: vehicle.vehicle.class,
+        flight: vehicle.fixed_wing_flight.unwrap_or_default(),
     }))
 }
 

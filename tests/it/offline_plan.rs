@@ -482,3 +482,117 @@ fn r7s_altitude_stages_are_slanted_climbs_and_the_forecast_prices_their_climb() 
         without.energy_p50_wh
     );
 }
+
+/// A plane's and a quadplane's plan (take-off, waypoints, a loiter, the landing; VTOL
+/// take-off and landing for the quadplane) through `plan --vehicle plane|quadplane`: flown
+/// as a plane, the same table as a multirotor's, and the plane's P50 within 10 % of what
+/// the simulator draws flying the same plan.
+#[test]
+fn plan_flies_a_plane_and_a_quadplane_as_they_fly() {
+    let dir = tempfile::tempdir().unwrap();
+    let plane_wpl = "QGC WPL 110\n\
+0\t1\t0\t16\t0\t0\t0\t0\t40.4400000\t-79.9400000\t290.0\t1\n\
+1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t60\t1\n\
+2\t0\t3\t16\t0\t0\t0\t0\t40.4535000\t-79.9400000\t60\t1\n\
+3\t0\t3\t19\t60\t0\t0\t0\t40.4535000\t-79.9300000\t80\t1\n\
+4\t0\t3\t21\t0\t0\t0\t0\t40.4400000\t-79.9400000\t0\t1\n";
+    let quad_wpl = plane_wpl
+        .replace("\t22\t", "\t84\t")
+        .replace("\t21\t", "\t85\t");
+    let run = |vehicle: &str, text: &str, args: &[&str]| -> (serde_json::Value, String) {
+        let plan = dir.path().join(format!("{vehicle}.waypoints"));
+        std::fs::write(&plan, text).unwrap();
+        let go = |json: bool| {
+            let mut c = bin();
+            c.arg("plan")
+                .arg(&plan)
+                .args(["--vehicle", vehicle, "--wind", "4@270"])
+                .args(args);
+            if json {
+                c.args(["--json", "-"]);
+            }
+            succeeds(&mut c)
+        };
+        (serde_json::from_str(&go(true)).unwrap(), go(false))
+    };
+    let labels = |v: &serde_json::Value| -> Vec<String> {
+        v["forecast"]["legs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l["label"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let (plane, table) = run("plane", plane_wpl, &["--payload-g", "0"]);
+    assert_eq!(labels(&plane), ["takeoff", "waypoint", "loiter", "land"]);
+    assert_eq!(plane["forecast"]["model"], "fixed_wing", "{plane}");
+    assert_eq!(
+        plane["speed_m_s"].as_f64(),
+        Some(14.0),
+        "the plane's cruise airspeed"
+    );
+    assert!(
+        table.contains("item leg") && table.contains("loiter") && table.contains("total"),
+        "{table}"
+    );
+    // the simulator flies the same plan; its energy against the forecast's
+    let truth = dir.path().join("truth.csv");
+    succeeds(
+        bin()
+            .args(["simulate", "--vehicle", "plane", "--plan"])
+            .arg(dir.path().join("plane.waypoints"))
+            .arg("--out")
+            .arg(dir.path().join("plane.tlog"))
+            .arg("--truth")
+            .arg(&truth)
+            .args(["--wind-mps", "4", "--wind-dir-deg", "270"])
+            .args(["--payload-g", "0"]),
+    );
+    let csv = std::fs::read_to_string(&truth).unwrap();
+    let rows: Vec<(f64, f64)> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            (c[0].parse().unwrap(), c[2].parse().unwrap())
+        })
+        .collect();
+    let sim_wh: f64 = rows
+        .windows(2)
+        .map(|w| w[0].1 * (w[1].0 - w[0].0) / 3600.0)
+        .sum();
+    let p50 = plane["forecast"]["energy_p50_wh"].as_f64().unwrap();
+    assert!(
+        (p50 / sim_wh - 1.0).abs() < 0.10,
+        "forecast {p50:.2} Wh, simulated {sim_wh:.2} Wh"
+    );
+    let (quad, _) = run("quadplane", &quad_wpl, &[]);
+    assert_eq!(
+        labels(&quad),
+        ["vtol takeoff", "waypoint", "loiter", "vtol land"]
+    );
+    let model = quad["forecast"]["model"].as_str().unwrap();
+    assert!(
+        model.contains("dorling") && model.contains("fixed_wing"),
+        "{model}"
+    );
+    let legs = quad["forecast"]["legs"].as_array().unwrap();
+    let watts = |i: usize| {
+        legs[i]["energy_p50_wh"].as_f64().unwrap() * 3600.0
+            / legs[i]["duration_s"].as_f64().unwrap()
+    };
+    assert!(
+        watts(0) > 3.0 * watts(2),
+        "hovering up costs more than circling: {} W vs {} W",
+        watts(0),
+        watts(2)
+    );
+}
+
+/// Run `c`; it must succeed (its standard error shown when not). Its standard output.
+fn succeeds(c: &mut Command) -> String {
+    let out = c.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    String::from_utf8(out.stdout).unwrap()
+}

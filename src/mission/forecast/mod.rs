@@ -45,6 +45,10 @@ use crate::model::{PowerModel, Prediction};
 use crate::telemetry::idx;
 use crate::telemetry::window::Window;
 
+/// P90 over P50 of a vehicle flown on models no one calibrated for it (a plane, a VTOL, a
+/// multirotor other than the M100): wide, for what its uncorrected models may miss.
+pub const UNCALIBRATED_P90: f64 = 1.3;
+
 /// One model of the forecast with its own fitted correction (an entry of
 /// `[forecast.calibration] members`).
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
@@ -355,6 +359,7 @@ pub fn forecast(
                 if m.target_lag() != lag {
                     continue;
                 }
+                let lift = m.lift();
                 m.predict(&windows[..count], &mut preds);
                 for (b, pr) in preds.iter().enumerate().take(count) {
                     let a = j0 + b * stride;
@@ -363,7 +368,20 @@ pub fn forecast(
                     } else {
                         0.0
                     };
-                    p[a..(a + stride).min(n)].fill(v);
+                    // a model's power only where it applies (NaN elsewhere)
+                    for (i, s) in traj
+                        .samples
+                        .iter()
+                        .enumerate()
+                        .take((a + stride).min(n))
+                        .skip(a)
+                    {
+                        p[i] = if s.vehicle.lift() == lift {
+                            v
+                        } else {
+                            f32::NAN
+                        };
+                    }
                 }
             }
             j0 += count * stride;
@@ -383,12 +401,17 @@ fn integrate(
         .map(|(n, p)| {
             (
                 n.clone(),
-                p.iter().map(|&w| f64::from(w)).sum::<f64>() * dt_h,
+                p.iter()
+                    .filter(|w| w.is_finite())
+                    .map(|&w| f64::from(w))
+                    .sum::<f64>()
+                    * dt_h
+                    + 0.0, // an empty sum is −0.0
             )
         })
         .collect();
-    // the members that ran; none: the first model that ran, uncorrected
-    let mut picked: Vec<(&Member, &[f32])> = cal
+    // the members that ran
+    let picked: Vec<(&Member, &[f32])> = cal
         .members
         .iter()
         .filter_map(|m| {
@@ -398,34 +421,58 @@ fn integrate(
                 .map(|(_, p)| (m, p.as_slice()))
         })
         .collect();
-    let fallback;
-    if picked.is_empty() {
-        if let Some((n, p)) = powers.first() {
-            fallback = Member::of(n);
-            picked.push((&fallback, p.as_slice()));
-        }
-    }
-    let model = if picked.is_empty() {
-        String::from("none")
-    } else {
-        picked
-            .iter()
-            .map(|(m, _)| m.model.as_str())
-            .collect::<Vec<_>>()
-            .join(" + ")
-    };
-    let share = 1.0 / picked.len().max(1) as f64;
+    // where none of them applies (none ran, or the vehicle flies on a lift they do not
+    // model): the first model that applies there, uncorrected
+    let fallbacks: Vec<Member> = powers.iter().map(|(n, _)| Member::of(n)).collect();
+    let mut used: Vec<&str> = Vec::new();
+    let mut given = traj.given_w.iter().peekable();
     let mut cum = Vec::with_capacity(traj.samples.len());
     let mut e = 0.0;
     for (j, s) in traj.samples.iter().enumerate() {
+        while given.peek().is_some_and(|(r, _)| r.end <= j) {
+            given.next();
+        }
+        if let Some((_, w)) = given.peek().filter(|(r, _)| r.contains(&j)) {
+            e += w * dt_h;
+            cum.push(e);
+            continue;
+        }
         let (phase, work) = (phase_of(s), vertical_work_w(s, cal.vehicle_kg));
-        let p: f64 = picked
-            .iter()
-            .map(|(m, p)| m.power_w(f64::from(p[j]), phase, work))
-            .sum();
-        e += share * p * dt_h;
+        let mut applying = picked.iter().filter(|(_, p)| p[j].is_finite()).peekable();
+        let p = if applying.peek().is_some() {
+            let (sum, k) = applying.fold((0.0, 0usize), |(sum, k), (m, p)| {
+                (sum + m.power_w(f64::from(p[j]), phase, work), k + 1)
+            });
+            sum / k as f64
+        } else {
+            match fallbacks
+                .iter()
+                .zip(powers)
+                .find(|(_, (_, p))| p[j].is_finite())
+            {
+                Some((m, (_, p))) => {
+                    if !used.contains(&m.model.as_str()) {
+                        used.push(&m.model);
+                    }
+                    m.power_w(f64::from(p[j]), phase, work)
+                }
+                None => 0.0,
+            }
+        };
+        e += p * dt_h;
         cum.push(e);
     }
+    let mut names: Vec<&str> = picked.iter().map(|(m, _)| m.model.as_str()).collect();
+    names.extend(
+        used.iter()
+            .filter(|u| !names.contains(u))
+            .collect::<Vec<_>>(),
+    );
+    let model = if names.is_empty() {
+        String::from("none")
+    } else {
+        names.join(" + ")
+    };
     let at = |i: usize| {
         if i == 0 {
             0.0

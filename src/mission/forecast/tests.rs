@@ -20,9 +20,10 @@ fn plan(n: usize) -> Plan {
     Plan::from_waypoints("zigzag", home, &wps, 8.0)
 }
 
-fn run(payload_g: f64, wind: Wind, cal: &Calibration) -> MissionForecast {
-    let tr = fly(
-        &plan(6),
+/// `plan` flown on paper at 10 Hz with the default kinematics, in `wind` with `payload_g`.
+fn flown(plan: &Plan, payload_g: f64, wind: Wind) -> crate::mission::trajectory::Trajectory {
+    fly(
+        plan,
         &KinematicsConfig::default(),
         &Conditions {
             wind,
@@ -30,7 +31,11 @@ fn run(payload_g: f64, wind: Wind, cal: &Calibration) -> MissionForecast {
             speed_m_s: None,
             rate_hz: 10.0,
         },
-    );
+    )
+}
+
+fn run(payload_g: f64, wind: Wind, cal: &Calibration) -> MissionForecast {
+    let tr = flown(&plan(6), payload_g, wind);
     let mut models = crate::model::physics::models(&crate::model::profile::VehicleProfile::m100());
     forecast(&tr, &mut models, cal, 10, 5)
 }
@@ -108,16 +113,7 @@ fn batched_windows_forecast_exactly_what_one_window_at_a_time_does() {
     // The forecast builds its windows in reused batches; the plain way (one window,
     // copied fresh, predicted alone, its power held until the next) must agree exactly,
     // for a plan of more windows than a batch and models of two lags.
-    let tr = fly(
-        &plan(60),
-        &KinematicsConfig::default(),
-        &Conditions {
-            wind: "3@40".parse().unwrap(),
-            payload_g: 250.0,
-            speed_m_s: None,
-            rate_hz: 10.0,
-        },
-    );
+    let tr = flown(&plan(60), 250.0, "3@40".parse().unwrap());
     let (t, stride, n) = (10, 5, tr.samples.len());
     assert!(
         n / stride > 2 * BATCH,
@@ -198,16 +194,7 @@ fn a_slanted_climb_costs_its_climb_work() {
             *alt_m = 25.0;
         }
     }
-    let tr = fly(
-        &plan,
-        &KinematicsConfig::default(),
-        &Conditions {
-            wind: Wind::default(),
-            payload_g: 500.0,
-            speed_m_s: None,
-            rate_hz: 10.0,
-        },
-    );
+    let tr = flown(&plan, 500.0, Wind::default());
     let slanted = tr
         .samples
         .iter()
@@ -263,16 +250,7 @@ fn a_slanted_climb_costs_its_climb_work() {
         ],
         10.0,
     ); // take-off to 25 m
-    let tf = fly(
-        &flat,
-        &KinematicsConfig::default(),
-        &Conditions {
-            wind: Wind::default(),
-            payload_g: 500.0,
-            speed_m_s: None,
-            rate_hz: 10.0,
-        },
-    );
+    let tf = flown(&flat, 500.0, Wind::default());
     let ff = forecast(&tf, &mut models, &base, 10, 5);
     assert!(
         (ff.legs[1].energy_p50_wh - f0.legs[1].energy_p50_wh).abs()

@@ -54,6 +54,23 @@ pub(crate) fn build_item(
         19 => ItemKind::LoiterTime {
             time_s: nonneg("loiter time (param1)", p[0])?,
         },
+        18 => ItemKind::LoiterTurns {
+            turns: nonneg("turns (param1)", p[0])?,
+        },
+        17 => ItemKind::LoiterUnlimited,
+        84 => ItemKind::VtolTakeoff { alt_m: 0.0 },
+        85 => ItemKind::VtolLand,
+        3000 => ItemKind::VtolTransition {
+            to_fw: match p[0] {
+                4.0 => true,
+                3.0 => false,
+                s => {
+                    return Err(format!(
+                    "state (param1) = {s}: must be 3 (MAV_VTOL_STATE_MC) or 4 (MAV_VTOL_STATE_FW)"
+                ))
+                }
+            },
+        },
         178 => {
             if !p[1].is_finite() {
                 return Err(format!("speed (param2) = {}: must be a number", p[1]));
@@ -70,7 +87,18 @@ pub(crate) fn build_item(
     // Does this item carry a position? NAV commands (< 100) do, except RTL. TAKEOFF and
     // LAND may leave latitude/longitude 0 or unset: "here".
     let nav = command < 100 && command != 20;
-    let here_ok = matches!(kind, ItemKind::Takeoff { .. } | ItemKind::Land);
+    let here_ok = matches!(
+        kind,
+        ItemKind::Takeoff { .. }
+            | ItemKind::Land
+            | ItemKind::VtolTakeoff { .. }
+            | ItemKind::VtolLand
+    );
+    // A loiter's radius (param3; its sign is the direction), when it gives one.
+    let loiter_radius_m = match command {
+        17..=19 if p[2].is_finite() && p[2] != 0.0 => Some(p[2].abs()),
+        _ => None,
+    };
     let mut frame = AltFrame::None;
     let mut position = None;
     if nav {
@@ -119,10 +147,18 @@ pub(crate) fn build_item(
                 alt_m: alt_above_home,
             });
         }
-        if matches!(kind, ItemKind::Takeoff { .. }) {
-            kind = ItemKind::Takeoff {
-                alt_m: alt_above_home,
-            };
+        match kind {
+            ItemKind::Takeoff { .. } => {
+                kind = ItemKind::Takeoff {
+                    alt_m: alt_above_home,
+                }
+            }
+            ItemKind::VtolTakeoff { .. } => {
+                kind = ItemKind::VtolTakeoff {
+                    alt_m: alt_above_home,
+                }
+            }
+            _ => {}
         }
     }
     if let ItemKind::NotModelled { command, .. } = kind {
@@ -138,6 +174,7 @@ pub(crate) fn build_item(
         kind,
         position,
         frame,
+        loiter_radius_m,
     })
 }
 

@@ -11,7 +11,12 @@
 //! |---|---|---|
 //! | 22 NAV_TAKEOFF | [`ItemKind::Takeoff`] | altitude (climbed to vertically; latitude/longitude 0 = here) |
 //! | 16 NAV_WAYPOINT, 82 NAV_SPLINE_WAYPOINT | [`ItemKind::Waypoint`] | p1 hold time (s); position (a spline is flown straight) |
-//! | 19 NAV_LOITER_TIME | [`ItemKind::LoiterTime`] | p1 time (s), hovered at the position |
+//! | 19 NAV_LOITER_TIME | [`ItemKind::LoiterTime`] | p1 time (s), hovered at the position (a plane circles; p3 radius) |
+//! | 18 NAV_LOITER_TURNS | [`ItemKind::LoiterTurns`] | p1 turns, p3 radius (m; a plane circles, a multirotor flies through) |
+//! | 17 NAV_LOITER_UNLIM | [`ItemKind::LoiterUnlimited`] | position (flown through: no forecast for "forever") |
+//! | 84 NAV_VTOL_TAKEOFF | [`ItemKind::VtolTakeoff`] | altitude (a VTOL climbs on its rotors; a multirotor as TAKEOFF) |
+//! | 85 NAV_VTOL_LAND | [`ItemKind::VtolLand`] | position (a VTOL lands on its rotors; a multirotor as LAND) |
+//! | 3000 DO_VTOL_TRANSITION | [`ItemKind::VtolTransition`] | p1 state (3 MC, 4 FW) |
 //! | 178 DO_CHANGE_SPEED | [`ItemKind::ChangeSpeed`] | p2 speed (m/s; −1 or 0 = no change) |
 //! | 21 NAV_LAND | [`ItemKind::Land`] | position (fly there, then descend to the ground) |
 //! | 20 NAV_RETURN_TO_LAUNCH | [`ItemKind::ReturnToLaunch`] | fly home at the current altitude, then land |
@@ -79,8 +84,19 @@ pub enum ItemKind {
     Takeoff { alt_m: f64 },
     /// Fly to `position`, then hover `hold_s`.
     Waypoint { hold_s: f64 },
-    /// Fly to `position`, then hover `time_s`.
+    /// Fly to `position`, then hover `time_s` (a plane circles).
     LoiterTime { time_s: f64 },
+    /// Fly to `position`, then circle `turns` times (a plane; a multirotor flies through).
+    LoiterTurns { turns: f64 },
+    /// Fly to `position` and circle for ever: flown through (a forecast cannot hold "for ever").
+    LoiterUnlimited,
+    /// VTOL: climb on the lift rotors to `alt_m` above home (a multirotor: as TAKEOFF).
+    VtolTakeoff { alt_m: f64 },
+    /// VTOL: fly to `position` (when given), change to hover and land on the rotors (a
+    /// multirotor: as LAND).
+    VtolLand,
+    /// VTOL: change to forward flight (`to_fw`) or to hover.
+    VtolTransition { to_fw: bool },
     /// Cruise ground speed from here on, m/s.
     ChangeSpeed { speed_m_s: f64 },
     /// Fly to `position` (when given), descend and land.
@@ -108,6 +124,9 @@ pub struct Item {
     pub position: Option<GeoPoint>,
     /// How the altitude was given.
     pub frame: AltFrame,
+    /// A loiter's radius (NAV_LOITER_* param3, m, unsigned), when it gives one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loiter_radius_m: Option<f64>,
 }
 
 /// A mission plan: home, items, default speeds.
@@ -195,6 +214,7 @@ impl Plan {
                 kind,
                 position,
                 frame,
+                loiter_radius_m: None,
             });
         };
         push(178, ItemKind::ChangeSpeed { speed_m_s }, None);
@@ -301,6 +321,7 @@ impl Plan {
                 kind: ItemKind::ReturnToLaunch,
                 position: None,
                 frame: AltFrame::None,
+                loiter_radius_m: None,
             });
         }
         Ok((
@@ -338,10 +359,13 @@ impl Plan {
             match it.kind {
                 ItemKind::Waypoint { hold_s } => params[0] = hold_s,
                 ItemKind::LoiterTime { time_s } => params[0] = time_s,
+                ItemKind::LoiterTurns { turns } => params[0] = turns,
                 ItemKind::ChangeSpeed { speed_m_s } => params[1] = speed_m_s,
-                ItemKind::Takeoff { alt_m } => alt = alt_m,
+                ItemKind::Takeoff { alt_m } | ItemKind::VtolTakeoff { alt_m } => alt = alt_m,
+                ItemKind::VtolTransition { to_fw } => params[0] = if to_fw { 4.0 } else { 3.0 },
                 _ => {}
             }
+            params[2] = it.loiter_radius_m.unwrap_or(params[2]);
             let positioned = it.command < 100 && it.command != 20;
             let (lat, lon) = it.position.map_or((0.0, 0.0), |p| (p.lat_deg, p.lon_deg));
             out.push(MissionItem {
@@ -426,6 +450,44 @@ mod tests {
         assert_eq!(p.items[6].origin, "line 9");
     }
 
+    #[test]
+    fn vtol_commands_and_loiter_turns_are_kept_with_their_parameters() {
+        let text = "QGC WPL 110\n\
+0\t1\t0\t16\t0\t0\t0\t0\t40.4400\t-79.9400\t300.0\t1\n\
+1\t0\t3\t84\t0\t0\t0\t0\t0\t0\t30\t1\n\
+2\t0\t2\t3000\t4\t0\t0\t0\t0\t0\t0\t1\n\
+3\t0\t3\t18\t3\t0\t-120\t0\t40.4410\t-79.9400\t50\t1\n\
+4\t0\t3\t17\t0\t0\t0\t0\t40.4420\t-79.9400\t50\t1\n\
+5\t0\t2\t3000\t3\t0\t0\t0\t0\t0\t0\t1\n\
+6\t0\t3\t85\t0\t0\t0\t0\t0\t0\t0\t1\n";
+        let p = parse_waypoints(text, "vtol.waypoints").unwrap();
+        let kinds: Vec<ItemKind> = p.items.iter().map(|i| i.kind).collect();
+        assert_eq!(
+            kinds,
+            [
+                ItemKind::VtolTakeoff { alt_m: 30.0 },
+                ItemKind::VtolTransition { to_fw: true },
+                ItemKind::LoiterTurns { turns: 3.0 },
+                ItemKind::LoiterUnlimited,
+                ItemKind::VtolTransition { to_fw: false },
+                ItemKind::VtolLand,
+            ]
+        );
+        assert_eq!(
+            p.items[2].loiter_radius_m,
+            Some(120.0),
+            "the radius, unsigned"
+        );
+        assert_eq!(p.items[0].position, None, "VTOL_TAKEOFF at 0, 0: here");
+        assert!(p.not_modelled().is_empty(), "84, 85 and 3000 are modelled");
+        // and back through the protocol's items
+        let items = p.to_mission_items();
+        assert_eq!(
+            (items[1].command, items[2].params[0], items[3].params[2]),
+            (84, 4.0, 120.0)
+        );
+    }
+
     fn bad(text: &str) -> String {
         parse_waypoints(text, "bad.waypoints")
             .unwrap_err()
@@ -435,40 +497,36 @@ mod tests {
     #[test]
     fn bad_waypoints_files_name_the_item_and_why() {
         let home = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t40.44\t-79.94\t300\t1\n";
-        let e = bad(&format!(
-            "{home}1\t0\t3\t9999\t0\t0\t0\t0\t40.44\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("bad.waypoints")
-                && e.contains("item 1 (line 3)")
-                && e.contains("command 9999 is not a MAV_CMD"),
-            "{e}"
-        );
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\t95.0\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("item 1 (line 3)") && e.contains("latitude 95 is out of range"),
-            "{e}"
-        );
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\t40.0\t-190\t25\t1\n"
-        ));
-        assert!(e.contains("longitude -190 is out of range"), "{e}");
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\tNaN\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("item 1 (line 3)") && e.contains("not finite"),
-            "{e}"
-        );
-        let e = bad(&format!(
-            "{home}1\t0\t3\t16\t0\t0\t0\t0\tabc\t-79.94\t25\t1\n"
-        ));
-        assert!(
-            e.contains("line 3") && e.contains("latitude \"abc\" is not a number"),
-            "{e}"
-        );
+        // each bad row names its item and line, and why
+        for (row, why) in [
+            (
+                "9999\t0\t0\t0\t0\t40.44\t-79.94\t25",
+                "command 9999 is not a MAV_CMD",
+            ),
+            (
+                "16\t0\t0\t0\t0\t95.0\t-79.94\t25",
+                "latitude 95 is out of range",
+            ),
+            (
+                "16\t0\t0\t0\t0\t40.0\t-190\t25",
+                "longitude -190 is out of range",
+            ),
+            ("16\t0\t0\t0\t0\tNaN\t-79.94\t25", "not finite"),
+            (
+                "16\t0\t0\t0\t0\tabc\t-79.94\t25",
+                "latitude \"abc\" is not a number",
+            ),
+            (
+                "3000\t2\t0\t0\t0\t0\t0\t0",
+                "must be 3 (MAV_VTOL_STATE_MC) or 4",
+            ),
+        ] {
+            let e = bad(&format!("{home}1\t0\t3\t{row}\t1\n"));
+            assert!(
+                e.contains("bad.waypoints") && e.contains("line 3") && e.contains(why),
+                "{e}"
+            );
+        }
         let e = bad(home);
         assert!(e.contains("no mission items"), "{e}");
         let e = bad("");

@@ -1,5 +1,6 @@
 //! Fly a plan on paper: a kinematic model of how a multirotor flies a waypoint mission,
-//! sampled at the models' rate into the 21 features they read.
+//! sampled at the models' rate into the 21 features they read. A plane and a VTOL fly it
+//! as [`plane`] does ([`fly_as`] picks by the vehicle class).
 //!
 //! ## The flight
 //!
@@ -52,6 +53,7 @@
 //! Pure: no I/O.
 
 mod conditions;
+pub mod plane;
 
 pub use conditions::{Conditions, KinematicsConfig, Wind};
 
@@ -93,6 +95,9 @@ pub struct Trajectory {
     pub legs: Vec<Leg>,
     /// Sample period, s.
     pub dt_s: f64,
+    /// Samples whose power is given rather than modelled (a VTOL's transitions with the
+    /// profile's `transition_w`): sample range and power, W.
+    pub given_w: Vec<(std::ops::Range<usize>, f64)>,
 }
 
 /// A piece of motion, closed form in its local time.
@@ -316,7 +321,8 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
                 }
                 continue;
             }
-            ItemKind::Takeoff { alt_m } => {
+            ItemKind::VtolTransition { .. } => continue,
+            ItemKind::Takeoff { alt_m } | ItemKind::VtolTakeoff { alt_m } => {
                 if let Some(t) = target {
                     if !airborne {
                         pos = Vector3::new(t.x, t.y, 0.0);
@@ -355,7 +361,7 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
                 pause(&mut segs, pos, yaw, yaw, time_s, leg);
                 "loiter".into()
             }
-            ItemKind::Land | ItemKind::ReturnToLaunch => {
+            ItemKind::Land | ItemKind::VtolLand | ItemKind::ReturnToLaunch => {
                 let to = match (item.kind, target) {
                     (ItemKind::ReturnToLaunch, _) => Some(Vector3::new(0.0, 0.0, pos.z)),
                     (_, Some(t)) => Some(Vector3::new(t.x, t.y, pos.z)),
@@ -367,12 +373,21 @@ fn segments(plan: &Plan, k: &KinematicsConfig, speed0: f64, legs: &mut Vec<Leg>)
                 pause(&mut segs, pos, yaw, yaw, k.waypoint_pause_s, leg);
                 descend(&mut segs, &mut pos, yaw, leg);
                 airborne = false;
-                if matches!(item.kind, ItemKind::Land) {
+                if !matches!(item.kind, ItemKind::ReturnToLaunch) {
                     "land".into()
                 } else {
                     "rtl".into()
                 }
             }
+            // A multirotor flies a loiter of turns, or one for ever, through its position.
+            ItemKind::LoiterTurns { .. } | ItemKind::LoiterUnlimited => match target {
+                Some(t) => {
+                    lift_off(&mut segs, pos, yaw, leg, &mut airborne);
+                    distance_m = fly_to(&mut segs, &mut pos, &mut yaw, t, speed, leg);
+                    "loiter (flown through)".into()
+                }
+                None => continue,
+            },
             ItemKind::NotModelled {
                 command,
                 flown_through,
@@ -457,74 +472,76 @@ fn attitude(heading: f64, f_h: nalgebra::Vector2<f64>) -> Attitude {
     }
 }
 
-/// Fly `plan` on paper. Never fails: a plan with no motion gives no samples.
-pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
-    let speed0 = c
-        .speed_m_s
-        .or(plan.hover_speed_m_s)
-        .unwrap_or(k.default_speed_m_s);
-    let mut legs = Vec::new();
-    let segs = segments(plan, k, speed0, &mut legs);
-    let dt = 1.0 / c.rate_hz;
-    let total: f64 = segs.iter().map(|s| s.duration_s).sum();
-    let n = crate::features::units::floor_ratio(total, dt).unwrap_or(0.0) as usize + 1;
+/// The highest altitude the plan commands, m above home (the data set's `altitude`).
+fn commanded_altitude(plan: &Plan) -> f64 {
     let cmd_alt = plan.items.iter().filter_map(|i| match i.kind {
-        ItemKind::Takeoff { alt_m } => Some(alt_m),
+        ItemKind::Takeoff { alt_m } | ItemKind::VtolTakeoff { alt_m } => Some(alt_m),
         _ => i.position.map(|p| p.alt_m),
     });
-    let cmd_alt = cmd_alt.fold(0.0f64, f64::max);
-    let wind = c.wind.velocity_enu();
-    let mut samples = Vec::with_capacity(n);
-    let mut enu_m = Vec::with_capacity(n);
-    let mut leg_of = Vec::with_capacity(n);
-    // Commanded speed feature per segment: the speed in force (changes are rare; the
-    // segment's own top speed where it has one).
-    let mut seg_i = 0usize;
-    let mut seg_t0 = 0.0f64;
-    let mut cur_speed = speed0;
-    // memo keys start as NaN: never equal, the first sample computes them
-    let (mut att_key, mut att) = ([f64::NAN; 3], attitude(0.0, nalgebra::Vector2::zeros()));
-    let mut anemo = ([f64::NAN; 2], 0.0f32, 0.0f32);
-    for j in 0..n {
-        let t = j as f64 * dt;
-        while seg_i + 1 < segs.len() && t >= seg_t0 + segs[seg_i].duration_s {
-            seg_t0 += segs[seg_i].duration_s;
-            seg_i += 1;
+    cmd_alt.fold(0.0f64, f64::max)
+}
+
+/// Turns a rotor-borne state (position, velocity, acceleration ENU, heading, yaw rate)
+/// into a sample of the 21 features; the attitude and the anemometer are remembered
+/// between samples (steady cruise, climbs and holds repeat them sample after sample).
+struct RotorFeatures<'a> {
+    plan: &'a Plan,
+    k: &'a KinematicsConfig,
+    c: &'a Conditions,
+    cmd_alt: f64,
+    wind: Vector3<f64>,
+    att: ([f64; 3], Attitude),
+    anemo: ([f64; 2], f32, f32),
+}
+
+impl<'a> RotorFeatures<'a> {
+    fn new(plan: &'a Plan, k: &'a KinematicsConfig, c: &'a Conditions) -> Self {
+        Self {
+            plan,
+            k,
+            c,
+            cmd_alt: commanded_altitude(plan),
+            wind: c.wind.velocity_enu(),
+            // memo keys start as NaN: never equal, the first sample computes them
+            att: ([f64::NAN; 3], attitude(0.0, nalgebra::Vector2::zeros())),
+            anemo: ([f64::NAN; 2], 0.0, 0.0),
         }
-        let Some(seg) = segs.get(seg_i) else { break };
-        if let Motion::Line { v, .. } = seg.motion {
-            cur_speed = v;
-        }
-        let (p, v, a, heading, yaw_rate) = state(seg, t - seg_t0);
-        let air = v - wind;
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn sample(
+        &mut self,
+        t: f64,
+        p: Vector3<f64>,
+        v: Vector3<f64>,
+        a: Vector3<f64>,
+        heading: f64,
+        yaw_rate: f64,
+        cur_speed: f64,
+    ) -> Sample {
+        let air = v - self.wind;
         // thrust axis: tilt toward the horizontal force per unit mass
-        let f_h = a.xy() + G_M_S2 * k.tilt_per_airspeed2 * air.xy().norm() * air.xy();
-        // the attitude and the anemometer depend on (heading, f_h) and the airspeed only:
-        // steady cruise, climbs and holds repeat them sample after sample
+        let f_h = a.xy() + G_M_S2 * self.k.tilt_per_airspeed2 * air.xy().norm() * air.xy();
         let key = [heading, f_h.x, f_h.y];
-        if att_key != key {
-            (att_key, att) = (key, attitude(heading, f_h));
+        if self.att.0 != key {
+            self.att = (key, attitude(heading, f_h));
         }
         let air_key = [air.x, air.y];
-        if anemo.0 != air_key {
-            anemo = (
+        if self.anemo.0 != air_key {
+            self.anemo = (
                 air_key,
                 air.xy().norm() as f32,
                 air.x.atan2(air.y).to_degrees().rem_euclid(360.0) as f32,
             );
         }
+        let att = &self.att.1;
         let (sn, cs) = (att.sin_psi, att.cos_psi);
         let vx = v.x * cs + v.y * sn;
         let vy = -v.x * sn + v.y * cs;
         let (fwd, right) = (att.fwd, att.right);
         let mut f = [0.0f32; N_FEATURES];
-        f[idx::WIND_SPEED] = anemo.1;
-        f[idx::WIND_ANGLE] = anemo.2;
-        let (lat, lon) =
-            crate::features::frames::offset_ne(plan.home.lat_deg, plan.home.lon_deg, p.y, p.x);
-        f[idx::POS_X] = lon as f32;
-        f[idx::POS_Y] = lat as f32;
-        f[idx::POS_Z] = (plan.home.alt_m + p.z) as f32;
+        f[idx::WIND_SPEED] = self.anemo.1;
+        f[idx::WIND_ANGLE] = self.anemo.2;
         [f[idx::QX], f[idx::QY], f[idx::QZ], f[idx::QW]] = att.q_xyzw;
         f[idx::VX] = vx as f32;
         f[idx::VY] = vy as f32;
@@ -534,27 +551,45 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
         f[idx::AY] = a.xy().dot(&right) as f32;
         f[idx::AZ] = -(G_M_S2 + a.z) as f32;
         f[idx::SPEED] = cur_speed as f32;
-        f[idx::PAYLOAD] = c.payload_g as f32;
-        f[idx::ALTITUDE] = cmd_alt as f32;
-        samples.push(Sample {
-            t_s: t,
-            features: f,
-            measured_w: None,
-            voltage_v: None,
-            home: Some(HomeVector {
-                distance_m: p.xy().norm() as f32,
-                height_m: p.z as f32,
-            }),
-            stale_mask: 0,
-            battery_remaining_pct: None,
-            vehicle: Default::default(),
-            air: Default::default(),
-        });
-        enu_m.push([p.x as f32, p.y as f32, p.z as f32]);
-        leg_of.push(seg.leg as u32);
+        mission_sample(self.plan, self.c, self.cmd_alt, t, p, f)
     }
-    // leg times and sample ranges
-    // one pass: samples are in leg order
+}
+
+/// A sample at `t` and ENU position `p` with the motion features `f` filled: the position,
+/// the mission features and the home vector added.
+fn mission_sample(
+    plan: &Plan,
+    c: &Conditions,
+    cmd_alt: f64,
+    t: f64,
+    p: Vector3<f64>,
+    mut f: [f32; N_FEATURES],
+) -> Sample {
+    let (lat, lon) =
+        crate::features::frames::offset_ne(plan.home.lat_deg, plan.home.lon_deg, p.y, p.x);
+    f[idx::POS_X] = lon as f32;
+    f[idx::POS_Y] = lat as f32;
+    f[idx::POS_Z] = (plan.home.alt_m + p.z) as f32;
+    f[idx::PAYLOAD] = c.payload_g as f32;
+    f[idx::ALTITUDE] = cmd_alt as f32;
+    Sample {
+        t_s: t,
+        features: f,
+        measured_w: None,
+        voltage_v: None,
+        home: Some(HomeVector {
+            distance_m: p.xy().norm() as f32,
+            height_m: p.z as f32,
+        }),
+        stale_mask: 0,
+        battery_remaining_pct: None,
+        vehicle: Default::default(),
+        air: Default::default(),
+    }
+}
+
+/// Leg times and sample ranges from the leg of each sample (samples are in leg order).
+fn close_legs(legs: &mut [Leg], leg_of: &[u32], dt: f64) {
     let mut j = 0;
     while j < leg_of.len() {
         let li = leg_of[j] as usize;
@@ -568,12 +603,88 @@ pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
             leg.t_end_s = j as f64 * dt;
         }
     }
+}
+
+/// The vehicle class a plan is flown as: a multirotor (and anything without a model) as
+/// [`fly`] flies it, a plane and a VTOL as [`plane::fly_plane`] does.
+pub fn fly_as(
+    class: crate::features::VehicleClass,
+    plan: &Plan,
+    k: &KinematicsConfig,
+    flight: &crate::model::physics::fixed_wing::Flight,
+    c: &Conditions,
+) -> Trajectory {
+    use crate::features::VehicleClass as V;
+    match class {
+        V::FixedWing => plane::fly_plane(plan, k, flight, false, c),
+        V::Vtol => plane::fly_plane(plan, k, flight, true, c),
+        V::Multirotor | V::Other => fly(plan, k, c),
+    }
+}
+
+/// Fly `plan` on paper as a multirotor. Never fails: a plan with no motion gives no samples.
+pub fn fly(plan: &Plan, k: &KinematicsConfig, c: &Conditions) -> Trajectory {
+    let speed0 = c
+        .speed_m_s
+        .or(plan.hover_speed_m_s)
+        .unwrap_or(k.default_speed_m_s);
+    let mut legs = Vec::new();
+    let segs = segments(plan, k, speed0, &mut legs);
+    let dt = 1.0 / c.rate_hz;
+    let mut feats = RotorFeatures::new(plan, k, c);
+    // Commanded speed feature per segment: the speed in force (changes are rare; the
+    // segment's own top speed where it has one).
+    let mut cur_speed = speed0;
+    let durations: Vec<f64> = segs.iter().map(|s| s.duration_s).collect();
+    sampled(&durations, dt, legs, |_, t, i, local_t| {
+        let seg = &segs[i];
+        if let Motion::Line { v, .. } = seg.motion {
+            cur_speed = v;
+        }
+        let (p, v, a, heading, yaw_rate) = state(seg, local_t);
+        let s = feats.sample(t, p, v, a, heading, yaw_rate, cur_speed);
+        (s, p, seg.leg)
+    })
+}
+
+/// Sample segments of `durations` every `dt` from 0 to their end: `at(j, t, segment,
+/// local time)` gives sample `j`, its ENU position and its leg; then the legs' times and
+/// sample ranges.
+fn sampled(
+    durations: &[f64],
+    dt: f64,
+    mut legs: Vec<Leg>,
+    mut at: impl FnMut(usize, f64, usize, f64) -> (Sample, Vector3<f64>, usize),
+) -> Trajectory {
+    let total: f64 = durations.iter().sum();
+    let n = if durations.is_empty() {
+        0
+    } else {
+        crate::features::units::floor_ratio(total, dt).unwrap_or(0.0) as usize + 1
+    };
+    let mut samples = Vec::with_capacity(n);
+    let mut enu_m = Vec::with_capacity(n);
+    let mut leg_of = Vec::with_capacity(n);
+    let (mut seg_i, mut seg_t0) = (0usize, 0.0f64);
+    for j in 0..n {
+        let t = j as f64 * dt;
+        while seg_i + 1 < durations.len() && t >= seg_t0 + durations[seg_i] {
+            seg_t0 += durations[seg_i];
+            seg_i += 1;
+        }
+        let (s, p, leg) = at(j, t, seg_i, t - seg_t0);
+        samples.push(s);
+        enu_m.push([p.x as f32, p.y as f32, p.z as f32]);
+        leg_of.push(leg as u32);
+    }
+    close_legs(&mut legs, &leg_of, dt);
     Trajectory {
         samples,
         enu_m,
         leg_of,
         legs,
         dt_s: dt,
+        given_w: Vec::new(),
     }
 }
 

@@ -345,19 +345,20 @@ impl Route {
                     }
                     continue;
                 }
-                K::Takeoff { alt_m } => {
+                K::Takeoff { alt_m } | K::VtolTakeoff { alt_m } => {
                     takeoff.get_or_insert((it.index, alt_m));
                     continue;
                 }
                 K::Waypoint { hold_s } => hold_s,
                 K::LoiterTime { time_s } => time_s,
+                K::LoiterTurns { .. } | K::LoiterUnlimited => 0.0,
                 K::NotModelled { flown_through, .. } if flown_through => 0.0,
-                K::NotModelled { .. } => continue,
-                K::Land | K::ReturnToLaunch => {
+                K::NotModelled { .. } | K::VtolTransition { .. } => continue,
+                K::Land | K::VtolLand | K::ReturnToLaunch => {
                     // The flight ends here: LAND at its position (or where it is), RETURN_TO_LAUNCH
                     // over home at the altitude it is at.
                     let last_alt = waypoints.last().map(|w| w.alt_m);
-                    let end = match (matches!(it.kind, K::Land), &it.position) {
+                    let end = match (matches!(it.kind, K::Land | K::VtolLand), &it.position) {
                         (true, Some(p)) => {
                             let (e, n) = ned(p);
                             Some((n, e, last_alt.unwrap_or(p.alt_m)))

@@ -43,6 +43,9 @@
 
 use serde::{Deserialize, Serialize};
 
+mod flight;
+pub use flight::{bank_for_radius, Flight};
+
 use crate::features::{frames, idx, Lift, Sample};
 use crate::model::{PowerModel, Prediction};
 use crate::telemetry::window::Window;
@@ -115,21 +118,27 @@ impl Params {
             ("eta", self.eta, 0.05, 1.0),
             ("offset_w", self.offset_w, 0.0, 5000.0),
         ];
-        let errs: Vec<String> = checks
-            .iter()
-            .filter(|(_, v, lo, hi)| !(v.is_finite() && v >= lo && v <= hi))
-            .map(|(k, v, lo, hi)| format!("fixed_wing.{k} = {v}: must be in [{lo}, {hi}]"))
-            .collect();
-        if errs.is_empty() {
-            Ok(())
-        } else {
-            Err(errs.join("\n"))
-        }
+        check_ranges("fixed_wing", &checks)
     }
 
     /// Aspect ratio b²/S.
     pub fn aspect_ratio(&self) -> f64 {
         self.span_m * self.span_m / self.wing_area_m2
+    }
+}
+
+/// Each `(key, value, lo, hi)` of table `section` within `[lo, hi]`; every broken key in
+/// one message, each line naming `section.key`.
+fn check_ranges(section: &str, checks: &[(&str, f64, f64, f64)]) -> Result<(), String> {
+    let errs: Vec<String> = checks
+        .iter()
+        .filter(|(_, v, lo, hi)| !(v.is_finite() && v >= lo && v <= hi))
+        .map(|(k, v, lo, hi)| format!("{section}.{k} = {v}: must be in [{lo}, {hi}]"))
+        .collect();
+    if errs.is_empty() {
+        Ok(())
+    } else {
+        Err(errs.join("\n"))
     }
 }
 
