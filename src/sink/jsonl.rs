@@ -110,9 +110,7 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     write_line(
         w,
         &WindowLine {
-            kind: "window",
-            system_id: r.vehicle.system_id,
-            network: r.vehicle.network_field(),
+            head: Head::new("window", r.vehicle),
             t: e.t_s,
             measured_w: s.measured_w,
             features: Features(&s.features),
@@ -133,17 +131,21 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     write_line(
         w,
         &EstimateLine {
-            kind: "estimate",
-            system_id: r.vehicle.system_id,
-            network: r.vehicle.network_field(),
+            head: Head::new("estimate", r.vehicle),
             t: e.t_s,
             vehicle_class: s.vehicle.class,
             mav_type: s.vehicle.mav_type,
             vtol_state: (s.vehicle.class == crate::features::VehicleClass::Vtol)
                 .then(|| s.vehicle.vtol_state.as_str()),
             measured_w: s.measured_w,
-            models: Models(&e.models),
-            bands: Bands(&e.models),
+            models: PerModel {
+                models: &e.models,
+                figure: |m| Some(m.power_w),
+            },
+            bands: PerModel {
+                models: &e.models,
+                figure: |m| m.band_w.map(|(lo, hi)| [lo, hi]),
+            },
             energy_used_wh: r.energy.energy_used_wh,
             remaining_wh: r.energy.remaining_wh,
             remaining_source: r.energy.remaining_source,
@@ -151,7 +153,10 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             home_margin_wh: r.energy.home_margin_wh,
             mission_energy_wh: r.energy.mission_energy_wh,
             mission_margin_wh: r.energy.mission_margin_wh,
-            adapted: Adapted(&e.models),
+            adapted: PerModel {
+                models: &e.models,
+                figure: |m| m.adapted_w,
+            },
             forecast_adapted: r.energy.forecast_adapted,
             forecast_model: r.energy.forecast_model.as_deref(),
             forecast_why: r.energy.forecast_why.as_deref(),
@@ -182,9 +187,7 @@ pub fn write_alert(
     write_line(
         w,
         &AlertLine {
-            kind: "alert",
-            system_id: vehicle.system_id,
-            network: vehicle.network_field(),
+            head: Head::new("alert", vehicle),
             t: a.t,
             rule: &a.rule,
             severity: a.severity,
@@ -220,14 +223,31 @@ fn write_line(w: &mut impl Write, v: &impl Serialize) -> std::io::Result<()> {
     w.write_all(b"\n")
 }
 
+/// What every line about one vehicle begins with: its type, the vehicle's system id, and
+/// its network where the links are separate networks.
 #[derive(Serialize)]
-struct WindowLine<'a> {
+struct Head {
     #[serde(rename = "type")]
     kind: &'static str,
     system_id: u8,
-    /// The vehicle's network, where the links are separate networks.
     #[serde(skip_serializing_if = "Option::is_none")]
     network: Option<u8>,
+}
+
+impl Head {
+    fn new(kind: &'static str, vehicle: crate::report::VehicleId) -> Self {
+        Head {
+            kind,
+            system_id: vehicle.system_id,
+            network: vehicle.network_field(),
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct WindowLine<'a> {
+    #[serde(flatten)]
+    head: Head,
     t: f64,
     measured_w: Option<f32>,
     features: Features<'a>,
@@ -248,12 +268,8 @@ impl Serialize for Features<'_> {
 
 #[derive(Serialize)]
 struct EstimateLine<'a> {
-    #[serde(rename = "type")]
-    kind: &'static str,
-    system_id: u8,
-    /// The vehicle's network, where the links are separate networks.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    network: Option<u8>,
+    #[serde(flatten)]
+    head: Head,
     t: f64,
     /// The vehicle class (`features::class`): which models apply.
     vehicle_class: crate::features::VehicleClass,
@@ -265,11 +281,11 @@ struct EstimateLine<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     vtol_state: Option<&'static str>,
     measured_w: Option<f32>,
-    models: Models<'a>,
+    models: PerModel<'a, f32>,
     /// `{"<name>": [low_w, high_w]}` for the models that give an uncertainty band (the LSTM's
     /// 5 %/95 % quantiles); absent when none does.
-    #[serde(skip_serializing_if = "Bands::is_empty")]
-    bands: Bands<'a>,
+    #[serde(skip_serializing_if = "PerModel::is_empty")]
+    bands: PerModel<'a, [f32; 2]>,
     energy_used_wh: f64,
     /// Energy left to the usable floor, Wh, and where the start state came from
     /// (`resting voltage`, `battery`: the autopilot's %, `assumed full`).
@@ -284,8 +300,8 @@ struct EstimateLine<'a> {
     mission_margin_wh: Option<f64>,
     /// `{"<name>": watts}`: each model adapted to measured power (`model::adapt`); absent
     /// when adaptation is off.
-    #[serde(skip_serializing_if = "Adapted::is_empty")]
-    adapted: Adapted<'a>,
+    #[serde(skip_serializing_if = "PerModel::is_empty")]
+    adapted: PerModel<'a, f32>,
     /// Whether the forecast follows the forecast model adapted to measured power.
     forecast_adapted: bool,
     /// The model the forecast follows (null: measured power), and why (`energy::select`).
@@ -319,56 +335,26 @@ struct EstimateLine<'a> {
     critical_voltage_source: Option<&'a Provenance>,
 }
 
-/// Adapted estimates as a name → watts object.
-struct Adapted<'a>(&'a [crate::report::ModelEstimate]);
+/// One figure of each model as a name → value object (`models`: watts; `adapted`: the
+/// adapted watts; `bands`: [low, high] watts), leaving out the models that lack it.
+struct PerModel<'a, T> {
+    models: &'a [crate::report::ModelEstimate],
+    figure: fn(&crate::report::ModelEstimate) -> Option<T>,
+}
 
-impl Adapted<'_> {
+impl<T> PerModel<'_, T> {
     fn is_empty(&self) -> bool {
-        self.0.iter().all(|m| m.adapted_w.is_none())
+        self.models.iter().all(|m| (self.figure)(m).is_none())
     }
 }
 
-impl Serialize for Adapted<'_> {
+impl<T: Serialize> Serialize for PerModel<'_, T> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let mut m = s.serialize_map(None)?;
-        for e in self.0 {
-            if let Some(w) = e.adapted_w {
-                m.serialize_entry(&e.name, &w)?;
+        for e in self.models {
+            if let Some(v) = (self.figure)(e) {
+                m.serialize_entry(&e.name, &v)?;
             }
-        }
-        m.end()
-    }
-}
-
-/// Uncertainty bands as a name → [low, high] watts object.
-struct Bands<'a>(&'a [crate::report::ModelEstimate]);
-
-impl Bands<'_> {
-    fn is_empty(&self) -> bool {
-        self.0.iter().all(|e| e.band_w.is_none())
-    }
-}
-
-impl Serialize for Bands<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut m = s.serialize_map(None)?;
-        for e in self.0 {
-            if let Some((lo, hi)) = e.band_w {
-                m.serialize_entry(&e.name, &[lo, hi])?;
-            }
-        }
-        m.end()
-    }
-}
-
-/// Model estimates as a name → watts object.
-struct Models<'a>(&'a [crate::report::ModelEstimate]);
-
-impl Serialize for Models<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut m = s.serialize_map(Some(self.0.len()))?;
-        for e in self.0 {
-            m.serialize_entry(&e.name, &e.power_w)?;
         }
         m.end()
     }
@@ -387,12 +373,8 @@ struct StateLine<'a> {
 
 #[derive(Serialize)]
 struct AlertLine<'a> {
-    #[serde(rename = "type")]
-    kind: &'static str,
-    system_id: u8,
-    /// The vehicle's network, where the links are separate networks.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    network: Option<u8>,
+    #[serde(flatten)]
+    head: Head,
     t: f64,
     rule: &'a str,
     severity: crate::report::Severity,

@@ -175,18 +175,11 @@ pub async fn run(
     shutdown: CancellationToken,
 ) -> anyhow::Result<()> {
     stats.queues.start();
+    let verifier = signing.map(|s| s.verifier());
     match spec {
         SourceSpec::Link(address) => {
             let addr: link::LinkAddress = address.parse()?;
-            link::run(
-                addr,
-                tx,
-                stats,
-                link,
-                signing.map(|s| s.verifier()),
-                shutdown,
-            )
-            .await
+            link::run(addr, tx, stats, link, verifier, shutdown).await
         }
         SourceSpec::Links {
             addresses,
@@ -198,14 +191,7 @@ pub async fn run(
                 .map(|a| a.parse::<link::LinkAddress>())
                 .collect::<Result<Vec<_>, _>>()?;
             links::run(
-                addrs,
-                &networks,
-                every_link,
-                tx,
-                stats,
-                link,
-                signing.map(|s| s.verifier()),
-                shutdown,
+                addrs, &networks, every_link, tx, stats, link, verifier, shutdown,
             )
             .await
         }
