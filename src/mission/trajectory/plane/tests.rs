@@ -1,5 +1,6 @@
 //! Tests of the parent module.
 
+use super::route::*;
 use super::*;
 use crate::features::Lift;
 use crate::mission::forecast::{forecast, Calibration, Member};
