@@ -3,8 +3,8 @@
 //! flight ([`crate::features::Lift::Wing`]); never on a multirotor's.
 //!
 //! ```text
-//! P = ( ½·ρ·V³·S·C_D0  +  2·(n·m·g)² / (ρ·V·S·π·e·AR)  +  m·g·v_z ) / η  +  P_0
-//!        parasitic          induced (n = 1/cos φ)            climb
+//! P = ( ½·ρ·V³·S·C_D0  +  2·(n·m·g)² / (ρ·V·S·π·e·AR)  +  m·g·(v_z + V·V̇/g) ) / η  +  P_0
+//!        parasitic          induced (n = 1/cos φ)            climb and acceleration
 //! ```
 //!
 //! | symbol | meaning | unit | from |
@@ -18,6 +18,7 @@
 //! | n | load factor 1/cos φ, φ the bank (roll) angle, capped at 60° | 1 | the attitude |
 //! | m | mass: profile `mass_kg` + the `payload` feature | kg | |
 //! | v_z | climb rate (up positive) | m/s | `velocity_z` |
+//! | V̇ | acceleration along the air path | m/s² | the window's ground velocity ([`path_acceleration`]); the kinetic-energy rate of the total-energy (TECS) balance |
 //! | η | propulsive × motor × ESC efficiency | 1 | profile `eta` |
 //! | P_0 | avionics and servos | W | profile `offset_w` |
 //!
@@ -31,7 +32,7 @@
 //! A missing airspeed falls back the same way, said once.
 //!
 //! The model is linear in its own four regressors ([`regressors`]: ρV³, (n·m·g)²/(ρV),
-//! m·g·v_z, 1), with the coefficients S·C_D0/(2η), 2/(S·π·e·AR·η), 1/η and P_0
+//! m·g·(v_z + V·V̇/g), 1), with the coefficients S·C_D0/(2η), 2/(S·π·e·AR·η), 1/η and P_0
 //! ([`FixedWing::coefficients`]). Online adaptation fits those four coefficients on the
 //! vehicle (`model::adapt::regression`: bounded, the published ones as the prior), then
 //! corrects the result like every model's (a·P + b, bounded), teaching while the motor
