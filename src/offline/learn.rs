@@ -275,7 +275,7 @@ fn wing_score(
     let mut m = crate::model::physics::fixed_wing::FixedWing::new(*p);
     let (mut n, mut abs, mut sq, mut pct, mut e_m, mut e_p) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
     for w in &f.windows {
-        let pred = m.predict_one(w.last());
+        let pred = m.predict_window(w);
         let Some(y) = w
             .last()
             .measured_w

@@ -129,6 +129,13 @@ pub struct AdaptConfig {
     /// model by (`[energy.select]`). Default 120 (longer than `memory_s`: the forecast
     /// model should be the best over the flight's regimes, not the last half-minute's).
     pub score_memory_s: f64,
+    /// Memory of a model's own regression ([`regression`]: the fixed-wing model's four
+    /// coefficients), s. Default 3: short, because the model's inputs miss part of what
+    /// moves a plane's power (the propeller's efficiency with its thrust, the servos in
+    /// gusts) and the coefficients follow it; chosen on the simulated validation flights
+    /// (`scripts/measure-planes.sh OUT --set validation`: 30 s 11.2 %, 10 s 9.5 %, 5 s
+    /// 8.6 %, 3 s 8.3 %, 1.5 s 8.6 % on the plane; docs/src/vehicle-types.md).
+    pub regression_memory_s: f64,
 }
 
 impl Default for AdaptConfig {
@@ -142,6 +149,7 @@ impl Default for AdaptConfig {
             gain_max: 5.0,
             offset_max_w: 1000.0,
             score_memory_s: 120.0,
+            regression_memory_s: 3.0,
         }
     }
 }
@@ -157,6 +165,7 @@ impl AdaptConfig {
             ("gain_max", self.gain_max, ""),
             ("offset_max_w", self.offset_max_w, "W"),
             ("score_memory_s", self.score_memory_s, "s"),
+            ("regression_memory_s", self.regression_memory_s, "s"),
         ] {
             errs.range(
                 &format!("models.adapt.{k}"),
@@ -331,6 +340,8 @@ pub struct Adaptation {
     cfg: AdaptConfig,
     lambda: f64,
     lambda_ref: f64,
+    /// Forgetting factor of a model's own regression (`regression_memory_s`).
+    lambda_regression: f64,
     /// Below this measured power nothing teaches (motors off), W.
     min_teach_w: f64,
     fits: Vec<(String, ModelFit)>,
@@ -356,6 +367,7 @@ impl Adaptation {
             cfg: cfg.clone(),
             lambda: lambda_of(cfg.memory_s),
             lambda_ref: lambda_of(cfg.reference_memory_s),
+            lambda_regression: lambda_of(cfg.regression_memory_s),
             min_teach_w: (cfg.min_power_frac * hover_w).max(0.0),
             fits: names
                 .iter()
@@ -388,7 +400,7 @@ impl Adaptation {
         let out = fit.predict(phi);
         if let Some(y) = measured_w.map(f64::from) {
             if teach && y.is_finite() && y > 0.0 && y <= MAX_POWER_W {
-                fit.teach(phi, y, self.lambda);
+                fit.teach(phi, y, self.lambda_regression);
             }
         }
         out

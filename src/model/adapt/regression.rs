@@ -2,7 +2,7 @@
 //! `P = θ·φ` (the fixed-wing model's φ = [ρV³, (n·m·g)²/(ρV), m·g·v_z, 1]), the
 //! coefficients θ themselves follow the vehicle, not only an affine correction of the
 //! output. The same scheme as the affine fit ([`super`]): exponentially weighted least
-//! squares with forgetting λ, the prior θ₀ (the model's published coefficients) kept as a
+//! squares with forgetting λ (its own memory, `regression_memory_s`, 3 s by default), the prior θ₀ (the model's published coefficients) kept as a
 //! fixed regulariser R₀ = diag(σ_y² / σ_k²) with σ_k = 50 % of θ₀ₖ (σ_y = 20 W), and
 //! bounds after every solve: each coefficient within [θ₀ₖ/4, 4·θ₀ₖ] (the offset within
 //! [0, 4·θ₀ + 50 W]). The prior holds what the flight does not excite (a plane that never

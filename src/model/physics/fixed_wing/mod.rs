@@ -3,8 +3,8 @@
 //! flight ([`crate::features::Lift::Wing`]); never on a multirotor's.
 //!
 //! ```text
-//! P = ( ½·ρ·V³·S·C_D0  +  2·(n·m·g)² / (ρ·V·S·π·e·AR)  +  m·g·v_z ) / η  +  P_0
-//!        parasitic          induced (n = 1/cos φ)            climb
+//! P = ( ½·ρ·V³·S·C_D0  +  2·(n·m·g)² / (ρ·V·S·π·e·AR)  +  m·g·(v_z + V·V̇/g) ) / η  +  P_0
+//!        parasitic          induced (n = 1/cos φ)            climb and acceleration
 //! ```
 //!
 //! | symbol | meaning | unit | from |
@@ -18,6 +18,7 @@
 //! | n | load factor 1/cos φ, φ the bank (roll) angle, capped at 60° | 1 | the attitude |
 //! | m | mass: profile `mass_kg` + the `payload` feature | kg | |
 //! | v_z | climb rate (up positive) | m/s | `velocity_z` |
+//! | V̇ | acceleration along the air path | m/s² | the window's ground velocity ([`path_acceleration`]); the kinetic-energy rate of the total-energy (TECS) balance |
 //! | η | propulsive × motor × ESC efficiency | 1 | profile `eta` |
 //! | P_0 | avionics and servos | W | profile `offset_w` |
 //!
@@ -31,7 +32,7 @@
 //! A missing airspeed falls back the same way, said once.
 //!
 //! The model is linear in its own four regressors ([`regressors`]: ρV³, (n·m·g)²/(ρV),
-//! m·g·v_z, 1), with the coefficients S·C_D0/(2η), 2/(S·π·e·AR·η), 1/η and P_0
+//! m·g·(v_z + V·V̇/g), 1), with the coefficients S·C_D0/(2η), 2/(S·π·e·AR·η), 1/η and P_0
 //! ([`FixedWing::coefficients`]). Online adaptation fits those four coefficients on the
 //! vehicle (`model::adapt::regression`: bounded, the published ones as the prior), then
 //! corrects the result like every model's (a·P + b, bounded), teaching while the motor
@@ -229,6 +230,70 @@ pub fn load_factor(s: &Sample) -> f64 {
     }
 }
 
+/// The acceleration along the air path over the window, m/s²: the inertial (ground)
+/// velocity's change from the oldest sample to the newest, projected on the mean heading
+/// (a coordinated plane flies without sideslip, so its heading is its air path's): the
+/// horizontal part (the climb is the model's own term). What the thrust does beyond
+/// drag and climb: the kinetic-energy rate m·V·V̇ of the total-energy (TECS) balance. From
+/// the ground velocity, not the airspeed: a gust changes the airspeed at once and costs no
+/// power, the thrust that answers it does. 0 for a window under 0.3 s; clamped to ±2 g.
+pub fn path_acceleration(w: &Window) -> f64 {
+    let (Some(a), b) = (w.samples.first(), w.last()) else {
+        return 0.0;
+    };
+    let dt = b.t_s - a.t_s;
+    if !(dt.is_finite() && dt >= 0.3) {
+        return 0.0;
+    }
+    let (ya, yb) = (heading(a), heading(b));
+    // The mean heading, and each sample's heading from it.
+    let half = wrap_pi(yb - ya) / 2.0;
+    let along = |s: &Sample, d: f64| feat(s, idx::VY) * d.cos() - feat(s, idx::VX) * d.sin();
+    let dv = along(b, half) - along(a, -half);
+    let acc = dv / dt;
+    if acc.is_finite() {
+        acc.clamp(-2.0 * G, 2.0 * G)
+    } else {
+        0.0
+    }
+}
+
+/// The heading (yaw, NED, clockwise from north) of `s`, rad; 0 without an attitude.
+fn heading(s: &Sample) -> f64 {
+    let q = [idx::QW, idx::QX, idx::QY, idx::QZ].map(|i| feat(s, i));
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if norm.is_nan() || norm <= 1e-6 {
+        return 0.0;
+    }
+    let [_, _, yaw] = frames::euler_ned(frames::ds_to_ned(q.map(|x| x / norm)));
+    if yaw.is_finite() {
+        yaw
+    } else {
+        0.0
+    }
+}
+
+fn wrap_pi(a: f64) -> f64 {
+    let a = a.rem_euclid(2.0 * std::f64::consts::PI);
+    if a > std::f64::consts::PI {
+        a - 2.0 * std::f64::consts::PI
+    } else {
+        a
+    }
+}
+
+/// The energy climb rate, m/s: the climb rate `vz` plus the kinetic-energy rate over m·g,
+/// V·V̇/g, so that m·g·(this) is the total-energy rate the motor pays for besides drag.
+/// Clamped to ±[`MAX_CLIMB_M_S`].
+pub fn energy_climb(vz: f64, v: f64, accel: f64) -> f64 {
+    let c = vz + v * accel / G;
+    if c.is_finite() {
+        c.clamp(-MAX_CLIMB_M_S, MAX_CLIMB_M_S)
+    } else {
+        0.0
+    }
+}
+
 /// The model's four regressors at one sample: ρV³, (n·m·g)²/(ρV), m·g·v_z and 1 (W-free
 /// units: kg·m²/s³ for the first three over their coefficients), with V the airspeed
 /// (floored at [`MIN_FLYING_M_S`]).
@@ -276,7 +341,9 @@ impl FixedWing {
     }
 
     /// The conditions at `s` for airspeed `v`: (ρ, V, n, mass, climb), `None` on the ground.
-    fn conditions(&self, s: &Sample, v: f64) -> Option<(f64, f64, f64, f64, f64)> {
+    /// `accel` is the acceleration along the air path, m/s² ([`path_acceleration`]): the
+    /// climb is the energy climb rate v_z + V·V̇/g ([`energy_climb`]).
+    fn conditions(&self, s: &Sample, v: f64, accel: f64) -> Option<(f64, f64, f64, f64, f64)> {
         if v < MIN_FLYING_M_S && ground_speed(s) < MIN_FLYING_M_S {
             return None;
         }
@@ -284,7 +351,7 @@ impl FixedWing {
         let mass = self.params.mass_kg + feat(s, idx::PAYLOAD).max(0.0) / 1000.0;
         // No small plane flies these: a glitch must not read as megawatts.
         let v = v.min(MAX_AIRSPEED_M_S);
-        let climb = feat(s, idx::VZ).clamp(-MAX_CLIMB_M_S, MAX_CLIMB_M_S);
+        let climb = energy_climb(feat(s, idx::VZ), v, accel);
         Some((rho, v, load_factor(s), mass, climb))
     }
 
@@ -301,8 +368,18 @@ impl FixedWing {
         ]
     }
 
-    /// The power for the window's newest sample, W.
+    /// The power for one sample alone, W (no acceleration: a window of one).
     pub fn predict_one(&mut self, s: &Sample) -> f64 {
+        self.predict_at(s, 0.0)
+    }
+
+    /// The power for the window's newest sample, W, with the window's acceleration along
+    /// the air path ([`path_acceleration`]).
+    pub fn predict_window(&mut self, w: &Window) -> f64 {
+        self.predict_at(w.last(), path_acceleration(w))
+    }
+
+    fn predict_at(&mut self, s: &Sample, accel: f64) -> f64 {
         let (v, from, failed) = airspeed(s);
         if failed {
             self.failures += 1;
@@ -314,7 +391,7 @@ impl FixedWing {
             self.said_fallback = true;
             tracing::warn!("fixed_wing: no airspeed (no airspeed sensor, no VFR_HUD airspeed, no WIND): the ground speed stands in for it");
         }
-        match self.conditions(s, v) {
+        match self.conditions(s, v, accel) {
             Some((rho, v, n, mass, climb)) => power_w(&self.params, rho, v, n, mass, climb),
             None => self.params.offset_w,
         }
@@ -329,7 +406,7 @@ impl PowerModel for FixedWing {
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {
         out.clear();
         out.extend(windows.iter().map(|w| Prediction {
-            power_w: self.predict_one(w.last()) as f32,
+            power_w: self.predict_window(w) as f32,
             band_w: None,
         }));
     }
@@ -349,7 +426,7 @@ impl PowerModel for FixedWing {
     fn regressors(&self, window: &Window) -> Option<([f64; 4], [f64; 4])> {
         let s = window.last();
         let (v, _, _) = airspeed(s);
-        let (rho, v, n, mass, climb) = self.conditions(s, v)?;
+        let (rho, v, n, mass, climb) = self.conditions(s, v, path_acceleration(window))?;
         let phi = regressors(rho, v, n, mass, climb);
         let theta0 = self.coefficients();
         let aero: f64 = (0..3).map(|k| theta0[k] * phi[k]).sum();

@@ -220,3 +220,98 @@ fn a_profile_carries_its_plane_and_its_class() {
     let bad = format!("{text}wingspan = 3.0\n");
     assert!(VehicleProfile::from_toml(&bad, "plane.toml").is_err());
 }
+
+/// 10 samples at 10 Hz of a plane on heading `yaw(t)` (deg, NED) with ground velocity
+/// `v(t)` = (right, forward) in the heading frame, and airspeed sensor `air(t)`.
+fn flight_window(
+    yaw: impl Fn(f64) -> f64,
+    v: impl Fn(f64) -> (f32, f32),
+    air: impl Fn(f64) -> f32,
+) -> Window {
+    let samples = (0..10)
+        .map(|i| {
+            let t = i as f64 * 0.1;
+            let mut s = sample(0.0, 0.0, 0.0, 0.0, sensor(air(t)));
+            let q = frames::ned_to_ds(frames::quat_from_euler(0.0, 0.0, yaw(t).to_radians()));
+            for (k, x) in [idx::QW, idx::QX, idx::QY, idx::QZ].into_iter().zip(q) {
+                s.features[k] = x as f32;
+            }
+            let (right, fwd) = v(t);
+            s.features[idx::VX] = right;
+            s.features[idx::VY] = fwd;
+            s.t_s = 100.0 + t;
+            s
+        })
+        .collect();
+    Window {
+        samples,
+        arrived: None,
+    }
+}
+
+#[test]
+fn the_kinetic_energy_rate_is_paid_for_and_turns_and_gusts_are_not() {
+    let mut m = FixedWing::new(Params::default());
+    let rho = air_density(0.0, None);
+    // Heading east, the ground speed 14 → 15 m/s over the window's 0.9 s: V̇ = 1.111 m/s²,
+    // the energy climb rate V·V̇/g = 15 × 1.111 / 9.80665 = 1.699 m/s: +66.6 W at η 0.5.
+    let w = flight_window(|_| 90.0, |t| (0.0, (14.0 + t / 0.9) as f32), |_| 15.0);
+    let a = path_acceleration(&w);
+    assert!((a - 1.0 / 0.9).abs() < 1e-4, "{a}");
+    let want = power_w(&Params::default(), rho, 15.0, 1.0, 2.0, 15.0 * a / G);
+    let p = m.predict_window(&w);
+    assert!(
+        (p - want).abs() < 1e-6 && p - m.predict_one(w.last()) > 60.0,
+        "{p} vs {want}"
+    );
+    // The window's regressors carry the same term: θ₀·φ is the prediction.
+    let (phi, theta0) = m.regressors(&w).expect("flying, motor on");
+    let linear: f64 = (0..4).map(|k| theta0[k] * phi[k]).sum();
+    assert!((linear - p).abs() < 1e-9 * p, "{linear} vs {p}");
+    // A steady turn at 0.3 rad/s in calm air: the velocity turns, its size does not.
+    let w = flight_window(|t| 30.0 + 17.19 * t, |_| (0.0, 15.0), |_| 15.0);
+    assert!(path_acceleration(&w).abs() < 1e-6);
+    // A loiter in a 5 m/s wind from the north at 15 m/s of airspeed: the ground speed swings
+    // (forward 15 − 5·cos ψ, right 5·sin ψ), the airspeed does not: nothing to pay for.
+    let psi = |t: f64| (200.0 + 17.19 * t).to_radians();
+    let w = flight_window(
+        |t| psi(t).to_degrees(),
+        |t| {
+            (
+                (5.0 * psi(t).sin()) as f32,
+                (15.0 - 5.0 * psi(t).cos()) as f32,
+            )
+        },
+        |_| 15.0,
+    );
+    assert!(
+        path_acceleration(&w).abs() < 1e-4,
+        "{}",
+        path_acceleration(&w)
+    );
+    // A gust: the airspeed jumps 14 → 18 m/s, the ground velocity (the state) has not moved
+    // yet: no kinetic energy paid for.
+    let w = flight_window(
+        |_| 0.0,
+        |_| (0.0, 14.0),
+        |t| if t < 0.5 { 14.0 } else { 18.0 },
+    );
+    assert_eq!(path_acceleration(&w), 0.0);
+    // Garbage: a NaN velocity, a window of one sample, a window with no time: finite, bounded.
+    let w = flight_window(
+        |_| 0.0,
+        |t| (0.0, if t > 0.5 { f32::NAN } else { 1e30 }),
+        |_| 15.0,
+    );
+    let a = path_acceleration(&w);
+    assert!(a.is_finite() && a.abs() <= 2.0 * G, "{a}");
+    assert!(m.predict_window(&w).is_finite());
+    let mut one = flight_window(|_| 0.0, |t| (0.0, (14.0 + t) as f32), |_| 15.0);
+    one.samples.truncate(1);
+    assert_eq!(path_acceleration(&one), 0.0);
+    let mut still = flight_window(|_| 0.0, |t| (0.0, (14.0 + t) as f32), |_| 15.0);
+    for s in &mut still.samples {
+        s.t_s = 5.0;
+    }
+    assert_eq!(path_acceleration(&still), 0.0);
+}
