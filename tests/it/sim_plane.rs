@@ -8,6 +8,7 @@ use std::process::Command;
 use serde_json::Value;
 
 use crate::link_common;
+use link_common::models;
 
 fn dronewatt() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
@@ -61,13 +62,6 @@ fn replay(log: &std::path::Path) -> (Vec<Value>, Value, String) {
         }
     }
     (est, summary, stderr)
-}
-
-fn models(e: &Value) -> Vec<String> {
-    e["models"]
-        .as_object()
-        .map(|m| m.keys().cloned().collect())
-        .unwrap_or_default()
 }
 
 #[test]
@@ -158,7 +152,7 @@ fn a_simulated_plane_over_udp_into_monitor_gets_fixed_wing_estimates() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("out.jsonl");
     let port = link_common::free_udp_port();
-    let mut dw = link_common::monitor_udp(port, &json, &[("DRONEWATT_HOME", "off")]);
+    let dw = link_common::monitor_udp(port, &json, &[("DRONEWATT_HOME", "off")]);
     // A ~80 s flight at 4× real time (the live chain makes its windows on the arrival clock).
     let sim = dronewatt()
         .args([
@@ -177,12 +171,7 @@ fn a_simulated_plane_over_udp_into_monitor_gets_fixed_wing_estimates() {
         String::from_utf8_lossy(&sim.stderr)
     );
     std::thread::sleep(std::time::Duration::from_millis(300));
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    let (status, stderr) = link_common::stop(dw);
     assert!(status.success(), "{stderr}");
     let est: Vec<Value> = std::fs::read_to_string(&json)
         .unwrap()

@@ -5,6 +5,7 @@
 //! model's power, said so.
 
 use crate::link_common;
+use link_common::models;
 
 use link_common::{fly, Run};
 use serde_json::Value;
@@ -23,13 +24,6 @@ fn after_heartbeat(r: &Run) -> Vec<&Value> {
         r.stderr
     );
     lines
-}
-
-fn models(e: &Value) -> Vec<String> {
-    e["models"]
-        .as_object()
-        .map(|m| m.keys().cloned().collect())
-        .unwrap_or_default()
 }
 
 #[test]

@@ -119,7 +119,7 @@ pub fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
 /// `dronewatt monitor` already listening, stderr piped) watches, then stop dronewatt with
 /// SIGTERM (its own orderly shutdown). Both must succeed; returns the peer's JSON report and
 /// dronewatt's stderr.
-pub fn peer_then_stop(mut dw: std::process::Child, script: &str, args: &[&str]) -> (Value, String) {
+pub fn peer_then_stop(dw: std::process::Child, script: &str, args: &[&str]) -> (Value, String) {
     let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
         .arg(format!(
             "{}/tests/peers/{script}",
@@ -128,12 +128,7 @@ pub fn peer_then_stop(mut dw: std::process::Child, script: &str, args: &[&str]) 
         .args(args)
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    let (status, stderr) = stop(dw);
     assert!(
         peer.status.success(),
         "peer failed: {}",
@@ -238,4 +233,24 @@ pub fn expected_estimates(seconds: f64, segments: usize) -> std::ops::RangeInclu
     let full = (seconds * 10.0).round() as usize;
     let lo = full.saturating_sub(segments * 10 + 5 * segments);
     lo..=full + 2 * segments
+}
+
+/// Stop dronewatt with SIGTERM (its own orderly shutdown) and wait: its exit status and its
+/// stderr (the child must have been spawned with a piped stderr).
+pub fn stop(mut dw: std::process::Child) -> (std::process::ExitStatus, String) {
+    let _ = Command::new("kill")
+        .args(["-TERM", &dw.id().to_string()])
+        .status();
+    let status = dw.wait().unwrap();
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    (status, stderr)
+}
+
+/// The names of the models in an `estimate` line's `models` object.
+pub fn models(e: &Value) -> Vec<String> {
+    e["models"]
+        .as_object()
+        .map(|m| m.keys().cloned().collect())
+        .unwrap_or_default()
 }
