@@ -80,3 +80,11 @@ fn quotient(a: f64, b: f64) -> Option<f64> {
 pub fn unix_clock(t_s: f64) -> Option<f64> {
     (t_s.is_finite() && (1e9..1e10).contains(&t_s)).then_some(t_s)
 }
+
+/// Standard gravity, m/s² (the one value every part uses).
+pub const G: f64 = 9.80665;
+
+/// An angle wrapped into [−π, π), rad.
+pub fn wrap_pi(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}

@@ -51,6 +51,7 @@ use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
+use crate::features::units::wrap_pi;
 use crate::model::profile::VehicleProfile;
 use crate::sim::guidance::{Guidance, Home, InvalidOption, Phase, Route};
 use crate::MavMessage;
@@ -638,14 +639,6 @@ impl State {
             airspeed_mps: None,
         }
     }
-}
-
-fn wrap_pi(a: f64) -> f64 {
-    let mut a = (a + PI) % (2.0 * PI);
-    if a < 0.0 {
-        a += 2.0 * PI;
-    }
-    a - PI
 }
 
 /// Body-to-NED rotation whose body z axis (down, FRD) opposes the thrust and whose heading

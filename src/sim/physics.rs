@@ -36,7 +36,7 @@ use crate::model::profile::{self, VehicleProfile};
 use crate::report::{BatteryFacts, Provenance, Sourced};
 
 /// Standard gravity, m/s² (also ArduPilot's `GRAVITY_MSS`, which scales RAW_IMU).
-pub const G: f64 = 9.80665;
+pub use crate::features::units::G;
 
 /// The airframe and rotor constants of the power model, from a profile.
 #[derive(Debug, Clone, Copy, PartialEq)]

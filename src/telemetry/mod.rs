@@ -54,6 +54,7 @@ pub mod window;
 
 // The shared types live on the floor ([`crate::features`]); re-exported here because the
 // telemetry stage is where they are made.
+use crate::features::units::G;
 pub use crate::features::{frames, idx, HomeVector, Sample, FEATURE_NAMES, N_FEATURES};
 pub use crate::report::status::{HealthHandle, SignalHealth};
 use crate::source::TimedMessage;
@@ -144,8 +145,6 @@ const SOURCES: [&[&str]; N_SIGNALS] = [
     &["HIGHRES_IMU", "SCALED_IMU", "RAW_IMU"],
     &["BATTERY_STATUS", "SYS_STATUS"],
 ];
-
-const G: f64 = 9.80665;
 
 /// The telemetry stage: messages in, windows out (see the module docs).
 pub struct Telemetry {

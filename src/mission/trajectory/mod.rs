@@ -61,6 +61,7 @@ pub use conditions::{Conditions, KinematicsConfig, Wind};
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::plan::{GeoPoint, ItemKind, Plan};
+use crate::features::units::wrap_pi;
 use crate::telemetry::{idx, HomeVector, Sample, N_FEATURES};
 use route::segments;
 
@@ -203,10 +204,6 @@ fn trapezoid_time(len: f64, v: f64, a: f64) -> f64 {
     let v_top = v.min((len * a).sqrt());
     let t_acc = v_top / a;
     2.0 * t_acc + ((len - a * t_acc * t_acc) / v_top).max(0.0)
-}
-
-fn wrap_pi(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
 /// East/north offset of `p` from `home`, m (flat earth: fine over a mission's kilometres;

@@ -143,11 +143,11 @@ mod tests {
             let v = 14.0 + 3.0 * (t / 7.0).sin();
             let n = if (20.0..30.0).contains(&t) { 1.3 } else { 1.0 };
             let climb = 1.5 * (t / 11.0).sin();
-            let w = n * 2.0 * 9.80665;
+            let w = n * 2.0 * crate::features::units::G;
             [
                 1.2 * v * v * v,
                 w * w / (1.2 * v),
-                2.0 * 9.80665 * climb,
+                2.0 * crate::features::units::G * climb,
                 1.0,
             ]
         };

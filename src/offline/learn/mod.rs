@@ -247,7 +247,8 @@ fn wing_data(
     use crate::model::physics::fixed_wing::{airspeed, FixedWing};
     use crate::model::PowerModel;
     let m = FixedWing::new(*p);
-    let v_min = 1.2 * (2.0 * p.mass_kg * 9.80665 / (1.225 * p.wing_area_m2 * 1.2)).sqrt();
+    let v_min =
+        1.2 * (2.0 * p.mass_kg * crate::features::units::G / (1.225 * p.wing_area_m2 * 1.2)).sqrt();
     f.windows
         .iter()
         .filter_map(|w| {

@@ -61,7 +61,7 @@ use crate::mission::plan::{ItemKind, Plan};
 use crate::model::physics::fixed_wing::{bank_for_radius, Flight};
 
 /// Standard gravity, m/s².
-const G: f64 = 9.80665;
+use crate::features::units::G;
 /// The least ground speed a leg is flown at, m/s (a wind stronger than the airspeed).
 const MIN_GROUND_M_S: f64 = 1.0;
 

@@ -90,7 +90,7 @@ impl Default for Flight {
 }
 
 /// Standard gravity, m/s².
-const G: f64 = 9.80665;
+use crate::features::units::G;
 
 impl Flight {
     /// Range checks; each message names the key.

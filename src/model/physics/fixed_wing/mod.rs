@@ -58,7 +58,7 @@ pub const MAX_AIRSPEED_M_S: f64 = 100.0;
 pub const MAX_CLIMB_M_S: f64 = 30.0;
 /// The bank angle the load factor is capped at, rad (60°: n = 2).
 const MAX_BANK_RAD: f64 = std::f64::consts::FRAC_PI_3;
-const G: f64 = 9.80665;
+use crate::features::units::{wrap_pi, G};
 
 /// `[fixed_wing]` of a vehicle profile: the plane's figures.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -270,15 +270,6 @@ fn heading(s: &Sample) -> f64 {
         yaw
     } else {
         0.0
-    }
-}
-
-fn wrap_pi(a: f64) -> f64 {
-    let a = a.rem_euclid(2.0 * std::f64::consts::PI);
-    if a > std::f64::consts::PI {
-        a - 2.0 * std::f64::consts::PI
-    } else {
-        a
     }
 }
 
