@@ -134,7 +134,6 @@ def battery_params(r):
         "tau_heat_s": ("τh, heat proxy time constant", "s"),
         "bias_v": ("b, loaded-voltage offset", "V"),
         "lambda": ("RLS forgetting factor", ""),
-        "relax_heat_a2s": ("what the RLS learned relaxes over ∫I²dt of (none: off)", "A²·s"),
     }
     rows = []
     for k, v in p.items():

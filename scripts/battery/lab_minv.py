@@ -135,47 +135,7 @@ if __name__ == "__main__":
             p = fit([f for f in fl if err(f) is not None and sag(f) is not None], err, sag)
             print(f"{name:<28} {vn:<20} {m:9.3f} {a:7.3f} {b:8.3f} {s:+7.3f} {n:4d}  {p}")
 
-    # half time, variants that change the forecast's resistance (computed by battery-eval)
-    grid = ["inf", "1.6e6", "8e5", "4e5", "2e5", "1e5", "5e4", "2.5e4"]
-    for gi, g in enumerate(grid):
-        err = lambda f, gi=gi: num((f.get("halftime_relax_err") or [None] * 8)[gi])
-        sag = TARGETS["half time, measured power"][1]
-        for vn in ["none", "constant margin", "sag × (1 + β)"]:
-            fit, apply = VARIANTS[vn]
-            m, a, b, s, n = cv(fl, err, sag, fit, apply)
-            print(f"{'half time, relax ' + g:<28} {vn:<20} {m:9.3f} {a:7.3f} {b:8.3f} {s:+7.3f} {n:4d}")
-    err = lambda f: num(f.get("halftime_k_err"))
-    m, a, b, s, n = cv(fl, err, TARGETS["half time, measured power"][1], none_fit, none_apply)
-    print(f"{'half time, first-half k':<28} {'none':<20} {m:9.3f} {a:7.3f} {b:8.3f} {s:+7.3f} {n:4d}")
-
-    # nested: each fold picks relax_heat (and the correction's parameters) on the other folds
-    def nested(fl, corr):
-        fit, apply = VARIANTS[corr]
-        sag = TARGETS["half time, measured power"][1]
-        errs = [lambda f, gi=gi: num((f.get("halftime_relax_err") or [None] * 8)[gi]) for gi in range(8)]
-        out, firsts, chained, picks = [], [], [], []
-        for k in range(5):
-            tr = [f for f in fl if f["flight"] % 5 != k and errs[0](f) is not None]
-            te = [f for f in fl if f["flight"] % 5 == k and errs[0](f) is not None]
-            best = None
-            for gi, err in enumerate(errs):
-                p = fit(tr, err, sag)
-                m = med_abs([apply(f, p, err, sag) for f in tr])
-                if best is None or m < best[0]:
-                    best = (m, gi, p)
-            _, gi, p = best
-            picks.append(grid[gi])
-            for f in te:
-                e = apply(f, p, errs[gi], sag)
-                out.append(e)
-                (chained if f.get("k_prev") is not None else firsts).append(e)
-        return med_abs(out), med_abs(firsts), med_abs(chained), st.median(out), len(out), picks
-
-    for corr in ["none", "constant margin", "sag × (1 + β)"]:
-        m, a, b, s, n, picks = nested(fl, corr)
-        print(f"{'half time, relax (nested)':<28} {corr:<20} {m:9.3f} {a:7.3f} {b:8.3f} {s:+7.3f} {n:4d}  picks {picks}")
-
-    # the plan's power from half time (smooth, like the live path's), relax_heat as shipped
+    # the plan's power from half time (smooth, like the live path's), the forecast as shipped
     print()
     err = lambda f: num(f.get("halftime_plan_min_v_err"))
     sag = lambda f: num(f.get("halftime_plan_sag_v"))

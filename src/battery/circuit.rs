@@ -7,6 +7,7 @@
 //! The RLS then re-fits θ = [R0, R1, b] online: its one-step a-priori error is ~0.07 V.
 
 use super::ocv::OcvCurve;
+use super::split::Split;
 
 /// Pack model parameters (pack volts/ohms). `Default` is the TB48D fit from fit.py.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,16 +30,6 @@ pub struct CircuitParams {
     pub bias_v: f64,
     /// RLS forgetting factor per accepted sample.
     pub lambda: f64,
-    /// How what the RLS learned in flight relaxes back toward this circuit as the pack warms
-    /// on, in the forecast: the learned resistance's excess (RLS R0 over `r0`, minus 1, R1
-    /// alike) and the learned offset's (b − `bias_v`) shrink by exp(−Q/`relax_heat`),
-    /// Q = ∫I²dt since the forecast started (A²·s; infinite: they hold). **Off by default**
-    /// (infinite): on the M100 training flights 1e5 A²·s improved the half-time
-    /// lowest-voltage error in nested by-flight CV (0.112 → 0.097 V), but it pulled the
-    /// simulated demo pack's forecasts toward the start circuit and away from what the RLS
-    /// had rightly learned (a home margin under 0 on a flight that gets home): a pack whose
-    /// circuit is only a guess must not regress to it (`scripts/battery/NOTES-min-voltage.md`).
-    pub relax_heat: f64,
 }
 
 impl Default for CircuitParams {
@@ -53,7 +44,6 @@ impl Default for CircuitParams {
             tau_heat_s: 600.0,
             bias_v: -0.0226429840582387,
             lambda: 0.995,
-            relax_heat: f64::INFINITY,
         }
     }
 }
@@ -116,6 +106,8 @@ pub struct Estimator {
     /// Σ g·e and Σ g² over samples with I > 3 A, g = nominal drop R0·f·I + R1·x1,
     /// e = nominal-model voltage − measured: the flight's resistance scale by least squares.
     scale_sums: [f64; 2],
+    /// The flight's own warm/cold resistance fit, which the forecast flies on.
+    pub(crate) split: Split,
 }
 
 impl Estimator {
@@ -145,11 +137,22 @@ impl Estimator {
             x1: 0.0,
             heat: heat0,
             scale_sums: [0.0, 0.0],
+            split: Split::default(),
         })
     }
 
     fn factor(&self) -> f64 {
-        1.0 + self.p.warm_a * (-self.heat / self.p.heat_scale).exp()
+        1.0 + self.cold()
+    }
+
+    /// The cold share c = warm_a·exp(−H/heat_scale) of the warm factor f = 1 + c.
+    pub(crate) fn cold(&self) -> f64 {
+        self.p.warm_a * (-self.heat / self.p.heat_scale).exp()
+    }
+
+    /// The flight's own [k_w, k_c, b] (see [`super::split`]): what a forecast flies on.
+    pub(crate) fn split_fit(&self) -> [f64; 3] {
+        self.split.fit(self.p.bias_v)
     }
 
     pub(crate) fn ocv(&self) -> f64 {
@@ -165,6 +168,7 @@ impl Estimator {
         let f = self.factor();
         let e1 = (-dt_s / self.p.tau1_s).exp();
         self.x1 = self.x1 * e1 + f * i * (1.0 - e1);
+        self.split.propagate(e1, i, f - 1.0);
         let phi = [f * i, self.x1, 1.0];
         let v = v.unwrap_or_else(|| self.ocv() - dot(&self.theta, &phi));
         self.energy = (self.energy - v * i * dt_s / 3600.0).max(0.0);
@@ -203,6 +207,10 @@ impl Estimator {
                 self.scale_sums[0] += g * e;
                 self.scale_sums[1] += g * g;
             }
+            let (c, sp) = (self.cold(), &self.split);
+            let gw = self.p.r0 * i + self.p.r1 * sp.xw;
+            let gc = self.p.r0 * c * i + self.p.r1 * sp.xc;
+            self.split.add(dt_s, [gw, gc], ocv - voltage_v);
         }
         Some(Estimate {
             v_prior,

@@ -1,8 +1,11 @@
 //! Loaded-voltage forecast over a future power profile.
 //!
 //! Why power and not current: planners predict power (W) from speed/mass/wind; the pack
-//! decides the current. Each step solves P = V·I with V = C − R·I, where
-//! C = OCV − b − R1·x1·e1 and R = f·R0 + f·R1·(1 − e1) (the RC state's exact step),
+//! decides the current. Each step solves P = V·I with V = C − R·I, where, on the flight's
+//! own fit [k_w, k_c, b] ([`super::split`]; k = k_w + k_c·c, c the cold share that fades
+//! with the forecast's heat), C = OCV − b − R1·(k_w·x_w + k_c·x_c)·e1 and
+//! R = k·(R0 + R1·(1 − e1)) (the RC states' exact step; before take-off k_w = k_c = 1 and
+//! this is the circuit's f·R0 + f·R1·(1 − e1)),
 //! i.e. R·I² − C·I + P = 0, taking the smaller root (the stable operating point).
 //! If C² < 4·R·P the pack cannot deliver P: the current is set to the maximum-power point
 //! C/(2R) and `power_limited` is set.
@@ -89,11 +92,9 @@ pub fn steps(
 ) -> impl Iterator<Item = Step> {
     let mut s = state.clone();
     let p = s.p;
-    let [r0, r1, b] = s.theta;
-    // what the RLS learned beyond the start circuit, relaxing as the pack warms on
-    let m0 = if p.r0 > 0.0 { r0 / p.r0 } else { 1.0 };
-    let mut q2 = 0.0;
-    let relax = p.relax_heat.is_finite() && p.relax_heat > 0.0 && m0.is_finite() && m0 > 0.0;
+    // the flight's own circuit: the part that stays (k_w) and the cold part (k_c) that
+    // fades with the heat this forecast adds
+    let [kw, kc, b] = s.split_fit();
     let mut t = 0.0;
     profile
         .into_iter()
@@ -102,25 +103,11 @@ pub fn steps(
             let pw = if pw.is_finite() { pw.max(0.0) } else { 0.0 };
             let eh = (-dt / p.tau_heat_s).exp();
             s.heat *= eh;
-            let f = 1.0 + p.warm_a * (-s.heat / p.heat_scale).exp();
-            let g = if relax {
-                (1.0 + (m0 - 1.0) * (-q2 / p.relax_heat).exp()) / m0
-            } else {
-                1.0
-            };
-            // the offset b relaxes with them: the RLS trades R against b
-            let (r0, r1, b) = if relax {
-                (
-                    r0 * g,
-                    r1 * g,
-                    p.bias_v + (b - p.bias_v) * (-q2 / p.relax_heat).exp(),
-                )
-            } else {
-                (r0, r1, b)
-            };
+            let cold = s.cold();
+            let k = kw + kc * cold;
             let e1 = (-dt / p.tau1_s).exp();
-            let c = s.ocv() - b - r1 * s.x1 * e1;
-            let re = (f * r0 + r1 * f * (1.0 - e1)).max(1e-6);
+            let c = s.ocv() - b - p.r1 * (kw * s.split.xw + kc * s.split.xc) * e1;
+            let re = ((p.r0 + p.r1 * (1.0 - e1)) * k).max(1e-6);
             let disc = c * c - 4.0 * re * pw;
             let (i, power_limited) = if disc >= 0.0 {
                 ((c - disc.sqrt()) / (2.0 * re), false)
@@ -129,8 +116,7 @@ pub fn steps(
             };
             let v = c - re * i;
             s.heat += i * i * p.tau_heat_s * (1.0 - eh);
-            q2 += i * i * dt;
-            s.x1 = s.x1 * e1 + f * i * (1.0 - e1);
+            s.split.propagate(e1, i, cold);
             s.energy = (s.energy - v * i * dt / 3600.0).max(0.0);
             t += dt;
             Step {

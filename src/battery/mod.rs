@@ -27,8 +27,10 @@
 //! ([`CircuitParams::carried_over`]). First flights of a pack have no such information.
 //!
 //! The online estimator runs a 3×3 RLS with forgetting on θ = [R0, R1, b], so warm-up,
-//! ageing and OCV offsets are tracked in flight. The forecast solves P = V·I (a quadratic
-//! in I) each step. The lowest point of a smooth power forecast is deepened by the
+//! ageing and OCV offsets are tracked in flight (the modelled voltage now, `internal_r_ohm`).
+//! A forecast flies on the flight's own fit instead, which splits the resistance into the
+//! part that stays and the cold part that fades as the pack warms on ([`split`]). The
+//! forecast solves P = V·I (a quadratic in I) each step. The lowest point of a smooth power forecast is deepened by the
 //! transients it lacks ([`forecast::dip`]; chosen by by-flight CV on the training flights,
 //! `scripts/battery/NOTES-min-voltage.md`).
 
@@ -37,6 +39,7 @@ pub mod circuit;
 pub mod forecast;
 pub mod history;
 pub mod ocv;
+pub mod split;
 
 pub use chemistry::{cell_candidates, Chemistry};
 pub use circuit::{CircuitParams, Estimate, Estimator, PACK_SCALE_CARRY};

@@ -14,7 +14,7 @@ fn demo_raises_its_mission_and_pack_alerts_mid_flight() {
     // The demo's config without the dashboard, so the test needs no free port 8787.
     let demo = std::fs::read_to_string(root.join("config/demo.toml")).unwrap();
     assert!(
-        demo.contains("kind = \"mission_margin_below\"\nbelow_wh = 1\n")
+        demo.contains("kind = \"mission_margin_below\"\nbelow_wh = 2.5\n")
             && demo.contains("below_pct = 20"),
         "the demo config changed: update this test"
     );
@@ -94,8 +94,8 @@ fn demo_raises_its_mission_and_pack_alerts_mid_flight() {
     );
     let at = est.iter().find(|e| e["t"].as_f64().unwrap() >= t).unwrap();
     assert!(
-        at["mission_margin_wh"].as_f64().unwrap() < 1.0,
-        "raised with the margin under 1 Wh: {at}"
+        at["mission_margin_wh"].as_f64().unwrap() < 2.5,
+        "raised with the margin under 2.5 Wh: {at}"
     );
     assert!(
         cleared.len() == 1 && cleared[0] > t && cleared[0] < end - 30.0,

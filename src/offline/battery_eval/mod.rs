@@ -156,8 +156,6 @@ pub struct ParamsOut {
     pub tau_heat_s: f64,
     pub bias_v: f64,
     pub lambda: f64,
-    /// `None`: off (infinite).
-    pub relax_heat_a2s: Option<f64>,
 }
 
 fn abs_median<'a>(fl: &'a [&'a FlightFigures], f: impl Fn(&FlightFigures) -> f64 + 'a) -> f64 {
@@ -344,7 +342,6 @@ pub fn battery_eval(
             tau_heat_s: params.tau_heat_s,
             bias_v: params.bias_v,
             lambda: params.lambda,
-            relax_heat_a2s: params.relax_heat.is_finite().then_some(params.relax_heat),
         },
         curve_v_cell: crate::battery::ocv::TB48D_V.to_vec(),
         curve_energy_wh: crate::battery::ocv::TB48D_E_WH.to_vec(),

@@ -15,8 +15,6 @@ pub const RATED_WH: f64 = 129.96;
 pub const RATED_AH: f64 = 5.7;
 /// The 3.5 V/cell threshold under load, V pack.
 pub const THR_V: f64 = NC * 3.5;
-/// `relax_heat` values the lab scores (A²·s).
-pub const RELAX_GRID: [f64; 8] = [f64::INFINITY, 1.6e6, 8e5, 4e5, 2e5, 1e5, 5e4, 2.5e4];
 /// Rows with more current than this are "in flight" for loaded-voltage errors, A.
 pub const IN_FLIGHT_A: f64 = 3.0;
 
@@ -80,10 +78,6 @@ pub struct FlightFigures {
     /// forecast step, V) and from half time.
     pub preflight_sag_v: f64,
     pub halftime_sag_v: f64,
-    /// Lab (round 3): the half-time lowest-voltage error with the learned resistance relaxing
-    /// toward the start circuit, per `relax_heat` of [`RELAX_GRID`]; and with the first half's
-    /// least-squares resistance scale in place of the RLS estimate.
-    pub halftime_relax_err: Vec<f64>,
     /// From half time along the rest of the plan (its power × the live factor): the lowest
     /// loaded voltage (V), its sag (V), the error with the sag term (V).
     pub halftime_plan_v_min_smooth: f64,
@@ -91,7 +85,6 @@ pub struct FlightFigures {
     pub halftime_measured_min_v: f64,
     pub halftime_plan_sag_v: f64,
     pub halftime_plan_min_v_err: f64,
-    pub halftime_k_err: f64,
     /// Half time (s from the recording's start) the forecast starts at.
     pub halftime_s: f64,
     /// First 3.5 V/cell crossing under load: measured time (s; NaN if the flight never
@@ -207,7 +200,6 @@ pub fn score_flight(
         &mut o.preflight_plan_min_v_err,
         &mut o.preflight_sag_v,
         &mut o.halftime_sag_v,
-        &mut o.halftime_k_err,
         &mut o.halftime_plan_v_min_smooth,
         &mut o.halftime_measured_min_v,
         &mut o.halftime_plan_sag_v,
@@ -326,14 +318,6 @@ pub fn score_flight(
             .map(|n| vg[n])
             .fold(f64::INFINITY, f64::min);
         o.halftime_measured_min_v = rest_min_v;
-        o.halftime_relax_err = RELAX_GRID
-            .iter()
-            .map(|&h| {
-                let mut q = sm.clone();
-                q.p.relax_heat = h;
-                lowest(&q, prof[j..].iter().copied()).0 - rest_min_v
-            })
-            .collect();
         if let Some(pl) = plan {
             let rest = || {
                 pl.power_w
@@ -347,11 +331,6 @@ pub fn score_flight(
             if let Some((_, v)) = lowest_dip(&sm, rest(), SAG_IN_FLIGHT) {
                 o.halftime_plan_min_v_err = v - rest_min_v;
             }
-        }
-        if let Some(k) = sm.pack_scale() {
-            let mut q = sm.clone();
-            q.theta = [q.p.r0 * k, q.p.r1 * k, q.p.bias_v];
-            o.halftime_k_err = lowest(&q, prof[j..].iter().copied()).0 - rest_min_v;
         }
         let rest_min = (j..tg.len())
             .filter(|&n| m[n])
