@@ -13,7 +13,12 @@
 # flights: seeds 301-310 per airframe, made like the test flights (routes, heights, speeds,
 # winds 0-8 m/s from other directions, payloads, two PX4) with other values, plus the 4 fit
 # flights scored with the shipped profile. Means per airframe and profile are printed at the
-# end (OUT_DIR/summary.txt) for either set.
+# end (OUT_DIR/summary.txt) for any set.
+#
+# --set test2: a second test set, made after the first had been scored for the VTOL
+# transitions' wing lift (docs/src/vehicle-types.md): seeds 401-405 per airframe, made like the
+# test flights (legs 700-1400 m at 45-95 m, 13-17 m/s, loiters 25-110 s, wind 0-8 m/s from
+# four other directions, payloads 0-450 g, the last PX4) with other values. Scored once.
 set -euo pipefail
 set_name=test; pos=()
 while [ $# -gt 0 ]; do
@@ -23,7 +28,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 out=${pos[0]}; dw=${pos[1]:-target/debug/dronewatt}
-case $set_name in test|validation) ;; *) echo "--set test|validation, not $set_name" >&2; exit 2 ;; esac
+case $set_name in test|test2|validation) ;; *) echo "--set test|test2|validation, not $set_name" >&2; exit 2 ;; esac
 export DRONEWATT_HOME=off
 mkdir -p "$out"; : > "$out/scores.jsonl"
 for v in plane quadplane; do
@@ -51,6 +56,12 @@ for v in plane quadplane; do
     "--seed 308 --leg-m 1000 --altitude-m 85 --wind-mps 2 --wind-dir-deg 160 --payload-g 450 --speed-mps 16 --hover-s 35"
     "--seed 309 --leg-m 750 --altitude-m 65 --wind-mps 4.5 --wind-dir-deg 10 --payload-g 0 --speed-mps 13.5 --hover-s 60 --autopilot px4"
     "--seed 310 --leg-m 1200 --altitude-m 40 --wind-mps 7.5 --wind-dir-deg 225 --payload-g 300 --speed-mps 15.5 --hover-s 45"
+  ); elif [ "$set_name" = test2 ]; then tests=(
+    "--seed 401 --leg-m 1100 --altitude-m 60 --wind-mps 2 --wind-dir-deg 120 --payload-g 250 --speed-mps 14.5 --hover-s 80"
+    "--seed 402 --leg-m 700 --altitude-m 95 --wind-mps 8 --wind-dir-deg 280 --payload-g 100 --speed-mps 16 --hover-s 40"
+    "--seed 403 --leg-m 1400 --altitude-m 45 --wind-mps 0 --payload-g 450 --speed-mps 13 --hover-s 110"
+    "--seed 404 --leg-m 850 --altitude-m 70 --wind-mps 6 --wind-dir-deg 15 --payload-g 0 --speed-mps 17 --hover-s 25"
+    "--seed 405 --leg-m 1250 --altitude-m 85 --wind-mps 4 --wind-dir-deg 200 --payload-g 350 --speed-mps 15 --hover-s 60 --autopilot px4"
   ); else tests=(
     "--seed 201 --leg-m 1200 --altitude-m 80 --wind-mps 0 --payload-g 0 --speed-mps 13 --hover-s 30"
     "--seed 202 --leg-m 600 --altitude-m 40 --wind-mps 6 --wind-dir-deg 180 --payload-g 300 --speed-mps 15 --hover-s 60"

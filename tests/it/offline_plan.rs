@@ -573,7 +573,7 @@ fn plan_flies_a_plane_and_a_quadplane_as_they_fly() {
     );
     let model = quad["forecast"]["model"].as_str().unwrap();
     assert!(
-        model.contains("dorling") && model.contains("fixed_wing"),
+        model.contains("stolaroff") && model.contains("fixed_wing"),
         "{model}"
     );
     let legs = quad["forecast"]["legs"].as_array().unwrap();

@@ -48,9 +48,10 @@
 //!
 //! A model linear in its own regressors (the fixed-wing model: ρV³, (n·m·g)²/(ρV),
 //! m·g·v_z, 1; [`super::PowerModel::regressors`]) has those coefficients fitted too, the
-//! same way (forgetting `memory_s`, its published coefficients as a fixed prior, bounded
-//! within ×¼…×4): [`regression`]. Its prediction, made before the window teaches it, is
-//! what the affine fit below then corrects, scores and publishes.
+//! same way (forgetting `regression_memory_s`, its published coefficients as a fixed prior,
+//! bounded within ×¼…×4): [`regression`]. Its prediction, made before the window teaches
+//! it and low-passed (`regression_smooth_s`), is what the affine fit below then corrects,
+//! scores and publishes.
 //!
 //! ## Two fits per model: the published one and the reference
 //!
@@ -130,12 +131,24 @@ pub struct AdaptConfig {
     /// model should be the best over the flight's regimes, not the last half-minute's).
     pub score_memory_s: f64,
     /// Memory of a model's own regression ([`regression`]: the fixed-wing model's four
-    /// coefficients), s. Default 3: short, because the model's inputs miss part of what
+    /// coefficients), s. Default 0.5: short, because the model's inputs miss part of what
     /// moves a plane's power (the propeller's efficiency with its thrust, the servos in
-    /// gusts) and the coefficients follow it; chosen on the simulated validation flights
-    /// (`scripts/measure-planes.sh OUT --set validation`: 30 s 11.2 %, 10 s 9.5 %, 5 s
-    /// 8.6 %, 3 s 8.3 %, 1.5 s 8.6 % on the plane; docs/src/vehicle-types.md).
+    /// gusts) and the coefficients follow it; at this memory the regression follows the
+    /// measured power over about five windows, its prior and bounds holding what those do
+    /// not decide. Chosen with `regression_smooth_s` on the simulated validation flights
+    /// (`scripts/measure-planes.sh OUT --set validation`, after `learn`, plane / quadplane:
+    /// 3 s 6.9 / 6.9 %, 1.5 s 6.3 / 6.4 %, 1 s 6.1 / 6.1 %, 0.7 s 6.0 / 6.0 %, 0.5 s
+    /// 6.0 / 5.9 %, 0.3 s 6.0 / 5.9 %, each with the 0.5 s low-pass; docs/src/vehicle-types.md).
     pub regression_memory_s: f64,
+    /// Time constant of the low-pass on a model's own regression's prediction, s (an
+    /// exponential moving average of the predictions, each made before its window taught):
+    /// the estimate stands for the power over its window, not the newest sample's alone,
+    /// whose airspeed and acceleration carry the sensors' noise. Default 0.5 (the age of a
+    /// 1 s window's mean); 0: none. Chosen on the simulated validation flights (after
+    /// `learn`, plane / quadplane: at a 3 s memory none 7.9 / 7.1 %, 0.5 s 6.9 / 6.9 %; at
+    /// 1.5 s, 0.3 s 6.5 / 6.2 %, 0.5 s 6.3 / 6.4 %, 1 s 6.9 / 7.1 %; at 0.7 s, 0.5 s
+    /// 6.0 / 6.0 %, 0.7 s 5.8 / 6.2 %; docs/src/vehicle-types.md).
+    pub regression_smooth_s: f64,
 }
 
 impl Default for AdaptConfig {
@@ -149,7 +162,8 @@ impl Default for AdaptConfig {
             gain_max: 5.0,
             offset_max_w: 1000.0,
             score_memory_s: 120.0,
-            regression_memory_s: 3.0,
+            regression_memory_s: 0.5,
+            regression_smooth_s: 0.5,
         }
     }
 }
@@ -181,6 +195,12 @@ impl AdaptConfig {
                 5.0 * self.memory_s
             ));
         }
+        errs.range(
+            "models.adapt.regression_smooth_s",
+            self.regression_smooth_s,
+            0.0..=60.0,
+            "s",
+        );
         errs.range(
             "models.adapt.min_power_frac",
             self.min_power_frac,
@@ -342,6 +362,9 @@ pub struct Adaptation {
     lambda_ref: f64,
     /// Forgetting factor of a model's own regression (`regression_memory_s`).
     lambda_regression: f64,
+    /// Weight of the previous smoothed value in the low-pass on a regression's prediction
+    /// (`regression_smooth_s`; 0: none).
+    lambda_smooth: f64,
     /// Below this measured power nothing teaches (motors off), W.
     min_teach_w: f64,
     fits: Vec<(String, ModelFit)>,
@@ -368,6 +391,11 @@ impl Adaptation {
             lambda: lambda_of(cfg.memory_s),
             lambda_ref: lambda_of(cfg.reference_memory_s),
             lambda_regression: lambda_of(cfg.regression_memory_s),
+            lambda_smooth: if cfg.regression_smooth_s > 0.0 {
+                (-dt_s / cfg.regression_smooth_s).exp().clamp(0.0, 0.99)
+            } else {
+                0.0
+            },
             min_teach_w: (cfg.min_power_frac * hover_w).max(0.0),
             fits: names
                 .iter()
@@ -381,7 +409,8 @@ impl Adaptation {
     }
 
     /// Model `i`'s own regression on this vehicle, started at its coefficients `theta0`:
-    /// its prediction for regressors `phi`, W, made before this window teaches it; then,
+    /// its prediction for regressors `phi`, W, made before this window teaches it, low-passed
+    /// (`regression_smooth_s`: λ·previous + (1 − λ)·this); then,
     /// when `teach` and the measured power is finite and at most [`MAX_POWER_W`], taught
     /// with it (forgotten like the published fit, `memory_s`). The caller decides `teach`
     /// as for [`Adaptation::step`] (the motors turn, the window in range).
@@ -397,7 +426,7 @@ impl Adaptation {
             self.regressions.resize(i + 1, None);
         }
         let fit = self.regressions[i].get_or_insert_with(|| regression::RegressionFit::new(theta0));
-        let out = fit.predict(phi);
+        let out = fit.smooth(fit.predict(phi), self.lambda_smooth);
         if let Some(y) = measured_w.map(f64::from) {
             if teach && y.is_finite() && y > 0.0 && y <= MAX_POWER_W {
                 fit.teach(phi, y, self.lambda_regression);

@@ -2,11 +2,12 @@
 //! `P = θ·φ` (the fixed-wing model's φ = [ρV³, (n·m·g)²/(ρV), m·g·v_z, 1]), the
 //! coefficients θ themselves follow the vehicle, not only an affine correction of the
 //! output. The same scheme as the affine fit ([`super`]): exponentially weighted least
-//! squares with forgetting λ (its own memory, `regression_memory_s`, 3 s by default), the prior θ₀ (the model's published coefficients) kept as a
-//! fixed regulariser R₀ = diag(σ_y² / σ_k²) with σ_k = 50 % of θ₀ₖ (σ_y = 20 W), and
+//! squares with forgetting λ (its own memory, `regression_memory_s`, 0.5 s by default),
+//! the prior θ₀ (the model's published coefficients) kept as a fixed regulariser R₀ = diag(σ_y² / σ_k²) with σ_k = 50 % of θ₀ₖ (σ_y = 20 W), and
 //! bounds after every solve: each coefficient within [θ₀ₖ/4, 4·θ₀ₖ] (the offset within
 //! [0, 4·θ₀ + 50 W]). The prior holds what the flight does not excite (a plane that never
-//! climbs says nothing about its climb coefficient). A 4 × 4 solve a window.
+//! climbs says nothing about its climb coefficient). A 4 × 4 solve a window. The
+//! prediction is then low-passed ([`RegressionFit::smooth`], `regression_smooth_s`).
 
 /// Regressors and coefficients: four of each.
 pub const N: usize = 4;
@@ -22,6 +23,8 @@ pub struct RegressionFit {
     r: [f64; N],
     theta0: [f64; N],
     theta: [f64; N],
+    /// The low-passed prediction ([`RegressionFit::smooth`]), None before the first.
+    smoothed: Option<f64>,
     /// Windows that taught it.
     pub taught: u64,
 }
@@ -34,6 +37,7 @@ impl RegressionFit {
             r: [0.0; N],
             theta0,
             theta: theta0,
+            smoothed: None,
             taught: 0,
         }
     }
@@ -51,6 +55,17 @@ impl RegressionFit {
         } else {
             self.theta[N - 1]
         }
+    }
+
+    /// The prediction `p` (W) low-passed: λ·(the previous) + (1 − λ)·`p`, `p` itself the
+    /// first time, or when either is not finite; λ = 0 passes `p` through.
+    pub fn smooth(&mut self, p: f64, lambda: f64) -> f64 {
+        let s = match self.smoothed {
+            Some(prev) if prev.is_finite() && p.is_finite() => lambda * prev + (1.0 - lambda) * p,
+            _ => p,
+        };
+        self.smoothed = Some(s);
+        s
     }
 
     /// Teach with regressors `phi` and measured power `y` (W), forgetting by `lambda`.
@@ -128,6 +143,26 @@ fn gauss(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_low_pass_starts_at_the_first_prediction_blends_after_and_passes_nan_by() {
+        let mut fit = RegressionFit::new([0.01, 0.1, 2.0, 5.0]);
+        assert_eq!(fit.smooth(40.0, 0.8), 40.0);
+        assert!((fit.smooth(50.0, 0.8) - 42.0).abs() < 1e-12);
+        // λ = 0: none.
+        assert_eq!(fit.smooth(60.0, 0.0), 60.0);
+        // A non-finite prediction is passed on, and the next finite one starts afresh.
+        assert!(fit.smooth(f64::NAN, 0.8).is_nan());
+        assert_eq!(fit.smooth(30.0, 0.8), 30.0);
+        // A step settles to within 1 % in ln(100)/(1 − λ) windows or so.
+        let mut fit = RegressionFit::new([0.01, 0.1, 2.0, 5.0]);
+        fit.smooth(0.0, 0.8);
+        let last = (0..25)
+            .map(|_| fit.smooth(100.0, 0.8))
+            .last()
+            .unwrap_or(0.0);
+        assert!(last > 99.0 && last <= 100.0, "{last}");
+    }
 
     #[test]
     fn learns_a_plane_that_is_not_the_default_within_a_minute_and_stays_bounded() {

@@ -78,6 +78,10 @@ pub struct Params {
     pub eta: f64,
     /// Avionics, servos and everything drawn with the motor stopped, W.
     pub offset_w: f64,
+    /// The wing's maximum lift coefficient C_L,max, 1: a VTOL's wing carries at most
+    /// ½ρV²·S·C_L,max of the weight while its rotors fly it (see
+    /// [`crate::model::physics::Kinematics::weight_n`]); the fixed-wing model does not read it.
+    pub cl_max: f64,
 }
 
 impl Default for Params {
@@ -94,6 +98,10 @@ impl Default for Params {
     /// - `eta` 0.5: propeller 0.6–0.75 × motor 0.75–0.85 × ESC ~0.95 for small electric
     ///   planes (the usual published ranges). ASSUMPTION mid-range.
     /// - `offset_w` 5: flight controller, GPS, radios and servos. ASSUMPTION.
+    /// - `cl_max` 1.0: the whole wing's maximum lift coefficient, the low end of the
+    ///   1.0–1.4 usually quoted for small UAV wings without flaps, and about where Gryte et
+    ///   al. 2018's Skywalker X8 lift curve stalls (as remembered, not re-checked).
+    ///   ASSUMPTION within that range.
     fn default() -> Self {
         Self {
             mass_kg: 2.0,
@@ -103,6 +111,7 @@ impl Default for Params {
             oswald_e: 0.78,
             eta: 0.5,
             offset_w: 5.0,
+            cl_max: 1.0,
         }
     }
 }
@@ -118,6 +127,7 @@ impl Params {
             ("oswald_e", self.oswald_e, 0.3, 1.0),
             ("eta", self.eta, 0.05, 1.0),
             ("offset_w", self.offset_w, 0.0, 5000.0),
+            ("cl_max", self.cl_max, 0.1, 3.0),
         ];
         check_ranges("fixed_wing", &checks)
     }
