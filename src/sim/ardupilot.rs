@@ -4,9 +4,7 @@
 //! quaternion, no landed state; parameters `BATT_*`, `MOT_THST_HOVER`, `FRAME_CLASS`, the
 //! integer ones cast to the float (ArduPilot's encoding).
 
-use nalgebra::Vector3;
-
-use super::emit::{param, Every, Instant, Style};
+use super::emit::{param, Every, Imu, Instant, Style};
 use super::physics::G;
 use super::{Frame, SimOptions};
 use crate::dialect as d;
@@ -19,10 +17,6 @@ use crate::MavMessage;
 pub struct ArduPilot;
 
 impl Style for ArduPilot {
-    fn autopilot(&self) -> d::MavAutopilot {
-        d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA
-    }
-
     /// ArduCopter: STABILIZE 0 on the ground, AUTO 3 flying the mission, LAND 9.
     /// ArduPlane: MANUAL 0 on the ground, TAKEOFF 13, AUTO 10 (legs, loiters, the landing).
     /// An ArduPlane quadplane: QLOITER 19 on the ground, QHOVER 18 in the VTOL climb,
@@ -116,25 +110,9 @@ impl Style for ArduPilot {
             .then(|| super::emit::extended_sys_state(now))
     }
 
-    fn attitude(
-        &self,
-        now: &Instant,
-        (roll, pitch, yaw): (f64, f64, f64),
-        rates: &Vector3<f64>,
-        out: &mut Vec<MavMessage>,
-    ) {
-        out.push(super::emit::attitude(now, (roll, pitch, yaw), rates));
-    }
-
     /// RAW_IMU carries acceleration in mG, rates in mrad/s and the field in mgauss
     /// (ArduPilot's send_raw_imu scales by 1000/GRAVITY_MSS).
-    fn imu(
-        &self,
-        now: &Instant,
-        f: &Vector3<f64>,
-        w: &Vector3<f64>,
-        mag: &Vector3<f64>,
-    ) -> MavMessage {
+    fn imu(&self, now: &Instant, Imu { f, w, mag }: &Imu) -> MavMessage {
         let mg = |x: f64| (x * 1000.0 / G).round().clamp(-32768.0, 32767.0) as i16;
         let milli = |x: f64| (x * 1000.0).round().clamp(-32768.0, 32767.0) as i16;
         MavMessage::RAW_IMU(d::RAW_IMU_DATA {

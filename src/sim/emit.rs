@@ -116,8 +116,6 @@ impl Instant<'_> {
 /// What one autopilot does its own way. Each method is called at its slot in the common
 /// sequence, every step, and decides itself whether anything is due.
 pub trait Style {
-    /// HEARTBEAT's `autopilot`.
-    fn autopilot(&self) -> d::MavAutopilot;
     /// HEARTBEAT's `custom_mode` in `now`'s phase, for its frame and VTOL state.
     fn custom_mode(&self, now: &Instant) -> u32;
     /// HEARTBEAT's `type` for a frame.
@@ -128,38 +126,49 @@ pub trait Style {
     /// Landed and VTOL state (EXTENDED_SYS_STATE); before the battery messages.
     fn landed_state(&self, now: &Instant) -> Option<MavMessage>;
     /// Attitude messages, given the measured roll, pitch, yaw (rad) and body rates (rad/s),
-    /// when the 10 Hz attitude slot is due.
+    /// when the 10 Hz attitude slot is due. ATTITUDE (Euler) alone unless the style says
+    /// otherwise (ArduPilot's way).
     fn attitude(
         &self,
         now: &Instant,
         rpy: (f64, f64, f64),
         rates: &Vector3<f64>,
         out: &mut Vec<MavMessage>,
-    );
-    /// The IMU message for specific force `f` (FRD, m/s²), rates `w` (rad/s) and field
-    /// `mag` (gauss), when the 10 Hz IMU slot is due.
-    fn imu(
-        &self,
-        now: &Instant,
-        f: &Vector3<f64>,
-        w: &Vector3<f64>,
-        mag: &Vector3<f64>,
-    ) -> MavMessage;
+    ) {
+        out.push(attitude(now, rpy, rates));
+    }
+    /// The IMU message for a reading, when the 10 Hz IMU slot is due.
+    fn imu(&self, now: &Instant, reading: &Imu) -> MavMessage;
     /// Wind or altitude messages at the style's own rate; last in each step but HOME_POSITION.
     fn air_data(&self, now: &Instant) -> Option<MavMessage>;
 }
 
-/// The style for an autopilot.
-pub fn style(autopilot: Autopilot) -> Box<dyn Style> {
+/// One IMU reading, as a style's [`Style::imu`] reports it.
+pub struct Imu {
+    /// Specific force, FRD, m/s².
+    pub f: Vector3<f64>,
+    /// Body rates, rad/s.
+    pub w: Vector3<f64>,
+    /// Magnetic field, body frame, gauss.
+    pub mag: Vector3<f64>,
+}
+
+/// The style for an autopilot, and HEARTBEAT's `autopilot` for it.
+pub fn style(autopilot: Autopilot) -> (Box<dyn Style>, d::MavAutopilot) {
+    use d::MavAutopilot::{MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4};
     match autopilot {
-        Autopilot::Ardupilot => Box::new(super::ardupilot::ArduPilot),
-        Autopilot::Px4 => Box::new(super::px4::Px4),
+        Autopilot::Ardupilot => (
+            Box::new(super::ardupilot::ArduPilot),
+            MAV_AUTOPILOT_ARDUPILOTMEGA,
+        ),
+        Autopilot::Px4 => (Box::new(super::px4::Px4), MAV_AUTOPILOT_PX4),
     }
 }
 
 /// Turns the state into the autopilot's messages at its rates, with sensor noise.
 pub struct Emitter {
     style: Box<dyn Style>,
+    autopilot: d::MavAutopilot,
     route: Route,
     payload_g: f64,
     params: Vec<d::PARAM_VALUE_DATA>,
@@ -174,7 +183,7 @@ pub struct Emitter {
 impl Emitter {
     /// An emitter for `opts`' autopilot style.
     pub fn new(opts: &SimOptions) -> Self {
-        let style = style(opts.autopilot);
+        let (style, autopilot) = style(opts.autopilot);
         let mut params = style.parameters(opts);
         let count = params.len() as u16;
         for (i, p) in params.iter_mut().enumerate() {
@@ -182,6 +191,7 @@ impl Emitter {
         }
         Self {
             style,
+            autopilot,
             route: opts.route.clone(),
             payload_g: opts.payload_g,
             params,
@@ -227,7 +237,7 @@ impl Emitter {
         MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
             custom_mode: self.style.custom_mode(now),
             mavtype: self.style.mav_type(now.frame),
-            autopilot: self.style.autopilot(),
+            autopilot: self.autopilot,
             base_mode: base,
             system_status: if armed {
                 d::MavState::MAV_STATE_ACTIVE
@@ -375,7 +385,14 @@ impl Emitter {
                 + Vector3::new(n(rng, vib), n(rng, vib), n(rng, vib));
             // Earth field near Pittsburgh ≈ (0.19, −0.03, 0.47) gauss NED.
             let mag = st.rot.inverse() * Vector3::new(0.19, -0.03, 0.47);
-            let m = self.style.imu(now, &f, &rate_meas, &mag);
+            let m = self.style.imu(
+                now,
+                &Imu {
+                    f,
+                    w: rate_meas,
+                    mag,
+                },
+            );
             self.push(t_ms, m);
         }
         if Every::new(250, 60).due(t_ms) {

@@ -5,7 +5,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::emit::{param, pressure_pa, Every, Instant, Style};
+use super::emit::{param, pressure_pa, Every, Imu, Instant, Style};
 use super::{Frame, SimOptions, HOME};
 use crate::dialect as d;
 use crate::sim::guidance::Phase;
@@ -16,10 +16,6 @@ use crate::MavMessage;
 pub struct Px4;
 
 impl Style for Px4 {
-    fn autopilot(&self) -> d::MavAutopilot {
-        d::MavAutopilot::MAV_AUTOPILOT_PX4
-    }
-
     /// PX4: main mode in bits 16..24, sub mode in 24..32. AUTO = 4; sub: TAKEOFF 2,
     /// MISSION 4, LAND 6. Disarmed: POSCTL (3). The same for planes and VTOLs (PX4 says a
     /// VTOL's state in EXTENDED_SYS_STATE, not in its modes).
@@ -96,13 +92,7 @@ impl Style for Px4 {
         }
     }
 
-    fn imu(
-        &self,
-        now: &Instant,
-        f: &Vector3<f64>,
-        w: &Vector3<f64>,
-        mag: &Vector3<f64>,
-    ) -> MavMessage {
+    fn imu(&self, now: &Instant, Imu { f, w, mag }: &Imu) -> MavMessage {
         let alt = now.alt_amsl_m();
         MavMessage::HIGHRES_IMU(d::HIGHRES_IMU_DATA {
             time_usec: now.t_ms * 1000,

@@ -44,20 +44,28 @@ pub const GCS_COMPONENT_ID: u8 = 190;
 
 pub use crate::source::address::LinkAddress;
 
-/// Run one live link until `shutdown`. Fails only when the link cannot be set up at all
-/// (a port that cannot be bound, a name that does not resolve, a serial device that
+/// What a live link runs with: the channel its messages go to, its counters, the handle
+/// frames are written back through, the signature check of a signed link, and its stop.
+pub struct LinkIo {
+    /// Where the link's messages go.
+    pub tx: mpsc::Sender<TimedMessage>,
+    /// The link's counters.
+    pub stats: Arc<IngestStats>,
+    /// The handle the link attaches its writer to.
+    pub link: LinkHandle,
+    /// Checks incoming signatures (a signed link).
+    pub verifier: Option<SharedVerifier>,
+    /// Stops the link.
+    pub shutdown: CancellationToken,
+}
+
+/// Run one live link until `io.shutdown`. Fails only when the link cannot be set up at
+/// all (a port that cannot be bound, a name that does not resolve, a serial device that
 /// cannot be opened at the start).
-pub async fn run(
-    addr: LinkAddress,
-    tx: mpsc::Sender<TimedMessage>,
-    stats: Arc<IngestStats>,
-    link: LinkHandle,
-    verifier: Option<SharedVerifier>,
-    shutdown: CancellationToken,
-) -> Result<()> {
+pub async fn run(addr: LinkAddress, io: LinkIo) -> Result<()> {
     let (wtx, wrx) = mpsc::channel::<Vec<u8>>(WRITE_QUEUE);
-    link.attach(wtx);
-    serve(addr, tx, stats, link, verifier, wrx, shutdown, true).await
+    io.link.attach(wtx);
+    serve(addr, io, wrx, true).await
 }
 
 /// Frames queued for a link's writer before [`LinkHandle::try_send`] drops them.
@@ -80,17 +88,14 @@ pub fn spawn_uplink(
     let task = tokio::spawn(async move {
         let (tx, mut rx) = mpsc::channel::<TimedMessage>(64);
         let drain = tokio::spawn(async move { while rx.recv().await.is_some() {} });
-        let r = serve(
-            addr,
+        let io = LinkIo {
             tx,
-            Arc::new(IngestStats::default()),
-            writer,
-            None,
-            wrx,
-            stop,
-            false,
-        )
-        .await;
+            stats: Arc::new(IngestStats::default()),
+            link: writer,
+            verifier: None,
+            shutdown: stop,
+        };
+        let r = serve(addr, io, wrx, false).await;
         let _ = drain.await;
         r
     });
@@ -100,24 +105,19 @@ pub fn spawn_uplink(
 /// Run one link's transport. A `monitored` link (the one the chain reads) watches for
 /// silence and, on `udpout:`, sends a ground-station heartbeat each second so routers
 /// learn where to send; an uplink does neither.
-#[allow(clippy::too_many_arguments)] // a transport: its address, channels, counters and stop signal
 async fn serve(
     addr: LinkAddress,
-    tx: mpsc::Sender<TimedMessage>,
-    stats: Arc<IngestStats>,
-    link: LinkHandle,
-    verifier: Option<SharedVerifier>,
+    io: LinkIo,
     wrx: mpsc::Receiver<Vec<u8>>,
-    shutdown: CancellationToken,
     monitored: bool,
 ) -> Result<()> {
     let mut ctx = Ctx {
-        link,
-        verifier,
+        link: io.link,
+        verifier: io.verifier,
         label: addr.to_string(),
-        tx,
-        stats,
-        shutdown,
+        tx: io.tx,
+        stats: io.stats,
+        shutdown: io.shutdown,
         start: Instant::now(),
         watchdog: Watchdog {
             last_count: 0,

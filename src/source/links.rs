@@ -38,10 +38,8 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use mavlink::Message;
 use tokio::sync::mpsc;
-use tokio_util::sync::CancellationToken;
 
-use super::frame::SharedVerifier;
-use super::link::{LinkAddress, SILENCE};
+use super::link::{LinkAddress, LinkIo, SILENCE};
 use super::{IngestStats, LinkHandle, TimedMessage};
 
 pub use crate::report::status::LinkHealth;
@@ -182,16 +180,11 @@ struct Tally {
 /// each with `every_link`; with separate networks, on each network's best live link, and
 /// [`LinkHandle::network`] gives the handle of one network's links.
 /// Fails only when a link cannot be set up at all.
-#[allow(clippy::too_many_arguments)] // a source: its links, its channel, its counters, its stop
 pub async fn run(
     addrs: Vec<LinkAddress>,
     networks: &[String],
     every_link: bool,
-    tx: mpsc::Sender<TimedMessage>,
-    stats: Arc<IngestStats>,
-    link: LinkHandle,
-    verifier: Option<SharedVerifier>,
-    shutdown: CancellationToken,
+    io: LinkIo,
 ) -> Result<()> {
     let start = Instant::now();
     let nets = Networks::number(networks)?;
@@ -209,7 +202,7 @@ pub async fn run(
         let network = nets.of_link.get(i).copied().unwrap_or(0);
         let (ltx, mut lrx) = mpsc::channel::<TimedMessage>(256);
         let own = Arc::new(IngestStats::default());
-        let out = LinkHandle::with_signer(link.signer());
+        let out = LinkHandle::with_signer(io.link.signer());
         tallies.push(Tally {
             name: addr.to_string(),
             network,
@@ -231,8 +224,14 @@ pub async fn run(
                 }
             }
         });
-        let (v, stop) = (verifier.clone(), shutdown.clone());
-        tasks.spawn(super::link::run(addr, ltx, own, out, v, stop));
+        let own_io = LinkIo {
+            tx: ltx,
+            stats: own,
+            link: out,
+            verifier: io.verifier.clone(),
+            shutdown: io.shutdown.clone(),
+        };
+        tasks.spawn(super::link::run(addr, own_io));
     }
     drop(merged_tx);
     // What the chain sends goes to the best live link (of each network: the main handle's
@@ -256,16 +255,16 @@ pub async fn run(
         });
     };
     if count == 0 {
-        writer(Some(0), &link);
+        writer(Some(0), &io.link);
     } else {
-        writer(None, &link);
-        let mut handles = vec![link.clone()];
+        writer(None, &io.link);
+        let mut handles = vec![io.link.clone()];
         for n in 1..=count {
-            let h = LinkHandle::with_signer(link.signer());
+            let h = LinkHandle::with_signer(io.link.signer());
             writer(u8::try_from(n).ok(), &h);
             handles.push(h);
         }
-        link.set_networks(handles);
+        io.link.set_networks(handles);
     }
 
     let mut dedup = Dedup::default();
@@ -276,10 +275,10 @@ pub async fn run(
     let mut last_t = 0.0f64;
     loop {
         tokio::select! {
-            _ = shutdown.cancelled() => break,
+            _ = io.shutdown.cancelled() => break,
             Some(r) = tasks.join_next() => {
                 if let Ok(Err(e)) = r {
-                    shutdown.cancel();
+                    io.shutdown.cancel();
                     return Err(e);
                 }
             }
@@ -301,16 +300,16 @@ pub async fn run(
                         if let Some(first) = first_arrival.get(&key) {
                             t.delay_s += m.arrived.saturating_duration_since(*first).as_secs_f64();
                         }
-                        IngestStats::add(&stats.duplicates, 1);
+                        IngestStats::add(&io.stats.duplicates, 1);
                     }
                     Heard::First { gap } => {
                         first_arrival.insert(key, m.arrived);
                         unique[usize::from(m.network)] += 1;
-                        IngestStats::add(&stats.frames_ok, 1);
+                        IngestStats::add(&io.stats.frames_ok, 1);
                         if gap {
-                            IngestStats::add(&stats.gaps, 1);
+                            IngestStats::add(&io.stats.gaps, 1);
                         }
-                        if !super::send(&tx, m, &stats, &shutdown).await {
+                        if !super::send(&io.tx, m, &io.stats, &io.shutdown).await {
                             break;
                         }
                     }
@@ -319,12 +318,12 @@ pub async fn run(
             _ = tick.tick() => {
                 let cutoff = Instant::now() - Duration::from_secs_f64(DEDUP_WINDOW_S * 2.0);
                 first_arrival.retain(|_, t| *t >= cutoff);
-                publish(&mut tallies, &nets, &unique, &stats, &best);
+                publish(&mut tallies, &nets, &unique, &io.stats, &best);
                 unique.iter_mut().for_each(|u| *u = 0);
             }
         }
     }
-    publish(&mut tallies, &nets, &unique, &stats, &best);
+    publish(&mut tallies, &nets, &unique, &io.stats, &best);
     tasks.shutdown().await;
     Ok(())
 }

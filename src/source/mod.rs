@@ -175,12 +175,15 @@ pub async fn run(
     shutdown: CancellationToken,
 ) -> anyhow::Result<()> {
     stats.queues.start();
-    let verifier = signing.map(|s| s.verifier());
+    let io = link::LinkIo {
+        tx,
+        stats,
+        link,
+        verifier: signing.map(|s| s.verifier()),
+        shutdown,
+    };
     match spec {
-        SourceSpec::Link(address) => {
-            let addr: link::LinkAddress = address.parse()?;
-            link::run(addr, tx, stats, link, verifier, shutdown).await
-        }
+        SourceSpec::Link(address) => link::run(address.parse()?, io).await,
         SourceSpec::Links {
             addresses,
             networks,
@@ -190,10 +193,7 @@ pub async fn run(
                 .iter()
                 .map(|a| a.parse::<link::LinkAddress>())
                 .collect::<Result<Vec<_>, _>>()?;
-            links::run(
-                addrs, &networks, every_link, tx, stats, link, verifier, shutdown,
-            )
-            .await
+            links::run(addrs, &networks, every_link, io).await
         }
         SourceSpec::Tlog { ref path, speed } | SourceSpec::Raw { ref path, speed } => {
             let reader = if matches!(spec, SourceSpec::Tlog { .. }) {
@@ -203,17 +203,17 @@ pub async fn run(
             };
             let f = open(path).await?;
             let name = path.display().to_string();
-            replay(f, &name, reader, speed, tx, &stats, shutdown).await
+            replay(f, &name, reader, speed, io.tx, &io.stats, io.shutdown).await
         }
         SourceSpec::AutopilotLog { path, speed } => {
             let msgs = {
-                let (stats, path) = (stats.clone(), path.clone());
+                let (stats, path) = (io.stats.clone(), path.clone());
                 tokio::task::spawn_blocking(move || decode_autopilot_log(&path, &stats)).await??
             };
             let start = tokio::time::Instant::now();
             for mut m in msgs {
-                if !pace(start, &mut m, speed, &shutdown).await
-                    || !send(&tx, m, &stats, &shutdown).await
+                if !pace(start, &mut m, speed, &io.shutdown).await
+                    || !send(&io.tx, m, &io.stats, &io.shutdown).await
                 {
                     return Ok(());
                 }
@@ -233,9 +233,9 @@ pub async fn run(
                 &name,
                 TimedReader::tlog(),
                 speed,
-                tx,
-                &stats,
-                shutdown,
+                io.tx,
+                &io.stats,
+                io.shutdown,
             )
             .await
         }

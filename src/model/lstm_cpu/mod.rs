@@ -430,6 +430,10 @@ fn cell(isa: Isa, gates: &[f32], c: &mut [f32], h: &mut [f32]) {
 }
 
 #[cfg(target_arch = "x86_64")]
+#[macro_use]
+mod x86;
+
+#[cfg(target_arch = "x86_64")]
 mod avx;
 
 #[cfg(target_arch = "x86_64")]

@@ -63,10 +63,9 @@ mod tests {
 
     #[test]
     fn hand_computed() {
-        let p = VehicleProfile::m100();
         // m = 1.755 + 0.676 + 0.5 = 2.931 kg; W = 28.753 N. Anemometer 12 m/s.
         // P = 28.753 N × 12 m/s / (0.5 × 3) + 100 W = 230.02 + 100 = 330.02 W.
-        let k = kinematics(north_at_10(12.0, 0.0), &p);
+        let (p, k) = m100_north_at_10(12.0, 0.0);
         let w = power_w(&k, &p, &p.dandrea, false);
         assert!((w - 330.0244).abs() < 1e-3, "{w}");
         // Headwind: ground 10 m/s north, air 12 m/s north → 2 m/s headwind, v = 12 m/s again.

@@ -452,6 +452,14 @@ pub(crate) mod testutil {
         Kinematics::from_window(&window(s), p)
     }
 
+    /// The M100 and what its models read in [`north_at_10`]'s flight: the hand-computed
+    /// cases' vehicle and window.
+    pub fn m100_north_at_10(wind_speed: f32, wind_angle_deg: f32) -> (VehicleProfile, Kinematics) {
+        let p = VehicleProfile::m100();
+        let k = kinematics(north_at_10(wind_speed, wind_angle_deg), &p);
+        (p, k)
+    }
+
     pub fn window(s: Sample) -> Window {
         let mut a = s.clone();
         a.t_s -= 0.9;
@@ -565,10 +573,9 @@ mod tests {
 
     #[test]
     fn frames_airspeed_and_headwind() {
-        let p = VehicleProfile::m100();
         // Body x north (yaw 90° ENU), 10 m/s along it, anemometer 13 m/s bearing 0° (north):
         // the air moves past at 13 m/s while the ground track is 10 m/s → 3 m/s headwind.
-        let k = kinematics(north_at_10(13.0, 0.0), &p);
+        let (_, k) = m100_north_at_10(13.0, 0.0);
         assert!((k.ground_m_s - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-5);
         assert!((k.air_m_s - Vector3::new(0.0, 13.0, 0.0)).norm() < 1e-5);
         assert!((k.headwind() - 3.0).abs() < 1e-5);

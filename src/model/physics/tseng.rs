@@ -82,15 +82,13 @@ pub fn solo_power_w(k: &Kinematics, m: &SoloParams) -> f64 {
 mod tests {
     use super::super::testutil::*;
     use super::*;
-    use crate::model::profile::VehicleProfile;
 
     #[test]
     fn hand_computed() {
-        let p = VehicleProfile::m100();
         // Heading north at 10 m/s, anemometer 12 m/s north → wind (0, −2): v·w = −20 m²/s².
         // Window: 0.9 s earlier the same velocity → a = 0. Payload 500 g.
         // P = −1.526·10 + 0.220·500 + 1.332·(−20) + 433.9 = −15.26 + 110 − 26.64 + 433.9 = 502.0 W.
-        let k = kinematics(north_at_10(12.0, 0.0), &p);
+        let (p, k) = m100_north_at_10(12.0, 0.0);
         assert!((power_w(&k, &p.tseng) - 502.0).abs() < 1e-3);
         // Solo: −2.595·12 + 0.197·500 + 251.7 = −31.14 + 98.5 + 251.7 = 319.06 W.
         assert!((solo_power_w(&k, &p.tseng_solo) - 319.06).abs() < 1e-3);

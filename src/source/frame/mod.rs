@@ -608,47 +608,33 @@ impl FrameDecoder {
                         return None;
                     }
                 }
-            } else if let Some(f) = self.resync_tlog(stats) {
-                return Some(f);
-            } else if !self.aligned {
-                return None;
+            } else {
+                self.resync_tlog(stats);
+                if !self.aligned {
+                    return None;
+                }
             }
         }
     }
 
     /// Look for the next record start after corruption: a start byte at `q` (with 8 bytes
     /// of stamp before it) whose frame checks out, or whose frame is bad/unknown but
-    /// whose stamp is plausible. Returns the frame when it is good; leaves `aligned` set
-    /// when a record start was found; returns `None` with `aligned` unset when the input
-    /// ran out first.
-    fn resync_tlog(&mut self, stats: &IngestStats) -> Option<Frame> {
+    /// whose stamp is plausible. Leaves `aligned` set, at that record, when one was found
+    /// (the aligned path then reads it, a good frame included: resync is rare, so its
+    /// second decode costs nothing that counts); `aligned` unset when the input ran out
+    /// first.
+    fn resync_tlog(&mut self, stats: &IngestStats) {
         let mut q = self.pos + TLOG_STAMP_LEN;
         while q < self.buf.len() {
             let b = self.buf[q];
             if b == STX_V1 || b == STX_V2 {
-                match decode_at(&self.buf[q..]) {
-                    At::Good {
-                        len,
-                        header,
-                        version,
-                        msg,
-                    } => {
-                        let rec = q - TLOG_STAMP_LEN;
-                        self.junk(stats, self.pos, rec);
-                        return Some(self.accept_tlog(rec, len, header, version, msg, stats));
-                    }
+                let found = match decode_at(&self.buf[q..]) {
+                    At::Good { .. } => true,
                     At::Unknown { .. } | At::Bad { .. } if q >= self.counted_until => {
                         let stamp = self.stamp_at(q - TLOG_STAMP_LEN);
-                        let plausible = match self.last_stamp_us {
+                        match self.last_stamp_us {
                             Some(last) => stamp.abs_diff(last) <= TLOG_PLAUSIBLE_US,
                             None => false,
-                        };
-                        if plausible {
-                            let rec = q - TLOG_STAMP_LEN;
-                            self.junk(stats, self.pos, rec);
-                            self.pos = rec;
-                            self.aligned = true;
-                            return None;
                         }
                     }
                     At::NeedMore if !self.eof => {
@@ -656,9 +642,16 @@ impl FrameDecoder {
                         let rec = q - TLOG_STAMP_LEN;
                         self.junk(stats, self.pos, rec);
                         self.pos = rec;
-                        return None;
+                        return;
                     }
-                    _ => {}
+                    _ => false,
+                };
+                if found {
+                    let rec = q - TLOG_STAMP_LEN;
+                    self.junk(stats, self.pos, rec);
+                    self.pos = rec;
+                    self.aligned = true;
+                    return;
                 }
             }
             q += 1;
@@ -673,7 +666,6 @@ impl FrameDecoder {
             self.junk(stats, self.pos, keep_from);
             self.pos = keep_from;
         }
-        None
     }
 }
 
