@@ -27,7 +27,7 @@
 //!   12 FMAs for 2 weight loads and 6 broadcasts per input);
 //! - AVX-512: 8 rows × 2 blocks (16 of the 32 registers; 16 FMAs of 16 lanes for 2 weight
 //!   loads and 8 broadcasts), twice the arithmetic a cycle where the core has 512-bit FMA
-//!   units (Zen 5, recent Xeons; measured here in `benches/lstm.rs`).
+//!   units (Zen 5, recent Xeons; measured here in `benches/lstm_cpu.rs`, and against libtorch in `torch/benches/lstm.rs`).
 //!
 //! Rows are taken in chunks of `MC` so the chunk's inputs stay in L2 while every weight
 //! block passes over them. Fewer rows than a tile left (the live case of one window is 1
