@@ -67,16 +67,13 @@ fn tick(t_s: f64) -> Vec<TimedMessage> {
         }),
     ];
     msgs.into_iter()
-        .map(|msg| TimedMessage {
-            t_s,
-            header: mavlink::MavHeader {
+        .map(|msg| {
+            let header = mavlink::MavHeader {
                 system_id: 1,
                 component_id: 1,
                 sequence: 0,
-            },
-            msg,
-            arrived: std::time::Instant::now(),
-            network: 0,
+            };
+            TimedMessage::new(t_s, header, msg)
         })
         .collect()
 }

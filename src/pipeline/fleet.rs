@@ -359,17 +359,12 @@ mod tests {
     const TWO: VehicleId = VehicleId::single(2);
 
     fn msg(sys: u32, t_s: f64, msg: MavMessage) -> TimedMessage {
-        TimedMessage {
-            t_s,
-            header: mavlink::MavHeader {
-                system_id: sys,
-                component_id: 1,
-                sequence: 0,
-            },
-            msg,
-            arrived: std::time::Instant::now(),
-            network: 0,
-        }
+        let header = mavlink::MavHeader {
+            system_id: sys,
+            component_id: 1,
+            sequence: 0,
+        };
+        TimedMessage::new(t_s, header, msg)
     }
     fn hb(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
         MavMessage::HEARTBEAT(HEARTBEAT_DATA {

@@ -57,6 +57,20 @@ pub struct TimedMessage {
     pub network: u8,
 }
 
+impl TimedMessage {
+    /// `msg` from `header` at `t_s` on the source's clock, arriving now on network 0 (a
+    /// reader's or a synthesiser's output; a merged link sets its `network`).
+    pub fn new(t_s: f64, header: mavlink::MavHeader, msg: MavMessage) -> Self {
+        Self {
+            t_s,
+            header,
+            msg,
+            arrived: std::time::Instant::now(),
+            network: 0,
+        }
+    }
+}
+
 /// How fast a recorded source plays (replay), or a simulated one is sent (`simulate --udp`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Speed {

@@ -45,13 +45,7 @@ impl Synth {
             sequence: self.seq,
         };
         self.seq = self.seq.wrapping_add(1);
-        out.push(TimedMessage {
-            t_s: self.t_s,
-            header,
-            msg,
-            arrived: std::time::Instant::now(),
-            network: 0,
-        });
+        out.push(TimedMessage::new(self.t_s, header, msg));
     }
 
     /// A record stamped `us` (µs of log time): the clock moves (a jump is counted in

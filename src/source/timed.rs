@@ -186,13 +186,7 @@ impl TimedReader {
             IngestStats::add(&stats.gaps, 1);
             IngestStats::add(&stats.clock_jumps, 1);
         }
-        Some(TimedMessage {
-            t_s,
-            header,
-            msg,
-            arrived: std::time::Instant::now(),
-            network: 0,
-        })
+        Some(TimedMessage::new(t_s, header, msg))
     }
 }
 

@@ -491,17 +491,12 @@ mod tests {
     use MavParamType::{MAV_PARAM_TYPE_INT32 as INT32, MAV_PARAM_TYPE_REAL32 as REAL32};
 
     fn msg(t_s: f64, sys: u32, comp: u8, msg: MavMessage) -> TimedMessage {
-        TimedMessage {
-            t_s,
-            header: mavlink::MavHeader {
-                system_id: sys,
-                component_id: comp,
-                sequence: 0,
-            },
-            msg,
-            arrived: std::time::Instant::now(),
-            network: 0,
-        }
+        let header = mavlink::MavHeader {
+            system_id: sys,
+            component_id: comp,
+            sequence: 0,
+        };
+        TimedMessage::new(t_s, header, msg)
     }
 
     fn heartbeat(autopilot: MavAutopilot) -> MavMessage {

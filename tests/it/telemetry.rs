@@ -59,16 +59,7 @@ impl Mix {
                 component_id: 1,
                 sequence: i as u8,
             };
-            tel.push(
-                &TimedMessage {
-                    t_s: 1000.0 + t,
-                    header,
-                    msg,
-                    arrived: std::time::Instant::now(),
-                    network: 0,
-                },
-                &mut out,
-            );
+            tel.push(&TimedMessage::new(1000.0 + t, header, msg), &mut out);
         }
         tel.finish(&mut out);
         (tel, out)
@@ -387,16 +378,7 @@ fn a_quiet_source_is_held_and_marked_stale_without_stalling_the_stream() {
             component_id: 1,
             sequence: i as u8,
         };
-        tel.push(
-            &TimedMessage {
-                t_s: t,
-                header,
-                msg,
-                arrived: std::time::Instant::now(),
-                network: 0,
-            },
-            &mut out,
-        );
+        tel.push(&TimedMessage::new(t, header, msg), &mut out);
     }
     // Before finish(): the stream kept flowing (latency bounded by the stale limit).
     // Power comes at 1 Hz here, and every signal gates the grid: at most 1 s behind.

@@ -3,17 +3,12 @@ use crate::dialect as d;
 use crate::mission::plan::GeoPoint;
 
 fn msg(t_s: f64, msg: MavMessage) -> TimedMessage {
-    TimedMessage {
-        t_s,
-        header: mavlink::MavHeader {
-            system_id: 1,
-            component_id: 1,
-            sequence: 0,
-        },
-        msg,
-        arrived: std::time::Instant::now(),
-        network: 0,
-    }
+    let header = mavlink::MavHeader {
+        system_id: 1,
+        component_id: 1,
+        sequence: 0,
+    };
+    TimedMessage::new(t_s, header, msg)
 }
 
 fn live() -> LiveMission {

@@ -124,9 +124,10 @@ impl Kinematics {
             Vector3::zeros()
         };
         let payload_g = feat(s, idx::PAYLOAD).max(0.0);
+        let lift = wing_lift_n(s, profile);
         Kinematics {
-            wing_lift_n: wing_lift_n(s, profile),
-            pusher_w: pusher_w(w, profile),
+            wing_lift_n: lift,
+            pusher_w: pusher_w(w, profile, lift),
             mass_kg: profile.mass_kg(payload_g / 1000.0),
             payload_g,
             ground_m_s: ground,
@@ -211,10 +212,10 @@ pub fn wing_lift_n(s: &Sample, p: &VehicleProfile) -> f64 {
 
 /// A VTOL's pusher in its forward transition, W: the wing's drag and the acceleration along
 /// the air path over the fixed-wing model's η, (½ρV³·S·C_D0 + 2L²/(ρV·S·π·e·AR) + m·V·V̇)/η
-/// (≥ 0), with L the lift the wing gives ([`wing_lift_n`], at most the weight) and V̇
-/// [`fixed_wing::path_acceleration`]; 0 in every other state (the back transition flies
-/// with the pusher off) and for every other vehicle.
-pub fn pusher_w(win: &Window, p: &VehicleProfile) -> f64 {
+/// (≥ 0), with L the lift the wing gives (`wing_lift_n`, from [`wing_lift_n`()], taken at
+/// most the weight) and V̇ [`fixed_wing::path_acceleration`]; 0 in every other state (the
+/// back transition flies with the pusher off) and for every other vehicle.
+pub fn pusher_w(win: &Window, p: &VehicleProfile, wing_lift_n: f64) -> f64 {
     use crate::features::{VehicleClass, VtolState};
     let s = win.last();
     if s.vehicle.class != VehicleClass::Vtol || s.vehicle.vtol_state != VtolState::TransitionToFw {
@@ -226,7 +227,7 @@ pub fn pusher_w(win: &Window, p: &VehicleProfile) -> f64 {
         .clamp(fixed_wing::MIN_FLYING_M_S, fixed_wing::MAX_AIRSPEED_M_S);
     let rho = fixed_wing::air_density(feat(s, idx::POS_Z), s.air.temperature_c.map(f64::from));
     let m = p.mass_kg(feat(s, idx::PAYLOAD).max(0.0) / 1000.0);
-    let lift = wing_lift_n(s, p).min(m * p.air.g_m_s2);
+    let lift = wing_lift_n.min(m * p.air.g_m_s2);
     let aero = 0.5 * rho * v.powi(3) * w.wing_area_m2 * w.cd0
         + 2.0 * lift * lift
             / (rho * v * w.wing_area_m2 * std::f64::consts::PI * w.oswald_e * w.aspect_ratio())
