@@ -6,7 +6,7 @@
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::battery::{forecast, CircuitParams, Estimator, OcvCurve};
-use dronewatt::energy::pack::Pack;
+use dronewatt::energy::pack::{Load, Pack};
 use dronewatt::report::BatteryFacts;
 
 fn bench(c: &mut Criterion) {
@@ -16,7 +16,7 @@ fn bench(c: &mut Criterion) {
     let mut t = 0.0;
     while t < 10.0 {
         let (v, i) = if t < 4.0 { (24.3, 0.1) } else { (22.0, 20.0) };
-        pack.update(t, Some(v), Some(i), Some((450.0, None)), &facts);
+        pack.update(t, Some(v), Some(i), Some(Load::constant(450.0)), &facts);
         t += 0.1;
     }
     // A flight of 300 s (3,000 windows) from there, over and over: the pack never runs flat,
@@ -38,7 +38,7 @@ fn bench(c: &mut Criterion) {
                     black_box(t),
                     Some(22.0 - 0.01 * wobble),
                     Some(20.0 + wobble),
-                    Some((450.0, None)),
+                    Some(Load::constant(450.0)),
                     &facts,
                 )
             })

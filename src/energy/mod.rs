@@ -181,6 +181,9 @@ pub struct EnergyTracker {
     cruise: Ema,
     hover: Ema,
     mission: Option<crate::report::MissionStatus>,
+    /// The mission's mean power over the whole plan (W), from its first status, with its
+    /// item count: the pack's forecast flies on at it past the mission's end.
+    plan_mean_w: Option<(u16, f64)>,
     /// Capacity and cells, with where they came from.
     battery: BatteryFacts,
     /// What the vehicle said about itself, when it did.
@@ -208,6 +211,12 @@ pub struct EnergyTracker {
 impl EnergyTracker {
     /// The live mission forecast the next updates account with (None: no mission known).
     pub fn set_mission(&mut self, m: Option<crate::report::MissionStatus>) {
+        if let Some(s) = m.as_ref() {
+            let fresh = self.plan_mean_w.is_none_or(|(items, _)| items != s.items);
+            if fresh && s.time_left_s > 1.0 && s.energy_p50_wh > 0.0 {
+                self.plan_mean_w = Some((s.items, 3600.0 * s.energy_p50_wh / s.time_left_s));
+            }
+        }
         self.mission = m;
     }
 
@@ -230,6 +239,7 @@ impl EnergyTracker {
             cruise: Ema::default(),
             hover: Ema::default(),
             mission: None,
+            plan_mean_w: None,
             battery: crate::vehicle::battery_from_config(&cfg.battery()),
             vehicle: VehicleParams::default(),
             first_voltage_v: None,
@@ -394,19 +404,22 @@ impl EnergyTracker {
             .map(f64::from)
             .filter(|v| v.is_finite() && *v > 0.5);
         let amps = volts.zip(measured).map(|(v, p)| p / v);
-        // The voltage forecast flies the rest of the mission at its mean power when one is
-        // known, else the forecast power until the reserve.
-        let rest_of_flight = self
-            .mission
-            .as_ref()
-            .filter(|m| m.time_left_s > 1.0 && m.energy_p50_wh > 0.0)
-            .map(|m| {
-                (
-                    3600.0 * m.energy_p50_wh / m.time_left_s,
-                    Some(m.time_left_s),
-                )
-            })
-            .or(forecast.map(|p| (p, None)));
+        // The voltage forecast flies the rest of the mission at its mean power, then on at the
+        // plan's mean power (so that the usable floor does not leap when the mission's last,
+        // light descent ends; a mission flown to its end flies on at it too); with no
+        // mission, the forecast power throughout.
+        let plan_w = self.plan_mean_w.map(|(_, w)| w);
+        let rest_of_flight = match self.mission.as_ref() {
+            Some(m) if m.time_left_s > 1.0 && m.energy_p50_wh > 0.0 => {
+                let first_w = 3600.0 * m.energy_p50_wh / m.time_left_s;
+                Some(pack::Load {
+                    first_w,
+                    first_s: Some(m.time_left_s),
+                    then_w: plan_w.unwrap_or(first_w),
+                })
+            }
+            _ => plan_w.or(forecast).map(pack::Load::constant),
+        };
         let pk = self
             .pack
             .update(t, volts, amps, rest_of_flight, &self.battery);

@@ -87,6 +87,27 @@ pub struct PackNow {
     pub carried: bool,
 }
 
+/// The load the forecast flies: `first_w` (W) for `first_s` (s; the rest of a mission; None:
+/// on until the reserve), then `then_w`, the flight's sustained power, on past the mission's
+/// end (so that the usable floor does not leap when a mission's last, light descent ends).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Load {
+    pub first_w: f64,
+    pub first_s: Option<f64>,
+    pub then_w: f64,
+}
+
+impl Load {
+    /// One power for the whole forecast.
+    pub fn constant(w: f64) -> Self {
+        Self {
+            first_w: w,
+            first_s: None,
+            then_w: w,
+        }
+    }
+}
+
 /// The pack's state across the estimates of one vehicle.
 #[derive(Debug, Clone, Default)]
 pub struct Pack {
@@ -148,14 +169,13 @@ impl Pack {
     }
 
     /// Take one sample: time (s), pack voltage (V) and current (A, discharge positive);
-    /// `rest_of_flight` is the power the forecast flies at (W) and for how long (s; None:
-    /// until the reserve); `facts` say which pack.
+    /// `rest_of_flight` is what the forecast flies ([`Load`]); `facts` say which pack.
     pub fn update(
         &mut self,
         t: f64,
         v: Option<f64>,
         i: Option<f64>,
-        rest_of_flight: Option<(f64, Option<f64>)>,
+        rest_of_flight: Option<Load>,
         facts: &BatteryFacts,
     ) -> PackNow {
         let (Some(v), Some(i)) = (
@@ -283,7 +303,7 @@ impl Pack {
     }
 
     /// Recompute the loaded-voltage forecast for the rest of the flight.
-    fn forecast(&mut self, rest_of_flight: Option<(f64, Option<f64>)>, facts: &BatteryFacts) {
+    fn forecast(&mut self, rest_of_flight: Option<Load>, facts: &BatteryFacts) {
         let Some(est) = self.est.as_ref() else { return };
         let low = facts
             .low_voltage_v
@@ -291,7 +311,12 @@ impl Pack {
             .map(|s| s.value)
             .unwrap_or(DEFAULT_LOW_V_CELL * f64::from(facts.cell_count.value));
         self.now.low_v = Some(low);
-        let Some((p, horizon)) = rest_of_flight.filter(|(p, _)| p.is_finite() && *p > 1.0) else {
+        let Some(Load {
+            first_w: p,
+            first_s: horizon,
+            then_w,
+        }) = rest_of_flight.filter(|l| l.first_w.is_finite() && l.first_w > 1.0)
+        else {
             (
                 self.now.v_min_forecast,
                 self.now.time_to_low_v_s,
@@ -313,8 +338,20 @@ impl Pack {
         };
         let lowest = lowest_dip(est, constant(p, FORECAST_STEP_S, rest_s), frac);
         self.now.v_min_forecast = lowest.map(|(s, v)| (v, s.t_s));
-        // Flying on at that power, stopping where it crosses the low threshold.
-        let on = first_crossing(est, constant(p, FORECAST_STEP_S, FORECAST_HORIZON_S), low);
+        // Flying the rest at that power, then on at the flight's sustained power, stopping
+        // where it crosses the low threshold.
+        let first_s = horizon
+            .unwrap_or(FORECAST_HORIZON_S)
+            .clamp(0.0, FORECAST_HORIZON_S);
+        let then_w = Some(then_w)
+            .filter(|w| w.is_finite() && *w > 1.0)
+            .unwrap_or(p);
+        let profile = constant(p, FORECAST_STEP_S, first_s).chain(constant(
+            then_w,
+            FORECAST_STEP_S,
+            FORECAST_HORIZON_S - first_s,
+        ));
+        let on = first_crossing(est, profile, low);
         self.now.time_to_low_v_s = on.map(|s| s.t_s);
         self.now.usable_wh = Some(match on {
             Some(s) => (e_now - s.energy).max(0.0),
@@ -343,7 +380,7 @@ mod tests {
             } else {
                 (rest_v - 0.06 * 20.0, 20.0)
             };
-            now = p.update(t, Some(v), Some(i), Some((450.0, None)), facts);
+            now = p.update(t, Some(v), Some(i), Some(Load::constant(450.0)), facts);
             t += 0.1;
         }
         now

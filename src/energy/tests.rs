@@ -184,3 +184,65 @@ fn rejects_nonsense_config() {
     let err = EnergyTracker::new(&cfg, None).err().unwrap().to_string();
     assert!(err.contains("energy.capacity_wh"), "{err}");
 }
+
+/// A mission whose last 20 s are a light descent: when it ends, the usable floor must not
+/// leap. It did: flying on at the descent's light power, then at the forecast's (3 Wh apart on
+/// the demo; here 10.6 Wh before the end, 12.4 after). Past the mission's end the forecast now
+/// flies on at the plan's mean power.
+#[test]
+fn the_usable_floor_does_not_leap_when_the_mission_ends() {
+    // A part-used TB48D (3.80 V a cell at rest) sagging near BATT_LOW_VOLT (21.0 V) at 20 A,
+    // where the floor moves with the load.
+    const LOADED_V: f64 = 21.3;
+    let mut tr = tracker(EnergyConfig::default());
+    let (end, light_s, heavy_w, light_w) = (70.0, 20.0, LOADED_V * 20.0, 200.0);
+    let status = |t: f64| {
+        let left = (end - t).max(0.0);
+        let wh = if left > light_s {
+            ((left - light_s) * heavy_w + light_s * light_w) / 3600.0
+        } else {
+            left * light_w / 3600.0
+        };
+        crate::report::MissionStatus {
+            t_s: t,
+            current_seq: 1,
+            items: 4,
+            time_left_s: left,
+            energy_p50_wh: wh,
+            energy_p90_wh: 1.1 * wh,
+            progress_pct: 100.0 * t / end,
+            route_en_m: std::sync::Arc::new(Vec::new()),
+            route_at: 0,
+        }
+    };
+    let mut remaining = Vec::new();
+    for k in 0..800 {
+        let t = f64::from(k) * 0.1;
+        let (v, amps) = if t < 4.0 {
+            (22.8, 0.1)
+        } else {
+            (LOADED_V, 20.0)
+        };
+        let mut e = est(t, Some((v * amps) as f32), &[("m", (v * amps) as f32)]);
+        e.sample.voltage_v = Some(v as f32);
+        tr.set_mission(Some(status(t)));
+        let st = tr.update_with_battery(&e, None);
+        if let Some(r) = st.remaining_wh {
+            remaining.push((t, r));
+        }
+    }
+    let at = |t: f64| {
+        remaining
+            .iter()
+            .rev()
+            .find(|(s, _)| *s <= t)
+            .map_or(f64::NAN, |r| r.1)
+    };
+    let (before, after) = (at(69.9), at(79.9));
+    // 10 s at 438 W use 1.2 Wh; the rest of the change is the floor's.
+    assert!(
+        (before - after - 1.2).abs() < 0.6,
+        "remaining {before:.2} Wh before the mission's end, {after:.2} after"
+    );
+    assert!(at(40.0) > before, "it falls as the flight goes on");
+}
