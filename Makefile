@@ -30,10 +30,14 @@ build-all: setup
 run: build
 	./target/debug/dronewatt replay replay/demo.tlog --speed $(DEMO_SPEED) --config config/demo.toml --data-dir off
 
+# After the tests (which build the binary), the book's results tables and the README's
+# headline figures are checked against what the commands print now (scripts/docs-tables.py
+# --check: writes nothing; skipped with a note where the data set is absent).
 test: setup
 	@scripts/setup-chromium.sh
 	@scripts/setup-mosquitto.sh
 	$(CARGO) test --workspace --locked --no-fail-fast
+	@python3 scripts/docs-tables.py --if-available --check
 
 # The code gates CI runs before the tests: rustfmt, clippy with warnings as errors, rustdoc
 # with warnings as errors (broken intra-doc links), over the whole workspace (the torch crate

@@ -12,6 +12,14 @@ so the book builds without the data set.
     scripts/docs-tables.py --no-eval       # skip `eval --split cvar`
     scripts/docs-tables.py --from-json DIR # read DIR/battery-eval.json, DIR/plan-eval.json,
                                            # DIR/eval-cvar.json instead of running anything
+    scripts/docs-tables.py --check         # write nothing: fail when a committed table or a
+                                           # figure in the README's "Headline figures" is not
+                                           # what the commands print now (`make test` runs it
+                                           # with --if-available)
+
+The README's headline figures are prose, written by hand, so they are checked instead of
+written: `readme_claims` says, per command, which figure must stand there and how it is
+rounded.
 
 The binary is $DRONEWATT_BIN, else ${CARGO_TARGET_DIR:-target}/debug/dronewatt (build it
 with `make docs-tables`, which runs `cargo build --locked --bin dronewatt` first). The data
@@ -245,6 +253,45 @@ def eval_cvar(r):
     return md
 
 
+def best(models, published):
+    """The physics model with the lowest MAE: calibrated (`_cal`) or published."""
+    rows = [(k, v) for k, v in models.items()
+            if k != "lstm" and k.endswith("_cal") != published]
+    return min(rows, key=lambda kv: kv[1]["mae_w"])[1] if rows else None
+
+
+def readme_claims(name, r):
+    """The strings the README's headline figures must hold for this command's JSON."""
+    if name == "plan-eval":
+        t = r["test"]
+        return [f"**{t['preflight_median_err_pct']:.2f} %**", f"(max {t['preflight_max_err_pct']:.2f} %)",
+                f"P90 covers {t['p90_coverage_pct']:.0f} %", f"**{t['live_median_err_pct']:.2f} %**",
+                f"{t['live_advantage_gcs']:.0f}×", f"**{t['live_advantage']:.1f}×**"]
+    if name == "battery-eval":
+        t = r["test"]
+        return [f"**{t['ocv_energy_mae_wh']:.2f} Wh**", f"**{t['px4_36_energy_mae_wh']:.1f} Wh**",
+                f"({t['full_pack_start_energy_err_wh']:.0f} Wh", f"**{1e3 * t['ocv_end_v_mae_v']:.0f} mV**",
+                f"**{t['ecm_median_rmse_v']:.3f} V**", f"**{t['halftime_min_v_mae']:.3f} V**",
+                f"{t['preflight_plan_min_v_mae']:.3f} V"]
+    if name == "eval-cvar":
+        m = r["models"]
+        out = [f"**{m['lstm']['mape_pct']:.1f} %**", f"energy error {m['lstm']['energy_err_pct']:.1f} %"]
+        for published in (False, True):
+            b = best(m, published)
+            if b:
+                out.append(f"{b['mape_pct']:.1f} %")
+        return out
+    return []
+
+
+def headline(readme):
+    """The README's "Headline figures" section."""
+    text = readme.read_text()
+    start = text.find("## Headline figures")
+    end = text.find("\n## ", start + 1)
+    return text[start:end if end > 0 else len(text)] if start >= 0 else ""
+
+
 WRITERS = {
     "battery-eval": [("battery-eval.md", battery_eval), ("battery-params.md", battery_params)],
     "plan-eval": [("plan-eval-flights.md", plan_eval_flights), ("plan-eval-targets.md", plan_eval_targets),
@@ -271,6 +318,8 @@ def main():
     ap.add_argument("--from-json", metavar="DIR", type=Path)
     ap.add_argument("--if-available", action="store_true")
     ap.add_argument("--no-eval", action="store_true", help="skip `eval --split cvar` (a few seconds)")
+    ap.add_argument("--check", action="store_true",
+                    help="write nothing; fail when a committed table or a README headline figure is stale")
     a = ap.parse_args()
 
     target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
@@ -316,14 +365,31 @@ def main():
             results[name] = json.loads(p.stdout)
 
     OUT.mkdir(parents=True, exist_ok=True)
+    stale = []
     for name, r in results.items():
         for fname, fn in WRITERS[name]:
             md = fn(r)
             if md is None:
                 note(f"{name}: JSON shape not recognised, {fname} not written")
                 continue
+            if a.check:
+                if not (OUT / fname).exists() or (OUT / fname).read_text() != md:
+                    stale.append(f"{(OUT / fname).relative_to(ROOT)} differs from `dronewatt {name} --json`")
+                continue
             (OUT / fname).write_text(md)
             note(f"wrote {(OUT / fname).relative_to(ROOT)}")
+    # The README's headline figures are hand-written prose: checked, never written.
+    head = headline(ROOT / "README.md")
+    for name, r in results.items():
+        for claim in readme_claims(name, r):
+            if claim not in head:
+                stale.append(f"README.md, Headline figures: `{claim}` (from `dronewatt {name} --json`) is not there")
+    for s in stale:
+        note(f"stale: {s}")
+    if stale:
+        note("refresh with `make docs-tables` and edit the README's headline figures to match")
+        return 1
+    note(f"the tables and the README's headline figures match {', '.join(results) or 'nothing (no JSON)'}")
     return 0
 
 
