@@ -89,6 +89,12 @@ pub struct ModelCard {
     pub target_lag: usize,
     /// Nominal quantiles of the band heads (low, high), e.g. (0.05, 0.95).
     pub band_quantiles: (f32, f32),
+    /// Watts added on each side of the heads' band: split-conformal calibration (CQR) on the
+    /// validation flights, so that the band covers its nominal share (`band_quantiles`'
+    /// high − low) of their windows; never negative. Written by `train` and
+    /// `train --score-only`; absent in older cards: 0 (the heads' band as trained).
+    #[serde(default)]
+    pub band_widen_w: f32,
     /// LSTM hidden cells per direction and layer (built-in network only).
     pub hidden: i64,
     /// Stacked bidirectional LSTM layers (built-in network only).

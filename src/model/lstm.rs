@@ -289,9 +289,10 @@ impl PowerModel for LstmModel {
         }
         match self.forward_w(windows) {
             Ok(rows) if rows.len() == windows.len() => {
+                let widen = self.card.band_widen_w;
                 out.extend(rows.iter().map(|r| Prediction {
                     power_w: r[0],
-                    band_w: (r[1] != r[2]).then_some((r[1], r[2])),
+                    band_w: (r[1] != r[2]).then_some((r[1] - widen, r[2] + widen)),
                 }))
             }
             other => {

@@ -309,6 +309,16 @@ impl FlightSeries {
         }
     }
 
+    /// Model `j`'s band misses: for each window with a measured power and a band, how far
+    /// the power lies outside it, `max(low − y, y − high)` (negative inside), W.
+    pub fn band_excess(&self, j: usize) -> impl Iterator<Item = f64> + '_ {
+        self.measured_w
+            .iter()
+            .zip(self.band_w.get(j).into_iter().flatten())
+            .filter_map(|(y, b)| b.map(|(lo, hi)| (lo - y).max(y - hi)))
+            .filter(|e| e.is_finite())
+    }
+
     /// Every model's scores (in order; `None` where nothing was in flight), in flight only
     /// or over every window.
     pub fn scores(&self, all_windows: bool) -> Vec<Option<Scores>> {

@@ -204,6 +204,22 @@ pub fn median_finite(x: impl IntoIterator<Item = f64>) -> f64 {
     median(&mut x.into_iter().filter(|a| a.is_finite()).collect::<Vec<_>>())
 }
 
+/// Split-conformal widening of a band (CQR, Romano et al. 2019): given each calibration
+/// window's excess outside its band, `max(low − y, y − high)` (negative inside), the watts
+/// to add on each side so that the band covers at least `coverage` of them: the
+/// ⌈(n + 1)·coverage⌉-th smallest excess, never negative (a band is widened, not narrowed).
+/// `None` with no finite excess.
+pub fn conformal_widening(excess: &mut Vec<f64>, coverage: f64) -> Option<f64> {
+    excess.retain(|e| e.is_finite());
+    if excess.is_empty() || !(0.0..1.0).contains(&coverage) {
+        return None;
+    }
+    excess.sort_by(f64::total_cmp);
+    let n = excess.len();
+    let k = (((n + 1) as f64 * coverage).ceil() as usize).clamp(1, n);
+    Some(excess[k - 1].max(0.0))
+}
+
 /// The `q` quantile of `v` (sorted in place), linear between ranks; NaN for none.
 pub fn quantile(v: &mut [f64], q: f64) -> f64 {
     if v.is_empty() {
@@ -218,6 +234,36 @@ pub fn quantile(v: &mut [f64], q: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    proptest::proptest! {
+        /// Widened by the conformal amount, a band covers at least the asked share of the
+        /// calibration windows, and the amount is never negative.
+        #[test]
+        fn conformal_widening_covers_the_calibration_set(
+            excess in proptest::collection::vec(-50.0f64..50.0, 1..300),
+            coverage in 0.5f64..0.99,
+        ) {
+            let q = conformal_widening(&mut excess.clone(), coverage).expect("some excess");
+            proptest::prop_assert!(q >= 0.0);
+            let inside = excess.iter().filter(|e| **e <= q).count();
+            proptest::prop_assert!(inside as f64 >= coverage * excess.len() as f64);
+        }
+    }
+
+    #[test]
+    fn conformal_widening_of_nothing_is_none() {
+        assert_eq!(conformal_widening(&mut vec![], 0.9), None);
+        assert_eq!(conformal_widening(&mut vec![f64::NAN], 0.9), None);
+        assert_eq!(conformal_widening(&mut vec![1.0], 1.5), None);
+        // A band that already covers everything is not narrowed.
+        assert_eq!(
+            conformal_widening(&mut vec![-3.0, -2.0, -1.0], 0.9),
+            Some(0.0)
+        );
+        // 10 windows, 90 %: the ⌈11 · 0.9⌉ = 10th smallest.
+        let mut e: Vec<f64> = (1..=10).map(f64::from).collect();
+        assert_eq!(conformal_widening(&mut e, 0.9), Some(10.0));
+    }
 
     /// Energy used so far at each time, Wh: trapezoids, as the tracker integrates steps
     /// no longer than its cap.

@@ -55,6 +55,7 @@ fn card(dir: &std::path::Path, window: usize) -> ModelCard {
         power_scale_w: 500.0,
         target_lag: 0,
         band_quantiles: (0.05, 0.95),
+        band_widen_w: 0.0,
         hidden: 16,
         layers: 2,
         training: TrainingInfo {

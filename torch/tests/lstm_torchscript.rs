@@ -67,6 +67,7 @@ fn torchscript_module_loads_with_its_card() {
         power_scale_w: 100.0,
         target_lag: 0,
         band_quantiles: (0.05, 0.95),
+        band_widen_w: 0.0,
         hidden: 0,
         layers: 0,
         training: TrainingInfo::default(),
