@@ -20,6 +20,11 @@
 //! latitude, longitude and height above home) among that item's legs is where it is
 //! ([`super::trajectory::Trajectory::locate`]). Home is ArduPilot's item 0, else
 //! HOME_POSITION, else the first position heard.
+//!
+//! What is left is corrected by the flight's own showing, as `plan-eval` scores it
+//! ([`super::forecast::live_scaled`]): the energy drawn since the vehicle's HEARTBEAT was
+//! seen to turn armed (SYS_STATUS battery voltage × current) against the forecast of the
+//! part of the plan flown, weight `[forecast.calibration] live_weight`.
 
 use std::time::Duration;
 
