@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::config::Config;
-use crate::mission::forecast::Calibration;
+use crate::mission::forecast::{live_scaled, Calibration};
 use crate::mission::trajectory::{Trajectory, Wind};
 use crate::model::PowerModel;
 use crate::offline::data::TEST_FLIGHTS;
@@ -185,13 +185,11 @@ pub(crate) fn score(
         planned_left_s = m.planned_left_s;
         n += 1.0;
     }
-    let (done, mut left) = (done / n.max(1.0), left / n.max(1.0));
+    let (done, left) = (done / n.max(1.0), left / n.max(1.0));
     let p50 = done + left;
     let p90 = p50 * cal.p90_ratio;
-    if done > 0.05 * p50 && p.live_so_far_wh > 0.0 {
-        let s = (p.live_so_far_wh / done).clamp(0.8, 1.25);
-        left *= 1.0 + cal.live_weight * (s - 1.0);
-    }
+    // the monitor's own live correction (the same function)
+    let left = live_scaled(left, p.live_so_far_wh, done, p50, cal.live_weight);
     let baseline = p.live_mean_w * planned_left_s / 3600.0;
     let baseline_gcs = p.live_mean_w * p.live_gcs_left_s / 3600.0;
     let err = |f: f64, m: f64| 100.0 * (f - m).abs() / m.max(1e-9);
@@ -330,6 +328,37 @@ pub struct PlanEvalReport {
     pub ground_wind: bool,
     /// The calibration's members, each fitted and scored alone: what the mean owes to each.
     pub members_alone: Vec<Alone>,
+    /// Per route: the training flights' rolling-validation figures beside the test flights'
+    /// (the live forecast against both baselines' clocks among them).
+    pub routes: Vec<RouteSummary>,
+}
+
+/// One route's figures ([`PlanEvalReport::routes`]); a split with no flight of the route is
+/// absent.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RouteSummary {
+    pub route: String,
+    pub training: Option<Summary>,
+    pub test: Option<Summary>,
+}
+
+/// [`RouteSummary`] for every route flown in either split, in route order.
+fn by_route(train: &[FlightScore], test: &[FlightScore], cal: &Calibration) -> Vec<RouteSummary> {
+    let mut routes: Vec<&str> = train.iter().chain(test).map(|f| f.route.as_str()).collect();
+    routes.sort_unstable();
+    routes.dedup();
+    let of = |set: &[FlightScore], r: &str| {
+        let v: Vec<FlightScore> = set.iter().filter(|f| f.route == r).cloned().collect();
+        (!v.is_empty()).then(|| summarize(&v, cal))
+    };
+    routes
+        .into_iter()
+        .map(|r| RouteSummary {
+            route: r.to_string(),
+            training: of(train, r),
+            test: of(test, r),
+        })
+        .collect()
 }
 
 /// One member of the fit forecasting alone ([`PlanEvalReport::members_alone`]).
@@ -478,6 +507,7 @@ pub fn plan_eval(
         Vec::new()
     };
     Ok(PlanEvalReport {
+        routes: by_route(&train_scores, &test_scores, &cal),
         members_alone,
         training: summarize(&train_scores, &cal),
         test: summarize(&test_scores, &cal),
@@ -567,6 +597,32 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
             x.live_advantage_gcs,
             x.baseline_live_median_err_pct,
             x.live_advantage
+        );
+    }
+    let _ = writeln!(
+        s,
+        "live at 50 % by route, median error (flights): dronewatt | baseline with the ground station's clock | with dronewatt's clock"
+    );
+    for rs in &r.routes {
+        let cell = |x: &Option<Summary>| {
+            x.as_ref().map_or(String::from("—"), |x| {
+                format!(
+                    "{:.2} % | {:.2} % ({:.1}×) | {:.2} % ({:.1}×) ({})",
+                    x.live_median_err_pct,
+                    x.baseline_gcs_live_median_err_pct,
+                    x.live_advantage_gcs,
+                    x.baseline_live_median_err_pct,
+                    x.live_advantage,
+                    x.flights
+                )
+            })
+        };
+        let _ = writeln!(
+            s,
+            "  {:<4} test {}; training (rolling) {}",
+            rs.route,
+            cell(&rs.test),
+            cell(&rs.training)
         );
     }
     if !r.members_alone.is_empty() {

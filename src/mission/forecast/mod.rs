@@ -34,9 +34,10 @@
 //! - **Live re-forecast**: the remaining energy from trajectory sample `k` is
 //!   `E50(end) − E50(k)`, read off the cumulative energy; finding `k` from MISSION_CURRENT
 //!   and the vehicle's position is a bounded nearest-point search
-//!   ([`super::trajectory::Trajectory::locate`]). Optionally scaled by what the flight has
-//!   shown so far: `s = clamp(E_measured(0..k) / E50(0..k), 0.8, 1.25)` blended as
-//!   `1 + w·(s − 1)` with `w = live_weight`.
+//!   ([`super::trajectory::Trajectory::locate`]). Scaled by what the flight has shown so
+//!   far ([`live_scaled`], the one function the monitor applies and `plan-eval` scores):
+//!   `s = clamp(E_measured(0..k) / E50(0..k), 0.8, 1.25)` blended as `1 + w·(s − 1)` with
+//!   `w = live_weight`.
 //!
 //! Pure: no I/O.
 
@@ -510,6 +511,36 @@ fn integrate(
     }
 }
 
+/// Share of the plan's P50 energy flown before the live correction applies: the take-off
+/// climb's measured/forecast ratio says nothing of the rest (r = −0.01 on the 178 training
+/// flights, `docs/src/mission.md`), so a ratio read off little more than the climb is not
+/// used. At half time, where `plan-eval` scores it, every training flight has flown 48–55 %.
+pub const LIVE_FROM_SHARE: f64 = 0.25;
+
+/// The live correction of what is left, shared by the monitor
+/// ([`MissionForecast::remaining_from`]) and `plan-eval`, which measures it: the forecast
+/// of the rest `left_wh` scaled by the flight's own showing so far,
+/// `s = clamp(measured_so_far / forecast_done, 0.8, 1.25)` blended as `1 + w·(s − 1)` with
+/// `w = live_weight`; unchanged until the part flown holds [`LIVE_FROM_SHARE`] of the plan's
+/// P50 `total_wh`, or while the measured energy is unknown (not finite, not above 0).
+pub fn live_scaled(
+    left_wh: f64,
+    measured_so_far_wh: f64,
+    forecast_done_wh: f64,
+    total_wh: f64,
+    live_weight: f64,
+) -> f64 {
+    if forecast_done_wh > LIVE_FROM_SHARE * total_wh
+        && measured_so_far_wh.is_finite()
+        && measured_so_far_wh > 0.0
+    {
+        let s = (measured_so_far_wh / forecast_done_wh).clamp(0.8, 1.25);
+        left_wh * (1.0 + live_weight * (s - 1.0))
+    } else {
+        left_wh
+    }
+}
+
 /// What is left of the mission from one point of it.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Remaining {
@@ -545,10 +576,7 @@ impl MissionForecast {
         let done = self.energy_to_wh(k);
         let mut left = (total - done).max(0.0);
         if let Some(m) = measured_so_far_wh {
-            if done > 0.05 * total && m.is_finite() && m > 0.0 {
-                let s = (m / done).clamp(0.8, 1.25);
-                left *= 1.0 + live_weight * (s - 1.0);
-            }
+            left = live_scaled(left, m, done, total, live_weight);
         }
         let n = self.cum_p50_wh.len();
         Remaining {

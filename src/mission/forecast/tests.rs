@@ -376,3 +376,16 @@ fn the_live_reforecast_reads_what_is_left() {
     assert!((hot.energy_p50_wh / half.energy_p50_wh - 1.1).abs() < 1e-9);
     assert_eq!(f.remaining_from(n - 1, None, 1.0).energy_p50_wh, 0.0);
 }
+
+#[test]
+fn the_live_correction_waits_for_a_quarter_of_the_plan_and_is_bounded() {
+    // 10 Wh left of a 20 Wh plan, 10 Wh forecast flown
+    assert!((live_scaled(10.0, 12.0, 10.0, 20.0, 0.25) - 10.5).abs() < 1e-12);
+    assert!((live_scaled(10.0, 9.0, 10.0, 20.0, 0.25) - 9.75).abs() < 1e-12);
+    // clamped at 1.25 × the forecast flown
+    assert!((live_scaled(10.0, 30.0, 10.0, 20.0, 1.0) - 12.5).abs() < 1e-12);
+    // only the climb flown (under a quarter of the plan), or nothing measured: unchanged
+    assert_eq!(live_scaled(18.0, 4.0, 2.0, 20.0, 0.25), 18.0);
+    assert_eq!(live_scaled(10.0, 0.0, 10.0, 20.0, 0.25), 10.0);
+    assert_eq!(live_scaled(10.0, f64::NAN, 10.0, 20.0, 0.25), 10.0);
+}

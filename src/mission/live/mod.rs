@@ -20,6 +20,11 @@
 //! latitude, longitude and height above home) among that item's legs is where it is
 //! ([`super::trajectory::Trajectory::locate`]). Home is ArduPilot's item 0, else
 //! HOME_POSITION, else the first position heard.
+//!
+//! What is left is corrected by the flight's own showing, as `plan-eval` scores it
+//! ([`super::forecast::live_scaled`]): the energy drawn since the vehicle's HEARTBEAT was
+//! seen to turn armed (SYS_STATUS battery voltage × current) against the forecast of the
+//! part of the plan flown, weight `[forecast.calibration] live_weight`.
 
 use std::time::Duration;
 
@@ -44,6 +49,9 @@ const PUBLISH_EVERY_S: f64 = 1.0;
 const REFLY_WIND_M_S: f64 = 1.5;
 /// … at most this often (source time), s.
 const REFLY_EVERY_S: f64 = 30.0;
+/// A gap between two SYS_STATUS power readings longer than this adds nothing to the energy
+/// so far (the link was lost), s.
+const POWER_GAP_S: f64 = 5.0;
 /// How often the download's timeouts are checked (live link), wall clock.
 const TICK: Duration = Duration::from_millis(250);
 /// Depth of the channel from the tap to the telemetry stage (the pipeline's stage depth).
@@ -98,6 +106,9 @@ struct Flown {
     /// The route for a map: every `route_stride`-th trajectory point, east/north.
     route: std::sync::Arc<Vec<[f32; 2]>>,
     route_stride: usize,
+    /// `[forecast.calibration] live_weight` of the members it was forecast with (0 when
+    /// none of them runs: the weight was fitted with them).
+    live_weight: f64,
 }
 
 /// The tap's state: the protocol client, the mission in hand, where the vehicle is.
@@ -118,6 +129,15 @@ pub struct LiveMission {
     /// a VTOL (EXTENDED_SYS_STATE `vtol_state`, an ArduPlane Q mode).
     heard_class: Option<VehicleClass>,
     vtol_seen: bool,
+    /// Whether the vehicle's HEARTBEAT says armed (None: not heard yet).
+    armed: Option<bool>,
+    /// Energy drawn since the vehicle was seen to arm, Wh (SYS_STATUS voltage × current,
+    /// each reading held to the next): the flight's own showing for the live correction
+    /// ([`super::forecast::live_scaled`]). None until an arming is seen, and after a new
+    /// mission arrives in flight (the flight so far was not that plan's).
+    so_far_wh: Option<f64>,
+    /// The last SYS_STATUS power while armed: source time, s, and W.
+    last_power: Option<(f64, f64)>,
 }
 
 impl LiveMission {
@@ -136,7 +156,54 @@ impl LiveMission {
             waiting_for_home: None,
             heard_class: None,
             vtol_seen: false,
+            armed: None,
+            so_far_wh: None,
+            last_power: None,
         }
+    }
+
+    /// Energy drawn since the vehicle was seen to arm, Wh, when known (SYS_STATUS voltage ×
+    /// current, each reading held to the next): what the live correction sets against the
+    /// forecast of the part flown.
+    pub fn energy_so_far_wh(&self) -> Option<f64> {
+        self.so_far_wh
+    }
+
+    /// Track arming from the vehicle's HEARTBEAT: a disarmed-to-armed change starts the
+    /// energy so far at 0 (a monitor started in flight never learns it).
+    fn learn_armed(&mut self, m: &MavMessage) {
+        let MavMessage::HEARTBEAT(h) = m else {
+            return;
+        };
+        if !crate::source::fleet::is_vehicle_heartbeat(h) {
+            return;
+        }
+        let armed = h
+            .base_mode
+            .contains(crate::dialect::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+        if armed && self.armed == Some(false) {
+            self.so_far_wh = Some(0.0);
+            self.last_power = None;
+        }
+        if !armed {
+            self.last_power = None;
+        }
+        self.armed = Some(armed);
+    }
+
+    /// Integrate SYS_STATUS's battery power while armed (each reading held to the next; a
+    /// gap over [`POWER_GAP_S`] counts nothing).
+    fn learn_power(&mut self, t_s: f64, power_w: f64) {
+        if self.armed != Some(true) || !power_w.is_finite() {
+            return;
+        }
+        if let (Some(e), Some((t0, p0))) = (self.so_far_wh.as_mut(), self.last_power) {
+            let dt = t_s - t0;
+            if dt > 0.0 && dt <= POWER_GAP_S {
+                *e += p0.max(0.0) * dt / 3600.0;
+            }
+        }
+        self.last_power = Some((t_s, power_w));
     }
 
     /// The class the plan is flown as: the profile's, else the HEARTBEAT's (a fixed-wing
@@ -234,7 +301,17 @@ impl LiveMission {
         }
         match &m.msg {
             MavMessage::HEARTBEAT(_) | MavMessage::EXTENDED_SYS_STATE(_) => {
+                self.learn_armed(&m.msg);
                 self.learn_class(&m.msg, m.t_s)
+            }
+            MavMessage::SYS_STATUS(st)
+                if st.voltage_battery != u16::MAX && st.current_battery != -1 =>
+            {
+                self.learn_power(
+                    m.t_s,
+                    f64::from(st.voltage_battery) * 1e-3 * f64::from(st.current_battery) * 0.01,
+                );
+                None
             }
             MavMessage::MISSION_CURRENT(c) => {
                 let changed = self.current_seq != Some(c.seq);
@@ -376,7 +453,10 @@ impl LiveMission {
             }
             cal.members.push(super::forecast::Member::of("fixed_wing"));
             cal.p90_ratio = cal.p90_ratio.max(super::forecast::UNCALIBRATED_P90);
+            // the live weight was fitted with the multirotor's members
+            cal.live_weight = 0.0;
         }
+        let live_weight = cal.live_weight;
         // only the members run (the slice `forecast` is given); the models' order is restored after
         let (ran, rest): (Vec<_>, Vec<_>) = std::mem::take(&mut self.setup.models)
             .into_iter()
@@ -425,6 +505,7 @@ impl LiveMission {
             flown_at: t_s,
             route,
             route_stride,
+            live_weight,
         })
     }
 
@@ -468,6 +549,10 @@ impl LiveMission {
             );
         }
         let items = u16::try_from(m.items.len()).unwrap_or(u16::MAX);
+        if self.armed == Some(true) {
+            // a mission arriving in flight: the energy so far was not drawn on its plan
+            self.so_far_wh = None;
+        }
         self.flown = self.fly(&source, plan, seq_offset, items, t_s);
         self.last_published = None;
     }
@@ -486,7 +571,11 @@ impl LiveMission {
         }
         let k = locate(fl, seq, self.position);
         self.last_published = Some((t_s, seq));
-        let r = fl.forecast.remaining_from(k, None, 0.0);
+        // the live correction plan-eval measures: the flight's energy so far against the
+        // forecast of the part flown
+        let r = fl
+            .forecast
+            .remaining_from(k, self.so_far_wh, fl.live_weight);
         let n = fl.traj.samples.len().max(1);
         Some(MissionStatus {
             t_s,

@@ -215,3 +215,91 @@ fn a_logged_mission_is_forecast_located_and_flown_again_when_the_wind_changes() 
         })
     );
 }
+
+/// A live monitor whose calibration's one member runs (the first physics model, live weight
+/// 0.25), so the live correction applies.
+fn live_corrected() -> LiveMission {
+    let mut l = live();
+    let first = l.setup.models[0].name().to_string();
+    l.setup.forecast.calibration = crate::mission::forecast::Calibration {
+        live_weight: 0.25,
+        ..crate::mission::forecast::Calibration::uncorrected(&first)
+    };
+    l
+}
+
+/// Nearly out at the turn (900 m of 1 km) on the out-and-back of [`download`], about half
+/// its energy flown, at `t_s`: MISSION_CURRENT and the position; the status after them.
+fn near_the_turn(l: &mut LiveMission, t_s: f64) -> MissionStatus {
+    let mut out = Vec::new();
+    let cur = MavMessage::MISSION_CURRENT(d::MISSION_CURRENT_DATA {
+        seq: 3,
+        ..Default::default()
+    });
+    l.on_message(t_s, &msg(t_s, cur), &mut out);
+    let pos = MavMessage::GLOBAL_POSITION_INT(d::GLOBAL_POSITION_INT_DATA {
+        lat: ((40.0 + 900.0 / 111_320.0) * 1e7) as i32,
+        lon: (-80.0 * 1e7) as i32,
+        relative_alt: 25_000,
+        ..Default::default()
+    });
+    l.on_message(t_s + 2.0, &msg(t_s + 2.0, pos), &mut out)
+        .and_then(|u| u.status)
+        .expect("a status")
+}
+
+#[test]
+fn the_live_forecast_of_the_rest_follows_a_first_half_that_cost_more_or_less_than_forecast() {
+    // the forecast alone: nothing measured (never seen to arm)
+    let mut plain = live_corrected();
+    let start = download(&mut plain).and_then(|u| u.status).unwrap();
+    let left = near_the_turn(&mut plain, 100.0);
+    let done = start.energy_p50_wh - left.energy_p50_wh;
+    assert!(
+        done > crate::mission::forecast::LIVE_FROM_SHARE * start.energy_p50_wh,
+        "{start:?} {left:?}"
+    );
+    assert_eq!(plain.energy_so_far_wh(), None);
+    for (ratio, want) in [(1.2, 1.05), (0.9, 0.975)] {
+        let mut l = live_corrected();
+        download(&mut l);
+        let mut out = Vec::new();
+        // seen disarmed, then armed
+        let hb = |base_mode| {
+            MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
+                autopilot: d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+                base_mode,
+                ..Default::default()
+            })
+        };
+        l.on_message(0.5, &msg(0.5, hb(d::MavModeFlag::empty())), &mut out);
+        assert_eq!(l.energy_so_far_wh(), None);
+        let armed = hb(d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+        l.on_message(1.0, &msg(1.0, armed), &mut out);
+        // SYS_STATUS at 1 Hz from 1 s to 101 s: `ratio` × the forecast of the part flown
+        let watts = ratio * done * 3600.0 / 100.0;
+        let volts = 22.0;
+        for i in 0..=100 {
+            let t = 1.0 + f64::from(i);
+            let st = MavMessage::SYS_STATUS(d::SYS_STATUS_DATA {
+                voltage_battery: (volts * 1000.0) as u16,
+                current_battery: (watts / volts * 100.0).round() as i16,
+                ..Default::default()
+            });
+            l.on_message(t, &msg(t, st), &mut out);
+        }
+        let so_far = l.energy_so_far_wh().expect("armed, measured");
+        assert!(
+            (so_far / (ratio * done) - 1.0).abs() < 0.01,
+            "{so_far} Wh measured, {} wanted",
+            ratio * done
+        );
+        let live = near_the_turn(&mut l, 100.0);
+        // 1 + 0.25 · (ratio − 1) × the forecast alone
+        let moved = live.energy_p50_wh / left.energy_p50_wh;
+        assert!(
+            (moved - want).abs() < 0.005,
+            "first half at {ratio} × its forecast: the rest × {moved} (want {want}): {live:?} vs {left:?}"
+        );
+    }
+}
