@@ -304,8 +304,9 @@ impl LiveMission {
                 self.learn_armed(&m.msg);
                 self.learn_class(&m.msg, m.t_s)
             }
+            // 0 V and UINT16_MAX are "no voltage", −1 "no current": nothing to count.
             MavMessage::SYS_STATUS(st)
-                if st.voltage_battery != u16::MAX && st.current_battery != -1 =>
+                if !matches!(st.voltage_battery, 0 | u16::MAX) && st.current_battery != -1 =>
             {
                 self.learn_power(
                     m.t_s,
