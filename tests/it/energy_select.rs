@@ -8,22 +8,8 @@
 //! forecast is then closer to the measured power than the LSTM's. Set in the config,
 //! `[energy] model` wins.
 
+use crate::harness::run;
 use std::path::Path;
-use std::process::Command;
-
-fn dronewatt(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .env("RUST_LOG", "dronewatt=info")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// Replay; the estimate lines.
 fn replay(tlog: &str, dir: &Path, tag: &str, config: Option<&Path>) -> Vec<serde_json::Value> {
@@ -42,7 +28,7 @@ fn replay(tlog: &str, dir: &Path, tag: &str, config: Option<&Path>) -> Vec<serde
         args.extend(["-c", c.to_str().unwrap()]);
     }
     args.push(tlog);
-    dronewatt(&args);
+    run(&args);
     let text = std::fs::read_to_string(&json).unwrap();
     text.lines()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
@@ -65,7 +51,7 @@ fn mape(est: &[&serde_json::Value], p: impl Fn(&serde_json::Value) -> Option<f64
 fn the_forecast_moves_to_the_model_that_fits_this_vehicle() {
     let dir = tempfile::tempdir().unwrap();
     let tlog = dir.path().join("q3.tlog").to_string_lossy().into_owned();
-    dronewatt(&[
+    run(&[
         "simulate",
         "--vehicle",
         "quad-3s",

@@ -7,29 +7,12 @@
 //! replay of the vehicle with that store and no `--vehicle` runs the learned profile and
 //! forecasts from its pick.
 
+use crate::harness::{output, run};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn dronewatt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(args: &[&str]) -> Output {
-    let out = dronewatt(args);
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
 
 fn simulate(path: &Path, seed: u32) {
     let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&[
+    run(&[
         "simulate",
         "--vehicle",
         "x500",
@@ -69,7 +52,7 @@ fn physics_mape(tlog: &Path, vehicle: Option<&Path>) -> Vec<(String, f64)> {
         args.extend(["--vehicle", v.to_str().unwrap()]);
     }
     args.push(tlog.to_str().unwrap());
-    ok(&args);
+    run(&args);
     let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json)
         .unwrap()
         .lines()
@@ -114,7 +97,7 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     simulate(&unseen, 4);
     let out_dir = dir.path().join("learned");
     let store = dir.path().join("store");
-    let out = ok(&[
+    let out = run(&[
         "learn",
         logs.to_str().unwrap(),
         "--holdout-every",
@@ -149,7 +132,7 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     );
     // The store keeps it for the logs' vehicle, and says so.
     let listing =
-        String::from_utf8_lossy(&ok(&["vehicles", "--data-dir", store.to_str().unwrap()]).stdout)
+        String::from_utf8_lossy(&run(&["vehicles", "--data-dir", store.to_str().unwrap()]).stdout)
             .into_owned();
     assert!(
         listing.contains("learned profile") && listing.contains(&pick),
@@ -173,7 +156,7 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     // The next run of the vehicle with the store (no --vehicle): the learned profile's
     // models, the forecast on its pick, from the first window.
     let json = dir.path().join("from-store.jsonl");
-    ok(&[
+    run(&[
         "replay",
         "--speed",
         "max",
@@ -221,7 +204,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     let dir = tempfile::tempdir().unwrap();
     let txt = dir.path().join("notes.txt");
     std::fs::write(&txt, b"not read").unwrap();
-    let out = dronewatt(&["learn", txt.to_str().unwrap()]);
+    let out = output(&["learn", txt.to_str().unwrap()]);
     assert!(!out.status.success());
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -234,7 +217,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     // A .bin that is not DataFlash: an error naming it and what is wrong.
     let bin = dir.path().join("00000012.BIN");
     std::fs::write(&bin, b"not a log").unwrap();
-    let out = dronewatt(&[
+    let out = output(&[
         "learn",
         bin.to_str().unwrap(),
         one.to_str().unwrap(),
@@ -251,7 +234,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     );
     let ulg = dir.path().join("log_3.ulg");
     std::fs::write(&ulg, b"not a log").unwrap();
-    let out = dronewatt(&[
+    let out = output(&[
         "learn",
         ulg.to_str().unwrap(),
         one.to_str().unwrap(),
@@ -266,7 +249,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
         said.contains("log_3.ulg") && said.contains("not a readable PX4 ULog"),
         "{said}"
     );
-    let out = dronewatt(&[
+    let out = output(&[
         "learn",
         one.to_str().unwrap(),
         "--out",

@@ -6,32 +6,16 @@
 //! parameters, an ArduPilot heartbeat); and `learn` on three `.bin` logs scores the same
 //! held-out MAPE as on the same flights as `.tlog`, and `replay FILE.bin` runs.
 
+use crate::harness::run;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
 use dronewatt::MavMessage;
 use serde_json::Value;
 
-fn dronewatt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(args: &[&str]) -> Output {
-    let out = dronewatt(args);
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
 fn simulate(path: &Path, seed: u32) {
     let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&[
+    run(&[
         "simulate",
         "--vehicle",
         "x500",
@@ -216,7 +200,7 @@ fn learn_on_bin_logs_scores_as_on_the_same_flights_as_tlog() {
         for seed in 1..=3 {
             simulate(&logs.join(format!("x500-{seed}.{ext}")), seed);
         }
-        let out = ok(&[
+        let out = run(&[
             "learn",
             logs.to_str().unwrap(),
             "--holdout-every",
@@ -246,7 +230,7 @@ fn learn_on_bin_logs_scores_as_on_the_same_flights_as_tlog() {
     // replay FILE.bin: the live pipeline on the autopilot's own log, with measured power.
     let json = dir.path().join("replay.jsonl");
     let bin3 = dir.path().join("bin/x500-3.bin");
-    ok(&[
+    run(&[
         "replay",
         "--speed",
         "max",

@@ -6,6 +6,7 @@
 //! PX4-encoded parameters); `learn` on three `.ulg` logs scores the same held-out MAPE as
 //! on the same flights as `.tlog`; and `replay FILE.ulg` runs.
 
+use crate::harness::{dronewatt, RunExt};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -13,15 +14,7 @@ use dronewatt::MavMessage;
 use serde_json::Value;
 
 fn ok(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = dronewatt().args(args).ok();
     out
 }
 
@@ -255,7 +248,7 @@ fn an_autopilots_own_log_is_of_that_autopilot() {
         ("px4", "b.bin", "--autopilot ardupilot"),
     ] {
         let path = dir.path().join(file);
-        let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        let out = dronewatt()
             .args([
                 "simulate",
                 "--autopilot",
@@ -263,8 +256,7 @@ fn an_autopilots_own_log_is_of_that_autopilot() {
                 "--out",
                 path.to_str().unwrap(),
             ])
-            .output()
-            .unwrap();
+            .out();
         let said = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success() && said.contains(file) && said.contains(says),

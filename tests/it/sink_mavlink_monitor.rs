@@ -5,7 +5,8 @@
 //! STATUSTEXT warning when the remaining energy crosses the configured threshold (one, not
 //! a storm), none on a flight that stays above it.
 
-use std::process::{Command, Stdio};
+use crate::harness::{monitor_udp, Monitor};
+use std::process::Command;
 
 fn free_udp_port() -> u16 {
     std::net::UdpSocket::bind("127.0.0.1:0")
@@ -30,19 +31,7 @@ fn fly_with(config: &str, peer_args: &[&str]) -> serde_json::Value {
     let cfg = dir.path().join("gcs.toml");
     std::fs::write(&cfg, config).unwrap();
     let port = free_udp_port();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--config",
-        ])
-        .arg(&cfg)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(500));
+    let dw = Monitor::listening(monitor_udp(port).arg("--config").arg(&cfg), port, false);
     let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
         .arg(concat!(
             env!("CARGO_MANIFEST_DIR"),
@@ -53,12 +42,7 @@ fn fly_with(config: &str, peer_args: &[&str]) -> serde_json::Value {
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
     // SIGTERM: the pipeline's own shutdown path.
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
+    let (status, err) = dw.stop();
     assert!(
         peer.status.success(),
         "peer failed: {}",

@@ -8,7 +8,8 @@
 //!   station's logged PARAM_VALUE: remaining energy follows the vehicle's capacity, and says
 //!   so; without the PARAM_VALUEs, or with `capacity_wh` in the config, it says that instead.
 
-use std::process::{Command, Stdio};
+use crate::harness::{dronewatt, monitor_udp, Monitor, RunExt};
+use std::process::Command;
 
 const PYTHON: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python");
 
@@ -46,30 +47,13 @@ fn monitor(autopilot: &str) -> (serde_json::Value, Vec<serde_json::Value>, Strin
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--json",
-        ])
-        .arg(&json)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(500));
+    let dw = Monitor::listening(monitor_udp(port).arg("--json").arg(&json), port, false);
     let out = Command::new(PYTHON)
         .arg(peer("vehicle_params.py"))
         .args(["--port", &port.to_string(), "--autopilot", autopilot])
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
+    let (status, err) = dw.stop();
     assert!(
         out.status.success(),
         "peer failed: {}",
@@ -166,19 +150,13 @@ fn replay(with_params: bool, config: &str) -> Vec<serde_json::Value> {
     let cfg = dir.path().join("c.toml");
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let _out = dronewatt()
         .args(["replay", "--speed", "max", "-q", "--config"])
         .arg(&cfg)
         .arg("--json")
         .arg(&json)
         .arg(&tlog)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .ok();
     lines(&json)
 }
 
