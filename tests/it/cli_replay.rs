@@ -1,6 +1,6 @@
 //! The `dronewatt` binary end to end: replay, monitor, errors, Ctrl-C.
 
-use crate::harness::{json_lines, json_lines_of, quiet, RunExt};
+use crate::harness::{json_lines, json_lines_of, quiet, replay_json, RunExt};
 use crate::mavlink_common;
 
 use std::io::Read;
@@ -332,22 +332,7 @@ fn a_half_used_pack_replays_well_under_full_from_its_resting_voltage() {
         eprintln!("skipped: no data set at {}", data.display());
         return;
     }
-    let out = quiet()
-        .args(["replay"])
-        .arg(&data)
-        .args([
-            "--flight",
-            "253",
-            "--speed",
-            "max",
-            "-q",
-            "--data-dir",
-            "off",
-            "--json",
-            "-",
-        ])
-        .ok();
-    let lines = json_lines_of(&out.stdout);
+    let lines = replay_json(&data, &["--flight", "253"]);
     let flying: Vec<_> = lines
         .iter()
         .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|w| w > 300.0))

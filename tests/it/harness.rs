@@ -48,6 +48,31 @@ pub fn output(args: &[&str]) -> Output {
     dronewatt().args(args).out()
 }
 
+/// `dronewatt replay --speed max -q --json - ARGS LOG`: every JSON line of the replay.
+pub fn replay_json(log: &Path, args: &[&str]) -> Vec<Value> {
+    let out = dronewatt()
+        .args(["replay", "--speed", "max", "-q", "--json", "-"])
+        .args(args)
+        .arg(log)
+        .ok();
+    json_lines_of(&out.stdout)
+}
+
+/// `dronewatt simulate` of the short X500 delivery the learning tests fly (no payload,
+/// 200 m legs, 20 s hover; seed `seed`, wind `seed + 1` m/s) to `path`, with `extra`
+/// arguments.
+pub fn simulate_x500(path: &Path, seed: u32, extra: &[&str]) {
+    let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
+    dronewatt()
+        .args(["simulate", "--vehicle", "x500", "--payload-g", "0"])
+        .args(["--leg-m", "200", "--hover-s", "20", "--seed", &seed])
+        .args(["--wind-mps", &wind])
+        .args(extra)
+        .arg("--out")
+        .arg(path)
+        .ok();
+}
+
 /// Running a built command to its end.
 pub trait RunExt {
     /// Its output, whatever its exit status.

@@ -7,57 +7,16 @@
 //! replay of the vehicle with that store and no `--vehicle` runs the learned profile and
 //! forecasts from its pick.
 
-use crate::harness::{output, run};
+use crate::harness::{output, replay_json, run, simulate_x500};
 use std::path::Path;
-
-fn simulate(path: &Path, seed: u32) {
-    let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    run(&[
-        "simulate",
-        "--vehicle",
-        "x500",
-        "--payload-g",
-        "0",
-        "--leg-m",
-        "200",
-        "--hover-s",
-        "20",
-        "--seed",
-        &seed,
-        "--wind-mps",
-        &wind,
-        "--out",
-        path.to_str().unwrap(),
-    ]);
-}
 
 /// Each physics model's MAPE over the in-flight windows (measured > 100 W) of a replay, %.
 fn physics_mape(tlog: &Path, vehicle: Option<&Path>) -> Vec<(String, f64)> {
-    let json = tlog.with_extension(if vehicle.is_some() {
-        "learned.jsonl"
-    } else {
-        "published.jsonl"
-    });
-    let mut args = vec![
-        "replay",
-        "--speed",
-        "max",
-        "-q",
-        "--data-dir",
-        "off",
-        "--json",
-        json.to_str().unwrap(),
-    ];
-    if let Some(v) = vehicle {
-        args.extend(["--vehicle", v.to_str().unwrap()]);
-    }
-    args.push(tlog.to_str().unwrap());
-    run(&args);
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let args = match vehicle {
+        Some(v) => vec!["--vehicle", v.to_str().unwrap()],
+        None => vec![],
+    };
+    let lines = replay_json(tlog, &args);
     let est: Vec<&serde_json::Value> = lines
         .iter()
         .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
@@ -91,10 +50,10 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     let logs = dir.path().join("logs");
     std::fs::create_dir_all(&logs).unwrap();
     for seed in 1..=3 {
-        simulate(&logs.join(format!("x500-{seed}.tlog")), seed);
+        simulate_x500(&logs.join(format!("x500-{seed}.tlog")), seed, &[]);
     }
     let unseen = dir.path().join("x500-4.tlog");
-    simulate(&unseen, 4);
+    simulate_x500(&unseen, 4, &[]);
     let out_dir = dir.path().join("learned");
     let store = dir.path().join("store");
     let out = run(&[
@@ -213,7 +172,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
         "{said}"
     );
     let one = dir.path().join("one.tlog");
-    simulate(&one, 1);
+    simulate_x500(&one, 1, &[]);
     // A .bin that is not DataFlash: an error naming it and what is wrong.
     let bin = dir.path().join("00000012.BIN");
     std::fs::write(&bin, b"not a log").unwrap();

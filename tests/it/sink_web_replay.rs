@@ -253,7 +253,7 @@ fn dashboard_of_a_fleet_lists_every_vehicle_and_shows_the_one_asked_for() {
     };
     let dir = tempfile::tempdir().unwrap();
     let tlog = dir.path().join("fleet.tlog");
-    let sim = dronewatt()
+    dronewatt()
         .args([
             "simulate",
             "--vehicles",

@@ -466,7 +466,7 @@ fn a_long_flight_flat_out_is_published_without_drops() {
     let Some(b) = broker() else { return };
     let dir = tempfile::tempdir().unwrap();
     let tlog = dir.path().join("long.tlog");
-    let sim = dronewatt()
+    dronewatt()
         .args(["simulate", "--out"])
         .arg(&tlog)
         .args(["--leg-m", "4000", "--hover-s", "120"])
