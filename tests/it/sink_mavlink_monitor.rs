@@ -6,15 +6,7 @@
 //! a storm), none on a flight that stays above it.
 
 use crate::harness::{monitor_udp, Monitor};
-use std::process::Command;
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
+use crate::link_common::{self, free_udp_port};
 
 /// Stream 15 s at ~500 W to dronewatt with a `capacity_wh` battery and a 1.5 Wh warning.
 fn fly(capacity_wh: f64) -> serde_json::Value {
@@ -32,26 +24,13 @@ fn fly_with(config: &str, peer_args: &[&str]) -> serde_json::Value {
     std::fs::write(&cfg, config).unwrap();
     let port = free_udp_port();
     let dw = Monitor::listening(monitor_udp(port).arg("--config").arg(&cfg), port, false);
-    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/peers/gcs_flight.py"
-        ))
-        .args(["--port", &port.to_string(), "--power-w", "500"])
-        .args(peer_args)
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    // SIGTERM: the pipeline's own shutdown path.
-    let (status, err) = dw.stop();
-    assert!(
-        peer.status.success(),
-        "peer failed: {}",
-        String::from_utf8_lossy(&peer.stderr)
-    );
-    assert!(status.success(), "dronewatt exited with {status}: {err}");
-    let out = String::from_utf8_lossy(&peer.stdout);
-    serde_json::from_str(out.trim())
-        .unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {err}"))
+    let port_s = port.to_string();
+    let args: Vec<&str> = ["--port", &port_s, "--power-w", "500"]
+        .into_iter()
+        .chain(peer_args.iter().copied())
+        .collect();
+    // Then SIGTERM: the pipeline's own shutdown path.
+    link_common::peer_then_stop(dw, "gcs_flight.py", &args).0
 }
 
 fn check_estimates(heard: &serde_json::Value) {

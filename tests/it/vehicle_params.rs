@@ -8,29 +8,14 @@
 //!   station's logged PARAM_VALUE: remaining energy follows the vehicle's capacity, and says
 //!   so; without the PARAM_VALUEs, or with `capacity_wh` in the config, it says that instead.
 
-use crate::harness::{dronewatt, monitor_udp, Monitor, RunExt};
+use crate::harness::{dronewatt, json_lines, monitor_udp, Monitor, RunExt};
+use crate::link_common::{self, free_udp_port};
 use std::process::Command;
 
 const PYTHON: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python");
 
 fn peer(name: &str) -> String {
     format!("{}/tests/peers/{name}", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-/// The JSON lines of a file, parsed.
-fn lines(path: &std::path::Path) -> Vec<serde_json::Value> {
-    let text = std::fs::read_to_string(path).unwrap();
-    text.lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}")))
-        .collect()
 }
 
 fn last_estimate(lines: &[serde_json::Value]) -> &serde_json::Value {
@@ -48,22 +33,10 @@ fn monitor(autopilot: &str) -> (serde_json::Value, Vec<serde_json::Value>, Strin
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
     let dw = Monitor::listening(monitor_udp(port).arg("--json").arg(&json), port, false);
-    let out = Command::new(PYTHON)
-        .arg(peer("vehicle_params.py"))
-        .args(["--port", &port.to_string(), "--autopilot", autopilot])
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    let (status, err) = dw.stop();
-    assert!(
-        out.status.success(),
-        "peer failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(status.success(), "dronewatt exited with {status}: {err}");
-    let said = String::from_utf8_lossy(&out.stdout);
-    let heard = serde_json::from_str(said.trim())
-        .unwrap_or_else(|e| panic!("peer said {said:?}: {e}\ndronewatt: {err}"));
-    (heard, lines(&json), err)
+    let port = port.to_string();
+    let args = ["--port", &port, "--autopilot", autopilot];
+    let (heard, err) = link_common::peer_then_stop(dw, "vehicle_params.py", &args);
+    (heard, json_lines(&json), err)
 }
 
 #[test]
@@ -157,7 +130,7 @@ fn replay(with_params: bool, config: &str) -> Vec<serde_json::Value> {
         .arg(&json)
         .arg(&tlog)
         .ok();
-    lines(&json)
+    json_lines(&json)
 }
 
 #[test]
