@@ -1,21 +1,14 @@
 //! Cell chemistries, their voltage windows and default OCV shapes, and robust cell-count
 //! detection from a resting voltage.
 
+use serde::{Deserialize, Serialize};
+
 use super::ocv::OcvCurve;
 
 /// Cell chemistry. Windows are *resting* (open-circuit) voltages per cell.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    serde::Deserialize,
-    serde::Serialize,
-    strum::IntoStaticStr,
-    strum::EnumString,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
+#[derive(strum::IntoStaticStr, strum::EnumString)]
 #[strum(serialize_all = "lowercase")]
 pub enum Chemistry {
     /// LiPo / LiCoO2-class, 4.20 V full.

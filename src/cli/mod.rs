@@ -20,6 +20,7 @@ use crate::cli::describe::describe_config;
 use crate::cli::simulate::SimulateArgs;
 use crate::config::Config;
 use crate::model::NeedsLibtorch;
+use crate::offline::args::ConfigArg;
 use crate::pipeline::{self, Pipeline};
 use crate::sink::{JsonTarget, SinkSpec};
 use crate::source::{SourceSpec, Speed};
@@ -35,9 +36,8 @@ struct Cli {
 /// What every command that runs the pipeline shares.
 #[derive(Debug, Clone, clap::Args)]
 struct RunArgs {
-    /// Configuration file (TOML). Without one, the built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    config: Option<PathBuf>,
+    #[command(flatten)]
+    config: ConfigArg,
     /// Write JSON lines to PATH, or to standard output with '-'.
     #[arg(long, value_name = "PATH|-")]
     json: Option<String>,
@@ -220,7 +220,7 @@ fn real_main(cli: Cli) -> Result<()> {
             // Addresses on the command line are one network; the config's may name several.
             let mut networks = vec![String::new(); address.len()];
             if address.is_empty() {
-                let config = Config::load_or_default(run.config.as_deref())?;
+                let config = run.config.load()?;
                 address = config.links.iter().map(|l| l.address.clone()).collect();
                 networks = config.links.iter().map(|l| l.network.clone()).collect();
             }
@@ -272,7 +272,7 @@ fn real_main(cli: Cli) -> Result<()> {
 }
 
 fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
-    let mut config = Config::load_or_default(run.config.as_deref())?;
+    let mut config = run.config.load()?;
     if let SourceSpec::Links { every_link, .. } = &mut source {
         *every_link = config.link.every_link;
     }

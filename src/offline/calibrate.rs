@@ -26,18 +26,21 @@ use std::path::PathBuf;
 use anyhow::Context;
 use nalgebra::{DMatrix, DVector};
 
-use crate::config::Config;
 use crate::model::physics::{Kind, Kinematics};
 use crate::model::profile::{Calibration, VehicleProfile};
+use crate::offline::args::{help, ConfigArg, DataArg};
 use crate::offline::data::{load_flights, FlightWindows, TEST_FLIGHTS};
 use crate::offline::metrics::{in_flight, IN_FLIGHT_W};
 
 /// Arguments of `dronewatt calibrate`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "config",
+    help("Configuration file (`vehicle`, `[telemetry]`, `[mission]`). Default: built-in defaults")
+))]
 pub struct CalibrateArgs {
-    /// The data set (`flights.csv` or `.csv.gz`). Default: `DRONEWATT_DATA` or `../shared/data/m100/flights.csv.gz`.
-    #[arg(long, value_name = "FILE")]
-    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub data: DataArg,
     /// Where to write the calibrated profile.
     #[arg(
         long,
@@ -50,9 +53,8 @@ pub struct CalibrateArgs {
     /// configuration's `vehicle`, else the built-in M100.
     #[arg(long, value_name = "FILE")]
     pub vehicle: Option<PathBuf>,
-    /// Configuration file (`vehicle`, `[telemetry]`, `[mission]`). Default: built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub config: ConfigArg,
     /// Fit on these training flights only (comma-separated). Default: every training flight.
     #[arg(long, value_delimiter = ',', value_name = "N,N,…")]
     pub flights: Option<Vec<u32>>,
@@ -63,8 +65,8 @@ pub struct CalibrateArgs {
 
 /// Run `dronewatt calibrate`.
 pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
-    let data = args.data.clone().unwrap_or_else(crate::default_data_path);
-    let cfg = Config::load_or_default(args.config.as_deref())?;
+    let data = args.data.path();
+    let cfg = args.config.load()?;
     let base = match args.vehicle.as_ref().or(cfg.vehicle.as_ref()) {
         Some(p) => VehicleProfile::load(p)?,
         None => VehicleProfile::m100(),

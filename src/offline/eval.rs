@@ -24,6 +24,7 @@ use crate::config::Config;
 use crate::model::physics;
 use crate::model::profile::VehicleProfile;
 use crate::model::{Ensemble, PowerModel};
+use crate::offline::args::{help, CalibratedArg, ConfigArg, DataArg, JsonArg};
 use crate::offline::chain::{Chain, FlightSeries};
 use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
 use crate::offline::metrics::{self, Scores, IN_FLIGHT_W};
@@ -31,10 +32,20 @@ use crate::offline::plot;
 
 /// Arguments of `dronewatt eval`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "config",
+    help("Configuration file (vehicle profile, LSTM …). Default: built-in defaults")
+))]
+#[command(mut_arg(
+    "calibrated",
+    help(
+        "Calibrated vehicle profile whose physics models are scored as `<model>_cal`. Skipped \
+         with a warning when the file does not exist"
+    )
+))]
 pub struct EvalArgs {
-    /// The data set (`flights.csv` or `.csv.gz`). Default: `DRONEWATT_DATA` or `../shared/data/m100/flights.csv.gz`.
-    #[arg(long, value_name = "FILE")]
-    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub data: DataArg,
     /// Score this flight only (the paper evaluates flight 276).
     #[arg(long)]
     pub flight: Option<u32>,
@@ -44,23 +55,15 @@ pub struct EvalArgs {
     /// `cvar`: score the test flights of Choudhry et al. (268–273, 276–279, those present).
     #[arg(long, value_name = "SPLIT")]
     pub split: Option<Split>,
-    /// Print one JSON object to PATH, or to standard output with '-' (then no table).
-    #[arg(long, value_name = "PATH|-")]
-    pub json: Option<String>,
+    #[command(flatten)]
+    pub json: JsonArg,
     /// Write one PNG per flight (every model against measured power) into DIR.
     #[arg(long, value_name = "DIR")]
     pub plot: Option<PathBuf>,
-    /// Calibrated vehicle profile whose physics models are scored as `<model>_cal`.
-    /// Skipped with a warning when the file does not exist.
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "config/vehicles/m100-calibrated.toml"
-    )]
-    pub calibrated: PathBuf,
-    /// Configuration file (vehicle profile, LSTM …). Default: built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub calibrated: CalibratedArg,
+    #[command(flatten)]
+    pub config: ConfigArg,
     /// Print the evidence about the scale of the paper's Table 2 (watts, joules per step, amps; MSE vs RMSE).
     #[arg(long)]
     pub paper_scales: bool,
@@ -113,16 +116,17 @@ pub fn eval_models(
 
 /// Run `dronewatt eval`.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
-    let data = args.data.clone().unwrap_or_else(crate::default_data_path);
-    let cfg = Config::load_or_default(args.config.as_deref())?;
-    let cal = if args.calibrated.exists() {
-        let p = VehicleProfile::load(&args.calibrated)?;
+    let data = args.data.path();
+    let cfg = args.config.load()?;
+    let calibrated = &args.calibrated.path;
+    let cal = if calibrated.exists() {
+        let p = VehicleProfile::load(calibrated)?;
         if p.calibration.is_none() {
-            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt calibrate`", args.calibrated.display());
+            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt calibrate`", calibrated.display());
         }
         Some(p)
     } else {
-        tracing::warn!("{}: no calibrated profile; scoring published parameters only (run `dronewatt calibrate`)", args.calibrated.display());
+        tracing::warn!("{}: no calibrated profile; scoring published parameters only (run `dronewatt calibrate`)", calibrated.display());
         None
     };
     let mut ensemble = Ensemble::new(eval_models(&cfg, cal.as_ref())?);
@@ -234,7 +238,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         }
     }
     let flight_ids: Vec<u32> = series.iter().map(|s| s.flight).collect();
-    if let Some(target) = &args.json {
+    if let Some(target) = &args.json.to {
         let mut obj = serde_json::json!({ "flights": flight_ids, "scored_over": if args.all_windows { "all_windows" } else { "in_flight" }, "models": avg });
         if args.per_flight {
             let pf: BTreeMap<String, BTreeMap<&str, Scores>> = series

@@ -2,6 +2,7 @@
 //! the live stages: windows from the ingest path ([`data`]), estimates, energy and alerts
 //! from the live chain ([`chain`]), each with the user's configuration (`--config`).
 
+pub mod args;
 pub mod battery_eval;
 pub mod calibrate;
 pub mod chain;

@@ -11,10 +11,28 @@ use crate::mission::plan::Plan;
 use crate::mission::trajectory::{fly_as, Conditions, Trajectory, Wind};
 use crate::model::profile::VehicleProfile;
 use crate::model::PowerModel;
-use crate::offline::plan_eval::publish;
+use crate::offline::args::{help, ForecastArgs};
 
 /// Arguments of `dronewatt plan`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "config",
+    help(
+        "Configuration file (battery `[energy]`, `[forecast]`, models). Default: built-in \
+         defaults"
+    )
+))]
+#[command(mut_arg(
+    "calibrated",
+    help(
+        "Calibrated vehicle profile for the `<model>_cal` physics models (the default forecast \
+         model is one). Skipped with a warning when missing"
+    )
+))]
+#[command(mut_arg(
+    "json",
+    help("Write the forecast as JSON to PATH, or to standard output with '-' (then no table)")
+))]
 pub struct PlanArgs {
     /// The plan: a QGroundControl `.plan` or a `QGC WPL 110` `.waypoints` file.
     pub file: PathBuf,
@@ -42,30 +60,11 @@ pub struct PlanArgs {
     /// Cruise speed until the plan changes it, m/s. Default: the plan's, else 10.
     #[arg(long, value_name = "M_S")]
     pub speed: Option<f64>,
-    /// Configuration file (battery `[energy]`, `[forecast]`, models). Default: built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    pub config: Option<PathBuf>,
-    /// Calibrated vehicle profile for the `<model>_cal` physics models (the default forecast
-    /// model is one). Skipped with a warning when missing.
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "config/vehicles/m100-calibrated.toml"
-    )]
-    pub calibrated: PathBuf,
-    /// Write the forecast as JSON to PATH, or to standard output with '-' (then no table).
-    #[arg(long, value_name = "PATH|-")]
-    pub json: Option<String>,
+    #[command(flatten)]
+    pub forecast: ForecastArgs,
     /// Write a PNG of cumulative energy along the route (P50, P90 band, reserve line).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
-}
-
-pub(crate) fn load_config(path: Option<&Path>) -> anyhow::Result<Config> {
-    Ok(match path {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
-    })
 }
 
 pub(crate) fn models_for(
@@ -168,7 +167,7 @@ fn resolve_vehicle(
 
 /// `dronewatt plan FILE`.
 pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
-    let mut cfg = load_config(a.config.as_deref())?;
+    let mut cfg = a.forecast.config.load()?;
     let (profile, profile_path) = match &a.vehicle {
         Some(v) => resolve_vehicle(v, a.data_dir.as_deref())?,
         None => match &cfg.vehicle {
@@ -219,7 +218,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     // physics models uncorrected, the P90 widened (the M100's correction is not its).
     let (mut models, calibration, forecast_from) = if is_m100 {
         (
-            models_for(&cfg, &a.calibrated)?,
+            models_for(&cfg, &a.forecast.calibrated.path)?,
             cfg.forecast.calibration.clone(),
             "the M100's calibrated models and fitted correction".to_string(),
         )
@@ -414,7 +413,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             cfg.energy.reserve_pct,
         )?;
     }
-    publish(a.json.as_deref(), &report, || plan_table(&report))
+    a.forecast.json.publish(&report, || plan_table(&report))
 }
 
 /// P90 ratio of a vehicle flown on its learned forecast model, which has no fitted spread.

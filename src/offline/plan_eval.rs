@@ -15,7 +15,7 @@
 //!   plan's time left as flown on paper, which isolates the power model).
 //!
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::Context;
 
@@ -23,6 +23,7 @@ use crate::config::Config;
 use crate::mission::forecast::{live_scaled, Calibration};
 use crate::mission::trajectory::{Trajectory, Wind};
 use crate::model::PowerModel;
+use crate::offline::args::{help, DataArg, ForecastArgs};
 use crate::offline::data::TEST_FLIGHTS;
 use crate::offline::forecast_fit::dot5;
 use crate::offline::forecast_fit::finish;
@@ -34,7 +35,6 @@ use crate::offline::forecast_fit::Prepared;
 use crate::offline::forecast_fit::BOOTSTRAP;
 use crate::offline::forecast_fit::TIE_SHARE;
 use crate::offline::metrics::median;
-use crate::offline::plan::load_config;
 use crate::offline::plan::models_for;
 use crate::offline::route::geometry_for;
 use crate::source::dataset::{self, Flight};
@@ -44,10 +44,13 @@ pub const AIRBORNE_W: f64 = 150.0;
 
 /// Arguments of `dronewatt plan-eval`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "config",
+    help("Configuration file (models, `[forecast.kinematics]`). Default: built-in defaults")
+))]
 pub struct PlanEvalArgs {
-    /// The data set (`flights.csv` or `.csv.gz`). Default: `DRONEWATT_DATA` or `../shared/data/m100/flights.csv.gz`.
-    #[arg(long, value_name = "FILE")]
-    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub data: DataArg,
     /// Score these test flights only (comma separated). Default: every test flight present.
     #[arg(long, value_delimiter = ',')]
     pub flights: Option<Vec<u32>>,
@@ -57,19 +60,8 @@ pub struct PlanEvalArgs {
     /// Plan every flight in calm air instead of the anemometer's pre-take-off wind.
     #[arg(long)]
     pub no_ground_wind: bool,
-    /// Configuration file (models, `[forecast.kinematics]`). Default: built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    pub config: Option<PathBuf>,
-    /// Calibrated vehicle profile for the `<model>_cal` physics models.
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "config/vehicles/m100-calibrated.toml"
-    )]
-    pub calibrated: PathBuf,
-    /// Print one JSON object to PATH, or to standard output with '-' (then no table).
-    #[arg(long, value_name = "PATH|-")]
-    pub json: Option<String>,
+    #[command(flatten)]
+    pub forecast: ForecastArgs,
 }
 
 /// One flight's scores.
@@ -641,34 +633,14 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
 
 /// `dronewatt plan-eval`.
 pub fn run_plan_eval(a: PlanEvalArgs) -> anyhow::Result<()> {
-    let cfg = load_config(a.config.as_deref())?;
-    let data = a.data.clone().unwrap_or_else(crate::default_data_path);
-    let mut models = models_for(&cfg, &a.calibrated)?;
+    let cfg = a.forecast.config.load()?;
+    let data = a.data.path();
+    let mut models = models_for(&cfg, &a.forecast.calibrated.path)?;
     let opt = PlanEvalOptions {
         test: a.flights.clone(),
         train: a.train.clone(),
         ground_wind: !a.no_ground_wind,
     };
     let r = plan_eval(&data, &cfg, &mut models, &opt)?;
-    publish(a.json.as_deref(), &r, || eval_table(&r))
-}
-
-/// `--json -`: the JSON on standard output instead of the table; `--json PATH`: the table,
-/// and the JSON written to PATH; no `--json`: the table alone.
-pub(crate) fn publish(
-    json: Option<&str>,
-    report: &impl serde::Serialize,
-    table: impl FnOnce() -> String,
-) -> anyhow::Result<()> {
-    match json {
-        Some("-") => println!("{}", serde_json::to_string_pretty(report)?),
-        other => {
-            print!("{}", table());
-            if let Some(p) = other {
-                std::fs::write(p, serde_json::to_string_pretty(report)?)
-                    .with_context(|| format!("{p}: cannot write"))?;
-            }
-        }
-    }
-    Ok(())
+    a.forecast.json.publish(&r, || eval_table(&r))
 }

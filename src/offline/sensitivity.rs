@@ -16,9 +16,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::config::Config;
 use crate::features::idx;
 use crate::model::lstm::{resolve_model_path, LstmModel};
+use crate::offline::args::{help, ConfigArg, DataArg};
 use crate::offline::data::{list_flights, load_flights, TEST_FLIGHTS};
 use crate::offline::metrics::in_flight;
 use crate::offline::plot;
@@ -41,17 +41,22 @@ pub const STEPS: [(usize, &str, [f32; 5]); 3] = [
 
 /// Arguments of `dronewatt sensitivity`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "config",
+    help(
+        "Configuration file (`[telemetry]`, `[mission]`, `[models.lstm]`). Default: built-in \
+         defaults"
+    )
+))]
 pub struct SensitivityArgs {
-    /// The data set (official `flights.csv[.gz]`). Default: `DRONEWATT_DATA` or the shared copy.
-    #[arg(long, value_name = "FILE")]
-    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub data: DataArg,
     /// Model folder, card or weights file. Default: `[models.lstm] path` of the
     /// configuration, else the shipped model.
     #[arg(long, value_name = "PATH")]
     pub model: Option<PathBuf>,
-    /// Configuration file (`[telemetry]`, `[mission]`, `[models.lstm]`). Default: built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub config: ConfigArg,
     /// Base flights (comma-separated). Default: the test flights.
     #[arg(long, value_delimiter = ',')]
     pub flights: Option<Vec<u32>>,
@@ -85,11 +90,11 @@ fn mean_power(
 
 /// Run `dronewatt sensitivity`.
 pub fn run(args: SensitivityArgs) -> anyhow::Result<()> {
-    let cfg = Config::load_or_default(args.config.as_deref())?;
+    let cfg = args.config.load()?;
     let model_path = resolve_model_path(args.model.as_deref().or(cfg.models.lstm.path.as_deref()))
         .context("no model found: pass --model")?;
     let mut model = LstmModel::load(&model_path, &cfg.telemetry)?;
-    let data = args.data.clone().unwrap_or_else(crate::default_data_path);
+    let data = args.data.path();
     let flights = match args.flights.clone() {
         Some(f) => f,
         None => {

@@ -20,6 +20,7 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use crate::model::card::FeatureSet;
+use crate::offline::args::{help, ConfigArg, DataArg};
 
 /// Band quantiles of the low and high heads.
 pub const BAND_Q: (f32, f32) = (0.05, 0.95);
@@ -47,15 +48,18 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
 
 /// Arguments of `dronewatt train`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "config",
+    help(
+        "Configuration file (`[telemetry]` and `[mission]` build the windows; `[energy]` and \
+         `[[alerts]]` the chain the test flights are scored through). Default: built-in defaults"
+    )
+))]
 pub struct TrainArgs {
-    /// The data set, official `flights.csv` (plain or gzip). Default: `DRONEWATT_DATA` or
-    /// `../shared/data/m100/flights.csv.gz`.
-    #[arg(long, value_name = "FILE")]
-    pub data: Option<PathBuf>,
-    /// Configuration file (`[telemetry]` and `[mission]` build the windows; `[energy]` and
-    /// `[[alerts]]` the chain the test flights are scored through). Default: built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub data: DataArg,
+    #[command(flatten)]
+    pub config: ConfigArg,
     /// Folder for weights, card, loss curves and test plots.
     #[arg(long, value_name = "DIR", default_value = crate::model::lstm::DEFAULT_MODEL_DIR)]
     pub out: PathBuf,

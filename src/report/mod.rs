@@ -395,20 +395,9 @@ impl MissionStatus {
 
 /// MAVLink's MAV_SEVERITY, the scale ground stations already colour and speak. In TOML
 /// either the short lower-case name (`warning`) or the enum name (`MAV_SEVERITY_WARNING`).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    PartialOrd,
-    Ord,
-    Serialize,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::Display,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "lowercase")]
+#[derive(strum::IntoStaticStr, strum::VariantArray, strum::Display)]
 #[strum(serialize_all = "lowercase")]
 pub enum Severity {
     Emergency,

@@ -73,17 +73,18 @@ impl Style for Px4 {
         rates: &Vector3<f64>,
         out: &mut Vec<MavMessage>,
     ) {
-        let q = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+        let q = UnitQuaternion::from_euler_angles(roll, pitch, yaw).cast::<f32>();
+        let [rollspeed, pitchspeed, yawspeed] = rates.cast::<f32>().into();
         out.push(MavMessage::ATTITUDE_QUATERNION(
             d::ATTITUDE_QUATERNION_DATA {
                 time_boot_ms: now.boot_ms(),
-                q1: q.w as f32,
-                q2: q.i as f32,
-                q3: q.j as f32,
-                q4: q.k as f32,
-                rollspeed: rates.x as f32,
-                pitchspeed: rates.y as f32,
-                yawspeed: rates.z as f32,
+                q1: q.w,
+                q2: q.i,
+                q3: q.j,
+                q4: q.k,
+                rollspeed,
+                pitchspeed,
+                yawspeed,
                 repr_offset_q: [0.0; 4],
             },
         ));
@@ -94,17 +95,18 @@ impl Style for Px4 {
 
     fn imu(&self, now: &Instant, Imu { f, w, mag }: &Imu) -> MavMessage {
         let alt = now.alt_amsl_m();
+        let (f, w, mag) = (f.cast::<f32>(), w.cast::<f32>(), mag.cast::<f32>());
         MavMessage::HIGHRES_IMU(d::HIGHRES_IMU_DATA {
             time_usec: now.t_ms * 1000,
-            xacc: f.x as f32,
-            yacc: f.y as f32,
-            zacc: f.z as f32,
-            xgyro: w.x as f32,
-            ygyro: w.y as f32,
-            zgyro: w.z as f32,
-            xmag: mag.x as f32,
-            ymag: mag.y as f32,
-            zmag: mag.z as f32,
+            xacc: f.x,
+            yacc: f.y,
+            zacc: f.z,
+            xgyro: w.x,
+            ygyro: w.y,
+            zgyro: w.z,
+            xmag: mag.x,
+            ymag: mag.y,
+            zmag: mag.z,
             abs_pressure: (pressure_pa(alt) / 100.0) as f32,
             diff_pressure: 0.0,
             pressure_alt: alt as f32,

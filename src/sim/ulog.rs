@@ -22,33 +22,29 @@ const fn f(ty: &'static str, name: &'static str) -> Field {
     Field { ty, name }
 }
 
-const STATUS: Topic = Topic {
-    id: 0,
-    name: "vehicle_status",
-    fields: &[f("uint8_t", "arming_state"), f("uint8_t", "nav_state")],
-};
-const RATES: Topic = Topic {
-    id: 1,
-    name: "vehicle_angular_velocity",
-    fields: &[f("float[3]", "xyz")],
-};
-const ATT: Topic = Topic {
-    id: 2,
-    name: "vehicle_attitude",
-    fields: &[f("float[4]", "q")],
-};
-const IMU: Topic = Topic {
-    id: 3,
-    name: "sensor_combined",
-    fields: &[
+const fn topic(id: u16, name: &'static str, fields: &'static [Field]) -> Topic {
+    Topic { id, name, fields }
+}
+
+const STATUS: Topic = topic(
+    0,
+    "vehicle_status",
+    &[f("uint8_t", "arming_state"), f("uint8_t", "nav_state")],
+);
+const RATES: Topic = topic(1, "vehicle_angular_velocity", &[f("float[3]", "xyz")]);
+const ATT: Topic = topic(2, "vehicle_attitude", &[f("float[4]", "q")]);
+const IMU: Topic = topic(
+    3,
+    "sensor_combined",
+    &[
         f("float[3]", "gyro_rad"),
         f("float[3]", "accelerometer_m_s2"),
     ],
-};
-const LPOS: Topic = Topic {
-    id: 4,
-    name: "vehicle_local_position",
-    fields: &[
+);
+const LPOS: Topic = topic(
+    4,
+    "vehicle_local_position",
+    &[
         f("float", "x"),
         f("float", "y"),
         f("float", "z"),
@@ -56,32 +52,28 @@ const LPOS: Topic = Topic {
         f("float", "vy"),
         f("float", "vz"),
     ],
-};
-const GPOS: Topic = Topic {
-    id: 5,
-    name: "vehicle_global_position",
-    fields: &[f("double", "lat"), f("double", "lon"), f("float", "alt")],
-};
-const BAT: Topic = Topic {
-    id: 6,
-    name: "battery_status",
-    fields: &[
+);
+const GPOS: Topic = topic(
+    5,
+    "vehicle_global_position",
+    &[f("double", "lat"), f("double", "lon"), f("float", "alt")],
+);
+const BAT: Topic = topic(
+    6,
+    "battery_status",
+    &[
         f("float", "voltage_v"),
         f("float", "current_a"),
         f("float", "discharged_mah"),
         f("float", "remaining"),
     ],
-};
-const AIR: Topic = Topic {
-    id: 8,
-    name: "airspeed_validated",
-    fields: &[f("float", "true_airspeed_m_s")],
-};
-const KV: Topic = Topic {
-    id: 7,
-    name: "debug_key_value",
-    fields: &[f("char[10]", "key"), f("float", "value")],
-};
+);
+const AIR: Topic = topic(8, "airspeed_validated", &[f("float", "true_airspeed_m_s")]);
+const KV: Topic = topic(
+    7,
+    "debug_key_value",
+    &[f("char[10]", "key"), f("float", "value")],
+);
 
 impl SimFlight {
     /// The flight as ULog `.ulg` bytes (module docs).

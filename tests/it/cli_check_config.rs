@@ -1,14 +1,10 @@
 //! `dronewatt check-config`: the shipped example configs pass and say what they set up; a
 //! bad one fails with one line naming the file, the key and why, and a non-zero exit.
 
-use std::process::Command;
+use crate::harness::{dronewatt, RunExt};
 
 fn check(path: &std::path::Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .arg("check-config")
-        .arg(path)
-        .output()
-        .unwrap()
+    dronewatt().arg("check-config").arg(path).out()
 }
 
 #[test]

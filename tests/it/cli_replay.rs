@@ -1,5 +1,6 @@
 //! The `dronewatt` binary end to end: replay, monitor, errors, Ctrl-C.
 
+use crate::harness::{json_lines, json_lines_of, quiet, replay_json, RunExt};
 use crate::mavlink_common;
 
 use std::io::Read;
@@ -8,19 +9,6 @@ use std::time::{Duration, Instant};
 
 use mavlink::MavlinkVersion::V2;
 use mavlink_common::*;
-
-fn dronewatt() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
-    c.env("RUST_LOG", "warn");
-    c
-}
-
-fn json_lines(stdout: &[u8]) -> Vec<serde_json::Value> {
-    String::from_utf8_lossy(stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}")))
-        .collect()
-}
 
 /// A tlog of `n` records with one flipped CRC, one unknown-id record and one zero stamp.
 fn damaged_tlog(n: usize) -> Vec<u8> {
@@ -40,7 +28,7 @@ fn replay_max_speed_ends_with_the_exact_summary_line() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("flight.tlog");
     std::fs::write(&path, damaged_tlog(400)).unwrap();
-    let out = dronewatt()
+    let out = quiet()
         .args([
             "replay",
             path.to_str().unwrap(),
@@ -49,14 +37,8 @@ fn replay_max_speed_ends_with_the_exact_summary_line() {
             "--json",
             "-",
         ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines = json_lines(&out.stdout);
+        .ok();
+    let lines = json_lines_of(&out.stdout);
     let summary = lines.last().expect("a summary line");
     assert_eq!(summary["type"], "summary");
     assert_eq!(summary["frames_ok"], 399);
@@ -92,7 +74,7 @@ fn replay_writes_json_to_a_file_and_reads_raw_streams() {
     let (bytes, _) = stream(&flight(250), V2);
     std::fs::write(&raw, bytes).unwrap();
     let json = dir.path().join("out.jsonl");
-    let out = dronewatt()
+    let _out = quiet()
         .args([
             "replay",
             raw.to_str().unwrap(),
@@ -102,14 +84,8 @@ fn replay_writes_json_to_a_file_and_reads_raw_streams() {
             "--json",
             json.to_str().unwrap(),
         ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines = json_lines(&std::fs::read(&json).unwrap());
+        .ok();
+    let lines = json_lines(&json);
     let s = lines.last().unwrap();
     assert_eq!(
         (
@@ -130,7 +106,7 @@ fn replay_at_a_speed_factor_honours_the_timestamps() {
     assert!(span_s > 11.0, "{span_s} s");
     std::fs::write(&path, tlog(&recs, V2)).unwrap();
     let start = Instant::now();
-    let out = dronewatt()
+    let out = quiet()
         .args([
             "replay",
             path.to_str().unwrap(),
@@ -140,8 +116,7 @@ fn replay_at_a_speed_factor_honours_the_timestamps() {
             "--json",
             "-",
         ])
-        .output()
-        .unwrap();
+        .out();
     let took = start.elapsed().as_secs_f64();
     assert!(out.status.success());
     // ×4 → about span/4 (3 s). Not faster than that, and clearly faster than ×2 (6 s), so a
@@ -155,12 +130,12 @@ fn replay_at_a_speed_factor_honours_the_timestamps() {
         took < span_s / 2.0,
         "took {took:.2} s for {span_s:.2} s at ×4: slower than ×2"
     );
-    assert_eq!(json_lines(&out.stdout).last().unwrap()["frames_ok"], 760);
+    assert_eq!(json_lines_of(&out.stdout).last().unwrap()["frames_ok"], 760);
 }
 
 /// Runs `args`; asserts a non-zero exit and exactly one line on stderr containing `want`.
 fn fails_with_one_line(args: &[&str], want: &[&str]) {
-    let out = dronewatt().args(args).output().unwrap();
+    let out = quiet().args(args).out();
     assert!(!out.status.success(), "{args:?} should fail");
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.trim_end().lines().count(), 1, "one line, got: {err}");
@@ -195,7 +170,7 @@ fn a_bad_address_is_one_clear_error_line() {
 #[test]
 fn ctrl_c_on_a_live_link_still_writes_the_summary() {
     let port = free_udp_port();
-    let mut child = dronewatt()
+    let mut child = quiet()
         .env("RUST_LOG", "dronewatt=info")
         .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "--json", "-"])
         .stdout(Stdio::piped())
@@ -243,7 +218,7 @@ fn ctrl_c_on_a_live_link_still_writes_the_summary() {
         .read_to_end(&mut stdout)
         .unwrap();
     assert!(status.success(), "exit {status:?}");
-    let s = json_lines(&stdout).pop().unwrap();
+    let s = json_lines_of(&stdout).pop().unwrap();
     assert_eq!(
         (s["type"].as_str(), s["frames_ok"].as_u64()),
         (Some("summary"), Some(25))
@@ -272,7 +247,7 @@ fn a_file_with_no_mavlink_says_so_and_names_the_format_it_expected() {
     ] {
         let path = dir.path().join(name);
         std::fs::write(&path, noise(200_000)).unwrap();
-        let out = dronewatt()
+        let out = quiet()
             .args([
                 "replay",
                 path.to_str().unwrap(),
@@ -281,15 +256,14 @@ fn a_file_with_no_mavlink_says_so_and_names_the_format_it_expected() {
                 "--json",
                 "-",
             ])
-            .output()
-            .unwrap();
+            .out();
         // Still a clean end with the summary (the counters are the evidence)…
         assert!(
             out.status.success(),
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let summary = json_lines(&out.stdout).pop().expect("a summary line");
+        let summary = json_lines_of(&out.stdout).pop().expect("a summary line");
         assert_eq!(summary["frames_ok"], 0);
         // …and one line that says what is wrong and what was expected.
         let err = String::from_utf8_lossy(&out.stderr);
@@ -314,10 +288,7 @@ fn a_config_with_several_errors_names_every_one() {
         "[telemetry]\nrate_hz = 200.0\n[energy]\ncapacity_wh = -5.0\nreserve_pct = 120.0\n[sinks.web]\nbind = \"nowhere\"\n",
     )
     .unwrap();
-    let out = dronewatt()
-        .args(["check-config", path.to_str().unwrap()])
-        .output()
-        .unwrap();
+    let out = quiet().args(["check-config", path.to_str().unwrap()]).out();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -338,11 +309,10 @@ fn a_config_with_several_errors_names_every_one() {
 fn a_missing_data_set_names_the_path_and_the_environment_variable() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nowhere/flights.csv.gz");
-    let out = dronewatt()
+    let out = quiet()
         .env("DRONEWATT_DATA", &missing)
         .args(["eval", "--flight", "276"])
-        .output()
-        .unwrap();
+        .out();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -362,28 +332,7 @@ fn a_half_used_pack_replays_well_under_full_from_its_resting_voltage() {
         eprintln!("skipped: no data set at {}", data.display());
         return;
     }
-    let out = dronewatt()
-        .args(["replay"])
-        .arg(&data)
-        .args([
-            "--flight",
-            "253",
-            "--speed",
-            "max",
-            "-q",
-            "--data-dir",
-            "off",
-            "--json",
-            "-",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines = json_lines(&out.stdout);
+    let lines = replay_json(&data, &["--flight", "253"]);
     let flying: Vec<_> = lines
         .iter()
         .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|w| w > 300.0))

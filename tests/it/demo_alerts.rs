@@ -6,7 +6,7 @@
 //! vehicle's BATT_LOW_VOLT) fires once, before the measured voltage first goes under that
 //! threshold, and does not flap.
 
-use std::process::Command;
+use crate::harness::replay_json;
 
 #[test]
 fn demo_raises_its_mission_and_pack_alerts_mid_flight() {
@@ -30,31 +30,10 @@ fn demo_raises_its_mission_and_pack_alerts_mid_flight() {
             .replace("calibrated_profile = \"vehicles/", &vehicles),
     )
     .unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "replay",
-            "--speed",
-            "max",
-            "-q",
-            "--data-dir",
-            "off",
-            "--json",
-            "-",
-            "--config",
-        ])
-        .arg(&cfg)
-        .arg(root.join("replay/demo.tlog"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let lines = replay_json(
+        &root.join("replay/demo.tlog"),
+        &["--config", cfg.to_str().unwrap()],
     );
-    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
     let est: Vec<&serde_json::Value> = lines.iter().filter(|l| l["type"] == "estimate").collect();
     let end = est.last().unwrap()["t"].as_f64().unwrap();
     let events = |rule: &str, state: &str| -> Vec<f64> {

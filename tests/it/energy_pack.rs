@@ -3,6 +3,7 @@
 //! resting voltage as the start state and raise `voltage_forecast_below` before the measured
 //! voltage crosses the low threshold (3.5 V a cell: 10.5 V).
 
+use crate::harness::{dronewatt, monitor_udp, Monitor, RunExt};
 use crate::link_common;
 
 use link_common::*;
@@ -119,24 +120,18 @@ fn fly_stored(
     std::fs::write(&cfg, CONFIG).unwrap();
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
-    let mut dw = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--config",
-        ])
-        .arg(&cfg)
-        .arg("--data-dir")
-        .arg(data_dir)
-        .arg("--json")
-        .arg(&json)
-        .env("RUST_LOG", "dronewatt=info")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    wait_listening(port, false, &mut dw);
+    let dw = Monitor::listening(
+        monitor_udp(port)
+            .arg("--config")
+            .arg(&cfg)
+            .arg("--data-dir")
+            .arg(data_dir)
+            .arg("--json")
+            .arg(&json)
+            .env("RUST_LOG", "dronewatt=info"),
+        port,
+        false,
+    );
     let to = format!("udpout:127.0.0.1:{port}");
     let args: Vec<&str> = ["--to", &to, "--plan", plan]
         .into_iter()
@@ -188,11 +183,10 @@ fn the_pack_history_follows_the_packs_serial() {
         "no identity: the vehicle's last flight, moments ago"
     );
 
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .args(["vehicles", "--data-dir"])
         .arg(store.path())
-        .output()
-        .unwrap();
+        .out();
     assert!(out.status.success());
     let listing = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -201,11 +195,10 @@ fn the_pack_history_follows_the_packs_serial() {
             && listing.contains("pack (per vehicle: no pack id heard)"),
         "{listing}"
     );
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .args(["vehicles", "--json", "--data-dir"])
         .arg(store.path())
-        .output()
-        .unwrap();
+        .out();
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let ids: Vec<_> = v[0]["flights"]
         .as_array()

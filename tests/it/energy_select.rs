@@ -8,44 +8,17 @@
 //! forecast is then closer to the measured power than the LSTM's. Set in the config,
 //! `[energy] model` wins.
 
+use crate::harness::{replay_json, run};
 use std::path::Path;
-use std::process::Command;
-
-fn dronewatt(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .env("RUST_LOG", "dronewatt=info")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// Replay; the estimate lines.
-fn replay(tlog: &str, dir: &Path, tag: &str, config: Option<&Path>) -> Vec<serde_json::Value> {
-    let json = dir.join(format!("{tag}.jsonl"));
-    let mut args = vec![
-        "replay",
-        "--speed",
-        "max",
-        "-q",
-        "--data-dir",
-        "off",
-        "--json",
-        json.to_str().unwrap(),
-    ];
-    if let Some(c) = config {
-        args.extend(["-c", c.to_str().unwrap()]);
-    }
-    args.push(tlog);
-    dronewatt(&args);
-    let text = std::fs::read_to_string(&json).unwrap();
-    text.lines()
-        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+fn replay(tlog: &str, config: Option<&Path>) -> Vec<serde_json::Value> {
+    let args = match config {
+        Some(c) => vec!["-c", c.to_str().unwrap()],
+        None => vec![],
+    };
+    replay_json(Path::new(tlog), &args)
+        .into_iter()
         .filter(|v| v["type"] == "estimate")
         .collect()
 }
@@ -65,7 +38,7 @@ fn mape(est: &[&serde_json::Value], p: impl Fn(&serde_json::Value) -> Option<f64
 fn the_forecast_moves_to_the_model_that_fits_this_vehicle() {
     let dir = tempfile::tempdir().unwrap();
     let tlog = dir.path().join("q3.tlog").to_string_lossy().into_owned();
-    dronewatt(&[
+    run(&[
         "simulate",
         "--vehicle",
         "quad-3s",
@@ -77,7 +50,7 @@ fn the_forecast_moves_to_the_model_that_fits_this_vehicle() {
 
     let bounded = dir.path().join("bounded.toml");
     std::fs::write(&bounded, "[models.adapt]\ngain_min = 0.6\n").unwrap();
-    let est = replay(&tlog, dir.path(), "select", Some(&bounded));
+    let est = replay(&tlog, Some(&bounded));
     let model = |e: &serde_json::Value| e["forecast_model"].as_str().map(str::to_string);
     let why = |e: &serde_json::Value| e["forecast_why"].as_str().unwrap_or_default().to_string();
     // It starts on the M100's LSTM, and says that is the default.
@@ -132,7 +105,7 @@ fn the_forecast_moves_to_the_model_that_fits_this_vehicle() {
         "[energy]\nmodel = \"lstm\"\n[models.adapt]\ngain_min = 0.6\n",
     )
     .unwrap();
-    let est = replay(&tlog, dir.path(), "fixed", Some(&cfg));
+    let est = replay(&tlog, Some(&cfg));
     let named: Vec<_> = est.iter().filter(|e| model(e).is_some()).collect();
     assert!(!named.is_empty());
     assert!(

@@ -8,6 +8,7 @@
 //! to themselves.
 
 // Shared helpers.
+mod harness;
 mod link_common;
 mod mavlink_common;
 

@@ -4,9 +4,8 @@
 //! / MISSION_ACK, drops one request, and changes the mission halfway. What the vehicle saw
 //! dronewatt ask and say, and what the operator sees (`--json`), are checked.
 
+use crate::harness::{monitor_udp, Monitor};
 use crate::link_common;
-
-use std::process::{Command, Stdio};
 
 use serde_json::Value;
 
@@ -18,22 +17,16 @@ fn run(config: &str, peer_args: &[&str]) -> (Value, Vec<Value>, String) {
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
     let port = link_common::free_udp_port();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--config",
-        ])
-        .arg(&cfg)
-        .arg("--json")
-        .arg(&json)
-        .env("RUST_LOG", "dronewatt=info")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    link_common::wait_listening(port, false, &mut dw);
+    let dw = Monitor::listening(
+        monitor_udp(port)
+            .arg("--config")
+            .arg(&cfg)
+            .arg("--json")
+            .arg(&json)
+            .env("RUST_LOG", "dronewatt=info"),
+        port,
+        false,
+    );
     let to = format!("udpout:127.0.0.1:{port}");
     let args: Vec<&str> = ["--to", to.as_str()]
         .into_iter()

@@ -4,7 +4,7 @@
 //! Skipped (with a message) when the data set is absent. About 10 s in a dev build (the
 //! pre-flight plans of the route flights are built and forecast as `plan-eval` does).
 
-use std::process::Command;
+use crate::harness::dronewatt;
 
 #[test]
 fn battery_eval_on_the_data_set() {
@@ -15,7 +15,7 @@ fn battery_eval_on_the_data_set() {
     }
     let dir = tempfile::tempdir().expect("temp dir");
     let (json, png) = (dir.path().join("b.json"), dir.path().join("b.png"));
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .args(["battery-eval", "--data"])
         .arg(&data)
         .arg("--json")

@@ -3,26 +3,27 @@
 //! telemetry and its energy settings change what they compute, and a bad file stops them
 //! with the file and the key named. Through the binary, on the real data set.
 
+use crate::harness::{dronewatt, RunExt};
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn dronewatt(args: &[&str], config: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+/// `dronewatt ARGS --config CONFIG --data DATA` from the project root.
+fn offline(args: &[&str], config: &Path) -> Output {
+    dronewatt()
         .args(args)
         .arg("--config")
         .arg(config)
         .arg("--data")
         .arg(dronewatt::default_data_path())
         .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("dronewatt runs")
+        .out()
 }
 
 /// `eval --json -` on one flight with this configuration: the "models" object.
 fn eval_models(dir: &Path, name: &str, toml: &str, flight: &str) -> serde_json::Value {
     let cfg = dir.join(name);
     std::fs::write(&cfg, toml).unwrap();
-    let out = dronewatt(&["eval", "--flight", flight, "--json", "-"], &cfg);
+    let out = offline(&["eval", "--flight", flight, "--json", "-"], &cfg);
     assert!(
         out.status.success(),
         "{}",
@@ -86,7 +87,7 @@ fn a_bad_config_stops_every_offline_command_naming_the_file_and_key() {
         &["train", "--flights", "100,150", "--out", out_dir],
     ];
     for args in commands {
-        let out = dronewatt(args, &bad);
+        let out = offline(args, &bad);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} accepted a bad config");
         assert!(
@@ -98,7 +99,7 @@ fn a_bad_config_stops_every_offline_command_naming_the_file_and_key() {
     // naming the key, so the telemetry settings do reach the models.
     let short = dir.path().join("short.toml");
     std::fs::write(&short, "[telemetry]\nwindow = 5\n").unwrap();
-    let out = dronewatt(
+    let out = offline(
         &["sensitivity", "--flights", "276", "--out", out_dir],
         &short,
     );

@@ -7,74 +7,16 @@
 //! replay of the vehicle with that store and no `--vehicle` runs the learned profile and
 //! forecasts from its pick.
 
+use crate::harness::{output, replay_json, run, simulate_x500};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn dronewatt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(args: &[&str]) -> Output {
-    let out = dronewatt(args);
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn simulate(path: &Path, seed: u32) {
-    let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&[
-        "simulate",
-        "--vehicle",
-        "x500",
-        "--payload-g",
-        "0",
-        "--leg-m",
-        "200",
-        "--hover-s",
-        "20",
-        "--seed",
-        &seed,
-        "--wind-mps",
-        &wind,
-        "--out",
-        path.to_str().unwrap(),
-    ]);
-}
 
 /// Each physics model's MAPE over the in-flight windows (measured > 100 W) of a replay, %.
 fn physics_mape(tlog: &Path, vehicle: Option<&Path>) -> Vec<(String, f64)> {
-    let json = tlog.with_extension(if vehicle.is_some() {
-        "learned.jsonl"
-    } else {
-        "published.jsonl"
-    });
-    let mut args = vec![
-        "replay",
-        "--speed",
-        "max",
-        "-q",
-        "--data-dir",
-        "off",
-        "--json",
-        json.to_str().unwrap(),
-    ];
-    if let Some(v) = vehicle {
-        args.extend(["--vehicle", v.to_str().unwrap()]);
-    }
-    args.push(tlog.to_str().unwrap());
-    ok(&args);
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&json)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let args = match vehicle {
+        Some(v) => vec!["--vehicle", v.to_str().unwrap()],
+        None => vec![],
+    };
+    let lines = replay_json(tlog, &args);
     let est: Vec<&serde_json::Value> = lines
         .iter()
         .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
@@ -108,13 +50,13 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     let logs = dir.path().join("logs");
     std::fs::create_dir_all(&logs).unwrap();
     for seed in 1..=3 {
-        simulate(&logs.join(format!("x500-{seed}.tlog")), seed);
+        simulate_x500(&logs.join(format!("x500-{seed}.tlog")), seed, &[]);
     }
     let unseen = dir.path().join("x500-4.tlog");
-    simulate(&unseen, 4);
+    simulate_x500(&unseen, 4, &[]);
     let out_dir = dir.path().join("learned");
     let store = dir.path().join("store");
-    let out = ok(&[
+    let out = run(&[
         "learn",
         logs.to_str().unwrap(),
         "--holdout-every",
@@ -149,7 +91,7 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     );
     // The store keeps it for the logs' vehicle, and says so.
     let listing =
-        String::from_utf8_lossy(&ok(&["vehicles", "--data-dir", store.to_str().unwrap()]).stdout)
+        String::from_utf8_lossy(&run(&["vehicles", "--data-dir", store.to_str().unwrap()]).stdout)
             .into_owned();
     assert!(
         listing.contains("learned profile") && listing.contains(&pick),
@@ -173,7 +115,7 @@ fn learned_profile_beats_the_published_one_on_an_unseen_log() {
     // The next run of the vehicle with the store (no --vehicle): the learned profile's
     // models, the forecast on its pick, from the first window.
     let json = dir.path().join("from-store.jsonl");
-    ok(&[
+    run(&[
         "replay",
         "--speed",
         "max",
@@ -221,7 +163,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     let dir = tempfile::tempdir().unwrap();
     let txt = dir.path().join("notes.txt");
     std::fs::write(&txt, b"not read").unwrap();
-    let out = dronewatt(&["learn", txt.to_str().unwrap()]);
+    let out = output(&["learn", txt.to_str().unwrap()]);
     assert!(!out.status.success());
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -230,11 +172,11 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
         "{said}"
     );
     let one = dir.path().join("one.tlog");
-    simulate(&one, 1);
+    simulate_x500(&one, 1, &[]);
     // A .bin that is not DataFlash: an error naming it and what is wrong.
     let bin = dir.path().join("00000012.BIN");
     std::fs::write(&bin, b"not a log").unwrap();
-    let out = dronewatt(&[
+    let out = output(&[
         "learn",
         bin.to_str().unwrap(),
         one.to_str().unwrap(),
@@ -251,7 +193,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     );
     let ulg = dir.path().join("log_3.ulg");
     std::fs::write(&ulg, b"not a log").unwrap();
-    let out = dronewatt(&[
+    let out = output(&[
         "learn",
         ulg.to_str().unwrap(),
         one.to_str().unwrap(),
@@ -266,7 +208,7 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
         said.contains("log_3.ulg") && said.contains("not a readable PX4 ULog"),
         "{said}"
     );
-    let out = dronewatt(&[
+    let out = output(&[
         "learn",
         one.to_str().unwrap(),
         "--out",

@@ -11,10 +11,10 @@
 //! - the terminal shows the fleet view (one row per vehicle);
 //! - `--vehicles` keeps only the vehicles asked for.
 
+use crate::harness::{dronewatt, Monitor};
 use crate::link_common;
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::process::{Command, Stdio};
 
 use serde_json::Value;
 
@@ -58,17 +58,16 @@ fn fly(config: &str, args: &[&str]) -> Run {
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
     let port = link_common::free_udp_port();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "--config"])
-        .arg(&cfg)
-        .arg("--json")
-        .arg(&json)
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    link_common::wait_listening(port, false, &mut dw);
+    let dw = Monitor::listening(
+        dronewatt()
+            .args(["monitor", &format!("udpin:127.0.0.1:{port}"), "--config"])
+            .arg(&cfg)
+            .arg("--json")
+            .arg(&json)
+            .args(args),
+        port,
+        false,
+    );
     let vehicles = r#"[{"id": 1, "power_w": 300, "send_s": 10}, {"id": 2, "power_w": 500, "send_s": 10}, {"id": 3, "power_w": 700, "send_s": 4}]"#;
     let (peer, stderr) = link_common::peer_then_stop(
         dw,

@@ -9,6 +9,7 @@
 //!   request size, the token beyond loopback, the connection limit; and in headless
 //!   Chromium with a token.
 
+use crate::harness::{dronewatt, Monitor, RunExt};
 use crate::link_common;
 
 use std::io::{Read, Write};
@@ -148,7 +149,7 @@ fn a_key_file_others_can_read_stops_monitor_before_it_listens() {
     .unwrap();
     let path = dir.path().join("dw.toml");
     std::fs::write(&path, cfg).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .args([
             "monitor",
             &format!("udpin:127.0.0.1:{}", free_udp_port()),
@@ -156,8 +157,7 @@ fn a_key_file_others_can_read_stops_monitor_before_it_listens() {
             "--config",
         ])
         .arg(&path)
-        .output()
-        .unwrap();
+        .out();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
@@ -375,7 +375,7 @@ fn beyond_loopback_the_dashboard_needs_a_token_from_the_environment() {
     )
     .unwrap();
     let run = |token: Option<&str>| {
-        let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
+        let mut c = dronewatt();
         c.args(["replay", "--speed", "max", "-q", "--config"])
             .arg(&cfg)
             .arg(root.join("replay/demo.tlog"));
@@ -385,7 +385,7 @@ fn beyond_loopback_the_dashboard_needs_a_token_from_the_environment() {
         }
         c
     };
-    let out = run(None).output().unwrap();
+    let out = run(None).out();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success(),
@@ -395,7 +395,7 @@ fn beyond_loopback_the_dashboard_needs_a_token_from_the_environment() {
         err.contains("sinks.web.bind") && err.contains("DRONEWATT_WEB_TOKEN"),
         "{err}"
     );
-    let out = run(Some("short")).output().unwrap();
+    let out = run(Some("short")).out();
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("at least 16"),
         "{}",
@@ -403,29 +403,15 @@ fn beyond_loopback_the_dashboard_needs_a_token_from_the_environment() {
     );
 
     let token = "token-from-the-environment-42";
-    let mut dw = run(Some(token))
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
+    let dw = Monitor::listening(&mut run(Some(token)), port, true);
     let addr: std::net::SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
-    let start = std::time::Instant::now();
-    while TcpStream::connect(addr).is_err() {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "dashboard never listened"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
     let unauth = get(addr, "/api/state", "").0;
     let auth = get(
         addr,
         "/api/state",
         &format!("Authorization: Bearer {token}\r\n"),
     );
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let _ = dw.wait();
+    let _ = dw.stop();
     assert_eq!(unauth, 401);
     assert_eq!(auth.0, 200, "{}", auth.2);
 }
@@ -495,8 +481,7 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
                 "--dump-dom",
             ])
             .arg(url)
-            .output()
-            .unwrap();
+            .out();
         String::from_utf8_lossy(&out.stdout).to_string()
     };
     let with = tokio::task::spawn_blocking({

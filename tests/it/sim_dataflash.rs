@@ -6,49 +6,11 @@
 //! parameters, an ArduPilot heartbeat); and `learn` on three `.bin` logs scores the same
 //! held-out MAPE as on the same flights as `.tlog`, and `replay FILE.bin` runs.
 
-use std::path::Path;
-use std::process::{Command, Output};
+use crate::harness::{replay_json, run, simulate_x500};
+use std::process::Command;
 
 use dronewatt::MavMessage;
 use serde_json::Value;
-
-fn dronewatt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(args: &[&str]) -> Output {
-    let out = dronewatt(args);
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn simulate(path: &Path, seed: u32) {
-    let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&[
-        "simulate",
-        "--vehicle",
-        "x500",
-        "--payload-g",
-        "0",
-        "--leg-m",
-        "200",
-        "--hover-s",
-        "20",
-        "--seed",
-        &seed,
-        "--wind-mps",
-        &wind,
-        "--out",
-        path.to_str().unwrap(),
-    ]);
-}
 
 fn rows(v: &Value) -> Vec<Vec<f64>> {
     v.as_array()
@@ -68,8 +30,8 @@ fn rows(v: &Value) -> Vec<Vec<f64>> {
 fn pymavlink_reads_the_simulated_bin_as_the_tlog_says() {
     let dir = tempfile::tempdir().unwrap();
     let (bin, tlog) = (dir.path().join("x500.bin"), dir.path().join("x500.tlog"));
-    simulate(&bin, 1);
-    simulate(&tlog, 1);
+    simulate_x500(&bin, 1, &[]);
+    simulate_x500(&tlog, 1, &[]);
     let out = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
         .arg(concat!(
             env!("CARGO_MANIFEST_DIR"),
@@ -214,9 +176,9 @@ fn learn_on_bin_logs_scores_as_on_the_same_flights_as_tlog() {
         let logs = dir.path().join(ext);
         std::fs::create_dir_all(&logs).unwrap();
         for seed in 1..=3 {
-            simulate(&logs.join(format!("x500-{seed}.{ext}")), seed);
+            simulate_x500(&logs.join(format!("x500-{seed}.{ext}")), seed, &[]);
         }
-        let out = ok(&[
+        let out = run(&[
             "learn",
             logs.to_str().unwrap(),
             "--holdout-every",
@@ -244,24 +206,8 @@ fn learn_on_bin_logs_scores_as_on_the_same_flights_as_tlog() {
     }
 
     // replay FILE.bin: the live pipeline on the autopilot's own log, with measured power.
-    let json = dir.path().join("replay.jsonl");
     let bin3 = dir.path().join("bin/x500-3.bin");
-    ok(&[
-        "replay",
-        "--speed",
-        "max",
-        "-q",
-        "--data-dir",
-        "off",
-        "--json",
-        json.to_str().unwrap(),
-        bin3.to_str().unwrap(),
-    ]);
-    let lines: Vec<Value> = std::fs::read_to_string(&json)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let lines = replay_json(&bin3, &[]);
     let measured = lines
         .iter()
         .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))

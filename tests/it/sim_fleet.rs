@@ -2,19 +2,12 @@
 //! the same bytes for the same seed, and `replay` of that tlog follows every vehicle on
 //! its own chain (`--json` lines carry each vehicle's system id).
 
+use crate::harness::output;
 use std::collections::BTreeMap;
-use std::process::Command;
-
-fn dronewatt(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn simulate(out: &std::path::Path, n: &str, seed: &str) -> std::process::Output {
     let o = out.to_str().unwrap();
-    dronewatt(&[
+    output(&[
         "simulate",
         "--out",
         o,
@@ -49,7 +42,7 @@ fn three_vehicles_fly_their_own_missions_in_one_tlog_deterministically() {
     assert!(ba == bb, "same seed, same bytes");
     assert!(ba != bc, "another seed, another flight");
 
-    let o = dronewatt(&[
+    let o = output(&[
         "replay",
         a.to_str().unwrap(),
         "--speed",
@@ -129,7 +122,7 @@ fn a_paced_replay_reports_the_message_to_estimate_latency_of_every_estimate() {
     // Paced (as a live link delivers it, 20× faster); JSON to a file, so the terminal view
     // runs too and says it at exit.
     let json = dir.path().join("f.jsonl");
-    let o = dronewatt(&[
+    let o = output(&[
         "replay",
         tlog.to_str().unwrap(),
         "--speed",
@@ -207,7 +200,7 @@ fn lstm_rate_hz_runs_the_lstm_on_every_fifth_window_and_holds_it_between() {
             "-",
         ];
         args.extend_from_slice(extra);
-        let o = dronewatt(&args);
+        let o = output(&args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let mut per: BTreeMap<u64, Vec<(f64, f64)>> = BTreeMap::new();
         for line in String::from_utf8_lossy(&o.stdout).lines() {
@@ -267,7 +260,7 @@ fn check_config_says_what_fleet_sets_and_names_a_bad_key() {
         "[fleet]\nvehicles = \"1-125\"\nlost_after_s = 3\nlstm_rate_hz = 2\n",
     )
     .unwrap();
-    let o = dronewatt(&["check-config", good.to_str().unwrap()]);
+    let o = output(&["check-config", good.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
@@ -277,7 +270,7 @@ fn check_config_says_what_fleet_sets_and_names_a_bad_key() {
     );
     let bad = dir.path().join("bad.toml");
     std::fs::write(&bad, "[fleet]\nvehicles = \"1-300\"\ndrop_after_s = 1\n").unwrap();
-    let o = dronewatt(&["check-config", bad.to_str().unwrap()]);
+    let o = output(&["check-config", bad.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(
@@ -286,7 +279,7 @@ fn check_config_says_what_fleet_sets_and_names_a_bad_key() {
             && err.contains("fleet.drop_after_s"),
         "{err}"
     );
-    let o = dronewatt(&["monitor", "udpin:127.0.0.1:9", "--vehicles", "7-3"]);
+    let o = output(&["monitor", "udpin:127.0.0.1:9", "--vehicles", "7-3"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && err.contains("--vehicles 7-3") && err.contains("backwards"),

@@ -3,18 +3,12 @@
 //! models in each; a plane streamed over real UDP into `dronewatt monitor` gets fixed-wing
 //! estimates; PX4's telemetry says the same; the energy used matches the simulator's truth.
 
-use std::process::Command;
+use crate::harness::{dronewatt, monitor_udp, Monitor};
 
 use serde_json::Value;
 
 use crate::link_common;
 use link_common::models;
-
-fn dronewatt() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
-    c.env("DRONEWATT_HOME", "off");
-    c
-}
 
 /// `simulate ARGS --out DIR/NAME.tlog --truth DIR/NAME.csv`; returns the tlog and the truth
 /// energy (Wh, from the CSV's 10 Hz power).
@@ -152,7 +146,7 @@ fn a_simulated_plane_over_udp_into_monitor_gets_fixed_wing_estimates() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("out.jsonl");
     let port = link_common::free_udp_port();
-    let dw = link_common::monitor_udp(port, &json, &[("DRONEWATT_HOME", "off")]);
+    let dw = Monitor::listening(monitor_udp(port).arg("--json").arg(&json), port, false);
     // A ~80 s flight at 4× real time (the live chain makes its windows on the arrival clock).
     let sim = dronewatt()
         .args([
@@ -171,7 +165,7 @@ fn a_simulated_plane_over_udp_into_monitor_gets_fixed_wing_estimates() {
         String::from_utf8_lossy(&sim.stderr)
     );
     std::thread::sleep(std::time::Duration::from_millis(300));
-    let (status, stderr) = link_common::stop(dw);
+    let (status, stderr) = dw.stop();
     assert!(status.success(), "{stderr}");
     let est: Vec<Value> = std::fs::read_to_string(&json)
         .unwrap()

@@ -1,8 +1,8 @@
 //! `dronewatt simulate --udp` delivers MAVLink frames to a real UDP socket on 127.0.0.1,
 //! paced by `--rate`.
 
+use crate::harness::dronewatt;
 use std::net::UdpSocket;
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 use dronewatt::MavMessage;
@@ -31,7 +31,7 @@ fn streams_frames_to_a_udp_listener() {
     });
     let start = Instant::now();
     // A ~40 s mission at 40× real time: about a second of wall clock.
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .args([
             "simulate",
             "--udp",

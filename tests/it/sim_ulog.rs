@@ -6,47 +6,11 @@
 //! PX4-encoded parameters); `learn` on three `.ulg` logs scores the same held-out MAPE as
 //! on the same flights as `.tlog`; and `replay FILE.ulg` runs.
 
-use std::path::Path;
-use std::process::{Command, Output};
+use crate::harness::{dronewatt, replay_json, run, simulate_x500, RunExt};
+use std::process::Command;
 
 use dronewatt::MavMessage;
 use serde_json::Value;
-
-fn ok(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn simulate(path: &Path, seed: u32) {
-    let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
-    ok(&[
-        "simulate",
-        "--autopilot",
-        "px4",
-        "--vehicle",
-        "x500",
-        "--payload-g",
-        "0",
-        "--leg-m",
-        "200",
-        "--hover-s",
-        "20",
-        "--seed",
-        &seed,
-        "--wind-mps",
-        &wind,
-        "--out",
-        path.to_str().unwrap(),
-    ]);
-}
 
 fn rows(v: &Value) -> Vec<Vec<f64>> {
     v.as_array()
@@ -66,8 +30,8 @@ fn rows(v: &Value) -> Vec<Vec<f64>> {
 fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
     let dir = tempfile::tempdir().unwrap();
     let (ulg, tlog) = (dir.path().join("x500.ulg"), dir.path().join("x500.tlog"));
-    simulate(&ulg, 1);
-    simulate(&tlog, 1);
+    simulate_x500(&ulg, 1, &["--autopilot", "px4"]);
+    simulate_x500(&tlog, 1, &["--autopilot", "px4"]);
     let out = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
         .arg(concat!(
             env!("CARGO_MANIFEST_DIR"),
@@ -193,9 +157,13 @@ fn learn_on_ulg_logs_scores_as_on_the_same_flights_as_tlog() {
         let logs = dir.path().join(ext);
         std::fs::create_dir_all(&logs).unwrap();
         for seed in 1..=3 {
-            simulate(&logs.join(format!("x500-{seed}.{ext}")), seed);
+            simulate_x500(
+                &logs.join(format!("x500-{seed}.{ext}")),
+                seed,
+                &["--autopilot", "px4"],
+            );
         }
-        let out = ok(&[
+        let out = run(&[
             "learn",
             logs.to_str().unwrap(),
             "--holdout-every",
@@ -222,24 +190,8 @@ fn learn_on_ulg_logs_scores_as_on_the_same_flights_as_tlog() {
         );
     }
 
-    let json = dir.path().join("replay.jsonl");
     let ulg3 = dir.path().join("ulg/x500-3.ulg");
-    ok(&[
-        "replay",
-        "--speed",
-        "max",
-        "-q",
-        "--data-dir",
-        "off",
-        "--json",
-        json.to_str().unwrap(),
-        ulg3.to_str().unwrap(),
-    ]);
-    let lines: Vec<Value> = std::fs::read_to_string(&json)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let lines = replay_json(&ulg3, &[]);
     let measured = lines
         .iter()
         .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
@@ -255,7 +207,7 @@ fn an_autopilots_own_log_is_of_that_autopilot() {
         ("px4", "b.bin", "--autopilot ardupilot"),
     ] {
         let path = dir.path().join(file);
-        let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+        let out = dronewatt()
             .args([
                 "simulate",
                 "--autopilot",
@@ -263,8 +215,7 @@ fn an_autopilots_own_log_is_of_that_autopilot() {
                 "--out",
                 path.to_str().unwrap(),
             ])
-            .output()
-            .unwrap();
+            .out();
         let said = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success() && said.contains(file) && said.contains(says),

@@ -5,15 +5,8 @@
 //! STATUSTEXT warning when the remaining energy crosses the configured threshold (one, not
 //! a storm), none on a flight that stays above it.
 
-use std::process::{Command, Stdio};
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
+use crate::harness::{monitor_udp, Monitor};
+use crate::link_common::{self, free_udp_port};
 
 /// Stream 15 s at ~500 W to dronewatt with a `capacity_wh` battery and a 1.5 Wh warning.
 fn fly(capacity_wh: f64) -> serde_json::Value {
@@ -30,44 +23,14 @@ fn fly_with(config: &str, peer_args: &[&str]) -> serde_json::Value {
     let cfg = dir.path().join("gcs.toml");
     std::fs::write(&cfg, config).unwrap();
     let port = free_udp_port();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--config",
-        ])
-        .arg(&cfg)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/peers/gcs_flight.py"
-        ))
-        .args(["--port", &port.to_string(), "--power-w", "500"])
-        .args(peer_args)
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    // SIGTERM: the pipeline's own shutdown path.
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert!(
-        peer.status.success(),
-        "peer failed: {}",
-        String::from_utf8_lossy(&peer.stderr)
-    );
-    assert!(status.success(), "dronewatt exited with {status}: {err}");
-    let out = String::from_utf8_lossy(&peer.stdout);
-    serde_json::from_str(out.trim())
-        .unwrap_or_else(|e| panic!("peer said {out:?}: {e}\ndronewatt: {err}"))
+    let dw = Monitor::listening(monitor_udp(port).arg("--config").arg(&cfg), port, false);
+    let port_s = port.to_string();
+    let args: Vec<&str> = ["--port", &port_s, "--power-w", "500"]
+        .into_iter()
+        .chain(peer_args.iter().copied())
+        .collect();
+    // Then SIGTERM: the pipeline's own shutdown path.
+    link_common::peer_then_stop(dw, "gcs_flight.py", &args).0
 }
 
 fn check_estimates(heard: &serde_json::Value) {

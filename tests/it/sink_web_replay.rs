@@ -5,7 +5,9 @@
 //! (its points and the vehicle's place), the mission tiles and the pack's tiles with
 //! numbers. Skips loudly without chromium.
 
-use std::process::{Command, Stdio};
+use crate::harness::{dronewatt, summary_written, Monitor, RunExt};
+use std::path::Path;
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 fn chromium() -> Option<&'static str> {
@@ -51,28 +53,10 @@ fn dashboard_of_the_demo_replay_in_chromium() {
     )
     .unwrap();
     let json = dir.path().join("out.jsonl");
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["replay", "--speed", "max", "-q", "--config"])
-        .arg(&cfg)
-        .arg("--json")
-        .arg(&json)
-        .arg(root.join("replay/demo.tlog"))
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let dw = replay_lingering(&cfg, &json, &root.join("replay/demo.tlog"));
     // The JSON summary line means the replay is over and every report reached the sinks.
     let start = Instant::now();
-    let text = loop {
-        let t = std::fs::read_to_string(&json).unwrap_or_default();
-        if t.contains("\"type\":\"summary\"") {
-            break t;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "the replay did not finish"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    let text = summary_written(&json);
     let last = text
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
@@ -103,15 +87,11 @@ fn dashboard_of_the_demo_replay_in_chromium() {
                 extra,
                 &url,
             ])
-            .output()
-            .unwrap()
+            .out()
     };
     let dom = run("--dump-dom");
     let shot_out = run(&format!("--screenshot={}", shot.display()));
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
+    let (status, _) = dw.stop();
     let html = String::from_utf8_lossy(&dom.stdout);
     assert!(
         dom.status.success() && shot_out.status.success(),
@@ -233,6 +213,19 @@ fn dashboard_of_the_demo_replay_in_chromium() {
     );
 }
 
+/// `replay --speed max` of `log` with the dashboard `config` (which lingers after the
+/// replay), JSON lines to `json`; left running.
+fn replay_lingering(config: &Path, json: &Path, log: &Path) -> Monitor {
+    Monitor::spawn(
+        dronewatt()
+            .args(["replay", "--speed", "max", "-q", "--config"])
+            .arg(config)
+            .arg("--json")
+            .arg(json)
+            .arg(log),
+    )
+}
+
 /// GET `path` from the dashboard; the body as JSON.
 pub(crate) fn get_json(port: u16, path: &str) -> serde_json::Value {
     use std::io::{Read, Write};
@@ -260,7 +253,7 @@ fn dashboard_of_a_fleet_lists_every_vehicle_and_shows_the_one_asked_for() {
     };
     let dir = tempfile::tempdir().unwrap();
     let tlog = dir.path().join("fleet.tlog");
-    let sim = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    dronewatt()
         .args([
             "simulate",
             "--vehicles",
@@ -272,13 +265,7 @@ fn dashboard_of_a_fleet_lists_every_vehicle_and_shows_the_one_asked_for() {
             "--out",
         ])
         .arg(&tlog)
-        .output()
-        .unwrap();
-    assert!(
-        sim.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sim.stderr)
-    );
+        .ok();
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
@@ -291,27 +278,8 @@ fn dashboard_of_a_fleet_lists_every_vehicle_and_shows_the_one_asked_for() {
     )
     .unwrap();
     let json = dir.path().join("out.jsonl");
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["replay", "--speed", "max", "-q", "--config"])
-        .arg(&cfg)
-        .arg("--json")
-        .arg(&json)
-        .arg(&tlog)
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    let text = loop {
-        let t = std::fs::read_to_string(&json).unwrap_or_default();
-        if t.contains("\"type\":\"summary\"") {
-            break t;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "the replay did not finish"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    let dw = replay_lingering(&cfg, &json, &tlog);
+    let text = summary_written(&json);
     // Each vehicle's last estimate time, from the JSON lines.
     let mut last_t = std::collections::BTreeMap::new();
     for v in text
@@ -358,12 +326,8 @@ fn dashboard_of_a_fleet_lists_every_vehicle_and_shows_the_one_asked_for() {
             "--dump-dom",
             &url,
         ])
-        .output()
-        .unwrap();
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
+        .out();
+    let (status, _) = dw.stop();
     let html = String::from_utf8_lossy(&dom.stdout);
     assert!(
         html.contains("<div id=\"fleet-box\">"),

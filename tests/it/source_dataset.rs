@@ -2,6 +2,7 @@
 //! name, CRLF, and what happens to bad rows. Pieces of the real data set are cut into a
 //! temp dir (never committed).
 
+use crate::harness::dronewatt;
 use std::io::{Read, Write};
 use std::path::Path;
 
@@ -170,7 +171,7 @@ fn list_and_convert_a_flight() {
     );
     // `dronewatt convert` writes the tlog that flight_tlog builds.
     let out = dir.path().join("276.tlog");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let status = dronewatt()
         .args([
             "convert",
             p.to_str().unwrap(),

@@ -9,9 +9,8 @@
 //! its own estimates from its own telemetry, never the other's, and dronewatt answers each
 //! on its own network's links only.
 
+use crate::harness::{dronewatt, Monitor};
 use crate::link_common;
-
-use std::process::{Command, Stdio};
 
 use serde_json::{json, Value};
 
@@ -51,21 +50,19 @@ fn run_links(config: &str, peer_args: &[&str], fleet: bool) -> Run {
         }
     }
     std::fs::write(&cfg, config).unwrap();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .arg("monitor")
-        .args(if fleet { &addrs[..0] } else { &addrs[..] })
-        .arg("-q")
-        .arg("--config")
-        .arg(&cfg)
-        .arg("--json")
-        .arg(&json)
-        .env("RUST_LOG", "dronewatt=info")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut dw = Monitor::spawn(
+        dronewatt()
+            .arg("monitor")
+            .args(if fleet { &addrs[..0] } else { &addrs[..] })
+            .arg("-q")
+            .arg("--config")
+            .arg(&cfg)
+            .arg("--json")
+            .arg(&json)
+            .env("RUST_LOG", "dronewatt=info"),
+    );
     for &p in &ports {
-        link_common::wait_listening(p, false, &mut dw);
+        dw.wait_listening(p, false);
     }
     let pair = format!("{},{}", ports[0], ports[1]);
     let third = ports.get(2).map(u16::to_string);

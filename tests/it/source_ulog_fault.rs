@@ -3,25 +3,19 @@
 //! which file, that it is corrupt or truncated and how much was read. A record the
 //! `yule_log` parser panics on in the definitions is an error. The log is the simulator's `.ulg` (`dronewatt simulate --autopilot px4`).
 
+use crate::harness::{dronewatt, RunExt};
 use std::path::Path;
-use std::process::Command;
 use std::sync::atomic::Ordering::Relaxed;
 
 use dronewatt::source::ulog::{read_ulog, UlogError};
 use dronewatt::source::{decode_autopilot_log, IngestStats};
 
 fn simulate(path: &Path) {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let _out = dronewatt()
         .args(["simulate", "--autopilot", "px4", "--vehicle", "x500"])
         .args(["--leg-m", "100", "--hover-s", "10", "--seed", "3"])
         .args(["--out", path.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .ok();
 }
 
 /// A format definition whose array length overflows a usize: `yule_log` panics on it (an
@@ -95,11 +89,10 @@ fn a_log_that_breaks_part_way_keeps_what_came_before() {
     std::fs::write(&broken, cut).unwrap();
     let kept = decode_autopilot_log(&broken, &IngestStats::default()).unwrap();
     assert_eq!(kept.len(), part.len());
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .args(["replay", "--speed", "max", "-q", "--data-dir", "off"])
         .arg(&broken)
-        .output()
-        .unwrap();
+        .out();
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{said}");
     assert!(

@@ -4,6 +4,7 @@
 //! the M100's pack; a quadrotor with no battery monitor gets its remaining energy from the
 //! model's power, said so.
 
+use crate::harness::{dronewatt, RunExt};
 use crate::link_common;
 use link_common::models;
 
@@ -213,13 +214,12 @@ fn a_replayed_quadplane_log_shows_vtol_both_phases_and_no_m100_pack() {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("quadplane.tlog");
     record_quadplane_tlog(&log, 9);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .arg("replay")
         .arg(&log)
         .args(["--speed", "max", "--json", "-", "--data-dir", "off"])
         .env("RUST_LOG", "info")
-        .output()
-        .unwrap();
+        .out();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     let lines: Vec<Value> = String::from_utf8_lossy(&out.stdout)

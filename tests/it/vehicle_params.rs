@@ -8,28 +8,14 @@
 //!   station's logged PARAM_VALUE: remaining energy follows the vehicle's capacity, and says
 //!   so; without the PARAM_VALUEs, or with `capacity_wh` in the config, it says that instead.
 
-use std::process::{Command, Stdio};
+use crate::harness::{dronewatt, json_lines, monitor_udp, Monitor, RunExt};
+use crate::link_common::{self, free_udp_port};
+use std::process::Command;
 
 const PYTHON: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python");
 
 fn peer(name: &str) -> String {
     format!("{}/tests/peers/{name}", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-/// The JSON lines of a file, parsed.
-fn lines(path: &std::path::Path) -> Vec<serde_json::Value> {
-    let text = std::fs::read_to_string(path).unwrap();
-    text.lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}")))
-        .collect()
 }
 
 fn last_estimate(lines: &[serde_json::Value]) -> &serde_json::Value {
@@ -46,40 +32,11 @@ fn monitor(autopilot: &str) -> (serde_json::Value, Vec<serde_json::Value>, Strin
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--json",
-        ])
-        .arg(&json)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    let out = Command::new(PYTHON)
-        .arg(peer("vehicle_params.py"))
-        .args(["--port", &port.to_string(), "--autopilot", autopilot])
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert!(
-        out.status.success(),
-        "peer failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(status.success(), "dronewatt exited with {status}: {err}");
-    let said = String::from_utf8_lossy(&out.stdout);
-    let heard = serde_json::from_str(said.trim())
-        .unwrap_or_else(|e| panic!("peer said {said:?}: {e}\ndronewatt: {err}"));
-    (heard, lines(&json), err)
+    let dw = Monitor::listening(monitor_udp(port).arg("--json").arg(&json), port, false);
+    let port = port.to_string();
+    let args = ["--port", &port, "--autopilot", autopilot];
+    let (heard, err) = link_common::peer_then_stop(dw, "vehicle_params.py", &args);
+    (heard, json_lines(&json), err)
 }
 
 #[test]
@@ -166,20 +123,14 @@ fn replay(with_params: bool, config: &str) -> Vec<serde_json::Value> {
     let cfg = dir.path().join("c.toml");
     std::fs::write(&cfg, config).unwrap();
     let json = dir.path().join("out.jsonl");
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let _out = dronewatt()
         .args(["replay", "--speed", "max", "-q", "--config"])
         .arg(&cfg)
         .arg("--json")
         .arg(&json)
         .arg(&tlog)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    lines(&json)
+        .ok();
+    json_lines(&json)
 }
 
 #[test]

@@ -7,29 +7,16 @@
 //! `dronewatt vehicles` then lists the vehicle with both flights. A corrupt or locked
 //! database degrades to a run without the store, with a message, never a failure.
 
+use crate::harness::{dronewatt, run, RunExt};
 use std::path::Path;
 use std::process::{Command, Output};
 
 const PYTHON: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python");
 
-fn dronewatt(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(args)
-        .env("RUST_LOG", "dronewatt=info")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "dronewatt {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
 /// A short X500 triangle (ArduPilot style, with its PARAM_VALUEs and battery %).
 fn x500_tlog(dir: &Path) -> String {
     let tlog = dir.join("x500.tlog").to_string_lossy().into_owned();
-    dronewatt(&[
+    run(&[
         "simulate",
         "--vehicle",
         "x500",
@@ -48,7 +35,7 @@ fn x500_tlog(dir: &Path) -> String {
 /// Replay with this data dir; (estimate lines, stderr).
 fn replay(tlog: &str, data_dir: &Path, tag: &str) -> (Vec<serde_json::Value>, String) {
     let json = data_dir.parent().unwrap().join(format!("{tag}.jsonl"));
-    let out = dronewatt(&[
+    let out = run(&[
         "replay",
         "--speed",
         "max",
@@ -131,7 +118,7 @@ fn the_second_flight_starts_from_what_the_first_learned() {
 
     // The listing: one vehicle (no uid in the simulator's ArduPilot style: the heartbeat
     // key), two flights with their energy.
-    let out = dronewatt(&["vehicles", "--data-dir", data.to_str().unwrap(), "--json"]);
+    let out = run(&["vehicles", "--data-dir", data.to_str().unwrap(), "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let v = v.as_array().unwrap();
     assert_eq!(v.len(), 1, "{v:?}");
@@ -170,8 +157,7 @@ fn the_second_flight_starts_from_what_the_first_learned() {
         "vehicle parameter BATT_CAPACITY"
     );
     let table =
-        String::from_utf8(dronewatt(&["vehicles", "--data-dir", data.to_str().unwrap()]).stdout)
-            .unwrap();
+        String::from_utf8(run(&["vehicles", "--data-dir", data.to_str().unwrap()]).stdout).unwrap();
     assert!(
         table.contains("1 vehicle(s)") && table.contains("QUADROTOR"),
         "{table}"
@@ -226,7 +212,7 @@ fn the_data_dir_follows_the_environment() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let run = |home_env: Option<&str>, xdg: &str| {
-        let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
+        let mut c = dronewatt();
         c.arg("vehicles")
             .env_remove("DRONEWATT_HOME")
             .env("XDG_DATA_HOME", xdg)
@@ -234,7 +220,7 @@ fn the_data_dir_follows_the_environment() {
         if let Some(h) = home_env {
             c.env("DRONEWATT_HOME", h);
         }
-        c.output().unwrap()
+        c.out()
     };
     let listed = |out: Output| {
         assert!(

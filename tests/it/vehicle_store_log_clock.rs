@@ -6,11 +6,11 @@
 //! that is far past the 25-minute same-pack gap). Real data set (skipped with a message
 //! when absent), real binary, a store in a temp dir.
 
+use crate::harness::dronewatt;
 use std::path::Path;
-use std::process::Command;
 
 fn replay(data: &Path, flight: u32, store: &Path, out: &Path) {
-    let o = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let o = dronewatt()
         .arg("replay")
         .arg(data)
         .args(["--flight", &flight.to_string(), "--speed", "max", "-q"])

@@ -61,6 +61,20 @@ pub struct GeoPoint {
     pub alt_m: f64,
 }
 
+impl GeoPoint {
+    /// The point `north_m`, `east_m` from this one, at `alt_m` (flat earth: the crate's one
+    /// conversion, [`crate::features::frames::offset_ne`]).
+    pub fn offset(&self, north_m: f64, east_m: f64, alt_m: f64) -> GeoPoint {
+        use crate::features::frames::offset_ne;
+        let (lat_deg, lon_deg) = offset_ne(self.lat_deg, self.lon_deg, north_m, east_m);
+        GeoPoint {
+            lat_deg,
+            lon_deg,
+            alt_m,
+        }
+    }
+}
+
 /// How an item's altitude was given (see the module docs for what is done with each).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -384,7 +398,7 @@ impl Plan {
     /// The same plan moved to another home: every position keeps its east/north offset
     /// from home (flat earth, as the trajectory flies it).
     pub fn relocated(&self, home: GeoPoint) -> Plan {
-        use crate::features::frames::{ne_offset_m, offset_ne};
+        use crate::features::frames::ne_offset_m;
         let mut p = self.clone();
         for it in &mut p.items {
             if let Some(pos) = &mut it.position {
@@ -394,7 +408,7 @@ impl Plan {
                     pos.lat_deg,
                     pos.lon_deg,
                 );
-                (pos.lat_deg, pos.lon_deg) = offset_ne(home.lat_deg, home.lon_deg, n, e);
+                *pos = home.offset(n, e, pos.alt_m);
             }
         }
         p.home = home;

@@ -9,14 +9,7 @@ fn square(speed: f64) -> Plan {
         lon_deg: -80.0,
         alt_m: 300.0,
     };
-    let at = |n, e| {
-        let (lat_deg, lon_deg) = crate::features::frames::offset_ne(40.0, -80.0, n, e);
-        GeoPoint {
-            lat_deg,
-            lon_deg,
-            alt_m: 25.0,
-        }
-    };
+    let at = |n, e| home.offset(n, e, 25.0);
     let wps = [at(200.0, 0.0), at(200.0, 200.0)];
     Plan::from_waypoints("square", home, &wps, speed)
 }

@@ -34,6 +34,7 @@ use anyhow::Context;
 
 use crate::battery::forecast::{SAG_IN_FLIGHT, SAG_PREFLIGHT};
 use crate::battery::{forecast, CircuitParams, OcvCurve, PACK_SCALE_CARRY};
+use crate::offline::args::{help, CalibratedArg, DataArg, JsonArg};
 use crate::offline::data::TEST_FLIGHTS;
 use crate::source::dataset;
 
@@ -54,26 +55,23 @@ pub const TARGETS: [(&str, f64); 5] = [
 
 /// Arguments of `dronewatt battery-eval`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "calibrated",
+    help("Calibrated vehicle profile for the pre-flight plan's power (`plan-eval`'s models)")
+))]
 pub struct BatteryEvalArgs {
-    /// The data set (`flights.csv` or `.csv.gz`). Default: `DRONEWATT_DATA` or `../shared/data/m100/flights.csv.gz`.
-    #[arg(long, value_name = "FILE")]
-    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub data: DataArg,
     /// Score these flights only (comma separated; training or test by their number). Default: all.
     #[arg(long, value_delimiter = ',')]
     pub flights: Option<Vec<u32>>,
-    /// Print one JSON object to PATH, or to standard output with '-' (then no table).
-    #[arg(long, value_name = "PATH|-")]
-    pub json: Option<String>,
+    #[command(flatten)]
+    pub json: JsonArg,
     /// Write a PNG of one test flight: measured and open-loop loaded voltage, and the forecast from half time.
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
-    /// Calibrated vehicle profile for the pre-flight plan's power (`plan-eval`'s models).
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "config/vehicles/m100-calibrated.toml"
-    )]
-    pub calibrated: PathBuf,
+    #[command(flatten)]
+    pub calibrated: CalibratedArg,
 }
 
 /// Medians over one set of flights (names as in fit.py's results.json).
@@ -582,8 +580,8 @@ fn plot(path: &Path, p: &Prepared, tr: &Traces) -> anyhow::Result<()> {
 
 /// `dronewatt battery-eval`.
 pub fn run(a: BatteryEvalArgs) -> anyhow::Result<()> {
-    let data = a.data.clone().unwrap_or_else(crate::default_data_path);
-    let (report, all, traces) = battery_eval(&data, a.flights.as_deref(), &a.calibrated)?;
+    let data = a.data.path();
+    let (report, all, traces) = battery_eval(&data, a.flights.as_deref(), &a.calibrated.path)?;
     if let Some(png) = &a.plot {
         let pick = report.test_flights.first().or_else(|| {
             report
@@ -600,5 +598,5 @@ pub fn run(a: BatteryEvalArgs) -> anyhow::Result<()> {
             None => tracing::warn!("no flight scored under load: no plot written"),
         }
     }
-    crate::offline::plan_eval::publish(a.json.as_deref(), &report, || table(&report))
+    a.json.publish(&report, || table(&report))
 }

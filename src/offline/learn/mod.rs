@@ -28,6 +28,7 @@ use crate::config::Config;
 use crate::model::physics;
 use crate::model::profile::VehicleProfile;
 use crate::model::Ensemble;
+use crate::offline::args::{help, ConfigArg};
 use crate::offline::chain::Chain;
 use crate::offline::data::FlightWindows;
 use crate::offline::metrics::{in_flight, Scores, IN_FLIGHT_W};
@@ -39,6 +40,10 @@ const FIRST_LOG_NUMBER: u32 = 100_000;
 
 /// Arguments of `dronewatt learn`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(mut_arg(
+    "config",
+    help("Configuration file (`[telemetry]`, `[mission]`). Default: built-in defaults")
+))]
 pub struct LearnArgs {
     /// `.tlog`, DataFlash `.bin` or ULog `.ulg` files, or folders holding them.
     #[arg(required = true, value_name = "LOG")]
@@ -53,9 +58,8 @@ pub struct LearnArgs {
     /// Hold out every Nth log for the score (at least one log is held out).
     #[arg(long, value_name = "N", default_value_t = 4)]
     pub holdout_every: usize,
-    /// Configuration file (`[telemetry]`, `[mission]`). Default: built-in defaults.
-    #[arg(long, short = 'c', value_name = "FILE")]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub config: ConfigArg,
     /// Most in-flight windows the fit uses (evenly thinned beyond).
     #[arg(long, default_value_t = 20_000)]
     pub max_windows: usize,
@@ -343,7 +347,7 @@ fn score(
 
 /// Run `dronewatt learn`.
 pub fn run(args: LearnArgs) -> Result<()> {
-    let cfg = Config::load_or_default(args.config.as_deref())?;
+    let cfg = args.config.load()?;
     let base = match (&args.vehicle, &cfg.vehicle) {
         (Some(v), _) => VehicleProfile::named_or_file(v)?,
         (None, Some(p)) => VehicleProfile::load(p)?,

@@ -4,8 +4,8 @@
 //! saw.
 #![allow(dead_code)]
 
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use crate::harness::{dronewatt, Monitor};
+use std::process::Command;
 
 use serde_json::Value;
 
@@ -69,57 +69,11 @@ pub fn free_tcp_port() -> u16 {
         .port()
 }
 
-/// `dronewatt monitor udpin:127.0.0.1:PORT -q --json JSON` with `env` set, stdout dropped,
-/// stderr piped, once it holds the port.
-pub fn monitor_udp(port: u16, json: &std::path::Path, env: &[(&str, &str)]) -> std::process::Child {
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--json",
-        ])
-        .arg(json)
-        .envs(env.iter().copied())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run dronewatt monitor");
-    wait_listening(port, false, &mut dw);
-    dw
-}
-
-/// Wait until dronewatt holds `port` (UDP: our bind fails; TCP: a connect succeeds), so no
-/// frame the peer sends is lost to a socket not bound yet.
-pub fn wait_listening(port: u16, tcp: bool, dw: &mut std::process::Child) {
-    let start = Instant::now();
-    loop {
-        let up = if tcp {
-            std::net::TcpStream::connect(("127.0.0.1", port)).is_ok()
-        } else {
-            std::net::UdpSocket::bind(("127.0.0.1", port)).is_err()
-        };
-        if up {
-            return;
-        }
-        if let Ok(Some(status)) = dw.try_wait() {
-            let mut err = String::new();
-            let _ = std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err);
-            panic!("dronewatt exited with {status} before listening: {err}");
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "dronewatt never listened on port {port}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
 /// Run the pymavlink peer `tests/peers/SCRIPT` with `args` to its end while `dw` (a
 /// `dronewatt monitor` already listening, stderr piped) watches, then stop dronewatt with
 /// SIGTERM (its own orderly shutdown). Both must succeed; returns the peer's JSON report and
 /// dronewatt's stderr.
-pub fn peer_then_stop(dw: std::process::Child, script: &str, args: &[&str]) -> (Value, String) {
+pub fn peer_then_stop(dw: Monitor, script: &str, args: &[&str]) -> (Value, String) {
     let peer = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
         .arg(format!(
             "{}/tests/peers/{script}",
@@ -128,7 +82,7 @@ pub fn peer_then_stop(dw: std::process::Child, script: &str, args: &[&str]) -> (
         .args(args)
         .output()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    let (status, stderr) = stop(dw);
+    let (status, stderr) = dw.stop();
     assert!(
         peer.status.success(),
         "peer failed: {}",
@@ -154,16 +108,15 @@ pub fn fly(config: &str, tcp: bool, plan: &str, peer_args: &[&str]) -> Run {
         free_udp_port()
     };
     let address = format!("{}:127.0.0.1:{port}", if tcp { "tcpin" } else { "udpin" });
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args(["monitor", &address, "-q", "--config"])
-        .arg(&cfg)
-        .arg("--json")
-        .arg(&json)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    wait_listening(port, tcp, &mut dw);
+    let dw = Monitor::listening(
+        dronewatt()
+            .args(["monitor", &address, "-q", "--config"])
+            .arg(&cfg)
+            .arg("--json")
+            .arg(&json),
+        port,
+        tcp,
+    );
     let to = format!("{}:127.0.0.1:{port}", if tcp { "tcp" } else { "udpout" });
     let args: Vec<&str> = ["--to", &to, "--plan", plan]
         .into_iter()
@@ -233,18 +186,6 @@ pub fn expected_estimates(seconds: f64, segments: usize) -> std::ops::RangeInclu
     let full = (seconds * 10.0).round() as usize;
     let lo = full.saturating_sub(segments * 10 + 5 * segments);
     lo..=full + 2 * segments
-}
-
-/// Stop dronewatt with SIGTERM (its own orderly shutdown) and wait: its exit status and its
-/// stderr (the child must have been spawned with a piped stderr).
-pub fn stop(mut dw: std::process::Child) -> (std::process::ExitStatus, String) {
-    let _ = Command::new("kill")
-        .args(["-TERM", &dw.id().to_string()])
-        .status();
-    let status = dw.wait().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut stderr).unwrap();
-    (status, stderr)
 }
 
 /// The names of the models in an `estimate` line's `models` object.

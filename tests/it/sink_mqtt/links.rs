@@ -3,7 +3,7 @@
 //! retained `<prefix>/links/<link>/health` per link on the real Mosquitto, and the
 //! dashboard (headless Chromium) shows a row per link in its links panel.
 
-use std::process::{Command, Stdio};
+use crate::harness::{dronewatt, Monitor};
 use std::time::{Duration, Instant};
 
 use super::{broker, config, retained};
@@ -22,18 +22,16 @@ fn each_link_has_a_retained_health_topic_and_a_row_on_the_dashboard() {
     );
     let ports = [link_common::free_udp_port(), link_common::free_udp_port()];
     let addrs = ports.map(|p| format!("udpin:127.0.0.1:{p}"));
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .arg("monitor")
-        .args(&addrs)
-        .args(["-q", "--data-dir", "off", "--config"])
-        .arg(&cfg)
-        .env("RUST_LOG", "dronewatt=info")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut dw = Monitor::spawn(
+        dronewatt()
+            .arg("monitor")
+            .args(&addrs)
+            .args(["-q", "--data-dir", "off", "--config"])
+            .arg(&cfg)
+            .env("RUST_LOG", "dronewatt=info"),
+    );
     for p in ports {
-        link_common::wait_listening(p, false, &mut dw);
+        dw.wait_listening(p, false);
     }
     // While the vehicle flies: the state endpoint and the page, once both links are heard.
     let page = std::thread::spawn(move || {

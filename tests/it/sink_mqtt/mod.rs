@@ -11,6 +11,7 @@
 //!
 //! Without the broker the tests skip with a message, except under `CI=true`, where they fail.
 
+use crate::harness::{dronewatt, monitor_udp, Monitor, RunExt};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -247,7 +248,7 @@ fn retained(b: &Broker, topics: &[&str]) -> Vec<Msg> {
     for t in topics {
         cmd.args(["-t", t]);
     }
-    let out = cmd.output().unwrap();
+    let out = cmd.out();
     String::from_utf8_lossy(&out.stdout)
         .lines()
         .filter_map(parse)
@@ -272,15 +273,14 @@ fn replay_env(
     env: &[(&str, &str)],
 ) -> (std::process::Output, Duration) {
     let t0 = Instant::now();
-    let out = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    let out = dronewatt()
         .args(["replay", "--speed", "max", "-q", "--json"])
         .arg(json)
         .arg("--config")
         .arg(cfg)
         .arg(file)
         .envs(env.iter().copied())
-        .output()
-        .unwrap();
+        .out();
     let took = t0.elapsed();
     assert!(
         out.status.success(),
@@ -437,18 +437,7 @@ fn the_last_will_says_offline_when_dronewatt_is_killed() {
         .local_addr()
         .unwrap()
         .port();
-    let mut dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{udp}"),
-            "-q",
-            "--config",
-        ])
-        .arg(&cfg)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let dw = Monitor::spawn(monitor_udp(udp).arg("--config").arg(&cfg));
     let until = Instant::now() + Duration::from_secs(20);
     let status = || {
         retained(&b, &["dw/status/victim"])
@@ -462,8 +451,7 @@ fn the_last_will_says_offline_when_dronewatt_is_killed() {
             "dronewatt never announced itself online"
         );
     }
-    dw.kill().unwrap(); // SIGKILL: no chance to say goodbye
-    dw.wait().unwrap();
+    dw.kill(); // SIGKILL: no chance to say goodbye
     let until = Instant::now() + Duration::from_secs(20);
     loop {
         match status() {
@@ -478,17 +466,11 @@ fn a_long_flight_flat_out_is_published_without_drops() {
     let Some(b) = broker() else { return };
     let dir = tempfile::tempdir().unwrap();
     let tlog = dir.path().join("long.tlog");
-    let sim = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
+    dronewatt()
         .args(["simulate", "--out"])
         .arg(&tlog)
         .args(["--leg-m", "4000", "--hover-s", "120"])
-        .output()
-        .unwrap();
-    assert!(
-        sim.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sim.stderr)
-    );
+        .ok();
     let cfg = config(dir.path(), &b, "long", "");
     let sub = Subscriber::start(&b, "dw/#");
     let json = dir.path().join("out.jsonl");

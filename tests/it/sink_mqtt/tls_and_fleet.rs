@@ -2,18 +2,13 @@
 //! (the broker and subscriber helpers are the parent module's).
 
 use super::*;
+use crate::harness::{monitor_udp, Monitor, RunExt};
 
 fn sh(dir: &Path, program: &str, args: &[&str]) {
-    let out = Command::new(find(program).unwrap())
+    Command::new(find(program).unwrap())
         .args(args)
         .current_dir(dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{program} {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .ok();
 }
 
 /// A test CA and a server certificate for 127.0.0.1 signed by it (rustls wants the IP in
@@ -173,7 +168,7 @@ fn tls_with_a_password_from_the_environment_and_a_wrong_password_never_stalls_th
 }
 
 /// `monitor` on a free UDP port with `--vehicles ids`, the MQTT sink on as `instance`.
-fn monitor_fleet(b: &Broker, dir: &Path, instance: &str, ids: &str) -> (Child, u16, PathBuf) {
+fn monitor_fleet(b: &Broker, dir: &Path, instance: &str, ids: &str) -> (Monitor, u16, PathBuf) {
     let cfg = config(dir, b, instance, "");
     let json = dir.join("out.jsonl");
     let port = std::net::UdpSocket::bind("127.0.0.1:0")
@@ -181,27 +176,15 @@ fn monitor_fleet(b: &Broker, dir: &Path, instance: &str, ids: &str) -> (Child, u
         .local_addr()
         .unwrap()
         .port();
-    let dw = Command::new(env!("CARGO_BIN_EXE_dronewatt"))
-        .args([
-            "monitor",
-            &format!("udpin:127.0.0.1:{port}"),
-            "-q",
-            "--vehicles",
-            ids,
-            "--json",
-        ])
-        .arg(&json)
-        .arg("--config")
-        .arg(&cfg)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let until = Instant::now() + Duration::from_secs(60);
-    while std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok() {
-        assert!(Instant::now() < until, "dronewatt never listened on {port}");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let dw = Monitor::listening(
+        monitor_udp(port)
+            .args(["--vehicles", ids, "--json"])
+            .arg(&json)
+            .arg("--config")
+            .arg(&cfg),
+        port,
+        false,
+    );
     (dw, port, json)
 }
 
@@ -212,8 +195,8 @@ fn two_instances_split_one_links_vehicles_and_each_vehicle_is_published_by_one()
     let sub = Subscriber::start(&b, "dw/#");
     // The topology of the README: one link fanned out (here by the peer itself, as
     // mavlink-router would) to two instances, vehicles 1-2 and 3, one broker.
-    let (mut a, pa, ja) = monitor_fleet(&b, da.path(), "gcs-a", "1-2");
-    let (mut c, pc, jc) = monitor_fleet(&b, db.path(), "gcs-b", "3");
+    let (a, pa, ja) = monitor_fleet(&b, da.path(), "gcs-a", "1-2");
+    let (c, pc, jc) = monitor_fleet(&b, db.path(), "gcs-b", "3");
     let vehicles = r#"[{"id": 1, "power_w": 300, "send_s": 6}, {"id": 2, "power_w": 500, "send_s": 6}, {"id": 3, "power_w": 700, "send_s": 6}]"#;
     let peer = Command::new(root().join(".venv-py/bin/python"))
         .arg(root().join("tests/peers/fleet.py"))
@@ -232,13 +215,8 @@ fn two_instances_split_one_links_vehicles_and_each_vehicle_is_published_by_one()
         "peer failed: {}",
         String::from_utf8_lossy(&peer.stderr)
     );
-    for dw in [&mut a, &mut c] {
-        let _ = Command::new("kill")
-            .args(["-TERM", &dw.id().to_string()])
-            .status();
-        let status = dw.wait().unwrap();
-        let mut err = String::new();
-        std::io::Read::read_to_string(dw.stderr.as_mut().unwrap(), &mut err).unwrap();
+    for dw in [a, c] {
+        let (status, err) = dw.stop();
         assert!(status.success(), "dronewatt exited with {status}: {err}");
     }
     let (ea, ec) = (lines_of(&ja, "estimate"), lines_of(&jc, "estimate"));

@@ -86,11 +86,8 @@ pub(crate) struct Scaling {
 
 /// Run `dronewatt train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
-    let data_path = args
-        .data
-        .clone()
-        .unwrap_or_else(dronewatt::default_data_path);
-    let cfg = Config::load_or_default(args.config.as_deref())?;
+    let data_path = args.data.path();
+    let cfg = args.config.load()?;
     let tcfg = &cfg.telemetry;
     tracing::info!(
         "loading flights from {} through the ingest path",

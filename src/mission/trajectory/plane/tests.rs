@@ -40,15 +40,7 @@ fn plan(items: &[Spec]) -> Plan {
                 origin: format!("item {index}"),
                 command,
                 kind,
-                position: at.map(|(n, e, alt_m)| {
-                    let (lat_deg, lon_deg) =
-                        crate::features::frames::offset_ne(HOME.lat_deg, HOME.lon_deg, n, e);
-                    GeoPoint {
-                        lat_deg,
-                        lon_deg,
-                        alt_m,
-                    }
-                }),
+                position: at.map(|(n, e, alt_m)| HOME.offset(n, e, alt_m)),
                 frame: if at.is_some() {
                     AltFrame::Relative
                 } else {

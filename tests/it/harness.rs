@@ -1,0 +1,234 @@
+//! How the tests run the `dronewatt` binary, said once: [`dronewatt`] builds the command,
+//! [`RunExt::ok`] runs it and fails the test with its command line and standard error when it
+//! fails, [`Monitor`] is a spawned long-running `dronewatt` (killed if the test panics), and
+//! [`json_lines`] reads what `--json` wrote.
+#![allow(dead_code)]
+
+use std::ffi::OsStr;
+use std::path::Path;
+use std::process::{Child, Command, ExitStatus, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// The binary under test, with no vehicle store (`DRONEWATT_HOME=off`: a test never reads or
+/// writes the store of the user running it; a test of the store names its own, by
+/// `--data-dir` or `DRONEWATT_HOME` again) and its own default log filter (`RUST_LOG`
+/// pinned, so what a test reads on stderr does not depend on the caller's environment).
+pub fn dronewatt() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
+    c.env("DRONEWATT_HOME", "off")
+        .env("RUST_LOG", "dronewatt=info,warn");
+    c
+}
+
+/// [`dronewatt`] logging warnings and errors only (`RUST_LOG=warn`): for a test that reads
+/// its standard error line by line.
+pub fn quiet() -> Command {
+    let mut c = dronewatt();
+    c.env("RUST_LOG", "warn");
+    c
+}
+
+/// `dronewatt monitor udpin:127.0.0.1:PORT -q`, its other arguments to add; then
+/// [`Monitor::listening`] on `port`.
+pub fn monitor_udp(port: u16) -> Command {
+    let mut c = dronewatt();
+    c.args(["monitor", &format!("udpin:127.0.0.1:{port}"), "-q"]);
+    c
+}
+
+/// `dronewatt ARGS`, run to its end; it must succeed.
+pub fn run(args: &[&str]) -> Output {
+    dronewatt().args(args).ok()
+}
+
+/// `dronewatt ARGS`, run to its end, whatever its exit status.
+pub fn output(args: &[&str]) -> Output {
+    dronewatt().args(args).out()
+}
+
+/// `dronewatt replay --speed max -q --json - ARGS LOG`: every JSON line of the replay.
+pub fn replay_json(log: &Path, args: &[&str]) -> Vec<Value> {
+    let out = dronewatt()
+        .args(["replay", "--speed", "max", "-q", "--json", "-"])
+        .args(args)
+        .arg(log)
+        .ok();
+    json_lines_of(&out.stdout)
+}
+
+/// `dronewatt simulate` of the short X500 delivery the learning tests fly (no payload,
+/// 200 m legs, 20 s hover; seed `seed`, wind `seed + 1` m/s) to `path`, with `extra`
+/// arguments.
+pub fn simulate_x500(path: &Path, seed: u32, extra: &[&str]) {
+    let (seed, wind) = (seed.to_string(), (seed + 1).to_string());
+    dronewatt()
+        .args(["simulate", "--vehicle", "x500", "--payload-g", "0"])
+        .args(["--leg-m", "200", "--hover-s", "20", "--seed", &seed])
+        .args(["--wind-mps", &wind])
+        .args(extra)
+        .arg("--out")
+        .arg(path)
+        .ok();
+}
+
+/// Running a built command to its end.
+pub trait RunExt {
+    /// Its output, whatever its exit status.
+    fn out(&mut self) -> Output;
+    /// Its output; the test fails unless it exits 0, with the command line and its stderr.
+    fn ok(&mut self) -> Output;
+}
+
+impl RunExt for Command {
+    fn out(&mut self) -> Output {
+        self.output()
+            .unwrap_or_else(|e| panic!("cannot run {}: {e}", line(self)))
+    }
+
+    fn ok(&mut self) -> Output {
+        let out = self.out();
+        assert!(
+            out.status.success(),
+            "{} ({}): {}",
+            line(self),
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out
+    }
+}
+
+/// The command line, for a failure message.
+fn line(c: &Command) -> String {
+    std::iter::once(
+        Path::new(c.get_program())
+            .file_name()
+            .unwrap_or(c.get_program()),
+    )
+    .chain(c.get_args())
+    .map(OsStr::to_string_lossy)
+    .collect::<Vec<_>>()
+    .join(" ")
+}
+
+/// Every line of a JSON-lines text (a `--json -` standard output).
+pub fn json_lines_of(text: &[u8]) -> Vec<Value> {
+    String::from_utf8_lossy(text)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}")))
+        .collect()
+}
+
+/// Every line of a JSON-lines file (a `--json FILE`).
+pub fn json_lines(path: &Path) -> Vec<Value> {
+    let text = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    json_lines_of(&text)
+}
+
+/// Wait (60 s at most) until a `--json FILE` holds the summary line, which a replay writes
+/// once every report reached the sinks; the file's text.
+pub fn summary_written(json: &Path) -> String {
+    let start = Instant::now();
+    loop {
+        let t = std::fs::read_to_string(json).unwrap_or_default();
+        if t.contains("\"type\":\"summary\"") {
+            return t;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the replay did not finish"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// A `dronewatt` left running (a `monitor`, a paced `replay`): standard output dropped,
+/// standard error kept for [`Monitor::stop`]. Killed when dropped before it is stopped, so
+/// a failing test leaves no process behind.
+pub struct Monitor {
+    child: Option<Child>,
+}
+
+impl Monitor {
+    /// Start `cmd` (a [`dronewatt`] with its arguments).
+    pub fn spawn(cmd: &mut Command) -> Monitor {
+        let child = cmd
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {}: {e}", line(cmd)));
+        Monitor { child: Some(child) }
+    }
+
+    /// Start `cmd` and wait until it holds `port` (`tcp`: a connect succeeds; UDP: our bind
+    /// fails), so no frame a peer sends is lost to a socket not bound yet.
+    pub fn listening(cmd: &mut Command, port: u16, tcp: bool) -> Monitor {
+        let mut m = Monitor::spawn(cmd);
+        m.wait_listening(port, tcp);
+        m
+    }
+
+    /// Wait until it holds `port` (see [`Monitor::listening`]); fails the test with its
+    /// stderr if it exits first, or after 60 s.
+    pub fn wait_listening(&mut self, port: u16, tcp: bool) {
+        let start = Instant::now();
+        loop {
+            let up = if tcp {
+                std::net::TcpStream::connect(("127.0.0.1", port)).is_ok()
+            } else {
+                std::net::UdpSocket::bind(("127.0.0.1", port)).is_err()
+            };
+            if up {
+                return;
+            }
+            let child = self.child.as_mut().unwrap();
+            if let Ok(Some(status)) = child.try_wait() {
+                let mut err = String::new();
+                let _ = std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err);
+                panic!("dronewatt exited with {status} before listening: {err}");
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "dronewatt never listened on port {port}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// Its process id.
+    pub fn id(&self) -> u32 {
+        self.child.as_ref().unwrap().id()
+    }
+
+    /// Stop it with SIGTERM (its own orderly shutdown) and wait: its exit status and stderr.
+    pub fn stop(mut self) -> (ExitStatus, String) {
+        let mut child = self.child.take().unwrap();
+        let _ = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status();
+        let status = child.wait().unwrap();
+        let mut stderr = String::new();
+        std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+        (status, stderr)
+    }
+}
+
+impl Monitor {
+    /// Kill it (SIGKILL: no chance to say goodbye) and wait.
+    pub fn kill(mut self) {
+        let mut child = self.child.take().unwrap();
+        child.kill().unwrap();
+        child.wait().unwrap();
+    }
+}
+
+impl Drop for Monitor {
+    fn drop(&mut self) {
+        if let Some(mut child) = self.child.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+}
