@@ -6,7 +6,7 @@ itself (hidden `dronewatt train --export-csv FILE`: each window's newest sample 
 copies lagged 1, 3 and 9 samples, built by the same loader the LSTM trains on), the
 test flights (268-273, 276-279) are only scored, ground tests (routes A*) are left out.
 
-    python3 -m venv /tmp/venv-lgbm && /tmp/venv-lgbm/bin/pip install lightgbm pandas
+    python3 -m venv /tmp/venv-lgbm && /tmp/venv-lgbm/bin/pip install lightgbm pandas scikit-learn
     target/debug/dronewatt train --export-csv /tmp/windows.csv
 
 (The CSV's `fold` column, the flight's cross-validation fold, is not a feature:
