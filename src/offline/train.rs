@@ -70,7 +70,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub grid: bool,
     /// K-fold by-flight cross-validation of the setting(s) before the final run (0: none).
-    /// The folds are [`crate::offline::data::cv_folds`] of the training pool and `--seed`.
+    /// The folds: `offline::data::cv_folds` of the training pool and `--seed`.
     #[arg(long, default_value_t = 0)]
     pub cv: usize,
     /// Use only these flights (comma-separated) for training/validation; test flights
