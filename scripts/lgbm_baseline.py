@@ -6,8 +6,11 @@ itself (hidden `dronewatt train --export-csv FILE`: each window's newest sample 
 copies lagged 1, 3 and 9 samples, built by the same loader the LSTM trains on), the
 test flights (268-273, 276-279) are only scored, ground tests (routes A*) are left out.
 
-    python3 -m venv /tmp/venv-lgbm && /tmp/venv-lgbm/bin/pip install lightgbm pandas
+    python3 -m venv /tmp/venv-lgbm && /tmp/venv-lgbm/bin/pip install lightgbm pandas scikit-learn
     target/debug/dronewatt train --export-csv /tmp/windows.csv
+
+(The CSV's `fold` column, the flight's cross-validation fold, is not a feature:
+`scripts/lgbm_cv.py` tunes on those folds.)
     /tmp/venv-lgbm/bin/python scripts/lgbm_baseline.py /tmp/windows.csv [TARGET_LAG]
 
 TARGET_LAG (samples, default 0) scores the estimate against the measured power that many
@@ -27,7 +30,7 @@ IN_FLIGHT_W = 100.0  # same threshold as the LSTM's in-flight MAPE
 
 def main(path, lag=0):
     df = pd.read_csv(path)
-    feats = [c for c in df.columns if c not in ("flight", "route", "test", "t_s", "measured_w")]
+    feats = [c for c in df.columns if c not in ("flight", "route", "test", "fold", "t_s", "measured_w")]
     if lag:
         g = df.groupby("flight")
         target, t_back = g.measured_w.shift(lag), g.t_s.shift(lag)

@@ -177,3 +177,127 @@ pub fn sha256_file(path: &Path) -> anyhow::Result<String> {
 
 /// The test flights of Choudhry et al. (ICRA 2021): never trained or validated on.
 pub const TEST_FLIGHTS: [u32; 10] = [268, 269, 270, 271, 272, 273, 276, 277, 278, 279];
+
+/// The flights that train and validate: every flight that is not a test flight
+/// ([`TEST_FLIGHTS`]), not a ground test (routes `A*`: no GPS, motors in odd states), and
+/// has at least one window whose target sample (`target_lag` before the newest) carries a
+/// measured power. In the order of `flights`.
+pub fn training_pool(flights: &[FlightWindows], target_lag: usize) -> Vec<u32> {
+    flights
+        .iter()
+        .filter(|f| {
+            !TEST_FLIGHTS.contains(&f.flight)
+                && !f.route.starts_with('A')
+                && f.windows
+                    .iter()
+                    .any(|w| w.back(target_lag).measured_w.is_some_and(f32::is_finite))
+        })
+        .map(|f| f.flight)
+        .collect()
+}
+
+/// The number of folds `--cv K` gives over a pool of `n` flights: at least 2, at most `n`.
+pub fn cv_k(k: usize, n: usize) -> usize {
+    k.max(2).min(n)
+}
+
+/// K-fold by-flight cross-validation folds: `(flight, fold)` for every flight of `pool`,
+/// sorted by flight, folds `0..k`.
+///
+/// The pool (in the order given, as [`training_pool`] returns it) is shuffled by a
+/// [`rand::rngs::StdRng`] seeded `seed ^ 0x5eed`, and the flight at shuffled position `i`
+/// goes to fold `i % k`, so fold sizes differ by at most one. `k` is taken through
+/// [`cv_k`]. These are the folds `dronewatt train --cv K --seed S` validates the LSTM on,
+/// and the `fold` column `dronewatt train --export-csv` writes for the LightGBM scripts:
+/// both sides of the comparison hold out the same flights.
+pub fn cv_folds(pool: &[u32], k: usize, seed: u64) -> Vec<(u32, usize)> {
+    use rand::seq::SliceRandom;
+    use rand::SeedableRng;
+    let k = cv_k(k, pool.len());
+    let mut shuffled = pool.to_vec();
+    shuffled.shuffle(&mut rand::rngs::StdRng::seed_from_u64(seed ^ 0x5eed));
+    let mut folds: Vec<(u32, usize)> = shuffled
+        .into_iter()
+        .enumerate()
+        .map(|(i, f)| (f, i % k.max(1)))
+        .collect();
+    folds.sort_unstable();
+    folds
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fold assignment `cross_validate` did inline before [`cv_folds`] (kept verbatim
+    /// as the reference: the LSTM's CV figures were computed on these folds).
+    fn legacy_folds(pool: &[u32], cv: usize, seed: u64) -> Vec<Vec<u32>> {
+        use rand::seq::SliceRandom;
+        use rand::SeedableRng;
+        let k = cv.max(2).min(pool.len());
+        let mut shuffled = pool.to_vec();
+        shuffled.shuffle(&mut rand::rngs::StdRng::seed_from_u64(seed ^ 0x5eed));
+        (0..k)
+            .map(|fold| {
+                let mut val: Vec<u32> = shuffled
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| i % k == fold)
+                    .map(|(_, f)| *f)
+                    .collect();
+                val.sort_unstable();
+                val
+            })
+            .collect()
+    }
+
+    fn grouped(folds: &[(u32, usize)]) -> Vec<Vec<u32>> {
+        let k = folds.iter().map(|(_, k)| k + 1).max().unwrap_or(0);
+        (0..k)
+            .map(|fold| {
+                folds
+                    .iter()
+                    .filter(|(_, g)| *g == fold)
+                    .map(|(f, _)| *f)
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn cv_folds_match_the_legacy_assignment_and_cover_the_pool_once() {
+        let pool: Vec<u32> = (1..=150).chain(160..=267).chain(280..=300).collect();
+        for seed in [0, 7, 42] {
+            for k in [0, 2, 3, 5, 10] {
+                let folds = cv_folds(&pool, k, seed);
+                assert_eq!(
+                    grouped(&folds),
+                    legacy_folds(&pool, k, seed),
+                    "k {k} seed {seed}"
+                );
+                let mut flights: Vec<u32> = folds.iter().map(|(f, _)| *f).collect();
+                flights.dedup();
+                assert_eq!(flights, pool, "every flight exactly once, sorted");
+                let sizes: Vec<usize> = grouped(&folds).iter().map(Vec::len).collect();
+                assert_eq!(sizes.len(), cv_k(k, pool.len()));
+                let (lo, hi) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
+                assert!(hi - lo <= 1, "balanced: {sizes:?}");
+            }
+        }
+        assert_ne!(
+            cv_folds(&pool, 5, 7),
+            cv_folds(&pool, 5, 8),
+            "the seed matters"
+        );
+        assert_eq!(cv_folds(&[3, 1], 5, 7).len(), 2, "k clamped to the pool");
+    }
+
+    /// Pinned: the documented CV figures (LightGBM's `lgbm-cv.json`) were computed on these
+    /// folds; a change here (a new `rand`, a new rule) changes which flights are held out.
+    #[test]
+    fn cv_folds_are_pinned() {
+        let pool: Vec<u32> = (1..=12).collect();
+        let got: Vec<usize> = cv_folds(&pool, 5, 7).iter().map(|(_, k)| *k).collect();
+        assert_eq!(got, [1, 2, 0, 0, 0, 2, 3, 4, 1, 4, 3, 1]);
+    }
+}

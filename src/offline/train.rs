@@ -74,6 +74,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub grid: bool,
     /// K-fold by-flight cross-validation of the setting(s) before the final run (0: none).
+    /// The folds: `offline::data::cv_folds` of the training pool and `--seed`.
     #[arg(long, default_value_t = 0)]
     pub cv: usize,
     /// Use only these flights (comma-separated) for training/validation; test flights
@@ -123,7 +124,9 @@ pub struct TrainArgs {
     #[arg(long, hide = true)]
     pub score_only: bool,
     /// Write every window (newest sample + lagged copies) to this CSV and stop: the
-    /// LightGBM baseline reads features exactly as the models do.
+    /// LightGBM baseline reads features exactly as the models do. Its `fold` column is the
+    /// flight's fold of `--cv K --seed S` (K = 5 when `--cv` is not given; -1: not in the
+    /// training pool, e.g. a test flight), so LightGBM is tuned on the LSTM's folds.
     #[arg(long, hide = true, value_name = "FILE")]
     pub export_csv: Option<PathBuf>,
 }

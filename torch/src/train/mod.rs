@@ -29,7 +29,9 @@ use dronewatt::model::card::{FeatureSet, Metrics, ModelCard, TrainingInfo, Weigh
 use dronewatt::model::lstm::{push_inputs, LstmModel};
 use dronewatt::model::Ensemble;
 use dronewatt::offline::chain::Chain;
-use dronewatt::offline::data::{load_flights, sha256_file, FlightWindows, TEST_FLIGHTS};
+use dronewatt::offline::data::{
+    cv_folds, cv_k, load_flights, sha256_file, training_pool, FlightWindows, TEST_FLIGHTS,
+};
 use dronewatt::offline::metrics::conformal_widening;
 use dronewatt::offline::train::{TrainArgs, BAND_Q};
 
@@ -120,22 +122,20 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         return score_model_dir(&args.out, &data_path, &cfg).map(|_| ());
     }
     if let Some(csv) = &args.export_csv {
-        return export_csv(&flights, csv, tcfg.window);
+        // The folds `--cv K --seed S` (K = 5 when not given) would validate on, as a
+        // column: the LightGBM scripts tune on the same held-out flights.
+        let k = if args.cv == 0 { 5 } else { args.cv };
+        let folds = cv_folds(&training_pool(&flights, args.target_lag), k, args.seed);
+        return export_csv(&flights, csv, tcfg.window, &folds);
     }
     let t = tcfg.window;
     let per_flight: BTreeMap<u32, FlightData> = flights
         .iter()
         .map(|f| (f.flight, flight_data(f, args.features, t, args.target_lag)))
         .collect();
-    let pool: Vec<u32> = flights
-        .iter()
-        .filter(|f| {
-            !TEST_FLIGHTS.contains(&f.flight)
-                && !f.route.starts_with('A')
-                && !per_flight[&f.flight].y.is_empty()
-        })
-        .map(|f| f.flight)
-        .collect();
+    // Flights whose windows carry a measured power at the target lag: exactly those whose
+    // `per_flight` targets are not empty.
+    let pool = training_pool(&flights, args.target_lag);
     anyhow::ensure!(
         args.target_lag < t,
         "--target-lag {} must be below the window length {t}",
@@ -359,7 +359,7 @@ fn cross_validate(
     t: usize,
     device: Device,
 ) -> anyhow::Result<Hyper> {
-    let k = args.cv.max(2).min(pool.len());
+    let k = cv_k(args.cv, pool.len());
     let settings: Vec<Hyper> = if args.grid {
         let mut v = Vec::new();
         for dropout in [0.2, 0.5] {
@@ -373,26 +373,20 @@ fn cross_validate(
     } else {
         vec![base]
     };
-    let mut shuffled = pool.to_vec();
-    shuffled.shuffle(&mut rand::rngs::StdRng::seed_from_u64(args.seed ^ 0x5eed));
+    // The shared fold assignment (also the `fold` column of `--export-csv`).
+    let folds = cv_folds(pool, k, args.seed);
     let mut rows = Vec::new();
     for (si, hp) in settings.iter().enumerate() {
         let (mut maes, mut rmses) = (Vec::new(), Vec::new());
         for fold in 0..k {
-            let mut val: Vec<u32> = shuffled
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| i % k == fold)
-                .map(|(_, f)| *f)
-                .collect();
-            let mut train: Vec<u32> = shuffled
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| i % k != fold)
-                .map(|(_, f)| *f)
-                .collect();
-            val.sort_unstable();
-            train.sort_unstable();
+            let pick = |held_out: bool| -> Vec<u32> {
+                folds
+                    .iter()
+                    .filter(|(_, g)| (*g == fold) == held_out)
+                    .map(|(f, _)| *f)
+                    .collect()
+            };
+            let (val, train) = (pick(true), pick(false));
             let label = format!(
                 "setting {}/{} fold {}/{}",
                 si + 1,

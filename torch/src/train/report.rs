@@ -145,7 +145,14 @@ pub(super) fn plot_flight(s: &FlightSeries, path: &Path) -> anyhow::Result<()> {
 const EXPORT_LAGS: [usize; 3] = [1, 3, 9];
 
 /// Write each window's newest sample and lagged copies to a CSV for the LightGBM baseline.
-pub(super) fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> anyhow::Result<()> {
+/// `folds` ([`dronewatt::offline::data::cv_folds`]) fill the `fold` column; flights outside
+/// them get -1.
+pub(super) fn export_csv(
+    flights: &[FlightWindows],
+    path: &Path,
+    t: usize,
+    folds: &[(u32, usize)],
+) -> anyhow::Result<()> {
     use std::io::Write;
     let file = std::fs::File::create(path)
         .with_context(|| format!("{}: cannot create", path.display()))?;
@@ -154,6 +161,7 @@ pub(super) fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> an
         "flight".to_string(),
         "route".into(),
         "test".into(),
+        "fold".into(),
         "t_s".into(),
         "measured_w".into(),
     ];
@@ -170,6 +178,11 @@ pub(super) fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> an
     let mut rows = 0usize;
     for f in flights {
         let test = TEST_FLIGHTS.contains(&f.flight) as u8;
+        // -1: outside the training pool (a test flight, a ground test, no measured power).
+        let fold = folds
+            .iter()
+            .find(|(g, _)| *g == f.flight)
+            .map_or(-1, |(_, k)| *k as i64);
         for win in &f.windows {
             let Some(p) = win.last().measured_w.filter(|p| p.is_finite()) else {
                 continue;
@@ -180,10 +193,11 @@ pub(super) fn export_csv(flights: &[FlightWindows], path: &Path, t: usize) -> an
             }
             write!(
                 w,
-                "{},{},{},{:.2},{:.3}",
+                "{},{},{},{},{:.2},{:.3}",
                 f.flight,
                 f.route,
                 test,
+                fold,
                 win.t_s(),
                 p
             )?;
