@@ -32,6 +32,8 @@ pub(crate) struct ModelRaw {
     pub(crate) first_wh: Terms,
     pub(crate) rest_wh: Terms,
     pub(crate) planned_left_s: f64,
+    /// The uncorrected P50 energy of each trajectory sample, Wh (`plan-eval --dump-live`).
+    pub(crate) sample_wh: Vec<f64>,
 }
 
 /// A forecast's energy split into what the calibration weighs ([`Calibration`]'s weights):
@@ -46,6 +48,9 @@ pub(crate) fn dot5(a: &Terms, b: &Terms) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// How far ahead on the plan the live point is searched for from one row to the next, s.
+pub(crate) const LOCATE_HORIZON_S: f64 = 15.0;
+
 /// Inputs of one flight kept for fitting.
 pub(crate) struct Prepared {
     pub(crate) flight: u32,
@@ -59,6 +64,8 @@ pub(crate) struct Prepared {
     pub(crate) measured_s: f64,
     pub(crate) measured_wh: f64,
     pub(crate) traj: Trajectory,
+    /// The plan's home, where the rows' positions are measured from.
+    pub(crate) home: crate::mission::plan::GeoPoint,
     /// Per model, uncorrected.
     pub(crate) raw: Vec<ModelRaw>,
     /// Live: the trajectory sample reached at half time, energy measured so far, energy
@@ -70,6 +77,10 @@ pub(crate) struct Prepared {
     /// Energy measured from take-off (first row above `AIRBORNE_W`) to the live point, Wh.
     pub(crate) live_airborne_so_far_wh: f64,
     pub(crate) live_rest_wh: f64,
+    /// Rows of the recording: first airborne, half time (the live point), last airborne.
+    pub(crate) live_rows: [usize; 3],
+    /// Measured energy from the recording's start to each row, Wh.
+    pub(crate) cum_wh: Vec<f64>,
     pub(crate) live_mean_w: f64,
     pub(crate) airborne_s: f64,
     pub(crate) live_t_s: f64,
@@ -126,7 +137,7 @@ pub(crate) fn prepare(
     let ih = rows.iter().position(|r| r.time_s >= t_half).unwrap_or(i1);
     let home = plan.home;
     let mut k = 0usize;
-    let horizon = (15.0 / traj.dt_s) as usize;
+    let horizon = (LOCATE_HORIZON_S / traj.dt_s) as usize;
     for r in &rows[i0..=ih] {
         let (e, n) = enu_of(&home, r.lat_deg, r.lon_deg);
         k = traj.locate(
@@ -142,9 +153,11 @@ pub(crate) fn prepare(
         .map(|fc| {
             let (mut first_wh, mut rest_wh) = ([0.0; 5], [0.0; 5]);
             let mut prev = 0.0;
+            let mut sample_wh = Vec::with_capacity(fc.cum_p50_wh.len());
             for (j, &c) in fc.cum_p50_wh.iter().enumerate() {
                 let e = c - prev;
                 prev = c;
+                sample_wh.push(e);
                 let ph = phase_of(&traj.samples[j]);
                 let x = if j <= k { &mut first_wh } else { &mut rest_wh };
                 x[ph] += e;
@@ -159,6 +172,7 @@ pub(crate) fn prepare(
                 first_wh,
                 rest_wh,
                 planned_left_s: fc.remaining_from(k, None, 0.0).time_s,
+                sample_wh,
             }
         })
         .collect();
@@ -187,12 +201,15 @@ pub(crate) fn prepare(
         measured_s: rows.last().map_or(0.0, |r| r.time_s),
         measured_wh,
         traj,
+        home,
         raw,
         live_k: k,
         live_gcs_left_s: gcs_left,
         live_so_far_wh: so_far,
         live_airborne_so_far_wh: cum[ih] - cum[i0],
         live_rest_wh: measured_wh - so_far,
+        live_rows: [i0, ih, i1],
+        cum_wh: cum,
         live_mean_w,
         airborne_s: air_s,
         live_t_s: span,

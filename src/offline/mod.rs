@@ -10,6 +10,7 @@ pub mod data;
 pub mod eval;
 pub mod forecast_fit;
 pub mod learn;
+pub mod live_dump;
 pub mod metrics;
 pub mod plan;
 pub mod plan_eval;

@@ -60,6 +60,10 @@ pub struct PlanEvalArgs {
     /// Plan every flight in calm air instead of the anemometer's pre-take-off wind.
     #[arg(long)]
     pub no_ground_wind: bool,
+    /// Also write, per training flight (never a test flight), what the live-correction
+    /// analysis reads (`scripts/mission/lab_live.py`) as JSON into this directory.
+    #[arg(long, hide = true, value_name = "DIR")]
+    pub dump_live: Option<std::path::PathBuf>,
     #[command(flatten)]
     pub forecast: ForecastArgs,
 }
@@ -375,6 +379,8 @@ pub struct PlanEvalOptions {
     pub train: Option<Vec<u32>>,
     /// Plan with the pre-take-off anemometer wind.
     pub ground_wind: bool,
+    /// Write the training flights' live-correction dump here ([`crate::offline::live_dump`]).
+    pub dump_live: Option<std::path::PathBuf>,
 }
 
 /// Run the evaluation (see the module docs).
@@ -472,6 +478,15 @@ pub fn plan_eval(
     };
     let train_scores = scores(&cal, &prepared_train);
     let test_scores = scores(&cal, &prepared_test);
+    if let Some(dir) = &opt.dump_live {
+        crate::offline::live_dump::dump_live(
+            dir,
+            &ds.flights,
+            &prepared_train,
+            &train_scores,
+            &cal,
+        )?;
+    }
     // each member alone: the member as the fit made it, with its own P90 ratio and live weight
     let members_alone = if cal.members.len() > 1 {
         cal.members
@@ -640,6 +655,7 @@ pub fn run_plan_eval(a: PlanEvalArgs) -> anyhow::Result<()> {
         test: a.flights.clone(),
         train: a.train.clone(),
         ground_wind: !a.no_ground_wind,
+        dump_live: a.dump_live.clone(),
     };
     let r = plan_eval(&data, &cfg, &mut models, &opt)?;
     a.forecast.json.publish(&r, || eval_table(&r))

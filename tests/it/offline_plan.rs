@@ -222,12 +222,28 @@ fn plan_eval_on_a_subset_forecasts_r1_flights_within_loose_bounds() {
     let mut models = dronewatt::offline::eval::eval_models(&cfg, Some(&cal)).unwrap();
     // training: 40 R1 flights spread over the season, and flight 275 (the day of 276/277)
     let train: Vec<u32> = (100..=275).filter(|f| f % 4 == 0 || *f == 275).collect();
+    let dump = tempfile::tempdir().unwrap();
     let opt = PlanEvalOptions {
         test: Some(vec![276, 277]),
         train: Some(train),
         ground_wind: true,
+        dump_live: Some(dump.path().to_path_buf()),
     };
     let r = plan_eval(&data, &cfg, &mut models, &opt).unwrap();
+    // --dump-live: one file per training flight and the calibration, never a test flight
+    let mut dumped: Vec<String> = std::fs::read_dir(dump.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    dumped.sort();
+    let mut want: Vec<String> = r
+        .training_flights
+        .iter()
+        .map(|f| format!("{f}.json"))
+        .chain(["calibration.json".to_string()])
+        .collect();
+    want.sort();
+    assert_eq!(dumped, want, "training flights only");
     assert!(r.training_flights.len() >= 30, "{:?}", r.training_flights);
     assert!(
         !r.training_flights.contains(&276) && !r.training_flights.contains(&277),
