@@ -379,10 +379,12 @@ def lgbm_cv(r):
     md += ("\nThe LSTM's row on these folds is still to be run (5 fits of about 12 min each on one core, "
            "plus the final fit): `dronewatt train --cv 5 --seed 7 --features home --target-lag 3 --dropout 0.5 "
            "--lr 1e-3 --batch 128 --epochs 60 --stride 4 --val-frac 0.12 --patience 6 --threads 1 --out "
-           "out/lstm-cv` writes its mean fold MAE and RMSE to `out/lstm-cv/cv.csv`. Its fold figures are "
-           "not yet comparable with these: `cross_validate` keeps each fold's best epoch on that fold's own "
-           "flights (early stopping on the held-out fold) and scores every 2nd window, and it reports "
-           "neither MAPE nor energy error.\n")
+           "out/lstm-cv` writes figures comparable with these to `out/lstm-cv/cv.csv`: each fold's network "
+           "is early-stopped on an inner validation split of that fold's training flights (`--val-frac`, by "
+           "flight, seeded), never on the held-out fold, and the held-out flights are scored as the model "
+           "card scores the test flights, every window through the live chain: MAE and RMSE over the "
+           "fold's windows, in-flight MAPE, energy error, per fold and as mean and median. It has not "
+           "been run yet (no GPU was at hand, and on one core it is the hour above).\n")
     return md
 
 

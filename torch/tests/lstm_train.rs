@@ -175,3 +175,82 @@ fn live_forward_matches_libtorch_on_shipped_weights() {
         );
     }
 }
+
+/// `train --cv 2` on four flights, a few steps a fit: every fold's held-out flights are
+/// scored through the live chain, and `cv.csv` carries the held-out MAE, in-flight MAPE and
+/// energy error (mean, median, per fold), all finite. CPU only.
+#[test]
+fn smoke_cross_validation_scores_held_out_folds() {
+    let out = tempfile::tempdir().unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
+        .args([
+            "train",
+            "--flights",
+            "100,150,200,201",
+            "--cv",
+            "2",
+            "--stride",
+            "8",
+            "--epochs",
+            "2",
+            "--patience",
+            "2",
+            "--max-steps",
+            "20",
+        ])
+        .args([
+            "--hidden",
+            "8",
+            "--batch",
+            "64",
+            "--seed",
+            "3",
+            "--val-frac",
+            "0.5",
+            "--threads",
+            "1",
+        ])
+        .arg("--data")
+        .arg(dronewatt::default_data_path())
+        .arg("--out")
+        .arg(out.path())
+        .env("CUDA_VISIBLE_DEVICES", "")
+        .status()
+        .unwrap();
+    assert!(status.success(), "dronewatt train --cv 2 failed");
+    let csv = std::fs::read_to_string(out.path().join("cv.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let row: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header.len(), row.len(), "{csv}");
+    let cell = |name: &str| row[header.iter().position(|h| *h == name).unwrap()];
+    for name in [
+        "avg_mae_w",
+        "median_mae_w",
+        "avg_rmse_w",
+        "avg_mape_in_flight_pct",
+        "median_mape_in_flight_pct",
+        "avg_energy_error_pct",
+        "median_energy_error_pct",
+    ] {
+        let v: f64 = cell(name).parse().unwrap();
+        assert!(v.is_finite() && v >= 0.0, "{name} = {v}\n{csv}");
+    }
+    for name in [
+        "fold_mae_w",
+        "fold_mape_in_flight_pct",
+        "fold_energy_error_pct",
+        "fold_inner_val_mae_w",
+    ] {
+        let v: Vec<f64> = cell(name).split(';').map(|x| x.parse().unwrap()).collect();
+        assert_eq!(v.len(), 2, "{name}: one value per fold\n{csv}");
+        assert!(v.iter().all(|x| x.is_finite()), "{name}: {v:?}\n{csv}");
+    }
+    // Two folds of two flights: each held out once, never both in one fold.
+    let held: Vec<&str> = cell("fold_held_out").split(';').collect();
+    assert_eq!(held.len(), 2, "{csv}");
+    assert!(
+        !out.path().join(".cv-fold").exists(),
+        "the fold scratch folder is removed"
+    );
+}

@@ -30,13 +30,15 @@ use dronewatt::model::lstm::{push_inputs, LstmModel};
 use dronewatt::model::Ensemble;
 use dronewatt::offline::chain::Chain;
 use dronewatt::offline::data::{
-    cv_folds, cv_k, load_flights, sha256_file, training_pool, FlightWindows, TEST_FLIGHTS,
+    cv_folds, load_flights, sha256_file, training_pool, FlightWindows, TEST_FLIGHTS,
 };
 use dronewatt::offline::metrics::conformal_widening;
 use dronewatt::offline::train::{TrainArgs, BAND_Q};
+use dronewatt::telemetry::TelemetryConfig;
 
 use crate::Net;
 
+mod cv;
 mod report;
 use report::{export_csv, plot_flight, write_curve, write_test_table};
 pub use report::{score, FlightScore};
@@ -74,7 +76,6 @@ struct RunOutcome {
     curve: Vec<CurvePoint>,
     best_epoch: usize,
     best_val_mae_w: f64,
-    best_val_rmse_w: f64,
     steps: usize,
 }
 
@@ -162,19 +163,18 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         batch: args.batch,
     };
     let chosen = if args.grid || args.cv > 0 {
-        cross_validate(&args, &pool, &per_flight, base, t, device)?
+        let data = cv::FoldData {
+            flights: &flights,
+            per_flight: &per_flight,
+            cfg: &cfg,
+        };
+        cv::cross_validate(&args, &pool, &data, base, t, device)?
     } else {
         base
     };
 
     // Final run: seeded by-flight split of the pool into training and validation flights.
-    let mut shuffled = pool.clone();
-    shuffled.shuffle(&mut rand::rngs::StdRng::seed_from_u64(args.seed));
-    let n_val = ((pool.len() as f64 * args.val_frac).round() as usize).clamp(1, pool.len() - 1);
-    let mut val_flights: Vec<u32> = shuffled[..n_val].to_vec();
-    let mut train_flights: Vec<u32> = shuffled[n_val..].to_vec();
-    val_flights.sort_unstable();
-    train_flights.sort_unstable();
+    let (train_flights, val_flights) = split_by_flight(&pool, args.val_frac, args.seed);
     let started = Instant::now();
     let (scaling, outcome, n_train) = train_split(
         &args,
@@ -194,46 +194,28 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         .vs
         .save(args.out.join(weights))
         .with_context(|| format!("{}: cannot save weights", args.out.display()))?;
-    let card = ModelCard {
-        format: 1,
-        name: "lstm".into(),
-        weights: weights.into(),
-        weights_format: WeightsFormat::Safetensors,
-        feature_set: args.features,
-        feature_names: args.features.names(),
-        rate_hz: tcfg.rate_hz,
-        window: t,
-        feature_mean: scaling.mean,
-        feature_std: scaling.std,
-        power_scale_w: scaling.power_scale_w,
-        target_lag: args.target_lag,
-        band_quantiles: BAND_Q,
-        band_widen_w: 0.0,
-        hidden: args.hidden,
-        layers: 2,
-        training: TrainingInfo {
-            data_file: data_path
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default(),
-            data_sha256: sha256_file(&data_path)?,
-            loader: "ingest".into(),
-            seed: args.seed,
-            dropout: chosen.dropout,
-            learning_rate: chosen.lr,
-            batch_size: chosen.batch,
-            epochs_run: outcome.curve.len(),
-            best_epoch: outcome.best_epoch,
-            steps: outcome.steps,
-            stride: args.stride,
-            train_windows: n_train,
-            train_flights,
-            validation_flights: val_flights,
-            train_time_s,
-            device: format!("{device:?}"),
-        },
-        metrics: None,
+    let data_file = data_path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let fit = Fit {
+        hp: chosen,
+        scaling,
+        outcome: &outcome,
+        n_train,
+        train_flights,
+        val_flights,
+        train_time_s,
+        device,
     };
+    let card = model_card(
+        &args,
+        tcfg,
+        fit,
+        weights,
+        data_file,
+        sha256_file(&data_path)?,
+    );
     let card_path = args.out.join("card.toml");
     card.save(&card_path)?;
 
@@ -244,6 +226,80 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         train_time_s
     );
     Ok(())
+}
+
+/// A trained network and how it was trained, for its [`ModelCard`].
+pub(crate) struct Fit<'a> {
+    hp: Hyper,
+    scaling: Scaling,
+    outcome: &'a RunOutcome,
+    n_train: usize,
+    train_flights: Vec<u32>,
+    val_flights: Vec<u32>,
+    train_time_s: f64,
+    device: Device,
+}
+
+/// The card of `fit`'s network, its weights in `weights` beside it (no metrics yet).
+fn model_card(
+    args: &TrainArgs,
+    tcfg: &TelemetryConfig,
+    fit: Fit,
+    weights: &str,
+    data_file: String,
+    data_sha256: String,
+) -> ModelCard {
+    ModelCard {
+        format: 1,
+        name: "lstm".into(),
+        weights: weights.into(),
+        weights_format: WeightsFormat::Safetensors,
+        feature_set: args.features,
+        feature_names: args.features.names(),
+        rate_hz: tcfg.rate_hz,
+        window: tcfg.window,
+        feature_mean: fit.scaling.mean,
+        feature_std: fit.scaling.std,
+        power_scale_w: fit.scaling.power_scale_w,
+        target_lag: args.target_lag,
+        band_quantiles: BAND_Q,
+        band_widen_w: 0.0,
+        hidden: args.hidden,
+        layers: 2,
+        training: TrainingInfo {
+            data_file,
+            data_sha256,
+            loader: "ingest".into(),
+            seed: args.seed,
+            dropout: fit.hp.dropout,
+            learning_rate: fit.hp.lr,
+            batch_size: fit.hp.batch,
+            epochs_run: fit.outcome.curve.len(),
+            best_epoch: fit.outcome.best_epoch,
+            steps: fit.outcome.steps,
+            stride: args.stride,
+            train_windows: fit.n_train,
+            train_flights: fit.train_flights,
+            validation_flights: fit.val_flights,
+            train_time_s: fit.train_time_s,
+            device: format!("{:?}", fit.device),
+        },
+        metrics: None,
+    }
+}
+
+/// Seeded by-flight split of `pool` into training and validation flights (each sorted):
+/// `val_frac` of the flights, rounded, at least one and never all. `pool` must hold at least
+/// two flights.
+pub(crate) fn split_by_flight(pool: &[u32], val_frac: f64, seed: u64) -> (Vec<u32>, Vec<u32>) {
+    let mut shuffled = pool.to_vec();
+    shuffled.shuffle(&mut rand::rngs::StdRng::seed_from_u64(seed));
+    let n_val = ((pool.len() as f64 * val_frac).round() as usize).clamp(1, pool.len().max(2) - 1);
+    let mut val: Vec<u32> = shuffled[..n_val.min(pool.len())].to_vec();
+    let mut train: Vec<u32> = shuffled[n_val.min(pool.len())..].to_vec();
+    val.sort_unstable();
+    train.sort_unstable();
+    (train, val)
 }
 
 /// Score the model in `dir`, loaded the way the binary loads it, on the test flights the
@@ -347,86 +403,6 @@ pub(crate) fn flight_data(f: &FlightWindows, set: FeatureSet, t: usize, lag: usi
         }
     }
     d
-}
-
-/// By-flight K-fold cross-validation of every setting asked for (the grid or the one
-/// given); writes `cv.csv` and prints the paper's Table 1; returns the best setting.
-fn cross_validate(
-    args: &TrainArgs,
-    pool: &[u32],
-    per_flight: &BTreeMap<u32, FlightData>,
-    base: Hyper,
-    t: usize,
-    device: Device,
-) -> anyhow::Result<Hyper> {
-    let k = cv_k(args.cv, pool.len());
-    let settings: Vec<Hyper> = if args.grid {
-        let mut v = Vec::new();
-        for dropout in [0.2, 0.5] {
-            for lr in [1e-2, 1e-3, 1e-4] {
-                for batch in [64, 128] {
-                    v.push(Hyper { dropout, lr, batch });
-                }
-            }
-        }
-        v
-    } else {
-        vec![base]
-    };
-    // The shared fold assignment (also the `fold` column of `--export-csv`).
-    let folds = cv_folds(pool, k, args.seed);
-    let mut rows = Vec::new();
-    for (si, hp) in settings.iter().enumerate() {
-        let (mut maes, mut rmses) = (Vec::new(), Vec::new());
-        for fold in 0..k {
-            let pick = |held_out: bool| -> Vec<u32> {
-                folds
-                    .iter()
-                    .filter(|(_, g)| (*g == fold) == held_out)
-                    .map(|(f, _)| *f)
-                    .collect()
-            };
-            let (val, train) = (pick(true), pick(false));
-            let label = format!(
-                "setting {}/{} fold {}/{}",
-                si + 1,
-                settings.len(),
-                fold + 1,
-                k
-            );
-            let (_, out, _) = train_split(args, &train, &val, per_flight, *hp, t, device, &label)?;
-            maes.push(out.best_val_mae_w);
-            rmses.push(out.best_val_rmse_w);
-        }
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        rows.push((*hp, mean(&rmses), mean(&maes)));
-    }
-    let mut csv = String::from("dropout,learning_rate,batch_size,folds,avg_rmse_w,avg_mae_w\n");
-    println!(
-        "| Dropout | Learning rate | Batch | Avg. RMSE (W) | Avg. MAE (W) |\n|---|---|---|---|---|"
-    );
-    for (hp, rmse, mae) in &rows {
-        csv.push_str(&format!(
-            "{},{},{},{k},{rmse:.3},{mae:.3}\n",
-            hp.dropout, hp.lr, hp.batch
-        ));
-        println!(
-            "| {} | {} | {} | {rmse:.2} | {mae:.2} |",
-            hp.dropout, hp.lr, hp.batch
-        );
-    }
-    let path = args.out.join("cv.csv");
-    std::fs::write(&path, csv).with_context(|| format!("{}: cannot write", path.display()))?;
-    let best = rows
-        .iter()
-        .min_by(|a, b| a.2.total_cmp(&b.2))
-        .map(|r| r.0)
-        .unwrap_or(base);
-    println!(
-        "best setting: dropout {} lr {} batch {} ({k}-fold by-flight CV)",
-        best.dropout, best.lr, best.batch
-    );
-    Ok(best)
 }
 
 /// Stack these flights' windows (every `stride`-th) into raw inputs and targets.
@@ -600,7 +576,7 @@ fn train_split(
         }
     }
     pb.finish_and_clear();
-    let (best_mae, best_rmse, best_epoch, snapshot) = best.context("no epoch ran")?;
+    let (best_mae, _, best_epoch, snapshot) = best.context("no epoch ran")?;
     tch::no_grad(|| {
         for (v, s) in vs.trainable_variables().iter_mut().zip(&snapshot) {
             v.copy_(s);
@@ -617,7 +593,6 @@ fn train_split(
             curve,
             best_epoch,
             best_val_mae_w: best_mae,
-            best_val_rmse_w: best_rmse,
             steps,
         },
         n,

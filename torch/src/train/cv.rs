@@ -1,0 +1,262 @@
+//! By-flight K-fold cross-validation, scored the way the model card scores the test flights.
+//!
+//! Each fold's held-out flights never choose anything: the fold's network is early-stopped
+//! on an inner validation split of the fold's *training* flights ([`split_by_flight`], the
+//! final run's rule and `--val-frac`), then its held-out flights run, every window, through
+//! the live chain and [`score`] (MAE and RMSE pooled, in-flight MAPE, energy error), as
+//! `scripts/lgbm_cv.py` scores LightGBM on the same folds ([`cv_folds`]).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use anyhow::Context;
+use tch::Device;
+
+use dronewatt::config::Config;
+use dronewatt::model::card::Metrics;
+use dronewatt::model::lstm::LstmModel;
+use dronewatt::model::Ensemble;
+use dronewatt::offline::chain::Chain;
+use dronewatt::offline::data::{cv_folds, cv_k, FlightWindows};
+use dronewatt::offline::train::TrainArgs;
+
+use super::{model_card, score, split_by_flight, train_split, Fit, FlightData, Hyper};
+
+/// What the folds are cut from: the loaded flights, their windows as training data, and the
+/// configuration the live chain runs with.
+pub(super) struct FoldData<'a> {
+    pub(super) flights: &'a [FlightWindows],
+    pub(super) per_flight: &'a BTreeMap<u32, FlightData>,
+    pub(super) cfg: &'a Config,
+}
+
+/// One fold's figures on its held-out flights.
+struct FoldScore {
+    held_out: Vec<u32>,
+    best_epoch: usize,
+    inner_val_mae_w: f64,
+    m: Metrics,
+}
+
+/// Mean and median of `v` (NaN when empty).
+fn mean_median(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    let median = if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        (s[n / 2 - 1] + s[n / 2]) / 2.0
+    };
+    (mean, median)
+}
+
+/// By-flight K-fold cross-validation of every setting asked for (the grid or the one
+/// given); writes `cv.csv` and prints the paper's Table 1 with the held-out figures;
+/// returns the setting with the lowest mean held-out MAE.
+pub(super) fn cross_validate(
+    args: &TrainArgs,
+    pool: &[u32],
+    data: &FoldData,
+    base: Hyper,
+    t: usize,
+    device: Device,
+) -> anyhow::Result<Hyper> {
+    let k = cv_k(args.cv, pool.len());
+    let settings: Vec<Hyper> = if args.grid {
+        let mut v = Vec::new();
+        for dropout in [0.2, 0.5] {
+            for lr in [1e-2, 1e-3, 1e-4] {
+                for batch in [64, 128] {
+                    v.push(Hyper { dropout, lr, batch });
+                }
+            }
+        }
+        v
+    } else {
+        vec![base]
+    };
+    // The shared fold assignment (also the `fold` column of `--export-csv`).
+    let folds = cv_folds(pool, k, args.seed);
+    let mut rows: Vec<(Hyper, Vec<FoldScore>)> = Vec::new();
+    for (si, hp) in settings.iter().enumerate() {
+        let mut scores = Vec::new();
+        for fold in 0..k {
+            let pick = |held_out: bool| -> Vec<u32> {
+                folds
+                    .iter()
+                    .filter(|(_, g)| (*g == fold) == held_out)
+                    .map(|(f, _)| *f)
+                    .collect()
+            };
+            let (held_out, fold_train) = (pick(true), pick(false));
+            let label = format!(
+                "setting {}/{} fold {}/{}",
+                si + 1,
+                settings.len(),
+                fold + 1,
+                k
+            );
+            anyhow::ensure!(
+                fold_train.len() >= 2,
+                "{label}: {} training flight(s), need two to hold out an inner validation split",
+                fold_train.len()
+            );
+            let (train, inner_val) = split_by_flight(&fold_train, args.val_frac, args.seed);
+            let started = Instant::now();
+            let (scaling, outcome, n_train) = train_split(
+                args,
+                &train,
+                &inner_val,
+                data.per_flight,
+                *hp,
+                t,
+                device,
+                &label,
+            )?;
+            let fit = Fit {
+                hp: *hp,
+                scaling,
+                outcome: &outcome,
+                n_train,
+                train_flights: train,
+                val_flights: inner_val,
+                train_time_s: started.elapsed().as_secs_f64(),
+                device,
+            };
+            let m = score_fold(args, data, fit, &held_out)
+                .with_context(|| format!("{label}: scoring the held-out flights"))?;
+            println!(
+                "{label}: held out {held_out:?}: MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} % (best epoch {} on inner validation, MAE {:.2} W)",
+                m.mae_w, m.rmse_w, m.mape_in_flight_pct, m.energy_error_pct, outcome.best_epoch, outcome.best_val_mae_w
+            );
+            scores.push(FoldScore {
+                held_out,
+                best_epoch: outcome.best_epoch,
+                inner_val_mae_w: outcome.best_val_mae_w,
+                m,
+            });
+        }
+        rows.push((*hp, scores));
+    }
+    write_cv_csv(args, k, &rows)?;
+    let mean_mae =
+        |s: &[FoldScore]| mean_median(&s.iter().map(|f| f.m.mae_w).collect::<Vec<_>>()).0;
+    let best = rows
+        .iter()
+        .min_by(|a, b| mean_mae(&a.1).total_cmp(&mean_mae(&b.1)))
+        .map(|r| r.0)
+        .unwrap_or(base);
+    println!(
+        "best setting: dropout {} lr {} batch {} ({k}-fold by-flight CV, held-out flights through the live chain)",
+        best.dropout, best.lr, best.batch
+    );
+    Ok(best)
+}
+
+/// Save `fit`'s network to a scratch folder under `--out`, load it as the binary does, run
+/// the `held_out` flights through the live chain and score them as the card scores the test
+/// flights.
+fn score_fold(
+    args: &TrainArgs,
+    data: &FoldData,
+    fit: Fit,
+    held_out: &[u32],
+) -> anyhow::Result<Metrics> {
+    let dir = args.out.join(".cv-fold");
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let weights = "model.safetensors";
+    fit.outcome
+        .vs
+        .save(dir.join(weights))
+        .with_context(|| format!("{}: cannot save weights", dir.display()))?;
+    let card = model_card(
+        args,
+        &data.cfg.telemetry,
+        fit,
+        weights,
+        String::new(),
+        String::new(),
+    );
+    card.save(&dir.join("card.toml"))?;
+    let model = LstmModel::load(&dir, &data.cfg.telemetry)?;
+    let mut chain = Chain::new(data.cfg, Ensemble::new(vec![Box::new(model)]))?;
+    let series = data
+        .flights
+        .iter()
+        .filter(|f| held_out.contains(&f.flight))
+        .map(|f| chain.run_flight(f))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    std::fs::remove_dir_all(&dir).with_context(|| format!("{}: cannot remove", dir.display()))?;
+    Ok(score(&series)?.0)
+}
+
+/// `cv.csv`: one row per setting. The first six columns are the paper's Table 1 (now the
+/// held-out flights' figures through the live chain); then the median MAE, mean and median
+/// in-flight MAPE and energy error, and the per-fold figures as `;`-separated lists in fold
+/// order.
+fn write_cv_csv(
+    args: &TrainArgs,
+    k: usize,
+    rows: &[(Hyper, Vec<FoldScore>)],
+) -> anyhow::Result<()> {
+    let mut csv = String::from(
+        "dropout,learning_rate,batch_size,folds,avg_rmse_w,avg_mae_w,median_mae_w,\
+         avg_mape_in_flight_pct,median_mape_in_flight_pct,avg_energy_error_pct,\
+         median_energy_error_pct,fold_held_out,fold_best_epoch,fold_inner_val_mae_w,\
+         fold_mae_w,fold_rmse_w,fold_mape_in_flight_pct,fold_energy_error_pct\n",
+    );
+    println!(
+        "| Dropout | Learning rate | Batch | Avg. RMSE (W) | Avg. MAE (W) | Median MAE (W) | Avg. MAPE (%) | Median MAPE (%) | Avg. energy error (%) | Median energy error (%) |\n|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for (hp, folds) in rows {
+        let col = |f: fn(&FoldScore) -> f64| folds.iter().map(f).collect::<Vec<f64>>();
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.3}"))
+                .collect::<Vec<_>>()
+                .join(";")
+        };
+        let (mae, rmse) = (col(|f| f.m.mae_w), col(|f| f.m.rmse_w));
+        let (mape, energy) = (
+            col(|f| f.m.mape_in_flight_pct),
+            col(|f| f.m.energy_error_pct),
+        );
+        let ((mae_avg, mae_med), (rmse_avg, _)) = (mean_median(&mae), mean_median(&rmse));
+        let ((mape_avg, mape_med), (en_avg, en_med)) = (mean_median(&mape), mean_median(&energy));
+        let held: Vec<String> = folds
+            .iter()
+            .map(|f| {
+                f.held_out
+                    .iter()
+                    .map(u32::to_string)
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .collect();
+        let epochs: Vec<String> = folds.iter().map(|f| f.best_epoch.to_string()).collect();
+        csv.push_str(&format!(
+            "{},{},{},{k},{rmse_avg:.3},{mae_avg:.3},{mae_med:.3},{mape_avg:.3},{mape_med:.3},{en_avg:.3},{en_med:.3},{},{},{},{},{},{},{}\n",
+            hp.dropout,
+            hp.lr,
+            hp.batch,
+            held.join(";"),
+            epochs.join(";"),
+            list(&col(|f| f.inner_val_mae_w)),
+            list(&mae),
+            list(&rmse),
+            list(&mape),
+            list(&energy),
+        ));
+        println!(
+            "| {} | {} | {} | {rmse_avg:.2} | {mae_avg:.2} | {mae_med:.2} | {mape_avg:.2} | {mape_med:.2} | {en_avg:.2} | {en_med:.2} |",
+            hp.dropout, hp.lr, hp.batch
+        );
+    }
+    let path = args.out.join("cv.csv");
+    std::fs::write(&path, csv).with_context(|| format!("{}: cannot write", path.display()))
+}
