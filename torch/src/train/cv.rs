@@ -15,12 +15,10 @@ use tch::Device;
 use dronewatt::config::Config;
 use dronewatt::model::card::Metrics;
 use dronewatt::model::lstm::LstmModel;
-use dronewatt::model::Ensemble;
-use dronewatt::offline::chain::Chain;
 use dronewatt::offline::data::{cv_folds, cv_k, FlightWindows};
 use dronewatt::offline::train::TrainArgs;
 
-use super::{model_card, score, split_by_flight, train_split, Fit, FlightData, Hyper};
+use super::{model_card, run_alone, score, split_by_flight, train_split, Fit, FlightData, Hyper};
 
 /// What the folds are cut from: the loaded flights, their windows as training data, and the
 /// configuration the live chain runs with.
@@ -184,13 +182,12 @@ fn score_fold(
     );
     card.save(&dir.join("card.toml"))?;
     let model = LstmModel::load(&dir, &data.cfg.telemetry)?;
-    let mut chain = Chain::new(data.cfg, Ensemble::new(vec![Box::new(model)]))?;
-    let series = data
+    let held: Vec<&FlightWindows> = data
         .flights
         .iter()
         .filter(|f| held_out.contains(&f.flight))
-        .map(|f| chain.run_flight(f))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .collect();
+    let series = run_alone(model, data.cfg, &held)?;
     std::fs::remove_dir_all(&dir).with_context(|| format!("{}: cannot remove", dir.display()))?;
     Ok(score(&series)?.0)
 }

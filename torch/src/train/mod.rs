@@ -28,7 +28,7 @@ use dronewatt::features::N_FEATURES;
 use dronewatt::model::card::{FeatureSet, Metrics, ModelCard, TrainingInfo, WeightsFormat};
 use dronewatt::model::lstm::{push_inputs, LstmModel};
 use dronewatt::model::Ensemble;
-use dronewatt::offline::chain::Chain;
+use dronewatt::offline::chain::{Chain, FlightSeries};
 use dronewatt::offline::data::{
     cv_folds, load_flights, sha256_file, training_pool, FlightWindows, TEST_FLIGHTS,
 };
@@ -311,9 +311,6 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Re
         .iter()
         .map(|f| f.flight)
         .collect();
-    calibrate_band(dir, data_path, cfg, &held)?;
-    let model = LstmModel::load(dir, &cfg.telemetry)?;
-    let mut card = model.card().clone();
     let tests: Vec<u32> = TEST_FLIGHTS
         .into_iter()
         .filter(|t| held.contains(t))
@@ -323,12 +320,21 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Re
         "{}: holds none of the test flights {TEST_FLIGHTS:?}",
         data_path.display()
     );
-    let flights = load_flights(data_path, Some(&tests), &cfg.telemetry, &cfg.mission)?;
-    let mut chain = Chain::new(cfg, Ensemble::new(vec![Box::new(model)]))?;
-    let series = flights
-        .iter()
-        .map(|f| chain.run_flight(f))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    // The validation flights (the band's calibration) and the test flights, in one read.
+    let val: Vec<u32> = ModelCard::load(&dir.join("card.toml"))?
+        .training
+        .validation_flights
+        .into_iter()
+        .filter(|f| held.contains(f) && !TEST_FLIGHTS.contains(f))
+        .collect();
+    let wanted: Vec<u32> = val.iter().chain(&tests).copied().collect();
+    let flights = load_flights(data_path, Some(&wanted), &cfg.telemetry, &cfg.mission)?;
+    let (val_flights, test_flights): (Vec<&FlightWindows>, Vec<&FlightWindows>) =
+        flights.iter().partition(|f| val.contains(&f.flight));
+    calibrate_band(dir, cfg, &val_flights)?;
+    let model = LstmModel::load(dir, &cfg.telemetry)?;
+    let mut card = model.card().clone();
+    let series = run_alone(model, cfg, &test_flights)?;
     let (metrics, per) = score(&series)?;
     write_test_table(dir, &per)?;
     if let Some(f276) = series.iter().find(|s| s.flight == 276) {
@@ -348,30 +354,32 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Re
     Ok(metrics)
 }
 
+/// `flights` run through the live chain ([`Chain`], with `cfg`'s `[energy]` and `[[alerts]]`)
+/// with `model` as its only model.
+pub(crate) fn run_alone(
+    model: LstmModel,
+    cfg: &Config,
+    flights: &[&FlightWindows],
+) -> anyhow::Result<Vec<FlightSeries>> {
+    let mut chain = Chain::new(cfg, Ensemble::new(vec![Box::new(model)]))?;
+    flights.iter().map(|f| chain.run_flight(f)).collect()
+}
+
 /// Widen the band of the model in `dir` so that it covers its nominal share of the
 /// validation flights' windows (split-conformal, [`conformal_widening`]; never the test
-/// flights), and record it in the card. Skipped, with a note, when the card lists no
-/// validation flight the data file holds.
-fn calibrate_band(dir: &Path, data_path: &Path, cfg: &Config, held: &[u32]) -> anyhow::Result<()> {
-    let model = LstmModel::load(dir, &cfg.telemetry)?;
-    let mut card = model.card().clone();
-    let val: Vec<u32> = card
-        .training
-        .validation_flights
-        .iter()
-        .copied()
-        .filter(|f| held.contains(f) && !TEST_FLIGHTS.contains(f))
-        .collect();
+/// flights), and record it in the card. Skipped, with a note, when no validation flight is
+/// given (the card lists none the data file holds).
+fn calibrate_band(dir: &Path, cfg: &Config, val: &[&FlightWindows]) -> anyhow::Result<()> {
     if val.is_empty() {
         println!("band: no validation flight in the data: the heads' band as it is");
         return Ok(());
     }
-    let flights = load_flights(data_path, Some(&val), &cfg.telemetry, &cfg.mission)?;
-    let mut chain = Chain::new(cfg, Ensemble::new(vec![Box::new(model)]))?;
-    let mut excess = Vec::new();
-    for f in &flights {
-        excess.extend(chain.run_flight(f)?.band_excess(0));
-    }
+    let model = LstmModel::load(dir, &cfg.telemetry)?;
+    let mut card = model.card().clone();
+    let excess: Vec<f64> = run_alone(model, cfg, val)?
+        .iter()
+        .flat_map(|s| s.band_excess(0))
+        .collect();
     let (lo, hi) = card.band_quantiles;
     let share =
         |w: f64| excess.iter().filter(|e| **e <= w).count() as f64 / excess.len().max(1) as f64;
@@ -385,7 +393,7 @@ fn calibrate_band(dir: &Path, data_path: &Path, cfg: &Config, held: &[u32]) -> a
         "band: widened by {q:.1} W a side (now {:.1} W; split-conformal on {} windows of {} validation flights: covers {:.1} % there, was {:.1} %)",
         card.band_widen_w,
         excess.len(),
-        flights.len(),
+        val.len(),
         100.0 * share(q),
         100.0 * before
     );
