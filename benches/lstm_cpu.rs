@@ -1,4 +1,4 @@
-//! The hand-written LSTM forward ([`dronewatt::model::lstm_cpu`]) on the shipped weights
+//! The hand-written LSTM forward ([`dronewatt::model::lstm_cpu`]) on the paper network's weights
 //! (2 layers, 128 hidden), no libtorch: per instruction set this CPU has, at batch 1 (the
 //! live case), 5 (a remainder tile) and 256 (two full chunks). `torch/benches/lstm.rs`
 //! compares the same forward with libtorch's.
@@ -9,8 +9,9 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use dronewatt::model::lstm_cpu::{CpuLstm, Isa};
 
 fn bench(c: &mut Criterion) {
-    let path = std::path::Path::new("config/models/lstm-m100/model.safetensors");
-    let mut m = CpuLstm::from_safetensors(path, 2, 128).expect("the shipped weights");
+    let path = std::path::Path::new("config/models/lstm-m100-h128/model.safetensors");
+    let mut m = CpuLstm::from_safetensors(path, 2, 128)
+        .expect("the paper network's weights, config/models/lstm-m100-h128");
     let per = 10 * m.inputs();
     let xs: Vec<f32> = (0..256 * per)
         .map(|i| ((i % 97) as f32 - 48.0) / 32.0)

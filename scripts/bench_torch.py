@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""PyTorch eager on the shipped weights: the side-by-side for `cargo bench --bench lstm`.
+"""PyTorch eager on the paper network's weights: the side-by-side for `cargo bench --bench lstm`.
 
 Builds the same network as src/model/lstm.rs (nn.LSTM(21, 128, num_layers=2,
 bidirectional=True, batch_first=True), last layer's final forward/backward hidden states,
-dropout, nn.Linear(256, 3), tanh), loads config/models/lstm-m100/model.safetensors (same
-variable names), checks it is the same network, then times one window and a batch of 256
-(medians of 200 and 50 runs, one thread unless BENCH_THREADS says otherwise).
+dropout, nn.Linear(256, 3), tanh), loads config/models/lstm-m100-h128/model.safetensors
+(the paper's network, shipped before the ensemble; same variable names), checks it is the
+same network, then times one window and a batch of 256 (medians of 200 and 50 runs, one thread unless BENCH_THREADS says otherwise).
 
     scripts/setup-torch-bench.sh && .venv-bench/bin/python scripts/bench_torch.py [MODEL_DIR]
 
@@ -64,7 +64,7 @@ def median_us(fn, runs):
 
 
 def main():
-    d = sys.argv[1] if len(sys.argv) > 1 else "config/models/lstm-m100"
+    d = sys.argv[1] if len(sys.argv) > 1 else "config/models/lstm-m100-h128"
     torch.set_num_threads(int(os.environ.get("BENCH_THREADS", "1")))
     net = Net()
     net.load_state_dict(read_safetensors(os.path.join(d, "model.safetensors")))

@@ -23,7 +23,8 @@ rounded.
 
 The LightGBM tables (lgbm-cv.md, lgbm-test.md) are always written from the committed
 docs/src/generated/lgbm-cv.json (`scripts/lgbm_cv.py`'s --json; half an hour to tune, so
-not rerun here) and, for the LSTM's test row, config/models/lstm-m100/card.toml.
+not rerun here) and, for the LSTM's rows, the model cards and `cv.csv` of
+config/models/lstm-m100 (shipped) and config/models/lstm-m100-h128 (the paper's network).
 
 The binary is $DRONEWATT_BIN, else ${CARGO_TARGET_DIR:-target}/debug/dronewatt (build it
 with `make docs-tables`, which runs `cargo build --locked --bin dronewatt` first). The data
@@ -325,7 +326,36 @@ def headline(readme):
 # `scripts/lgbm_cv.py` tunes LightGBM on the LSTM's by-flight folds (half an hour on one
 # core, so it is not run here): its JSON, figures only, is committed beside the tables.
 LGBM_JSON = OUT / "lgbm-cv.json"
-LSTM_CARD = ROOT / "config" / "models" / "lstm-m100" / "card.toml"
+LSTM_DIR = ROOT / "config" / "models" / "lstm-m100"
+LSTM_CARD = LSTM_DIR / "card.toml"
+PAPER_CARD = ROOT / "config" / "models" / "lstm-m100-h128" / "card.toml"
+
+
+def lstm_cv_rows():
+    """The shipped LSTM's rows of its `cv.csv` (`train --cv 5 --seed 7`, on LightGBM's folds):
+    (name, {mae_w, mape_in_flight_pct, energy_error_pct: {mean, median}}), the ensemble first."""
+    import csv
+    path = LSTM_DIR / "cv.csv"
+    try:
+        rows = list(csv.DictReader(path.open()))
+    except OSError as e:
+        note(f"{path}: no LSTM CV rows ({e})")
+        return []
+    out = []
+    ens = [r for r in rows if len(r.get("init_seeds", "").split(";")) > 1]
+    for r in rows:
+        seeds = r.get("init_seeds", "").split(";")
+        if len(seeds) > 1:
+            name = f"LSTM, ensemble of {len(seeds)} × {r['hidden']} cells, stride {r['stride']} (shipped)"
+        elif ens and r["hidden"] == ens[0]["hidden"] and seeds[0] == ens[0]["init_seeds"].split(";")[0]:
+            name = f"LSTM, its first member alone ({r['hidden']} cells, stride {r['stride']})"
+        else:
+            name = f"LSTM, one network × {r['hidden']} cells, stride {r['stride']} (shipped before)"
+        stat = {k: {"mean": float(r[f"avg_{k}"]), "median": float(r[f"median_{k}"])}
+                for k in ("mape_in_flight_pct", "energy_error_pct")}
+        stat["mae_w"] = {"mean": float(r["avg_mae_w"]), "median": float(r["median_mae_w"])}
+        out.append((name, stat))
+    return out
 
 
 def lgbm_header():
@@ -374,17 +404,18 @@ def lgbm_cv(r):
     if u:
         body.append(["untuned (`lgbm_baseline.py`'s recipe)", 63, 0.05, 20, 0.8, 0,
                      "/".join(str(t) for t in u["trees"])] + cells(u))
-    body.append(["LSTM (shipped recipe)", "", "", "", "", "", "", "not run yet", "", ""])
+    for name, c in lstm_cv_rows():
+        body.append([name, "", "", "", "", "", ""] + cells(c))
     md += table(head, body)
-    md += ("\nThe LSTM's row on these folds is still to be run (5 fits of about 12 min each on one core, "
-           "plus the final fit): `dronewatt train --cv 5 --seed 7 --features home --target-lag 3 --dropout 0.5 "
-           "--lr 1e-3 --batch 128 --epochs 60 --stride 4 --val-frac 0.12 --patience 6 --threads 1 --out "
-           "out/lstm-cv` writes figures comparable with these to `out/lstm-cv/cv.csv`: each fold's network "
-           "is early-stopped on an inner validation split of that fold's training flights (`--val-frac`, by "
-           "flight, seeded), never on the held-out fold, and the held-out flights are scored as the model "
-           "card scores the test flights, every window through the live chain: MAE and RMSE over the "
-           "fold's windows, in-flight MAPE, energy error, per fold and as mean and median. It has not "
-           "been run yet (no GPU was at hand, and on one core it is the hour above).\n")
+    md += ("\nThe LSTM rows are `config/models/lstm-m100/cv.csv`, from the shipped model's recipe "
+           "with `--cv 5 --seed 7` (the command in its model card): on each fold every member is "
+           "early-stopped on an inner validation split of that fold's training flights (`--val-frac`, "
+           "by flight, seeded), never on the held-out fold, and the held-out flights are scored as the "
+           "model card scores the test flights, every window through the live chain; the first "
+           "member alone is scored on the same folds beside the ensemble, and the paper's network "
+           "(`config/models/lstm-m100-h128`'s recipe) is cross-validated on the same folds too. "
+           "Each cross-validation ran as two processes (`--cv-folds`), joined by "
+           "`scripts/merge-cv.py`.\n")
     return md
 
 
@@ -405,13 +436,18 @@ def lgbm_test(r):
     un = t["untuned"]
     rows.append([f"LightGBM + lags, untuned (`lgbm_baseline.py`, {un['trees']} trees)", f(un["mae_w"], 1),
                  f(un["flight_276_mae_w"], 1), f(un["mape_in_flight_pct"]), f(un["energy_error_pct"])])
-    try:
-        import tomllib
-        m = tomllib.loads(LSTM_CARD.read_text())["metrics"]
-        rows.append(["LSTM, shipped (model card)", f(m["mae_w"], 1), f(m["flight_276_mae_w"], 1),
-                     f(m["mape_in_flight_pct"]), f(m["energy_error_pct"])])
-    except (OSError, KeyError, ImportError) as e:
-        note(f"{LSTM_CARD}: no LSTM row ({e})")
+    import tomllib
+    for what, card in (("shipped (model card)", LSTM_CARD),
+                       ("the paper's network, shipped before (its card)", PAPER_CARD)):
+        try:
+            c = tomllib.loads(card.read_text())
+            n = 1 + len(c.get("members", []))
+            net = f"ensemble of {n} × {c['hidden']} cells" if n > 1 else f"{c['layers']} × {c['hidden']} cells"
+            m = c["metrics"]
+            rows.append([f"LSTM, {net}, {what}", f(m["mae_w"], 1), f(m["flight_276_mae_w"], 1),
+                         f(m["mape_in_flight_pct"]), f(m["energy_error_pct"])])
+        except (OSError, KeyError) as e:
+            note(f"{card}: no LSTM row ({e})")
     md += table(["model", "test MAE (W)", "flight 276 MAE (W)", "in-flight MAPE %", "energy error %"], rows)
     return md
 

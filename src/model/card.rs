@@ -66,6 +66,12 @@ pub struct ModelCard {
     pub name: String,
     /// Weights file, relative to the card's folder.
     pub weights: String,
+    /// An ensemble's further members: weights files beside `weights`, the same network,
+    /// inputs and scaling, each trained on the same flights from its own
+    /// `train --init-seed`. The estimate and its band are the mean of every member's
+    /// outputs, `weights` first. Absent: one network.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub members: Vec<String>,
     /// What the weights file is.
     pub weights_format: WeightsFormat,
     /// Which inputs fill the position slots.
@@ -103,6 +109,11 @@ pub struct ModelCard {
     pub training: TrainingInfo,
     /// How well it does on flights never trained or validated on.
     pub metrics: Option<Metrics>,
+    /// The same scores on the validation flights (`training.validation_flights`), which
+    /// early-stopped the network and calibrated its band: the figures a choice between
+    /// models is made on, the test flights' being scored once.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validation_metrics: Option<Metrics>,
 }
 
 /// How a model was trained: enough to repeat it.
@@ -115,8 +126,12 @@ pub struct TrainingInfo {
     /// How windows were built: `ingest` (the live path, `offline::data::load_flights`, the
     /// only loader `train` has).
     pub loader: String,
-    /// Random seed (weights init and batch order).
+    /// Random seed (validation split; weights init and batch order unless `init_seed`).
     pub seed: u64,
+    /// Seed of the weights init, dropout and batch order when it differs from `seed`
+    /// (`train --init-seed`: an ensemble member on `seed`'s validation flights).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub init_seed: Option<u64>,
     pub dropout: f64,
     pub learning_rate: f64,
     pub batch_size: usize,
@@ -140,7 +155,8 @@ pub struct TrainingInfo {
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Metrics {
-    /// Flights scored (never trained or validated on).
+    /// The flights scored: in `metrics` the test flights (never trained or validated on),
+    /// in `validation_metrics` the validation flights.
     pub test_flights: Vec<u32>,
     /// Mean absolute error over all test windows, W.
     pub mae_w: f64,

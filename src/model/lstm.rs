@@ -11,6 +11,11 @@
 //! at 0.5, is the MAE). A card may set a target lag L: the estimate is then for the sample
 //! L steps before the window's newest ([`crate::telemetry::window::Window::back`]).
 //!
+//! The cell count is the card's `hidden` (the paper: 128), and a card may list an
+//! ensemble's further `members`: networks trained on the same flights from other initial
+//! weights, whose outputs (point and band) are averaged. The shipped model is an ensemble of
+//! three 64-cell networks, which costs about what one 128-cell network does.
+//!
 //! Every batch, one window (the live case) or thousands (a replay flat out, `eval`), runs
 //! through the batched hand-written forward of [`super::lstm_cpu`], with no libtorch in
 //! the process: `dronewatt` starts in milliseconds. TorchScript models, CUDA and training
@@ -41,6 +46,11 @@ use crate::telemetry::TelemetryConfig;
 
 /// The default model's folder, relative to a checkout or install root.
 pub const DEFAULT_MODEL_DIR: &str = "config/models/lstm-m100";
+
+/// The paper's network (one, 128 cells), shipped before the ensemble: what `learn
+/// --fine-tune` starts from unless told otherwise (one network to tune, and the one whose
+/// fine-tuning on other airframes was measured).
+pub const PAPER_MODEL_DIR: &str = "config/models/lstm-m100-h128";
 
 /// The `[models.lstm]` table.
 #[derive(Debug, Clone, serde::Deserialize)]
@@ -124,9 +134,11 @@ enum Backend {
 /// The LSTM as a [`PowerModel`]: a card, weights, and a scratch buffer.
 pub struct LstmModel {
     card: ModelCard,
-    backend: Backend,
+    /// One network, or an ensemble's members (`card.members`), whose outputs are averaged.
+    backends: Vec<Backend>,
     buf: Vec<f32>,
     out: Vec<f32>,
+    sum: Vec<f32>,
     warned: bool,
 }
 
@@ -159,12 +171,43 @@ impl LstmModel {
             )
         })?;
         let dir = card_path.parent().unwrap_or(Path::new("."));
-        let weights = weights_override.unwrap_or_else(|| dir.join(&card.weights));
+        // A weights file named on its own runs alone; a folder or card runs every member.
+        let files: Vec<PathBuf> = match weights_override {
+            Some(w) => vec![w],
+            None => std::iter::once(&card.weights)
+                .chain(&card.members)
+                .map(|m| dir.join(m))
+                .collect(),
+        };
+        let mut backends = Vec::with_capacity(files.len());
+        for weights in &files {
+            backends.push(Self::backend(weights, &card, external)?);
+        }
+        if backends.len() > 1 {
+            tracing::info!("lstm: an ensemble of {} members", backends.len());
+        }
+        Ok(LstmModel {
+            card,
+            backends,
+            buf: Vec::new(),
+            out: Vec::new(),
+            sum: Vec::new(),
+            warned: false,
+        })
+    }
+
+    /// The network in `weights`: a registered external loader's when it claims it, else the
+    /// kernel's.
+    fn backend(
+        weights: &Path,
+        card: &ModelCard,
+        external: Option<ExternalLoader>,
+    ) -> anyhow::Result<Backend> {
         let claimed = match external {
-            Some(load) => load(&weights, &card)?,
+            Some(load) => load(weights, card)?,
             None => None,
         };
-        let backend = match (claimed, card.weights_format) {
+        Ok(match (claimed, card.weights_format) {
             (Some(net), _) => {
                 tracing::info!("lstm: {} runs on {}", weights.display(), net.describe());
                 Backend::External(net)
@@ -173,7 +216,7 @@ impl LstmModel {
                 let (layers, hidden) =
                     (usize::try_from(card.layers)?, usize::try_from(card.hidden)?);
                 Backend::Kernel(Box::new(CpuLstm::from_safetensors(
-                    &weights, layers, hidden,
+                    weights, layers, hidden,
                 )?))
             }
             (None, WeightsFormat::Torchscript) => {
@@ -182,19 +225,14 @@ impl LstmModel {
                 }
                 .into())
             }
-        };
-        Ok(LstmModel {
-            card,
-            backend,
-            buf: Vec::new(),
-            out: Vec::new(),
-            warned: false,
         })
     }
 
     /// Whether the hand-written kernel runs this model (not libtorch).
     pub fn on_kernel(&self) -> bool {
-        matches!(self.backend, Backend::Kernel(_))
+        self.backends
+            .iter()
+            .all(|b| matches!(b, Backend::Kernel(_)))
     }
 
     /// The card this model was loaded with.
@@ -215,29 +253,32 @@ impl LstmModel {
             }
         }
         let b = windows.len();
-        self.out.clear();
-        let cols = match &mut self.backend {
-            Backend::Kernel(cpu) => {
-                let cols = cpu.outputs();
-                self.out.resize(b * cols, 0.0);
-                cpu.forward_batch(&self.buf, t, &mut self.out);
-                cols
-            }
-            Backend::External(net) => {
-                let (out, cols) = net.forward(&self.buf, b, t)?;
+        let mut cols = 0;
+        for (k, backend) in self.backends.iter_mut().enumerate() {
+            let c = Self::forward_one(backend, &self.buf, b, t, &mut self.out)?;
+            if k == 0 {
+                cols = c;
+                self.sum.clear();
+                self.sum.extend_from_slice(&self.out);
+            } else {
                 anyhow::ensure!(
-                    cols > 0 && out.len() == b * cols,
-                    "{}: {} outputs for {b} windows",
-                    net.describe(),
-                    out.len()
+                    c == cols,
+                    "ensemble member {k} gives {c} outputs a window, the first {cols}"
                 );
-                self.out = out;
-                cols
+                for (acc, v) in self.sum.iter_mut().zip(&self.out) {
+                    *acc += v;
+                }
             }
-        };
+        }
+        let n = self.backends.len() as f32;
+        if n > 1.0 {
+            for v in &mut self.sum {
+                *v /= n;
+            }
+        }
         let s = self.card.power_scale_w;
         Ok(self
-            .out
+            .sum
             .chunks(cols)
             .map(|r| {
                 let p = r[0] * s;
@@ -248,6 +289,38 @@ impl LstmModel {
                 }
             })
             .collect())
+    }
+}
+
+impl LstmModel {
+    /// One network's raw outputs for `b` standardised windows into `out`; the columns a row.
+    fn forward_one(
+        backend: &mut Backend,
+        x: &[f32],
+        b: usize,
+        t: usize,
+        out: &mut Vec<f32>,
+    ) -> anyhow::Result<usize> {
+        out.clear();
+        Ok(match backend {
+            Backend::Kernel(cpu) => {
+                let cols = cpu.outputs();
+                out.resize(b * cols, 0.0);
+                cpu.forward_batch(x, t, out);
+                cols
+            }
+            Backend::External(net) => {
+                let (o, cols) = net.forward(x, b, t)?;
+                anyhow::ensure!(
+                    cols > 0 && o.len() == b * cols,
+                    "{}: {} outputs for {b} windows",
+                    net.describe(),
+                    o.len()
+                );
+                *out = o;
+                cols
+            }
+        })
     }
 }
 
@@ -316,16 +389,22 @@ impl PowerModel for LstmModel {
 /// Find the model to load: the configured path, else the shipped model (search order in
 /// the module docs). `None` when no shipped model is found.
 pub fn resolve_model_path(configured: Option<&Path>) -> Option<PathBuf> {
-    if let Some(p) = configured {
-        return Some(p.to_path_buf());
+    match configured {
+        Some(p) => Some(p.to_path_buf()),
+        None => find_model_dir(DEFAULT_MODEL_DIR),
     }
+}
+
+/// The folder `rel` (e.g. [`PAPER_MODEL_DIR`]) found as the shipped model is (search order
+/// in the module docs), holding a `card.toml`.
+pub fn find_model_dir(rel: &str) -> Option<PathBuf> {
     let mut candidates = Vec::new();
     if let Ok(exe) = std::env::current_exe() {
         for dir in exe.ancestors().skip(1).take(4) {
-            candidates.push(dir.join(DEFAULT_MODEL_DIR));
+            candidates.push(dir.join(rel));
         }
     }
-    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_MODEL_DIR));
+    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join(rel));
     candidates
         .into_iter()
         .find(|c| c.join("card.toml").is_file())

@@ -69,6 +69,12 @@ pub struct TrainArgs {
     /// Seed: weights init, dropout, validation split and batch order.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// Seed(s) of the weights init, dropout and batch order (default: `--seed`); the
+    /// validation split and the folds keep `--seed`'s. Several (comma-separated) train an
+    /// ensemble: one network per seed on the same flights, the estimate their mean (the
+    /// card's `members`); `--cv` then scores that ensemble on each fold.
+    #[arg(long, value_delimiter = ',', value_name = "SEED,...")]
+    pub init_seed: Vec<u64>,
     /// Run the paper's grid (dropout {0.2,0.5} × lr {1e-2,1e-3,1e-4} × batch {64,128})
     /// with `--cv` folds, then train the best setting.
     #[arg(long)]
@@ -80,6 +86,11 @@ pub struct TrainArgs {
     /// `cv.csv`.
     #[arg(long, default_value_t = 0)]
     pub cv: usize,
+    /// Run only these folds of `--cv` (0-based, comma-separated; default: all), to spread
+    /// one cross-validation over processes or machines: each writes its folds' `cv.csv`,
+    /// and `scripts/merge-cv.py` joins them. The folds stay those of `--cv K --seed S`.
+    #[arg(long, value_delimiter = ',', value_name = "FOLD,...")]
+    pub cv_folds: Vec<usize>,
     /// Use only these flights (comma-separated) for training/validation; test flights
     /// among them are still only scored.
     #[arg(long, value_delimiter = ',')]
@@ -126,6 +137,11 @@ pub struct TrainArgs {
     /// path) and record the metrics in its card.
     #[arg(long, hide = true)]
     pub score_only: bool,
+    /// Assemble these trained model folders (comma-separated: networks trained with one
+    /// `--seed` and different `--init-seed`) into one ensemble in `--out`, whose estimate is
+    /// the members' mean, then score it on the validation and test flights.
+    #[arg(long, value_delimiter = ',', value_name = "DIR,DIR,...")]
+    pub ensemble: Option<Vec<PathBuf>>,
     /// Write every window (newest sample + lagged copies) to this CSV and stop: the
     /// LightGBM baseline reads features exactly as the models do. Its `fold` column is the
     /// flight's fold of `--cv K --seed S` (K = 5 when `--cv` is not given; -1: not in the

@@ -4,7 +4,8 @@
 //! 1 (the live case), 4, 32, 256 and 1024 (a fleet's windows falling due together, a
 //! replay flat out). Criterion's throughput is windows, so it prints windows/s; the time
 //! per window is the iteration time over the batch size. Compare with
-//! `scripts/bench_torch.py` (PyTorch eager, same weights).
+//! `scripts/bench_torch.py` (PyTorch eager, same weights). `DRONEWATT_BENCH_MODEL=DIR`
+//! benches another model folder (an ensemble runs every member).
 
 use std::time::Duration;
 
@@ -54,7 +55,10 @@ fn bench(c: &mut Criterion) {
         .and_then(|s| s.parse().ok())
         .unwrap_or(1);
     tch::set_num_threads(threads);
-    let path = resolve_model_path(None).expect("no shipped model under config/models/lstm-m100");
+    // DRONEWATT_BENCH_MODEL: another model folder (a candidate, an ensemble) instead.
+    let other = std::env::var_os("DRONEWATT_BENCH_MODEL").map(std::path::PathBuf::from);
+    let path = resolve_model_path(other.as_deref())
+        .expect("no shipped model under config/models/lstm-m100");
     let kernel =
         LstmModel::load(&path, &TelemetryConfig::default()).expect("load the shipped model");
     let torch = LstmModel::load_with(

@@ -76,6 +76,8 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
         card.layers,
         job.dropout.unwrap_or(card.training.dropout),
     );
+    // An ensemble (`card.members`) is fine-tuned through its first member, which is
+    // cheaper than tuning every member and keeps `learn`'s card one network.
     let weights = job.base.join(&card.weights);
     vs.load(&weights).with_context(|| {
         format!(
@@ -139,6 +141,10 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
     let mut out_card = card.clone();
     out_card.name = NAME.into();
     out_card.weights = "model.safetensors".into();
+    // An ensemble's first member is what was fine-tuned: the card is one network's.
+    out_card.members.clear();
+    out_card.training.init_seed = None;
+    out_card.validation_metrics = None;
     out_card.training.data_file = job.logs.join(", ");
     out_card.training.data_sha256 = String::new();
     out_card.training.seed = SEED;

@@ -1,7 +1,7 @@
 //! `dronewatt learn --fine-tune`, smoke-sized: three short simulated 3S-quad logs, a few
 //! optimiser steps. The lean `dronewatt` hands the command to `dronewatt-torch`, which
-//! fine-tunes the LSTM from the shipped weights and writes `lstm/` (safetensors + card)
-//! beside the profile, which refers to it; the model card scores it by log; and the lean
+//! fine-tunes the LSTM from the paper network's weights (lstm-m100-h128) and writes `lstm/`
+//! (safetensors + card) beside the profile, which refers to it; the model card scores it by log; and the lean
 //! binary then runs the fine-tuned model (`lstm_ft`, read by its own safetensors reader)
 //! from the profile.
 
@@ -81,7 +81,7 @@ fn fine_tunes_the_lstm_and_the_lean_binary_runs_it() {
     assert_eq!(card.name, "lstm_ft");
     assert!(out.join("lstm/model.safetensors").is_file());
     let shipped = dronewatt::model::card::ModelCard::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/models/lstm-m100/card.toml"),
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/models/lstm-m100-h128/card.toml"),
     )
     .unwrap();
     assert_eq!(

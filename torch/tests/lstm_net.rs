@@ -45,6 +45,7 @@ fn card(dir: &std::path::Path, window: usize) -> ModelCard {
         format: 1,
         name: "lstm".into(),
         weights: "model.safetensors".into(),
+        members: Vec::new(),
         weights_format: WeightsFormat::Safetensors,
         feature_set: FeatureSet::Paper,
         feature_names: FeatureSet::Paper.names(),
@@ -63,6 +64,7 @@ fn card(dir: &std::path::Path, window: usize) -> ModelCard {
             ..Default::default()
         },
         metrics: None,
+        validation_metrics: None,
     }
     .tap_save(dir)
 }
@@ -173,4 +175,76 @@ fn card_mismatch_names_the_key() {
         msg.contains("rate_hz = 10") && msg.contains("telemetry.rate_hz = 5"),
         "{msg}"
     );
+}
+
+/// A card with `members` runs every member on the kernel and publishes their mean: the
+/// point and the band, as libtorch computes each network.
+#[test]
+fn an_ensemble_publishes_the_members_mean() {
+    tch::set_num_threads(1);
+    let windows: Vec<Window> = (0..6).map(synthetic_window).collect();
+    let mut x = Vec::new();
+    for w in &windows {
+        push_inputs(w, FeatureSet::Paper, 10, &mut x);
+    }
+    // The card standardises with mean 0 and std 100 (below), so the networks see x / 100.
+    let x = Tensor::from_slice(&x).view([6, 10, N_FEATURES as i64]) / 100.0;
+    let dir = tempfile::tempdir().unwrap();
+    let mut direct = Vec::new();
+    for (seed, file) in [(3, "a.safetensors"), (4, "b.safetensors")] {
+        tch::manual_seed(seed);
+        let vs = nn::VarStore::new(Device::Cpu);
+        let net = Net::new(&vs.root(), 16, 2, 0.2);
+        vs.save(dir.path().join(file)).unwrap();
+        direct.push(tch::no_grad(|| net.forward_t(&x, false)) * 500.0);
+    }
+    let mut c = card(dir.path(), 10);
+    c.weights = "a.safetensors".into();
+    c.members = vec!["b.safetensors".into()];
+    c.save(&dir.path().join("card.toml")).unwrap();
+
+    let mut model = LstmModel::load(dir.path(), &TelemetryConfig::default()).unwrap();
+    let rows = model.forward_w(&windows).unwrap();
+    for (i, row) in rows.iter().enumerate() {
+        let mean = |col: i64| {
+            (direct[0].double_value(&[i as i64, col]) + direct[1].double_value(&[i as i64, col]))
+                as f32
+                / 2.0
+        };
+        assert!(
+            (row[0] - mean(0)).abs() < 1e-2,
+            "point {} vs the mean {}",
+            row[0],
+            mean(0)
+        );
+        assert!(
+            (row[1] - mean(1).min(row[0])).abs() < 1e-2,
+            "low {} vs {}",
+            row[1],
+            mean(1)
+        );
+        assert!(
+            (row[2] - mean(2).max(row[0])).abs() < 1e-2,
+            "high {} vs {}",
+            row[2],
+            mean(2)
+        );
+    }
+    // The members differ, so the mean is neither member alone.
+    let a = direct[0].double_value(&[0, 0]) as f32;
+    assert!(
+        (rows[0][0] - a).abs() > 1e-3,
+        "the ensemble ran the first member only"
+    );
+
+    // A member that is missing is named, not skipped.
+    c.members = vec!["gone.safetensors".into()];
+    c.save(&dir.path().join("card.toml")).unwrap();
+    let msg = format!(
+        "{:#}",
+        LstmModel::load(dir.path(), &TelemetryConfig::default())
+            .err()
+            .expect("a missing member must fail")
+    );
+    assert!(msg.contains("gone.safetensors"), "{msg}");
 }

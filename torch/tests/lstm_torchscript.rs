@@ -57,6 +57,7 @@ fn torchscript_module_loads_with_its_card() {
         format: 1,
         name: "byo".into(),
         weights: "tiny.pt".into(),
+        members: Vec::new(),
         weights_format: WeightsFormat::Torchscript,
         feature_set: FeatureSet::Paper,
         feature_names: FeatureSet::Paper.names(),
@@ -72,6 +73,7 @@ fn torchscript_module_loads_with_its_card() {
         layers: 0,
         training: TrainingInfo::default(),
         metrics: None,
+        validation_metrics: None,
     };
     card.save(&dir.path().join("card.toml")).unwrap();
     // Without libtorch (the `dronewatt` binary) the module is refused with the error that

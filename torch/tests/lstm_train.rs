@@ -176,47 +176,14 @@ fn live_forward_matches_libtorch_on_shipped_weights() {
     }
 }
 
-/// `train --cv 2` on four flights, a few steps a fit: every fold's held-out flights are
-/// scored through the live chain, and `cv.csv` carries the held-out MAE, in-flight MAPE and
-/// energy error (mean, median, per fold), all finite. CPU only.
+/// `train --cv 2 --init-seed 3,4` on four flights, a few steps a fit: every fold's two-member
+/// ensemble scores its held-out flights through the live chain, `cv.csv` carries the
+/// held-out MAE, in-flight MAPE and energy error (mean, median, per fold), all finite, and
+/// the final run writes an ensemble card the binary loads. CPU only.
 #[test]
 fn smoke_cross_validation_scores_held_out_folds() {
     let out = tempfile::tempdir().unwrap();
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
-        .args([
-            "train",
-            "--flights",
-            "100,150,200,201",
-            "--cv",
-            "2",
-            "--stride",
-            "8",
-            "--epochs",
-            "2",
-            "--patience",
-            "2",
-            "--max-steps",
-            "20",
-        ])
-        .args([
-            "--hidden",
-            "8",
-            "--batch",
-            "64",
-            "--seed",
-            "3",
-            "--val-frac",
-            "0.5",
-            "--threads",
-            "1",
-        ])
-        .arg("--data")
-        .arg(dronewatt::default_data_path())
-        .arg("--out")
-        .arg(out.path())
-        .env("CUDA_VISIBLE_DEVICES", "")
-        .status()
-        .unwrap();
+    let status = smoke_train(out.path(), &["--cv", "2", "--init-seed", "3,4"]);
     assert!(status.success(), "dronewatt train --cv 2 failed");
     let csv = std::fs::read_to_string(out.path().join("cv.csv")).unwrap();
     let mut lines = csv.lines();
@@ -253,4 +220,75 @@ fn smoke_cross_validation_scores_held_out_folds() {
         !out.path().join(".cv-fold").exists(),
         "the fold scratch folder is removed"
     );
+    assert_eq!(cell("init_seeds"), "3;4", "{csv}");
+    let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
+    assert_eq!(card.weights, "member-3.safetensors");
+    assert_eq!(card.members, ["member-4.safetensors"]);
+    assert_eq!(card.training.init_seed, None, "member 3 is --seed's own");
+    let cfg = TelemetryConfig::default();
+    let mut model = LstmModel::load(out.path(), &cfg).unwrap();
+    let flights = load_flights(
+        &dronewatt::default_data_path(),
+        Some(&[100]),
+        &cfg,
+        &MissionConfig::default(),
+    )
+    .unwrap();
+    let mut est = Vec::new();
+    model.predict(&flights[0].windows[..50], &mut est);
+    assert!(est.iter().all(|p| p.power_w.is_finite()), "{est:?}");
+    let metrics = card.validation_metrics.expect("validation flights scored");
+    assert!(metrics.mae_w.is_finite());
+
+    // A member is the network its init seed trains alone (same split, same seed, one
+    // thread): the model card's one-command retrain and a member-by-member one agree.
+    let alone = tempfile::tempdir().unwrap();
+    let status = smoke_train(alone.path(), &["--init-seed", "4"]);
+    assert!(status.success(), "dronewatt train --init-seed 4 failed");
+    let windows = &flights[0].windows[..50];
+    let mut member = LstmModel::load(&out.path().join("member-4.safetensors"), &cfg).unwrap();
+    let mut single = LstmModel::load(alone.path(), &cfg).unwrap();
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    member.predict(windows, &mut a);
+    single.predict(windows, &mut b);
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(
+            x.power_w, y.power_w,
+            "member 4 differs from seed 4 trained alone"
+        );
+    }
+}
+
+/// `dronewatt-torch train` on four flights with a tiny network and a few steps a fit, CPU
+/// only, into `out`, with `extra` flags.
+fn smoke_train(out: &std::path::Path, extra: &[&str]) -> std::process::ExitStatus {
+    std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
+        .args([
+            "train",
+            "--flights",
+            "100,150,200,201",
+            "--stride",
+            "8",
+            "--epochs",
+            "2",
+        ])
+        .args([
+            "--patience",
+            "2",
+            "--max-steps",
+            "20",
+            "--hidden",
+            "8",
+            "--batch",
+            "64",
+        ])
+        .args(["--seed", "3", "--val-frac", "0.5", "--threads", "1"])
+        .args(extra)
+        .arg("--data")
+        .arg(dronewatt::default_data_path())
+        .arg("--out")
+        .arg(out)
+        .env("CUDA_VISIBLE_DEVICES", "")
+        .status()
+        .unwrap()
 }

@@ -68,11 +68,16 @@ pub struct LearnArgs {
     /// for none): the next `monitor`/`replay` of that vehicle starts from it.
     #[arg(long, value_name = "DIR")]
     pub data_dir: Option<PathBuf>,
-    /// Fine-tune the LSTM from the shipped M100 weights on the training logs, early-stopping
-    /// on the held-out logs (needs libtorch: the command is handed to `dronewatt-torch`).
-    /// Writes `lstm/` (weights and card) beside the profile, which refers to it.
+    /// Fine-tune the LSTM from M100 weights on the training logs, early-stopping on the
+    /// held-out logs (needs libtorch: the command is handed to `dronewatt-torch`). Writes
+    /// `lstm/` (weights and card) beside the profile, which refers to it.
     #[arg(long)]
     pub fine_tune: bool,
+    /// The model to fine-tune from (a folder with `card.toml`; an ensemble's first member is
+    /// tuned). Default: `[models.lstm] path` when configured, else the paper's network
+    /// (`config/models/lstm-m100-h128`, one 128-cell network), else the shipped model.
+    #[arg(long, value_name = "DIR")]
+    pub ft_from: Option<PathBuf>,
     /// Most epochs of fine-tuning.
     #[arg(long, default_value_t = 30)]
     pub ft_epochs: usize,
@@ -469,11 +474,17 @@ pub fn run(args: LearnArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
 
-    // The LSTM fine-tuned from the shipped weights, early-stopping on the held-out logs.
+    // The LSTM fine-tuned from M100 weights, early-stopping on the held-out logs.
     let mut tuned = None;
     if let Some(fine_tune) = fine_tuner {
-        let shipped = crate::model::lstm::resolve_model_path(cfg.models.lstm.path.as_deref())
-            .context("no LSTM model to fine-tune from")?;
+        use crate::model::lstm::{find_model_dir, resolve_model_path, PAPER_MODEL_DIR};
+        let shipped = args
+            .ft_from
+            .clone()
+            .or_else(|| cfg.models.lstm.path.clone())
+            .or_else(|| find_model_dir(PAPER_MODEL_DIR))
+            .or_else(|| resolve_model_path(None))
+            .context("no LSTM model to fine-tune from (give --ft-from)")?;
         let held_windows: Vec<FlightWindows> = held.iter().map(|&i| flights[i].1.clone()).collect();
         let out = args.out.join("lstm");
         std::fs::create_dir_all(&out)

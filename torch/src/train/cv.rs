@@ -18,7 +18,7 @@ use dronewatt::model::lstm::LstmModel;
 use dronewatt::offline::data::{cv_folds, cv_k, FlightWindows};
 use dronewatt::offline::train::TrainArgs;
 
-use super::{model_card, run_alone, score, split_by_flight, train_split, Fit, FlightData, Hyper};
+use super::{ensemble, model_card, run_alone, score, split_by_flight, Fit, FlightData, Hyper};
 
 /// What the folds are cut from: the loaded flights, their windows as training data, and the
 /// configuration the live chain runs with.
@@ -29,11 +29,16 @@ pub(super) struct FoldData<'a> {
 }
 
 /// One fold's figures on its held-out flights.
+#[derive(Clone)]
 struct FoldScore {
+    /// The fold's index in `cv_folds` (0-based).
+    fold: usize,
     held_out: Vec<u32>,
     best_epoch: usize,
     inner_val_mae_w: f64,
     m: Metrics,
+    /// An ensemble's first member alone on the same held-out flights (None: one network).
+    first: Option<Metrics>,
 }
 
 /// Mean and median of `v` (NaN when empty).
@@ -80,10 +85,13 @@ pub(super) fn cross_validate(
     };
     // The shared fold assignment (also the `fold` column of `--export-csv`).
     let folds = cv_folds(pool, k, args.seed);
+    if let Some(bad) = args.cv_folds.iter().find(|f| **f >= k) {
+        anyhow::bail!("--cv-folds {bad}: the folds of --cv {k} are 0 to {}", k - 1);
+    }
     let mut rows: Vec<(Hyper, Vec<FoldScore>)> = Vec::new();
     for (si, hp) in settings.iter().enumerate() {
         let mut scores = Vec::new();
-        for fold in 0..k {
+        for fold in (0..k).filter(|f| args.cv_folds.is_empty() || args.cv_folds.contains(f)) {
             let pick = |held_out: bool| -> Vec<u32> {
                 folds
                     .iter()
@@ -106,7 +114,7 @@ pub(super) fn cross_validate(
             );
             let (train, inner_val) = split_by_flight(&fold_train, args.val_frac, args.seed);
             let started = Instant::now();
-            let (scaling, outcome, n_train) = train_split(
+            let (scaling, members, n_train) = ensemble::train_members(
                 args,
                 &train,
                 &inner_val,
@@ -116,27 +124,30 @@ pub(super) fn cross_validate(
                 device,
                 &label,
             )?;
+            let outcome = &members[0].1;
             let fit = Fit {
                 hp: *hp,
                 scaling,
-                outcome: &outcome,
+                outcome,
                 n_train,
                 train_flights: train,
                 val_flights: inner_val,
                 train_time_s: started.elapsed().as_secs_f64(),
                 device,
             };
-            let m = score_fold(args, data, fit, &held_out)
+            let (m, first) = score_fold(args, data, fit, &members, &held_out)
                 .with_context(|| format!("{label}: scoring the held-out flights"))?;
             println!(
                 "{label}: held out {held_out:?}: MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} % (best epoch {} on inner validation, MAE {:.2} W)",
                 m.mae_w, m.rmse_w, m.mape_in_flight_pct, m.energy_error_pct, outcome.best_epoch, outcome.best_val_mae_w
             );
             scores.push(FoldScore {
+                fold,
                 held_out,
                 best_epoch: outcome.best_epoch,
                 inner_val_mae_w: outcome.best_val_mae_w,
                 m,
+                first,
             });
         }
         rows.push((*hp, scores));
@@ -163,23 +174,21 @@ fn score_fold(
     args: &TrainArgs,
     data: &FoldData,
     fit: Fit,
+    members: &[ensemble::Member],
     held_out: &[u32],
-) -> anyhow::Result<Metrics> {
+) -> anyhow::Result<(Metrics, Option<Metrics>)> {
     let dir = args.out.join(".cv-fold");
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let weights = "model.safetensors";
-    fit.outcome
-        .vs
-        .save(dir.join(weights))
-        .with_context(|| format!("{}: cannot save weights", dir.display()))?;
-    let card = model_card(
+    let files = ensemble::save_members(&dir, members)?;
+    let mut card = model_card(
         args,
         &data.cfg.telemetry,
         fit,
-        weights,
+        &files[0],
         String::new(),
         String::new(),
     );
+    ensemble::describe(&mut card, args, members, &files);
     card.save(&dir.join("card.toml"))?;
     let model = LstmModel::load(&dir, &data.cfg.telemetry)?;
     let held: Vec<&FlightWindows> = data
@@ -188,14 +197,22 @@ fn score_fold(
         .filter(|f| held_out.contains(&f.flight))
         .collect();
     let series = run_alone(model, data.cfg, &held)?;
+    // A weights file named on its own runs alone: the ensemble's first member, for the
+    // paired comparison in `cv.csv`.
+    let first = if files.len() > 1 {
+        let alone = LstmModel::load(&dir.join(&files[0]), &data.cfg.telemetry)?;
+        Some(score(&run_alone(alone, data.cfg, &held)?)?.0)
+    } else {
+        None
+    };
     std::fs::remove_dir_all(&dir).with_context(|| format!("{}: cannot remove", dir.display()))?;
-    Ok(score(&series)?.0)
+    Ok((score(&series)?.0, first))
 }
 
 /// `cv.csv`: one row per setting. The first six columns are the paper's Table 1 (now the
 /// held-out flights' figures through the live chain); then the median MAE, mean and median
-/// in-flight MAPE and energy error, and the per-fold figures as `;`-separated lists in fold
-/// order.
+/// in-flight MAPE and energy error, the per-fold figures as `;`-separated lists in fold
+/// order, and the network (hidden cells, the ensemble's init seeds, the training stride).
 fn write_cv_csv(
     args: &TrainArgs,
     k: usize,
@@ -205,12 +222,37 @@ fn write_cv_csv(
         "dropout,learning_rate,batch_size,folds,avg_rmse_w,avg_mae_w,median_mae_w,\
          avg_mape_in_flight_pct,median_mape_in_flight_pct,avg_energy_error_pct,\
          median_energy_error_pct,fold_held_out,fold_best_epoch,fold_inner_val_mae_w,\
-         fold_mae_w,fold_rmse_w,fold_mape_in_flight_pct,fold_energy_error_pct\n",
+         fold_mae_w,fold_rmse_w,fold_mape_in_flight_pct,fold_energy_error_pct,hidden,\
+         init_seeds,stride,fold_index\n",
     );
     println!(
-        "| Dropout | Learning rate | Batch | Avg. RMSE (W) | Avg. MAE (W) | Median MAE (W) | Avg. MAPE (%) | Median MAPE (%) | Avg. energy error (%) | Median energy error (%) |\n|---|---|---|---|---|---|---|---|---|---|"
+        "| Dropout | Learning rate | Batch | Init seeds | Avg. RMSE (W) | Avg. MAE (W) | Median MAE (W) | Avg. MAPE (%) | Median MAPE (%) | Avg. energy error (%) | Median energy error (%) |\n|---|---|---|---|---|---|---|---|---|---|---|"
     );
-    for (hp, folds) in rows {
+    let seeds = ensemble::init_seeds(args)
+        .iter()
+        .map(u64::to_string)
+        .collect::<Vec<_>>()
+        .join(";");
+    let first_seed = ensemble::init_seeds(args)[0].to_string();
+    // Each setting's row, then (an ensemble) its first member's alone on the same folds.
+    let expanded: Vec<(&Hyper, &str, Vec<FoldScore>)> = rows
+        .iter()
+        .flat_map(|(hp, folds)| {
+            let alone: Option<Vec<FoldScore>> = folds
+                .iter()
+                .map(|f| {
+                    f.first.clone().map(|m| FoldScore {
+                        m,
+                        first: None,
+                        ..f.clone()
+                    })
+                })
+                .collect();
+            std::iter::once((hp, seeds.as_str(), folds.clone()))
+                .chain(alone.map(|a| (hp, first_seed.as_str(), a)))
+        })
+        .collect();
+    for (hp, seeds, folds) in &expanded {
         let col = |f: fn(&FoldScore) -> f64| folds.iter().map(f).collect::<Vec<f64>>();
         let list = |v: &[f64]| {
             v.iter()
@@ -237,7 +279,7 @@ fn write_cv_csv(
             .collect();
         let epochs: Vec<String> = folds.iter().map(|f| f.best_epoch.to_string()).collect();
         csv.push_str(&format!(
-            "{},{},{},{k},{rmse_avg:.3},{mae_avg:.3},{mae_med:.3},{mape_avg:.3},{mape_med:.3},{en_avg:.3},{en_med:.3},{},{},{},{},{},{},{}\n",
+            "{},{},{},{k},{rmse_avg:.3},{mae_avg:.3},{mae_med:.3},{mape_avg:.3},{mape_med:.3},{en_avg:.3},{en_med:.3},{},{},{},{},{},{},{},{},{},{},{}\n",
             hp.dropout,
             hp.lr,
             hp.batch,
@@ -248,9 +290,17 @@ fn write_cv_csv(
             list(&rmse),
             list(&mape),
             list(&energy),
+            args.hidden,
+            seeds,
+            args.stride,
+            folds
+                .iter()
+                .map(|f| f.fold.to_string())
+                .collect::<Vec<_>>()
+                .join(";"),
         ));
         println!(
-            "| {} | {} | {} | {rmse_avg:.2} | {mae_avg:.2} | {mae_med:.2} | {mape_avg:.2} | {mape_med:.2} | {en_avg:.2} | {en_med:.2} |",
+            "| {} | {} | {} | {seeds} | {rmse_avg:.2} | {mae_avg:.2} | {mae_med:.2} | {mape_avg:.2} | {mape_med:.2} | {en_avg:.2} | {en_med:.2} |",
             hp.dropout, hp.lr, hp.batch
         );
     }

@@ -39,6 +39,7 @@ use dronewatt::telemetry::TelemetryConfig;
 use crate::Net;
 
 mod cv;
+mod ensemble;
 mod report;
 use report::{export_csv, plot_flight, write_curve, write_test_table};
 pub use report::{score, FlightScore};
@@ -97,6 +98,10 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         data_path.display()
     );
     tch::set_num_threads(args.threads);
+    if let Some(members) = &args.ensemble {
+        ensemble::assemble(members, &args.out)?;
+        return score_model_dir(&args.out, &data_path, &cfg).map(|_| ());
+    }
     // The chosen flights plus whichever test flights the file holds (273 is withheld from
     // the shared copy, and a file may hold none of them).
     let wanted: Option<Vec<u32>> = match &args.flights {
@@ -172,11 +177,19 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     } else {
         base
     };
+    if !args.cv_folds.is_empty() {
+        println!(
+            "--cv-folds: {} written for folds {:?}; no final model from a partial cross-validation",
+            args.out.join("cv.csv").display(),
+            args.cv_folds
+        );
+        return Ok(());
+    }
 
     // Final run: seeded by-flight split of the pool into training and validation flights.
     let (train_flights, val_flights) = split_by_flight(&pool, args.val_frac, args.seed);
     let started = Instant::now();
-    let (scaling, outcome, n_train) = train_split(
+    let (scaling, members, n_train) = ensemble::train_members(
         &args,
         &train_flights,
         &val_flights,
@@ -188,12 +201,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     )?;
     let train_time_s = started.elapsed().as_secs_f64();
 
-    write_curve(&args.out, &outcome.curve)?;
-    let weights = "model.safetensors";
-    outcome
-        .vs
-        .save(args.out.join(weights))
-        .with_context(|| format!("{}: cannot save weights", args.out.display()))?;
+    write_curve(&args.out, &members[0].1.curve)?;
+    let files = ensemble::save_members(&args.out, &members)?;
     let data_file = data_path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -201,21 +210,22 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let fit = Fit {
         hp: chosen,
         scaling,
-        outcome: &outcome,
+        outcome: &members[0].1,
         n_train,
         train_flights,
         val_flights,
         train_time_s,
         device,
     };
-    let card = model_card(
+    let mut card = model_card(
         &args,
         tcfg,
         fit,
-        weights,
+        &files[0],
         data_file,
         sha256_file(&data_path)?,
     );
+    ensemble::describe(&mut card, &args, &members, &files);
     let card_path = args.out.join("card.toml");
     card.save(&card_path)?;
 
@@ -253,6 +263,7 @@ fn model_card(
         format: 1,
         name: "lstm".into(),
         weights: weights.into(),
+        members: Vec::new(),
         weights_format: WeightsFormat::Safetensors,
         feature_set: args.features,
         feature_names: args.features.names(),
@@ -271,6 +282,7 @@ fn model_card(
             data_sha256,
             loader: "ingest".into(),
             seed: args.seed,
+            init_seed: None,
             dropout: fit.hp.dropout,
             learning_rate: fit.hp.lr,
             batch_size: fit.hp.batch,
@@ -285,6 +297,7 @@ fn model_card(
             device: format!("{:?}", fit.device),
         },
         metrics: None,
+        validation_metrics: None,
     }
 }
 
@@ -332,8 +345,25 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Re
     let (val_flights, test_flights): (Vec<&FlightWindows>, Vec<&FlightWindows>) =
         flights.iter().partition(|f| val.contains(&f.flight));
     calibrate_band(dir, cfg, &val_flights)?;
+    let validation = if val_flights.is_empty() {
+        None
+    } else {
+        let series = run_alone(LstmModel::load(dir, &cfg.telemetry)?, cfg, &val_flights)?;
+        let (m, _) = score(&series)?;
+        println!(
+            "validation flights ({}): MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} %",
+            val_flights.len(),
+            m.mae_w,
+            m.rmse_w,
+            m.mape_in_flight_pct,
+            m.energy_error_pct,
+            m.band_coverage_pct
+        );
+        Some(m)
+    };
     let model = LstmModel::load(dir, &cfg.telemetry)?;
     let mut card = model.card().clone();
+    card.validation_metrics = validation;
     let series = run_alone(model, cfg, &test_flights)?;
     let (metrics, per) = score(&series)?;
     write_test_table(dir, &per)?;
@@ -498,6 +528,7 @@ pub(crate) fn loss_fn(out: &Tensor, y: &Tensor) -> Tensor {
 #[allow(clippy::too_many_arguments)]
 fn train_split(
     args: &TrainArgs,
+    init_seed: u64,
     train: &[u32],
     val: &[u32],
     per_flight: &BTreeMap<u32, FlightData>,
@@ -516,11 +547,11 @@ fn train_split(
     let (x, y) = to_tensors(&xr, &yr, &scaling, t, device);
     let (vx, vy) = to_tensors(&xv, &yv, &scaling, t, device);
     let n = yr.len();
-    tch::manual_seed(args.seed as i64);
+    tch::manual_seed(init_seed as i64);
     let mut vs = nn::VarStore::new(device);
     let net = Net::new(&vs.root(), args.hidden, 2, hp.dropout);
     let mut opt = nn::Adam::default().build(&vs, hp.lr)?;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(init_seed);
     let mut order: Vec<i64> = (0..n as i64).collect();
     let steps_per_epoch = n.div_ceil(hp.batch);
     let max_steps = args.max_steps.unwrap_or(usize::MAX);
