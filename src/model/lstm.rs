@@ -131,6 +131,39 @@ enum Backend {
     External(Box<dyn ExternalNet>),
 }
 
+impl Backend {
+    /// The network's raw outputs for `b` standardised windows `x` into `out`; the columns a
+    /// row.
+    fn forward(
+        &mut self,
+        x: &[f32],
+        b: usize,
+        t: usize,
+        out: &mut Vec<f32>,
+    ) -> anyhow::Result<usize> {
+        out.clear();
+        Ok(match self {
+            Backend::Kernel(cpu) => {
+                let cols = cpu.outputs();
+                out.resize(b * cols, 0.0);
+                cpu.forward_batch(x, t, out);
+                cols
+            }
+            Backend::External(net) => {
+                let (o, cols) = net.forward(x, b, t)?;
+                anyhow::ensure!(
+                    cols > 0 && o.len() == b * cols,
+                    "{}: {} outputs for {b} windows",
+                    net.describe(),
+                    o.len()
+                );
+                *out = o;
+                cols
+            }
+        })
+    }
+}
+
 /// The LSTM as a [`PowerModel`]: a card, weights, and a scratch buffer.
 pub struct LstmModel {
     card: ModelCard,
@@ -255,11 +288,10 @@ impl LstmModel {
         let b = windows.len();
         let mut cols = 0;
         for (k, backend) in self.backends.iter_mut().enumerate() {
-            let c = Self::forward_one(backend, &self.buf, b, t, &mut self.out)?;
+            let c = backend.forward(&self.buf, b, t, &mut self.out)?;
             if k == 0 {
                 cols = c;
-                self.sum.clear();
-                self.sum.extend_from_slice(&self.out);
+                std::mem::swap(&mut self.sum, &mut self.out);
             } else {
                 anyhow::ensure!(
                     c == cols,
@@ -289,38 +321,6 @@ impl LstmModel {
                 }
             })
             .collect())
-    }
-}
-
-impl LstmModel {
-    /// One network's raw outputs for `b` standardised windows into `out`; the columns a row.
-    fn forward_one(
-        backend: &mut Backend,
-        x: &[f32],
-        b: usize,
-        t: usize,
-        out: &mut Vec<f32>,
-    ) -> anyhow::Result<usize> {
-        out.clear();
-        Ok(match backend {
-            Backend::Kernel(cpu) => {
-                let cols = cpu.outputs();
-                out.resize(b * cols, 0.0);
-                cpu.forward_batch(x, t, out);
-                cols
-            }
-            Backend::External(net) => {
-                let (o, cols) = net.forward(x, b, t)?;
-                anyhow::ensure!(
-                    cols > 0 && o.len() == b * cols,
-                    "{}: {} outputs for {b} windows",
-                    net.describe(),
-                    o.len()
-                );
-                *out = o;
-                cols
-            }
-        })
     }
 }
 

@@ -29,7 +29,6 @@ pub(super) struct FoldData<'a> {
 }
 
 /// One fold's figures on its held-out flights.
-#[derive(Clone)]
 struct FoldScore {
     /// The fold's index in `cv_folds` (0-based).
     fold: usize,
@@ -37,8 +36,14 @@ struct FoldScore {
     best_epoch: usize,
     inner_val_mae_w: f64,
     m: Metrics,
-    /// An ensemble's first member alone on the same held-out flights (None: one network).
-    first: Option<Metrics>,
+}
+
+/// A row of `cv.csv`: a setting, the init seeds of the networks scored (an ensemble's, or
+/// its first member alone), and their folds.
+struct CvRow {
+    hp: Hyper,
+    seeds: Vec<u64>,
+    folds: Vec<FoldScore>,
 }
 
 /// Mean and median of `v` (NaN when empty).
@@ -88,9 +93,10 @@ pub(super) fn cross_validate(
     if let Some(bad) = args.cv_folds.iter().find(|f| **f >= k) {
         anyhow::bail!("--cv-folds {bad}: the folds of --cv {k} are 0 to {}", k - 1);
     }
-    let mut rows: Vec<(Hyper, Vec<FoldScore>)> = Vec::new();
+    let seeds = ensemble::init_seeds(args);
+    let mut rows: Vec<CvRow> = Vec::new();
     for (si, hp) in settings.iter().enumerate() {
-        let mut scores = Vec::new();
+        let (mut scores, mut alone) = (Vec::new(), Vec::new());
         for fold in (0..k).filter(|f| args.cv_folds.is_empty() || args.cv_folds.contains(f)) {
             let pick = |held_out: bool| -> Vec<u32> {
                 folds
@@ -141,24 +147,38 @@ pub(super) fn cross_validate(
                 "{label}: held out {held_out:?}: MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} % (best epoch {} on inner validation, MAE {:.2} W)",
                 m.mae_w, m.rmse_w, m.mape_in_flight_pct, m.energy_error_pct, outcome.best_epoch, outcome.best_val_mae_w
             );
-            scores.push(FoldScore {
+            let fold_score = |m| FoldScore {
                 fold,
-                held_out,
+                held_out: held_out.clone(),
                 best_epoch: outcome.best_epoch,
                 inner_val_mae_w: outcome.best_val_mae_w,
                 m,
-                first,
+            };
+            alone.extend(first.map(fold_score));
+            scores.push(fold_score(m));
+        }
+        rows.push(CvRow {
+            hp: *hp,
+            seeds: seeds.clone(),
+            folds: scores,
+        });
+        if !alone.is_empty() {
+            rows.push(CvRow {
+                hp: *hp,
+                seeds: seeds[..1].to_vec(),
+                folds: alone,
             });
         }
-        rows.push((*hp, scores));
     }
     write_cv_csv(args, k, &rows)?;
     let mean_mae =
         |s: &[FoldScore]| mean_median(&s.iter().map(|f| f.m.mae_w).collect::<Vec<_>>()).0;
+    // The settings are ranked on what they train: the ensemble, not its first member.
     let best = rows
         .iter()
-        .min_by(|a, b| mean_mae(&a.1).total_cmp(&mean_mae(&b.1)))
-        .map(|r| r.0)
+        .filter(|r| r.seeds == seeds)
+        .min_by(|a, b| mean_mae(&a.folds).total_cmp(&mean_mae(&b.folds)))
+        .map(|r| r.hp)
         .unwrap_or(base);
     println!(
         "best setting: dropout {} lr {} batch {} ({k}-fold by-flight CV, held-out flights through the live chain)",
@@ -213,11 +233,7 @@ fn score_fold(
 /// held-out flights' figures through the live chain); then the median MAE, mean and median
 /// in-flight MAPE and energy error, the per-fold figures as `;`-separated lists in fold
 /// order, and the network (hidden cells, the ensemble's init seeds, the training stride).
-fn write_cv_csv(
-    args: &TrainArgs,
-    k: usize,
-    rows: &[(Hyper, Vec<FoldScore>)],
-) -> anyhow::Result<()> {
+fn write_cv_csv(args: &TrainArgs, k: usize, rows: &[CvRow]) -> anyhow::Result<()> {
     let mut csv = String::from(
         "dropout,learning_rate,batch_size,folds,avg_rmse_w,avg_mae_w,median_mae_w,\
          avg_mape_in_flight_pct,median_mape_in_flight_pct,avg_energy_error_pct,\
@@ -228,31 +244,12 @@ fn write_cv_csv(
     println!(
         "| Dropout | Learning rate | Batch | Init seeds | Avg. RMSE (W) | Avg. MAE (W) | Median MAE (W) | Avg. MAPE (%) | Median MAPE (%) | Avg. energy error (%) | Median energy error (%) |\n|---|---|---|---|---|---|---|---|---|---|---|"
     );
-    let seeds = ensemble::init_seeds(args)
-        .iter()
-        .map(u64::to_string)
-        .collect::<Vec<_>>()
-        .join(";");
-    let first_seed = ensemble::init_seeds(args)[0].to_string();
-    // Each setting's row, then (an ensemble) its first member's alone on the same folds.
-    let expanded: Vec<(&Hyper, &str, Vec<FoldScore>)> = rows
-        .iter()
-        .flat_map(|(hp, folds)| {
-            let alone: Option<Vec<FoldScore>> = folds
-                .iter()
-                .map(|f| {
-                    f.first.clone().map(|m| FoldScore {
-                        m,
-                        first: None,
-                        ..f.clone()
-                    })
-                })
-                .collect();
-            std::iter::once((hp, seeds.as_str(), folds.clone()))
-                .chain(alone.map(|a| (hp, first_seed.as_str(), a)))
-        })
-        .collect();
-    for (hp, seeds, folds) in &expanded {
+    for CvRow { hp, seeds, folds } in rows {
+        let seeds = seeds
+            .iter()
+            .map(u64::to_string)
+            .collect::<Vec<_>>()
+            .join(";");
         let col = |f: fn(&FoldScore) -> f64| folds.iter().map(f).collect::<Vec<f64>>();
         let list = |v: &[f64]| {
             v.iter()

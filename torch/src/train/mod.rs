@@ -344,22 +344,21 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Re
     let flights = load_flights(data_path, Some(&wanted), &cfg.telemetry, &cfg.mission)?;
     let (val_flights, test_flights): (Vec<&FlightWindows>, Vec<&FlightWindows>) =
         flights.iter().partition(|f| val.contains(&f.flight));
-    calibrate_band(dir, cfg, &val_flights)?;
-    let validation = if val_flights.is_empty() {
-        None
-    } else {
-        let series = run_alone(LstmModel::load(dir, &cfg.telemetry)?, cfg, &val_flights)?;
-        let (m, _) = score(&series)?;
-        println!(
-            "validation flights ({}): MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} %",
-            val_flights.len(),
-            m.mae_w,
-            m.rmse_w,
-            m.mape_in_flight_pct,
-            m.energy_error_pct,
-            m.band_coverage_pct
-        );
-        Some(m)
+    let validation = match calibrate_band(dir, cfg, &val_flights)? {
+        None => None,
+        Some(series) => {
+            let (m, _) = score(&series)?;
+            println!(
+                "validation flights ({}): MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} %",
+                val_flights.len(),
+                m.mae_w,
+                m.rmse_w,
+                m.mape_in_flight_pct,
+                m.energy_error_pct,
+                m.band_coverage_pct
+            );
+            Some(m)
+        }
     };
     let model = LstmModel::load(dir, &cfg.telemetry)?;
     let mut card = model.card().clone();
@@ -398,25 +397,29 @@ pub(crate) fn run_alone(
 /// Widen the band of the model in `dir` so that it covers its nominal share of the
 /// validation flights' windows (split-conformal, [`conformal_widening`]; never the test
 /// flights), and record it in the card. Skipped, with a note, when no validation flight is
-/// given (the card lists none the data file holds).
-fn calibrate_band(dir: &Path, cfg: &Config, val: &[&FlightWindows]) -> anyhow::Result<()> {
+/// given (the card lists none the data file holds). Returns the validation flights as the
+/// widened model runs them (the one run of them: their scores come from it), `None` without
+/// validation flights.
+fn calibrate_band(
+    dir: &Path,
+    cfg: &Config,
+    val: &[&FlightWindows],
+) -> anyhow::Result<Option<Vec<FlightSeries>>> {
     if val.is_empty() {
         println!("band: no validation flight in the data: the heads' band as it is");
-        return Ok(());
+        return Ok(None);
     }
     let model = LstmModel::load(dir, &cfg.telemetry)?;
     let mut card = model.card().clone();
-    let excess: Vec<f64> = run_alone(model, cfg, val)?
-        .iter()
-        .flat_map(|s| s.band_excess(0))
-        .collect();
+    let mut series = run_alone(model, cfg, val)?;
+    let excess: Vec<f64> = series.iter().flat_map(|s| s.band_excess(0)).collect();
     let (lo, hi) = card.band_quantiles;
     let share =
         |w: f64| excess.iter().filter(|e| **e <= w).count() as f64 / excess.len().max(1) as f64;
     let before = share(0.0);
     let Some(q) = conformal_widening(&mut excess.clone(), f64::from(hi - lo)) else {
         println!("band: no banded window in the validation flights: the heads' band as it is");
-        return Ok(());
+        return Ok(Some(series));
     };
     card.band_widen_w += q as f32;
     println!(
@@ -427,7 +430,15 @@ fn calibrate_band(dir: &Path, cfg: &Config, val: &[&FlightWindows]) -> anyhow::R
         100.0 * share(q),
         100.0 * before
     );
-    card.save(&dir.join("card.toml"))
+    card.save(&dir.join("card.toml"))?;
+    // The series as the widened card runs them: every band `q` wider a side.
+    for b in series
+        .iter_mut()
+        .flat_map(|s| s.band_w.iter_mut().flatten().flatten())
+    {
+        *b = (b.0 - q, b.1 + q);
+    }
+    Ok(Some(series))
 }
 
 /// The raw inputs and targets of one flight's windows whose target sample (`lag` before
