@@ -8,14 +8,15 @@ in fold order, and the means and medians recomputed over all of them:
     scripts/merge-cv.py A/cv.csv B/cv.csv > cv.csv
 
 Rows are matched on the setting (dropout, learning rate, batch, hidden cells, init seeds,
-stride); a fold that appears twice, or a setting missing a fold another has, is an error.
+stride, relative loss, plateau decay); a fold that appears twice, or a setting missing a fold another has, is an error.
 Standard library only.
 """
 import csv
 import statistics
 import sys
 
-KEY = ("dropout", "learning_rate", "batch_size", "hidden", "init_seeds", "stride")
+KEY = ("dropout", "learning_rate", "batch_size", "hidden", "init_seeds", "stride", "relative_loss",
+       "plateau_decay")
 FOLD_COLS = ("fold_held_out", "fold_best_epoch", "fold_inner_val_mae_w", "fold_mae_w", "fold_rmse_w",
              "fold_mape_in_flight_pct", "fold_energy_error_pct")
 # Summary column -> (per-fold column, statistic).
@@ -42,7 +43,7 @@ def main(paths):
             elif reader.fieldnames != header:
                 sys.exit(f"{path}: its columns differ from {paths[0]}'s")
             for row in reader:
-                key = tuple(row[k] for k in KEY)
+                key = tuple(row.get(k) or "" for k in KEY)  # older files lack the later columns
                 folds = merged.setdefault(key, {})
                 for i, fold in enumerate(row["fold_index"].split(";")):
                     if fold in folds:

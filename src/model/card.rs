@@ -133,7 +133,15 @@ pub struct TrainingInfo {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub init_seed: Option<u64>,
     pub dropout: f64,
+    /// `train --relative-loss`: weight of the relative error in the point estimate's loss
+    /// (absent: 0, the absolute loss).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub relative_loss: f64,
     pub learning_rate: f64,
+    /// `train --plateau-decay`: the learning rate's factor after 2 epochs without a better
+    /// validation MAE (absent: a constant rate).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plateau_decay: Option<f64>,
     pub batch_size: usize,
     /// Epochs run and the epoch whose weights were kept (best validation MAE).
     pub epochs_run: usize,
@@ -148,6 +156,10 @@ pub struct TrainingInfo {
     /// Wall time of the training run, s, and where it ran.
     pub train_time_s: f64,
     pub device: String,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// Scores on held-out flights, in watts and percent: what `eval --all-windows` scores for

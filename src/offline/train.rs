@@ -9,7 +9,10 @@
 //!
 //! Loss, on the tanh-scaled target y/P_scale: 2 × pinball₀.₅ (= MAE) for the point head,
 //! plus pinball₀.₀₅ and pinball₀.₉₅ for the band heads. The paper trained with MSE; MAE is
-//! the figure we are held to and is robust to the ~20 W sensor noise.
+//! the figure we are held to and is robust to the ~20 W sensor noise. `--relative-loss λ`
+//! weights the point term of each in-flight window towards its relative error (λ = 1: the
+//! error over the power, as in-flight MAPE counts it; the shipped model); `--plateau-decay`
+//! lowers the learning rate when the validation MAE stalls.
 
 //!
 //! Training runs on libtorch, so it lives in the `dronewatt-torch` crate (`torch/src/train.rs`),
@@ -114,6 +117,11 @@ pub struct TrainArgs {
     /// Batch size.
     #[arg(long, default_value_t = 128)]
     pub batch: usize,
+    /// Multiply the learning rate by this after every 2 epochs in a row without a better
+    /// validation MAE (reduce on plateau; 1: a constant rate, as in the paper). Recorded in
+    /// the card.
+    #[arg(long, default_value_t = 1.0, value_name = "FACTOR")]
+    pub plateau_decay: f64,
     /// Epochs without a better validation MAE before stopping.
     #[arg(long, default_value_t = 3)]
     pub patience: usize,
@@ -130,6 +138,14 @@ pub struct TrainArgs {
     /// (fixed-lag smoothing; 0: the newest, as in the paper). Recorded in the card.
     #[arg(long, default_value_t = 0)]
     pub target_lag: usize,
+    /// Weight of the relative error in the point estimate's loss, 0…1 (0: the paper's
+    /// absolute loss). Each in-flight training window's (measured ≥ 100 W, the windows
+    /// in-flight MAPE counts) median pinball term is weighted `(1 − λ) + λ · P̄ / P`, `P̄`
+    /// making their mean weight 1, so errors at low power in flight (descents, light hover)
+    /// count as MAPE counts them; ground windows and the band's quantile terms keep the
+    /// absolute loss. Recorded in the card.
+    #[arg(long, default_value_t = 0.0, value_name = "λ")]
+    pub relative_loss: f64,
     /// Hidden cells per LSTM direction and layer (the paper: 128).
     #[arg(long, default_value_t = 128)]
     pub hidden: i64,

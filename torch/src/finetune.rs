@@ -107,7 +107,7 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
             }
             let ix = Tensor::from_slice(chunk).to_device(device);
             let out = net.forward_t(&x.index_select(0, &ix), true);
-            opt.backward_step(&loss_fn(&out, &y.index_select(0, &ix)));
+            opt.backward_step(&loss_fn(&out, &y.index_select(0, &ix), None));
             steps += 1;
         }
         epochs_run = epoch;

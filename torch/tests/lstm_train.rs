@@ -259,6 +259,59 @@ fn smoke_cross_validation_scores_held_out_folds() {
     }
 }
 
+/// `--relative-loss` and `--plateau-decay` are recorded in the card (so `--ensemble` can
+/// refuse a member trained otherwise), the relative loss changes what the network learns,
+/// and an out-of-range value is refused, naming the flag. CPU only.
+#[test]
+fn smoke_loss_options_are_recorded_and_act() {
+    let (plain, weighted) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    assert!(smoke_train(plain.path(), &[]).success());
+    let flags = ["--relative-loss", "1", "--plateau-decay", "0.5"];
+    assert!(smoke_train(weighted.path(), &flags).success());
+    let card = ModelCard::load(&weighted.path().join("card.toml")).unwrap();
+    assert_eq!(card.training.relative_loss, 1.0);
+    assert_eq!(card.training.plateau_decay, Some(0.5));
+    let card = ModelCard::load(&plain.path().join("card.toml")).unwrap();
+    assert_eq!(card.training.relative_loss, 0.0);
+    assert_eq!(
+        card.training.plateau_decay, None,
+        "a constant rate is not written"
+    );
+
+    let cfg = TelemetryConfig::default();
+    let flights = load_flights(
+        &dronewatt::default_data_path(),
+        Some(&[100]),
+        &cfg,
+        &MissionConfig::default(),
+    )
+    .unwrap();
+    let windows = &flights[0].windows[..50];
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    LstmModel::load(plain.path(), &cfg)
+        .unwrap()
+        .predict(windows, &mut a);
+    LstmModel::load(weighted.path(), &cfg)
+        .unwrap()
+        .predict(windows, &mut b);
+    assert!(
+        a.iter().zip(&b).any(|(x, y)| x.power_w != y.power_w),
+        "the relative loss trained the same network as the absolute one"
+    );
+
+    let bad = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
+        .args(["train", "--relative-loss", "2", "--data"])
+        .arg(dronewatt::default_data_path())
+        .arg("--out")
+        .arg(bad.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--relative-loss 2"), "{err}");
+}
+
 /// `dronewatt-torch train` on four flights with a tiny network and a few steps a fit, CPU
 /// only, into `out`, with `extra` flags.
 fn smoke_train(out: &std::path::Path, extra: &[&str]) -> std::process::ExitStatus {

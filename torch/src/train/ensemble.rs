@@ -118,6 +118,14 @@ pub fn assemble(members: &[PathBuf], out: &Path) -> anyhow::Result<ModelCard> {
             ("layers", c.layers != first.layers),
             ("band_quantiles", c.band_quantiles != first.band_quantiles),
             (
+                "training.relative_loss",
+                c.training.relative_loss != first.training.relative_loss,
+            ),
+            (
+                "training.plateau_decay",
+                c.training.plateau_decay != first.training.plateau_decay,
+            ),
+            (
                 "training.train_flights",
                 c.training.train_flights != first.training.train_flights,
             ),

@@ -10,7 +10,10 @@
 //!
 //! Loss, on the tanh-scaled target y/P_scale: 2 × pinball₀.₅ (= MAE) for the point head,
 //! plus pinball₀.₀₅ and pinball₀.₉₅ for the band heads. The paper trained with MSE; MAE is
-//! the figure we are held to and is robust to the ~20 W sensor noise.
+//! the figure we are held to and is robust to the ~20 W sensor noise. `--relative-loss λ`
+//! weights the point term of each in-flight window towards its relative error (λ = 1: the
+//! error over the power, as in-flight MAPE counts it; the shipped model); `--plateau-decay`
+//! lowers the learning rate when the validation MAE stalls.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -96,6 +99,16 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     tracing::info!(
         "loading flights from {} through the ingest path",
         data_path.display()
+    );
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&args.relative_loss),
+        "--relative-loss {}: must be between 0 (absolute loss) and 1 (relative)",
+        args.relative_loss
+    );
+    anyhow::ensure!(
+        args.plateau_decay > 0.0 && args.plateau_decay <= 1.0,
+        "--plateau-decay {}: must be in (0, 1] (1: a constant learning rate)",
+        args.plateau_decay
     );
     tch::set_num_threads(args.threads);
     if let Some(members) = &args.ensemble {
@@ -284,6 +297,8 @@ fn model_card(
             seed: args.seed,
             init_seed: None,
             dropout: fit.hp.dropout,
+            relative_loss: args.relative_loss,
+            plateau_decay: (args.plateau_decay != 1.0).then_some(args.plateau_decay),
             learning_rate: fit.hp.lr,
             batch_size: fit.hp.batch,
             epochs_run: fit.outcome.curve.len(),
@@ -528,11 +543,49 @@ fn pinball(pred: &Tensor, y: &Tensor, q: f64) -> Tensor {
     (&e * q).maximum(&(&e * (q - 1.0))).mean(Kind::Float)
 }
 
-/// The training loss of network outputs `out` (`[n, 3]`) against scaled targets `y`.
-pub(crate) fn loss_fn(out: &Tensor, y: &Tensor) -> Tensor {
-    2.0 * pinball(&out.select(1, 0), y, 0.5)
+/// The training loss of network outputs `out` (`[n, 3]`) against scaled targets `y`; `w`
+/// (`[n]`, mean 1) weights the point estimate's term window by window (`--relative-loss`).
+pub(crate) fn loss_fn(out: &Tensor, y: &Tensor, w: Option<&Tensor>) -> Tensor {
+    let point = match w {
+        None => pinball(&out.select(1, 0), y, 0.5),
+        Some(w) => {
+            let e = y - out.select(1, 0);
+            ((&e * 0.5).maximum(&(&e * -0.5)) * w).mean(Kind::Float)
+        }
+    };
+    2.0 * point
         + pinball(&out.select(1, 1), y, BAND_Q.0 as f64)
         + pinball(&out.select(1, 2), y, BAND_Q.1 as f64)
+}
+
+/// Per-window weights of the point loss for `--relative-loss` λ over targets `y` (W). In
+/// flight (`P ≥ IN_FLIGHT_W`, the windows in-flight MAPE counts): `(1 − λ) + λ · P̄ / P`,
+/// `P̄` the in-flight windows' harmonic mean, so their weights average 1 and λ = 1 is the
+/// relative error's loss. On the ground (motors off or idling, where a percentage means
+/// nothing) 1: the absolute loss. `None` for λ = 0.
+pub(crate) fn relative_weights(y: &[f32], lambda: f64) -> Option<Vec<f32>> {
+    if lambda == 0.0 || y.is_empty() {
+        return None;
+    }
+    let in_flight = |p: f32| f64::from(p) >= dronewatt::offline::metrics::IN_FLIGHT_W;
+    let (n, inv_sum) = y
+        .iter()
+        .filter(|&&p| in_flight(p))
+        .fold((0usize, 0.0f64), |(n, s), &p| {
+            (n + 1, s + 1.0 / f64::from(p))
+        });
+    let p_bar = if n > 0 { n as f64 / inv_sum } else { 0.0 };
+    Some(
+        y.iter()
+            .map(|&p| {
+                if in_flight(p) {
+                    ((1.0 - lambda) + lambda * p_bar / f64::from(p)) as f32
+                } else {
+                    1.0
+                }
+            })
+            .collect(),
+    )
 }
 
 /// Train on `train` flights with early stopping on `val` flights.
@@ -555,6 +608,8 @@ fn train_split(
         "{label}: no training or validation windows"
     );
     let scaling = fit_scaling(&xr, &yr);
+    let weights =
+        relative_weights(&yr, args.relative_loss).map(|w| Tensor::from_slice(&w).to_device(device));
     let (x, y) = to_tensors(&xr, &yr, &scaling, t, device);
     let (vx, vy) = to_tensors(&xv, &yv, &scaling, t, device);
     let n = yr.len();
@@ -562,6 +617,7 @@ fn train_split(
     let mut vs = nn::VarStore::new(device);
     let net = Net::new(&vs.root(), args.hidden, 2, hp.dropout);
     let mut opt = nn::Adam::default().build(&vs, hp.lr)?;
+    let mut lr = hp.lr;
     let mut rng = rand::rngs::StdRng::seed_from_u64(init_seed);
     let mut order: Vec<i64> = (0..n as i64).collect();
     let steps_per_epoch = n.div_ceil(hp.batch);
@@ -591,7 +647,8 @@ fn train_split(
             }
             let ix = Tensor::from_slice(chunk).to_device(device);
             let out = net.forward_t(&x.index_select(0, &ix), true);
-            let loss = loss_fn(&out, &y.index_select(0, &ix));
+            let w = weights.as_ref().map(|w| w.index_select(0, &ix));
+            let loss = loss_fn(&out, &y.index_select(0, &ix), w.as_ref());
             opt.backward_step(&loss);
             sum += loss.double_value(&[]);
             count += 1;
@@ -620,6 +677,11 @@ fn train_split(
             best = Some((mae, rmse, epoch, snapshot));
         } else if best.as_ref().is_some_and(|b| epoch - b.2 >= args.patience) {
             break 'epochs;
+        } else if args.plateau_decay != 1.0 && best.as_ref().is_some_and(|b| (epoch - b.2) % 2 == 0)
+        {
+            lr *= args.plateau_decay;
+            opt.set_lr(lr);
+            tracing::info!("{label} epoch {epoch}: learning rate now {lr:.2e}");
         }
         if steps >= max_steps || out_of_time() {
             break;
@@ -659,7 +721,7 @@ pub(crate) fn validate(net: &Net, x: &Tensor, y: &Tensor, scale: f32) -> (f64, f
             let len = (n - start).min(4096);
             let out = net.forward_t(&x.narrow(0, start, len), false);
             let yy = y.narrow(0, start, len);
-            loss += loss_fn(&out, &yy).double_value(&[]) * len as f64;
+            loss += loss_fn(&out, &yy, None).double_value(&[]) * len as f64;
             let e = (out.select(1, 0) - &yy) * scale as f64;
             abs += e.abs().sum(Kind::Double).double_value(&[]);
             sq += (&e * &e).sum(Kind::Double).double_value(&[]);
@@ -668,4 +730,37 @@ pub(crate) fn validate(net: &Net, x: &Tensor, y: &Tensor, scale: f32) -> (f64, f
         let n = n.max(1) as f64;
         (loss / n, abs / n, (sq / n).sqrt())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relative_weights_average_one_in_flight_and_leave_the_ground_alone() {
+        assert!(relative_weights(&[300.0, 500.0], 0.0).is_none());
+        let y = [2.0f32, 60.0, 100.0, 250.0, 500.0];
+        for lambda in [0.5, 1.0] {
+            let w = relative_weights(&y, lambda).expect("weights");
+            assert_eq!(
+                &w[..2],
+                &[1.0, 1.0],
+                "ground windows keep the absolute loss"
+            );
+            let mean = w[2..].iter().map(|&v| f64::from(v)).sum::<f64>() / 3.0;
+            assert!(
+                (mean - 1.0).abs() < 1e-6,
+                "λ {lambda}: in-flight mean weight {mean}"
+            );
+            assert!(w[2] > w[3] && w[3] > w[4], "λ {lambda}: {w:?}");
+        }
+        // λ = 1 is the relative error in flight: weight × power is constant.
+        let w = relative_weights(&y, 1.0).expect("weights");
+        assert!((w[3] * 250.0 - w[4] * 500.0).abs() < 1e-3);
+        // λ = ½ keeps half the absolute loss: no window weighs under ½.
+        let w = relative_weights(&y, 0.5).expect("weights");
+        assert!(w.iter().all(|&v| v >= 0.5));
+        // No window in flight: every weight is the absolute loss's.
+        assert_eq!(relative_weights(&[2.0, 3.0], 1.0), Some(vec![1.0, 1.0]));
+    }
 }
