@@ -332,25 +332,59 @@ PAPER_CARD = ROOT / "config" / "models" / "lstm-m100-h128" / "card.toml"
 
 
 def lstm_cv_rows():
-    """The shipped LSTM's rows of its `cv.csv` (`train --cv 5 --seed 7`, on LightGBM's folds):
-    (name, {mae_w, mape_in_flight_pct, energy_error_pct: {mean, median}}), the ensemble first."""
+    """The LSTM's rows of the shipped model's `cv.csv` (`train --cv 5 --seed 7`, on LightGBM's
+    folds): (name, {mae_w, mape_in_flight_pct, energy_error_pct: {mean, median}}). The row
+    whose network and training match the card is the shipped one; the others are named by how
+    they differ from it."""
     import csv
+    import tomllib
     path = LSTM_DIR / "cv.csv"
     try:
         rows = list(csv.DictReader(path.open()))
-    except OSError as e:
+        card = tomllib.loads(LSTM_CARD.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
         note(f"{path}: no LSTM CV rows ({e})")
         return []
+    train = card.get("training", {})
+    shipped = {"hidden": str(card.get("hidden")), "stride": str(train.get("stride")),
+               "relative_loss": float(train.get("relative_loss", 0)),
+               "plateau_decay": float(train.get("plateau_decay", 1)),
+               "members": 1 + len(card.get("members", []))}
+
+    def changes(r):
+        # Columns added later (absent in older rows): the loss's relative weight, the plateau decay.
+        c = []
+        if r["stride"] != shipped["stride"]:
+            c.append(f"stride {r['stride']}")
+        lam = float(r.get("relative_loss") or 0)
+        if lam != shipped["relative_loss"]:
+            c.append(f"relative loss λ {lam:g}" if lam else "the absolute loss")
+        if float(r.get("plateau_decay") or 1) != shipped["plateau_decay"]:
+            c.append(f"plateau decay {float(r.get('plateau_decay') or 1):g}")
+        return c
+
     out = []
-    ens = [r for r in rows if len(r.get("init_seeds", "").split(";")) > 1]
     for r in rows:
         seeds = r.get("init_seeds", "").split(";")
-        if len(seeds) > 1:
-            name = f"LSTM, ensemble of {len(seeds)} × {r['hidden']} cells, stride {r['stride']} (shipped)"
-        elif ens and r["hidden"] == ens[0]["hidden"] and seeds[0] == ens[0]["init_seeds"].split(";")[0]:
+        c = changes(r)
+        if r["hidden"] != shipped["hidden"]:
+            name = (f"LSTM, one network × {r['hidden']} cells, stride {r['stride']} "
+                    "(the paper's network, shipped before the ensembles)")
+        elif len(seeds) > 1:
+            base = f"LSTM, ensemble of {len(seeds)} × {r['hidden']} cells"
+            if not c and len(seeds) == shipped["members"]:
+                loss = f", relative loss λ {shipped['relative_loss']:g}" if shipped["relative_loss"] else ""
+                name = f"{base}, stride {r['stride']}{loss} (shipped)"
+            elif c == ["the absolute loss"]:
+                name = f"{base}, stride {r['stride']}, the absolute loss (shipped until 2026-11-26)"
+            else:
+                name = f"{base}, {', '.join(c)} (candidate, not shipped)"
+        elif not c:
             name = f"LSTM, its first member alone ({r['hidden']} cells, stride {r['stride']})"
+        elif c == ["the absolute loss"]:
+            name = f"LSTM, the ensemble shipped before: its first member alone"
         else:
-            name = f"LSTM, one network × {r['hidden']} cells, stride {r['stride']} (shipped before)"
+            name = f"LSTM, the first member (init seed {seeds[0]}) with {', '.join(c)} (candidate, not shipped)"
         stat = {k: {"mean": float(r[f"avg_{k}"]), "median": float(r[f"median_{k}"])}
                 for k in ("mape_in_flight_pct", "energy_error_pct")}
         stat["mae_w"] = {"mean": float(r["avg_mae_w"]), "median": float(r["median_mae_w"])}
@@ -414,7 +448,11 @@ def lgbm_cv(r):
            "model card scores the test flights, every window through the live chain; the first "
            "member alone is scored on the same folds beside the ensemble, and the paper's network "
            "(`config/models/lstm-m100-h128`'s recipe) is cross-validated on the same folds too. "
-           "Each cross-validation ran as two processes (`--cv-folds`), joined by "
+           "The candidates (rows marked so) are the shipped recipe with one flag changed "
+           "(`--stride`, `--plateau-decay`, `--relative-loss`), screened as one network (init seed 7, "
+           "the ensemble's first member) and, where the screen passed its rule, as the ensemble; the "
+           "rules and the order they ran in are in the model card. "
+           "Each ensemble's cross-validation ran as two processes (`--cv-folds`), joined by "
            "`scripts/merge-cv.py`.\n")
     return md
 
@@ -443,6 +481,8 @@ def lgbm_test(r):
             c = tomllib.loads(card.read_text())
             n = 1 + len(c.get("members", []))
             net = f"ensemble of {n} × {c['hidden']} cells" if n > 1 else f"{c['layers']} × {c['hidden']} cells"
+            lam = c.get("training", {}).get("relative_loss", 0)
+            net += f", relative loss λ {lam:g}" if lam else ""
             m = c["metrics"]
             rows.append([f"LSTM, {net}, {what}", f(m["mae_w"], 1), f(m["flight_276_mae_w"], 1),
                          f(m["mape_in_flight_pct"]), f(m["energy_error_pct"])])
