@@ -89,13 +89,7 @@ fn shipped_weights_flight_276() {
     let mut model = LstmModel::load(&dir, &cfg).unwrap();
     assert!(!model.card().training.train_flights.contains(&276));
     assert!(!model.card().training.validation_flights.contains(&276));
-    let flights = load_flights(
-        &dronewatt::default_data_path(),
-        Some(&[276]),
-        &cfg,
-        &MissionConfig::default(),
-    )
-    .unwrap();
+    let flights = [flight(276, &cfg)];
     // Each estimate is for the sample the card's target lag before the window's newest.
     let lag = model.card().target_lag;
     let windows: Vec<_> = flights[0]
@@ -130,13 +124,7 @@ fn live_forward_matches_libtorch_on_shipped_weights() {
     let mut torch =
         LstmModel::load_with(&dir, &cfg, Some(dronewatt_torch::load_on_libtorch)).unwrap();
     assert!(!torch.on_kernel());
-    let flights = load_flights(
-        &dronewatt::default_data_path(),
-        Some(&[276]),
-        &cfg,
-        &MissionConfig::default(),
-    )
-    .unwrap();
+    let flights = [flight(276, &cfg)];
     let windows: Vec<_> = flights[0].windows.iter().step_by(7).cloned().collect();
     assert!(windows.len() > 100);
     let mut batched = Vec::new();
@@ -227,13 +215,7 @@ fn smoke_cross_validation_scores_held_out_folds() {
     assert_eq!(card.training.init_seed, None, "member 3 is --seed's own");
     let cfg = TelemetryConfig::default();
     let mut model = LstmModel::load(out.path(), &cfg).unwrap();
-    let flights = load_flights(
-        &dronewatt::default_data_path(),
-        Some(&[100]),
-        &cfg,
-        &MissionConfig::default(),
-    )
-    .unwrap();
+    let flights = [flight(100, &cfg)];
     let mut est = Vec::new();
     model.predict(&flights[0].windows[..50], &mut est);
     assert!(est.iter().all(|p| p.power_w.is_finite()), "{est:?}");
@@ -279,13 +261,7 @@ fn smoke_loss_options_are_recorded_and_act() {
     );
 
     let cfg = TelemetryConfig::default();
-    let flights = load_flights(
-        &dronewatt::default_data_path(),
-        Some(&[100]),
-        &cfg,
-        &MissionConfig::default(),
-    )
-    .unwrap();
+    let flights = [flight(100, &cfg)];
     let windows = &flights[0].windows[..50];
     let (mut a, mut b) = (Vec::new(), Vec::new());
     LstmModel::load(plain.path(), &cfg)
@@ -344,4 +320,16 @@ fn smoke_train(out: &std::path::Path, extra: &[&str]) -> std::process::ExitStatu
         .env("CUDA_VISIBLE_DEVICES", "")
         .status()
         .unwrap()
+}
+
+/// One flight of the data set (`DRONEWATT_DATA`), through the ingest path.
+fn flight(n: u32, cfg: &TelemetryConfig) -> dronewatt::offline::data::FlightWindows {
+    load_flights(
+        &dronewatt::default_data_path(),
+        Some(&[n]),
+        cfg,
+        &MissionConfig::default(),
+    )
+    .unwrap()
+    .remove(0)
 }
