@@ -382,7 +382,7 @@ def lstm_cv_rows():
         elif not c:
             name = f"LSTM, its first member alone ({r['hidden']} cells, stride {r['stride']})"
         elif c == ["the absolute loss"]:
-            name = f"LSTM, the ensemble shipped before: its first member alone"
+            name = "LSTM, the ensemble shipped before: its first member alone"
         else:
             name = f"LSTM, the first member (init seed {seeds[0]}) with {', '.join(c)} (candidate, not shipped)"
         stat = {k: {"mean": float(r[f"avg_{k}"]), "median": float(r[f"median_{k}"])}
