@@ -84,11 +84,7 @@ fn network_learns_saves_and_reloads() {
     tch::set_num_threads(1);
     tch::manual_seed(1);
     let windows: Vec<Window> = (0..256).map(synthetic_window).collect();
-    let mut x = Vec::new();
-    for w in &windows {
-        push_inputs(w, FeatureSet::Paper, 10, &mut x);
-    }
-    let x = Tensor::from_slice(&x).view([256, 10, N_FEATURES as i64]) / 100.0;
+    let x = standardised(&windows);
     let y = Tensor::from_slice(
         &windows
             .iter()
@@ -183,12 +179,7 @@ fn card_mismatch_names_the_key() {
 fn an_ensemble_publishes_the_members_mean() {
     tch::set_num_threads(1);
     let windows: Vec<Window> = (0..6).map(synthetic_window).collect();
-    let mut x = Vec::new();
-    for w in &windows {
-        push_inputs(w, FeatureSet::Paper, 10, &mut x);
-    }
-    // The card standardises with mean 0 and std 100 (below), so the networks see x / 100.
-    let x = Tensor::from_slice(&x).view([6, 10, N_FEATURES as i64]) / 100.0;
+    let x = standardised(&windows);
     let dir = tempfile::tempdir().unwrap();
     let mut direct = Vec::new();
     for (seed, file) in [(3, "a.safetensors"), (4, "b.safetensors")] {
@@ -247,4 +238,14 @@ fn an_ensemble_publishes_the_members_mean() {
             .expect("a missing member must fail")
     );
     assert!(msg.contains("gone.safetensors"), "{msg}");
+}
+
+/// The windows' paper inputs `[n, 10, 21]` as the networks see them: the cards here
+/// standardise with mean 0 and std 100, so x / 100.
+fn standardised(windows: &[Window]) -> Tensor {
+    let mut x = Vec::new();
+    for w in windows {
+        push_inputs(w, FeatureSet::Paper, 10, &mut x);
+    }
+    Tensor::from_slice(&x).view([windows.len() as i64, 10, N_FEATURES as i64]) / 100.0
 }

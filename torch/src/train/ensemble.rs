@@ -13,7 +13,7 @@ use tch::Device;
 use dronewatt::model::card::{ModelCard, WeightsFormat};
 use dronewatt::offline::train::TrainArgs;
 
-use super::{train_split, FlightData, Hyper, RunOutcome, Scaling};
+use super::{split_tensors, train_split, FlightData, Hyper, RunOutcome, Scaling};
 
 /// One trained network of an ensemble: its init seed and its run.
 pub(super) type Member = (u64, RunOutcome);
@@ -29,7 +29,7 @@ pub(super) fn init_seeds(args: &TrainArgs) -> Vec<u64> {
 
 /// Train one network per init seed on the same flights: the scaling (the same for every
 /// member: it depends on the flights only), each member's seed and run, and the training
-/// windows a member saw.
+/// windows a member saw. The windows are gathered and moved to the device once.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn train_members(
     args: &TrainArgs,
@@ -42,21 +42,17 @@ pub(super) fn train_members(
     label: &str,
 ) -> anyhow::Result<(Scaling, Vec<Member>, usize)> {
     let seeds = init_seeds(args);
+    let data = split_tensors(args, train, val, per_flight, t, device, label)?;
     let mut members = Vec::with_capacity(seeds.len());
-    let mut first = None;
     for &s in &seeds {
         let label = if seeds.len() > 1 {
             format!("{label} member {s}")
         } else {
             label.to_string()
         };
-        let (scaling, outcome, n) =
-            train_split(args, s, train, val, per_flight, hp, t, device, &label)?;
-        first.get_or_insert((scaling, n));
-        members.push((s, outcome));
+        members.push((s, train_split(args, s, &data, hp, device, &label)?));
     }
-    let (scaling, n) = first.context("no init seed")?;
-    Ok((scaling, members, n))
+    Ok((data.scaling, members, data.n))
 }
 
 /// Save the members' weights into `dir`: `model.safetensors` for one network,

@@ -588,19 +588,31 @@ pub(crate) fn relative_weights(y: &[f32], lambda: f64) -> Option<Vec<f32>> {
     )
 }
 
-/// Train on `train` flights with early stopping on `val` flights.
-#[allow(clippy::too_many_arguments)]
-fn train_split(
+/// The windows one split trains and early-stops on, standardised, as tensors on the device:
+/// built once per split and shared by every member of an ensemble.
+pub(crate) struct SplitTensors {
+    pub(crate) scaling: Scaling,
+    x: Tensor,
+    y: Tensor,
+    vx: Tensor,
+    vy: Tensor,
+    /// The point loss's per-window weights (`--relative-loss`), when not all 1.
+    weights: Option<Tensor>,
+    /// Training windows.
+    pub(crate) n: usize,
+}
+
+/// Gather `train` flights' windows (every `--stride`-th) and `val` flights' (every 2nd),
+/// fit the scaling on the training windows and move both to `device`.
+pub(crate) fn split_tensors(
     args: &TrainArgs,
-    init_seed: u64,
     train: &[u32],
     val: &[u32],
     per_flight: &BTreeMap<u32, FlightData>,
-    hp: Hyper,
     t: usize,
     device: Device,
     label: &str,
-) -> anyhow::Result<(Scaling, RunOutcome, usize)> {
+) -> anyhow::Result<SplitTensors> {
     let (xr, yr) = gather(train, per_flight, t, args.stride);
     let (xv, yv) = gather(val, per_flight, t, 2);
     anyhow::ensure!(
@@ -612,7 +624,37 @@ fn train_split(
         relative_weights(&yr, args.relative_loss).map(|w| Tensor::from_slice(&w).to_device(device));
     let (x, y) = to_tensors(&xr, &yr, &scaling, t, device);
     let (vx, vy) = to_tensors(&xv, &yv, &scaling, t, device);
-    let n = yr.len();
+    Ok(SplitTensors {
+        scaling,
+        x,
+        y,
+        vx,
+        vy,
+        weights,
+        n: yr.len(),
+    })
+}
+
+/// Train one network (`init_seed`: weights, dropout, batch order) on a split with early
+/// stopping on its validation windows.
+fn train_split(
+    args: &TrainArgs,
+    init_seed: u64,
+    data: &SplitTensors,
+    hp: Hyper,
+    device: Device,
+    label: &str,
+) -> anyhow::Result<RunOutcome> {
+    let SplitTensors {
+        scaling,
+        x,
+        y,
+        vx,
+        vy,
+        weights,
+        n,
+    } = data;
+    let n = *n;
     tch::manual_seed(init_seed as i64);
     let mut vs = nn::VarStore::new(device);
     let net = Net::new(&vs.root(), args.hidden, 2, hp.dropout);
@@ -655,7 +697,7 @@ fn train_split(
             steps += 1;
             pb.inc(1);
         }
-        let (val_loss, mae, rmse) = validate(&net, &vx, &vy, scaling.power_scale_w);
+        let (val_loss, mae, rmse) = validate(&net, vx, vy, scaling.power_scale_w);
         let train_loss = sum / count.max(1) as f64;
         curve.push(CurvePoint {
             epoch,
@@ -698,17 +740,13 @@ fn train_split(
     tracing::info!(
         "{label}: best validation MAE {best_mae:.2} W at epoch {best_epoch} ({steps} steps)"
     );
-    Ok((
-        scaling,
-        RunOutcome {
-            vs,
-            curve,
-            best_epoch,
-            best_val_mae_w: best_mae,
-            steps,
-        },
-        n,
-    ))
+    Ok(RunOutcome {
+        vs,
+        curve,
+        best_epoch,
+        best_val_mae_w: best_mae,
+        steps,
+    })
 }
 
 /// Validation loss, MAE (W) and RMSE (W) with dropout off, in batches.
