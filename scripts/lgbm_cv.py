@@ -13,6 +13,14 @@ The windows come from `dronewatt train --export-csv FILE --cv 5 --seed 7 --targe
     scripts/lgbm_cv.py untuned /tmp/windows.csv --json /tmp/lgbm-cv.json  # the baseline, same folds
     scripts/lgbm_cv.py test    /tmp/windows.csv --json /tmp/lgbm-cv.json  # once
 
+    scripts/lgbm_cv.py cv /tmp/windows.csv --json /tmp/lgbm-l9.json --only 0 --lags 9  # #0, 10-sample window
+
+`--lags N` gives every row the samples up to N steps back (the export holds 1-3, more are
+shifted here within each flight, missing across a gap): with N = 9 LightGBM sees the LSTM's
+whole 10-sample window. `--lag L` sets the target lag, as the LSTM's card does: at L = 3 the
+export's lags 1-3 end at the target instant, so a larger L needs N >= L to see it at all.
+`--only I,...` runs only those configurations of the search below.
+
 `cv` and `untuned` touch the training flights only: each configuration trains on K-1 folds and is
 scored on the held-out one. `test` reads the configuration `cv` chose from the JSON, trains
 it once on every training flight and scores the test flights once; it also scores the
@@ -86,8 +94,17 @@ def max_trees(lr):
     return int(round(40 / lr / TREE_STEP)) * TREE_STEP
 
 
-def load(path, lag):
+def load(path, lag, lags=3):
     df = pd.read_csv(path)
+    base = [c for c in df.columns if c not in META and "_lag" not in c]
+    if lags > 3:  # the export holds lags 1-3; more are shifted here, within each flight, NaN across a gap
+        g = df.groupby("flight")
+        extra = {}
+        for k in range(4, lags + 1):
+            gap = np.abs(df.t_s - g.t_s.shift(k) - 0.1 * k) >= 1e-3
+            for c in base:
+                extra[f"{c}_lag{k}"] = g[c].shift(k).mask(gap)
+        df = pd.concat([df, pd.DataFrame(extra)], axis=1)
     feats = [c for c in df.columns if c not in META]
     if lag:  # as lgbm_baseline.py
         g = df.groupby("flight")
@@ -148,10 +165,12 @@ def untuned_fit(train, feats):
 
 def run_cv(a):
     started = time.time()
-    df, feats = load(a.csv, a.lag)
+    df, feats = load(a.csv, a.lag, a.lags)
     pool = df[df.fold >= 0]
     k = int(pool.fold.max()) + 1
     cs = configs()
+    if a.only is not None:
+        cs = [cs[int(i)] for i in a.only.split(",")]
     data = []
     for fold in range(k):
         tr, va = strided(pool[pool.fold != fold]), pool[pool.fold == fold]
@@ -160,10 +179,10 @@ def run_cv(a):
         dva = dtr.create_valid(va[feats].to_numpy(np.float32), va.measured_w.to_numpy())
         data.append((dtr, dva, va))
     print(f"{len(pool.flight.unique())} training flights, {k} folds, {len(cs)} configurations, "
-          f"target lag {a.lag}", flush=True)
+          f"target lag {a.lag}, feature lags 1-{a.lags}", flush=True)
     out = {"command": "scripts/lgbm_cv.py cv windows.csv --json FILE",
            "export": f"dronewatt train --export-csv windows.csv --cv {k} --seed 7 --target-lag {a.lag}",
-           "target_lag": a.lag, "folds": k, "training_flights": int(pool.flight.nunique()),
+           "target_lag": a.lag, "feature_lags": a.lags, "folds": k, "training_flights": int(pool.flight.nunique()),
            "fold_flights": [int(pool[pool.fold == f].flight.nunique()) for f in range(k)],
            "rule": "lowest MAE averaged over the held-out folds (configuration and tree count)",
            "search": __doc__.split("The search, fixed before it ran:")[1].split("Metrics")[0].strip(),
@@ -186,7 +205,7 @@ def run_cv(a):
         n_best = int(grid[np.argmin(mean_curve)])
         per_fold = [scores(va, b.predict(va[feats].to_numpy(np.float32), num_iteration=n_best))
                     for b, (_, _, va) in zip(boosters, data)]
-        row = {"index": ci, "params": c, "max_trees": n_max, "trees": n_best,
+        row = {"index": int(a.only.split(",")[ci]) if a.only is not None else ci, "params": c, "max_trees": n_max, "trees": n_best,
                "wall_s": round(time.time() - t0, 1), **summary(per_fold)}
         out["configs"].append(row)
         print(f"[{ci:2}] {c} trees {n_best}/{n_max}: CV MAE {row['mae_w']['mean']:.2f} W, "
@@ -205,7 +224,7 @@ def run_untuned(a):
     """The untuned baseline (lgbm_baseline.py's recipe) on the same folds, added to the JSON."""
     out = json.loads(Path(a.json).read_text())
     started = time.time()
-    df, feats = load(a.csv, out["target_lag"])
+    df, feats = load(a.csv, out["target_lag"], out.get("feature_lags", 3))
     pool = df[df.fold >= 0]
     per_fold, trees = [], []
     for fold in range(out["folds"]):
@@ -247,7 +266,7 @@ def run_test(a):
     if "test" in out:
         sys.exit(f"{a.json} already holds the test score: the test split is scored once")
     started = time.time()
-    df, feats = load(a.csv, out["target_lag"])
+    df, feats = load(a.csv, out["target_lag"], out.get("feature_lags", 3))
     pool, test = df[df.fold >= 0], df[df.test == 1]
     best = next(r for r in out["configs"] if r["index"] == out["chosen"])
     tr = strided(pool)
@@ -279,6 +298,9 @@ def main():
     ap.add_argument("csv")
     ap.add_argument("--json", required=True, help="results (figures only); `test` reads `cv`'s choice here")
     ap.add_argument("--lag", type=int, default=3, help="target lag, samples (cv; test takes cv's)")
+    ap.add_argument("--lags", type=int, default=3,
+                    help="cv: feature lags 1..N (the export holds 1-3; more are shifted within each flight)")
+    ap.add_argument("--only", help="cv: run only these configurations (comma-separated indices)")
     ap.add_argument("--budget-s", type=float, default=0, help="cv: start no configuration after this many s")
     a = ap.parse_args()
     {"cv": run_cv, "untuned": run_untuned, "test": run_test}[a.step](a)

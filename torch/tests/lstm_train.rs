@@ -171,7 +171,10 @@ fn live_forward_matches_libtorch_on_shipped_weights() {
 #[test]
 fn smoke_cross_validation_scores_held_out_folds() {
     let out = tempfile::tempdir().unwrap();
-    let status = smoke_train(out.path(), &["--cv", "2", "--init-seed", "3,4"]);
+    let status = smoke_train(
+        out.path(),
+        &["--cv", "2", "--init-seed", "3,4", "--target-lag", "2"],
+    );
     assert!(status.success(), "dronewatt train --cv 2 failed");
     let csv = std::fs::read_to_string(out.path().join("cv.csv")).unwrap();
     let mut lines = csv.lines();
@@ -209,6 +212,11 @@ fn smoke_cross_validation_scores_held_out_folds() {
         "the fold scratch folder is removed"
     );
     assert_eq!(cell("init_seeds"), "3;4", "{csv}");
+    assert_eq!(
+        cell("target_lag"),
+        "2",
+        "the row says the lag it was trained at\n{csv}"
+    );
     let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
     assert_eq!(card.weights, "member-3.safetensors");
     assert_eq!(card.members, ["member-4.safetensors"]);
@@ -225,7 +233,7 @@ fn smoke_cross_validation_scores_held_out_folds() {
     // A member is the network its init seed trains alone (same split, same seed, one
     // thread): the model card's one-command retrain and a member-by-member one agree.
     let alone = tempfile::tempdir().unwrap();
-    let status = smoke_train(alone.path(), &["--init-seed", "4"]);
+    let status = smoke_train(alone.path(), &["--init-seed", "4", "--target-lag", "2"]);
     assert!(status.success(), "dronewatt train --init-seed 4 failed");
     let windows = &flights[0].windows[..50];
     let mut member = LstmModel::load(&out.path().join("member-4.safetensors"), &cfg).unwrap();
