@@ -17,6 +17,7 @@ pub mod fleet;
 pub mod frame;
 pub mod link;
 pub mod links;
+pub mod power;
 pub mod raw;
 pub mod signing;
 mod synth;

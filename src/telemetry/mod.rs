@@ -19,7 +19,7 @@
 //! | velocity | `velocity_*` | LOCAL_POSITION_NED, ODOMETRY (child frame LOCAL_NED or BODY_FRD), GLOBAL_POSITION_INT (cm/s) |
 //! | position | `position_*` | GLOBAL_POSITION_INT, GPS_RAW_INT |
 //! | wind | `wind_speed`, `wind_angle` | WIND, WIND_COV (true wind minus ground velocity = what the anemometer reads), VFR_HUD (airspeed, with the heading as the angle) |
-//! | power | `measured_w`, `voltage_v` | BATTERY_STATUS (battery id 0; cell voltages summed), SYS_STATUS |
+//! | power | `measured_w`, `voltage_v` | BATTERY_STATUS (battery id 0; cell voltages summed), SYS_STATUS (0 V: no voltage); [`crate::source::power`] |
 //! | mission | `speed`, `payload`, `altitude` | NAMED_VALUE_FLOAT `cmd_speed` (m/s), `payload_g` (g), `cmd_alt` (m) — the data-set encoder sends these — then `[mission]` config, then defaults 10 m/s, 0 g, 25 m |
 //! | home | [`Sample::home`] | HOME_POSITION, else the first GPS fix (non-zero latitude/longitude) |
 //! | vehicle class, air data | [`Sample::vehicle`], [`Sample::air`] | HEARTBEAT `type`, EXTENDED_SYS_STATE `vtol_state`, ArduPlane's Q modes, the profile's `[vehicle] class`; VFR_HUD airspeed, SYS_STATUS's airspeed sensor, WIND, SCALED_PRESSURE temperature ([`kind`]) |
@@ -565,31 +565,11 @@ impl Telemetry {
             }
             MavMessage::BATTERY_STATUS(b) if b.id == 0 => {
                 self.battery_remaining(b.battery_remaining);
-                let mv: f64 = b
-                    .voltages
-                    .iter()
-                    .filter(|&&c| c != u16::MAX)
-                    .map(|&c| c as f64)
-                    .sum::<f64>()
-                    + b.voltages_ext
-                        .iter()
-                        .filter(|&&c| c != 0)
-                        .map(|&c| c as f64)
-                        .sum::<f64>();
-                if b.current_battery != -1 && mv > 0.0 {
-                    self.power(0, t, mv * 1e-3, b.current_battery as f64 * 0.01);
-                }
+                self.power(t, msg);
             }
             MavMessage::SYS_STATUS(s) => {
                 self.battery_remaining(s.battery_remaining);
-                if s.voltage_battery != u16::MAX && s.current_battery != -1 {
-                    self.power(
-                        1,
-                        t,
-                        s.voltage_battery as f64 * 1e-3,
-                        s.current_battery as f64 * 0.01,
-                    );
-                }
+                self.power(t, msg);
             }
             MavMessage::NAMED_VALUE_FLOAT(n) => {
                 let name = n.name.to_str().unwrap_or("").trim_end_matches('\0');
@@ -617,7 +597,16 @@ impl Telemetry {
         }
     }
 
-    fn power(&mut self, rank: usize, t: i64, v: f64, i: f64) {
-        self.offer(Signal::Power, rank, t, &[v, i, v * i]);
+    /// The pack's power from BATTERY_STATUS (rank 0) or SYS_STATUS (rank 1), as
+    /// [`crate::source::power`] reads it.
+    fn power(&mut self, t: i64, msg: &MavMessage) {
+        if let Some(r) = crate::source::power::power_reading(msg) {
+            self.offer(
+                Signal::Power,
+                r.rank,
+                t,
+                &[r.voltage_v, r.current_a, r.power_w()],
+            );
+        }
     }
 }

@@ -23,7 +23,8 @@
 //!
 //! What is left is corrected by the flight's own showing, as `plan-eval` scores it
 //! ([`super::forecast::live_scaled`]): the energy drawn since the vehicle's HEARTBEAT was
-//! seen to turn armed (SYS_STATUS battery voltage × current) against the forecast of the
+//! seen to turn armed (battery voltage × current, BATTERY_STATUS else SYS_STATUS, read as the
+//! telemetry stage reads it: [`crate::source::power`]) against the forecast of the
 //! part of the plan flown, weight `[forecast.calibration] live_weight`.
 
 use std::time::Duration;
@@ -49,9 +50,13 @@ const PUBLISH_EVERY_S: f64 = 1.0;
 const REFLY_WIND_M_S: f64 = 1.5;
 /// … at most this often (source time), s.
 const REFLY_EVERY_S: f64 = 30.0;
-/// A gap between two SYS_STATUS power readings longer than this adds nothing to the energy
+/// A gap between two power readings longer than this adds nothing to the energy
 /// so far (the link was lost), s.
 const POWER_GAP_S: f64 = 5.0;
+/// A power message of a lower rank ([`crate::source::power`]: SYS_STATUS) counts once the
+/// preferred one (BATTERY_STATUS) has been silent this long, s: under [`POWER_GAP_S`], so
+/// the handover loses nothing.
+const PREFERRED_STALE_S: f64 = 3.0;
 /// How often the download's timeouts are checked (live link), wall clock.
 const TICK: Duration = Duration::from_millis(250);
 /// Depth of the channel from the tap to the telemetry stage (the pipeline's stage depth).
@@ -131,13 +136,16 @@ pub struct LiveMission {
     vtol_seen: bool,
     /// Whether the vehicle's HEARTBEAT says armed (None: not heard yet).
     armed: Option<bool>,
-    /// Energy drawn since the vehicle was seen to arm, Wh (SYS_STATUS voltage × current,
-    /// each reading held to the next): the flight's own showing for the live correction
+    /// Energy drawn since the vehicle was seen to arm, Wh (battery voltage × current, each
+    /// reading held to the next): the flight's own showing for the live correction
     /// ([`super::forecast::live_scaled`]). None until an arming is seen, and after a new
     /// mission arrives in flight (the flight so far was not that plan's).
     so_far_wh: Option<f64>,
-    /// The last SYS_STATUS power while armed: source time, s, and W.
+    /// The last pack power while armed: source time, s, and W.
     last_power: Option<(f64, f64)>,
+    /// The preferred power message heard lately: its rank ([`crate::source::power`]) and
+    /// when.
+    power_rank: Option<(usize, f64)>,
 }
 
 impl LiveMission {
@@ -159,10 +167,11 @@ impl LiveMission {
             armed: None,
             so_far_wh: None,
             last_power: None,
+            power_rank: None,
         }
     }
 
-    /// Energy drawn since the vehicle was seen to arm, Wh, when known (SYS_STATUS voltage ×
+    /// Energy drawn since the vehicle was seen to arm, Wh, when known (battery voltage ×
     /// current, each reading held to the next): what the live correction sets against the
     /// forecast of the part flown.
     pub fn energy_so_far_wh(&self) -> Option<f64> {
@@ -191,9 +200,17 @@ impl LiveMission {
         self.armed = Some(armed);
     }
 
-    /// Integrate SYS_STATUS's battery power while armed (each reading held to the next; a
-    /// gap over [`POWER_GAP_S`] counts nothing).
-    fn learn_power(&mut self, t_s: f64, power_w: f64) {
+    /// Integrate the pack's power while armed (each reading held to the next; a gap over
+    /// [`POWER_GAP_S`] counts nothing). Of BATTERY_STATUS and SYS_STATUS, the telemetry
+    /// stage's choice ([`crate::source::power`]): a SYS_STATUS reading counts only while no
+    /// BATTERY_STATUS reading was heard in the last [`PREFERRED_STALE_S`].
+    fn learn_power(&mut self, t_s: f64, rank: usize, power_w: f64) {
+        if let Some((best, at)) = self.power_rank {
+            if rank > best && t_s - at <= PREFERRED_STALE_S {
+                return;
+            }
+        }
+        self.power_rank = Some((rank, t_s));
         if self.armed != Some(true) || !power_w.is_finite() {
             return;
         }
@@ -304,14 +321,10 @@ impl LiveMission {
                 self.learn_armed(&m.msg);
                 self.learn_class(&m.msg, m.t_s)
             }
-            // 0 V and UINT16_MAX are "no voltage", −1 "no current": nothing to count.
-            MavMessage::SYS_STATUS(st)
-                if !matches!(st.voltage_battery, 0 | u16::MAX) && st.current_battery != -1 =>
-            {
-                self.learn_power(
-                    m.t_s,
-                    f64::from(st.voltage_battery) * 1e-3 * f64::from(st.current_battery) * 0.01,
-                );
+            MavMessage::SYS_STATUS(_) | MavMessage::BATTERY_STATUS(_) => {
+                if let Some(r) = crate::source::power::power_reading(&m.msg) {
+                    self.learn_power(m.t_s, r.rank, r.power_w());
+                }
                 None
             }
             MavMessage::MISSION_CURRENT(c) => {

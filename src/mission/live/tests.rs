@@ -303,3 +303,70 @@ fn the_live_forecast_of_the_rest_follows_a_first_half_that_cost_more_or_less_tha
         );
     }
 }
+
+/// The energy so far is read from the messages the telemetry stage reads: BATTERY_STATUS
+/// where the vehicle sends it (preferred over SYS_STATUS, whose current may be −1), and a
+/// SYS_STATUS of 0 V (no voltage monitor) counts nothing.
+#[test]
+fn the_energy_so_far_follows_battery_status_and_ignores_a_pack_without_voltage() {
+    let hb = |base_mode| {
+        MavMessage::HEARTBEAT(d::HEARTBEAT_DATA {
+            autopilot: d::MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            base_mode,
+            ..Default::default()
+        })
+    };
+    let sys = |mv: u16, ca: i16| {
+        MavMessage::SYS_STATUS(d::SYS_STATUS_DATA {
+            voltage_battery: mv,
+            current_battery: ca,
+            ..Default::default()
+        })
+    };
+    let batt = |ca: i16| {
+        let mut voltages = [u16::MAX; 10];
+        voltages[..6].copy_from_slice(&[4_000; 6]); // 24 V
+        MavMessage::BATTERY_STATUS(d::BATTERY_STATUS_DATA {
+            id: 0,
+            voltages,
+            current_battery: ca,
+            ..Default::default()
+        })
+    };
+    // 100 s at 1 Hz after arming; `each` gives the messages of second i.
+    let fly = |each: &dyn Fn(u32) -> Vec<MavMessage>| {
+        let mut l = live();
+        let mut out = Vec::new();
+        l.on_message(0.0, &msg(0.0, hb(d::MavModeFlag::empty())), &mut out);
+        let armed = hb(d::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+        l.on_message(0.5, &msg(0.5, armed), &mut out);
+        for i in 0..=100 {
+            let t = 1.0 + f64::from(i);
+            for m in each(i) {
+                l.on_message(t, &msg(t, m), &mut out);
+            }
+        }
+        l.energy_so_far_wh()
+    };
+    // BATTERY_STATUS at 24 V × 15 A = 360 W for 100 s = 10 Wh; SYS_STATUS says no current.
+    let wh = fly(&|_| vec![sys(24_000, -1), batt(1_500)]).expect("armed, measured");
+    assert!((wh - 10.0).abs() < 1e-6, "{wh} Wh");
+    // Both carry a current: BATTERY_STATUS's (360 W) is followed, not SYS_STATUS's (480 W).
+    let wh = fly(&|_| vec![sys(24_000, 2_000), batt(1_500)]).unwrap();
+    assert!((wh - 10.0).abs() < 1e-6, "{wh} Wh");
+    // BATTERY_STATUS goes quiet after 50 s: SYS_STATUS takes over once it is stale (3 s),
+    // the last BATTERY_STATUS reading held until then.
+    let wh = fly(&|i| {
+        let mut m = vec![sys(24_000, 2_000)];
+        if i <= 50 {
+            m.push(batt(1_500));
+        }
+        m
+    })
+    .unwrap();
+    let want = (360.0 * 54.0 + 480.0 * 46.0) / 3600.0;
+    assert!((wh - want).abs() < 1e-6, "{wh} Wh, about {want} wanted");
+    // SYS_STATUS alone, 0 V: a current without a voltage is no power (not 0 W, not 15 A × 0 V).
+    let wh = fly(&|_| vec![sys(0, 1_500)]).expect("armed");
+    assert_eq!(wh, 0.0);
+}
