@@ -168,7 +168,7 @@ def run_cv(a):
     df, feats = load(a.csv, a.lag, a.lags)
     pool = df[df.fold >= 0]
     k = int(pool.fold.max()) + 1
-    cs = configs()
+    cs = list(enumerate(configs()))
     if a.only is not None:
         cs = [cs[int(i)] for i in a.only.split(",")]
     data = []
@@ -187,9 +187,9 @@ def run_cv(a):
            "rule": "lowest MAE averaged over the held-out folds (configuration and tree count)",
            "search": __doc__.split("The search, fixed before it ran:")[1].split("Metrics")[0].strip(),
            "configs": []}
-    for ci, c in enumerate(cs):
+    for ci, (index, c) in enumerate(cs):
         if a.budget_s and time.time() - started > a.budget_s:
-            print(f"time budget spent: configurations {ci}..{len(cs) - 1} not run", flush=True)
+            print(f"time budget spent: configurations {', '.join(str(i) for i, _ in cs[ci:])} not run", flush=True)
             break
         t0 = time.time()
         n_max = max_trees(c["learning_rate"])
@@ -205,10 +205,10 @@ def run_cv(a):
         n_best = int(grid[np.argmin(mean_curve)])
         per_fold = [scores(va, b.predict(va[feats].to_numpy(np.float32), num_iteration=n_best))
                     for b, (_, _, va) in zip(boosters, data)]
-        row = {"index": int(a.only.split(",")[ci]) if a.only is not None else ci, "params": c, "max_trees": n_max, "trees": n_best,
+        row = {"index": index, "params": c, "max_trees": n_max, "trees": n_best,
                "wall_s": round(time.time() - t0, 1), **summary(per_fold)}
         out["configs"].append(row)
-        print(f"[{ci:2}] {c} trees {n_best}/{n_max}: CV MAE {row['mae_w']['mean']:.2f} W, "
+        print(f"[{index:2}] {c} trees {n_best}/{n_max}: CV MAE {row['mae_w']['mean']:.2f} W, "
               f"MAPE {row['mape_in_flight_pct']['mean']:.2f} %, energy {row['energy_error_pct']['mean']:.2f} % "
               f"({row['wall_s']:.0f} s)", flush=True)
         best = min(out["configs"], key=lambda r: r["mae_w"]["mean"])
