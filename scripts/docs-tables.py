@@ -349,11 +349,12 @@ def lstm_cv_rows():
     shipped = {"hidden": str(card.get("hidden")), "stride": str(train.get("stride")),
                "relative_loss": float(train.get("relative_loss", 0)),
                "plateau_decay": float(train.get("plateau_decay", 1)),
-               "members": 1 + len(card.get("members", [])), "target_lag": int(card.get("target_lag", 0))}
+               "members": 1 + len(card.get("members", [])), "target_lag": int(card.get("target_lag", 0)),
+               "readout": card.get("readout", "final")}
 
     def changes(r):
         # Columns added later (absent in older rows): the loss's relative weight, the plateau decay,
-        # the target lag.
+        # the target lag, the readout.
         c = []
         if r["stride"] != shipped["stride"]:
             c.append(f"stride {r['stride']}")
@@ -364,6 +365,8 @@ def lstm_cv_rows():
             c.append(f"plateau decay {float(r.get('plateau_decay') or 1):g}")
         if r.get("target_lag") and int(r["target_lag"]) != shipped["target_lag"]:
             c.append(f"target lag {int(r['target_lag'])} ({int(r['target_lag']) / 10:g} s)")
+        if (r.get("readout") or "Final").lower() != shipped["readout"]:
+            c.append(f"the {r['readout'].lower()} readout")
         return c
 
     out = []

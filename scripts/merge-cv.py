@@ -8,7 +8,7 @@ in fold order, and the means and medians recomputed over all of them:
     scripts/merge-cv.py A/cv.csv B/cv.csv > cv.csv
 
 Rows are matched on the setting (dropout, learning rate, batch, hidden cells, init seeds,
-stride, relative loss, plateau decay, target lag); a fold that appears twice, or a setting missing a fold another has, is an error.
+stride, relative loss, plateau decay, target lag, readout); a fold that appears twice, or a setting missing a fold another has, is an error.
 Standard library only.
 """
 import csv
@@ -16,7 +16,7 @@ import statistics
 import sys
 
 KEY = ("dropout", "learning_rate", "batch_size", "hidden", "init_seeds", "stride", "relative_loss",
-       "plateau_decay", "target_lag")
+       "plateau_decay", "target_lag", "readout")
 FOLD_COLS = ("fold_held_out", "fold_best_epoch", "fold_inner_val_mae_w", "fold_mae_w", "fold_rmse_w",
              "fold_mape_in_flight_pct", "fold_energy_error_pct")
 # Summary column -> (per-fold column, statistic).

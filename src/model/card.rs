@@ -44,6 +44,28 @@ impl FeatureSet {
     }
 }
 
+/// Which hidden states of the top LSTM layer the dense head reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Readout {
+    /// The final forward and backward states (Keras' `Bidirectional(LSTM)`, the paper's):
+    /// each has read the whole window, and the instant estimated is implicit.
+    #[default]
+    Final,
+    /// Both directions' states at the estimated instant, `window − 1 − target_lag` (a
+    /// fixed-lag smoother's readout): the forward state has read the window up to the
+    /// instant, the backward one the samples after it, back to it. The backward pass is
+    /// `target_lag + 1` steps instead of the window.
+    Instant,
+}
+
+impl Readout {
+    /// The default: a card that omits `readout` reads the final states.
+    pub fn is_final(&self) -> bool {
+        *self == Readout::Final
+    }
+}
+
 /// Where the network's weights are and what they are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -93,6 +115,9 @@ pub struct ModelCard {
     /// newest, as in the paper). Absent in older cards: 0.
     #[serde(default)]
     pub target_lag: usize,
+    /// Which top-layer states the head reads (built-in network only). Absent: `final`.
+    #[serde(default, skip_serializing_if = "Readout::is_final")]
+    pub readout: Readout,
     /// Nominal quantiles of the band heads (low, high), e.g. (0.05, 0.95).
     pub band_quantiles: (f32, f32),
     /// Watts added on each side of the heads' band: split-conformal calibration (CQR) on the
@@ -228,6 +253,12 @@ impl ModelCard {
         Ok(())
     }
 
+    /// The window step whose states the head reads: `None` for the final states, else the
+    /// estimated instant, `window − 1 − target_lag`.
+    pub fn readout_step(&self) -> Option<usize> {
+        (self.readout == Readout::Instant).then(|| self.window.saturating_sub(1 + self.target_lag))
+    }
+
     /// Does this card fit what the ingest path produces? The error names the mismatch.
     pub fn check(&self, cfg: &TelemetryConfig) -> Result<(), String> {
         let expected = self.feature_set.names();
@@ -249,6 +280,12 @@ impl ModelCard {
             return Err(format!(
                 "rate_hz = {} but telemetry.rate_hz = {}: the model was trained at another resample rate",
                 self.rate_hz, cfg.rate_hz
+            ));
+        }
+        if self.readout == Readout::Instant && self.target_lag >= self.window {
+            return Err(format!(
+                "readout = \"instant\" needs target_lag ({}) below window ({})",
+                self.target_lag, self.window
             ));
         }
         if self.window != cfg.window {

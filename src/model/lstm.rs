@@ -9,7 +9,10 @@
 //! P_scale from the model card (1.2 × the largest training power, so tanh's range covers
 //! the data). Trained with Adam on the pinball loss of all three heads (the point head's,
 //! at 0.5, is the MAE). A card may set a target lag L: the estimate is then for the sample
-//! L steps before the window's newest ([`crate::telemetry::window::Window::back`]).
+//! L steps before the window's newest ([`crate::telemetry::window::Window::back`]). A card
+//! may also set `readout = "instant"`: the head then reads the top layer's forward and
+//! backward states at that instant instead of the final ones
+//! ([`super::card::Readout`]).
 //!
 //! The cell count is the card's `hidden` (the paper: 128), and a card may list an
 //! ensemble's further `members`: networks trained on the same flights from other initial
@@ -248,9 +251,9 @@ impl LstmModel {
             (None, WeightsFormat::Safetensors) => {
                 let (layers, hidden) =
                     (usize::try_from(card.layers)?, usize::try_from(card.hidden)?);
-                Backend::Kernel(Box::new(CpuLstm::from_safetensors(
-                    weights, layers, hidden,
-                )?))
+                let mut k = CpuLstm::from_safetensors(weights, layers, hidden)?;
+                k.set_readout(card.readout_step());
+                Backend::Kernel(Box::new(k))
             }
             (None, WeightsFormat::Torchscript) => {
                 return Err(super::NeedsLibtorch {

@@ -22,7 +22,7 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use crate::model::card::FeatureSet;
+use crate::model::card::{FeatureSet, Readout};
 use crate::offline::args::{help, ConfigArg, DataArg};
 
 /// Band quantiles of the low and high heads.
@@ -146,6 +146,11 @@ pub struct TrainArgs {
     /// absolute loss. Recorded in the card.
     #[arg(long, default_value_t = 0.0, value_name = "λ")]
     pub relative_loss: f64,
+    /// Which top-layer states the head reads: `final` (the paper's: the last forward and
+    /// backward states) or `instant` (both directions at the estimated instant, `window − 1
+    /// − target-lag`: a fixed-lag smoother's readout). Recorded in the card.
+    #[arg(long, value_enum, default_value_t = Readout::Final)]
+    pub readout: Readout,
     /// Hidden cells per LSTM direction and layer (the paper: 128).
     #[arg(long, default_value_t = 128)]
     pub hidden: i64,

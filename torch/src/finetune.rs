@@ -75,6 +75,7 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
         card.hidden,
         card.layers,
         job.dropout.unwrap_or(card.training.dropout),
+        card.readout_step(),
     );
     // An ensemble (`card.members`) is fine-tuned through its first member, which is
     // cheaper than tuning every member and keeps `learn`'s card one network.

@@ -30,11 +30,21 @@ pub struct Net {
     lstm: nn::LSTM,
     head: nn::Linear,
     dropout: f64,
+    /// The window step whose top-layer states the head reads (`None`: the final ones).
+    readout: Option<i64>,
 }
 
 impl Net {
-    /// Build the network's variables under `p` (`p/lstm`, `p/head`).
-    pub fn new(p: &nn::Path, hidden: i64, layers: i64, dropout: f64) -> Net {
+    /// Build the network's variables under `p` (`p/lstm`, `p/head`). `readout`: the window
+    /// step whose top-layer states (both directions) the head reads, `None` for the final
+    /// ones ([`dronewatt::model::card::ModelCard::readout_step`]).
+    pub fn new(
+        p: &nn::Path,
+        hidden: i64,
+        layers: i64,
+        dropout: f64,
+        readout: Option<usize>,
+    ) -> Net {
         let cfg = nn::RNNConfig {
             num_layers: layers,
             bidirectional: true,
@@ -47,16 +57,24 @@ impl Net {
             lstm,
             head,
             dropout,
+            readout: readout.map(|r| r as i64),
         }
     }
 
     /// `x`: `[batch, T, 21]` standardised → `[batch, 3]` tanh-scaled (point, low, high).
     /// `train` turns dropout on.
     pub fn forward_t(&self, x: &Tensor, train: bool) -> Tensor {
-        let (_, nn::LSTMState((h, _))) = self.lstm.seq(x);
-        let n = h.size()[0];
-        // h: [layers × 2, batch, hidden]; the last two are the top layer's forward/backward.
-        let last = Tensor::cat(&[h.get(n - 2), h.get(n - 1)], 1);
+        let (out, nn::LSTMState((h, _))) = self.lstm.seq(x);
+        let last = match self.readout {
+            // out: [batch, T, 2 × hidden], each step's forward and backward states.
+            Some(r) => out.select(1, r.min(out.size()[1] - 1)),
+            None => {
+                // h: [layers × 2, batch, hidden]; the last two are the top layer's
+                // forward/backward.
+                let n = h.size()[0];
+                Tensor::cat(&[h.get(n - 2), h.get(n - 1)], 1)
+            }
+        };
         self.head.forward(&last.dropout(self.dropout, train)).tanh()
     }
 }
@@ -81,7 +99,13 @@ impl TorchNet {
         let backend = match card.weights_format {
             WeightsFormat::Safetensors => {
                 let mut vs = nn::VarStore::new(device);
-                let net = Net::new(&vs.root(), card.hidden, card.layers, card.training.dropout);
+                let net = Net::new(
+                    &vs.root(),
+                    card.hidden,
+                    card.layers,
+                    card.training.dropout,
+                    card.readout_step(),
+                );
                 vs.load(weights)
                     .with_context(|| format!("{}: cannot load LSTM weights", weights.display()))?;
                 Backend::Native { _vs: vs, net }

@@ -16,9 +16,20 @@ fn random_net(
     layers: i64,
     windows: i64,
 ) -> (tempfile::TempDir, std::path::PathBuf, Vec<f32>, Vec<f32>) {
+    random_net_reading(seed, hidden, layers, windows, None)
+}
+
+/// [`random_net`] whose head reads the top layer's states at window step `readout`.
+fn random_net_reading(
+    seed: i64,
+    hidden: i64,
+    layers: i64,
+    windows: i64,
+    readout: Option<usize>,
+) -> (tempfile::TempDir, std::path::PathBuf, Vec<f32>, Vec<f32>) {
     tch::manual_seed(seed);
     let mut vs = VarStore::new(Device::Cpu);
-    let net = Net::new(&vs.root(), hidden, layers, 0.2);
+    let net = Net::new(&vs.root(), hidden, layers, 0.2, readout);
     tch::no_grad(|| {
         for (name, mut v) in vs.variables() {
             if name.contains("bias") {
@@ -86,6 +97,32 @@ fn matches_libtorch_on_another_shape() {
         let what = format!("{isa:?}");
         for b in [1, 2, 3, 4, 5, 6, 7, 8, 9, 13, 40] {
             check_batch(&mut m, &xs, &want, b, &what);
+        }
+    }
+}
+
+/// The instant readout (both directions' top-layer states at one step, each direction
+/// stopping there) equals libtorch's `output[:, step]`, at every step of the window, the
+/// first and the last included, on every instruction set; and it is not the final readout.
+#[test]
+fn instant_readout_matches_libtorch_at_every_step() {
+    for step in 0..10 {
+        let (_dir, path, want, xs) = random_net_reading(7, 32, 2, 9, Some(step));
+        let (_d2, _p2, final_out, _) = random_net_reading(7, 32, 2, 9, None);
+        assert!(
+            want.iter()
+                .zip(&final_out)
+                .any(|(a, b)| (a - b).abs() > 1e-3),
+            "step {step}: the instant readout should differ from the final one"
+        );
+        for isa in Isa::available() {
+            let mut m = CpuLstm::from_safetensors(&path, 2, 32).expect("weights");
+            m.set_isa(isa);
+            m.set_readout(Some(step));
+            let what = format!("{isa:?}, readout step {step}");
+            for b in [1, 2, 7, 9] {
+                check_batch(&mut m, &xs, &want, b, &what);
+            }
         }
     }
 }

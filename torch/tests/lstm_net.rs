@@ -55,6 +55,7 @@ fn card(dir: &std::path::Path, window: usize) -> ModelCard {
         feature_std: vec![100.0; N_FEATURES],
         power_scale_w: 500.0,
         target_lag: 0,
+        readout: Default::default(),
         band_quantiles: (0.05, 0.95),
         band_widen_w: 0.0,
         hidden: 16,
@@ -92,7 +93,7 @@ fn network_learns_saves_and_reloads() {
             .collect::<Vec<_>>(),
     );
     let mut vs = nn::VarStore::new(Device::Cpu);
-    let net = Net::new(&vs.root(), 16, 2, 0.2);
+    let net = Net::new(&vs.root(), 16, 2, 0.2, None);
     let mut opt = nn::Adam::default().build(&vs, 1e-2).unwrap();
     let mut losses = Vec::new();
     for _ in 0..150 {
@@ -132,7 +133,7 @@ fn network_learns_saves_and_reloads() {
 fn card_mismatch_names_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let vs = nn::VarStore::new(Device::Cpu);
-    let _net = Net::new(&vs.root(), 16, 2, 0.2);
+    let _net = Net::new(&vs.root(), 16, 2, 0.2, None);
     vs.save(dir.path().join("model.safetensors")).unwrap();
     card(dir.path(), 20);
     let err = LstmModel::load(dir.path(), &TelemetryConfig::default())
@@ -171,6 +172,21 @@ fn card_mismatch_names_the_key() {
         msg.contains("rate_hz = 10") && msg.contains("telemetry.rate_hz = 5"),
         "{msg}"
     );
+
+    // An instant readout needs the instant inside the window.
+    c.readout = dronewatt::model::card::Readout::Instant;
+    c.target_lag = 10;
+    c.save(&dir.path().join("card.toml")).unwrap();
+    let msg = format!(
+        "{:#}",
+        LstmModel::load(dir.path(), &TelemetryConfig::default())
+            .err()
+            .expect("an instant readout at lag 10 of a 10-sample window must fail")
+    );
+    assert!(
+        msg.contains("readout = \"instant\"") && msg.contains("target_lag (10)"),
+        "{msg}"
+    );
 }
 
 /// A card with `members` runs every member on the kernel and publishes their mean: the
@@ -185,7 +201,7 @@ fn an_ensemble_publishes_the_members_mean() {
     for (seed, file) in [(3, "a.safetensors"), (4, "b.safetensors")] {
         tch::manual_seed(seed);
         let vs = nn::VarStore::new(Device::Cpu);
-        let net = Net::new(&vs.root(), 16, 2, 0.2);
+        let net = Net::new(&vs.root(), 16, 2, 0.2, None);
         vs.save(dir.path().join(file)).unwrap();
         direct.push(tch::no_grad(|| net.forward_t(&x, false)) * 500.0);
     }

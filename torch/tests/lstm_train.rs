@@ -296,6 +296,66 @@ fn smoke_loss_options_are_recorded_and_act() {
     assert!(err.contains("--relative-loss 2"), "{err}");
 }
 
+/// `train --readout instant`: the card says so, and the CPU kernel `dronewatt` serves the
+/// weights with reads the states libtorch trained them on (the same outputs as the network
+/// in tch), not the final ones.
+#[test]
+fn smoke_instant_readout_is_recorded_and_served_as_trained() {
+    use dronewatt::features::N_FEATURES;
+    use dronewatt::model::card::Readout;
+    use dronewatt::model::lstm::{push_inputs, ExternalNet};
+    let out = tempfile::tempdir().unwrap();
+    let flags = ["--readout", "instant", "--target-lag", "3"];
+    assert!(smoke_train(out.path(), &flags).success());
+    let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
+    assert_eq!(card.readout, Readout::Instant);
+    assert_eq!(card.readout_step(), Some(card.window - 4));
+
+    let cfg = TelemetryConfig::default();
+    let flights = [flight(150, &cfg)];
+    let windows = &flights[0].windows[100..160];
+    let mut served = Vec::new();
+    LstmModel::load(out.path(), &cfg)
+        .unwrap()
+        .predict(windows, &mut served);
+    let mut x = Vec::new();
+    for w in windows {
+        push_inputs(w, card.feature_set, card.window, &mut x);
+    }
+    for (i, v) in x.iter_mut().enumerate() {
+        let f = i % N_FEATURES;
+        *v = (*v - card.feature_mean[f]) / card.feature_std[f];
+    }
+    let weights = out.path().join(&card.weights);
+    let mut tch_net = dronewatt_torch::TorchNet::load(&weights, &card, tch::Device::Cpu).unwrap();
+    let (y, cols) = tch_net.forward(&x, windows.len(), card.window).unwrap();
+    for (i, p) in served.iter().enumerate() {
+        let want = y[i * cols] * card.power_scale_w;
+        assert!(
+            (p.power_w - want).abs() < 1e-2,
+            "window {i}: served {} W, libtorch {want} W",
+            p.power_w
+        );
+    }
+
+    // The same weights read with the final states are another model.
+    let text = std::fs::read_to_string(out.path().join("card.toml")).unwrap();
+    let final_card = text.replace("readout = \"instant\"\n", "");
+    assert_ne!(text, final_card, "the card writes its readout");
+    std::fs::write(out.path().join("card.toml"), final_card).unwrap();
+    let mut other = Vec::new();
+    LstmModel::load(out.path(), &cfg)
+        .unwrap()
+        .predict(windows, &mut other);
+    assert!(
+        served
+            .iter()
+            .zip(&other)
+            .any(|(a, b)| (a.power_w - b.power_w).abs() > 1e-3),
+        "the readout changed nothing"
+    );
+}
+
 /// `dronewatt-torch train` on four flights with a tiny network and a few steps a fit, CPU
 /// only, into `out`, with `extra` flags.
 fn smoke_train(out: &std::path::Path, extra: &[&str]) -> std::process::ExitStatus {

@@ -17,7 +17,8 @@
 //!   `c ← σ(f)c + σ(i)tanh(g)`, `h ← σ(o)tanh(c)` (gate order i, f, g, o as `nn.LSTM`;
 //!   zero initial state; the backward direction walks s = T−1 … 0);
 //! - the top layer keeps only its final forward and backward states, `[B][2H]`, for the
-//!   dense head, `tanh(W_head h + b_head)`.
+//!   dense head, `tanh(W_head h + b_head)` (or, with an instant readout, both directions'
+//!   states at one step, each direction stopping there: [`CpuLstm::set_readout`]).
 //!
 //! Each product runs through one GEMM (`gemm`): weights packed once into column blocks of
 //! 16 gate outputs (`pack`, `[k][16]` contiguous: two AVX registers, one AVX-512 register),
@@ -72,6 +73,9 @@ pub struct CpuLstm {
     head_w: Vec<f32>,
     head_b: Vec<f32>,
     isa: Isa,
+    /// The window step whose top-layer states the head reads (`None`: the final ones; see
+    /// [`crate::model::card::Readout`]).
+    readout: Option<usize>,
     // Scratch, sized for up to CHUNK_WINDOWS windows: gate pre-activations [B·T][4H];
     // the next layer's input [B·T][2H]; states h and c [B][H]; the top layer's final
     // states [B][2H].
@@ -180,6 +184,7 @@ impl CpuLstm {
             head_w,
             head_b,
             isa: Isa::detect(),
+            readout: None,
             pre: Vec::new(),
             seq: Vec::new(),
             h: Vec::new(),
@@ -199,6 +204,14 @@ impl CpuLstm {
         if Isa::available().contains(&isa) {
             self.isa = isa;
         }
+    }
+
+    /// Read the top layer's states at window step `step` (both directions) instead of the
+    /// final ones (`None`). The forward direction then stops at `step`, the backward one
+    /// walks from the newest sample back to it. A step beyond a window reads its final
+    /// forward state and its newest backward one.
+    pub fn set_readout(&mut self, step: Option<usize>) {
+        self.readout = step;
     }
 
     /// Inputs per step (the first layer's width).
@@ -273,7 +286,14 @@ impl CpuLstm {
                 );
                 self.h.iter_mut().for_each(|v| *v = 0.0);
                 self.c.iter_mut().for_each(|v| *v = 0.0);
-                for k in 0..t {
+                // The top layer stops where the head reads it: the forward direction at
+                // the readout step, the backward one back at it (t − r steps).
+                let steps = match (top, self.readout) {
+                    (true, Some(r)) if d == 0 => r.min(t - 1) + 1,
+                    (true, Some(r)) => t - r.min(t - 1),
+                    _ => t,
+                };
+                for k in 0..steps {
                     let s = if d == 0 { k } else { t - 1 - k };
                     // pre_s += H W_hhᵀ: the rows of step s are T rows apart.
                     gemm(

@@ -233,14 +233,14 @@ fn score_fold(
 /// held-out flights' figures through the live chain); then the median MAE, mean and median
 /// in-flight MAPE and energy error, the per-fold figures as `;`-separated lists in fold
 /// order, and the network (hidden cells, the ensemble's init seeds, the training stride), the
-/// loss options and the target lag.
+/// loss options, the target lag and the readout.
 fn write_cv_csv(args: &TrainArgs, k: usize, rows: &[CvRow]) -> anyhow::Result<()> {
     let mut csv = String::from(
         "dropout,learning_rate,batch_size,folds,avg_rmse_w,avg_mae_w,median_mae_w,\
          avg_mape_in_flight_pct,median_mape_in_flight_pct,avg_energy_error_pct,\
          median_energy_error_pct,fold_held_out,fold_best_epoch,fold_inner_val_mae_w,\
          fold_mae_w,fold_rmse_w,fold_mape_in_flight_pct,fold_energy_error_pct,hidden,\
-         init_seeds,stride,fold_index,relative_loss,plateau_decay,target_lag\n",
+         init_seeds,stride,fold_index,relative_loss,plateau_decay,target_lag,readout\n",
     );
     println!(
         "| Dropout | Learning rate | Batch | Init seeds | Avg. RMSE (W) | Avg. MAE (W) | Median MAE (W) | Avg. MAPE (%) | Median MAPE (%) | Avg. energy error (%) | Median energy error (%) |\n|---|---|---|---|---|---|---|---|---|---|---|"
@@ -277,7 +277,7 @@ fn write_cv_csv(args: &TrainArgs, k: usize, rows: &[CvRow]) -> anyhow::Result<()
             .collect();
         let epochs: Vec<String> = folds.iter().map(|f| f.best_epoch.to_string()).collect();
         csv.push_str(&format!(
-            "{},{},{},{k},{rmse_avg:.3},{mae_avg:.3},{mae_med:.3},{mape_avg:.3},{mape_med:.3},{en_avg:.3},{en_med:.3},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{k},{rmse_avg:.3},{mae_avg:.3},{mae_med:.3},{mape_avg:.3},{mape_med:.3},{en_avg:.3},{en_med:.3},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:?}\n",
             hp.dropout,
             hp.lr,
             hp.batch,
@@ -299,6 +299,7 @@ fn write_cv_csv(args: &TrainArgs, k: usize, rows: &[CvRow]) -> anyhow::Result<()
             args.relative_loss,
             args.plateau_decay,
             args.target_lag,
+            args.readout,
         ));
         println!(
             "| {} | {} | {} | {seeds} | {rmse_avg:.2} | {mae_avg:.2} | {mae_med:.2} | {mape_avg:.2} | {mape_med:.2} | {en_avg:.2} | {en_med:.2} |",

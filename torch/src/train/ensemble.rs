@@ -107,6 +107,7 @@ pub fn assemble(members: &[PathBuf], out: &Path) -> anyhow::Result<ModelCard> {
             ("window", c.window != first.window),
             ("rate_hz", c.rate_hz != first.rate_hz),
             ("target_lag", c.target_lag != first.target_lag),
+            ("readout", c.readout != first.readout),
             ("feature_mean", c.feature_mean != first.feature_mean),
             ("feature_std", c.feature_std != first.feature_std),
             ("power_scale_w", c.power_scale_w != first.power_scale_w),

@@ -28,7 +28,9 @@ use tch::{Device, Kind, Tensor};
 
 use dronewatt::config::Config;
 use dronewatt::features::N_FEATURES;
-use dronewatt::model::card::{FeatureSet, Metrics, ModelCard, TrainingInfo, WeightsFormat};
+use dronewatt::model::card::{
+    FeatureSet, Metrics, ModelCard, Readout, TrainingInfo, WeightsFormat,
+};
 use dronewatt::model::lstm::{push_inputs, LstmModel};
 use dronewatt::model::Ensemble;
 use dronewatt::offline::chain::{Chain, FlightSeries};
@@ -286,6 +288,7 @@ fn model_card(
         feature_std: fit.scaling.std,
         power_scale_w: fit.scaling.power_scale_w,
         target_lag: args.target_lag,
+        readout: args.readout,
         band_quantiles: BAND_Q,
         band_widen_w: 0.0,
         hidden: args.hidden,
@@ -657,7 +660,10 @@ fn train_split(
     let n = *n;
     tch::manual_seed(init_seed as i64);
     let mut vs = nn::VarStore::new(device);
-    let net = Net::new(&vs.root(), args.hidden, 2, hp.dropout);
+    // x: [windows, T, inputs]; `run` checked target_lag < T.
+    let window = x.size()[1] as usize;
+    let readout = (args.readout == Readout::Instant).then(|| window - 1 - args.target_lag);
+    let net = Net::new(&vs.root(), args.hidden, 2, hp.dropout, readout);
     let mut opt = nn::Adam::default().build(&vs, hp.lr)?;
     let mut lr = hp.lr;
     let mut rng = rand::rngs::StdRng::seed_from_u64(init_seed);
