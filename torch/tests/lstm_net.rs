@@ -145,15 +145,15 @@ fn card_mismatch_names_the_key() {
         "{msg}"
     );
 
+    // Each mismatch written to the card is refused at load, the message naming it.
+    let refused = |c: &ModelCard, tcfg: &TelemetryConfig, what: &str| {
+        c.save(&dir.path().join("card.toml")).unwrap();
+        let err = LstmModel::load(dir.path(), tcfg).err();
+        format!("{:#}", err.unwrap_or_else(|| panic!("{what} must fail")))
+    };
     let mut c = card(dir.path(), 10);
     c.feature_names.swap(0, 1);
-    c.save(&dir.path().join("card.toml")).unwrap();
-    let msg = format!(
-        "{:#}",
-        LstmModel::load(dir.path(), &TelemetryConfig::default())
-            .err()
-            .expect("swapped names must fail")
-    );
+    let msg = refused(&c, &TelemetryConfig::default(), "swapped names");
     assert!(msg.contains("feature_names[0] is 'wind_angle'"), "{msg}");
 
     let tcfg = TelemetryConfig {
@@ -161,13 +161,7 @@ fn card_mismatch_names_the_key() {
         ..Default::default()
     };
     c.feature_names.swap(0, 1);
-    c.save(&dir.path().join("card.toml")).unwrap();
-    let msg = format!(
-        "{:#}",
-        LstmModel::load(dir.path(), &tcfg)
-            .err()
-            .expect("rate 5 vs 10 must fail")
-    );
+    let msg = refused(&c, &tcfg, "rate 5 vs 10");
     assert!(
         msg.contains("rate_hz = 10") && msg.contains("telemetry.rate_hz = 5"),
         "{msg}"
@@ -176,12 +170,10 @@ fn card_mismatch_names_the_key() {
     // An instant readout needs the instant inside the window.
     c.readout = dronewatt::model::card::Readout::Instant;
     c.target_lag = 10;
-    c.save(&dir.path().join("card.toml")).unwrap();
-    let msg = format!(
-        "{:#}",
-        LstmModel::load(dir.path(), &TelemetryConfig::default())
-            .err()
-            .expect("an instant readout at lag 10 of a 10-sample window must fail")
+    let msg = refused(
+        &c,
+        &TelemetryConfig::default(),
+        "an instant readout at lag 10 of a 10-sample window",
     );
     assert!(
         msg.contains("readout = \"instant\"") && msg.contains("target_lag (10)"),

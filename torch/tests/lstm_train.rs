@@ -296,8 +296,8 @@ fn smoke_loss_options_are_recorded_and_act() {
     assert!(err.contains("--relative-loss 2"), "{err}");
 }
 
-/// `train --readout instant`: the card says so, and the CPU kernel `dronewatt` serves the
-/// weights with reads the states libtorch trained them on (the same outputs as the network
+/// `train --readout instant`: the card says so, and the CPU kernel that serves the weights
+/// in `dronewatt` reads the states libtorch trained them on (the same outputs as the network
 /// in tch), not the final ones.
 #[test]
 fn smoke_instant_readout_is_recorded_and_served_as_trained() {
