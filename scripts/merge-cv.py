@@ -18,7 +18,15 @@ import sys
 KEY = ("dropout", "learning_rate", "batch_size", "hidden", "init_seeds", "stride", "relative_loss",
        "plateau_decay", "target_lag", "readout")
 FOLD_COLS = ("fold_held_out", "fold_best_epoch", "fold_inner_val_mae_w", "fold_mae_w", "fold_rmse_w",
-             "fold_mape_in_flight_pct", "fold_energy_error_pct")
+             "fold_mape_in_flight_pct", "fold_energy_error_pct", "fold_band_coverage_pct", "fold_band_q_w")
+
+
+def band_widening(qs):
+    """The band's widening over the folds, as `train --cv` computes it (`cv_band_widening`):
+    the mean of the folds' signed widenings, floored at 0."""
+    m = statistics.fmean(qs)
+    return m if m != m else max(m, 0.0)  # NaN stays NaN
+
 # Summary column -> (per-fold column, statistic).
 SUMMARY = {
     "avg_rmse_w": ("fold_rmse_w", statistics.fmean),
@@ -28,6 +36,8 @@ SUMMARY = {
     "median_mape_in_flight_pct": ("fold_mape_in_flight_pct", statistics.median),
     "avg_energy_error_pct": ("fold_energy_error_pct", statistics.fmean),
     "median_energy_error_pct": ("fold_energy_error_pct", statistics.median),
+    "avg_band_coverage_pct": ("fold_band_coverage_pct", statistics.fmean),
+    "cv_band_widen_w": ("fold_band_q_w", band_widening),
 }
 
 
@@ -48,7 +58,7 @@ def main(paths):
                 for i, fold in enumerate(row["fold_index"].split(";")):
                     if fold in folds:
                         sys.exit(f"{path}: fold {fold} of setting {key} appears twice")
-                    folds[fold] = {c: row[c].split(";")[i] for c in FOLD_COLS} | {"row": row}
+                    folds[fold] = {c: row[c].split(";")[i] for c in FOLD_COLS if row.get(c)} | {"row": row}
     counts = {len(f) for f in merged.values()}
     if len(counts) != 1:
         sys.exit(f"settings hold different numbers of folds: {sorted(counts)}")
@@ -57,12 +67,15 @@ def main(paths):
     for key, folds in merged.items():
         order = sorted(folds, key=int)
         row = dict(folds[order[0]]["row"])
-        for c in FOLD_COLS:
+        # Columns added later (the band's) are joined where every fold has them.
+        cols = [c for c in FOLD_COLS if all(c in folds[f] for f in order)]
+        for c in cols:
             row[c] = ";".join(folds[f][c] for f in order)
         row["fold_index"] = ";".join(order)
         row["folds"] = str(max(int(folds[f]["row"]["folds"]) for f in order))
         for col, (src, stat) in SUMMARY.items():
-            row[col] = f"{stat(float(folds[f][src]) for f in order):.3f}"
+            if src in cols and col in row:
+                row[col] = f"{stat([float(folds[f][src]) for f in order]):.3f}"
         out.writerow(row)
 
 

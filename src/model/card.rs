@@ -66,6 +66,27 @@ impl Readout {
     }
 }
 
+/// Which flights `band_widen_w` was calibrated on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BandCalibration {
+    /// The card's validation flights (`train`'s default; they also early-stop the members).
+    #[default]
+    Validation,
+    /// The held-out flights of a by-flight cross-validation of the same recipe
+    /// (`train --band-from-cv cv.csv`): the mean over the folds of each fold's widening,
+    /// floored at 0. Those flights chose nothing, not even an epoch.
+    Cv,
+}
+
+impl BandCalibration {
+    /// The default: a card that omits `band_calibration` was calibrated on its validation
+    /// flights.
+    pub fn is_validation(&self) -> bool {
+        *self == BandCalibration::Validation
+    }
+}
+
 /// Where the network's weights are and what they are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -121,11 +142,15 @@ pub struct ModelCard {
     /// Nominal quantiles of the band heads (low, high), e.g. (0.05, 0.95).
     pub band_quantiles: (f32, f32),
     /// Watts added on each side of the heads' band: split-conformal calibration (CQR) on the
-    /// validation flights, so that the band covers its nominal share (`band_quantiles`'
-    /// high − low) of their windows; never negative. Written by `train` and
-    /// `train --score-only`; absent in older cards: 0 (the heads' band as trained).
+    /// flights `band_calibration` names, so that the band covers its nominal share
+    /// (`band_quantiles`' high − low) of their windows; never negative. Written by `train`
+    /// and `train --score-only`; absent in older cards: 0 (the heads' band as trained).
     #[serde(default)]
     pub band_widen_w: f32,
+    /// Where `band_widen_w` was calibrated: `validation` (absent: the card's validation
+    /// flights) or `cv` (a cross-validation's held-out flights, `train --band-from-cv`).
+    #[serde(default, skip_serializing_if = "BandCalibration::is_validation")]
+    pub band_calibration: BandCalibration,
     /// LSTM hidden cells per direction and layer (built-in network only).
     pub hidden: i64,
     /// Stacked bidirectional LSTM layers (built-in network only).

@@ -210,6 +210,13 @@ pub fn median_finite(x: impl IntoIterator<Item = f64>) -> f64 {
 /// ⌈(n + 1)·coverage⌉-th smallest excess, never negative (a band is widened, not narrowed).
 /// `None` with no finite excess.
 pub fn conformal_widening(excess: &mut Vec<f64>, coverage: f64) -> Option<f64> {
+    conformal_quantile(excess, coverage).map(|q| q.max(0.0))
+}
+
+/// [`conformal_widening`] before it is floored at 0: negative when the band already covers
+/// more than `coverage` of the calibration windows (by how much it could narrow). A
+/// cross-validation records it per fold, so the folds' mean keeps its sign.
+pub fn conformal_quantile(excess: &mut Vec<f64>, coverage: f64) -> Option<f64> {
     excess.retain(|e| e.is_finite());
     if excess.is_empty() || !(0.0..1.0).contains(&coverage) {
         return None;
@@ -217,7 +224,7 @@ pub fn conformal_widening(excess: &mut Vec<f64>, coverage: f64) -> Option<f64> {
     excess.sort_by(f64::total_cmp);
     let n = excess.len();
     let k = (((n + 1) as f64 * coverage).ceil() as usize).clamp(1, n);
-    Some(excess[k - 1].max(0.0))
+    Some(excess[k - 1])
 }
 
 /// The `q` quantile of `v` (sorted in place), linear between ranks; NaN for none.
@@ -247,6 +254,11 @@ mod tests {
             proptest::prop_assert!(q >= 0.0);
             let inside = excess.iter().filter(|e| **e <= q).count();
             proptest::prop_assert!(inside as f64 >= coverage * excess.len() as f64);
+            // The signed quantile covers the same share, and is the widening unless negative.
+            let s = conformal_quantile(&mut excess.clone(), coverage).expect("some excess");
+            proptest::prop_assert_eq!(s.max(0.0), q);
+            let inside = excess.iter().filter(|e| **e <= s).count();
+            proptest::prop_assert!(inside as f64 >= coverage * excess.len() as f64);
         }
     }
 
@@ -255,10 +267,15 @@ mod tests {
         assert_eq!(conformal_widening(&mut vec![], 0.9), None);
         assert_eq!(conformal_widening(&mut vec![f64::NAN], 0.9), None);
         assert_eq!(conformal_widening(&mut vec![1.0], 1.5), None);
-        // A band that already covers everything is not narrowed.
+        // A band that already covers everything is not narrowed; the signed quantile says
+        // by how much it could be.
         assert_eq!(
             conformal_widening(&mut vec![-3.0, -2.0, -1.0], 0.9),
             Some(0.0)
+        );
+        assert_eq!(
+            conformal_quantile(&mut vec![-3.0, -2.0, -1.0], 0.9),
+            Some(-1.0)
         );
         // 10 windows, 90 %: the ⌈11 · 0.9⌉ = 10th smallest.
         let mut e: Vec<f64> = (1..=10).map(f64::from).collect();

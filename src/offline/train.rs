@@ -158,6 +158,14 @@ pub struct TrainArgs {
     /// path) and record the metrics in its card.
     #[arg(long, hide = true)]
     pub score_only: bool,
+    /// Calibrate the band on the held-out flights of this cross-validation of the same recipe
+    /// (its `cv.csv`, from `--cv`): the widening is the mean over its folds of each fold's
+    /// split-conformal widening, floored at 0, instead of the validation flights' (which
+    /// also early-stop the members). The row is the one whose network, training options and
+    /// number of init seeds match the model's; with `--score-only`, re-calibrates a
+    /// trained model.
+    #[arg(long, value_name = "FILE")]
+    pub band_from_cv: Option<PathBuf>,
     /// Assemble these trained model folders (comma-separated: networks trained with one
     /// `--seed` and different `--init-seed`) into one ensemble in `--out`, whose estimate is
     /// the members' mean, then score it on the validation and test flights.

@@ -58,6 +58,7 @@ fn card(dir: &std::path::Path, window: usize) -> ModelCard {
         readout: Default::default(),
         band_quantiles: (0.05, 0.95),
         band_widen_w: 0.0,
+        band_calibration: Default::default(),
         hidden: 16,
         layers: 2,
         training: TrainingInfo {

@@ -70,6 +70,7 @@ fn torchscript_module_loads_with_its_card() {
         readout: Default::default(),
         band_quantiles: (0.05, 0.95),
         band_widen_w: 0.0,
+        band_calibration: Default::default(),
         hidden: 0,
         layers: 0,
         training: TrainingInfo::default(),

@@ -166,14 +166,26 @@ fn live_forward_matches_libtorch_on_shipped_weights() {
 
 /// `train --cv 2 --init-seed 3,4` on four flights, a few steps a fit: every fold's two-member
 /// ensemble scores its held-out flights through the live chain, `cv.csv` carries the
-/// held-out MAE, in-flight MAPE and energy error (mean, median, per fold), all finite, and
-/// the final run writes an ensemble card the binary loads. CPU only.
+/// held-out MAE, in-flight MAPE, energy error and band coverage (mean, median, per fold), all
+/// finite, and the final run writes an ensemble card the binary loads, its band calibrated
+/// from the cross-validation it just wrote (`--band-from-cv`). CPU only.
 #[test]
 fn smoke_cross_validation_scores_held_out_folds() {
     let out = tempfile::tempdir().unwrap();
+    let cv_csv = out.path().join("cv.csv");
+    let cv_arg = cv_csv.to_str().unwrap();
     let status = smoke_train(
         out.path(),
-        &["--cv", "2", "--init-seed", "3,4", "--target-lag", "2"],
+        &[
+            "--cv",
+            "2",
+            "--init-seed",
+            "3,4",
+            "--target-lag",
+            "2",
+            "--band-from-cv",
+            cv_arg,
+        ],
     );
     assert!(status.success(), "dronewatt train --cv 2 failed");
     let csv = std::fs::read_to_string(out.path().join("cv.csv")).unwrap();
@@ -190,6 +202,8 @@ fn smoke_cross_validation_scores_held_out_folds() {
         "median_mape_in_flight_pct",
         "avg_energy_error_pct",
         "median_energy_error_pct",
+        "avg_band_coverage_pct",
+        "cv_band_widen_w",
     ] {
         let v: f64 = cell(name).parse().unwrap();
         assert!(v.is_finite() && v >= 0.0, "{name} = {v}\n{csv}");
@@ -199,6 +213,8 @@ fn smoke_cross_validation_scores_held_out_folds() {
         "fold_mape_in_flight_pct",
         "fold_energy_error_pct",
         "fold_inner_val_mae_w",
+        "fold_band_coverage_pct",
+        "fold_band_q_w",
     ] {
         let v: Vec<f64> = cell(name).split(';').map(|x| x.parse().unwrap()).collect();
         assert_eq!(v.len(), 2, "{name}: one value per fold\n{csv}");
@@ -218,6 +234,22 @@ fn smoke_cross_validation_scores_held_out_folds() {
         "the row says the lag it was trained at\n{csv}"
     );
     let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
+    // The band is the cross-validation's: the folds' mean signed widening, floored at 0.
+    let q: Vec<f64> = cell("fold_band_q_w")
+        .split(';')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let widen = (q.iter().sum::<f64>() / q.len() as f64).max(0.0);
+    assert_eq!(
+        card.band_calibration,
+        dronewatt::model::card::BandCalibration::Cv
+    );
+    assert!(
+        (f64::from(card.band_widen_w) - widen).abs() < 1e-3
+            && (widen - cell("cv_band_widen_w").parse::<f64>().unwrap()).abs() < 1e-3,
+        "card {} W, folds {q:?}\n{csv}",
+        card.band_widen_w
+    );
     assert_eq!(card.weights, "member-3.safetensors");
     assert_eq!(card.members, ["member-4.safetensors"]);
     assert_eq!(card.training.init_seed, None, "member 3 is --seed's own");

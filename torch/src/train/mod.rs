@@ -29,7 +29,7 @@ use tch::{Device, Kind, Tensor};
 use dronewatt::config::Config;
 use dronewatt::features::N_FEATURES;
 use dronewatt::model::card::{
-    FeatureSet, Metrics, ModelCard, Readout, TrainingInfo, WeightsFormat,
+    BandCalibration, FeatureSet, Metrics, ModelCard, Readout, TrainingInfo, WeightsFormat,
 };
 use dronewatt::model::lstm::{push_inputs, LstmModel};
 use dronewatt::model::Ensemble;
@@ -115,7 +115,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     tch::set_num_threads(args.threads);
     if let Some(members) = &args.ensemble {
         ensemble::assemble(members, &args.out)?;
-        return score_model_dir(&args.out, &data_path, &cfg).map(|_| ());
+        return score_model_dir(&args.out, &data_path, &cfg, args.band_from_cv.as_deref())
+            .map(|_| ());
     }
     // The chosen flights plus whichever test flights the file holds (273 is withheld from
     // the shared copy, and a file may hold none of them).
@@ -140,7 +141,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         flights.retain(|f| keep.contains(&f.flight));
     }
     if args.score_only {
-        return score_model_dir(&args.out, &data_path, &cfg).map(|_| ());
+        return score_model_dir(&args.out, &data_path, &cfg, args.band_from_cv.as_deref())
+            .map(|_| ());
     }
     if let Some(csv) = &args.export_csv {
         // The folds `--cv K --seed S` (K = 5 when not given) would validate on, as a
@@ -244,7 +246,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let card_path = args.out.join("card.toml");
     card.save(&card_path)?;
 
-    score_model_dir(&args.out, &data_path, &cfg)?;
+    score_model_dir(&args.out, &data_path, &cfg, args.band_from_cv.as_deref())?;
     println!(
         "model written to {} (training took {:.0} s)",
         args.out.display(),
@@ -291,6 +293,7 @@ fn model_card(
         readout: args.readout,
         band_quantiles: BAND_Q,
         band_widen_w: 0.0,
+        band_calibration: Default::default(),
         hidden: args.hidden,
         layers: 2,
         training: TrainingInfo {
@@ -336,8 +339,14 @@ pub(crate) fn split_by_flight(pool: &[u32], val_frac: f64, seed: u64) -> (Vec<u3
 /// Score the model in `dir`, loaded the way the binary loads it, on the test flights the
 /// data file holds, through the ingest path and the live chain ([`Chain`], with `cfg`'s
 /// `[energy]` and `[[alerts]]`); write `test_flights.csv` and `flight276.png` there and
-/// record the metrics in its card.
-pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Result<Metrics> {
+/// record the metrics in its card. The band is calibrated first: on the validation flights,
+/// or, given `band_cv`, from that cross-validation's held-out flights (`train --band-from-cv`).
+pub fn score_model_dir(
+    dir: &Path,
+    data_path: &Path,
+    cfg: &Config,
+    band_cv: Option<&Path>,
+) -> anyhow::Result<Metrics> {
     let held: Vec<u32> = dronewatt::offline::data::list_flights(data_path)?
         .iter()
         .map(|f| f.flight)
@@ -362,7 +371,11 @@ pub fn score_model_dir(dir: &Path, data_path: &Path, cfg: &Config) -> anyhow::Re
     let flights = load_flights(data_path, Some(&wanted), &cfg.telemetry, &cfg.mission)?;
     let (val_flights, test_flights): (Vec<&FlightWindows>, Vec<&FlightWindows>) =
         flights.iter().partition(|f| val.contains(&f.flight));
-    let validation = match calibrate_band(dir, cfg, &val_flights)? {
+    let calibrated = match band_cv {
+        Some(cv_csv) => band_from_cv(dir, cfg, &val_flights, cv_csv)?,
+        None => calibrate_band(dir, cfg, &val_flights)?,
+    };
+    let validation = match calibrated {
         None => None,
         Some(series) => {
             let (m, _) = score(&series)?;
@@ -412,6 +425,36 @@ pub(crate) fn run_alone(
     flights.iter().map(|f| chain.run_flight(f)).collect()
 }
 
+/// Set the band of the model in `dir` to the widening the cross-validation at `cv_csv` gives
+/// ([`cv::band_from_cv`]), record it in the card, and run the validation flights with it
+/// (for their scores; they calibrate nothing here).
+fn band_from_cv(
+    dir: &Path,
+    cfg: &Config,
+    val: &[&FlightWindows],
+    cv_csv: &Path,
+) -> anyhow::Result<Option<Vec<FlightSeries>>> {
+    let mut card = ModelCard::load(&dir.join("card.toml"))?;
+    let band = cv::band_from_cv(cv_csv, &card)?;
+    println!(
+        "band: widened by {:.1} W a side, from {}: the mean of {} folds' widenings ({:+.1} W, floored at 0) on {} held-out flights (the heads' band covered {:.1} % of them)",
+        band.widen_w,
+        cv_csv.display(),
+        band.folds,
+        band.mean_q_w,
+        band.held_out_flights,
+        band.coverage_pct
+    );
+    card.band_widen_w = band.widen_w as f32;
+    card.band_calibration = BandCalibration::Cv;
+    card.save(&dir.join("card.toml"))?;
+    if val.is_empty() {
+        return Ok(None);
+    }
+    let model = LstmModel::load(dir, &cfg.telemetry)?;
+    run_alone(model, cfg, val).map(Some)
+}
+
 /// Widen the band of the model in `dir` so that it covers its nominal share of the
 /// validation flights' windows (split-conformal, [`conformal_widening`]; never the test
 /// flights), and record it in the card. Skipped, with a note, when no validation flight is
@@ -440,6 +483,10 @@ fn calibrate_band(
         return Ok(Some(series));
     };
     card.band_widen_w += q as f32;
+    if q > 0.0 {
+        // The widening is now (also) the validation flights'.
+        card.band_calibration = BandCalibration::Validation;
+    }
     println!(
         "band: widened by {q:.1} W a side (now {:.1} W; split-conformal on {} windows of {} validation flights: covers {:.1} % there, was {:.1} %)",
         card.band_widen_w,
