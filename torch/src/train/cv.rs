@@ -348,11 +348,14 @@ fn write_cv_csv(args: &TrainArgs, k: usize, rows: &[CvRow]) -> anyhow::Result<()
 
 /// What `train --band-from-cv` takes from a `cv.csv`: the widening, and what it rests on.
 pub(super) struct CvBand {
+    /// Watts a side: [`cv_band_widening`] of the row's folds.
     pub(super) widen_w: f64,
     /// The folds' mean signed widening, before the floor at 0.
     pub(super) mean_q_w: f64,
+    /// How many folds, and how many flights they held out between them.
     pub(super) folds: usize,
     pub(super) held_out_flights: usize,
+    /// The heads' band's mean coverage of the folds' held-out windows, %.
     pub(super) coverage_pct: f64,
 }
 
