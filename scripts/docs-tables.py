@@ -332,10 +332,12 @@ PAPER_CARD = ROOT / "config" / "models" / "lstm-m100-h128" / "card.toml"
 
 
 # The ensembles shipped before this card's, by how their recipe differs from the card's (the
-# labels `changes` gives): their rows stay in `cv.csv`, named for when they shipped.
+# labels `changes` gives) and their number of members: their rows stay in `cv.csv`, named for
+# when they shipped (all on 2026-11-26, newest first).
 REPLACED = {
-    ("the final readout",): "shipped 2026-11-26 before this one, replaced",
-    ("the absolute loss", "the final readout"): "shipped until 2026-11-26, replaced twice",
+    ((), 3): "shipped before this one, replaced",
+    (("the final readout",), 3): "shipped before that, replaced",
+    (("the absolute loss", "the final readout"), 3): "shipped first, replaced",
 }
 
 
@@ -381,7 +383,7 @@ def lstm_cv_rows():
     for r in rows:
         seeds = r.get("init_seeds", "").split(";")
         c = changes(r)
-        replaced = REPLACED.get(tuple(c))
+        replaced = REPLACED.get((tuple(c), len(seeds)))
         if r["hidden"] != shipped["hidden"]:
             name = (f"LSTM, one network × {r['hidden']} cells, stride {r['stride']} "
                     "(the paper's network, shipped before the ensembles)")
@@ -392,12 +394,13 @@ def lstm_cv_rows():
                 readout = ", the instant readout" if shipped["readout"] != "final" else ""
                 name = f"{base}, stride {r['stride']}{loss}{readout} (shipped)"
             elif replaced:
-                name = f"{base}, stride {r['stride']}, {', '.join(c)} ({replaced})"
+                name = f"{base}, stride {r['stride']}{''.join(', ' + x for x in c)} ({replaced})"
             else:
-                name = f"{base}, {', '.join(c)} (candidate, not shipped)"
+                what = ", ".join(c) if c else "the shipped recipe otherwise"
+                name = f"{base}, {what} (candidate, not shipped)"
         elif not c:
             name = f"LSTM, its first member alone ({r['hidden']} cells, stride {r['stride']})"
-        elif replaced:
+        elif replaced := next((v for (k, _), v in REPLACED.items() if k == tuple(c)), None):
             name = f"LSTM, the ensemble {replaced.split(',')[0]}: its first member alone"
         else:
             name = f"LSTM, the first member (init seed {seeds[0]}) with {', '.join(c)} (candidate, not shipped)"
