@@ -55,8 +55,19 @@ fn bench(c: &mut Criterion) {
         .and_then(|s| s.parse().ok())
         .unwrap_or(1);
     tch::set_num_threads(threads);
-    // DRONEWATT_BENCH_MODEL: another model folder (a candidate, an ensemble) instead.
-    let other = std::env::var_os("DRONEWATT_BENCH_MODEL").map(std::path::PathBuf::from);
+    // DRONEWATT_BENCH_MODEL: another model folder (a candidate, an ensemble) instead. Cargo
+    // runs a bench in its package's folder (torch/), so a relative path that is not there is
+    // read from the workspace root, as the docs write it (`config/models/lstm-m100-h128`).
+    let other = std::env::var_os("DRONEWATT_BENCH_MODEL")
+        .map(std::path::PathBuf::from)
+        .map(|p| {
+            let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+            if p.is_relative() && !p.exists() {
+                root.join(p)
+            } else {
+                p
+            }
+        });
     let path = resolve_model_path(other.as_deref())
         .expect("no shipped model under config/models/lstm-m100");
     let kernel =
