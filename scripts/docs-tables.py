@@ -335,9 +335,9 @@ PAPER_CARD = ROOT / "config" / "models" / "lstm-m100-h128" / "card.toml"
 # labels `changes` gives) and their number of members: their rows stay in `cv.csv`, named for
 # when they shipped (all on 2026-11-26, newest first).
 REPLACED = {
-    ((), 3): "shipped before this one, replaced",
-    (("the final readout",), 3): "shipped before that, replaced",
-    (("the absolute loss", "the final readout"), 3): "shipped first, replaced",
+    ((), 3): "shipped before this one",
+    (("the final readout",), 3): "shipped before that",
+    (("the absolute loss", "the final readout"), 3): "shipped first",
 }
 
 
@@ -394,14 +394,14 @@ def lstm_cv_rows():
                 readout = ", the instant readout" if shipped["readout"] != "final" else ""
                 name = f"{base}, stride {r['stride']}{loss}{readout} (shipped)"
             elif replaced:
-                name = f"{base}, stride {r['stride']}{''.join(', ' + x for x in c)} ({replaced})"
+                name = f"{base}, stride {r['stride']}{''.join(', ' + x for x in c)} ({replaced}, replaced)"
             else:
                 what = ", ".join(c) if c else "the shipped recipe otherwise"
                 name = f"{base}, {what} (candidate, not shipped)"
         elif not c:
             name = f"LSTM, its first member alone ({r['hidden']} cells, stride {r['stride']})"
         elif replaced := next((v for (k, _), v in REPLACED.items() if k == tuple(c)), None):
-            name = f"LSTM, the ensemble {replaced.split(',')[0]}: its first member alone"
+            name = f"LSTM, the ensemble {replaced}: its first member alone"
         else:
             name = f"LSTM, the first member (init seed {seeds[0]}) with {', '.join(c)} (candidate, not shipped)"
         stat = {k: {"mean": float(r[f"avg_{k}"]), "median": float(r[f"median_{k}"])}

@@ -146,11 +146,11 @@ pub(super) fn cross_validate(
                 train_time_s: started.elapsed().as_secs_f64(),
                 device,
             };
-            let (m, first) = score_fold(args, data, fit, &members, &held_out)
+            let ((m, band_q_w), first) = score_fold(args, data, fit, &members, &held_out)
                 .with_context(|| format!("{label}: scoring the held-out flights"))?;
             println!(
                 "{label}: held out {held_out:?}: MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} % (widening to nominal {:.1} W) (best epoch {} on inner validation, MAE {:.2} W)",
-                m.0.mae_w, m.0.rmse_w, m.0.mape_in_flight_pct, m.0.energy_error_pct, m.0.band_coverage_pct, m.1, outcome.best_epoch, outcome.best_val_mae_w
+                m.mae_w, m.rmse_w, m.mape_in_flight_pct, m.energy_error_pct, m.band_coverage_pct, band_q_w, outcome.best_epoch, outcome.best_val_mae_w
             );
             let fold_score = |(m, band_q_w)| FoldScore {
                 fold,
@@ -161,7 +161,7 @@ pub(super) fn cross_validate(
                 band_q_w,
             };
             alone.extend(first.map(fold_score));
-            scores.push(fold_score(m));
+            scores.push(fold_score((m, band_q_w)));
         }
         rows.push(CvRow {
             hp: *hp,
