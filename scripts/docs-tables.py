@@ -529,19 +529,22 @@ def lgbm_lags(r):
            f"for the tree count (`{r['command']}`, windows from `{r['export']}`). The target lag L is the "
            "estimate's instant, L samples before the newest; feature lags 1–N give the model the samples "
            "up to N before the newest, so it sees the L samples after the instant and N − L before it (the LSTM's window of 10 sees L after and 9 − L before). "
+           "Inputs: `paper`, the 21 features as exported (longitude, latitude, altitude above sea level); `home`, "
+           "the LSTM's (`--features home` at export); `+ physics`, with the seven physics models' estimates of "
+           "the window at published parameters (`--physics`). "
            "Mean over the held-out folds, median in brackets.\n\n")
     body = []
     for x in runs:
         lag, n = x["target_lag"], x["feature_lags"]
         seen = (f"the instant, {lag} after, {n - lag} before" if n >= lag
                 else f"{lag - n} to {lag} after, not the instant")
-        body.append([f"{lag} ({lag / 10:g} s)", f"1–{n}", seen,
+        body.append([f"{lag} ({lag / 10:g} s)", f"1–{n}", x.get("inputs", "paper"), seen,
                      f"{x['trees']}" + (" (cap)" if x["trees"] == x.get("max_trees") else ""),
                      f(x["mae_w"]["mean"]) + f" ({f(x['mae_w']['median'])})",
                      f(x["mape_in_flight_pct"]["mean"]) + f" ({f(x['mape_in_flight_pct']['median'])})",
                      f(x["energy_error_pct"]["mean"]) + f" ({f(x['energy_error_pct']['median'])})",
                      f"{x['wall_s'] / 60:.1f}"])
-    md += table(["target lag", "feature lags", "samples seen around the instant", "trees", "CV MAE (W)",
+    md += table(["target lag", "feature lags", "inputs", "samples seen around the instant", "trees", "CV MAE (W)",
                  "CV MAPE %", "CV energy error %", "wall (min, one core)"], body)
     return md
 

@@ -10,7 +10,8 @@ test flights (268-273, 276-279) are only scored, ground tests (routes A*) are le
     target/debug/dronewatt train --export-csv /tmp/windows.csv
 
 (The CSV's `fold` column, the flight's cross-validation fold, is not a feature:
-`scripts/lgbm_cv.py` tunes on those folds.)
+`scripts/lgbm_cv.py` tunes on those folds; nor are its `phys_*_w` columns, the physics
+models' estimates, which `lgbm_cv.py --physics` adds.)
     /tmp/venv-lgbm/bin/python scripts/lgbm_baseline.py /tmp/windows.csv [TARGET_LAG]
 
 TARGET_LAG (samples, default 0) scores the estimate against the measured power that many
@@ -30,7 +31,9 @@ IN_FLIGHT_W = 100.0  # same threshold as the LSTM's in-flight MAPE
 
 def main(path, lag=0):
     df = pd.read_csv(path)
-    feats = [c for c in df.columns if c not in ("flight", "route", "test", "fold", "t_s", "measured_w")]
+    # `phys_*_w` (the physics models' estimates) are `lgbm_cv.py --physics`'s, not this baseline's.
+    feats = [c for c in df.columns
+             if c not in ("flight", "route", "test", "fold", "t_s", "measured_w") and not c.startswith("phys_")]
     if lag:
         g = df.groupby("flight")
         target, t_back = g.measured_w.shift(lag), g.t_s.shift(lag)

@@ -19,7 +19,12 @@ The windows come from `dronewatt train --export-csv FILE --cv 5 --seed 7 --targe
 shifted here within each flight, missing across a gap): with N = 9 LightGBM sees the LSTM's
 whole 10-sample window. `--lag L` sets the target lag, as the LSTM's card does: at L = 3 the
 export's lags 1-3 end at the target instant, so a larger L needs N >= L to see it at all.
-`--only I,...` runs only those configurations of the search below.
+`--physics` adds the export's `phys_<model>_w` columns, each physics model's estimate of the
+window with the vehicle's published parameters (nothing fitted on any flight, so no fold
+leaks into another), as features: a physics-informed LightGBM.
+`--only I,...` runs only those configurations of the search below; `--oof FILE` writes the
+held-out windows' estimates (flight, fold, the window's newest sample's time, the measured
+power at the target lag, the estimate) beside `dronewatt train --cv-predictions`'s.
 
 `cv` and `untuned` touch the training flights only: each configuration trains on K-1 folds and is
 scored on the held-out one. `test` reads the configuration `cv` chose from the JSON, trains
@@ -94,9 +99,14 @@ def max_trees(lr):
     return int(round(40 / lr / TREE_STEP)) * TREE_STEP
 
 
-def load(path, lag, lags=3):
+def load(path, lag, lags=3, physics=False):
     df = pd.read_csv(path)
-    base = [c for c in df.columns if c not in META and "_lag" not in c]
+    phys = [c for c in df.columns if c.startswith("phys_")]
+    if not physics:
+        df = df.drop(columns=phys)
+    elif not phys:
+        sys.exit("--physics: the CSV has no phys_*_w columns: export again with this binary")
+    base = [c for c in df.columns if c not in META and "_lag" not in c and not c.startswith("phys_")]
     if lags > 3:  # the export holds lags 1-3; more are shifted here, within each flight, NaN across a gap
         g = df.groupby("flight")
         extra = {}
@@ -165,7 +175,7 @@ def untuned_fit(train, feats):
 
 def run_cv(a):
     started = time.time()
-    df, feats = load(a.csv, a.lag, a.lags)
+    df, feats = load(a.csv, a.lag, a.lags, a.physics)
     pool = df[df.fold >= 0]
     k = int(pool.fold.max()) + 1
     cs = list(enumerate(configs()))
@@ -179,10 +189,10 @@ def run_cv(a):
         dva = dtr.create_valid(va[feats].to_numpy(np.float32), va.measured_w.to_numpy())
         data.append((dtr, dva, va))
     print(f"{len(pool.flight.unique())} training flights, {k} folds, {len(cs)} configurations, "
-          f"target lag {a.lag}, feature lags 1-{a.lags}", flush=True)
+          f"target lag {a.lag}, feature lags 1-{a.lags}{', physics estimates' if a.physics else ''}", flush=True)
     out = {"command": "scripts/lgbm_cv.py cv windows.csv --json FILE",
            "export": f"dronewatt train --export-csv windows.csv --cv {k} --seed 7 --target-lag {a.lag}",
-           "target_lag": a.lag, "feature_lags": a.lags, "folds": k, "training_flights": int(pool.flight.nunique()),
+           "target_lag": a.lag, "feature_lags": a.lags, "physics": a.physics, "folds": k, "training_flights": int(pool.flight.nunique()),
            "fold_flights": [int(pool[pool.fold == f].flight.nunique()) for f in range(k)],
            "rule": "lowest MAE averaged over the held-out folds (configuration and tree count)",
            "search": __doc__.split("The search, fixed before it ran:")[1].split("Metrics")[0].strip(),
@@ -205,6 +215,11 @@ def run_cv(a):
         n_best = int(grid[np.argmin(mean_curve)])
         per_fold = [scores(va, b.predict(va[feats].to_numpy(np.float32), num_iteration=n_best))
                     for b, (_, _, va) in zip(boosters, data)]
+        if a.oof:  # every held-out window's estimate at the chosen tree count, for a blend study
+            oof = pd.concat([va[["flight", "fold", "t_s", "measured_w"]].assign(
+                pred_w=b.predict(va[feats].to_numpy(np.float32), num_iteration=n_best))
+                for b, (_, _, va) in zip(boosters, data)])
+            oof.to_csv(a.oof, index=False, float_format="%.3f")
         row = {"index": index, "params": c, "max_trees": n_max, "trees": n_best,
                "wall_s": round(time.time() - t0, 1), **summary(per_fold)}
         out["configs"].append(row)
@@ -224,7 +239,7 @@ def run_untuned(a):
     """The untuned baseline (lgbm_baseline.py's recipe) on the same folds, added to the JSON."""
     out = json.loads(Path(a.json).read_text())
     started = time.time()
-    df, feats = load(a.csv, out["target_lag"], out.get("feature_lags", 3))
+    df, feats = load(a.csv, out["target_lag"], out.get("feature_lags", 3), out.get("physics", False))
     pool = df[df.fold >= 0]
     per_fold, trees = [], []
     for fold in range(out["folds"]):
@@ -266,7 +281,7 @@ def run_test(a):
     if "test" in out:
         sys.exit(f"{a.json} already holds the test score: the test split is scored once")
     started = time.time()
-    df, feats = load(a.csv, out["target_lag"], out.get("feature_lags", 3))
+    df, feats = load(a.csv, out["target_lag"], out.get("feature_lags", 3), out.get("physics", False))
     pool, test = df[df.fold >= 0], df[df.test == 1]
     best = next(r for r in out["configs"] if r["index"] == out["chosen"])
     tr = strided(pool)
@@ -300,6 +315,11 @@ def main():
     ap.add_argument("--lag", type=int, default=3, help="target lag, samples (cv; test takes cv's)")
     ap.add_argument("--lags", type=int, default=3,
                     help="cv: feature lags 1..N (the export holds 1-3; more are shifted within each flight)")
+    ap.add_argument("--physics", action="store_true",
+                    help="cv: add the physics models' estimates of each window (published parameters, the "
+                         "export's phys_*_w columns) as features")
+    ap.add_argument("--oof", help="cv: write each held-out window's estimate (the last configuration run) to "
+                                  "this CSV; cut from the data set, never commit it")
     ap.add_argument("--only", help="cv: run only these configurations (comma-separated indices)")
     ap.add_argument("--budget-s", type=float, default=0, help="cv: start no configuration after this many s")
     a = ap.parse_args()

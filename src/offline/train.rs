@@ -177,4 +177,10 @@ pub struct TrainArgs {
     /// training pool, e.g. a test flight), so LightGBM is tuned on the LSTM's folds.
     #[arg(long, hide = true, value_name = "FILE")]
     pub export_csv: Option<PathBuf>,
+    /// With `--cv`: also write each fold's held-out estimates, every window, to
+    /// `cv-predictions-<fold>.csv` in `--out` (flight, fold, instant, measured power, the
+    /// estimate and its band), to study the out-of-fold errors beside another model's on the
+    /// same folds (`scripts/lgbm_cv.py cv --oof`). Cut from the data set: never commit them.
+    #[arg(long, hide = true)]
+    pub cv_predictions: bool,
 }

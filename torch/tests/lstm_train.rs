@@ -185,6 +185,7 @@ fn smoke_cross_validation_scores_held_out_folds() {
             "2",
             "--band-from-cv",
             cv_arg,
+            "--cv-predictions",
         ],
     );
     assert!(status.success(), "dronewatt train --cv 2 failed");
@@ -233,6 +234,32 @@ fn smoke_cross_validation_scores_held_out_folds() {
         "2",
         "the row says the lag it was trained at\n{csv}"
     );
+    // `--cv-predictions`: each fold's held-out windows, whose MAE is the fold's in cv.csv.
+    let fold_mae: Vec<f64> = cell("fold_mae_w")
+        .split(';')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    for (k, want) in fold_mae.iter().enumerate() {
+        let dump = std::fs::read_to_string(out.path().join(format!("cv-predictions-{k}.csv")))
+            .unwrap_or_else(|e| panic!("cv-predictions-{k}.csv: {e}"));
+        let mut rows = dump.lines();
+        assert_eq!(
+            rows.next(),
+            Some("flight,fold,t_s,measured_w,pred_w,low_w,high_w")
+        );
+        let errs: Vec<f64> = rows
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+                assert_eq!(v[1], k as f64, "{l}");
+                (v[4] - v[3]).abs()
+            })
+            .collect();
+        let mae = errs.iter().sum::<f64>() / errs.len() as f64;
+        assert!(
+            (mae - want).abs() < 0.01,
+            "fold {k}: the dump's MAE {mae} against cv.csv's {want}"
+        );
+    }
     let card = ModelCard::load(&out.path().join("card.toml")).unwrap();
     // The band is the cross-validation's: the folds' mean signed widening, floored at 0.
     let q: Vec<f64> = cell("fold_band_q_w")
@@ -390,6 +417,117 @@ fn smoke_instant_readout_is_recorded_and_served_as_trained() {
 
 /// `dronewatt-torch train` on four flights with a tiny network and a few steps a fit, CPU
 /// only, into `out`, with `extra` flags.
+/// `train --export-csv`, the LightGBM scripts' windows: every training flight carries its
+/// fold of `cv_folds` and every test flight -1; the lagged copies are the earlier samples'
+/// features; the physics columns are each model's estimate of the window in watts (published
+/// Tseng within a third of the measured power in flight, as its ~16 % MAPE says).
+#[test]
+fn export_csv_carries_folds_lags_and_physics_estimates() {
+    let out = tempfile::tempdir().unwrap();
+    let csv = out.path().join("windows.csv");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
+        .args(["train", "--flights", "100,150,200,276", "--cv", "3"])
+        .args(["--seed", "7", "--target-lag", "3", "--export-csv"])
+        .arg(&csv)
+        .arg("--data")
+        .arg(dronewatt::default_data_path())
+        .arg("--out")
+        .arg(out.path())
+        .status()
+        .unwrap();
+    assert!(
+        status.success(),
+        "dronewatt-torch train --export-csv failed"
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+    };
+    let phys: Vec<&str> = header
+        .iter()
+        .copied()
+        .filter(|h| h.starts_with("phys_"))
+        .collect();
+    assert_eq!(
+        phys,
+        [
+            "phys_dandrea_w",
+            "phys_dandrea_headwind_w",
+            "phys_dorling_w",
+            "phys_stolaroff_w",
+            "phys_kirschstein_w",
+            "phys_tseng_w",
+            "phys_tseng_solo_w"
+        ]
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            l.split(',')
+                .enumerate()
+                .map(|(i, v)| if i == 1 { 0.0 } else { v.parse().unwrap() })
+                .collect()
+        })
+        .collect();
+    let (flight, fold, measured) = (col("flight"), col("fold"), col("measured_w"));
+    let mut folds = std::collections::BTreeMap::new();
+    for r in &rows {
+        folds.insert(r[flight] as u32, r[fold] as i64);
+    }
+    // The test flights are always exported, each in no fold.
+    for (f, k) in &folds {
+        let test = dronewatt::offline::data::TEST_FLIGHTS.contains(f);
+        assert!(test == (*k == -1), "flight {f} fold {k}");
+        assert!(
+            test || [100, 150, 200].contains(f),
+            "flight {f} not asked for"
+        );
+    }
+    assert!(folds.contains_key(&276), "{folds:?}");
+    let mut train_folds: Vec<i64> = [100, 150, 200].iter().map(|f| folds[f]).collect();
+    train_folds.sort_unstable();
+    assert_eq!(
+        train_folds,
+        [0, 1, 2],
+        "three training flights, three folds"
+    );
+    // A lagged copy is the same flight's sample that many steps back.
+    let (speed, speed_lag1) = (col("speed"), col("speed_lag1"));
+    let pairs = rows
+        .windows(2)
+        .filter(|p| {
+            p[0][flight] == p[1][flight] && (p[1][col("t_s")] - p[0][col("t_s")] - 0.1).abs() < 1e-3
+        })
+        .filter(|p| (p[1][speed_lag1] - p[0][speed]).abs() < 1e-4)
+        .count();
+    assert!(
+        pairs > rows.len() * 9 / 10,
+        "{pairs} of {} rows",
+        rows.len()
+    );
+    let tseng = col("phys_tseng_w");
+    let mut rel: Vec<f64> = rows
+        .iter()
+        .filter(|r| r[measured] >= 100.0)
+        .map(|r| (r[tseng] - r[measured]).abs() / r[measured])
+        .collect();
+    assert!(rel.len() > 1000, "{} in-flight rows", rel.len());
+    rel.sort_by(f64::total_cmp);
+    let median = rel[rel.len() / 2];
+    assert!(
+        median < 0.33,
+        "published Tseng's median relative error {median}"
+    );
+    for p in &phys {
+        let c = col(p);
+        assert!(rows.iter().all(|r| r[c].is_finite() && r[c] >= 0.0), "{p}");
+    }
+}
+
 fn smoke_train(out: &std::path::Path, extra: &[&str]) -> std::process::ExitStatus {
     std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
         .args([

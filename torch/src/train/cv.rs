@@ -146,8 +146,9 @@ pub(super) fn cross_validate(
                 train_time_s: started.elapsed().as_secs_f64(),
                 device,
             };
-            let ((m, band_q_w), first) = score_fold(args, data, fit, &members, &held_out)
-                .with_context(|| format!("{label}: scoring the held-out flights"))?;
+            let ((m, band_q_w), first) =
+                score_fold(args, data, fit, &members, (fold, &held_out))
+                    .with_context(|| format!("{label}: scoring the held-out flights"))?;
             println!(
                 "{label}: held out {held_out:?}: MAE {:.2} W, RMSE {:.2} W, in-flight MAPE {:.2} %, energy error {:.2} %, band coverage {:.1} % (widening to nominal {:.1} W) (best epoch {} on inner validation, MAE {:.2} W)",
                 m.mae_w, m.rmse_w, m.mape_in_flight_pct, m.energy_error_pct, m.band_coverage_pct, band_q_w, outcome.best_epoch, outcome.best_val_mae_w
@@ -204,7 +205,7 @@ fn score_fold(
     data: &FoldData,
     fit: Fit,
     members: &[ensemble::Member],
-    held_out: &[u32],
+    (fold, held_out): (usize, &[u32]),
 ) -> anyhow::Result<(Scored, Option<Scored>)> {
     let dir = args.out.join(".cv-fold");
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -232,6 +233,13 @@ fn score_fold(
         Ok((score(&series)?.0, q))
     };
     let series = run_alone(model, data.cfg, &held)?;
+    if args.cv_predictions {
+        write_predictions(
+            &args.out.join(format!("cv-predictions-{fold}.csv")),
+            fold,
+            &series,
+        )?;
+    }
     // A weights file named on its own runs alone: the ensemble's first member, for the
     // paired comparison in `cv.csv`.
     let first = if files.len() > 1 {
@@ -242,6 +250,41 @@ fn score_fold(
     };
     std::fs::remove_dir_all(&dir).with_context(|| format!("{}: cannot remove", dir.display()))?;
     Ok((scored(series)?, first))
+}
+
+/// `train --cv-predictions`: one fold's held-out windows that [`score`] counts, as the chain
+/// lined them up (the instant each estimate is for, its measured power, the estimate and its
+/// band; NaN where it has none).
+fn write_predictions(
+    path: &std::path::Path,
+    fold: usize,
+    series: &[FlightSeries],
+) -> anyhow::Result<()> {
+    use std::io::Write;
+    let file = std::fs::File::create(path)
+        .with_context(|| format!("{}: cannot create", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    writeln!(w, "flight,fold,t_s,measured_w,pred_w,low_w,high_w")?;
+    for s in series.iter().filter(|s| !s.pred_w.is_empty()) {
+        for (i, (t, m)) in s.t_s.iter().zip(&s.measured_w).enumerate() {
+            let (Some(p), band) = (s.pred_w[0].get(i), s.band_w[0].get(i).copied().flatten())
+            else {
+                continue;
+            };
+            // As `score` counts them: a window with an estimate and a measured power.
+            if !(p.is_finite() && m.is_finite()) {
+                continue;
+            }
+            let (lo, hi) = band.unwrap_or((f64::NAN, f64::NAN));
+            writeln!(
+                w,
+                "{},{fold},{t:.2},{m:.3},{p:.3},{lo:.3},{hi:.3}",
+                s.flight
+            )?;
+        }
+    }
+    w.flush()
+        .with_context(|| format!("{}: cannot write", path.display()))
 }
 
 /// The band's widening a cross-validation gives: the mean over its folds of each fold's

@@ -146,12 +146,17 @@ const EXPORT_LAGS: [usize; 3] = [1, 3, 9];
 
 /// Write each window's newest sample and lagged copies to a CSV for the LightGBM baseline.
 /// `folds` ([`dronewatt::offline::data::cv_folds`]) fill the `fold` column; flights outside
-/// them get -1.
+/// them get -1. The features are `set`'s (`train --features`), as the LSTM sees them. Last,
+/// `phys_<model>_w`: each physics model's estimate of the window with the
+/// vehicle's published parameters (`physics`: nothing fitted on any flight), which the
+/// LightGBM scripts read only when asked (`--physics`).
 pub(super) fn export_csv(
     flights: &[FlightWindows],
     path: &Path,
     t: usize,
     folds: &[(u32, usize)],
+    set: dronewatt::model::card::FeatureSet,
+    physics: &mut [Box<dyn dronewatt::model::PowerModel>],
 ) -> anyhow::Result<()> {
     use std::io::Write;
     let file = std::fs::File::create(path)
@@ -165,25 +170,34 @@ pub(super) fn export_csv(
         "t_s".into(),
         "measured_w".into(),
     ];
+    let names = set.names();
     for lag in std::iter::once(0).chain(EXPORT_LAGS) {
-        for n in dronewatt::features::FEATURE_NAMES {
+        for n in &names {
             header.push(if lag == 0 {
-                n.to_string()
+                n.clone()
             } else {
                 format!("{n}_lag{lag}")
             });
         }
     }
+    header.extend(physics.iter().map(|m| format!("phys_{}_w", m.name())));
     writeln!(w, "{}", header.join(","))?;
     let mut rows = 0usize;
+    let (mut est, mut inputs) = (Vec::new(), Vec::new());
+    let mut per_model: Vec<Vec<f32>> = vec![Vec::new(); physics.len()];
     for f in flights {
+        for (m, out) in physics.iter_mut().zip(&mut per_model) {
+            m.predict(&f.windows, &mut est);
+            out.clear();
+            out.extend(est.iter().map(|p| p.power_w));
+        }
         let test = TEST_FLIGHTS.contains(&f.flight) as u8;
         // -1: outside the training pool (a test flight, a ground test, no measured power).
         let fold = folds
             .iter()
             .find(|(g, _)| *g == f.flight)
             .map_or(-1, |(_, k)| *k as i64);
-        for win in &f.windows {
+        for (i, win) in f.windows.iter().enumerate() {
             let Some(p) = win.last().measured_w.filter(|p| p.is_finite()) else {
                 continue;
             };
@@ -201,10 +215,19 @@ pub(super) fn export_csv(
                 win.t_s(),
                 p
             )?;
+            // The inputs as the LSTM sees them (`push_inputs`: the home set's position slots
+            // relative to home and to the window's first sample), newest row last.
+            inputs.clear();
+            dronewatt::model::lstm::push_inputs(win, set, s.len(), &mut inputs);
+            let n = dronewatt::features::N_FEATURES;
             for lag in std::iter::once(0).chain(EXPORT_LAGS) {
-                for v in s[s.len() - 1 - lag.min(s.len() - 1)].features {
+                let row = s.len() - 1 - lag.min(s.len() - 1);
+                for v in &inputs[row * n..(row + 1) * n] {
                     write!(w, ",{v}")?;
                 }
+            }
+            for est in &per_model {
+                write!(w, ",{:.2}", est.get(i).copied().unwrap_or(f32::NAN))?;
             }
             writeln!(w)?;
             rows += 1;
