@@ -20,38 +20,33 @@ fn smoke_training_loss_falls() {
         "{}: not built (cargo test --workspace builds it)",
         lean.display()
     );
-    let status = std::process::Command::new(&lean)
-        .args([
-            "train",
-            "--flights",
-            "100,150,200",
-            "--stride",
-            "1",
-            "--epochs",
-            "8",
-            "--patience",
-            "8",
-        ])
-        .args([
-            "--max-steps",
-            "300",
-            "--hidden",
-            "32",
-            "--batch",
-            "64",
-            "--lr",
-            "3e-3",
-            "--seed",
-            "3",
-            "--target-lag",
-            "2",
-        ])
-        .arg("--data")
-        .arg(dronewatt::default_data_path())
-        .arg("--out")
-        .arg(out.path())
-        .status()
-        .unwrap();
+    let mut cmd = std::process::Command::new(&lean);
+    cmd.args([
+        "train",
+        "--flights",
+        "100,150,200",
+        "--stride",
+        "1",
+        "--epochs",
+        "8",
+        "--patience",
+        "8",
+    ])
+    .args([
+        "--max-steps",
+        "300",
+        "--hidden",
+        "32",
+        "--batch",
+        "64",
+        "--lr",
+        "3e-3",
+        "--seed",
+        "3",
+        "--target-lag",
+        "2",
+    ]);
+    let status = on_data(&mut cmd, out.path());
     assert!(status.success(), "dronewatt train failed");
     let curve = std::fs::read_to_string(out.path().join("loss.csv")).unwrap();
     let losses: Vec<f64> = curve
@@ -425,16 +420,11 @@ fn smoke_instant_readout_is_recorded_and_served_as_trained() {
 fn export_csv_carries_folds_lags_and_physics_estimates() {
     let out = tempfile::tempdir().unwrap();
     let csv = out.path().join("windows.csv");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
-        .args(["train", "--flights", "100,150,200,276", "--cv", "3"])
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"));
+    cmd.args(["train", "--flights", "100,150,200,276", "--cv", "3"])
         .args(["--seed", "7", "--target-lag", "3", "--export-csv"])
-        .arg(&csv)
-        .arg("--data")
-        .arg(dronewatt::default_data_path())
-        .arg("--out")
-        .arg(out.path())
-        .status()
-        .unwrap();
+        .arg(&csv);
+    let status = on_data(&mut cmd, out.path());
     assert!(
         status.success(),
         "dronewatt-torch train --export-csv failed"
@@ -529,33 +519,38 @@ fn export_csv_carries_folds_lags_and_physics_estimates() {
 }
 
 fn smoke_train(out: &std::path::Path, extra: &[&str]) -> std::process::ExitStatus {
-    std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"))
-        .args([
-            "train",
-            "--flights",
-            "100,150,200,201",
-            "--stride",
-            "8",
-            "--epochs",
-            "2",
-        ])
-        .args([
-            "--patience",
-            "2",
-            "--max-steps",
-            "20",
-            "--hidden",
-            "8",
-            "--batch",
-            "64",
-        ])
-        .args(["--seed", "3", "--val-frac", "0.5", "--threads", "1"])
-        .args(extra)
-        .arg("--data")
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_dronewatt-torch"));
+    cmd.args([
+        "train",
+        "--flights",
+        "100,150,200,201",
+        "--stride",
+        "8",
+        "--epochs",
+        "2",
+    ])
+    .args([
+        "--patience",
+        "2",
+        "--max-steps",
+        "20",
+        "--hidden",
+        "8",
+        "--batch",
+        "64",
+    ])
+    .args(["--seed", "3", "--val-frac", "0.5", "--threads", "1"])
+    .args(extra)
+    .env("CUDA_VISIBLE_DEVICES", "");
+    on_data(&mut cmd, out)
+}
+
+/// Run `cmd` on the data set (`DRONEWATT_DATA`), writing into `out`.
+fn on_data(cmd: &mut std::process::Command, out: &std::path::Path) -> std::process::ExitStatus {
+    cmd.arg("--data")
         .arg(dronewatt::default_data_path())
         .arg("--out")
         .arg(out)
-        .env("CUDA_VISIBLE_DEVICES", "")
         .status()
         .unwrap()
 }
