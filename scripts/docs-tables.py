@@ -517,6 +517,16 @@ def lgbm_test(r):
 LGBM_LAGS_JSON = OUT / "lgbm-lags.json"
 
 
+def lag_set(lags):
+    """1, 3, 9 / 1, 3–7, 9 / 1, 3–19: a sorted set of lags, runs as ranges."""
+    runs, start = [], lags[0]
+    for a, b in zip(lags, lags[1:] + [None]):
+        if b != a + 1:
+            runs.append(f"{start}" if start == a else f"{start}–{a}")
+            start = b
+    return ", ".join(runs)
+
+
 def lgbm_lags(r):
     """LightGBM's chosen configuration at other target lags and with more feature lags (issue 25's
     fair-peer check): how much each model gains from the samples after and before the instant."""
@@ -527,8 +537,10 @@ def lgbm_lags(r):
           "(`scripts/lgbm_cv.py --only 0`). Do not edit: run `make docs-tables`. -->\n\n")
     md += (f"{r['what']}: {r['folds']}-fold by-flight cross-validation on the LSTM's folds, the same rule "
            f"for the tree count (`{r['command']}`, windows from `{r['export']}`). The target lag L is the "
-           "estimate's instant, L samples before the newest; feature lags 1–N give the model the samples "
-           "up to N before the newest, so it sees the L samples after the instant and N − L before it (the LSTM's window of 10 sees L after and 9 − L before). "
+           "estimate's instant, L samples before the newest. The export holds the newest sample and its copies "
+           "lagged 1, 3 and 9 samples; `--lags N` (N > 3) adds the lags 4 to N, shifted within each flight, so "
+           "lag 2 is never among them: the column lists the lags each row saw, and what they hold around "
+           "the instant (the LSTM's window of 10 sees all L after it and 9 − L before). "
            "Inputs: `paper`, the 21 features as exported (longitude, latitude, altitude above sea level); `home`, "
            "the LSTM's (`--features home` at export); `+ physics`, with the seven physics models' estimates of "
            "the window at published parameters (`--physics`). "
@@ -536,15 +548,19 @@ def lgbm_lags(r):
     body = []
     for x in runs:
         lag, n = x["target_lag"], x["feature_lags"]
-        seen = (f"the instant, {lag} after, {n - lag} before" if n >= lag
-                else f"{lag - n} to {lag} after, not the instant")
-        body.append([f"{lag} ({lag / 10:g} s)", f"1–{n}", x.get("inputs", "paper"), seen,
+        # The export holds lags 1, 3 and 9; `--lags N` shifts in 4..N (lag 2 is never among them).
+        lags = sorted({0, 1, 3, 9} | set(range(4, n + 1)))
+        after = sum(1 for k in lags if k < lag)
+        before = [k - lag for k in lags if k > lag]
+        seen = ("the instant" if lag in lags else "not the instant") + f", {after} of {lag} after"
+        seen += f", {len(before)} before (up to {max(before)})" if before else ", none before"
+        body.append([f"{lag} ({lag / 10:g} s)", lag_set(lags[1:]), x.get("inputs", "paper"), seen,
                      f"{x['trees']}" + (" (cap)" if x["trees"] == x.get("max_trees") else ""),
                      f(x["mae_w"]["mean"]) + f" ({f(x['mae_w']['median'])})",
                      f(x["mape_in_flight_pct"]["mean"]) + f" ({f(x['mape_in_flight_pct']['median'])})",
                      f(x["energy_error_pct"]["mean"]) + f" ({f(x['energy_error_pct']['median'])})",
                      f"{x['wall_s'] / 60:.1f}"])
-    md += table(["target lag", "feature lags", "inputs", "samples seen around the instant", "trees", "CV MAE (W)",
+    md += table(["target lag", "lags seen", "inputs", "around the instant", "trees", "CV MAE (W)",
                  "CV MAPE %", "CV energy error %", "wall (min, one core)"], body)
     return md
 

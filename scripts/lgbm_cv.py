@@ -15,10 +15,10 @@ The windows come from `dronewatt train --export-csv FILE --cv 5 --seed 7 --targe
 
     scripts/lgbm_cv.py cv /tmp/windows.csv --json /tmp/lgbm-l9.json --only 0 --lags 9  # #0, 10-sample window
 
-`--lags N` gives every row the samples up to N steps back (the export holds 1-3, more are
+`--lags N` gives every row the samples up to N steps back but 2 (the export holds 1, 3 and 9; 4 to N are
 shifted here within each flight, missing across a gap): with N = 9 LightGBM sees the LSTM's
-whole 10-sample window. `--lag L` sets the target lag, as the LSTM's card does: at L = 3 the
-export's lags 1-3 end at the target instant, so a larger L needs N >= L to see it at all.
+10-sample window but its lag 2. `--lag L` sets the target lag, as the LSTM's card does: at L = 3 the
+export's lags 1 and 3 reach the target instant, so a larger L needs N >= L to see it at all.
 `--physics` adds the export's `phys_<model>_w` columns, each physics model's estimate of the
 window with the vehicle's published parameters (nothing fitted on any flight, so no fold
 leaks into another), as features: a physics-informed LightGBM.
@@ -107,7 +107,7 @@ def load(path, lag, lags=3, physics=False):
     elif not phys:
         sys.exit("--physics: the CSV has no phys_*_w columns: export again with this binary")
     base = [c for c in df.columns if c not in META and "_lag" not in c and not c.startswith("phys_")]
-    if lags > 3:  # the export holds lags 1-3; more are shifted here, within each flight, NaN across a gap
+    if lags > 3:  # the export holds lags 1, 3, 9; 4..N are shifted here, within each flight, NaN across a gap
         g = df.groupby("flight")
         extra = {}
         for k in range(4, lags + 1):
@@ -314,7 +314,7 @@ def main():
     ap.add_argument("--json", required=True, help="results (figures only); `test` reads `cv`'s choice here")
     ap.add_argument("--lag", type=int, default=3, help="target lag, samples (cv; test takes cv's)")
     ap.add_argument("--lags", type=int, default=3,
-                    help="cv: feature lags 1..N (the export holds 1-3; more are shifted within each flight)")
+                    help="cv: feature lags up to N (the export holds 1, 3 and 9; 4..N are shifted within each flight)")
     ap.add_argument("--physics", action="store_true",
                     help="cv: add the physics models' estimates of each window (published parameters, the "
                          "export's phys_*_w columns) as features")
