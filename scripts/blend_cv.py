@@ -20,7 +20,8 @@ other folds' windows (lowest pooled MAE), so no fold picks its own weight.
 Every figure is computed here the same way for all three (per fold, then the mean over
 folds): MAE over every window, MAPE over in-flight windows (measured >= 100 W), energy
 error |sum(estimate) - sum(measured)| / sum(measured) per flight, averaged over the fold's
-flights. Training flights only: the script refuses a test flight. Needs numpy and pandas.
+flights (`lgbm_cv.py`'s `scores`, which it imports). Training flights only: the script refuses
+a test flight. Runs in `lgbm_cv.py`'s environment (numpy, pandas, lightgbm).
 """
 import argparse
 import glob
@@ -31,19 +32,17 @@ import sys
 import numpy as np
 import pandas as pd
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from lgbm_cv import scores as lgbm_scores  # noqa: E402  (the same metrics as LightGBM's CV)
+
 TEST_FLIGHTS = {268, 269, 270, 271, 272, 273, 276, 277, 278, 279}
-IN_FLIGHT_W = 100.0
 GRID = np.round(np.arange(0, 1.0001, 0.05), 2)
+KEYS = ("mae_w", "mape_in_flight_pct", "energy_error_pct")
 
 
 def scores(d, pred):
-    y = d.measured_w.to_numpy()
-    err = pred - y
-    fl = y >= IN_FLIGHT_W
-    t = pd.DataFrame({"flight": d.flight.to_numpy(), "p": pred, "y": y}).groupby("flight")[["p", "y"]].sum()
-    return {"mae_w": float(np.mean(np.abs(err))),
-            "mape_in_flight_pct": float(100 * np.mean(np.abs(err[fl] / y[fl]))),
-            "energy_error_pct": float((100 * np.abs(t.p - t.y) / t.y).mean())}
+    s = lgbm_scores(d, pred)
+    return {k: s[k] for k in KEYS}
 
 
 def main():

@@ -213,12 +213,12 @@ def run_cv(a):
         grid = np.arange(TREE_STEP, n_max + 1, TREE_STEP)
         mean_curve = np.mean([cv[grid - 1] for cv in curves], axis=0)
         n_best = int(grid[np.argmin(mean_curve)])
-        per_fold = [scores(va, b.predict(va[feats].to_numpy(np.float32), num_iteration=n_best))
-                    for b, (_, _, va) in zip(boosters, data)]
+        preds = [b.predict(va[feats].to_numpy(np.float32), num_iteration=n_best)
+                 for b, (_, _, va) in zip(boosters, data)]
+        per_fold = [scores(va, p) for p, (_, _, va) in zip(preds, data)]
         if a.oof:  # every held-out window's estimate at the chosen tree count, for a blend study
-            oof = pd.concat([va[["flight", "fold", "t_s", "measured_w"]].assign(
-                pred_w=b.predict(va[feats].to_numpy(np.float32), num_iteration=n_best))
-                for b, (_, _, va) in zip(boosters, data)])
+            oof = pd.concat([va[["flight", "fold", "t_s", "measured_w"]].assign(pred_w=p)
+                             for p, (_, _, va) in zip(preds, data)])
             oof.to_csv(a.oof, index=False, float_format="%.3f")
         row = {"index": index, "params": c, "max_trees": n_max, "trees": n_best,
                "wall_s": round(time.time() - t0, 1), **summary(per_fold)}

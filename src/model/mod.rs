@@ -325,7 +325,7 @@ pub fn build_adaptation(
 }
 
 /// The vehicle profile file, else the built-in M100.
-fn load_profile(vehicle: Option<&std::path::Path>) -> anyhow::Result<profile::VehicleProfile> {
+pub fn load_profile(vehicle: Option<&std::path::Path>) -> anyhow::Result<profile::VehicleProfile> {
     match vehicle {
         Some(path) => profile::VehicleProfile::load(path),
         None => Ok(profile::VehicleProfile::m100()),

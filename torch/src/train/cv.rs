@@ -266,11 +266,8 @@ fn write_predictions(
     let mut w = std::io::BufWriter::new(file);
     writeln!(w, "flight,fold,t_s,measured_w,pred_w,low_w,high_w")?;
     for s in series.iter().filter(|s| !s.pred_w.is_empty()) {
-        for (i, (t, m)) in s.t_s.iter().zip(&s.measured_w).enumerate() {
-            let (Some(p), band) = (s.pred_w[0].get(i), s.band_w[0].get(i).copied().flatten())
-            else {
-                continue;
-            };
+        let windows = s.t_s.iter().zip(&s.measured_w);
+        for ((t, m), (p, band)) in windows.zip(s.pred_w[0].iter().zip(&s.band_w[0])) {
             // As `score` counts them: a window with an estimate and a measured power.
             if !(p.is_finite() && m.is_finite()) {
                 continue;

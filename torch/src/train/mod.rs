@@ -149,10 +149,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         // column: the LightGBM scripts tune on the same held-out flights.
         let k = if args.cv == 0 { 5 } else { args.cv };
         let folds = cv_folds(&training_pool(&flights, args.target_lag), k, args.seed);
-        let profile = match cfg.vehicle.as_deref() {
-            Some(path) => dronewatt::model::profile::VehicleProfile::load(path)?,
-            None => dronewatt::model::profile::VehicleProfile::m100(),
-        };
+        let profile = dronewatt::model::load_profile(cfg.vehicle.as_deref())?;
         let mut physics = dronewatt::model::physics::models(&profile);
         return export_csv(
             &flights,
