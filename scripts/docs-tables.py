@@ -360,7 +360,7 @@ def lstm_cv_rows():
                "relative_loss": float(train.get("relative_loss", 0)),
                "plateau_decay": float(train.get("plateau_decay", 1)),
                "members": 1 + len(card.get("members", [])), "target_lag": int(card.get("target_lag", 0)),
-               "readout": card.get("readout", "final")}
+               "readout": card.get("readout", "final"), "trees": "trees" in card}
 
     def changes(r):
         # Columns added later (absent in older rows): the loss's relative weight, the plateau decay,
@@ -392,7 +392,8 @@ def lstm_cv_rows():
             if not c and len(seeds) == shipped["members"]:
                 loss = f", relative loss λ {shipped['relative_loss']:g}" if shipped["relative_loss"] else ""
                 readout = ", the instant readout" if shipped["readout"] != "final" else ""
-                name = f"{base}, stride {r['stride']}{loss}{readout} (shipped)"
+                what = "shipped, in the blend below" if shipped["trees"] else "shipped"
+                name = f"{base}, stride {r['stride']}{loss}{readout} ({what})"
             elif replaced:
                 name = f"{base}, stride {r['stride']}{''.join(', ' + x for x in c)} ({replaced}, replaced)"
             else:
@@ -408,7 +409,32 @@ def lstm_cv_rows():
                 for k in ("mape_in_flight_pct", "energy_error_pct")}
         stat["mae_w"] = {"mean": float(r["avg_mae_w"]), "median": float(r["median_mae_w"])}
         out.append((name, stat))
+        if shipped["trees"] and name.endswith("(shipped, in the blend below)"):
+            out.extend(blend_cv_rows(card))
     return out
+
+
+BLEND_JSON = OUT / "blend-cv.json"
+
+
+def blend_cv_rows(card):
+    """The shipped blend's out-of-fold row (`scripts/blend_cv.py --json`, committed as
+    docs/src/generated/blend-cv.json): the network's share chosen for each fold on the others."""
+    import statistics
+    try:
+        b = json.loads(BLEND_JSON.read_text())
+    except OSError as e:
+        note(f"{BLEND_JSON}: no blend CV row ({e})")
+        return []
+    folds = b["folds"]
+    shares = "/".join(f"{x['weight_lstm']:g}" for x in folds)
+    stat = {k: {"mean": statistics.mean(x["blend"][k] for x in folds),
+                "median": statistics.median(x["blend"][k] for x in folds)}
+            for k in ("mae_w", "mape_in_flight_pct", "energy_error_pct")}
+    name = (f"**the shipped model: that ensemble blended with LightGBM #0 on its inputs, out of fold "
+            f"(network's share {shares} a fold, chosen on the others; {card['trees']['weight_lstm']:g} "
+            f"on all, shipped; `blend-cv.json`)**")
+    return [(name, stat)]
 
 
 def lgbm_header():
@@ -505,6 +531,8 @@ def lgbm_test(r):
             lam = c.get("training", {}).get("relative_loss", 0)
             net += f", relative loss λ {lam:g}" if lam else ""
             net += f", the {c['readout']} readout" if c.get("readout", "final") != "final" else ""
+            if "trees" in c:
+                net += f", blended with LightGBM (network's share {c['trees']['weight_lstm']:g})"
             m = c["metrics"]
             rows.append([f"LSTM, {net}, {what}", f(m["mae_w"], 1), f(m["flight_276_mae_w"], 1),
                          f(m["mape_in_flight_pct"]), f(m["energy_error_pct"])])

@@ -14,6 +14,7 @@ The windows come from `dronewatt train --export-csv FILE --cv 5 --seed 7 --targe
     scripts/lgbm_cv.py test    /tmp/windows.csv --json /tmp/lgbm-cv.json  # once
 
     scripts/lgbm_cv.py cv /tmp/windows.csv --json /tmp/lgbm-l9.json --only 0 --lags 9  # #0, 10-sample window
+    scripts/lgbm_cv.py fit /tmp/windows.csv --json /tmp/lgbm-cv.json --save trees.txt  # for a card's `trees`
 
 `--lags N` gives every row the samples up to N steps back but 2 (the export holds 1, 3 and 9; 4 to N are
 shifted here within each flight, missing across a gap): with N = 9 LightGBM sees the LSTM's
@@ -307,9 +308,30 @@ def run_test(a):
               f"in-flight MAPE {s['mape_in_flight_pct']:.2f} %, energy error {s['energy_error_pct']:.2f} %")
 
 
+def run_fit(a):
+    """The chosen configuration fitted once on every training flight, saved as LightGBM's text
+    model for the LSTM's card (`trees`): the test flights are neither fitted nor scored."""
+    if not a.save:
+        sys.exit("fit: --save FILE names the text model to write")
+    out = json.loads(Path(a.json).read_text())
+    df, feats = load(a.csv, out["target_lag"], out.get("feature_lags", 3), out.get("physics", False))
+    if out.get("feature_lags", 3) > 3 or out.get("physics", False):
+        sys.exit("fit: dronewatt's evaluator reads the export's lags 1, 3 and 9 only (no --lags N > 3, no --physics)")
+    best = next(r for r in out["configs"] if r["index"] == out["chosen"])
+    tr = strided(df[df.fold >= 0])
+    started = time.time()
+    b = lgb.train(lgb_params(best["params"]),
+                  lgb.Dataset(tr[feats].to_numpy(np.float32), tr.measured_w.to_numpy(),
+                              feature_name=feats, params={"feature_pre_filter": False, "verbose": -1}),
+                  best["trees"])
+    b.save_model(a.save)
+    print(f"{a.save}: configuration {best['index']}, {best['trees']} trees, {len(tr)} windows of "
+          f"{tr.flight.nunique()} training flights, {time.time() - started:.0f} s")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("step", choices=["cv", "untuned", "test"])
+    ap.add_argument("step", choices=["cv", "untuned", "test", "fit"])
     ap.add_argument("csv")
     ap.add_argument("--json", required=True, help="results (figures only); `test` reads `cv`'s choice here")
     ap.add_argument("--lag", type=int, default=3, help="target lag, samples (cv; test takes cv's)")
@@ -320,10 +342,11 @@ def main():
                          "export's phys_*_w columns) as features")
     ap.add_argument("--oof", help="cv: write each held-out window's estimate (the last configuration run) to "
                                   "this CSV; cut from the data set, never commit it")
+    ap.add_argument("--save", help="fit: write the fitted trees (LightGBM's text model) here")
     ap.add_argument("--only", help="cv: run only these configurations (comma-separated indices)")
     ap.add_argument("--budget-s", type=float, default=0, help="cv: start no configuration after this many s")
     a = ap.parse_args()
-    {"cv": run_cv, "untuned": run_untuned, "test": run_test}[a.step](a)
+    {"cv": run_cv, "untuned": run_untuned, "test": run_test, "fit": run_fit}[a.step](a)
 
 
 if __name__ == "__main__":

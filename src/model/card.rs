@@ -151,6 +151,10 @@ pub struct ModelCard {
     /// flights) or `cv` (a cross-validation's held-out flights, `train --band-from-cv`).
     #[serde(default, skip_serializing_if = "BandCalibration::is_validation")]
     pub band_calibration: BandCalibration,
+    /// Gradient-boosted trees blended with the network ([`TreesBlend`]). Absent: the
+    /// network alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trees: Option<TreesBlend>,
     /// LSTM hidden cells per direction and layer (built-in network only).
     pub hidden: i64,
     /// Stacked bidirectional LSTM layers (built-in network only).
@@ -164,6 +168,44 @@ pub struct ModelCard {
     /// models is made on, the test flights' being scored once.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub validation_metrics: Option<Metrics>,
+}
+
+/// `[trees]`: a LightGBM model (its text file, `scripts/lgbm_cv.py fit`) whose estimate
+/// is blended with the network's: estimate = w × network + (1 − w) × trees, the band moved
+/// by the same amount. The trees read the window's raw inputs (`feature_set`'s, as the
+/// network sees them before standardising) at each of `lags`, named `<input>` for lag 0
+/// and `<input>_lag<k>` after. Where the window's newest inputs lie outside the network's
+/// training range (`feature_mean` ± 6 `feature_std`) the network runs alone: trees are
+/// flat outside their data, so they are not trusted there.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TreesBlend {
+    /// LightGBM text model, relative to the card's folder.
+    pub file: String,
+    /// The network's share w, 0 to 1.
+    pub weight_lstm: f64,
+    /// Samples before the window's newest whose inputs the trees read, in their order
+    /// (0: the newest); each below `window`.
+    pub lags: Vec<usize>,
+}
+
+impl TreesBlend {
+    /// The input names the trees must have been trained on, for `set`.
+    pub fn input_names(&self, set: FeatureSet) -> Vec<String> {
+        let names = set.names();
+        self.lags
+            .iter()
+            .flat_map(|&k| {
+                names.iter().map(move |n| {
+                    if k == 0 {
+                        n.clone()
+                    } else {
+                        format!("{n}_lag{k}")
+                    }
+                })
+            })
+            .collect()
+    }
 }
 
 /// How a model was trained: enough to repeat it.
@@ -275,6 +317,23 @@ impl ModelCard {
             in_range(&format!("feature_std[{i}]"), *s, above(0.0), "")?;
         }
         in_range("power_scale_w", self.power_scale_w, above(0.0), "W")?;
+        if let Some(t) = &self.trees {
+            if !(0.0..=1.0).contains(&t.weight_lstm) {
+                return Err(format!(
+                    "trees.weight_lstm = {}: the network's share is 0 to 1",
+                    t.weight_lstm
+                ));
+            }
+            if t.lags.is_empty() {
+                return Err("trees.lags is empty: the trees read at least one sample".into());
+            }
+            if let Some(k) = t.lags.iter().find(|k| **k >= self.window) {
+                return Err(format!(
+                    "trees.lags holds {k}, but a window has {} samples",
+                    self.window
+                ));
+            }
+        }
         Ok(())
     }
 

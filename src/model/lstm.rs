@@ -17,7 +17,12 @@
 //! The cell count is the card's `hidden` (the paper: 128), and a card may list an
 //! ensemble's further `members`: networks trained on the same flights from other initial
 //! weights, whose outputs (point and band) are averaged. The shipped model is an ensemble of
-//! three 64-cell networks, which costs about what one 128-cell network does.
+//! four 64-cell networks.
+//!
+//! A card may blend gradient-boosted trees in (`[trees]`, [`super::card::TreesBlend`],
+//! evaluated by [`super::trees`]): the estimate is then w × network + (1 − w) × trees, the
+//! band moved with it, except where the window is not [`PowerModel::in_training_range`],
+//! where the network runs alone.
 //!
 //! Every batch, one window (the live case) or thousands (a replay flat out, `eval`), runs
 //! through the batched hand-written forward of [`super::lstm_cpu`], with no libtorch in
@@ -40,7 +45,9 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use super::card::{FeatureSet, ModelCard, WeightsFormat};
+use anyhow::Context;
+
+use super::card::{FeatureSet, ModelCard, TreesBlend, WeightsFormat};
 use super::lstm_cpu::CpuLstm;
 use super::{PowerModel, Prediction};
 use crate::features::{idx, N_FEATURES};
@@ -176,6 +183,52 @@ pub struct LstmModel {
     out: Vec<f32>,
     sum: Vec<f32>,
     warned: bool,
+    /// The card's trees, when it blends them in.
+    trees: Option<Blend>,
+}
+
+/// Trees blended with the network (the card's `[trees]`), and their scratch.
+struct Blend {
+    trees: super::trees::Trees,
+    weight: f32,
+    lags: Vec<usize>,
+    /// Each window's tree estimate, NaN where the network runs alone.
+    est: Vec<f32>,
+    row: Vec<f64>,
+    newest: Vec<f32>,
+    /// Windows the trees sat out (inputs outside the training range).
+    skipped: u64,
+}
+
+/// The row the card's trees read from one window's raw inputs (`push_inputs`: T × 21,
+/// newest last): the sample `lag` before the newest for each of `lags`, in order, as
+/// `train --export-csv` writes them.
+pub fn tree_row(inputs: &[f32], lags: &[usize], out: &mut Vec<f64>) {
+    out.clear();
+    let rows = inputs.len() / N_FEATURES;
+    if rows == 0 {
+        return;
+    }
+    for &lag in lags {
+        let r = rows - 1 - lag.min(rows - 1);
+        out.extend(
+            inputs[r * N_FEATURES..(r + 1) * N_FEATURES]
+                .iter()
+                .map(|v| f64::from(*v)),
+        );
+    }
+}
+
+/// Whether every raw input of one sample lies within [`TRAINING_RANGE_SIGMAS`] of the
+/// card's training mean.
+fn within_training_range(card: &ModelCard, x: &[f32]) -> bool {
+    x.iter()
+        .zip(&card.feature_mean)
+        .zip(&card.feature_std)
+        .all(|((v, m), s)| {
+            let z = (v - m) / s;
+            z.is_finite() && z.abs() <= TRAINING_RANGE_SIGMAS
+        })
 }
 
 impl LstmModel {
@@ -208,8 +261,8 @@ impl LstmModel {
         })?;
         let dir = card_path.parent().unwrap_or(Path::new("."));
         // A weights file named on its own runs alone; a folder or card runs every member.
-        let files: Vec<PathBuf> = match weights_override {
-            Some(w) => vec![w],
+        let files: Vec<PathBuf> = match &weights_override {
+            Some(w) => vec![w.clone()],
             None => std::iter::once(&card.weights)
                 .chain(&card.members)
                 .map(|m| dir.join(m))
@@ -222,6 +275,11 @@ impl LstmModel {
         if backends.len() > 1 {
             tracing::info!("lstm: an ensemble of {} members", backends.len());
         }
+        // A weights file named on its own is that network alone, without the trees.
+        let trees = match (&card.trees, &weights_override) {
+            (Some(t), None) => Some(Self::load_trees(t, &card, dir)?),
+            _ => None,
+        };
         Ok(LstmModel {
             card,
             backends,
@@ -229,6 +287,50 @@ impl LstmModel {
             out: Vec::new(),
             sum: Vec::new(),
             warned: false,
+            trees,
+        })
+    }
+
+    /// The card's trees, checked against the inputs the card names.
+    fn load_trees(t: &TreesBlend, card: &ModelCard, dir: &Path) -> anyhow::Result<Blend> {
+        let path = dir.join(&t.file);
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("{}: cannot read the card's trees", path.display()))?;
+        let trees = super::trees::Trees::parse(&text)
+            .with_context(|| format!("{}: not a model dronewatt can run", path.display()))?;
+        let want = t.input_names(card.feature_set);
+        if trees.feature_names() != want.as_slice() {
+            let i = trees
+                .feature_names()
+                .iter()
+                .zip(&want)
+                .position(|(a, b)| a != b)
+                .unwrap_or(want.len().min(trees.feature_names().len()));
+            anyhow::bail!(
+                "{}: input {i} is '{}' but the card's {:?} inputs at lags {:?} have '{}' there ({} inputs, expected {})",
+                path.display(),
+                trees.feature_names().get(i).map(String::as_str).unwrap_or("none"),
+                card.feature_set,
+                t.lags,
+                want.get(i).map(String::as_str).unwrap_or("none"),
+                trees.feature_names().len(),
+                want.len()
+            );
+        }
+        tracing::info!(
+            "lstm: blends {} trees ({}), the network's share {}",
+            trees.len(),
+            path.display(),
+            t.weight_lstm
+        );
+        Ok(Blend {
+            trees,
+            weight: t.weight_lstm as f32,
+            lags: t.lags.clone(),
+            est: Vec::new(),
+            row: Vec::new(),
+            newest: Vec::new(),
+            skipped: 0,
         })
     }
 
@@ -280,9 +382,28 @@ impl LstmModel {
     pub fn forward_w(&mut self, windows: &[Window]) -> anyhow::Result<Vec<[f32; 3]>> {
         let t = self.card.window;
         self.buf.clear();
+        if let Some(b) = &mut self.trees {
+            b.est.clear();
+        }
         for w in windows {
             let start = self.buf.len();
             push_inputs(w, self.card.feature_set, t, &mut self.buf);
+            if let Some(b) = &mut self.trees {
+                let raw = &self.buf[start..];
+                // The newest sample as `in_training_range` reads it.
+                b.newest.clear();
+                push_inputs(w, self.card.feature_set, 1, &mut b.newest);
+                b.est.push(if within_training_range(&self.card, &b.newest) {
+                    tree_row(raw, &b.lags, &mut b.row);
+                    b.trees.predict(&b.row) as f32
+                } else {
+                    if b.skipped == 0 {
+                        tracing::info!("lstm: inputs outside the training range: the network alone, without its trees, there");
+                    }
+                    b.skipped += 1;
+                    f32::NAN
+                });
+            }
             for (i, v) in self.buf[start..].iter_mut().enumerate() {
                 let f = i % N_FEATURES;
                 *v = (*v - self.card.feature_mean[f]) / self.card.feature_std[f];
@@ -312,7 +433,7 @@ impl LstmModel {
             }
         }
         let s = self.card.power_scale_w;
-        Ok(self
+        let mut rows: Vec<[f32; 3]> = self
             .sum
             .chunks(cols)
             .map(|r| {
@@ -323,7 +444,19 @@ impl LstmModel {
                     [p, p, p]
                 }
             })
-            .collect())
+            .collect();
+        if let Some(b) = &self.trees {
+            // w × network + (1 − w) × trees; the band moves with the estimate.
+            for (r, e) in rows.iter_mut().zip(&b.est) {
+                if e.is_finite() {
+                    let d = (1.0 - b.weight) * (e - r[0]);
+                    for v in r.iter_mut() {
+                        *v += d;
+                    }
+                }
+            }
+        }
+        Ok(rows)
     }
 }
 
@@ -349,13 +482,7 @@ impl PowerModel for LstmModel {
     fn in_training_range(&self, window: &Window) -> bool {
         let mut x = Vec::with_capacity(N_FEATURES);
         push_inputs(window, self.card.feature_set, 1, &mut x);
-        x.iter()
-            .zip(&self.card.feature_mean)
-            .zip(&self.card.feature_std)
-            .all(|((v, m), s)| {
-                let z = (v - m) / s;
-                z.is_finite() && z.abs() <= TRAINING_RANGE_SIGMAS
-            })
+        within_training_range(&self.card, &x)
     }
 
     fn predict(&mut self, windows: &[Window], out: &mut Vec<Prediction>) {

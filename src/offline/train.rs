@@ -183,4 +183,13 @@ pub struct TrainArgs {
     /// same folds (`scripts/lgbm_cv.py cv --oof`). Cut from the data set: never commit them.
     #[arg(long, hide = true)]
     pub cv_predictions: bool,
+    /// Blend these trees (LightGBM's text model, `scripts/lgbm_cv.py fit` on the export of
+    /// `--features`) into the model in `--out`: copied there as `trees.txt` and recorded in
+    /// its card (`[trees]`, lags 0, 1, 3 and 9, the export's), before `--score-only` scores it.
+    #[arg(long, value_name = "FILE", requires = "trees_weight")]
+    pub trees: Option<PathBuf>,
+    /// With `--trees`: the network's share w of the blend, 0 to 1 (`scripts/blend_cv.py`'s
+    /// `weight_lstm_pooled`, chosen out of fold on the training flights).
+    #[arg(long, value_name = "W", requires = "trees")]
+    pub trees_weight: Option<f64>,
 }

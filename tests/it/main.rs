@@ -26,6 +26,7 @@ mod mission_margin;
 mod mission_protocol;
 mod model_adapt;
 mod model_physics;
+mod model_trees;
 mod offline_battery_eval;
 mod offline_config;
 mod offline_eval;

@@ -144,6 +144,8 @@ pub fn fine_tune(job: &FineTuneJob) -> anyhow::Result<FineTuned> {
     out_card.weights = "model.safetensors".into();
     // An ensemble's first member is what was fine-tuned: the card is one network's.
     out_card.members.clear();
+    // The M100's trees are not tuned to this vehicle: the fine-tuned network runs alone.
+    out_card.trees = None;
     out_card.training.init_seed = None;
     out_card.validation_metrics = None;
     out_card.training.data_file = job.logs.join(", ");

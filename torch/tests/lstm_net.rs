@@ -54,6 +54,7 @@ fn card(dir: &std::path::Path, window: usize) -> ModelCard {
         feature_mean: vec![0.0; N_FEATURES],
         feature_std: vec![100.0; N_FEATURES],
         power_scale_w: 500.0,
+        trees: None,
         target_lag: 0,
         readout: Default::default(),
         band_quantiles: (0.05, 0.95),

@@ -66,6 +66,7 @@ fn torchscript_module_loads_with_its_card() {
         feature_mean: vec![0.0; N_FEATURES],
         feature_std: vec![1.0; N_FEATURES],
         power_scale_w: 100.0,
+        trees: None,
         target_lag: 0,
         readout: Default::default(),
         band_quantiles: (0.05, 0.95),

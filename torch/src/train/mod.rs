@@ -140,6 +140,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(keep) = &wanted {
         flights.retain(|f| keep.contains(&f.flight));
     }
+    if let (Some(file), Some(w)) = (&args.trees, args.trees_weight) {
+        add_trees(&args.out, file, w, tcfg)?;
+    }
     if args.score_only {
         return score_model_dir(&args.out, &data_path, &cfg, args.band_from_cv.as_deref())
             .map(|_| ());
@@ -298,6 +301,7 @@ fn model_card(
         feature_mean: fit.scaling.mean,
         feature_std: fit.scaling.std,
         power_scale_w: fit.scaling.power_scale_w,
+        trees: None,
         target_lag: args.target_lag,
         readout: args.readout,
         band_quantiles: BAND_Q,
@@ -421,6 +425,32 @@ pub fn score_model_dir(
     card.metrics = Some(metrics.clone());
     card.save(&dir.join("card.toml"))?;
     Ok(metrics)
+}
+
+/// Copy the trees at `file` into the model folder `dir` as `trees.txt` and record them in
+/// its card with the network's share `w` (lags 0, 1, 3, 9: the export's rows); the card is
+/// loaded back, so a model whose trees do not fit its inputs is an error here.
+fn add_trees(dir: &Path, file: &Path, w: f64, tcfg: &TelemetryConfig) -> anyhow::Result<()> {
+    let card_path = dir.join("card.toml");
+    let mut card = ModelCard::load(&card_path)?;
+    let dest = dir.join("trees.txt");
+    if file != dest {
+        std::fs::copy(file, &dest)
+            .with_context(|| format!("{}: cannot copy to {}", file.display(), dest.display()))?;
+    }
+    card.trees = Some(dronewatt::model::card::TreesBlend {
+        file: "trees.txt".into(),
+        weight_lstm: w,
+        lags: vec![0, 1, 3, 9],
+    });
+    card.save(&card_path)?;
+    LstmModel::load(dir, tcfg).map(|_| {
+        println!(
+            "{}: blends {} (network's share {w})",
+            dir.display(),
+            file.display()
+        )
+    })
 }
 
 /// `flights` run through the live chain ([`Chain`], with `cfg`'s `[energy]` and `[[alerts]]`)
