@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing of one of dronewatt's readers with cargo fuzz (libFuzzer).
 #
-#   scripts/fuzz.sh TARGET [SECONDS]     TARGET: decoder | tlog | raw | csv | config | plan | dataflash | ulog
+#   scripts/fuzz.sh TARGET [SECONDS]     TARGET: decoder | tlog | raw | csv | config | plan | dataflash | ulog | trees
 #   scripts/fuzz.sh all [SECONDS]        each target in turn
 #
 # Works on the stable toolchain (RUSTC_BOOTSTRAP=1 lets cargo fuzz use -Z flags). Builds
@@ -17,7 +17,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-targets=(decoder tlog raw csv config plan dataflash ulog)
+targets=(decoder tlog raw csv config plan dataflash ulog trees)
 target=${1:-}
 seconds=${2:-60}
 if [[ -z "$target" ]]; then

@@ -17,6 +17,7 @@
 //! | [`check_raw`] | [`crate::source::timed::TimedReader::raw`] | the same, timed by `time_boot_ms` |
 //! | [`check_csv`] | [`crate::source::dataset::parse_flights`] | every non-empty line a row or a counted skip; rows finite with increasing time; small flights encode to a tlog that decodes without a bad byte |
 //! | [`check_config`] | [`crate::config::Config`] (TOML + `validate`) | every validation message names a key; a config that validates builds its energy tracker, alert engine and telemetry stage |
+//! | [`check_trees`] | [`crate::model::trees::Trees`] (LightGBM's text model, a card's `[trees]`) | a model that parses evaluates any row (NaN, ±0, subnormal, ±∞, huge) without a panic or an endless walk, the same estimate twice; parsing is deterministic |
 
 use mavlink::{MavHeader, MavlinkVersion, Message};
 
@@ -573,6 +574,43 @@ pub fn check_plan(data: &[u8]) -> Result<(), String> {
                 }
             }
             _ => return Err(format!("{file}: reading twice gave different results")),
+        }
+    }
+    Ok(())
+}
+
+/// LightGBM's text model, as a card's `[trees]` names it: a model that parses evaluates
+/// any row without panicking (every child index in range, every walk ending at a leaf) and
+/// gives the same estimate twice; parsing the same text twice gives the same model.
+pub fn check_trees(data: &[u8]) -> Result<(), String> {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return Ok(());
+    };
+    let first = crate::model::trees::Trees::parse(text);
+    let again = crate::model::trees::Trees::parse(text);
+    let (t, u) = match (first, again) {
+        (Ok(t), Ok(u)) => (t, u),
+        (Err(a), Err(b)) if a.to_string() == b.to_string() => return Ok(()),
+        _ => return Err("parsing is not deterministic".into()),
+    };
+    if t.len() != u.len() || t.feature_names() != u.feature_names() || t.is_empty() {
+        return Err("parsing is not deterministic, or a parsed model has no tree".into());
+    }
+    let n = t.feature_names().len();
+    let mut rows: Vec<Vec<f64>> = [f64::NAN, 0.0, -0.0, 1e-40, 1.0, -1e300, f64::INFINITY]
+        .iter()
+        .map(|v| vec![*v; n])
+        .collect();
+    // And a row of the input's own bytes.
+    rows.push(
+        (0..n)
+            .map(|i| f64::from(data[i % data.len()]) - 128.0)
+            .collect(),
+    );
+    for x in &rows {
+        let (a, b) = (t.predict(x), u.predict(x));
+        if a.to_bits() != b.to_bits() && !(a.is_nan() && b.is_nan()) {
+            return Err(format!("the same row gives {a} and {b}"));
         }
     }
     Ok(())

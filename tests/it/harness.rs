@@ -38,6 +38,27 @@ pub fn monitor_udp(port: u16) -> Command {
     c
 }
 
+/// `tests/peers/SCRIPT ARGS` in the test venv (`.venv-py`, `scripts/setup-python.sh`): an
+/// independent reader (pymavlink, pyulog, LightGBM); it must succeed. Its standard output.
+pub fn peer<I, S>(script: &str, args: I) -> Vec<u8>
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = Command::new(root.join(".venv-py/bin/python"))
+        .arg(root.join("tests/peers").join(script))
+        .args(args)
+        .output()
+        .expect("run .venv-py/bin/python (scripts/setup-python.sh creates it)");
+    assert!(
+        out.status.success(),
+        "{script}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
 /// `dronewatt ARGS`, run to its end; it must succeed.
 pub fn run(args: &[&str]) -> Output {
     dronewatt().args(args).ok()

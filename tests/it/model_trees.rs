@@ -5,7 +5,6 @@
 //! `DRONEWATT_TREES_FLIGHTS=all` (or a comma-separated list) checks other flights.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use dronewatt::features::{idx, N_FEATURES};
 use dronewatt::model::card::ModelCard;
@@ -74,21 +73,8 @@ fn shipped_trees_match_lightgbm_on_real_windows() {
         text += &(cells.join(",") + "\n");
     }
     std::fs::write(&csv, text).unwrap();
-    let out = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/peers/lgbm_predict.py"
-        ))
-        .arg(&model)
-        .arg(&csv)
-        .output()
-        .expect("run .venv-py/bin/python (scripts/setup-python.sh creates it)");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let theirs: Vec<f64> = String::from_utf8_lossy(&out.stdout)
+    let stdout = crate::harness::peer("lgbm_predict.py", [model.as_os_str(), csv.as_os_str()]);
+    let theirs: Vec<f64> = String::from_utf8_lossy(&stdout)
         .lines()
         .map(|l| l.parse().expect("a number"))
         .collect();
@@ -191,28 +177,22 @@ fn trees_that_do_not_fit_the_cards_inputs_are_refused_naming_the_file() {
     let card = ModelCard::load(&dir.path().join("card.toml")).unwrap();
     let file = dir.path().join(&card.trees.unwrap().file);
     let text = std::fs::read_to_string(&file).unwrap();
+    let refused = || {
+        let e = LstmModel::load(dir.path(), &TelemetryConfig::default()).err();
+        format!("{:#}", e.expect("refused"))
+    };
     std::fs::write(
         &file,
         text.replacen("feature_names=wind_speed ", "feature_names=wind_sped ", 1),
     )
     .unwrap();
-    let err = format!(
-        "{:#}",
-        LstmModel::load(dir.path(), &TelemetryConfig::default())
-            .err()
-            .expect("refused")
-    );
+    let err = refused();
     assert!(
         err.contains("trees.txt") && err.contains("input 0 is 'wind_sped'"),
         "{err}"
     );
     std::fs::write(&file, "garbage").unwrap();
-    let err = format!(
-        "{:#}",
-        LstmModel::load(dir.path(), &TelemetryConfig::default())
-            .err()
-            .expect("refused")
-    );
+    let err = refused();
     assert!(
         err.contains("trees.txt") && err.contains("not a LightGBM text model"),
         "{err}"

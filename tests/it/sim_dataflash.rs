@@ -7,7 +7,6 @@
 //! held-out MAPE as on the same flights as `.tlog`, and `replay FILE.bin` runs.
 
 use crate::harness::{replay_json, run, simulate_x500};
-use std::process::Command;
 
 use dronewatt::MavMessage;
 use serde_json::Value;
@@ -32,20 +31,8 @@ fn pymavlink_reads_the_simulated_bin_as_the_tlog_says() {
     let (bin, tlog) = (dir.path().join("x500.bin"), dir.path().join("x500.tlog"));
     simulate_x500(&bin, 1, &[]);
     simulate_x500(&tlog, 1, &[]);
-    let out = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/peers/dataflash_dump.py"
-        ))
-        .args([&bin, &tlog])
-        .output()
-        .expect("run .venv-py/bin/python (make setup creates it)");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let d: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let stdout = crate::harness::peer("dataflash_dump.py", [&bin, &tlog]);
+    let d: Value = serde_json::from_slice(&stdout).unwrap();
     let (b, t) = (&d["bin"], &d["tlog"]);
     let n = |v: &Value, k: &str| v["counts"][k].as_u64().unwrap_or(0);
     for (df, mav) in [

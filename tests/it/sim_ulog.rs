@@ -7,7 +7,6 @@
 //! on the same flights as `.tlog`; and `replay FILE.ulg` runs.
 
 use crate::harness::{dronewatt, replay_json, run, simulate_x500, RunExt};
-use std::process::Command;
 
 use dronewatt::MavMessage;
 use serde_json::Value;
@@ -32,20 +31,8 @@ fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
     let (ulg, tlog) = (dir.path().join("x500.ulg"), dir.path().join("x500.tlog"));
     simulate_x500(&ulg, 1, &["--autopilot", "px4"]);
     simulate_x500(&tlog, 1, &["--autopilot", "px4"]);
-    let out = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/peers/ulog_dump.py"
-        ))
-        .args([&ulg, &tlog])
-        .output()
-        .expect("run .venv-py/bin/python (scripts/setup-python.sh creates it)");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let d: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let stdout = crate::harness::peer("ulog_dump.py", [&ulg, &tlog]);
+    let d: Value = serde_json::from_slice(&stdout).unwrap();
     let (u, t) = (&d["ulg"], &d["tlog"]);
     let n = |v: &Value, k: &str| v["counts"][k].as_u64().unwrap_or(0);
     for (topic, mav) in [
