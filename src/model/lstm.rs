@@ -196,8 +196,8 @@ struct Blend {
     est: Vec<f32>,
     row: Vec<f64>,
     newest: Vec<f32>,
-    /// Windows the trees sat out (inputs outside the training range).
-    skipped: u64,
+    /// Whether the log has said that the trees sat a window out (outside the training range).
+    told: bool,
 }
 
 /// The row the card's trees read from one window's raw inputs (`push_inputs`: T × 21,
@@ -330,7 +330,7 @@ impl LstmModel {
             est: Vec::new(),
             row: Vec::new(),
             newest: Vec::new(),
-            skipped: 0,
+            told: false,
         })
     }
 
@@ -397,10 +397,9 @@ impl LstmModel {
                     tree_row(raw, &b.lags, &mut b.row);
                     b.trees.predict(&b.row) as f32
                 } else {
-                    if b.skipped == 0 {
+                    if !std::mem::replace(&mut b.told, true) {
                         tracing::info!("lstm: inputs outside the training range: the network alone, without its trees, there");
                     }
-                    b.skipped += 1;
                     f32::NAN
                 });
             }
