@@ -23,6 +23,9 @@ export's lags 1 and 3 reach the target instant, so a larger L needs N >= L to se
 `--physics` adds the export's `phys_<model>_w` columns, each physics model's estimate of the
 window with the vehicle's published parameters (nothing fitted on any flight, so no fold
 leaks into another), as features: a physics-informed LightGBM.
+`--relative` weights each training window as the LSTM's `--relative-loss 1` does (in flight
+P̄ / P, P̄ the in-flight targets' harmonic mean; the ground 1); the tree count is still chosen
+on the unweighted MAE. `fit` reads `relative` from the JSON.
 `--only I,...` runs only those configurations of the search below; `--oof FILE` writes the
 held-out windows' estimates (flight, fold, the window's newest sample's time, the measured
 power at the target lag, the estimate) beside `dronewatt train --cv-predictions`'s.
@@ -128,6 +131,21 @@ def load(path, lag, lags=3, physics=False):
     return df, feats
 
 
+def relative_weights(y):
+    """The LSTM's `--relative-loss 1` weights (torch/src/train/mod.rs `relative_weights`): in
+    flight (>= IN_FLIGHT_W) P̄ / P, P̄ the in-flight targets' harmonic mean, so they average 1;
+    on the ground 1."""
+    fl = y >= IN_FLIGHT_W
+    p_bar = fl.sum() / np.sum(1.0 / y[fl]) if fl.any() else 0.0
+    return np.where(fl, p_bar / np.where(fl, y, 1.0), 1.0)
+
+
+def dataset(tr, feats, relative):
+    y = tr.measured_w.to_numpy()
+    return lgb.Dataset(tr[feats].to_numpy(np.float32), y, weight=relative_weights(y) if relative else None,
+                       params={"feature_pre_filter": False, "verbose": -1}, free_raw_data=False)
+
+
 def strided(d):
     return d[d.groupby("flight").cumcount() % STRIDE == 0]
 
@@ -185,15 +203,14 @@ def run_cv(a):
     data = []
     for fold in range(k):
         tr, va = strided(pool[pool.fold != fold]), pool[pool.fold == fold]
-        dtr = lgb.Dataset(tr[feats].to_numpy(np.float32), tr.measured_w.to_numpy(),
-                          params={"feature_pre_filter": False, "verbose": -1}, free_raw_data=False)
+        dtr = dataset(tr, feats, a.relative)
         dva = dtr.create_valid(va[feats].to_numpy(np.float32), va.measured_w.to_numpy())
         data.append((dtr, dva, va))
     print(f"{len(pool.flight.unique())} training flights, {k} folds, {len(cs)} configurations, "
           f"target lag {a.lag}, feature lags 1-{a.lags}{', physics estimates' if a.physics else ''}", flush=True)
     out = {"command": "scripts/lgbm_cv.py cv windows.csv --json FILE",
            "export": f"dronewatt train --export-csv windows.csv --cv {k} --seed 7 --target-lag {a.lag}",
-           "target_lag": a.lag, "feature_lags": a.lags, "physics": a.physics, "folds": k, "training_flights": int(pool.flight.nunique()),
+           "target_lag": a.lag, "feature_lags": a.lags, "physics": a.physics, "relative": a.relative, "folds": k, "training_flights": int(pool.flight.nunique()),
            "fold_flights": [int(pool[pool.fold == f].flight.nunique()) for f in range(k)],
            "rule": "lowest MAE averaged over the held-out folds (configuration and tree count)",
            "search": __doc__.split("The search, fixed before it ran:")[1].split("Metrics")[0].strip(),
@@ -320,10 +337,9 @@ def run_fit(a):
     best = next(r for r in out["configs"] if r["index"] == out["chosen"])
     tr = strided(df[df.fold >= 0])
     started = time.time()
-    b = lgb.train(lgb_params(best["params"]),
-                  lgb.Dataset(tr[feats].to_numpy(np.float32), tr.measured_w.to_numpy(),
-                              feature_name=feats, params={"feature_pre_filter": False, "verbose": -1}),
-                  best["trees"])
+    d = dataset(tr, feats, out.get("relative", False))
+    d.set_feature_name(feats)
+    b = lgb.train(lgb_params(best["params"]), d, best["trees"])
     b.save_model(a.save)
     print(f"{a.save}: configuration {best['index']}, {best['trees']} trees, {len(tr)} windows of "
           f"{tr.flight.nunique()} training flights, {time.time() - started:.0f} s")
@@ -340,6 +356,9 @@ def main():
     ap.add_argument("--physics", action="store_true",
                     help="cv: add the physics models' estimates of each window (published parameters, the "
                          "export's phys_*_w columns) as features")
+    ap.add_argument("--relative", action="store_true",
+                    help="cv: weight each training window as the LSTM's --relative-loss 1 does (in flight P̄/P, "
+                         "ground 1); `fit` reads it from the JSON")
     ap.add_argument("--oof", help="cv: write each held-out window's estimate (the last configuration run) to "
                                   "this CSV; cut from the data set, never commit it")
     ap.add_argument("--save", help="fit: write the fitted trees (LightGBM's text model) here")
