@@ -341,7 +341,8 @@ def run_fit(a):
     d.set_feature_name(feats)
     b = lgb.train(lgb_params(best["params"]), d, best["trees"])
     b.save_model(a.save)
-    print(f"{a.save}: configuration {best['index']}, {best['trees']} trees, {len(tr)} windows of "
+    print(f"{a.save}: configuration {best['index']}, {best['trees']} trees, target lag {out['target_lag']} "
+          f"(blend only into a card with this target_lag), {len(tr)} windows of "
           f"{tr.flight.nunique()} training flights, {time.time() - started:.0f} s")
 
 

@@ -176,7 +176,9 @@ pub struct ModelCard {
 /// network sees them before standardising) at each of `lags`, named `<input>` for lag 0
 /// and `<input>_lag<k>` after. Where the window's newest inputs lie outside the network's
 /// training range (`feature_mean` ± 6 `feature_std`) the network runs alone: trees are
-/// flat outside their data, so they are not trusted there.
+/// flat outside their data, so they are not trusted there. The trees must estimate the
+/// same instant as the network: trained at the card's `target_lag` (`lgbm_cv.py --lag`),
+/// which their text model does not record, so it cannot be checked here.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TreesBlend {

@@ -186,6 +186,8 @@ pub struct TrainArgs {
     /// Blend these trees (LightGBM's text model, `scripts/lgbm_cv.py fit` on the export of
     /// `--features`) into the model in `--out`: copied there as `trees.txt` and recorded in
     /// its card (`[trees]`, lags 0, 1, 3 and 9, the export's), before `--score-only` scores it.
+    /// The trees must be trained at the card's target lag (`lgbm_cv.py --lag`): their file
+    /// does not say, so it is not checked.
     #[arg(long, value_name = "FILE", requires = "trees_weight")]
     pub trees: Option<PathBuf>,
     /// With `--trees`: the network's share w of the blend, 0 to 1 (`scripts/blend_cv.py`'s
