@@ -4,8 +4,7 @@
 
 use crate::harness::{dronewatt, RunExt};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use dronewatt::sim::guidance::Triangle;
 use dronewatt::sim::{simulate, Autopilot, SimOptions, EPOCH_START_US};
@@ -24,30 +23,9 @@ fn short() -> SimOptions {
     }
 }
 
-fn python() -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv-py/bin/python");
-    assert!(
-        p.exists(),
-        "{}: missing; run scripts/setup-python.sh (make setup)",
-        p.display()
-    );
-    p
-}
-
 /// Run the pymavlink peer on a tlog and parse its JSON line.
 fn peer(tlog: &Path) -> serde_json::Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/peers/sim_check.py");
-    let out = Command::new(python())
-        .arg(&script)
-        .arg(tlog)
-        .output()
-        .expect("run the pymavlink peer");
-    assert!(
-        out.status.success(),
-        "pymavlink peer failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("peer JSON")
+    serde_json::from_slice(&crate::harness::peer("sim_check.py", [tlog])).expect("peer JSON")
 }
 
 /// Split a tlog into (µs timestamp, frame bytes) and decode each frame with rust-mavlink.
