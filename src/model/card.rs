@@ -192,11 +192,12 @@ pub struct TreesBlend {
 }
 
 impl TreesBlend {
-    /// The input names the trees must have been trained on, for `set`.
-    pub fn input_names(&self, set: FeatureSet) -> Vec<String> {
+    /// The names of the trees' inputs for `set` at `lags`, in their order: `<input>` at lag
+    /// 0, `<input>_lag<k>` after (`train --export-csv`'s header, which the trees are
+    /// trained on).
+    pub fn input_names(set: FeatureSet, lags: &[usize]) -> Vec<String> {
         let names = set.names();
-        self.lags
-            .iter()
+        lags.iter()
             .flat_map(|&k| {
                 names.iter().map(move |n| {
                     if k == 0 {

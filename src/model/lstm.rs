@@ -200,23 +200,15 @@ struct Blend {
     told: bool,
 }
 
-/// The row the card's trees read from one window's raw inputs (`push_inputs`: T × 21,
-/// newest last): the sample `lag` before the newest for each of `lags`, in order, as
-/// `train --export-csv` writes them.
-pub fn tree_row(inputs: &[f32], lags: &[usize], out: &mut Vec<f64>) {
-    out.clear();
+/// The samples the card's trees read from one window's raw inputs (`push_inputs`: rows of
+/// 21, newest last): for each of `lags`, the row that many before the newest (the oldest
+/// where the window is shorter), in order. `train --export-csv` writes the same rows.
+pub fn tree_rows<'a>(inputs: &'a [f32], lags: &'a [usize]) -> impl Iterator<Item = &'a [f32]> + 'a {
     let rows = inputs.len() / N_FEATURES;
-    if rows == 0 {
-        return;
-    }
-    for &lag in lags {
+    lags.iter().filter(move |_| rows > 0).map(move |&lag| {
         let r = rows - 1 - lag.min(rows - 1);
-        out.extend(
-            inputs[r * N_FEATURES..(r + 1) * N_FEATURES]
-                .iter()
-                .map(|v| f64::from(*v)),
-        );
-    }
+        &inputs[r * N_FEATURES..(r + 1) * N_FEATURES]
+    })
 }
 
 /// Whether every raw input of one sample lies within [`TRAINING_RANGE_SIGMAS`] of the
@@ -298,7 +290,7 @@ impl LstmModel {
             .with_context(|| format!("{}: cannot read the card's trees", path.display()))?;
         let trees = super::trees::Trees::parse(&text)
             .with_context(|| format!("{}: not a model dronewatt can run", path.display()))?;
-        let want = t.input_names(card.feature_set);
+        let want = TreesBlend::input_names(card.feature_set, &t.lags);
         if trees.feature_names() != want.as_slice() {
             let i = trees
                 .feature_names()
@@ -394,7 +386,8 @@ impl LstmModel {
                 b.newest.clear();
                 push_inputs(w, self.card.feature_set, 1, &mut b.newest);
                 b.est.push(if within_training_range(&self.card, &b.newest) {
-                    tree_row(raw, &b.lags, &mut b.row);
+                    b.row.clear();
+                    b.row.extend(tree_rows(raw, &b.lags).flatten().map(|v| f64::from(*v)));
                     b.trees.predict(&b.row) as f32
                 } else {
                     if !std::mem::replace(&mut b.told, true) {

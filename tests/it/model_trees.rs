@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use dronewatt::features::{idx, N_FEATURES};
 use dronewatt::model::card::ModelCard;
-use dronewatt::model::lstm::{push_inputs, tree_row, LstmModel};
+use dronewatt::model::lstm::{push_inputs, tree_rows, LstmModel};
 use dronewatt::model::trees::Trees;
 use dronewatt::model::PowerModel;
 use dronewatt::offline::data::{load_flights, FlightWindows};
@@ -50,13 +50,17 @@ fn shipped_trees_match_lightgbm_on_real_windows() {
     assert_eq!(n, blend.lags.len() * N_FEATURES);
 
     let mut rows: Vec<Vec<f64>> = Vec::new();
-    let (mut buf, mut row) = (Vec::new(), Vec::new());
+    let mut buf = Vec::new();
     for f in flights(&[7, 23, 211, 221]) {
         for w in &f.windows {
             buf.clear();
             push_inputs(w, card.feature_set, card.window, &mut buf);
-            tree_row(&buf, &blend.lags, &mut row);
-            rows.push(row.clone());
+            rows.push(
+                tree_rows(&buf, &blend.lags)
+                    .flatten()
+                    .map(|v| f64::from(*v))
+                    .collect(),
+            );
         }
     }
     let real = rows.len();
@@ -133,7 +137,7 @@ fn the_blend_moves_the_networks_estimate_and_band_toward_the_trees_within_range_
     windows.push(far);
     let mixed = blended.forward_w(&windows).unwrap();
     let net = alone.forward_w(&windows).unwrap();
-    let (mut buf, mut row) = (Vec::new(), Vec::new());
+    let mut buf = Vec::new();
     let (mut moved, mut alone_in) = (0, 0);
     for (i, ((m, n), w)) in mixed.iter().zip(&net).zip(&windows).enumerate() {
         if i == windows.len() - 1 {
@@ -150,7 +154,10 @@ fn the_blend_moves_the_networks_estimate_and_band_toward_the_trees_within_range_
         }
         buf.clear();
         push_inputs(w, card.feature_set, card.window, &mut buf);
-        tree_row(&buf, &t.lags, &mut row);
+        let row: Vec<f64> = tree_rows(&buf, &t.lags)
+            .flatten()
+            .map(|v| f64::from(*v))
+            .collect();
         let tree = trees.predict(&row) as f32;
         let w = t.weight_lstm as f32;
         let want = w * n[0] + (1.0 - w) * tree;

@@ -55,11 +55,16 @@ const IDENTITY_OBJECTIVES: [&str; 7] = [
 ];
 
 impl Node {
+    /// What counts as missing: 0 none, 1 zero, 2 NaN.
+    fn missing_type(&self) -> u8 {
+        (self.decision >> 2) & 3
+    }
+
     /// The child `x` goes to (LightGBM's `NumericalDecision`).
     #[inline(always)]
     fn next(&self, x: &[f64]) -> i32 {
         let mut v = x[self.feature as usize];
-        let missing = (self.decision >> 2) & 3;
+        let missing = self.missing_type();
         if v.is_nan() && missing != 2 {
             v = 0.0;
         }
@@ -150,7 +155,7 @@ impl Trees {
         }
         let plain = trees
             .iter()
-            .all(|t| t.nodes.iter().all(|n| (n.decision >> 2) & 3 == 0));
+            .all(|t| t.nodes.iter().all(|n| n.missing_type() == 0));
         Ok(Trees {
             trees,
             names,

@@ -428,7 +428,7 @@ pub fn score_model_dir(
 }
 
 /// Copy the trees at `file` into the model folder `dir` as `trees.txt` and record them in
-/// its card with the network's share `w` (lags 0, 1, 3, 9: the export's rows); the card is
+/// its card with the network's share `w` (the export's rows, `EXPORT_LAGS`); the card is
 /// loaded back, so a model whose trees do not fit its inputs is an error here.
 fn add_trees(dir: &Path, file: &Path, w: f64, tcfg: &TelemetryConfig) -> anyhow::Result<()> {
     let card_path = dir.join("card.toml");
@@ -441,7 +441,7 @@ fn add_trees(dir: &Path, file: &Path, w: f64, tcfg: &TelemetryConfig) -> anyhow:
     card.trees = Some(dronewatt::model::card::TreesBlend {
         file: "trees.txt".into(),
         weight_lstm: w,
-        lags: vec![0, 1, 3, 9],
+        lags: report::EXPORT_LAGS.to_vec(),
     });
     card.save(&card_path)?;
     LstmModel::load(dir, tcfg).map(|_| {

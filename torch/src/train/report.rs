@@ -141,8 +141,9 @@ pub(super) fn plot_flight(s: &FlightSeries, path: &Path) -> anyhow::Result<()> {
     )
 }
 
-/// Lags (in samples before the newest) exported beside the newest sample.
-const EXPORT_LAGS: [usize; 3] = [1, 3, 9];
+/// The samples exported (how many before the newest): the rows a model card's `[trees]`
+/// read (`train --trees` records these).
+pub(super) const EXPORT_LAGS: [usize; 4] = [0, 1, 3, 9];
 
 /// Write each window's newest sample and lagged copies to a CSV for the LightGBM baseline.
 /// `folds` ([`dronewatt::offline::data::cv_folds`]) fill the `fold` column; flights outside
@@ -170,16 +171,10 @@ pub(super) fn export_csv(
         "t_s".into(),
         "measured_w".into(),
     ];
-    let names = set.names();
-    for lag in std::iter::once(0).chain(EXPORT_LAGS) {
-        for n in &names {
-            header.push(if lag == 0 {
-                n.clone()
-            } else {
-                format!("{n}_lag{lag}")
-            });
-        }
-    }
+    header.extend(dronewatt::model::card::TreesBlend::input_names(
+        set,
+        &EXPORT_LAGS,
+    ));
     header.extend(physics.iter().map(|m| format!("phys_{}_w", m.name())));
     writeln!(w, "{}", header.join(","))?;
     let mut rows = 0usize;
@@ -219,12 +214,8 @@ pub(super) fn export_csv(
             // relative to home and to the window's first sample), newest row last.
             inputs.clear();
             dronewatt::model::lstm::push_inputs(win, set, s.len(), &mut inputs);
-            let n = dronewatt::features::N_FEATURES;
-            for lag in std::iter::once(0).chain(EXPORT_LAGS) {
-                let row = s.len() - 1 - lag.min(s.len() - 1);
-                for v in &inputs[row * n..(row + 1) * n] {
-                    write!(w, ",{v}")?;
-                }
+            for v in dronewatt::model::lstm::tree_rows(&inputs, &EXPORT_LAGS).flatten() {
+                write!(w, ",{v}")?;
             }
             for est in &per_model {
                 write!(w, ",{:.2}", est.get(i).copied().unwrap_or(f32::NAN))?;
