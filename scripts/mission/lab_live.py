@@ -3,12 +3,17 @@
 what was tried, and why the live correction is unchanged"), reproducible:
 
     dronewatt plan-eval --dump-live /tmp/live-dump
-    python3 scripts/mission/lab_live.py /tmp/live-dump
+    python3 scripts/mission/lab_live.py /tmp/live-dump [--oof /tmp/blend-oof.csv]
 
 Reads the per-flight JSON that `plan-eval --dump-live` writes (training flights only; see
 src/offline/live_dump.rs) and prints the section's table (median error of the rest at half
 time, training flights, rolling validation) and the correlations it quotes. Refuses any test
 flight. Needs numpy.
+
+`--oof` adds the learned model's row: the first half's measured energy against the power
+model's *out-of-fold* estimate on the kinematics actually flown (`scripts/blend_cv.py
+--write-blend`; a model that has not seen the flight, as live), which the monitor has
+live because it runs that model on the telemetry.
 
 Every candidate scales the forecast of the rest L by 1 + w·(s − 1), s a ratio from the
 first half clamped to 0.8…1.25. The weight w is fitted for each flight on the training
@@ -278,10 +283,43 @@ def better_share(a, b):
     return wins / RESAMPLES
 
 
+def model_ratio(F, fl, path):
+    """`sM`: the first half's measured energy over the power model's out-of-fold estimate of
+    the same rows (joined on flight and instant, the measured power agreeing within 1 W);
+    1 where fewer than half the first half's rows have an estimate. Returns how many have one."""
+    est = {}
+    with open(path) as fh:
+        head = fh.readline().strip().split(",")
+        fi, ti, mi, bi = (head.index(c) for c in ("flight", "t_s", "measured_w", "blend_w"))
+        for line in fh:
+            v = line.split(",")
+            est.setdefault(int(v[fi]), {})[round(10 * float(v[ti]))] = (float(v[mi]), float(v[bi]))
+    have = 0
+    for f in fl:
+        x, e = F[f], est.get(f, {})
+        if f in TEST_FLIGHTS:
+            sys.exit(f"{path}: flight {f} is a test flight")
+        R, i0, ih = x["R"], x["i0"], x["ih"]
+        num = den = 0.0
+        n = 0
+        for r in range(i0, ih):
+            m = e.get(round(10 * R[r, 0]))
+            if m is not None and abs(m[0] - R[r, 1]) < 1.0:
+                num, den, n = num + m[0], den + m[1], n + 1
+        enough = n >= 0.5 * (ih - i0) and den > 0
+        x["sM"] = clamp(num / den) if enough else 1.0
+        have += enough
+    return have
+
+
 def main():
-    if len(sys.argv) != 2:
+    args = sys.argv[1:]
+    oof = None
+    if len(args) == 3 and args[1] == "--oof":
+        oof = args[2]
+    elif len(args) != 1:
         sys.exit(__doc__)
-    cal, F = load(sys.argv[1])
+    cal, F = load(args[0])
     fl, mismatch = prepare(cal, F)
     features(F, fl)
     rest = [F[f]["rest_meas"] for f in fl]
@@ -327,6 +365,15 @@ def main():
     row("wind from the first half: the rest's headwind against the first half's, least squares",
         f"{lm('hwd'):.2f} % alone; {lm('sH2', 'hwd'):.2f} % beside the horizontal ratio ({lm('sH2'):.2f} % without it)",
         "see below")
+
+    if oof:
+        have = model_ratio(F, fl, oof)
+        g1, _ = rolling_grid(F, fl, "sM")
+        l1, _ = rolling_ls(F, fl, ["sM"])
+        l2, _ = rolling_ls(F, fl, ["sE", "sM"])
+        row("the power model's own ratio: measured / its out-of-fold estimate on the flown kinematics, grid / least squares",
+            f"{med(g1):.2f} % / {med(l1):.2f} %; {med(l2):.2f} % beside the overall ratio (least squares)",
+            f"r = {r_of('sM'):.2f}; {have} of {len(fl)} flights have the estimate")
 
     print("\nCorrelations and the rest:")
     p_rest = [F[f]["rest_meas"] / max(F[f]["R"][F[f]["i1"], 0] - F[f]["R"][F[f]["ih"], 0], 1)
