@@ -18,7 +18,8 @@
 //!   zero initial state; the backward direction walks s = T−1 … 0);
 //! - the top layer keeps only its final forward and backward states, `[B][2H]`, for the
 //!   dense head, `tanh(W_head h + b_head)` (or, with an instant readout, both directions'
-//!   states at one step, each direction stopping there: [`CpuLstm::set_readout`]).
+//!   states at one step, each direction stopping there and projecting only the steps it
+//!   walks: [`CpuLstm::set_readout`]).
 //!
 //! Each product runs through one GEMM (`gemm`): weights packed once into column blocks of
 //! 16 gate outputs (`pack`, `[k][16]` contiguous: two AVX registers, one AVX-512 register),
@@ -269,30 +270,39 @@ impl CpuLstm {
             }
             let input: &[f32] = if l == 0 { xs } else { &below };
             for (d, dir) in self.layers[l].iter().enumerate() {
-                let rows = b * t;
-                // Input projections of every step of every window: pre = bias + X W_ihᵀ.
-                for row in self.pre[..rows * g].chunks_exact_mut(g) {
-                    row.copy_from_slice(&dir.bias);
+                // The top layer stops where the head reads it: the forward direction at
+                // the readout step, the backward one back at it (t − r steps). Only the
+                // steps it walks, `first..first + steps` of each window, need projections.
+                let (first, steps) = match (top, self.readout) {
+                    (true, Some(r)) if d == 0 => (0, r.min(t - 1) + 1),
+                    (true, Some(r)) => (r.min(t - 1), t - r.min(t - 1)),
+                    _ => (0, t),
+                };
+                // Input projections of those steps of every window: pre = bias + X W_ihᵀ,
+                // all windows in one product when every step is walked.
+                let whole = steps == t;
+                for w in 0..if whole { 1 } else { b } {
+                    let (at, rows) = if whole {
+                        (0, b * t)
+                    } else {
+                        (w * t + first, steps)
+                    };
+                    for row in self.pre[at * g..(at + rows) * g].chunks_exact_mut(g) {
+                        row.copy_from_slice(&dir.bias);
+                    }
+                    gemm(
+                        isa,
+                        &dir.w_ih,
+                        dir.input,
+                        &input[at * dir.input..],
+                        dir.input,
+                        rows,
+                        &mut self.pre[at * g..],
+                        g,
+                    );
                 }
-                gemm(
-                    isa,
-                    &dir.w_ih,
-                    dir.input,
-                    input,
-                    dir.input,
-                    rows,
-                    &mut self.pre,
-                    g,
-                );
                 self.h.iter_mut().for_each(|v| *v = 0.0);
                 self.c.iter_mut().for_each(|v| *v = 0.0);
-                // The top layer stops where the head reads it: the forward direction at
-                // the readout step, the backward one back at it (t − r steps).
-                let steps = match (top, self.readout) {
-                    (true, Some(r)) if d == 0 => r.min(t - 1) + 1,
-                    (true, Some(r)) => t - r.min(t - 1),
-                    _ => t,
-                };
                 for k in 0..steps {
                     let s = if d == 0 { k } else { t - 1 - k };
                     // pre_s += H W_hhᵀ: the rows of step s are T rows apart.
