@@ -1,0 +1,159 @@
+#!/usr/bin/env python3
+"""Folds by day instead of by flight: how much does a new day, or a kind of flight the fit
+has not seen, cost? (docs/src/accuracy.md, "A held-out day")
+
+Flights flown on one day share its weather, its packs and its kind of mission, so a
+by-flight fold keeps a held-out flight's neighbours in the fit. Here the 18 training days
+are dealt into 5 groups (largest day first, to the group with the fewest flights), and
+LightGBM #0 (`lgbm_cv.py`'s configuration 0, 600 trees, strided 2, seed 7) is scored on
+both kinds of folds, overall and per route:
+
+    dronewatt train --features home --export-csv /tmp/home.csv --cv 5 --seed 7 --target-lag 3
+    scripts/dayfold.py cv /tmp/home.csv --out /tmp/dayfold        # ~3 min, one thread
+
+`cv` also writes, for the group that holds the hover day (route H; the first group),
+`flights-fit.txt` (the other groups' flights, for `train --flights`), `flights-held.txt`
+and `held-lgbm.csv` (LightGBM fitted on the others, on every held-out window). The LSTM
+then gets the same split, and `blend` scores the network, the trees, the shipped blend
+(0.7 / 0.3) and the blend with the trees only where the vehicle moves:
+
+    dronewatt train $FLAGS --init-seed 7 --flights $(cat /tmp/dayfold/flights-fit.txt) --out /tmp/dayfold/m7
+    for f in $(tr , ' ' < /tmp/dayfold/flights-held.txt); do
+      dronewatt replay flights.csv.gz --flight $f --speed max -q --data-dir off \\
+        --model /tmp/dayfold/m7 --json /tmp/dayfold/replay/$f.jsonl; done
+    scripts/dayfold.py blend /tmp/dayfold
+
+(`FLAGS`: the network's command in the model card without `--init-seed` and `--out`.) The
+network's estimate at replay row t is for t - 0.3 s (the card's target lag), LightGBM's row
+is the window's newest sample; rows are joined on flight and time and kept where both say
+the same measured power. Training flights only: the script refuses a test flight. Needs
+numpy, pandas and lightgbm (`lgbm_cv.py`'s environment).
+"""
+import argparse
+import glob
+import json
+import os
+import sys
+
+import numpy as np
+import pandas as pd
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import lgbm_cv as L  # noqa: E402  (the same rows, configuration and metrics)
+from blend_cv import TEST_FLIGHTS, flight_table  # noqa: E402
+
+GROUPS = 5
+LAG = 3
+TREES = 600
+WEIGHT_LSTM = 0.7
+
+
+def day_groups(pool):
+    """Each training day to one of GROUPS groups: largest day first, to the emptiest group."""
+    per_day = pool.groupby("date").flight.nunique().sort_values(ascending=False, kind="stable")
+    load, group = [0] * GROUPS, {}
+    for day, n in per_day.items():
+        g = int(np.argmin(load))
+        group[day], load[g] = g, load[g] + n
+    return pool.date.map(group), load
+
+
+def fit_predict(train, held, feats):
+    import lightgbm as lgb
+    b = lgb.train(L.lgb_params(L.configs()[0]), L.dataset(L.strided(train), feats, False), TREES)
+    return b.predict(held[feats].to_numpy(np.float32))
+
+
+def pooled(rows, key):
+    w = np.array([r["windows"] for r in rows], float)
+    return float(np.average([r[key] for r in rows], weights=w))
+
+
+def run_cv(a):
+    df, feats = L.load(a.csv, LAG)
+    pool = df[df.fold >= 0].copy()
+    if set(pool.flight) & TEST_FLIGHTS:
+        sys.exit("a test flight in the training pool: export again")
+    pool["date"] = pool.flight.map(flight_table().date)
+    pool["day_fold"], load = day_groups(pool)
+    os.makedirs(a.out, exist_ok=True)
+    out = {"command": "scripts/dayfold.py cv windows.csv", "flights_per_day_group": load, "folds": {}}
+    print(f"{pool.flight.nunique()} training flights on {pool.date.nunique()} days; day groups of {load} flights")
+    for name, col in (("by flight", "fold"), ("by day", "day_fold")):
+        per_fold, per_route = [], {}
+        for k in range(GROUPS):
+            held = pool[pool[col] == k]
+            pred = fit_predict(pool[pool[col] != k], held, feats)
+            per_fold.append(L.scores(held, pred))
+            for route in sorted(held.route.unique()):
+                m = (held.route == route).to_numpy()
+                per_route.setdefault(route, []).append(L.scores(held[m], pred[m]))
+            if col == "day_fold" and k == 0:
+                held[["flight", "route", "t_s", "measured_w"]].assign(
+                    pred_w=pred, speed=np.sqrt(held.velocity_x ** 2 + held.velocity_y ** 2 + held.velocity_z ** 2)
+                ).to_csv(os.path.join(a.out, "held-lgbm.csv"), index=False, float_format="%.3f")
+                for f, flights in (("flights-held.txt", held.flight), ("flights-fit.txt", pool.flight[pool[col] != k])):
+                    with open(os.path.join(a.out, f), "w") as fh:
+                        fh.write(",".join(str(x) for x in sorted(flights.unique())))
+        res = {key: float(np.mean([r[key] for r in per_fold])) for key in L.summary(per_fold)}
+        res["routes"] = {r: {key: pooled(v, key) for key in ("mae_w", "mape_in_flight_pct", "energy_error_pct")}
+                         for r, v in per_route.items()}
+        out["folds"][name] = res
+        print(f"{name}: MAE {res['mae_w']:.2f} W, MAPE {res['mape_in_flight_pct']:.3f} %, energy "
+              f"{res['energy_error_pct']:.2f} %; " + "; ".join(
+                  f"{r} {v['mape_in_flight_pct']:.2f} % / {v['energy_error_pct']:.2f} %"
+                  for r, v in res["routes"].items() if r in ("H", "R1")) + " (route: pooled MAPE / energy)")
+    with open(os.path.join(a.out, "dayfold.json"), "w") as fh:
+        json.dump(out, fh, indent=1)
+        fh.write("\n")
+
+
+def run_blend(a):
+    rows = []
+    for path in sorted(glob.glob(os.path.join(a.out, "replay", "*.jsonl"))):
+        flight = int(os.path.basename(path).split(".")[0])
+        if flight in TEST_FLIGHTS:
+            sys.exit(f"{path}: flight {flight} is a test flight")
+        with open(path) as fh:
+            for line in fh:
+                x = json.loads(line)
+                if x.get("type") == "estimate" and "lstm" in x.get("models", {}):
+                    rows.append((flight, round(10 * x["t"]), x["measured_w"], x["models"]["lstm"]))
+    if not rows:
+        sys.exit(f"{a.out}/replay: no replay with the network's estimates (see the module's docstring)")
+    r = pd.DataFrame(rows, columns=["flight", "key", "measured", "lstm"])
+    measured = r.set_index(["flight", "key"]).measured
+    g = pd.read_csv(os.path.join(a.out, "held-lgbm.csv"))
+    g["key"] = np.round(10 * g.t_s).astype(int)
+    j = g.merge(r[["flight", "key", "lstm"]], on=["flight", "key"])
+    at_instant = measured.reindex(list(zip(j.flight, j.key - LAG))).to_numpy()
+    agree = np.abs(at_instant - j.measured_w) < 0.01
+    print(f"{len(g)} held-out windows, {len(j)} joined, {int((~agree).sum())} dropped (measured power disagrees)")
+    j = j[agree]
+    blend = WEIGHT_LSTM * j.lstm + (1 - WEIGHT_LSTM) * j.pred_w
+    cands = {"network": j.lstm, "trees": j.pred_w, "blend 0.7": blend,
+             "blend where moving (speed >= 1 m/s), else the network": np.where(j.speed >= 1.0, blend, j.lstm)}
+    print("| held-out day group | route | MAE (W) | in-flight MAPE | energy error |\n|---|---|---|---|---|")
+    for route in sorted(j.route.unique()):
+        d = j.route == route
+        for name, est in cands.items():
+            s = L.scores(j[d], np.asarray(est)[d.to_numpy()])
+            print(f"| {name} | {route} ({s['flights']} flights) | {s['mae_w']:.1f} | "
+                  f"{s['mape_in_flight_pct']:.2f} % | {s['energy_error_pct']:.2f} % |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("step", choices=["cv", "blend"])
+    ap.add_argument("csv", nargs="?", help="cv: the home export (train --export-csv)")
+    ap.add_argument("--out", default="/tmp/dayfold", help="working folder (default /tmp/dayfold)")
+    a = ap.parse_args()
+    if a.step == "blend" and a.csv:
+        a.out = a.csv  # `blend DIR`
+    if a.step == "cv" and not a.csv:
+        ap.error("cv needs the export CSV")
+    {"cv": run_cv, "blend": run_blend}[a.step](a)
+
+
+if __name__ == "__main__":
+    main()
