@@ -25,7 +25,7 @@ window with the vehicle's published parameters (nothing fitted on any flight, so
 leaks into another), as features: a physics-informed LightGBM.
 `--relative` weights each training window as the LSTM's `--relative-loss 1` does (in flight
 P̄ / P, P̄ the in-flight targets' harmonic mean; the ground 1); the tree count is still chosen
-on the unweighted MAE. `fit` reads `relative` from the JSON.
+on the unweighted MAE. `fit` and `test` read `relative` from the JSON.
 `--only I,...` runs only those configurations of the search below; `--oof FILE` writes the
 held-out windows' estimates (flight, fold, the window's newest sample's time, the measured
 power at the target lag, the estimate) beside `dronewatt train --cv-predictions`'s.
@@ -303,10 +303,7 @@ def run_test(a):
     pool, test = df[df.fold >= 0], df[df.test == 1]
     best = next(r for r in out["configs"] if r["index"] == out["chosen"])
     tr = strided(pool)
-    b = lgb.train(lgb_params(best["params"]),
-                  lgb.Dataset(tr[feats].to_numpy(np.float32), tr.measured_w.to_numpy(),
-                              params={"feature_pre_filter": False, "verbose": -1}),
-                  best["trees"])
+    b = lgb.train(lgb_params(best["params"]), dataset(tr, feats, out.get("relative", False)), best["trees"])
     tuned = scores(test, b.predict(test[feats].to_numpy(np.float32)))
     tuned_s = round(time.time() - started, 1)
     t0 = time.time()
