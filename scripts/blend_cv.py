@@ -31,7 +31,9 @@ records per flight, and what MAE and MAPE would be left if every flight's bias w
 and divided out (an oracle: the within-flight error floor). It reads the per-flight columns
 of the data set ($DRONEWATT_DATA, else ../shared/data/m100/flights.csv.gz). `--write-blend`
 writes the joined out-of-fold windows with the blend (a temp file: it is cut from the data
-set; `scripts/mission/lab_live.py --oof` reads it). Runs in `lgbm_cv.py`'s environment (numpy, pandas, lightgbm).
+set; `scripts/mission/lab_live.py --oof` reads it).
+
+Runs in `lgbm_cv.py`'s environment (numpy, pandas, lightgbm).
 """
 import argparse
 import glob
@@ -43,7 +45,7 @@ import numpy as np
 import pandas as pd
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from lgbm_cv import scores as lgbm_scores  # noqa: E402  (the same metrics as LightGBM's CV)
+from lgbm_cv import IN_FLIGHT_W, scores as lgbm_scores  # noqa: E402  (the same metrics as LightGBM's CV)
 
 TEST_FLIGHTS = {268, 269, 270, 271, 272, 273, 276, 277, 278, 279}
 GRID = np.round(np.arange(0, 1.0001, 0.05), 2)
@@ -148,7 +150,7 @@ def bias_study(j, w):
     between = float(((day_mean - b.mean()) ** 2).sum() / ((b - b.mean()) ** 2).sum())
     within_sd = float((b - day_mean).std())
     halves = []
-    for _, x in j[j.measured_w >= 100].groupby("flight"):
+    for _, x in j[j.measured_w >= IN_FLIGHT_W].groupby("flight"):
         if len(x) >= 100:
             h = len(x) // 2
             halves.append((x.blend_w.iloc[:h].sum() / x.measured_w.iloc[:h].sum(),

@@ -59,12 +59,14 @@ def day_groups(pool):
 
 
 def fit_predict(train, held, feats):
-    import lightgbm as lgb
-    b = lgb.train(L.lgb_params(L.configs()[0]), L.dataset(L.strided(train), feats, False), TREES)
+    b = L.lgb.train(L.lgb_params(L.configs()[0]), L.dataset(L.strided(train), feats, False), TREES)
     return b.predict(held[feats].to_numpy(np.float32))
 
 
 def pooled(rows, key):
+    """A route's figure over the folds it appears in: the folds' figures weighted by windows
+    (exact for MAE; for MAPE, a mean over in-flight windows, and the energy error, a mean over
+    flights, an approximation)."""
     w = np.array([r["windows"] for r in rows], float)
     return float(np.average([r[key] for r in rows], weights=w))
 

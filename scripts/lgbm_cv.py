@@ -143,7 +143,7 @@ def relative_weights(y):
 def dataset(tr, feats, relative):
     y = tr.measured_w.to_numpy()
     return lgb.Dataset(tr[feats].to_numpy(np.float32), y, weight=relative_weights(y) if relative else None,
-                       params={"feature_pre_filter": False, "verbose": -1}, free_raw_data=False)
+                       feature_name=feats, params={"feature_pre_filter": False, "verbose": -1}, free_raw_data=False)
 
 
 def strided(d):
@@ -334,9 +334,7 @@ def run_fit(a):
     best = next(r for r in out["configs"] if r["index"] == out["chosen"])
     tr = strided(df[df.fold >= 0])
     started = time.time()
-    d = dataset(tr, feats, out.get("relative", False))
-    d.set_feature_name(feats)
-    b = lgb.train(lgb_params(best["params"]), d, best["trees"])
+    b = lgb.train(lgb_params(best["params"]), dataset(tr, feats, out.get("relative", False)), best["trees"])
     b.save_model(a.save)
     print(f"{a.save}: configuration {best['index']}, {best['trees']} trees, target lag {out['target_lag']} "
           f"(blend only into a card with this target_lag), {len(tr)} windows of "

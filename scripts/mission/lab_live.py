@@ -294,11 +294,11 @@ def model_ratio(F, fl, path):
         for line in fh:
             v = line.split(",")
             est.setdefault(int(v[fi]), {})[round(10 * float(v[ti]))] = (float(v[mi]), float(v[bi]))
+    if set(est) & TEST_FLIGHTS:
+        sys.exit(f"{path}: test flights {sorted(set(est) & TEST_FLIGHTS)}; this analysis reads training flights only")
     have = 0
     for f in fl:
         x, e = F[f], est.get(f, {})
-        if f in TEST_FLIGHTS:
-            sys.exit(f"{path}: flight {f} is a test flight")
         R, i0, ih = x["R"], x["i0"], x["ih"]
         num = den = 0.0
         n = 0
