@@ -335,7 +335,7 @@ PAPER_CARD = ROOT / "config" / "models" / "lstm-m100-h128" / "card.toml"
 # labels `changes` gives) and their number of members: their rows stay in `cv.csv`, named for
 # when they shipped (all on 2026-11-26, newest first).
 REPLACED = {
-    ((), 3): "shipped before this one",
+    ((), 4): "shipped before this one",
     (("the final readout",), 3): "shipped before that",
     (("the absolute loss", "the final readout"), 3): "shipped first",
 }
@@ -415,26 +415,36 @@ def lstm_cv_rows():
 
 
 BLEND_JSON = OUT / "blend-cv.json"
+# The blend shipped before this one (the four-member ensemble with the same trees, at 0.7).
+BLEND_REPLACED_JSON = OUT / "blend-cv-four.json"
 
 
 def blend_cv_rows(card):
     """The shipped blend's out-of-fold row (`scripts/blend_cv.py --json`, committed as
-    docs/src/generated/blend-cv.json): the network's share chosen for each fold on the others."""
+    docs/src/generated/blend-cv.json), and the replaced blend's (`blend-cv-four.json`): the
+    network's share chosen for each fold on the others."""
     import statistics
-    try:
-        b = json.loads(BLEND_JSON.read_text())
-    except OSError as e:
-        note(f"{BLEND_JSON}: no blend CV row ({e})")
-        return []
-    folds = b["folds"]
-    shares = "/".join(f"{x['weight_lstm']:g}" for x in folds)
-    stat = {k: {"mean": statistics.mean(x["blend"][k] for x in folds),
-                "median": statistics.median(x["blend"][k] for x in folds)}
-            for k in ("mae_w", "mape_in_flight_pct", "energy_error_pct")}
-    name = (f"**the shipped model: that ensemble blended with LightGBM #0 on its inputs, out of fold "
-            f"(network's share {shares} a fold, chosen on the others; {card['trees']['weight_lstm']:g} "
-            f"on all, shipped; `blend-cv.json`)**")
-    return [(name, stat)]
+    out = []
+    for path, shipped in ((BLEND_JSON, True), (BLEND_REPLACED_JSON, False)):
+        try:
+            b = json.loads(path.read_text())
+        except OSError as e:
+            note(f"{path}: no blend CV row ({e})")
+            continue
+        folds = b["folds"]
+        shares = "/".join(f"{x['weight_lstm']:g}" for x in folds)
+        stat = {k: {"mean": statistics.mean(x["blend"][k] for x in folds),
+                    "median": statistics.median(x["blend"][k] for x in folds)}
+                for k in ("mae_w", "mape_in_flight_pct", "energy_error_pct")}
+        if shipped:
+            name = (f"**the shipped model: that ensemble blended with LightGBM #0 on its inputs, out of fold "
+                    f"(network's share {shares} a fold, chosen on the others; {card['trees']['weight_lstm']:g} "
+                    f"on all, shipped; `{path.name}`)**")
+        else:
+            name = (f"the ensemble of four blended with the same trees, out of fold (share {shares} a fold; "
+                    f"{b['weight_lstm_pooled']:g} on all; shipped before this one, replaced; `{path.name}`)")
+        out.append((name, stat))
+    return out
 
 
 def lgbm_header():

@@ -17,7 +17,7 @@
 //! The cell count is the card's `hidden` (the paper: 128), and a card may list an
 //! ensemble's further `members`: networks trained on the same flights from other initial
 //! weights, whose outputs (point and band) are averaged. The shipped model is an ensemble of
-//! four 64-cell networks.
+//! three 64-cell networks.
 //!
 //! A card may blend gradient-boosted trees in (`[trees]`, [`super::card::TreesBlend`],
 //! evaluated by [`super::trees`]): the estimate is then w × network + (1 − w) × trees, the
