@@ -24,7 +24,13 @@ only where the vehicle moves:
         --model /tmp/dayfold/m7 --json /tmp/dayfold/replay/$f.jsonl; done
     scripts/dayfold.py blend /tmp/dayfold
 
-(`FLAGS`: the network's command in the model card without `--init-seed` and `--out`.) The
+(`FLAGS`: the network's command in the model card without `--init-seed` and `--out`.)
+
+`inputs` scores LightGBM #0 on both kinds of folds with inputs that could carry a route's
+identity taken out or made heading-invariant (round 11's screen; ~25 min, one thread):
+
+    scripts/dayfold.py inputs /tmp/home.csv [--json /tmp/inputs.json]
+ The
 network's estimate at replay row t is for t - 0.3 s (the card's target lag), LightGBM's row
 is the window's newest sample; rows are joined on flight and time and kept where both say
 the same measured power. Training flights only: the script refuses a test flight. Needs
@@ -111,6 +117,68 @@ def run_cv(a):
         fh.write("\n")
 
 
+LAG_SUFFIXES = ("", "_lag1", "_lag3", "_lag9")
+
+
+def heading_invariant(p):
+    """Per lag: roll and pitch from the quaternion (its yaw dropped), the horizontal velocity
+    as forward and lateral in the yaw frame, and the wind's angle (deg from north) relative to
+    the yaw as its sine and cosine. The rotation is atan2(v_y, v_x) - yaw, the convention the
+    velocity and the quaternion share (ROS: ENU and FLU to ENU); the flights cannot check it,
+    since the M100's yaw does not follow its track on them."""
+    p = p.copy()
+    for s in LAG_SUFFIXES:
+        x, y, z, w = (p[f"orientation_{c}{s}"].to_numpy() for c in "xyzw")
+        yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        p[f"roll{s}"] = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+        p[f"pitch{s}"] = np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))
+        vx, vy = p[f"velocity_x{s}"].to_numpy(), p[f"velocity_y{s}"].to_numpy()
+        speed, angle = np.hypot(vx, vy), np.arctan2(vy, vx) - yaw
+        p[f"v_fwd{s}"], p[f"v_lat{s}"] = speed * np.cos(angle), speed * np.sin(angle)
+        wind = np.radians(90 - p[f"wind_angle{s}"].to_numpy()) - yaw
+        p[f"wind_rel_sin{s}"], p[f"wind_rel_cos{s}"] = np.sin(wind), np.cos(wind)
+    return p
+
+
+def run_inputs(a):
+    df, feats = L.load(a.csv, LAG)
+    pool = df[df.fold >= 0].copy()
+    if set(pool.flight) & TEST_FLIGHTS:
+        sys.exit("a test flight in the training pool: export again")
+    missing = [f"wind_angle{s}" for s in LAG_SUFFIXES if f"wind_angle{s}" not in feats]
+    if missing:
+        sys.exit(f"{a.csv}: no {', '.join(missing)}: this step needs the home export at lags 0, 1, 3, 9")
+    pool["date"] = pool.flight.map(flight_table().date)
+    pool["day_fold"], _ = day_groups(pool)
+    pool = heading_invariant(pool)
+
+    def without(*names):
+        return [f for f in feats if not f.startswith(names)]
+    invariant = without("orientation_", "velocity_x", "velocity_y", "wind_angle") + [
+        f"{n}{s}" for s in LAG_SUFFIXES for n in ("roll", "pitch", "v_fwd", "v_lat", "wind_rel_sin", "wind_rel_cos")]
+    variants = {"the home inputs": feats, "without the wind's angle": without("wind_angle"),
+                "without the distance to home": without("home_distance_m"),
+                "without either": without("wind_angle", "home_distance_m"), "heading-invariant": invariant}
+    out = {"command": "scripts/dayfold.py inputs windows.csv", "variants": {}}
+    print("| LightGBM #0, 600 trees | inputs | by flight: MAE / MAPE / energy | by day: MAE / MAPE / energy |")
+    print("|---|---|---|---|")
+    for name, fs in variants.items():
+        res = {}
+        for kind, col in (("by flight", "fold"), ("by day", "day_fold")):
+            per = [L.scores(pool[pool[col] == k], fit_predict(pool[pool[col] != k], pool[pool[col] == k], fs))
+                   for k in range(GROUPS)]
+            res[kind] = {key: float(np.mean([r[key] for r in per]))
+                         for key in ("mae_w", "mape_in_flight_pct", "energy_error_pct")}
+        out["variants"][name] = {"inputs": len(fs), **res}
+        print(f"| {name} | {len(fs)} | " + " | ".join(
+            f"{v['mae_w']:.2f} W / {v['mape_in_flight_pct']:.3f} % / {v['energy_error_pct']:.2f} %"
+            for v in res.values()) + " |", flush=True)
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=1)
+            fh.write("\n")
+
+
 def run_blend(a):
     rows = []
     for path in sorted(glob.glob(os.path.join(a.out, "replay", "*.jsonl"))):
@@ -147,15 +215,16 @@ def run_blend(a):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("step", choices=["cv", "blend"])
-    ap.add_argument("csv", nargs="?", help="cv: the home export (train --export-csv)")
+    ap.add_argument("step", choices=["cv", "blend", "inputs"])
+    ap.add_argument("csv", nargs="?", help="cv, inputs: the home export (train --export-csv)")
     ap.add_argument("--out", default="/tmp/dayfold", help="working folder (default /tmp/dayfold)")
+    ap.add_argument("--json", help="inputs: write the figures (no data rows) here")
     a = ap.parse_args()
     if a.step == "blend" and a.csv:
         a.out = a.csv  # `blend DIR`
-    if a.step == "cv" and not a.csv:
-        ap.error("cv needs the export CSV")
-    {"cv": run_cv, "blend": run_blend}[a.step](a)
+    if a.step in ("cv", "inputs") and not a.csv:
+        ap.error(f"{a.step} needs the export CSV")
+    {"cv": run_cv, "blend": run_blend, "inputs": run_inputs}[a.step](a)
 
 
 if __name__ == "__main__":
