@@ -24,17 +24,18 @@ only where the vehicle moves:
         --model /tmp/dayfold/m7 --json /tmp/dayfold/replay/$f.jsonl; done
     scripts/dayfold.py blend /tmp/dayfold
 
-(`FLAGS`: the network's command in the model card without `--init-seed` and `--out`.)
+(`FLAGS`: the network's command in the model card without `--init-seed` and `--out`.) The
+network's estimate at replay row t is for t - 0.3 s (the card's target lag), LightGBM's row
+is the window's newest sample; rows are joined on flight and time and kept where both say
+the same measured power.
 
 `inputs` scores LightGBM #0 on both kinds of folds with inputs that could carry a route's
 identity taken out or made heading-invariant (round 11's screen; ~25 min, one thread):
 
     scripts/dayfold.py inputs /tmp/home.csv [--json /tmp/inputs.json]
- The
-network's estimate at replay row t is for t - 0.3 s (the card's target lag), LightGBM's row
-is the window's newest sample; rows are joined on flight and time and kept where both say
-the same measured power. Training flights only: the script refuses a test flight. Needs
-numpy, pandas and lightgbm (`lgbm_cv.py`'s environment).
+
+Training flights only: the script refuses a test flight. Needs numpy, pandas and lightgbm
+(`lgbm_cv.py`'s environment).
 """
 import argparse
 import glob
@@ -47,7 +48,7 @@ import pandas as pd
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import lgbm_cv as L  # noqa: E402  (the same rows, configuration and metrics)
-from blend_cv import TEST_FLIGHTS, flight_table  # noqa: E402
+from blend_cv import KEYS, TEST_FLIGHTS, flight_table  # noqa: E402
 
 GROUPS = 5
 LAG = 3
@@ -65,6 +66,17 @@ def day_groups(pool):
     return pool.date.map(group), load
 
 
+def training_pool(csv):
+    """The export's training windows with their day group (`day_fold`), and the input names."""
+    df, feats = L.load(csv, LAG)
+    pool = df[df.fold >= 0].copy()
+    if set(pool.flight) & TEST_FLIGHTS:
+        sys.exit("a test flight in the training pool: export again")
+    pool["date"] = pool.flight.map(flight_table().date)
+    pool["day_fold"], load = day_groups(pool)
+    return pool, feats, load
+
+
 def fit_predict(train, held, feats):
     b = L.lgb.train(L.lgb_params(L.configs()[0]), L.dataset(L.strided(train), feats, False), TREES)
     return b.predict(held[feats].to_numpy(np.float32))
@@ -79,12 +91,7 @@ def pooled(rows, key):
 
 
 def run_cv(a):
-    df, feats = L.load(a.csv, LAG)
-    pool = df[df.fold >= 0].copy()
-    if set(pool.flight) & TEST_FLIGHTS:
-        sys.exit("a test flight in the training pool: export again")
-    pool["date"] = pool.flight.map(flight_table().date)
-    pool["day_fold"], load = day_groups(pool)
+    pool, feats, load = training_pool(a.csv)
     os.makedirs(a.out, exist_ok=True)
     out = {"command": "scripts/dayfold.py cv windows.csv", "flights_per_day_group": load, "folds": {}}
     print(f"{pool.flight.nunique()} training flights on {pool.date.nunique()} days; day groups of {load} flights")
@@ -105,7 +112,7 @@ def run_cv(a):
                     with open(os.path.join(a.out, f), "w") as fh:
                         fh.write(",".join(str(x) for x in sorted(flights.unique())))
         res = {key: float(np.mean([r[key] for r in per_fold])) for key in L.summary(per_fold)}
-        res["routes"] = {r: {key: pooled(v, key) for key in ("mae_w", "mape_in_flight_pct", "energy_error_pct")}
+        res["routes"] = {r: {key: pooled(v, key) for key in KEYS}
                          for r, v in per_route.items()}
         out["folds"][name] = res
         print(f"{name}: MAE {res['mae_w']:.2f} W, MAPE {res['mape_in_flight_pct']:.3f} %, energy "
@@ -120,13 +127,12 @@ def run_cv(a):
 LAG_SUFFIXES = ("", "_lag1", "_lag3", "_lag9")
 
 
-def heading_invariant(p):
-    """Per lag: roll and pitch from the quaternion (its yaw dropped), the horizontal velocity
+def add_heading_invariant(p):
+    """Add to `p`, per lag: roll and pitch from the quaternion (its yaw dropped), the horizontal velocity
     as forward and lateral in the yaw frame, and the wind's angle (deg from north) relative to
     the yaw as its sine and cosine. The rotation is atan2(v_y, v_x) - yaw, the convention the
     velocity and the quaternion share (ROS: ENU and FLU to ENU); the flights cannot check it,
     since the M100's yaw does not follow its track on them."""
-    p = p.copy()
     for s in LAG_SUFFIXES:
         x, y, z, w = (p[f"orientation_{c}{s}"].to_numpy() for c in "xyzw")
         yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
@@ -137,20 +143,14 @@ def heading_invariant(p):
         p[f"v_fwd{s}"], p[f"v_lat{s}"] = speed * np.cos(angle), speed * np.sin(angle)
         wind = np.radians(90 - p[f"wind_angle{s}"].to_numpy()) - yaw
         p[f"wind_rel_sin{s}"], p[f"wind_rel_cos{s}"] = np.sin(wind), np.cos(wind)
-    return p
 
 
 def run_inputs(a):
-    df, feats = L.load(a.csv, LAG)
-    pool = df[df.fold >= 0].copy()
-    if set(pool.flight) & TEST_FLIGHTS:
-        sys.exit("a test flight in the training pool: export again")
+    pool, feats, _ = training_pool(a.csv)
     missing = [f"wind_angle{s}" for s in LAG_SUFFIXES if f"wind_angle{s}" not in feats]
     if missing:
         sys.exit(f"{a.csv}: no {', '.join(missing)}: this step needs the home export at lags 0, 1, 3, 9")
-    pool["date"] = pool.flight.map(flight_table().date)
-    pool["day_fold"], _ = day_groups(pool)
-    pool = heading_invariant(pool)
+    add_heading_invariant(pool)
 
     def without(*names):
         return [f for f in feats if not f.startswith(names)]
@@ -165,10 +165,11 @@ def run_inputs(a):
     for name, fs in variants.items():
         res = {}
         for kind, col in (("by flight", "fold"), ("by day", "day_fold")):
-            per = [L.scores(pool[pool[col] == k], fit_predict(pool[pool[col] != k], pool[pool[col] == k], fs))
-                   for k in range(GROUPS)]
-            res[kind] = {key: float(np.mean([r[key] for r in per]))
-                         for key in ("mae_w", "mape_in_flight_pct", "energy_error_pct")}
+            per = []
+            for k in range(GROUPS):
+                held = pool[pool[col] == k]
+                per.append(L.scores(held, fit_predict(pool[pool[col] != k], held, fs)))
+            res[kind] = {key: float(np.mean([r[key] for r in per])) for key in KEYS}
         out["variants"][name] = {"inputs": len(fs), **res}
         print(f"| {name} | {len(fs)} | " + " | ".join(
             f"{v['mae_w']:.2f} W / {v['mape_in_flight_pct']:.3f} % / {v['energy_error_pct']:.2f} %"
