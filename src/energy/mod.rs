@@ -202,6 +202,8 @@ pub struct EnergyTracker {
     /// known for a vehicle that is not a multirotor.
     warned_model_power: bool,
     warned_no_pack: bool,
+    /// Say nothing (a tracker that only keeps books beside the live one).
+    quiet: bool,
     /// Which model the forecast follows ([`select`]).
     selector: select::Selector,
     /// The pack: start state from the resting voltage, equivalent circuit, voltage forecast.
@@ -249,6 +251,7 @@ impl EnergyTracker {
             warned_full: false,
             warned_model_power: false,
             warned_no_pack: false,
+            quiet: false,
             selector: select::Selector::new(&cfg.select, cfg.model.as_deref(), None),
             pack: pack::Pack::new(cfg.reserve_pct / 100.0),
         })
@@ -285,6 +288,19 @@ impl EnergyTracker {
         self.pack.history = h;
     }
 
+    /// A tracker that warns of nothing: bookkeeping beside the live one (an offline
+    /// chain's per-model energy), whose pack notes the live tracker already says.
+    pub fn quiet(mut self) -> Self {
+        self.quiet = true;
+        self
+    }
+
+    fn say(&self, message: std::fmt::Arguments) {
+        if !self.quiet {
+            tracing::warn!("{message}");
+        }
+    }
+
     /// Capacity and cells as they stand, with their provenance.
     pub fn battery(&self) -> &BatteryFacts {
         &self.battery
@@ -305,7 +321,7 @@ impl EnergyTracker {
         }
         for n in notes {
             if !self.warned.contains(&n) {
-                tracing::warn!("{n}");
+                self.say(format_args!("{n}"));
                 self.warned.push(n);
             }
         }
@@ -424,7 +440,7 @@ impl EnergyTracker {
             .pack
             .update(t, volts, amps, rest_of_flight, &self.battery);
         for n in std::mem::take(&mut self.pack.notes) {
-            tracing::warn!("{n}");
+            self.say(format_args!("{n}"));
         }
         let reported_pct = battery_pct.filter(|p| (0.0..=100.0).contains(p));
         let disagreement = reported_pct
@@ -433,12 +449,12 @@ impl EnergyTracker {
             .filter(|d| d.abs() > BATTERY_PCT_AGREE);
         if let (Some(d), false) = (disagreement, self.warned_pct) {
             self.warned_pct = true;
-            tracing::warn!(
+            self.say(format_args!(
                 "battery: the vehicle reports {:.0} %, the resting voltage {:.2} V says {:.0} %: using the resting voltage (an autopilot that counts from 'full at boot' reads a half pack as full)",
                 reported_pct.unwrap_or(f64::NAN),
                 pk.rest_v.unwrap_or(f64::NAN),
                 reported_pct.unwrap_or(f64::NAN) - d
-            );
+            ));
         }
         let cap = self.battery.capacity_wh.value;
         let (remaining, remaining_source, full_wh) = match (
@@ -466,7 +482,7 @@ impl EnergyTracker {
             && !self.warned_full
         {
             self.warned_full = true;
-            tracing::warn!("battery: no resting voltage was read before take-off and the vehicle sends no battery %: remaining energy assumes the pack started full");
+            self.say(format_args!("battery: no resting voltage was read before take-off and the vehicle sends no battery %: remaining energy assumes the pack started full"));
         }
         // To the voltage failsafe when the pack model forecasts one; else to the floor.
         let time_to_empty_s = match (remaining_source, pk.time_to_low_v_s) {
@@ -551,7 +567,7 @@ impl EnergyTracker {
         {
             if !self.warned_no_pack {
                 self.warned_no_pack = true;
-                tracing::warn!("battery: no pack known for this {class} vehicle (set [energy] capacity_wh, or the vehicle's BATT_CAPACITY / BAT1_CAPACITY): remaining energy and time are unknown (the M100's pack is a multirotor default, never assumed here)");
+                self.say(format_args!("battery: no pack known for this {class} vehicle (set [energy] capacity_wh, or the vehicle's BATT_CAPACITY / BAT1_CAPACITY): remaining energy and time are unknown (the M100's pack is a multirotor default, never assumed here)"));
             }
             return (None, RemainingSource::UnknownPack);
         }
@@ -560,11 +576,11 @@ impl EnergyTracker {
             (RemainingSource::AssumedFull, PowerSource::Model(model)) if silent => {
                 if !self.warned_model_power {
                     self.warned_model_power = true;
-                    tracing::warn!(
+                    self.say(format_args!(
                         "battery: the vehicle sends no battery telemetry: remaining energy is the pack's {:.1} Wh ({}) minus the energy of the {model} model's power, the pack taken as full at the start",
                         self.battery.capacity_wh.value,
                         self.battery.capacity_wh.source
-                    );
+                    ));
                 }
                 (remaining, RemainingSource::ModelPower)
             }

@@ -118,10 +118,12 @@ impl Chain {
         let tracker = || EnergyTracker::new(&self.config.energy, self.config.mission.speed_m_s);
         let mut energy = tracker()?;
         let mut alerts = AlertEngine::new(&self.config.alerts)?;
+        // The per-model trackers keep books; what there is to say of the pack (its cells,
+        // its start state) the live tracker says once, not once more for each model.
         let mut model_energy = self
             .names
             .iter()
-            .map(|_| tracker())
+            .map(|_| tracker().map(EnergyTracker::quiet))
             .collect::<anyhow::Result<Vec<_>>>()?;
         if !self.keep_learning {
             if let Some(ad) = self.ensemble.adaptation_mut(Default::default()) {

@@ -104,20 +104,14 @@ pub fn resolve_battery(
         }
         (None, None) => Sourced::new(Chemistry::LiPo, Provenance::Default),
     };
-    let from_voltage = first_voltage_v.filter(|v| v.is_finite() && *v > 1.0).and_then(|v| {
-        let fits = cell_candidates(chemistry.value, v);
-        if fits.len() > 1 {
-            let list = fits.iter().map(u32::to_string).collect::<Vec<_>>().join(" or ");
-            notes.push(format!(
-                "battery voltage {v:.2} V fits {list} {} cells; taking {} (a pack flies full more often than nearly empty) — set [energy] cell_count to be sure",
-                chemistry.value.name(),
-                fits[0]
-            ));
-        } else if fits.is_empty() {
-            notes.push(format!("battery voltage {v:.2} V fits no {} pack of 1-16 cells", chemistry.value.name()));
-        }
-        fits.first().copied()
-    });
+    // The first voltage's candidates; what they leave open is said only where the voltage
+    // is what decides the count (below), not beside a count the config or vehicle gave.
+    let voltage_fits = first_voltage_v
+        .filter(|v| v.is_finite() && *v > 1.0)
+        .map(|v| (v, cell_candidates(chemistry.value, v)));
+    let from_voltage = voltage_fits
+        .as_ref()
+        .and_then(|(_, fits)| fits.first().copied());
     let monitor_cells = p.battery_cells.filter(|n| (2..=24).contains(n));
     let cell_count = match (
         cfg.cell_count,
@@ -143,6 +137,26 @@ pub fn resolve_battery(
         (None, None, None, None, Some(n)) => Sourced::new(n, Provenance::FirstVoltage),
         (None, None, None, None, None) => Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
     };
+    if let (Some((v, fits)), Provenance::FirstVoltage | Provenance::Default) =
+        (&voltage_fits, &cell_count.source)
+    {
+        let name = chemistry.value.name();
+        if fits.len() > 1 {
+            let list = fits
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(" or ");
+            notes.push(format!(
+                "battery voltage {v:.2} V fits {list} {name} cells; taking {} (a pack flies full more often than nearly empty) — set [energy] cell_count to be sure",
+                fits[0]
+            ));
+        } else if fits.is_empty() {
+            notes.push(format!(
+                "battery voltage {v:.2} V fits no {name} pack of 1-16 cells"
+            ));
+        }
+    }
     let nominal_cell_v = cfg.nominal_cell_v.unwrap_or(chemistry.value.nominal_v());
     let capacity_wh = match (cfg.capacity_wh, cap_param) {
         (Some(wh), _) => Sourced::new(wh, Provenance::Config),
@@ -342,6 +356,16 @@ mod tests {
         let (f, notes) = resolve_battery(&cfg(None, None), &VehicleParams::default(), Some(26.1));
         assert_eq!(f.cell_count.value, 6);
         assert!(notes.iter().any(|n| n.contains("6 or 7")), "{notes:?}");
+        // Where the config or the vehicle gives the count, the voltage decides nothing and
+        // its ambiguity is not said (nor "set [energy] cell_count" to one who has).
+        let (f, notes) =
+            resolve_battery(&cfg(None, Some(6)), &VehicleParams::default(), Some(26.1));
+        assert_eq!(f.cell_count, Sourced::new(6, Provenance::Config));
+        assert!(notes.is_empty(), "{notes:?}");
+        let p = VehicleParams::from_pairs(&[("BAT1_N_CELLS", 6.0)]);
+        let (f, notes) = resolve_battery(&cfg(None, None), &p, Some(26.1));
+        assert_eq!(f.cell_count.value, 6);
+        assert!(notes.is_empty(), "{notes:?}");
         // Nothing plausible: said, and the default stands.
         let (f, notes) = resolve_battery(&cfg(None, None), &VehicleParams::default(), Some(500.0));
         assert_eq!(f.cell_count.source, Provenance::Default);

@@ -109,3 +109,21 @@ fn a_bad_config_stops_every_offline_command_naming_the_file_and_key() {
         "{err}"
     );
 }
+
+#[test]
+fn eval_says_what_the_pack_voltage_leaves_open_once_and_not_where_the_config_knows() {
+    let dir = tempfile::tempdir().unwrap();
+    let said = |name: &str, toml: &str| {
+        let cfg = dir.path().join(name);
+        std::fs::write(&cfg, toml).unwrap();
+        let out = offline(&["eval", "--flight", "276", "--json", "-"], &cfg);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{err}");
+        err.lines().filter(|l| l.contains("fits 6 or 7")).count()
+    };
+    // Flight 276 rests at 23.4 V before take-off: 6 or 7 LiHV cells. The live tracker
+    // says so once; the per-model bookkeeping trackers (15 models) say nothing more.
+    assert_eq!(said("default.toml", ""), 1);
+    // Told the cells, there is nothing left open to say.
+    assert_eq!(said("six.toml", "[energy]\ncell_count = 6\n"), 0);
+}
