@@ -96,8 +96,12 @@ BATTERY_ROWS = [
     ("first 3.5 V/cell crossing from half time (s)", "cross35_halftime_mae_s", 1, "measured first crossing (I > 3 A)"),
     ("first 3.5 V/cell crossing, pre-flight (s)", "cross35_preflight_mae_s", 1, "measured first crossing (I > 3 A)"),
     ("rest V read at the last in-flight sample, ours (V)", "rest_under_load_ours_mae_v", 3, "end rest V (relaxation-corrected)"),
-    ("  baseline PX4 (V/cell + 5 mΩ·I, τ 1 s) (V)", "rest_under_load_px4_mae_v", 3, "end rest V (relaxation-corrected)"),
-    ("  baseline ArduPilot (V + I·R, R low-passed 10 s) (V)", "rest_under_load_ardupilot_mae_v", 3, "end rest V (relaxation-corrected)"),
+    ("  baseline PX4 (V/cell + R·I, RLS R, τ 1 s) (V)", "rest_under_load_px4_mae_v", 3, "end rest V (relaxation-corrected)"),
+    ("  baseline ArduPilot (voltage_resting_estimate) (V)", "rest_under_load_ardupilot_mae_v", 3, "end rest V (relaxation-corrected)"),
+    ("energy left at the last in-flight sample, ours (Wh)", "landing_energy_ours_mae_wh", 2, "our OCV curve at end rest V (model-based)"),
+    ("  baseline PX4 SoC (RLS, 2 s start, fused) × 129.96 Wh (Wh)", "landing_energy_px4_mae_wh", 2, "our OCV curve at end rest V (model-based)"),
+    ("  baseline ArduPilot full at boot − mAh × 129.96 Wh (Wh)", "landing_energy_ardupilot_mae_wh", 2, "our OCV curve at end rest V (model-based)"),
+    ("  baseline full pack at take-off − energy used (Wh)", "landing_energy_full_pack_mae_wh", 2, "our OCV curve at end rest V (model-based)"),
 ]
 
 
@@ -301,7 +305,8 @@ def readme_claims(name, r):
         return [f"**{t['ocv_energy_mae_wh']:.2f} Wh**", f"**{t['px4_36_energy_mae_wh']:.1f} Wh**",
                 f"({t['full_pack_start_energy_err_wh']:.0f} Wh", f"**{1e3 * t['ocv_end_v_mae_v']:.0f} mV**",
                 f"**{t['ecm_median_rmse_v']:.3f} V**", f"**{t['halftime_min_v_mae']:.3f} V**",
-                f"{t['preflight_plan_min_v_mae']:.3f} V"]
+                f"{t['preflight_plan_min_v_mae']:.3f} V", f"**{t['landing_energy_ours_mae_wh']:.2f} Wh**",
+                f"**{t['landing_energy_px4_mae_wh']:.1f} Wh**", f"{t['landing_energy_ardupilot_mae_wh']:.0f} Wh"]
     if name == "eval-cvar":
         m = r["models"]
         out = [f"**{m['lstm']['mape_pct']:.1f} %**", f"energy error {m['lstm']['energy_err_pct']:.1f} %"]

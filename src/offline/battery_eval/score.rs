@@ -5,6 +5,7 @@
 use crate::battery::forecast::{lowest_dip, steps, SAG_IN_FLIGHT, SAG_PREFLIGHT};
 use crate::battery::{forecast, CircuitParams, Estimator, OcvCurve};
 
+use super::autopilots::{ArduBattery, Px4Battery};
 use super::plan::PlanPower;
 use super::prep::{Prepared, DT};
 
@@ -97,11 +98,19 @@ pub struct FlightFigures {
     pub cross35_preflight_missed: bool,
     pub cross35_halftime_missed: bool,
     /// Resting voltage read at the last in-flight sample − the end rest voltage, V: ours
-    /// (estimator energy → OCV), PX4 (V/cell + 5 mΩ·I, τ = 1 s), ArduPilot (V + I·R, R
-    /// learnt from the take-off step, τ = 10 s).
+    /// (estimator energy → OCV), PX4 (its load-compensated, low-passed voltage, R from its
+    /// online RLS: [`super::autopilots::Px4Battery`]), ArduPilot (`voltage_resting_estimate`,
+    /// [`super::autopilots::ArduBattery`]).
     pub rest_under_load_ours_v: f64,
     pub rest_under_load_px4_v: f64,
     pub rest_under_load_ardupilot_v: f64,
+    /// Energy left at the last in-flight sample − our curve's energy at the end rest
+    /// voltage, Wh: ours (the online estimator), PX4 (SoC × 129.96 Wh), ArduPilot
+    /// (remaining charge from boot × 129.96 Wh), full pack at take-off − energy used.
+    pub landing_energy_ours_err_wh: f64,
+    pub landing_energy_px4_err_wh: f64,
+    pub landing_energy_ardupilot_err_wh: f64,
+    pub landing_energy_full_pack_err_wh: f64,
 }
 
 /// What the plot needs besides the figures.
@@ -211,6 +220,10 @@ pub fn score_flight(
         &mut o.rest_under_load_ours_v,
         &mut o.rest_under_load_px4_v,
         &mut o.rest_under_load_ardupilot_v,
+        &mut o.landing_energy_ours_err_wh,
+        &mut o.landing_energy_px4_err_wh,
+        &mut o.landing_energy_ardupilot_err_wh,
+        &mut o.landing_energy_full_pack_err_wh,
     ] {
         *x = nan;
     }
@@ -355,22 +368,30 @@ pub fn score_flight(
             s.update(t[k] - t[k - 1], i[k], v[k]);
         }
         o.rest_under_load_ours_v = NC * curve.v_cell_at_energy(s.energy_wh()) - p.v_end_rest;
-        let mut vf = v[0] / NC;
-        for k in 1..=i_off {
-            let a = 1.0 - (-(t[k] - t[k - 1]) / 1.0).exp();
-            vf += a * (v[k] / NC + 0.005 * i[k] - vf);
+        // The autopilots as they run: their monitors see every row from the recording's
+        // start (the pack at rest on the ground), so PX4 settles on the resting voltage.
+        let (mut px4, mut ap) = (
+            Px4Battery::new(NC as u32, RATED_AH * 1e3),
+            ArduBattery::new(RATED_AH * 1e3),
+        );
+        for k in 0..=i_off {
+            let dt = if k == 0 { 0.0 } else { t[k] - t[k - 1] };
+            px4.update(dt, v[k], i[k]);
+            ap.update(dt, v[k], i[k]);
         }
-        o.rest_under_load_px4_v = NC * vf - p.v_end_rest;
-        let r = i_on.saturating_sub(1);
-        let (vr, ir) = (v[r], i[r]);
-        let mut r_ap = 0.0;
-        for k in i_on..=i_off {
-            if i[k] - ir > 5.0 {
-                let a = 1.0 - (-(t[k] - t[k - 1]) / 10.0).exp();
-                r_ap += a * ((vr - v[k]) / (i[k] - ir) - r_ap);
-            }
-        }
-        o.rest_under_load_ardupilot_v = v[i_off] + i[i_off] * r_ap - p.v_end_rest;
+        o.rest_under_load_px4_v = px4.compensated_v() - p.v_end_rest;
+        o.rest_under_load_ardupilot_v = ap.resting_v(v[i_off], i[i_off]) - p.v_end_rest;
+        // Energy left at the last in-flight sample against our curve at the end rest
+        // voltage (model-based, as the start rows): ours, PX4's SoC and ArduPilot's
+        // remaining charge × the rated 129.96 Wh, and "full at take-off" − the energy used.
+        let truth = curve.energy(p.v_end_rest / NC);
+        let used_wh: f64 = (1..=i_off)
+            .map(|k| v[k] * i[k] * (t[k] - t[k - 1]) / 3600.0)
+            .sum();
+        o.landing_energy_ours_err_wh = s.energy_wh() - truth;
+        o.landing_energy_px4_err_wh = px4.soc() * RATED_WH - truth;
+        o.landing_energy_ardupilot_err_wh = ap.remaining() * RATED_WH - truth;
+        o.landing_energy_full_pack_err_wh = RATED_WH - used_wh - truth;
     }
     (o, tr)
 }
