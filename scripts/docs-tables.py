@@ -95,6 +95,8 @@ BATTERY_ROWS = [
     ("lowest loaded V from half time, the plan's rest (V)", "halftime_plan_min_v_mae", 3, "measured lowest V after half time"),
     ("first 3.5 V/cell crossing from half time (s)", "cross35_halftime_mae_s", 1, "measured first crossing (I > 3 A)"),
     ("first 3.5 V/cell crossing, pre-flight (s)", "cross35_preflight_mae_s", 1, "measured first crossing (I > 3 A)"),
+    ("  baseline PX4 low warning, SoC < 15 % (s)", "cross35_px4_low_mae_s", 1, "measured first crossing (I > 3 A)"),
+    ("  baseline ArduPilot failsafe, 10 s under 21.0 V (s)", "cross35_ardupilot_fs_mae_s", 1, "measured first crossing (I > 3 A)"),
     ("rest V read at the last in-flight sample, ours (V)", "rest_under_load_ours_mae_v", 3, "end rest V (relaxation-corrected)"),
     ("  baseline PX4 (V/cell + R·I, RLS R, τ 1 s) (V)", "rest_under_load_px4_mae_v", 3, "end rest V (relaxation-corrected)"),
     ("  baseline ArduPilot (voltage_resting_estimate) (V)", "rest_under_load_ardupilot_mae_v", 3, "end rest V (relaxation-corrected)"),
@@ -129,7 +131,8 @@ def battery_eval(r):
     for name, x in (("training", tr), ("test", te)):
         md += (f"- 3.5 V/cell crossings, {name}: {x['n_cross']} flights cross; from half time "
                f"{x['n_cross_after_half']} cross after it, {x['cross35_halftime_missed']} not forecast at all; "
-               f"pre-flight {x['cross35_preflight_missed']} not forecast at all.\n")
+               f"pre-flight {x['cross35_preflight_missed']} not forecast at all; PX4's low warning never raised "
+               f"on {x['cross35_px4_low_missed']}, ArduPilot's failsafe never on {x['cross35_ardupilot_fs_missed']}.\n")
     x = r["relax"]
     errs = ", ".join(f"{1e3 * e:+.0f}" for e in x["test_pairs_err_v"])
     md += (f"- End resting voltage relaxation correction v += k·slope + c: shipped k = {x['shipped_k_s']:.2f} s, "

@@ -34,6 +34,10 @@ const R_COVARIANCE: f64 = 0.1;
 const PX4_SETTLE_S: f64 = 2.0;
 /// Below this a pack is not connected (PX4's LITHIUM_BATTERY_RECOGNITION_VOLTAGE), V.
 const RECOGNITION_V: f64 = 2.1;
+/// PX4's `BAT_LOW_THR`: the low-battery warning below this state of charge.
+pub const PX4_LOW_SOC: f64 = 0.15;
+/// ArduPilot's `BATT_LOW_TIMER`: the voltage must stay under `BATT_LOW_VOLT` this long, s.
+pub const AP_LOW_TIMER_S: f64 = 10.0;
 
 /// PX4's battery estimator for one pack of `n_cells` and `capacity_mah`.
 #[derive(Debug, Clone)]
@@ -194,6 +198,10 @@ pub struct ArduBattery {
     i_ref: f64,
     /// Whether the resistance estimate has run once (its first interval is "since boot").
     started: bool,
+    /// The raw-voltage low failsafe: since when the voltage has been under the threshold,
+    /// and when the failsafe fired.
+    low_since_s: Option<f64>,
+    failsafe_s: Option<f64>,
 }
 
 /// ArduPilot's resistance estimate: the filters' time constant (s) and the blend gain.
@@ -242,6 +250,23 @@ impl ArduBattery {
         }
         self.v_filt += filt_alpha * (v - self.v_filt);
         self.i_filt += filt_alpha * (i - self.i_filt);
+    }
+
+    /// The low-voltage failsafe with `BATT_FS_VOLTSRC` = 0 (raw voltage, the default): it
+    /// fires once the voltage has stayed under `low_v` for [`AP_LOW_TIMER_S`]; a reading
+    /// at or above it restarts the timer. Returns when it fired (s), once it has.
+    pub fn low_failsafe(&mut self, t_s: f64, v: f64, low_v: f64) -> Option<f64> {
+        if self.failsafe_s.is_none() && v.is_finite() && t_s.is_finite() {
+            if v < low_v {
+                let since = *self.low_since_s.get_or_insert(t_s);
+                if t_s - since > AP_LOW_TIMER_S {
+                    self.failsafe_s = Some(t_s);
+                }
+            } else {
+                self.low_since_s = None;
+            }
+        }
+        self.failsafe_s
     }
 
     /// `voltage_resting_estimate`: the voltage with the sag put back, never below it (V).
@@ -335,6 +360,20 @@ mod tests {
         );
         let (v, i) = pack(0, 23.4, 0.024);
         assert!(b.resting_v(v, i) > v);
+        // The raw-voltage failsafe: a 9 s dip under 21.0 V is forgiven, 11 s is not.
+        let mut fs = ArduBattery::new(5700.0);
+        for k in 0..=90 {
+            assert_eq!(fs.low_failsafe(f64::from(k) * 0.1, 20.8, 21.0), None);
+        }
+        assert_eq!(
+            fs.low_failsafe(9.1, 21.2, 21.0),
+            None,
+            "back above: the timer restarts"
+        );
+        let fired = (0..=110)
+            .filter_map(|k| fs.low_failsafe(10.0 + f64::from(k) * 0.1, 20.8, 21.0))
+            .next();
+        assert!(fired.is_some_and(|t| (t - 20.1).abs() < 1e-9), "{fired:?}");
         // 60 s at 22.5 A mean: 375 mAh of 5700.
         assert!(
             (b.remaining() - (1.0 - 375.0 / 5700.0)).abs() < 0.01,

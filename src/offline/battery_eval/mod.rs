@@ -114,6 +114,12 @@ pub struct SetSummary {
     pub n_cross_after_half: usize,
     pub cross35_halftime_mae_s: f64,
     pub cross35_halftime_missed: usize,
+    /// The autopilots on the same crossings: median |when raised − crossing| where raised,
+    /// and how many crossings each never answered (PX4's low warning, ArduPilot's failsafe).
+    pub cross35_px4_low_mae_s: f64,
+    pub cross35_px4_low_missed: usize,
+    pub cross35_ardupilot_fs_mae_s: f64,
+    pub cross35_ardupilot_fs_missed: usize,
     pub rest_under_load_ours_mae_v: f64,
     pub rest_under_load_px4_mae_v: f64,
     pub rest_under_load_ardupilot_mae_v: f64,
@@ -222,6 +228,13 @@ fn summarise(fl: &[&FlightFigures]) -> SetSummary {
             .count(),
         cross35_halftime_mae_s: abs_median(&cross, |f| f.cross35_halftime_err_s),
         cross35_halftime_missed: cross.iter().filter(|f| f.cross35_halftime_missed).count(),
+        cross35_px4_low_mae_s: abs_median(&cross, |f| f.cross35_px4_low_err_s),
+        cross35_px4_low_missed: cross.iter().filter(|f| f.cross35_px4_low_missed).count(),
+        cross35_ardupilot_fs_mae_s: abs_median(&cross, |f| f.cross35_ardupilot_fs_err_s),
+        cross35_ardupilot_fs_missed: cross
+            .iter()
+            .filter(|f| f.cross35_ardupilot_fs_missed)
+            .count(),
         rest_under_load_ours_mae_v: m(|f| f.rest_under_load_ours_v),
         rest_under_load_px4_mae_v: m(|f| f.rest_under_load_px4_v),
         rest_under_load_ardupilot_mae_v: m(|f| f.rest_under_load_ardupilot_v),
@@ -533,6 +546,20 @@ pub fn table(r: &BatteryEvalReport) -> String {
         "measured first crossing (I > 3 A)",
     );
     row(
+        "  baseline PX4 low warning, SoC < 15 % (s)",
+        "",
+        a.cross35_px4_low_mae_s,
+        b.cross35_px4_low_mae_s,
+        "measured first crossing (I > 3 A)",
+    );
+    row(
+        "  baseline ArduPilot failsafe, 10 s under 21.0 V (s)",
+        "",
+        a.cross35_ardupilot_fs_mae_s,
+        b.cross35_ardupilot_fs_mae_s,
+        "measured first crossing (I > 3 A)",
+    );
+    row(
         "rest V read at the last in-flight sample, ours (V)",
         "",
         a.rest_under_load_ours_mae_v,
@@ -585,8 +612,9 @@ pub fn table(r: &BatteryEvalReport) -> String {
     for (name, x) in [("training", a), ("test", b)] {
         let _ = writeln!(
             s,
-            "3.5 V/cell crossings, {name}: {} flights cross; from half time {} cross after it, {} not forecast at all; pre-flight {} not forecast at all",
-            x.n_cross, x.n_cross_after_half, x.cross35_halftime_missed, x.cross35_preflight_missed
+            "3.5 V/cell crossings, {name}: {} flights cross; from half time {} cross after it, {} not forecast at all; pre-flight {} not forecast at all; PX4's low warning never raised on {}, ArduPilot's failsafe never on {}",
+            x.n_cross, x.n_cross_after_half, x.cross35_halftime_missed, x.cross35_preflight_missed,
+            x.cross35_px4_low_missed, x.cross35_ardupilot_fs_missed
         );
     }
     s

@@ -5,7 +5,7 @@
 use crate::battery::forecast::{lowest_dip, steps, SAG_IN_FLIGHT, SAG_PREFLIGHT};
 use crate::battery::{forecast, CircuitParams, Estimator, OcvCurve};
 
-use super::autopilots::{ArduBattery, Px4Battery};
+use super::autopilots::{ArduBattery, Px4Battery, PX4_LOW_SOC};
 use super::plan::PlanPower;
 use super::prep::{Prepared, DT};
 
@@ -97,6 +97,13 @@ pub struct FlightFigures {
     /// The forecast predicted no crossing on a flight that crossed.
     pub cross35_preflight_missed: bool,
     pub cross35_halftime_missed: bool,
+    /// The autopilots' answer to the same crossing, when − measured (s): PX4's low warning
+    /// (SoC under `BAT_LOW_THR` 15 %), ArduPilot's raw-voltage failsafe (under 3.5 V a cell
+    /// for `BATT_LOW_TIMER` 10 s); missed: not raised by the end of the flight.
+    pub cross35_px4_low_err_s: f64,
+    pub cross35_ardupilot_fs_err_s: f64,
+    pub cross35_px4_low_missed: bool,
+    pub cross35_ardupilot_fs_missed: bool,
     /// Resting voltage read at the last in-flight sample − the end rest voltage, V: ours
     /// (estimator energy → OCV), PX4 (its load-compensated, low-passed voltage, R from its
     /// online RLS: [`super::autopilots::Px4Battery`]), ArduPilot (`voltage_resting_estimate`,
@@ -217,6 +224,8 @@ pub fn score_flight(
         &mut o.cross35_measured_s,
         &mut o.cross35_preflight_err_s,
         &mut o.cross35_halftime_err_s,
+        &mut o.cross35_px4_low_err_s,
+        &mut o.cross35_ardupilot_fs_err_s,
         &mut o.rest_under_load_ours_v,
         &mut o.rest_under_load_px4_v,
         &mut o.rest_under_load_ardupilot_v,
@@ -361,6 +370,38 @@ pub fn score_flight(
         tr.mid = Some((sm, j));
     }
 
+    // The autopilots as they run: their monitors see every row from the recording's start
+    // (the pack at rest on the ground), so PX4 settles on the resting voltage. In flight,
+    // PX4's low warning (SoC under BAT_LOW_THR) and ArduPilot's raw-voltage failsafe (under
+    // 3.5 V a cell for BATT_LOW_TIMER) against the first measured 3.5 V/cell crossing.
+    let (mut px4, mut ap) = (
+        Px4Battery::new(NC as u32, RATED_AH * 1e3),
+        ArduBattery::new(RATED_AH * 1e3),
+    );
+    let (mut px4_low_s, mut ap_fs_s) = (None, None);
+    for k in 0..=i_off {
+        let dt = if k == 0 { 0.0 } else { t[k] - t[k - 1] };
+        px4.update(dt, v[k], i[k]);
+        ap.update(dt, v[k], i[k]);
+        if k >= i_on {
+            if px4_low_s.is_none() && px4.soc() < PX4_LOW_SOC {
+                px4_low_s = Some(t[k]);
+            }
+            ap_fs_s = ap.low_failsafe(t[k], v[k], THR_V);
+        }
+    }
+    if o.cross35_measured_s.is_finite() {
+        let c = o.cross35_measured_s;
+        match px4_low_s {
+            Some(w) => o.cross35_px4_low_err_s = w - c,
+            None => o.cross35_px4_low_missed = true,
+        }
+        match ap_fs_s {
+            Some(w) => o.cross35_ardupilot_fs_err_s = w - c,
+            None => o.cross35_ardupilot_fs_missed = true,
+        }
+    }
+
     // resting voltage read at the last in-flight sample vs the relaxed end rest voltage
     if p.v_end_rest.is_finite() {
         let mut s = new_est();
@@ -368,17 +409,6 @@ pub fn score_flight(
             s.update(t[k] - t[k - 1], i[k], v[k]);
         }
         o.rest_under_load_ours_v = NC * curve.v_cell_at_energy(s.energy_wh()) - p.v_end_rest;
-        // The autopilots as they run: their monitors see every row from the recording's
-        // start (the pack at rest on the ground), so PX4 settles on the resting voltage.
-        let (mut px4, mut ap) = (
-            Px4Battery::new(NC as u32, RATED_AH * 1e3),
-            ArduBattery::new(RATED_AH * 1e3),
-        );
-        for k in 0..=i_off {
-            let dt = if k == 0 { 0.0 } else { t[k] - t[k - 1] };
-            px4.update(dt, v[k], i[k]);
-            ap.update(dt, v[k], i[k]);
-        }
         o.rest_under_load_px4_v = px4.compensated_v() - p.v_end_rest;
         o.rest_under_load_ardupilot_v = ap.resting_v(v[i_off], i[i_off]) - p.v_end_rest;
         // Energy left at the last in-flight sample against our curve at the end rest
