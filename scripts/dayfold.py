@@ -34,6 +34,13 @@ identity taken out or made heading-invariant (round 11's screen; ~25 min, one th
 
     scripts/dayfold.py inputs /tmp/home.csv [--json /tmp/inputs.json]
 
+`routes` asks whether a physics input makes the trees extrapolate to a route no training
+flight flies (screen P): LightGBM #0 plain, with the physics models' estimates as inputs, and
+on the residual over a linear stack of them, by flight and with each training route but R1
+held out in turn (~10 min, one thread):
+
+    scripts/dayfold.py routes /tmp/home.csv [--json /tmp/routes.json]
+
 Training flights only: the script refuses a test flight. Needs numpy, pandas and lightgbm
 (`lgbm_cv.py`'s environment).
 """
@@ -180,6 +187,60 @@ def run_inputs(a):
             fh.write("\n")
 
 
+PHYSICS_KINDS = ("plain", "physics inputs", "physics residual")
+
+
+def run_routes(a):
+    """Screen P (report only): does a physics input make the trees extrapolate to a route none
+    of their training flights flies? LightGBM #0 plain, with the seven physics estimates as
+    inputs, and on the residual over a linear stack of them (least squares on the fit part's
+    in-flight windows), on the by-flight folds and with each training route but R1 held out
+    in turn. The rule, written before it ran, is in docs/src/accuracy.md ("A held-out day")."""
+    df, feats = L.load(a.csv, LAG, physics=True)
+    pool = df[df.fold >= 0].copy()
+    if set(pool.flight) & TEST_FLIGHTS:
+        sys.exit("a test flight in the training pool: export again")
+    phys = [c for c in feats if c.startswith("phys_")]
+    base = [c for c in feats if not c.startswith("phys_")]
+    design = lambda d: np.column_stack([d[phys].to_numpy(float), np.ones(len(d))])  # noqa: E731
+
+    def predict(kind, fit, held):
+        if kind == "plain":
+            return fit_predict(fit, held, base)
+        if kind == "physics inputs":
+            return fit_predict(fit, held, base + phys)
+        fl = (fit.measured_w >= L.IN_FLIGHT_W).to_numpy()
+        coef = np.linalg.lstsq(design(fit)[fl], fit.measured_w.to_numpy()[fl], rcond=None)[0]
+        rest = fit.assign(measured_w=fit.measured_w - design(fit) @ coef)
+        return design(held) @ coef + fit_predict(rest, held, base)
+
+    routes = sorted(r for r in pool.route.unique() if r != "R1")
+    splits = {"by flight": [(pool.fold != k, pool.fold == k) for k in range(GROUPS)],
+              "route held out": [(pool.route != r, pool.route == r) for r in routes]}
+    print(f"{pool.flight.nunique()} training flights; held out in turn: " + ", ".join(
+        f"{r} ({pool.flight[pool.route == r].nunique()} flights)" for r in routes), flush=True)
+    out = {"command": "scripts/dayfold.py routes windows.csv", "routes_held_out": routes, "kinds": {}}
+    for kind in PHYSICS_KINDS:
+        res = {}
+        for name, folds in splits.items():
+            per = [L.scores(pool[h], predict(kind, pool[f], pool[h])) for f, h in folds]
+            if name == "by flight":
+                res[name] = {key: float(np.mean([r[key] for r in per])) for key in KEYS}
+            else:
+                res[name] = {key: pooled(per, key) for key in KEYS}
+                res[name]["routes"] = {r: {key: s[key] for key in KEYS} for r, s in zip(routes, per)}
+        out["kinds"][kind] = res
+        print(f"| {kind} | " + " | ".join(
+            f"{res[n]['mae_w']:.2f} W / {res[n]['mape_in_flight_pct']:.3f} % / {res[n]['energy_error_pct']:.2f} %"
+            for n in splits) + " | " + ", ".join(
+            f"{r} {v['mape_in_flight_pct']:.2f} %" for r, v in res["route held out"]["routes"].items()) + " |",
+            flush=True)
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=1)
+            fh.write("\n")
+
+
 def run_blend(a):
     rows = []
     for path in sorted(glob.glob(os.path.join(a.out, "replay", "*.jsonl"))):
@@ -216,16 +277,16 @@ def run_blend(a):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("step", choices=["cv", "blend", "inputs"])
-    ap.add_argument("csv", nargs="?", help="cv, inputs: the home export (train --export-csv)")
+    ap.add_argument("step", choices=["cv", "blend", "inputs", "routes"])
+    ap.add_argument("csv", nargs="?", help="cv, inputs, routes: the home export (train --export-csv)")
     ap.add_argument("--out", default="/tmp/dayfold", help="working folder (default /tmp/dayfold)")
-    ap.add_argument("--json", help="inputs: write the figures (no data rows) here")
+    ap.add_argument("--json", help="inputs, routes: write the figures (no data rows) here")
     a = ap.parse_args()
     if a.step == "blend" and a.csv:
         a.out = a.csv  # `blend DIR`
-    if a.step in ("cv", "inputs") and not a.csv:
+    if a.step in ("cv", "inputs", "routes") and not a.csv:
         ap.error(f"{a.step} needs the export CSV")
-    {"cv": run_cv, "blend": run_blend, "inputs": run_inputs}[a.step](a)
+    {"cv": run_cv, "blend": run_blend, "inputs": run_inputs, "routes": run_routes}[a.step](a)
 
 
 if __name__ == "__main__":
