@@ -37,7 +37,7 @@ identity taken out or made heading-invariant (round 11's screen; ~25 min, one th
 `routes` asks whether a physics input makes the trees extrapolate to a route no training
 flight flies (screen P): LightGBM #0 plain, with the physics models' estimates as inputs, and
 on the residual over a linear stack of them, by flight and with each training route but R1
-held out in turn (~10 min, one thread):
+held out in turn (~15 min, one thread):
 
     scripts/dayfold.py routes /tmp/home.csv [--json /tmp/routes.json]
 
