@@ -137,7 +137,12 @@ impl Px4Battery {
         if connected && !settled {
             self.reset(v, i);
         }
-        let used = i * 1e3 * dt.max(0.0) / 3600.0;
+        // −1 A is PX4's "no current measurement": nothing counted.
+        let used = if i == -1.0 {
+            0.0
+        } else {
+            i * 1e3 * dt.max(0.0) / 3600.0
+        };
         self.discharged_mah += used;
         // The voltage-based state of charge: the cell voltage compensated for the load.
         let mut cell = v / self.n;
@@ -279,10 +284,11 @@ impl ArduBattery {
         self.resistance
     }
 
-    /// Remaining charge as ArduPilot reports it: (capacity − mAh since boot) / capacity.
+    /// Remaining charge as ArduPilot reports it: (capacity − mAh since boot) / capacity,
+    /// within 0-1 (a charging current never reads over full).
     pub fn remaining(&self) -> f64 {
         if self.capacity_mah > 0.0 {
-            ((self.capacity_mah - self.consumed_mah) / self.capacity_mah).max(0.0)
+            ((self.capacity_mah - self.consumed_mah) / self.capacity_mah).clamp(0.0, 1.0)
         } else {
             f64::NAN
         }
@@ -301,6 +307,36 @@ mod tests {
             30.0
         };
         (ocv - r * i, i)
+    }
+
+    proptest::proptest! {
+        /// Whatever a monitor reads (a pack at 0 V, currents negative or huge, repeated or
+        /// long gaps, NaN), both report a state of charge in 0-1, a finite resistance of
+        /// zero or more, and a resting voltage never under the reading.
+        #[test]
+        fn the_autopilots_stay_in_range_on_any_readings(
+            rows in proptest::collection::vec(
+                (0.0f64..3.0, proptest::prop_oneof![0.0f64..30.0, proptest::strategy::Just(f64::NAN)], -5.0f64..200.0),
+                1..400,
+            ),
+            cells in 0u32..14,
+        ) {
+            let mut px4 = Px4Battery::new(cells, 5000.0);
+            let mut ap = ArduBattery::new(5000.0);
+            for (k, (dt, v, i)) in rows.iter().copied().enumerate() {
+                px4.update(dt, v, i);
+                ap.update(dt, v, i);
+                proptest::prop_assert!((0.0..=1.0).contains(&px4.soc()), "{}", px4.soc());
+                proptest::prop_assert!(px4.r_cell().is_finite() && px4.r_cell() >= 0.0);
+                proptest::prop_assert!(ap.resistance().is_finite() && ap.resistance() >= 0.0);
+                proptest::prop_assert!((0.0..=1.0).contains(&ap.remaining()));
+                if v.is_finite() {
+                    proptest::prop_assert!(ap.resting_v(v, i.max(0.0)) >= v);
+                }
+                let fired = ap.low_failsafe(k as f64 * 0.1, v, 10.5);
+                proptest::prop_assert!(fired.is_none_or(|t| t <= k as f64 * 0.1));
+            }
+        }
     }
 
     #[test]
