@@ -384,6 +384,10 @@ mod tests {
     fn ardupilot_counts_from_full_and_learns_a_positive_resistance() {
         let mut b = ArduBattery::new(5700.0);
         assert_eq!(b.remaining(), 1.0, "full at boot, whatever the voltage");
+        // A charging current (the proptest's first find) never reads over full.
+        let mut charging = ArduBattery::new(5700.0);
+        charging.update(1.8, 0.0, -4.05);
+        assert_eq!(charging.remaining(), 1.0);
         b.update(0.1, 23.4, 0.5);
         for k in 0..600 {
             let (v, i) = pack(k, 23.4, 0.024);
