@@ -202,17 +202,18 @@ def run_routes(a):
         sys.exit("a test flight in the training pool: export again")
     phys = [c for c in feats if c.startswith("phys_")]
     base = [c for c in feats if not c.startswith("phys_")]
-    design = lambda d: np.column_stack([d[phys].to_numpy(float), np.ones(len(d))])  # noqa: E731
+    def design(d):
+        return np.column_stack([d[phys].to_numpy(float), np.ones(len(d))])
 
     def predict(kind, fit, held):
         if kind == "plain":
             return fit_predict(fit, held, base)
         if kind == "physics inputs":
             return fit_predict(fit, held, base + phys)
-        fl = (fit.measured_w >= L.IN_FLIGHT_W).to_numpy()
-        coef = np.linalg.lstsq(design(fit)[fl], fit.measured_w.to_numpy()[fl], rcond=None)[0]
-        rest = fit.assign(measured_w=fit.measured_w - design(fit) @ coef)
-        return design(held) @ coef + fit_predict(rest, held, base)
+        x, y = design(fit), fit.measured_w.to_numpy()
+        fl = y >= L.IN_FLIGHT_W
+        coef = np.linalg.lstsq(x[fl], y[fl], rcond=None)[0]
+        return design(held) @ coef + fit_predict(fit.assign(measured_w=y - x @ coef), held, base)
 
     routes = sorted(r for r in pool.route.unique() if r != "R1")
     splits = {"by flight": [(pool.fold != k, pool.fold == k) for k in range(GROUPS)],

@@ -100,15 +100,11 @@ impl Px4Battery {
         let xpx = x[0] * px[0] + x[1] * px[1];
         let err = v - (x[0] * self.rls[0] + x[1] * self.rls[1]);
         let gamma = [px[0] / (LAMBDA + xpx), px[1] / (LAMBDA + xpx)];
-        // xᵀP (P symmetric: the same as Px).
-        let xp = [
-            x[0] * self.p[0][0] + x[1] * self.p[1][0],
-            x[0] * self.p[0][1] + x[1] * self.p[1][1],
-        ];
+        // P ← (P − γ·xᵀP) / λ, and xᵀP is (Px)ᵀ: P stays symmetric.
         let mut p = [[0.0; 2]; 2];
         for (r, row) in p.iter_mut().enumerate() {
             for (c, cell) in row.iter_mut().enumerate() {
-                *cell = (self.p[r][c] - gamma[r] * xp[c]) / LAMBDA;
+                *cell = (self.p[r][c] - gamma[r] * px[c]) / LAMBDA;
             }
         }
         let p_norm = norm(&p);

@@ -128,15 +128,20 @@ pub fn interp_sorted(t: &[f64], y: &[f64], at: &[f64]) -> Vec<f64> {
     out
 }
 
+/// Measured ∫V·I dt over the rows before `end` (trapezoids), Wh.
+pub fn measured_wh(t: &[f64], v: &[f64], i: &[f64], end: usize) -> f64 {
+    (1..end.min(t.len()))
+        .map(|k| (t[k] - t[k - 1]) * 0.5 * (v[k] * i[k] + v[k - 1] * i[k - 1]))
+        .sum::<f64>()
+        / 3600.0
+}
+
 /// One flight's facts (no grid, no chain yet).
 pub fn prepare(f: &Flight, test: bool) -> Prepared {
     let t: Vec<f64> = f.rows.iter().map(|r| r.time_s).collect();
     let v: Vec<f64> = f.rows.iter().map(|r| r.voltage_v).collect();
     let i: Vec<f64> = f.rows.iter().map(|r| r.current_a).collect();
-    let e_wh = (1..t.len())
-        .map(|k| (t[k] - t[k - 1]) * 0.5 * (v[k] * i[k] + v[k - 1] * i[k - 1]))
-        .sum::<f64>()
-        / 3600.0;
+    let e_wh = measured_wh(&t, &v, &i, t.len());
     let first = i.iter().position(|&a| a > 1.0);
     let last = i.iter().rposition(|&a| a > 1.0);
     let mut p = Prepared {

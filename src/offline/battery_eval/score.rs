@@ -7,7 +7,7 @@ use crate::battery::{forecast, CircuitParams, Estimator, OcvCurve};
 
 use super::autopilots::{ArduBattery, Px4Battery, PX4_LOW_SOC};
 use super::plan::PlanPower;
-use super::prep::{Prepared, DT};
+use super::prep::{measured_wh, Prepared, DT};
 
 /// Cells in series (TB48D: 6S).
 pub const NC: f64 = 6.0;
@@ -415,9 +415,7 @@ pub fn score_flight(
         // voltage (model-based, as the start rows): ours, PX4's SoC and ArduPilot's
         // remaining charge × the rated 129.96 Wh, and "full at take-off" − the energy used.
         let truth = curve.energy(p.v_end_rest / NC);
-        let used_wh: f64 = (1..=i_off)
-            .map(|k| v[k] * i[k] * (t[k] - t[k - 1]) / 3600.0)
-            .sum();
+        let used_wh = measured_wh(t, v, i, i_off + 1);
         o.landing_energy_ours_err_wh = s.energy_wh() - truth;
         o.landing_energy_px4_err_wh = px4.soc() * RATED_WH - truth;
         o.landing_energy_ardupilot_err_wh = ap.remaining() * RATED_WH - truth;
