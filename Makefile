@@ -42,15 +42,16 @@ test: setup
 # The code gates CI runs before the tests: rustfmt, clippy with warnings as errors, rustdoc
 # with warnings as errors (broken intra-doc links), over the whole workspace (the torch crate
 # too, so libtorch first); the links of the book's Markdown and README.md (no build, under a
-# second; `make docs` checks the built book); then no import cycle between src/'s top-level
-# modules (the shared tool, where ../shared is beside the checkout, as in CI).
+# second; `make docs` checks the built book); then no import cycle between the top-level
+# modules of the product (src/) or the lab (lab/src/) (scripts/module-cycles.py; the crate
+# graph itself is acyclic by cargo's rule: lab and torch use the product, never back).
 lint: setup
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps --locked
 	python3 scripts/docs-linkcheck.py --sources
-	@if [ -f ../shared/tools/module-cycles.py ]; then python3 ../shared/tools/module-cycles.py src | tail -1; \
-	  python3 ../shared/tools/module-cycles.py src >/dev/null; else echo "module-cycles.py not beside the checkout: import cycles not checked"; fi
+	@for d in src lab/src; do printf '%s: ' $$d; python3 scripts/module-cycles.py $$d | tail -1; \
+	  python3 scripts/module-cycles.py $$d >/dev/null || exit 1; done
 
 bench: setup
 	$(CARGO) bench --workspace --locked
@@ -73,8 +74,8 @@ docs:
 	.tools/bin/mdbook build docs
 	@python3 scripts/docs-linkcheck.py docs/book
 
-# Rewrite docs/src/generated/*.md from `dronewatt battery-eval --json -` and `plan-eval --json -`
-# (needs the data set; builds dronewatt first). Commit the result.
+# Rewrite docs/src/generated/*.md from `dronewatt-lab battery-eval --json -` and `plan-eval --json -`
+# (needs the data set; builds the lab's binary first). Commit the result.
 docs-tables:
-	$(DW_BUILD)
+	$(CARGO) build --workspace --locked --bin dronewatt-lab
 	python3 scripts/docs-tables.py

@@ -41,8 +41,8 @@
 //! | [`sink`] | terminal, JSON lines, MAVLink back to the ground station, web dashboard, MQTT |
 //! | [`pipeline`] | running it: one vehicle's chain as named stages, the shared inference stage, the fleet's demultiplexer, the sinks, shutdown |
 //! | [`sim`] | the simulator: route guidance, a vehicle profile flying it, sent as ArduPilot or PX4 telemetry (`.tlog`, `.bin`, `.ulg` or UDP); outside the flow, it makes what sources read |
-//! | [`offline`] | one file a command: eval, train, calibrate, learn, sensitivity, plan, plan-eval (with the route rebuilding and the forecast's fit) |
-//! | [`cli`] | the command line both binaries' `main` call |
+//! | [`offline`] | the operator's offline commands, `plan` and `learn`, and what they share with the lab: the offline chain, the data set's windows, metrics, plots, the physics models' least-squares fit |
+//! | [`cli`] | the operator's command line (`dronewatt`); the lab's binaries (`lab/`, `dronewatt-lab`, `dronewatt-torch`) run it beside their own |
 //! | [`config`] | the TOML configuration; its serde types are the reference |
 //! | [`files`] | the floor for files a config names: one path resolver (relative to the file that names it), one reader of private secrets |
 //! | [`validate`] | the floor: range checks with one message shape (`KEY = VALUE: must be in (0, 100] Hz`) for the config's sections, the vehicle profile and the simulator's options |

@@ -16,8 +16,8 @@
 //! lowest voltage is therefore the forecast path's lowest point with its sag below the
 //! open-circuit voltage deepened by a fraction ([`dip`]): [`SAG_PREFLIGHT`] from a state at
 //! rest before take-off, [`SAG_IN_FLIGHT`] from a state in flight. Both were chosen by 5-fold
-//! by-flight cross-validation on the M100 training flights (`scripts/battery/lab_minv.py`,
-//! `scripts/battery/NOTES-min-voltage.md`). Crossing times are those of the smooth path: the
+//! by-flight cross-validation on the M100 training flights (`lab/scripts/battery/lab_minv.py`,
+//! `lab/scripts/battery/NOTES-min-voltage.md`). Crossing times are those of the smooth path: the
 //! autopilots' low-voltage failsafes act on a filtered voltage held under the threshold for
 //! seconds, not on a transient.
 

@@ -32,7 +32,7 @@
 //! part that stays and the cold part that fades as the pack warms on ([`split`]). The
 //! forecast solves P = V·I (a quadratic in I) each step. The lowest point of a smooth power forecast is deepened by the
 //! transients it lacks ([`forecast::dip`]; chosen by by-flight CV on the training flights,
-//! `scripts/battery/NOTES-min-voltage.md`).
+//! `lab/scripts/battery/NOTES-min-voltage.md`).
 
 pub mod chemistry;
 pub mod circuit;

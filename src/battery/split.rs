@@ -20,8 +20,8 @@
 //! it forecasts. With no loaded sample yet (before take-off) the fit is the nominal circuit,
 //! and the forecast is exactly the circuit's.
 //!
-//! Chosen by 5-fold by-flight CV on the M100 training flights (`scripts/battery/lab_split.py`,
-//! `scripts/battery/NOTES-min-voltage.md` round 4): the lowest loaded voltage from half time
+//! Chosen by 5-fold by-flight CV on the M100 training flights (`lab/scripts/battery/lab_split.py`,
+//! `lab/scripts/battery/NOTES-min-voltage.md` round 4): the lowest loaded voltage from half time
 //! with the measured power, median |error| 0.111 → 0.087 V (first flight of a pack 0.199 →
 //! 0.109 V; nested, [`PRIOR_S`] picked on the other folds: 0.087 V, 40 s in 3 of 5 folds, 20
 //! and 80 s in the others).

@@ -1,6 +1,7 @@
-//! The `dronewatt` command line: parse, load config, run one command. Both binaries' `main`
-//! is [`main`]: `dronewatt` (`src/main.rs`) and `dronewatt-torch` (`torch/src/main.rs`, which
-//! registers the libtorch parts first).
+//! The `dronewatt` command line: the operator's commands (parse, load config, run one
+//! command). `dronewatt`'s `main` is [`main`]; the lab's binaries (`dronewatt-lab`, and
+//! `dronewatt-torch`, which registers the libtorch parts first) run their own commands and
+//! these ([`Command`], [`run_command`]) through the same [`run_main`].
 //!
 //! `dronewatt` does not load libtorch (it starts in milliseconds; the LSTM runs on the
 //! hand-written kernel). A command that needs libtorch (training, a TorchScript model) fails
@@ -8,7 +9,7 @@
 //! (`handoff`), which runs this same command line with the libtorch parts registered.
 
 mod describe;
-mod simulate;
+pub mod simulate;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -35,7 +36,7 @@ struct Cli {
 
 /// What every command that runs the pipeline shares.
 #[derive(Debug, Clone, clap::Args)]
-struct RunArgs {
+pub struct RunArgs {
     #[command(flatten)]
     config: ConfigArg,
     /// Write JSON lines to PATH, or to standard output with '-'.
@@ -68,8 +69,9 @@ struct RunArgs {
     data_dir: Option<PathBuf>,
 }
 
+/// The operator's commands.
 #[derive(Debug, Subcommand)]
-enum Command {
+pub enum Command {
     /// Replay a logged flight: a .tlog, an ArduPilot DataFlash .bin, a PX4 .ulg, a raw MAVLink
     /// stream, or the M100 flights.csv[.gz].
     Replay {
@@ -97,26 +99,12 @@ enum Command {
         #[command(flatten)]
         run: RunArgs,
     },
-    /// Write one data-set flight as a .tlog.
-    Convert(crate::source::dataset::ConvertArgs),
     /// Fly the built-in simulator to a UDP address or a .tlog.
     Simulate(SimulateArgs),
-    /// Score every model on data-set flights (the paper's tables, in watts).
-    Eval(crate::offline::eval::EvalArgs),
     /// Learn a vehicle from its .tlog logs: the physics models fitted, scored on held-out logs; writes a profile and a model card.
     Learn(crate::offline::learn::LearnArgs),
-    /// Fit the physics models' free parameters to training flights.
-    Calibrate(crate::offline::calibrate::CalibrateArgs),
-    /// Train the LSTM (by-flight cross-validation, grid search, early stopping).
-    Train(crate::offline::train::TrainArgs),
-    /// Sensitivity of the LSTM to altitude, payload and speed (the paper's Table 3).
-    Sensitivity(crate::offline::sensitivity::SensitivityArgs),
     /// Forecast a mission plan's energy before flight: per leg and in all, P50/P90, margin over reserve.
     Plan(crate::offline::plan::PlanArgs),
-    /// Judge the mission forecast on the data set's route flights (pre-flight and live at 50 %, vs the autopilots' rule).
-    PlanEval(crate::offline::plan_eval::PlanEvalArgs),
-    /// Score the battery pack model (rest-voltage energy, loaded-voltage model, forecasts) on the data set, beside the autopilots' rules.
-    BatteryEval(crate::offline::battery_eval::BatteryEvalArgs),
     /// List the vehicles in the vehicle store: flights, energy per minute, the pack's capacity trend.
     Vehicles {
         /// The store's folder (as `monitor --data-dir`).
@@ -134,6 +122,12 @@ enum Command {
 }
 
 pub fn main() -> ExitCode {
+    run_main(|cli: Cli| run_command(cli.command))
+}
+
+/// Set up logging, parse the command line as `C`, run it, and print an error the way every
+/// dronewatt binary does; a command that needs libtorch is handed to `dronewatt-torch`.
+pub fn run_main<C: Parser>(run: impl FnOnce(C) -> Result<()>) -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -142,7 +136,7 @@ pub fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    match real_main(Cli::parse()) {
+    match run(C::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             if e.chain().any(|c| c.is::<NeedsLibtorch>()) {
@@ -181,8 +175,9 @@ fn handoff() {
     tracing::warn!("{}: cannot run: {err}", torch.display());
 }
 
-fn real_main(cli: Cli) -> Result<()> {
-    match cli.command {
+/// Run one of the operator's commands.
+pub fn run_command(command: Command) -> Result<()> {
+    match command {
         Command::Replay {
             file,
             speed,
@@ -241,16 +236,9 @@ fn real_main(cli: Cli) -> Result<()> {
             };
             run_pipeline(source, run)
         }
-        Command::Convert(a) => crate::source::dataset::run(a),
         Command::Simulate(a) => simulate::simulate(a),
-        Command::Eval(a) => crate::offline::eval::run(a),
-        Command::Calibrate(a) => crate::offline::calibrate::run(a),
         Command::Learn(a) => crate::offline::learn::run(a),
-        Command::Train(a) => crate::offline::train::run(a),
-        Command::Sensitivity(a) => crate::offline::sensitivity::run(a),
         Command::Plan(a) => crate::offline::plan::run_plan(a),
-        Command::PlanEval(a) => crate::offline::plan_eval::run_plan_eval(a),
-        Command::BatteryEval(a) => crate::offline::battery_eval::run(a),
         Command::Vehicles { data_dir, json } => {
             let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref())
                 .context("the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR")?;

@@ -11,7 +11,7 @@ use crate::source::Speed;
 
 /// Arguments of `dronewatt simulate`: a triangle mission (the default route) for a vehicle.
 #[derive(Debug, Clone, clap::Args)]
-pub(crate) struct SimulateArgs {
+pub struct SimulateArgs {
     /// Write the flight to this file: a `.tlog`, or with `.bin` the ArduPilot vehicle's own
     /// DataFlash log (one vehicle, `--autopilot ardupilot`), with `.ulg` the PX4 vehicle's
     /// own ULog (one vehicle, `--autopilot px4`); a plane or a quadplane: `.tlog` only.

@@ -21,7 +21,7 @@
 //!
 //! Pure apart from reading plan files and [`live`]'s frames: this module imports the models and the telemetry's
 //! sample types, never energy, alerts, sinks or the pipeline. The `plan` and `plan-eval`
-//! commands live in [`crate::offline::plan`] and [`crate::offline::plan_eval`].
+//! commands live in [`crate::offline::plan`] and the lab's `plan-eval` (`lab/src/plan_eval.rs`).
 
 pub mod forecast;
 pub mod live;

@@ -170,7 +170,7 @@ pub struct ModelCard {
     pub validation_metrics: Option<Metrics>,
 }
 
-/// `[trees]`: a LightGBM model (its text file, `scripts/lgbm_cv.py fit`) whose estimate
+/// `[trees]`: a LightGBM model (its text file, `lab/scripts/lgbm_cv.py fit`) whose estimate
 /// is blended with the network's: estimate = w × network + (1 − w) × trees, the band moved
 /// by the same amount. The trees read the window's raw inputs (`feature_set`'s, as the
 /// network sees them before standardising) at each of `lags`, named `<input>` for lag 0

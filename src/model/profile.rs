@@ -120,7 +120,7 @@ pub struct ForecastDefault {
     pub why: String,
     /// Multipliers on models' power in the pre-flight forecast (`dronewatt plan`), by model
     /// name (a VTOL's rotor model and `fixed_wing`), fitted on fit plans
-    /// (`scripts/plane-mission-eval.py --set fit` for the simulated planes); absent: 1.
+    /// (`lab/scripts/plane-mission-eval.py --set fit` for the simulated planes); absent: 1.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub scale: std::collections::BTreeMap<String, f64>,
     /// P90 over P50 of the pre-flight forecast, fitted beside `scale`; absent: 1.15.

@@ -330,6 +330,19 @@ impl FlightSeries {
     }
 }
 
+/// The models `eval` and `plan` score: the configured set, then the calibrated physics models.
+pub fn eval_models(
+    cfg: &Config,
+    calibrated: Option<&crate::model::profile::VehicleProfile>,
+) -> anyhow::Result<Vec<Box<dyn crate::model::PowerModel>>> {
+    let mut models =
+        crate::model::build_models(&cfg.models, cfg.vehicle.as_deref(), &cfg.telemetry)?;
+    if let Some(cal) = calibrated {
+        models.extend(crate::model::physics::models(cal));
+    }
+    Ok(models)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

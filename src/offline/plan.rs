@@ -67,10 +67,7 @@ pub struct PlanArgs {
     pub plot: Option<PathBuf>,
 }
 
-pub(crate) fn models_for(
-    cfg: &Config,
-    calibrated: &Path,
-) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
+pub fn models_for(cfg: &Config, calibrated: &Path) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
     let cal = if calibrated.exists() {
         Some(VehicleProfile::load(calibrated)?)
     } else {
@@ -80,7 +77,7 @@ pub(crate) fn models_for(
         );
         None
     };
-    crate::offline::eval::eval_models(cfg, cal.as_ref())
+    crate::offline::chain::eval_models(cfg, cal.as_ref())
 }
 
 /// What `plan --json` writes.

@@ -309,7 +309,8 @@ fn a_config_with_several_errors_names_every_one() {
 fn a_missing_data_set_names_the_path_and_the_environment_variable() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nowhere/flights.csv.gz");
-    let out = quiet()
+    let out = crate::harness::lab()
+        .env("RUST_LOG", "warn")
         .env("DRONEWATT_DATA", &missing)
         .args(["eval", "--flight", "276"])
         .out();

@@ -1,4 +1,5 @@
-//! How the tests run the `dronewatt` binary, said once: [`dronewatt`] builds the command,
+//! How the tests run the `dronewatt` binary, said once (the product's tests in `tests/it/`
+//! and the lab's in `lab/tests/it/` share this file): [`dronewatt`] builds the command,
 //! [`RunExt::ok`] runs it and fails the test with its command line and standard error when it
 //! fails, [`Monitor`] is a spawned long-running `dronewatt` (killed if the test panics), and
 //! [`json_lines`] reads what `--json` wrote.
@@ -11,12 +12,46 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
+/// The workspace's root (where `Cargo.lock` is), from either package's tests.
+pub fn root() -> &'static Path {
+    let mut dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    while !dir.join("Cargo.lock").is_file() {
+        dir = dir.parent().expect("a Cargo.lock above the package");
+    }
+    dir
+}
+
+/// A binary of the workspace: beside the test binary's folder (`target/debug/deps/..`), where
+/// `cargo test --workspace` builds every package's binaries before any test runs.
+pub fn bin(name: &str) -> std::path::PathBuf {
+    let exe = std::env::current_exe().expect("the test binary's path");
+    let dir = exe.parent().and_then(Path::parent).expect("target/debug");
+    let path = dir.join(name);
+    assert!(
+        path.is_file(),
+        "{}: not built (`cargo test --workspace` builds it; or `cargo build --workspace`)",
+        path.display()
+    );
+    path
+}
+
+/// The lab's binary (`dronewatt-lab`), as [`dronewatt`] sets it up, run from the workspace's
+/// root as the product's tests run theirs (the lab's commands find the shipped calibration
+/// relative to it).
+pub fn lab() -> Command {
+    let mut c = Command::new(bin("dronewatt-lab"));
+    c.current_dir(root())
+        .env("DRONEWATT_HOME", "off")
+        .env("RUST_LOG", "dronewatt=info,warn");
+    c
+}
+
 /// The binary under test, with no vehicle store (`DRONEWATT_HOME=off`: a test never reads or
 /// writes the store of the user running it; a test of the store names its own, by
 /// `--data-dir` or `DRONEWATT_HOME` again) and its own default log filter (`RUST_LOG`
 /// pinned, so what a test reads on stderr does not depend on the caller's environment).
 pub fn dronewatt() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dronewatt"));
+    let mut c = Command::new(bin("dronewatt"));
     c.env("DRONEWATT_HOME", "off")
         .env("RUST_LOG", "dronewatt=info,warn");
     c
@@ -45,7 +80,7 @@ where
     I: IntoIterator<Item = S>,
     S: AsRef<OsStr>,
 {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = root();
     let out = Command::new(root.join(".venv-py/bin/python"))
         .arg(root.join("tests/peers").join(script))
         .args(args)

@@ -2,7 +2,6 @@
 //! name, CRLF, and what happens to bad rows. Pieces of the real data set are cut into a
 //! temp dir (never committed).
 
-use crate::harness::dronewatt;
 use std::io::{Read, Write};
 use std::path::Path;
 
@@ -169,9 +168,9 @@ fn list_and_convert_a_flight() {
         "{}",
         list[0].duration_s
     );
-    // `dronewatt convert` writes the tlog that flight_tlog builds.
+    // `dronewatt-lab convert` writes the tlog that flight_tlog builds.
     let out = dir.path().join("276.tlog");
-    let status = dronewatt()
+    let status = crate::harness::lab()
         .args([
             "convert",
             p.to_str().unwrap(),
@@ -190,7 +189,7 @@ fn list_and_convert_a_flight() {
     assert_eq!(t0, 1_571_909_520_000_000);
 
     // pymavlink, the independent peer, reads every record: one burst per row.
-    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv-py/bin/python");
+    let py = crate::harness::root().join(".venv-py/bin/python");
     let script = "import sys,json,collections\nfrom pymavlink import mavutil\n\
 m=mavutil.mavlink_connection(sys.argv[1],dialect='ardupilotmega')\nc=collections.Counter()\n\
 while True:\n x=m.recv_match()\n if x is None: break\n c[x.get_type()]+=1\nprint(json.dumps(c))";

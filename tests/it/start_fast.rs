@@ -24,17 +24,17 @@ fn the_executable_needs_no_libtorch() {
     }
 }
 
-/// Without `dronewatt-torch` beside it, `dronewatt train` fails with one clear line
+/// Without `dronewatt-torch` beside it, `dronewatt-lab train` fails with one clear line
 /// naming what to build, and no panic.
 #[test]
 fn training_without_the_torch_binary_says_what_to_build() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let lone = dir.path().join("dronewatt");
-    std::fs::copy(BIN, &lone).expect("copy the binary");
+    let lone = dir.path().join("dronewatt-lab");
+    std::fs::copy(crate::harness::bin("dronewatt-lab"), &lone).expect("copy the binary");
     let out = Command::new(&lone)
         .args(["train", "--epochs", "1"])
         .output()
-        .expect("run dronewatt train");
+        .expect("run dronewatt-lab train");
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -19,7 +19,7 @@ pub mod train;
 /// Register the libtorch parts with `dronewatt`: the trainer and the loader of TorchScript
 /// and CUDA models. Call once, first thing.
 pub fn install() {
-    dronewatt::offline::train::set_trainer(train::run);
+    dronewatt_lab::train::set_trainer(train::run);
     dronewatt::offline::learn::set_fine_tuner(finetune::fine_tune);
     dronewatt::model::lstm::set_external_loader(load);
 }

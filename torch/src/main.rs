@@ -3,5 +3,5 @@
 
 fn main() -> std::process::ExitCode {
     dronewatt_torch::install();
-    dronewatt::cli::main()
+    dronewatt_lab::cli::torch_main()
 }

@@ -12,9 +12,9 @@ use dronewatt::telemetry::{MissionConfig, TelemetryConfig};
 #[test]
 fn smoke_training_loss_falls() {
     let out = tempfile::tempdir().unwrap();
-    // Through `dronewatt` itself, which hands training to `dronewatt-torch` beside it.
+    // Through `dronewatt-lab`, which hands training to `dronewatt-torch` beside it.
     let lean =
-        std::path::Path::new(env!("CARGO_BIN_EXE_dronewatt-torch")).with_file_name("dronewatt");
+        std::path::Path::new(env!("CARGO_BIN_EXE_dronewatt-torch")).with_file_name("dronewatt-lab");
     assert!(
         lean.is_file(),
         "{}: not built (cargo test --workspace builds it)",
@@ -47,7 +47,7 @@ fn smoke_training_loss_falls() {
         "2",
     ]);
     let status = on_data(&mut cmd, out.path());
-    assert!(status.success(), "dronewatt train failed");
+    assert!(status.success(), "dronewatt-lab train failed");
     let curve = std::fs::read_to_string(out.path().join("loss.csv")).unwrap();
     let losses: Vec<f64> = curve
         .lines()
@@ -183,7 +183,7 @@ fn smoke_cross_validation_scores_held_out_folds() {
             "--cv-predictions",
         ],
     );
-    assert!(status.success(), "dronewatt train --cv 2 failed");
+    assert!(status.success(), "dronewatt-lab train --cv 2 failed");
     let csv = std::fs::read_to_string(out.path().join("cv.csv")).unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -288,7 +288,7 @@ fn smoke_cross_validation_scores_held_out_folds() {
     // thread): the model card's one-command retrain and a member-by-member one agree.
     let alone = tempfile::tempdir().unwrap();
     let status = smoke_train(alone.path(), &["--init-seed", "4", "--target-lag", "2"]);
-    assert!(status.success(), "dronewatt train --init-seed 4 failed");
+    assert!(status.success(), "dronewatt-lab train --init-seed 4 failed");
     let windows = &flights[0].windows[..50];
     let mut member = LstmModel::load(&out.path().join("member-4.safetensors"), &cfg).unwrap();
     let mut single = LstmModel::load(alone.path(), &cfg).unwrap();

@@ -21,7 +21,7 @@
 //!   hover): the M100 spends ~4.4 s between its motors passing 150 W and leaving the ground.
 //!
 //! The defaults are the M100's, each measured on its own on the data set's training flights
-//! (`scripts/measure-kinematics.py`: the 130 R1 training flights whose stops match the
+//! (`lab/scripts/measure-kinematics.py`: the 130 R1 training flights whose stops match the
 //! route's three legs; medians): spin-up 4.4 s; climb 2.9 m/s (3.0 kept). The script cuts
 //! legs from stops at a horizontal speed of 1 m/s, which moves the slow ends of every
 //! acceleration into the stops: a trapezoid at `a` shows as a leg of distance/speed +

@@ -136,7 +136,7 @@ pub struct AdaptConfig {
     /// gusts) and the coefficients follow it; at this memory the regression follows the
     /// measured power over about five windows, its prior and bounds holding what those do
     /// not decide. Chosen with `regression_smooth_s` on the simulated validation flights
-    /// (`scripts/measure-planes.sh OUT --set validation`, after `learn`, plane / quadplane:
+    /// (`lab/scripts/measure-planes.sh OUT --set validation`, after `learn`, plane / quadplane:
     /// 3 s 6.9 / 6.9 %, 1.5 s 6.3 / 6.4 %, 1 s 6.1 / 6.1 %, 0.7 s 6.0 / 6.0 %, 0.5 s
     /// 6.0 / 5.9 %, 0.3 s 6.0 / 5.9 %, each with the 0.5 s low-pass; docs/src/vehicle-types.md).
     pub regression_memory_s: f64,

@@ -1,7 +1,7 @@
 //! `dronewatt learn LOG…`: learn a vehicle from the logs its users already have. Each log
 //! goes through the live ingest path (tlog decoding → [`Telemetry`] → windows with the
 //! measured power V·I), the physics models' free parameters are fitted to the training
-//! logs with the existing calibration ([`super::calibrate::fit`]), and the fit is scored on
+//! logs with the existing calibration ([`super::fit::fit`]), and the fit is scored on
 //! whole logs held out from it, through the live chain ([`super::chain`]). It writes a
 //! vehicle profile (`profile.toml`, use it with `monitor --vehicle` or `vehicle = …` in the
 //! config; its models are named `<model>_cal`) and a model card (`model-card.md`: what it
@@ -430,7 +430,7 @@ pub fn run(args: LearnArgs) -> Result<()> {
         })
         .sum();
     let (learned, mut fit_report) = if rotor_windows > 0 {
-        super::calibrate::fit(&train, &base, sums.join(","), args.max_windows)?
+        super::fit::fit(&train, &base, sums.join(","), args.max_windows)?
     } else {
         tracing::info!("no training window flown on rotors: the multirotor models are not fitted");
         (base.clone(), Vec::new())
@@ -446,7 +446,7 @@ pub fn run(args: LearnArgs) -> Result<()> {
     let mut learned = learned;
     if let Some(f) = &wing_fit {
         learned.fixed_wing = Some(f.params);
-        fit_report.push(super::calibrate::FitReport {
+        fit_report.push(super::fit::FitReport {
             model: "fixed_wing",
             rmse_before_w: f.rmse_before_w,
             rmse_after_w: f.rmse_after_w,

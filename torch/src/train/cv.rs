@@ -4,7 +4,7 @@
 //! on an inner validation split of the fold's *training* flights ([`split_by_flight`], the
 //! final run's rule and `--val-frac`), then its held-out flights run, every window, through
 //! the live chain and [`score`] (MAE and RMSE pooled, in-flight MAPE, energy error), as
-//! `scripts/lgbm_cv.py` scores LightGBM on the same folds ([`cv_folds`]).
+//! `lab/scripts/lgbm_cv.py` scores LightGBM on the same folds ([`cv_folds`]).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -18,7 +18,7 @@ use dronewatt::model::lstm::LstmModel;
 use dronewatt::offline::chain::FlightSeries;
 use dronewatt::offline::data::{cv_folds, cv_k, FlightWindows};
 use dronewatt::offline::metrics::conformal_quantile;
-use dronewatt::offline::train::TrainArgs;
+use dronewatt_lab::train::TrainArgs;
 
 use super::{ensemble, model_card, run_alone, score, split_by_flight, Fit, FlightData, Hyper};
 
@@ -287,7 +287,7 @@ fn write_predictions(
 /// The band's widening a cross-validation gives: the mean over its folds of each fold's
 /// signed widening ([`conformal_quantile`] on its held-out windows), floored at 0 as
 /// [`conformal_widening`](dronewatt::offline::metrics::conformal_widening) floors one
-/// split's; NaN when a fold had no banded window. `scripts/merge-cv.py` recomputes it so.
+/// split's; NaN when a fold had no banded window. `lab/scripts/merge-cv.py` recomputes it so.
 pub(super) fn cv_band_widening(fold_q_w: &[f64]) -> f64 {
     let mean = mean_median(fold_q_w).0;
     if mean.is_nan() {

@@ -11,7 +11,7 @@ use anyhow::Context;
 use tch::Device;
 
 use dronewatt::model::card::{ModelCard, WeightsFormat};
-use dronewatt::offline::train::TrainArgs;
+use dronewatt_lab::train::TrainArgs;
 
 use super::{split_tensors, train_split, FlightData, Hyper, RunOutcome, Scaling};
 

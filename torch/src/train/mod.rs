@@ -1,5 +1,5 @@
 //! LSTM training on libtorch: by-flight splits, cross-validation, grid search, early
-//! stopping. The arguments are [`dronewatt::offline::train::TrainArgs`].
+//! stopping. The arguments are [`dronewatt_lab::train::TrainArgs`].
 //!
 //! Every window comes from [`dronewatt::offline::data::load_flights`], the same ingest path as
 //! live telemetry. Splits are by flight, never by row: the test flights
@@ -38,8 +38,8 @@ use dronewatt::offline::data::{
     cv_folds, load_flights, sha256_file, training_pool, FlightWindows, TEST_FLIGHTS,
 };
 use dronewatt::offline::metrics::conformal_widening;
-use dronewatt::offline::train::{TrainArgs, BAND_Q};
 use dronewatt::telemetry::TelemetryConfig;
+use dronewatt_lab::train::{TrainArgs, BAND_Q};
 
 use crate::Net;
 
@@ -93,7 +93,7 @@ pub(crate) struct Scaling {
     pub(crate) power_scale_w: f32,
 }
 
-/// Run `dronewatt train`.
+/// Run `dronewatt-lab train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let data_path = args.data.path();
     let cfg = args.config.load()?;
