@@ -28,6 +28,7 @@ use tokio::time::Instant;
 use crate::config::Config;
 use std::collections::BTreeMap;
 
+use super::mission::{MissionOn, Resolved};
 use super::{ChainTasks, Inference, VehicleChain, CHANNEL_DEPTH, SILENT_TICK};
 use crate::report::status::ChainStatus;
 use crate::report::VehicleId;
@@ -41,6 +42,10 @@ use crate::MavMessage;
 /// The demultiplexer and what it starts chains with.
 pub(super) struct Fleet {
     pub(super) config: Config,
+    /// What the config names, read at start: every chain is built from it.
+    pub(super) resolved: Resolved,
+    /// How each vehicle's chain forecasts its mission (None: no mission to follow).
+    pub(super) mission: Option<MissionOn>,
     pub(super) demux: Demux,
     /// The chain built (and checked) before the run: the first vehicle's.
     pub(super) first: Option<VehicleChain>,
@@ -165,13 +170,20 @@ impl Fleet {
         let (chain, mut status) = match self.first.take() {
             Some(c) => (c, self.status.clone()),
             None => (
-                VehicleChain::another(&self.config)?,
+                VehicleChain::another(&self.config, &self.resolved)?,
                 ChainStatus {
                     health: Default::default(),
                     ..self.status.clone()
                 },
             ),
         };
+        // Each vehicle forecasts its own mission (the first's was built before the run).
+        let mut chain = chain;
+        if chain.mission.is_none() {
+            if let Some(m) = &self.mission {
+                chain.mission = Some(m.setup(&self.config, &self.resolved)?);
+            }
+        }
         status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id.system_id));
         status.network = id.network;
         status.link = status.link.network(id.network);
@@ -270,6 +282,23 @@ impl Demux {
             network: m.network,
             system_id,
         };
+        // A ground station's mission messages to a vehicle (a logged upload or download)
+        // go to that vehicle's chain, for its mission forecast; they keep it alive no longer.
+        if !self.vehicles.contains_key(&id) {
+            if let Some(to) = mission_target(&m.msg).filter(|&t| t != 0) {
+                let to = VehicleId {
+                    network: m.network,
+                    system_id: to,
+                };
+                if self.vehicles.contains_key(&to) {
+                    return Route::Vehicle {
+                        id: to,
+                        new: false,
+                        back: false,
+                    };
+                }
+            }
+        }
         if !self.filter.contains(sys) {
             self.filtered += 1;
             return Route::Ignore;
@@ -347,6 +376,20 @@ impl Demux {
     /// Messages ignored because their system id is outside the filter.
     pub fn filtered(&self) -> u64 {
         self.filtered
+    }
+}
+
+/// The vehicle a mission-protocol message (MISSION_COUNT, MISSION_ITEM(_INT), MISSION_ACK)
+/// is addressed to.
+// MISSION_ITEM is deprecated, and still what older ground stations log.
+#[allow(deprecated)]
+fn mission_target(msg: &MavMessage) -> Option<u8> {
+    match msg {
+        MavMessage::MISSION_COUNT(c) => Some(c.target_system),
+        MavMessage::MISSION_ITEM_INT(i) => Some(i.target_system),
+        MavMessage::MISSION_ITEM(i) => Some(i.target_system),
+        MavMessage::MISSION_ACK(a) => Some(a.target_system),
+        _ => None,
     }
 }
 
@@ -493,6 +536,49 @@ mod tests {
                 new: true,
                 back: false
             }
+        );
+    }
+
+    #[test]
+    fn a_ground_stations_mission_messages_go_to_the_vehicle_they_are_for() {
+        let mut d = Demux::new(
+            &FleetConfig::default(),
+            Some(VehicleFilter::parse("1-2").unwrap()),
+        )
+        .unwrap();
+        let count = |target_system| {
+            MavMessage::MISSION_COUNT(crate::dialect::MISSION_COUNT_DATA {
+                target_system,
+                count: 3,
+                ..Default::default()
+            })
+        };
+        // Before the vehicle is heard there is no chain to give it to.
+        assert_eq!(d.route(&msg(255, 0.0, count(2))), Route::Ignore);
+        let quad = hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
+        assert!(matches!(
+            d.route(&msg(2, 0.1, quad)),
+            Route::Vehicle { new: true, .. }
+        ));
+        // A logged upload to vehicle 2 from the ground station (outside the filter) is
+        // vehicle 2's; one to a vehicle never heard, and a broadcast, are nobody's.
+        assert_eq!(
+            d.route(&msg(255, 0.2, count(2))),
+            Route::Vehicle {
+                id: TWO,
+                new: false,
+                back: false
+            }
+        );
+        assert_eq!(d.route(&msg(255, 0.3, count(1))), Route::Ignore);
+        assert_eq!(d.route(&msg(255, 0.4, count(0))), Route::Ignore);
+        // It keeps the vehicle alive no longer: silent since 0.1 s, it is lost at 10.5 s.
+        d.route(&msg(255, 10.0, count(2)));
+        let mut ev = Vec::new();
+        d.advance(10.5, &mut ev);
+        assert!(
+            matches!(ev.as_slice(), [FleetEvent::Lost { id: TWO, .. }]),
+            "{ev:?}"
         );
     }
 
