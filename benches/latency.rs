@@ -89,7 +89,9 @@ impl Chain {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/dronewatt.toml");
         let cfg = Config::load(&path).unwrap_or_else(|e| panic!("{e}"));
         Chain {
-            chain: VehicleChain::build(&cfg).unwrap_or_else(|e| panic!("{e:#}")),
+            chain: dronewatt::pipeline::Resolved::load(&cfg)
+                .and_then(|r| VehicleChain::build(&cfg, &r))
+                .unwrap_or_else(|e| panic!("{e:#}")),
             enc: Encoder::new(1, 191),
             reports: Vec::new(),
         }

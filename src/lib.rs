@@ -14,7 +14,11 @@
 //!
 //! Live monitoring, replay and evaluation walk this same path: [`pipeline::VehicleChain`]
 //! is one vehicle's stages, run as tasks live ([`pipeline::run`]) or in one loop offline
-//! ([`offline::chain`]), so live and offline cannot drift apart. Each arrow is one typed
+//! ([`offline::chain`]), so live and offline cannot drift apart. Each vehicle's chain also
+//! forecasts that vehicle's mission ([`mission::live::MissionStep`], a step of its telemetry
+//! stage after the demultiplexer). What the configuration names (the vehicle profile, the
+//! calibrated profile) is read once at start ([`pipeline::Resolved`]) and handed to every
+//! chain as values. Each arrow is one typed
 //! value on a bounded tokio channel. Nothing flows backwards; the only fan-out is to the
 //! sinks. Model code ([`model`]) is pure: a window and a vehicle profile in, watts out, no
 //! I/O and no clocks.

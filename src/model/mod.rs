@@ -241,20 +241,41 @@ pub struct NeedsLibtorch {
     pub what: String,
 }
 
+/// A vehicle profile read once at start (the configured file, else the built-in M100), with
+/// the file it came from: what every stage that needs the vehicle is handed, so that no stage
+/// reads the file again.
+#[derive(Debug, Clone)]
+pub struct LoadedProfile {
+    pub profile: std::sync::Arc<profile::VehicleProfile>,
+    /// The file (None: the built-in M100); what the profile names (its LSTM) is relative to it.
+    pub path: Option<std::path::PathBuf>,
+}
+
+impl LoadedProfile {
+    /// Read `vehicle` (a read or parse error names the file), else the built-in M100.
+    pub fn load(vehicle: Option<&std::path::Path>) -> anyhow::Result<Self> {
+        Ok(Self {
+            profile: std::sync::Arc::new(load_profile(vehicle)?),
+            path: vehicle.map(std::path::Path::to_path_buf),
+        })
+    }
+}
+
 /// The models a configuration asks for, built and checked (profiles loaded, cards matched),
 /// adapting to measured power unless `[models.adapt] enabled = false`. `payload_g` is the
 /// mission's configured payload (the motors-off threshold of adaptation is the loaded
-/// vehicle's ideal hover power).
+/// vehicle's ideal hover power). The profile file is read once.
 pub fn build_ensemble(
     models: &ModelsConfig,
     vehicle: Option<&std::path::Path>,
     telemetry: &crate::telemetry::TelemetryConfig,
     payload_g: Option<f32>,
 ) -> anyhow::Result<Ensemble> {
+    let vehicle = LoadedProfile::load(vehicle)?;
     ensemble_of(
-        build_models(models, vehicle, telemetry)?,
+        models_for(models, &vehicle, telemetry)?,
         models,
-        vehicle,
+        &vehicle.profile,
         telemetry,
         payload_g,
     )
@@ -267,21 +288,21 @@ pub fn build_ensemble(
 /// [`build_ensemble`]: its columns are every model on every window.
 pub fn build_live_ensemble(
     models: &ModelsConfig,
-    vehicle: Option<&std::path::Path>,
+    vehicle: &LoadedProfile,
     telemetry: &crate::telemetry::TelemetryConfig,
     payload_g: Option<f32>,
 ) -> anyhow::Result<Ensemble> {
-    let mut list = build_models(models, vehicle, telemetry)?;
-    let wing = load_profile(vehicle)?.fixed_wing.unwrap_or_default();
+    let mut list = models_for(models, vehicle, telemetry)?;
+    let wing = vehicle.profile.fixed_wing.unwrap_or_default();
     wing.validate().map_err(anyhow::Error::msg)?;
     list.push(Box::new(physics::fixed_wing::FixedWing::new(wing)));
-    ensemble_of(list, models, vehicle, telemetry, payload_g)
+    ensemble_of(list, models, &vehicle.profile, telemetry, payload_g)
 }
 
 fn ensemble_of(
     list: Vec<Box<dyn PowerModel>>,
     models: &ModelsConfig,
-    vehicle: Option<&std::path::Path>,
+    vehicle: &profile::VehicleProfile,
     telemetry: &crate::telemetry::TelemetryConfig,
     payload_g: Option<f32>,
 ) -> anyhow::Result<Ensemble> {
@@ -289,7 +310,7 @@ fn ensemble_of(
     if !models.adapt.enabled {
         return Ok(ensemble);
     }
-    let adaptation = build_adaptation(
+    let adaptation = adaptation_for(
         &models.adapt,
         vehicle,
         telemetry,
@@ -308,8 +329,19 @@ pub fn build_adaptation(
     payload_g: Option<f32>,
     names: &[String],
 ) -> anyhow::Result<adapt::Adaptation> {
-    cfg.validate().map_err(anyhow::Error::msg)?;
     let profile = load_profile(vehicle)?;
+    adaptation_for(cfg, &profile, telemetry, payload_g, names)
+}
+
+/// [`build_adaptation`] on a profile already loaded.
+pub fn adaptation_for(
+    cfg: &adapt::AdaptConfig,
+    profile: &profile::VehicleProfile,
+    telemetry: &crate::telemetry::TelemetryConfig,
+    payload_g: Option<f32>,
+    names: &[String],
+) -> anyhow::Result<adapt::Adaptation> {
+    cfg.validate().map_err(anyhow::Error::msg)?;
     let payload_kg = f64::from(payload_g.unwrap_or(0.0)).max(0.0) / 1000.0;
     let hover_w = adapt::ideal_hover_w(
         profile.mass_kg(payload_kg),
@@ -342,15 +374,24 @@ pub fn build_models(
     vehicle: Option<&std::path::Path>,
     telemetry: &crate::telemetry::TelemetryConfig,
 ) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
+    models_for(models, &LoadedProfile::load(vehicle)?, telemetry)
+}
+
+/// [`build_models`] on a profile already loaded.
+pub fn models_for(
+    models: &ModelsConfig,
+    vehicle: &LoadedProfile,
+    telemetry: &crate::telemetry::TelemetryConfig,
+) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
     let mut out: Vec<Box<dyn PowerModel>> = Vec::new();
     // The physics models (+ Tseng's Solo form) on the configured vehicle profile.
-    let profile = load_profile(vehicle)?;
-    out.extend(physics::models(&profile));
+    let profile = &vehicle.profile;
+    out.extend(physics::models(profile));
     // The LSTM after the physics models, when enabled and found: the configured one, else
     // the one fine-tuned for the vehicle profile (relative to the profile file), else the
     // shipped one.
     let mut lstm_cfg = models.lstm.clone();
-    if let (None, Some(dir), Some(path)) = (&lstm_cfg.path, &profile.lstm, vehicle) {
+    if let (None, Some(dir), Some(path)) = (&lstm_cfg.path, &profile.lstm, &vehicle.path) {
         lstm_cfg.path = Some(crate::files::relative_to(path, dir));
     }
     if let Some(m) = lstm::from_config(&lstm_cfg, telemetry)? {

@@ -128,25 +128,6 @@ pub struct ForecastDefault {
     pub p90_ratio: Option<f64>,
 }
 
-/// The `[forecast]` default of the profile file `vehicle` (None: no file, no section, or a
-/// file that does not load: the chain's own load reports that).
-pub fn forecast_default(vehicle: Option<&Path>) -> Option<(String, String)> {
-    let p = VehicleProfile::load(vehicle?).ok()?;
-    let f = p.forecast?;
-    let why = if f.why.is_empty() {
-        String::new()
-    } else {
-        format!(": {}", f.why)
-    };
-    Some((f.model, format!("vehicle profile {}{why}", p.name)))
-}
-
-/// The `[vehicle] class` of the profile file `vehicle`, when it sets one (None: no file, no
-/// class, or a file that does not load: the chain's own load reports that).
-pub fn class_override(vehicle: Option<&Path>) -> Option<crate::features::VehicleClass> {
-    VehicleProfile::load(vehicle?).ok()?.vehicle.class
-}
-
 /// Airframe facts (DJI's published figures for the M100).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -435,6 +416,21 @@ impl VehicleProfile {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("{}: cannot read vehicle profile", path.display()))?;
         Self::from_toml(&text, &path.display().to_string())
+    }
+
+    /// The `[forecast]` default: which model the energy forecast starts from, and why (None:
+    /// the profile has no `[forecast]`).
+    pub fn forecast_default(&self) -> Option<(String, String)> {
+        let f = self.forecast.as_ref()?;
+        let why = if f.why.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", f.why)
+        };
+        Some((
+            f.model.clone(),
+            format!("vehicle profile {}{why}", self.name),
+        ))
     }
 
     /// Total mass for a payload, kg.

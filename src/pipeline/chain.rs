@@ -8,17 +8,19 @@ use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
+use super::mission::{take_mission, Resolved};
 use super::{
     relay, FleetEvent, Inference, Job, WarmStart, CHANNEL_DEPTH, HEALTH_EVERY, SILENT_TICK,
 };
 use crate::alert::AlertEngine;
 use crate::config::Config;
 use crate::energy::EnergyTracker;
+use crate::mission::live::{LiveSetup, MissionStep};
 use crate::model::Ensemble;
 use crate::report::status::{ChainStatus, IngestStats};
 use crate::report::{EnergyState, Estimate, MissionUpdate, Report, VehicleId};
 use crate::sink::Fanout;
-use crate::source::{SourceSpec, TimedMessage};
+use crate::source::TimedMessage;
 use crate::telemetry::window::Window;
 use crate::telemetry::Telemetry;
 use crate::vehicle::params::{Driver, Identity, ParamReader, VehicleParams};
@@ -32,9 +34,9 @@ pub struct VehicleChain {
     pub models: Ensemble,
     pub energy: EnergyTracker,
     pub alerts: AlertEngine,
-    /// The live mission forecast's statuses, in source-time order (`crate::mission::live`),
-    /// when a mission tap runs.
-    pub mission: Option<mpsc::Receiver<MissionUpdate>>,
+    /// The vehicle's live mission forecast (`crate::mission::live`), when there is a
+    /// mission to follow: a step of its telemetry stage once the chain runs.
+    pub mission: Option<LiveSetup>,
     /// Who the vehicle is and its battery parameters (listening only until
     /// [`VehicleChain::spawn`] runs it on a live link).
     pub vehicle: ParamReader,
@@ -94,27 +96,28 @@ impl ChainTasks {
 }
 
 impl VehicleChain {
-    /// Build and check every stage (profiles loaded, model cards matched, rules compiled).
-    pub fn build(cfg: &Config) -> Result<Self> {
+    /// Build and check every stage (model cards matched, rules compiled) from the values
+    /// read at start.
+    pub fn build(cfg: &Config, resolved: &Resolved) -> Result<Self> {
         let models = crate::model::build_live_ensemble(
             &cfg.models,
-            cfg.vehicle.as_deref(),
+            &resolved.vehicle,
             &cfg.telemetry,
             cfg.mission.payload_g,
         )?;
         Ok(Self {
             models,
-            ..Self::another(cfg)?
+            ..Self::another(cfg, resolved)?
         })
     }
 
     /// Another vehicle's chain on the same configuration: its own telemetry, energy and
     /// alert state, no models (the fleet's vehicles share one [`Inference`] stage).
-    pub fn another(cfg: &Config) -> Result<Self> {
+    pub fn another(cfg: &Config, resolved: &Resolved) -> Result<Self> {
+        let profile = &resolved.vehicle.profile;
         let mut energy = EnergyTracker::new(&cfg.energy, cfg.mission.speed_m_s)?;
         // The vehicle profile's forecast model (`learn` picks it), when it names one.
-        if let Some((model, why)) = crate::model::profile::forecast_default(cfg.vehicle.as_deref())
-        {
+        if let Some((model, why)) = profile.forecast_default() {
             energy.set_default_model(&model, &why);
         }
         let rebuild = cfg.vehicle.is_none().then(|| {
@@ -124,13 +127,13 @@ impl VehicleChain {
                 cfg.mission.payload_g,
             );
             Arc::new(move |path: &std::path::Path| {
-                crate::model::build_live_ensemble(&models, Some(path), &telemetry, payload_g)
+                let learned = crate::model::LoadedProfile::load(Some(path))?;
+                crate::model::build_live_ensemble(&models, &learned, &telemetry, payload_g)
             }) as Rebuild
         });
         Ok(Self {
-            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission).with_class(
-                crate::model::profile::class_override(cfg.vehicle.as_deref()),
-            ),
+            telemetry: Telemetry::new(&cfg.telemetry, &cfg.mission)
+                .with_class(profile.vehicle.class),
             models: Ensemble::new(Vec::new()),
             energy,
             alerts: AlertEngine::new(&cfg.alerts)?,
@@ -215,6 +218,12 @@ impl VehicleChain {
         let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
         let (capacity_tx, capacity_rx) = watch::channel(StoreNews::default());
         let rebuild = self.rebuild;
+        // The vehicle's mission forecast: a step of its telemetry stage, its statuses to its
+        // energy stage, its frames on its own network's links.
+        let (mission, statuses) = self
+            .mission
+            .map(|setup| MissionStep::new(setup, status.link.clone()))
+            .unzip();
         let memory = self.memory.map(|dir| Memory {
             dir,
             vehicle,
@@ -226,6 +235,7 @@ impl VehicleChain {
             telemetry: tokio::spawn(telemetry_stage(
                 self.telemetry,
                 driver,
+                mission,
                 msgs,
                 win_tx,
                 vehicle_tx,
@@ -252,7 +262,7 @@ impl VehicleChain {
                 self.energy,
                 self.alerts,
                 est_rx,
-                self.mission,
+                statuses,
                 vehicle_rx,
                 capacity_rx,
                 own,
@@ -310,11 +320,47 @@ fn learned_models(
     }
 }
 
+/// What earlier flights of vehicle `id` taught, looked up once it is known (off the task
+/// that calls; `Pending` goes first, so the windows after message time `t_s` find it).
+fn look_up(mem: &mut Memory, id: &Identity, t_s: f64, status: &ChainStatus) {
+    let Some(capacity) = mem.capacity.take() else {
+        return;
+    };
+    let _ = mem.warm.send((mem.vehicle, WarmStart::Pending));
+    let (dir, warm, id, vehicle, rebuild) = (
+        mem.dir.clone(),
+        mem.warm.clone(),
+        id.clone(),
+        mem.vehicle,
+        mem.rebuild.clone(),
+    );
+    // a replayed log's clock: its first stamp + the time since
+    let origin = status.stats.log_origin_s();
+    let now_log_s = origin.map(|o| o + t_s);
+    tokio::task::spawn_blocking(move || {
+        let learned = crate::vehicle::store::lookup(&dir, &id, now_log_s);
+        // The profile `learn` kept for it (no profile configured).
+        let (models, forecast) = learned_models(&learned, rebuild.as_ref());
+        // The store's news first: an estimate made with the warm
+        // fits reaches the energy stage after it.
+        let _ = capacity.send(StoreNews {
+            capacity: learned.capacity_wh,
+            forecast,
+            pack: learned.pack,
+            log_origin_s: origin,
+        });
+        let _ = warm.send((vehicle, WarmStart::Ready(learned.fits, models)));
+    });
+}
+
 /// Messages → fixed-rate samples → windows; refreshes the signal health about once a second.
-/// Reads the vehicle beside ([`Driver`]: asks on a live link) and publishes what it learns.
+/// Reads the vehicle beside ([`Driver`]: asks on a live link) and publishes what it learns;
+/// runs the vehicle's mission forecast ([`MissionStep`]) on the same messages, first.
+#[allow(clippy::too_many_arguments)] // a stage: its state, its channels in and out
 async fn telemetry_stage(
     mut telemetry: Telemetry,
     mut vehicle: Driver,
+    mut mission: Option<MissionStep>,
     mut msgs: mpsc::Receiver<TimedMessage>,
     windows: mpsc::Sender<Window>,
     vehicle_tx: watch::Sender<VehicleParams>,
@@ -324,41 +370,30 @@ async fn telemetry_stage(
     let mut out = Vec::new();
     let mut shown = Instant::now();
     let mut open = true;
+    // The mission download's timeouts (a live link only).
+    let ticking = mission.as_ref().is_some_and(MissionStep::active);
+    let mut tick = tokio::time::interval(crate::mission::live::TICK);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     while open {
-        match msgs.recv().await {
-            Some(m) => {
+        let next = tokio::select! {
+            m = msgs.recv() => Some(m),
+            _ = tick.tick(), if ticking => None,
+        };
+        match next {
+            None => {
+                if let Some(step) = mission.as_mut() {
+                    step.tick();
+                }
+                continue;
+            }
+            Some(Some(m)) => {
+                if let Some(step) = mission.as_mut() {
+                    step.on_message(&m);
+                }
                 if let Some(params) = vehicle.on_message(&m) {
-                    // The vehicle is known: look up what earlier flights taught (off this task;
-                    // `Pending` goes first, so the windows after this message find it).
+                    // The vehicle is known: look up what earlier flights taught.
                     if let (Some(id), Some(mem)) = (&params.identity, &mut memory) {
-                        if let Some(capacity) = mem.capacity.take() {
-                            let _ = mem.warm.send((mem.vehicle, WarmStart::Pending));
-                            let (dir, warm, id, vehicle, rebuild) = (
-                                mem.dir.clone(),
-                                mem.warm.clone(),
-                                id.clone(),
-                                mem.vehicle,
-                                mem.rebuild.clone(),
-                            );
-                            // a replayed log's clock: its first stamp + the time since
-                            let origin = status.stats.log_origin_s();
-                            let now_log_s = origin.map(|o| o + m.t_s);
-                            tokio::task::spawn_blocking(move || {
-                                let learned = crate::vehicle::store::lookup(&dir, &id, now_log_s);
-                                // The profile `learn` kept for it (no profile configured).
-                                let (models, forecast) = learned_models(&learned, rebuild.as_ref());
-                                // The store's news first: an estimate made with the warm
-                                // fits reaches the energy stage after it.
-                                let _ = capacity.send(StoreNews {
-                                    capacity: learned.capacity_wh,
-                                    forecast,
-                                    pack: learned.pack,
-                                    log_origin_s: origin,
-                                });
-                                let _ =
-                                    warm.send((vehicle, WarmStart::Ready(learned.fits, models)));
-                            });
-                        }
+                        look_up(mem, id, m.t_s, &status);
                     }
                     // Only the energy stage listens; it gone (shutting down) is no error.
                     let _ = vehicle_tx.send(params);
@@ -372,7 +407,7 @@ async fn telemetry_stage(
                         .store(id, std::sync::atomic::Ordering::Relaxed);
                 }
             }
-            None => {
+            Some(None) => {
                 // What the end of the input flushes was made by no message's arrival: these
                 // windows keep `arrived: None` and count in no latency.
                 telemetry.finish(&mut out);
@@ -502,72 +537,6 @@ async fn energy_stage(
     }
     let identity = vehicle.borrow().identity.clone();
     (flight, identity)
-}
-
-/// The mission statuses due by source time `t_s` into the energy tracker (the latest one
-/// wins): the tap runs ahead of the estimates, so each status waits for its time.
-fn take_mission(
-    energy: &mut EnergyTracker,
-    rx: &mut Option<mpsc::Receiver<MissionUpdate>>,
-    next: &mut Option<MissionUpdate>,
-    t_s: f64,
-) {
-    let Some(rx) = rx else { return };
-    loop {
-        if next.is_none() {
-            *next = rx.try_recv().ok();
-        }
-        match next.take() {
-            Some(m) if m.t_s <= t_s => energy.set_mission(m.status),
-            other => {
-                *next = other;
-                return;
-            }
-        }
-    }
-}
-
-/// What the live mission forecast needs, when the source can carry a mission (a live
-/// link, a `.tlog` or raw log; not the data set) and `[forecast.live] enabled`.
-pub(super) fn mission_setup(
-    cfg: &Config,
-    source: &SourceSpec,
-    follows: &crate::source::fleet::VehicleFilter,
-) -> Result<Option<crate::mission::live::LiveSetup>> {
-    if !cfg.forecast.live.enabled || matches!(source, SourceSpec::Dataset { .. }) {
-        return Ok(None);
-    }
-    let vehicle = match cfg.vehicle.as_deref() {
-        Some(p) => crate::model::profile::VehicleProfile::load(p)?,
-        None => crate::model::profile::VehicleProfile::m100(),
-    };
-    let mut models = crate::model::physics::models(&vehicle);
-    // a plane's and a VTOL's wing-borne samples (only run where the class asks for it)
-    let wing = vehicle.fixed_wing.unwrap_or_default();
-    wing.validate().map_err(anyhow::Error::msg)?;
-    models.push(Box::new(crate::model::physics::fixed_wing::FixedWing::new(
-        wing,
-    )));
-    if let Some(p) = &cfg.forecast.live.calibrated_profile {
-        models.extend(crate::model::physics::models(
-            &crate::model::profile::VehicleProfile::load(p)?,
-        ));
-    }
-    Ok(Some(crate::mission::live::LiveSetup {
-        forecast: cfg.forecast.clone(),
-        models,
-        rate_hz: cfg.telemetry.rate_hz,
-        window: cfg.telemetry.window,
-        payload_g: cfg.mission.payload_g.map_or(0.0, f64::from),
-        speed_m_s: cfg.mission.speed_m_s.map(f64::from),
-        active: matches!(source, SourceSpec::Link(_) | SourceSpec::Links { .. }),
-        // Requests go out as the configured id, else as the vehicle's companion computer.
-        system_id: cfg.sinks.mavlink.system_id,
-        component_id: cfg.sinks.mavlink.component_id,
-        follows: follows.clone(),
-        class: vehicle.vehicle.class,
-        flight: vehicle.fixed_wing_flight.unwrap_or_default(),
-    }))
 }
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on

@@ -28,6 +28,7 @@ use tokio::time::Instant;
 use crate::config::Config;
 use std::collections::BTreeMap;
 
+use super::mission::{MissionOn, Resolved};
 use super::{ChainTasks, Inference, VehicleChain, CHANNEL_DEPTH, SILENT_TICK};
 use crate::report::status::ChainStatus;
 use crate::report::VehicleId;
@@ -41,6 +42,10 @@ use crate::MavMessage;
 /// The demultiplexer and what it starts chains with.
 pub(super) struct Fleet {
     pub(super) config: Config,
+    /// What the config names, read at start: every chain is built from it.
+    pub(super) resolved: Resolved,
+    /// How each vehicle's chain forecasts its mission (None: no mission to follow).
+    pub(super) mission: Option<MissionOn>,
     pub(super) demux: Demux,
     /// The chain built (and checked) before the run: the first vehicle's.
     pub(super) first: Option<VehicleChain>,
@@ -165,13 +170,20 @@ impl Fleet {
         let (chain, mut status) = match self.first.take() {
             Some(c) => (c, self.status.clone()),
             None => (
-                VehicleChain::another(&self.config)?,
+                VehicleChain::another(&self.config, &self.resolved)?,
                 ChainStatus {
                     health: Default::default(),
                     ..self.status.clone()
                 },
             ),
         };
+        // Each vehicle forecasts its own mission (the first's was built before the run).
+        let mut chain = chain;
+        if chain.mission.is_none() {
+            if let Some(m) = &self.mission {
+                chain.mission = Some(m.setup(&self.config, &self.resolved)?);
+            }
+        }
         status.system_id = Arc::new(std::sync::atomic::AtomicU8::new(id.system_id));
         status.network = id.network;
         status.link = status.link.network(id.network);
@@ -270,6 +282,23 @@ impl Demux {
             network: m.network,
             system_id,
         };
+        // A ground station's mission messages to a vehicle (a logged upload or download)
+        // go to that vehicle's chain, for its mission forecast; they keep it alive no longer.
+        if !self.vehicles.contains_key(&id) {
+            if let Some(to) = mission_target(&m.msg).filter(|&t| t != 0) {
+                let to = VehicleId {
+                    network: m.network,
+                    system_id: to,
+                };
+                if self.vehicles.contains_key(&to) {
+                    return Route::Vehicle {
+                        id: to,
+                        new: false,
+                        back: false,
+                    };
+                }
+            }
+        }
         if !self.filter.contains(sys) {
             self.filtered += 1;
             return Route::Ignore;
@@ -350,206 +379,20 @@ impl Demux {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::dialect::{MavAutopilot, MavType, HEARTBEAT_DATA};
-
-    const ONE: VehicleId = VehicleId::single(1);
-    const TWO: VehicleId = VehicleId::single(2);
-
-    fn msg(sys: u32, t_s: f64, msg: MavMessage) -> TimedMessage {
-        let header = mavlink::MavHeader {
-            system_id: sys,
-            component_id: 1,
-            sequence: 0,
-        };
-        TimedMessage::new(t_s, header, msg)
-    }
-    fn hb(mavtype: MavType, autopilot: MavAutopilot) -> MavMessage {
-        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            mavtype,
-            autopilot,
-            ..Default::default()
-        })
-    }
-
-    #[test]
-    fn filters_parse_ids_and_ranges_and_name_what_is_wrong() {
-        let f = VehicleFilter::parse("3, 7,10-20").unwrap();
-        assert!(f.contains(3) && f.contains(7) && f.contains(10) && f.contains(20));
-        assert!(!f.contains(4) && !f.contains(21) && !f.contains(0) && !f.contains(300));
-        assert!(VehicleFilter::parse("1-250").unwrap().contains(250));
-        assert!(VehicleFilter::parse("0").unwrap_err().contains("\"0\""));
-        assert!(VehicleFilter::parse("20-10")
-            .unwrap_err()
-            .contains("backwards"));
-        assert!(VehicleFilter::parse("5,x").unwrap_err().contains("\"x\""));
-        let bad = FleetConfig {
-            vehicles: Some("1-300".into()),
-            drop_after_s: 1.0,
-            ..Default::default()
-        };
-        let e = bad.validate().unwrap_err();
-        assert!(
-            e.contains("fleet.vehicles") && e.contains("fleet.drop_after_s"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn only_vehicles_open_chains_and_silence_makes_them_lost_then_dropped() {
-        let mut d = Demux::new(&FleetConfig::default(), None).unwrap();
-        let quad = || {
-            hb(
-                MavType::MAV_TYPE_QUADROTOR,
-                MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
-            )
-        };
-        // A ground station and a companion are not vehicles; their telemetry-less chatter is ignored.
-        assert_eq!(
-            d.route(&msg(
-                255,
-                0.0,
-                hb(MavType::MAV_TYPE_GCS, MavAutopilot::MAV_AUTOPILOT_INVALID)
-            )),
-            Route::Ignore
-        );
-        assert_eq!(
-            d.route(&msg(255, 0.1, MavMessage::ATTITUDE(Default::default()))),
-            Route::Ignore
-        );
-        assert_eq!(
-            d.route(&msg(
-                9,
-                0.0,
-                hb(
-                    MavType::MAV_TYPE_ONBOARD_CONTROLLER,
-                    MavAutopilot::MAV_AUTOPILOT_GENERIC
-                )
-            )),
-            Route::Ignore
-        );
-        assert_eq!(
-            d.route(&msg(1, 0.0, quad())),
-            Route::Vehicle {
-                id: VehicleId::single(1),
-                new: true,
-                back: false
-            }
-        );
-        assert_eq!(
-            d.route(&msg(1, 0.1, quad())),
-            Route::Vehicle {
-                id: VehicleId::single(1),
-                new: false,
-                back: false
-            }
-        );
-        // Telemetry before a heartbeat opens a vehicle too (a log cut between heartbeats).
-        assert_eq!(
-            d.route(&msg(2, 0.2, MavMessage::ATTITUDE(Default::default()))),
-            Route::Vehicle {
-                id: VehicleId::single(2),
-                new: true,
-                back: false
-            }
-        );
-        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![ONE, TWO]);
-        let mut ev = Vec::new();
-        d.route(&msg(2, 9.0, quad()));
-        d.advance(10.5, &mut ev);
-        assert!(
-            matches!(ev.as_slice(), [FleetEvent::Lost { id: ONE, .. }]),
-            "{ev:?}"
-        );
-        d.advance(11.0, &mut ev);
-        assert_eq!(ev.len(), 1, "lost is said once");
-        assert_eq!(
-            d.route(&msg(1, 11.0, quad())),
-            Route::Vehicle {
-                id: VehicleId::single(1),
-                new: false,
-                back: true
-            }
-        );
-        ev.clear();
-        d.advance(70.0, &mut ev);
-        assert!(
-            matches!(
-                ev.as_slice(),
-                [
-                    FleetEvent::Lost { id: ONE, .. },
-                    FleetEvent::Dropped { id: TWO, .. }
-                ]
-            ),
-            "{ev:?}"
-        );
-        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![ONE]);
-        assert_eq!(
-            d.route(&msg(2, 72.0, quad())),
-            Route::Vehicle {
-                id: VehicleId::single(2),
-                new: true,
-                back: false
-            }
-        );
-    }
-
-    #[test]
-    fn a_filter_ignores_and_counts_other_vehicles() {
-        let mut d = Demux::new(
-            &FleetConfig::default(),
-            Some(VehicleFilter::parse("1-2").unwrap()),
-        )
-        .unwrap();
-        let quad = hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
-        assert_eq!(d.route(&msg(3, 0.0, quad.clone())), Route::Ignore);
-        assert_eq!(
-            d.route(&msg(2, 0.0, quad)),
-            Route::Vehicle {
-                id: VehicleId::single(2),
-                new: true,
-                back: false
-            }
-        );
-        assert_eq!(d.filtered(), 1);
-    }
-
-    #[test]
-    fn the_same_system_id_on_two_networks_is_two_vehicles() {
-        let mut d = Demux::new(&FleetConfig::default(), None).unwrap();
-        let quad = || hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
-        let on = |net: u8, t: f64| TimedMessage {
-            network: net,
-            ..msg(1, t, quad())
-        };
-        let a = VehicleId {
-            network: 1,
-            system_id: 1,
-        };
-        let b = VehicleId {
-            network: 2,
-            system_id: 1,
-        };
-        assert_eq!(
-            d.route(&on(1, 0.0)),
-            Route::Vehicle {
-                id: a,
-                new: true,
-                back: false
-            }
-        );
-        assert_eq!(
-            d.route(&on(2, 0.1)),
-            Route::Vehicle {
-                id: b,
-                new: true,
-                back: false
-            }
-        );
-        assert_eq!(d.vehicles().collect::<Vec<_>>(), vec![a, b]);
-        assert_eq!((a.to_string(), b.to_string()), ("1:1".into(), "2:1".into()));
-        assert_eq!(ONE.to_string(), "1", "on the only network, as always");
+/// The vehicle a mission-protocol message (MISSION_COUNT, MISSION_ITEM(_INT), MISSION_ACK)
+/// is addressed to.
+// MISSION_ITEM is deprecated, and still what older ground stations log.
+#[allow(deprecated)]
+fn mission_target(msg: &MavMessage) -> Option<u8> {
+    match msg {
+        MavMessage::MISSION_COUNT(c) => Some(c.target_system),
+        MavMessage::MISSION_ITEM_INT(i) => Some(i.target_system),
+        MavMessage::MISSION_ITEM(i) => Some(i.target_system),
+        MavMessage::MISSION_ACK(a) => Some(a.target_system),
+        _ => None,
     }
 }
+
+#[cfg(test)]
+#[path = "fleet_tests.rs"]
+mod tests;

@@ -5,8 +5,15 @@
 //! ```text
 //! source ─TimedMessage→ demux ─TimedMessage→ one chain per vehicle:
 //!     telemetry_stage ─Window→ inference_stage (one for all vehicles) ─Estimate→ energy_stage ─Report→ relay ─Report→ Fanout → one task per sink
+//!      (+ MissionStep) ─── MissionUpdate (the vehicle's mission forecast) ─────▶┤
 //!            └────────── VehicleParams (watch: the latest word only) ──────────▶┘
 //! ```
+//!
+//! Each vehicle's chain forecasts its own mission: the telemetry stage hands every message
+//! of its vehicle to a [`crate::mission::live::MissionStep`] first (a ground station's
+//! mission messages reach the chain of the vehicle they address), whose statuses the energy
+//! stage takes in source-time order. Every chain is built from [`Resolved`], what the
+//! configuration names read once at start.
 //!
 //! The telemetry stage also reads the vehicle ([`crate::vehicle::params`]): on a live link it
 //! asks for the battery parameters (PARAM_REQUEST_READ on the link, resent, bounded), in a
@@ -32,14 +39,16 @@
 mod chain;
 mod fleet;
 mod inference;
+mod mission;
 mod shutdown;
 mod sinks;
 
-use chain::mission_setup;
 pub use chain::{account, ChainEnd, ChainTasks, Rebuild, VehicleChain};
 use fleet::Fleet;
 pub use fleet::{Demux, FleetEvent, Route};
 pub use inference::{Batching, Fits, Inference, Job, WarmStart};
+use mission::MissionOn;
+pub use mission::Resolved;
 pub use shutdown::shutdown_on_signal;
 use sinks::relay;
 pub use sinks::{start_sinks, SinkTasks};
@@ -81,9 +90,17 @@ pub struct Pipeline {
 /// Run the pipeline to the end of its source or until `shutdown` is cancelled. Returns the
 /// ingest counters (the summary line's numbers).
 pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
-    // Built before any task starts, so a bad model or profile fails before we listen.
-    let mut chain = VehicleChain::build(&p.config)?;
+    // The files the config names, read once; the first chain built before any task starts,
+    // so a bad model or profile fails before we listen.
+    let resolved = Resolved::load(&p.config)?;
+    let mut chain = VehicleChain::build(&p.config, &resolved)?;
     let demux = Demux::new(&p.config.fleet, None).map_err(anyhow::Error::msg)?;
+    // Every vehicle's mission forecast, a step of its chain (checked now on the first).
+    let mission = MissionOn::of(&p.config, &p.source, demux.filter());
+    chain.mission = mission
+        .as_ref()
+        .map(|m| m.setup(&p.config, &resolved))
+        .transpose()?;
     // The signing key is read now: a missing or world-readable key fails before we listen.
     let signing = p
         .config
@@ -104,7 +121,6 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
     let live = matches!(p.source, SourceSpec::Link(_) | SourceSpec::Links { .. });
-    let mission = mission_setup(&p.config, &p.source, demux.filter())?;
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(
         p.source,
@@ -114,18 +130,6 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
         signing,
         shutdown,
     ));
-    // The mission tap between the source and the demultiplexer, when there is a mission
-    // to follow: it follows the vehicle it first hears, whose chain (the first) gets it.
-    let (msg_rx, mission_task) = match mission {
-        Some(setup) => {
-            let (status_tx, status_rx) = mpsc::channel(crate::mission::live::STATUS_DEPTH);
-            let (rx, task) =
-                crate::mission::live::spawn(msg_rx, setup, status.link.clone(), status_tx);
-            chain.mission = Some(status_rx);
-            (rx, Some(task))
-        }
-        None => (msg_rx, None),
-    };
     let inference = Inference::spawn(
         std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())),
         Batching::from_config(&p.config),
@@ -134,6 +138,8 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     );
     let fleet = Fleet {
         config: p.config,
+        resolved,
+        mission,
         demux,
         first: Some(chain),
         inference,
@@ -145,9 +151,6 @@ pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapsh
     let demux = tokio::spawn(fleet.run(msg_rx));
 
     let source_result = source.await?;
-    if let Some(t) = mission_task {
-        t.await?;
-    }
     demux.await??;
     sinks.join().await?;
     source_result?;

@@ -125,3 +125,36 @@ fn links_tables_are_read_and_a_bad_address_names_its_table() {
     let e = Config::load(&p).unwrap_err().to_string();
     assert!(e.contains("adress"), "{e}");
 }
+
+#[test]
+fn the_files_a_config_names_are_read_once_at_start_and_a_bad_one_is_named() {
+    use dronewatt::pipeline::{Resolved, VehicleChain};
+    let dir = tempfile::tempdir().unwrap();
+    let m100 = concat!(env!("CARGO_MANIFEST_DIR"), "/config/vehicles/m100.toml");
+    let (vehicle, cal) = (dir.path().join("v.toml"), dir.path().join("cal.toml"));
+    std::fs::copy(m100, &vehicle).unwrap();
+    std::fs::copy(m100, &cal).unwrap();
+    let cfg_path = dir.path().join("dw.toml");
+    std::fs::write(
+        &cfg_path,
+        "vehicle = \"v.toml\"\n[models.lstm]\nenabled = false\n[forecast.live]\ncalibrated_profile = \"cal.toml\"\n",
+    )
+    .unwrap();
+    let cfg = Config::load(&cfg_path).unwrap_or_else(|e| panic!("{e}"));
+    let resolved = Resolved::load(&cfg).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(resolved.calibrated.is_some());
+    // Read once: with the files gone, every chain (a fleet's later ones too) still builds.
+    std::fs::remove_file(&vehicle).unwrap();
+    std::fs::remove_file(&cal).unwrap();
+    VehicleChain::build(&cfg, &resolved).unwrap_or_else(|e| panic!("{e:#}"));
+    VehicleChain::another(&cfg, &resolved).unwrap_or_else(|e| panic!("{e:#}"));
+    // A file that does not read, or does not parse, fails the start and is named.
+    let e = format!("{:#}", Resolved::load(&cfg).unwrap_err());
+    assert!(e.contains("v.toml"), "{e}");
+    std::fs::write(&vehicle, "not = [a profile").unwrap();
+    let e = format!("{:#}", Resolved::load(&cfg).unwrap_err());
+    assert!(e.contains("v.toml"), "{e}");
+    std::fs::copy(m100, &vehicle).unwrap();
+    let e = format!("{:#}", Resolved::load(&cfg).unwrap_err());
+    assert!(e.contains("cal.toml"), "{e}");
+}

@@ -22,6 +22,7 @@ mod energy_pack;
 mod energy_select;
 mod features_units;
 mod fuzz_props;
+mod mission_fleet;
 mod mission_margin;
 mod mission_protocol;
 mod model_adapt;

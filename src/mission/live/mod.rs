@@ -1,19 +1,22 @@
-//! The live mission forecast: a task between the source and the telemetry stage that
-//! passes every message on unchanged, takes the mission from the link (downloading it
-//! with [`super::protocol`] on a live link, overhearing it in a replayed `.tlog`), flies
-//! it on paper once per mission ([`super::trajectory`], [`super::forecast`]), and on each
+//! The live mission forecast: a step of each vehicle's chain ([`MissionStep`], run by the
+//! chain's telemetry stage on that vehicle's messages, after the demultiplexer) that takes
+//! the vehicle's mission from the link (downloading it from that vehicle with
+//! [`super::protocol`] on a live link, overhearing it in a replayed `.tlog`), flies it on
+//! paper once per mission ([`super::trajectory`], [`super::forecast`]), and on each
 //! MISSION_CURRENT and vehicle position re-forecasts what is left (the rest of the
-//! mission, the return and the landing) in microseconds.
+//! mission, the return and the landing) in microseconds. Every vehicle of a fleet has its
+//! own.
 //!
 //! ```text
-//! source ─TimedMessage→ mission tap ─TimedMessage→ telemetry_stage …
-//!                           │ MissionStatus (source time order)
-//!                           └──────────────→ energy_stage (mission_energy_wh, mission_margin_wh, alerts)
+//! demux ─TimedMessage→ telemetry_stage (+ MissionStep) ─Window→ … ─Estimate→ energy_stage
+//!                            │ MissionUpdate (source time order)          ▲
+//!                            └────────────────────────────────────────────┘
+//!                              (mission_energy_wh, mission_margin_wh, alerts)
 //! ```
 //!
 //! The energy stage takes each [`MissionStatus`] once its estimates reach the status's
 //! source time, so a flat-out replay accounts it exactly when the flight did. The only
-//! I/O here: frames sent on the live link through the [`LinkHandle`] (requests, the ACK).
+//! I/O: frames the step sends on the vehicle's link (requests, the ACK).
 //!
 //! Where the vehicle is on the plan: MISSION_CURRENT's `seq` (minus ArduPilot's home item)
 //! is the item it flies to; the nearest trajectory sample (3-D, GLOBAL_POSITION_INT's
@@ -29,16 +32,12 @@
 
 use std::time::Duration;
 
-use tokio::sync::mpsc;
-use tokio::task::JoinHandle;
-
 use super::forecast::{forecast, MissionForecast};
 use super::plan::{GeoPoint, Plan};
 use super::protocol::{Event, MissionClient};
 use super::trajectory::{enu_of, fly_as, Conditions, Trajectory, Wind};
 use crate::features::VehicleClass;
 use crate::model::PowerModel;
-use crate::report::status::LinkHandle;
 use crate::report::{MissionStatus, MissionUpdate};
 use crate::source::TimedMessage;
 use crate::MavMessage;
@@ -58,11 +57,7 @@ const POWER_GAP_S: f64 = 5.0;
 /// the handover loses nothing.
 const PREFERRED_STALE_S: f64 = 3.0;
 /// How often the download's timeouts are checked (live link), wall clock.
-const TICK: Duration = Duration::from_millis(250);
-/// Depth of the channel from the tap to the telemetry stage (the pipeline's stage depth).
-const TAP_DEPTH: usize = 1024;
-/// Depth of the status channel to the energy stage (at ~1 Hz: many minutes of lead).
-pub const STATUS_DEPTH: usize = 1024;
+pub const TICK: Duration = Duration::from_millis(250);
 
 /// What the live forecast needs, gathered from the configuration by the pipeline.
 pub struct LiveSetup {
@@ -116,7 +111,7 @@ struct Flown {
     live_weight: f64,
 }
 
-/// The tap's state: the protocol client, the mission in hand, where the vehicle is.
+/// One vehicle's live forecast: the protocol client, the mission in hand, where the vehicle is.
 pub struct LiveMission {
     setup: LiveSetup,
     client: MissionClient,
@@ -626,69 +621,8 @@ fn locate(fl: &Flown, seq: u16, position: Option<(f64, f64, f64)>) -> usize {
     }
 }
 
-/// Run the tap: every message from `msgs` on to the returned receiver, unchanged and in
-/// order; mission statuses to `statuses`; protocol frames out on `link` when active.
-pub fn spawn(
-    mut msgs: mpsc::Receiver<TimedMessage>,
-    setup: LiveSetup,
-    link: LinkHandle,
-    statuses: mpsc::Sender<MissionUpdate>,
-) -> (mpsc::Receiver<TimedMessage>, JoinHandle<()>) {
-    let (tx, rx) = mpsc::channel(TAP_DEPTH);
-    let active = setup.active;
-    let task = tokio::spawn(async move {
-        let mut live = LiveMission::new(setup);
-        let start = tokio::time::Instant::now();
-        let mut tick = tokio::time::interval(TICK);
-        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-        let mut out = Vec::new();
-        // Where the links are separate networks, the mission follows one: the network its
-        // target vehicle was first heard on (another network's system id 1 is another
-        // vehicle), and its frames go out on that network's links only.
-        let mut network: Option<u8> = None;
-        loop {
-            tokio::select! {
-                m = msgs.recv() => {
-                    let Some(m) = m else { break };
-                    let now = if active { start.elapsed().as_secs_f64() } else { m.t_s };
-                    if network.is_none_or(|n| n == m.network) {
-                        if let Some(s) = live.on_message(now, &m, &mut out) {
-                            if statuses.try_send(s).is_err() {
-                                tracing::debug!("mission status dropped (the energy stage is far behind)");
-                            }
-                        }
-                        if network.is_none() && live.client().target().is_some() {
-                            network = Some(m.network);
-                        }
-                    }
-                    if tx.send(m).await.is_err() {
-                        break;
-                    }
-                }
-                _ = tick.tick(), if active => live.tick(start.elapsed().as_secs_f64(), &mut out),
-            }
-            let Some((sys, comp)) = live.client().sender() else {
-                out.clear();
-                continue;
-            };
-            let uplink = link.network(network.unwrap_or(0));
-            for msg in out.drain(..) {
-                // Numbered by the link's (its network's) one writer of this identity.
-                if !uplink.send_as(sys, comp, &msg) {
-                    tracing::debug!("mission protocol frame not sent (no link or link full)");
-                }
-            }
-        }
-        let st = live.client().stats;
-        tracing::debug!(
-            downloads = st.downloads,
-            resends = st.resends,
-            failures = st.failures,
-            "mission protocol"
-        );
-    });
-    (rx, task)
-}
+mod step;
+pub use step::{MissionStep, STATUS_DEPTH};
 
 #[cfg(test)]
 mod tests;

@@ -204,9 +204,10 @@ pub fn log_windows_by_lift(
     } else {
         crate::source::decode_autopilot_log(path, &stats)?
     };
-    let mut tel = Telemetry::new(&cfg.telemetry, &cfg.mission).with_class(
-        crate::model::profile::class_override(cfg.vehicle.as_deref()),
-    );
+    let class = crate::model::load_profile(cfg.vehicle.as_deref())?
+        .vehicle
+        .class;
+    let mut tel = Telemetry::new(&cfg.telemetry, &cfg.mission).with_class(class);
     let mut windows = Vec::new();
     for m in messages {
         tel.push(&m, &mut windows);
