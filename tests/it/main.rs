@@ -32,6 +32,7 @@ mod offline_config;
 mod offline_eval;
 mod offline_learn;
 mod offline_plan;
+mod peer_multirotor;
 mod pipeline_fleet;
 mod security;
 mod sim_airframes;
