@@ -18,13 +18,14 @@ What is the package's and what is this harness's (be exact about it):
   peer what hover costs at the same thrust.
 - The pack: 6S LiPo 22 000 mAh, 25 mΩ, a LiPo resting-voltage curve; the telemetry's
   current is the package's power over this pack's loaded voltage, as ArduPilot's
-  SYS_STATUS / BATTERY_STATUS report it, written to a pymavlink .tlog at 10 Hz.
+  SYS_STATUS / BATTERY_STATUS report it, written to a pymavlink .tlog at 10 Hz after the
+  parameters a ground station fetches (BATT_CAPACITY, FRAME_CLASS, MOT_BAT_VOLT_MAX/MIN).
 
 Stages scored, the T18 held out:
 - `spec`: the five facts; the hover-efficiency prior fitted on the other airframes
   (scripts/spec-priors.py without the T18, passed as `[priors]`).
-- `hover`: the same spec with `[stolaroff] eta` set from the first 30 s hover the .tlog shows
-  (mean V·I there, less the 8 W avionics prior, against momentum theory's ideal power).
+- `hover`: `plan --hover-w W` on the same spec, W the first 30 s hover the .tlog shows (mean
+  V·I there): the efficiency becomes ideal power / (W − 8 W avionics).
 - `learned`: `dronewatt learn` on the first four flights' .tlog (it trains on three, holds
   one out and picks the forecast model), the later flights planned with its profile.
 
@@ -158,6 +159,9 @@ def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path):
     with open(tlog_path, "wb") as f:
         def put(msg):
             f.write(struct.pack(">Q", t_us) + msg.pack(mav))
+        # the parameters a ground station fetches on connecting (ArduPilot's names and types)
+        params = [("BATT_CAPACITY", MAH, 6), ("FRAME_CLASS", 3, 2), ("MOT_BAT_VOLT_MAX", 4.2 * CELLS, 9),
+                  ("MOT_BAT_VOLT_MIN", 3.3 * CELLS, 9)]
         for k, (p, v, a) in enumerate(path):
             gust += -gust * DT / 3.0 + rng.normal(0, 1.0, 3) * math.sqrt(2 * DT / 3.0) * (0.2 * wind_speed)
             gust[2] = 0.0
@@ -176,6 +180,9 @@ def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path):
             lon = lon0 + p[0] / (111_320.0 * math.cos(math.radians(lat0)))
             if k % 10 == 0:
                 put(mavlink.MAVLink_heartbeat_message(14, 3, 81 if airborne else 1, 3, 4, 3))
+            if k == 10:  # after the vehicle is heard
+                for i, (pid, val, typ) in enumerate(params):
+                    put(mavlink.MAVLink_param_value_message(pid.encode(), float(val), typ, len(params), i))
             put(mavlink.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(amps * 100),
                                                    int(soc * 100), 0, 0, 0, 0, 0, 0))
             put(mavlink.MAVLink_battery_status_message(0, 1, 1, 3200, [int(volts * 1000 / CELLS)] * CELLS + [65535] * 4,
@@ -234,8 +241,8 @@ def waypoints(path_file, legs_m, speed):
         f.write("\n".join(lines) + "\n")
 
 
-def forecast(binary, plan, spec, speed, wind):
-    cmd = [binary, "plan", plan, "--vehicle", spec, "--speed", str(speed), "--json", "-"]
+def forecast(binary, plan, spec, speed, wind, extra=()):
+    cmd = [binary, "plan", plan, "--vehicle", spec, "--speed", str(speed), "--json", "-", *extra]
     if wind[0] > 0:
         cmd += ["--wind", f"{wind[0]}@{wind[1]}"]
     out = subprocess.run(cmd, capture_output=True, text=True, check=True)
@@ -292,12 +299,8 @@ def main():
         stage = [dict(stage="spec", p50=p50, p90=p90)]
         hw = first_hover_w(rows_t)
         if hw is not None:
-            ideal = priors.ideal_hover_w(peer.mass, peer.n, 0.4572)
-            eta = ideal / (hw - 8.0)
-            spec_h = os.path.join(out, f"flight{i}-hover.toml")
-            with open(spec_h, "w") as f:
-                f.write(facts + f"[stolaroff]\neta = {eta:.4f}\n")
-            h50, h90 = forecast(a.bin, plan, spec_h, speed, wind)
+            h50, h90 = forecast(a.bin, plan, spec, speed, wind, ["--hover-w", f"{hw:.1f}"])
+            eta = priors.ideal_hover_w(peer.mass, peer.n, 0.4572) / (hw - 8.0)
             stage.append(dict(stage="hover", p50=h50, p90=h90, hover_w=round(float(hw), 1), eta=round(float(eta), 4)))
         for s in stage:
             s["err_pct"] = round(100 * (s["p50"] / measured - 1), 1)

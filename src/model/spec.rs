@@ -415,6 +415,49 @@ pub fn profile(mut t: Table, origin: &str) -> anyhow::Result<VehicleProfile> {
     Ok(p)
 }
 
+/// A measured hover power, W, makes the hover efficiency the vehicle's: `[stolaroff] eta` =
+/// ideal momentum-theory power / (hover − avionics), the forecast the momentum-theory member
+/// with a P90 that keeps only the drag's spread, and its reason says so. Refused for a
+/// vehicle that does not hover (a plane) and for a power momentum theory cannot give this
+/// mass on these rotors (η_h outside (0.05, 1)).
+pub fn calibrate_hover(mut p: VehicleProfile, hover_w: f64) -> Result<VehicleProfile, String> {
+    if p.plane.is_some()
+        || p.vehicle
+            .class
+            .is_some_and(|c| c != VehicleClass::Multirotor)
+    {
+        return Err(format!(
+            "{} does not hover on its rotors alone: no hover calibration",
+            p.name
+        ));
+    }
+    let thrust = p.mass_kg(0.0) * p.air.g_m_s2;
+    let ideal = thrust.powf(1.5) / (2.0 * p.air.rho_kg_m3 * p.disk_area_m2()).sqrt();
+    let eta = ideal / (hover_w - p.stolaroff.p_avio_w);
+    if !(hover_w.is_finite() && eta > 0.05 && eta < 1.0) {
+        return Err(format!(
+            "{hover_w} W is not a hover of {} ({:.2} kg on {:.3} m² of disk needs at least {:.0} W, momentum theory's ideal, plus {:.0} W avionics)",
+            p.name,
+            p.mass_kg(0.0),
+            p.disk_area_m2(),
+            ideal,
+            p.stolaroff.p_avio_w
+        ));
+    }
+    let was = p.stolaroff.eta;
+    p.stolaroff.eta = eta;
+    let p90 = (Z90 * DRAG_SHARE * DRAG_LOG_SD).exp();
+    p.forecast = Some(ForecastDefault {
+        model: format!("stolaroff{}", p.name_suffix()),
+        why: format!(
+            "calibrated on a measured hover of {hover_w:.0} W: η_h {eta:.3} (was {was:.3}); P90 from the drag prior's spread alone; {LEFT_OUT}"
+        ),
+        scale: Default::default(),
+        p90_ratio: Some((p90 * 1000.0).round() / 1000.0),
+    });
+    Ok(p)
+}
+
 /// Whether this is the process's first load of `origin` (what was filled is said once).
 fn first_load(origin: &str) -> bool {
     static SEEN: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());

@@ -105,6 +105,35 @@ fn an_impossible_spec_names_its_key() {
     assert!(e.contains("spec.toml"), "{e}");
 }
 
+#[test]
+fn a_measured_hover_sets_the_efficiency_and_tightens_the_band() {
+    let p = load(FIVE).unwrap();
+    // 150 W measured: η_h = 64.63 / (150 − 8) = 0.4551; the stolaroff hover is then 150 W.
+    let c = calibrate_hover(p.clone(), 150.0).unwrap();
+    assert!(
+        (c.stolaroff.eta - 0.4551).abs() < 5e-4,
+        "{}",
+        c.stolaroff.eta
+    );
+    let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), &c);
+    assert!((stolaroff::power_w(&k, &c, &c.stolaroff) - 150.0).abs() < 0.01);
+    let f = c.forecast.unwrap();
+    assert!(
+        f.why.contains("measured hover of 150 W") && f.why.contains("was 0.416"),
+        "{}",
+        f.why
+    );
+    assert!((f.p90_ratio.unwrap() - 1.174).abs() < 0.001);
+    // Less than momentum theory's ideal power, or not a number: not a hover of this vehicle.
+    let e = calibrate_hover(p.clone(), 60.0).unwrap_err();
+    assert!(e.contains("not a hover") && e.contains("65 W"), "{e}");
+    assert!(calibrate_hover(p, f64::NAN).is_err());
+    // A plane does not hover: no calibration, said.
+    let plane = VehicleProfile::named_or_file("plane").unwrap();
+    let e = calibrate_hover(plane, 150.0).unwrap_err();
+    assert!(e.contains("does not hover"), "{e}");
+}
+
 proptest::proptest! {
     /// Any spec within the keys' ranges loads into a profile that validates, keeps the
     /// take-off mass and widens its P90.
