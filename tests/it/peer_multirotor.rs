@@ -70,9 +70,9 @@ fn the_spec_sheet_forecast_against_the_multirotor_peer() {
     let text = String::from_utf8_lossy(&out.stdout);
     let last = text
         .lines()
+        .rev()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|v| v["type"] == "estimate")
-        .last()
+        .find(|v| v["type"] == "estimate")
         .expect("estimates from the replay");
     // The spec sheet's momentum-theory member runs, the pack is the one the log's parameters
     // name (6S 22 Ah: 488 Wh), and the energy used is the peer's.
