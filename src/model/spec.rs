@@ -40,7 +40,8 @@ pub const ETA_H: f64 = 0.416;
 /// Its log-spread across those airframes (standard deviation of ln η_h).
 pub const ETA_H_LOG_SD: f64 = 0.348;
 /// Drag area per kg^(2/3) of take-off mass, m²/kg^(2/3): C_D·A grows as the frontal area
-/// (the X500 0.025, the 3S quad 0.020, the M100's published-model value 0.055 here).
+/// (the X500 0.025, the 3S quad 0.020, the M100's published-model value 0.055 here: their
+/// arithmetic mean).
 pub const DRAG_PER_KG23: f64 = 0.033;
 /// Log-spread of that drag area.
 pub const DRAG_LOG_SD: f64 = 0.5;
@@ -58,7 +59,7 @@ fn pack_wh_per_kg(c: Chemistry) -> f64 {
 }
 /// Pack share of take-off mass when the pack is not given (1).
 const PACK_MASS_SHARE: f64 = 0.3;
-/// Disk loading when the propeller is not given, N/m² (the airframes above: 50–105).
+/// Disk loading when the propeller is not given, N/m² (spec-priors.py's airframes: 50–105).
 const DISK_LOADING_N_M2: f64 = 80.0;
 /// Cell resistance × capacity, Ω·Ah (5 mΩ for a 5 Ah cell), plus 5 mΩ of leads.
 const CELL_R_OHM_AH: f64 = 0.025;
@@ -73,7 +74,7 @@ pub fn is_spec(t: &Table) -> bool {
         .is_some_and(|v| v.contains_key("takeoff_kg"))
 }
 
-/// The five facts, each with whether the file gave it.
+/// The five facts (and the chemistry); `filled` names those the file did not give.
 #[derive(Debug, Clone)]
 struct Facts {
     takeoff_kg: f64,
@@ -82,7 +83,7 @@ struct Facts {
     cells: u32,
     capacity_mah: f64,
     chemistry: Chemistry,
-    filled: Vec<&'static str>,
+    filled: Vec<String>,
 }
 
 fn num(t: &Table, sec: &str, key: &str) -> Result<Option<f64>, String> {
@@ -114,9 +115,17 @@ fn facts(t: &Table) -> Result<Facts, String> {
     let takeoff_kg = num(t, "vehicle", "takeoff_kg")?.unwrap_or(f64::NAN);
     in_range("vehicle.takeoff_kg", takeoff_kg, above(0.0), "kg")?;
     in_range("vehicle.takeoff_kg", takeoff_kg, ..=1000.0, "kg")?;
+    // absent: the declared frame's count, else a quad
+    let frame = t
+        .get("vehicle")
+        .and_then(Value::as_table)
+        .and_then(|v| v.get("frame"))
+        .and_then(Value::as_str)
+        .and_then(frame_rotors);
     let rotors = count(t, "vehicle", "rotors")?.unwrap_or_else(|| {
-        filled.push("vehicle.rotors (4)");
-        4
+        let n = frame.unwrap_or(4);
+        filled.push(format!("vehicle.rotors ({n})"));
+        n
     });
     in_range("vehicle.rotors", rotors, 1.., "")?;
     let chem = match t
@@ -125,7 +134,7 @@ fn facts(t: &Table) -> Result<Facts, String> {
         .and_then(|b| b.get("chemistry"))
     {
         None => {
-            filled.push("battery.chemistry (lipo)");
+            filled.push("battery.chemistry (lipo)".into());
             Chemistry::LiPo
         }
         Some(v) => v.as_str().and_then(Chemistry::from_name).ok_or_else(|| {
@@ -136,21 +145,21 @@ fn facts(t: &Table) -> Result<Facts, String> {
     let prop_m = match num(t, "vehicle", "prop_diameter_m")? {
         Some(d) => d,
         None => {
-            filled.push("vehicle.prop_diameter_m (disk loading 80 N/m²)");
+            filled.push("vehicle.prop_diameter_m (disk loading 80 N/m²)".into());
             (4.0 * weight / DISK_LOADING_N_M2 / (f64::from(rotors) * std::f64::consts::PI)).sqrt()
         }
     };
     in_range("vehicle.prop_diameter_m", prop_m, above(0.0), "m")?;
     in_range("vehicle.prop_diameter_m", prop_m, ..=3.0, "m")?;
     let cells = count(t, "battery", "cells")?.unwrap_or_else(|| {
-        filled.push("battery.cells (4)");
+        filled.push("battery.cells (4)".into());
         4
     });
     in_range("battery.cells", cells, 1..=24, "")?;
     let capacity_mah = match num(t, "battery", "capacity_mah")? {
         Some(c) => c,
         None => {
-            filled.push("battery.capacity_mah (a pack of 30 % of the take-off mass)");
+            filled.push("battery.capacity_mah (a pack of 30 % of the take-off mass)".into());
             let wh = PACK_MASS_SHARE * takeoff_kg * pack_wh_per_kg(chem);
             wh / (f64::from(cells) * chem.nominal_v()) * 1000.0
         }

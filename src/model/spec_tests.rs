@@ -54,6 +54,9 @@ fn a_partial_spec_is_filled_from_priors_and_a_key_of_a_profile_overrides_one() {
     // disk loading 80 N/m²: A = 19.62/80 = 0.24525 m² over 4 rotors -> D = 0.2794 m
     assert!((p.vehicle.prop_diameter_m - 0.2794).abs() < 1e-3);
     assert!(p.name.contains("spec.toml"));
+    // a declared frame gives the rotors it has
+    let p = load("[vehicle]\ntakeoff_kg = 5.0\nframe = \"hexa\"\n").unwrap();
+    assert_eq!(p.vehicle.rotors, 6);
     let own = FIVE.replace("[battery]", "[stolaroff]\neta = 0.5\n[battery]");
     let p = load(&own).unwrap();
     assert_eq!(p.stolaroff.eta, 0.5);
