@@ -13,7 +13,7 @@ and log-spread of their eta_h) with the hover power that prior forecasts.
 
 Sources (the `source` column): the M100 data set's hover flights (../shared/data/m100, routes
 H, flights 221-224, read when present; else the figure this script printed when it was
-run, 477 W), the `multirotor` package's Tarot T18 (its motor and propeller constants, the
+run, 481.4 W), the `multirotor` package's Tarot T18 (its motor and propeller constants, the
 hover solved with its own Motor model), DJI's published hovering times (as remembered, not
 re-checked: the table says so), the 3DR Solo regression the project ships (tseng_solo's
 intercept, Tseng et al. 2017) and the simulators written here (config/vehicles/*.toml,
@@ -42,7 +42,7 @@ def ideal_hover_w(m, n, d):
 def m100_hover_w():
     """Median electrical power of the data set's hover flights (route H, still, payload 0)."""
     if not os.path.exists(M100_CSV):
-        return 477.0, "M100 data set absent: the figure of the last run"
+        return 481.4, "M100 data set absent: the figure of the last run"
     import csv
     per = {}
     with gzip.open(M100_CSV, "rt") as f:
