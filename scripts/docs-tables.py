@@ -635,6 +635,63 @@ def lgbm_tables(check=False):
     return stale
 
 
+# ---------------------------------------------------------------- spec sheets (committed JSON)
+
+# `scripts/spec-priors.py --json` (the hover-efficiency prior across airframes, leave one out)
+# and `scripts/peer-multirotor.py --json` (the spec-sheet forecast against the multirotor
+# package's Tarot T18): their JSON is committed beside the tables (see docs/src/spec-sheet.md).
+SPEC_JSON = OUT / "spec-priors.json"
+PEER_JSON = OUT / "peer-multirotor.json"
+
+
+def spec_priors(r):
+    rows = [[a["airframe"], f(a["kg"], 3), a["rotors"], f(a["prop_m"], 4), f(a["hover_w"], 1),
+             f(a["eta_h"], 3), f"{f(a['loao_eta'], 3)} ± {f(a['loao_sd'], 2)}", f(a["loao_hover_w"], 1),
+             f"{a['loao_err_pct']:+.1f} %", "yes" if a["loao_p90_covers"] else "no", a["source"]]
+            for a in r["airframes"]]
+    return (header("scripts/spec-priors.py --json").replace("dronewatt scripts/", "scripts/")
+            + table(["airframe", "take-off kg", "rotors", "prop m", "hover W", "η_h",
+                     "prior without it (η_h ± log-sd)", "its forecast W", "error", "P90 covers", "source"], rows)
+            + f"\nAll airframes (the shipped prior): η_h = {f(r['eta_h_median'], 3)}, log-spread "
+              f"{f(r['eta_h_log_sd'], 3)}; leave-one-airframe-out median |error| of the hover power "
+              f"{f(r['loao_median_abs_err_pct'], 1)} %.\n")
+
+
+def peer_multirotor(r):
+    rows = []
+    for fl in r["flights"]:
+        st = {s["stage"]: s for s in fl["stages"]}
+        row = [fl["flight"], fl["speed"], f"{fl['wind'][0]} m/s from {fl['wind'][1]}°", f(fl["truth_wh"], 1)]
+        for name in ("spec", "hover", "learned"):
+            q = st.get(name)
+            row += [f(q["p50"], 1), f(q["p90"], 1), f"{q['err_pct']:+.1f} %"] if q else ["—"] * 3
+        rows.append(row)
+    out = (header("scripts/peer-multirotor.py --json").replace("dronewatt scripts/", "scripts/")
+           + table(["flight", "speed m/s", "wind", "peer's energy Wh", "spec P50", "spec P90", "spec error",
+                    "after hover P50", "P90", "error", "learned P50", "P90", "error"], rows) + "\n")
+    for st, v in r["summary"].items():
+        out += (f"- **{st}**: median |error| {f(v['median_abs_err_pct'], 1)} %, P90 ≥ the peer's energy on "
+                f"{f(v['p90_cover_pct'], 1)} % of {v['flights']} flights\n")
+    return out
+
+
+def spec_tables(check=False):
+    """Write the spec-sheet tables from their committed JSON (with `check`: the stale ones)."""
+    stale = []
+    for path, fname, fn in [(SPEC_JSON, "spec-priors.md", spec_priors), (PEER_JSON, "peer-multirotor.md", peer_multirotor)]:
+        if not path.exists():
+            note(f"{path.relative_to(ROOT)} absent: {fname} kept as committed")
+            continue
+        md = fn(json.loads(path.read_text()))
+        if check:
+            if not (OUT / fname).exists() or (OUT / fname).read_text() != md:
+                stale.append(f"{(OUT / fname).relative_to(ROOT)} differs from its JSON")
+            continue
+        (OUT / fname).write_text(md)
+        note(f"wrote {(OUT / fname).relative_to(ROOT)}")
+    return stale
+
+
 WRITERS = {
     "battery-eval": [("battery-eval.md", battery_eval), ("battery-params.md", battery_params)],
     "plan-eval": [("plan-eval-flights.md", plan_eval_flights), ("plan-eval-targets.md", plan_eval_targets),
@@ -671,7 +728,7 @@ def main():
     data = Path(os.environ.get("DRONEWATT_DATA", ROOT.parent / "shared" / "data" / "m100" / "flights.csv.gz"))
 
     # from the committed JSON: needs neither the binary nor the data set
-    lgbm_stale = lgbm_tables(check=a.check)
+    lgbm_stale = lgbm_tables(check=a.check) + spec_tables(check=a.check)
     wanted = ["battery-eval", "plan-eval"] + ([] if a.no_eval else ["eval-cvar"])
     results = {}
     if a.from_json:

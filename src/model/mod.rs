@@ -7,6 +7,7 @@ pub mod lstm;
 pub mod lstm_cpu;
 pub mod physics;
 pub mod profile;
+pub mod spec;
 pub mod trees;
 
 pub use crate::features::Lift;

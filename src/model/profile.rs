@@ -383,7 +383,13 @@ impl VehicleProfile {
     }
 
     /// Parse and validate profile text; `origin` names it in errors.
+    /// A spec sheet (`[vehicle] takeoff_kg`, [`super::spec`]) becomes a profile from priors.
     pub fn from_toml(text: &str, origin: &str) -> anyhow::Result<Self> {
+        if let Ok(t) = toml::from_str::<toml::Table>(text) {
+            if super::spec::is_spec(&t) {
+                return super::spec::profile(t, origin);
+            }
+        }
         let p: VehicleProfile = toml::from_str(text)
             .with_context(|| format!("{origin}: not a valid vehicle profile"))?;
         p.validate().map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;

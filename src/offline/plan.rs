@@ -60,6 +60,11 @@ pub struct PlanArgs {
     /// Cruise speed until the plan changes it, m/s. Default: the plan's, else 10.
     #[arg(long, value_name = "M_S")]
     pub speed: Option<f64>,
+    /// The vehicle's measured hover power, W: the mean of the pack's V × I over its first
+    /// ~30 s of hover. It sets the hover efficiency of the momentum-theory forecast, whose
+    /// P90 then keeps only the drag's spread (a multirotor only; refused for a plane).
+    #[arg(long, value_name = "W")]
+    pub hover_w: Option<f64>,
     #[command(flatten)]
     pub forecast: ForecastArgs,
     /// Write a PNG of cumulative energy along the route (P50, P90 band, reserve line).
@@ -175,7 +180,12 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if let Some(p) = &profile_path {
         cfg.vehicle = Some(p.clone());
     }
-    let is_m100 = profile.name == VehicleProfile::m100().name;
+    let profile = match a.hover_w {
+        Some(w) => crate::model::spec::calibrate_hover(profile, w)
+            .map_err(|e| anyhow::anyhow!("--hover-w {w}: {e}"))?,
+        None => profile,
+    };
+    let is_m100 = a.hover_w.is_none() && profile.name == VehicleProfile::m100().name;
     let plan = Plan::load(&a.file)?;
     let payload_g = a
         .payload_g
@@ -220,7 +230,8 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             "the M100's calibrated models and fitted correction".to_string(),
         )
     } else {
-        let mut models = match &profile_path {
+        // a measured hover changed the profile in memory: its physics models, not the file's
+        let mut models = match profile_path.as_ref().filter(|_| a.hover_w.is_none()) {
             Some(p) => crate::model::build_models(&cfg.models, Some(p), &cfg.telemetry)?,
             None => crate::model::physics::models(&profile),
         };

@@ -1,0 +1,382 @@
+#!/usr/bin/env python3
+"""Score the spec-sheet forecast against an independent electrical peer: the `multirotor`
+package's Tarot T18 (PyPI multirotor 0.5.0, models/tarott18.py).
+
+What is the package's and what is this harness's (be exact about it):
+- The package's: the T18's mass, rotor count, propeller thrust and torque constants
+  (k_thrust, k_drag) and its motor (winding resistance, back-EMF and torque constants, as
+  tarott18.py defines MP; its propellers ship with motor=None, so the harness attaches MP,
+  which that file leaves commented out). Each motor's current comes from the package's own
+  `Motor.step` (I = (V - k_e·ω)/R) and the pack current from its duty-cycle average.
+- The harness's: the flight path. The package ships no tuned controller gains (its cascaded
+  PID's `make_for` gives P-only unit gains meant for its optuna tuner), so the harness flies
+  the plan as a point mass with the kinematics of a waypoint mission (climb, a 30 s hover,
+  trapezoidal legs, stops, descent), in wind with gusts, and asks the package's motors for
+  the thrust that path needs (weight, acceleration and a body drag of C_D·A = 0.20 m², the
+  harness's ASSUMPTION: the package models no body drag). The package's propellers give
+  thrust k·ω² whatever the airspeed (no translational lift), so forward flight costs the
+  peer what hover costs at the same thrust.
+- The pack: 6S LiPo 22 000 mAh, 25 mΩ, a LiPo resting-voltage curve; the telemetry's
+  current is the package's power over this pack's loaded voltage, as ArduPilot's
+  SYS_STATUS / BATTERY_STATUS report it, written to a pymavlink .tlog at 10 Hz after the
+  parameters a ground station fetches (BATT_CAPACITY, FRAME_CLASS, MOT_BAT_VOLT_MAX/MIN).
+
+Stages scored, the T18 held out:
+- `spec`: the five facts; the hover-efficiency prior fitted on the other airframes
+  (scripts/spec-priors.py without the T18, passed as `[priors]`).
+- `hover`: `plan --hover-w W` on the same spec, W the first 30 s hover the .tlog shows (mean
+  V·I there): the efficiency becomes ideal power / (W − 8 W avionics).
+- `learned`: `dronewatt learn` on the first four flights' .tlog (it trains on three, holds
+  one out and picks the forecast model), the later flights planned with its profile.
+
+    .venv-py/bin/python scripts/peer-multirotor.py --bin target/debug/dronewatt [--quick] \
+        [--json out.json] [--markdown] [--plot energy.png] [--out DIR]
+"""
+import argparse
+import copy
+import json
+import math
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+RHO, G = 1.225, 9.81
+CDA = 0.20          # m², the harness's body drag (ASSUMPTION; the package has none)
+CELLS, MAH, R_PACK = 6, 22000.0, 0.025
+LIPO = [(0.0, 3.27), (0.05, 3.61), (0.1, 3.69), (0.2, 3.73), (0.3, 3.77), (0.4, 3.80),
+        (0.5, 3.84), (0.6, 3.87), (0.7, 3.95), (0.8, 4.02), (0.9, 4.11), (1.0, 4.20)]
+HOME = (47.397742, 8.545594)
+DT = 0.1
+HOVER_S = 30.0
+ALT = 30.0
+SPEC = """name = "Tarot T18 (multirotor peer)"
+[vehicle]
+takeoff_kg = {kg}
+rotors = {n}
+prop_diameter_m = 0.4572
+[battery]
+cells = 6
+capacity_mah = 22000
+chemistry = "lipo"
+"""
+
+
+class Peer:
+    """The package's T18: its propellers' constants and its motor, one per rotor."""
+
+    def __init__(self):
+        from multirotor.models.tarott18 import MP, PP, VP, BP, SP
+        from multirotor.simulation import Motor
+        self.mass, self.n, self.vmax = VP.mass, len(VP.propellers), BP.max_voltage
+        self.k_thrust, self.k_drag = PP.k_thrust, PP.k_drag
+        mp = copy.deepcopy(MP)
+        mp.k_drag = PP.k_drag
+        self.mp = mp
+        self.motors = [Motor(copy.deepcopy(mp), SP) for _ in range(self.n)]
+
+    def power_w(self, thrust_n):
+        """Electrical power for a total thrust, W: each motor's current from the package."""
+        t = max(thrust_n, 0.0) / self.n
+        omega = math.sqrt(t / self.k_thrust)
+        volts = omega * self.mp.k_emf + self.k_drag * omega ** 2 / self.mp.k_torque * self.mp.resistance
+        total = 0.0
+        for m in self.motors:
+            m.speed = omega
+            m.step(volts / self.mp.speed_voltage_scaling, max_voltage=self.vmax)
+            total += m.current_average(self.vmax) * self.vmax
+        return total
+
+
+def profile(legs_m, speed, alt=ALT):
+    """The path as (t, pos ENU, vel, acc) at DT: climb, hover, legs stop to stop, descent."""
+    out = []
+    pos = np.zeros(3)
+
+    def emit(p, v, a, secs):
+        for _ in range(int(round(secs / DT))):
+            out.append((p.copy(), v.copy(), a.copy()))
+
+    z = 0.0
+    while z < alt:
+        z = min(alt, z + 3.0 * DT)
+        emit(np.array([0, 0, z]), np.array([0, 0, 3.0]), np.zeros(3), DT)
+    pos[2] = alt
+    emit(pos, np.zeros(3), np.zeros(3), HOVER_S)
+    acc = 2.5
+    for (dx, dy) in legs_m:
+        d = math.hypot(dx, dy)
+        u = np.array([dx / d, dy / d, 0.0])
+        vtop = min(speed, math.sqrt(acc * d))
+        ta = vtop / acc
+        tc = (d - vtop * ta) / vtop
+        start = pos.copy()
+        t = 0.0
+        total = 2 * ta + tc
+        while t < total:
+            if t < ta:
+                s, v, a = 0.5 * acc * t * t, acc * t, acc
+            elif t < ta + tc:
+                s, v, a = 0.5 * acc * ta * ta + vtop * (t - ta), vtop, 0.0
+            else:
+                r = total - t
+                s, v, a = d - 0.5 * acc * r * r, acc * r, -acc
+            emit(start + s * u, v * u, a * u, DT)
+            t += DT
+        pos = start + d * u
+        emit(pos, np.zeros(3), np.zeros(3), 2.0)
+    while pos[2] > 0:
+        vz = 2.7 if pos[2] > 20 else 1.0
+        pos = pos.copy()
+        pos[2] = max(0.0, pos[2] - vz * DT)
+        emit(pos, np.array([0, 0, -vz]), np.zeros(3), DT)
+    return out
+
+
+def ocv(soc):
+    soc = min(max(soc, 0.0), 1.0)
+    for (s0, v0), (s1, v1) in zip(LIPO, LIPO[1:]):
+        if soc <= s1:
+            return v0 + (v1 - v0) * (soc - s0) / (s1 - s0)
+    return LIPO[-1][1]
+
+
+def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path):
+    """Fly the path in wind; write the .tlog as ArduPilot would; return the truth, Wh."""
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+    rng = np.random.default_rng(seed)
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    to = math.radians(wind_from_deg + 180.0)
+    mean_w = wind_speed * np.array([math.sin(to), math.cos(to), 0.0])
+    gust = np.zeros(3)
+    soc, energy_j, t_us = 1.0, 0.0, 1_700_000_000_000_000
+    lat0, lon0 = HOME
+    with open(tlog_path, "wb") as f:
+        def put(msg):
+            f.write(struct.pack(">Q", t_us) + msg.pack(mav))
+        # the parameters a ground station fetches on connecting (ArduPilot's names and types)
+        params = [("BATT_CAPACITY", MAH, 6), ("FRAME_CLASS", 3, 2), ("MOT_BAT_VOLT_MAX", 4.2 * CELLS, 9),
+                  ("MOT_BAT_VOLT_MIN", 3.3 * CELLS, 9)]
+        for k, (p, v, a) in enumerate(path):
+            gust += -gust * DT / 3.0 + rng.normal(0, 1.0, 3) * math.sqrt(2 * DT / 3.0) * (0.2 * wind_speed)
+            gust[2] = 0.0
+            air = v - (mean_w + gust)
+            drag = -0.5 * RHO * CDA * np.linalg.norm(air) * air
+            thrust = peer.mass * (a + np.array([0, 0, G])) - drag
+            airborne = p[2] > 0.05 or k == 0
+            pw = peer.power_w(np.linalg.norm(thrust)) + 8.0 if airborne else 8.0
+            v_oc = CELLS * ocv(soc)
+            amps = (v_oc - math.sqrt(max(v_oc * v_oc - 4 * R_PACK * pw, 0.0))) / (2 * R_PACK)
+            volts = v_oc - amps * R_PACK
+            soc -= amps * DT / 3600.0 / (MAH / 1000.0)
+            energy_j += volts * amps * DT
+            n = thrust / np.linalg.norm(thrust)
+            lat = lat0 + p[1] / 111_320.0
+            lon = lon0 + p[0] / (111_320.0 * math.cos(math.radians(lat0)))
+            if k % 10 == 0:
+                put(mavlink.MAVLink_heartbeat_message(14, 3, 81 if airborne else 1, 3, 4, 3))
+            if k == 10:  # after the vehicle is heard
+                for i, (pid, val, typ) in enumerate(params):
+                    put(mavlink.MAVLink_param_value_message(pid.encode(), float(val), typ, len(params), i))
+            put(mavlink.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(amps * 100),
+                                                   int(soc * 100), 0, 0, 0, 0, 0, 0))
+            put(mavlink.MAVLink_battery_status_message(0, 1, 1, 3200, [int(volts * 1000 / CELLS)] * CELLS + [65535] * 4,
+                                                       int(amps * 100), int((1 - soc) * MAH), -1, int(soc * 100)))
+            put(mavlink.MAVLink_global_position_int_message(k * 100, int(lat * 1e7), int(lon * 1e7),
+                                                            int((488 + p[2]) * 1000), int(p[2] * 1000),
+                                                            int(v[1] * 100), int(v[0] * 100), int(-v[2] * 100), 0))
+            # yaw 0 (body x north): thrust tilted north is nose down, east is right wing down
+            put(mavlink.MAVLink_attitude_message(k * 100, math.atan2(n[0], n[2]), -math.atan2(n[1], n[2]),
+                                                 0.0, 0.0, 0.0, 0.0))
+            t_us += int(DT * 1e6)
+    return energy_j / 3600.0
+
+
+def read_tlog(path):
+    """(t s, V, A, relative alt m) from the .tlog's SYS_STATUS and GLOBAL_POSITION_INT."""
+    from pymavlink import mavutil
+    m = mavutil.mavlink_connection(path)
+    rows, alt = [], 0.0
+    while True:
+        msg = m.recv_match(type=["SYS_STATUS", "GLOBAL_POSITION_INT"])
+        if msg is None:
+            break
+        if msg.get_type() == "GLOBAL_POSITION_INT":
+            alt = msg.relative_alt / 1000.0
+        else:
+            rows.append((msg._timestamp, msg.voltage_battery / 1000.0, msg.current_battery / 100.0, alt))
+    return rows
+
+
+def first_hover_w(rows):
+    """Mean V·I over the first 30 s at hover height (still, above 90 % of the climb)."""
+    t0 = next((t for t, _, _, a in rows if a >= 0.9 * ALT), None)
+    if t0 is None:
+        return None
+    p = [v * i for t, v, i, a in rows if t0 + 2 <= t <= t0 + HOVER_S - 2]
+    return sum(p) / len(p) if p else None
+
+
+def waypoints(path_file, legs_m, speed):
+    lat0, lon0 = HOME
+    lines = ["QGC WPL 110", f"0\t1\t0\t16\t0\t0\t0\t0\t{lat0:.7f}\t{lon0:.7f}\t488\t1",
+             f"1\t0\t3\t22\t0\t0\t0\t0\t{lat0:.7f}\t{lon0:.7f}\t{ALT}\t1",
+             f"2\t0\t3\t19\t{HOVER_S}\t0\t0\t0\t{lat0:.7f}\t{lon0:.7f}\t{ALT}\t1",
+             f"3\t0\t3\t178\t1\t{speed}\t-1\t0\t0\t0\t0\t1"]
+    x = y = 0.0
+    i = 4
+    for dx, dy in legs_m:
+        x, y = x + dx, y + dy
+        lat = lat0 + y / 111_320.0
+        lon = lon0 + x / (111_320.0 * math.cos(math.radians(lat0)))
+        lines.append(f"{i}\t0\t3\t16\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t{ALT}\t1")
+        i += 1
+    lines.append(f"{i}\t0\t3\t21\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t0\t1")
+    with open(path_file, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def forecast(binary, plan, spec, speed, wind, extra=()):
+    cmd = [binary, "plan", plan, "--vehicle", spec, "--speed", str(speed), "--json", "-", *extra]
+    if wind[0] > 0:
+        cmd += ["--wind", f"{wind[0]}@{wind[1]}"]
+    out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    j = json.loads(out.stdout)
+    return j["forecast"]["energy_p50_wh"], j["forecast"]["energy_p90_wh"]
+
+
+FLIGHTS = [  # name, legs (m, ENU), speed m/s, wind (m/s, from deg)
+    ("square 400 m", [(400, 0), (0, 400), (-400, 0), (0, -400)], 8, (0, 0)),
+    ("square 400 m", [(400, 0), (0, 400), (-400, 0), (0, -400)], 12, (5, 270)),
+    ("out-back 1 km", [(1000, 0), (-1000, 0)], 10, (8, 90)),
+    ("out-back 1 km", [(0, 1000), (0, -1000)], 5, (3, 0)),
+    ("zigzag 1.2 km", [(300, 200), (300, -200), (300, 200), (-900, -200)], 10, (6, 200)),
+    ("triangle 900 m", [(300, 0), (-150, 260), (-150, -260)], 9, (4, 45)),
+    ("out-back 600 m", [(0, 600), (0, -600)], 11, (7, 180)),
+    ("square 250 m", [(250, 0), (0, 250), (-250, 0), (0, -250)], 6, (2, 315)),
+    ("long leg 1.6 km", [(1600, 0), (-1600, 0)], 12, (5, 120)),
+    ("short hop", [(150, 0), (-150, 0)], 6, (0, 0)),
+]
+LEARN_ON = 4  # `learn` on the first four flights' .tlog (it holds out one of them itself)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--bin", default=os.path.join(HERE, "..", "target", "debug", "dronewatt"))
+    ap.add_argument("--quick", action="store_true", help="one short flight (the make-test check)")
+    ap.add_argument("--json")
+    ap.add_argument("--markdown", action="store_true")
+    ap.add_argument("--plot")
+    ap.add_argument("--out", help="keep the .tlog, plans and specs here")
+    a = ap.parse_args()
+    import importlib
+    priors = importlib.import_module("spec-priors")
+    rows = priors.airframes()
+    others = [r["eta_h"] for r in rows if "T18" not in r["airframe"]]
+    eta0, sd0 = priors.prior(others)
+    peer = Peer()
+    out = a.out or tempfile.mkdtemp(prefix="peer-multirotor-")
+    os.makedirs(out, exist_ok=True)
+    results = []
+    flights = FLIGHTS[-1:] if a.quick else FLIGHTS
+    for i, (name, legs, speed, wind) in enumerate(flights):
+        tlog = os.path.join(out, f"flight{i}.tlog")
+        truth = fly(peer, profile(legs, speed), wind[0], wind[1], i, tlog)
+        rows_t = read_tlog(tlog)
+        measured = sum(v * c for _, v, c, _ in rows_t) * DT / 3600.0
+        plan = os.path.join(out, f"flight{i}.waypoints")
+        waypoints(plan, legs, speed)
+        spec = os.path.join(out, f"flight{i}-spec.toml")
+        facts = SPEC.format(kg=peer.mass, n=peer.n)
+        with open(spec, "w") as f:
+            f.write(facts + f"[priors]\neta_h = {eta0:.4f}\neta_h_log_sd = {sd0:.4f}\n")
+        p50, p90 = forecast(a.bin, plan, spec, speed, wind)
+        stage = [dict(stage="spec", p50=p50, p90=p90)]
+        hw = first_hover_w(rows_t)
+        if hw is not None:
+            h50, h90 = forecast(a.bin, plan, spec, speed, wind, ["--hover-w", f"{hw:.1f}"])
+            eta = priors.ideal_hover_w(peer.mass, peer.n, 0.4572) / (hw - 8.0)
+            stage.append(dict(stage="hover", p50=h50, p90=h90, hover_w=round(float(hw), 1), eta=round(float(eta), 4)))
+        for s in stage:
+            s["err_pct"] = round(100 * (s["p50"] / measured - 1), 1)
+            s["p90_covers"] = bool(s["p90"] >= measured)
+        results.append(dict(flight=name, speed=speed, wind=list(wind), truth_wh=round(float(measured), 2),
+                            stages=stage))
+    if not a.quick:
+        learned(a.bin, out, flights, results)
+    summary = {}
+    for st in ("spec", "hover", "learned"):
+        errs = [s for r in results for s in r["stages"] if s["stage"] == st]
+        if errs:
+            summary[st] = dict(median_abs_err_pct=round(float(np.median([abs(s["err_pct"]) for s in errs])), 1),
+                               p90_cover_pct=round(100 * sum(s["p90_covers"] for s in errs) / len(errs), 1),
+                               flights=len(errs))
+    res = dict(peer="multirotor 0.5.0 Tarot T18", prior_without_t18=dict(eta_h=round(eta0, 4), log_sd=round(sd0, 4)),
+               flights=results, summary=summary)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(res, f, indent=1)
+    if a.markdown:
+        print("| flight | speed m/s | wind | truth Wh | spec P50 | spec P90 | spec error | after hover P50 | error |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for r in results:
+            s = r["stages"][0]
+            h = r["stages"][1] if len(r["stages"]) > 1 else None
+            print(f"| {r['flight']} | {r['speed']} | {r['wind'][0]}@{r['wind'][1]} | {r['truth_wh']} | {s['p50']:.1f} | "
+                  f"{s['p90']:.1f} | {s['err_pct']:+.1f} % | {h['p50'] if h else float('nan'):.1f} | "
+                  f"{h['err_pct'] if h else float('nan'):+.1f} % |")
+        print()
+        for st, v in summary.items():
+            print(f"- {st}: median |error| {v['median_abs_err_pct']} %, P90 ≥ truth on {v['p90_cover_pct']} % of {v['flights']} flights")
+    else:
+        print(json.dumps(res, indent=1))
+    if a.plot:
+        plot(results, a.plot)
+
+
+def learned(binary, out, flights, results):
+    """`dronewatt learn` on the first LEARN_ON flights' .tlog from the spec sheet; the flights
+    after them scored with the profile it wrote (the T18 held out as before)."""
+    logs = [os.path.join(out, f"flight{i}.tlog") for i in range(LEARN_ON)]
+    prof = os.path.join(out, "learned")
+    subprocess.run([binary, "learn", *logs, "--vehicle", os.path.join(out, "flight0-spec.toml"),
+                    "--out", prof, "--data-dir", "off"], capture_output=True, text=True, check=True)
+    for i, (name, legs, speed, wind) in enumerate(flights):
+        if i < LEARN_ON:
+            continue
+        plan = os.path.join(out, f"flight{i}.waypoints")
+        p50, p90 = forecast(binary, plan, os.path.join(prof, "profile.toml"), speed, wind)
+        truth = results[i]["truth_wh"]
+        results[i]["stages"].append(dict(stage="learned", p50=p50, p90=p90,
+                                         err_pct=round(100 * (p50 / truth - 1), 1), p90_covers=bool(p90 >= truth)))
+
+
+def plot(results, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    x = np.arange(len(results))
+    truth = [r["truth_wh"] for r in results]
+    for k, (st, col) in enumerate([("spec", "tab:orange"), ("hover", "tab:blue"), ("learned", "tab:green")]):
+        s = [next((q for q in r["stages"] if q["stage"] == st), None) for r in results]
+        p50 = [q["p50"] if q else np.nan for q in s]
+        p90 = [q["p90"] if q else np.nan for q in s]
+        ax.bar(x + (k - 1) * 0.27, p50, 0.27, color=col, label=f"{st} P50")
+        ax.scatter(x + (k - 1) * 0.27, p90, marker="_", s=120, color="k")
+    ax.scatter(x, truth, marker="*", s=120, color="red", zorder=3, label="peer's energy")
+    ax.set_xticks(x, [f"{r['flight']}\n{r['speed']} m/s\nwind {r['wind'][0]} m/s" for r in results], fontsize=7)
+    ax.set_ylabel("plan energy, Wh (— : P90)")
+    ax.set_title("Tarot T18 (multirotor 0.5.0), held out: spec sheet, after the first hover, learned on 4 logs")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    main()
