@@ -11,10 +11,14 @@
 //!   ([`super::TimedMessage::network`]), the fleet keys vehicles by
 //!   [`crate::report::VehicleId`], and what dronewatt sends a vehicle goes out on its own
 //!   network's links only (one writer per network: [`LinkHandle::network`]).
-//! - **Deduplicated.** A message whose (system id, component id, sequence, message id) was
-//!   already handed on within [`DEDUP_WINDOW_S`] is a copy from a redundant link and is
-//!   dropped (counted in `duplicates`). The window is far shorter than a sequence's wrap
-//!   (256 frames of one component: 2.5 s at 100 Hz), so a new frame is never taken for a copy.
+//! - **Deduplicated.** A message whose (system id, component id, sequence, message id) and
+//!   content ([`fingerprint`]: its payload's bytes) were already handed on within the sender's
+//!   window is a copy from a redundant link and is dropped (counted in `duplicates`). The
+//!   window is half the time the sender takes to wrap its sequence (256 frames: 58 ms at
+//!   2,200 frames/s, a PX4 on USB), measured on its own stream, and never over
+//!   [`DEDUP_WINDOW_S`]: a new frame that reuses a sequence number comes after the window has
+//!   closed, and one that repeats an old frame's content exactly (a stuck sensor) has another
+//!   number inside it, so a new frame is never taken for a copy at any rate.
 //! - **Per-link health** ([`LinkHealth`]), refreshed every second and published with the
 //!   source's counters (the JSON summary's `links`): frames, rate, loss (the share of the
 //!   merged stream this link did not bring), latency (how far behind the first copy its
@@ -44,11 +48,51 @@ use super::{IngestStats, LinkHandle, TimedMessage};
 
 pub use crate::report::status::LinkHealth;
 
-/// A copy of a message heard again within this many seconds is a duplicate.
+/// A copy of a message heard again within this many seconds is a duplicate, at the most
+/// (a slow sender's window; a fast one's is shorter: [`Dedup`]).
 pub const DEDUP_WINDOW_S: f64 = 1.0;
 
-/// (arrival time, message id) of each of a sender's 256 sequence numbers.
-type Slots = Box<[(f64, u32); 256]>;
+/// The share of a sender's sequence wrap (256 frames at its own rate) that its window spans.
+const WRAP_SHARE: f64 = 0.5;
+
+/// What the merge remembers of one sender: (arrival time, message id, content) of each of its
+/// 256 sequence numbers, its last sequence number, and its frame interval.
+struct SenderMemory {
+    slots: [(f64, u32, u64); 256],
+    last_seq: Option<u8>,
+    last_t_s: f64,
+    /// Smoothed interval between its first copies, s (infinite until two are heard).
+    interval_s: f64,
+}
+
+impl SenderMemory {
+    fn new() -> Box<Self> {
+        Box::new(Self {
+            slots: [(f64::NEG_INFINITY, u32::MAX, 0); 256],
+            last_seq: None,
+            last_t_s: f64::NAN,
+            interval_s: f64::INFINITY,
+        })
+    }
+
+    /// The window within which a repeat is a copy: half a sequence wrap at this sender's
+    /// rate, at most [`DEDUP_WINDOW_S`].
+    fn window_s(&self) -> f64 {
+        (WRAP_SHARE * 256.0 * self.interval_s).min(DEDUP_WINDOW_S)
+    }
+}
+
+/// A message's content as a 64-bit fingerprint (FNV-1a over its MAVLink 2 payload): two
+/// frames with the same header numbers but other bytes are two frames.
+pub fn fingerprint(msg: &crate::MavMessage) -> u64 {
+    let mut payload = [0u8; 255];
+    let n = msg.ser(mavlink::MavlinkVersion::V2, &mut payload);
+    payload[..n.min(255)]
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        })
+}
 
 /// A sender: (network, system, component).
 type Sender = (u8, u32, u8);
@@ -116,11 +160,11 @@ impl Networks {
 }
 
 /// The merge's memory of what it handed on: per sender (network, system, component), the
-/// arrival time and message id of each of the 256 sequence numbers.
+/// arrival time, message id and content of each of the 256 sequence numbers, and the
+/// sender's rate (its window).
 #[derive(Default)]
 pub struct Dedup {
-    seen: HashMap<Sender, Slots>,
-    last_seq: HashMap<Sender, u8>,
+    seen: HashMap<Sender, Box<SenderMemory>>,
 }
 
 /// What the merge made of one message.
@@ -133,27 +177,36 @@ pub enum Heard {
 }
 
 impl Dedup {
-    /// Whether this message, heard at `t_s` on `network`, is new or a copy.
+    /// Whether this message (`msg_id`, content `fp`: [`fingerprint`]), heard at `t_s` on
+    /// `network`, is new or a copy.
     pub fn hear(
         &mut self,
         t_s: f64,
         network: u8,
         header: &mavlink::MavHeader,
         msg_id: u32,
+        fp: u64,
     ) -> Heard {
         let key = (network, header.system_id, header.component_id);
-        let slot = &mut self
-            .seen
-            .entry(key)
-            .or_insert_with(|| Box::new([(f64::NEG_INFINITY, u32::MAX); 256]))
-            [usize::from(header.sequence)];
-        if slot.1 == msg_id && t_s - slot.0 < DEDUP_WINDOW_S {
+        let mem = self.seen.entry(key).or_insert_with(SenderMemory::new);
+        let window = mem.window_s();
+        let slot = &mut mem.slots[usize::from(header.sequence)];
+        if slot.1 == msg_id && slot.2 == fp && t_s - slot.0 < window {
             return Heard::Duplicate;
         }
-        *slot = (t_s, msg_id);
-        let gap = self
+        *slot = (t_s, msg_id, fp);
+        let dt = t_s - mem.last_t_s;
+        if dt.is_finite() && dt >= 0.0 {
+            mem.interval_s = if mem.interval_s.is_finite() {
+                0.9 * mem.interval_s + 0.1 * dt
+            } else {
+                dt
+            };
+        }
+        mem.last_t_s = t_s;
+        let gap = mem
             .last_seq
-            .insert(key, header.sequence)
+            .replace(header.sequence)
             .is_some_and(|last| header.sequence != last.wrapping_add(1));
         Heard::First { gap }
     }
@@ -294,7 +347,7 @@ pub async fn run(
                 t.frames += 1;
                 t.got += 1;
                 t.last_heard = Some(m.arrived);
-                match dedup.hear(m.t_s, m.network, &m.header, id) {
+                match dedup.hear(m.t_s, m.network, &m.header, id, fingerprint(&m.msg)) {
                     Heard::Duplicate => {
                         t.duplicates += 1;
                         if let Some(first) = first_arrival.get(&key) {
@@ -453,23 +506,115 @@ mod tests {
     #[test]
     fn a_copy_within_the_window_is_a_duplicate_and_nothing_else_is() {
         let mut d = Dedup::default();
-        assert_eq!(d.hear(0.0, 0, &h(1, 1, 7), 0), Heard::First { gap: false });
+        assert_eq!(
+            d.hear(0.0, 0, &h(1, 1, 7), 0, 0),
+            Heard::First { gap: false }
+        );
         // The same frame from the other radio, 40 ms later.
-        assert_eq!(d.hear(0.04, 0, &h(1, 1, 7), 0), Heard::Duplicate);
+        assert_eq!(d.hear(0.04, 0, &h(1, 1, 7), 0, 0), Heard::Duplicate);
         // Another message with the same numbers (another sender's stream): not a copy.
-        assert_eq!(d.hear(0.05, 0, &h(1, 1, 7), 33), Heard::First { gap: true });
-        assert_eq!(d.hear(0.05, 0, &h(1, 2, 7), 0), Heard::First { gap: false });
+        assert_eq!(
+            d.hear(0.05, 0, &h(1, 1, 7), 33, 0),
+            Heard::First { gap: true }
+        );
+        assert_eq!(
+            d.hear(0.05, 0, &h(1, 2, 7), 0, 0),
+            Heard::First { gap: false }
+        );
         // The next frame; then one after a lost one.
-        assert_eq!(d.hear(0.1, 0, &h(1, 1, 8), 30), Heard::First { gap: false });
-        assert_eq!(d.hear(0.2, 0, &h(1, 1, 10), 30), Heard::First { gap: true });
+        assert_eq!(
+            d.hear(0.1, 0, &h(1, 1, 8), 30, 0),
+            Heard::First { gap: false }
+        );
+        assert_eq!(
+            d.hear(0.2, 0, &h(1, 1, 10), 30, 0),
+            Heard::First { gap: true }
+        );
         // The sequence wrapped and the number came round again: new, not a copy.
         assert_eq!(
-            d.hear(0.04 + DEDUP_WINDOW_S, 0, &h(1, 1, 7), 0),
+            d.hear(0.04 + DEDUP_WINDOW_S, 0, &h(1, 1, 7), 0, 0),
             Heard::First { gap: true }
         );
         // The same numbers on another network: another vehicle, never a copy.
-        assert_eq!(d.hear(1.1, 0, &h(1, 1, 9), 0), Heard::First { gap: true });
-        assert_eq!(d.hear(1.1, 2, &h(1, 1, 9), 0), Heard::First { gap: false });
+        assert_eq!(
+            d.hear(1.1, 0, &h(1, 1, 9), 0, 0),
+            Heard::First { gap: true }
+        );
+        assert_eq!(
+            d.hear(1.1, 2, &h(1, 1, 9), 0, 0),
+            Heard::First { gap: false }
+        );
+    }
+
+    /// A PX4 on USB: 2,200 frames/s from one component, so each sequence number comes round
+    /// every 116 ms, with a stuck sensor's message repeating the same bytes; two links carry
+    /// it, each losing 30 % independently, the second 3 ms late. What is handed on is exactly
+    /// the union of what arrived: every copy dropped, no new frame taken for one.
+    #[test]
+    fn at_a_fast_link_s_rate_the_merge_hands_on_exactly_the_union() {
+        for frames_per_s in [110.0, 2_200.0, 11_000.0] {
+            let mut d = Dedup::default();
+            let mut lcg = 0x2545_f491_u64;
+            let mut lost = || {
+                lcg = lcg.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                (lcg >> 33) % 100 < 30
+            };
+            let (mut union, mut first, mut dup) = (0u32, 0u32, 0u32);
+            let mut arrivals: Vec<(f64, u8, u32, u64)> = Vec::new();
+            for n in 0..20_000u32 {
+                let t = f64::from(n) / frames_per_s;
+                let seq = (n % 256) as u8;
+                // Every 4th frame is the stuck sensor (same id, same bytes); the rest differ.
+                let (id, fp) = if n % 4 == 0 {
+                    (29, 7)
+                } else {
+                    (30, u64::from(n))
+                };
+                let (a, b) = (!lost(), !lost());
+                union += u32::from(a || b);
+                if a {
+                    arrivals.push((t, seq, id, fp));
+                }
+                if b {
+                    arrivals.push((t + 0.003, seq, id, fp));
+                }
+            }
+            arrivals.sort_by(|x, y| x.0.total_cmp(&y.0));
+            for (t, seq, id, fp) in arrivals {
+                match d.hear(t, 0, &h(1, 1, seq), id, fp) {
+                    Heard::First { .. } => first += 1,
+                    Heard::Duplicate => dup += 1,
+                }
+            }
+            assert_eq!(
+                first, union,
+                "{frames_per_s} frames/s: {dup} dropped as copies"
+            );
+        }
+    }
+
+    #[test]
+    fn a_frame_with_the_same_numbers_and_other_bytes_is_not_a_copy() {
+        let mut d = Dedup::default();
+        assert_eq!(
+            d.hear(0.0, 0, &h(1, 1, 7), 30, 1),
+            Heard::First { gap: false }
+        );
+        assert_eq!(
+            d.hear(0.01, 0, &h(1, 1, 7), 30, 2),
+            Heard::First { gap: true }
+        );
+        assert_eq!(d.hear(0.02, 0, &h(1, 1, 7), 30, 2), Heard::Duplicate);
+        use crate::dialect::{MavMessage, HEARTBEAT_DATA, SYS_STATUS_DATA};
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+        let st = |mv| {
+            MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+                voltage_battery: mv,
+                ..Default::default()
+            })
+        };
+        assert_eq!(fingerprint(&hb), fingerprint(&hb.clone()));
+        assert_ne!(fingerprint(&st(12_600)), fingerprint(&st(12_601)));
     }
 
     #[test]
