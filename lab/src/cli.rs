@@ -5,7 +5,7 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 /// The research commands (parsed once: the variants' sizes do not matter).
 #[allow(clippy::large_enum_variant)]
@@ -25,6 +25,8 @@ pub enum LabCommand {
     PlanEval(crate::plan_eval::PlanEvalArgs),
     /// Score the battery pack model (rest-voltage energy, loaded-voltage model, forecasts) on the data set, beside the autopilots' rules.
     BatteryEval(crate::battery_eval::BatteryEvalArgs),
+    /// Print the book's CLI reference (Markdown) from both binaries' definitions.
+    CliReference,
 }
 
 /// Run one research command.
@@ -37,6 +39,13 @@ pub fn run_lab(command: LabCommand) -> anyhow::Result<()> {
         LabCommand::Sensitivity(a) => crate::sensitivity::run(a),
         LabCommand::PlanEval(a) => crate::plan_eval::run_plan_eval(a),
         LabCommand::BatteryEval(a) => crate::battery_eval::run(a),
+        LabCommand::CliReference => {
+            print!(
+                "{}",
+                crate::cli_reference::render(&dronewatt::cli::command(), &LabCli::command())
+            );
+            Ok(())
+        }
     }
 }
 

@@ -13,10 +13,12 @@
 //! | [`plan_eval`] | `plan-eval`: the mission forecast on the route flights (with [`route`], [`forecast_fit`], [`live_dump`]) |
 //! | [`battery_eval`] | `battery-eval`: the pack model beside the autopilots' rules |
 //! | [`cli`] | the command line of `dronewatt-lab` and `dronewatt-torch` |
+//! | [`cli_reference`] | `cli-reference`: the book's CLI reference, generated from clap |
 
 pub mod battery_eval;
 pub mod calibrate;
 pub mod cli;
+pub mod cli_reference;
 pub mod eval;
 pub mod forecast_fit;
 pub mod live_dump;

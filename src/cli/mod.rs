@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 use crate::cli::describe::describe_config;
 use crate::cli::simulate::SimulateArgs;
@@ -123,6 +123,12 @@ pub enum Command {
 
 pub fn main() -> ExitCode {
     run_main(|cli: Cli| run_command(cli.command))
+}
+
+/// The operator's command line as clap defines it: what `dronewatt --help` prints and the
+/// book's CLI reference is generated from (`dronewatt-lab cli-reference`).
+pub fn command() -> clap::Command {
+    Cli::command()
 }
 
 /// Set up logging, parse the command line as `C`, run it, and print an error the way every

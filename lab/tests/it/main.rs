@@ -5,6 +5,7 @@
 mod harness;
 
 mod battery_eval;
+mod cli_reference;
 mod config;
 mod eval;
 mod plan_eval;
