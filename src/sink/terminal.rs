@@ -204,8 +204,8 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                 s.push_str(&format!(
                     "left {} of {} Wh [{}; {}]",
                     num(left, 1),
-                    num(b.capacity_wh.value, 1),
-                    b.capacity_wh.source,
+                    b.capacity().map_or("?".into(), |c| num(c, 1)),
+                    b.capacity_source(),
                     en.remaining_source
                 ));
                 if let Some(t) = en.time_to_empty_s {

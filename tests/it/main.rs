@@ -32,6 +32,7 @@ mod offline_config;
 mod offline_eval;
 mod offline_learn;
 mod offline_plan;
+mod pack_any;
 mod pipeline_fleet;
 mod security;
 mod sim_airframes;
