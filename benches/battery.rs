@@ -10,7 +10,7 @@ use dronewatt::energy::pack::{Load, Pack};
 use dronewatt::report::BatteryFacts;
 
 fn bench(c: &mut Criterion) {
-    let facts = BatteryFacts::default();
+    let facts = BatteryFacts::m100();
     let mut pack = Pack::default();
     // Rest 4 s, then fly: the state is started and the forecast runs.
     let mut t = 0.0;

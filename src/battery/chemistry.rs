@@ -17,6 +17,10 @@ pub enum Chemistry {
     LiHv,
     /// Li-ion (NMC 18650/21700 class), 4.20 V full, usable down to ~3.0 V.
     LiIon,
+    /// Lithium iron phosphate, 3.65 V full, a flat plateau near 3.3 V.
+    #[strum(serialize = "lifepo4")]
+    #[serde(rename = "lifepo4")]
+    LiFePo4,
 }
 
 /// LiPo default SoC table: the widely circulated hobby LiPo resting-voltage table
@@ -55,7 +59,70 @@ const LIION: [(f64, f64); 12] = [
     (4.20, 1.00),
 ];
 
+/// LiFePO4 default: the low-rate OCV of an LFP cell (3.65 V full, 2.5 V empty; the long
+/// plateau at 3.25-3.35 V) as LFP datasheets and the published OCV tests show it
+/// (e.g. A123 ANR26650M1-B datasheet; Plett, *Battery Management Systems* vol. 1, 2015,
+/// ch. 2's LFP OCV). Approximate: the plateau makes SoC from voltage weak, and the band
+/// says so ([`Chemistry::soc_band_pct`]).
+const LIFEPO4: [(f64, f64); 10] = [
+    (2.50, 0.0),
+    (2.90, 0.03),
+    (3.10, 0.08),
+    (3.20, 0.15),
+    (3.25, 0.30),
+    (3.28, 0.50),
+    (3.30, 0.70),
+    (3.33, 0.90),
+    (3.40, 0.97),
+    (3.65, 1.00),
+];
+
 impl Chemistry {
+    /// Every chemistry known.
+    pub const ALL: [Chemistry; 4] = [
+        Chemistry::LiPo,
+        Chemistry::LiHv,
+        Chemistry::LiIon,
+        Chemistry::LiFePo4,
+    ];
+
+    /// The chemistry a name gives as users and the flag write it (`lipo`, `lihv`,
+    /// `li-ion`, `liion`, `lion`, `lifepo4`, `lfp`; any case).
+    pub fn parse_loose(name: &str) -> Option<Self> {
+        match name
+            .to_ascii_lowercase()
+            .replace(['-', '_', ' '], "")
+            .as_str()
+        {
+            "lipo" => Some(Chemistry::LiPo),
+            "lihv" | "lipohv" => Some(Chemistry::LiHv),
+            "liion" | "lion" | "nmc" => Some(Chemistry::LiIon),
+            "lifepo4" | "lfp" | "life" => Some(Chemistry::LiFePo4),
+            _ => None,
+        }
+    }
+
+    /// The chemistry MAVLink's MAV_BATTERY_TYPE names (BATTERY_STATUS / BATTERY_INFO
+    /// `type`): LiPo, LiFe, Li-ion; None for unknown, NiMH and anything else.
+    pub fn from_mav_type(t: u8) -> Option<Self> {
+        match t {
+            1 => Some(Chemistry::LiPo),
+            2 => Some(Chemistry::LiFePo4),
+            3 => Some(Chemistry::LiIon),
+            _ => None,
+        }
+    }
+
+    /// The lowest loaded voltage a cell of this chemistry can show, V: a modelled voltage
+    /// under it is not a voltage (Li-ion cells are specified to 2.5 V under load, LiFePO4
+    /// to 2.0 V).
+    pub fn loaded_min_v(self) -> f64 {
+        match self {
+            Chemistry::LiFePo4 => 2.0,
+            _ => 2.5,
+        }
+    }
+
     /// As the config writes it: `lipo`, `lihv`, `liion`.
     pub fn name(self) -> &'static str {
         self.into()
@@ -69,6 +136,7 @@ impl Chemistry {
         match self {
             Chemistry::LiPo | Chemistry::LiIon => 4.20,
             Chemistry::LiHv => 4.35,
+            Chemistry::LiFePo4 => 3.65,
         }
     }
     /// Nominal voltage per cell (labels, Wh ratings).
@@ -77,6 +145,7 @@ impl Chemistry {
             Chemistry::LiPo => 3.70,
             Chemistry::LiHv => 3.80,
             Chemistry::LiIon => 3.60,
+            Chemistry::LiFePo4 => 3.20,
         }
     }
     /// Lowest plausible *resting* voltage per cell (the empty end of the OCV table).
@@ -85,14 +154,18 @@ impl Chemistry {
             Chemistry::LiPo => 3.27,
             Chemistry::LiHv => 3.30,
             Chemistry::LiIon => 2.90,
+            Chemistry::LiFePo4 => 2.50,
         }
     }
-    /// Default normalised OCV curve (SoC 0..1 vs V/cell). LiHV is the fitted TB48D shape.
+    /// Default normalised OCV curve (SoC 0..1 vs V/cell) and its source: LiPo the hobby
+    /// table (below), LiHV the TB48D shape fitted on the M100 data set (Rodrigues et al.
+    /// 2021), Li-ion generic NMC 18650 datasheet curves, LiFePO4 the LFP table (below).
     pub fn default_curve(self) -> OcvCurve {
         match self {
             Chemistry::LiPo => OcvCurve::from_soc_pairs(&LIPO),
             Chemistry::LiIon => OcvCurve::from_soc_pairs(&LIION),
             Chemistry::LiHv => OcvCurve::tb48d().normalized(),
+            Chemistry::LiFePo4 => OcvCurve::from_soc_pairs(&LIFEPO4),
         }
     }
 }
@@ -155,7 +228,7 @@ mod tests {
 
     #[test]
     fn default_curves_are_monotone_and_span_window() {
-        for c in [Chemistry::LiPo, Chemistry::LiHv, Chemistry::LiIon] {
+        for c in Chemistry::ALL {
             let k = c.default_curve();
             assert!((k.soc(c.full_v()) - 1.0).abs() < 1e-9, "{c:?}");
             assert!(k.soc(c.floor_v()).abs() < 1e-9, "{c:?}");
@@ -177,11 +250,16 @@ mod tests {
             (Chemistry::LiPo, "lipo"),
             (Chemistry::LiHv, "lihv"),
             (Chemistry::LiIon, "liion"),
+            (Chemistry::LiFePo4, "lifepo4"),
         ] {
+            assert_eq!(Chemistry::parse_loose(name), Some(c));
             assert_eq!(c.name(), name);
             assert_eq!(Chemistry::from_name(name), Some(c));
         }
         assert_eq!(Chemistry::from_name("LiPo"), None);
         assert_eq!(Chemistry::from_name("nimh"), None);
+        assert_eq!(Chemistry::parse_loose("Li-ion"), Some(Chemistry::LiIon));
+        assert_eq!(Chemistry::parse_loose("LFP"), Some(Chemistry::LiFePo4));
+        assert_eq!(Chemistry::parse_loose("nimh"), None);
     }
 }

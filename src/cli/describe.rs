@@ -9,11 +9,13 @@ pub(crate) fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
     out += &format!(
         "energy: capacity {}, cells {}, reserve {}%, forecast model {}, smoothing {} s\n",
         e.capacity_wh.map_or(
-            "from the vehicle (else 129.96 Wh)".to_string(),
+            "from the vehicle, --pack or the store (else not known)".to_string(),
             |c| format!("{c:.2} Wh")
         ),
-        e.cell_count
-            .map_or("from the vehicle (else 6)".to_string(), |n| n.to_string()),
+        e.cell_count.map_or(
+            "from the vehicle (else from its voltage)".to_string(),
+            |n| n.to_string()
+        ),
         e.reserve_pct,
         e.model.as_deref().unwrap_or("lstm, else measured power"),
         e.smoothing_s

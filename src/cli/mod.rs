@@ -67,6 +67,11 @@ pub struct RunArgs {
     /// ~/.local/share/dronewatt (Linux; elsewhere the platform's data directory).
     #[arg(long, value_name = "DIR")]
     data_dir: Option<PathBuf>,
+    /// The vehicle's pack, when nothing else says: `<cells>S[<n>P]:<capacity>[:<chemistry>]`,
+    /// e.g. `4S2P:5000mAh:li-ion` (capacity of the whole pack in mAh, Ah or Wh; chemistry
+    /// lipo, lihv, li-ion or lifepo4). Overrides the config's `[energy]` pack keys.
+    #[arg(long, value_name = "SPEC")]
+    pack: Option<String>,
 }
 
 /// The operator's commands.
@@ -280,6 +285,13 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
     }
     if let Some(v) = &run.vehicle {
         config.vehicle = Some(v.clone());
+    }
+    if let Some(spec) = &run.pack {
+        let pack = crate::vehicle::parse_pack(spec).map_err(anyhow::Error::msg)?;
+        config.energy.capacity_wh = None;
+        config.energy.cell_count = None;
+        config.energy.chemistry = None;
+        config.energy.fill_pack(&pack);
     }
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {

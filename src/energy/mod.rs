@@ -10,10 +10,15 @@
 //!   replay) integrates nothing: one bad timestamp cannot add or remove an hour.
 //! - **remaining** `E_rem = E_cap − E_used`, or `E_cap · pct / 100` when the autopilot reports
 //!   a battery percentage (BATTERY_STATUS `battery_remaining`). `E_cap` is `capacity_wh` when
-//!   the config sets it, else the vehicle's own capacity parameter (`BATT_CAPACITY`,
-//!   `BAT1_CAPACITY`: mAh × cells × `nominal_cell_v`), else the DJI TB48D's 5700 mAh × 22.8 V
-//!   = 129.96 Wh ([`crate::vehicle::resolve_battery`]); [`EnergyState::battery`] says
-//!   which. The cell count likewise (config, `BAT1_N_CELLS`, the first voltage seen, 6).
+//!   the config (or `--pack`) sets it, else what the vehicle store learned, else the
+//!   vehicle's own capacity parameter (`BATT_CAPACITY`, `BAT1_CAPACITY`: mAh × cells ×
+//!   `nominal_cell_v`) ([`crate::vehicle::resolve_battery`]); [`EnergyState::battery`] says
+//!   which. Else the capacity is **not known**: remaining energy and time to empty are null
+//!   (`remaining_source` "capacity not known", said once), and what is known without it is
+//!   still reported: the state of charge from the voltage and cells, the energy used, the
+//!   pack's voltages. No vehicle ever gets another vehicle's pack (the M100's TB48D is the
+//!   data set's and the M100 profile's only). The cell count likewise (config,
+//!   `BAT1_N_CELLS`, the first voltage seen, else assumed and said).
 //! - **forecast model**: `[energy] model` when set, else the vehicle profile's (`learn`
 //!   picks it), else `lstm`, until this vehicle's measured power shows another model's
 //!   adapted estimate steadily better ([`select`]: online selection with a minimum of
@@ -52,21 +57,21 @@ pub mod select;
 #[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct EnergyConfig {
-    /// Usable battery energy when full, Wh. Absent: from the vehicle's capacity parameter
-    /// (`BATT_CAPACITY` / `BAT1_CAPACITY`, mAh × cells × `nominal_cell_v`), else 129.96
-    /// (DJI TB48D: 5700 mAh × 22.8 V).
+    /// Usable battery energy when full, Wh. Absent: what the vehicle store learned, else the
+    /// vehicle's capacity parameter (`BATT_CAPACITY` / `BAT1_CAPACITY`, mAh × cells ×
+    /// `nominal_cell_v`), else not known (remaining energy and time to empty are null).
     pub capacity_wh: Option<f64>,
     /// Cells in series, for per-cell voltage alerts and the capacity in Wh. Absent: from
-    /// the vehicle (`BAT1_N_CELLS`, else the first battery voltage seen ÷ 4.2 V rounded
-    /// up), else 6 (TB48D is 6S).
+    /// the vehicle (`BAT1_N_CELLS`, the cells BATTERY_STATUS reports, else the first
+    /// battery voltage seen in the chemistry's resting window), else assumed (said).
     pub cell_count: Option<u32>,
     /// Nominal cell voltage, V: a capacity in mAh times cells times this is Wh. Default: the
     /// chemistry's (LiPo 3.7, LiHV 3.8, Li-ion 3.6).
     pub nominal_cell_v: Option<f64>,
-    /// Cell chemistry: `lipo` (4.20 V full), `lihv` (4.35 V full, the TB48D) or `liion`
-    /// (4.20 V full, a lower floor). It picks the cell count's voltage window, the nominal
-    /// voltage and the default OCV curve. Default: LiHV when `MOT_BAT_VOLT_MAX` is cells ×
-    /// 4.35 or the pack is the default TB48D, else LiPo.
+    /// Cell chemistry: `lipo` (4.20 V full), `lihv` (4.35 V full, the TB48D), `liion`
+    /// (4.20 V full, a lower floor) or `lifepo4` (3.65 V full). It picks the cell count's
+    /// voltage window, the nominal voltage and the default OCV curve. Default: LiHV when
+    /// `MOT_BAT_VOLT_MAX` is cells × 4.35, else LiPo, said as assumed.
     pub chemistry: Option<crate::battery::Chemistry>,
     /// Take remaining energy from the autopilot's battery percentage when it reports one
     /// (`capacity_wh` × %), rather than `capacity_wh` − energy used. Default true.
@@ -90,6 +95,10 @@ pub struct EnergyConfig {
     pub landing_s: f64,
     /// Longest step integrated as one, s; longer gaps are capped. Default 1.
     pub max_dt_s: f64,
+    /// What named the pack, when not the config file (`--pack …`, the M100 data set):
+    /// said as the provenance of its figures. Not a TOML key.
+    #[serde(skip)]
+    pub named: Option<String>,
 }
 
 impl Default for EnergyConfig {
@@ -108,6 +117,7 @@ impl Default for EnergyConfig {
             descent_speed_m_s: 2.0,
             landing_s: 15.0,
             max_dt_s: 1.0,
+            named: None,
         }
     }
 }
@@ -152,6 +162,19 @@ impl EnergyConfig {
             cell_count: self.cell_count,
             nominal_cell_v: self.nominal_cell_v,
             chemistry: self.chemistry,
+            named: self.named.clone(),
+        }
+    }
+
+    /// Take a pack named for the run (`--pack`, the M100 data set) where the `[energy]`
+    /// keys are silent: the config file's own keys win.
+    pub fn fill_pack(&mut self, pack: &BatteryConfig) {
+        if self.capacity_wh.is_none() && self.cell_count.is_none() && self.chemistry.is_none() {
+            self.capacity_wh = pack.capacity_wh;
+            self.cell_count = pack.cell_count;
+            self.chemistry = pack.chemistry;
+            self.nominal_cell_v = self.nominal_cell_v.or(pack.nominal_cell_v);
+            self.named.clone_from(&pack.named);
         }
     }
 }
@@ -313,11 +336,9 @@ impl EnergyTracker {
             self.first_voltage_v,
         );
         if let (Some((wh, flights)), None) = (self.learned_capacity, self.cfg.capacity_wh) {
-            let rated = std::mem::replace(
-                &mut facts.capacity_wh,
-                Sourced::new(wh, Provenance::Learned { flights }),
-            );
-            facts.rated_capacity_wh = Some(rated);
+            facts.rated_capacity_wh = facts
+                .capacity_wh
+                .replace(Sourced::new(wh, Provenance::Learned { flights }));
         }
         for n in notes {
             if !self.warned.contains(&n) {
@@ -330,8 +351,8 @@ impl EnergyTracker {
         {
             tracing::debug!(
                 "battery: {:.1} Wh ({}), {} cells ({})",
-                facts.capacity_wh.value,
-                facts.capacity_wh.source,
+                facts.capacity().unwrap_or(f64::NAN),
+                facts.capacity_source(),
                 facts.cell_count.value,
                 facts.cell_count.source
             );
@@ -456,23 +477,39 @@ impl EnergyTracker {
                 reported_pct.unwrap_or(f64::NAN) - d
             ));
         }
-        let cap = self.battery.capacity_wh.value;
+        let cap = self.battery.capacity();
         let (remaining, remaining_source, full_wh) = match (
             pk.usable_wh.or(pk.energy_wh),
             reported_pct.filter(|_| self.cfg.use_battery_pct),
+            cap,
         ) {
-            (Some(e), _) => (
+            (Some(e), _, _) if pk.start == Some(pack::FROM_REST) => (
                 Some(e),
                 RemainingSource::RestingVoltage,
-                pk.curve_wh.unwrap_or(cap),
+                pk.curve_wh.or(cap),
             ),
-            (None, Some(pct)) => (Some(cap * pct / 100.0), RemainingSource::Battery, cap),
+            // No capacity: nothing in Wh (never another vehicle's pack).
+            (_, _, None) => (None, RemainingSource::UnknownPack, None),
+            // The autopilot's % before a load-compensated start (the wider band).
+            (_, Some(pct), Some(cap)) => {
+                (Some(cap * pct / 100.0), RemainingSource::Battery, Some(cap))
+            }
+            // Started load-compensated some seconds in: no more than the capacity less all
+            // the energy used since the monitor began (what came before the start is not
+            // in the pack's own count).
+            (Some(e), None, Some(c)) => (
+                Some(e.min((c - self.used_wh).max(0.0))),
+                RemainingSource::LoadCompensated,
+                pk.curve_wh.or(cap),
+            ),
             // The pack rests and its voltage is settling: not known yet (a moment), not full.
-            (None, None) if self.pack.pending() => (None, RemainingSource::AssumedFull, cap),
-            (None, None) => (
+            (None, None, Some(cap)) if self.pack.pending() => {
+                (None, RemainingSource::AssumedFull, Some(cap))
+            }
+            (None, None, Some(cap)) => (
                 Some((cap - self.used_wh).max(0.0)),
                 RemainingSource::AssumedFull,
-                cap,
+                Some(cap),
             ),
         };
         let (remaining, remaining_source) =
@@ -486,7 +523,9 @@ impl EnergyTracker {
         }
         // To the voltage failsafe when the pack model forecasts one; else to the floor.
         let time_to_empty_s = match (remaining_source, pk.time_to_low_v_s) {
-            (RemainingSource::RestingVoltage, Some(t_low)) => Some(t_low),
+            (RemainingSource::RestingVoltage | RemainingSource::LoadCompensated, Some(t_low)) => {
+                Some(t_low)
+            }
             _ => remaining
                 .zip(forecast.filter(|p| *p > 1.0))
                 .map(|(e, p)| 3600.0 * e / p),
@@ -501,19 +540,29 @@ impl EnergyTracker {
             let wh = (p_cruise * flight_s + p_hover * down_s) / 3600.0;
             wh.is_finite().then_some(wh)
         });
-        let reserve = full_wh * self.cfg.reserve_pct / 100.0;
+        let reserve = full_wh.map(|f| f * self.cfg.reserve_pct / 100.0);
+        // Without a capacity, the share left is the state of charge the voltage says, else
+        // the vehicle's own %.
+        let remaining_pct = match (remaining, full_wh) {
+            (Some(r), Some(f)) if f > 0.0 => Some((100.0 * r / f).clamp(0.0, 100.0)),
+            _ if cap.is_none() => pk.soc_pct.or(reported_pct),
+            _ => None,
+        };
         EnergyState {
             energy_used_wh: self.used_wh,
             power_source,
             remaining_wh: remaining,
-            remaining_pct: remaining.map(|r| 100.0 * r / full_wh),
+            remaining_pct,
             remaining_source,
             forecast_w: forecast,
             forecast_model: forecast_from.and_then(|(m, _)| m).map(|m| m.name.clone()),
             forecast_why: preferred.map(|_| self.selector.current().why.to_string()),
             time_to_empty_s,
             home_energy_wh,
-            home_margin_wh: remaining.zip(home_energy_wh).map(|(r, e)| r - e - reserve),
+            home_margin_wh: remaining
+                .zip(home_energy_wh)
+                .zip(reserve)
+                .map(|((r, e), res)| r - e - res),
             cell_voltage_v: s
                 .voltage_v
                 .map(f64::from)
@@ -522,7 +571,8 @@ impl EnergyTracker {
             mission_energy_wh: self.mission.as_ref().map(|m| m.energy_p50_wh),
             mission_margin_wh: remaining
                 .zip(self.mission.as_ref())
-                .map(|(r, m)| r - m.energy_p50_wh - reserve),
+                .zip(reserve)
+                .map(|((r, m), res)| r - m.energy_p50_wh - res),
             mission: self.mission.clone(),
             forecast_adapted: forecast_adapted && forecast_from.is_some_and(|(m, _)| m.is_some()),
             pack: PackState {
@@ -531,6 +581,9 @@ impl EnergyTracker {
                 battery_ocv_v: pk.ocv_v,
                 battery_rest_v: pk.rest_v,
                 soc_pct: pk.soc_pct,
+                soc_band_pct: pk.soc_band_pct,
+                pack_start: pk.start,
+                pack_withheld: pk.withheld,
                 internal_r_ohm: pk.internal_r_ohm,
                 v_min_forecast_v: pk.v_min_forecast.map(|(v, _)| v),
                 v_min_forecast_at_s: pk.v_min_forecast.map(|(_, t)| t),
@@ -548,11 +601,10 @@ impl EnergyTracker {
         }
     }
 
-    /// Remaining energy where the pack or the battery telemetry is missing: nothing for a
-    /// vehicle other than a multirotor with no pack known (the M100's TB48D, the default,
-    /// is a multirotor's pack: never assumed for a plane, a VTOL, a rover, a boat or a
-    /// sub), and the model's power against the configured pack when the vehicle sends no
-    /// battery telemetry at all. Each said once in a warning.
+    /// Remaining energy where the pack or the battery telemetry is missing: nothing in Wh
+    /// while the capacity is not known (any vehicle: no other vehicle's pack is assumed),
+    /// and the model's power against the configured pack when the vehicle sends no battery
+    /// telemetry at all. Each said once in a warning.
     fn pack_known(
         &mut self,
         s: &crate::features::Sample,
@@ -561,16 +613,13 @@ impl EnergyTracker {
         remaining: Option<f64>,
         source: RemainingSource,
     ) -> (Option<f64>, RemainingSource) {
-        let class = s.vehicle.class;
-        if class != crate::features::VehicleClass::Multirotor
-            && self.battery.capacity_wh.source == Provenance::Default
-        {
+        let Some(cap) = self.battery.capacity_wh.clone() else {
             if !self.warned_no_pack {
                 self.warned_no_pack = true;
-                self.say(format_args!("battery: no pack known for this {class} vehicle (set [energy] capacity_wh, or the vehicle's BATT_CAPACITY / BAT1_CAPACITY): remaining energy and time are unknown (the M100's pack is a multirotor default, never assumed here)"));
+                self.say(format_args!("battery: capacity {} ({} vehicle): remaining energy and time to empty are not reported; the state of charge from the voltage and cells, the energy used and the pack's voltages are", crate::report::CAPACITY_UNKNOWN, s.vehicle.class));
             }
             return (None, RemainingSource::UnknownPack);
-        }
+        };
         let silent = s.measured_w.is_none() && s.voltage_v.is_none() && reported_pct.is_none();
         match (source, power_source) {
             (RemainingSource::AssumedFull, PowerSource::Model(model)) if silent => {
@@ -578,8 +627,8 @@ impl EnergyTracker {
                     self.warned_model_power = true;
                     self.say(format_args!(
                         "battery: the vehicle sends no battery telemetry: remaining energy is the pack's {:.1} Wh ({}) minus the energy of the {model} model's power, the pack taken as full at the start",
-                        self.battery.capacity_wh.value,
-                        self.battery.capacity_wh.source
+                        cap.value,
+                        cap.source
                     ));
                 }
                 (remaining, RemainingSource::ModelPower)
@@ -599,5 +648,7 @@ impl EnergyTracker {
     }
 }
 
+#[cfg(test)]
+mod props;
 #[cfg(test)]
 mod tests;

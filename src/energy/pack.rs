@@ -22,6 +22,24 @@
 //!     3.5 V a cell) flying on at that power (up to [`FORECAST_HORIZON_S`]), and the energy
 //!     usable before it: the remaining energy to the usable floor.
 //!
+//! - **Any start.** With no resting voltage read after [`LOAD_START_S`] of readings (a rest
+//!   too short, none at all, a ground current too noisy to call rest, a monitor attached
+//!   in flight), the state starts load-compensated: OCV = V + I·R with the prior resistance
+//!   for the chemistry and the pack's size ([`prior_r_ohm`]), the median over those seconds,
+//!   said once, with a wider band ([`PackNow::soc_band_pct`]). "Assumed full" is left for a
+//!   vehicle that sends no voltage or no current.
+//! - **No capacity** ([`crate::report::CAPACITY_UNKNOWN`]): no circuit (its energy needs
+//!   the capacity), but the state of charge from the voltage and cells through the
+//!   chemistry's curve: at rest, else load-compensated as above.
+//! - **No sag** ([`SagCheck`]): a pack whose voltage stays put while the current swings
+//!   (SITL's default battery, a stuck reading, a sensor behind a regulator) cannot show its
+//!   resistance: the modelled voltage, the voltage forecast and the time to the low voltage
+//!   are withheld (null, the reason in [`PackNow::withheld`], said once); energy counting
+//!   goes on.
+//! - **No impossible value.** A modelled voltage outside the chemistry's range for the cell
+//!   count, a resistance under 0 or over [`MAX_R_CELL_OHM`] a cell is withheld, never shown;
+//!   the state of charge is kept in 0-100 %, energies ≥ 0.
+//!
 //! Nothing here does I/O; a sample with no voltage, a NaN, or a current under −2 A
 //! leaves the state as it was.
 
@@ -49,6 +67,17 @@ pub const FORECAST_STEP_S: f64 = 5.0;
 pub const FORECAST_HORIZON_S: f64 = 3600.0;
 /// The low threshold when the autopilot gives none, V a cell (the `battery-eval` line).
 pub const DEFAULT_LOW_V_CELL: f64 = 3.5;
+/// How long readings must come with no resting voltage before the state starts
+/// load-compensated, s.
+pub const LOAD_START_S: f64 = 3.0;
+/// The most series resistance a cell may show, Ω (a 200 mAh cell is ~0.3 Ω): past it the
+/// fit is withheld.
+pub const MAX_R_CELL_OHM: f64 = 0.5;
+/// The state of charge's band, ± points: from a resting voltage, load-compensated, and
+/// added where the chemistry is assumed.
+pub const SOC_BAND_REST_PCT: f64 = 3.0;
+pub const SOC_BAND_LOADED_PCT: f64 = 10.0;
+pub const SOC_BAND_CHEMISTRY_PCT: f64 = 10.0;
 
 /// What the pack model says now (all absent until a resting voltage was read).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -85,6 +114,89 @@ pub struct PackNow {
     /// Whether the state started from the previous flight on this pack (its resistance and
     /// heat carried over).
     pub carried: bool,
+    /// How the start state was read: a resting voltage, or load-compensated (V + I·R).
+    pub start: Option<&'static str>,
+    /// The state of charge's band, ± points.
+    pub soc_band_pct: Option<f64>,
+    /// Why the modelled voltage, the voltage forecast and the time to the low voltage are
+    /// null, when they are withheld.
+    pub withheld: Option<&'static str>,
+}
+
+/// The reason the voltage figures are withheld for a pack that does not sag.
+pub const NO_SAG: &str = "the pack's voltage does not sag under load (a simulator's fixed battery, a stuck reading or a sensor behind a regulator): no voltage forecast, energy still counted";
+/// How a start state read off a resting voltage is said.
+pub const FROM_REST: &str = "resting voltage";
+
+/// The median of some readings (None for none).
+fn median(xs: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut v: Vec<f64> = xs.filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied()
+}
+
+/// The reason they are withheld for a model outside the chemistry's range.
+pub const SAG_PENDING: &str = "the state started load-compensated: the voltage forecast waits for 10 s under load, until the pack has shown how it sags";
+/// The reason they are withheld for a model outside the chemistry's range.
+pub const OUT_OF_RANGE: &str =
+    "the pack model left the chemistry's voltage or resistance range: its voltages are withheld";
+
+/// Detects a pack that does not sag: over [`SagCheck::MIN_LOADED_S`] of readings under load
+/// the current swings by [`SagCheck::MIN_SWING_A`] or more while the voltage moves by less
+/// than a quarter of the sag the prior resistance gives that swing (and at most
+/// [`SagCheck::MAX_SPREAD_V_CELL`] a cell). Any real pack sags by I·R, and discharging only
+/// adds to the voltage's spread.
+#[derive(Debug, Clone, Default)]
+pub struct SagCheck {
+    /// Seconds under load seen.
+    pub loaded_s: f64,
+    i: Option<(f64, f64)>,
+    v: Option<(f64, f64)>,
+    /// Decided: the pack does not sag.
+    pub flat: bool,
+}
+
+impl SagCheck {
+    pub const MIN_SWING_A: f64 = 2.0;
+    pub const MAX_SPREAD_V_CELL: f64 = 0.01;
+    pub const MIN_LOADED_S: f64 = 10.0;
+
+    /// Take one reading under load (`dt` s since the last); `r_prior` the pack's prior
+    /// resistance, Ω.
+    pub fn update(&mut self, dt: f64, v: f64, i: f64, cells: u32, r_prior: f64) -> bool {
+        let span =
+            |r: Option<(f64, f64)>, x: f64| r.map_or((x, x), |(lo, hi)| (lo.min(x), hi.max(x)));
+        self.loaded_s += dt;
+        self.i = Some(span(self.i, i));
+        self.v = Some(span(self.v, v));
+        let swing = self.i.map_or(0.0, |(lo, hi)| hi - lo);
+        let spread = self.v.map_or(f64::INFINITY, |(lo, hi)| hi - lo);
+        if self.loaded_s >= Self::MIN_LOADED_S
+            && swing >= Self::MIN_SWING_A
+            && spread
+                <= (Self::MAX_SPREAD_V_CELL * f64::from(cells.max(1))).min(0.25 * swing * r_prior)
+        {
+            self.flat = true;
+        }
+        self.flat
+    }
+}
+
+/// A prior series resistance for a pack, Ω: the TB48D's fitted R0 + R1 a cell at its
+/// 5.7 Ah, times the cells, over the pack's charge in Ah (cells in parallel lower it); a
+/// 5.7 Ah cell where the charge is not known.
+pub fn prior_r_ohm(cells: u32, ah: Option<f64>) -> f64 {
+    let base = CircuitParams::default();
+    let per_cell = (base.r0 + base.r1) / f64::from(base.n_cells);
+    let ah = ah.filter(|a| a.is_finite() && *a > 0.05).unwrap_or(5.7);
+    (per_cell * 5.7 / ah).min(MAX_R_CELL_OHM) * f64::from(cells.max(1))
+}
+
+/// The pack's charge, Ah, from its facts (capacity ÷ cells ÷ nominal), when known.
+fn pack_ah(facts: &BatteryFacts, chem: Chemistry) -> Option<f64> {
+    facts
+        .capacity()
+        .map(|wh| wh / (f64::from(facts.cell_count.value.max(1)) * chem.nominal_v()))
 }
 
 /// The load the forecast flies: `first_w` (W) for `first_s` (s; the rest of a mission; None:
@@ -119,6 +231,15 @@ pub struct Pack {
     last_t: Option<f64>,
     last_forecast_t: Option<f64>,
     now: PackNow,
+    /// (t, V + I·R prior) of the last [`LOAD_START_S`]: the load-compensated start, and the
+    /// state of charge with no capacity.
+    loaded: std::collections::VecDeque<(f64, f64)>,
+    /// Since when readings have come with no state (s).
+    since: Option<f64>,
+    sag: SagCheck,
+    /// Said once: the load-compensated start, the withheld voltages.
+    said_start: bool,
+    said_withheld: bool,
     /// Energy kept in reserve, fraction of the curve's (the rest of a flight with no
     /// mission ends there).
     pub reserve_frac: f64,
@@ -134,11 +255,14 @@ pub struct Pack {
 pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
     let chem = Chemistry::from_name(&facts.chemistry.value)?;
     let cells = facts.cell_count.value;
-    let cap = facts.capacity_wh.value;
+    // No capacity, no circuit (its energy is in Wh); no pack of 0 or more than 24 cells.
+    let cap = facts.capacity().filter(|c| c.is_finite() && *c > 0.0)?;
+    if !(1..=24).contains(&cells) {
+        return None;
+    }
     let tb48d = chem == Chemistry::LiHv
-        && cells == crate::report::DEFAULT_CELL_COUNT
-        && (facts.capacity_wh.source == Provenance::Default
-            || (cap - crate::report::DEFAULT_CAPACITY_WH).abs() < 0.5);
+        && cells == crate::report::M100_CELL_COUNT
+        && (cap - crate::report::M100_CAPACITY_WH).abs() < 0.5;
     let base = CircuitParams::default();
     if tb48d {
         return Some((OcvCurve::tb48d(), base));
@@ -192,6 +316,18 @@ impl Pack {
             .map(|t0| t - t0)
             .filter(|dt| *dt > 0.0 && *dt <= 5.0);
         self.last_t = Some(t);
+        let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+        let cells = facts.cell_count.value.max(1);
+        // V + I·R with the prior resistance: the open-circuit voltage under any load.
+        let r = prior_r_ohm(cells, pack_ah(facts, chem));
+        self.loaded.push_back((t, v + i.max(0.0) * r));
+        while self
+            .loaded
+            .front()
+            .is_some_and(|(t0, _)| t - t0 > LOAD_START_S)
+        {
+            self.loaded.pop_front();
+        }
         if i.abs() < REST_CURRENT_A {
             self.rest.push_back((t, v));
             while self
@@ -206,19 +342,33 @@ impl Pack {
             }
         } else {
             self.rest.clear();
-            if i >= LOAD_CURRENT_A && self.est.is_some() {
+            if i >= LOAD_CURRENT_A && self.rest_v.is_some() {
                 self.flown = true;
             }
         }
+        if i >= LOAD_CURRENT_A {
+            if let Some(dt) = dt {
+                self.sag.update(dt, v, i, cells, r);
+            }
+        }
+        self.maybe_start_loaded(t, i, r, facts);
+        if self.rest_v.is_some() && self.est.is_none() && !self.sag.flat {
+            // No capacity: the state of charge from the load-compensated voltage.
+            if let Some(ocv) = median(self.loaded.iter().map(|(_, x)| *x)) {
+                self.now.ocv_v = Some(ocv);
+                self.now.soc_pct = Some(100.0 * chem.default_curve().soc(ocv / f64::from(cells)));
+            }
+        }
         let Some(est) = self.est.as_mut() else {
+            self.possible(chem, cells);
             return self.now;
         };
         if let Some(e) = dt.and_then(|dt| est.update(dt, i, v)) {
             self.now.v_model = Some(e.v_prior);
             self.now.ocv_v = Some(e.ocv);
             self.now.internal_r_ohm = Some(e.r0_eff);
-            self.now.soc_pct = Some(100.0 * e.soc);
-            self.now.energy_wh = Some(e.energy_wh);
+            self.now.soc_pct = Some((100.0 * e.soc).clamp(0.0, 100.0));
+            self.now.energy_wh = Some(e.energy_wh.max(0.0));
             self.now.r_scale = est.pack_scale();
             self.now.heat = Some(est.heat());
         }
@@ -232,7 +382,86 @@ impl Pack {
             self.last_forecast_t = Some(t);
             self.forecast(rest_of_flight, facts);
         }
+        self.possible(chem, cells);
         self.now
+    }
+
+    /// Withhold what cannot be: every voltage figure of a pack that does not sag, and any
+    /// modelled voltage outside the chemistry's range for the cell count or resistance
+    /// outside 0..[`MAX_R_CELL_OHM`] a cell. Each reason said once.
+    fn possible(&mut self, chem: Chemistry, cells: u32) {
+        let n = f64::from(cells);
+        let (lo, hi) = (
+            n * chem.loaded_min_v(),
+            n * (chem.full_v() + crate::battery::chemistry::FULL_TOL_V),
+        );
+        let in_range = |x: Option<f64>| x.is_none_or(|x| x.is_finite() && (lo..=hi).contains(&x));
+        let r_ok = self
+            .now
+            .internal_r_ohm
+            .is_none_or(|r| r.is_finite() && (0.0..=MAX_R_CELL_OHM * n).contains(&r));
+        let pending = self.now.start.is_some_and(|s| s != FROM_REST)
+            && self.sag.loaded_s < SagCheck::MIN_LOADED_S;
+        let why = if self.sag.flat {
+            Some(NO_SAG)
+        } else if pending && self.est.is_some() {
+            Some(SAG_PENDING)
+        } else if !(in_range(self.now.v_model)
+            && in_range(self.now.ocv_v)
+            && in_range(self.now.v_min_forecast.map(|(v, _)| v))
+            && r_ok)
+        {
+            Some(OUT_OF_RANGE)
+        } else {
+            None
+        };
+        self.now.withheld = why;
+        let Some(why) = why else { return };
+        self.now.v_model = None;
+        self.now.v_min_forecast = None;
+        self.now.time_to_low_v_s = None;
+        self.now.usable_wh = None;
+        self.now.internal_r_ohm = None;
+        if !in_range(self.now.ocv_v) {
+            self.now.ocv_v = None;
+        }
+        if !self.said_withheld && why != SAG_PENDING {
+            self.said_withheld = true;
+            self.notes.push(format!("battery: {why}"));
+        }
+    }
+
+    /// No resting voltage after [`LOAD_START_S`] of readings (and none settling now, or
+    /// three times that long): start from the load-compensated voltage, said once.
+    fn maybe_start_loaded(&mut self, t: f64, i: f64, r: f64, facts: &BatteryFacts) {
+        if self.rest_v.is_some() {
+            self.since = None;
+            return;
+        }
+        let since = *self.since.get_or_insert(t);
+        let resting = self.rest.front().is_some_and(|(t0, _)| t - t0 >= 1.0);
+        if t - since < LOAD_START_S || (resting && t - since < 3.0 * LOAD_START_S) {
+            return;
+        }
+        let Some(ocv) = median(self.loaded.iter().map(|(_, x)| *x)) else {
+            return;
+        };
+        // Within the chemistry's resting window for the cells (a prior resistance too high
+        // for this pack must not start it over full).
+        let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+        let n = f64::from(facts.cell_count.value.max(1));
+        let ocv = ocv.clamp(n * chem.floor_v(), n * chem.full_v());
+        if !self.said_start {
+            self.said_start = true;
+            self.notes.push(format!(
+                "battery: no resting voltage was read before {t:.0} s: the pack's state starts load-compensated (V + I·R, prior R {:.0} mΩ for {} cells) at {ocv:.2} V, band ±{SOC_BAND_LOADED_PCT:.0} points",
+                1000.0 * r,
+                facts.cell_count.value
+            ));
+        }
+        self.start(ocv, "load-compensated (V + I·R, prior R)", facts);
+        // Flying already: the start is not a rest before take-off.
+        self.flown = i >= LOAD_CURRENT_A;
     }
 
     /// Whether the start state may still come from a resting voltage: the pack is resting
@@ -255,9 +484,9 @@ impl Pack {
     }
 
     fn at_rest(&mut self, rest_v: f64, facts: &BatteryFacts) {
-        let cells = f64::from(facts.cell_count.value);
+        let cells = f64::from(facts.cell_count.value.max(1));
         if self.flown {
-            let ocv = self.est.as_ref().map(|e| e.ocv());
+            let ocv = self.est.as_ref().map(|e| e.ocv()).or(self.now.ocv_v);
             if ocv.is_some_and(|ocv| rest_v > ocv + SWAP_RISE_V_CELL * cells) {
                 self.notes.push(format!(
                     "battery: the resting voltage rose to {rest_v:.2} V after flying (the model had {:.2} V): a new pack, its state starts again from this voltage",
@@ -265,38 +494,78 @@ impl Pack {
                 ));
                 self.flown = false;
                 self.history = None;
+                self.sag = SagCheck::default();
+                self.said_withheld = false;
             } else {
                 // Landed: the resting voltage after the flight (pack health, the next flight).
                 self.now.end_rest_v = Some(rest_v);
-                self.now.end_rest_soc_pct = self
-                    .est
-                    .as_ref()
-                    .map(|e| 100.0 * e.curve_soc(rest_v / cells));
+                let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+                self.now.end_rest_soc_pct = Some(
+                    100.0
+                        * self
+                            .est
+                            .as_ref()
+                            .map_or(chem.default_curve().soc(rest_v / cells), |e| {
+                                e.curve_soc(rest_v / cells)
+                            }),
+                );
                 return;
             }
         }
-        if self.rest_v.is_some_and(|r| (r - rest_v).abs() < 0.005) && self.est.is_some() {
+        if self.rest_v.is_some_and(|r| (r - rest_v).abs() < 0.005)
+            && self.now.start == Some(FROM_REST)
+        {
             return;
         }
+        self.start(rest_v, FROM_REST, facts);
+    }
+
+    /// Start the pack's state from an open-circuit voltage `v0` (`how` it was read): the
+    /// circuit where the capacity is known, else the state of charge alone.
+    fn start(&mut self, v0: f64, how: &'static str, facts: &BatteryFacts) {
+        let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+        let cells = facts.cell_count.value.max(1);
+        let band = if how == FROM_REST {
+            SOC_BAND_REST_PCT
+        } else {
+            SOC_BAND_LOADED_PCT
+        } + if facts.chemistry.source == Provenance::Default {
+            SOC_BAND_CHEMISTRY_PCT
+        } else {
+            0.0
+        };
         let Some((curve, params)) = pack_model(facts) else {
+            // No capacity (or no pack the model can take): the state of charge alone.
+            self.est = None;
+            self.rest_v = Some(v0);
+            self.now = PackNow {
+                rest_v: Some(v0),
+                ocv_v: Some(v0),
+                soc_pct: Some(100.0 * chem.default_curve().soc(v0 / f64::from(cells))),
+                start: Some(how),
+                soc_band_pct: Some(band),
+                ..PackNow::default()
+            };
             return;
         };
         let curve_wh = curve.capacity();
         // The same pack flown again soon: its resistance and warmth carry over.
         let carry = self
             .history
-            .filter(|h| h.same_pack(rest_v, facts.cell_count.value));
+            .filter(|h| h.same_pack(v0, facts.cell_count.value));
         let params = carry.and_then(|h| h.r_scale).map_or(params, |k| {
             params.carried_over(k, crate::battery::PACK_SCALE_CARRY)
         });
         let heat0 = carry.map_or(0.0, |h| h.heat * (-h.gap_s / params.tau_heat_s).exp());
-        if let Some(est) = Estimator::new(params, curve, rest_v, heat0) {
+        if let Some(est) = Estimator::new(params, curve, v0, heat0) {
             self.est = Some(est);
-            self.rest_v = Some(rest_v);
+            self.rest_v = Some(v0);
             self.now = PackNow {
-                rest_v: Some(rest_v),
+                rest_v: Some(v0),
                 curve_wh: Some(curve_wh),
                 carried: carry.is_some(),
+                start: Some(how),
+                soc_band_pct: Some(band),
                 ..PackNow::default()
             };
         }
@@ -362,137 +631,5 @@ impl Pack {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::report::Sourced;
-
-    fn tb48d() -> BatteryFacts {
-        BatteryFacts::default()
-    }
-
-    /// Rest at `v`, then fly at `amps` with a voltage sagging by `sag` V per A.
-    fn run(p: &mut Pack, facts: &BatteryFacts, rest_v: f64, t_end: f64) -> PackNow {
-        let mut now = PackNow::default();
-        let mut t = 0.0;
-        while t < t_end {
-            let (v, i) = if t < 5.0 {
-                (rest_v, 0.1)
-            } else {
-                (rest_v - 0.06 * 20.0, 20.0)
-            };
-            now = p.update(t, Some(v), Some(i), Some(Load::constant(450.0)), facts);
-            t += 0.1;
-        }
-        now
-    }
-
-    #[test]
-    fn a_half_used_tb48d_starts_well_under_full() {
-        let mut p = Pack::default();
-        let now = run(&mut p, &tb48d(), 23.2, 4.0);
-        // 23.2 V at rest is 3.87 V a cell: about 45 % of the fitted curve, not full.
-        let soc = 100.0 * OcvCurve::tb48d().soc(23.2 / 6.0);
-        assert!(
-            now.rest_v.is_some_and(|v| (v - 23.2).abs() < 1e-9),
-            "{now:?}"
-        );
-        assert!(soc < 60.0 && soc > 30.0, "{soc}");
-        assert!(now.energy_wh.unwrap_or(f64::NAN) < 0.6 * 103.4, "{now:?}");
-    }
-
-    #[test]
-    fn flying_forecasts_the_low_voltage_and_a_usable_floor() {
-        let mut p = Pack::default();
-        let now = run(&mut p, &tb48d(), 24.3, 60.0);
-        let (v_min, _) = now.v_min_forecast.expect("a forecast");
-        assert!(v_min < 24.3, "{now:?}");
-        let usable = now.usable_wh.expect("usable");
-        assert!(
-            usable > 0.0 && usable < now.energy_wh.unwrap_or(0.0),
-            "{now:?}"
-        );
-        assert!(now.time_to_low_v_s.is_some_and(|t| t > 60.0), "{now:?}");
-        assert!(
-            now.internal_r_ohm.is_some_and(|r| r > 0.0 && r < 0.5),
-            "{now:?}"
-        );
-    }
-
-    #[test]
-    fn garbage_and_a_swapped_pack() {
-        let mut p = Pack::default();
-        let f = tb48d();
-        assert_eq!(
-            p.update(0.0, Some(f64::NAN), Some(0.0), None, &f),
-            PackNow::default()
-        );
-        assert_eq!(
-            p.update(0.1, Some(0.0), Some(0.0), None, &f),
-            PackNow::default()
-        );
-        assert_eq!(
-            p.update(0.2, Some(24.0), Some(-30.0), None, &f),
-            PackNow::default()
-        );
-        assert_eq!(p.update(0.3, None, Some(1.0), None, &f), PackNow::default());
-        run(&mut p, &f, 23.4, 60.0);
-        assert!(p.notes.is_empty());
-        // Landed, then a fresh pack: the voltage at rest jumps up.
-        for k in 0..40 {
-            p.update(60.0 + f64::from(k) * 0.1, Some(25.9), Some(0.2), None, &f);
-        }
-        assert_eq!(p.notes.len(), 1, "{:?}", p.notes);
-        assert!(p.now.rest_v.is_some_and(|v| (v - 25.9).abs() < 1e-9));
-    }
-
-    #[test]
-    fn other_packs_use_their_chemistry_scaled_to_capacity() {
-        let mut f = tb48d();
-        f.cell_count = Sourced::new(3, Provenance::Parameter("BAT1_N_CELLS".into()));
-        f.capacity_wh = Sourced::new(36.6, Provenance::Parameter("BATT_CAPACITY".into()));
-        f.chemistry = Sourced::new("lipo".into(), Provenance::Default);
-        let (curve, params) = pack_model(&f).expect("a model");
-        assert!((curve.capacity() - 36.6).abs() < 1e-9);
-        assert_eq!(params.n_cells, 3);
-        // A full 3S LiPo at rest holds the whole capacity.
-        assert!((curve.energy(12.6 / 3.0) - 36.6).abs() < 1e-9);
-    }
-
-    #[test]
-    fn the_same_pack_soon_after_carries_its_resistance_and_warmth() {
-        let f = tb48d();
-        let hist = |gap_s: f64| PackHistory {
-            identified: false,
-            gap_s,
-            r_scale: Some(1.4),
-            heat: 100_000.0,
-            end_rest_v: Some(23.3),
-        };
-        let mut soon = Pack {
-            history: Some(hist(300.0)),
-            ..Pack::default()
-        };
-        let mut cold = Pack {
-            history: Some(hist(3.0 * 3600.0)),
-            ..Pack::default()
-        };
-        let (a, b) = (
-            run(&mut soon, &f, 23.4, 30.0),
-            run(&mut cold, &f, 23.4, 30.0),
-        );
-        assert!(a.carried && !b.carried, "{a:?} {b:?}");
-        // A resistance 1.4× the nominal carried over, shrunk: more sag than a fresh start, but
-        // the warmth carried lowers it too; the model differs either way.
-        assert_ne!(a.v_model, b.v_model);
-        assert!(
-            a.r_scale.is_some() && a.heat.is_some_and(|h| h > 0.0),
-            "{a:?}"
-        );
-        // A pack at a voltage it could not have relaxed to is another pack.
-        let mut other = Pack {
-            history: Some(hist(300.0)),
-            ..Pack::default()
-        };
-        assert!(!run(&mut other, &f, 25.9, 10.0).carried);
-    }
-}
+#[path = "pack_tests.rs"]
+mod tests;

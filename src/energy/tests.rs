@@ -22,6 +22,13 @@ fn tracker(energy: EnergyConfig) -> EnergyTracker {
     EnergyTracker::new(&energy, None).unwrap()
 }
 
+/// The M100's pack, named (the data set's): what these tests fly where they need a pack.
+fn m100() -> EnergyConfig {
+    let mut cfg = EnergyConfig::default();
+    cfg.fill_pack(&crate::vehicle::BatteryConfig::m100());
+    cfg
+}
+
 #[test]
 fn integrates_measured_power_and_caps_gaps() {
     let mut tr = tracker(EnergyConfig::default());
@@ -42,8 +49,13 @@ fn integrates_measured_power_and_caps_gaps() {
     // A jump backwards integrates nothing.
     let st = tr.update(&est(5.0, Some(360.0), &[]));
     assert!((st.energy_used_wh - 1.1).abs() < 1e-9);
-    // Voltage per cell from the 6S default.
+    // Voltage per cell: 22.8 V fits 6 LiPo cells (3.8 V), the fewer of 6 or 7.
     assert!((st.cell_voltage_v.unwrap() - 3.8).abs() < 1e-6);
+    // No pack known: nothing in Wh, and why.
+    assert_eq!(st.remaining_wh, None);
+    assert_eq!(st.remaining_source, RemainingSource::UnknownPack);
+    assert_eq!(st.time_to_empty_s, None);
+    assert!(st.battery.capacity_source().starts_with("not known"));
 }
 
 #[test]
@@ -68,7 +80,7 @@ fn falls_back_to_the_preferred_model_and_says_so() {
     let st = tr.update(&est(1.0, None, &[("dandrea", 100.0), ("tseng", 500.0)]));
     assert_eq!(st.power_source, "dandrea");
     // Nothing at all: nothing integrated, nothing forecast, and it says "none".
-    let mut tr = tracker(EnergyConfig::default());
+    let mut tr = tracker(m100());
     let st = tr.update(&est(0.0, None, &[]));
     assert_eq!(st.power_source, "none");
     assert_eq!(st.time_to_empty_s, None);
@@ -112,7 +124,7 @@ fn remaining_time_and_home_margin() {
 /// (ArduPilot counts from "full at boot").
 #[test]
 fn the_resting_voltage_starts_the_pack_and_beats_a_full_at_boot_gauge() {
-    let mut tr = tracker(EnergyConfig::default());
+    let mut tr = tracker(m100());
     let mut st = EnergyState::default();
     for k in 0..600 {
         let t = f64::from(k) * 0.1;
@@ -144,10 +156,7 @@ fn learned_capacity_beats_the_vehicle_but_not_the_config() {
     tr.set_vehicle(VehicleParams::from_pairs(&[("BATT_CAPACITY", 5000.0)]));
     tr.set_learned_capacity(Some((100.0, 2)));
     let st = tr.update_with_battery(&est(0.0, Some(300.0), &[]), Some(50.0));
-    assert_eq!(
-        st.battery.capacity_wh.source.to_string(),
-        "learned over 2 flight(s)"
-    );
+    assert_eq!(st.battery.capacity_source(), "learned over 2 flight(s)");
     // remaining = the learned capacity × the gauge's %.
     assert_eq!(st.remaining_wh, Some(50.0));
     let rated = st
@@ -158,7 +167,7 @@ fn learned_capacity_beats_the_vehicle_but_not_the_config() {
     // Nonsense learned is ignored; the config always wins.
     tr.set_learned_capacity(Some((f64::NAN, 1)));
     assert_eq!(
-        tr.battery().capacity_wh.source.to_string(),
+        tr.battery().capacity_source(),
         "vehicle parameter BATT_CAPACITY"
     );
     let mut tr = tracker(EnergyConfig {
@@ -167,11 +176,8 @@ fn learned_capacity_beats_the_vehicle_but_not_the_config() {
     });
     tr.set_learned_capacity(Some((100.0, 2)));
     assert_eq!(
-        (
-            tr.battery().capacity_wh.value,
-            tr.battery().capacity_wh.source.to_string()
-        ),
-        (80.0, "config".to_string())
+        (tr.battery().capacity(), tr.battery().capacity_source()),
+        (Some(80.0), "config".to_string())
     );
 }
 
@@ -194,7 +200,7 @@ fn the_usable_floor_does_not_leap_when_the_mission_ends() {
     // A part-used TB48D (3.80 V a cell at rest) sagging near BATT_LOW_VOLT (21.0 V) at 20 A,
     // where the floor moves with the load.
     const LOADED_V: f64 = 21.3;
-    let mut tr = tracker(EnergyConfig::default());
+    let mut tr = tracker(m100());
     let (end, light_s, heavy_w, light_w) = (70.0, 20.0, LOADED_V * 20.0, 200.0);
     let status = |t: f64| {
         let left = (end - t).max(0.0);

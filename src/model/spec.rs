@@ -55,6 +55,8 @@ fn pack_wh_per_kg(c: Chemistry) -> f64 {
         Chemistry::LiPo => 150.0,
         Chemistry::LiHv => 160.0,
         Chemistry::LiIon => 200.0,
+        // LiFePO4 packs: heavier cells, about 100-120 Wh/kg as packs.
+        Chemistry::LiFePo4 => 110.0,
     }
 }
 /// Pack share of take-off mass when the pack is not given (1).

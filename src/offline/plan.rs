@@ -336,6 +336,12 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     }
     // Offline no vehicle answers: the configured pack, else the profile's, else the default.
     let mut battery_cfg = cfg.energy.battery();
+    if is_m100 {
+        // The M100's own pack, only for the M100.
+        let mut e = cfg.energy.clone();
+        e.fill_pack(&crate::vehicle::BatteryConfig::m100());
+        battery_cfg = e.battery();
+    }
     if let (false, Some(b)) = (is_m100, profile.battery.as_ref()) {
         battery_cfg.cell_count = battery_cfg.cell_count.or(Some(b.cells));
         if battery_cfg.capacity_wh.is_none() {
@@ -350,15 +356,24 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         }
     }
     let mut battery = crate::vehicle::battery_from_config(&battery_cfg);
-    if !is_m100 && cfg.energy.capacity_wh.is_none() && profile.battery.is_some() {
-        battery.capacity_wh.source =
+    if let (Some(c), true) = (
+        battery.capacity_wh.as_mut(),
+        !is_m100 && cfg.energy.capacity_wh.is_none() && profile.battery.is_some(),
+    ) {
+        c.source =
             crate::vehicle::Provenance::Parameter(format!("{} profile [battery]", profile.name));
     }
-    let capacity_wh = battery.capacity_wh.value;
-    if battery.capacity_wh.source != crate::vehicle::Provenance::Config {
+    let capacity_wh = battery.capacity().with_context(|| {
+        format!("the pack's capacity is not known: set [energy] capacity_wh, or give the vehicle profile ({}) a [battery]", profile.name)
+    })?;
+    if battery
+        .capacity_wh
+        .as_ref()
+        .is_some_and(|c| c.source != crate::vehicle::Provenance::Config)
+    {
         tracing::info!(
             "capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack",
-            battery.capacity_wh.source
+            battery.capacity_source()
         );
     }
     let pack = match a.battery_v {

@@ -25,7 +25,7 @@ use crate::telemetry::window::Window;
 use crate::telemetry::Telemetry;
 use crate::vehicle::params::{Driver, Identity, ParamReader, VehicleParams};
 use crate::vehicle::store::FlightLog;
-use tokio::sync::watch;
+use tokio::sync::oneshot;
 
 /// One vehicle's chain: telemetry → windows → inference → energy + alerts, each stage's
 /// state built from its own slice of the configuration.
@@ -92,6 +92,26 @@ impl ChainTasks {
         let (flight, identity) = self.energy.await?;
         self.relay.await?;
         Ok(ChainEnd { identity, flight })
+    }
+}
+
+/// What the telemetry stage tells the energy stage about the vehicle, stamped with the
+/// source time (`t_s`) of the message it came from. The energy stage takes each when its
+/// estimates reach that time: the log's own clock orders parameters and estimates, never
+/// the threads' timing (a flat-out replay and one at ×10 give the same reports).
+enum VehicleNews {
+    /// What the vehicle said about itself so far (identity, parameters, pack).
+    Params(f64, VehicleParams),
+    /// The vehicle store's answer, looked up off the stage: the energy stage waits for it
+    /// when its estimates reach this time (a dropped sender: nothing remembered).
+    Store(f64, oneshot::Receiver<StoreNews>),
+}
+
+impl VehicleNews {
+    fn t_s(&self) -> f64 {
+        match self {
+            VehicleNews::Params(t, _) | VehicleNews::Store(t, _) => *t,
+        }
     }
 }
 
@@ -215,8 +235,8 @@ impl VehicleChain {
             self.mav_ids.0.unwrap_or(system_id),
             self.mav_ids.1,
         );
-        let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
-        let (capacity_tx, capacity_rx) = watch::channel(StoreNews::default());
+        // Unbounded: the news is a handful of parameter sets and one store answer a flight.
+        let (news_tx, news_rx) = mpsc::unbounded_channel();
         let rebuild = self.rebuild;
         // The vehicle's mission forecast: a step of its telemetry stage, its statuses to its
         // energy stage, its frames on its own network's links.
@@ -228,7 +248,7 @@ impl VehicleChain {
             dir,
             vehicle,
             warm: inference.warm.clone(),
-            capacity: Some(capacity_tx),
+            looked_up: false,
             rebuild,
         });
         let tasks = ChainTasks {
@@ -238,7 +258,7 @@ impl VehicleChain {
                 mission,
                 msgs,
                 win_tx,
-                vehicle_tx,
+                news_tx,
                 memory,
                 status.clone(),
             )),
@@ -263,8 +283,7 @@ impl VehicleChain {
                 self.alerts,
                 est_rx,
                 statuses,
-                vehicle_rx,
-                capacity_rx,
+                news_rx,
                 own,
                 status.clone(),
                 live,
@@ -282,8 +301,8 @@ struct Memory {
     /// The vehicle (the inference stage's key for its adaptation).
     vehicle: VehicleId,
     warm: std::sync::mpsc::Sender<(VehicleId, WarmStart)>,
-    /// Taken by the one lookup.
-    capacity: Option<watch::Sender<StoreNews>>,
+    /// Whether the one lookup was made.
+    looked_up: bool,
     /// Builds the models from a learned profile the store keeps for the vehicle.
     rebuild: Option<Rebuild>,
 }
@@ -321,16 +340,25 @@ fn learned_models(
 }
 
 /// What earlier flights of vehicle `id` taught, looked up once it is known (off the task
-/// that calls; `Pending` goes first, so the windows after message time `t_s` find it).
-fn look_up(mem: &mut Memory, id: &Identity, t_s: f64, status: &ChainStatus) {
-    let Some(capacity) = mem.capacity.take() else {
+/// that calls; `Pending` goes first, so the windows after message time `t_s` find it). The
+/// answer reaches the energy stage as news stamped `t_s` ([`VehicleNews::Store`]).
+fn look_up(
+    mem: &mut Memory,
+    id: Identity,
+    t_s: f64,
+    status: &ChainStatus,
+    news: &mpsc::UnboundedSender<VehicleNews>,
+) {
+    if mem.looked_up {
         return;
-    };
+    }
+    mem.looked_up = true;
     let _ = mem.warm.send((mem.vehicle, WarmStart::Pending));
-    let (dir, warm, id, vehicle, rebuild) = (
+    let (answer_tx, answer_rx) = oneshot::channel();
+    let _ = news.send(VehicleNews::Store(t_s, answer_rx));
+    let (dir, warm, vehicle, rebuild) = (
         mem.dir.clone(),
         mem.warm.clone(),
-        id.clone(),
         mem.vehicle,
         mem.rebuild.clone(),
     );
@@ -343,7 +371,7 @@ fn look_up(mem: &mut Memory, id: &Identity, t_s: f64, status: &ChainStatus) {
         let (models, forecast) = learned_models(&learned, rebuild.as_ref());
         // The store's news first: an estimate made with the warm
         // fits reaches the energy stage after it.
-        let _ = capacity.send(StoreNews {
+        let _ = answer_tx.send(StoreNews {
             capacity: learned.capacity_wh,
             forecast,
             pack: learned.pack,
@@ -363,7 +391,7 @@ async fn telemetry_stage(
     mut mission: Option<MissionStep>,
     mut msgs: mpsc::Receiver<TimedMessage>,
     windows: mpsc::Sender<Window>,
-    vehicle_tx: watch::Sender<VehicleParams>,
+    news: mpsc::UnboundedSender<VehicleNews>,
     mut memory: Option<Memory>,
     status: ChainStatus,
 ) {
@@ -391,12 +419,13 @@ async fn telemetry_stage(
                     step.on_message(&m);
                 }
                 if let Some(params) = vehicle.on_message(&m) {
-                    // The vehicle is known: look up what earlier flights taught.
-                    if let (Some(id), Some(mem)) = (&params.identity, &mut memory) {
-                        look_up(mem, id, m.t_s, &status);
-                    }
+                    let identity = params.identity.clone();
                     // Only the energy stage listens; it gone (shutting down) is no error.
-                    let _ = vehicle_tx.send(params);
+                    let _ = news.send(VehicleNews::Params(m.t_s, params));
+                    // The vehicle is known: look up what earlier flights taught.
+                    if let (Some(id), Some(mem)) = (identity, &mut memory) {
+                        look_up(mem, id, m.t_s, &status, &news);
+                    }
                 }
                 telemetry.push(&m, &mut out);
                 // The windows this message completes: it is the newest that went in.
@@ -430,6 +459,73 @@ async fn telemetry_stage(
     }
 }
 
+/// What the energy stage has taken of the vehicle's news ([`VehicleNews`]).
+#[derive(Default)]
+struct Taken {
+    /// The vehicle's last word taken (its identity goes to the store at the end).
+    params: VehicleParams,
+    /// The store's pack histories and the pack flying (BATTERY_INFO): the carry-over is
+    /// picked again when either changes ([`crate::battery::PackHistories::pick`]).
+    packs: crate::battery::PackHistories,
+    pack_id: Option<String>,
+    /// The news read and not yet due.
+    next: Option<VehicleNews>,
+}
+
+impl Taken {
+    /// Take the news due by source time `until` (all of it: None) into the energy tracker
+    /// and the flight log, in order. A store answer not yet back is waited for: the
+    /// estimates after its time are made with what it says, however the threads ran.
+    async fn take(
+        &mut self,
+        rx: &mut mpsc::UnboundedReceiver<VehicleNews>,
+        until: Option<f64>,
+        energy: &mut EnergyTracker,
+        flight: &mut FlightLog,
+    ) {
+        let mut repick = false;
+        loop {
+            if self.next.is_none() {
+                self.next = rx.try_recv().ok();
+            }
+            let due = self
+                .next
+                .as_ref()
+                .is_some_and(|n| until.is_none_or(|t| n.t_s() <= t));
+            if !due {
+                break;
+            }
+            match self.next.take() {
+                Some(VehicleNews::Params(_, params)) => {
+                    if params.pack_id.is_some() && params.pack_id != self.pack_id {
+                        self.pack_id.clone_from(&params.pack_id);
+                        flight.set_pack_id(self.pack_id.clone());
+                        repick = true;
+                    }
+                    energy.set_vehicle(params.clone());
+                    self.params = params;
+                }
+                Some(VehicleNews::Store(_, answer)) => {
+                    // The pack's effective capacity from earlier flights, and the forecast
+                    // model of a learned profile the models now run from.
+                    let news = answer.await.unwrap_or_default();
+                    energy.set_learned_capacity(news.capacity);
+                    self.packs = news.pack;
+                    repick = true;
+                    flight.set_log_origin(news.log_origin_s);
+                    if let Some((model, why)) = news.forecast {
+                        energy.set_default_model(&model, &why);
+                    }
+                }
+                None => break,
+            }
+        }
+        if repick {
+            energy.set_pack_history(self.packs.pick(self.pack_id.as_deref()));
+        }
+    }
+}
+
 /// Estimates → energy bookkeeping and alert events → one [`Report`] each, to every sink.
 /// On a live link, a silence of [`SILENT_TICK`] still runs the alert rules (on
 /// [`Estimate::silent`]); such a tick reports only when a rule changes state, and leaves
@@ -440,8 +536,7 @@ async fn energy_stage(
     mut alerts: AlertEngine,
     mut estimates: mpsc::Receiver<Estimate>,
     mut mission: Option<mpsc::Receiver<MissionUpdate>>,
-    mut vehicle: watch::Receiver<VehicleParams>,
-    mut learned: watch::Receiver<StoreNews>,
+    mut news: mpsc::UnboundedReceiver<VehicleNews>,
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
@@ -457,52 +552,19 @@ async fn energy_stage(
     // The last real estimate, its energy, and when it came: the base of a silent tick.
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
     let mut next_mission: Option<MissionUpdate> = None;
-    // Whether the vehicle's last word (its sender gone: the telemetry stage done) was taken.
-    let mut vehicle_final = false;
-    let mut capacity_final = false;
-    // The store's pack histories and the pack flying (BATTERY_INFO): the carry-over is
-    // picked again when either changes ([`crate::battery::PackHistories::pick`]).
-    let mut packs = crate::battery::PackHistories::default();
-    let mut pack_id: Option<String> = None;
+    let mut taken = Taken::default();
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
         } else {
             Ok(estimates.recv().await)
         };
-        // Capacity and cells from the vehicle where the config is silent. A closed channel (a
-        // fast replay whose telemetry stage is done) still holds the last word: take it once.
-        let (changed, closed) = vehicle.has_changed().map_or((true, true), |c| (c, false));
-        let mut repick = false;
-        if changed && !vehicle_final {
-            let params = vehicle.borrow_and_update().clone();
-            if params.pack_id.is_some() && params.pack_id != pack_id {
-                pack_id.clone_from(&params.pack_id);
-                flight.set_pack_id(pack_id.clone());
-                repick = true;
-            }
-            energy.set_vehicle(params);
-            vehicle_final = closed;
-        }
-        // The pack's effective capacity from earlier flights (the vehicle store), and the
-        // forecast model of a learned profile the models now run from, likewise.
-        let (changed, closed) = learned.has_changed().map_or((true, true), |c| (c, false));
-        if changed && !capacity_final {
-            let news = learned.borrow_and_update().clone();
-            energy.set_learned_capacity(news.capacity);
-            packs = news.pack;
-            repick = true;
-            flight.set_log_origin(news.log_origin_s);
-            if let Some((model, why)) = news.forecast {
-                energy.set_default_model(&model, &why);
-            }
-            capacity_final = closed;
-        }
-        if repick {
-            energy.set_pack_history(packs.pick(pack_id.as_deref()));
-        }
         let report = match next {
             Ok(Some(est)) => {
+                // What the vehicle said up to this estimate's time, and no later.
+                taken
+                    .take(&mut news, Some(est.t_s), &mut energy, &mut flight)
+                    .await;
                 take_mission(&mut energy, &mut mission, &mut next_mission, est.t_s);
                 let report = account(&mut energy, &mut alerts, est, vehicle_id());
                 flight.observe(&report);
@@ -535,8 +597,10 @@ async fn energy_stage(
         };
         fanout.send(report).await;
     }
-    let identity = vehicle.borrow().identity.clone();
-    (flight, identity)
+    // The rest of the news (the vehicle's identity and the store's clock for the flight
+    // log), the input being over.
+    taken.take(&mut news, None, &mut energy, &mut flight).await;
+    (flight, taken.params.identity)
 }
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on

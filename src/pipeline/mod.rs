@@ -6,7 +6,7 @@
 //! source ─TimedMessage→ demux ─TimedMessage→ one chain per vehicle:
 //!     telemetry_stage ─Window→ inference_stage (one for all vehicles) ─Estimate→ energy_stage ─Report→ relay ─Report→ Fanout → one task per sink
 //!      (+ MissionStep) ─── MissionUpdate (the vehicle's mission forecast) ─────▶┤
-//!            └────────── VehicleParams (watch: the latest word only) ──────────▶┘
+//!            └────────── VehicleNews (parameters, the store's answer; stamped t_s) ──▶┘
 //! ```
 //!
 //! Each vehicle's chain forecasts its own mission: the telemetry stage hands every message
@@ -17,8 +17,10 @@
 //!
 //! The telemetry stage also reads the vehicle ([`crate::vehicle::params`]): on a live link it
 //! asks for the battery parameters (PARAM_REQUEST_READ on the link, resent, bounded), in a
-//! replay it takes the logged PARAM_VALUEs; what it learns reaches the energy stage on a
-//! `tokio::sync::watch` (only the newest value matters, and it never holds a stage back).
+//! replay it takes the logged PARAM_VALUEs; what it learns reaches the energy stage stamped
+//! with the source time of the message that said it, and the energy stage takes it when its
+//! estimates reach that time (the log's own clock, never thread timing: a replay gives the
+//! same reports at any speed).
 //!
 //! Every arrow is a bounded channel carrying one typed value; a full channel holds the
 //! stage before it back, so a flat-out replay loses nothing. The demultiplexer
@@ -87,12 +89,30 @@ pub struct Pipeline {
     pub data_dir: Option<std::path::PathBuf>,
 }
 
+/// The pack named by the run where the config's `[energy]` is silent: the M100 data set's
+/// flights fly the M100's TB48D, and a vehicle profile with a `[battery]` its own pack (the
+/// profile as [`Resolved`] read it). No other vehicle gets either (the capacity stays not
+/// known until the vehicle says).
+fn known_pack(config: &mut Config, source: &SourceSpec, resolved: &Resolved) {
+    if matches!(source, SourceSpec::Dataset { .. }) {
+        config
+            .energy
+            .fill_pack(&crate::vehicle::BatteryConfig::m100());
+    }
+    if resolved.vehicle.path.is_some() {
+        if let Some(pack) = crate::vehicle::profile_pack(&resolved.vehicle.profile) {
+            config.energy.fill_pack(&pack);
+        }
+    }
+}
+
 /// Run the pipeline to the end of its source or until `shutdown` is cancelled. Returns the
 /// ingest counters (the summary line's numbers).
-pub async fn run(p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
+pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSnapshot> {
     // The files the config names, read once; the first chain built before any task starts,
     // so a bad model or profile fails before we listen.
     let resolved = Resolved::load(&p.config)?;
+    known_pack(&mut p.config, &p.source, &resolved);
     let mut chain = VehicleChain::build(&p.config, &resolved)?;
     let demux = Demux::new(&p.config.fleet, None).map_err(anyhow::Error::msg)?;
     // Every vehicle's mission forecast, a step of its chain (checked now on the first).

@@ -137,17 +137,23 @@ pub enum RemainingSource {
     #[serde(rename = "resting voltage")]
     #[strum(serialize = "resting voltage")]
     RestingVoltage,
+    /// As `resting voltage`, the state started load-compensated instead (OCV = V + I·R with
+    /// a prior resistance: no rest was read; a wider band).
+    #[serde(rename = "load-compensated voltage")]
+    #[strum(serialize = "load-compensated voltage")]
+    LoadCompensated,
     /// No battery telemetry at all (no voltage, no current, no %): the configured pack's
     /// capacity minus the energy of the forecast model's power, the pack taken as full at
     /// the start (said once in a warning).
     #[serde(rename = "model power")]
     #[strum(serialize = "model power")]
     ModelPower,
-    /// No pack is known for this vehicle: a vehicle other than a multirotor whose capacity
-    /// neither the config nor the vehicle gives (the M100's pack, the multirotor default,
-    /// is never assumed for it). Remaining energy and time are unknown.
-    #[serde(rename = "unknown pack")]
-    #[strum(serialize = "unknown pack")]
+    /// The pack's capacity is not known (no parameter, BATTERY_INFO, store, config or
+    /// `--pack` gives it): remaining energy and time to empty are null, never another
+    /// vehicle's pack; the state of charge from the voltage, the energy used and the pack's
+    /// voltage are still reported.
+    #[serde(rename = "capacity not known")]
+    #[strum(serialize = "capacity not known")]
     UnknownPack,
 }
 
@@ -170,8 +176,19 @@ pub struct PackState {
     pub battery_ocv_v: Option<f64>,
     /// The resting voltage the pack's state started from, V.
     pub battery_rest_v: Option<f64>,
-    /// State of charge, % of the OCV curve's energy.
+    /// State of charge, % of the OCV curve's energy (from the voltage and cells when the
+    /// capacity is not known).
     pub soc_pct: Option<f64>,
+    /// The state of charge's band, ± points (wider for a load-compensated start and an
+    /// assumed chemistry).
+    pub soc_band_pct: Option<f64>,
+    /// How the pack's start state was read: `resting voltage`, or `load-compensated …`
+    /// (V + I·R with a prior resistance: no rest before take-off, a noisy ground current,
+    /// a monitor attached in flight).
+    pub pack_start: Option<&'static str>,
+    /// Why the modelled voltage, the voltage forecast and the time to the low voltage are
+    /// null (a pack that does not sag; a model outside the chemistry's range), when they are.
+    pub pack_withheld: Option<&'static str>,
     /// Series resistance now, Ω (estimated online).
     pub internal_r_ohm: Option<f64>,
     /// Lowest loaded voltage forecast for the rest of the flight, V, and when, s from now.
@@ -219,9 +236,13 @@ pub enum Provenance {
     /// What the pack delivered on this many earlier flights of the vehicle (the vehicle
     /// store's effective capacity).
     Learned { flights: usize },
-    /// dronewatt's built-in default (the M100's TB48D).
+    /// Assumed where nothing says (the cell count when no voltage fits, LiPo for the
+    /// chemistry): said, and the estimate's band widened.
     #[default]
     Default,
+    /// A pack named for the run (`--pack`, the M100 data set's TB48D, a vehicle profile's
+    /// `[battery]`): what it was.
+    Named(String),
 }
 
 impl fmt::Display for Provenance {
@@ -231,7 +252,8 @@ impl fmt::Display for Provenance {
             Provenance::Parameter(name) => write!(f, "vehicle parameter {name}"),
             Provenance::FirstVoltage => f.write_str("first battery voltage"),
             Provenance::Learned { flights } => write!(f, "learned over {flights} flight(s)"),
-            Provenance::Default => f.write_str("default"),
+            Provenance::Default => f.write_str("assumed (not known)"),
+            Provenance::Named(name) => f.write_str(name),
         }
     }
 }
@@ -262,18 +284,23 @@ impl<T> Sourced<T> {
     }
 }
 
-/// The DJI TB48D (the M100's pack): 5700 mAh × 22.8 V, Wh. The capacity when neither the
-/// config nor the vehicle says.
-pub const DEFAULT_CAPACITY_WH: f64 = 5.7 * 22.8;
+/// The DJI TB48D (the M100's pack): 5700 mAh × 22.8 V, Wh. Only ever the M100's: the data
+/// set's flights and the M100's vehicle profile ([`BatteryFacts::m100`]), never a default.
+pub const M100_CAPACITY_WH: f64 = 5.7 * 22.8;
 /// The TB48D's cells in series.
+pub const M100_CELL_COUNT: u32 = 6;
+/// The cell count assumed when nothing says and no voltage fits (said: `assumed`).
 pub const DEFAULT_CELL_COUNT: u32 = 6;
+/// Why the capacity is not known, as `capacity_source` says it beside a null capacity.
+pub const CAPACITY_UNKNOWN: &str = "not known: no BATT_CAPACITY / BAT1_CAPACITY, BATTERY_INFO, vehicle store, [energy] capacity_wh or --pack";
 
 /// The battery figures the energy stage works with, each with its provenance
 /// (resolved by `vehicle::resolve_battery`: config, vehicle parameter, default).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BatteryFacts {
-    /// Usable energy when full, Wh.
-    pub capacity_wh: Sourced<f64>,
+    /// Usable energy when full, Wh; None: not known ([`CAPACITY_UNKNOWN`]), and nothing
+    /// that needs it (remaining Wh, time to empty) is made up.
+    pub capacity_wh: Option<Sourced<f64>>,
     /// Cells in series.
     pub cell_count: Sourced<u32>,
     /// Cell chemistry: `lipo`, `lihv` or `liion` (`crate::battery::Chemistry`).
@@ -289,18 +316,46 @@ pub struct BatteryFacts {
 }
 
 impl Default for BatteryFacts {
-    /// The TB48D, said to be the default.
+    /// Nothing known: no capacity, the cell count and chemistry (LiPo) assumed, said so.
     fn default() -> Self {
         Self {
-            capacity_wh: Sourced::new(DEFAULT_CAPACITY_WH, Provenance::Default),
+            capacity_wh: None,
             cell_count: Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
-            chemistry: Sourced::new("lihv".into(), Provenance::Default),
+            chemistry: Sourced::new("lipo".into(), Provenance::Default),
             low_voltage_v: None,
             critical_voltage_v: None,
             rated_capacity_wh: None,
         }
     }
 }
+
+impl BatteryFacts {
+    /// The M100's TB48D (6S LiHV, 129.96 Wh), named: the data set's pack, nobody else's.
+    pub fn m100() -> Self {
+        let m100 = || Provenance::Named(M100_PACK.into());
+        Self {
+            capacity_wh: Some(Sourced::new(M100_CAPACITY_WH, m100())),
+            cell_count: Sourced::new(M100_CELL_COUNT, m100()),
+            chemistry: Sourced::new("lihv".into(), m100()),
+            ..Self::default()
+        }
+    }
+
+    /// The capacity, Wh, when known.
+    pub fn capacity(&self) -> Option<f64> {
+        self.capacity_wh.as_ref().map(|c| c.value)
+    }
+
+    /// Where the capacity came from, or why it is not known.
+    pub fn capacity_source(&self) -> String {
+        self.capacity_wh
+            .as_ref()
+            .map_or_else(|| CAPACITY_UNKNOWN.to_string(), |c| c.source.to_string())
+    }
+}
+
+/// How the M100's pack is named where it is the pack ([`BatteryFacts::m100`]).
+pub const M100_PACK: &str = "the M100's pack (DJI TB48D)";
 
 /// Energy bookkeeping at one estimate (see [`crate::energy`] for the formulas). Absent
 /// values mean "not known yet" (no power seen, no home), never zero.

@@ -266,7 +266,7 @@ impl Battery {
         };
         let cap = spec.capacity_mah / 1000.0 * f64::from(spec.cells) * chem.nominal_v();
         BatteryFacts {
-            capacity_wh: Sourced::new(cap, Provenance::Config),
+            capacity_wh: Some(Sourced::new(cap, Provenance::Config)),
             cell_count: Sourced::new(spec.cells, Provenance::Config),
             chemistry: Sourced::new(chem.name().into(), Provenance::Config),
             ..BatteryFacts::default()

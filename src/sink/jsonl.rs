@@ -5,9 +5,10 @@
 //! {"type":"estimate","system_id":…,"t":…,"vehicle_class":"multirotor"|"fixed_wing"|"vtol"|"other",["mav_type":…,]["vtol_state":"mc"|"fw"|…,]
 //!  "measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
 //!  "energy_used_wh":…,"remaining_wh":…,"remaining_source":"resting voltage"|"battery"|"assumed full","time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
-//!  "capacity_wh":…,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"default"|…,"cell_count":…,"cell_count_source":…,
-//!  "chemistry":"lipo"|"lihv"|"liion","chemistry_source":…,"battery_v":…,"battery_v_model":…,"battery_ocv_v":…,"battery_rest_v":…,
-//!  "soc_pct":…,"internal_r_ohm":…,"v_min_forecast_v":…,"v_min_forecast_at_s":…,"time_to_low_v_s":…,"low_threshold_v":…,["battery_pct_disagreement":…,]
+//!  "capacity_wh":…|null,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"--pack …"|"not known: …"|…,"cell_count":…,"cell_count_source":…,
+//!  "chemistry":"lipo"|"lihv"|"liion"|"lifepo4","chemistry_source":…,"battery_v":…,"battery_v_model":…,"battery_ocv_v":…,"battery_rest_v":…,
+//!  "soc_pct":…,"soc_band_pct":…,"pack_start":"resting voltage"|"load-compensated …"|null,"internal_r_ohm":…,"v_min_forecast_v":…,"v_min_forecast_at_s":…,
+//!  "time_to_low_v_s":…,"low_threshold_v":…,"pack_withheld":null|"<why the voltage figures are null>",["battery_pct_disagreement":…,]
 //!  ["low_voltage_v":…,"low_voltage_source":…,]["critical_voltage_v":…,"critical_voltage_source":…]}
 //! {"type":"alert","system_id":…,"t":…,"rule":…,"severity":…,"state":"raised"|"cleared","message":…}   (one per alert event)
 //! ```
@@ -160,11 +161,9 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             forecast_adapted: r.energy.forecast_adapted,
             forecast_model: r.energy.forecast_model.as_deref(),
             forecast_why: r.energy.forecast_why.as_deref(),
-            // No pack known (a vehicle other than a multirotor): the multirotor default
-            // is not this vehicle's, so it is not shown as if it were.
-            capacity_wh: (r.energy.remaining_source != crate::report::RemainingSource::UnknownPack)
-                .then_some(b.capacity_wh.value),
-            capacity_source: &b.capacity_wh.source,
+            // Not known: null, and the source says why (never another vehicle's pack).
+            capacity_wh: b.capacity(),
+            capacity_source: b.capacity_source(),
             cell_count: b.cell_count.value,
             cell_count_source: &b.cell_count.source,
             chemistry: &b.chemistry.value,
@@ -308,10 +307,10 @@ struct EstimateLine<'a> {
     forecast_model: Option<&'a str>,
     forecast_why: Option<&'a str>,
     /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
-    /// `vehicle parameter BATT_CAPACITY`, `default` …); null when no pack is known for
-    /// the vehicle (`remaining_source` `unknown pack`).
+    /// `vehicle parameter BATT_CAPACITY`, `--pack …` …); null when it is not known, the
+    /// source then saying why (`remaining_source` `capacity not known`).
     capacity_wh: Option<f64>,
-    capacity_source: &'a Provenance,
+    capacity_source: String,
     /// Cells in series, and where that came from.
     cell_count: u32,
     cell_count_source: &'a Provenance,

@@ -204,8 +204,8 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                 s.push_str(&format!(
                     "left {} of {} Wh [{}; {}]",
                     num(left, 1),
-                    num(b.capacity_wh.value, 1),
-                    b.capacity_wh.source,
+                    b.capacity().map_or("?".into(), |c| num(c, 1)),
+                    b.capacity_source(),
                     en.remaining_source
                 ));
                 if let Some(t) = en.time_to_empty_s {
@@ -220,6 +220,14 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                     s.push(')');
                 }
                 s.push_str("  ");
+            } else if en.battery.capacity_wh.is_none() {
+                // Never another vehicle's pack: said, with what is known without it.
+                s.push_str("capacity not known  ");
+            }
+            if let Some(why) = en.pack.pack_withheld {
+                if why.contains("does not sag") {
+                    s.push_str("pack does not sag: no voltage forecast  ");
+                }
             }
             // The pack: voltage measured ~ modelled, state of charge, and the forecast's low.
             let pk = &en.pack;

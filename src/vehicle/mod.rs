@@ -2,15 +2,17 @@
 //! ([`params`]), and the battery facts the energy stage uses, each with where it came from
 //! ([`BatteryFacts`], [`Provenance`]).
 //!
-//! dronewatt's defaults are the DJI Matrice 100's (TB48D: 6 cells, 129.96 Wh). Attached to
-//! another vehicle, the vehicle itself knows better: ArduPilot's `BATT_CAPACITY` (mAh) and
-//! PX4's `BAT1_CAPACITY`, `BAT1_N_CELLS`. Each battery figure is taken, best first, from
+//! No vehicle gets another vehicle's pack: the DJI Matrice 100's TB48D (6 cells, 129.96 Wh)
+//! is the pack of the M100 data set and of the M100's vehicle profile only. Elsewhere the
+//! vehicle knows: ArduPilot's `BATT_CAPACITY` (mAh) and PX4's `BAT1_CAPACITY`,
+//! `BAT1_N_CELLS`. Until something says, the capacity is *not known* (null, with
+//! [`CAPACITY_UNKNOWN`] as its source). Each battery figure is taken, best first, from
 //!
 //! | figure | 1. config | 2. vehicle | 3. fallback |
 //! |---|---|---|---|
-//! | chemistry | `[energy] chemistry` | LiHV when `MOT_BAT_VOLT_MAX` is cells × 4.35 | LiHV for the default pack (the TB48D), else LiPo |
-//! | cell count | `[energy] cell_count` | `BAT1_N_CELLS` (PX4); the cells BATTERY_STATUS reports one by one; `MOT_BAT_VOLT_MAX` = cells × 4.2 or 4.35, `MOT_BAT_VOLT_MIN` = cells × 3.3 (ArduCopter); else the first battery voltage seen, checked against the chemistry's resting window ([`crate::battery::cell_candidates`]) | 6 (TB48D) |
-//! | capacity, Wh | `[energy] capacity_wh` | `BATT_CAPACITY` / `BAT1_CAPACITY` (mAh) / 1000 × cells × nominal cell voltage (`[energy] nominal_cell_v`, else the chemistry's: LiPo 3.7, LiHV 3.8, Li-ion 3.6 V) | 129.96 (TB48D) |
+//! | chemistry | `[energy] chemistry` (or `--pack`) | LiHV when `MOT_BAT_VOLT_MAX` is cells × 4.35 | LiPo, said as assumed |
+//! | cell count | `[energy] cell_count` (or `--pack`) | `BAT1_N_CELLS` (PX4); the cells BATTERY_STATUS reports one by one; `MOT_BAT_VOLT_MAX` = cells × 4.2 or 4.35, `MOT_BAT_VOLT_MIN` = cells × 3.3 (ArduCopter); else the first battery voltage seen, checked against the chemistry's resting window ([`crate::battery::cell_candidates`]) | 6 (TB48D) |
+//! | capacity, Wh | `[energy] capacity_wh` (or `--pack`) | `BATT_CAPACITY` / `BAT1_CAPACITY` (mAh) / 1000 × cells × nominal cell voltage (`[energy] nominal_cell_v`, else the chemistry's: LiPo 3.7, LiHV 3.8, Li-ion 3.6, LiFePO4 3.2 V) | not known (null) |
 //! | low / critical voltage, V (pack) | — | `BATT_LOW_VOLT` / `BATT_CRT_VOLT` (ArduPilot); `BAT1_V_EMPTY` × cells as critical (PX4) | none |
 //!
 //! A voltage that fits two cell counts (a full 6S LiHV pack at 26.1 V is also a 7S pack at
@@ -23,18 +25,22 @@
 //! with one warning, never an error: the vehicle's word is a better default, not a
 //! requirement.
 
+pub mod pack_spec;
 pub mod params;
 pub mod store;
 
+pub use pack_spec::{parse_pack, profile_pack};
+
 pub use crate::report::{
-    BatteryFacts, Provenance, Sourced, DEFAULT_CAPACITY_WH, DEFAULT_CELL_COUNT,
+    BatteryFacts, Provenance, Sourced, CAPACITY_UNKNOWN, DEFAULT_CELL_COUNT, M100_CAPACITY_WH,
+    M100_CELL_COUNT, M100_PACK,
 };
 
 use crate::battery::{cell_candidates, Chemistry};
 
 /// What the configuration says about the battery (the `[energy]` keys that may be left
 /// to the vehicle).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct BatteryConfig {
     /// `[energy] capacity_wh`, when set.
     pub capacity_wh: Option<f64>,
@@ -44,6 +50,22 @@ pub struct BatteryConfig {
     pub nominal_cell_v: Option<f64>,
     /// `[energy] chemistry`, when set.
     pub chemistry: Option<Chemistry>,
+    /// What named the pack these keys describe (`--pack …`, the M100 data set), when not
+    /// the config file: said as the figures' provenance.
+    pub named: Option<String>,
+}
+
+impl BatteryConfig {
+    /// The M100's TB48D: the data set's pack, and the M100 profile's.
+    pub fn m100() -> Self {
+        Self {
+            capacity_wh: Some(M100_CAPACITY_WH),
+            cell_count: Some(M100_CELL_COUNT),
+            nominal_cell_v: None,
+            chemistry: Some(Chemistry::LiHv),
+            named: Some(M100_PACK.into()),
+        }
+    }
 }
 
 /// The cell count a pack voltage parameter gives when it is `cells × per_cell` within
@@ -79,7 +101,9 @@ pub fn resolve_battery(
             if p.get(n).is_some_and(|v| v == -1.0) {
                 return None;
             }
-            checked(n, 1.0, 1_000_000.0, "mAh").map(|v| (n, v))
+            // 1 Ah to 1,000 Ah: 0 is ArduPilot's "not set", and a number past that is a typo
+            // (1,000,000 mAh), neither a pack.
+            checked(n, 50.0, 999_999.0, "mAh").map(|v| (n, v))
         });
     let low = checked("BATT_LOW_VOLT", 0.1, 100.0, "V")
         .map(|v| Sourced::new(v, Provenance::Parameter("BATT_LOW_VOLT".into())));
@@ -95,24 +119,49 @@ pub fn resolve_battery(
     });
     let min_cells = volt_param("MOT_BAT_VOLT_MIN").and_then(|v| cells_from(v, 3.3, 0.1));
 
+    let configured = || {
+        cfg.named
+            .clone()
+            .map_or(Provenance::Config, Provenance::Named)
+    };
+    let typed = p.battery_chemistry;
+    let by_type = |c| Sourced::new(c, Provenance::Parameter("BATTERY_STATUS type".into()));
     let chemistry = match (cfg.chemistry, max_cells) {
-        (Some(c), _) => Sourced::new(c, Provenance::Config),
-        (None, Some((_, c))) => Sourced::new(c, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
-        // The default pack is the TB48D, a LiHV pack; any other pack a LiPo unless said.
-        (None, None) if cfg.capacity_wh.is_none() && cap_param.is_none() => {
-            Sourced::new(Chemistry::LiHv, Provenance::Default)
+        (Some(c), _) => Sourced::new(c, configured()),
+        // Li-ion and LiFePO4 by the battery's type: MOT_BAT_VOLT_MAX (× 4.2) cannot tell
+        // Li-ion from LiPo; MAVLink's type has no LiHV, so a "LiPo" at 4.35 a cell is one.
+        (None, _) if matches!(typed, Some(Chemistry::LiIon | Chemistry::LiFePo4)) => {
+            by_type(typed.unwrap_or(Chemistry::LiPo))
         }
+        (None, Some((_, c))) => Sourced::new(c, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
+        (None, None) if typed.is_some() => by_type(typed.unwrap_or(Chemistry::LiPo)),
+        // Nothing says: a LiPo, said as assumed (the band is widened for it).
         (None, None) => Sourced::new(Chemistry::LiPo, Provenance::Default),
     };
     // The first voltage's candidates; what they leave open is said only where the voltage
     // is what decides the count (below), not beside a count the config or vehicle gave.
     let voltage_fits = first_voltage_v
         .filter(|v| v.is_finite() && *v > 1.0)
-        .map(|v| (v, cell_candidates(chemistry.value, v)));
+        .map(|v| {
+            // An assumed chemistry: the counts a LiPo or a LiHV pack at this voltage could
+            // have (a full 6S LiHV at 26.1 V is also a 7S LiPo at 3.73 V: said, not picked
+            // silently).
+            let mut fits = cell_candidates(chemistry.value, v);
+            if chemistry.source == Provenance::Default {
+                fits.extend(cell_candidates(Chemistry::LiHv, v));
+                fits.sort_unstable();
+                fits.dedup();
+            }
+            (v, fits)
+        });
     let from_voltage = voltage_fits
         .as_ref()
         .and_then(|(_, fits)| fits.first().copied());
-    let monitor_cells = p.battery_cells.filter(|n| (2..=24).contains(n));
+    let info_cells = p.battery_info.and_then(|(_, n)| n);
+    let monitor_cells = p
+        .battery_cells
+        .filter(|n| (2..=24).contains(n))
+        .or(info_cells);
     let cell_count = match (
         cfg.cell_count,
         cells_param.or(monitor_cells),
@@ -120,14 +169,15 @@ pub fn resolve_battery(
         min_cells,
         from_voltage,
     ) {
-        (Some(n), ..) => Sourced::new(n, Provenance::Config),
+        (Some(n), ..) => Sourced::new(n, configured()),
         (None, Some(n), ..) if cells_param.is_some() => {
             Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into()))
         }
-        (None, Some(n), ..) => Sourced::new(
+        (None, Some(n), ..) if p.battery_cells.is_some_and(|c| c == n) => Sourced::new(
             n,
             Provenance::Parameter("BATTERY_STATUS cell voltages".into()),
         ),
+        (None, Some(n), ..) => Sourced::new(n, Provenance::Parameter("BATTERY_INFO".into())),
         (None, None, Some((n, _)), ..) => {
             Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MAX".into()))
         }
@@ -159,12 +209,29 @@ pub fn resolve_battery(
     }
     let nominal_cell_v = cfg.nominal_cell_v.unwrap_or(chemistry.value.nominal_v());
     let capacity_wh = match (cfg.capacity_wh, cap_param) {
-        (Some(wh), _) => Sourced::new(wh, Provenance::Config),
-        (None, Some((name, mah))) => Sourced::new(
-            mah / 1000.0 * f64::from(cell_count.value) * nominal_cell_v,
-            Provenance::Parameter(name.into()),
-        ),
-        (None, None) => Sourced::new(DEFAULT_CAPACITY_WH, Provenance::Default),
+        (Some(wh), _) => Some(Sourced::new(wh, configured())),
+        // mAh × cells × nominal is only a capacity when the cells are known, not assumed.
+        (None, Some((name, mah))) if cell_count.source != Provenance::Default => {
+            Some(Sourced::new(
+                mah / 1000.0 * f64::from(cell_count.value) * nominal_cell_v,
+                Provenance::Parameter(name.into()),
+            ))
+        }
+        (None, Some((name, _))) => {
+            notes.push(format!("vehicle parameter {name} gives the charge but nothing gives the cells (no battery voltage that fits a pack yet): capacity not known"));
+            None
+        }
+        // A smart battery's own word (BATTERY_INFO), with the cells known.
+        (None, None) => p
+            .battery_info
+            .and_then(|(ah, _)| ah)
+            .filter(|_| cell_count.source != Provenance::Default)
+            .map(|ah| {
+                Sourced::new(
+                    ah * f64::from(cell_count.value) * nominal_cell_v,
+                    Provenance::Parameter("BATTERY_INFO".into()),
+                )
+            }),
     };
     let critical_voltage_v = crt.or_else(|| {
         v_empty.map(|v| {
@@ -235,7 +302,17 @@ mod tests {
             cell_count,
             nominal_cell_v: Some(3.7),
             chemistry: None,
+            named: None,
         }
+    }
+    fn cap(f: &BatteryFacts) -> f64 {
+        f.capacity().unwrap_or(f64::NAN)
+    }
+    fn cap_source(f: &BatteryFacts) -> Provenance {
+        f.capacity_wh
+            .clone()
+            .map(|c| c.source)
+            .unwrap_or(Provenance::Default)
     }
 
     #[test]
@@ -249,26 +326,93 @@ mod tests {
         let (f, notes) = resolve_battery(&cfg(None, None), &p, Some(12.4));
         assert!(notes.is_empty());
         assert_eq!(f.cell_count, Sourced::new(3, Provenance::FirstVoltage));
-        assert!((f.capacity_wh.value - 3.3 * 3.0 * 3.7).abs() < 1e-9);
-        assert_eq!(
-            f.capacity_wh.source.to_string(),
-            "vehicle parameter BATT_CAPACITY"
-        );
+        assert!((cap(&f) - 3.3 * 3.0 * 3.7).abs() < 1e-9);
+        assert_eq!(f.capacity_source(), "vehicle parameter BATT_CAPACITY");
         assert_eq!(f.low_voltage_v.as_ref().map(|s| s.value), Some(10.5));
         // The config wins where it speaks.
         let (f, _) = resolve_battery(&cfg(Some(50.0), Some(4)), &p, Some(12.4));
-        assert_eq!(
-            (f.capacity_wh.value, f.capacity_wh.source.clone()),
-            (50.0, Provenance::Config)
-        );
+        assert_eq!((cap(&f), cap_source(&f)), (50.0, Provenance::Config));
         assert_eq!(f.cell_count.source, Provenance::Config);
-        // Nothing at all: the M100's pack, said so.
+        // Nothing at all: the capacity is not known (never the M100's pack), and says why.
         let f = battery_from_config(&cfg(None, None));
+        assert_eq!(f.capacity_wh, None);
+        assert!(f.capacity_source().starts_with("not known"), "{f:?}");
+        assert_eq!(f.chemistry.value, "lipo");
+        // BATT_CAPACITY without anything that gives the cells: still not known, said.
+        let (f, notes) = resolve_battery(&cfg(None, None), &p, None);
+        assert_eq!(f.capacity_wh, None);
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        // The M100's pack only where it is named.
+        let f = battery_from_config(&BatteryConfig::m100());
         assert_eq!(
-            (f.capacity_wh.value, f.cell_count.value),
-            (DEFAULT_CAPACITY_WH, 6)
+            (cap(&f), f.cell_count.value, f.chemistry.value.as_str()),
+            (M100_CAPACITY_WH, 6, "lihv")
         );
-        assert_eq!(f.capacity_wh.source.to_string(), "default");
+        assert_eq!(f.capacity_source(), M100_PACK);
+    }
+
+    #[test]
+    fn a_pack_from_the_flag() {
+        let p = parse_pack("4S2P:5000mAh:li-ion").expect("a pack");
+        assert_eq!(
+            (p.cell_count, p.chemistry),
+            (Some(4), Some(Chemistry::LiIon))
+        );
+        assert!((p.capacity_wh.unwrap_or(0.0) - 5.0 * 4.0 * 3.6).abs() < 1e-9);
+        let f = battery_from_config(&p);
+        assert_eq!(f.capacity_source(), "--pack 4S2P:5000mAh:li-ion");
+        let p = parse_pack("6s:129.96Wh:LiHV").expect("a pack");
+        assert_eq!(p.capacity_wh, Some(129.96));
+        assert_eq!(
+            parse_pack("3S:2.2Ah").expect("a pack").chemistry,
+            Some(Chemistry::LiPo)
+        );
+        for bad in [
+            "",
+            "4S",
+            "0S:5000mAh",
+            "30S:5000mAh",
+            "4S:0mAh",
+            "4S:5000",
+            "4S:5000mAh:nimh",
+            "4S0P:5000mAh",
+            "4S:1000000000mAh",
+            "4S:NaNmAh",
+            "4S:5000mAh:lipo:x",
+        ] {
+            let e = parse_pack(bad).expect_err(bad);
+            assert!(e.starts_with("--pack"), "{e}");
+        }
+    }
+
+    #[test]
+    fn the_battery_says_its_chemistry_cells_and_capacity() {
+        let p = VehicleParams {
+            battery_chemistry: Some(Chemistry::LiIon),
+            battery_info: Some((Some(10.0), Some(4))),
+            ..VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 16.8)])
+        };
+        let (f, _) = resolve_battery(&cfg(None, None), &p, Some(15.0));
+        assert_eq!(f.chemistry.value, "liion");
+        assert_eq!(
+            f.chemistry.source.to_string(),
+            "vehicle parameter BATTERY_STATUS type"
+        );
+        assert_eq!(f.cell_count.value, 4);
+        assert_eq!(f.capacity_source(), "vehicle parameter BATTERY_INFO");
+        assert!((cap(&f) - 10.0 * 4.0 * 3.7).abs() < 1e-9, "{f:?}");
+        // A "LiPo" type at 4.35 V a cell is a LiHV (MAVLink has no LiHV type).
+        let p = VehicleParams {
+            battery_chemistry: Some(Chemistry::LiPo),
+            ..VehicleParams::from_pairs(&[("MOT_BAT_VOLT_MAX", 26.1)])
+        };
+        assert_eq!(
+            resolve_battery(&cfg(None, None), &p, None)
+                .0
+                .chemistry
+                .value,
+            "lihv"
+        );
     }
 
     #[test]
@@ -283,13 +427,13 @@ mod tests {
             f.cell_count,
             Sourced::new(4, Provenance::Parameter("BAT1_N_CELLS".into()))
         );
-        assert!((f.capacity_wh.value - 5.0 * 4.0 * 3.7).abs() < 1e-9);
+        assert!((cap(&f) - 5.0 * 4.0 * 3.7).abs() < 1e-9);
         assert_eq!(f.critical_voltage_v.map(|s| s.value), Some(14.0));
         // PX4's "unset" capacity (−1) is absent, quietly.
         let p = VehicleParams::from_pairs(&[("BAT1_CAPACITY", -1.0)]);
         let (f, notes) = resolve_battery(&cfg(None, None), &p, None);
         assert!(notes.is_empty());
-        assert_eq!(f.capacity_wh.source, Provenance::Default);
+        assert_eq!(f.capacity_wh, None);
     }
 
     #[test]
@@ -300,7 +444,7 @@ mod tests {
             ("BATT_LOW_VOLT", f64::NAN),
         ]);
         let (f, notes) = resolve_battery(&cfg(None, None), &p, Some(f64::NAN));
-        assert_eq!(f.capacity_wh.source, Provenance::Default);
+        assert_eq!(f.capacity_wh, None);
         assert_eq!(f.cell_count.source, Provenance::Default);
         assert!(f.low_voltage_v.is_none());
         assert_eq!(notes.len(), 3, "{notes:?}");
@@ -321,11 +465,7 @@ mod tests {
             "{notes:?}"
         );
         // ArduCopter's default 3300 mAh on 3S: 36-44 Wh.
-        assert!(
-            (36.0..=44.0).contains(&f.capacity_wh.value),
-            "{}",
-            f.capacity_wh.value
-        );
+        assert!((36.0..=44.0).contains(&cap(&f)), "{}", cap(&f));
         assert_eq!(f.chemistry.value, "lipo");
         // MOT_BAT_VOLT_MAX says the cells and, at 4.35 V a cell, the chemistry; 0 is off.
         let p =

@@ -161,6 +161,11 @@ pub struct VehicleParams {
     pub battery_cells: Option<u32>,
     /// The pack, where the vehicle identifies it ([`crate::vehicle::pack_identity`]).
     pub pack_id: Option<String>,
+    /// The chemistry BATTERY_STATUS / BATTERY_INFO `type` names (LiPo, LiFe, Li-ion).
+    pub battery_chemistry: Option<crate::battery::Chemistry>,
+    /// What a smart battery says of itself in BATTERY_INFO: its full-charge (else design)
+    /// capacity, Ah, and its cells in series, where it gives them.
+    pub battery_info: Option<(Option<f64>, Option<u32>)>,
 }
 
 impl VehicleParams {
@@ -201,6 +206,8 @@ pub struct ParamReader {
     /// Cells BATTERY_STATUS reports one by one ([`cells_reported`]).
     cells: Option<u32>,
     pack_id: Option<String>,
+    chemistry: Option<crate::battery::Chemistry>,
+    info: Option<(Option<f64>, Option<u32>)>,
 }
 
 /// The cells a BATTERY_STATUS reports one by one: its entries that are not "no cell"
@@ -233,6 +240,8 @@ impl ParamReader {
             changed: false,
             cells: None,
             pack_id: None,
+            chemistry: None,
+            info: None,
         }
     }
     /// A reader that only listens (a replayed log).
@@ -280,6 +289,7 @@ impl ParamReader {
                     self.cells = cells;
                     self.changed = true;
                 }
+                self.take_chemistry(b.mavtype as u8);
             }
             MavMessage::BATTERY_INFO(b)
                 if b.id == 0 && self.identity.as_ref().is_none_or(|id| id.system_id == sys) =>
@@ -287,6 +297,18 @@ impl ParamReader {
                 let id = crate::vehicle::pack_identity(b);
                 self.changed |= id.is_some() && id != self.pack_id;
                 self.pack_id = id.or(self.pack_id.take());
+                self.take_chemistry(b.mavtype as u8);
+                // NaN or 0: not given; a capacity over 1000 Ah is no drone's pack.
+                let ah = [b.full_charge_capacity, b.design_capacity]
+                    .into_iter()
+                    .map(f64::from)
+                    .find(|a| a.is_finite() && *a > 0.05 && *a < 1000.0);
+                let cells = Some(u32::from(b.cells_in_series)).filter(|n| (1..=24).contains(n));
+                let info = (ah.is_some() || cells.is_some()).then_some((ah, cells));
+                if info.is_some() && info != self.info {
+                    self.info = info;
+                    self.changed = true;
+                }
             }
             MavMessage::PARAM_VALUE(p) => {
                 // Before the heartbeat, take an autopilot's (component 1) values; after it,
@@ -324,6 +346,15 @@ impl ParamReader {
                 }
             }
             _ => {}
+        }
+    }
+
+    /// The chemistry a battery message's MAV_BATTERY_TYPE names, when it names one.
+    fn take_chemistry(&mut self, mav_type: u8) {
+        let c = crate::battery::Chemistry::from_mav_type(mav_type);
+        if c.is_some() && c != self.chemistry {
+            self.chemistry = c;
+            self.changed = true;
         }
     }
 
@@ -400,6 +431,8 @@ impl ParamReader {
                 .collect(),
             battery_cells: self.cells,
             pack_id: self.pack_id.clone(),
+            battery_chemistry: self.chemistry,
+            battery_info: self.info,
         }
     }
 }

@@ -30,6 +30,7 @@ mod model_physics;
 mod model_trees;
 mod offline_learn;
 mod offline_plan;
+mod pack_any;
 mod peer_multirotor;
 mod pipeline_fleet;
 mod security;

@@ -23,6 +23,8 @@ fn run(config: &str, peer_args: &[&str]) -> (Value, Vec<Value>, String) {
             .arg(&cfg)
             .arg("--json")
             .arg(&json)
+            // The peer sends no capacity: its pack, named (no pack is assumed).
+            .args(["--pack", "6S:5000mAh:lipo"])
             .env("RUST_LOG", "dronewatt=info"),
         port,
         false,

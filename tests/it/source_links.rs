@@ -235,8 +235,9 @@ fn estimates_keep_coming_at_their_rate_while_one_link_is_cut_for_10_s() {
 
 #[test]
 fn two_fleets_with_the_same_system_id_on_separate_networks_are_never_mixed() {
+    // The vehicles send no capacity: the config gives their pack (none is assumed).
     let r = run_links(
-        "",
+        "[energy]\ncapacity_wh = 130.0\n",
         &["--seconds", "12", "--loss", "0.3,0.3", "--seed", "7"],
         true,
     );

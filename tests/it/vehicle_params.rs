@@ -78,9 +78,15 @@ fn ardupilot_parameters_size_the_battery_over_a_live_link() {
         (Some("lipo"), Some("vehicle parameter MOT_BAT_VOLT_MAX")),
         "{e}"
     );
+    // No rest is read: the pack starts load-compensated a few seconds in (full, here) and
+    // counts on from there.
     let remaining = e["remaining_wh"].as_f64().unwrap();
     let used = e["energy_used_wh"].as_f64().unwrap();
-    assert!((remaining - (36.63 - used)).abs() < 1e-6, "{e}");
+    assert_eq!(e["remaining_source"], "load-compensated voltage", "{e}");
+    assert!(
+        remaining <= 36.63 - used + 1e-6 && remaining > 36.63 - used - 1.0,
+        "{e}"
+    );
 }
 
 #[test]
@@ -144,16 +150,28 @@ fn a_replayed_tlog_takes_the_logged_capacity() {
     );
     let used = e["energy_used_wh"].as_f64().unwrap();
     assert!((used - 2.5).abs() < 0.1, "{e}");
+    // Load-compensated (no rest in this log): to the usable floor over BATT_LOW_VOLT, never
+    // more than the capacity less what was used.
+    let remaining = e["remaining_wh"].as_f64().unwrap();
     assert!(
-        (e["remaining_wh"].as_f64().unwrap() - (36.63 - used)).abs() < 1e-6,
+        remaining <= 36.63 - used + 1e-6 && remaining > 36.63 - used - 3.0,
         "{e}"
     );
-    // The same flight without the parameter fetch: the M100's pack, and it says so.
+    // The same flight without the parameter fetch: the capacity is not known (never the
+    // M100's pack), remaining energy is null, and it says why.
     let without = replay(false, "");
     let e = last_estimate(&without);
-    assert_eq!(e["capacity_source"], "default", "{e}");
+    assert!(e["capacity_wh"].is_null(), "{e}");
     assert!(
-        (e["remaining_wh"].as_f64().unwrap() - (129.96 - used)).abs() < 0.01,
+        e["capacity_source"]
+            .as_str()
+            .is_some_and(|s| s.starts_with("not known")),
+        "{e}"
+    );
+    assert!(e["remaining_wh"].is_null(), "{e}");
+    assert_eq!(e["remaining_source"], "capacity not known", "{e}");
+    assert!(
+        (e["energy_used_wh"].as_f64().unwrap() - used).abs() < 0.01,
         "{e}"
     );
     // The config wins over the vehicle.

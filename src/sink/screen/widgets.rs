@@ -226,11 +226,10 @@ fn remaining_lines(r: Option<&Report>) -> Vec<Line<'static>> {
     vec![
         Line::styled(left, Style::default().bold()),
         from,
-        Line::raw(format!(
-            "of {} Wh [{}]",
-            num(b.capacity_wh.value, 1),
-            b.capacity_wh.source
-        )),
+        Line::raw(match b.capacity() {
+            Some(c) => format!("of {} Wh [{}]", num(c, 1), b.capacity_source()),
+            None => "capacity not known".to_string(),
+        }),
         Line::raw(format!(
             "used {} Wh ({})",
             num(e.energy_used_wh, 2),

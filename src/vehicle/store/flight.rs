@@ -191,8 +191,9 @@ impl FlightLog {
         }
         // The rated capacity (config, parameter or default), not one learned from this store.
         let b = &r.energy.battery;
-        let c = b.rated_capacity_wh.as_ref().unwrap_or(&b.capacity_wh);
-        self.capacity = Some((c.value, c.source.to_string()));
+        if let Some(c) = b.rated_capacity_wh.as_ref().or(b.capacity_wh.as_ref()) {
+            self.capacity = Some((c.value, c.source.to_string()));
+        }
         let pk = &r.energy.pack;
         if let (Some(v), Some(soc)) = (pk.battery_rest_v, pk.soc_pct) {
             // The start state, when it is (re)read: its voltage and state of charge then.
