@@ -66,6 +66,12 @@ struct RunArgs {
     /// ~/.local/share/dronewatt (Linux; elsewhere the platform's data directory).
     #[arg(long, value_name = "DIR")]
     data_dir: Option<PathBuf>,
+    /// Ask the vehicle nothing (no parameter reads, no stream-rate requests): only listen.
+    /// By default a live link asks for the battery parameters and, with
+    /// MAV_CMD_SET_MESSAGE_INTERVAL (ArduPilot: REQUEST_DATA_STREAM when refused), for the
+    /// messages the estimate needs at the rates it needs. Sets `[link] listen_only`.
+    #[arg(long)]
+    listen_only: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -287,6 +293,7 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
     if let Some(v) = &run.vehicle {
         config.vehicle = Some(v.clone());
     }
+    config.link.listen_only |= run.listen_only;
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {
         // The full screen on a terminal; lines on stderr with --plain or a piped stdout.

@@ -46,6 +46,8 @@ pub struct VehicleChain {
     /// Builds the models from a profile `dronewatt learn` kept for the vehicle in the
     /// store; None when the config names a vehicle profile (the config wins).
     rebuild: Option<Rebuild>,
+    /// `[link] listen_only`: ask the vehicle nothing, even on a live link.
+    listen_only: bool,
 }
 
 /// Builds the ensemble from a vehicle profile file.
@@ -139,6 +141,7 @@ impl VehicleChain {
             mav_ids: (cfg.sinks.mavlink.system_id, cfg.sinks.mavlink.component_id),
             memory: None,
             rebuild,
+            listen_only: cfg.link.listen_only,
         })
     }
 
@@ -200,8 +203,10 @@ impl VehicleChain {
         let mut own = Fanout::default().gauged(status.stats.clone());
         let stats = status.stats.clone();
         let reports = own.subscribe();
-        // On a live link the reader asks; replaying, it listens to the logged fetch.
-        let reader = if live {
+        // On a live link the reader asks (and asks for the streams); replaying, or told
+        // to listen only, it listens to what comes (a log's logged fetch).
+        let asks = live && !self.listen_only;
+        let reader = if asks {
             ParamReader::live()
         } else {
             self.vehicle
@@ -211,7 +216,8 @@ impl VehicleChain {
             status.link.clone(),
             self.mav_ids.0.unwrap_or(system_id),
             self.mav_ids.1,
-        );
+        )
+        .with_streams(asks);
         let (vehicle_tx, vehicle_rx) = watch::channel(VehicleParams::default());
         let (capacity_tx, capacity_rx) = watch::channel(StoreNews::default());
         let rebuild = self.rebuild;

@@ -25,6 +25,7 @@
 
 pub mod params;
 pub mod store;
+pub mod streams;
 
 pub use crate::report::{
     BatteryFacts, Provenance, Sourced, DEFAULT_CAPACITY_WH, DEFAULT_CELL_COUNT,

@@ -59,6 +59,7 @@ mod source_ulog_fault;
 mod start_fast;
 mod telemetry;
 mod telemetry_frames;
+mod telemetry_link_rate;
 mod telemetry_roundtrip;
 mod vehicle_class;
 mod vehicle_params;
