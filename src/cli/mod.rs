@@ -95,6 +95,7 @@ enum Command {
         run: RunArgs,
     },
     /// Watch a live link: udpin:HOST:PORT, udpout:HOST:PORT, tcpin:, tcpout:, serial:DEV:BAUD.
+    #[command(after_help = crate::alert::defaults::HELP)]
     Monitor {
         /// The link address, as MAVProxy and rust-mavlink spell it; several for several
         /// links (one vehicle over redundant radios, or fleets on several links), else the
@@ -132,10 +133,11 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Validate a configuration file and say what it sets up.
+    /// Validate a configuration file and say what it sets up; with no file, what the
+    /// defaults set up (the default alert rules, as TOML to copy).
     CheckConfig {
         /// The TOML file.
-        file: PathBuf,
+        file: Option<PathBuf>,
     },
 }
 
@@ -263,7 +265,14 @@ fn real_main(cli: Cli) -> Result<()> {
             print!("{}", crate::vehicle::store::list(&dir, json)?);
             Ok(())
         }
-        Command::CheckConfig { file } => {
+        Command::CheckConfig { file: None } => {
+            let cfg = Config::load_or_default(None)?;
+            print!("{}", describe_config(None, &cfg));
+            println!("\n# The default alert rules (put edited copies in a config to override):");
+            print!("{}", crate::alert::defaults::toml(cfg.energy.reserve_pct));
+            Ok(())
+        }
+        Command::CheckConfig { file: Some(file) } => {
             let cfg = Config::load(&file)?;
             // The secrets' files too: missing, unreadable or readable by others fails here.
             let err = |e: String| anyhow::anyhow!("{}: {e}", file.display());
@@ -271,7 +280,7 @@ fn real_main(cli: Cli) -> Result<()> {
             if cfg.sinks.web.enabled {
                 cfg.sinks.web.token().map_err(err)?;
             }
-            print!("{}", describe_config(&file, &cfg));
+            print!("{}", describe_config(Some(&file), &cfg));
             Ok(())
         }
     }

@@ -9,8 +9,9 @@
 //!
 //! - **Granted** (MAV_RESULT_ACCEPTED): said once all are answered ("vehicle granted ...").
 //! - **Denied, unsupported, failed or never answered**: on ArduPilot the fallback is its
-//!   REQUEST_DATA_STREAM for the streams holding those messages (said: "vehicle refused
-//!   SET_MESSAGE_INTERVAL for ...: asked with REQUEST_DATA_STREAM"); elsewhere dronewatt
+//!   REQUEST_DATA_STREAM for the streams holding those messages (said: "vehicle did not grant
+//!   SET_MESSAGE_INTERVAL for ATTITUDE (MAV_RESULT_DENIED), ...: asked with
+//!   REQUEST_DATA_STREAM"); elsewhere dronewatt
 //!   says it listens at the vehicle's own rates.
 //! - **What came of it**: [`SEEN_AFTER_S`] after the last answer, the rates seen of every
 //!   message asked for, beside the rate asked ("rates seen: ATTITUDE 10.0 Hz (asked 10)").
@@ -308,7 +309,7 @@ impl StreamAsker {
             .collect();
         if id.autopilot != Autopilot::ArduPilot {
             tracing::warn!(
-                "vehicle refused SET_MESSAGE_INTERVAL for {}: listening at its own rates",
+                "vehicle did not grant SET_MESSAGE_INTERVAL for {}: listening at its own rates",
                 names.join(", ")
             );
             return Vec::new();
@@ -319,7 +320,7 @@ impl StreamAsker {
             e.1 = e.1.max(w.hz);
         }
         tracing::warn!(
-            "vehicle refused SET_MESSAGE_INTERVAL for {}: asked with REQUEST_DATA_STREAM ({}) instead",
+            "vehicle did not grant SET_MESSAGE_INTERVAL for {}: asked with REQUEST_DATA_STREAM ({}) instead",
             names.join(", "),
             streams
                 .values()

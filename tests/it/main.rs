@@ -13,6 +13,7 @@ mod link_common;
 mod mavlink_common;
 
 mod alert;
+mod alert_defaults;
 mod cli_check_config;
 mod cli_replay;
 mod config_paths;

@@ -178,7 +178,7 @@ fn a_vehicle_that_grants_set_message_interval_sends_at_the_rates_asked() {
 fn a_vehicle_that_denies_set_message_interval_is_asked_with_request_data_stream() {
     let (rep, err) = fly_live("deny", "10");
     assert!(
-        err.contains("vehicle refused SET_MESSAGE_INTERVAL")
+        err.contains("vehicle did not grant SET_MESSAGE_INTERVAL for ATTITUDE (MAV_RESULT_DENIED)")
             && err.contains("asked with REQUEST_DATA_STREAM"),
         "{err}"
     );
