@@ -59,6 +59,15 @@ fn a_1_hz_link_with_radio_jitter_gets_estimates_in_95_percent_of_airborne_second
             hit as f64 >= 0.95 * of as f64,
             "{mode:?}: estimates in {hit} of {of} airborne seconds"
         );
+        // On the ground and in the air, no model's figure is a negative power.
+        for e in lines.iter().filter(|l| l["type"] == "estimate") {
+            for key in ["models", "adapted"] {
+                for (name, w) in e[key].as_object().into_iter().flatten() {
+                    let w = w.as_f64().unwrap_or(0.0);
+                    assert!(w >= 0.0, "{key} {name}: {w} W at {}", e["t"]);
+                }
+            }
+        }
     }
 }
 
