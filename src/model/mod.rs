@@ -118,7 +118,7 @@ impl Ensemble {
         }
     }
     /// Figures for the operator (live and replayed flights): a model's negative power is
-    /// shown as 0 W and said ([`no_negative`]).
+    /// shown as 0 W and said, once per model.
     pub fn shown_to_operators(mut self) -> Self {
         self.for_operators = true;
         self

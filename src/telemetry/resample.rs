@@ -287,7 +287,8 @@ impl Resampler {
             .map_or(self.gap_us, |l| l.max(self.gap_us))
     }
 
-    /// The whole-stream gap limit as it stands, s (see [`Resampler::gap_limit_us`]).
+    /// The whole-stream gap limit as it stands, s: the fastest live signal's stale limit,
+    /// never under `max_gap_s`.
     pub fn gap_limit_s(&self) -> f64 {
         self.gap_limit_us() as f64 / 1e6
     }
