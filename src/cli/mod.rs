@@ -335,6 +335,12 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
         sinks.push(SinkSpec::Mqtt(config.sinks.mqtt.clone()));
     }
     let data_dir = crate::vehicle::store::data_dir_from_env(run.data_dir.as_deref());
+    // A telemetry log or raw capture with not one MAVLink frame in it is an error (after
+    // the summary, which the sinks still write): nothing was replayed.
+    let log = match &source {
+        SourceSpec::Tlog { path, .. } | SourceSpec::Raw { path, .. } => Some(path.clone()),
+        _ => None,
+    };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;
@@ -350,6 +356,12 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
             shutdown,
         )
         .await
-        .map(|_| ())
+    })
+    .and_then(|stats| match log {
+        Some(path) if stats.frames_ok == 0 => Err(anyhow::anyhow!(
+            "{}: no MAVLink in this file: nothing was replayed",
+            path.display()
+        )),
+        _ => Ok(()),
     })
 }
