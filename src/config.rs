@@ -87,12 +87,25 @@ impl Config {
             crate::files::resolve(path, field);
         }
         cfg.validate().map_err(err)?;
-        Ok(cfg)
+        Ok(cfg.with_default_alerts())
+    }
+
+    /// With no `[[alerts]]`, the pilot's default rules ([`crate::alert::defaults`]).
+    pub fn with_default_alerts(mut self) -> Self {
+        if self.alerts.is_empty() {
+            self.alerts = crate::alert::defaults::rules(self.energy.reserve_pct);
+        }
+        self
+    }
+
+    /// Whether the alert rules are the defaults (the config names none).
+    pub fn default_alerts(&self) -> bool {
+        self.alerts == crate::alert::defaults::rules(self.energy.reserve_pct)
     }
 
     /// [`Config::load`] when a file is given (`--config FILE`), else the built-in defaults.
     pub fn load_or_default(path: Option<&Path>) -> Result<Config, ConfigError> {
-        path.map_or_else(|| Ok(Config::default()), Config::load)
+        path.map_or_else(|| Ok(Config::default().with_default_alerts()), Config::load)
     }
 
     /// Checks serde cannot express (ranges, cross-field rules): every error in the file,

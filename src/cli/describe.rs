@@ -3,9 +3,12 @@
 use crate::config::Config;
 
 /// What `check-config` prints: what the file sets up, in words.
-pub(crate) fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
+pub(crate) fn describe_config(file: Option<&std::path::Path>, cfg: &Config) -> String {
     let e = &cfg.energy;
-    let mut out = format!("{}: ok\n", file.display());
+    let mut out = match file {
+        Some(f) => format!("{}: ok\n", f.display()),
+        None => "no config file: the defaults\n".to_string(),
+    };
     out += &format!(
         "energy: capacity {}, cells {}, reserve {}%, forecast model {}, smoothing {} s\n",
         e.capacity_wh.map_or(
@@ -20,7 +23,16 @@ pub(crate) fn describe_config(file: &std::path::Path, cfg: &Config) -> String {
         e.model.as_deref().unwrap_or("lstm, else measured power"),
         e.smoothing_s
     );
-    out += &format!("alerts: {} rule(s)\n", cfg.alerts.len());
+    let defaults = cfg.default_alerts();
+    out += &format!(
+        "alerts: {} rule(s){}\n",
+        cfg.alerts.len(),
+        if defaults {
+            " (the pilot's defaults: [[alerts]] in a config replace them all)"
+        } else {
+            ""
+        }
+    );
     for r in &cfg.alerts {
         out += &format!("  {}\n", r.describe());
     }

@@ -72,6 +72,12 @@ pub struct RunArgs {
     /// lipo, lihv, li-ion or lifepo4). Overrides the config's `[energy]` pack keys.
     #[arg(long, value_name = "SPEC")]
     pack: Option<String>,
+    /// Ask the vehicle nothing (no parameter reads, no stream-rate requests): only listen.
+    /// By default a live link asks for the battery parameters and, with
+    /// MAV_CMD_SET_MESSAGE_INTERVAL (ArduPilot: REQUEST_DATA_STREAM when refused), for the
+    /// messages the estimate needs at the rates it needs. Sets `[link] listen_only`.
+    #[arg(long)]
+    listen_only: bool,
 }
 
 /// The operator's commands.
@@ -96,6 +102,7 @@ pub enum Command {
         run: RunArgs,
     },
     /// Watch a live link: udpin:HOST:PORT, udpout:HOST:PORT, tcpin:, tcpout:, serial:DEV:BAUD.
+    #[command(after_help = crate::alert::defaults::HELP)]
     Monitor {
         /// The link address, as MAVProxy and rust-mavlink spell it; several for several
         /// links (one vehicle over redundant radios, or fleets on several links), else the
@@ -119,10 +126,11 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Validate a configuration file and say what it sets up.
+    /// Validate a configuration file and say what it sets up; with no file, what the
+    /// defaults set up (the default alert rules, as TOML to copy).
     CheckConfig {
         /// The TOML file.
-        file: PathBuf,
+        file: Option<PathBuf>,
     },
 }
 
@@ -256,7 +264,14 @@ pub fn run_command(command: Command) -> Result<()> {
             print!("{}", crate::vehicle::store::list(&dir, json)?);
             Ok(())
         }
-        Command::CheckConfig { file } => {
+        Command::CheckConfig { file: None } => {
+            let cfg = Config::load_or_default(None)?;
+            print!("{}", describe_config(None, &cfg));
+            println!("\n# The default alert rules (put edited copies in a config to override):");
+            print!("{}", crate::alert::defaults::toml(cfg.energy.reserve_pct));
+            Ok(())
+        }
+        Command::CheckConfig { file: Some(file) } => {
             let cfg = Config::load(&file)?;
             // The secrets' files too: missing, unreadable or readable by others fails here.
             let err = |e: String| anyhow::anyhow!("{}: {e}", file.display());
@@ -264,7 +279,7 @@ pub fn run_command(command: Command) -> Result<()> {
             if cfg.sinks.web.enabled {
                 cfg.sinks.web.token().map_err(err)?;
             }
-            print!("{}", describe_config(&file, &cfg));
+            print!("{}", describe_config(Some(&file), &cfg));
             Ok(())
         }
     }
@@ -293,6 +308,7 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
         config.energy.chemistry = None;
         config.energy.fill_pack(&pack);
     }
+    config.link.listen_only |= run.listen_only;
     let mut sinks = Vec::new();
     if !run.quiet && run.json.as_deref() != Some("-") {
         // The full screen on a terminal; lines on stderr with --plain or a piped stdout.
@@ -325,6 +341,12 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
         sinks.push(SinkSpec::Mqtt(config.sinks.mqtt.clone()));
     }
     let data_dir = crate::vehicle::store::data_dir_from_env(run.data_dir.as_deref());
+    // A telemetry log or raw capture with not one MAVLink frame in it is an error (after
+    // the summary, which the sinks still write): nothing was replayed.
+    let log = match &source {
+        SourceSpec::Tlog { path, .. } | SourceSpec::Raw { path, .. } => Some(path.clone()),
+        _ => None,
+    };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;
@@ -340,6 +362,12 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
             shutdown,
         )
         .await
-        .map(|_| ())
+    })
+    .and_then(|stats| match log {
+        Some(path) if stats.frames_ok == 0 => Err(anyhow::anyhow!(
+            "{}: no MAVLink in this file: nothing was replayed",
+            path.display()
+        )),
+        _ => Ok(()),
     })
 }

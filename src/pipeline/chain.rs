@@ -48,6 +48,8 @@ pub struct VehicleChain {
     /// Builds the models from a profile `dronewatt learn` kept for the vehicle in the
     /// store; None when the config names a vehicle profile (the config wins).
     rebuild: Option<Rebuild>,
+    /// `[link] listen_only`: ask the vehicle nothing, even on a live link.
+    listen_only: bool,
 }
 
 /// Builds the ensemble from a vehicle profile file.
@@ -162,6 +164,7 @@ impl VehicleChain {
             mav_ids: (cfg.sinks.mavlink.system_id, cfg.sinks.mavlink.component_id),
             memory: None,
             rebuild,
+            listen_only: cfg.link.listen_only,
         })
     }
 
@@ -223,8 +226,10 @@ impl VehicleChain {
         let mut own = Fanout::default().gauged(status.stats.clone());
         let stats = status.stats.clone();
         let reports = own.subscribe();
-        // On a live link the reader asks; replaying, it listens to the logged fetch.
-        let reader = if live {
+        // On a live link the reader asks (and asks for the streams); replaying, or told
+        // to listen only, it listens to what comes (a log's logged fetch).
+        let asks = live && !self.listen_only;
+        let reader = if asks {
             ParamReader::live()
         } else {
             self.vehicle
@@ -234,7 +239,8 @@ impl VehicleChain {
             status.link.clone(),
             self.mav_ids.0.unwrap_or(system_id),
             self.mav_ids.1,
-        );
+        )
+        .with_streams(asks);
         // Unbounded: the news is a handful of parameter sets and one store answer a flight.
         let (news_tx, news_rx) = mpsc::unbounded_channel();
         let rebuild = self.rebuild;

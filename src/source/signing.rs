@@ -70,6 +70,10 @@ pub struct LinkConfig {
     /// Several links: dronewatt's own frames (the MAVLink sink's, the parameter reader's,
     /// the mission client's) go on every link instead of the best live one. Default false.
     pub every_link: bool,
+    /// Never ask the vehicle anything: no parameter reads, no stream requests
+    /// (MAV_CMD_SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM); only listen (and publish to
+    /// the ground station as `[sinks.mavlink]` says). `monitor --listen-only`. Default false.
+    pub listen_only: bool,
 }
 
 impl LinkConfig {

@@ -49,6 +49,7 @@
 //! See [`frames`] for the per-column conventions and the checks behind them.
 
 pub mod kind;
+pub mod rates;
 pub mod resample;
 pub mod window;
 
@@ -82,11 +83,15 @@ pub struct TelemetryConfig {
     pub rate_hz: f64,
     /// Window length T, samples. Default 10 (the paper's).
     pub window: usize,
-    /// A signal with no update for this long is marked stale, s. Default 1.5.
+    /// A signal with no update for this long is marked stale, s. Default 1.5. The floor:
+    /// each signal's own limit is 2.5 of its observed periods when that is longer (a 1 Hz
+    /// link's position is stale after 2.5 s), at most 5 s ([`resample`]).
     pub stale_after_s: f64,
     /// When the whole stream is silent for longer than this, s, nothing is interpolated
     /// across the silence: the window ring restarts after it. Default 1.0 (the data set's
-    /// rows come every 0.1–0.21 s; it has ten gaps over 1 s, the longest 5.28 s).
+    /// rows come every 0.1–0.21 s; it has ten gaps over 1 s, the longest 5.28 s). The
+    /// floor: the limit is the fastest live signal's own stale limit when that is longer,
+    /// so a link whose fastest message comes at 1 Hz is not a gap every second.
     pub max_gap_s: f64,
 }
 
@@ -172,6 +177,8 @@ pub struct Telemetry {
     kind: kind::KindTracker,
     /// Time of the newest message taken, µs.
     now_us: i64,
+    /// What the link's rates mean, said once ([`rates`]).
+    rates: rates::RateWatch,
 }
 
 impl Telemetry {
@@ -195,6 +202,7 @@ impl Telemetry {
             battery_pct: None,
             kind: kind::KindTracker::new(None),
             now_us: 0,
+            rates: rates::RateWatch::default(),
         };
         t.refresh_mission();
         t
@@ -226,6 +234,10 @@ impl Telemetry {
         self.now_us = t_us;
         self.kind.ingest(t_us, self.stale_us, &m.msg);
         self.ingest(t_us, &m.msg);
+        let active = self.active;
+        self.rates.check(&self.resampler, t_us, |s| {
+            active[s as usize].map(|(r, _)| SOURCES[s as usize][r])
+        });
         if self.resampler.take_restart() {
             self.ring.clear();
         }
@@ -354,9 +366,10 @@ impl Telemetry {
 
     /// Whether an update from source `rank` is used: no better source is live.
     fn takes(&self, sig: Signal, rank: usize, t_us: i64) -> bool {
+        let stale_us = (self.resampler.stale_limit_s(sig) * 1e6).round() as i64;
         match self.active[sig as usize] {
             None => true,
-            Some((r, t)) => rank <= r || t_us - t > self.stale_us,
+            Some((r, t)) => rank <= r || t_us - t > stale_us,
         }
     }
 

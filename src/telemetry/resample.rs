@@ -19,7 +19,15 @@
 //!   put in the `w ≥ 0` hemisphere (as every data-set row is). Two updates of one signal
 //!   more than `stale_after_s` apart are never interpolated across: the older is held and
 //!   marked stale.
-//! - **Gaps.** When the whole stream goes silent for more than `max_gap_s` (the data set has
+//! - **Any link rate.** Each signal's period is the median of its newest 16 intervals, as
+//!   the link delivers them (0.5–50 Hz, with a radio's jitter). Its stale limit is 2.5 of its
+//!   periods, never under `stale_after_s` and never over 5 s: position at 1 Hz with 0.25 s
+//!   of jitter is stale after 2.5 s, not after 1.5 s. The whole-stream gap limit is the
+//!   stale limit of the fastest signal still arriving, never under `max_gap_s`: a link whose
+//!   fastest message comes at 1 Hz is silent for about a second between bursts as a matter
+//!   of course, and that is no gap. On the data set (rows every 0.1–0.21 s) both limits are
+//!   the configured ones. [`super::rates`] says what a slow or stopped signal means.
+//! - **Gaps.** When the whole stream goes silent for more than that limit (the data set has
 //!   ten gaps over 1 s, the longest 5.28 s, in flight 278), nothing is emitted inside the
 //!   gap, the buffers are cleared and [`Resampler::take_restart`] tells the window builder
 //!   to start a new ring: no window ever spans a gap. Sampling resumes at the first grid
@@ -104,12 +112,45 @@ impl Signal {
     }
 }
 
+/// Intervals of one signal remembered for its period (the median of the newest ones).
+const INTERVALS: usize = 16;
+/// A signal's own stale limit is this many of its periods (the configured limit is the
+/// floor): 2.5 periods hold a 1 Hz stream with ±0.5 s of radio jitter.
+const STALE_PERIODS: f64 = 2.5;
+/// The adaptive limits never exceed this, µs: a period over 2 s (under 0.5 Hz) is too slow
+/// to carry a window, and its updates go stale between them.
+const MAX_ADAPTIVE_US: i64 = 5_000_000;
+
 #[derive(Debug, Default, Clone)]
 struct Track {
     /// Updates not yet consumed; the front is at or before the next grid point once sampling runs.
     buf: VecDeque<(i64, [f64; 4])>,
     /// Last update ever (survives gap restarts, for holding).
     last: Option<(i64, [f64; 4])>,
+    /// The newest intervals between updates, µs (survive gap restarts).
+    intervals: VecDeque<i64>,
+    /// Their median, µs: the signal's period as the link delivers it.
+    period_us: Option<i64>,
+}
+
+impl Track {
+    fn note_interval(&mut self, dt_us: i64) {
+        if self.intervals.len() == INTERVALS {
+            self.intervals.pop_front();
+        }
+        self.intervals.push_back(dt_us);
+        let mut v: Vec<i64> = self.intervals.iter().copied().collect();
+        v.sort_unstable();
+        self.period_us = Some(v[v.len() / 2]);
+    }
+
+    /// This signal's stale limit: `STALE_PERIODS` of its period, at least `floor_us`.
+    fn stale_limit_us(&self, floor_us: i64) -> i64 {
+        match self.period_us {
+            Some(p) => floor_us.max(((p as f64 * STALE_PERIODS) as i64).min(MAX_ADAPTIVE_US)),
+            None => floor_us,
+        }
+    }
 }
 
 /// Fixed-rate resampler (see the module docs).
@@ -166,13 +207,16 @@ impl Resampler {
         if self.t0_us.is_none() {
             self.t0_us = Some(t_us);
             self.epoch_us = t_us;
-        } else if t_us > self.now_us.saturating_add(self.gap_us) {
+        } else if t_us > self.now_us.saturating_add(self.gap_limit_us()) {
             self.restart_at(t_us);
         }
         self.now_us = self.now_us.max(t_us);
         let mut val = [0.0; 4];
         val[..v.len()].copy_from_slice(v);
         let tr = &mut self.tracks[sig as usize];
+        if let Some((t_last, _)) = tr.last.filter(|l| t_us > l.0) {
+            tr.note_interval(t_us - t_last);
+        }
         match tr.buf.back_mut() {
             Some(b) if b.0 == t_us => b.1 = val,
             Some(b) if b.0 > t_us => return,
@@ -206,10 +250,47 @@ impl Resampler {
         self.restarts
     }
 
-    /// Whether `sig` has been silent for more than the stale limit at the newest time seen.
+    /// Whether `sig` has been silent for more than its stale limit at the newest time seen.
     pub fn is_quiet(&self, sig: Signal) -> bool {
-        let last = self.tracks[sig as usize].last.map_or(i64::MIN, |u| u.0);
-        self.t0_us.is_some() && self.now_us - last.max(self.epoch_us) > self.stale_us
+        let tr = &self.tracks[sig as usize];
+        let last = tr.last.map_or(i64::MIN, |u| u.0);
+        self.t0_us.is_some()
+            && self.now_us - last.max(self.epoch_us) > tr.stale_limit_us(self.stale_us)
+    }
+
+    /// The period of `sig` as the link delivers it (the median of its newest intervals), s;
+    /// `None` before its second update.
+    pub fn period_s(&self, sig: Signal) -> Option<f64> {
+        self.tracks[sig as usize].period_us.map(|p| p as f64 / 1e6)
+    }
+
+    /// Intervals of `sig` seen so far (at most the newest 16 are kept).
+    pub fn intervals_seen(&self, sig: Signal) -> usize {
+        self.tracks[sig as usize].intervals.len()
+    }
+
+    /// How long `sig` may be silent before it is stale, s: 2.5 of its own periods, never
+    /// under `stale_after_s`, never over 5 s.
+    pub fn stale_limit_s(&self, sig: Signal) -> f64 {
+        self.tracks[sig as usize].stale_limit_us(self.stale_us) as f64 / 1e6
+    }
+
+    /// The whole-stream silence after which the ring restarts, µs: the stale limit of the
+    /// fastest signal still arriving (a stream whose fastest message comes at 1 Hz is
+    /// silent for a second between updates as a matter of course), never under `max_gap_s`.
+    fn gap_limit_us(&self) -> i64 {
+        SIGNALS
+            .iter()
+            .filter(|&&s| self.tracks[s as usize].period_us.is_some() && !self.is_quiet(s))
+            .map(|&s| self.tracks[s as usize].stale_limit_us(0))
+            .min()
+            .map_or(self.gap_us, |l| l.max(self.gap_us))
+    }
+
+    /// The whole-stream gap limit as it stands, s: the fastest live signal's stale limit,
+    /// never under `max_gap_s`.
+    pub fn gap_limit_s(&self) -> f64 {
+        self.gap_limit_us() as f64 / 1e6
     }
 
     /// Set home (latitude deg, longitude deg, altitude m AMSL): samples then carry the
@@ -318,7 +399,7 @@ impl Resampler {
         let next = tr.buf.iter().find(|u| u.0 >= g);
         match (prev, next) {
             (Some(p), Some(n)) if n.0 == p.0 => (canonical(sig, p.1), false),
-            (Some(p), Some(n)) if n.0 - p.0 <= self.stale_us => {
+            (Some(p), Some(n)) if n.0 - p.0 <= tr.stale_limit_us(self.stale_us) => {
                 let a = (g - p.0) as f64 / (n.0 - p.0) as f64;
                 (lerp(sig, &p.1, &n.1, a), false)
             }
@@ -327,7 +408,7 @@ impl Resampler {
             // No newer update: the signal went quiet (or the stream ended).
             (Some(p), None) => (
                 canonical(sig, p.1),
-                self.is_quiet(sig) || g - p.0 > self.stale_us,
+                self.is_quiet(sig) || g - p.0 > tr.stale_limit_us(self.stale_us),
             ),
             (None, Some(n)) => (canonical(sig, n.1), true),
             (None, None) => match tr.last {

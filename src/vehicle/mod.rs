@@ -28,6 +28,7 @@
 pub mod pack_spec;
 pub mod params;
 pub mod store;
+pub mod streams;
 
 pub use pack_spec::{parse_pack, profile_pack};
 

@@ -472,6 +472,8 @@ pub struct Driver {
     component_id: u8,
     /// Requests the link could not take (none attached, or full).
     pub unsent: u64,
+    /// Asks for the streams the chain needs ([`super::streams`]), on a live link.
+    streams: Option<super::streams::StreamAsker>,
 }
 
 impl Driver {
@@ -488,7 +490,15 @@ impl Driver {
             system_id,
             component_id,
             unsent: 0,
+            streams: None,
         }
+    }
+
+    /// Also ask the vehicle for the streams the chain needs (`on`: a live link that may
+    /// speak, [`super::streams`]).
+    pub fn with_streams(mut self, on: bool) -> Self {
+        self.streams = on.then(super::streams::StreamAsker::new);
+        self
     }
 
     /// Take in one message, send what is due; `Some(params)` when something new was
@@ -496,7 +506,11 @@ impl Driver {
     pub fn on_message(&mut self, m: &TimedMessage) -> Option<VehicleParams> {
         self.reader.on_message(m);
         let mut gave_up = Vec::new();
-        for req in self.reader.poll(m.t_s, &mut gave_up) {
+        let mut reqs = self.reader.poll(m.t_s, &mut gave_up);
+        if let Some(s) = &mut self.streams {
+            reqs.extend(s.on_message(m, self.reader.identity.as_ref()));
+        }
+        for req in reqs {
             // Numbered by the link's one writer of this identity (the sink and the
             // mission client send as it too).
             if !self.link.send_as(self.system_id, self.component_id, &req) {

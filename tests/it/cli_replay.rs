@@ -257,12 +257,14 @@ fn a_file_with_no_mavlink_says_so_and_names_the_format_it_expected() {
                 "-",
             ])
             .out();
-        // Still a clean end with the summary (the counters are the evidence)…
+        // The summary still written (the counters are the evidence), then a failure: nothing
+        // was replayed…
         assert!(
-            out.status.success(),
+            !out.status.success(),
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
+        assert!(String::from_utf8_lossy(&out.stderr).contains("nothing was replayed"));
         let summary = json_lines_of(&out.stdout).pop().expect("a summary line");
         assert_eq!(summary["frames_ok"], 0);
         // …and one line that says what is wrong and what was expected.

@@ -13,6 +13,7 @@ mod link_common;
 mod mavlink_common;
 
 mod alert;
+mod alert_defaults;
 mod cli_check_config;
 mod cli_replay;
 mod config_paths;
@@ -59,6 +60,7 @@ mod source_ulog_fault;
 mod start_fast;
 mod telemetry;
 mod telemetry_frames;
+mod telemetry_link_rate;
 mod telemetry_roundtrip;
 mod vehicle_class;
 mod vehicle_params;

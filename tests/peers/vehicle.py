@@ -24,6 +24,7 @@ the current solved from the power each tick (P = V·I); the voltage falls as the
 define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor);
 --vtol-fw-after-s T flies an ArduPlane quadplane (Q mode and vtol_state MC, then FW after T s);
 --tlog PATH also writes every frame sent to a telemetry log, for replay tests.
+--params '{"BATT_LOW_VOLT": 10.5}' answers PARAM_REQUEST_READ for those parameters (REAL32).
 --pack-serial S sends BATTERY_INFO (battery 0, serial_number S) with each heartbeat: the pack's
 identity (pymavlink's dialects here lack message 372, so it is packed by hand: BatteryInfo).
 
@@ -115,6 +116,7 @@ class Vehicle:
         self.home_lat = LAT0
         self.stray = mav.MAVLink(None, srcSystem=2, srcComponent=1)
         self.pack = Pack(**json.loads(a.pack)) if a.pack else None
+        self.params = json.loads(a.params) if a.params else {}
         self.tlog = open(a.tlog, "wb") if a.tlog else None
         self.open()
 
@@ -157,6 +159,13 @@ class Vehicle:
                 self.heard["statustexts"].append(r.text if isinstance(r.text, str) else r.text.decode())
             elif t == "HEARTBEAT":
                 self.heard["heartbeats"] += 1
+            elif t == "PARAM_REQUEST_READ" and self.params:
+                # --params: answer a read of a parameter it has, as ArduPilot does (REAL32)
+                name = r.param_id if isinstance(r.param_id, str) else r.param_id.decode()
+                if name in self.params:
+                    i = list(self.params).index(name)
+                    self.conn.mav.param_value_send(name.encode(), float(self.params[name]),
+                                                   mav.MAV_PARAM_TYPE_REAL32, len(self.params), i)
 
     def wait_until(self, target):
         while True:
@@ -297,6 +306,7 @@ def main():
     ap.add_argument("--listen-after-s", type=float, default=1.5)
     ap.add_argument("--mav-type", type=int, default=mav.MAV_TYPE_QUADROTOR,
                     help="HEARTBEAT type (MAV_TYPE number; any 0-255, defined or not)")
+    ap.add_argument("--params", default=None, help='JSON {"BATT_LOW_VOLT": 10.5, …}: parameters it answers reads of')
     ap.add_argument("--pack-serial", default=None, help="send BATTERY_INFO with this serial_number")
     ap.add_argument("--no-battery", action="store_true", help="send no voltage or current (no battery monitor)")
     ap.add_argument("--tlog", default=None, help="also write every frame sent to this telemetry log (.tlog)")
