@@ -54,10 +54,12 @@ fn bench(c: &mut Criterion) {
 
     // A 4S3P Li-ion pack: the sag's growth as it empties (battery::deep) and its learned slope
     // in every forecast step. Flown 200 s first, so the slope's bands hold evidence.
-    let mut li = BatteryFacts::default();
-    li.cell_count = Sourced::new(4, Provenance::Config);
-    li.capacity_wh = Sourced::new(88.0, Provenance::Config);
-    li.chemistry = Sourced::new("liion".into(), Provenance::Config);
+    let li = BatteryFacts {
+        cell_count: Sourced::new(4, Provenance::Config),
+        capacity_wh: Sourced::new(88.0, Provenance::Config),
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        ..BatteryFacts::default()
+    };
     let (curve, params) = pack_model(&li).expect("a Li-ion pack");
     let mut est = Estimator::new(params, curve, 15.6, 0.0).expect("a state");
     for k in 0..2000 {

@@ -45,7 +45,7 @@ pub const A_MAX: f64 = 20.0;
 /// g(soc) = (1 + β·(1 − soc))·(1 + a·exp(−soc/s0)); exactly 1 for a = β = 0 (the TB48D's
 /// circuit is unchanged).
 pub fn growth(a: f64, s0: f64, beta: f64, soc: f64) -> f64 {
-    if (a == 0.0 && beta == 0.0) || !(s0 > 0.0) || !soc.is_finite() {
+    if (a == 0.0 && beta == 0.0) || s0.is_nan() || s0 <= 0.0 || !soc.is_finite() {
         return 1.0;
     }
     let soc = soc.clamp(0.0, 1.0);
