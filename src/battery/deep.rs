@@ -49,7 +49,13 @@ pub fn growth(a: f64, s0: f64, beta: f64, soc: f64) -> f64 {
         return 1.0;
     }
     let soc = soc.clamp(0.0, 1.0);
-    (1.0 + beta * (1.0 - soc)) * (1.0 + a * (-soc / s0).exp())
+    // no exp() for the knee when there is none (the shipped prior): a forecast step's cost
+    let knee = if a == 0.0 {
+        1.0
+    } else {
+        1.0 + a * (-soc / s0).exp()
+    };
+    (1.0 + beta * (1.0 - soc)) * knee
 }
 
 /// Per-band sums of the measured sag against the nominal one (Σ d·y, Σ d², d the nominal drop
