@@ -27,8 +27,10 @@
 
 /// The prior's s0: the state of charge over which the knee's growth fades.
 pub const S0: f64 = 0.12;
-/// The prior slope β for a chemistry's default curve (chosen on the fit packs: the fewest
-/// forecasts more than 25 % late, then the median error; see the module docs).
+/// The prior slope β for the Li-ion default curve (chosen on the fit packs, ProgPy's 18650s:
+/// the fewest forecasts more than 25 % late, then the median error; see the module docs). Not
+/// applied to LiPo or LiHV: nothing here was fitted on them, and β = 8 on the simulator's LiPo
+/// pack, whose sag does not grow, would forecast a low-voltage crossing far too soon.
 pub const PRIOR_SLOPE: f64 = 8.0;
 /// The prior knee a for a chemistry's default curve: none (a = 2 with s0 = 0.12 was tried on
 /// the fit packs and changed little beside the slope).

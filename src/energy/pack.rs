@@ -176,7 +176,12 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
             r1: base.r1 * k,
             bias_v: 0.0,
             deep_a: crate::battery::deep::PRIOR_A,
-            deep_slope: crate::battery::deep::PRIOR_SLOPE,
+            // chosen on ProgPy's 18650 packs: Li-ion's; a LiPo's curve keeps one resistance
+            deep_slope: if chem == Chemistry::LiIon {
+                crate::battery::deep::PRIOR_SLOPE
+            } else {
+                0.0
+            },
             ..base
         },
     ))
