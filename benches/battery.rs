@@ -6,8 +6,8 @@
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::battery::{forecast, CircuitParams, Estimator, OcvCurve};
-use dronewatt::energy::pack::{Load, Pack};
-use dronewatt::report::BatteryFacts;
+use dronewatt::energy::pack::{pack_model, Load, Pack};
+use dronewatt::report::{BatteryFacts, Provenance, Sourced};
 
 fn bench(c: &mut Criterion) {
     let facts = BatteryFacts::m100();
@@ -50,6 +50,56 @@ fn bench(c: &mut Criterion) {
     c.bench_function(
         "battery: the voltage forecast alone (720 steps of 5 s)",
         |b| b.iter(|| forecast(black_box(&est), black_box(&profile), &[21.0])),
+    );
+
+    // A 4S3P Li-ion pack: the sag's growth as it empties (battery::deep) and its learned slope
+    // in every forecast step. Flown 200 s first, so the slope's bands hold evidence.
+    let li = BatteryFacts {
+        cell_count: Sourced::new(4, Provenance::Config),
+        capacity_wh: Some(Sourced::new(88.0, Provenance::Config)),
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        ..BatteryFacts::default()
+    };
+    let (curve, params) = pack_model(&li).expect("a Li-ion pack");
+    let mut est = Estimator::new(params, curve, 15.6, 0.0).expect("a state");
+    for k in 0..2000 {
+        let i = 8.0 + f64::from(k % 20) * 0.1;
+        est.update(0.1, i, 15.0 - 0.03 * i - 0.0002 * f64::from(k));
+    }
+    let mut li_pack = Pack::default();
+    let mut t = 0.0;
+    while t < 10.0 {
+        let (v, i) = if t < 4.0 { (15.6, 0.1) } else { (14.8, 8.0) };
+        li_pack.update(t, Some(v), Some(i), Some(Load::constant(120.0)), &li);
+        t += 0.1;
+    }
+    let (template, t0) = (li_pack.clone(), t);
+    let mut k = 0u32;
+    c.bench_function(
+        "battery: one window, 4S3P Li-ion with the deepening sag (the forecast once in ten)",
+        |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                if k.is_multiple_of(3000) {
+                    li_pack = template.clone();
+                    t = t0;
+                }
+                t += 0.1;
+                let wobble = f64::from(k % 50) * 0.02;
+                li_pack.update(
+                    black_box(t),
+                    Some(14.8 - 0.01 * wobble),
+                    Some(8.0 + wobble),
+                    Some(Load::constant(120.0)),
+                    &li,
+                )
+            })
+        },
+    );
+    let profile = vec![(5.0, 120.0); 720];
+    c.bench_function(
+        "battery: one-hour forecast, 4S3P Li-ion with the deepening sag (720 steps of 5 s)",
+        |b| b.iter(|| forecast(black_box(&est), black_box(&profile), &[13.2])),
     );
 }
 

@@ -6,6 +6,7 @@
 //! scaling the resistances captured (iii): by-flight CV RMSE 0.335 V → 0.232 V.
 //! The RLS then re-fits θ = [R0, R1, b] online: its one-step a-priori error is ~0.07 V.
 
+use super::deep::DeepFit;
 use super::ocv::OcvCurve;
 use super::split::Split;
 
@@ -30,6 +31,14 @@ pub struct CircuitParams {
     pub bias_v: f64,
     /// RLS forgetting factor per accepted sample.
     pub lambda: f64,
+    /// Growth of both resistances as the pack empties, g(soc) = 1 + deep_a·exp(−soc/deep_soc)
+    /// ([`super::deep`]); 0: none (the TB48D fit).
+    pub deep_a: f64,
+    /// The state of charge over which that growth fades (energy fraction).
+    pub deep_soc: f64,
+    /// Linear growth of both resistances with the charge used, β in g = (1 + β·(1 − soc))·…
+    /// ([`super::deep`]); 0: none (the TB48D fit). Learned per pack.
+    pub deep_slope: f64,
 }
 
 impl Default for CircuitParams {
@@ -44,6 +53,9 @@ impl Default for CircuitParams {
             tau_heat_s: 600.0,
             bias_v: -0.0226429840582387,
             lambda: 0.995,
+            deep_a: 0.0,
+            deep_soc: super::deep::S0,
+            deep_slope: 0.0,
         }
     }
 }
@@ -54,6 +66,24 @@ impl Default for CircuitParams {
 pub const PACK_SCALE_CARRY: f64 = 0.555131958024547;
 
 impl CircuitParams {
+    /// The same circuit with the slope `deep_slope` (a pack's own, learned on an earlier
+    /// flight: [`Estimator::deep_learned`]); a value that is not a number in 0..=
+    /// [`super::deep::A_MAX`] leaves `self` unchanged.
+    pub fn with_deep(&self, deep_slope: f64) -> Self {
+        if !(0.0..=super::deep::A_MAX).contains(&deep_slope) {
+            return *self;
+        }
+        Self {
+            deep_slope,
+            ..*self
+        }
+    }
+
+    /// g(soc) for this circuit ([`super::deep::growth`]).
+    pub(crate) fn growth(&self, soc: f64) -> f64 {
+        super::deep::growth(self.deep_a, self.deep_soc, self.deep_slope, soc)
+    }
+
     /// Parameters for the next flight on the same pack: R0 and R1 scaled by
     /// 1 + `alpha`·(`pack_scale` − 1), `pack_scale` from [`Estimator::pack_scale`] of the
     /// previous flight (`alpha` normally [`PACK_SCALE_CARRY`]). Non-finite or
@@ -90,6 +120,11 @@ pub struct Estimate {
     pub energy_wh: f64,
 }
 
+/// The TB48D's loaded current (A) and its curve's charge (Ah at 3.8 V a cell): the scale of
+/// [`Estimator::loaded_a`].
+const LOADED_A: f64 = 3.0;
+const TB48D_AH: f64 = 103.37364527025169 / 22.8;
+
 const TH_LO: [f64; 3] = [0.0, 0.0, -1.0];
 const TH_HI: [f64; 3] = [0.5, 0.5, 1.0];
 
@@ -108,6 +143,8 @@ pub struct Estimator {
     scale_sums: [f64; 2],
     /// The flight's own warm/cold resistance fit, which the forecast flies on.
     pub(crate) split: Split,
+    /// The sag's growth as the pack empties, as this flight shows it.
+    deep: DeepFit,
 }
 
 impl Estimator {
@@ -138,6 +175,7 @@ impl Estimator {
             heat: heat0,
             scale_sums: [0.0, 0.0],
             split: Split::default(),
+            deep: DeepFit::default(),
         })
     }
 
@@ -155,21 +193,36 @@ impl Estimator {
         self.split.fit(self.p.bias_v)
     }
 
+    /// The current over which a sample counts as loaded for the flight's resistance fits: 3 A on
+    /// the TB48D (its fit), less on a smaller pack in proportion to its charge (a 2 Ah pack
+    /// hovering at 1.5 A is loaded; with 3 A it would never be).
+    fn loaded_a(&self) -> f64 {
+        let ah = self.curve.capacity() / (f64::from(self.p.n_cells) * 3.8);
+        LOADED_A * (ah / TB48D_AH).clamp(0.05, 1.0)
+    }
+
+    /// State of charge now (the curve's energy fraction).
+    pub(crate) fn soc(&self) -> f64 {
+        self.energy / self.curve.capacity()
+    }
+
     pub(crate) fn ocv(&self) -> f64 {
         f64::from(self.p.n_cells) * self.curve.v_cell_at_energy(self.energy)
     }
 
     /// Advances states by `dt_s` with current `i`; `v` is the measured voltage used for the
     /// energy count, or `None` to use the model's own voltage (open loop).
-    /// Returns (regressor φ = [f·I, x1, 1], OCV after the step).
+    /// Returns (regressor φ = [g·f·I, g·x1, 1], OCV after the step; g the growth at the
+    /// state of charge before it).
     fn propagate(&mut self, dt_s: f64, i: f64, v: Option<f64>) -> ([f64; 3], f64) {
+        let g = self.p.growth(self.soc());
         let eh = (-dt_s / self.p.tau_heat_s).exp();
         self.heat = self.heat * eh + i * i * self.p.tau_heat_s * (1.0 - eh);
         let f = self.factor();
         let e1 = (-dt_s / self.p.tau1_s).exp();
         self.x1 = self.x1 * e1 + f * i * (1.0 - e1);
         self.split.propagate(e1, i, f - 1.0);
-        let phi = [f * i, self.x1, 1.0];
+        let phi = [g * f * i, g * self.x1, 1.0];
         let v = v.unwrap_or_else(|| self.ocv() - dot(&self.theta, &phi));
         self.energy = (self.energy - v * i * dt_s / 3600.0).max(0.0);
         (phi, self.ocv())
@@ -200,7 +253,8 @@ impl Estimator {
         if i > 1.0 {
             self.rls(&phi, -err);
         }
-        if i > 3.0 {
+        if i > self.loaded_a() {
+            let gr = self.p.growth(self.soc());
             let g = self.p.r0 * phi[0] + self.p.r1 * phi[1];
             let e = ocv - self.p.bias_v - g - voltage_v;
             if (g * e).is_finite() && (g * g).is_finite() {
@@ -210,7 +264,10 @@ impl Estimator {
             let (c, sp) = (self.cold(), &self.split);
             let gw = self.p.r0 * i + self.p.r1 * sp.xw;
             let gc = self.p.r0 * c * i + self.p.r1 * sp.xc;
-            self.split.add(dt_s, [gw, gc], ocv - voltage_v);
+            self.split.add(dt_s, [gr * gw, gr * gc], ocv - voltage_v);
+            let soc = self.soc();
+            self.deep
+                .add(soc, gw + gc, ocv - self.p.bias_v - voltage_v, dt_s);
         }
         Some(Estimate {
             v_prior,
@@ -266,6 +323,16 @@ impl Estimator {
         (sgg > 1e-9)
             .then(|| 1.0 + sge / sgg)
             .filter(|k| k.is_finite())
+    }
+    /// The slope β this pack has shown ([`super::deep`]), this flight's evidence shrunk toward
+    /// the circuit's own `deep_slope`: carry it to the next flight on this pack with
+    /// [`CircuitParams::with_deep`] (the vehicle store keeps it).
+    pub fn deep_learned(&self) -> f64 {
+        self.deep.learned(self.p.deep_slope)
+    }
+    /// How many bands of state of charge this flight's loaded samples reached.
+    pub fn deep_bands(&self) -> usize {
+        self.deep.bands()
     }
     /// Heat proxy (A²·s), to carry over to the next flight on the same pack.
     pub fn heat(&self) -> f64 {

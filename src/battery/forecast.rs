@@ -95,6 +95,7 @@ pub fn steps(
     // the flight's own circuit: the part that stays (k_w) and the cold part (k_c) that
     // fades with the heat this forecast adds
     let [kw, kc, b] = s.split_fit();
+    let deepen = deepening(&s);
     let mut t = 0.0;
     profile
         .into_iter()
@@ -106,8 +107,10 @@ pub fn steps(
             let cold = s.cold();
             let k = kw + kc * cold;
             let e1 = (-dt / p.tau1_s).exp();
-            let c = s.ocv() - b - p.r1 * (kw * s.split.xw + kc * s.split.xc) * e1;
-            let re = ((p.r0 + p.r1 * (1.0 - e1)) * k).max(1e-6);
+            // the sag deepens as the pack empties (battery::deep): 1 for the TB48D
+            let g = deepen(s.soc());
+            let c = s.ocv() - b - g * p.r1 * (kw * s.split.xw + kc * s.split.xc) * e1;
+            let re = ((p.r0 + p.r1 * (1.0 - e1)) * k * g).max(1e-6);
             let disc = c * c - 4.0 * re * pw;
             let (i, power_limited) = if disc >= 0.0 {
                 ((c - disc.sqrt()) / (2.0 * re), false)
@@ -127,6 +130,21 @@ pub fn steps(
                 ocv: s.ocv(),
             }
         })
+}
+
+/// The growth of the sag from now on, g(soc) ([`super::deep`]): the circuit's own shape up to
+/// now, on along the slope this flight has shown (shrunk toward the circuit's).
+fn deepening(s: &Estimator) -> impl Fn(f64) -> f64 {
+    let p = s.p;
+    let soc_now = s.soc();
+    let beta = if p.deep_a != 0.0 || p.deep_slope != 0.0 {
+        s.deep_learned()
+    } else {
+        p.deep_slope
+    };
+    let g = move |soc: f64| super::deep::growth(p.deep_a, p.deep_soc, beta, soc);
+    let scale = p.growth(soc_now) / g(soc_now);
+    move |soc| scale * g(soc)
 }
 
 /// A constant power `power_w` for `span_s`, in steps of `dt_s` (the last step whole): a

@@ -36,6 +36,7 @@
 
 pub mod chemistry;
 pub mod circuit;
+pub mod deep;
 pub mod forecast;
 pub mod history;
 pub mod ocv;

@@ -203,6 +203,9 @@ pub struct EnergyTracker {
     forecast: Ema,
     cruise: Ema,
     hover: Ema,
+    /// The measured power in flight, smoothed: what the pack's forecast flies when the
+    /// forecast model's power is not this vehicle's ([`pack::pack_power`]).
+    measured_avg: Ema,
     mission: Option<crate::report::MissionStatus>,
     /// The mission's mean power over the whole plan (W), from its first status, with its
     /// item count: the pack's forecast flies on at it past the mission's end.
@@ -263,6 +266,7 @@ impl EnergyTracker {
             forecast: Ema::default(),
             cruise: Ema::default(),
             hover: Ema::default(),
+            measured_avg: Ema::default(),
             mission: None,
             plan_mean_w: None,
             battery: crate::vehicle::battery_from_config(&cfg.battery()),
@@ -441,6 +445,11 @@ impl EnergyTracker {
             .map(f64::from)
             .filter(|v| v.is_finite() && *v > 0.5);
         let amps = volts.zip(measured).map(|(v, p)| p / v);
+        let flying = amps.is_some_and(|i| i > pack::REST_CURRENT_A);
+        let measured_avg = match measured.filter(|_| flying) {
+            Some(p) => Some(self.measured_avg.update(p, dt, tau)),
+            None => self.measured_avg.0,
+        };
         // The voltage forecast flies the rest of the mission at its mean power, then on at the
         // plan's mean power (so that the usable floor does not leap when the mission's last,
         // light descent ends; a mission flown to its end flies on at it too); with no
@@ -455,7 +464,9 @@ impl EnergyTracker {
                     then_w: plan_w.unwrap_or(first_w),
                 })
             }
-            _ => plan_w.or(forecast).map(pack::Load::constant),
+            _ => plan_w
+                .or(pack::pack_power(forecast, measured_avg))
+                .map(pack::Load::constant),
         };
         let pk = self
             .pack

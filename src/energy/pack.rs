@@ -79,6 +79,23 @@ pub const SOC_BAND_REST_PCT: f64 = 3.0;
 pub const SOC_BAND_LOADED_PCT: f64 = 10.0;
 pub const SOC_BAND_CHEMISTRY_PCT: f64 = 10.0;
 
+/// The forecast model's power may be this far (a factor either way) from the measured power in
+/// flight and still be flown by the pack's forecast.
+pub const MODEL_AGREE: f64 = 1.5;
+
+/// The power the pack's forecast flies with no mission: the forecast model's, unless the
+/// measured power in flight (smoothed) says it is not this vehicle's (more than
+/// [`MODEL_AGREE`]× off: a model fitted on another airframe, the M100's 400 W on a 20 W quad,
+/// would put the low-voltage crossing minutes early), then the measured power.
+pub fn pack_power(model_w: Option<f64>, measured_w: Option<f64>) -> Option<f64> {
+    let m = measured_w.filter(|p| p.is_finite() && *p > 1.0);
+    match (model_w.filter(|p| p.is_finite()), m) {
+        (Some(f), Some(m)) if f > m * MODEL_AGREE || f * MODEL_AGREE < m => Some(m),
+        (Some(f), _) => Some(f),
+        (None, m) => m,
+    }
+}
+
 /// What the pack model says now (all absent until a resting voltage was read).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PackNow {
@@ -111,6 +128,10 @@ pub struct PackNow {
     pub r_scale: Option<f64>,
     /// The heat proxy now, A²·s (carried to the next flight on this pack).
     pub heat: Option<f64>,
+    /// The slope of the sag's growth as the pack empties this pack has shown
+    /// ([`crate::battery::deep`]; for the store, to start its next flight from:
+    /// [`CircuitParams::with_deep`]).
+    pub deep_slope: Option<f64>,
     /// Whether the state started from the previous flight on this pack (its resistance and
     /// heat carried over).
     pub carried: bool,
@@ -278,6 +299,13 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
             r0: base.r0 * k,
             r1: base.r1 * k,
             bias_v: 0.0,
+            deep_a: crate::battery::deep::PRIOR_A,
+            // chosen on ProgPy's 18650 packs: Li-ion's; a LiPo's curve keeps one resistance
+            deep_slope: if chem == Chemistry::LiIon {
+                crate::battery::deep::PRIOR_SLOPE
+            } else {
+                0.0
+            },
             ..base
         },
     ))
@@ -371,6 +399,7 @@ impl Pack {
             self.now.energy_wh = Some(e.energy_wh.max(0.0));
             self.now.r_scale = est.pack_scale();
             self.now.heat = Some(est.heat());
+            self.now.deep_slope = Some(est.deep_learned());
         }
         if self.flown && !self.rest.is_empty() {
             // Landed: no rest of the flight to forecast.

@@ -20,6 +20,7 @@ mod config_paths;
 mod demo_alerts;
 mod energy_dataset;
 mod energy_pack;
+mod energy_progpy;
 mod energy_select;
 mod features_units;
 mod fuzz_props;

@@ -20,6 +20,10 @@ Phase keys (all optional but one of send_s / quiet_s):
 instead of the fixed 22.2 V: a LiPo with its own OCV table, a series resistance and one RC pair,
 the current solved from the power each tick (P = V·I); the voltage falls as the pack drains.
 
+--progpy '{"cell": "electrochem", "s": 3, "p": 1, "soc0": 0.3}' flies a NASA ProgPy pack instead: S cells in
+series and P in parallel of BatteryElectroChemEOD (or BatteryCircuit), discharged from full to soc0 of its energy
+and rested 30 min before the first frame (tests/peers/progpy_flights.py's cell).
+
 --mav-type N sends HEARTBEAT type N (12 a submarine, 1 a plane, 99 a type MAVLink does not
 define); --no-battery sends SYS_STATUS without voltage or current (no battery monitor);
 --vtol-fw-after-s T flies an ArduPlane quadplane (Q mode and vtol_state MC, then FW after T s);
@@ -105,6 +109,25 @@ class Pack:
         return volts, amps
 
 
+class ProgPyPack:
+    """A ProgPy pack (tests/peers/progpy_flights.py's Cell): the current solved from the power each tick."""
+
+    def __init__(self, cell="electrochem", s=3, p=1, soc0=0.3):
+        import sys
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        import progpy_flights as pf
+        self.s, self.p = s, p
+        self.cell = pf.charged_to(cell, soc0)
+        for _ in range(1800):
+            self.cell.step(0.0, 1.0)
+
+    def draw(self, power, dt):
+        amps = power / (self.s * self.p) / max(self.cell.v, 1.0)
+        for _ in range(max(1, int(round(dt / 0.1)))):
+            self.cell.step(amps, dt / max(1, int(round(dt / 0.1))))
+        return self.cell.v * self.s, amps * self.p
+
+
 class Vehicle:
     def __init__(self, a):
         self.a = a
@@ -115,7 +138,8 @@ class Vehicle:
         self.boot0 = time.monotonic()
         self.home_lat = LAT0
         self.stray = mav.MAVLink(None, srcSystem=2, srcComponent=1)
-        self.pack = Pack(**json.loads(a.pack)) if a.pack else None
+        self.pack = (Pack(**json.loads(a.pack)) if a.pack else
+                     ProgPyPack(**json.loads(a.progpy)) if a.progpy else None)
         self.params = json.loads(a.params) if a.params else {}
         self.tlog = open(a.tlog, "wb") if a.tlog else None
         self.open()
@@ -303,6 +327,7 @@ def main():
     ap.add_argument("--sign-key", default=None, help="32-byte key as 64 hex digits")
     ap.add_argument("--link-id", type=int, default=1)
     ap.add_argument("--pack", default=None, help="JSON: fly a sagging pack (see the module docs)")
+    ap.add_argument("--progpy", default=None, help="JSON: fly a NASA ProgPy pack (see the module docs)")
     ap.add_argument("--listen-after-s", type=float, default=1.5)
     ap.add_argument("--mav-type", type=int, default=mav.MAV_TYPE_QUADROTOR,
                     help="HEARTBEAT type (MAV_TYPE number; any 0-255, defined or not)")
