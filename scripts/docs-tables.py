@@ -649,7 +649,7 @@ def spec_priors(r):
              f(a["eta_h"], 3), f"{f(a['loao_eta'], 3)} ± {f(a['loao_sd'], 2)}", f(a["loao_hover_w"], 1),
              f"{a['loao_err_pct']:+.1f} %", "yes" if a["loao_p90_covers"] else "no", a["source"]]
             for a in r["airframes"]]
-    return (header("scripts/spec-priors.py --json").replace("dronewatt scripts/", "scripts/")
+    return (header("scripts/spec-priors.py --json").replace("dronewatt-lab scripts/", "scripts/")
             + table(["airframe", "take-off kg", "rotors", "prop m", "hover W", "η_h",
                      "prior without it (η_h ± log-sd)", "its forecast W", "error", "P90 covers", "source"], rows)
             + f"\nAll airframes (the shipped prior): η_h = {f(r['eta_h_median'], 3)}, log-spread "
@@ -666,7 +666,7 @@ def peer_multirotor(r):
             q = st.get(name)
             row += [f(q["p50"], 1), f(q["p90"], 1), f"{q['err_pct']:+.1f} %"] if q else ["—"] * 3
         rows.append(row)
-    out = (header("scripts/peer-multirotor.py --json").replace("dronewatt scripts/", "scripts/")
+    out = (header("scripts/peer-multirotor.py --json").replace("dronewatt-lab scripts/", "scripts/")
            + table(["flight", "speed m/s", "wind", "peer's energy Wh", "spec P50", "spec P90", "spec error",
                     "after hover P50", "P90", "error", "learned P50", "P90", "error"], rows) + "\n")
     for st, v in r["summary"].items():

@@ -425,6 +425,14 @@ impl Pack {
             n * (chem.full_v() + crate::battery::chemistry::FULL_TOL_V),
         );
         let in_range = |x: Option<f64>| x.is_none_or(|x| x.is_finite() && (lo..=hi).contains(&x));
+        // A forecast that runs under the chemistry's floor says the pack would be flown flat
+        // before the flight ends: bounded at the floor (still under every threshold, so the
+        // time to the low voltage and its alert stand), not withheld.
+        if let Some((v, at)) = self.now.v_min_forecast {
+            if v.is_finite() && v < lo {
+                self.now.v_min_forecast = Some((lo, at));
+            }
+        }
         let r_ok = self
             .now
             .internal_r_ohm
