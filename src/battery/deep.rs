@@ -22,7 +22,7 @@
 //! charge, the least-squares scale of the measured sag against the nominal one; from the bands
 //! a flight has reached it fits β = k_β/k (scale_b = k + k_β·(1 − soc_b)), shrunk toward the
 //! prior with [`PRIOR_BINS`] bands' weight. The forecast flies on along that slope from the
-//! sag it has now ([`super::forecast`]), and [`DeepFit::learned`] is what the next flight on
+//! sag it has now ([`mod@super::forecast`]), and [`DeepFit::learned`] is what the next flight on
 //! this pack starts from ([`super::CircuitParams::with_deep`]).
 
 /// The prior's s0: the state of charge over which the knee's growth fades.
