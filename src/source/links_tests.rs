@@ -1,0 +1,144 @@
+//! Tests of `src/source/links.rs` (a file of their own: the module stays under 600 lines).
+
+use super::*;
+
+fn h(sys: u32, comp: u8, seq: u8) -> mavlink::MavHeader {
+    mavlink::MavHeader {
+        system_id: sys,
+        component_id: comp,
+        sequence: seq,
+    }
+}
+
+#[test]
+fn a_copy_within_the_window_is_a_duplicate_and_nothing_else_is() {
+    let mut d = Dedup::default();
+    assert_eq!(
+        d.hear(0.0, 0, &h(1, 1, 7), 0, 0),
+        Heard::First { gap: false }
+    );
+    // The same frame from the other radio, 40 ms later.
+    assert_eq!(d.hear(0.04, 0, &h(1, 1, 7), 0, 0), Heard::Duplicate);
+    // Another message with the same numbers (another sender's stream): not a copy.
+    assert_eq!(
+        d.hear(0.05, 0, &h(1, 1, 7), 33, 0),
+        Heard::First { gap: true }
+    );
+    assert_eq!(
+        d.hear(0.05, 0, &h(1, 2, 7), 0, 0),
+        Heard::First { gap: false }
+    );
+    // The next frame; then one after a lost one.
+    assert_eq!(
+        d.hear(0.1, 0, &h(1, 1, 8), 30, 0),
+        Heard::First { gap: false }
+    );
+    assert_eq!(
+        d.hear(0.2, 0, &h(1, 1, 10), 30, 0),
+        Heard::First { gap: true }
+    );
+    // The sequence wrapped and the number came round again: new, not a copy.
+    assert_eq!(
+        d.hear(0.04 + DEDUP_WINDOW_S, 0, &h(1, 1, 7), 0, 0),
+        Heard::First { gap: true }
+    );
+    // The same numbers on another network: another vehicle, never a copy.
+    assert_eq!(
+        d.hear(1.1, 0, &h(1, 1, 9), 0, 0),
+        Heard::First { gap: true }
+    );
+    assert_eq!(
+        d.hear(1.1, 2, &h(1, 1, 9), 0, 0),
+        Heard::First { gap: false }
+    );
+}
+
+/// A PX4 on USB: 2,200 frames/s from one component, so each sequence number comes round
+/// every 116 ms, with a stuck sensor's message repeating the same bytes; two links carry
+/// it, each losing 30 % independently, the second 3 ms late. What is handed on is exactly
+/// the union of what arrived: every copy dropped, no new frame taken for one.
+#[test]
+fn at_a_fast_link_s_rate_the_merge_hands_on_exactly_the_union() {
+    for frames_per_s in [110.0, 2_200.0, 11_000.0] {
+        let mut d = Dedup::default();
+        let mut lcg = 0x2545_f491_u64;
+        let mut lost = || {
+            lcg = lcg.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (lcg >> 33) % 100 < 30
+        };
+        let (mut union, mut first, mut dup) = (0u32, 0u32, 0u32);
+        let mut arrivals: Vec<(f64, u8, u32, u64)> = Vec::new();
+        for n in 0..20_000u32 {
+            let t = f64::from(n) / frames_per_s;
+            let seq = (n % 256) as u8;
+            // Every 4th frame is the stuck sensor (same id, same bytes); the rest differ.
+            let (id, fp) = if n % 4 == 0 {
+                (29, 7)
+            } else {
+                (30, u64::from(n))
+            };
+            let (a, b) = (!lost(), !lost());
+            union += u32::from(a || b);
+            if a {
+                arrivals.push((t, seq, id, fp));
+            }
+            if b {
+                arrivals.push((t + 0.003, seq, id, fp));
+            }
+        }
+        arrivals.sort_by(|x, y| x.0.total_cmp(&y.0));
+        for (t, seq, id, fp) in arrivals {
+            match d.hear(t, 0, &h(1, 1, seq), id, fp) {
+                Heard::First { .. } => first += 1,
+                Heard::Duplicate => dup += 1,
+            }
+        }
+        assert_eq!(
+            first, union,
+            "{frames_per_s} frames/s: {dup} dropped as copies"
+        );
+    }
+}
+
+#[test]
+fn a_frame_with_the_same_numbers_and_other_bytes_is_not_a_copy() {
+    let mut d = Dedup::default();
+    assert_eq!(
+        d.hear(0.0, 0, &h(1, 1, 7), 30, 1),
+        Heard::First { gap: false }
+    );
+    assert_eq!(
+        d.hear(0.01, 0, &h(1, 1, 7), 30, 2),
+        Heard::First { gap: true }
+    );
+    assert_eq!(d.hear(0.02, 0, &h(1, 1, 7), 30, 2), Heard::Duplicate);
+    use crate::dialect::{MavMessage, HEARTBEAT_DATA, SYS_STATUS_DATA};
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+    let st = |mv| {
+        MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+            voltage_battery: mv,
+            ..Default::default()
+        })
+    };
+    assert_eq!(fingerprint(&hb), fingerprint(&hb.clone()));
+    assert_ne!(fingerprint(&st(12_600)), fingerprint(&st(12_601)));
+}
+
+#[test]
+fn links_sharing_a_name_are_one_network_and_others_are_numbered_in_order() {
+    let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let one = Networks::number(&names(&["", ""])).unwrap();
+    assert_eq!(one.of_link, [0, 0]);
+    assert_eq!(one.name(0), None);
+    let same = Networks::number(&names(&["radio", "radio"])).unwrap();
+    assert_eq!(
+        same.of_link,
+        [0, 0],
+        "one name is one network, read as today"
+    );
+    let two = Networks::number(&names(&["", "", "lte"])).unwrap();
+    assert_eq!(two.of_link, [1, 1, 2]);
+    assert_eq!((two.name(1), two.name(2)), (Some("default"), Some("lte")));
+    let named = Networks::number(&names(&["lte", "default", "lte"])).unwrap();
+    assert_eq!(named.of_link, [1, 2, 1]);
+}
