@@ -50,6 +50,7 @@ lint: setup
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps --locked
 	python3 scripts/docs-linkcheck.py --sources
+	python3 scripts/arch-files.py --check
 	@for d in src lab/src; do printf '%s: ' $$d; python3 scripts/module-cycles.py $$d | tail -1; \
 	  python3 scripts/module-cycles.py $$d >/dev/null || exit 1; done
 

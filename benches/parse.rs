@@ -15,9 +15,9 @@
 mod mavlink_common;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use dronewatt::report::status::IngestStats;
 use dronewatt::source::frame::{FrameDecoder, Framing};
-use dronewatt::source::tlog::decode_tlog;
-use dronewatt::source::IngestStats;
+use dronewatt::source::logs::tlog::decode_tlog;
 
 const N: usize = 100_000;
 

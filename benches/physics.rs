@@ -3,10 +3,10 @@
 //! model (`model::physics::fixed_wing`) in under 2 µs a window.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use dronewatt::features::{idx, Sample, N_FEATURES};
 use dronewatt::model::physics::{Kind, PhysicsModel};
 use dronewatt::model::profile::VehicleProfile;
 use dronewatt::telemetry::window::Window;
-use dronewatt::telemetry::{idx, Sample, N_FEATURES};
 
 fn cruise_window() -> Window {
     let samples = (0..10)

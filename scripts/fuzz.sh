@@ -7,7 +7,7 @@
 # Works on the stable toolchain (RUSTC_BOOTSTRAP=1 lets cargo fuzz use -Z flags). Builds
 # without a sanitizer (-s none): the readers are safe Rust, so AddressSanitizer would find
 # nothing the bounds checks do not, at several times the cost; the targets' property checks
-# (src/fuzz_props.rs) and debug assertions do the catching. libFuzzer works on a scratch
+# (src/fuzz_props/) and debug assertions do the catching. libFuzzer works on a scratch
 # copy of the committed seeds (fuzz/corpus/TARGET, git-ignored); a crash lands in
 # fuzz/artifacts/TARGET/. Copy it to fuzz/regressions/TARGET/ once fixed, and
 # `cargo test --test it fuzz_props::` replays it for ever after.

@@ -40,9 +40,9 @@
 #[path = "alert_defaults.rs"]
 pub mod defaults;
 
+use crate::report::{AlertEvent, AlertState, Severity};
 use serde::Deserialize;
 
-pub use crate::report::{AlertEvent, AlertState, Severity};
 use crate::report::{EnergyState, Estimate};
 
 /// What a rule watches, with its levels. Units are in the key names.

@@ -29,10 +29,10 @@ pub struct Config {
     /// Publishers: terminal, jsonl, mavlink, web, mqtt.
     pub sinks: crate::sink::SinksConfig,
     /// The live link: MAVLink 2 signing key file, whether unsigned frames are refused.
-    pub link: crate::source::signing::LinkConfig,
+    pub link: crate::source::links::LinkConfig,
     /// Many vehicles on one link: when a silent vehicle is lost and dropped, which system
     /// ids this instance watches.
-    pub fleet: crate::source::fleet::FleetConfig,
+    pub fleet: crate::source::messages::fleet::FleetConfig,
     /// The links `monitor` reads when no address is given on its command line, `[[links]]`
     /// tables: several are merged, deduplicated, and watched per link (`source::links`).
     pub links: Vec<LinkEntry>,
@@ -126,7 +126,7 @@ impl Config {
             .enumerate()
             .filter_map(|(i, l)| {
                 l.address
-                    .parse::<crate::source::link::LinkAddress>()
+                    .parse::<crate::source::links::address::LinkAddress>()
                     .err()
                     .map(|e| format!("links[{i}].address: {e}"))
             })

@@ -34,7 +34,7 @@
 //! |---|---|
 //! | [`features`] | the floor: [`features::Sample`], the 21 feature names and indices, the home vector, frame conversions, the vehicle class ([`features::class`]) |
 //! | [`report`] | the floor: the messages from the models on ([`report::Estimate`], [`report::EnergyState`], [`report::AlertEvent`], [`report::Report`]), and [`report::status`]: what a chain says beside them (ingest counters, signal health, the uplink, the stop signal) |
-//! | [`source`] | where MAVLink comes from: the link address grammar, live links, `.tlog`, raw streams, DataFlash `.bin`, ULog `.ulg`, the M100 CSV; frame decoding and its counters; which senders are vehicles ([`source::fleet`]) |
+//! | [`source`] | where MAVLink comes from: the link address grammar, live links, `.tlog`, raw streams, DataFlash `.bin`, ULog `.ulg`, the M100 CSV; frame decoding and its counters; which senders are vehicles ([`source::messages::fleet`]) |
 //! | [`telemetry`] | vehicle state and class ([`telemetry::kind`]), frame/unit conversion to the data set's conventions, fixed-rate resampling, feature vectors, rolling windows ([`telemetry::window`]) |
 //! | [`model`] | the [`model::PowerModel`] trait, the physics models (multirotor, and the fixed-wing model), the LSTM and its model card, online adaptation to measured power |
 //! | [`battery`] | the pack, pure like [`model`]: chemistry and cell count, OCV curves (the TB48D's fitted on the data set), the equivalent circuit and its online estimator, the loaded-voltage forecast |

@@ -12,7 +12,7 @@ use clap::{CommandFactory, Parser, Subcommand};
 #[derive(Debug, Subcommand)]
 pub enum LabCommand {
     /// Write one data-set flight as a .tlog.
-    Convert(dronewatt::source::dataset::ConvertArgs),
+    Convert(dronewatt::source::logs::dataset::ConvertArgs),
     /// Score every model on data-set flights (the paper's tables, in watts).
     Eval(crate::eval::EvalArgs),
     /// Fit the physics models' free parameters to training flights.
@@ -32,7 +32,7 @@ pub enum LabCommand {
 /// Run one research command.
 pub fn run_lab(command: LabCommand) -> anyhow::Result<()> {
     match command {
-        LabCommand::Convert(a) => dronewatt::source::dataset::run(a),
+        LabCommand::Convert(a) => dronewatt::source::logs::dataset::run(a),
         LabCommand::Eval(a) => crate::eval::run(a),
         LabCommand::Calibrate(a) => crate::calibrate::run(a),
         LabCommand::Train(a) => crate::train::run(a),

@@ -31,7 +31,7 @@ use dronewatt::mission::forecast::{phase_of, vertical_work_w, Calibration};
 use dronewatt::mission::trajectory::enu_of;
 use dronewatt::model::profile::VehicleProfile;
 use dronewatt::offline::data::TEST_FLIGHTS;
-use dronewatt::source::dataset::Flight;
+use dronewatt::source::logs::dataset::Flight;
 
 /// Write the dump of every training flight in `train` (each with its rolling-validation
 /// score in `scores`) to `dir`. A test flight is refused, whatever the caller passes.

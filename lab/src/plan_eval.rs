@@ -36,7 +36,7 @@ use dronewatt::offline::args::{help, DataArg, ForecastArgs};
 use dronewatt::offline::data::TEST_FLIGHTS;
 use dronewatt::offline::metrics::median;
 use dronewatt::offline::plan::models_for;
-use dronewatt::source::dataset::{self, Flight};
+use dronewatt::source::logs::dataset::{self, Flight};
 
 /// Arguments of `dronewatt-lab plan-eval`.
 #[derive(Debug, Clone, clap::Args)]

@@ -23,7 +23,7 @@ use anyhow::Context;
 
 use dronewatt::mission::plan::{GeoPoint, Plan};
 use dronewatt::mission::trajectory::{enu_of, Wind};
-use dronewatt::source::dataset::{self, Flight};
+use dronewatt::source::logs::dataset::{self, Flight};
 
 /// Electrical power above which the vehicle counts as flying (motors spun up), W.
 pub const AIRBORNE_W: f64 = 150.0;

@@ -219,7 +219,7 @@ pub fn run_command(command: Command) -> Result<()> {
             } else if !raw
                 && (name.ends_with(".ulg")
                     || name.ends_with(".bin")
-                        && crate::source::dataflash::starts_as_dataflash(&file))
+                        && crate::source::logs::dataflash::starts_as_dataflash(&file))
             {
                 SourceSpec::AutopilotLog { path: file, speed }
             } else if raw || !name.ends_with(".tlog") {
@@ -240,7 +240,7 @@ pub fn run_command(command: Command) -> Result<()> {
             }
             // A malformed address fails here, before anything starts, with one line.
             for a in &address {
-                a.parse::<crate::source::link::LinkAddress>()?;
+                a.parse::<crate::source::links::address::LinkAddress>()?;
             }
             let source = match <[String; 1]>::try_from(address) {
                 Ok([one]) => SourceSpec::Link(one),
@@ -294,7 +294,7 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
         config.models.lstm.path = Some(m.clone());
     }
     if let Some(v) = &run.vehicles {
-        crate::source::fleet::VehicleFilter::parse(v)
+        crate::source::messages::fleet::VehicleFilter::parse(v)
             .map_err(|e| anyhow::anyhow!("--vehicles {v}: {e}"))?;
         config.fleet.vehicles = Some(v.clone());
     }
@@ -302,7 +302,7 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
         config.vehicle = Some(v.clone());
     }
     if let Some(spec) = &run.pack {
-        let pack = crate::vehicle::parse_pack(spec).map_err(anyhow::Error::msg)?;
+        let pack = crate::vehicle::pack_spec::parse_pack(spec).map_err(anyhow::Error::msg)?;
         config.energy.capacity_wh = None;
         config.energy.cell_count = None;
         config.energy.chemistry = None;

@@ -122,9 +122,9 @@ impl SimulateArgs {
             seed: self.seed,
             autopilot: self.autopilot,
             battery: match (self.battery_v, self.soc_pct) {
-                (Some(v), _) => sim::BatteryStart::RestV(v),
-                (None, Some(pct)) => sim::BatteryStart::Soc(pct / 100.0),
-                (None, None) => sim::BatteryStart::Full,
+                (Some(v), _) => sim::physics::BatteryStart::RestV(v),
+                (None, Some(pct)) => sim::physics::BatteryStart::Soc(pct / 100.0),
+                (None, None) => sim::physics::BatteryStart::Full,
             },
         };
         if let Err(e) = sim::physics::Battery::from_profile(&opts.vehicle, opts.battery) {
@@ -181,20 +181,20 @@ pub(crate) fn simulate(args: SimulateArgs) -> Result<()> {
         "simulated mission"
     );
     if let Some(path) = &args.out {
-        let own_log =
-            crate::source::dataflash::is_dataflash(path) || crate::source::ulog::is_ulog(path);
+        let own_log = crate::source::logs::dataflash::is_dataflash(path)
+            || crate::source::logs::ulog::is_ulog(path);
         if own_log && sim::Frame::of(&opts.vehicle) != sim::Frame::Multirotor {
             // The readers give a .bin or .ulg the HEARTBEAT of a multirotor: a plane's would
             // be read as one.
             bail!("{}: a plane's or quadplane's flight is written as a .tlog only (dronewatt reads a .bin or .ulg as a multirotor's)", path.display());
         }
-        let bytes = if crate::source::dataflash::is_dataflash(path) {
+        let bytes = if crate::source::logs::dataflash::is_dataflash(path) {
             // The autopilot's own log: one ArduPilot vehicle (PX4 writes ULog, not DataFlash).
             if args.vehicles > 1 || args.autopilot != Autopilot::Ardupilot {
                 bail!("{}: a DataFlash .bin is one ArduPilot vehicle's own log: use --autopilot ardupilot and one vehicle, or write a .tlog", path.display());
             }
             sim::output::write_dataflash(path, &flight)?
-        } else if crate::source::ulog::is_ulog(path) {
+        } else if crate::source::logs::ulog::is_ulog(path) {
             if args.vehicles > 1 || args.autopilot != Autopilot::Px4 {
                 bail!("{}: a ULog .ulg is one PX4 vehicle's own log: use --autopilot px4 and one vehicle, or write a .tlog", path.display());
             }

@@ -46,7 +46,7 @@ use crate::features::idx;
 use crate::report::{
     BatteryFacts, Estimate, ModelEstimate, PackState, Provenance, Sourced, BATTERY_PCT_AGREE,
 };
-pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
+use crate::report::{EnergyState, PowerSource, RemainingSource};
 use crate::vehicle::params::VehicleParams;
 use crate::vehicle::BatteryConfig;
 

@@ -10,8 +10,8 @@ pub mod profile;
 pub mod spec;
 pub mod trees;
 
-pub use crate::features::Lift;
-pub use crate::report::{Estimate, ModelEstimate};
+use crate::features::Lift;
+use crate::report::{Estimate, ModelEstimate};
 use crate::telemetry::window::Window;
 
 /// One model's output for one window.

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use crate::source::dataset;
+use crate::source::logs::dataset;
 use crate::telemetry::window::Window;
 use crate::telemetry::{MissionConfig, Telemetry, TelemetryConfig};
 
@@ -104,10 +104,10 @@ pub fn flight_windows(
     mission: &MissionConfig,
 ) -> FlightWindows {
     let bytes = dataset::encode_flight(f);
-    let stats = crate::source::IngestStats::default();
+    let stats = crate::report::status::IngestStats::default();
     let mut tel = Telemetry::new(cfg, mission);
     let mut windows = Vec::new();
-    for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
+    for m in crate::source::logs::tlog::decode_tlog(&bytes, &stats) {
         tel.push(&m, &mut windows);
     }
     tel.finish(&mut windows);

@@ -361,7 +361,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         !is_m100 && cfg.energy.capacity_wh.is_none() && profile.battery.is_some(),
     ) {
         c.source =
-            crate::vehicle::Provenance::Parameter(format!("{} profile [battery]", profile.name));
+            crate::report::Provenance::Parameter(format!("{} profile [battery]", profile.name));
     }
     let capacity_wh = battery.capacity().with_context(|| {
         format!("the pack's capacity is not known: set [energy] capacity_wh, or give the vehicle profile ({}) a [battery]", profile.name)
@@ -369,7 +369,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if battery
         .capacity_wh
         .as_ref()
-        .is_some_and(|c| c.source != crate::vehicle::Provenance::Config)
+        .is_some_and(|c| c.source != crate::report::Provenance::Config)
     {
         tracing::info!(
             "capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack",

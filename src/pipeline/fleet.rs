@@ -33,7 +33,7 @@ use super::{ChainTasks, Inference, VehicleChain, CHANNEL_DEPTH, SILENT_TICK};
 use crate::report::status::ChainStatus;
 use crate::report::VehicleId;
 use crate::sink::Fanout;
-use crate::source::fleet::{
+use crate::source::messages::fleet::{
     is_vehicle_heartbeat, is_vehicle_telemetry, FleetConfig, VehicleFilter,
 };
 use crate::source::TimedMessage;

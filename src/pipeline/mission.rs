@@ -13,7 +13,7 @@ use crate::mission::live::LiveSetup;
 use crate::model::profile::VehicleProfile;
 use crate::model::LoadedProfile;
 use crate::report::MissionUpdate;
-use crate::source::fleet::VehicleFilter;
+use crate::source::messages::fleet::VehicleFilter;
 use crate::source::SourceSpec;
 
 /// The files the configuration names, read once at start (a file that does not read or

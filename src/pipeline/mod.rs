@@ -44,8 +44,9 @@ mod inference;
 mod mission;
 mod shutdown;
 mod sinks;
+mod stages;
 
-pub use chain::{account, ChainEnd, ChainTasks, Rebuild, VehicleChain};
+pub use chain::{ChainEnd, ChainTasks, Rebuild, VehicleChain};
 use fleet::Fleet;
 pub use fleet::{Demux, FleetEvent, Route};
 pub use inference::{Batching, Fits, Inference, Job, WarmStart};
@@ -54,6 +55,7 @@ pub use mission::Resolved;
 pub use shutdown::shutdown_on_signal;
 use sinks::relay;
 pub use sinks::{start_sinks, SinkTasks};
+pub use stages::account;
 
 use std::sync::Arc;
 
@@ -100,7 +102,7 @@ fn known_pack(config: &mut Config, source: &SourceSpec, resolved: &Resolved) {
             .fill_pack(&crate::vehicle::BatteryConfig::m100());
     }
     if resolved.vehicle.path.is_some() {
-        if let Some(pack) = crate::vehicle::profile_pack(&resolved.vehicle.profile) {
+        if let Some(pack) = crate::vehicle::pack_spec::profile_pack(&resolved.vehicle.profile) {
             config.energy.fill_pack(&pack);
         }
     }

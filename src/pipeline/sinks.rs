@@ -17,7 +17,7 @@ use crate::sink::{Fanout, ReportRx, SinkSpec};
 
 /// Start every sink: each gets its own queue on the returned [`Fanout`] and the chain's
 /// status. A MAVLink sink with an `address` of its own writes through an uplink opened
-/// here (the same transports as the monitored link, `source::link`). Fails before anything
+/// here (the same transports as the monitored link, `source::links::link`). Fails before anything
 /// runs when a sink cannot start.
 pub fn start_sinks(specs: Vec<SinkSpec>, status: &ChainStatus) -> Result<(Fanout, SinkTasks)> {
     let mut fanout = Fanout::default().gauged(status.stats.clone());
@@ -32,7 +32,7 @@ pub fn start_sinks(specs: Vec<SinkSpec>, status: &ChainStatus) -> Result<(Fanout
             address: Some(a), ..
         }) = &spec
         {
-            let (link, task) = crate::source::link::spawn_uplink(
+            let (link, task) = crate::source::links::link::spawn_uplink(
                 a.parse()?,
                 &status.link,
                 tasks.uplink_stop.clone(),

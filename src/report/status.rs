@@ -42,7 +42,7 @@ pub struct IngestStats {
     pub unknown: AtomicU64,
     /// Discontinuities: sequence-number gaps (one per break in a sender's sequence,
     /// however many frames it lost; see `source::frame`) plus clock jumps (see
-    /// `source::timed::Clock`).
+    /// `source::frame::timed::Clock`).
     pub gaps: AtomicU64,
     /// The clock jumps among `gaps`: a tlog stamp or `time_boot_ms` that went backwards,
     /// leapt ahead or was absurd.
@@ -51,13 +51,13 @@ pub struct IngestStats {
     pub junk_bytes: AtomicU64,
     /// Windows built by the telemetry stage.
     pub windows: AtomicU64,
-    /// Times a live link went silent (no good frame for the link's silence limit (`source::link::SILENCE`)).
+    /// Times a live link went silent (no good frame for the link's silence limit (`source::links::link::SILENCE`)).
     pub silences: AtomicU64,
     /// Whether the live link is silent right now (the terminal view shows it).
     pub silent: AtomicBool,
     /// Frames whose MAVLink 2 signature checked against the link's key (among `frames_ok`).
     pub signed_ok: AtomicU64,
-    /// Frames dropped because their signature did not match the key (`source::signing`).
+    /// Frames dropped because their signature did not match the key (`source::links::signing`).
     pub signature_bad: AtomicU64,
     /// Signed frames dropped as replays: a timestamp not newer than the stream's last, or
     /// a new stream over a minute behind.
@@ -219,7 +219,7 @@ pub struct SignalHealth {
 
 /// A way for sinks to send frames back out on the live link the source reads (MAVLink
 /// publishing "on the same link"). Empty unless the source is a live link. Where a frame
-/// goes is the link's business (see `source::link`): the last UDP peer heard (`udpin:`), the
+/// goes is the link's business (see `source::links::link`): the last UDP peer heard (`udpin:`), the
 /// target (`udpout:`), every TCP client (`tcpin:`), the open connection (`tcpout:`,
 /// `serial:`). Frames are whole encoded MAVLink frames.
 ///

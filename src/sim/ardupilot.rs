@@ -5,9 +5,9 @@
 //! integer ones cast to the float (ArduPilot's encoding).
 
 use super::emit::{param, Every, Imu, Instant, Style};
-use super::physics::G;
 use super::{Frame, SimOptions};
 use crate::dialect as d;
+use crate::features::units::G;
 use crate::features::VtolState;
 use crate::sim::guidance::Phase;
 use crate::MavMessage;

@@ -24,9 +24,10 @@ use mavlink::MavHeader;
 use nalgebra::Vector3;
 use rand::rngs::StdRng;
 
-use super::physics::{Battery, G};
+use super::physics::Battery;
 use super::{std_normal, Autopilot, Frame, SimOptions, SimRecord, State, EPOCH_START_US, HOME};
 use crate::dialect as d;
+use crate::features::units::G;
 use crate::sim::guidance::{Phase, Route};
 use crate::MavMessage;
 
@@ -537,12 +538,6 @@ pub fn attitude(
         pitchspeed: rates.y as f32,
         yawspeed: rates.z as f32,
     })
-}
-
-/// A MAVLink name field (PARAM_VALUE's `param_id`, NAMED_VALUE_FLOAT's `name`) as text,
-/// for the log writers; empty when it is not UTF-8.
-pub fn name_text<const N: usize>(s: &mavlink::types::CharArray<N>) -> String {
-    s.to_str().unwrap_or("").trim_end_matches('\0').to_string()
 }
 
 pub fn param(name: &str, value: f32, kind: d::MavParamType) -> d::PARAM_VALUE_DATA {

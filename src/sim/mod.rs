@@ -16,8 +16,8 @@
 //! | [`emit`] | the state → MAVLink at an autopilot's rates, with sensor noise |
 //! | [`ardupilot`], [`px4`] | what differs between the two: modes, attitude and IMU messages, parameters |
 //! | [`output`] | `.tlog` bytes and the paced UDP stream |
-//! | [`dataflash`] | an ArduPilot flight as its DataFlash `.bin` log |
-//! | [`ulog`] | a PX4 flight as its ULog `.ulg` |
+//! | [`output`] → [`crate::source::logs::dataflash_writer`] | an ArduPilot flight as its DataFlash `.bin` log |
+//! | [`output`] → [`crate::source::logs::ulog_writer`] | a PX4 flight as its ULog `.ulg` |
 //!
 //! ## Flight model (point mass, kinematic)
 //! The guidance's desired velocity becomes the commanded acceleration `K_v·(v_des − v)`,
@@ -32,8 +32,6 @@
 //! the same options give a byte-identical `.tlog`.
 
 pub mod ardupilot;
-
-pub mod dataflash;
 pub mod emit;
 mod fleet;
 pub mod guidance;
@@ -41,9 +39,11 @@ pub mod output;
 pub mod physics;
 pub mod plane;
 pub mod px4;
-pub mod ulog;
+mod weather;
 
+use physics::BatteryStart;
 use std::f64::consts::PI;
+use weather::Weather;
 
 use mavlink::MavHeader;
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -56,7 +56,6 @@ use crate::model::profile::VehicleProfile;
 use crate::sim::guidance::{Guidance, Home, InvalidOption, Phase, Route};
 use crate::MavMessage;
 pub use fleet::{merge, simulate_fleet, MAX_FLEET};
-pub use physics::BatteryStart;
 use physics::{Airframe, Battery};
 
 /// Whose message set and conventions the output follows.
@@ -322,22 +321,6 @@ const A_MAX_V: f64 = 2.0;
 const TAU_A: f64 = 0.25;
 const YAW_RATE_MAX: f64 = 45.0 * PI / 180.0;
 
-/// Gauss–Markov (first-order) noise: `x ← x·e^{−dt/τ} + σ·√(1−e^{−2dt/τ})·N(0,1)`.
-#[derive(Debug, Clone, Copy)]
-struct Markov {
-    x: f64,
-    sigma: f64,
-    tau: f64,
-}
-
-impl Markov {
-    fn step(&mut self, rng: &mut StdRng, dt: f64) -> f64 {
-        let a = (-dt / self.tau).exp();
-        self.x = self.x * a + self.sigma * (1.0 - a * a).sqrt() * std_normal(rng);
-        self.x
-    }
-}
-
 /// One draw of N(0, 1).
 pub(crate) fn std_normal(rng: &mut StdRng) -> f64 {
     // Normal::new(0, 1) cannot fail.
@@ -376,59 +359,6 @@ pub struct State {
     pub vtol: crate::features::VtolState,
     /// True airspeed an airspeed sensor reads (planes), m/s; None: no sensor.
     pub airspeed_mps: Option<f64>,
-}
-
-/// The weather and the GNSS error: mean wind plus Gauss–Markov gusts, the autopilot's slow
-/// wind estimate, and the GNSS position error. One per flight, drawn from the flight's RNG.
-pub(crate) struct Weather {
-    mean: Vector3<f64>,
-    gust: [Markov; 3],
-    gps_err: [Markov; 3],
-    /// The autopilot's wind estimate, NED m/s.
-    pub wind_est: Vector3<f64>,
-}
-
-impl Weather {
-    /// Gusts of σ = 0.1·wind + 0.2 m/s horizontally (30 % of it vertically), τ = 4 s; GNSS
-    /// error σ 0.6/0.6/0.4 m, τ 20/20/10 s.
-    pub fn new(opts: &SimOptions) -> Self {
-        let mean = opts.wind_ned();
-        let gust_sigma = 0.1 * opts.wind_mps + 0.2;
-        let mut gust = [Markov {
-            x: 0.0,
-            sigma: gust_sigma,
-            tau: 4.0,
-        }; 3];
-        gust[2].sigma = 0.3 * gust_sigma;
-        let m = |sigma, tau| Markov { x: 0.0, sigma, tau };
-        Self {
-            mean,
-            gust,
-            gps_err: [m(0.6, 20.0), m(0.6, 20.0), m(0.4, 10.0)],
-            wind_est: mean,
-        }
-    }
-
-    /// The wind this step (mean + gust), and the estimate's filter (τ = 3 s) stepped.
-    pub fn wind(&mut self, rng: &mut StdRng) -> Vector3<f64> {
-        let g = Vector3::new(
-            self.gust[0].step(rng, DT),
-            self.gust[1].step(rng, DT),
-            self.gust[2].step(rng, DT),
-        );
-        let w = self.mean + g;
-        self.wind_est += (w - self.wind_est) * (DT / 3.0);
-        w
-    }
-
-    /// The GNSS position error this step, NED m.
-    pub fn gps(&mut self, rng: &mut StdRng) -> Vector3<f64> {
-        Vector3::new(
-            self.gps_err[0].step(rng, DT),
-            self.gps_err[1].step(rng, DT),
-            self.gps_err[2].step(rng, DT),
-        )
-    }
 }
 
 /// A multirotor's velocity loop for one step: the acceleration `K_v·(v_des − v)`, clipped

@@ -1,5 +1,5 @@
 //! Where a simulated flight goes: `.tlog` bytes (MAVLink 2 frames behind 8-byte µs
-//! timestamps, [`crate::source::tlog`]'s format) or a UDP stream paced like a live vehicle.
+//! timestamps, [`crate::source::logs::tlog`]'s format) or a UDP stream paced like a live vehicle.
 
 use std::io::Write;
 use std::path::Path;
@@ -15,7 +15,7 @@ impl SimFlight {
     pub fn to_tlog(&self) -> Vec<u8> {
         let mut buf = Vec::with_capacity(self.records.len() * 48);
         for r in &self.records {
-            crate::source::tlog::write_record(
+            crate::source::logs::tlog::write_record(
                 &mut buf,
                 r.t_us,
                 r.header,
@@ -61,22 +61,27 @@ pub fn write_truth(path: &Path, flight: &SimFlight) -> anyhow::Result<()> {
         .with_context(|| format!("{}: cannot write the truth CSV", path.display()))
 }
 
-/// Write `flight` as an ArduPilot DataFlash `.bin` at `path` ([`super::dataflash`]);
+/// Write `flight` as an ArduPilot DataFlash `.bin` at `path` ([`crate::source::logs::dataflash_writer`]);
 /// returns the bytes written. Errors name the file.
 pub fn write_dataflash(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
-    let bytes = flight.to_dataflash();
+    let bytes = crate::source::logs::dataflash_writer::from_mavlink(&stamped(flight));
     std::fs::write(path, &bytes)
         .with_context(|| format!("{}: cannot write the DataFlash log", path.display()))?;
     Ok(bytes.len())
 }
 
-/// Write `flight` as a PX4 ULog `.ulg` at `path` ([`super::ulog`]); returns the bytes
+/// Write `flight` as a PX4 ULog `.ulg` at `path` ([`crate::source::logs::ulog_writer`]); returns the bytes
 /// written. Errors name the file.
 pub fn write_ulog(path: &Path, flight: &SimFlight) -> anyhow::Result<usize> {
-    let bytes = flight.to_ulog();
+    let bytes = crate::source::logs::ulog_writer::from_mavlink(&stamped(flight));
     std::fs::write(path, &bytes)
         .with_context(|| format!("{}: cannot write the ULog", path.display()))?;
     Ok(bytes.len())
+}
+
+/// The flight's messages with their µs stamps, as the log writers take them.
+fn stamped(flight: &SimFlight) -> Vec<(u64, &crate::MavMessage)> {
+    flight.records.iter().map(|r| (r.t_us, &r.msg)).collect()
 }
 
 /// Send `records` as MAVLink 2 frames, one datagram each, to `addr` (`HOST:PORT`), paced

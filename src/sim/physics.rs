@@ -25,6 +25,7 @@
 //! `P = V·I` over the step; the energy above the floor `E` falls by `V·I·dt`. The start is
 //! a full pack, a state of charge or a resting voltage ([`BatteryStart`]).
 
+use crate::features::units::G;
 use std::f64::consts::PI;
 
 use anyhow::Context;
@@ -34,9 +35,6 @@ use crate::battery::{Chemistry, CircuitParams, Estimator};
 use crate::energy::pack::pack_model;
 use crate::model::profile::{self, VehicleProfile};
 use crate::report::{BatteryFacts, Provenance, Sourced};
-
-/// Standard gravity, m/s² (also ArduPilot's `GRAVITY_MSS`, which scales RAW_IMU).
-pub use crate::features::units::G;
 
 /// The airframe and rotor constants of the power model, from a profile.
 #[derive(Debug, Clone, Copy, PartialEq)]

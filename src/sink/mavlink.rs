@@ -49,15 +49,15 @@
 //! usual ground-station arrangement); or to `udpout:HOST:PORT` / `tcpout:HOST:PORT`.
 //! Sending never blocks the pipeline: a full or absent link drops the frame and counts it.
 //! With a `[link] signing_key_file`, every frame is MAVLink 2 signed
-//! ([`crate::source::signing`]), whichever way it goes out.
+//! ([`crate::source::links::signing`]), whichever way it goes out.
 
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
 
 use crate::dialect::{self, MavSeverity};
+use crate::report::status::LinkHandle;
 use crate::report::{Report, VehicleId};
-use crate::source::LinkHandle;
 use crate::MavMessage;
 
 /// The `[sinks.mavlink]` table.
@@ -68,7 +68,7 @@ pub struct MavlinkSinkConfig {
     /// `address` is set.
     pub enabled: Option<bool>,
     /// A link address of its own (`udpout:HOST:PORT`, `tcpout:HOST:PORT`, or any form
-    /// `monitor` takes: the grammar is one, see `crate::source::address`); absent: the link
+    /// `monitor` takes: the grammar is one, see `crate::source::links::address`); absent: the link
     /// `monitor` reads.
     pub address: Option<String>,
     /// System id dronewatt sends with. Default: the id of the vehicle each report is about
@@ -116,7 +116,7 @@ impl MavlinkSinkConfig {
             ));
         }
         if let Some(a) = &self.address {
-            if let Err(e) = a.parse::<crate::source::address::LinkAddress>() {
+            if let Err(e) = a.parse::<crate::source::links::address::LinkAddress>() {
                 errs.push(format!("sinks.mavlink.address: {e}"));
             }
         }
@@ -301,7 +301,7 @@ fn truncate_bytes(s: &str, max: usize) -> &str {
 
 /// Run the sink until the report channel closes.
 /// Frames go out through `link`: the monitored link, or the uplink the pipeline opened
-/// for `address` (both run by `source::link`, so one set of transports serves both).
+/// for `address` (both run by `source::links::link`, so one set of transports serves both).
 pub async fn run(cfg: MavlinkSinkConfig, mut rx: super::ReportRx, link: LinkHandle) -> Result<()> {
     if let Err(e) = cfg.validate() {
         bail!("{e}");

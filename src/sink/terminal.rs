@@ -430,7 +430,7 @@ mod tests {
 #[cfg(test)]
 mod feeds_tests {
     use super::feeds_line;
-    use crate::telemetry::SignalHealth;
+    use crate::report::status::SignalHealth;
 
     #[test]
     fn feeds_name_each_source_and_the_stale_signals() {

@@ -2,30 +2,26 @@
 //! and counts what it could not use in a shared [`IngestStats`].
 //!
 //! ```text
-//!  bytes ─▶ frame::FrameDecoder ─Frame─▶ timed::TimedReader ─TimedMessage─▶ channel
-//!  (link.rs: udp/tcp/serial,   (CRC, resync,     (t_s: tlog stamp, time_boot_ms,
-//!   tlog / raw files, dataset)  counters)         or arrival; clock jumps)
+//!  bytes ─▶ frame::FrameDecoder ─Frame─▶ frame::timed::TimedReader ─TimedMessage─▶ channel
+//!  (links: udp/tcp/serial,     (CRC, resync,     (t_s: tlog stamp, time_boot_ms,
+//!   logs: tlog / raw, dataset)  counters)         or arrival; clock jumps)
 //! ```
+//!
+//! | module | what it is |
+//! |---|---|
+//! | [`links`] | live links and transports: the address grammar, one link (UDP, TCP, serial), several merged, signing, the `[link]` table |
+//! | [`logs`] | recorded formats, each writer beside its reader: `.tlog`, raw streams, DataFlash `.bin`, ULog `.ulg`, the M100 data set |
+//! | [`frame`] | the frame decoder (CRC, resynchronisation, counters) and the clock that stamps decoded frames |
+//! | [`messages`] | what messages mean: which senders are vehicles, what a message says about the pack's power |
 //!
 //! The simulator that writes tlogs is [`crate::sim`].
 
-pub mod address;
-pub mod dataflash;
-mod dataflash_records;
-pub mod dataset;
-pub mod fleet;
 pub mod frame;
-pub mod link;
 pub mod links;
-pub mod power;
-pub mod raw;
-pub mod signing;
-mod synth;
-pub mod timed;
-pub mod tlog;
-pub mod ulog;
-mod ulog_formats;
+pub mod logs;
+pub mod messages;
 
+use crate::report::status::{IngestStats, LinkHandle};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -34,9 +30,8 @@ use tokio::io::{AsyncRead, AsyncReadExt};
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 
-use timed::TimedReader;
+use frame::timed::TimedReader;
 
-pub use crate::report::status::{IngestStats, LinkHandle, StatsSnapshot};
 use crate::MavMessage;
 
 /// One decoded MAVLink message with the time it belongs to.
@@ -118,8 +113,8 @@ pub enum SourceSpec {
         path: std::path::PathBuf,
         speed: Speed,
     },
-    /// An autopilot's own log, ArduPilot DataFlash `.bin` ([`dataflash`]) or PX4 ULog
-    /// `.ulg` ([`ulog`]), as the MAVLink a tlog gives.
+    /// An autopilot's own log, ArduPilot DataFlash `.bin` ([`logs::dataflash`]) or PX4 ULog
+    /// `.ulg` ([`logs::ulog`]), as the MAVLink a tlog gives.
     AutopilotLog {
         path: std::path::PathBuf,
         speed: Speed,
@@ -141,16 +136,16 @@ pub enum SourceSpec {
 /// dronewatt sends and the verifier every incoming frame must pass, shared by every task
 /// of the link. The sinks see only its signing side ([`crate::report::status::FrameSigner`]).
 pub struct LinkSigning {
-    signer: std::sync::Mutex<signing::Signer>,
+    signer: std::sync::Mutex<links::signing::Signer>,
     verifier: frame::SharedVerifier,
 }
 
 impl LinkSigning {
     /// Signer and verifier for this key.
-    pub fn new(s: signing::Signing) -> Self {
+    pub fn new(s: links::signing::Signing) -> Self {
         Self {
-            signer: std::sync::Mutex::new(signing::Signer::new(&s)),
-            verifier: Arc::new(std::sync::Mutex::new(signing::Verifier::new(s))),
+            signer: std::sync::Mutex::new(links::signing::Signer::new(&s)),
+            verifier: Arc::new(std::sync::Mutex::new(links::signing::Verifier::new(s))),
         }
     }
     /// The verifier incoming frames must pass.
@@ -190,7 +185,7 @@ pub async fn run(
     shutdown: CancellationToken,
 ) -> anyhow::Result<()> {
     stats.queues.start();
-    let io = link::LinkIo {
+    let io = links::link::LinkIo {
         tx,
         stats,
         link,
@@ -198,7 +193,7 @@ pub async fn run(
         shutdown,
     };
     match spec {
-        SourceSpec::Link(address) => link::run(address.parse()?, io).await,
+        SourceSpec::Link(address) => links::link::run(address.parse()?, io).await,
         SourceSpec::Links {
             addresses,
             networks,
@@ -206,7 +201,7 @@ pub async fn run(
         } => {
             let addrs = addresses
                 .iter()
-                .map(|a| a.parse::<link::LinkAddress>())
+                .map(|a| a.parse::<links::address::LinkAddress>())
                 .collect::<Result<Vec<_>, _>>()?;
             links::run(addrs, &networks, every_link, io).await
         }
@@ -223,7 +218,8 @@ pub async fn run(
         SourceSpec::AutopilotLog { path, speed } => {
             let msgs = {
                 let (stats, path) = (io.stats.clone(), path.clone());
-                tokio::task::spawn_blocking(move || decode_autopilot_log(&path, &stats)).await??
+                tokio::task::spawn_blocking(move || logs::decode_autopilot_log(&path, &stats))
+                    .await??
             };
             let start = tokio::time::Instant::now();
             for mut m in msgs {
@@ -242,7 +238,8 @@ pub async fn run(
         } => {
             let name = format!("{} flight {flight}", path.display());
             let bytes =
-                tokio::task::spawn_blocking(move || dataset::flight_tlog(&path, flight)).await??;
+                tokio::task::spawn_blocking(move || logs::dataset::flight_tlog(&path, flight))
+                    .await??;
             replay(
                 &bytes[..],
                 &name,
@@ -254,29 +251,6 @@ pub async fn run(
             )
             .await
         }
-    }
-}
-
-/// Read a DataFlash `.bin` or ULog `.ulg` (by its name) whole into the MAVLink a tlog
-/// gives. Errors name the file and what is wrong.
-pub fn decode_autopilot_log(
-    path: &std::path::Path,
-    stats: &IngestStats,
-) -> anyhow::Result<Vec<TimedMessage>> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let name = path.display();
-    if ulog::is_ulog(path) {
-        let (msgs, fault) = ulog::read_ulog(&bytes, stats).with_context(|| format!("{name}"))?;
-        if let Some(e) = fault {
-            let secs = msgs.last().map_or(0.0, |m| m.t_s);
-            tracing::warn!(
-                "{name}: a corrupt or truncated PX4 ULog: {} messages ({secs:.1} s of log time) read up to the fault, the rest of the file skipped: {e}",
-                msgs.len()
-            );
-        }
-        Ok(msgs)
-    } else {
-        dataflash::decode_dataflash(&bytes, stats).with_context(|| format!("{name}"))
     }
 }
 

@@ -87,7 +87,7 @@ impl KindTracker {
     /// its autopilot). `t_us` its time; `stale_us` how long an EXTENDED_SYS_STATE holds.
     pub fn ingest(&mut self, t_us: i64, stale_us: i64, msg: &MavMessage) {
         match msg {
-            MavMessage::HEARTBEAT(h) if crate::source::fleet::is_vehicle_heartbeat(h) => {
+            MavMessage::HEARTBEAT(h) if crate::source::messages::fleet::is_vehicle_heartbeat(h) => {
                 let mav_type = h.mavtype as u8;
                 let q = h.autopilot as u8 == ARDUPILOT
                     && mav_type == 1

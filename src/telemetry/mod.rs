@@ -19,7 +19,7 @@
 //! | velocity | `velocity_*` | LOCAL_POSITION_NED, ODOMETRY (child frame LOCAL_NED or BODY_FRD), GLOBAL_POSITION_INT (cm/s) |
 //! | position | `position_*` | GLOBAL_POSITION_INT, GPS_RAW_INT |
 //! | wind | `wind_speed`, `wind_angle` | WIND, WIND_COV (true wind minus ground velocity = what the anemometer reads), VFR_HUD (airspeed, with the heading as the angle) |
-//! | power | `measured_w`, `voltage_v` | BATTERY_STATUS (battery id 0; cell voltages summed), SYS_STATUS (0 V: no voltage); [`crate::source::power`] |
+//! | power | `measured_w`, `voltage_v` | BATTERY_STATUS (battery id 0; cell voltages summed), SYS_STATUS (0 V: no voltage); [`crate::source::messages::power`] |
 //! | mission | `speed`, `payload`, `altitude` | NAMED_VALUE_FLOAT `cmd_speed` (m/s), `payload_g` (g), `cmd_alt` (m) — the data-set encoder sends these — then `[mission]` config, then defaults 10 m/s, 0 g, 25 m |
 //! | home | [`Sample::home`] | HOME_POSITION, else the first GPS fix (non-zero latitude/longitude) |
 //! | vehicle class, air data | [`Sample::vehicle`], [`Sample::air`] | HEARTBEAT `type`, EXTENDED_SYS_STATE `vtol_state`, ArduPlane's Q modes, the profile's `[vehicle] class`; VFR_HUD airspeed, SYS_STATUS's airspeed sensor, WIND, SCALED_PRESSURE temperature ([`kind`]) |
@@ -56,8 +56,8 @@ pub mod window;
 // The shared types live on the floor ([`crate::features`]); re-exported here because the
 // telemetry stage is where they are made.
 use crate::features::units::G;
-pub use crate::features::{frames, idx, HomeVector, Sample, FEATURE_NAMES, N_FEATURES};
-pub use crate::report::status::{HealthHandle, SignalHealth};
+use crate::features::{frames, idx, Sample};
+use crate::report::status::SignalHealth;
 use crate::source::TimedMessage;
 use crate::telemetry::window::{Window, WindowRing};
 use crate::MavMessage;
@@ -331,7 +331,7 @@ impl Telemetry {
                 false
             }
             (None, MavMessage::HEARTBEAT(h)) => {
-                let autopilot = crate::source::fleet::is_vehicle_heartbeat(h);
+                let autopilot = crate::source::messages::fleet::is_vehicle_heartbeat(h);
                 if autopilot {
                     self.sysid = Some(sys);
                 }
@@ -611,9 +611,9 @@ impl Telemetry {
     }
 
     /// The pack's power from BATTERY_STATUS (rank 0) or SYS_STATUS (rank 1), as
-    /// [`crate::source::power`] reads it.
+    /// [`crate::source::messages::power`] reads it.
     fn power(&mut self, t: i64, msg: &MavMessage) {
-        if let Some(r) = crate::source::power::power_reading(msg) {
+        if let Some(r) = crate::source::messages::power::power_reading(msg) {
             self.offer(
                 Signal::Power,
                 r.rank,

@@ -6,7 +6,7 @@
 //! is the pack of the M100 data set and of the M100's vehicle profile only. Elsewhere the
 //! vehicle knows: ArduPilot's `BATT_CAPACITY` (mAh) and PX4's `BAT1_CAPACITY`,
 //! `BAT1_N_CELLS`. Until something says, the capacity is *not known* (null, with
-//! [`CAPACITY_UNKNOWN`] as its source). Each battery figure is taken, best first, from
+//! [`crate::report::CAPACITY_UNKNOWN`] as its source). Each battery figure is taken, best first, from
 //!
 //! | figure | 1. config | 2. vehicle | 3. fallback |
 //! |---|---|---|---|
@@ -30,14 +30,11 @@ pub mod params;
 pub mod store;
 pub mod streams;
 
-pub use pack_spec::{parse_pack, profile_pack};
-
-pub use crate::report::{
-    BatteryFacts, Provenance, Sourced, CAPACITY_UNKNOWN, DEFAULT_CELL_COUNT, M100_CAPACITY_WH,
-    M100_CELL_COUNT, M100_PACK,
-};
-
 use crate::battery::{cell_candidates, Chemistry};
+use crate::report::{
+    BatteryFacts, Provenance, Sourced, DEFAULT_CELL_COUNT, M100_CAPACITY_WH, M100_CELL_COUNT,
+    M100_PACK,
+};
 
 /// What the configuration says about the battery (the `[energy]` keys that may be left
 /// to the vehicle).
@@ -354,7 +351,7 @@ mod tests {
 
     #[test]
     fn a_pack_from_the_flag() {
-        let p = parse_pack("4S2P:5000mAh:li-ion").expect("a pack");
+        let p = pack_spec::parse_pack("4S2P:5000mAh:li-ion").expect("a pack");
         assert_eq!(
             (p.cell_count, p.chemistry),
             (Some(4), Some(Chemistry::LiIon))
@@ -362,10 +359,10 @@ mod tests {
         assert!((p.capacity_wh.unwrap_or(0.0) - 5.0 * 4.0 * 3.6).abs() < 1e-9);
         let f = battery_from_config(&p);
         assert_eq!(f.capacity_source(), "--pack 4S2P:5000mAh:li-ion");
-        let p = parse_pack("6s:129.96Wh:LiHV").expect("a pack");
+        let p = pack_spec::parse_pack("6s:129.96Wh:LiHV").expect("a pack");
         assert_eq!(p.capacity_wh, Some(129.96));
         assert_eq!(
-            parse_pack("3S:2.2Ah").expect("a pack").chemistry,
+            pack_spec::parse_pack("3S:2.2Ah").expect("a pack").chemistry,
             Some(Chemistry::LiPo)
         );
         for bad in [
@@ -381,7 +378,7 @@ mod tests {
             "4S:NaNmAh",
             "4S:5000mAh:lipo:x",
         ] {
-            let e = parse_pack(bad).expect_err(bad);
+            let e = pack_spec::parse_pack(bad).expect_err(bad);
             assert!(e.starts_with("--pack"), "{e}");
         }
     }

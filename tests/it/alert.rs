@@ -1,11 +1,12 @@
 //! Alert rules on synthetic estimate sequences: debounce, hysteresis, repeat, every kind's
 //! value, and configuration errors that name the file, the key and why.
 
-use dronewatt::alert::{AlertEngine, AlertEvent, AlertState};
+use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
-use dronewatt::energy::EnergyState;
-use dronewatt::model::{Estimate, ModelEstimate};
-use dronewatt::telemetry::{Sample, N_FEATURES};
+use dronewatt::features::{Sample, N_FEATURES};
+use dronewatt::report::EnergyState;
+use dronewatt::report::{AlertEvent, AlertState};
+use dronewatt::report::{Estimate, ModelEstimate};
 
 fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
     Estimate {

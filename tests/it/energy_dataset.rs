@@ -13,7 +13,7 @@ fn flight_276_energy_matches_the_csv() {
         "the data set is not at {} (set DRONEWATT_DATA)",
         data.display()
     );
-    let set = dronewatt::source::dataset::read_flights(&data, Some(&[276])).unwrap();
+    let set = dronewatt::source::logs::dataset::read_flights(&data, Some(&[276])).unwrap();
     let rows = &set
         .flights
         .iter()

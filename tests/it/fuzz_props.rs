@@ -93,7 +93,7 @@ fn the_checks_see_frames_in_garbage_and_count_every_byte() {
     stream.extend_from_slice(&[0xFE, 0x10]);
     fuzz_props::check_decoder(&stream).unwrap();
 
-    let stats = dronewatt::source::IngestStats::default();
+    let stats = dronewatt::report::status::IngestStats::default();
     let mut d =
         dronewatt::source::frame::FrameDecoder::new(dronewatt::source::frame::Framing::Stream);
     d.push(&stream[3..]);
@@ -172,7 +172,7 @@ fn tlog(n: usize, t0_us: u64, version: MavlinkVersion) -> Vec<u8> {
         } else {
             sys_status()
         };
-        dronewatt::source::tlog::write_record(
+        dronewatt::source::logs::tlog::write_record(
             &mut out,
             t0_us + 100_000 * i as u64,
             hdr(i as u8),

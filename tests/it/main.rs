@@ -1,5 +1,5 @@
 //! The integration tests, as one test binary: each file is a module named after the module
-//! or command of dronewatt it tests (`source_tlog` tests `source::tlog`, `offline_plan` the
+//! or command of dronewatt it tests (`source_tlog` tests `source::logs::tlog`, `offline_plan` the
 //! `plan` command, `cli_check_config` `check-config`). One binary links the crate and its
 //! dependencies once instead of once a file (see "Test build" in docs/src/performance.md
 //! for the times). Run one file's tests with `cargo test --test it source_tlog::`, one test

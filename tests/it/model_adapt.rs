@@ -3,11 +3,12 @@
 //! ([`dronewatt::model::adapt`]), not with the published fit that follows the vehicle within
 //! a minute. Real parts: the ensemble with adaptation on, the alert engine from TOML.
 
-use dronewatt::alert::{AlertEngine, AlertRule, AlertState};
-use dronewatt::energy::EnergyState;
+use dronewatt::alert::{AlertEngine, AlertRule};
 use dronewatt::features::{Sample, N_FEATURES};
 use dronewatt::model::adapt::{AdaptConfig, Adaptation};
 use dronewatt::model::{Ensemble, PowerModel, Prediction};
+use dronewatt::report::AlertState;
+use dronewatt::report::EnergyState;
 use dronewatt::telemetry::window::Window;
 
 /// A model that predicts half of what the vehicle really draws in normal flight (an M100

@@ -435,9 +435,9 @@ async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() 
         eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine; the token flow in the browser is NOT tested !!!!!!!!\n");
         return;
     };
-    use dronewatt::energy::{EnergyState, Report};
-    use dronewatt::model::{Estimate, ModelEstimate};
-    use dronewatt::telemetry::{Sample, N_FEATURES};
+    use dronewatt::features::{Sample, N_FEATURES};
+    use dronewatt::report::{EnergyState, Report};
+    use dronewatt::report::{Estimate, ModelEstimate};
     let dir = tempfile::tempdir().unwrap();
     let token = "browser-token-0123456789";
     let cfg = dronewatt::sink::web::WebSinkConfig {

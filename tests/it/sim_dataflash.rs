@@ -88,9 +88,9 @@ fn pymavlink_reads_the_simulated_bin_as_the_tlog_says() {
     }
 
     // dronewatt's reader: the MAVLink a tlog gives.
-    let stats = dronewatt::source::IngestStats::default();
+    let stats = dronewatt::report::status::IngestStats::default();
     let msgs =
-        dronewatt::source::dataflash::decode_dataflash(&std::fs::read(&bin).unwrap(), &stats)
+        dronewatt::source::logs::dataflash::decode_dataflash(&std::fs::read(&bin).unwrap(), &stats)
             .unwrap();
     let hb = msgs
         .iter()

@@ -69,8 +69,9 @@ fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
     }
 
     // dronewatt's reader: the MAVLink a tlog gives.
-    let stats = dronewatt::source::IngestStats::default();
-    let msgs = dronewatt::source::ulog::decode_ulog(&std::fs::read(&ulg).unwrap(), &stats).unwrap();
+    let stats = dronewatt::report::status::IngestStats::default();
+    let msgs =
+        dronewatt::source::logs::ulog::decode_ulog(&std::fs::read(&ulg).unwrap(), &stats).unwrap();
     let MavMessage::HEARTBEAT(hb) = &msgs[0].msg else {
         panic!("{:?}", msgs[0])
     };

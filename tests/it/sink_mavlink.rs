@@ -9,11 +9,12 @@ use std::sync::Arc;
 
 use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
-use dronewatt::energy::{EnergyTracker, Report};
-use dronewatt::model::{Estimate, ModelEstimate};
+use dronewatt::energy::EnergyTracker;
+use dronewatt::features::{Sample, N_FEATURES};
 use dronewatt::pipeline::start_sinks;
+use dronewatt::report::Report;
+use dronewatt::report::{Estimate, ModelEstimate};
 use dronewatt::sink::SinkSpec;
-use dronewatt::telemetry::{Sample, N_FEATURES};
 
 fn python() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv-py/bin/python")

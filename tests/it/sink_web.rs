@@ -8,11 +8,12 @@ use std::process::Command;
 
 use dronewatt::alert::AlertEngine;
 use dronewatt::config::Config;
-use dronewatt::energy::{EnergyTracker, Report};
-use dronewatt::model::{Estimate, ModelEstimate};
+use dronewatt::energy::EnergyTracker;
+use dronewatt::features::{HomeVector, Sample, N_FEATURES};
 use dronewatt::report::MissionStatus;
+use dronewatt::report::Report;
+use dronewatt::report::{Estimate, ModelEstimate};
 use dronewatt::sink::web;
-use dronewatt::telemetry::{HomeVector, Sample, N_FEATURES};
 
 pub(crate) fn chromium() -> Option<&'static str> {
     ["chromium", "chromium-browser"].into_iter().find(|c| {

@@ -6,7 +6,7 @@ use std::io::{Read, Write};
 use std::path::Path;
 
 use dronewatt::offline::data::list_flights;
-use dronewatt::source::dataset::{flight_tlog, read_flights};
+use dronewatt::source::logs::dataset::{flight_tlog, read_flights};
 
 /// Header and the lines of flights 276 and 277 of the real file.
 fn real_lines() -> (String, Vec<String>) {

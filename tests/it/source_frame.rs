@@ -3,8 +3,8 @@
 
 use crate::mavlink_common;
 
+use dronewatt::report::status::{IngestStats, StatsSnapshot};
 use dronewatt::source::frame::{FrameDecoder, Framing};
-use dronewatt::source::{IngestStats, StatsSnapshot};
 use dronewatt::MavMessage;
 use mavlink::MavlinkVersion::{self, V1, V2};
 use mavlink_common::*;

@@ -7,7 +7,8 @@ use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
 use std::time::Duration;
 
-use dronewatt::source::{IngestStats, LinkHandle, SourceSpec, TimedMessage};
+use dronewatt::report::status::{IngestStats, LinkHandle};
+use dronewatt::source::{SourceSpec, TimedMessage};
 use mavlink::MavlinkVersion::V2;
 use mavlink_common::*;
 use tokio::io::AsyncWriteExt;
@@ -217,8 +218,11 @@ async fn tcpout_to_nobody_keeps_retrying_and_stops_on_shutdown() {
     let listener = tokio::net::TcpListener::bind(("127.0.0.1", port))
         .await
         .unwrap();
-    let accept =
-        tokio::time::timeout(dronewatt::source::link::BACKOFF_MAX, listener.accept()).await;
+    let accept = tokio::time::timeout(
+        dronewatt::source::links::link::BACKOFF_MAX,
+        listener.accept(),
+    )
+    .await;
     let (mut conn, _) = accept
         .expect("no retry reached the vehicle once it listened")
         .unwrap();

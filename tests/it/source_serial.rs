@@ -6,7 +6,8 @@ use crate::mavlink_common;
 use std::sync::Arc;
 use std::time::Duration;
 
-use dronewatt::source::{IngestStats, LinkHandle, SourceSpec};
+use dronewatt::report::status::{IngestStats, LinkHandle};
+use dronewatt::source::SourceSpec;
 use mavlink::MavlinkVersion::{V1, V2};
 use mavlink_common::*;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};

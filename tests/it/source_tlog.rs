@@ -3,10 +3,11 @@
 
 use crate::mavlink_common;
 
-use dronewatt::source::raw::decode_raw;
-use dronewatt::source::timed::TimedReader;
-use dronewatt::source::tlog::decode_tlog;
-use dronewatt::source::{IngestStats, StatsSnapshot, TimedMessage};
+use dronewatt::report::status::{IngestStats, StatsSnapshot};
+use dronewatt::source::frame::timed::TimedReader;
+use dronewatt::source::logs::raw::decode_raw;
+use dronewatt::source::logs::tlog::decode_tlog;
+use dronewatt::source::TimedMessage;
 use mavlink::MavlinkVersion::{V1, V2};
 use mavlink_common::*;
 

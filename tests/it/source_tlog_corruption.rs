@@ -4,9 +4,9 @@
 //! for, and nothing may be invented. The kept/total figures are printed for the README:
 //! `cargo test --test it source_tlog_corruption:: -- --nocapture`.
 
+use dronewatt::report::status::IngestStats;
 use dronewatt::source::frame::good_frame_len;
-use dronewatt::source::timed::TimedReader;
-use dronewatt::source::IngestStats;
+use dronewatt::source::frame::timed::TimedReader;
 
 /// Byte ranges of the records of a clean tlog (stamp + frame).
 fn records(bytes: &[u8]) -> Vec<(usize, usize)> {

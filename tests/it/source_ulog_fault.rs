@@ -7,8 +7,9 @@ use crate::harness::{dronewatt, RunExt};
 use std::path::Path;
 use std::sync::atomic::Ordering::Relaxed;
 
-use dronewatt::source::ulog::{read_ulog, UlogError};
-use dronewatt::source::{decode_autopilot_log, IngestStats};
+use dronewatt::report::status::IngestStats;
+use dronewatt::source::logs::decode_autopilot_log;
+use dronewatt::source::logs::ulog::{read_ulog, UlogError};
 
 fn simulate(path: &Path) {
     let _out = dronewatt()

@@ -5,10 +5,10 @@
 //!
 //! Needs the data set (`DRONEWATT_DATA`).
 
-use dronewatt::source::dataset::{read_flights, Row};
-use dronewatt::telemetry::frames::{
+use dronewatt::features::frames::{
     ds_to_ned, ne_offset_m, ned_to_body_vel, qmul, rotate, yaw_ned, Quat,
 };
+use dronewatt::source::logs::dataset::{read_flights, Row};
 
 fn corr(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len() as f64;

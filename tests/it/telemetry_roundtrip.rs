@@ -5,11 +5,12 @@
 //!
 //! Needs the data set (`DRONEWATT_DATA`, default `../shared/data/m100/flights.csv.gz`).
 
+use dronewatt::features::{idx, FEATURE_NAMES, N_FEATURES};
 use dronewatt::offline::data::flight_windows;
-use dronewatt::source::dataset::{read_flights, Flight};
+use dronewatt::source::logs::dataset::{read_flights, Flight};
 use dronewatt::telemetry::resample::{Resampler, Signal};
 use dronewatt::telemetry::window::{Window, WindowRing};
-use dronewatt::telemetry::{idx, MissionConfig, TelemetryConfig, FEATURE_NAMES, N_FEATURES};
+use dronewatt::telemetry::{MissionConfig, TelemetryConfig};
 
 /// The CSV columns resampled directly, windowed the way `Telemetry` windows.
 fn csv_windows(f: &Flight, cfg: &TelemetryConfig) -> Vec<Window> {

@@ -10,10 +10,11 @@
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use dronewatt::features::{Sample, N_FEATURES};
 use dronewatt::model::lstm::{resolve_model_path, LstmModel};
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::window::Window;
-use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
+use dronewatt::telemetry::TelemetryConfig;
 
 /// A plausible in-flight window (values near the data set's means).
 fn window(i: usize) -> Window {

@@ -23,7 +23,8 @@ use dronewatt::model::card::{ModelCard, WeightsFormat};
 use dronewatt::offline::data::FlightWindows;
 use dronewatt::offline::learn::{FineTuneJob, FineTuned};
 
-use crate::train::{flight_data, loss_fn, to_tensors, validate, Scaling};
+use crate::train::tensors::{flight_data, loss_fn, to_tensors};
+use crate::train::{validate, Scaling};
 use crate::Net;
 
 /// Name of the fine-tuned model (in the JSON lines, the tables and the profile's forecast).

@@ -2,11 +2,12 @@
 //! match the ingest path. Synthetic windows: power is a known function of the inputs, so
 //! these run without the data set.
 
+use dronewatt::features::{Sample, N_FEATURES};
 use dronewatt::model::card::{FeatureSet, ModelCard, TrainingInfo, WeightsFormat};
 use dronewatt::model::lstm::{push_inputs, LstmModel};
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::window::Window;
-use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
+use dronewatt::telemetry::TelemetryConfig;
 use dronewatt_torch::Net;
 use tch::nn::{self, OptimizerConfig};
 use tch::{Device, Kind, Tensor};

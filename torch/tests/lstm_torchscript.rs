@@ -5,11 +5,12 @@
 
 use std::process::Command;
 
+use dronewatt::features::{Sample, N_FEATURES};
 use dronewatt::model::card::{FeatureSet, ModelCard, TrainingInfo, WeightsFormat};
 use dronewatt::model::lstm::LstmModel;
 use dronewatt::model::PowerModel;
 use dronewatt::telemetry::window::Window;
-use dronewatt::telemetry::{Sample, TelemetryConfig, N_FEATURES};
+use dronewatt::telemetry::TelemetryConfig;
 
 const EXPORT: &str = r#"
 import sys, torch

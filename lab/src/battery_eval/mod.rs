@@ -43,7 +43,7 @@ use dronewatt::battery::forecast::{SAG_IN_FLIGHT, SAG_PREFLIGHT};
 use dronewatt::battery::{forecast, CircuitParams, OcvCurve, PACK_SCALE_CARRY};
 use dronewatt::offline::args::{help, CalibratedArg, DataArg, JsonArg};
 use dronewatt::offline::data::TEST_FLIGHTS;
-use dronewatt::source::dataset;
+use dronewatt::source::logs::dataset;
 
 use prep::{
     fill_grid, heat_carry, link_chains, median, prepare, previous_pack_scale, Prepared, DT,

@@ -13,7 +13,7 @@ use crate::route::geometry_for;
 use dronewatt::config::Config;
 use dronewatt::mission::forecast::{forecast, Calibration};
 use dronewatt::offline::data::TEST_FLIGHTS;
-use dronewatt::source::dataset::Flight;
+use dronewatt::source::logs::dataset::Flight;
 
 /// One flight's planned power: P50 power a trajectory sample (W) at `dt_s` steps from the
 /// take-off command.

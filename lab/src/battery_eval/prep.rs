@@ -16,7 +16,7 @@
 
 use std::collections::HashMap;
 
-use dronewatt::source::dataset::Flight;
+use dronewatt::source::logs::dataset::Flight;
 
 /// Relaxation correction of the end rest voltage: v_rest = v_tail + k·slope + c.
 /// Fitted by fit.py on 87 training pairs (results.json `relax`).

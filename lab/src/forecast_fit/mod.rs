@@ -22,7 +22,7 @@ use dronewatt::model::profile::VehicleProfile;
 use dronewatt::model::PowerModel;
 use dronewatt::offline::metrics::median;
 use dronewatt::offline::metrics::quantile;
-use dronewatt::source::dataset::{self, Flight};
+use dronewatt::source::logs::dataset::{self, Flight};
 use score::{gcs_left_s, score};
 
 /// One model's uncorrected forecast of a flight's plan, split for fitting: energy by

@@ -184,9 +184,11 @@ fn r7s_altitude_stages_are_slanted_climbs_and_the_forecast_prices_their_climb() 
     use dronewatt::features::idx;
     use dronewatt::mission::forecast::{forecast, Calibration, Member};
     use dronewatt::mission::trajectory::{fly, Conditions, KinematicsConfig, Wind};
-    let ds =
-        dronewatt::source::dataset::read_flights(&dronewatt::default_data_path(), Some(&[278]))
-            .unwrap();
+    let ds = dronewatt::source::logs::dataset::read_flights(
+        &dronewatt::default_data_path(),
+        Some(&[278]),
+    )
+    .unwrap();
     let f = &ds.flights[0];
     assert_eq!(
         (f.route.as_str(), f.altitude_text.as_str()),

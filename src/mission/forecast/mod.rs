@@ -42,8 +42,8 @@
 //! Pure: no I/O.
 
 use super::trajectory::Trajectory;
+use crate::features::idx;
 use crate::model::{PowerModel, Prediction};
-use crate::telemetry::idx;
 use crate::telemetry::window::Window;
 
 /// P90 over P50 of a vehicle flown on models no one calibrated for it (a plane, a VTOL, a
@@ -205,7 +205,7 @@ impl Calibration {
 
 /// Phase of a trajectory sample for [`Member::phase_scale`]: 0 vertical climb, 1
 /// vertical descent (|v_z| > 0.5 m/s with under 1 m/s horizontal), 2 anything else.
-pub fn phase_of(s: &crate::telemetry::Sample) -> usize {
+pub fn phase_of(s: &crate::features::Sample) -> usize {
     let f = &s.features;
     let vh = f[idx::VX].hypot(f[idx::VY]);
     if vh < 1.0 && f[idx::VZ] > 0.5 {
@@ -219,7 +219,7 @@ pub fn phase_of(s: &crate::telemetry::Sample) -> usize {
 
 /// The vertical work rate of a sample, W: m·g·v_z climbing and m·g·|v_z| descending
 /// (`[up, down]`, one of them 0), with m = `vehicle_kg` + the sample's payload.
-pub fn vertical_work_w(s: &crate::telemetry::Sample, vehicle_kg: f64) -> [f64; 2] {
+pub fn vertical_work_w(s: &crate::features::Sample, vehicle_kg: f64) -> [f64; 2] {
     let vz = f64::from(s.features[idx::VZ]);
     let w = (vehicle_kg + f64::from(s.features[idx::PAYLOAD]).max(0.0) / 1000.0) * 9.81 * vz.abs();
     if vz > 0.0 {

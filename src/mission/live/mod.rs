@@ -27,7 +27,7 @@
 //! What is left is corrected by the flight's own showing, as `plan-eval` scores it
 //! ([`super::forecast::live_scaled`]): the energy drawn since the vehicle's HEARTBEAT was
 //! seen to turn armed (battery voltage × current, BATTERY_STATUS else SYS_STATUS, read as the
-//! telemetry stage reads it: [`crate::source::power`]) against the forecast of the
+//! telemetry stage reads it: [`crate::source::messages::power`]) against the forecast of the
 //! part of the plan flown, weight `[forecast.calibration] live_weight`.
 
 use std::time::Duration;
@@ -52,7 +52,7 @@ const REFLY_EVERY_S: f64 = 30.0;
 /// A gap between two power readings longer than this adds nothing to the energy
 /// so far (the link was lost), s.
 const POWER_GAP_S: f64 = 5.0;
-/// A power message of a lower rank ([`crate::source::power`]: SYS_STATUS) counts once the
+/// A power message of a lower rank ([`crate::source::messages::power`]: SYS_STATUS) counts once the
 /// preferred one (BATTERY_STATUS) has been silent this long, s: under [`POWER_GAP_S`], so
 /// the handover loses nothing.
 const PREFERRED_STALE_S: f64 = 3.0;
@@ -82,7 +82,7 @@ pub struct LiveSetup {
     /// The vehicles it may follow (`[fleet] vehicles` / `--vehicles`): another vehicle's
     /// heartbeat, position or MISSION_CURRENT is not looked at (a ground station's mission
     /// messages still are: a logged upload).
-    pub follows: crate::source::fleet::VehicleFilter,
+    pub follows: crate::source::messages::fleet::VehicleFilter,
     /// The vehicle profile's `[vehicle] class`, when it sets one: wins over the HEARTBEAT's
     /// type, which picks how the plan is flown otherwise (a plane and a VTOL as
     /// [`super::trajectory::plane`] flies them; the fixed-wing model must be among `models`).
@@ -138,7 +138,7 @@ pub struct LiveMission {
     so_far_wh: Option<f64>,
     /// The last pack power while armed: source time, s, and W.
     last_power: Option<(f64, f64)>,
-    /// The preferred power message heard lately: its rank ([`crate::source::power`]) and
+    /// The preferred power message heard lately: its rank ([`crate::source::messages::power`]) and
     /// when.
     power_rank: Option<(usize, f64)>,
 }
@@ -179,7 +179,7 @@ impl LiveMission {
         let MavMessage::HEARTBEAT(h) = m else {
             return;
         };
-        if !crate::source::fleet::is_vehicle_heartbeat(h) {
+        if !crate::source::messages::fleet::is_vehicle_heartbeat(h) {
             return;
         }
         let armed = h
@@ -197,7 +197,7 @@ impl LiveMission {
 
     /// Integrate the pack's power while armed (each reading held to the next; a gap over
     /// [`POWER_GAP_S`] counts nothing). Of BATTERY_STATUS and SYS_STATUS, the telemetry
-    /// stage's choice ([`crate::source::power`]): a SYS_STATUS reading counts only while no
+    /// stage's choice ([`crate::source::messages::power`]): a SYS_STATUS reading counts only while no
     /// BATTERY_STATUS reading was heard in the last [`PREFERRED_STALE_S`].
     fn learn_power(&mut self, t_s: f64, rank: usize, power_w: f64) {
         if let Some((best, at)) = self.power_rank {
@@ -233,7 +233,7 @@ impl LiveMission {
     fn learn_class(&mut self, m: &MavMessage, t_s: f64) -> Option<MissionStatus> {
         let before = self.class();
         match m {
-            MavMessage::HEARTBEAT(h) if crate::source::fleet::is_vehicle_heartbeat(h) => {
+            MavMessage::HEARTBEAT(h) if crate::source::messages::fleet::is_vehicle_heartbeat(h) => {
                 let t = h.mavtype as u8;
                 self.heard_class = Some(crate::features::class::class_of_mav_type(t));
                 self.vtol_seen |= h.autopilot
@@ -317,7 +317,7 @@ impl LiveMission {
                 self.learn_class(&m.msg, m.t_s)
             }
             MavMessage::SYS_STATUS(_) | MavMessage::BATTERY_STATUS(_) => {
-                if let Some(r) = crate::source::power::power_reading(&m.msg) {
+                if let Some(r) = crate::source::messages::power::power_reading(&m.msg) {
                     self.learn_power(m.t_s, r.rank, r.power_w());
                 }
                 None

@@ -62,7 +62,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::plan::{GeoPoint, ItemKind, Plan};
 use crate::features::units::wrap_pi;
-use crate::telemetry::{idx, HomeVector, Sample, N_FEATURES};
+use crate::features::{idx, HomeVector, Sample, N_FEATURES};
 use route::segments;
 
 /// Standard gravity, m/s².

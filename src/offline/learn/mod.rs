@@ -8,7 +8,7 @@
 //! was learned from, the held-out score per log, the inputs).
 //!
 //! Input: `.tlog` files, ArduPilot DataFlash `.bin` and PX4 ULog `.ulg` logs
-//! ([`crate::source::dataflash`], [`crate::source::ulog`]: turned into the same MAVLink
+//! ([`crate::source::logs::dataflash`], [`crate::source::logs::ulog`]: turned into the same MAVLink
 //! stream a tlog gives), or folders of them.
 //!
 //! With `--fine-tune` the LSTM is fine-tuned from the shipped weights too (on libtorch, by
@@ -172,8 +172,8 @@ fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
 fn is_log(p: &Path) -> bool {
     p.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("tlog"))
-        || crate::source::dataflash::is_dataflash(p)
-        || crate::source::ulog::is_ulog(p)
+        || crate::source::logs::dataflash::is_dataflash(p)
+        || crate::source::logs::ulog::is_ulog(p)
 }
 
 /// One log through the live ingest path: its windows, numbered `flight`; only those flown
@@ -193,16 +193,16 @@ pub fn log_windows_by_lift(
     cfg: &Config,
 ) -> Result<(FlightWindows, FlightWindows)> {
     use crate::features::Lift;
-    let stats = crate::source::IngestStats::default();
+    let stats = crate::report::status::IngestStats::default();
     let messages = if path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("tlog"))
     {
         let bytes =
             std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-        crate::source::tlog::decode_tlog(&bytes, &stats)
+        crate::source::logs::tlog::decode_tlog(&bytes, &stats)
     } else {
-        crate::source::decode_autopilot_log(path, &stats)?
+        crate::source::logs::decode_autopilot_log(path, &stats)?
     };
     let class = crate::model::load_profile(cfg.vehicle.as_deref())?
         .vehicle
@@ -654,9 +654,9 @@ fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model
         let Ok(bytes) = std::fs::read(p) else {
             continue;
         };
-        let stats = crate::source::IngestStats::default();
+        let stats = crate::report::status::IngestStats::default();
         let mut reader = crate::vehicle::params::ParamReader::passive();
-        for m in crate::source::tlog::decode_tlog(&bytes, &stats) {
+        for m in crate::source::logs::tlog::decode_tlog(&bytes, &stats) {
             reader.on_message(&m);
         }
         if let Some(id) = reader.params().identity {

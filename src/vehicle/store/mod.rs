@@ -47,6 +47,7 @@ pub use dir::{data_dir, data_dir_from_env, DB_FILE, HOME_ENV, MIN_PCT_DROP};
 pub use flight::{FlightLog, FlightSummary, VehicleKey, MIN_SOC_DROP_PCT};
 pub use list::list;
 
+use crate::features::units::unix_clock;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -176,8 +177,6 @@ const ADDED_COLUMNS: [&str; 7] = [
 
 /// The `TEXT` columns schema 4 adds to `flights`.
 const ADDED_TEXT_COLUMNS: [&str; 1] = ["pack_id"];
-
-pub use crate::features::units::unix_clock;
 
 /// Bring an older store up to [`SCHEMA_VERSION`] in one transaction; refuse a newer one (a
 /// later dronewatt wrote it: reading it could lose what that one keeps).

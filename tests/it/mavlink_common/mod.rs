@@ -161,7 +161,7 @@ pub fn frame(header: MavHeader, msg: &MavMessage, version: MavlinkVersion) -> Ve
 pub fn tlog(recs: &[Rec], version: MavlinkVersion) -> Vec<u8> {
     let mut b = Vec::new();
     for (t, h, m) in recs {
-        dronewatt::source::tlog::write_record(&mut b, *t, *h, m, version);
+        dronewatt::source::logs::tlog::write_record(&mut b, *t, *h, m, version);
     }
     b
 }

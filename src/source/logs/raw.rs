@@ -1,7 +1,7 @@
 //! Raw MAVLink byte streams (a serial capture, `socat` output, a `.bin` dump): frames with
 //! no timestamps. Time comes from the messages themselves: `time_boot_ms`, through a
-//! [`super::timed::Clock`] so a reboot or a wrap (49.7 days) is one counted clock jump
-//! instead of a replay that waits forever or rushes (see [`super::timed::TimeBase`]).
+//! [`crate::source::frame::timed::Clock`] so a reboot or a wrap (49.7 days) is one counted clock jump
+//! instead of a replay that waits forever or rushes (see [`crate::source::frame::timed::TimeBase`]).
 
 use crate::MavMessage;
 
@@ -39,8 +39,11 @@ pub fn boot_time_ms(msg: &MavMessage) -> Option<u32> {
 
 /// Decode a whole in-memory raw stream flat out: every good message in order, timed by
 /// `time_boot_ms` (seconds since the first one), with everything skipped counted.
-pub fn decode_raw(bytes: &[u8], stats: &super::IngestStats) -> Vec<super::TimedMessage> {
-    let mut r = super::timed::TimedReader::raw();
+pub fn decode_raw(
+    bytes: &[u8],
+    stats: &crate::report::status::IngestStats,
+) -> Vec<crate::source::TimedMessage> {
+    let mut r = crate::source::frame::timed::TimedReader::raw();
     r.push(bytes);
     r.finish();
     let mut out = Vec::new();

@@ -5,9 +5,10 @@
 
 use mavlink::MavHeader;
 
-use super::timed::Clock;
-use super::{IngestStats, TimedMessage};
 use crate::dialect as d;
+use crate::report::status::IngestStats;
+use crate::source::frame::timed::Clock;
+use crate::source::TimedMessage;
 use crate::MavMessage;
 
 /// The synthesised stream's state.

@@ -2,7 +2,7 @@
 //! (`dataflash_records`: every message's layout comes from the file's own FMT
 //! records, so any ArduPilot version reads) and turned into the same [`TimedMessage`]s a
 //! tlog gives: MAVLink messages synthesised from the log's entries, `t_s` from their
-//! `TimeUS` through a [`super::timed::Clock`]. Everything downstream (telemetry, windows,
+//! `TimeUS` through a [`crate::source::frame::timed::Clock`]. Everything downstream (telemetry, windows,
 //! `learn`, `replay`) is the tlog path unchanged.
 //!
 //! | DataFlash | MAVLink | used for |
@@ -29,8 +29,9 @@ use std::collections::HashMap;
 use super::dataflash_records::{Entry, Reader};
 
 use super::synth::Synth;
-use super::{IngestStats, TimedMessage};
 use crate::dialect as d;
+use crate::report::status::IngestStats;
+use crate::source::TimedMessage;
 use crate::MavMessage;
 
 /// A DataFlash message's first two bytes.

@@ -2,7 +2,7 @@
 //! the grammar MAVProxy and rust-mavlink users already know.
 //!
 //! The sockets are tokio's and the frames go through our own
-//! [`FrameDecoder`](super::frame::FrameDecoder), not rust-mavlink's connections: those
+//! [`FrameDecoder`](crate::source::frame::FrameDecoder), not rust-mavlink's connections: those
 //! drop frames with a bad CRC silently, and link health is exactly what an operator
 //! needs to see. `t_s` is seconds since the source started (monotonic arrival time).
 //!
@@ -13,6 +13,7 @@
 //! the last peer heard, `udpout:` to its target, `tcpin:` to every connected client,
 //! `tcpout:`/`serial:` to the open connection (frames queued while it is down are dropped).
 
+use super::address::LinkAddress;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -25,10 +26,11 @@ use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 use tracing::{info, warn};
 
-use super::frame::SharedVerifier;
-use super::timed::TimedReader;
-use super::{IngestStats, LinkHandle, TimedMessage};
 use crate::dialect::{MavAutopilot, MavModeFlag, MavState, MavType, HEARTBEAT_DATA};
+use crate::report::status::{IngestStats, LinkHandle};
+use crate::source::frame::timed::TimedReader;
+use crate::source::frame::SharedVerifier;
+use crate::source::TimedMessage;
 use crate::MavMessage;
 
 /// No good frame for this long and the link is reported silent.
@@ -41,8 +43,6 @@ pub const BACKOFF_MAX: Duration = Duration::from_secs(10);
 pub const GCS_SYSTEM_ID: u8 = 255;
 /// Component id dronewatt uses on a link: `MAV_COMP_ID_MISSIONPLANNER` (190).
 pub const GCS_COMPONENT_ID: u8 = 190;
-
-pub use crate::source::address::LinkAddress;
 
 /// What a live link runs with: the channel its messages go to, its counters, the handle
 /// frames are written back through, the signature check of a signed link, and its stop.
@@ -181,7 +181,7 @@ async fn deliver(
     shutdown: &CancellationToken,
 ) -> bool {
     while let Some(m) = reader.next_message(stats) {
-        if !super::send(tx, m, stats, shutdown).await {
+        if !crate::source::send(tx, m, stats, shutdown).await {
             return false;
         }
     }

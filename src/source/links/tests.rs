@@ -1,4 +1,4 @@
-//! Tests of `src/source/links.rs` (a file of their own: the module stays under 600 lines).
+//! Tests of `src/source/links/mod.rs` (a file of their own: the module stays under 600 lines).
 
 use super::*;
 

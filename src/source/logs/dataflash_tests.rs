@@ -1,4 +1,4 @@
-//! Tests of `src/source/dataflash.rs` (a file of their own: the module stays under 600 lines).
+//! Tests of `src/source/logs/dataflash.rs` (a file of their own: the module stays under 600 lines).
 
 use super::super::synth::testutil::{first_heartbeat, sys_status};
 use super::*;

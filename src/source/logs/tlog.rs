@@ -1,9 +1,9 @@
 //! `.tlog` files (QGroundControl / MAVProxy telemetry logs): each frame is preceded by an
 //! 8-byte big-endian timestamp in microseconds since the Unix epoch.
 //!
-//! Reading goes through [`super::frame::FrameDecoder`] in [`Tlog`](super::frame::Framing::Tlog)
+//! Reading goes through [`crate::source::frame::FrameDecoder`] in [`Tlog`](crate::source::frame::Framing::Tlog)
 //! framing (corruption is resynchronised and counted there) and the stamps through a
-//! [`super::timed::Clock`]: `t_s` is seconds since the *first record*, never decreasing,
+//! [`crate::source::frame::timed::Clock`]: `t_s` is seconds since the *first record*, never decreasing,
 //! and a zero, backwards or absurd stamp is a counted clock jump that leaves `t_s` where it
 //! was, so it cannot poison replay pacing.
 
@@ -30,9 +30,9 @@ pub fn write_record(
 /// uses it to walk data-set flights through the live ingest path.
 pub fn decode_tlog(
     bytes: &[u8],
-    stats: &crate::source::IngestStats,
+    stats: &crate::report::status::IngestStats,
 ) -> Vec<crate::source::TimedMessage> {
-    let mut r = super::timed::TimedReader::tlog();
+    let mut r = crate::source::frame::timed::TimedReader::tlog();
     r.push(bytes);
     r.finish();
     // Typical records are 30–60 bytes.

@@ -3,8 +3,9 @@
 
 use std::time::Instant;
 
-use super::frame::{Frame, FrameDecoder, Framing};
-use super::{IngestStats, TimedMessage};
+use super::{Frame, FrameDecoder, Framing};
+use crate::report::status::IngestStats;
+use crate::source::TimedMessage;
 
 /// A raw timestamp this far *behind* the last one is a clock jump, s. Smaller steps back
 /// (messages of different types stamped a little out of order) are held at the last `t_s`.
@@ -132,13 +133,13 @@ impl TimedReader {
     pub fn finish(&mut self) {
         self.decoder.finish();
     }
-    /// Check MAVLink 2 signatures (see [`super::signing`]) from now on.
-    pub fn set_verifier(&mut self, verifier: super::frame::SharedVerifier) {
+    /// Check MAVLink 2 signatures (see [`crate::source::links::signing`]) from now on.
+    pub fn set_verifier(&mut self, verifier: super::SharedVerifier) {
         self.decoder.set_verifier(verifier);
     }
 
-    /// Input bytes by what they turned out to be (see [`super::frame::ByteTally`]).
-    pub fn byte_tally(&self) -> super::frame::ByteTally {
+    /// Input bytes by what they turned out to be (see [`super::ByteTally`]).
+    pub fn byte_tally(&self) -> super::ByteTally {
         self.decoder.byte_tally()
     }
     /// Drop a partial frame and sequence history (a new connection).
@@ -167,7 +168,7 @@ impl TimedReader {
             }
             TimeBase::BootTime { clock, owner, now } => {
                 let mut jumped = false;
-                if let Some(ms) = super::raw::boot_time_ms(&msg) {
+                if let Some(ms) = crate::source::logs::raw::boot_time_ms(&msg) {
                     let me = (header.system_id, header.component_id);
                     if owner.is_none() {
                         *owner = Some(me);

@@ -1,5 +1,5 @@
 //! MAVLink 2 message signing: verifying what a live link brings, signing what dronewatt
-//! sends back. The `[link]` table configures it ([`LinkConfig`]).
+//! sends back. The `[link]` table configures it ([`super::LinkConfig`]).
 //!
 //! ## The signature (MAVLink 2 spec, "Message Signing")
 //!
@@ -37,11 +37,11 @@
 //! SHA-256(passphrase) as the key: `printf %s PASSPHRASE | sha256sum | cut -c1-64 > key.hex`.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use super::frame::{crc16, IFLAG_SIGNED, STX_V2};
+use crate::source::frame::{crc16, IFLAG_SIGNED, STX_V2};
 
 /// Bytes after the CRC of a signed frame: link id, timestamp, signature.
 pub const SIGNATURE_BLOCK_LEN: usize = 13;
@@ -53,55 +53,6 @@ pub const REPLAY_WINDOW_10US: u64 = 60 * 100_000;
 /// 2015-01-01 00:00:00 UTC as a Unix time, s: the signing timestamp's epoch.
 pub const EPOCH_2015_UNIX_S: u64 = 1_420_070_400;
 const V2_HEADER: usize = 10;
-
-/// The `[link]` table: signing on the live link `monitor` watches.
-#[derive(Debug, Clone, Default, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct LinkConfig {
-    /// File holding the 32-byte MAVLink 2 signing key (raw, hex or base64; mode 600). A
-    /// relative path is resolved against the config file's folder. With a key, signed
-    /// frames are verified and everything dronewatt sends is signed. Default: none.
-    pub signing_key_file: Option<PathBuf>,
-    /// Drop unsigned frames (MAVLink 1 included) instead of accepting them. Needs
-    /// `signing_key_file`. Default false.
-    pub require_signing: bool,
-    /// Link id dronewatt puts in the frames it signs, 0–255. Default 0.
-    pub signing_link_id: u8,
-    /// Several links: dronewatt's own frames (the MAVLink sink's, the parameter reader's,
-    /// the mission client's) go on every link instead of the best live one. Default false.
-    pub every_link: bool,
-    /// Never ask the vehicle anything: no parameter reads, no stream requests
-    /// (MAV_CMD_SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM); only listen (and publish to
-    /// the ground station as `[sinks.mavlink]` says). `monitor --listen-only`. Default false.
-    pub listen_only: bool,
-}
-
-impl LinkConfig {
-    /// Cross-field checks; the message names the key.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.require_signing && self.signing_key_file.is_none() {
-            return Err(
-                "link.require_signing = true needs link.signing_key_file (the key to verify with)"
-                    .into(),
-            );
-        }
-        Ok(())
-    }
-
-    /// Read the key file, if one is configured. Errors name the key and the file.
-    pub fn load(&self) -> Result<Option<Signing>, String> {
-        let Some(path) = &self.signing_key_file else {
-            return Ok(None);
-        };
-        let key = read_key_file(path)
-            .map_err(|e| format!("link.signing_key_file = '{}': {e}", path.display()))?;
-        Ok(Some(Signing {
-            key,
-            require: self.require_signing,
-            link_id: self.signing_link_id,
-        }))
-    }
-}
 
 /// A loaded signing set-up: the key and what to do with it.
 #[derive(Clone)]
@@ -304,7 +255,7 @@ impl Signer {
             return false;
         }
         let id = u32::from_le_bytes([frame[7], frame[8], frame[9], 0]);
-        let Some(extra) = super::frame::crc_extra(id) else {
+        let Some(extra) = crate::source::frame::crc_extra(id) else {
             return false;
         };
         frame[2] |= IFLAG_SIGNED;

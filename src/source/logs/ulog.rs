@@ -2,7 +2,7 @@
 //! (streaming; every topic's layout comes from the file's own format definitions) and
 //! turned into the same [`TimedMessage`]s a tlog gives, as [`super::dataflash`] does for
 //! ArduPilot: `t_s` from each topic's `timestamp` (µs since boot) through a
-//! [`super::timed::Clock`].
+//! [`crate::source::frame::timed::Clock`].
 //!
 //! | uORB topic (instance 0) | MAVLink | used for |
 //! |---|---|---|
@@ -25,8 +25,9 @@ use yule_log::model::inst::{FieldValue as V, Format, ParameterValue};
 use yule_log::model::msg::UlogMessage;
 
 use super::synth::Synth;
-use super::{IngestStats, TimedMessage};
 use crate::dialect as d;
+use crate::report::status::IngestStats;
+use crate::source::TimedMessage;
 use crate::MavMessage;
 
 /// What is wrong with a file that is not a readable ULog.

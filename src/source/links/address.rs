@@ -2,7 +2,7 @@
 //! already know: `udpin:HOST:PORT`, `udpout:HOST:PORT`, `tcpin:HOST:PORT`,
 //! `tcpout:HOST:PORT`, `serial:DEVICE:BAUD` (`udp:` and `tcp:` are accepted for `udpin:`
 //! and `tcpout:`). The monitored link (`monitor ADDRESS`), the MAVLink sink's own
-//! `address` and the simulator's output all parse it here, and `source::link` runs every
+//! `address` and the simulator's output all parse it here, and `source::links::link` runs every
 //! transport. Imports nothing of ours.
 
 use anyhow::Result;

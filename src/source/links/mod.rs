@@ -1,6 +1,6 @@
 //! Several live links in one source: `monitor ADDR ADDR …` or the config's `[[links]]`.
 //!
-//! Each link runs as [`super::link::run`] does alone, with its own counters. Their messages
+//! Each link runs as [`link::run`] does alone, with its own counters. Their messages
 //! meet in one merged stream, keyed by the vehicle's system id across links (the same
 //! vehicle over a radio and LTE is one vehicle), or by network and system id where the
 //! config names separate networks ([`Networks`]: two fleets may both use system id 1):
@@ -34,6 +34,10 @@
 //! (each once), `gaps` breaks in the merged sequence of a sender (what no link brought);
 //! bad frames, junk and signature counters are the links' summed.
 
+pub mod address;
+pub mod link;
+pub mod signing;
+
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::sync::Arc;
@@ -43,10 +47,59 @@ use anyhow::Result;
 use mavlink::Message;
 use tokio::sync::mpsc;
 
-use super::link::{LinkAddress, LinkIo, SILENCE};
-use super::{IngestStats, LinkHandle, TimedMessage};
+use super::TimedMessage;
+use crate::report::status::{IngestStats, LinkHandle, LinkHealth};
+use address::LinkAddress;
+use link::{LinkIo, SILENCE};
 
-pub use crate::report::status::LinkHealth;
+/// The `[link]` table: signing on the live link `monitor` watches.
+#[derive(Debug, Clone, Default, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinkConfig {
+    /// File holding the 32-byte MAVLink 2 signing key (raw, hex or base64; mode 600). A
+    /// relative path is resolved against the config file's folder. With a key, signed
+    /// frames are verified and everything dronewatt sends is signed. Default: none.
+    pub signing_key_file: Option<std::path::PathBuf>,
+    /// Drop unsigned frames (MAVLink 1 included) instead of accepting them. Needs
+    /// `signing_key_file`. Default false.
+    pub require_signing: bool,
+    /// Link id dronewatt puts in the frames it signs, 0–255. Default 0.
+    pub signing_link_id: u8,
+    /// Several links: dronewatt's own frames (the MAVLink sink's, the parameter reader's,
+    /// the mission client's) go on every link instead of the best live one. Default false.
+    pub every_link: bool,
+    /// Never ask the vehicle anything: no parameter reads, no stream requests
+    /// (MAV_CMD_SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM); only listen (and publish to
+    /// the ground station as `[sinks.mavlink]` says). `monitor --listen-only`. Default false.
+    pub listen_only: bool,
+}
+
+impl LinkConfig {
+    /// Cross-field checks; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.require_signing && self.signing_key_file.is_none() {
+            return Err(
+                "link.require_signing = true needs link.signing_key_file (the key to verify with)"
+                    .into(),
+            );
+        }
+        Ok(())
+    }
+
+    /// Read the key file, if one is configured. Errors name the key and the file.
+    pub fn load(&self) -> Result<Option<signing::Signing>, String> {
+        let Some(path) = &self.signing_key_file else {
+            return Ok(None);
+        };
+        let key = signing::read_key_file(path)
+            .map_err(|e| format!("link.signing_key_file = '{}': {e}", path.display()))?;
+        Ok(Some(signing::Signing {
+            key,
+            require: self.require_signing,
+            link_id: self.signing_link_id,
+        }))
+    }
+}
 
 /// A copy of a message heard again within this many seconds is a duplicate, at the most
 /// (a slow sender's window; a fast one's is shorter: [`Dedup`]).
@@ -284,7 +337,7 @@ pub async fn run(
             verifier: io.verifier.clone(),
             shutdown: io.shutdown.clone(),
         };
-        tasks.spawn(super::link::run(addr, own_io));
+        tasks.spawn(link::run(addr, own_io));
     }
     drop(merged_tx);
     // What the chain sends goes to the best live link (of each network: the main handle's
@@ -492,5 +545,4 @@ fn publish(
 }
 
 #[cfg(test)]
-#[path = "links_tests.rs"]
 mod tests;
