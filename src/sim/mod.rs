@@ -573,7 +573,7 @@ impl State {
 
 /// Body-to-NED rotation whose body z axis (down, FRD) opposes the thrust and whose heading
 /// is `yaw`.
-fn attitude_from_thrust(t_ned: &Vector3<f64>, yaw: f64) -> Rotation3<f64> {
+pub(crate) fn attitude_from_thrust(t_ned: &Vector3<f64>, yaw: f64) -> Rotation3<f64> {
     let b3 = -t_ned.normalize();
     let heading = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
     let b2 = b3.cross(&heading).normalize();

@@ -1,3 +1,5 @@
+use nalgebra::Vector3;
+
 use super::*;
 use crate::model::profile::VehicleProfile;
 
