@@ -249,13 +249,24 @@ impl Emitter {
         })
     }
 
-    /// Emit whatever is due at `now`, drawing sensor noise from `rng`.
+    /// Emit whatever is due at `now`, drawing sensor noise from `rng` (always in the same
+    /// order: the position's, the attitude's, then the IMU's and the airspeed's when due).
     pub fn emit(&mut self, now: &Instant, rng: &mut StdRng) {
-        let (t_ms, st, phase) = (now.t_ms, now.st, now.phase);
-        let boot_ms = now.boot_ms();
-        let n = |rng: &mut StdRng, s: f64| s * std_normal(rng);
-        let (roll, pitch, yaw) = st.rot.euler_angles();
+        self.emit_state(now);
+        // Battery: measured voltage and current carry sensor noise.
+        if Every::new(500, 50).due(now.t_ms) {
+            self.battery(now, rng);
+        }
+        let (vel_meas, alt, hdg_deg) = self.emit_position(now, rng);
+        self.emit_attitude(now, rng);
+        self.emit_air_and_home(now, rng, &vel_meas, alt, hdg_deg);
+    }
 
+    /// The heartbeat, the named values, the parameters and the mission, and the landed
+    /// state: what carries no sensor noise.
+    fn emit_state(&mut self, now: &Instant) {
+        let (t_ms, phase) = (now.t_ms, now.phase);
+        let boot_ms = now.boot_ms();
         // Heartbeat at 1 Hz, and at once when the mode or arming changes (so HOME_POSITION
         // never precedes the armed heartbeat).
         let mode = self.style.custom_mode(now);
@@ -315,10 +326,15 @@ impl Emitter {
         if let Some(m) = self.style.landed_state(now) {
             self.push(t_ms, m);
         }
-        // Battery: measured voltage and current carry sensor noise.
-        if Every::new(500, 50).due(t_ms) {
-            self.battery(now, rng);
-        }
+    }
+
+    /// GLOBAL_POSITION_INT and GPS_RAW_INT when due; returns the measured velocity, the
+    /// altitude (AMSL) and the heading, which the airspeed message reuses.
+    fn emit_position(&mut self, now: &Instant, rng: &mut StdRng) -> (Vector3<f64>, f64, f64) {
+        let (t_ms, st) = (now.t_ms, now.st);
+        let boot_ms = now.boot_ms();
+        let n = |rng: &mut StdRng, s: f64| s * std_normal(rng);
+        let (_, _, yaw) = st.rot.euler_angles();
         // Position: GPS error (Gauss–Markov) on position, white noise on velocity.
         let (lat, lon, alt) = HOME.to_geodetic(&(st.pos + now.gps_err));
         let vel_meas = st.vel + Vector3::new(n(rng, 0.08), n(rng, 0.08), n(rng, 0.05));
@@ -357,6 +373,14 @@ impl Emitter {
                 }),
             );
         }
+        (vel_meas, alt, hdg_deg)
+    }
+
+    /// The attitude, and the IMU (specific force, rates, field), when due.
+    fn emit_attitude(&mut self, now: &Instant, rng: &mut StdRng) {
+        let (t_ms, st) = (now.t_ms, now.st);
+        let n = |rng: &mut StdRng, s: f64| s * std_normal(rng);
+        let (roll, pitch, yaw) = st.rot.euler_angles();
         // Attitude.
         let att_noise = Vector3::new(n(rng, 0.004), n(rng, 0.004), n(rng, 0.006));
         let rate_meas = st.rates + Vector3::new(n(rng, 0.015), n(rng, 0.015), n(rng, 0.01));
@@ -396,6 +420,19 @@ impl Emitter {
             );
             self.push(t_ms, m);
         }
+    }
+
+    /// VFR_HUD and the autopilot's air data when due; HOME_POSITION once armed, then every 5 s.
+    fn emit_air_and_home(
+        &mut self,
+        now: &Instant,
+        rng: &mut StdRng,
+        vel_meas: &Vector3<f64>,
+        alt: f64,
+        hdg_deg: f64,
+    ) {
+        let (t_ms, st) = (now.t_ms, now.st);
+        let n = |rng: &mut StdRng, s: f64| s * std_normal(rng);
         if Every::new(250, 60).due(t_ms) {
             // A plane's airspeed sensor reads the true airspeed; a multirotor's autopilot
             // says its ground velocity less its wind estimate.
