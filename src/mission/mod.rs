@@ -49,7 +49,7 @@ pub struct LiveForecastConfig {
     /// mission over a live link (MAVLink mission protocol), take it from a replayed
     /// `.tlog`'s logged items. Default true.
     pub enabled: bool,
-    /// A calibrated vehicle profile (`dronewatt calibrate`'s output, e.g.
+    /// A calibrated vehicle profile (`dronewatt-lab calibrate`'s output, e.g.
     /// `vehicles/m100-calibrated.toml`; relative to the config file) whose `<model>_cal`
     /// physics models run beside the vehicle's own, so that the calibration's `model`
     /// gives the P50. Default none: then the vehicle's first physics model gives it,

@@ -410,7 +410,7 @@ pub fn load_profile(vehicle: Option<&std::path::Path>) -> anyhow::Result<profile
 }
 
 /// Every model a configuration runs, in table order: the one place models are listed, so
-/// the live ensemble and `dronewatt eval` score exactly the same set. `vehicle` is the
+/// the live ensemble and `dronewatt-lab eval` score exactly the same set. `vehicle` is the
 /// profile file (`vehicle` in the TOML; the built-in M100 without one); `telemetry` is
 /// checked against the LSTM's card (rate and window must match what it was trained on).
 pub fn build_models(

@@ -92,7 +92,7 @@ pub struct VehicleProfile {
     /// plane or quadplane flies (optional; `simulate` flies a plane when it is present).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plane: Option<PlaneSim>,
-    /// Present only in a profile written by `dronewatt calibrate`: models built from it
+    /// Present only in a profile written by `dronewatt-lab calibrate`: models built from it
     /// are named with a `_cal` suffix.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<Calibration>,

@@ -79,7 +79,7 @@ impl JsonArg {
     }
 }
 
-// `--calibrated FILE`: the profile `dronewatt calibrate` writes, whose physics models run as
+// `--calibrated FILE`: the profile `dronewatt-lab calibrate` writes, whose physics models run as
 // `<model>_cal` (`eval`, `plan`, `plan-eval`, `battery-eval`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct CalibratedArg {

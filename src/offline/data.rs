@@ -207,8 +207,8 @@ pub fn cv_k(k: usize, n: usize) -> usize {
 /// The pool (in the order given, as [`training_pool`] returns it) is shuffled by a
 /// [`rand::rngs::StdRng`] seeded `seed ^ 0x5eed`, and the flight at shuffled position `i`
 /// goes to fold `i % k`, so fold sizes differ by at most one. `k` is taken through
-/// [`cv_k`]. These are the folds `dronewatt train --cv K --seed S` validates the LSTM on,
-/// and the `fold` column `dronewatt train --export-csv` writes for the LightGBM scripts:
+/// [`cv_k`]. These are the folds `dronewatt-lab train --cv K --seed S` validates the LSTM on,
+/// and the `fold` column `dronewatt-lab train --export-csv` writes for the LightGBM scripts:
 /// both sides of the comparison hold out the same flights.
 pub fn cv_folds(pool: &[u32], k: usize, seed: u64) -> Vec<(u32, usize)> {
     use rand::seq::SliceRandom;

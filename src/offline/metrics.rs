@@ -1,5 +1,5 @@
-//! Scores of one model on one flight, in watts: what `dronewatt eval` reports and what
-//! `dronewatt train` records in the model card. One function ([`score_over`]) scores
+//! Scores of one model on one flight, in watts: what `dronewatt-lab eval` reports and what
+//! `dronewatt-lab train` records in the model card. One function ([`score_over`]) scores
 //! both.
 //!
 //! By default every score is over **in-flight windows** only ([`in_flight`]: measured power

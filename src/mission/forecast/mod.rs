@@ -9,7 +9,7 @@
 //!   minutes of steady motion, and 500 waypoints must forecast in milliseconds.
 //! - **P50 power**: the mean of the *forecast's members* (`[forecast.calibration] members`),
 //!   each a model `f` times its own correction `k` (`scale`), fitted on training flights by
-//!   `dronewatt plan-eval` as the median of measured ∫V·I over the model's forecast of the
+//!   `dronewatt-lab plan-eval` as the median of measured ∫V·I over the model's forecast of the
 //!   flight's plan: what the model misses systematically (the plan's own simplifications —
 //!   stop-and-go legs, the rotors' spin-up — and the model's bias) is removed, by flight.
 //!   Each member's power is also weighted by phase (`phase_scale`: vertical climb, vertical
@@ -55,7 +55,7 @@ pub const UNCALIBRATED_P90: f64 = 1.3;
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Member {
-    /// The model (a name from `dronewatt eval`'s table).
+    /// The model (a name from `dronewatt-lab eval`'s table).
     pub model: String,
     /// Multiplier on its weighted power (measured over forecast energy, median over the
     /// recent training flights). Default 1.
@@ -231,7 +231,7 @@ pub fn vertical_work_w(s: &crate::features::Sample, vehicle_kg: f64) -> [f64; 2]
 
 impl Default for Calibration {
     fn default() -> Self {
-        // Fitted by `dronewatt plan-eval` on the M100 training flights (178 route flights, test
+        // Fitted by `dronewatt-lab plan-eval` on the M100 training flights (178 route flights, test
         // flights excluded), with the calibrated profile's physics models.
         let m = |model: &str, scale: f64, recent_flights: usize, w: f64, up: f64| Member {
             model: model.into(),

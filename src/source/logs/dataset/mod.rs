@@ -395,7 +395,7 @@ pub fn flight_tlog(path: &Path, flight: u32) -> Result<Vec<u8>> {
     }
 }
 
-/// Arguments of `dronewatt convert`.
+/// Arguments of `dronewatt-lab convert`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ConvertArgs {
     /// The official data set, `flights.csv` or `flights.csv.gz`.
@@ -408,7 +408,7 @@ pub struct ConvertArgs {
     pub output: PathBuf,
 }
 
-/// Run `dronewatt convert`: write one data-set flight as a `.tlog`.
+/// Run `dronewatt-lab convert`: write one data-set flight as a `.tlog`.
 pub fn run(args: ConvertArgs) -> Result<()> {
     let bytes = flight_tlog(&args.file, args.flight)?;
     std::fs::write(&args.output, &bytes)
