@@ -50,6 +50,8 @@ pub use crate::report::{EnergyState, PowerSource, RemainingSource, Report};
 use crate::vehicle::params::VehicleParams;
 use crate::vehicle::BatteryConfig;
 
+pub mod hover;
+mod hover_tracker;
 pub mod pack;
 pub mod select;
 
@@ -234,11 +236,14 @@ pub struct EnergyTracker {
     selector: select::Selector,
     /// The pack: start state from the resting voltage, equivalent circuit, voltage forecast.
     pack: pack::Pack,
+    /// The first hover's calibration of the momentum-theory member ([`hover`]).
+    first_hover: hover::HoverCalibrator,
 }
 
 impl EnergyTracker {
     /// The live mission forecast the next updates account with (None: no mission known).
     pub fn set_mission(&mut self, m: Option<crate::report::MissionStatus>) {
+        let m = m.map(|m| self.hover_scaled(m));
         if let Some(s) = m.as_ref() {
             let fresh = self.plan_mean_w.is_none_or(|(items, _)| items != s.items);
             if fresh && s.time_left_s > 1.0 && s.energy_p50_wh > 0.0 {
@@ -281,6 +286,7 @@ impl EnergyTracker {
             quiet: false,
             selector: select::Selector::new(&cfg.select, cfg.model.as_deref(), None),
             pack: pack::Pack::new(cfg.reserve_pct / 100.0),
+            first_hover: hover::HoverCalibrator::new(Err("no vehicle profile".into()), false),
         })
     }
 
@@ -388,9 +394,20 @@ impl EnergyTracker {
         let watts = |m: &ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
         // The forecast model's prediction adapted to measured power, where adaptation runs.
         let adapted = |m: &ModelEstimate| m.adapted_w.map(f64::from).filter(|p| p.is_finite());
+        // the momentum-theory member's own power follows the first hover's calibration
+        self.observe_hover(s, s.measured_w.map(f64::from).filter(|p| p.is_finite()));
+        let calibrated = self
+            .first_hover
+            .calibration()
+            .filter(|c| c.applied)
+            .copied();
+        let own = |m: &ModelEstimate| match (watts(m), calibrated) {
+            (Some(p), Some(c)) if m.name.starts_with("stolaroff") => Some(c.power_w(p)),
+            (p, _) => p,
+        };
         let preferred = self
             .forecast_model(est)
-            .and_then(|m| Some((m, adapted(m).or(watts(m))?)));
+            .and_then(|m| Some((m, adapted(m).or(own(m))?)));
         let forecast_adapted = self
             .forecast_model(est)
             .is_some_and(|m| adapted(m).is_some());
@@ -609,6 +626,7 @@ impl EnergyTracker {
                 curve_wh: pk.curve_wh,
             },
             battery: self.battery.clone(),
+            hover_calibration: self.first_hover.calibration().copied(),
         }
     }
 

@@ -405,6 +405,9 @@ pub struct EnergyState {
     /// Capacity, cells and the autopilot's thresholds the figures above use, each with
     /// where it came from.
     pub battery: BatteryFacts,
+    /// The first hover's calibration of the momentum-theory member, once measured
+    /// ([`crate::energy::hover`]).
+    pub hover_calibration: Option<crate::energy::hover::HoverCalibration>,
 }
 
 /// What the mission task hands the energy stage, in source-time order: from `t_s` on, this
