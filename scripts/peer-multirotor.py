@@ -343,6 +343,16 @@ def main():
             summary[st] = dict(median_abs_err_pct=round(float(np.median([abs(s["err_pct"]) for s in errs])), 1),
                                p90_cover_pct=round(100 * sum(s["p90_covers"] for s in errs) / len(errs), 1),
                                flights=len(errs))
+    lv = [s for r in results for s in r["stages"] if s["stage"] == "live" and s.get("mission")]
+    if lv:
+        summary["live_mission"] = dict(
+            before_median_abs_err_pct=round(float(np.median([abs(s["before_err_pct"]) for s in lv])), 1),
+            after_median_abs_err_pct=round(float(np.median([abs(s["after_err_pct"]) for s in lv])), 1),
+            flights=len(lv))
+    mape = [s["adapted_mape_pct"] for r in results for s in r["stages"]
+            if s["stage"] == "learned" and s.get("adapted_mape_pct") is not None]
+    if mape:
+        summary["learned_adapted_power"] = dict(median_mape_pct=round(float(np.median(mape)), 1), flights=len(mape))
     res = dict(peer="multirotor 0.5.0 Tarot T18", prior_without_t18=dict(eta_h=round(eta0, 4), log_sd=round(sd0, 4)),
                flights=results, summary=summary)
     if a.json:
@@ -428,7 +438,27 @@ def learned(binary, out, flights, results):
         p50, p90 = forecast(binary, plan, os.path.join(prof, "profile.toml"), speed, wind)
         truth = results[i]["truth_wh"]
         results[i]["stages"].append(dict(stage="learned", p50=p50, p90=p90,
-                                         err_pct=round(100 * (p50 / truth - 1), 1), p90_covers=bool(p90 >= truth)))
+                                         err_pct=round(100 * (p50 / truth - 1), 1), p90_covers=bool(p90 >= truth),
+                                         adapted_mape_pct=adapted_mape(binary, out, i, os.path.join(prof, "profile.toml"))))
+
+
+def adapted_mape(binary, out, i, profile_path):
+    """`replay` of flight i with the learned profile: the forecast model's power as the live
+    adaptation gives it (`adapted` in --json) against the measured power of the same
+    estimate, airborne (measured above 30 % of the flight's median): the mean absolute
+    percentage error."""
+    tlog = os.path.join(out, f"flight{i}.tlog")
+    r = subprocess.run([binary, "replay", tlog, "--speed", "max", "-q", "--json", "-", "--vehicle", profile_path,
+                        "--data-dir", "off"], capture_output=True, text=True, check=True)
+    est = [json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")]
+    pairs = [(e["adapted"].get(e.get("forecast_model") or ""), e.get("measured_w")) for e in est
+             if e.get("type") == "estimate" and e.get("adapted")]
+    pairs = [(a, m) for a, m in pairs if a is not None and m]
+    if not pairs:
+        return None
+    med = float(np.median([m for _, m in pairs]))
+    errs = [abs(a - m) / m for a, m in pairs if m > 0.3 * med]
+    return round(100 * float(np.mean(errs)), 1) if errs else None
 
 
 def plot(results, path):

@@ -20,6 +20,24 @@ impl EnergyTracker {
         self.first_hover.calibration()
     }
 
+    /// The estimate with the momentum-theory member's power (and band) at the first hover's
+    /// calibration, once made and applied: what the forecast selection, the forecast and the
+    /// reports see. Its adapted power, already matched to measured power, is left as it is.
+    pub fn calibrated(&self, mut est: crate::report::Estimate) -> crate::report::Estimate {
+        if let Some(c) = self.first_hover.calibration().filter(|c| c.applied) {
+            let at = |w: f32| c.power_w(f64::from(w)) as f32;
+            for m in est
+                .models
+                .iter_mut()
+                .filter(|m| m.name.starts_with("stolaroff"))
+            {
+                m.power_w = at(m.power_w);
+                m.band_w = m.band_w.map(|(lo, hi)| (at(lo), at(hi)));
+            }
+        }
+        est
+    }
+
     /// Feed the first-hover search one sample; say what it finds (INFO), and rescale the
     /// mission held when it calibrates.
     pub(super) fn observe_hover(&mut self, s: &crate::features::Sample, measured: Option<f64>) {

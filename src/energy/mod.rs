@@ -394,20 +394,11 @@ impl EnergyTracker {
         let watts = |m: &ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
         // The forecast model's prediction adapted to measured power, where adaptation runs.
         let adapted = |m: &ModelEstimate| m.adapted_w.map(f64::from).filter(|p| p.is_finite());
-        // the momentum-theory member's own power follows the first hover's calibration
+        // the first hover's search ([`hover`]; [`EnergyTracker::calibrated`] applies it)
         self.observe_hover(s, s.measured_w.map(f64::from).filter(|p| p.is_finite()));
-        let calibrated = self
-            .first_hover
-            .calibration()
-            .filter(|c| c.applied)
-            .copied();
-        let own = |m: &ModelEstimate| match (watts(m), calibrated) {
-            (Some(p), Some(c)) if m.name.starts_with("stolaroff") => Some(c.power_w(p)),
-            (p, _) => p,
-        };
         let preferred = self
             .forecast_model(est)
-            .and_then(|m| Some((m, adapted(m).or(own(m))?)));
+            .and_then(|m| Some((m, adapted(m).or(watts(m))?)));
         let forecast_adapted = self
             .forecast_model(est)
             .is_some_and(|m| adapted(m).is_some());
