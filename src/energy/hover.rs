@@ -38,9 +38,6 @@ pub const HOVER_S: f64 = 30.0;
 pub const MIN_HOVER_S: f64 = 15.0;
 /// Airborne time without such a hover after which there is none, s.
 pub const SEARCH_S: f64 = 180.0;
-/// The P90 over P50 once calibrated: the drag prior's spread alone
-/// ([`crate::model::spec::calibrate_hover`]'s).
-pub const CALIBRATED_P90: f64 = 1.174;
 
 /// What the calibration needs of the vehicle profile.
 #[derive(Debug, Clone, PartialEq)]

@@ -89,7 +89,7 @@ impl EnergyTracker {
                 1.0
             };
             m.energy_p50_wh = c.energy_wh(m.energy_p50_wh, m.time_left_s);
-            m.energy_p90_wh = m.energy_p50_wh * ratio.min(hover::CALIBRATED_P90);
+            m.energy_p90_wh = m.energy_p50_wh * ratio.min(crate::model::spec::calibrated_p90());
         }
         m
     }

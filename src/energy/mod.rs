@@ -38,6 +38,10 @@
 //!   smoothed forecast power while it moved slower (else `P_cruise`): descending and landing
 //!   cost about what hovering does on a multirotor.
 //! - **home margin** `E_rem − E_home − E_reserve`, `E_reserve = reserve_pct/100 · E_cap`.
+//! - **the first hover** ([`hover`]): for a vehicle whose forecast is the momentum-theory
+//!   member (a spec sheet), the measured power of its first hover sets that member's hover
+//!   efficiency; from then on its power, the forecast and the mission's energy are the
+//!   vehicle's ([`EnergyState::hover_calibration`] says so).
 //! - **mission margin** `E_rem − E_mission − E_reserve`, `E_mission` the live mission
 //!   forecast's P50 energy for the rest of the mission, the return and the landing
 //!   ([`crate::mission::live`], set with [`EnergyTracker::set_mission`]).
