@@ -141,6 +141,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--json", help="write the table and the priors as JSON here")
     ap.add_argument("--markdown", action="store_true", help="print the book's table")
+    ap.add_argument("--plot", help="draw each airframe's hover power and the forecast of the prior without it here")
     a = ap.parse_args()
     rows = airframes()
     for r in rows:
@@ -175,6 +176,30 @@ def main():
               f"{result['loao_median_abs_err_pct']} %")
     else:
         print(json.dumps(result, indent=1))
+    if a.plot:
+        plot(rows, a.plot)
+
+
+def plot(rows, path):
+    """Each airframe's hover power, and what the prior fitted without it forecasts (P50, P90)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    for k, r in enumerate(rows):
+        p90 = r["loao_hover_w"] * math.exp(1.2816 * r["loao_sd"])
+        ax.bar(k - 0.2, r["hover_w"], 0.4, color="tab:red", label="its hover power" if k == 0 else None)
+        ax.bar(k + 0.2, r["loao_hover_w"], 0.4, color="tab:orange",
+               label="spec sheet, prior without it (P50)" if k == 0 else None)
+        ax.plot([k + 0.02, k + 0.38], [p90, p90], color="k", label="P90" if k == 0 else None)
+        ax.text(k + 0.2, r["loao_hover_w"], f"{r['loao_err_pct']:+.0f} %", ha="center", va="bottom", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_xticks(range(len(rows)), [r["airframe"].replace(" (", "\n(") for r in rows], fontsize=7)
+    ax.set_ylabel("hover power, W (log)")
+    ax.set_title("Hover power, each airframe held out: the spec sheet's forecast with the prior fitted on the others")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":
