@@ -311,7 +311,7 @@ struct EstimateLine<'a> {
     /// The first hover's measured power and the hover efficiency it set
     /// (`energy::hover`), once measured; absent before.
     #[serde(skip_serializing_if = "Option::is_none")]
-    hover_calibration: Option<&'a crate::energy::hover::HoverCalibration>,
+    hover_calibration: Option<&'a crate::report::hover::HoverCalibration>,
     /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
     /// `vehicle parameter BATT_CAPACITY`, `--pack …` …); null when it is not known, the
     /// source then saying why (`remaining_source` `capacity not known`).

@@ -98,7 +98,7 @@ pub struct FlightLog {
     pack_id: Option<String>,
     /// The first hover's calibration, when the run made one (kept as a profile:
     /// [`super::hover::remember_hover`]).
-    hover: Option<crate::energy::hover::HoverCalibration>,
+    hover: Option<crate::report::hover::HoverCalibration>,
 }
 
 /// Measured powers binned on a log scale: bin 0 below 1 W, bin k ≥ 1 for
@@ -211,7 +211,7 @@ impl FlightLog {
     }
 
     /// The first hover's calibration, when the run made one.
-    pub fn hover(&self) -> Option<&crate::energy::hover::HoverCalibration> {
+    pub fn hover(&self) -> Option<&crate::report::hover::HoverCalibration> {
         self.hover.as_ref()
     }
 

@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 
 use super::{Store, VehicleKey};
-use crate::energy::hover::HoverCalibration;
 use crate::model::profile::VehicleProfile;
+use crate::report::hover::HoverCalibration;
 use crate::vehicle::params::Identity;
 
 /// Suffix of the profiles this module writes.
