@@ -659,19 +659,33 @@ def spec_priors(r):
 
 def peer_multirotor(r):
     rows = []
+    pct = lambda v: "—" if v is None else f"{v:+.1f} %"
     for fl in r["flights"]:
         st = {s["stage"]: s for s in fl["stages"]}
         row = [fl["flight"], fl["speed"], f"{fl['wind'][0]} m/s from {fl['wind'][1]}°", f(fl["truth_wh"], 1)]
-        for name in ("spec", "hover", "learned"):
+        for name in ("spec", "hover"):
             q = st.get(name)
-            row += [f(q["p50"], 1), f(q["p90"], 1), f"{q['err_pct']:+.1f} %"] if q else ["—"] * 3
+            row += [f(q["p50"], 1), f(q["p90"], 1), pct(q["err_pct"])] if q else ["—"] * 3
+        lv = st.get("live") or {}
+        row += [pct(lv.get("before_err_pct")), pct(lv.get("after_err_pct")), pct(lv.get("err_pct"))]
+        q = st.get("learned")
+        row += [f(q["p50"], 1), pct(q["err_pct"]), f(q.get("adapted_mape_pct"), 1)] if q else ["—"] * 3
         rows.append(row)
     out = (header("scripts/peer-multirotor.py --json").replace("dronewatt-lab scripts/", "scripts/")
            + table(["flight", "speed m/s", "wind", "peer's energy Wh", "spec P50", "spec P90", "spec error",
-                    "after hover P50", "P90", "error", "learned P50", "P90", "error"], rows) + "\n")
+                    "after hover P50", "P90", "error", "live: rest of mission, priors", "live: after the hover",
+                    "plan --vehicle <stored>", "learned P50", "error", "learned: adapted power MAPE %"], rows) + "\n")
     for st, v in r["summary"].items():
-        out += (f"- **{st}**: median |error| {f(v['median_abs_err_pct'], 1)} %, P90 ≥ the peer's energy on "
-                f"{f(v['p90_cover_pct'], 1)} % of {v['flights']} flights\n")
+        if "median_abs_err_pct" in v:
+            out += (f"- **{st}**: median |error| {f(v['median_abs_err_pct'], 1)} %, P90 ≥ the peer's energy on "
+                    f"{f(v['p90_cover_pct'], 1)} % of {v['flights']} flights\n")
+        elif st == "live_mission":
+            out += (f"- **live, the rest of the mission** (monitor/replay, the first hover calibrating): median |error| "
+                    f"{f(v['before_median_abs_err_pct'], 1)} % on the priors just before, "
+                    f"{f(v['after_median_abs_err_pct'], 1)} % just after, {v['flights']} flights\n")
+        elif st == "learned_adapted_power":
+            out += (f"- **learned, live adapted power**: median MAPE {f(v['median_mape_pct'], 1)} % over "
+                    f"{v['flights']} flights\n")
     return out
 
 

@@ -94,22 +94,26 @@ class Peer:
 
 
 def profile(legs_m, speed, alt=ALT):
-    """The path as (t, pos ENU, vel, acc) at DT: climb, hover, legs stop to stop, descent."""
+    """The path as (pos ENU, vel, acc, mission item flown to) at DT: climb, hover, legs stop
+    to stop, descent (the items as `mission_items` numbers them)."""
     out = []
     pos = np.zeros(3)
+    seq = [1]
 
     def emit(p, v, a, secs):
         for _ in range(int(round(secs / DT))):
-            out.append((p.copy(), v.copy(), a.copy()))
+            out.append((p.copy(), v.copy(), a.copy(), seq[0]))
 
     z = 0.0
     while z < alt:
         z = min(alt, z + 3.0 * DT)
         emit(np.array([0, 0, z]), np.array([0, 0, 3.0]), np.zeros(3), DT)
     pos[2] = alt
+    seq[0] = 2
     emit(pos, np.zeros(3), np.zeros(3), HOVER_S)
     acc = 2.5
-    for (dx, dy) in legs_m:
+    for li, (dx, dy) in enumerate(legs_m):
+        seq[0] = 4 + li
         d = math.hypot(dx, dy)
         u = np.array([dx / d, dy / d, 0.0])
         vtop = min(speed, math.sqrt(acc * d))
@@ -130,6 +134,7 @@ def profile(legs_m, speed, alt=ALT):
             t += DT
         pos = start + d * u
         emit(pos, np.zeros(3), np.zeros(3), 2.0)
+    seq[0] = 4 + len(legs_m)
     while pos[2] > 0:
         vz = 2.7 if pos[2] > 20 else 1.0
         pos = pos.copy()
@@ -146,7 +151,7 @@ def ocv(soc):
     return LIPO[-1][1]
 
 
-def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path):
+def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path, items=()):
     """Fly the path in wind; write the .tlog as ArduPilot would; return the truth, Wh."""
     from pymavlink.dialects.v20 import ardupilotmega as mavlink
     rng = np.random.default_rng(seed)
@@ -162,7 +167,7 @@ def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path):
         # the parameters a ground station fetches on connecting (ArduPilot's names and types)
         params = [("BATT_CAPACITY", MAH, 6), ("FRAME_CLASS", 3, 2), ("MOT_BAT_VOLT_MAX", 4.2 * CELLS, 9),
                   ("MOT_BAT_VOLT_MIN", 3.3 * CELLS, 9)]
-        for k, (p, v, a) in enumerate(path):
+        for k, (p, v, a, seq) in enumerate(path):
             gust += -gust * DT / 3.0 + rng.normal(0, 1.0, 3) * math.sqrt(2 * DT / 3.0) * (0.2 * wind_speed)
             gust[2] = 0.0
             air = v - (mean_w + gust)
@@ -183,6 +188,14 @@ def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path):
             if k == 10:  # after the vehicle is heard
                 for i, (pid, val, typ) in enumerate(params):
                     put(mavlink.MAVLink_param_value_message(pid.encode(), float(val), typ, len(params), i))
+                # the mission, as a ground station logs its download (ArduPilot's home item 0)
+                if items:
+                    put(mavlink.MAVLink_mission_count_message(255, 190, len(items), 0))
+                    for (sq, frame, cmd, p1, p2, p3, p4, la, lo, al) in items:
+                        put(mavlink.MAVLink_mission_item_int_message(255, 190, sq, frame, cmd, 0, 1, p1, p2, p3, p4,
+                                                                     int(round(la * 1e7)), int(round(lo * 1e7)), al, 0))
+            if items and k % 10 == 0 and k > 10:
+                put(mavlink.MAVLink_mission_current_message(seq, len(items) - 1))
             put(mavlink.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(amps * 100),
                                                    int(soc * 100), 0, 0, 0, 0, 0, 0))
             put(mavlink.MAVLink_battery_status_message(0, 1, 1, 3200, [int(volts * 1000 / CELLS)] * CELLS + [65535] * 4,
@@ -222,21 +235,27 @@ def first_hover_w(rows):
     return sum(p) / len(p) if p else None
 
 
-def waypoints(path_file, legs_m, speed):
+def mission_items(legs_m, speed):
+    """(seq, frame, command, p1..p4, lat, lon, alt): home, take-off, the 30 s hover, the
+    speed, the waypoints, land."""
     lat0, lon0 = HOME
-    lines = ["QGC WPL 110", f"0\t1\t0\t16\t0\t0\t0\t0\t{lat0:.7f}\t{lon0:.7f}\t488\t1",
-             f"1\t0\t3\t22\t0\t0\t0\t0\t{lat0:.7f}\t{lon0:.7f}\t{ALT}\t1",
-             f"2\t0\t3\t19\t{HOVER_S}\t0\t0\t0\t{lat0:.7f}\t{lon0:.7f}\t{ALT}\t1",
-             f"3\t0\t3\t178\t1\t{speed}\t-1\t0\t0\t0\t0\t1"]
+    items = [(0, 0, 16, 0, 0, 0, 0, lat0, lon0, 488.0), (1, 3, 22, 0, 0, 0, 0, lat0, lon0, ALT),
+             (2, 3, 19, HOVER_S, 0, 0, 0, lat0, lon0, ALT), (3, 3, 178, 1, speed, -1, 0, 0.0, 0.0, 0.0)]
     x = y = 0.0
-    i = 4
+    lat, lon = lat0, lon0
     for dx, dy in legs_m:
         x, y = x + dx, y + dy
         lat = lat0 + y / 111_320.0
         lon = lon0 + x / (111_320.0 * math.cos(math.radians(lat0)))
-        lines.append(f"{i}\t0\t3\t16\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t{ALT}\t1")
-        i += 1
-    lines.append(f"{i}\t0\t3\t21\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t0\t1")
+        items.append((len(items), 3, 16, 0, 0, 0, 0, lat, lon, ALT))
+    items.append((len(items), 3, 21, 0, 0, 0, 0, lat, lon, 0.0))
+    return items
+
+
+def waypoints(path_file, legs_m, speed):
+    lines = ["QGC WPL 110"]
+    for (sq, frame, cmd, p1, p2, p3, p4, la, lo, al) in mission_items(legs_m, speed):
+        lines.append(f"{sq}\t{int(sq == 0)}\t{frame}\t{cmd}\t{p1}\t{p2}\t{p3}\t{p4}\t{la:.7f}\t{lo:.7f}\t{al}\t1")
     with open(path_file, "w") as f:
         f.write("\n".join(lines) + "\n")
 
@@ -262,6 +281,7 @@ FLIGHTS = [  # name, legs (m, ENU), speed m/s, wind (m/s, from deg)
     ("long leg 1.6 km", [(1600, 0), (-1600, 0)], 12, (5, 120)),
     ("short hop", [(150, 0), (-150, 0)], 6, (0, 0)),
 ]
+FLIGHTS_BY_INDEX = []  # the flights flown, by their index here
 LEARN_ON = 4  # `learn` on the first four flights' .tlog (it holds out one of them itself)
 
 
@@ -284,9 +304,11 @@ def main():
     os.makedirs(out, exist_ok=True)
     results = []
     flights = FLIGHTS[-1:] if a.quick else FLIGHTS
+    FLIGHTS_BY_INDEX.clear()
+    FLIGHTS_BY_INDEX.extend(flights)
     for i, (name, legs, speed, wind) in enumerate(flights):
         tlog = os.path.join(out, f"flight{i}.tlog")
-        truth = fly(peer, profile(legs, speed), wind[0], wind[1], i, tlog)
+        truth = fly(peer, profile(legs, speed), wind[0], wind[1], i, tlog, mission_items(legs, speed))
         rows_t = read_tlog(tlog)
         measured = sum(v * c for _, v, c, _ in rows_t) * DT / 3600.0
         plan = os.path.join(out, f"flight{i}.waypoints")
@@ -302,7 +324,12 @@ def main():
             h50, h90 = forecast(a.bin, plan, spec, speed, wind, ["--hover-w", f"{hw:.1f}"])
             eta = priors.ideal_hover_w(peer.mass, peer.n, 0.4572) / (hw - 8.0)
             stage.append(dict(stage="hover", p50=h50, p90=h90, hover_w=round(float(hw), 1), eta=round(float(eta), 4)))
+        lv = live(a.bin, out, i, spec, rows_t)
+        if lv is not None:
+            stage.append(lv)
         for s in stage:
+            if "p50" not in s:
+                continue
             s["err_pct"] = round(100 * (s["p50"] / measured - 1), 1)
             s["p90_covers"] = bool(s["p90"] >= measured)
         results.append(dict(flight=name, speed=speed, wind=list(wind), truth_wh=round(float(measured), 2),
@@ -310,12 +337,22 @@ def main():
     if not a.quick:
         learned(a.bin, out, flights, results)
     summary = {}
-    for st in ("spec", "hover", "learned"):
-        errs = [s for r in results for s in r["stages"] if s["stage"] == st]
+    for st in ("spec", "hover", "live", "learned"):
+        errs = [s for r in results for s in r["stages"] if s["stage"] == st and "err_pct" in s]
         if errs:
             summary[st] = dict(median_abs_err_pct=round(float(np.median([abs(s["err_pct"]) for s in errs])), 1),
                                p90_cover_pct=round(100 * sum(s["p90_covers"] for s in errs) / len(errs), 1),
                                flights=len(errs))
+    lv = [s for r in results for s in r["stages"] if s["stage"] == "live" and s.get("mission")]
+    if lv:
+        summary["live_mission"] = dict(
+            before_median_abs_err_pct=round(float(np.median([abs(s["before_err_pct"]) for s in lv])), 1),
+            after_median_abs_err_pct=round(float(np.median([abs(s["after_err_pct"]) for s in lv])), 1),
+            flights=len(lv))
+    mape = [s["adapted_mape_pct"] for r in results for s in r["stages"]
+            if s["stage"] == "learned" and s.get("adapted_mape_pct") is not None]
+    if mape:
+        summary["learned_adapted_power"] = dict(median_mape_pct=round(float(np.median(mape)), 1), flights=len(mape))
     res = dict(peer="multirotor 0.5.0 Tarot T18", prior_without_t18=dict(eta_h=round(eta0, 4), log_sd=round(sd0, 4)),
                flights=results, summary=summary)
     if a.json:
@@ -339,6 +376,54 @@ def main():
         plot(results, a.plot)
 
 
+def live(binary, out, i, spec, rows):
+    """`replay` of the flight's .tlog with the spec sheet, a store of its own: the live
+    mission forecast (`mission_energy_wh`) just before the first hover calibrates and just
+    after, each against what the peer's flight still drew from then on; then `plan --vehicle
+    <the stored vehicle>` (the store keeps the calibrated profile)."""
+    store = os.path.join(out, f"store{i}")
+    tlog = os.path.join(out, f"flight{i}.tlog")
+    r = subprocess.run([binary, "replay", tlog, "--speed", "max", "-q", "--json", "-", "--vehicle", spec,
+                        "--data-dir", store], capture_output=True, text=True, check=True)
+    est = [json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")]
+    est = [e for e in est if e.get("type") == "estimate"]
+    cal = next((e for e in est if e.get("hover_calibration")), None)
+    if cal is None:
+        return dict(stage="live", calibrated=False)
+    t0 = rows[0][0]
+    energy = []  # (t since the log's start, Wh drawn by then)
+    acc = 0.0
+    for t, v, c, _ in rows:
+        acc += v * c * DT / 3600.0
+        energy.append((t - t0, acc))
+    total = energy[-1][1]
+
+    def left(t):
+        return total - max((e for tt, e in energy if tt <= t), default=0.0)
+
+    def err(e):
+        truth = left(e["t"])
+        return round(100 * (e["mission_energy_wh"] / truth - 1), 1), round(truth, 2)
+
+    with_m = [e for e in est if e.get("mission_energy_wh") is not None]
+    before = [e for e in with_m if e["t"] < cal["t"]]
+    after = [e for e in with_m if e["t"] >= cal["t"]]
+    if not before or not after:
+        return dict(stage="live", calibrated=True, hover=cal["hover_calibration"], mission=False)
+    b_err, b_truth = err(before[-1])
+    a_err, a_truth = err(after[0])
+    vehicles = json.loads(subprocess.run([binary, "vehicles", "--data-dir", store, "--json"], capture_output=True,
+                                         text=True, check=True).stdout)
+    key = vehicles[0]["key"]
+    plan = os.path.join(out, f"flight{i}.waypoints")
+    speed, wind = FLIGHTS_BY_INDEX[i][2], FLIGHTS_BY_INDEX[i][3]
+    s50, s90 = forecast(binary, plan, key, speed, wind, ["--data-dir", store])
+    return dict(stage="live", calibrated=True, hover=cal["hover_calibration"], mission=True,
+                t_s=cal["t"], before_p50=before[-1]["mission_energy_wh"], before_err_pct=b_err, truth_left_before=b_truth,
+                after_p50=after[0]["mission_energy_wh"], after_err_pct=a_err, truth_left_after=a_truth,
+                stored_key=key, stored_profile=vehicles[0].get("profile"), p50=s50, p90=s90)
+
+
 def learned(binary, out, flights, results):
     """`dronewatt learn` on the first LEARN_ON flights' .tlog from the spec sheet; the flights
     after them scored with the profile it wrote (the T18 held out as before)."""
@@ -353,7 +438,27 @@ def learned(binary, out, flights, results):
         p50, p90 = forecast(binary, plan, os.path.join(prof, "profile.toml"), speed, wind)
         truth = results[i]["truth_wh"]
         results[i]["stages"].append(dict(stage="learned", p50=p50, p90=p90,
-                                         err_pct=round(100 * (p50 / truth - 1), 1), p90_covers=bool(p90 >= truth)))
+                                         err_pct=round(100 * (p50 / truth - 1), 1), p90_covers=bool(p90 >= truth),
+                                         adapted_mape_pct=adapted_mape(binary, out, i, os.path.join(prof, "profile.toml"))))
+
+
+def adapted_mape(binary, out, i, profile_path):
+    """`replay` of flight i with the learned profile: the forecast model's power as the live
+    adaptation gives it (`adapted` in --json) against the measured power of the same
+    estimate, airborne (measured above 30 % of the flight's median): the mean absolute
+    percentage error."""
+    tlog = os.path.join(out, f"flight{i}.tlog")
+    r = subprocess.run([binary, "replay", tlog, "--speed", "max", "-q", "--json", "-", "--vehicle", profile_path,
+                        "--data-dir", "off"], capture_output=True, text=True, check=True)
+    est = [json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")]
+    pairs = [(e["adapted"].get(e.get("forecast_model") or ""), e.get("measured_w")) for e in est
+             if e.get("type") == "estimate" and e.get("adapted")]
+    pairs = [(a, m) for a, m in pairs if a is not None and m]
+    if not pairs:
+        return None
+    med = float(np.median([m for _, m in pairs]))
+    errs = [abs(a - m) / m for a, m in pairs if m > 0.3 * med]
+    return round(100 * float(np.mean(errs)), 1) if errs else None
 
 
 def plot(results, path):

@@ -112,10 +112,36 @@ def prior(etas):
     return math.exp(statistics.mean(logs)), statistics.stdev(logs)
 
 
+def size_fits(rows):
+    """Does a size feature carry η_h across airframes? For each airframe left out, ln η_h
+    fitted as a line in ln(feature) on the others (least squares), and what it forecasts for
+    the one left out: propeller diameter, disk loading (thrust per disk area) and thrust per
+    rotor, the spec sheet's facts that set a rotor's Reynolds number and a motor's size."""
+    import numpy as np
+
+    def feat(r, name):
+        t = r["kg"] * G / r["rotors"]
+        return math.log({"prop_m": r["prop_m"], "disk_loading": t / (math.pi * r["prop_m"] ** 2 / 4),
+                         "thrust_per_rotor": t}[name])
+    out = {}
+    for name in ("prop_m", "disk_loading", "thrust_per_rotor"):
+        per = []
+        for r in rows:
+            o = [q for q in rows if q is not r]
+            slope, icpt = np.polyfit([feat(q, name) for q in o], [math.log(q["eta_h"]) for q in o], 1)
+            eta = math.exp(icpt + slope * feat(r, name))
+            per.append(dict(airframe=r["airframe"], eta_h=r["eta_h"], forecast_eta_h=round(eta, 3),
+                            slope=round(float(slope), 2)))
+        out[name] = dict(loao=per, median_abs_log_err=round(float(np.median(
+            [abs(math.log(p["forecast_eta_h"] / p["eta_h"])) for p in per])), 3))
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--json", help="write the table and the priors as JSON here")
     ap.add_argument("--markdown", action="store_true", help="print the book's table")
+    ap.add_argument("--plot", help="draw each airframe's hover power and the forecast of the prior without it here")
     a = ap.parse_args()
     rows = airframes()
     for r in rows:
@@ -129,7 +155,7 @@ def main():
         r["loao_p90_covers"] = bool(fc * math.exp(1.2816 * sd) >= r["hover_w"])
     med, sd = prior([r["eta_h"] for r in rows])
     result = dict(eta_h_median=round(med, 4), eta_h_log_sd=round(sd, 4), avionics_w=AVIONICS_W,
-                  airframes=rows,
+                  airframes=rows, size_fits=size_fits(rows),
                   loao_median_abs_err_pct=round(statistics.median(abs(r["loao_err_pct"]) for r in rows), 1))
     if a.json:
         with open(a.json, "w") as f:
@@ -141,10 +167,39 @@ def main():
             print(f"| {r['airframe']} | {r['kg']} | {r['rotors']} | {r['prop_m']} | {r['hover_w']} | "
                   f"{r['eta_h']:.3f} | {r['loao_eta']:.3f} ± {r['loao_sd']:.2f} | {r['loao_hover_w']} | "
                   f"{r['loao_err_pct']:+.1f} % | {'yes' if r['loao_p90_covers'] else 'no'} | {r['source']} |")
+        for name, v in result["size_fits"].items():
+            t18 = next((p for p in v["loao"] if "T18" in p["airframe"]), None)
+            print(f"size fit on {name}: median |ln error| {v['median_abs_log_err']}"
+                  + (f"; the T18 left out: η_h {t18['forecast_eta_h']} (slope {t18['slope']}), its own {t18['eta_h']}"
+                     if t18 else ""))
         print(f"\nAll airframes: η_h = {med:.3f}, log-spread {sd:.3f}; leave-one-airframe-out median |error| "
               f"{result['loao_median_abs_err_pct']} %")
     else:
         print(json.dumps(result, indent=1))
+    if a.plot:
+        plot(rows, a.plot)
+
+
+def plot(rows, path):
+    """Each airframe's hover power, and what the prior fitted without it forecasts (P50, P90)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    for k, r in enumerate(rows):
+        p90 = r["loao_hover_w"] * math.exp(1.2816 * r["loao_sd"])
+        ax.bar(k - 0.2, r["hover_w"], 0.4, color="tab:red", label="its hover power" if k == 0 else None)
+        ax.bar(k + 0.2, r["loao_hover_w"], 0.4, color="tab:orange",
+               label="spec sheet, prior without it (P50)" if k == 0 else None)
+        ax.plot([k + 0.02, k + 0.38], [p90, p90], color="k", label="P90" if k == 0 else None)
+        ax.text(k + 0.2, r["loao_hover_w"], f"{r['loao_err_pct']:+.0f} %", ha="center", va="bottom", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_xticks(range(len(rows)), [r["airframe"].replace(" (", "\n(") for r in rows], fontsize=7)
+    ax.set_ylabel("hover power, W (log)")
+    ax.set_title("Hover power, each airframe held out: the spec sheet's forecast with the prior fitted on the others")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":

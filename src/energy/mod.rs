@@ -38,6 +38,10 @@
 //!   smoothed forecast power while it moved slower (else `P_cruise`): descending and landing
 //!   cost about what hovering does on a multirotor.
 //! - **home margin** `E_rem − E_home − E_reserve`, `E_reserve = reserve_pct/100 · E_cap`.
+//! - **the first hover** ([`hover`]): for a vehicle whose forecast is the momentum-theory
+//!   member (a spec sheet), the measured power of its first hover sets that member's hover
+//!   efficiency; from then on its power, the forecast and the mission's energy are the
+//!   vehicle's ([`EnergyState::hover_calibration`] says so).
 //! - **mission margin** `E_rem − E_mission − E_reserve`, `E_mission` the live mission
 //!   forecast's P50 energy for the rest of the mission, the return and the landing
 //!   ([`crate::mission::live`], set with [`EnergyTracker::set_mission`]).
@@ -50,6 +54,8 @@ use crate::report::{EnergyState, PowerSource, RemainingSource};
 use crate::vehicle::params::VehicleParams;
 use crate::vehicle::BatteryConfig;
 
+pub mod hover;
+mod hover_tracker;
 pub mod pack;
 pub mod select;
 
@@ -234,11 +240,14 @@ pub struct EnergyTracker {
     selector: select::Selector,
     /// The pack: start state from the resting voltage, equivalent circuit, voltage forecast.
     pack: pack::Pack,
+    /// The first hover's calibration of the momentum-theory member ([`hover`]).
+    first_hover: hover::HoverCalibrator,
 }
 
 impl EnergyTracker {
     /// The live mission forecast the next updates account with (None: no mission known).
     pub fn set_mission(&mut self, m: Option<crate::report::MissionStatus>) {
+        let m = m.map(|m| self.hover_scaled(m));
         if let Some(s) = m.as_ref() {
             let fresh = self.plan_mean_w.is_none_or(|(items, _)| items != s.items);
             if fresh && s.time_left_s > 1.0 && s.energy_p50_wh > 0.0 {
@@ -281,6 +290,7 @@ impl EnergyTracker {
             quiet: false,
             selector: select::Selector::new(&cfg.select, cfg.model.as_deref(), None),
             pack: pack::Pack::new(cfg.reserve_pct / 100.0),
+            first_hover: hover::HoverCalibrator::new(Err("no vehicle profile".into()), false),
         })
     }
 
@@ -388,6 +398,8 @@ impl EnergyTracker {
         let watts = |m: &ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
         // The forecast model's prediction adapted to measured power, where adaptation runs.
         let adapted = |m: &ModelEstimate| m.adapted_w.map(f64::from).filter(|p| p.is_finite());
+        // the first hover's search ([`hover`]; [`EnergyTracker::calibrated`] applies it)
+        self.observe_hover(s, s.measured_w.map(f64::from).filter(|p| p.is_finite()));
         let preferred = self
             .forecast_model(est)
             .and_then(|m| Some((m, adapted(m).or(watts(m))?)));
@@ -609,6 +621,7 @@ impl EnergyTracker {
                 curve_wh: pk.curve_wh,
             },
             battery: self.battery.clone(),
+            hover_calibration: self.first_hover.calibration().copied(),
         }
     }
 

@@ -457,7 +457,7 @@ pub fn calibrate_hover(mut p: VehicleProfile, hover_w: f64) -> Result<VehiclePro
     }
     let was = p.stolaroff.eta;
     p.stolaroff.eta = eta;
-    let p90 = (Z90 * DRAG_SHARE * DRAG_LOG_SD).exp();
+    let p90 = calibrated_p90();
     p.forecast = Some(ForecastDefault {
         model: format!("stolaroff{}", p.name_suffix()),
         why: format!(
@@ -467,6 +467,12 @@ pub fn calibrate_hover(mut p: VehicleProfile, hover_w: f64) -> Result<VehiclePro
         p90_ratio: Some((p90 * 1000.0).round() / 1000.0),
     });
     Ok(p)
+}
+
+/// P90 over P50 once the hover efficiency is the vehicle's: the drag prior's spread alone
+/// (`exp(1.2816 · 0.25 · 0.5)`, 1.174).
+pub fn calibrated_p90() -> f64 {
+    (Z90 * DRAG_SHARE * DRAG_LOG_SD).exp()
 }
 
 /// Whether this is the process's first load of `origin` (what was filled is said once).

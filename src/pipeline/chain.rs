@@ -141,6 +141,11 @@ impl VehicleChain {
         if let Some((model, why)) = profile.forecast_default() {
             energy.set_default_model(&model, &why);
         }
+        // The first hover calibrates the momentum-theory member (a spec sheet's forecast).
+        energy.set_hover_reference(
+            crate::energy::hover::HoverReference::of(profile),
+            crate::energy::hover::follows_momentum_theory(profile),
+        );
         let rebuild = cfg.vehicle.is_none().then(|| {
             let (models, telemetry, payload_g) = (
                 cfg.models.clone(),

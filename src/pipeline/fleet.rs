@@ -149,13 +149,21 @@ impl Fleet {
         if let Some(dir) = self.data_dir {
             for (id, end) in ends {
                 let (dir, fits) = (dir.clone(), fits.remove(&id));
+                let profile = self.resolved.vehicle.profile.clone();
                 tokio::task::spawn_blocking(move || {
                     crate::vehicle::store::remember(
                         &dir,
                         end.identity.as_ref(),
                         fits.as_deref(),
                         &end.flight,
-                    )
+                    );
+                    // the first hover's calibration, as the vehicle's profile
+                    crate::vehicle::store::hover::remember_hover(
+                        &dir,
+                        end.identity.as_ref(),
+                        &profile,
+                        end.flight.hover(),
+                    );
                 })
                 .await?;
             }

@@ -78,7 +78,7 @@ impl MissionOn {
             models.extend(crate::model::physics::models(p));
         }
         Ok(LiveSetup {
-            forecast: cfg.forecast.clone(),
+            forecast: own_forecast(cfg, vehicle, &models),
             models,
             rate_hz: cfg.telemetry.rate_hz,
             window: cfg.telemetry.window,
@@ -116,4 +116,32 @@ pub(super) fn take_mission(
             }
         }
     }
+}
+
+/// The mission forecast's configuration: the configured one, except for a vehicle whose
+/// forecast is the momentum-theory member (a spec sheet) when none of the configured
+/// calibration's members runs for it (the M100's `_cal` members without a calibrated
+/// profile): then that member, uncorrected, with the profile's P90 (what `plan` forecasts
+/// it with), so that its first hover's calibration ([`crate::energy::hover`]) rescales the
+/// forecast it made. Otherwise the first model would be followed uncorrected.
+fn own_forecast(
+    cfg: &Config,
+    vehicle: &VehicleProfile,
+    models: &[Box<dyn crate::model::PowerModel>],
+) -> crate::mission::ForecastConfig {
+    let mut forecast = cfg.forecast.clone();
+    let runs = |n: &str| models.iter().any(|m| m.name() == n);
+    let fd = vehicle
+        .forecast
+        .as_ref()
+        .filter(|f| crate::energy::hover::follows_momentum_theory(vehicle) && runs(&f.model));
+    if let Some(fd) = fd {
+        if !forecast.calibration.members.iter().any(|m| runs(&m.model)) {
+            forecast.calibration = crate::mission::forecast::Calibration {
+                p90_ratio: fd.p90_ratio.unwrap_or(forecast.calibration.p90_ratio),
+                ..crate::mission::forecast::Calibration::uncorrected(&fd.model)
+            };
+        }
+    }
+    forecast
 }

@@ -250,6 +250,8 @@ pub fn account(
     estimate: Estimate,
     vehicle: VehicleId,
 ) -> Report {
+    // the momentum-theory member at the first hover's calibration, once made
+    let estimate = energy.calibrated(estimate);
     let state = energy.update(&estimate);
     let events = alerts.evaluate(&estimate, &state);
     Report {

@@ -7,6 +7,7 @@
 //! feature floor. [`status`] is the other half of the floor: what a chain says beside the
 //! reports (ingest counters, signal health, the uplink, the stop signal).
 
+pub mod hover;
 pub mod status;
 
 use std::fmt;
@@ -405,6 +406,9 @@ pub struct EnergyState {
     /// Capacity, cells and the autopilot's thresholds the figures above use, each with
     /// where it came from.
     pub battery: BatteryFacts,
+    /// The first hover's calibration of the momentum-theory member, once measured (the
+    /// energy tracker's first-hover search).
+    pub hover_calibration: Option<hover::HoverCalibration>,
 }
 
 /// What the mission task hands the energy stage, in source-time order: from `t_s` on, this

@@ -5,6 +5,7 @@
 //! {"type":"estimate","system_id":…,"t":…,"vehicle_class":"multirotor"|"fixed_wing"|"vtol"|"other",["mav_type":…,]["vtol_state":"mc"|"fw"|…,]
 //!  "measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
 //!  "energy_used_wh":…,"remaining_wh":…,"remaining_source":"resting voltage"|"battery"|"assumed full","time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
+//!  ["hover_calibration":{"t_s":…,"hover_w":…,"hover_s":…,"eta_h":…,"prior_eta_h":…,"avionics_w":…,"applied":…},]
 //!  "capacity_wh":…|null,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"--pack …"|"not known: …"|…,"cell_count":…,"cell_count_source":…,
 //!  "chemistry":"lipo"|"lihv"|"liion"|"lifepo4","chemistry_source":…,"battery_v":…,"battery_v_model":…,"battery_ocv_v":…,"battery_rest_v":…,
 //!  "soc_pct":…,"soc_band_pct":…,"pack_start":"resting voltage"|"load-compensated …"|null,"internal_r_ohm":…,"v_min_forecast_v":…,"v_min_forecast_at_s":…,
@@ -161,6 +162,7 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             forecast_adapted: r.energy.forecast_adapted,
             forecast_model: r.energy.forecast_model.as_deref(),
             forecast_why: r.energy.forecast_why.as_deref(),
+            hover_calibration: r.energy.hover_calibration.as_ref(),
             // Not known: null, and the source says why (never another vehicle's pack).
             capacity_wh: b.capacity(),
             capacity_source: b.capacity_source(),
@@ -306,6 +308,10 @@ struct EstimateLine<'a> {
     /// The model the forecast follows (null: measured power), and why (`energy::select`).
     forecast_model: Option<&'a str>,
     forecast_why: Option<&'a str>,
+    /// The first hover's measured power and the hover efficiency it set
+    /// (`energy::hover`), once measured; absent before.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    hover_calibration: Option<&'a crate::report::hover::HoverCalibration>,
     /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
     /// `vehicle parameter BATT_CAPACITY`, `--pack …` …); null when it is not known, the
     /// source then saying why (`remaining_source` `capacity not known`).

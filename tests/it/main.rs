@@ -19,6 +19,7 @@ mod cli_replay;
 mod config_paths;
 mod demo_alerts;
 mod energy_dataset;
+mod energy_hover;
 mod energy_pack;
 mod energy_progpy;
 mod energy_select;

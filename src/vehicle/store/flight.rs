@@ -96,6 +96,9 @@ pub struct FlightLog {
     pack: crate::report::PackState,
     pack_start: Option<(f64, f64)>,
     pack_id: Option<String>,
+    /// The first hover's calibration, when the run made one (kept as a profile:
+    /// [`super::hover::remember_hover`]).
+    hover: Option<crate::report::hover::HoverCalibration>,
 }
 
 /// Measured powers binned on a log scale: bin 0 below 1 W, bin k ≥ 1 for
@@ -182,6 +185,9 @@ impl FlightLog {
             self.last_t = Some(t);
         }
         self.energy_wh = r.energy.energy_used_wh;
+        if let Some(c) = r.energy.hover_calibration {
+            self.hover = Some(c);
+        }
         if let Some(pct) = s
             .battery_remaining_pct
             .map(f64::from)
@@ -202,6 +208,11 @@ impl FlightLog {
             }
         }
         self.pack = *pk;
+    }
+
+    /// The first hover's calibration, when the run made one.
+    pub fn hover(&self) -> Option<&crate::report::hover::HoverCalibration> {
+        self.hover.as_ref()
     }
 
     /// The summary, or `None` when no power was ever measured (nothing flew that we saw).

@@ -41,6 +41,7 @@
 //! a read-only folder) is a warning and the run goes on without it.
 mod dir;
 mod flight;
+pub mod hover;
 mod list;
 
 pub use dir::{data_dir, data_dir_from_env, DB_FILE, HOME_ENV, MIN_PCT_DROP};

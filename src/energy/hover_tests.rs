@@ -1,0 +1,139 @@
+use super::*;
+
+fn reference() -> HoverReference {
+    HoverReference {
+        ideal_w: 100.0,
+        avionics_w: 8.0,
+        prior_eta: 0.4,
+    }
+}
+
+/// Climb for 10 s, then `hover_s` still at `hover_w`, then cruise at 10 m/s and 2× the
+/// power, 10 Hz; the news and the time it came.
+fn fly(
+    c: &mut HoverCalibrator,
+    hover_s: f64,
+    hover_w: f64,
+    cruise_s: f64,
+) -> Vec<(f64, HoverNews)> {
+    let mut out = Vec::new();
+    let mut t = 0.0;
+    let mut step = |t: f64, h: f64, v: f64, vz: f64, p: f64, out: &mut Vec<(f64, HoverNews)>| {
+        if let Some(n) = c.observe(t, Some(h), v, vz, Some(p)) {
+            out.push((t, n));
+        }
+    };
+    for i in 0..100 {
+        step(t, f64::from(i) * 0.3, 0.0, 3.0, 300.0, &mut out);
+        t += 0.1;
+    }
+    for _ in 0..(hover_s * 10.0) as usize {
+        step(t, 30.0, 0.2, 0.05, hover_w, &mut out);
+        t += 0.1;
+    }
+    for _ in 0..(cruise_s * 10.0) as usize {
+        step(t, 30.0, 10.0, 0.0, 2.0 * hover_w, &mut out);
+        t += 0.1;
+    }
+    out
+}
+
+#[test]
+fn thirty_seconds_of_hover_set_the_efficiency() {
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    let news = fly(&mut c, 60.0, 208.0, 10.0);
+    assert_eq!(news.len(), 1, "{news:?}");
+    let (t, HoverNews::Calibrated(cal)) = news[0] else {
+        panic!("{news:?}")
+    };
+    // settled 3 s into the hover, then 30 s averaged: at 10 + 33 s
+    assert!((t - 43.0).abs() < 0.3, "{t}");
+    assert!((cal.hover_w - 208.0).abs() < 1e-9);
+    assert!(
+        (cal.eta_h - 0.5).abs() < 1e-9,
+        "100 W ideal over 200 W: {cal:?}"
+    );
+    assert!((cal.hover_s - 30.0).abs() < 0.15);
+    assert!(cal.applied);
+    // the member's powers rescale by 0.4/0.5, the avionics stay
+    assert!((cal.power_w(258.0) - (250.0 * 0.8 + 8.0)).abs() < 1e-9);
+    // an energy over an hour: 8 Wh of avionics unscaled
+    assert!((cal.energy_wh(108.0, 3600.0) - (100.0 * 0.8 + 8.0)).abs() < 1e-9);
+    assert_eq!(c.calibration(), Some(&cal));
+    // nothing more after it
+    assert!(c.observe(200.0, Some(30.0), 0.0, 0.0, Some(50.0)).is_none());
+}
+
+#[test]
+fn a_hover_of_twenty_seconds_calibrates_when_it_ends() {
+    let mut c = HoverCalibrator::new(Ok(reference()), false);
+    let news = fly(&mut c, 20.0, 208.0, 10.0);
+    let [(t, HoverNews::Calibrated(cal))] = news.as_slice() else {
+        panic!("{news:?}")
+    };
+    assert!((*t - 30.0).abs() < 0.3, "at the hover's end: {t}");
+    assert!((cal.hover_s - 17.0).abs() < 0.15, "{cal:?}");
+    assert!(!cal.applied);
+}
+
+#[test]
+fn straight_into_cruise_is_no_hover_and_says_so() {
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    // a 10 s pause is too short; then cruise past the search
+    let news = fly(&mut c, 10.0, 208.0, 200.0);
+    let [(t, HoverNews::NoHover(why))] = news.as_slice() else {
+        panic!("{news:?}")
+    };
+    assert!(why.contains("no hover") && why.contains("cruise"), "{why}");
+    assert!(*t > 180.0 && *t < 200.0, "{t}");
+    assert!(matches!(c.state(), HoverState::None(_)));
+    assert!(c.calibration().is_none());
+}
+
+#[test]
+fn on_the_ground_nothing_counts() {
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    for i in 0..2000 {
+        // still, drawing power, but on the ground (and without a home)
+        let h = if i % 2 == 0 { Some(0.5) } else { None };
+        assert!(c
+            .observe(f64::from(i) * 0.1, h, 0.0, 0.0, Some(200.0))
+            .is_none());
+    }
+    assert_eq!(c.state(), &HoverState::Searching);
+}
+
+#[test]
+fn a_power_momentum_theory_cannot_give_is_refused() {
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    // 60 W: below the 100 W ideal
+    let news = fly(&mut c, 40.0, 60.0, 1.0);
+    let [(_, HoverNews::NoHover(why))] = news.as_slice() else {
+        panic!("{news:?}")
+    };
+    assert!(why.contains("60 W") && why.contains("100 W ideal"), "{why}");
+}
+
+#[test]
+fn a_plane_has_no_hover_to_calibrate() {
+    let plane = VehicleProfile::named_or_file("plane").unwrap();
+    let why = HoverReference::of(&plane).unwrap_err();
+    assert!(why.contains("does not hover"), "{why}");
+    let mut c = HoverCalibrator::new(Err(why), true);
+    assert!(c.observe(0.0, Some(30.0), 0.0, 0.0, Some(200.0)).is_none());
+    assert!(matches!(c.state(), HoverState::None(w) if w.contains("does not hover")));
+}
+
+#[test]
+fn the_reference_is_momentum_theory_for_the_profile() {
+    let m100 = VehicleProfile::m100();
+    let r = HoverReference::of(&m100).unwrap();
+    let t = m100.mass_kg(0.0) * m100.air.g_m_s2;
+    let want = t.powf(1.5) / (2.0 * m100.air.rho_kg_m3 * m100.disk_area_m2()).sqrt();
+    assert!((r.ideal_w - want).abs() < 1e-9);
+    assert_eq!(r.prior_eta, m100.stolaroff.eta);
+    assert!(r
+        .eta_of(want / 0.5 + r.avionics_w)
+        .is_some_and(|e| (e - 0.5).abs() < 1e-9));
+    assert!(r.eta_of(f64::NAN).is_none());
+}
