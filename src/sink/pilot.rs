@@ -73,8 +73,10 @@ pub struct PilotView {
 pub struct WorstAlert {
     pub rule: String,
     pub severity: Severity,
-    /// The alert's sentence as it was raised.
+    /// The alert's sentence as it was raised (its figures those of that moment).
     pub message: String,
+    /// When it was raised, s (the source's clock), where known.
+    pub t: Option<f64>,
 }
 
 /// Whether a severity calls for the pilot to act now (a red banner, bold red text).
@@ -117,18 +119,20 @@ impl PilotView {
     }
 }
 
-/// The most severe of `active` (rule → severity), with its message from `messages` where
-/// known.
+/// The most severe of `active` (rule → severity), with its message and the time it was
+/// raised from `raised` where known.
 pub fn worst_of<'a>(
     active: impl IntoIterator<Item = (&'a String, &'a Severity)>,
-    message: impl Fn(&str) -> Option<String>,
+    raised: impl Fn(&str) -> Option<(String, f64)>,
 ) -> Option<WorstAlert> {
     // Severity orders most severe first.
     let (rule, &severity) = active.into_iter().min_by_key(|(_, &s)| s)?;
+    let (message, t) = raised(rule).map_or((String::new(), None), |(m, t)| (m, Some(t)));
     Some(WorstAlert {
         rule: rule.clone(),
         severity,
-        message: message(rule).unwrap_or_default(),
+        message,
+        t,
     })
 }
 

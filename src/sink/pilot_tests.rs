@@ -53,6 +53,7 @@ fn alert(rule: &str, severity: Severity) -> WorstAlert {
         rule: rule.into(),
         severity,
         message: "Return now: low voltage before home".into(),
+        t: Some(300.0),
     }
 }
 

@@ -32,8 +32,8 @@ pub struct VehicleView {
     pub report: Arc<Report>,
     /// Alerts raised and not yet cleared: rule → severity.
     pub active: BTreeMap<String, Severity>,
-    /// Their messages as raised: rule → message.
-    pub messages: BTreeMap<String, String>,
+    /// Their messages and times as raised: rule → (message, t).
+    pub messages: BTreeMap<String, (String, f64)>,
     pub history: VecDeque<PowerPoint>,
 }
 
@@ -131,7 +131,7 @@ impl ScreenState {
             match a.state {
                 AlertState::Raised => {
                     v.active.insert(a.rule.clone(), a.severity);
-                    v.messages.insert(a.rule.clone(), a.message.clone());
+                    v.messages.insert(a.rule.clone(), (a.message.clone(), a.t));
                 }
                 AlertState::Cleared => {
                     v.active.remove(&a.rule);

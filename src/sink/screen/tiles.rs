@@ -67,12 +67,23 @@ pub fn banner(f: &mut Frame, area: Rect, v: Option<&VehicleView>, silent: bool) 
             Style::default().fg(Color::White).bg(Color::Red).bold(),
         ),
         (Some(w), _) => (
-            format!(
-                " {} {}: {}",
-                w.severity.name().to_uppercase(),
-                w.rule,
-                w.message
-            ),
+            {
+                let text = format!(
+                    " {} {}: {}",
+                    w.severity.name().to_uppercase(),
+                    w.rule,
+                    w.message
+                );
+                // When it was raised, where the line has room (the message's figures are
+                // that moment's).
+                let at =
+                    w.t.map_or(String::new(), |t| format!(" (raised at t {} s)", num(t, 0)));
+                if text.chars().count() + at.chars().count() <= usize::from(area.width) {
+                    text + &at
+                } else {
+                    text
+                }
+            },
             if is_critical(w.severity) {
                 Style::default().fg(Color::White).bg(Color::Red).bold()
             } else {

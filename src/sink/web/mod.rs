@@ -204,8 +204,8 @@ struct Dash {
     latest: Option<Latest>,
     /// Alerts raised and not cleared: rule → severity.
     active: std::collections::BTreeMap<String, crate::report::Severity>,
-    /// Their messages as raised: rule → message (the banner's words).
-    messages: std::collections::BTreeMap<String, String>,
+    /// Their messages and times as raised: rule → (message, t) (the banner's words).
+    messages: std::collections::BTreeMap<String, (String, f64)>,
 }
 
 /// One vehicle's row of the fleet table.
@@ -306,7 +306,8 @@ impl Dash {
             match a.state {
                 crate::report::AlertState::Raised => {
                     self.active.insert(a.rule.clone(), a.severity);
-                    self.messages.insert(a.rule.clone(), a.message.clone());
+                    self.messages
+                        .insert(a.rule.clone(), (a.message.clone(), a.t));
                 }
                 crate::report::AlertState::Cleared => {
                     self.active.remove(&a.rule);
