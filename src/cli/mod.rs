@@ -45,13 +45,13 @@ pub struct RunArgs {
     /// No live terminal view.
     #[arg(long, short = 'q')]
     quiet: bool,
-    /// The one-line terminal view instead of the full screen (which is drawn only when
-    /// standard output is a terminal).
+    /// The pilot's status line (at most 120 characters, one a second on stderr) instead of
+    /// the full screen (which is drawn only when standard output is a terminal).
     #[arg(long)]
     plain: bool,
-    /// Every model's figures: the terminal's engineer's line (each model's raw~adapted
+    /// Every model's figures: the engineer's status line (each model's raw~adapted
     /// estimate, the energy's bookkeeping, the pack model, the link's counters) instead of
-    /// the pilot's, and every model in the screen's power tile.
+    /// the pilot's, and every model's estimate beside the screen's power chart.
     #[arg(long)]
     detail: bool,
     /// Run this LSTM instead of the shipped one: a model folder, its card.toml, or a

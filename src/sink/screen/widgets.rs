@@ -112,7 +112,7 @@ pub fn draw(f: &mut Frame, s: &ScreenState, link: &LinkView, detail: bool) {
         draw_alerts(f, lists, s);
     }
     let log = if s.ended {
-        "the replay has ended: press any key to leave".to_string()
+        "the input has ended: press any key to leave".to_string()
     } else {
         s.log.back().map_or(String::new(), |l| format!("log: {l}"))
     };
