@@ -292,7 +292,7 @@ pub fn link_lines(rate: f64, link: &LinkView, r: Option<&Report>) -> Vec<Line<'s
     lines
 }
 
-/// Every model's estimate, raw~adapted (`--detail`), the forecast's model marked.
+/// Every model's estimate, raw~adapted (`--detail`), the forecast's model first and marked.
 pub fn model_lines(r: Option<&Report>) -> Vec<Line<'static>> {
     let Some(r) = r else {
         return vec![Line::raw("—")];
@@ -304,9 +304,11 @@ pub fn model_lines(r: Option<&Report>) -> Vec<Line<'static>> {
             Style::default().fg(Color::DarkGray),
         )];
     }
-    r.estimate
-        .models
-        .iter()
+    // The forecast's model first: a short tile (80×24) shows it whatever else it cuts.
+    let mut models: Vec<_> = r.estimate.models.iter().collect();
+    models.sort_by_key(|m| Some(m.name.as_str()) != forecast);
+    models
+        .into_iter()
         .map(|m| {
             let mut txt = format!("{} {}", m.name, num(f64::from(m.power_w), 0));
             if let Some(a) = m.adapted_w {
