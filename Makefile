@@ -35,6 +35,7 @@ run: build
 # --check: writes nothing; skipped with a note where the data set is absent).
 test: setup
 	@scripts/setup-chromium.sh
+	@scripts/setup-tmux.sh
 	@scripts/setup-mosquitto.sh
 	$(CARGO) test --workspace --locked --no-fail-fast
 	@python3 scripts/docs-tables.py --if-available --check

@@ -132,7 +132,7 @@ fn under_pty(
     let drawn = |t: &str| {
         let s = squeezed(t);
         t.contains(ENTER_ALT)
-            && number_beside(&s, "measured", true)
+            && number_beside(&s, "Wmeasured", false)
             && number_beside(&s, "msg/s", false)
             && number_beside(&s, "Wh", false)
     };
@@ -173,24 +173,24 @@ fn check(code: i32, out: &str) {
     assert_eq!(code, 0, "exit status; the pty showed:\n{out:?}");
     let s = squeezed(out);
     for title in [
-        "Power",
-        "Forecast",
-        "Remainingenergy",
-        "Timetoempty",
+        "Timeleft",
+        "Stateofcharge",
+        "Voltage",
         "Margins",
-        "Pack",
+        "Power",
+        "Packmodel",
         "Link",
         "Alerts",
         "last5min",
     ] {
         assert!(s.contains(title), "no {title} tile: {out:?}");
     }
-    assert!(s.contains("from:restingvoltage"), "remaining_source: {s}");
-    assert!(number_beside(&s, "home", true), "home margin: {s}");
     assert!(
-        number_beside(&s, "stateofcharge", true),
-        "state of charge: {s}"
+        s.contains("restingvoltage"),
+        "the state of charge's source: {s}"
     );
+    assert!(number_beside(&s, "home", true), "home margin: {s}");
+    assert!(number_beside(&s, "Whleft", false), "energy left: {s}");
     let entered = out.rfind(ENTER_ALT).expect("the alternate screen entered");
     let left = out.rfind(LEAVE_ALT).expect("the alternate screen left");
     assert!(

@@ -45,10 +45,15 @@ pub struct RunArgs {
     /// No live terminal view.
     #[arg(long, short = 'q')]
     quiet: bool,
-    /// The one-line terminal view instead of the full screen (which is drawn only when
-    /// standard output is a terminal).
+    /// The pilot's status line (at most 120 characters, one a second on stderr) instead of
+    /// the full screen (which is drawn only when standard output is a terminal).
     #[arg(long)]
     plain: bool,
+    /// Every model's figures: the engineer's status line (each model's raw~adapted
+    /// estimate, the energy's bookkeeping, the pack model, the link's counters) instead of
+    /// the pilot's, and every model's estimate beside the screen's power chart.
+    #[arg(long)]
+    detail: bool,
     /// Run this LSTM instead of the shipped one: a model folder, its card.toml, or a
     /// weights file (.safetensors, or a TorchScript .pt) with card.toml beside it.
     #[arg(long, value_name = "FILE")]
@@ -313,10 +318,11 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
     if !run.quiet && run.json.as_deref() != Some("-") {
         // The full screen on a terminal; lines on stderr with --plain or a piped stdout.
         let tty = std::io::IsTerminal::is_terminal(&std::io::stdout());
+        let detail = run.detail;
         sinks.push(if tty && !run.plain {
-            SinkSpec::Screen
+            SinkSpec::Screen { detail }
         } else {
-            SinkSpec::Terminal
+            SinkSpec::Terminal { detail }
         });
     }
     if let Some(j) = &run.json {

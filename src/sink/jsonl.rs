@@ -4,7 +4,7 @@
 //! {"type":"window","system_id":…,"t":…,"measured_w":…,"features":{"wind_speed":…,…}}
 //! {"type":"estimate","system_id":…,"t":…,"vehicle_class":"multirotor"|"fixed_wing"|"vtol"|"other",["mav_type":…,]["vtol_state":"mc"|"fw"|…,]
 //!  "measured_w":…,"models":{"<name>":watts,…},["bands":{"<name>":[lo,hi]},]["adapted":{"<name>":watts,…},]
-//!  "energy_used_wh":…,"remaining_wh":…,"remaining_source":"resting voltage"|"battery"|"assumed full","time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
+//!  "energy_used_wh":…,"remaining_wh":…,"remaining_pct":…,"remaining_source":"resting voltage"|"battery"|"assumed full","time_to_empty_s":…,"home_margin_wh":…,["mission_energy_wh":…,"mission_margin_wh":…,]"forecast_adapted":…,"forecast_model":…,"forecast_why":…,
 //!  ["hover_calibration":{"t_s":…,"hover_w":…,"hover_s":…,"eta_h":…,"prior_eta_h":…,"avionics_w":…,"applied":…},]
 //!  "capacity_wh":…|null,"capacity_source":"config"|"vehicle parameter BATT_CAPACITY"|"--pack …"|"not known: …"|…,"cell_count":…,"cell_count_source":…,
 //!  "chemistry":"lipo"|"lihv"|"liion"|"lifepo4","chemistry_source":…,"battery_v":…,"battery_v_model":…,"battery_ocv_v":…,"battery_rest_v":…,
@@ -150,6 +150,7 @@ pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
             },
             energy_used_wh: r.energy.energy_used_wh,
             remaining_wh: r.energy.remaining_wh,
+            remaining_pct: r.energy.remaining_pct,
             remaining_source: r.energy.remaining_source,
             time_to_empty_s: r.energy.time_to_empty_s,
             home_margin_wh: r.energy.home_margin_wh,
@@ -291,6 +292,9 @@ struct EstimateLine<'a> {
     /// Energy left to the usable floor, Wh, and where the start state came from
     /// (`resting voltage`, `battery`: the autopilot's %, `assumed full`).
     remaining_wh: Option<f64>,
+    /// The state of charge every view shows (`sink::pilot`): `remaining_wh` as a share of
+    /// the usable pack, %.
+    remaining_pct: Option<f64>,
     remaining_source: crate::report::RemainingSource,
     time_to_empty_s: Option<f64>,
     home_margin_wh: Option<f64>,

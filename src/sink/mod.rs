@@ -9,6 +9,7 @@
 //! counts them ([`ReportRx::missed`]) and says so, never silently.
 
 pub mod jsonl;
+pub mod pilot;
 pub mod screen;
 pub mod terminal;
 
@@ -55,10 +56,12 @@ pub enum JsonTarget {
 /// One publisher a run feeds.
 #[derive(Debug, Clone)]
 pub enum SinkSpec {
-    /// The compact live terminal view (lines on stderr).
-    Terminal,
-    /// The full live screen on a terminal stdout ([`screen`]).
-    Screen,
+    /// The compact live terminal view (lines on stderr); `detail`: the engineer's line
+    /// (every model's figures) instead of the pilot's.
+    Terminal { detail: bool },
+    /// The full live screen on a terminal stdout ([`screen`]); `detail`: every model's
+    /// figures in the power tile.
+    Screen { detail: bool },
     /// JSON lines.
     Json(JsonTarget),
     /// STATUSTEXT and NAMED_VALUE_FLOAT back to the ground station.
@@ -78,8 +81,8 @@ pub fn spawn(
     status: ChainStatus,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
     match spec {
-        SinkSpec::Terminal => Ok(tokio::spawn(terminal::run(rx, status))),
-        SinkSpec::Screen => Ok(tokio::spawn(screen::run(rx, status))),
+        SinkSpec::Terminal { detail } => Ok(tokio::spawn(terminal::run(rx, status, detail))),
+        SinkSpec::Screen { detail } => Ok(tokio::spawn(screen::run(rx, status, detail))),
         SinkSpec::Json(target) => jsonl::spawn(target, rx, status),
         SinkSpec::Mavlink(c) => Ok(tokio::spawn(mavlink::run(c, rx, status.link))),
         SinkSpec::Web(c) => web::spawn(c, rx, status.shutdown, status.stats),

@@ -1,9 +1,20 @@
-//! The live terminal view: one status line a second on stderr (measured power, the models'
-//! estimates, energy, link health, stale features), alert events the moment they come,
-//! and a closing line with the run's counters. Colour when stderr is a terminal.
+//! The live terminal view: one status line a second on stderr, alert events the moment
+//! they come, and a closing line with the run's counters. Colour when stderr is a terminal.
+//!
+//! The status line is the pilot's ([`super::pilot::line`], at most 120 characters): power,
+//! the state of charge and its source, the time to the first of empty and low voltage, the
+//! voltage and its forecast minimum, the mission margin, the worst alert standing.
 //!
 //! ```text
-//! t 312.4 s  multirotor  measured 241.7 W  dandrea 236.0  lstm 244.1 W  used 12.80 Wh  left 88.1 Wh (21 min)  home +31.2 Wh  link 52 msg/s ok 16211 bad 2 unk 0 gaps 3  stale: wind_speed
+//! 242 W  31 % 32.3 Wh (resting voltage)  12 min to low V  22.8 V min 21.4 V  mission +4.2 Wh  CRITICAL below_reserve
+//! ```
+//!
+//! With `--detail`, the engineer's line instead (every model's raw~adapted estimate, the
+//! energy's bookkeeping, the pack model, link health, stale features), and which message
+//! feeds each signal whenever that changes:
+//!
+//! ```text
+//! t 312.4 s  multirotor  measured 241.7 W  dandrea 236.0  lstm 244.1~241.0  used 12.80 Wh  left 88.1 Wh 68 % [capacity 130.0 Wh: …; resting voltage] (21 min on lstm~)  home +31.2 Wh  link 52 msg/s ok 16211 bad 2 unk 0 gaps 3  stale: wind_speed
 //! ```
 //!
 //! With more than one vehicle on the link, the status line becomes a fleet view: one row
@@ -28,8 +39,9 @@ use crate::report::status::{ChainStatus, IngestStats, SignalHealth};
 use crate::report::{AlertEvent, AlertState, Report, Severity};
 use crossterm::style::Stylize;
 
-/// Run the view until the report channel closes.
-pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
+/// Run the view until the report channel closes; `detail`: the engineer's line
+/// ([`detail_line`]) instead of the pilot's.
+pub async fn run(mut rx: ReportRx, status: ChainStatus, detail: bool) -> anyhow::Result<()> {
     let ChainStatus {
         stats,
         health,
@@ -77,11 +89,13 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
                     let _ = writeln!(e, "{}", fleet_view(&fleet, &stats, rate, colour));
                     continue;
                 }
-                let line = status_line(fleet.values().next().map(|(r, _)| &**r), &stats, rate, colour);
-                // Which message feeds each signal: said once, and again whenever it changes
-                // (a better source appeared, or one went quiet and a fallback took over).
+                let one = fleet.values().next();
+                let line = status_line(one.map(|(r, a)| (&**r, a)), &stats, rate, colour, detail);
+                // Which message feeds each signal (with --detail): said once, and again
+                // whenever it changes (a better source appeared, or one went quiet and a
+                // fallback took over).
                 let feeds = health.lock().map(|h| feeds_line(&h)).unwrap_or_default();
-                if !feeds.is_empty() && feeds != feeds_shown {
+                if detail && !feeds.is_empty() && feeds != feeds_shown {
                     let _ = writeln!(e, "{feeds}");
                     feeds_shown = feeds;
                 }
@@ -173,8 +187,31 @@ fn num(v: f64, decimals: usize) -> String {
     }
 }
 
-/// The once-a-second status line.
-pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: bool) -> String {
+/// The once-a-second status line: the pilot's ([`super::pilot::line`]), or with `detail`
+/// the engineer's ([`detail_line`]). `r`: the newest report and the alerts standing
+/// (rule → severity).
+pub fn status_line(
+    r: Option<(&Report, &BTreeMap<String, Severity>)>,
+    stats: &IngestStats,
+    rate: f64,
+    colour: bool,
+    detail: bool,
+) -> String {
+    if detail {
+        return detail_line(r.map(|(r, _)| r), stats, rate, colour);
+    }
+    let worst = r.and_then(|(_, active)| super::pilot::worst_of(active, |_| None));
+    super::pilot::line(
+        r.map(|(r, _)| r),
+        worst.as_ref(),
+        stats.silent.load(Relaxed),
+        colour,
+    )
+}
+
+/// The engineer's status line (`--detail`): every model's raw~adapted estimate, the
+/// energy's bookkeeping, the pack model, the link's counters, the stale features.
+pub fn detail_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: bool) -> String {
     let mut s = String::new();
     match r {
         None => s.push_str("waiting for the first window  "),
@@ -201,12 +238,15 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
             }
             if let Some(left) = en.remaining_wh {
                 let b = &en.battery;
+                // The one percentage (the state of charge every view shows) and its source;
+                // the capacity apart, as the % is of the usable pack, not of it.
                 s.push_str(&format!(
-                    "left {} of {} Wh [{}; {}]",
+                    "left {} Wh {} % [{}; capacity {} Wh: {}]",
                     num(left, 1),
+                    en.remaining_pct.map_or("?".into(), |p| num(p, 0)),
+                    super::pilot::charge_source(en),
                     b.capacity().map_or("?".into(), |c| num(c, 1)),
                     b.capacity_source(),
-                    en.remaining_source
                 ));
                 if let Some(t) = en.time_to_empty_s {
                     s.push_str(&format!(" ({} min", num(t / 60.0, 0)));
@@ -237,7 +277,9 @@ pub fn status_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
                     s.push_str(&format!("~{}", num(m, 2)));
                 }
                 if let Some(soc) = pk.soc_pct {
-                    s.push_str(&format!(" {}%", num(soc, 0)));
+                    // The pack model's open-circuit figure, named apart from the state of
+                    // charge (it counts the energy under the low-voltage floor too).
+                    s.push_str(&format!(" OCV {}%", num(soc, 0)));
                 }
                 if let (Some(lo), Some(low)) = (pk.v_min_forecast_v, pk.low_threshold_v) {
                     let txt = format!(" min {} V", num(lo, 2));
@@ -419,9 +461,14 @@ mod tests {
         IngestStats::add(&stats.frames_ok, 120);
         IngestStats::add(&stats.frames_bad, 2);
         stats.silent.store(true, Relaxed);
-        let line = status_line(None, &stats, f64::NAN, false);
+        let line = status_line(None, &stats, f64::NAN, false, true);
         assert!(
             line.contains("ok 120 bad 2") && line.contains("SILENT") && line.contains("? msg/s"),
+            "{line}"
+        );
+        let line = status_line(None, &stats, f64::NAN, false, false);
+        assert!(
+            line.contains("waiting for the first window") && line.contains("SILENT"),
             "{line}"
         );
     }

@@ -68,3 +68,4 @@ mod vehicle_class;
 mod vehicle_params;
 mod vehicle_store;
 mod vehicle_store_log_clock;
+mod views_pilot;

@@ -171,10 +171,16 @@ async fn dashboard_shows_estimates_and_alerts_in_chromium() {
         rest[open..close.max(open)].to_string()
     };
     assert_eq!(text_of("v-measured"), "512 W");
+    // The Wh in the detail; the one percentage on the state of charge's card.
     let remaining = text_of("v-remaining");
     assert!(
-        remaining.ends_with("%)") && remaining.contains("Wh"),
+        remaining.ends_with(" Wh") && !remaining.contains('%'),
         "{remaining}"
+    );
+    assert!(
+        text_of("v-charge").ends_with(" %"),
+        "{}",
+        text_of("v-charge")
     );
     assert!(
         text_of("status").starts_with("t = 90.0 s"),

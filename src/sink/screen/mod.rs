@@ -26,6 +26,7 @@
 //! line view ends.
 
 mod state;
+mod tiles;
 mod widgets;
 
 pub use state::ScreenState;
@@ -159,6 +160,8 @@ enum Key {
     Quit,
     Move(isize),
     Redraw,
+    /// Any other key (it leaves a replay's held final state).
+    Other,
 }
 
 /// The terminal, taken: raw mode, the alternate screen, cursor hidden, stderr in a pipe,
@@ -246,7 +249,7 @@ fn read_keys(tx: &mpsc::UnboundedSender<Key>, stop: &AtomicBool) {
                 KeyCode::Down | KeyCode::Char('j') => Key::Move(1),
                 KeyCode::PageUp | KeyCode::Home => Key::Move(-1000),
                 KeyCode::PageDown | KeyCode::End => Key::Move(1000),
-                _ => continue,
+                _ => Key::Other,
             },
             Ok(Event::Resize(..)) => Key::Redraw,
             Ok(_) => continue,
@@ -279,13 +282,16 @@ fn plain_text(s: &str) -> String {
 }
 
 /// Run the screen until the report channel closes, a key quits, or the run is stopped.
-/// When the terminal cannot be taken, the line view runs instead.
-pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
+/// When the reports end on their own (a replay's last), the final state stays on the
+/// screen until a key is pressed (or the run is stopped); the screen is only drawn on a
+/// terminal, so nothing waits where no one can press one. When the terminal cannot be
+/// taken, the line view runs instead. `detail`: every model's estimate beside the chart.
+pub async fn run(mut rx: ReportRx, status: ChainStatus, detail: bool) -> anyhow::Result<()> {
     let mut screen = match Screen::enter() {
         Ok(s) => s,
         Err(e) => {
             tracing::warn!("no screen ({e}): the line view instead");
-            return terminal::run(rx, status).await;
+            return terminal::run(rx, status, detail).await;
         }
     };
     let ChainStatus {
@@ -303,8 +309,13 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
     loop {
         let mut redraw = false;
         tokio::select! {
-            r = rx.next() => match r {
+            r = rx.next(), if !state.ended => match r {
                 Some(r) => state.push(r),
+                // Held until a key: only while keys can come.
+                None if keys_open && !shutdown.is_cancelled() => {
+                    state.ended = true;
+                    redraw = true;
+                }
                 None => break,
             },
             k = screen.keys.recv(), if keys_open => match k {
@@ -312,11 +323,14 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
                     shutdown.cancel();
                     break;
                 }
+                Some(_) if state.ended => break,
                 Some(Key::Move(by)) => {
                     state.move_selection(by);
                     redraw = true;
                 }
                 Some(Key::Redraw) => redraw = true,
+                Some(Key::Other) => {}
+                None if state.ended => break,
                 None => keys_open = false,
             },
             _ = shutdown.cancelled() => break,
@@ -342,7 +356,7 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
                 silent: stats.silent.load(Ordering::Relaxed),
                 missed: rx.missed(),
             };
-            if let Err(e) = screen.terminal.draw(|f| draw(f, &state, &link)) {
+            if let Err(e) = screen.terminal.draw(|f| draw(f, &state, &link, detail)) {
                 failed = Some(e);
                 shutdown.cancel();
                 break;
@@ -372,7 +386,7 @@ pub async fn run(mut rx: ReportRx, status: ChainStatus) -> anyhow::Result<()> {
     } else if let Some(v) = state.selected() {
         eprintln!(
             "{}",
-            terminal::status_line(Some(&*v.report), &stats, rate, false)
+            terminal::status_line(Some((&*v.report, &v.active)), &stats, rate, false, detail)
         );
     }
     terminal::print_summary(&stats, rx.missed(), "the screen", &latency);
@@ -401,7 +415,7 @@ mod tests {
             silent: true,
             missed: 0,
         };
-        t.draw(|f| draw(f, &state, &link)).unwrap();
+        t.draw(|f| draw(f, &state, &link, false)).unwrap();
         let text: String = t
             .backend()
             .buffer()
@@ -410,12 +424,12 @@ mod tests {
             .map(|c| c.symbol())
             .collect();
         for title in [
-            "Power",
-            "Forecast",
-            "Remaining energy",
-            "Time to empty",
+            "Time left",
+            "State of charge",
+            "Voltage",
             "Margins",
-            "Pack",
+            "Power",
+            "Pack model",
             "Link",
             "Alerts",
             "SILENT",

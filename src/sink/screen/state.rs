@@ -32,6 +32,8 @@ pub struct VehicleView {
     pub report: Arc<Report>,
     /// Alerts raised and not yet cleared: rule → severity.
     pub active: BTreeMap<String, Severity>,
+    /// Their messages and times as raised: rule → (message, t).
+    pub messages: BTreeMap<String, (String, f64)>,
     pub history: VecDeque<PowerPoint>,
 }
 
@@ -42,6 +44,11 @@ impl VehicleView {
             .iter()
             .min_by_key(|(_, &s)| s)
             .map(|(r, &s)| (r.as_str(), s))
+    }
+
+    /// The most severe alert standing, with its message (the banner).
+    pub fn worst_alert(&self) -> Option<crate::sink::pilot::WorstAlert> {
+        crate::sink::pilot::worst_of(&self.active, |rule| self.messages.get(rule).cloned())
     }
 }
 
@@ -64,6 +71,9 @@ pub struct ScreenState {
     pub rate: f64,
     /// The newest log lines (stderr while the screen is up), newest last.
     pub log: VecDeque<String>,
+    /// The reports have ended (a replay's last): the screen holds the final state until a
+    /// key.
+    pub ended: bool,
 }
 
 /// The forecast model's estimate in a report: its adapted value when the forecast follows
@@ -114,12 +124,19 @@ impl ScreenState {
             .or_insert_with(|| VehicleView {
                 report: r.clone(),
                 active: BTreeMap::new(),
+                messages: BTreeMap::new(),
                 history: VecDeque::new(),
             });
         for a in &r.alerts {
             match a.state {
-                AlertState::Raised => v.active.insert(a.rule.clone(), a.severity),
-                AlertState::Cleared => v.active.remove(&a.rule),
+                AlertState::Raised => {
+                    v.active.insert(a.rule.clone(), a.severity);
+                    v.messages.insert(a.rule.clone(), (a.message.clone(), a.t));
+                }
+                AlertState::Cleared => {
+                    v.active.remove(&a.rule);
+                    v.messages.remove(&a.rule);
+                }
             };
         }
         // A silent tick (nothing heard: no model ran) adds no point; a clock that went

@@ -1,11 +1,11 @@
-//! How one frame of the screen is drawn from a [`ScreenState`]: the title bar, two rows of
-//! tiles for the selected vehicle (power, forecast, remaining energy, time to empty,
-//! margins, the pack, the link), the power chart (measured, the forecast model's estimate,
-//! the forecast, over the last minutes), the alerts as they fired, the vehicle list in
-//! fleet mode, and the newest log line. Pure drawing: everything comes from the state.
+//! How one frame of the screen is drawn from a [`ScreenState`]: the title bar, the alert
+//! banner, two rows of tiles for the selected vehicle ([`super::tiles`]: the pilot's first),
+//! the power chart (measured, the forecast model's estimate, the forecast, over the last
+//! minutes), the alerts as they fired, the vehicle list in fleet mode, and the newest log
+//! line. Pure drawing: everything comes from the state.
 
 use ratatui::layout::{Constraint, Layout, Rect};
-use ratatui::style::{Color, Modifier, Style, Stylize};
+use ratatui::style::{Color, Modifier, Style};
 use ratatui::symbols::Marker;
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{
@@ -14,8 +14,9 @@ use ratatui::widgets::{
 use ratatui::Frame;
 
 use super::state::{ScreenState, VehicleView, HISTORY_S};
+use super::tiles::{self, tile};
 use crate::report::status::StatsSnapshot;
-use crate::report::{AlertState, RemainingSource, Report, Severity};
+use crate::report::{AlertState, Severity};
 
 /// What the screen shows beside the reports: the link's counters and whether it is silent.
 pub struct LinkView {
@@ -36,10 +37,6 @@ pub fn num(v: f64, decimals: usize) -> String {
 
 fn opt(v: Option<f64>, decimals: usize, unit: &str) -> String {
     v.map_or("—".into(), |v| format!("{} {unit}", num(v, decimals)))
-}
-
-fn signed(v: f64) -> String {
-    format!("{}{}", if v >= 0.0 { "+" } else { "" }, num(v, 1))
 }
 
 /// `12 min 05 s`, or `45 s`.
@@ -65,46 +62,46 @@ fn severity_style(s: Severity) -> Style {
     }
 }
 
-fn tile<'a>(f: &mut Frame, area: Rect, title: &'a str, lines: Vec<Line<'a>>) {
-    let block = Block::bordered().title(Span::styled(
-        format!(" {title} "),
-        Style::default().add_modifier(Modifier::BOLD),
-    ));
-    f.render_widget(Paragraph::new(lines).block(block), area);
-}
-
-/// Draw one frame.
-pub fn draw(f: &mut Frame, s: &ScreenState, link: &LinkView) {
+/// Draw one frame: the title, the alert banner, the pilot's tiles (time left, the state
+/// of charge, the voltage, the margins), power, the pack and the link, then the power chart
+/// (beside every model's estimate with `detail`) over the alerts (and the vehicle list in
+/// fleet mode), and the newest log line. Fits 80×24 whole.
+pub fn draw(f: &mut Frame, s: &ScreenState, link: &LinkView, detail: bool) {
     let fleet = s.is_fleet();
-    let [title, tiles1, tiles2, middle, bottom] = Layout::vertical([
+    let [title, banner, tiles1, tiles2, middle, bottom] = Layout::vertical([
         Constraint::Length(1),
-        Constraint::Length(7),
-        Constraint::Length(6),
-        Constraint::Min(8),
+        Constraint::Length(1),
+        Constraint::Length(5),
+        Constraint::Length(5),
+        Constraint::Min(6),
         Constraint::Length(1),
     ])
     .areas(f.area());
     draw_title(f, title, s);
     let v = s.selected();
     let r = v.map(|v| &*v.report);
-    let [power, forecast, remaining, tte] =
+    tiles::banner(f, banner, v, link.silent);
+    let [time, charge, volts, margins] =
         Layout::horizontal([Constraint::Ratio(1, 4); 4]).areas(tiles1);
-    tile(f, power, "Power", power_lines(r));
-    tile(f, forecast, "Forecast", forecast_lines(r));
-    tile(f, remaining, "Remaining energy", remaining_lines(r));
-    tile(f, tte, "Time to empty", tte_lines(r));
-    let [margins, pack, link_area] = Layout::horizontal([
-        Constraint::Ratio(1, 3),
-        Constraint::Ratio(1, 3),
-        Constraint::Ratio(1, 3),
-    ])
-    .areas(tiles2);
-    tile(f, margins, "Margins", margin_lines(r));
-    tile(f, pack, "Pack", pack_lines(r));
-    tile(f, link_area, "Link", link_lines(s, link, r));
+    tile(f, time, "Time left", tiles::time_lines(r));
+    tile(f, charge, "State of charge", tiles::charge_lines(r));
+    tile(f, volts, "Voltage", tiles::voltage_lines(r));
+    tile(f, margins, "Margins", tiles::margin_lines(r));
+    let [power, pack, link_area] = Layout::horizontal([Constraint::Ratio(1, 3); 3]).areas(tiles2);
+    tile(f, power, "Power", tiles::power_lines(r));
+    tile(f, pack, "Pack model", tiles::pack_lines(r));
+    tile(f, link_area, "Link", tiles::link_lines(s.rate, link, r));
     let [chart, lists] =
         Layout::vertical([Constraint::Percentage(55), Constraint::Percentage(45)]).areas(middle);
-    draw_chart(f, chart, v);
+    if detail {
+        let [chart, models] =
+            Layout::horizontal([Constraint::Percentage(60), Constraint::Percentage(40)])
+                .areas(chart);
+        draw_chart(f, chart, v);
+        tile(f, models, "Models (raw~adapted)", tiles::model_lines(r));
+    } else {
+        draw_chart(f, chart, v);
+    }
     if fleet {
         let [alerts, vehicles] =
             Layout::horizontal([Constraint::Percentage(60), Constraint::Percentage(40)])
@@ -114,8 +111,17 @@ pub fn draw(f: &mut Frame, s: &ScreenState, link: &LinkView) {
     } else {
         draw_alerts(f, lists, s);
     }
-    let log = s.log.back().map_or(String::new(), |l| format!("log: {l}"));
-    f.render_widget(Paragraph::new(log).fg(Color::DarkGray), bottom);
+    let log = if s.ended {
+        "the input has ended: press any key to leave".to_string()
+    } else {
+        s.log.back().map_or(String::new(), |l| format!("log: {l}"))
+    };
+    let style = if s.ended {
+        Style::default().fg(Color::Black).bg(Color::Cyan)
+    } else {
+        Style::default().fg(Color::DarkGray)
+    };
+    f.render_widget(Paragraph::new(log).style(style), bottom);
 }
 
 fn draw_title(f: &mut Frame, area: Rect, s: &ScreenState) {
@@ -139,236 +145,6 @@ fn draw_title(f: &mut Frame, area: Rect, s: &ScreenState) {
     };
     spans.push(Span::styled(keys, Style::default().fg(Color::DarkGray)));
     f.render_widget(Paragraph::new(Line::from(spans)), area);
-}
-
-fn power_lines(r: Option<&Report>) -> Vec<Line<'static>> {
-    let Some(r) = r else {
-        return vec![Line::raw("—")];
-    };
-    let mut lines = vec![Line::from(vec![
-        Span::raw("measured "),
-        Span::styled(
-            opt(r.estimate.sample.measured_w.map(f64::from), 1, "W"),
-            Style::default().fg(Color::Yellow).bold(),
-        ),
-    ])];
-    // The forecast model first (the tile may not hold every model), then the others.
-    let forecast = r.energy.forecast_model.as_deref();
-    let mut models: Vec<_> = r.estimate.models.iter().collect();
-    models.sort_by_key(|m| Some(m.name.as_str()) != forecast);
-    if models.is_empty() && r.estimate.sample.vehicle.lift() == crate::features::Lift::Unmodelled {
-        lines.push(Line::styled(
-            "no power model for this vehicle class",
-            Style::default().fg(Color::DarkGray),
-        ));
-    }
-    for m in models {
-        let is_forecast = forecast == Some(m.name.as_str());
-        let mut txt = format!("{} {}", m.name, num(f64::from(m.power_w), 1));
-        if let Some(a) = m.adapted_w {
-            txt.push_str(&format!("~{}", num(f64::from(a), 1)));
-        }
-        txt.push_str(" W");
-        lines.push(if is_forecast {
-            Line::styled(format!("{txt} ◀"), Style::default().fg(Color::Cyan))
-        } else {
-            Line::raw(txt)
-        });
-    }
-    lines
-}
-
-fn forecast_lines(r: Option<&Report>) -> Vec<Line<'static>> {
-    let Some(r) = r else {
-        return vec![Line::raw("—")];
-    };
-    let e = &r.energy;
-    let on = match &e.forecast_model {
-        Some(m) => format!(
-            "on {m}{}",
-            if e.forecast_adapted { " (adapted)" } else { "" }
-        ),
-        None => "on measured power".into(),
-    };
-    let mut lines = vec![
-        Line::styled(opt(e.forecast_w, 1, "W"), Style::default().bold()),
-        Line::raw(on),
-    ];
-    if let Some(why) = &e.forecast_why {
-        lines.push(Line::styled(
-            format!("why: {why}"),
-            Style::default().fg(Color::DarkGray),
-        ));
-    }
-    lines
-}
-
-fn remaining_lines(r: Option<&Report>) -> Vec<Line<'static>> {
-    let Some(r) = r else {
-        return vec![Line::raw("—")];
-    };
-    let e = &r.energy;
-    let mut left = opt(e.remaining_wh, 1, "Wh");
-    if let Some(p) = e.remaining_pct {
-        left.push_str(&format!(" ({}%)", num(p, 0)));
-    }
-    let from = match e.remaining_source {
-        RemainingSource::AssumedFull => Line::styled(
-            "from: ASSUMED FULL (no start state)",
-            Style::default()
-                .fg(Color::Black)
-                .bg(Color::Yellow)
-                .add_modifier(Modifier::BOLD),
-        ),
-        src => Line::raw(format!("from: {src}")),
-    };
-    let b = &e.battery;
-    vec![
-        Line::styled(left, Style::default().bold()),
-        from,
-        Line::raw(match b.capacity() {
-            Some(c) => format!("of {} Wh [{}]", num(c, 1), b.capacity_source()),
-            None => "capacity not known".to_string(),
-        }),
-        Line::raw(format!(
-            "used {} Wh ({})",
-            num(e.energy_used_wh, 2),
-            e.power_source
-        )),
-    ]
-}
-
-fn tte_lines(r: Option<&Report>) -> Vec<Line<'static>> {
-    let Some(r) = r else {
-        return vec![Line::raw("—")];
-    };
-    let e = &r.energy;
-    let mut lines = vec![Line::styled(
-        e.time_to_empty_s.map_or("—".into(), duration),
-        Style::default().bold(),
-    )];
-    if let Some(t) = e.pack.time_to_low_v_s {
-        lines.push(Line::raw(format!("to low voltage {}", duration(t))));
-    }
-    if let Some(m) = &e.mission {
-        lines.push(Line::raw(format!(
-            "mission left {}",
-            duration(m.time_left_s)
-        )));
-    }
-    lines
-}
-
-fn margin_line(label: &str, v: Option<f64>) -> Line<'static> {
-    match v {
-        Some(m) => Line::from(vec![
-            Span::raw(format!("{label} ")),
-            Span::styled(
-                format!("{} Wh", signed(m)),
-                if m < 0.0 {
-                    Style::default().fg(Color::Red).bold()
-                } else {
-                    Style::default().fg(Color::Green)
-                },
-            ),
-        ]),
-        None => Line::raw(format!("{label} —")),
-    }
-}
-
-fn margin_lines(r: Option<&Report>) -> Vec<Line<'static>> {
-    let Some(r) = r else {
-        return vec![Line::raw("—")];
-    };
-    let e = &r.energy;
-    let mut lines = vec![
-        margin_line("home", e.home_margin_wh),
-        margin_line("mission", e.mission_margin_wh),
-    ];
-    if let Some(m) = &e.mission {
-        lines.push(Line::raw(format!(
-            "item {}/{}  {}%  needs {} Wh",
-            m.current_seq,
-            m.items,
-            num(m.progress_pct, 0),
-            num(m.energy_p50_wh, 1)
-        )));
-    }
-    lines
-}
-
-fn pack_lines(r: Option<&Report>) -> Vec<Line<'static>> {
-    let Some(r) = r else {
-        return vec![Line::raw("—")];
-    };
-    let pk = &r.energy.pack;
-    let mut lines = vec![Line::raw(format!(
-        "{} ~ {} model",
-        opt(pk.battery_v, 2, "V"),
-        opt(pk.battery_v_model, 2, "V")
-    ))];
-    lines.push(Line::raw(format!(
-        "state of charge {}",
-        opt(pk.soc_pct, 0, "%")
-    )));
-    let low = match (pk.v_min_forecast_v, pk.low_threshold_v) {
-        (Some(lo), Some(th)) => Line::styled(
-            format!("lowest {} V  low {} V", num(lo, 2), num(th, 2)),
-            if lo < th {
-                Style::default().fg(Color::Red).bold()
-            } else {
-                Style::default()
-            },
-        ),
-        (lo, th) => Line::raw(format!(
-            "lowest {}  low {}",
-            opt(lo, 2, "V"),
-            opt(th, 2, "V")
-        )),
-    };
-    lines.push(low);
-    lines
-}
-
-fn link_lines(s: &ScreenState, link: &LinkView, r: Option<&Report>) -> Vec<Line<'static>> {
-    let n = &link.stats;
-    let state = if link.silent {
-        Line::styled(
-            "SILENT (no valid frame for 5 s)",
-            Style::default().fg(Color::Red).bold(),
-        )
-    } else {
-        Line::styled("receiving", Style::default().fg(Color::Green))
-    };
-    let mut lines = vec![
-        Line::raw(format!(
-            "{} msg/s  ok {}  bad frames {}",
-            num(s.rate, 0),
-            n.frames_ok,
-            n.frames_bad
-        )),
-        Line::raw(format!(
-            "gaps {}  unknown {}  silent {}x",
-            n.gaps, n.unknown, n.silences
-        )),
-        state,
-    ];
-    if let Some(r) = r {
-        let stale = crate::features::stale_names(r.estimate.sample.stale_mask);
-        if !stale.is_empty() {
-            lines[2].push_span(Span::styled(
-                format!("  stale: {}", stale.join(",")),
-                Style::default().fg(Color::Yellow),
-            ));
-        }
-    }
-    if link.missed > 0 {
-        lines.push(Line::styled(
-            format!("{} reports missed by the screen", link.missed),
-            Style::default().fg(Color::Yellow),
-        ));
-    }
-    lines
 }
 
 fn series_line(name: String, color: Color, data: &[(f64, f64)]) -> Dataset<'_> {
@@ -441,30 +217,37 @@ fn draw_chart(f: &mut Frame, area: Rect, v: Option<&VehicleView>) {
 
 fn draw_alerts(f: &mut Frame, area: Rect, s: &ScreenState) {
     let fleet = s.is_fleet();
+    let width = usize::from(area.width.saturating_sub(2));
     let items: Vec<ListItem> = s
         .alerts
         .iter()
         .map(|a| {
             let e = &a.event;
-            let (state, style) = match e.state {
-                AlertState::Raised => ("raised ", severity_style(e.severity)),
-                AlertState::Cleared => ("cleared", Style::default().fg(Color::Green)),
+            let style = match e.state {
+                AlertState::Raised => severity_style(e.severity),
+                AlertState::Cleared => Style::default().fg(Color::Green),
             };
             let who = if fleet {
                 format!("v{} ", a.vehicle)
             } else {
                 String::new()
             };
-            ListItem::new(Line::styled(
-                format!(
-                    "{who}t {:>6} s  {:<22} {:<9} {state}  {}",
-                    num(e.t, 1),
+            let text = match e.state {
+                AlertState::Raised => format!(
+                    "{who}{:>6} s  {:<8} {} [{}]",
+                    num(e.t, 0),
+                    e.severity.name().to_uppercase(),
+                    e.message,
+                    e.rule
+                ),
+                AlertState::Cleared => format!(
+                    "{who}{:>6} s  cleared  {}: {}",
+                    num(e.t, 0),
                     e.rule,
-                    e.severity.name(),
                     e.message
                 ),
-                style,
-            ))
+            };
+            ListItem::new(tiles::clip(Line::styled(text, style), width))
         })
         .collect();
     let title = format!(" Alerts ({}) ", s.alerts.len());

@@ -1,13 +1,19 @@
 //! The web dashboard: one self-contained page (`web/index.html`, inline JS and CSS, charts
 //! drawn on a canvas, nothing fetched from anywhere else) that polls a JSON endpoint.
 //!
-//! - `GET /` — the page: measured power against every model, remaining energy and time to
-//!   empty, the home margin, the mission (energy left, item, progress, margin, and a map of
-//!   the planned route with the part flown) when one is known, and the alert log.
+//! - `GET /` — the page, led by what the pilot must act on: a banner for the most severe
+//!   alert standing (red for critical), then the time left (to the first of empty and low
+//!   voltage), the state of charge with its source, the voltage and its forecast minimum,
+//!   the mission margin and the power, the alert log and measured power against the
+//!   forecast. Behind the "every model" toggle: each model's power (table and chart),
+//!   remaining energy and time to empty over time, the home margin, the pack model, the
+//!   mission (energy left, item, progress, margin, and a map of the planned route with the
+//!   part flown) when one is known.
 //! - `GET /api/state?since=N&vehicle=V` — `{"vehicle", "seq", "models", "latest", "points",
 //!   "alerts", "fleet"}`: for vehicle `V` (MAVLink system id; default the lowest heard),
 //!   the points with sequence number above `N` (so a poll sends only what is new), the
-//!   last report's numbers and its whole alert log; and `fleet`, one row per vehicle
+//!   last report's numbers (`latest`, with `latest.pilot`: [`super::pilot::PilotView`])
+//!   and its whole alert log; and `fleet`, one row per vehicle
 //!   (`system_id`, `t`, `measured_w`, `forecast_w`, `remaining_wh`, `time_to_empty_s`,
 //!   `home_margin_wh`, `worst`: the most severe alert standing). With more than one
 //!   vehicle the page shows that table above the charts; a click selects the vehicle.
@@ -172,6 +178,8 @@ struct Point {
     seq: u64,
     t: f64,
     measured_w: Option<f32>,
+    /// The smoothed power the forecast assumes, W.
+    forecast_w: Option<f64>,
     /// Watts per model, in the order of `models`.
     models: Vec<Option<f32>>,
     remaining_wh: Option<f64>,
@@ -196,6 +204,8 @@ struct Dash {
     latest: Option<Latest>,
     /// Alerts raised and not cleared: rule → severity.
     active: std::collections::BTreeMap<String, crate::report::Severity>,
+    /// Their messages and times as raised: rule → (message, t) (the banner's words).
+    messages: std::collections::BTreeMap<String, (String, f64)>,
 }
 
 /// One vehicle's row of the fleet table.
@@ -273,6 +283,9 @@ struct Latest {
     /// The planned route (east/north of home, m) and the point the vehicle is at, while a
     /// mission is known.
     route: Option<RouteView>,
+    /// What the pilot must act on (the banner and the first cards): the same figures as
+    /// the terminal's line and the screen's tiles ([`super::pilot`]).
+    pilot: super::pilot::PilotView,
 }
 
 #[derive(Debug, Clone, serde::Serialize)]
@@ -291,10 +304,18 @@ impl Dash {
             }
             self.alerts.push_back(a.clone());
             match a.state {
-                crate::report::AlertState::Raised => self.active.insert(a.rule.clone(), a.severity),
-                crate::report::AlertState::Cleared => self.active.remove(&a.rule),
+                crate::report::AlertState::Raised => {
+                    self.active.insert(a.rule.clone(), a.severity);
+                    self.messages
+                        .insert(a.rule.clone(), (a.message.clone(), a.t));
+                }
+                crate::report::AlertState::Cleared => {
+                    self.active.remove(&a.rule);
+                    self.messages.remove(&a.rule);
+                }
             };
         }
+        let worst = super::pilot::worst_of(&self.active, |rule| self.messages.get(rule).cloned());
         let est = &r.estimate;
         self.latest = Some(Latest {
             t: est.t_s,
@@ -307,6 +328,7 @@ impl Dash {
                 points: m.route_en_m.to_vec(),
                 at: m.route_at,
             }),
+            pilot: super::pilot::PilotView::of(r, worst),
         });
         let due = self
             .points
@@ -333,6 +355,7 @@ impl Dash {
             seq: self.seq,
             t: est.t_s,
             measured_w: est.sample.measured_w,
+            forecast_w: r.energy.forecast_w,
             models,
             remaining_wh: r.energy.remaining_wh,
             time_to_empty_s: r.energy.time_to_empty_s,
