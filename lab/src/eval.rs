@@ -103,16 +103,12 @@ pub const PAPER_TABLE2: [(&str, f64, f64); 7] = [
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let data = args.data.path();
     let cfg = args.config.load()?;
-    let calibrated = &args.calibrated.path;
-    let cal = if calibrated.exists() {
-        let p = VehicleProfile::load(calibrated)?;
+    let cal = {
+        let p = args.calibrated.profile()?;
         if p.calibration.is_none() {
-            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt-lab calibrate`", calibrated.display());
+            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt-lab calibrate`", args.calibrated.describe());
         }
         Some(p)
-    } else {
-        tracing::warn!("{}: no calibrated profile; scoring published parameters only (run `dronewatt-lab calibrate`)", calibrated.display());
-        None
     };
     let mut ensemble = Ensemble::new(eval_models(&cfg, cal.as_ref())?);
     if args.adapt {

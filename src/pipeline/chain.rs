@@ -73,7 +73,7 @@ struct StoreNews {
 pub struct ChainTasks {
     telemetry: JoinHandle<()>,
     windows: JoinHandle<()>,
-    energy: JoinHandle<(FlightLog, Option<Identity>)>,
+    energy: JoinHandle<(FlightLog, Option<Identity>, crate::vehicle::store::PackSig)>,
     relay: JoinHandle<()>,
 }
 
@@ -82,6 +82,8 @@ pub struct ChainTasks {
 pub struct ChainEnd {
     /// The vehicle, when its heartbeat was heard.
     pub identity: Option<Identity>,
+    /// The pack it reported of itself (which tells vehicles with no uid apart).
+    pub pack: crate::vehicle::store::PackSig,
     /// The run's reports, summed up.
     pub flight: FlightLog,
 }
@@ -91,9 +93,13 @@ impl ChainTasks {
     pub async fn join(self) -> Result<ChainEnd> {
         self.telemetry.await?;
         self.windows.await?;
-        let (flight, identity) = self.energy.await?;
+        let (flight, identity, pack) = self.energy.await?;
         self.relay.await?;
-        Ok(ChainEnd { identity, flight })
+        Ok(ChainEnd {
+            identity,
+            pack,
+            flight,
+        })
     }
 }
 
@@ -256,6 +262,7 @@ impl VehicleChain {
             warm: inference.warm.clone(),
             looked_up: false,
             rebuild,
+            heard: None,
         });
         let tasks = ChainTasks {
             telemetry: tokio::spawn(telemetry_stage(
@@ -311,6 +318,8 @@ struct Memory {
     looked_up: bool,
     /// Builds the models from a learned profile the store keeps for the vehicle.
     rebuild: Option<Rebuild>,
+    /// The vehicle's latest parameters and when its identity was first heard (s).
+    heard: Option<(f64, crate::vehicle::params::VehicleParams)>,
 }
 
 /// The models built from the profile `learn` kept for the vehicle, and its forecast model
@@ -350,7 +359,7 @@ fn learned_models(
 /// answer reaches the energy stage as news stamped `t_s` ([`VehicleNews::Store`]).
 fn look_up(
     mem: &mut Memory,
-    id: Identity,
+    (id, sig): (Identity, crate::vehicle::store::PackSig),
     t_s: f64,
     status: &ChainStatus,
     news: &mpsc::UnboundedSender<VehicleNews>,
@@ -372,7 +381,7 @@ fn look_up(
     let origin = status.stats.log_origin_s();
     let now_log_s = origin.map(|o| o + t_s);
     tokio::task::spawn_blocking(move || {
-        let learned = crate::vehicle::store::lookup(&dir, &id, now_log_s);
+        let learned = crate::vehicle::store::lookup(&dir, &id, &sig, now_log_s);
         // The profile `learn` kept for it (no profile configured).
         let (models, forecast) = learned_models(&learned, rebuild.as_ref());
         // The store's news first: an estimate made with the warm
@@ -425,12 +434,19 @@ async fn telemetry_stage(
                     step.on_message(&m);
                 }
                 if let Some(params) = vehicle.on_message(&m) {
-                    let identity = params.identity.clone();
+                    if let (Some(mem), true) = (&mut memory, params.identity.is_some()) {
+                        let first = mem.heard.as_ref().map_or(m.t_s, |h| h.0);
+                        mem.heard = Some((first, params.clone()));
+                    }
                     // Only the energy stage listens; it gone (shutting down) is no error.
                     let _ = news.send(VehicleNews::Params(m.t_s, params));
-                    // The vehicle is known: look up what earlier flights taught.
-                    if let (Some(id), Some(mem)) = (identity, &mut memory) {
-                        look_up(mem, id, m.t_s, &status, &news);
+                }
+                // The vehicle and its pack known: look up what earlier flights taught.
+                if let Some(mem) = &mut memory {
+                    let settled = vehicle.reader().settled();
+                    let heard = mem.heard.as_ref().filter(|_| !mem.looked_up);
+                    if let Some(who) = crate::vehicle::store::lookup_due(heard, m.t_s, settled) {
+                        look_up(mem, who, m.t_s, &status, &news);
                     }
                 }
                 telemetry.push(&m, &mut out);
@@ -546,8 +562,9 @@ async fn energy_stage(
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
-) -> (FlightLog, Option<Identity>) {
+) -> (FlightLog, Option<Identity>, crate::vehicle::store::PackSig) {
     let mut flight = FlightLog::default();
+    let mut stuck = crate::model::stuck::StuckWatch::default();
     let vehicle_id = || VehicleId {
         network: status.network,
         system_id: match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
@@ -574,6 +591,9 @@ async fn energy_stage(
                 take_mission(&mut energy, &mut mission, &mut next_mission, est.t_s);
                 let report = account(&mut energy, &mut alerts, est, vehicle_id());
                 flight.observe(&report);
+                for m in stuck.observe(&report.estimate) {
+                    tracing::warn!(vehicle = %report.vehicle, "{m}");
+                }
                 if live {
                     last = Some((
                         report.estimate.clone(),
@@ -606,7 +626,8 @@ async fn energy_stage(
     // The rest of the news (the vehicle's identity and the store's clock for the flight
     // log), the input being over.
     taken.take(&mut news, None, &mut energy, &mut flight).await;
-    (flight, taken.params.identity)
+    let pack = crate::vehicle::store::PackSig::of(&taken.params);
+    (flight, taken.params.identity, pack)
 }
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on
