@@ -20,7 +20,6 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use dronewatt::model::profile::VehicleProfile;
 use dronewatt::model::Ensemble;
 use dronewatt::offline::args::{help, CalibratedArg, ConfigArg, DataArg, JsonArg};
 use dronewatt::offline::chain::{eval_models, Chain, FlightSeries};
@@ -37,8 +36,8 @@ use dronewatt::offline::plot;
 #[command(mut_arg(
     "calibrated",
     help(
-        "Calibrated vehicle profile whose physics models are scored as `<model>_cal`. Skipped \
-         with a warning when the file does not exist"
+        "Calibrated vehicle profile whose physics models are scored as `<model>_cal`. Default: \
+         the M100's, compiled in"
     )
 ))]
 pub struct EvalArgs {

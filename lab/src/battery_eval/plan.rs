@@ -6,7 +6,6 @@
 //! along it from the flight's start resting voltage.
 
 use std::collections::HashMap;
-use std::path::Path;
 
 use crate::forecast_fit::{fit, prepare, rolling_scales, Fitted, Prepared};
 use crate::route::geometry_for;
