@@ -15,10 +15,14 @@ fn content_hash(p: &Path) -> Result<[u8; 32]> {
 }
 
 /// An error naming both files when two of `logs` have the same content (whatever their
-/// names); the same path named twice is one log named twice, said as such.
+/// names; the same path named twice too). Empty files are left to the readers (each is
+/// refused there as holding no log).
 pub fn refuse_duplicates(logs: &[PathBuf]) -> Result<()> {
     let mut seen: Vec<([u8; 32], &PathBuf)> = Vec::with_capacity(logs.len());
     for p in logs {
+        if std::fs::metadata(p).is_ok_and(|m| m.len() == 0) {
+            continue;
+        }
         let h = content_hash(p)?;
         if let Some((_, first)) = seen.iter().find(|(s, _)| *s == h) {
             let short: String = h[..6].iter().map(|b| format!("{b:02x}")).collect();
