@@ -443,9 +443,10 @@ async fn telemetry_stage(
                 }
                 // The vehicle and its pack known: look up what earlier flights taught.
                 if let Some(mem) = &mut memory {
-                    let settled = vehicle.reader().settled();
+                    let (asks, settled) = (vehicle.reader().asks(), vehicle.reader().settled());
                     let heard = mem.heard.as_ref().filter(|_| !mem.looked_up);
-                    if let Some(who) = crate::vehicle::store::lookup_due(heard, m.t_s, settled) {
+                    let due = crate::vehicle::store::lookup_due(heard, m.t_s, asks, settled);
+                    if let Some(who) = due {
                         look_up(mem, who, m.t_s, &status, &news);
                     }
                 }

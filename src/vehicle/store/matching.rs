@@ -24,7 +24,8 @@ const CAPACITY_TOLERANCE: f64 = 0.05;
 /// The pack a vehicle reported of itself: what tells two vehicles under one key apart.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct PackSig {
-    /// Cells in series (`BAT1_N_CELLS`, BATTERY_STATUS's cell voltages, BATTERY_INFO).
+    /// Cells in series (`BAT1_N_CELLS`, BATTERY_STATUS's cell voltages, BATTERY_INFO,
+    /// ArduCopter's `MOT_BAT_VOLT_MAX` at 4.2 or 4.35 V a cell).
     pub cells: Option<u32>,
     /// Rated capacity, mAh (`BATT_CAPACITY`, `BAT1_CAPACITY`, BATTERY_INFO).
     pub capacity_mah: Option<f64>,
@@ -41,7 +42,14 @@ impl PackSig {
             .or(p
                 .battery_info
                 .and_then(|(_, n)| n)
-                .filter(|n| (1..=24).contains(n)));
+                .filter(|n| (1..=24).contains(n)))
+            .or(p
+                .get("MOT_BAT_VOLT_MAX")
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .and_then(|v| {
+                    crate::vehicle::cells_from(v, 4.2, 0.03)
+                        .or_else(|| crate::vehicle::cells_from(v, 4.35, 0.03))
+                }));
         let capacity_mah = ["BATT_CAPACITY", "BAT1_CAPACITY"]
             .iter()
             .find_map(|n| p.get(n).filter(|v| (50.0..1_000_000.0).contains(v)))
@@ -177,6 +185,8 @@ impl Store {
         if let Some((key, k)) = best {
             let reason = if sig.agreement(k) > 0 {
                 format!("key + pack ({})", sig.describe())
+            } else if sig.is_known() {
+                format!("key only (pack {}: nothing to compare)", sig.describe())
             } else {
                 "key only (pack not reported)".to_string()
             };
@@ -264,23 +274,31 @@ impl Store {
     }
 }
 
-/// How long the lookup waits (source time) for the vehicle to report its pack.
+/// How long the lookup waits (source time) for a vehicle it asks to report its pack.
 pub const PACK_WAIT_S: f64 = 5.0;
+/// How long it waits for a vehicle it only overhears (a replayed log, `--listen-only`): a
+/// log carries the parameters it has near its start.
+pub const LOG_WAIT_S: f64 = 2.0;
 
 /// The vehicle and its pack, once it is time to look it up (`heard`: when its identity was
-/// first heard, s, and its latest parameters; `settled`: every parameter asked for answered
-/// or given up): its uid heard or its pack (cells and capacity) reported, else
-/// [`PACK_WAIT_S`] after it was first heard.
+/// first heard, s, and its latest parameters; `asks`: dronewatt asks the vehicle for its
+/// parameters; `settled`: every one asked answered or given up). At once when its uid or
+/// any figure of its pack is heard, or when it was asked everything; else [`PACK_WAIT_S`]
+/// (asked) or [`LOG_WAIT_S`] (overheard) after it was first heard. The sooner the lookup,
+/// the sooner the warm start; a pack reported later still decides the vehicle the flight is
+/// kept under at the end ([`Store::resolve`] again).
 pub fn lookup_due(
     heard: Option<&(f64, VehicleParams)>,
     t_s: f64,
+    asks: bool,
     settled: bool,
 ) -> Option<(Identity, PackSig)> {
     let (first, params) = heard?;
     let id = params.identity.clone()?;
     let sig = PackSig::of(params);
-    let told = id.uid.is_some() || (sig.cells.is_some() && sig.capacity_mah.is_some());
-    ((settled && told) || t_s - first >= PACK_WAIT_S).then_some((id, sig))
+    let wait = if asks { PACK_WAIT_S } else { LOG_WAIT_S };
+    let told = id.uid.is_some() || sig.is_known() || (asks && settled);
+    (told || t_s - first >= wait).then_some((id, sig))
 }
 
 /// Say which vehicle it is when that is news: a new vehicle under a known key (WARN, the
@@ -295,8 +313,11 @@ pub fn say(id: &Identity, m: &Matched) {
         );
     } else if m.reason.starts_with("key only") {
         tracing::info!(
-            "vehicle {}: matched by system id, autopilot and type only (no uid, pack not reported)",
-            m.key.key
+            "vehicle {}: matched by system id, autopilot and type only (no uid; {})",
+            m.key.key,
+            m.reason
+                .trim_start_matches("key only (")
+                .trim_end_matches(')')
         );
     }
 }

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::vehicle::params::Autopilot;
-use crate::vehicle::store::FlightSummary;
+use crate::vehicle::store::{FlightSummary, LOG_WAIT_S};
 
 fn id(uid: Option<u64>) -> Identity {
     Identity {
@@ -140,18 +140,20 @@ fn the_lookup_waits_for_the_pack_or_a_few_seconds() {
         ..Default::default()
     };
     let heard = (10.0, p.clone());
-    assert!(lookup_due(Some(&heard), 11.0, true).is_none());
-    assert!(lookup_due(Some(&heard), 10.0 + PACK_WAIT_S, true).is_some());
+    // asked, not answered yet: waits; answered (or given up) with nothing: at once
+    assert!(lookup_due(Some(&heard), 11.0, true, false).is_none());
+    assert!(lookup_due(Some(&heard), 11.0, true, true).is_some());
+    assert!(lookup_due(Some(&heard), 10.0 + PACK_WAIT_S, true, false).is_some());
+    // overheard (a log): waits for the log's parameters, not as long
+    assert!(lookup_due(Some(&heard), 11.0, false, true).is_none());
+    assert!(lookup_due(Some(&heard), 10.0 + LOG_WAIT_S, false, true).is_some());
+    // any figure of the pack: at once
     p.values.insert("BATT_CAPACITY".into(), 5000.0);
-    p.battery_cells = Some(4);
+    p.values.insert("MOT_BAT_VOLT_MAX".into(), 16.8);
     let heard = (10.0, p);
-    assert!(
-        lookup_due(Some(&heard), 11.0, false).is_none(),
-        "parameters still asked"
-    );
-    let (_, s) = lookup_due(Some(&heard), 11.0, true).unwrap();
-    assert_eq!(s, sig(Some(4), Some(5000.0)));
-    assert!(lookup_due(None, 100.0, true).is_none());
+    let (_, s) = lookup_due(Some(&heard), 10.1, false, true).unwrap();
+    assert_eq!(s, sig(Some(4), Some(5000.0)), "4S from MOT_BAT_VOLT_MAX");
+    assert!(lookup_due(None, 100.0, true, true).is_none());
 }
 
 /// A store written before schema 5 opens, its flights matched "not recorded".

@@ -49,7 +49,7 @@ mod matching;
 pub use dir::{data_dir, data_dir_from_env, DB_FILE, HOME_ENV, MIN_PCT_DROP};
 pub use flight::{FlightLog, FlightSummary, VehicleKey, MIN_SOC_DROP_PCT};
 pub use list::list;
-pub use matching::{lookup_due, Matched, PackSig, PACK_WAIT_S};
+pub use matching::{lookup_due, Matched, PackSig, LOG_WAIT_S, PACK_WAIT_S};
 
 use std::path::{Path, PathBuf};
 
