@@ -16,7 +16,7 @@ plan="$root/replay/demo.plan"
 (cd / && "$tmp/root/bin/dronewatt" plan "$plan" --json -) > "$tmp/installed.json"
 (cd "$root" && cargo run -q --bin dronewatt -- plan "$plan" --json -) > "$tmp/checkout.json"
 if cmp -s "$tmp/installed.json" "$tmp/checkout.json"; then
-    echo "ok: the installed dronewatt plans from / as the checkout does ($(grep -o '"energy_p50_wh": [0-9.]*' "$tmp/installed.json" | head -1))"
+    echo "ok: the installed dronewatt plans from / as the checkout does ($(grep -o '"margin_p50_wh": [0-9.-]*' "$tmp/installed.json" | head -1))"
 else
     diff "$tmp/checkout.json" "$tmp/installed.json" | head -20
     echo "FAIL: the installed dronewatt's plan differs" >&2
