@@ -53,6 +53,7 @@
 //! | [`fuzz_props`] | properties every reader keeps on any input: the fuzz targets' checks, replayed by `tests/it/fuzz_props.rs` |
 
 pub mod alert;
+pub mod assets;
 pub mod battery;
 pub mod cli;
 pub mod config;

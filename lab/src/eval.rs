@@ -20,7 +20,6 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use dronewatt::model::profile::VehicleProfile;
 use dronewatt::model::Ensemble;
 use dronewatt::offline::args::{help, CalibratedArg, ConfigArg, DataArg, JsonArg};
 use dronewatt::offline::chain::{eval_models, Chain, FlightSeries};
@@ -37,8 +36,8 @@ use dronewatt::offline::plot;
 #[command(mut_arg(
     "calibrated",
     help(
-        "Calibrated vehicle profile whose physics models are scored as `<model>_cal`. Skipped \
-         with a warning when the file does not exist"
+        "Calibrated vehicle profile whose physics models are scored as `<model>_cal`. Default: \
+         the M100's, compiled in"
     )
 ))]
 pub struct EvalArgs {
@@ -103,16 +102,12 @@ pub const PAPER_TABLE2: [(&str, f64, f64); 7] = [
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let data = args.data.path();
     let cfg = args.config.load()?;
-    let calibrated = &args.calibrated.path;
-    let cal = if calibrated.exists() {
-        let p = VehicleProfile::load(calibrated)?;
+    let cal = {
+        let p = args.calibrated.profile()?;
         if p.calibration.is_none() {
-            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt-lab calibrate`", calibrated.display());
+            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt-lab calibrate`", args.calibrated.describe());
         }
         Some(p)
-    } else {
-        tracing::warn!("{}: no calibrated profile; scoring published parameters only (run `dronewatt-lab calibrate`)", calibrated.display());
-        None
     };
     let mut ensemble = Ensemble::new(eval_models(&cfg, cal.as_ref())?);
     if args.adapt {

@@ -476,7 +476,7 @@ pub fn eval_table(r: &PlanEvalReport) -> String {
 pub fn run_plan_eval(a: PlanEvalArgs) -> anyhow::Result<()> {
     let cfg = a.forecast.config.load()?;
     let data = a.data.path();
-    let mut models = models_for(&cfg, &a.forecast.calibrated.path)?;
+    let mut models = models_for(&cfg, &a.forecast.calibrated)?;
     let opt = PlanEvalOptions {
         test: a.flights.clone(),
         train: a.train.clone(),

@@ -52,8 +52,9 @@ pub struct LiveForecastConfig {
     /// A calibrated vehicle profile (`dronewatt-lab calibrate`'s output, e.g.
     /// `vehicles/m100-calibrated.toml`; relative to the config file) whose `<model>_cal`
     /// physics models run beside the vehicle's own, so that the calibration's `model`
-    /// gives the P50. Default none: then the vehicle's first physics model gives it,
-    /// uncorrected (a warning says so).
+    /// gives the P50. Default: for the M100, its calibrated profile compiled into dronewatt
+    /// (`config/vehicles/m100-calibrated.toml` as built); for another vehicle none, and then
+    /// its first physics model gives the P50, uncorrected (a warning says so).
     pub calibrated_profile: Option<std::path::PathBuf>,
 }
 

@@ -37,10 +37,10 @@
 //!
 //! Where the default model is found (first hit wins):
 //! 1. `[models.lstm] path` in the configuration (or `--model`);
-//! 2. `config/models/lstm-m100` beside the executable or up to three folders above it
-//!    (covers `target/{debug,release}` and `target/*/deps` of a checkout);
-//! 3. `config/models/lstm-m100` in the source tree the binary was built from
-//!    (`CARGO_MANIFEST_DIR`).
+//! 2. the shipped model, through the one resolver ([`crate::assets::model_dir`]):
+//!    `config/models/lstm-m100` beside the executable or up to three folders above it
+//!    (covers `target/{debug,release}` and `target/*/deps` of a checkout), else the copy
+//!    compiled into the binary; never the current directory.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -520,16 +520,7 @@ pub fn resolve_model_path(configured: Option<&Path>) -> Option<PathBuf> {
 /// The folder `rel` (e.g. [`PAPER_MODEL_DIR`]) found as the shipped model is (search order
 /// in the module docs), holding a `card.toml`.
 pub fn find_model_dir(rel: &str) -> Option<PathBuf> {
-    let mut candidates = Vec::new();
-    if let Ok(exe) = std::env::current_exe() {
-        for dir in exe.ancestors().skip(1).take(4) {
-            candidates.push(dir.join(rel));
-        }
-    }
-    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join(rel));
-    candidates
-        .into_iter()
-        .find(|c| c.join("card.toml").is_file())
+    crate::assets::model_dir(rel)
 }
 
 /// The LSTM a configuration asks for, or `None` when it is disabled or (default path
@@ -545,7 +536,7 @@ pub fn from_config(
     match resolve_model_path(cfg.path.as_deref()) {
         Some(p) => Ok(Some(LstmModel::load(&p, telemetry)?)),
         None => {
-            tracing::warn!("lstm: no model found (looked for {DEFAULT_MODEL_DIR} near the executable and the source tree); running without it");
+            tracing::warn!("lstm: no model found (looked for {DEFAULT_MODEL_DIR} beside the executable and for the compiled-in copy); running without it");
             Ok(None)
         }
     }

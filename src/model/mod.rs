@@ -8,6 +8,7 @@ pub mod lstm_cpu;
 pub mod physics;
 pub mod profile;
 pub mod spec;
+pub mod stuck;
 pub mod trees;
 
 use crate::features::Lift;

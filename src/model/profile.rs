@@ -105,7 +105,23 @@ pub struct VehicleProfile {
     /// sets `[models.lstm] path`. Optional.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lstm: Option<std::path::PathBuf>,
+    /// Physics models whose published parameters do not describe this airframe (e.g. the
+    /// M100's and the 3DR Solo's regressions on another quad): they still run, but `plan`
+    /// leaves them out of the forecast's mean, saying so. A top-level key. Default none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub does_not_transfer: Vec<String>,
 }
+
+/// The physics models a profile's `does_not_transfer` may name.
+pub const PHYSICS_MODELS: [&str; 7] = [
+    "dandrea",
+    "dandrea_headwind",
+    "dorling",
+    "stolaroff",
+    "kirschstein",
+    "tseng",
+    "tseng_solo",
+];
 
 /// `[forecast]`: which model the energy forecast starts from on this vehicle, unless the
 /// config's `[energy] model` says otherwise (online selection, `[energy.select]`, may still
@@ -452,6 +468,16 @@ impl VehicleProfile {
 
     /// Range checks serde cannot express; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
+        if let Some(n) = self
+            .does_not_transfer
+            .iter()
+            .find(|n| !PHYSICS_MODELS.contains(&n.as_str()))
+        {
+            return Err(format!(
+                "does_not_transfer: '{n}' is not a physics model ({})",
+                PHYSICS_MODELS.join(", ")
+            ));
+        }
         use crate::validate::{above, in_range};
         let pos = |k: &str, v: f64| in_range(k, v, above(0.0), "");
         pos("vehicle.airframe_kg", self.vehicle.airframe_kg)?;

@@ -281,6 +281,7 @@ fn from_priors(f: &Facts, name: String, eta_h: f64, battery_kg: f64) -> VehicleP
         calibration: None,
         forecast: None,
         lstm: None,
+        does_not_transfer: Vec::new(),
         rotor: None,
         powertrain: None,
         plane: None,

@@ -80,17 +80,29 @@ impl JsonArg {
 }
 
 // `--calibrated FILE`: the profile `dronewatt-lab calibrate` writes, whose physics models run as
-// `<model>_cal` (`eval`, `plan`, `plan-eval`, `battery-eval`).
+// `<model>_cal` (`eval`, `plan`, `plan-eval`, `battery-eval`). Without it, the M100's,
+// compiled in ([`crate::assets`]): the same figures from any directory.
 #[derive(Debug, Clone, clap::Args)]
 pub struct CalibratedArg {
-    /// Calibrated vehicle profile for the `<model>_cal` physics models.
-    #[arg(
-        id = "calibrated",
-        long = "calibrated",
-        value_name = "FILE",
-        default_value = "config/vehicles/m100-calibrated.toml"
-    )]
-    pub path: PathBuf,
+    /// Calibrated vehicle profile for the `<model>_cal` physics models. Default: the M100's,
+    /// compiled in (`config/vehicles/m100-calibrated.toml` as built).
+    #[arg(id = "calibrated", long = "calibrated", value_name = "FILE")]
+    pub path: Option<PathBuf>,
+}
+
+impl CalibratedArg {
+    /// The profile: the file given (an error when it does not read), else the M100's.
+    pub fn profile(&self) -> anyhow::Result<crate::model::profile::VehicleProfile> {
+        crate::assets::calibrated_profile(self.path.as_deref())
+    }
+
+    /// Where the profile came from, for messages.
+    pub fn describe(&self) -> String {
+        match &self.path {
+            Some(p) => p.display().to_string(),
+            None => "the built-in m100-calibrated".to_string(),
+        }
+    }
 }
 
 // What `plan` and `plan-eval` share, in this order: the configuration and the calibrated

@@ -26,7 +26,7 @@ use crate::offline::args::{help, ForecastArgs};
     "calibrated",
     help(
         "Calibrated vehicle profile for the `<model>_cal` physics models (the default forecast \
-         model is one). Skipped with a warning when missing"
+         model is one). Default: the M100's, compiled in"
     )
 ))]
 #[command(mut_arg(
@@ -72,17 +72,14 @@ pub struct PlanArgs {
     pub plot: Option<PathBuf>,
 }
 
-pub fn models_for(cfg: &Config, calibrated: &Path) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
-    let cal = if calibrated.exists() {
-        Some(VehicleProfile::load(calibrated)?)
-    } else {
-        tracing::warn!(
-            "{}: no calibrated profile; only the published physics parameters run",
-            calibrated.display()
-        );
-        None
-    };
-    crate::offline::chain::eval_models(cfg, cal.as_ref())
+/// The models `plan` (and the lab's `plan-eval`, `battery-eval`) run for the M100: the
+/// configured set, then the calibrated profile's `<model>_cal` models.
+pub fn models_for(
+    cfg: &Config,
+    calibrated: &crate::offline::args::CalibratedArg,
+) -> anyhow::Result<Vec<Box<dyn PowerModel>>> {
+    let cal = calibrated.profile()?;
+    crate::offline::chain::eval_models(cfg, Some(&cal))
 }
 
 /// What `plan --json` writes.
@@ -100,6 +97,9 @@ struct PlanReport<'a> {
     wind: Wind,
     capacity_wh: f64,
     reserve_pct: f64,
+    /// Energy the plan may use before the reserve, Wh: what the pack holds at the start (full,
+    /// or from `--battery-v`) less the reserve; the plot's red line, so its margin is the text's.
+    usable_wh: f64,
     margin_p50_wh: f64,
     margin_p90_wh: f64,
     /// The pack along the plan, when `--battery-v` gave its start state.
@@ -223,9 +223,9 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     // The forecast is the vehicle's own: the M100 with its calibrated models and fitted
     // correction; another vehicle with its learned forecast model, else the mean of its own
     // physics models uncorrected, the P90 widened (the M100's correction is not its).
-    let (mut models, calibration, forecast_from) = if is_m100 {
+    let (mut models, calibration, mut forecast_from) = if is_m100 {
         (
-            models_for(&cfg, &a.forecast.calibrated.path)?,
+            models_for(&cfg, &a.forecast.calibrated)?,
             cfg.forecast.calibration.clone(),
             "the M100's calibrated models and fitted correction".to_string(),
         )
@@ -295,14 +295,31 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             None => {
                 // a plane: the fixed-wing model alone; a VTOL: the rotor models on its
                 // rotor-borne samples, the fixed-wing model on the rest
-                let names: Vec<String> = models
+                let applies = |n: &String| {
+                    (class != VehicleClass::FixedWing && PUBLISHED.contains(&n.as_str()))
+                        || (wing && n == "fixed_wing")
+                };
+                let (names, left): (Vec<String>, Vec<String>) = models
                     .iter()
                     .map(|m| m.name().to_string())
-                    .filter(|n| {
-                        (class != VehicleClass::FixedWing && PUBLISHED.contains(&n.as_str()))
-                            || (wing && n == "fixed_wing")
-                    })
-                    .collect();
+                    .filter(applies)
+                    .partition(|n| !profile.does_not_transfer.contains(n));
+                if names.is_empty() {
+                    anyhow::bail!("{}: every model that applies to it is in its profile's does_not_transfer: nothing left to forecast with", profile.name);
+                }
+                let left = if left.is_empty() {
+                    String::new()
+                } else {
+                    tracing::warn!(
+                        "{}: {} left out of the forecast: the vehicle's profile says they do not transfer to it",
+                        profile.name,
+                        left.join(", ")
+                    );
+                    format!(
+                        "; left out, as its profile says they do not transfer: {}",
+                        left.join(", ")
+                    )
+                };
                 tracing::warn!(
                     "only the M100's forecast calibration exists; {} ({class}) flies on its own published models, uncorrected, with the P90 widened to {UNCALIBRATED_P90} × P50",
                     profile.name
@@ -316,7 +333,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
                     live_weight: 0.0,
                     vehicle_kg: profile.vehicle.airframe_kg + profile.vehicle.battery_kg,
                 };
-                (models, c, format!("the mean of {}'s published models that apply ({class}: {}) (uncorrected: only the M100 is calibrated; P90 = {UNCALIBRATED_P90} × P50)", profile.name, names.join(", ")))
+                (models, c, format!("the mean of {}'s published models that apply ({class}: {}) (uncorrected: only the M100 is calibrated; P90 = {UNCALIBRATED_P90} × P50){left}", profile.name, names.join(", ")))
             }
         }
     };
@@ -331,6 +348,11 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if f.model != wanted {
         tracing::warn!(
             "forecast models {wanted:?} did not all run; the P50 follows {:?}",
+            f.model
+        );
+        // the header says what ran, never the calibration that did not
+        forecast_from = format!(
+            "{:?} (the forecast's models {wanted:?} did not all run)",
             f.model
         );
     }
@@ -421,20 +443,22 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         wind: cond.wind,
         capacity_wh,
         reserve_pct: cfg.energy.reserve_pct,
+        usable_wh: start_wh - reserve_wh,
         margin_p50_wh: m50,
         margin_p90_wh: m90,
         pack,
         forecast: &f,
     };
     if let Some(png) = &a.plot {
-        plot_plan(
-            png,
-            &plan.source,
-            &tr,
-            &f,
-            capacity_wh,
-            cfg.energy.reserve_pct,
-        )?;
+        let what = match &report.pack {
+            Some(p) => format!("pack at {:.0} %", p.soc_pct),
+            None => "full pack".into(),
+        };
+        let label = format!(
+            "{what} − {:.0} % reserve: {:.1} Wh",
+            cfg.energy.reserve_pct, report.usable_wh
+        );
+        plot_plan(png, &plan.source, &tr, &f, report.usable_wh, &label)?;
     }
     a.forecast.json.publish(&report, || plan_table(&report))
 }
@@ -627,15 +651,14 @@ fn plot_plan(
     title: &str,
     tr: &Trajectory,
     f: &MissionForecast,
-    capacity_wh: f64,
-    reserve_pct: f64,
+    usable: f64,
+    usable_label: &str,
 ) -> anyhow::Result<()> {
     use plotters::prelude::*;
     crate::offline::plot::register_font();
     let t: Vec<f64> = (0..f.cum_p50_wh.len())
         .map(|i| (i + 1) as f64 * f.dt_s)
         .collect();
-    let usable = capacity_wh * (1.0 - reserve_pct / 100.0);
     let ymax = (f.energy_p90_wh.max(usable) * 1.08).max(1.0);
     let xmax = t.last().copied().unwrap_or(1.0).max(1.0);
     let root = BitMapBackend::new(path, (1200, 700)).into_drawing_area();
@@ -679,7 +702,7 @@ fn plot_plan(
                 [(0.0, usable), (xmax, usable)],
                 RED.stroke_width(2),
             ))?
-            .label(format!("capacity − {reserve_pct:.0} % reserve"))
+            .label(usable_label)
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
         for l in &tr.legs {
             chart.draw_series(LineSeries::new(

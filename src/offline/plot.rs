@@ -6,8 +6,8 @@
 //! - [`diverging_bars`]: changes around zero (`sensitivity`, the paper's Table 3 chart).
 //!
 //! Text needs a font and a fresh machine may have none: DejaVu Sans (Bitstream Vera
-//! licence, `config/fonts/DejaVuSans.LICENSE`) is compiled in, once, here, and registered
-//! once.
+//! licence, `config/fonts/DejaVuSans.LICENSE`) is compiled in ([`crate::assets::FONT`]) and
+//! registered once.
 
 use std::path::Path;
 use std::sync::Once;
@@ -16,7 +16,7 @@ use anyhow::Context;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-static FONT: &[u8] = include_bytes!("../../config/fonts/DejaVuSans.ttf");
+static FONT: &[u8] = crate::assets::FONT;
 static REGISTER: Once = Once::new();
 
 /// Register the embedded font as `sans-serif` (idempotent).

@@ -72,7 +72,7 @@ pub(super) struct StoreNews {
 pub struct ChainTasks {
     telemetry: JoinHandle<()>,
     windows: JoinHandle<()>,
-    energy: JoinHandle<(FlightLog, Option<Identity>)>,
+    energy: JoinHandle<(FlightLog, Option<Identity>, crate::vehicle::store::PackSig)>,
     relay: JoinHandle<()>,
 }
 
@@ -81,6 +81,8 @@ pub struct ChainTasks {
 pub struct ChainEnd {
     /// The vehicle, when its heartbeat was heard.
     pub identity: Option<Identity>,
+    /// The pack it reported of itself (which tells vehicles with no uid apart).
+    pub pack: crate::vehicle::store::PackSig,
     /// The run's reports, summed up.
     pub flight: FlightLog,
 }
@@ -90,9 +92,13 @@ impl ChainTasks {
     pub async fn join(self) -> Result<ChainEnd> {
         self.telemetry.await?;
         self.windows.await?;
-        let (flight, identity) = self.energy.await?;
+        let (flight, identity, pack) = self.energy.await?;
         self.relay.await?;
-        Ok(ChainEnd { identity, flight })
+        Ok(ChainEnd {
+            identity,
+            pack,
+            flight,
+        })
     }
 }
 
@@ -260,6 +266,7 @@ impl VehicleChain {
             warm: inference.warm.clone(),
             looked_up: false,
             rebuild,
+            heard: None,
         });
         let tasks = ChainTasks {
             telemetry: tokio::spawn(telemetry_stage(
@@ -307,14 +314,16 @@ impl VehicleChain {
 /// The vehicle store's side of a run: where it is, and where what it remembers goes (the
 /// fits to the inference stage, the pack's effective capacity to the energy stage).
 pub(super) struct Memory {
-    dir: std::path::PathBuf,
+    pub(super) dir: std::path::PathBuf,
     /// The vehicle (the inference stage's key for its adaptation).
-    vehicle: VehicleId,
-    warm: std::sync::mpsc::Sender<(VehicleId, WarmStart)>,
+    pub(super) vehicle: VehicleId,
+    pub(super) warm: std::sync::mpsc::Sender<(VehicleId, WarmStart)>,
     /// Whether the one lookup was made.
-    looked_up: bool,
+    pub(super) looked_up: bool,
     /// Builds the models from a learned profile the store keeps for the vehicle.
-    rebuild: Option<Rebuild>,
+    pub(super) rebuild: Option<Rebuild>,
+    /// The vehicle's latest parameters and when its identity was first heard (s).
+    pub(super) heard: Option<(f64, crate::vehicle::params::VehicleParams)>,
 }
 
 /// The models built from the profile `learn` kept for the vehicle, and its forecast model
@@ -354,7 +363,7 @@ fn learned_models(
 /// answer reaches the energy stage as news stamped `t_s` ([`VehicleNews::Store`]).
 pub(super) fn look_up(
     mem: &mut Memory,
-    id: Identity,
+    (id, sig): (Identity, crate::vehicle::store::PackSig),
     t_s: f64,
     status: &ChainStatus,
     news: &mpsc::UnboundedSender<VehicleNews>,
@@ -376,7 +385,7 @@ pub(super) fn look_up(
     let origin = status.stats.log_origin_s();
     let now_log_s = origin.map(|o| o + t_s);
     tokio::task::spawn_blocking(move || {
-        let learned = crate::vehicle::store::lookup(&dir, &id, now_log_s);
+        let learned = crate::vehicle::store::lookup(&dir, &id, &sig, now_log_s);
         // The profile `learn` kept for it (no profile configured).
         let (models, forecast) = learned_models(&learned, rebuild.as_ref());
         // The store's news first: an estimate made with the warm

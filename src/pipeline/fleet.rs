@@ -154,6 +154,7 @@ impl Fleet {
                     crate::vehicle::store::remember(
                         &dir,
                         end.identity.as_ref(),
+                        &end.pack,
                         fits.as_deref(),
                         &end.flight,
                     );

@@ -23,7 +23,9 @@ use crate::source::SourceSpec;
 pub struct Resolved {
     /// The vehicle profile (`vehicle`), else the built-in M100.
     pub vehicle: LoadedProfile,
-    /// `[forecast.live] calibrated_profile`, when set and the live forecast is enabled.
+    /// `[forecast.live] calibrated_profile` when the live forecast is enabled; unset, the
+    /// M100's compiled-in calibrated profile when the vehicle is the M100 (its forecast's
+    /// members are that profile's `<model>_cal` models), else none.
     pub calibrated: Option<Arc<VehicleProfile>>,
 }
 
@@ -31,8 +33,12 @@ impl Resolved {
     /// Read what `cfg` names.
     pub fn load(cfg: &Config) -> Result<Self> {
         let vehicle = LoadedProfile::load(cfg.vehicle.as_deref())?;
-        let calibrated = match &cfg.forecast.live.calibrated_profile {
-            Some(p) if cfg.forecast.live.enabled => Some(Arc::new(VehicleProfile::load(p)?)),
+        let live = &cfg.forecast.live;
+        let calibrated = match &live.calibrated_profile {
+            Some(p) if live.enabled => Some(Arc::new(VehicleProfile::load(p)?)),
+            None if live.enabled && vehicle.profile.name == VehicleProfile::m100().name => {
+                Some(Arc::new(crate::assets::m100_calibrated()?))
+            }
             _ => None,
         };
         Ok(Self {

@@ -58,12 +58,20 @@ pub(super) async fn telemetry_stage(
                     step.on_message(&m);
                 }
                 if let Some(params) = vehicle.on_message(&m) {
-                    let identity = params.identity.clone();
+                    if let (Some(mem), true) = (&mut memory, params.identity.is_some()) {
+                        let first = mem.heard.as_ref().map_or(m.t_s, |h| h.0);
+                        mem.heard = Some((first, params.clone()));
+                    }
                     // Only the energy stage listens; it gone (shutting down) is no error.
                     let _ = news.send(VehicleNews::Params(m.t_s, params));
-                    // The vehicle is known: look up what earlier flights taught.
-                    if let (Some(id), Some(mem)) = (identity, &mut memory) {
-                        look_up(mem, id, m.t_s, &status, &news);
+                }
+                // The vehicle and its pack known: look up what earlier flights taught.
+                if let Some(mem) = &mut memory {
+                    let (asks, settled) = (vehicle.reader().asks(), vehicle.reader().settled());
+                    let heard = mem.heard.as_ref().filter(|_| !mem.looked_up);
+                    let due = crate::vehicle::store::lookup_due(heard, m.t_s, asks, settled);
+                    if let Some(who) = due {
+                        look_up(mem, who, m.t_s, &status, &news);
                     }
                 }
                 telemetry.push(&m, &mut out);
@@ -179,8 +187,9 @@ pub(super) async fn energy_stage(
     mut fanout: Fanout,
     status: ChainStatus,
     live: bool,
-) -> (FlightLog, Option<Identity>) {
+) -> (FlightLog, Option<Identity>, crate::vehicle::store::PackSig) {
     let mut flight = FlightLog::default();
+    let mut stuck = crate::model::stuck::StuckWatch::default();
     let vehicle_id = || VehicleId {
         network: status.network,
         system_id: match status.system_id.load(std::sync::atomic::Ordering::Relaxed) {
@@ -207,6 +216,9 @@ pub(super) async fn energy_stage(
                 take_mission(&mut energy, &mut mission, &mut next_mission, est.t_s);
                 let report = account(&mut energy, &mut alerts, est, vehicle_id());
                 flight.observe(&report);
+                for m in stuck.observe(&report.estimate) {
+                    tracing::warn!(vehicle = %report.vehicle, "{m}");
+                }
                 if live {
                     last = Some((
                         report.estimate.clone(),
@@ -239,7 +251,8 @@ pub(super) async fn energy_stage(
     // The rest of the news (the vehicle's identity and the store's clock for the flight
     // log), the input being over.
     taken.take(&mut news, None, &mut energy, &mut flight).await;
-    (flight, taken.params.identity)
+    let pack = crate::vehicle::store::PackSig::of(&taken.params);
+    (flight, taken.params.identity, pack)
 }
 
 /// The energy + alerts step for one estimate: energy bookkeeping, then the alert rules on

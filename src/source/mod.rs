@@ -275,8 +275,12 @@ async fn replay<R: AsyncRead + Unpin>(
     let start = tokio::time::Instant::now();
     let mut eof = false;
     let mut bytes_read = 0u64;
+    // The log time reached, and the bad frames counted before the end of input: one more at
+    // the end is a record cut off (a truncated file), said with where the log ends.
+    let (mut last_t, mut bad_at_end) = (None, 0);
     loop {
         while let Some(mut m) = reader.next_message(stats) {
+            last_t = Some(m.t_s);
             if !pace(start, &mut m, speed, &shutdown).await || !send(&tx, m, stats, &shutdown).await
             {
                 return Ok(());
@@ -285,6 +289,9 @@ async fn replay<R: AsyncRead + Unpin>(
         if eof {
             tracing::debug!("{name}: end of input");
             let s = stats.snapshot();
+            if let (Some(t), true) = (last_t, s.frames_bad > bad_at_end) {
+                tracing::warn!("{name}: truncated: the file ends inside a record ({bytes_read} bytes); played what it has, up to {t:.1} s of log time");
+            }
             if bytes_read > 0 && s.frames_ok == 0 {
                 tracing::warn!(
                     "{name}: no MAVLink in this file: {bytes_read} bytes and not one valid frame \
@@ -302,6 +309,7 @@ async fn replay<R: AsyncRead + Unpin>(
             r = input.read(&mut buf) => r.with_context(|| format!("{name}: read failed"))?,
         };
         if n == 0 {
+            bad_at_end = stats.snapshot().frames_bad;
             reader.finish();
             eof = true;
         } else {

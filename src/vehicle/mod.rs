@@ -68,7 +68,7 @@ impl BatteryConfig {
 
 /// The cell count a pack voltage parameter gives when it is `cells × per_cell` within
 /// ±`tol` V a cell (integer arithmetic on the rounded count: no `ceil`).
-fn cells_from(v: f64, per_cell: f64, tol: f64) -> Option<u32> {
+pub(crate) fn cells_from(v: f64, per_cell: f64, tol: f64) -> Option<u32> {
     let n = (v / per_cell).round();
     ((1.0..=24.0).contains(&n) && (v - n * per_cell).abs() <= tol * n).then_some(n as u32)
 }

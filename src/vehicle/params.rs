@@ -396,6 +396,11 @@ impl ParamReader {
         out
     }
 
+    /// Whether it asks the vehicle (a live link), rather than only listening.
+    pub fn asks(&self) -> bool {
+        self.live
+    }
+
     /// Whether every request has been answered or given up (always true when passive).
     pub fn settled(&self) -> bool {
         !self.live

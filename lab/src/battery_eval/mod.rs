@@ -281,7 +281,7 @@ fn relax_check(all: &[Prepared]) -> RelaxCheck {
 pub fn battery_eval(
     data: &Path,
     only: Option<&[u32]>,
-    calibrated: &Path,
+    calibrated: &CalibratedArg,
 ) -> anyhow::Result<(BatteryEvalReport, Vec<Prepared>, HashMap<u32, Traces>)> {
     let ds = dataset::read_flights(data, None)
         .with_context(|| format!("{}: cannot read the data set", data.display()))?;
@@ -655,7 +655,7 @@ fn plot(path: &Path, p: &Prepared, tr: &Traces) -> anyhow::Result<()> {
 /// `dronewatt-lab battery-eval`.
 pub fn run(a: BatteryEvalArgs) -> anyhow::Result<()> {
     let data = a.data.path();
-    let (report, all, traces) = battery_eval(&data, a.flights.as_deref(), &a.calibrated.path)?;
+    let (report, all, traces) = battery_eval(&data, a.flights.as_deref(), &a.calibrated)?;
     if let Some(png) = &a.plot {
         let pick = report.test_flights.first().or_else(|| {
             report

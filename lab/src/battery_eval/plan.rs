@@ -6,7 +6,6 @@
 //! along it from the flight's start resting voltage.
 
 use std::collections::HashMap;
-use std::path::Path;
 
 use crate::forecast_fit::{fit, prepare, rolling_scales, Fitted, Prepared};
 use crate::route::geometry_for;
@@ -42,7 +41,7 @@ pub fn is_route(f: &Flight) -> bool {
 /// defaults). A flight that cannot be planned is left out with a warning.
 pub fn plan_powers(
     flights: &[Flight],
-    calibrated: &Path,
+    calibrated: &dronewatt::offline::args::CalibratedArg,
 ) -> anyhow::Result<HashMap<u32, PlanPower>> {
     let cfg = Config::default();
     let mut models = dronewatt::offline::plan::models_for(&cfg, calibrated)?;

@@ -166,6 +166,7 @@ fn collect_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
             );
         }
     }
+    dedup::refuse_duplicates(&out)?;
     Ok(out)
 }
 
@@ -683,6 +684,7 @@ fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model
     }
 }
 
+mod dedup;
 mod report;
 use report::*;
 

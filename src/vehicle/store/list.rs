@@ -65,6 +65,25 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
                 .map_or("—".to_string(), |w| format!("{w:.2}")),
             trend
         );
+        // Why each flight was matched to this vehicle (uid, key + pack, new), oldest first.
+        let why: Vec<&str> = v
+            .flights
+            .iter()
+            .map(|f| f.matched.as_deref().unwrap_or("not recorded (older store)"))
+            .collect();
+        if v.pack.is_known() || !why.is_empty() {
+            let _ = writeln!(
+                s,
+                "{:<34} pack reported {}; flights matched by: {}",
+                "",
+                v.pack.describe(),
+                if why.is_empty() {
+                    "—".to_string()
+                } else {
+                    why.join("; ")
+                }
+            );
+        }
         // One row per pack the vehicle identified (BATTERY_INFO's serial), in the order
         // first flown; the flights with no pack id heard in one row for the vehicle.
         let mut packs: Vec<Option<&str>> = Vec::new();

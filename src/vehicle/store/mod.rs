@@ -15,7 +15,9 @@
 //! Keyed by the vehicle's identity ([`VehicleKey`]): AUTOPILOT_VERSION's board uid where the
 //! autopilot sends one (`uid:00000000deadbeef`, the same airframe whatever its system id),
 //! else its system id, autopilot and type from HEARTBEAT (`sys1-ardupilot-MAV_TYPE_QUADROTOR`,
-//! weaker: two quadrotors both left at system id 1 share an entry). The listing says which.
+//! weaker: two quadrotors both left at system id 1 share it, so a pack that differs from the
+//! remembered one makes a new vehicle: [`matching`]). The listing says which, and why each
+//! flight was matched.
 //!
 //! ## What
 //!
@@ -43,10 +45,12 @@ mod dir;
 mod flight;
 pub mod hover;
 mod list;
+mod matching;
 
 pub use dir::{data_dir, data_dir_from_env, DB_FILE, HOME_ENV, MIN_PCT_DROP};
 pub use flight::{FlightLog, FlightSummary, VehicleKey, MIN_SOC_DROP_PCT};
 pub use list::list;
+pub use matching::{lookup_due, Matched, PackSig, LOG_WAIT_S, PACK_WAIT_S};
 
 use crate::features::units::unix_clock;
 use std::path::{Path, PathBuf};
@@ -76,6 +80,8 @@ pub struct VehicleRecord {
     pub learned_models: usize,
     /// The profile `dronewatt learn` wrote for this vehicle, if any.
     pub profile: Option<LearnedProfile>,
+    /// The pack it reported of itself (what tells vehicles under one key apart).
+    pub pack: PackSig,
     pub flights: Vec<FlightRecord>,
 }
 
@@ -96,6 +102,8 @@ pub struct LearnedProfile {
 pub struct FlightRecord {
     /// Unix seconds at the end of the run.
     pub ended_at: i64,
+    /// Why the flight was matched to its vehicle ([`matching`]; None: an older store).
+    pub matched: Option<String>,
     #[serde(flatten)]
     pub summary: FlightSummary,
 }
@@ -162,8 +170,9 @@ CREATE TABLE IF NOT EXISTS profiles (
 /// The schema this build writes (`PRAGMA user_version`): 1 the first stores (no version
 /// set, read as 0), 2 adds each flight's pack (resting voltages, resistance, heat, health),
 /// 3 the flight's end on the log's own clock (`ended_log_s`, a replay's), 4 the pack's
-/// identity (`pack_id`, BATTERY_INFO's serial; `NULL` when the vehicle sent none).
-pub const SCHEMA_VERSION: i64 = 4;
+/// identity (`pack_id`, BATTERY_INFO's serial; `NULL` when the vehicle sent none), 5 the
+/// pack each vehicle reported and why each flight was matched ([`matching`]).
+pub const SCHEMA_VERSION: i64 = 5;
 
 /// The columns schemas 2 and 3 add to `flights` (all `REAL`).
 const ADDED_COLUMNS: [&str; 7] = [
@@ -206,6 +215,7 @@ fn migrate(conn: &Connection) -> Result<()> {
     {
         sql.push_str(&format!("ALTER TABLE flights ADD COLUMN {c} TEXT;"));
     }
+    sql.push_str(&matching::migration(conn)?);
     sql.push_str(&format!("PRAGMA user_version = {SCHEMA_VERSION}; COMMIT;"));
     conn.execute_batch(&sql)?;
     Ok(())
@@ -355,15 +365,26 @@ impl Store {
         })
     }
 
-    /// Record a run of this vehicle: the vehicle (created or updated, with the fits learned
-    /// when given) and, when it flew, its flight. One transaction.
+    /// Record a run of this vehicle, matched with no pack reported ([`Store::resolve`]).
     pub fn record(
         &mut self,
         id: &Identity,
         fits: Option<&[(String, ModelFit)]>,
         flight: Option<&FlightSummary>,
     ) -> Result<()> {
-        let key = VehicleKey::of(id);
+        let m = self.resolve(id, &PackSig::default())?;
+        self.record_matched(id, &m, &PackSig::default(), fits, flight)
+    }
+
+    /// Record a run of vehicle `key`: the vehicle (created or updated, with the fits learned
+    /// when given) and, when it flew, its flight. One transaction.
+    fn record_key(
+        &mut self,
+        id: &Identity,
+        key: &VehicleKey,
+        fits: Option<&[(String, ModelFit)]>,
+        flight: Option<&FlightSummary>,
+    ) -> Result<()> {
         let now = now_s();
         let fits = fits.map(serde_json::to_string).transpose()?;
         let tx = self.conn.transaction()?;
@@ -410,11 +431,12 @@ impl Store {
         path: &Path,
         forecast_model: Option<&str>,
     ) -> Result<()> {
-        self.record(id, None, None)?;
+        let m = self.resolve(id, &PackSig::default())?;
+        self.record_matched(id, &m, &PackSig::default(), None, None)?;
         self.conn.execute(
             "INSERT INTO profiles (vehicle, path, forecast_model, learned_at) VALUES (?1, ?2, ?3, ?4)
              ON CONFLICT(vehicle) DO UPDATE SET path = ?2, forecast_model = ?3, learned_at = ?4",
-            params![VehicleKey::of(id).key, path.to_string_lossy(), forecast_model, now_s()],
+            params![m.key.key, path.to_string_lossy(), forecast_model, now_s()],
         )?;
         Ok(())
     }
@@ -462,6 +484,7 @@ impl Store {
                 last_seen: r.get(6)?,
                 learned_models,
                 profile: None,
+                pack: PackSig::default(),
                 flights: Vec::new(),
             })
         })?;
@@ -475,6 +498,7 @@ impl Store {
             let rows = fl.query_map(params![v.key], |r| {
                 Ok(FlightRecord {
                     ended_at: r.get(0)?,
+                    matched: None,
                     summary: FlightSummary {
                         airborne_s: r.get(1)?,
                         energy_wh: r.get(2)?,
@@ -497,6 +521,7 @@ impl Store {
             v.flights = rows.collect::<rusqlite::Result<Vec<_>>>()?;
             v.profile = self.learned_profile(&v.key)?;
         }
+        self.annotate(&mut out)?;
         Ok(out)
     }
 }
@@ -521,31 +546,33 @@ pub const CAPACITY_FLIGHTS: usize = 3;
 /// What earlier flights taught about this vehicle, for the warm start; any store problem is
 /// a warning and nothing learned (the run goes on as a first flight).
 /// `now_log_s`: the source's time now (its clock is used for the gap since the last flight
-/// when it is a Unix time: [`Store::pack_history`]).
-pub fn lookup(dir: &Path, id: &Identity, now_log_s: Option<f64>) -> Learned {
-    let key = VehicleKey::of(id);
+/// when it is a Unix time: [`Store::pack_history`]). `sig`: the pack the vehicle reported,
+/// which tells vehicles with no uid apart ([`matching`]).
+pub fn lookup(dir: &Path, id: &Identity, sig: &PackSig, now_log_s: Option<f64>) -> Learned {
     let got = Store::open(dir).and_then(|s| {
-        Ok(Learned {
+        let m = s.resolve(id, sig)?;
+        matching::say(id, &m);
+        let key = m.key;
+        let l = Learned {
             fits: s.learned_fits(&key)?,
             capacity_wh: s.learned_capacity(&key)?,
             profile: s.learned_profile(&key.key)?,
             pack: s.pack_histories(&key, now_log_s)?,
-        })
+        };
+        Ok((l, key))
     });
     match got {
-        Ok(l) if l.fits.is_some() || l.capacity_wh.is_some() || l.profile.is_some() => {
+        Ok((l, key)) => {
+            let found = l.fits.is_some() || l.capacity_wh.is_some() || l.profile.is_some();
             tracing::info!(
-                "vehicle {} ({}): found what earlier flights learned",
+                "vehicle {} ({}): {}",
                 key.key,
-                key.kind
-            );
-            l
-        }
-        Ok(l) => {
-            tracing::info!(
-                "vehicle {} ({}): first flight in the store",
-                key.key,
-                key.kind
+                key.kind,
+                if found {
+                    "found what earlier flights learned"
+                } else {
+                    "first flight in the store"
+                }
             );
             l
         }
@@ -563,6 +590,7 @@ pub fn lookup(dir: &Path, id: &Identity, now_log_s: Option<f64>) -> Learned {
 pub fn remember(
     dir: &Path,
     id: Option<&Identity>,
+    sig: &PackSig,
     fits: Option<&[(String, ModelFit)]>,
     log: &FlightLog,
 ) {
@@ -572,13 +600,13 @@ pub fn remember(
     };
     let flight = log.summary();
     let result = Store::open(dir).and_then(|mut s| {
-        s.record(id, fits, flight.as_ref())?;
-        Ok(s.path().to_path_buf())
+        let m = s.resolve(id, sig)?;
+        s.record_matched(id, &m, sig, fits, flight.as_ref())?;
+        Ok((s.path().to_path_buf(), m.key.key))
     });
     match result {
-        Ok(path) => tracing::info!(
-            "vehicle {}: {} in {}",
-            VehicleKey::of(id).key,
+        Ok((path, key)) => tracing::info!(
+            "vehicle {key}: {} in {}",
             match &flight {
                 Some(f) => format!(
                     "flight remembered ({:.2} Wh, {:.0} s airborne)",

@@ -414,7 +414,7 @@ fn a_schema_3_store_migrates_and_its_flights_count_for_the_vehicle() {
         .unwrap();
     }
     let mut st = Store::open(dir.path()).expect("a schema 3 store opens");
-    assert_eq!((user_version(&st), SCHEMA_VERSION), (4, 4));
+    assert_eq!((user_version(&st), SCHEMA_VERSION), (5, 5));
     let f = st.vehicles().unwrap()[0].flights[0].summary.clone();
     assert_eq!(
         (f.rest_v_end, f.r_scale, f.ended_log_s, f.pack_id),
