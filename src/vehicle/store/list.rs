@@ -100,8 +100,8 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
                 .collect();
             let mut pack = pack_trend(&flights);
             for (name, i, scale, unit) in [
-                ("capacity", capacity(&flights), 1.0, "Wh"),
-                ("R", resistance(&flights), 1000.0, "mΩ"),
+                ("learned capacity", capacity(&flights), 1.0, "Wh"),
+                ("learned R", resistance(&flights), 1000.0, "mΩ"),
             ] {
                 if let Some(i) = i {
                     let sep = if pack.is_empty() { "" } else { "; " };
