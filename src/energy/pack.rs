@@ -346,6 +346,10 @@ impl Pack {
             v.filter(|v| v.is_finite() && *v > 0.5),
             i.filter(|i| i.is_finite() && *i > -2.0),
         ) else {
+            // Nothing new, but the facts may be (a cell count heard since): what was said
+            // must still be possible for them.
+            let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+            self.possible(chem, facts.cell_count.value.max(1));
             return self.now;
         };
         if !t.is_finite() {

@@ -178,3 +178,27 @@ fn the_time_to_low_follows_the_measured_fall_and_is_never_later_than_it() {
         .expect("a time to the low voltage without the capacity");
     assert!((t - 400.0).abs() < 20.0, "{t} s; {now:?}");
 }
+
+#[test]
+fn a_cell_count_heard_after_the_rest_is_checked_even_on_a_bad_reading() {
+    // energy::props found it: a rest read at 3.31 V on one cell, then BAT1_N_CELLS = 5, then a
+    // voltage of 0: the stale 3.31 V open-circuit voltage must not stand for five cells
+    let mut facts = BatteryFacts {
+        cell_count: Sourced::new(1, Provenance::Default),
+        ..BatteryFacts::default()
+    };
+    let mut p = Pack::default();
+    let mut t = 0.0;
+    while t < 2.5 {
+        p.update(t, Some(3.313), Some(0.3), None, &facts);
+        t += 0.25;
+    }
+    assert!(p
+        .update(t, Some(3.313), Some(0.3), None, &facts)
+        .ocv_v
+        .is_some());
+    facts.cell_count = Sourced::new(5, Provenance::Config);
+    let now = p.update(t + 0.05, Some(0.0), Some(0.0), None, &facts);
+    let (lo, hi) = (5.0 * Chemistry::LiPo.loaded_min_v(), 5.0 * 4.35);
+    assert!(now.ocv_v.is_none_or(|v| (lo..=hi).contains(&v)), "{now:?}");
+}
