@@ -41,6 +41,7 @@ pub mod forecast;
 pub mod history;
 pub mod ocv;
 pub mod split;
+pub mod trend;
 
 pub use chemistry::{cell_candidates, Chemistry};
 pub use circuit::{CircuitParams, Estimate, Estimator, PACK_SCALE_CARRY};

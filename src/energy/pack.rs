@@ -213,6 +213,16 @@ pub fn prior_r_ohm(cells: u32, ah: Option<f64>) -> f64 {
     (per_cell * 5.7 / ah).min(MAX_R_CELL_OHM) * f64::from(cells.max(1))
 }
 
+/// The low-voltage threshold, V: the vehicle's (`BATT_LOW_VOLT`, the config), else
+/// [`DEFAULT_LOW_V_CELL`] a cell.
+fn low_v(facts: &BatteryFacts) -> f64 {
+    facts
+        .low_voltage_v
+        .as_ref()
+        .map(|s| s.value)
+        .unwrap_or(DEFAULT_LOW_V_CELL * f64::from(facts.cell_count.value))
+}
+
 /// The pack's charge, Ah, from its facts (capacity ÷ cells ÷ nominal), when known.
 fn pack_ah(facts: &BatteryFacts, chem: Chemistry) -> Option<f64> {
     facts
@@ -266,6 +276,8 @@ pub struct Pack {
     pub reserve_frac: f64,
     /// The last flight's pack, from the vehicle store.
     pub history: Option<PackHistory>,
+    /// The measured loaded voltage's trend this flight: the time to the low voltage.
+    trend: crate::battery::trend::VoltageTrend,
     /// Messages for a warning, taken by the caller.
     pub notes: Vec<String>,
 }
@@ -334,6 +346,10 @@ impl Pack {
             v.filter(|v| v.is_finite() && *v > 0.5),
             i.filter(|i| i.is_finite() && *i > -2.0),
         ) else {
+            // Nothing new, but the facts may be (a cell count heard since): what was said
+            // must still be possible for them.
+            let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+            self.possible(chem, facts.cell_count.value.max(1));
             return self.now;
         };
         if !t.is_finite() {
@@ -374,6 +390,9 @@ impl Pack {
                 self.flown = true;
             }
         }
+        if i >= crate::battery::trend::loaded_a(pack_ah(facts, chem)) {
+            self.trend.add(t, v, i);
+        }
         if i >= LOAD_CURRENT_A {
             if let Some(dt) = dt {
                 self.sag.update(dt, v, i, cells, r);
@@ -388,6 +407,14 @@ impl Pack {
             }
         }
         let Some(est) = self.est.as_mut() else {
+            // No circuit (no capacity): the time to the low voltage from the trend alone.
+            self.now.time_to_low_v_s = rest_of_flight.and_then(|l| {
+                let low = low_v(facts);
+                self.now.low_v = Some(low);
+                self.trend
+                    .time_to(low, l.first_w)
+                    .filter(|s| *s <= FORECAST_HORIZON_S)
+            });
             self.possible(chem, cells);
             return self.now;
         };
@@ -531,10 +558,12 @@ impl Pack {
                 ));
                 self.flown = false;
                 self.history = None;
+                self.trend = Default::default();
                 self.sag = SagCheck::default();
                 self.said_withheld = false;
             } else {
                 // Landed: the resting voltage after the flight (pack health, the next flight).
+                self.trend = Default::default();
                 self.now.end_rest_v = Some(rest_v);
                 let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
                 self.now.end_rest_soc_pct = Some(
@@ -611,11 +640,7 @@ impl Pack {
     /// Recompute the loaded-voltage forecast for the rest of the flight.
     fn forecast(&mut self, rest_of_flight: Option<Load>, facts: &BatteryFacts) {
         let Some(est) = self.est.as_ref() else { return };
-        let low = facts
-            .low_voltage_v
-            .as_ref()
-            .map(|s| s.value)
-            .unwrap_or(DEFAULT_LOW_V_CELL * f64::from(facts.cell_count.value));
+        let low = low_v(facts);
         self.now.low_v = Some(low);
         let Some(Load {
             first_w: p,
@@ -658,7 +683,16 @@ impl Pack {
             FORECAST_HORIZON_S - first_s,
         ));
         let on = first_crossing(est, profile, low);
-        self.now.time_to_low_v_s = on.map(|s| s.t_s);
+        // In flight, the sooner of the circuit's crossing and the measured voltage's own
+        // trend's (battery::trend), where it shows one.
+        let trend = self
+            .trend
+            .time_to(low, p)
+            .filter(|s| *s <= FORECAST_HORIZON_S);
+        self.now.time_to_low_v_s = match (trend, on.map(|s| s.t_s)) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
         self.now.usable_wh = Some(match on {
             Some(s) => (e_now - s.energy).max(0.0),
             // Never crosses within the horizon: all of it down to the floor.

@@ -134,3 +134,71 @@ fn the_same_pack_soon_after_carries_its_resistance_and_warmth() {
     };
     assert!(!run(&mut other, &f, 25.9, 10.0).carried);
 }
+
+/// A 4S Li-ion pack (`capacity`: None, not known) rested at 16.0 V, then flown at 10 A with its
+/// loaded voltage falling 2 mV/s from 15.4 V: the threshold 14.0 V is 700 s after take-off.
+fn falling(capacity: Option<f64>, t_end: f64) -> PackNow {
+    let facts = BatteryFacts {
+        cell_count: Sourced::new(4, Provenance::Config),
+        capacity_wh: capacity.map(|c| Sourced::new(c, Provenance::Config)),
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        low_voltage_v: Some(Sourced::new(14.0, Provenance::Config)),
+        ..BatteryFacts::default()
+    };
+    let mut p = Pack::default();
+    let mut now = PackNow::default();
+    let mut t = 0.0;
+    while t < t_end {
+        let (v, i) = if t < 5.0 {
+            (16.0, 0.1)
+        } else {
+            (15.4 - 0.002 * (t - 5.0), 10.0)
+        };
+        now = p.update(t, Some(v), Some(i), Some(Load::constant(v * i)), &facts);
+        t += 0.1;
+    }
+    now
+}
+
+#[test]
+fn the_time_to_low_follows_the_measured_fall_and_is_never_later_than_it() {
+    // 300 s after take-off the line crosses 14.0 V in 400 s: the sooner of the circuit's and
+    // the trend's (battery::trend), so never later than the line
+    let now = falling(Some(200.0), 305.0);
+    let t = now.time_to_low_v_s.expect("a time to the low voltage");
+    assert!(
+        t <= 400.0 + 5.0,
+        "{t} s: later than the measured fall says; {now:?}"
+    );
+    assert!(t > 0.0, "{now:?}");
+    // with no capacity (no circuit), the trend's alone: the line's 400 s
+    let now = falling(None, 305.0);
+    let t = now
+        .time_to_low_v_s
+        .expect("a time to the low voltage without the capacity");
+    assert!((t - 400.0).abs() < 20.0, "{t} s; {now:?}");
+}
+
+#[test]
+fn a_cell_count_heard_after_the_rest_is_checked_even_on_a_bad_reading() {
+    // energy::props found it: a rest read at 3.31 V on one cell, then BAT1_N_CELLS = 5, then a
+    // voltage of 0: the stale 3.31 V open-circuit voltage must not stand for five cells
+    let mut facts = BatteryFacts {
+        cell_count: Sourced::new(1, Provenance::Default),
+        ..BatteryFacts::default()
+    };
+    let mut p = Pack::default();
+    let mut t = 0.0;
+    while t < 2.5 {
+        p.update(t, Some(3.313), Some(0.3), None, &facts);
+        t += 0.25;
+    }
+    assert!(p
+        .update(t, Some(3.313), Some(0.3), None, &facts)
+        .ocv_v
+        .is_some());
+    facts.cell_count = Sourced::new(5, Provenance::Config);
+    let now = p.update(t + 0.05, Some(0.0), Some(0.0), None, &facts);
+    let (lo, hi) = (5.0 * Chemistry::LiPo.loaded_min_v(), 5.0 * 4.35);
+    assert!(now.ocv_v.is_none_or(|v| (lo..=hi).contains(&v)), "{now:?}");
+}

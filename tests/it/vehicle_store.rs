@@ -142,15 +142,37 @@ fn the_second_flight_starts_from_what_the_first_learned() {
         );
     }
     // The second flight took the pack's capacity from what the first measured (energy used
-    // over the autopilot's % drop), not from the rated BATT_CAPACITY.
+    // over the autopilot's % drop) against the rated BATT_CAPACITY, each weighed by what it
+    // can show (the store's posterior): between the two, and where the posterior says.
     let effective = flights[0]["effective_capacity_wh"]
         .as_f64()
         .expect("the first flight measured no capacity");
+    let rated = flights[0]["rated_capacity_wh"].as_f64().unwrap();
+    let fall = flights[0]["pct_start"].as_f64().unwrap() - flights[0]["pct_end"].as_f64().unwrap();
     let e = second.last().unwrap();
     assert_eq!(e["capacity_source"], "learned over 1 flight(s)", "{e}");
+    let learned = e["capacity_wh"].as_f64().unwrap();
+    let (w_r, w_f) = ((0.2 * rated).powi(-2), (effective * 8.0 / fall).powi(-2));
+    let want = (w_r * rated + w_f * effective) / (w_r + w_f);
     assert!(
-        (e["capacity_wh"].as_f64().unwrap() - effective).abs() < 1e-9,
-        "{e} vs {effective}"
+        (learned - want).abs() < 1e-6
+            && learned >= effective.min(rated) - 1e-9
+            && learned <= effective.max(rated) + 1e-9,
+        "{e}: learned {learned}, effective {effective}, rated {rated}, fall {fall}"
+    );
+    // `vehicles --json` gives the capacity and the resistance with their uncertainty
+    let cap = &v[0]["capacity_wh"];
+    assert!(
+        cap["flights"]
+            .as_u64()
+            .is_some_and(|n| (1..=2).contains(&n)),
+        "{cap}"
+    );
+    assert!(
+        cap["sd"]
+            .as_f64()
+            .is_some_and(|s| s > 0.0 && s < 0.2 * rated),
+        "{cap}"
     );
     assert_eq!(
         first.last().unwrap()["capacity_source"],
@@ -159,7 +181,9 @@ fn the_second_flight_starts_from_what_the_first_learned() {
     let table =
         String::from_utf8(run(&["vehicles", "--data-dir", data.to_str().unwrap()]).stdout).unwrap();
     assert!(
-        table.contains("1 vehicle(s)") && table.contains("QUADROTOR"),
+        table.contains("1 vehicle(s)")
+            && table.contains("QUADROTOR")
+            && table.contains("capacity "),
         "{table}"
     );
 }

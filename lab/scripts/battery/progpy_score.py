@@ -4,6 +4,8 @@
 
   progpy_score.py --dir DIR --bin target/release/dronewatt [--set score] [--json OUT] [--plot OUT.png]
                   [--before OTHER_BIN] [--md]
+  progpy_score.py --from-json OUT --prognoser PROGNOSER.json --plot OUT.png   # the plot again, with
+                  ProgPy's prognoser (progpy_prognoser.py --json) beside
 
 Figures, per flight then the median over the set:
 - time to BATT_LOW_VOLT forecast at 25/50/75 % of the way from take-off to the crossing:
@@ -180,7 +182,22 @@ def main():
     ap.add_argument("--set", default="score")
     ap.add_argument("--json", default=None)
     ap.add_argument("--plot", default=None)
+    ap.add_argument("--prognoser", default=None, help="progpy_prognoser.py's --json, for the plot")
+    ap.add_argument("--from-json", default=None, help="an earlier --json: plot it, replay nothing")
     a = ap.parse_args()
+    if a.from_json:
+        res = json.load(open(a.from_json))
+        if a.prognoser:
+            pr = json.load(open(a.prognoser))
+            res["per_flight_prognoser"] = pr["per_flight"]
+        for k in [k for k in res if k.startswith("per_flight")]:
+            for f in res[k]:  # JSON's keys are strings: the fractions again
+                for key in ("ttl", "px4"):
+                    if key in f:
+                        f[key] = {float(q): v for q, v in f[key].items()}
+        if a.plot:
+            plot(res, a.plot)
+        return
     truths = sorted((json.load(open(p)) for p in glob.glob(os.path.join(a.dir, "*.truth.json"))),
                     key=lambda t: t["name"])
     truths = [t for t in truths if a.set == "all" or t["set"] == a.set]
@@ -222,10 +239,12 @@ def plot(res, path):
     if "per_flight_before" in res:
         series.append(("dronewatt before", res["per_flight_before"], "ttl", "C7"))
     series.append(("PX4 time remaining", res["per_flight"], "px4", "C3"))
+    if "per_flight_prognoser" in res:
+        series.append(("ProgPy's prognoser", res["per_flight_prognoser"], "ttl", "C2"))
     for k, (label, fl, key, col) in enumerate(series):
         for j, q in enumerate(FRACS):
             ys = [100.0 * x[key][q] for x in fl if x[key].get(q) is not None]
-            xs = [j + (k - 1) * 0.25 + 0.04 * ((n % 5) - 2) for n in range(len(ys))]
+            xs = [j + (k - (len(series) - 1) / 2) * 0.2 + 0.03 * ((n % 5) - 2) for n in range(len(ys))]
             ax.scatter(xs, ys, s=12, color=col, label=label if j == 0 else None, alpha=0.7)
     ax.axhline(25, color="k", lw=0.8, ls="--")
     ax.axhline(0, color="k", lw=0.5)

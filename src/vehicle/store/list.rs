@@ -5,6 +5,7 @@ use std::path::Path;
 use anyhow::Result;
 
 use crate::vehicle::store::dir::DB_FILE;
+use crate::vehicle::store::posterior::Interval;
 use crate::vehicle::store::Store;
 
 /// `dronewatt vehicles`: the table (or JSON with `json`).
@@ -24,7 +25,23 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
     let store = Store::open(dir)?;
     let vehicles = store.vehicles()?;
     if json {
-        return Ok(serde_json::to_string_pretty(&vehicles)? + "\n");
+        // each vehicle with its pack's capacity and resistance and their uncertainty
+        #[derive(serde::Serialize)]
+        struct WithPack<'a> {
+            #[serde(flatten)]
+            v: &'a super::VehicleRecord,
+            capacity_wh: Option<Interval>,
+            internal_r_ohm: Option<Interval>,
+        }
+        let out: Vec<WithPack> = vehicles
+            .iter()
+            .map(|v| WithPack {
+                v,
+                capacity_wh: capacity(&v.flights),
+                internal_r_ohm: resistance(&v.flights),
+            })
+            .collect();
+        return Ok(serde_json::to_string_pretty(&out)? + "\n");
     }
     let mut s = String::new();
     let _ = writeln!(
@@ -100,7 +117,19 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
                 .filter(|f| f.summary.pack_id.as_deref() == id)
                 .cloned()
                 .collect();
-            let pack = pack_trend(&flights);
+            let mut pack = pack_trend(&flights);
+            for (name, i, scale, unit) in [
+                ("learned capacity", capacity(&flights), 1.0, "Wh"),
+                ("learned R", resistance(&flights), 1000.0, "mΩ"),
+            ] {
+                if let Some(i) = i {
+                    let sep = if pack.is_empty() { "" } else { "; " };
+                    pack = format!(
+                        "{pack}{sep}{name} {}",
+                        super::posterior::text(&i, scale, unit)
+                    );
+                }
+            }
             let who = match id {
                 Some(id) => format!("pack {id} ({} flight(s))", flights.len()),
                 None => "pack (per vehicle: no pack id heard)".to_string(),
@@ -121,6 +150,39 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
         }
     }
     Ok(s)
+}
+
+/// The capacity's posterior over the last [`super::CAPACITY_FLIGHTS`] of `flights` (oldest
+/// first) that measured one: what the next flight starts from.
+fn capacity(flights: &[super::FlightRecord]) -> Option<Interval> {
+    let rows: Vec<(f64, Option<f64>, f64)> = flights
+        .iter()
+        .rev()
+        .filter_map(|f| {
+            let s = &f.summary;
+            let c = s.effective_capacity_wh.filter(|c| *c > 0.0)?;
+            Some((
+                c,
+                s.pct_start.zip(s.pct_end).map(|(a, b)| a - b),
+                s.rated_capacity_wh,
+            ))
+        })
+        .take(super::CAPACITY_FLIGHTS)
+        .collect();
+    let fl: Vec<(f64, f64)> = rows
+        .iter()
+        .filter_map(|(c, f, _)| Some((*c, (*f)?)))
+        .collect();
+    super::posterior::capacity(rows.first().map(|r| r.2), &fl).filter(|i| i.flights > 0)
+}
+
+/// The resistance's posterior over every flight that measured one.
+fn resistance(flights: &[super::FlightRecord]) -> Option<Interval> {
+    let r: Vec<f64> = flights
+        .iter()
+        .filter_map(|f| f.summary.internal_r_ohm)
+        .collect();
+    super::posterior::resistance(&r)
 }
 
 /// The pack's trend over flights, oldest first: health (energy delivered between the

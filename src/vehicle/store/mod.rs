@@ -27,8 +27,9 @@
 //! | `flights` | run of the chain with power seen | end time, seconds with the motors turning, energy used (Wh), the autopilot's battery % at start and end, effective capacity, the rated capacity and where it came from, the pack (resting voltages, resistance, heat, health) and its id where the vehicle identified it (BATTERY_INFO's serial) |
 //!
 //! **Effective capacity** = energy used ÷ (battery % drop / 100): what the pack delivered
-//! per the autopilot's own gauge. The next flight of the vehicle takes the median of the last
-//! [`CAPACITY_FLIGHTS`] as its capacity unless the config sets one (it then beats the
+//! per the autopilot's own gauge. The next flight of the vehicle takes the posterior over the
+//! last [`CAPACITY_FLIGHTS`] (each weighed by how far the gauge fell, against the rated
+//! capacity: [`posterior`]) as its capacity unless the config sets one (it then beats the
 //! vehicle's rated `BATT_CAPACITY`: remaining = capacity × the gauge's % is then right for
 //! a pack that has aged). Kept only when the gauge fell by at least
 //! [`MIN_PCT_DROP`] % (a smaller drop is mostly the gauge's rounding). Beside the rated
@@ -46,6 +47,7 @@ mod flight;
 pub mod hover;
 mod list;
 mod matching;
+pub mod posterior;
 
 pub use dir::{data_dir, data_dir_from_env, DB_FILE, HOME_ENV, MIN_PCT_DROP};
 pub use flight::{FlightLog, FlightSummary, VehicleKey, MIN_SOC_DROP_PCT};
@@ -285,21 +287,19 @@ impl Store {
         }
     }
 
-    /// The pack's effective capacity over its last [`CAPACITY_FLIGHTS`] flights that
-    /// measured one (the median), Wh, and how many there were.
+    /// The pack's capacity learned over its last [`CAPACITY_FLIGHTS`] flights that measured
+    /// one, Wh (the posterior mean, [`posterior::capacity`]: each flight weighs by how far the
+    /// gauge fell, against the rated capacity), and how many there were.
     pub fn learned_capacity(&self, key: &VehicleKey) -> Result<Option<(f64, usize)>> {
         let mut st = self.conn.prepare(
-            "SELECT effective_capacity_wh FROM flights WHERE vehicle = ?1 AND effective_capacity_wh > 0 ORDER BY ended_at DESC, id DESC LIMIT ?2",
+            "SELECT effective_capacity_wh, pct_start - pct_end, rated_capacity_wh FROM flights WHERE vehicle = ?1 AND effective_capacity_wh > 0 ORDER BY ended_at DESC, id DESC LIMIT ?2",
         )?;
-        let mut v: Vec<f64> = st
-            .query_map(params![key.key, CAPACITY_FLIGHTS as i64], |r| r.get(0))?
+        let rows: Vec<(f64, Option<f64>, f64)> = st
+            .query_map(params![key.key, CAPACITY_FLIGHTS as i64], |r| {
+                Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+            })?
             .collect::<rusqlite::Result<_>>()?;
-        v.retain(|c| c.is_finite());
-        if v.is_empty() {
-            return Ok(None);
-        }
-        v.sort_by(f64::total_cmp);
-        Ok(Some((v[v.len() / 2], v.len())))
+        Ok(posterior::learned(&rows))
     }
 
     /// What the vehicle's last flight left of its pack, for the next flight on it: the last
@@ -531,8 +531,8 @@ impl Store {
 pub struct Learned {
     /// The models' adaptation fits.
     pub fits: Option<Vec<(String, ModelFit)>>,
-    /// The pack's effective capacity, Wh: the median of the last [`CAPACITY_FLIGHTS`]
-    /// flights that measured one, and how many did.
+    /// The pack's capacity, Wh: the posterior over the last [`CAPACITY_FLIGHTS`] flights
+    /// that measured one ([`Store::learned_capacity`]), and how many did.
     pub capacity_wh: Option<(f64, usize)>,
     /// The profile `dronewatt learn` wrote for it.
     pub profile: Option<LearnedProfile>,
@@ -540,7 +540,7 @@ pub struct Learned {
     pub pack: crate::battery::PackHistories,
 }
 
-/// Flights the learned capacity is the median of.
+/// Flights the learned capacity is learned over.
 pub const CAPACITY_FLIGHTS: usize = 3;
 
 /// What earlier flights taught about this vehicle, for the warm start; any store problem is

@@ -123,13 +123,22 @@ fn records_and_lists_with_the_capacity_trend() {
         st.learned_fits(&VehicleKey::of(&id(None))).unwrap(),
         Some(fits)
     );
-    // The capacity learned: the median of the last three flights that measured one.
+    // The capacity learned: the posterior over the last three flights that measured one
+    // (each fell 80 points: they outweigh the rated 40 Wh about 15 to 1).
     st.record(&id(None), None, Some(&flight(None))).unwrap();
     st.record(&id(None), None, Some(&flight(Some(36.0))))
         .unwrap();
-    assert_eq!(
-        st.learned_capacity(&VehicleKey::of(&id(None))).unwrap(),
-        Some((36.0, 3))
+    let (wh, n) = st
+        .learned_capacity(&VehicleKey::of(&id(None)))
+        .unwrap()
+        .expect("learned");
+    assert_eq!(n, 3);
+    assert!((wh - 36.0).abs() < 0.2, "{wh}");
+    // `vehicles` shows it with its ±2 sd interval (the three flights and the rated 40 Wh)
+    let text = list(dir.path(), false).unwrap();
+    assert!(
+        text.contains("capacity 36 Wh (32–40, 3 flight(s))"),
+        "{text}"
     );
     assert_eq!(
         st.learned_capacity(&VehicleKey::of(&id(Some(7)))).unwrap(),
