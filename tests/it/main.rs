@@ -54,6 +54,7 @@ mod source_frame;
 mod source_link;
 mod source_link_faults;
 mod source_links;
+mod source_links_fast;
 mod source_serial;
 mod source_tlog;
 mod source_tlog_corruption;
