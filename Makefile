@@ -36,6 +36,7 @@ run: build
 test: setup
 	@scripts/setup-chromium.sh
 	@scripts/setup-mosquitto.sh
+	@scripts/setup-nats.sh
 	$(CARGO) test --workspace --locked --no-fail-fast
 	@python3 scripts/docs-tables.py --if-available --check
 

@@ -59,7 +59,7 @@ impl MissionOn {
             return None;
         }
         Some(Self {
-            active: matches!(source, SourceSpec::Link(_) | SourceSpec::Links { .. }),
+            active: source.is_live(),
             follows: follows.clone(),
         })
     }

@@ -23,6 +23,7 @@ mod energy_pack;
 mod energy_progpy;
 mod energy_select;
 mod features_units;
+mod fleet_nats;
 mod fuzz_props;
 mod mission_fleet;
 mod mission_margin;
