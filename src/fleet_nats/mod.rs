@@ -14,7 +14,8 @@
 //! ```
 //!
 //! - **Partitions.** A vehicle (network, system id) belongs to partition
-//!   `(256 × network + system id) mod` [`PARTITIONS`]; its frames go to
+//!   `(system id + 17 × network) mod` [`PARTITIONS`] (consecutive ids spread over all
+//!   partitions, and so do fleets on several networks that reuse ids); its frames go to
 //!   `dronewatt.frames.<part>.<net>.<sys>`. One stream keeps every frame (file storage,
 //!   limits retention, [`STREAM_MAX_AGE`]).
 //! - **Leases** ([`lease`]): key `p<part>` in the bucket [`LEASES`], whose entries expire
@@ -205,7 +206,7 @@ fn options(a: &NatsArgs, name: &str, tls: bool) -> Result<async_nats::ConnectOpt
 
 /// The partition of vehicle (`network`, `system_id`).
 pub fn partition(network: u8, system_id: u8) -> u32 {
-    (256 * u32::from(network) + u32::from(system_id)) % PARTITIONS
+    (u32::from(system_id) + 17 * u32::from(network)) % PARTITIONS
 }
 
 /// The subject of one vehicle's frames.
@@ -346,7 +347,10 @@ mod tests {
     fn partitions_spread_consecutive_ids_and_keep_networks_apart() {
         let parts: std::collections::HashSet<u32> = (1..=16).map(|s| partition(0, s)).collect();
         assert_eq!(parts.len(), 16);
+        // Two networks reusing system ids do not pile onto the same partitions.
         assert_ne!(partition(1, 1), partition(0, 1));
+        let net2: std::collections::HashSet<u32> = (1..=16).map(|s| partition(2, s)).collect();
+        assert_eq!(net2.len(), 16);
         assert_eq!(frames_subject(0, 3), "dronewatt.frames.3.0.3");
     }
 
