@@ -2,7 +2,7 @@
 #   make run   — build `dronewatt` (no libtorch needed) and replay the demo flight: a
 #                simulated M100 delivery from replay/demo.plan, dashboard on :8787
 #   make test  — install what the tests need (libtorch, pymavlink venv, Chromium,
-#                Mosquitto), then every test of the workspace (what CI runs)
+#                Mosquitto, nats-server), then every test of the workspace (what CI runs)
 SHELL := /bin/bash
 CARGO ?= cargo
 DEMO_SPEED ?= 10
@@ -37,6 +37,7 @@ test: setup
 	@scripts/setup-chromium.sh
 	@scripts/setup-tmux.sh
 	@scripts/setup-mosquitto.sh
+	@scripts/setup-nats.sh
 	$(CARGO) test --workspace --locked --no-fail-fast
 	@python3 scripts/docs-tables.py --if-available --check
 

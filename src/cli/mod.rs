@@ -114,7 +114,20 @@ pub enum Command {
         /// config's `[[links]]`.
         address: Vec<String>,
         #[command(flatten)]
+        nats: crate::fleet_nats::NatsArgs,
+        #[command(flatten)]
         run: RunArgs,
+    },
+    /// Read MAVLink links (the addresses `monitor` takes) into a NATS JetStream stream for
+    /// fleet workers (`monitor --nats`), and send what they address to a vehicle back on its
+    /// links.
+    Gateway {
+        /// The link addresses, as `monitor` takes them (else the config's `[[links]]`).
+        address: Vec<String>,
+        #[command(flatten)]
+        nats: crate::fleet_nats::NatsArgs,
+        #[command(flatten)]
+        config: ConfigArg,
     },
     /// Fly the built-in simulator to a UDP address or a .tlog.
     Simulate(SimulateArgs),
@@ -234,7 +247,25 @@ pub fn run_command(command: Command) -> Result<()> {
             };
             run_pipeline(source, run)
         }
-        Command::Monitor { address, run } => {
+        Command::Monitor { address, nats, run } if nats.nats.is_some() => {
+            if !address.is_empty() {
+                anyhow::bail!("monitor --nats is a fleet worker: it reads the NATS stream, no link address (the gateway reads the links)");
+            }
+            run_pipeline(SourceSpec::Nats(nats), run)
+        }
+        Command::Gateway {
+            address,
+            nats,
+            config,
+        } => {
+            let config_file = config.load()?;
+            let source = link_source(address, &config_file)?;
+            if nats.nats.is_none() {
+                anyhow::bail!("gateway: give --nats URL");
+            }
+            crate::fleet_nats::gateway::run(source, config_file, nats)
+        }
+        Command::Monitor { address, run, .. } => {
             let mut address = address;
             // Addresses on the command line are one network; the config's may name several.
             let mut networks = vec![String::new(); address.len()];
@@ -290,6 +321,34 @@ pub fn run_command(command: Command) -> Result<()> {
     }
 }
 
+/// The source of `gateway`'s addresses (else the config's `[[links]]`), as `monitor` makes it.
+fn link_source(address: Vec<String>, config: &Config) -> Result<SourceSpec> {
+    let (address, networks): (Vec<String>, Vec<String>) = if address.is_empty() {
+        config
+            .links
+            .iter()
+            .map(|l| (l.address.clone(), l.network.clone()))
+            .unzip()
+    } else {
+        let n = address.len();
+        (address, vec![String::new(); n])
+    };
+    for a in &address {
+        a.parse::<crate::source::links::address::LinkAddress>()?;
+    }
+    Ok(match <[String; 1]>::try_from(address) {
+        Ok([one]) => SourceSpec::Link(one),
+        Err(many) if many.is_empty() => {
+            anyhow::bail!("gateway: give a link address (or [[links]] in the config)")
+        }
+        Err(many) => SourceSpec::Links {
+            addresses: many,
+            networks,
+            every_link: config.link.every_link,
+        },
+    })
+}
+
 fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
     let mut config = run.config.load()?;
     if let SourceSpec::Links { every_link, .. } = &mut source {
@@ -336,7 +395,7 @@ fn run_pipeline(mut source: SourceSpec, run: RunArgs) -> Result<()> {
     // `monitor udpin:…` answers the ground station with no config at all), or wherever
     // the config gives an address.
     let mav = &config.sinks.mavlink;
-    let live = matches!(source, SourceSpec::Link(_) | SourceSpec::Links { .. });
+    let live = source.is_live();
     if mav.enabled.unwrap_or(live || mav.address.is_some()) {
         sinks.push(SinkSpec::Mavlink(mav.clone()));
     }

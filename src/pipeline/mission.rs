@@ -65,7 +65,7 @@ impl MissionOn {
             return None;
         }
         Some(Self {
-            active: matches!(source, SourceSpec::Link(_) | SourceSpec::Links { .. }),
+            active: source.is_live(),
             follows: follows.clone(),
         })
     }

@@ -142,7 +142,7 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     // Sinks start first so they see every report.
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
-    let live = matches!(p.source, SourceSpec::Link(_) | SourceSpec::Links { .. });
+    let live = p.source.is_live();
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(
         p.source,

@@ -124,12 +124,22 @@ pub enum SourceSpec {
         path: std::path::PathBuf,
         speed: Speed,
     },
+    /// A fleet worker's share of the NATS JetStream frame stream (`monitor --nats`:
+    /// [`crate::fleet_nats::worker`]).
+    Nats(crate::fleet_nats::NatsArgs),
     /// One flight of the M100 data set's `flights.csv[.gz]`, encoded as MAVLink.
     Dataset {
         path: std::path::PathBuf,
         flight: u32,
         speed: Speed,
     },
+}
+
+impl SourceSpec {
+    /// A live source: links, or a fleet worker's share of the NATS stream.
+    pub fn is_live(&self) -> bool {
+        matches!(self, Self::Link(_) | Self::Links { .. } | Self::Nats(_))
+    }
 }
 
 /// A live link's signing set-up (`[link] signing_key_file`): the signer for what
@@ -205,6 +215,7 @@ pub async fn run(
                 .collect::<Result<Vec<_>, _>>()?;
             links::run(addrs, &networks, every_link, io).await
         }
+        SourceSpec::Nats(a) => crate::fleet_nats::worker::run(a, io).await,
         SourceSpec::Tlog { ref path, speed } | SourceSpec::Raw { ref path, speed } => {
             let reader = if matches!(spec, SourceSpec::Tlog { .. }) {
                 TimedReader::tlog()
