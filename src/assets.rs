@@ -26,8 +26,6 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use sha2::{Digest, Sha256};
 
-use crate::model::profile::VehicleProfile;
-
 /// The M100 with the physics models fitted by `dronewatt-lab calibrate` (its `<model>_cal`
 /// models are the M100 forecast's members).
 pub const M100_CALIBRATED_TOML: &str = include_str!("../config/vehicles/m100-calibrated.toml");
@@ -88,20 +86,6 @@ pub static PAPER_MODEL: EmbeddedModel = EmbeddedModel {
 
 /// The models compiled in.
 pub static EMBEDDED_MODELS: [&EmbeddedModel; 2] = [&DEFAULT_MODEL, &PAPER_MODEL];
-
-/// The M100's calibrated profile, as compiled in.
-pub fn m100_calibrated() -> anyhow::Result<VehicleProfile> {
-    VehicleProfile::from_toml(M100_CALIBRATED_TOML, "built-in m100-calibrated.toml")
-}
-
-/// A calibrated profile: the file given, else the M100's compiled in. A file given that does
-/// not read is an error (never silently the built-in).
-pub fn calibrated_profile(file: Option<&Path>) -> anyhow::Result<VehicleProfile> {
-    match file {
-        Some(p) => VehicleProfile::load(p),
-        None => m100_calibrated(),
-    }
-}
 
 /// The folders beside the executable where shipped files may lie, nearest first.
 fn roots_beside_exe() -> Vec<PathBuf> {
@@ -240,8 +224,11 @@ mod tests {
     /// The compiled-in calibrated profile parses and is calibrated.
     #[test]
     fn the_m100_calibrated_profile_is_compiled_in() {
-        let p = m100_calibrated().unwrap();
+        let p = crate::model::profile::m100_calibrated().unwrap();
         assert!(p.calibration.is_some());
-        assert!(calibrated_profile(Some(Path::new("/nonexistent/cal.toml"))).is_err());
+        assert!(crate::model::profile::calibrated_profile(Some(Path::new(
+            "/nonexistent/cal.toml"
+        )))
+        .is_err());
     }
 }

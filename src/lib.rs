@@ -60,7 +60,6 @@ pub mod config;
 pub mod energy;
 pub mod features;
 pub mod files;
-pub mod fleet_nats;
 pub mod fuzz_props;
 pub mod mission;
 pub mod model;

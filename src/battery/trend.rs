@@ -1,6 +1,6 @@
 //! The time to a low-voltage threshold from the measured voltage's own trend in flight.
 //!
-//! Why: the circuit's forecast ([`super::forecast`]) flies the pack's model down to the
+//! Why: the circuit's forecast ([`mod@super::forecast`]) flies the pack's model down to the
 //! threshold, and on packs nobody tuned it for (NASA ProgPy's 18650 packs, issue 44) its time
 //! to `BATT_LOW_VOLT` was off by −95 % to +1000 %: the threshold is approached slowly (an 18650
 //! at 1–2C loses 0.1 V a cell over minutes near 3.5 V), so a 0.05 V error in the modelled path

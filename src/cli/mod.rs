@@ -9,6 +9,7 @@
 //! (`handoff`), which runs this same command line with the libtorch parts registered.
 
 mod describe;
+mod gateway;
 pub mod simulate;
 
 use std::path::PathBuf;
@@ -114,7 +115,7 @@ pub enum Command {
         /// config's `[[links]]`.
         address: Vec<String>,
         #[command(flatten)]
-        nats: crate::fleet_nats::NatsArgs,
+        nats: crate::source::nats::NatsArgs,
         #[command(flatten)]
         run: RunArgs,
     },
@@ -125,7 +126,7 @@ pub enum Command {
         /// The link addresses, as `monitor` takes them (else the config's `[[links]]`).
         address: Vec<String>,
         #[command(flatten)]
-        nats: crate::fleet_nats::NatsArgs,
+        nats: crate::source::nats::NatsArgs,
         #[command(flatten)]
         config: ConfigArg,
     },
@@ -263,7 +264,7 @@ pub fn run_command(command: Command) -> Result<()> {
             if nats.nats.is_none() {
                 anyhow::bail!("gateway: give --nats URL");
             }
-            crate::fleet_nats::gateway::run(source, config_file, nats)
+            gateway::run(source, config_file, nats)
         }
         Command::Monitor { address, run, .. } => {
             let mut address = address;

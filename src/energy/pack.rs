@@ -162,74 +162,6 @@ pub const SAG_PENDING: &str = "the state started load-compensated: the voltage f
 pub const OUT_OF_RANGE: &str =
     "the pack model left the chemistry's voltage or resistance range: its voltages are withheld";
 
-/// Detects a pack that does not sag: over [`SagCheck::MIN_LOADED_S`] of readings under load
-/// the current swings by [`SagCheck::MIN_SWING_A`] or more while the voltage moves by less
-/// than a quarter of the sag the prior resistance gives that swing (and at most
-/// [`SagCheck::MAX_SPREAD_V_CELL`] a cell). Any real pack sags by I·R, and discharging only
-/// adds to the voltage's spread.
-#[derive(Debug, Clone, Default)]
-pub struct SagCheck {
-    /// Seconds under load seen.
-    pub loaded_s: f64,
-    i: Option<(f64, f64)>,
-    v: Option<(f64, f64)>,
-    /// Decided: the pack does not sag.
-    pub flat: bool,
-}
-
-impl SagCheck {
-    pub const MIN_SWING_A: f64 = 2.0;
-    pub const MAX_SPREAD_V_CELL: f64 = 0.01;
-    pub const MIN_LOADED_S: f64 = 10.0;
-
-    /// Take one reading under load (`dt` s since the last); `r_prior` the pack's prior
-    /// resistance, Ω.
-    pub fn update(&mut self, dt: f64, v: f64, i: f64, cells: u32, r_prior: f64) -> bool {
-        let span =
-            |r: Option<(f64, f64)>, x: f64| r.map_or((x, x), |(lo, hi)| (lo.min(x), hi.max(x)));
-        self.loaded_s += dt;
-        self.i = Some(span(self.i, i));
-        self.v = Some(span(self.v, v));
-        let swing = self.i.map_or(0.0, |(lo, hi)| hi - lo);
-        let spread = self.v.map_or(f64::INFINITY, |(lo, hi)| hi - lo);
-        if self.loaded_s >= Self::MIN_LOADED_S
-            && swing >= Self::MIN_SWING_A
-            && spread
-                <= (Self::MAX_SPREAD_V_CELL * f64::from(cells.max(1))).min(0.25 * swing * r_prior)
-        {
-            self.flat = true;
-        }
-        self.flat
-    }
-}
-
-/// A prior series resistance for a pack, Ω: the TB48D's fitted R0 + R1 a cell at its
-/// 5.7 Ah, times the cells, over the pack's charge in Ah (cells in parallel lower it); a
-/// 5.7 Ah cell where the charge is not known.
-pub fn prior_r_ohm(cells: u32, ah: Option<f64>) -> f64 {
-    let base = CircuitParams::default();
-    let per_cell = (base.r0 + base.r1) / f64::from(base.n_cells);
-    let ah = ah.filter(|a| a.is_finite() && *a > 0.05).unwrap_or(5.7);
-    (per_cell * 5.7 / ah).min(MAX_R_CELL_OHM) * f64::from(cells.max(1))
-}
-
-/// The low-voltage threshold, V: the vehicle's (`BATT_LOW_VOLT`, the config), else
-/// [`DEFAULT_LOW_V_CELL`] a cell.
-fn low_v(facts: &BatteryFacts) -> f64 {
-    facts
-        .low_voltage_v
-        .as_ref()
-        .map(|s| s.value)
-        .unwrap_or(DEFAULT_LOW_V_CELL * f64::from(facts.cell_count.value))
-}
-
-/// The pack's charge, Ah, from its facts (capacity ÷ cells ÷ nominal), when known.
-fn pack_ah(facts: &BatteryFacts, chem: Chemistry) -> Option<f64> {
-    facts
-        .capacity()
-        .map(|wh| wh / (f64::from(facts.cell_count.value.max(1)) * chem.nominal_v()))
-}
-
 /// The load the forecast flies: `first_w` (W) for `first_s` (s; the rest of a mission; None:
 /// on until the reserve), then `then_w`, the flight's sustained power, on past the mission's
 /// end (so that the usable floor does not leap when a mission's last, light descent ends).
@@ -280,47 +212,6 @@ pub struct Pack {
     trend: crate::battery::trend::VoltageTrend,
     /// Messages for a warning, taken by the caller.
     pub notes: Vec<String>,
-}
-
-/// The OCV curve and circuit for these battery facts: the TB48D's own fit for the M100's
-/// 6S LiHV pack, else the chemistry's default shape scaled to the capacity, with the
-/// TB48D's resistances scaled by cells and capacity.
-pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
-    let chem = Chemistry::from_name(&facts.chemistry.value)?;
-    let cells = facts.cell_count.value;
-    // No capacity, no circuit (its energy is in Wh); no pack of 0 or more than 24 cells.
-    let cap = facts.capacity().filter(|c| c.is_finite() && *c > 0.0)?;
-    if !(1..=24).contains(&cells) {
-        return None;
-    }
-    let tb48d = chem == Chemistry::LiHv
-        && cells == crate::report::M100_CELL_COUNT
-        && (cap - crate::report::M100_CAPACITY_WH).abs() < 0.5;
-    let base = CircuitParams::default();
-    if tb48d {
-        return Some((OcvCurve::tb48d(), base));
-    }
-    let curve = chem.default_curve().scaled(cap)?;
-    // Resistance grows with cells in series and falls with capacity (cells in parallel).
-    let ah = cap / (f64::from(cells) * chem.nominal_v());
-    let k = f64::from(cells) / f64::from(base.n_cells) * (5.7 / ah);
-    Some((
-        curve,
-        CircuitParams {
-            n_cells: cells,
-            r0: base.r0 * k,
-            r1: base.r1 * k,
-            bias_v: 0.0,
-            deep_a: crate::battery::deep::PRIOR_A,
-            // chosen on ProgPy's 18650 packs: Li-ion's; a LiPo's curve keeps one resistance
-            deep_slope: if chem == Chemistry::LiIon {
-                crate::battery::deep::PRIOR_SLOPE
-            } else {
-                0.0
-            },
-            ..base
-        },
-    ))
 }
 
 impl Pack {
@@ -636,70 +527,17 @@ impl Pack {
             };
         }
     }
-
-    /// Recompute the loaded-voltage forecast for the rest of the flight.
-    fn forecast(&mut self, rest_of_flight: Option<Load>, facts: &BatteryFacts) {
-        let Some(est) = self.est.as_ref() else { return };
-        let low = low_v(facts);
-        self.now.low_v = Some(low);
-        let Some(Load {
-            first_w: p,
-            first_s: horizon,
-            then_w,
-        }) = rest_of_flight.filter(|l| l.first_w.is_finite() && l.first_w > 1.0)
-        else {
-            (
-                self.now.v_min_forecast,
-                self.now.time_to_low_v_s,
-                self.now.usable_wh,
-            ) = (None, None, None);
-            return;
-        };
-        let e_now = est.energy_wh();
-        let reserve_wh = self.reserve_frac * self.now.curve_wh.unwrap_or(0.0);
-        let rest_s = horizon
-            .unwrap_or(3600.0 * (e_now - reserve_wh) / p)
-            .clamp(0.0, FORECAST_HORIZON_S);
-        // The lowest loaded voltage over the rest of the flight, and when: the constant
-        // power's path dipped by the transients it lacks (battery::forecast::dip).
-        let frac = if self.flown {
-            SAG_IN_FLIGHT
-        } else {
-            SAG_PREFLIGHT
-        };
-        let lowest = lowest_dip(est, constant(p, FORECAST_STEP_S, rest_s), frac);
-        self.now.v_min_forecast = lowest.map(|(s, v)| (v, s.t_s));
-        // Flying the rest at that power, then on at the flight's sustained power, stopping
-        // where it crosses the low threshold.
-        let first_s = horizon
-            .unwrap_or(FORECAST_HORIZON_S)
-            .clamp(0.0, FORECAST_HORIZON_S);
-        let then_w = Some(then_w)
-            .filter(|w| w.is_finite() && *w > 1.0)
-            .unwrap_or(p);
-        let profile = constant(p, FORECAST_STEP_S, first_s).chain(constant(
-            then_w,
-            FORECAST_STEP_S,
-            FORECAST_HORIZON_S - first_s,
-        ));
-        let on = first_crossing(est, profile, low);
-        // In flight, the sooner of the circuit's crossing and the measured voltage's own
-        // trend's (battery::trend), where it shows one.
-        let trend = self
-            .trend
-            .time_to(low, p)
-            .filter(|s| *s <= FORECAST_HORIZON_S);
-        self.now.time_to_low_v_s = match (trend, on.map(|s| s.t_s)) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
-        self.now.usable_wh = Some(match on {
-            Some(s) => (e_now - s.energy).max(0.0),
-            // Never crosses within the horizon: all of it down to the floor.
-            None => e_now,
-        });
-    }
 }
+
+#[path = "pack_forecast.rs"]
+mod forecast;
+#[path = "pack_priors.rs"]
+mod priors;
+#[path = "pack_sag.rs"]
+mod sag;
+use priors::{low_v, pack_ah};
+pub use priors::{pack_model, prior_r_ohm};
+pub use sag::SagCheck;
 
 #[cfg(test)]
 #[path = "pack_tests.rs"]

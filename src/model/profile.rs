@@ -551,6 +551,23 @@ impl Default for VehicleProfile {
     }
 }
 
+/// The M100's calibrated profile, as compiled in ([`crate::assets`]).
+pub fn m100_calibrated() -> anyhow::Result<VehicleProfile> {
+    VehicleProfile::from_toml(
+        crate::assets::M100_CALIBRATED_TOML,
+        "built-in m100-calibrated.toml",
+    )
+}
+
+/// A calibrated profile: the file given, else the M100's compiled in. A file given that does
+/// not read is an error (never silently the built-in).
+pub fn calibrated_profile(file: Option<&std::path::Path>) -> anyhow::Result<VehicleProfile> {
+    match file {
+        Some(p) => VehicleProfile::load(p),
+        None => m100_calibrated(),
+    }
+}
+
 #[cfg(test)]
 #[path = "profile_tests.rs"]
 mod tests;

@@ -93,7 +93,7 @@ pub struct CalibratedArg {
 impl CalibratedArg {
     /// The profile: the file given (an error when it does not read), else the M100's.
     pub fn profile(&self) -> anyhow::Result<crate::model::profile::VehicleProfile> {
-        crate::assets::calibrated_profile(self.path.as_deref())
+        crate::model::profile::calibrated_profile(self.path.as_deref())
     }
 
     /// Where the profile came from, for messages.

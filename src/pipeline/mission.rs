@@ -37,7 +37,7 @@ impl Resolved {
         let calibrated = match &live.calibrated_profile {
             Some(p) if live.enabled => Some(Arc::new(VehicleProfile::load(p)?)),
             None if live.enabled && vehicle.profile.name == VehicleProfile::m100().name => {
-                Some(Arc::new(crate::assets::m100_calibrated()?))
+                Some(Arc::new(crate::model::profile::m100_calibrated()?))
             }
             _ => None,
         };

@@ -109,8 +109,8 @@ pub(super) async fn relay(
             biased;
             r = reports.next() => match r {
                 // A fleet worker's replay after a takeover: already sent by the
-                // partition's previous holder (crate::fleet_nats::quiet).
-                Some(r) if crate::fleet_nats::quiet(r.vehicle, r.estimate.t_s) => {}
+                // partition's previous holder (crate::source::nats::quiet).
+                Some(r) if crate::source::nats::quiet(r.vehicle, r.estimate.t_s) => {}
                 Some(r) => {
                     if let Some(at) = r.estimate.arrived {
                         latency.record(at.elapsed());

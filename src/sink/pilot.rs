@@ -1,5 +1,5 @@
 //! What a pilot must act on, worked out once for every view: the terminal's plain line
-//! ([`line`], at most [`MAX_LINE`] characters), the screen's first tiles and the dashboard's
+//! ([`fn@line`], at most [`MAX_LINE`] characters), the screen's first tiles and the dashboard's
 //! banner and cards ([`PilotView`]). Every model's figures stay behind `--detail` (the
 //! line) and the dashboard's toggle.
 //!

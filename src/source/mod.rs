@@ -20,6 +20,7 @@ pub mod frame;
 pub mod links;
 pub mod logs;
 pub mod messages;
+pub mod nats;
 
 use crate::report::status::{IngestStats, LinkHandle};
 use std::sync::Arc;
@@ -125,8 +126,8 @@ pub enum SourceSpec {
         speed: Speed,
     },
     /// A fleet worker's share of the NATS JetStream frame stream (`monitor --nats`:
-    /// [`crate::fleet_nats::worker`]).
-    Nats(crate::fleet_nats::NatsArgs),
+    /// [`crate::source::nats::worker`]).
+    Nats(crate::source::nats::NatsArgs),
     /// One flight of the M100 data set's `flights.csv[.gz]`, encoded as MAVLink.
     Dataset {
         path: std::path::PathBuf,
@@ -215,7 +216,7 @@ pub async fn run(
                 .collect::<Result<Vec<_>, _>>()?;
             links::run(addrs, &networks, every_link, io).await
         }
-        SourceSpec::Nats(a) => crate::fleet_nats::worker::run(a, io).await,
+        SourceSpec::Nats(a) => crate::source::nats::worker::run(a, io).await,
         SourceSpec::Tlog { ref path, speed } | SourceSpec::Raw { ref path, speed } => {
             let reader = if matches!(spec, SourceSpec::Tlog { .. }) {
                 TimedReader::tlog()

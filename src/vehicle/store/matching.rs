@@ -222,7 +222,7 @@ impl Store {
         })
     }
 
-    /// Record a run of the vehicle `m` names: as [`Store::record_key`], then the pack it
+    /// Record a run of the vehicle `m` names: as `Store::record_key`, then the pack it
     /// reported (what it did not report keeps the remembered value) and why the flight was
     /// matched.
     pub fn record_matched(

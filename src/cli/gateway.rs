@@ -3,14 +3,14 @@
 //!
 //! The links are read exactly as `monitor` reads them (the same addresses, `[[links]]` and
 //! networks, the redundant-link merge, signing checked here). Each decoded message goes to
-//! `dronewatt.frames.<part>.<net>.<sys>` ([`super::wire`]) with its arrival time; the
+//! `dronewatt.frames.<part>.<net>.<sys>` ([`crate::source::nats::wire`]) with its arrival time; the
 //! publish acknowledgements are awaited in a window of [`ACK_WINDOW`], so a slow server
 //! holds the links back (their sockets buffer) rather than losing what it did not take.
 //! Several gateways (one per radio) can feed one stream.
 //!
 //! Downlink: a frame on `dronewatt.to.<net>.<sys>` is sent on network `net`'s links (signed
 //! with the link's key, which never leaves the gateway) only when the worker its
-//! [`super::WORKER_HEADER`] names holds the lease of that vehicle's partition; anything
+//! [`crate::source::nats::WORKER_HEADER`] names holds the lease of that vehicle's partition; anything
 //! else is refused, counted and logged.
 
 use std::collections::{HashMap, VecDeque};
@@ -21,8 +21,8 @@ use anyhow::{Context as _, Result};
 use futures_util::StreamExt;
 use tokio::sync::mpsc;
 
-use super::{lease, wire, NatsArgs};
 use crate::report::status::{FrameSigner, IngestStats, LinkHandle};
+use crate::source::nats::{self, lease, wire, NatsArgs};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
 
 /// Publishes in flight before the gateway waits for the oldest acknowledgement.
@@ -37,10 +37,10 @@ pub fn run(source: SourceSpec, config: crate::config::Config, nats: NatsArgs) ->
 }
 
 async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs) -> Result<()> {
-    let client = super::connect(&nats, "dronewatt gateway").await?;
+    let client = nats::connect(&nats, "dronewatt gateway").await?;
     let js = async_nats::jetstream::new(client.clone());
-    super::frames_stream(&js).await?;
-    let leases = super::bucket(&js, super::LEASES, super::LEASE_TTL).await?;
+    nats::frames_stream(&js).await?;
+    let leases = nats::bucket(&js, nats::LEASES, nats::LEASE_TTL).await?;
     let signing = config
         .link
         .load()
@@ -71,7 +71,7 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
                 let arrived = wire::unix_now_s() - m.arrived.elapsed().as_secs_f64();
                 let sys = u8::try_from(m.header.system_id).unwrap_or(u8::MAX);
                 let body = wire::encode(m.network, &m.header, &m.msg, arrived);
-                match js.publish(super::frames_subject(m.network, sys), body.into()).await {
+                match js.publish(nats::frames_subject(m.network, sys), body.into()).await {
                     Ok(ack) => acks.push_back(ack),
                     Err(e) => {
                         failed += 1;
@@ -114,9 +114,9 @@ async fn downlink(
     link: LinkHandle,
 ) -> Result<()> {
     let mut sub = client
-        .subscribe(format!("{}.>", super::TO))
+        .subscribe(format!("{}.>", nats::TO))
         .await
-        .map_err(|e| anyhow::anyhow!("NATS: subscribe {}.>: {e}", super::TO))?;
+        .map_err(|e| anyhow::anyhow!("NATS: subscribe {}.>: {e}", nats::TO))?;
     // Who holds each partition, looked up at most once a second.
     let mut holders: HashMap<u32, (Option<String>, Instant)> = HashMap::new();
     let (mut sent, mut refused) = (0u64, 0u64);
@@ -132,9 +132,9 @@ async fn downlink(
         let worker = m
             .headers
             .as_ref()
-            .and_then(|h| h.get(super::WORKER_HEADER))
+            .and_then(|h| h.get(nats::WORKER_HEADER))
             .map(|v| v.as_str().to_string());
-        let part = super::partition(net, sys);
+        let part = nats::partition(net, sys);
         let fresh = holders
             .get(&part)
             .is_some_and(|(_, at)| at.elapsed() < Duration::from_secs(1));

@@ -39,7 +39,6 @@
 //!   credentials (user and password, or a `.creds` file, read as the signing key is: a
 //!   private file) and TLS.
 
-pub mod gateway;
 pub mod lease;
 pub mod wire;
 pub mod worker;

@@ -1,0 +1,72 @@
+//! What a pack's facts give before it has flown: its OCV curve and circuit, a prior
+//! resistance, its charge and the low threshold.
+
+use super::*;
+
+/// A prior series resistance for a pack, Ω: the TB48D's fitted R0 + R1 a cell at its
+/// 5.7 Ah, times the cells, over the pack's charge in Ah (cells in parallel lower it); a
+/// 5.7 Ah cell where the charge is not known.
+pub fn prior_r_ohm(cells: u32, ah: Option<f64>) -> f64 {
+    let base = CircuitParams::default();
+    let per_cell = (base.r0 + base.r1) / f64::from(base.n_cells);
+    let ah = ah.filter(|a| a.is_finite() && *a > 0.05).unwrap_or(5.7);
+    (per_cell * 5.7 / ah).min(MAX_R_CELL_OHM) * f64::from(cells.max(1))
+}
+
+/// The low-voltage threshold, V: the vehicle's (`BATT_LOW_VOLT`, the config), else
+/// [`DEFAULT_LOW_V_CELL`] a cell.
+pub(super) fn low_v(facts: &BatteryFacts) -> f64 {
+    facts
+        .low_voltage_v
+        .as_ref()
+        .map(|s| s.value)
+        .unwrap_or(DEFAULT_LOW_V_CELL * f64::from(facts.cell_count.value))
+}
+
+/// The pack's charge, Ah, from its facts (capacity ÷ cells ÷ nominal), when known.
+pub(super) fn pack_ah(facts: &BatteryFacts, chem: Chemistry) -> Option<f64> {
+    facts
+        .capacity()
+        .map(|wh| wh / (f64::from(facts.cell_count.value.max(1)) * chem.nominal_v()))
+}
+
+/// The OCV curve and circuit for these battery facts: the TB48D's own fit for the M100's
+/// 6S LiHV pack, else the chemistry's default shape scaled to the capacity, with the
+/// TB48D's resistances scaled by cells and capacity.
+pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
+    let chem = Chemistry::from_name(&facts.chemistry.value)?;
+    let cells = facts.cell_count.value;
+    // No capacity, no circuit (its energy is in Wh); no pack of 0 or more than 24 cells.
+    let cap = facts.capacity().filter(|c| c.is_finite() && *c > 0.0)?;
+    if !(1..=24).contains(&cells) {
+        return None;
+    }
+    let tb48d = chem == Chemistry::LiHv
+        && cells == crate::report::M100_CELL_COUNT
+        && (cap - crate::report::M100_CAPACITY_WH).abs() < 0.5;
+    let base = CircuitParams::default();
+    if tb48d {
+        return Some((OcvCurve::tb48d(), base));
+    }
+    let curve = chem.default_curve().scaled(cap)?;
+    // Resistance grows with cells in series and falls with capacity (cells in parallel).
+    let ah = cap / (f64::from(cells) * chem.nominal_v());
+    let k = f64::from(cells) / f64::from(base.n_cells) * (5.7 / ah);
+    Some((
+        curve,
+        CircuitParams {
+            n_cells: cells,
+            r0: base.r0 * k,
+            r1: base.r1 * k,
+            bias_v: 0.0,
+            deep_a: crate::battery::deep::PRIOR_A,
+            // chosen on ProgPy's 18650 packs: Li-ion's; a LiPo's curve keeps one resistance
+            deep_slope: if chem == Chemistry::LiIon {
+                crate::battery::deep::PRIOR_SLOPE
+            } else {
+                0.0
+            },
+            ..base
+        },
+    ))
+}
