@@ -12,13 +12,15 @@
 //!   [`crate::report::VehicleId`], and what dronewatt sends a vehicle goes out on its own
 //!   network's links only (one writer per network: [`LinkHandle::network`]).
 //! - **Deduplicated.** A message whose (system id, component id, sequence, message id) and
-//!   content ([`fingerprint`]: its payload's bytes) were already handed on within the sender's
-//!   window is a copy from a redundant link and is dropped (counted in `duplicates`). The
-//!   window is half the time the sender takes to wrap its sequence (256 frames: 58 ms at
-//!   2,200 frames/s, a PX4 on USB), measured on its own stream, and never over
-//!   [`DEDUP_WINDOW_S`]: a new frame that reuses a sequence number comes after the window has
-//!   closed, and one that repeats an old frame's content exactly (a stuck sensor) has another
-//!   number inside it, so a new frame is never taken for a copy at any rate.
+//!   content ([`fingerprint`]: its payload's bytes) were already handed on is a copy from a
+//!   redundant link and is dropped (counted in `duplicates`). The 8-bit sequence is unwrapped
+//!   into a count of the sender's frames, on each link from that link's own previous number
+//!   (a link carries a sender's frames in order, however far it lags the others), so a copy
+//!   is recognised by the frame it is, not by when it came: a link that lags the first copy by
+//!   many milliseconds under load still has its copies dropped, and a new frame that reuses a
+//!   sequence number after a wrap (a stuck sensor's same bytes, 256 frames later) has another
+//!   count and is never taken for a copy, at any rate. A copy must also come within
+//!   [`DEDUP_WINDOW_S`] of the first (a sender that restarts its numbering is heard anew).
 //! - **Per-link health** ([`LinkHealth`]), refreshed every second and published with the
 //!   source's counters (the JSON summary's `links`): frames, rate, loss (the share of the
 //!   merged stream this link did not bring), latency (how far behind the first copy its
@@ -101,38 +103,43 @@ impl LinkConfig {
     }
 }
 
-/// A copy of a message heard again within this many seconds is a duplicate, at the most
-/// (a slow sender's window; a fast one's is shorter: [`Dedup`]).
+/// A copy of a message heard again later than this many seconds after the first is taken
+/// as new (a sender that restarted its numbering; a link more than a second behind).
 pub const DEDUP_WINDOW_S: f64 = 1.0;
 
-/// The share of a sender's sequence wrap (256 frames at its own rate) that its window spans.
-const WRAP_SHARE: f64 = 0.5;
-
-/// What the merge remembers of one sender: (arrival time, message id, content) of each of its
-/// 256 sequence numbers, its last sequence number, and its frame interval.
+/// What the merge remembers of one sender: for each of its 256 sequence numbers, the last
+/// frame handed on with it (its unwrapped count, message id, content and arrival time), and
+/// the highest count handed on.
 struct SenderMemory {
-    slots: [(f64, u32, u64); 256],
+    slots: [(i64, u32, u64, f64); 256],
+    head: Option<i64>,
     last_seq: Option<u8>,
-    last_t_s: f64,
-    /// Smoothed interval between its first copies, s (infinite until two are heard).
-    interval_s: f64,
 }
 
 impl SenderMemory {
     fn new() -> Box<Self> {
         Box::new(Self {
-            slots: [(f64::NEG_INFINITY, u32::MAX, 0); 256],
+            slots: [(i64::MIN, u32::MAX, 0, f64::NEG_INFINITY); 256],
+            head: None,
             last_seq: None,
-            last_t_s: f64::NAN,
-            interval_s: f64::INFINITY,
         })
     }
+}
 
-    /// The window within which a repeat is a copy: half a sequence wrap at this sender's
-    /// rate, at most [`DEDUP_WINDOW_S`].
-    fn window_s(&self) -> f64 {
-        (WRAP_SHARE * 256.0 * self.interval_s).min(DEDUP_WINDOW_S)
-    }
+/// `seq` unwrapped to the count nearest `near` (the count that has `seq` as its low byte).
+fn unwrap_near(near: i64, seq: u8) -> i64 {
+    // The low byte's difference read as a signed step (the `as` casts keep 8 bits on purpose).
+    near + i64::from(seq.wrapping_sub(near as u8) as i8)
+}
+
+/// How far ahead of the head a link heard for the first time may be: its number is read as at
+/// most this many frames ahead, else behind (a link that joins late lags, up to a wrap).
+const JOIN_AHEAD: u8 = 16;
+
+/// `seq` unwrapped to the count in (`head` − 256 + [`JOIN_AHEAD`], `head` + [`JOIN_AHEAD`]].
+fn unwrap_behind(head: i64, seq: u8) -> i64 {
+    let top = head + i64::from(JOIN_AHEAD);
+    top - i64::from((top as u8).wrapping_sub(seq))
 }
 
 /// A message's content as a 64-bit fingerprint (FNV-1a over its MAVLink 2 payload): two
@@ -213,11 +220,12 @@ impl Networks {
 }
 
 /// The merge's memory of what it handed on: per sender (network, system, component), the
-/// arrival time, message id and content of each of the 256 sequence numbers, and the
-/// sender's rate (its window).
+/// last frame handed on for each of the 256 sequence numbers ([`SenderMemory`]), and per link
+/// and sender the count that link last brought (how it unwraps its next number).
 #[derive(Default)]
 pub struct Dedup {
     seen: HashMap<Sender, Box<SenderMemory>>,
+    on_link: HashMap<(usize, Sender), i64>,
 }
 
 /// What the merge made of one message.
@@ -231,36 +239,48 @@ pub enum Heard {
 
 impl Dedup {
     /// Whether this message (`msg_id`, content `fp`: [`fingerprint`]), heard at `t_s` on
-    /// `network`, is new or a copy.
+    /// link `link` of `network`, is new or a copy.
     pub fn hear(
         &mut self,
         t_s: f64,
+        link: usize,
         network: u8,
         header: &mavlink::MavHeader,
         msg_id: u32,
         fp: u64,
     ) -> Heard {
         let key = (network, header.system_id, header.component_id);
+        let seq = header.sequence;
         let mem = self.seen.entry(key).or_insert_with(SenderMemory::new);
-        let window = mem.window_s();
-        let slot = &mut mem.slots[usize::from(header.sequence)];
-        if slot.1 == msg_id && slot.2 == fp && t_s - slot.0 < window {
+        let slot = mem.slots[usize::from(seq)];
+        let same = slot.1 == msg_id && slot.2 == fp && t_s - slot.3 < DEDUP_WINDOW_S;
+        // The frame's count: from this link's previous one, while that stays within a wrap of
+        // the head; a link heard for the first time, or again after missing more than a wrap
+        // (cut, or silent), is placed by content (a copy of the frame in its slot), else at
+        // or behind the head.
+        let from_link = self
+            .on_link
+            .get(&(link, key))
+            .map(|&prev| unwrap_near(prev, seq))
+            .filter(|&c| {
+                mem.head
+                    .is_none_or(|h| c > h - 256 + i64::from(JOIN_AHEAD) && c <= h + 128)
+            });
+        let count = match from_link {
+            Some(c) => c,
+            None if same => slot.0,
+            None => mem.head.map_or(i64::from(seq), |h| unwrap_behind(h, seq)),
+        };
+        self.on_link.insert((link, key), count);
+        if same && slot.0 == count {
             return Heard::Duplicate;
         }
-        *slot = (t_s, msg_id, fp);
-        let dt = t_s - mem.last_t_s;
-        if dt.is_finite() && dt >= 0.0 {
-            mem.interval_s = if mem.interval_s.is_finite() {
-                0.9 * mem.interval_s + 0.1 * dt
-            } else {
-                dt
-            };
-        }
-        mem.last_t_s = t_s;
+        mem.slots[usize::from(seq)] = (count, msg_id, fp, t_s);
+        mem.head = Some(mem.head.map_or(count, |h| h.max(count)));
         let gap = mem
             .last_seq
-            .replace(header.sequence)
-            .is_some_and(|last| header.sequence != last.wrapping_add(1));
+            .replace(seq)
+            .is_some_and(|last| seq != last.wrapping_add(1));
         Heard::First { gap }
     }
 }
@@ -400,7 +420,7 @@ pub async fn run(
                 t.frames += 1;
                 t.got += 1;
                 t.last_heard = Some(m.arrived);
-                match dedup.hear(m.t_s, m.network, &m.header, id, fingerprint(&m.msg)) {
+                match dedup.hear(m.t_s, i, m.network, &m.header, id, fingerprint(&m.msg)) {
                     Heard::Duplicate => {
                         t.duplicates += 1;
                         if let Some(first) = first_arrival.get(&key) {
