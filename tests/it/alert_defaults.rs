@@ -3,8 +3,8 @@
 //! and a pack flown down to its low voltage with no config at all warns the ground station
 //! (pymavlink, `tests/peers/vehicle.py --pack`) before the voltage gets there.
 
-use crate::harness::{dronewatt, json_lines, run, Monitor};
-use crate::link_common::{free_udp_port, peer_then_stop};
+use crate::harness::{dronewatt, run, Monitor};
+use crate::link_common::{fly_small_pack_to_low, free_udp_port};
 
 const DEFAULTS: [&str; 5] = [
     "low_voltage_before_home",
@@ -54,36 +54,15 @@ fn with_no_config_a_pack_flown_to_its_low_voltage_warns_before_the_crossing() {
         port,
         false,
     );
-    // 3 s at rest (11.40 V: 40 % of a 3S LiPo), then 20 s at 50 W: the loaded voltage crosses
-    // the vehicle's BATT_LOW_VOLT (10.5 V) about 12 s after take-off. The vehicle answers the
-    // parameter reads: its pack is 360 mAh (4 Wh).
-    let pack = r#"{"cells": 3, "wh": 4, "rest_v": 11.40, "r0": 0.12, "r1": 0.08, "tau_s": 10}"#;
-    let to = format!("udpout:127.0.0.1:{port}");
-    let (peer, stderr) = peer_then_stop(
+    // 3 s at rest, then 20 s at 50 W: the loaded voltage crosses the vehicle's BATT_LOW_VOLT
+    // (10.5 V) about 12 s after take-off.
+    let f = fly_small_pack_to_low(
         dw,
-        "vehicle.py",
-        &[
-            "--to",
-            &to,
-            "--plan",
-            r#"[{"send_s": 3, "ground": true}, {"send_s": 20}]"#,
-            "--pack",
-            pack,
-            "--power-w",
-            "50",
-            "--power-swing-w",
-            "5",
-            "--params",
-            r#"{"BATT_LOW_VOLT": 10.5, "BATT_CRT_VOLT": 10.0, "BATT_CAPACITY": 360}"#,
-        ],
+        port,
+        r#"[{"send_s": 3, "ground": true}, {"send_s": 20}]"#,
+        &json,
     );
-    let lines = json_lines(&json);
-    let crossed_at = lines
-        .iter()
-        .filter(|l| l["type"] == "estimate")
-        .find(|e| e["battery_v"].as_f64().is_some_and(|v| v < 10.5))
-        .and_then(|e| e["t"].as_f64())
-        .unwrap_or_else(|| panic!("the pack never sagged under 10.5 V: {stderr}"));
+    let (lines, peer, stderr, crossed_at) = (&f.lines, &f.peer, &f.stderr, f.crossed_at);
     let raised: Vec<_> = lines
         .iter()
         .filter(|l| l["type"] == "alert" && l["state"] == "raised")

@@ -4,8 +4,8 @@
 //! `BATT_LOW_VOLT`: estimates through the flight, and a default alert before the crossing,
 //! in `--json` and as a STATUSTEXT on the ground station.
 
-use crate::harness::{dronewatt, json_lines, Monitor};
-use crate::link_common::{free_udp_port, peer_then_stop};
+use crate::harness::{dronewatt, Monitor};
+use crate::link_common::{fly_small_pack_to_low, free_udp_port};
 
 #[test]
 fn the_readme_first_command_from_slash_on_a_1_hz_vehicle_gives_estimates_and_alerts() {
@@ -26,28 +26,14 @@ fn the_readme_first_command_from_slash_on_a_1_hz_vehicle_gives_estimates_and_ale
         port,
         false,
     );
-    // 3 s at rest (11.40 V: 40 % of a 3S LiPo), then 24 s at 50 W, every message at 1 Hz.
-    let pack = r#"{"cells": 3, "wh": 4, "rest_v": 11.40, "r0": 0.12, "r1": 0.08, "tau_s": 10}"#;
-    let to = format!("udpout:127.0.0.1:{port}");
-    let (peer, stderr) = peer_then_stop(
+    // 3 s at rest, then 24 s at 50 W, every message at 1 Hz.
+    let f = fly_small_pack_to_low(
         dw,
-        "vehicle.py",
-        &[
-            "--to",
-            &to,
-            "--plan",
-            r#"[{"send_s": 3, "ground": true, "rate_hz": 1}, {"send_s": 24, "rate_hz": 1}]"#,
-            "--pack",
-            pack,
-            "--power-w",
-            "50",
-            "--power-swing-w",
-            "5",
-            "--params",
-            r#"{"BATT_LOW_VOLT": 10.5, "BATT_CRT_VOLT": 10.0, "BATT_CAPACITY": 360}"#,
-        ],
+        port,
+        r#"[{"send_s": 3, "ground": true, "rate_hz": 1}, {"send_s": 24, "rate_hz": 1}]"#,
+        &json,
     );
-    let lines = json_lines(&json);
+    let (lines, peer, stderr, crossed_at) = (&f.lines, &f.peer, &f.stderr, f.crossed_at);
     let est: Vec<f64> = lines
         .iter()
         .filter(|l| l["type"] == "estimate")
@@ -55,12 +41,6 @@ fn the_readme_first_command_from_slash_on_a_1_hz_vehicle_gives_estimates_and_ale
         .filter_map(|l| l["t"].as_f64())
         .collect();
     assert!(est.len() >= 15, "{} estimates at 1 Hz: {stderr}", est.len());
-    let crossed_at = lines
-        .iter()
-        .filter(|l| l["type"] == "estimate")
-        .find(|e| e["battery_v"].as_f64().is_some_and(|v| v < 10.5))
-        .and_then(|e| e["t"].as_f64())
-        .unwrap_or_else(|| panic!("the pack never sagged under 10.5 V: {stderr}"));
     let raised: Vec<_> = lines
         .iter()
         .filter(|l| l["type"] == "alert" && l["state"] == "raised")

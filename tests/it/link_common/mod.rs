@@ -195,3 +195,61 @@ pub fn models(e: &Value) -> Vec<String> {
         .map(|m| m.keys().cloned().collect())
         .unwrap_or_default()
 }
+
+/// What a flight of [`fly_small_pack_to_low`] showed.
+pub struct LowFlight {
+    /// dronewatt's JSON lines.
+    pub lines: Vec<Value>,
+    /// The peer's own report (its `statustexts` are what the ground station was told).
+    pub peer: Value,
+    /// dronewatt's stderr.
+    pub stderr: String,
+    /// When the measured voltage first read under `BATT_LOW_VOLT` (10.5 V), s.
+    pub crossed_at: f64,
+}
+
+/// The first-flight tests' vehicle: pymavlink (`tests/peers/vehicle.py --pack`) flies a small
+/// 3S pack (4 Wh: 360 mAh, 11.40 V at rest, 40 % of a LiPo) at 50 W ± 5 W along `plan`, so that
+/// its loaded voltage crosses `BATT_LOW_VOLT` (10.5 V) about 12 s after take-off; it answers
+/// the parameter reads (BATT_LOW_VOLT 10.5, BATT_CRT_VOLT 10.0, BATT_CAPACITY 360) and its
+/// target is `dw`, a monitor listening on `port` and writing `--json` to `json`.
+pub fn fly_small_pack_to_low(
+    dw: Monitor,
+    port: u16,
+    plan: &str,
+    json: &std::path::Path,
+) -> LowFlight {
+    let pack = r#"{"cells": 3, "wh": 4, "rest_v": 11.40, "r0": 0.12, "r1": 0.08, "tau_s": 10}"#;
+    let to = format!("udpout:127.0.0.1:{port}");
+    let (peer, stderr) = peer_then_stop(
+        dw,
+        "vehicle.py",
+        &[
+            "--to",
+            &to,
+            "--plan",
+            plan,
+            "--pack",
+            pack,
+            "--power-w",
+            "50",
+            "--power-swing-w",
+            "5",
+            "--params",
+            r#"{"BATT_LOW_VOLT": 10.5, "BATT_CRT_VOLT": 10.0, "BATT_CAPACITY": 360}"#,
+        ],
+    );
+    let lines = crate::harness::json_lines(json);
+    let crossed_at = lines
+        .iter()
+        .filter(|l| l["type"] == "estimate")
+        .find(|e| e["battery_v"].as_f64().is_some_and(|v| v < 10.5))
+        .and_then(|e| e["t"].as_f64())
+        .unwrap_or_else(|| panic!("the pack never sagged under 10.5 V: {stderr}"));
+    LowFlight {
+        lines,
+        peer,
+        stderr,
+        crossed_at,
+    }
+}
