@@ -19,7 +19,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::model::physics::{Kind, Kinematics};
 use crate::model::profile::{Calibration, VehicleProfile};
 use crate::offline::data::{FlightWindows, TEST_FLIGHTS};
-use crate::offline::metrics::in_flight;
+use crate::offline::metrics::{in_flight_above, in_flight_w_for};
 
 /// Training fit of one model.
 #[derive(Debug, Clone)]
@@ -127,9 +127,15 @@ pub fn fit(
         .filter(|f| !TEST_FLIGHTS.contains(&f.flight) && !f.route.starts_with('A'))
         .collect();
     let mut states: Vec<(Kinematics, f64)> = Vec::new();
+    let threshold = in_flight_w_for(base);
     for f in &train {
         for w in &f.windows {
-            if let Some(m) = w.last().measured_w.map(f64::from).filter(|m| in_flight(*m)) {
+            if let Some(m) = w
+                .last()
+                .measured_w
+                .map(f64::from)
+                .filter(|m| in_flight_above(*m, threshold))
+            {
                 states.push((Kinematics::from_window(w, base), m));
             }
         }

@@ -14,7 +14,7 @@ use serde_json::Value;
 
 use crate::harness::{dronewatt, json_lines, monitor_udp, peer, Monitor, RunExt};
 
-/// The peer's quick flight (a 300 m hop after a 30 s hover) into `dir`; its JSON summary.
+/// The peer T18's quick flight (a 300 m hop after a 30 s hover) into `dir/t18`; its JSON summary.
 fn peer_flight(dir: &Path) -> Value {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let json = dir.join("peer.json");
@@ -22,6 +22,8 @@ fn peer_flight(dir: &Path) -> Value {
         .arg(root.join("scripts/peer-multirotor.py"))
         .args([
             "--quick",
+            "--airframe",
+            "t18",
             "--bin",
             env!("CARGO_BIN_EXE_dronewatt"),
             "--json",
@@ -36,7 +38,8 @@ fn peer_flight(dir: &Path) -> Value {
         "peer-multirotor.py: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap()
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    v["airframes"]["t18"].clone()
 }
 
 /// The stored vehicle's key and profile path (`dronewatt vehicles --json`).
@@ -93,7 +96,7 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
 
     // Live: the same flight from a pymavlink vehicle over UDP, in real time, up to 50 s
     // (the climb, the 30 s hover, the start of the first leg).
-    let spec = dir.path().join("flight0-spec.toml");
+    let spec = dir.path().join("t18/flight0-spec.toml");
     let store = dir.path().join("udp-store");
     let json = dir.path().join("udp.jsonl");
     let port = std::net::UdpSocket::bind("127.0.0.1:0")
@@ -112,7 +115,7 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
         port,
         false,
     );
-    let tlog = dir.path().join("flight0.tlog");
+    let tlog = dir.path().join("t18/flight0.tlog");
     let port_s = port.to_string();
     let sent = peer(
         "tlog_udp.py",
@@ -165,7 +168,7 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
     // The store kept it, and `plan --vehicle <key>` uses it.
     let (key, path) = stored(&store);
     assert!(path.ends_with("-hover.toml"), "{key}: {path}");
-    let plan = dir.path().join("flight0.waypoints");
+    let plan = dir.path().join("t18/flight0.waypoints");
     let out = dronewatt()
         .arg("plan")
         .arg(&plan)
