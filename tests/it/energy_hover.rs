@@ -251,3 +251,67 @@ fn a_vehicle_that_never_hovers_is_not_calibrated_and_says_so() {
         "calibrated without a hover"
     );
 }
+
+#[test]
+fn the_hover_throttle_and_the_packs_power_calibrate_before_a_full_hover() {
+    // The simulated X500 (ArduPilot's MOT_THST_HOVER 0.5; its VFR_HUD throttle 50 % in a
+    // hover) hovers 20 s: at the hover throttle for 10 s, before the still hover's 30 s.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("hover.tlog");
+    dronewatt()
+        .args([
+            "simulate",
+            "--vehicle",
+            "x500",
+            "--payload-g",
+            "0",
+            "--seed",
+            "5",
+        ])
+        .args(["--hover-s", "20", "--leg-m", "300", "--out"])
+        .arg(&log)
+        .ok();
+    let spec = dir.path().join("x500-spec.toml");
+    std::fs::write(
+        &spec,
+        "name = \"X500 spec\"\n[vehicle]\ntakeoff_kg = 2.0\nrotors = 4\nprop_diameter_m = 0.254\n\
+         [battery]\ncells = 4\ncapacity_mah = 5000\nchemistry = \"lipo\"\n",
+    )
+    .unwrap();
+    let out = dronewatt()
+        .env("RUST_LOG", "info")
+        .args([
+            "replay",
+            "--speed",
+            "max",
+            "--json",
+            "-",
+            "--data-dir",
+            "off",
+        ])
+        .arg("--vehicle")
+        .arg(&spec)
+        .arg(&log)
+        .ok();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("at the hover throttle (MOT_THST_HOVER 50 %)"),
+        "{stderr}"
+    );
+    let cal = crate::harness::json_lines_of(&out.stdout)
+        .into_iter()
+        .find_map(|v| {
+            v.get("hover_calibration")
+                .filter(|c| c.is_object())
+                .cloned()
+        })
+        .expect("a hover calibration");
+    assert_eq!(cal["source"], "MOT_THST_HOVER", "{cal}");
+    let (w, s) = (
+        cal["hover_w"].as_f64().unwrap(),
+        cal["hover_s"].as_f64().unwrap(),
+    );
+    assert!((10.0..12.0).contains(&s), "{cal}");
+    // the simulator's X500 hovers at 284 W (its book row), avionics included
+    assert!((w / 284.0 - 1.0).abs() < 0.1, "{cal}");
+}
