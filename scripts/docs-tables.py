@@ -722,7 +722,7 @@ def spec_stages(peer, m100):
         rows.append(["DJI M100 (data set, its own paths)", s["spec"]["flights"],
                      cell(s["spec"]["median_abs_err_pct"], s["spec"]["p90_cover_pct"]),
                      cell((s.get("hover") or {}).get("median_abs_err_pct")), "—", "—",
-                     "1.95 % (the shipped M100 forecast, fitted on 178 of its flights, not 3: [plan-eval](mission.md))", "—"])
+                     "1.95 % (the shipped M100 forecast, fitted on 178 of its flights, not 3: plan-eval, the book's Mission page)", "—"])
     return (header("scripts/peer-multirotor.py --json, scripts/spec-m100.py --json")
             .replace("dronewatt-lab scripts/", "scripts/")
             + table(["airframe (held out)", "flights", "spec sheet: plan P50, median abs error",
