@@ -1,6 +1,7 @@
 //! The physics models' least-squares fit (bounded Levenberg–Marquardt with nalgebra), shared by
-//! `dronewatt learn` and the lab's `calibrate`: on in-flight windows only ([`in_flight`]), free
-//! parameters per model as below, the rest as published.
+//! `dronewatt learn` and the lab's `calibrate`: on in-flight windows only ([`in_flight_above`]
+//! the vehicle's [`in_flight_w_for`]), free parameters per model as below, the rest as
+//! published.
 //!
 //! What is free per model (the rest stays as published, because it is not identifiable
 //! beside what is fitted — e.g. η and r enter D'Andrea only as their product):
