@@ -73,6 +73,7 @@ fn fixed_wing(c: &mut Criterion) {
             airspeed_sensor: true,
             wind_airspeed_m_s: Some(13.5),
             temperature_c: Some(18.0),
+            throttle_pct: None,
         };
         s.features[idx::POS_Z] = 420.0;
     }

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Score the spec-sheet forecast against an independent electrical peer: the `multirotor`
-package's Tarot T18 (PyPI multirotor 0.5.0, models/tarott18.py).
+package's Tarot T18 (PyPI multirotor 0.5.0, models/tarott18.py) and a DJI Mavic Pro built
+with its classes (its models/djimavicpro.py is empty: scripts/peer_airframes.py says from what).
 
 What is the package's and what is this harness's (be exact about it):
 - The package's: the T18's mass, rotor count, propeller thrust and torque constants
@@ -16,21 +17,23 @@ What is the package's and what is this harness's (be exact about it):
   harness's ASSUMPTION: the package models no body drag). The package's propellers give
   thrust k·ω² whatever the airspeed (no translational lift), so forward flight costs the
   peer what hover costs at the same thrust.
-- The pack: 6S LiPo 22 000 mAh, 25 mΩ, a LiPo resting-voltage curve; the telemetry's
+- The pack: the T18's 6S LiPo 22 000 mAh (25 mΩ), the Mavic's 3S 3830 mAh (30 mΩ), a LiPo
+  resting-voltage curve; the telemetry's
   current is the package's power over this pack's loaded voltage, as ArduPilot's
   SYS_STATUS / BATTERY_STATUS report it, written to a pymavlink .tlog at 10 Hz after the
   parameters a ground station fetches (BATT_CAPACITY, FRAME_CLASS, MOT_BAT_VOLT_MAX/MIN).
 
-Stages scored, the T18 held out:
+Stages scored, each airframe held out:
 - `spec`: the five facts; the hover-efficiency prior fitted on the other airframes
-  (scripts/spec-priors.py without the T18, passed as `[priors]`).
+  (scripts/spec-priors.py's `held_out_prior`: the form and the fit chosen without the
+  airframe's group, passed as `[priors]`).
 - `hover`: `plan --hover-w W` on the same spec, W the first 30 s hover the .tlog shows (mean
   V·I there): the efficiency becomes ideal power / (W − 8 W avionics).
 - `learned`: `dronewatt learn` on the first four flights' .tlog (it trains on three, holds
   one out and picks the forecast model), the later flights planned with its profile.
 
     .venv-py/bin/python scripts/peer-multirotor.py --bin target/debug/dronewatt [--quick] \
-        [--json out.json] [--markdown] [--plot energy.png] [--out DIR]
+        [--airframe t18,mavic] [--json out.json] [--markdown] [--plot energy.png] [--out DIR]
 """
 import argparse
 import copy
@@ -47,50 +50,23 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 RHO, G = 1.225, 9.81
-CDA = 0.20          # m², the harness's body drag (ASSUMPTION; the package has none)
-CELLS, MAH, R_PACK = 6, 22000.0, 0.025
+R_PACK = {"t18": 0.025, "mavic": 0.030}
 LIPO = [(0.0, 3.27), (0.05, 3.61), (0.1, 3.69), (0.2, 3.73), (0.3, 3.77), (0.4, 3.80),
         (0.5, 3.84), (0.6, 3.87), (0.7, 3.95), (0.8, 4.02), (0.9, 4.11), (1.0, 4.20)]
 HOME = (47.397742, 8.545594)
 DT = 0.1
 HOVER_S = 30.0
 ALT = 30.0
-SPEC = """name = "Tarot T18 (multirotor peer)"
+SPEC = """name = "{name}"
 [vehicle]
 takeoff_kg = {kg}
 rotors = {n}
-prop_diameter_m = 0.4572
+prop_diameter_m = {d}
 [battery]
-cells = 6
-capacity_mah = 22000
-chemistry = "lipo"
+cells = {cells}
+capacity_mah = {mah:.0f}
+chemistry = "{chem}"
 """
-
-
-class Peer:
-    """The package's T18: its propellers' constants and its motor, one per rotor."""
-
-    def __init__(self):
-        from multirotor.models.tarott18 import MP, PP, VP, BP, SP
-        from multirotor.simulation import Motor
-        self.mass, self.n, self.vmax = VP.mass, len(VP.propellers), BP.max_voltage
-        self.k_thrust, self.k_drag = PP.k_thrust, PP.k_drag
-        mp = copy.deepcopy(MP)
-        mp.k_drag = PP.k_drag
-        self.mp = mp
-        self.motors = [Motor(copy.deepcopy(mp), SP) for _ in range(self.n)]
-
-    def power_w(self, thrust_n):
-        """Electrical power for a total thrust, W: each motor's current from the package."""
-        t = max(thrust_n, 0.0) / self.n
-        omega = math.sqrt(t / self.k_thrust)
-        volts = omega * self.mp.k_emf + self.k_drag * omega ** 2 / self.mp.k_torque * self.mp.resistance
-        total = 0.0
-        for m in self.motors:
-            m.speed = omega
-            m.step(volts / self.mp.speed_voltage_scaling, max_voltage=self.vmax)
-            total += m.current_average(self.vmax) * self.vmax
-        return total
 
 
 def profile(legs_m, speed, alt=ALT):
@@ -152,6 +128,7 @@ def ocv(soc):
 
 
 def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path, items=()):
+    CELLS, MAH, R = peer.cells, peer.mah, R_PACK[peer.key]
     """Fly the path in wind; write the .tlog as ArduPilot would; return the truth, Wh."""
     from pymavlink.dialects.v20 import ardupilotmega as mavlink
     rng = np.random.default_rng(seed)
@@ -165,19 +142,19 @@ def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path, items=()):
         def put(msg):
             f.write(struct.pack(">Q", t_us) + msg.pack(mav))
         # the parameters a ground station fetches on connecting (ArduPilot's names and types)
-        params = [("BATT_CAPACITY", MAH, 6), ("FRAME_CLASS", 3, 2), ("MOT_BAT_VOLT_MAX", 4.2 * CELLS, 9),
+        params = [("BATT_CAPACITY", MAH, 6), ("FRAME_CLASS", 3 if peer.n == 8 else 1, 2), ("MOT_BAT_VOLT_MAX", 4.2 * CELLS, 9),
                   ("MOT_BAT_VOLT_MIN", 3.3 * CELLS, 9)]
         for k, (p, v, a, seq) in enumerate(path):
             gust += -gust * DT / 3.0 + rng.normal(0, 1.0, 3) * math.sqrt(2 * DT / 3.0) * (0.2 * wind_speed)
             gust[2] = 0.0
             air = v - (mean_w + gust)
-            drag = -0.5 * RHO * CDA * np.linalg.norm(air) * air
+            drag = -0.5 * RHO * peer.cda * np.linalg.norm(air) * air
             thrust = peer.mass * (a + np.array([0, 0, G])) - drag
             airborne = p[2] > 0.05 or k == 0
             pw = peer.power_w(np.linalg.norm(thrust)) + 8.0 if airborne else 8.0
             v_oc = CELLS * ocv(soc)
-            amps = (v_oc - math.sqrt(max(v_oc * v_oc - 4 * R_PACK * pw, 0.0))) / (2 * R_PACK)
-            volts = v_oc - amps * R_PACK
+            amps = (v_oc - math.sqrt(max(v_oc * v_oc - 4 * R * pw, 0.0))) / (2 * R)
+            volts = v_oc - amps * R
             soc -= amps * DT / 3600.0 / (MAH / 1000.0)
             energy_j += volts * amps * DT
             n = thrust / np.linalg.norm(thrust)
@@ -198,7 +175,7 @@ def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path, items=()):
                 put(mavlink.MAVLink_mission_current_message(seq, len(items) - 1))
             put(mavlink.MAVLink_sys_status_message(0, 0, 0, 500, int(volts * 1000), int(amps * 100),
                                                    int(soc * 100), 0, 0, 0, 0, 0, 0))
-            put(mavlink.MAVLink_battery_status_message(0, 1, 1, 3200, [int(volts * 1000 / CELLS)] * CELLS + [65535] * 4,
+            put(mavlink.MAVLink_battery_status_message(0, 1, 1, 3200, [int(volts * 1000 / CELLS)] * CELLS + [65535] * (10 - CELLS),
                                                        int(amps * 100), int((1 - soc) * MAH), -1, int(soc * 100)))
             put(mavlink.MAVLink_global_position_int_message(k * 100, int(lat * 1e7), int(lon * 1e7),
                                                             int((488 + p[2]) * 1000), int(p[2] * 1000),
@@ -288,33 +265,61 @@ LEARN_ON = 4  # `learn` on the first four flights' .tlog (it holds out one of th
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--bin", default=os.path.join(HERE, "..", "target", "debug", "dronewatt"))
-    ap.add_argument("--quick", action="store_true", help="one short flight (the make-test check)")
+    ap.add_argument("--quick", action="store_true", help="one short flight per airframe (the make-test check)")
+    ap.add_argument("--airframe", default="t18,mavic", help="the airframes to fly, comma separated (t18, mavic)")
     ap.add_argument("--json")
     ap.add_argument("--markdown", action="store_true")
     ap.add_argument("--plot")
     ap.add_argument("--out", help="keep the .tlog, plans and specs here")
     a = ap.parse_args()
     import importlib
+    import peer_airframes
     priors = importlib.import_module("spec-priors")
     rows = priors.airframes()
-    others = [r["eta_h"] for r in rows if "T18" not in r["airframe"]]
-    eta0, sd0 = priors.prior(others)
-    peer = Peer()
     out = a.out or tempfile.mkdtemp(prefix="peer-multirotor-")
-    os.makedirs(out, exist_ok=True)
+    res = dict(peer="multirotor 0.5.0", airframes={})
+    for key in a.airframe.split(","):
+        peer = peer_airframes.AIRFRAMES[key]()
+        etas, sd0, form, inner = priors.held_out_prior(rows, key)
+        eta0 = etas[peer.name]
+        sub = os.path.join(out, key)
+        os.makedirs(sub, exist_ok=True)
+        r = fly_airframe(a, peer, eta0, sd0, priors, sub)
+        r.update(airframe=peer.name, prior_held_out=dict(eta_h=round(eta0, 4), log_sd=round(sd0, 4), form=form,
+                                                         inner_err=inner),
+                 figure_of_merit=round(peer.figure_of_merit(), 3), motor_eff=round(peer.motor_efficiency(), 3),
+                 body_cda_m2=peer.cda, body_cda_source=peer.cda_source)
+        res["airframes"][key] = r
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(res, f, indent=1)
+    if a.markdown:
+        for key, r in res["airframes"].items():
+            print(f"## {r['airframe']}")
+            for st, v in r["summary"].items():
+                print(f"- {st}: {v}")
+    else:
+        print(json.dumps(res, indent=1))
+    if a.plot:
+        plot(res, a.plot)
+
+
+def fly_airframe(a, peer, eta0, sd0, priors, out):
+    """Fly the plans with one airframe; score each stage; the flights and their summary."""
     results = []
     flights = FLIGHTS[-1:] if a.quick else FLIGHTS
     FLIGHTS_BY_INDEX.clear()
     FLIGHTS_BY_INDEX.extend(flights)
     for i, (name, legs, speed, wind) in enumerate(flights):
         tlog = os.path.join(out, f"flight{i}.tlog")
-        truth = fly(peer, profile(legs, speed), wind[0], wind[1], i, tlog, mission_items(legs, speed))
+        fly(peer, profile(legs, speed), wind[0], wind[1], i, tlog, mission_items(legs, speed))
         rows_t = read_tlog(tlog)
         measured = sum(v * c for _, v, c, _ in rows_t) * DT / 3600.0
         plan = os.path.join(out, f"flight{i}.waypoints")
         waypoints(plan, legs, speed)
         spec = os.path.join(out, f"flight{i}-spec.toml")
-        facts = SPEC.format(kg=peer.mass, n=peer.n)
+        facts = SPEC.format(name=peer.name, kg=peer.mass, n=peer.n, d=peer.prop_m, cells=peer.cells, mah=peer.mah,
+                            chem=peer.chemistry)
         with open(spec, "w") as f:
             f.write(facts + f"[priors]\neta_h = {eta0:.4f}\neta_h_log_sd = {sd0:.4f}\n")
         p50, p90 = forecast(a.bin, plan, spec, speed, wind)
@@ -322,7 +327,7 @@ def main():
         hw = first_hover_w(rows_t)
         if hw is not None:
             h50, h90 = forecast(a.bin, plan, spec, speed, wind, ["--hover-w", f"{hw:.1f}"])
-            eta = priors.ideal_hover_w(peer.mass, peer.n, 0.4572) / (hw - 8.0)
+            eta = priors.ideal_hover_w(peer.mass, peer.n, peer.prop_m) / (hw - 8.0)
             stage.append(dict(stage="hover", p50=h50, p90=h90, hover_w=round(float(hw), 1), eta=round(float(eta), 4)))
         lv = live(a.bin, out, i, spec, rows_t)
         if lv is not None:
@@ -353,27 +358,7 @@ def main():
             if s["stage"] == "learned" and s.get("adapted_mape_pct") is not None]
     if mape:
         summary["learned_adapted_power"] = dict(median_mape_pct=round(float(np.median(mape)), 1), flights=len(mape))
-    res = dict(peer="multirotor 0.5.0 Tarot T18", prior_without_t18=dict(eta_h=round(eta0, 4), log_sd=round(sd0, 4)),
-               flights=results, summary=summary)
-    if a.json:
-        with open(a.json, "w") as f:
-            json.dump(res, f, indent=1)
-    if a.markdown:
-        print("| flight | speed m/s | wind | truth Wh | spec P50 | spec P90 | spec error | after hover P50 | error |")
-        print("|---|---|---|---|---|---|---|---|---|")
-        for r in results:
-            s = r["stages"][0]
-            h = r["stages"][1] if len(r["stages"]) > 1 else None
-            print(f"| {r['flight']} | {r['speed']} | {r['wind'][0]}@{r['wind'][1]} | {r['truth_wh']} | {s['p50']:.1f} | "
-                  f"{s['p90']:.1f} | {s['err_pct']:+.1f} % | {h['p50'] if h else float('nan'):.1f} | "
-                  f"{h['err_pct'] if h else float('nan'):+.1f} % |")
-        print()
-        for st, v in summary.items():
-            print(f"- {st}: median |error| {v['median_abs_err_pct']} %, P90 ≥ truth on {v['p90_cover_pct']} % of {v['flights']} flights")
-    else:
-        print(json.dumps(res, indent=1))
-    if a.plot:
-        plot(results, a.plot)
+    return dict(flights=results, summary=summary)
 
 
 def live(binary, out, i, spec, rows):
@@ -461,24 +446,28 @@ def adapted_mape(binary, out, i, profile_path):
     return round(100 * float(np.mean(errs)), 1) if errs else None
 
 
-def plot(results, path):
+def plot(res, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(10, 4.5))
-    x = np.arange(len(results))
-    truth = [r["truth_wh"] for r in results]
-    for k, (st, col) in enumerate([("spec", "tab:orange"), ("hover", "tab:blue"), ("learned", "tab:green")]):
-        s = [next((q for q in r["stages"] if q["stage"] == st), None) for r in results]
-        p50 = [q["p50"] if q else np.nan for q in s]
-        p90 = [q["p90"] if q else np.nan for q in s]
-        ax.bar(x + (k - 1) * 0.27, p50, 0.27, color=col, label=f"{st} P50")
-        ax.scatter(x + (k - 1) * 0.27, p90, marker="_", s=120, color="k")
-    ax.scatter(x, truth, marker="*", s=120, color="red", zorder=3, label="peer's energy")
-    ax.set_xticks(x, [f"{r['flight']}\n{r['speed']} m/s\nwind {r['wind'][0]} m/s" for r in results], fontsize=7)
-    ax.set_ylabel("plan energy, Wh (— : P90)")
-    ax.set_title("Tarot T18 (multirotor 0.5.0), held out: spec sheet, after the first hover, learned on 4 logs")
-    ax.legend(fontsize=8)
+    keys = list(res["airframes"])
+    fig, axes = plt.subplots(len(keys), 1, figsize=(10, 4.2 * len(keys)), squeeze=False)
+    for ax, key in zip(axes[:, 0], keys):
+        r = res["airframes"][key]
+        results = r["flights"]
+        x = np.arange(len(results))
+        truth = [q["truth_wh"] for q in results]
+        for k, (st, col) in enumerate([("spec", "tab:orange"), ("hover", "tab:blue"), ("learned", "tab:green")]):
+            s = [next((q for q in fl["stages"] if q["stage"] == st), None) for fl in results]
+            p50 = [q["p50"] if q else np.nan for q in s]
+            p90 = [q["p90"] if q else np.nan for q in s]
+            ax.bar(x + (k - 1) * 0.27, p50, 0.27, color=col, label=f"{st} P50")
+            ax.scatter(x + (k - 1) * 0.27, p90, marker="_", s=120, color="k")
+        ax.scatter(x, truth, marker="*", s=120, color="red", zorder=3, label="peer's energy")
+        ax.set_xticks(x, [f"{q['flight']}\n{q['speed']} m/s\nwind {q['wind'][0]} m/s" for q in results], fontsize=7)
+        ax.set_ylabel("plan energy, Wh (— : P90)")
+        ax.set_title(f"{r['airframe']}, held out: spec sheet, after the first hover, learned on 4 logs")
+        ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

@@ -57,51 +57,54 @@ def m100_hover_w():
     return statistics.median(meds), f"median of flights {', '.join(sorted(per))}"
 
 
-def t18_hover_w():
-    """The multirotor package's Tarot T18 in hover: each motor's current from its own Motor."""
-    from multirotor.models.tarott18 import MP, PP, VP, BP, SP
-    from multirotor.simulation import Motor
-    import copy
-    t = VP.mass * G / len(VP.propellers)
-    omega = math.sqrt(t / PP.k_thrust)
-    mp = copy.deepcopy(MP)
-    mp.k_drag = PP.k_drag
-    motor = Motor(mp, SP)
-    # the voltage that holds omega: back-EMF plus the current the propeller's torque needs
-    volts = omega * mp.k_emf + PP.k_drag * omega ** 2 / mp.k_torque * mp.resistance
-    motor.speed = omega
-    motor.step(volts / mp.speed_voltage_scaling, max_voltage=BP.max_voltage)
-    watts = motor.current_average(BP.max_voltage) * BP.max_voltage * len(VP.propellers)
-    return watts, VP.mass, len(VP.propellers)
+def peer_rows():
+    """The `multirotor` package's airframes (scripts/peer_airframes.py) in hover."""
+    sys.path.insert(0, HERE)
+    import peer_airframes
+    out = []
+    for key, make in peer_airframes.AIRFRAMES.items():
+        a = make()
+        src = ("multirotor 0.5.0 models/tarott18.py: k_thrust, k_drag, motor R, k_emf (its Motor)" if key == "t18" else
+               "built with multirotor's classes from the source its empty djimavicpro.py cites (scripts/peer_airframes.py)")
+        out.append((a.name, a.mass, a.n, a.prop_m, a.hover_w() + AVIONICS_W, "peer", src, key,
+                    dict(figure_of_merit=round(a.figure_of_merit(), 3), motor_eff=round(a.motor_efficiency(), 3))))
+    return out
+
+
+REMEMBERED = "as remembered, not re-checked"
 
 
 def airframes():
     m100_w, m100_how = m100_hover_w()
     rows = [
-        # name, kg, rotors, prop m, hover W, kind, source
+        # name, kg, rotors, prop m, hover W, kind, source, airframe group (left out together)
         ("DJI M100 (data set)", 2.431, 4, 0.3302, m100_w, "measured",
-         f"Rodrigues et al. 2021 data set, hover flights ({m100_how}); mass as config/vehicles/m100.toml"),
+         f"Rodrigues et al. 2021 data set, hover flights ({m100_how}); mass as config/vehicles/m100.toml", "m100"),
         ("DJI M100 (published)", 2.431, 4, 0.3302, 129.96 / (28 / 60), "published",
-         "DJI M100 specs: TB48D 129.96 Wh, 28 min hovering, no payload (as remembered, not re-checked)"),
+         f"DJI M100 specs: TB48D 129.96 Wh, 28 min hovering, no payload ({REMEMBERED})", "m100"),
         ("DJI Mavic Pro (published)", 0.734, 4, 0.2108, 43.6 / (24 / 60), "published",
-         "DJI Mavic Pro specs: 43.6 Wh, 24 min hovering, 8330 props (as remembered, not re-checked)"),
+         f"DJI Mavic Pro specs: 43.6 Wh, 24 min hovering, 8330 props ({REMEMBERED})", "mavic"),
         ("3DR Solo (regression)", 1.5, 4, 0.254, 251.7, "published",
-         "Tseng et al. 2017 Solo form's intercept (tseng_solo in m100.toml); 1.5 kg, 10-inch props"),
+         "Tseng et al. 2017 Solo form's intercept (tseng_solo in m100.toml); 1.5 kg, 10-inch props", "solo"),
+        ("DJI S900 (published)", 6.8, 6, 0.381, 22.2 * 12.0 / (18 / 60), "published",
+         f"DJI S900 specs: 6S 12000 mAh, 18 min hovering at 6.8 kg, 1552 props ({REMEMBERED})", "s900"),
+        ("DJI S1000 (published)", 9.5, 8, 0.381, 22.2 * 15.0 / (15 / 60), "published",
+         f"DJI S1000 specs: 6S 15000 mAh, 15 min hovering at 9.5 kg, 1552 props ({REMEMBERED})", "s1000"),
+        ("DJI Matrice 600 (published)", 9.1, 6, 0.5334, 6 * 99.9 / (35 / 60), "published",
+         f"DJI M600 specs: 6 TB47S (99.9 Wh each), 35 min hovering, no payload, 2170 props ({REMEMBERED})", "m600"),
         ("Holybro X500 (simulator here)", 2.0, 4, 0.254, 284.0, "simulator",
-         "config/vehicles/x500.toml flown by `dronewatt simulate` (ASSUMPTION-built)"),
+         "config/vehicles/x500.toml flown by `dronewatt simulate` (ASSUMPTION-built)", "x500"),
         ("3S quad (simulator here)", 1.0, 4, 0.1778, 145.0, "simulator",
-         "config/vehicles/quad-3s.toml flown by `dronewatt simulate` (ASSUMPTION-built)"),
+         "config/vehicles/quad-3s.toml flown by `dronewatt simulate` (ASSUMPTION-built)", "quad3s"),
     ]
     try:
-        w, m, n = t18_hover_w()
-        rows.append(("Tarot T18 (multirotor peer)", m, n, 0.4572, w, "peer",
-                     "multirotor 0.5.0 models/tarott18.py: k_thrust, k_drag, motor R, k_emf (its Motor)"))
+        rows += [r[:8] for r in peer_rows()]
     except ImportError as e:
-        print(f"multirotor not importable ({e}); the T18 row is left out", file=sys.stderr)
+        print(f"multirotor not importable ({e}); the peer rows are left out", file=sys.stderr)
     out = []
-    for name, m, n, d, w, kind, src in rows:
+    for name, m, n, d, w, kind, src, group in rows:
         ideal = ideal_hover_w(m, n, d)
-        out.append(dict(airframe=name, kg=m, rotors=n, prop_m=d, hover_w=round(float(w), 1),
+        out.append(dict(airframe=name, group=group, kg=m, rotors=n, prop_m=d, hover_w=round(float(w), 1),
                         ideal_w=round(ideal, 1), eta_h=round(ideal / (w - AVIONICS_W), 4),
                         kind=kind, source=src))
     return out
@@ -112,29 +115,60 @@ def prior(etas):
     return math.exp(statistics.mean(logs)), statistics.stdev(logs)
 
 
-def size_fits(rows):
-    """Does a size feature carry η_h across airframes? For each airframe left out, ln η_h
-    fitted as a line in ln(feature) on the others (least squares), and what it forecasts for
-    the one left out: propeller diameter, disk loading (thrust per disk area) and thrust per
-    rotor, the spec sheet's facts that set a rotor's Reynolds number and a motor's size."""
-    import numpy as np
+FORMS = ("constant", "prop_m", "disk_loading")
 
-    def feat(r, name):
-        t = r["kg"] * G / r["rotors"]
-        return math.log({"prop_m": r["prop_m"], "disk_loading": t / (math.pi * r["prop_m"] ** 2 / 4),
-                         "thrust_per_rotor": t}[name])
-    out = {}
-    for name in ("prop_m", "disk_loading", "thrust_per_rotor"):
-        per = []
-        for r in rows:
-            o = [q for q in rows if q is not r]
-            slope, icpt = np.polyfit([feat(q, name) for q in o], [math.log(q["eta_h"]) for q in o], 1)
-            eta = math.exp(icpt + slope * feat(r, name))
-            per.append(dict(airframe=r["airframe"], eta_h=r["eta_h"], forecast_eta_h=round(eta, 3),
-                            slope=round(float(slope), 2)))
-        out[name] = dict(loao=per, median_abs_log_err=round(float(np.median(
-            [abs(math.log(p["forecast_eta_h"] / p["eta_h"])) for p in per])), 3))
-    return out
+
+def feature(r, name):
+    t = r["kg"] * G / r["rotors"]
+    return math.log({"prop_m": r["prop_m"], "disk_loading": t / (math.pi * r["prop_m"] ** 2 / 4)}[name])
+
+
+def fit_form(rows, form):
+    """ln η_h on the rows: a constant, or a line in ln(feature). Returns (predict, log-sd)."""
+    import numpy as np
+    y = [math.log(r["eta_h"]) for r in rows]
+    if form == "constant":
+        mu, sd = statistics.mean(y), statistics.stdev(y)
+        return (lambda r: math.exp(mu)), sd
+    x = [feature(r, form) for r in rows]
+    slope, icpt = np.polyfit(x, y, 1)
+    res = [yi - (icpt + slope * xi) for xi, yi in zip(x, y)]
+    sd = math.sqrt(sum(e * e for e in res) / max(len(res) - 2, 1))
+    return (lambda r: math.exp(icpt + slope * feature(r, form))), sd
+
+
+def loao_err(rows, form):
+    """Median |ln error| of η_h, each airframe group left out in turn, the form fitted on the rest."""
+    errs = []
+    for g in sorted({r["group"] for r in rows}):
+        rest = [r for r in rows if r["group"] != g]
+        pred, _ = fit_form(rest, form)
+        errs += [abs(math.log(pred(r) / r["eta_h"])) for r in rows if r["group"] == g]
+    return statistics.median(errs)
+
+
+def held_out_prior(rows, group):
+    """The prior for an airframe group the fit never sees: the form chosen on the other
+    groups alone (their own leave-one-group-out error), fitted on them. Returns
+    (η_h for each of the group's rows, log-sd, the form, each form's inner error)."""
+    rest = [r for r in rows if r["group"] != group]
+    inner = {form: round(loao_err(rest, form), 3) for form in FORMS}
+    form = min(FORMS, key=lambda k: inner[k])
+    pred, sd = fit_form(rest, form)
+    return {r["airframe"]: pred(r) for r in rows if r["group"] == group}, sd, form, inner
+
+
+def form_table(rows):
+    """Each form's leave-one-airframe-group-out median |ln error| of η_h over all groups (what
+    the book shows; each held-out row's own prior chooses its form without its group)."""
+    return {form: round(loao_err(rows, form), 3) for form in FORMS}
+
+
+def safe_peer_rows():
+    try:
+        return peer_rows()
+    except ImportError:
+        return []
 
 
 def main():
@@ -144,34 +178,40 @@ def main():
     ap.add_argument("--plot", help="draw each airframe's hover power and the forecast of the prior without it here")
     a = ap.parse_args()
     rows = airframes()
-    for r in rows:
-        others = [o["eta_h"] for o in rows if o is not r]
-        med, sd = prior(others)
-        fc = r["ideal_w"] / med + AVIONICS_W
-        r["loao_eta"] = round(med, 4)
-        r["loao_sd"] = round(sd, 4)
-        r["loao_hover_w"] = round(fc, 1)
-        r["loao_err_pct"] = round(100 * (fc / r["hover_w"] - 1), 1)
-        r["loao_p90_covers"] = bool(fc * math.exp(1.2816 * sd) >= r["hover_w"])
+    for g in sorted({r["group"] for r in rows}):
+        etas, sd, form, inner = held_out_prior(rows, g)
+        for r in rows:
+            if r["group"] != g:
+                continue
+            eta = etas[r["airframe"]]
+            fc = r["ideal_w"] / eta + AVIONICS_W
+            r["loao_eta"] = round(eta, 4)
+            r["loao_sd"] = round(sd, 4)
+            r["loao_form"] = form
+            r["loao_inner_err"] = inner
+            r["loao_hover_w"] = round(fc, 1)
+            r["loao_err_pct"] = round(100 * (fc / r["hover_w"] - 1), 1)
+            r["loao_p90_covers"] = bool(fc * math.exp(1.2816 * sd) >= r["hover_w"])
     med, sd = prior([r["eta_h"] for r in rows])
+    forms = form_table(rows)
     result = dict(eta_h_median=round(med, 4), eta_h_log_sd=round(sd, 4), avionics_w=AVIONICS_W,
-                  airframes=rows, size_fits=size_fits(rows),
-                  loao_median_abs_err_pct=round(statistics.median(abs(r["loao_err_pct"]) for r in rows), 1))
+                  airframes=rows, forms=forms, form_all=min(FORMS, key=lambda k: forms[k]),
+                  peers=[dict(airframe=r[0], **r[8]) for r in safe_peer_rows()],
+                  loao_median_abs_err_pct=round(statistics.median(abs(r["loao_err_pct"]) for r in rows), 1),
+                  loao_p90_cover_pct=round(100 * sum(r["loao_p90_covers"] for r in rows) / len(rows), 1))
     if a.json:
         with open(a.json, "w") as f:
             json.dump(result, f, indent=1)
     if a.markdown:
-        print("| airframe | kg | rotors | prop m | hover W | η_h | prior without it | forecast W | error | P90 covers | source |")
-        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        print("| airframe | kg | rotors | prop m | hover W | η_h | prior without it | form | forecast W | error | P90 covers | source |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             print(f"| {r['airframe']} | {r['kg']} | {r['rotors']} | {r['prop_m']} | {r['hover_w']} | "
-                  f"{r['eta_h']:.3f} | {r['loao_eta']:.3f} ± {r['loao_sd']:.2f} | {r['loao_hover_w']} | "
+                  f"{r['eta_h']:.3f} | {r['loao_eta']:.3f} ± {r['loao_sd']:.2f} | {r['loao_form']} | {r['loao_hover_w']} | "
                   f"{r['loao_err_pct']:+.1f} % | {'yes' if r['loao_p90_covers'] else 'no'} | {r['source']} |")
-        for name, v in result["size_fits"].items():
-            t18 = next((p for p in v["loao"] if "T18" in p["airframe"]), None)
-            print(f"size fit on {name}: median |ln error| {v['median_abs_log_err']}"
-                  + (f"; the T18 left out: η_h {t18['forecast_eta_h']} (slope {t18['slope']}), its own {t18['eta_h']}"
-                     if t18 else ""))
+        for r in rows:
+            print(f"{r['airframe']}: form {r['loao_form']} (inner {r['loao_inner_err']})")
+        print(f"forms over all groups: {forms}")
         print(f"\nAll airframes: η_h = {med:.3f}, log-spread {sd:.3f}; leave-one-airframe-out median |error| "
               f"{result['loao_median_abs_err_pct']} %")
     else:

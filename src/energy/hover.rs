@@ -13,6 +13,13 @@
 //!   rest of the mission, scale their non-avionics part by `k = η_prior / η_h`
 //!   ([`HoverCalibration::power_w`], [`HoverCalibration::energy_wh`]): exact for the
 //!   momentum-theory member, whose every term but the avionics is divided by η_h.
+//! - **Or at the hover throttle**: with ArduPilot's `MOT_THST_HOVER` (the throttle it learned
+//!   holds the vehicle in a hover, 0–1) and VFR_HUD's throttle, the samples airborne, under
+//!   [`THROTTLE_GROUND_M_S`] across and within ±[`STILL_VZ_M_S`] vertically, whose
+//!   throttle is within ±[`THROTTLE_BAND`] of it, are hover power whether still or not;
+//!   [`THROTTLE_S`] of them (not necessarily in one piece) calibrate, if no still hover did
+//!   first. A `MOT_THST_HOVER` of 0 or outside 5–95 % (never learned, or not ArduPilot's) is
+//!   not used ([`HoverCalibrator::set_hover_throttle`] says why).
 //! - **No hover**: a vehicle that is not a multirotor, or one that flies
 //!   [`SEARCH_S`] airborne without a hover of [`MIN_HOVER_S`] (straight into cruise), is not
 //!   calibrated, and that is said once ([`HoverCalibrator::observe`] returns it).
@@ -36,6 +43,13 @@ pub const HOVER_S: f64 = 30.0;
 pub const MIN_HOVER_S: f64 = 15.0;
 /// Airborne time without such a hover after which there is none, s.
 pub const SEARCH_S: f64 = 180.0;
+/// Throttle within this of `MOT_THST_HOVER` (as a fraction, 0–1) is the hover throttle.
+pub const THROTTLE_BAND: f64 = 0.03;
+/// Ground speed below which a sample at the hover throttle counts, m/s (at a walking pace
+/// the thrust is the weight's and translational lift is small).
+pub const THROTTLE_GROUND_M_S: f64 = 3.0;
+/// Seconds at the hover throttle that calibrate.
+pub const THROTTLE_S: f64 = 10.0;
 
 /// What the calibration needs of the vehicle profile.
 #[derive(Debug, Clone, PartialEq)]
@@ -127,6 +141,10 @@ pub struct HoverCalibrator {
     /// Σ P·dt and Σ dt over hover samples.
     sum_wj: f64,
     sum_s: f64,
+    /// `MOT_THST_HOVER` (0–1), when usable, and Σ P·dt, Σ dt at that throttle.
+    hover_throttle: Option<f64>,
+    thr_wj: f64,
+    thr_s: f64,
 }
 
 impl HoverCalibrator {
@@ -146,7 +164,31 @@ impl HoverCalibrator {
             last_t: None,
             sum_wj: 0.0,
             sum_s: 0.0,
+            hover_throttle: None,
+            thr_wj: 0.0,
+            thr_s: 0.0,
         }
+    }
+
+    /// ArduPilot's `MOT_THST_HOVER` (0–1): the samples at that throttle are hover power too.
+    /// An error says why it is not used (0: never learned; outside 5–95 %).
+    pub fn set_hover_throttle(&mut self, value: Option<f64>) -> Result<(), String> {
+        self.hover_throttle = None;
+        match value {
+            None => Ok(()),
+            Some(v) if v.is_finite() && v > 0.05 && v < 0.95 => {
+                self.hover_throttle = Some(v);
+                Ok(())
+            }
+            Some(v) => Err(format!(
+                "MOT_THST_HOVER = {v}: not a learned hover throttle (5-95 %), so the hover must be flown"
+            )),
+        }
+    }
+
+    /// The hover throttle in use (`MOT_THST_HOVER`, 0–1).
+    pub fn hover_throttle(&self) -> Option<f64> {
+        self.hover_throttle
     }
 
     /// Where it stands.
@@ -163,16 +205,18 @@ impl HoverCalibrator {
     }
 
     /// One sample: its time, height above home (None: no home), horizontal ground speed,
-    /// vertical speed (m/s) and measured power (W). News when it calibrates or gives up.
+    /// vertical speed (m/s), throttle (%, VFR_HUD) and measured power (W). News when it
+    /// calibrates or gives up.
     pub fn observe(
         &mut self,
         t_s: f64,
         height_m: Option<f64>,
         ground_m_s: f64,
         vz_m_s: f64,
+        throttle_pct: Option<f64>,
         measured_w: Option<f64>,
     ) -> Option<HoverNews> {
-        let reference = self.reference.as_ref()?;
+        let reference = self.reference.clone()?;
         if !matches!(self.state, HoverState::Searching) || !t_s.is_finite() {
             return None;
         }
@@ -184,6 +228,10 @@ impl HoverCalibrator {
             return self.hover_ended(reference.clone(), t_s);
         }
         self.airborne_s += dt;
+        let at_throttle = (ground_m_s, vz_m_s, throttle_pct, measured_w);
+        if let Some(news) = self.at_hover_throttle(&reference, t_s, dt, at_throttle) {
+            return Some(news);
+        }
         let still = ground_m_s.is_finite()
             && ground_m_s < STILL_M_S
             && vz_m_s.is_finite()
@@ -215,6 +263,29 @@ impl HoverCalibrator {
         None
     }
 
+    /// An airborne sample at `MOT_THST_HOVER`'s throttle, slow and level: its power is
+    /// hover power; [`THROTTLE_S`] of them calibrate.
+    fn at_hover_throttle(
+        &mut self,
+        r: &HoverReference,
+        t_s: f64,
+        dt: f64,
+        (ground_m_s, vz_m_s, throttle_pct, measured_w): (f64, f64, Option<f64>, Option<f64>),
+    ) -> Option<HoverNews> {
+        let (u_h, u, p) = (self.hover_throttle?, throttle_pct?, measured_w?);
+        let level = ground_m_s < THROTTLE_GROUND_M_S && vz_m_s.abs() < STILL_VZ_M_S;
+        if !(level && p.is_finite() && p > 0.0 && (u / 100.0 - u_h).abs() <= THROTTLE_BAND) {
+            return None;
+        }
+        self.thr_wj += p * dt;
+        self.thr_s += dt;
+        if self.thr_s < THROTTLE_S {
+            return None;
+        }
+        let (w, s) = (self.thr_wj / self.thr_s, self.thr_s);
+        self.calibrate_on(r.clone(), t_s, w, s, "MOT_THST_HOVER")
+    }
+
     /// A hover ended: calibrate when it was long enough, else start over.
     fn hover_ended(&mut self, r: HoverReference, t_s: f64) -> Option<HoverNews> {
         if self.sum_s >= MIN_HOVER_S {
@@ -226,7 +297,18 @@ impl HoverCalibrator {
     }
 
     fn calibrate(&mut self, r: HoverReference, t_s: f64) -> Option<HoverNews> {
-        let hover_w = self.sum_wj / self.sum_s;
+        let (w, s) = (self.sum_wj / self.sum_s, self.sum_s);
+        self.calibrate_on(r, t_s, w, s, "hover")
+    }
+
+    fn calibrate_on(
+        &mut self,
+        r: HoverReference,
+        t_s: f64,
+        hover_w: f64,
+        hover_s: f64,
+        source: &'static str,
+    ) -> Option<HoverNews> {
         let Some(eta) = r.eta_of(hover_w) else {
             let why = format!(
                 "a hover of {hover_w:.0} W is not one momentum theory gives this vehicle (at least {:.0} W ideal + {:.0} W avionics): no hover calibration",
@@ -238,11 +320,12 @@ impl HoverCalibrator {
         let cal = HoverCalibration {
             t_s,
             hover_w,
-            hover_s: self.sum_s,
+            hover_s,
             eta_h: eta,
             prior_eta_h: r.prior_eta,
             avionics_w: r.avionics_w,
             applied: self.applies,
+            source,
         };
         self.state = HoverState::Done(cal);
         Some(HoverNews::Calibrated(cal))

@@ -19,7 +19,7 @@ fn fly(
     let mut out = Vec::new();
     let mut t = 0.0;
     let mut step = |t: f64, h: f64, v: f64, vz: f64, p: f64, out: &mut Vec<(f64, HoverNews)>| {
-        if let Some(n) = c.observe(t, Some(h), v, vz, Some(p)) {
+        if let Some(n) = c.observe(t, Some(h), v, vz, None, Some(p)) {
             out.push((t, n));
         }
     };
@@ -61,7 +61,9 @@ fn thirty_seconds_of_hover_set_the_efficiency() {
     assert!((cal.energy_wh(108.0, 3600.0) - (100.0 * 0.8 + 8.0)).abs() < 1e-9);
     assert_eq!(c.calibration(), Some(&cal));
     // nothing more after it
-    assert!(c.observe(200.0, Some(30.0), 0.0, 0.0, Some(50.0)).is_none());
+    assert!(c
+        .observe(200.0, Some(30.0), 0.0, 0.0, None, Some(50.0))
+        .is_none());
 }
 
 #[test]
@@ -97,7 +99,7 @@ fn on_the_ground_nothing_counts() {
         // still, drawing power, but on the ground (and without a home)
         let h = if i % 2 == 0 { Some(0.5) } else { None };
         assert!(c
-            .observe(f64::from(i) * 0.1, h, 0.0, 0.0, Some(200.0))
+            .observe(f64::from(i) * 0.1, h, 0.0, 0.0, None, Some(200.0))
             .is_none());
     }
     assert_eq!(c.state(), &HoverState::Searching);
@@ -120,7 +122,9 @@ fn a_plane_has_no_hover_to_calibrate() {
     let why = HoverReference::of(&plane).unwrap_err();
     assert!(why.contains("does not hover"), "{why}");
     let mut c = HoverCalibrator::new(Err(why), true);
-    assert!(c.observe(0.0, Some(30.0), 0.0, 0.0, Some(200.0)).is_none());
+    assert!(c
+        .observe(0.0, Some(30.0), 0.0, 0.0, None, Some(200.0))
+        .is_none());
     assert!(matches!(c.state(), HoverState::None(w) if w.contains("does not hover")));
 }
 
@@ -136,4 +140,60 @@ fn the_reference_is_momentum_theory_for_the_profile() {
         .eta_of(want / 0.5 + r.avionics_w)
         .is_some_and(|e| (e - 0.5).abs() < 1e-9));
     assert!(r.eta_of(f64::NAN).is_none());
+}
+
+/// Fly slowly (2 m/s: never still by the hover's 1 m/s) at `throttle` % for `secs`, 10 Hz.
+fn slow_at_throttle(
+    c: &mut HoverCalibrator,
+    throttle: f64,
+    power_w: f64,
+    secs: f64,
+) -> Vec<HoverNews> {
+    (0..(secs * 10.0) as usize)
+        .filter_map(|i| {
+            let t = i as f64 * 0.1;
+            let p = power_w + if i % 2 == 0 { 5.0 } else { -5.0 };
+            c.observe(t, Some(20.0), 2.0, 0.1, Some(throttle), Some(p))
+        })
+        .collect()
+}
+
+#[test]
+fn the_hover_throttle_with_the_packs_power_calibrates_without_a_still_hover() {
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    assert!(c.set_hover_throttle(Some(0.42)).is_ok());
+    // at 43 % (within 3 points of MOT_THST_HOVER 42 %), moving at 2 m/s: 10 s of it calibrate
+    let news = slow_at_throttle(&mut c, 43.0, 258.0, 12.0);
+    let Some(HoverNews::Calibrated(cal)) = news.first() else {
+        panic!("{news:?}")
+    };
+    assert_eq!(cal.source, "MOT_THST_HOVER");
+    assert!((cal.hover_w - 258.0).abs() < 1.0, "{cal:?}");
+    // η_h = 100 / (258 − 8) = 0.4
+    assert!((cal.eta_h - 0.4).abs() < 0.002, "{cal:?}");
+    assert!((cal.hover_s - 10.0).abs() < 0.2, "{cal:?}");
+}
+
+#[test]
+fn a_throttle_away_from_the_hover_throttle_or_an_unlearned_one_calibrates_nothing() {
+    // cruise at 60 % against a hover throttle of 42 %: not hover power
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    c.set_hover_throttle(Some(0.42)).unwrap();
+    assert!(slow_at_throttle(&mut c, 60.0, 300.0, 20.0).is_empty());
+    // MOT_THST_HOVER = 0 (never learned): refused, said, and the throttle is not used
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    let why = c.set_hover_throttle(Some(0.0)).unwrap_err();
+    assert!(
+        why.contains("MOT_THST_HOVER = 0") && why.contains("flown"),
+        "{why}"
+    );
+    assert!(c.hover_throttle().is_none());
+    assert!(slow_at_throttle(&mut c, 0.0, 258.0, 20.0).is_empty());
+    // no throttle in the telemetry: only a flown hover calibrates
+    let mut c = HoverCalibrator::new(Ok(reference()), true);
+    c.set_hover_throttle(Some(0.42)).unwrap();
+    let none: Vec<_> = (0..200)
+        .filter_map(|i| c.observe(f64::from(i) * 0.1, Some(20.0), 2.0, 0.1, None, Some(258.0)))
+        .collect();
+    assert!(none.is_empty());
 }

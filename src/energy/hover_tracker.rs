@@ -12,7 +12,22 @@ impl EnergyTracker {
         reference: Result<hover::HoverReference, String>,
         applies: bool,
     ) {
+        let throttle = self.first_hover.hover_throttle();
         self.first_hover = hover::HoverCalibrator::new(reference, applies);
+        // kept across a new reference: the parameter came with the vehicle
+        let _ = self.first_hover.set_hover_throttle(throttle);
+    }
+
+    /// ArduPilot's `MOT_THST_HOVER` from the vehicle's parameters (said when it is unusable).
+    pub(super) fn set_hover_throttle(&mut self, value: Option<f64>) {
+        if value == self.first_hover.hover_throttle() {
+            return;
+        }
+        if let Err(why) = self.first_hover.set_hover_throttle(value) {
+            if !self.quiet {
+                tracing::info!("first hover: {why}");
+            }
+        }
     }
 
     /// The first hover's calibration, once made.
@@ -47,6 +62,7 @@ impl EnergyTracker {
             s.home.map(|h| f64::from(h.height_m)),
             f(idx::VX).hypot(f(idx::VY)),
             f(idx::VZ),
+            s.air.throttle_pct.map(f64::from),
             measured,
         );
         match news {
@@ -57,8 +73,16 @@ impl EnergyTracker {
                     } else {
                         "kept for the vehicle store; the forecast does not follow the momentum-theory member, so it is not rescaled".to_string()
                     };
+                    let at = if c.source == "hover" {
+                        String::new()
+                    } else {
+                        format!(
+                            " at the hover throttle (MOT_THST_HOVER {:.0} %)",
+                            100.0 * self.first_hover.hover_throttle().unwrap_or(f64::NAN)
+                        )
+                    };
                     tracing::info!(
-                        "first hover: {:.0} W over {:.0} s sets the hover efficiency η_h {:.3} (was {:.3}); {then}",
+                        "first hover: {:.0} W over {:.0} s{at} sets the hover efficiency η_h {:.3} (was {:.3}); {then}",
                         c.hover_w,
                         c.hover_s,
                         c.eta_h,

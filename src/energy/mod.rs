@@ -184,6 +184,7 @@ impl EnergyTracker {
     /// cells come from it where the config is silent. A parameter out of range is warned
     /// about once and left out.
     pub fn set_vehicle(&mut self, params: VehicleParams) {
+        self.set_hover_throttle(params.get("MOT_THST_HOVER"));
         self.vehicle = params;
         self.resolve_battery();
     }

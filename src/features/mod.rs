@@ -142,6 +142,9 @@ pub struct AirData {
     /// Air temperature, °C, where the vehicle sends one (SCALED_PRESSURE `temperature`,
     /// taken only within −60…60 °C).
     pub temperature_c: Option<f32>,
+    /// VFR_HUD `throttle`, % (0–100): what the first hover compares with ArduPilot's
+    /// `MOT_THST_HOVER`.
+    pub throttle_pct: Option<f32>,
 }
 
 /// Where home is from the vehicle.

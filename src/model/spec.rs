@@ -33,12 +33,28 @@ use crate::battery::Chemistry;
 use crate::features::VehicleClass;
 
 /// Hover efficiency η_h = ideal momentum-theory power / rotor electrical power (figure of
-/// merit × motors × ESCs): the geometric mean over the airframes of `scripts/spec-priors.py`
-/// (M100 data set and published, Mavic Pro and 3DR Solo published, the X500 and 3S quad
-/// simulators, the `multirotor` package's Tarot T18).
-pub const ETA_H: f64 = 0.416;
-/// Its log-spread across those airframes (standard deviation of ln η_h).
-pub const ETA_H_LOG_SD: f64 = 0.348;
+/// merit × motors × ESCs), a line in the log of the disk loading (thrust per disk area,
+/// N/m²): ln η_h = `ETA_H_LN0` + `ETA_H_PER_LN_DL` · ln(disk loading). Fitted by
+/// `scripts/spec-priors.py` across the airframes of the book's table (the M100 data set
+/// and published, the Mavic Pro, 3DR Solo, S900, S1000 and M600 published, the X500 and 3S
+/// quad simulators, the `multirotor` package's Tarot T18 and Mavic Pro); the form (this line
+/// over a constant or a line in the propeller diameter) chosen by its
+/// leave-one-airframe-out error. A figure of merit grows with the disk loading (the
+/// blades work at a higher lift coefficient).
+pub const ETA_H_LN0: f64 = -1.9392;
+/// Slope of ln η_h in ln(disk loading).
+pub const ETA_H_PER_LN_DL: f64 = 0.2572;
+/// The disk loadings the fit saw, N/m² (50-105): outside, the nearest bound's η_h.
+pub const ETA_H_DL_RANGE: (f64, f64) = (45.0, 110.0);
+/// The fit's residual log-spread across those airframes (standard deviation of ln η_h).
+pub const ETA_H_LOG_SD: f64 = 0.288;
+
+/// The hover-efficiency prior for a take-off mass, rotors and propeller diameter.
+pub fn eta_h_prior(takeoff_kg: f64, rotors: u32, prop_m: f64) -> f64 {
+    let disk = f64::from(rotors) * std::f64::consts::PI * prop_m * prop_m / 4.0;
+    let dl = (takeoff_kg * 9.81 / disk).clamp(ETA_H_DL_RANGE.0, ETA_H_DL_RANGE.1);
+    (ETA_H_LN0 + ETA_H_PER_LN_DL * dl.ln()).exp()
+}
 /// Drag area per kg^(2/3) of take-off mass, m²/kg^(2/3): C_D·A grows as the frontal area
 /// (the X500 0.025, the 3S quad 0.020, the M100's published-model value 0.055 here: their
 /// arithmetic mean).
@@ -346,7 +362,7 @@ pub fn profile(mut t: Table, origin: &str) -> anyhow::Result<VehicleProfile> {
     check_frame(&t, &f, &name).map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
     let filled = f.filled.clone();
     let mut priors_used = Vec::new();
-    let (eta_h, eta_sd) = priors(&t).map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
+    let (eta_h, eta_sd) = priors(&t, &f).map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
     t.remove("priors");
     let battery_kg = match num(&t, "vehicle", "battery_kg").map_err(anyhow::Error::msg)? {
         Some(b) => b,
@@ -489,8 +505,8 @@ fn first_load(origin: &str) -> bool {
     true
 }
 
-/// `[priors] eta_h, eta_h_log_sd`, else the shipped ones.
-fn priors(t: &Table) -> Result<(f64, f64), String> {
+/// `[priors] eta_h, eta_h_log_sd`, else the shipped ones (η_h from the disk loading).
+fn priors(t: &Table, f: &Facts) -> Result<(f64, f64), String> {
     use crate::validate::{above_to, in_range};
     if let Some(p) = t.get("priors").and_then(Value::as_table) {
         if let Some(k) = p
@@ -500,7 +516,8 @@ fn priors(t: &Table) -> Result<(f64, f64), String> {
             return Err(format!("priors.{k}: unknown (eta_h, eta_h_log_sd)"));
         }
     }
-    let eta = num(t, "priors", "eta_h")?.unwrap_or(ETA_H);
+    let eta =
+        num(t, "priors", "eta_h")?.unwrap_or_else(|| eta_h_prior(f.takeoff_kg, f.rotors, f.prop_m));
     let sd = num(t, "priors", "eta_h_log_sd")?.unwrap_or(ETA_H_LOG_SD);
     in_range("priors.eta_h", eta, above_to(0.0, 1.0), "")?;
     in_range("priors.eta_h_log_sd", sd, 0.0..=2.0, "")?;

@@ -34,17 +34,23 @@ fn five_facts_make_a_vehicle_flying_momentum_theory_with_the_priors() {
     let f = p.forecast.as_ref().unwrap();
     assert_eq!(f.model, "stolaroff");
     assert!(f.why.contains("tseng (the M100's regression)"), "{}", f.why);
-    // P90 = exp(1.2816·√(0.348² + (0.25·0.5)²)) = 1.606
+    // P90 = exp(1.2816·√(0.288² + (0.25·0.5)²)) = 1.495
     assert!(
-        (f.p90_ratio.unwrap() - 1.606).abs() < 0.002,
+        (f.p90_ratio.unwrap() - 1.495).abs() < 0.002,
         "{:?}",
         f.p90_ratio
     );
     // Hover: T = 12.753 N on 4·π·0.127² = 0.20268 m²: ideal T^1.5/√(2ρA) = 45.543/0.70470 =
-    // 64.63 W; / η_h 0.416 + 8 W avionics = 163.4 W.
+    // 64.63 W. Disk loading 12.753/0.20268 = 62.92 N/m²: η_h = exp(−1.9392 + 0.2572·ln 62.92)
+    // = 0.4173; 64.63 / 0.4173 + 8 W avionics = 162.9 W.
+    assert!(
+        (p.stolaroff.eta - 0.4173).abs() < 5e-4,
+        "{}",
+        p.stolaroff.eta
+    );
     let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), &p);
     let w = stolaroff::power_w(&k, &p, &p.stolaroff);
-    assert!((w - 163.4).abs() < 0.3, "{w}");
+    assert!((w - 162.9).abs() < 0.3, "{w}");
 }
 
 #[test]
@@ -122,7 +128,7 @@ fn a_measured_hover_sets_the_efficiency_and_tightens_the_band() {
     assert!((stolaroff::power_w(&k, &c, &c.stolaroff) - 150.0).abs() < 0.01);
     let f = c.forecast.unwrap();
     assert!(
-        f.why.contains("measured hover of 150 W") && f.why.contains("was 0.416"),
+        f.why.contains("measured hover of 150 W") && f.why.contains("was 0.417"),
         "{}",
         f.why
     );
@@ -154,4 +160,25 @@ proptest::proptest! {
             Err(e) => proptest::prop_assert!(format!("{e:#}").contains("vehicle.battery_kg"), "{e:#}"),
         }
     }
+}
+
+#[test]
+fn the_hover_efficiency_prior_follows_the_disk_loading_within_the_fitted_range() {
+    // exp(−1.9392 + 0.2572·ln DL): 0.393 at 50 N/m², 0.470 at 100; held to 45–110 N/m².
+    let at = |dl: f64| {
+        // one rotor of 1 m² disk: DL = m·g
+        eta_h_prior(dl / 9.81, 1, (4.0 / std::f64::consts::PI).sqrt())
+    };
+    assert!((at(50.0) - 0.3934).abs() < 5e-4, "{}", at(50.0));
+    assert!((at(100.0) - 0.4701).abs() < 5e-4, "{}", at(100.0));
+    assert!((at(20.0) - at(45.0)).abs() < 1e-9);
+    assert!((at(500.0) - at(110.0)).abs() < 1e-9);
+    // and a spec sheet without `[priors]` flies it: the Mavic Pro's five facts (52 N/m²)
+    let p = load("[vehicle]\ntakeoff_kg = 0.743\nrotors = 4\nprop_diameter_m = 0.2108\n").unwrap();
+    assert!((p.stolaroff.eta - eta_h_prior(0.743, 4, 0.2108)).abs() < 1e-12);
+    assert!(
+        (0.39..0.41).contains(&p.stolaroff.eta),
+        "{}",
+        p.stolaroff.eta
+    );
 }

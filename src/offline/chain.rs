@@ -220,6 +220,9 @@ pub struct FlightSeries {
     pub pred_wh: Vec<Vec<f64>>,
     /// Alerts the configured rules raised over the flight.
     pub alerts_raised: usize,
+    /// Measured power above which a window is in flight for the scores, W
+    /// ([`metrics::IN_FLIGHT_W`]; `learn` sets the vehicle's, [`metrics::in_flight_w_for`]).
+    pub in_flight_w: f64,
 }
 
 impl FlightSeries {
@@ -260,6 +263,7 @@ impl FlightSeries {
                 .flat_map(|s| &s.report.alerts)
                 .filter(|a| a.state == crate::report::AlertState::Raised)
                 .count(),
+            in_flight_w: metrics::IN_FLIGHT_W,
         };
         for (j, &lag) in target_lags.iter().enumerate().take(names.len()) {
             // Column j is model j's raw estimate, or past the models, model j − n's adapted one.
@@ -308,6 +312,7 @@ impl FlightSeries {
             pred_w: &self.pred_w[j],
             measured_wh: &self.measured_wh,
             pred_wh: &self.pred_wh[j],
+            in_flight_w: self.in_flight_w,
         }
     }
 

@@ -1,6 +1,7 @@
 //! The physics models' least-squares fit (bounded Levenberg–Marquardt with nalgebra), shared by
-//! `dronewatt learn` and the lab's `calibrate`: on in-flight windows only ([`in_flight`]), free
-//! parameters per model as below, the rest as published.
+//! `dronewatt learn` and the lab's `calibrate`: on in-flight windows only ([`in_flight_above`]
+//! the vehicle's [`in_flight_w_for`]), free parameters per model as below, the rest as
+//! published.
 //!
 //! What is free per model (the rest stays as published, because it is not identifiable
 //! beside what is fitted — e.g. η and r enter D'Andrea only as their product):
@@ -19,7 +20,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::model::physics::{Kind, Kinematics};
 use crate::model::profile::{Calibration, VehicleProfile};
 use crate::offline::data::{FlightWindows, TEST_FLIGHTS};
-use crate::offline::metrics::in_flight;
+use crate::offline::metrics::{in_flight_above, in_flight_w_for};
 
 /// Training fit of one model.
 #[derive(Debug, Clone)]
@@ -127,9 +128,15 @@ pub fn fit(
         .filter(|f| !TEST_FLIGHTS.contains(&f.flight) && !f.route.starts_with('A'))
         .collect();
     let mut states: Vec<(Kinematics, f64)> = Vec::new();
+    let threshold = in_flight_w_for(base);
     for f in &train {
         for w in &f.windows {
-            if let Some(m) = w.last().measured_w.map(f64::from).filter(|m| in_flight(*m)) {
+            if let Some(m) = w
+                .last()
+                .measured_w
+                .map(f64::from)
+                .filter(|m| in_flight_above(*m, threshold))
+            {
                 states.push((Kinematics::from_window(w, base), m));
             }
         }

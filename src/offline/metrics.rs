@@ -30,7 +30,28 @@ pub const IN_FLIGHT_W: f64 = 100.0;
 /// Is a window with this measured power in flight (measured > [`IN_FLIGHT_W`])? False for
 /// a non-finite reading.
 pub fn in_flight(measured_w: f64) -> bool {
-    measured_w.is_finite() && measured_w > IN_FLIGHT_W
+    in_flight_above(measured_w, IN_FLIGHT_W)
+}
+
+/// Is a window with this measured power in flight for a vehicle whose threshold is
+/// `threshold_w` ([`in_flight_w_for`])? False for a non-finite reading.
+pub fn in_flight_above(measured_w: f64, threshold_w: f64) -> bool {
+    measured_w.is_finite() && measured_w > threshold_w
+}
+
+/// The in-flight threshold for a vehicle, W: [`IN_FLIGHT_W`], or half the hover power its
+/// profile's momentum-theory member gives when that is less than twice it. A 0.74 kg quad
+/// hovers at ~70 W: at 100 W not one of its windows would be in flight and `learn` would
+/// learn nothing from it. The M100 (and any vehicle hovering above 200 W) keeps 100 W.
+pub fn in_flight_w_for(p: &crate::model::profile::VehicleProfile) -> f64 {
+    let thrust = p.mass_kg(0.0) * p.air.g_m_s2;
+    let ideal = thrust.powf(1.5) / (2.0 * p.air.rho_kg_m3 * p.disk_area_m2()).sqrt();
+    let hover = ideal / p.stolaroff.eta + p.stolaroff.p_avio_w;
+    if hover.is_finite() && hover > 0.0 {
+        IN_FLIGHT_W.min(0.5 * hover)
+    } else {
+        IN_FLIGHT_W
+    }
 }
 
 /// One model's scores on one flight (or the mean over flights).
@@ -68,6 +89,9 @@ pub struct Aligned<'a> {
     /// Energy used since the start as the energy tracker counts it from this model's
     /// estimates, at each instant, Wh.
     pub pred_wh: &'a [f64],
+    /// Measured power above which an instant is in flight, W ([`IN_FLIGHT_W`] unless the
+    /// vehicle's is lower: [`in_flight_w_for`]).
+    pub in_flight_w: f64,
 }
 
 /// Score over the in-flight windows. `None` when no window is in flight.
@@ -86,7 +110,7 @@ pub fn score_over(s: &Aligned, all_windows: bool) -> Option<Scores> {
             && s.measured_wh[i].is_finite()
             && s.pred_wh[i].is_finite()
     };
-    let flying = |i: usize| finite(i) && in_flight(measured[i]);
+    let flying = |i: usize| finite(i) && in_flight_above(measured[i], s.in_flight_w);
     let ok = |i: usize| if all_windows { finite(i) } else { flying(i) };
     let n = measured
         .len()
@@ -242,6 +266,19 @@ pub fn quantile(v: &mut [f64], q: f64) -> f64 {
 mod tests {
     use super::*;
 
+    #[test]
+    fn a_small_vehicle_is_in_flight_below_100_w_and_the_m100_keeps_it() {
+        use crate::model::profile::VehicleProfile;
+        assert_eq!(in_flight_w_for(&VehicleProfile::m100()), IN_FLIGHT_W);
+        // the Mavic Pro's five facts: 0.743 kg on four 0.2108 m propellers hovers at ~85 W
+        // on the priors; half of it is its threshold
+        let spec = "[vehicle]\ntakeoff_kg = 0.743\nrotors = 4\nprop_diameter_m = 0.2108\n";
+        let p = VehicleProfile::from_toml(spec, "mavic.toml").unwrap();
+        let w = in_flight_w_for(&p);
+        assert!((35.0..50.0).contains(&w), "{w}");
+        assert!(in_flight_above(60.0, w) && !in_flight(60.0));
+    }
+
     proptest::proptest! {
         /// Widened by the conformal amount, a band covers at least the asked share of the
         /// calibration windows, and the amount is never negative.
@@ -305,6 +342,7 @@ mod tests {
                 pred_w: p,
                 measured_wh: mw,
                 pred_wh: pw,
+                in_flight_w: IN_FLIGHT_W,
             }
         }
         let s = score(&series(&m, &p, &mw, &pw)).unwrap();

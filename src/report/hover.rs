@@ -21,6 +21,9 @@ pub struct HoverCalibration {
     /// Whether the forecast follows the momentum-theory member, so that the live forecast
     /// and the mission's were rescaled (else the figure is only kept for the store).
     pub applied: bool,
+    /// What measured it: `hover` (a still hover flown) or `MOT_THST_HOVER` (the pack's V·I
+    /// while the throttle was at ArduPilot's learned hover throttle).
+    pub source: &'static str,
 }
 
 impl HoverCalibration {

@@ -39,6 +39,8 @@ pub struct KindTracker {
     airspeed: Option<(f32, i64)>,
     sensor: bool,
     wind_air: Option<(f32, i64)>,
+    /// VFR_HUD throttle, %, and when.
+    throttle: Option<(f32, i64)>,
     temperature: Option<(f32, i64)>,
     /// The class whose "no model" line was printed.
     said_unmodelled: bool,
@@ -80,6 +82,7 @@ impl KindTracker {
             airspeed_sensor: self.sensor,
             wind_airspeed_m_s: fresh(self.wind_air),
             temperature_c: fresh(self.temperature),
+            throttle_pct: fresh(self.throttle),
         }
     }
 
@@ -106,8 +109,13 @@ impl KindTracker {
                     self.update(t_us, stale_us, false);
                 }
             }
-            MavMessage::VFR_HUD(h) if h.airspeed.is_finite() => {
-                self.airspeed = Some((h.airspeed, t_us));
+            MavMessage::VFR_HUD(h) => {
+                if h.airspeed.is_finite() {
+                    self.airspeed = Some((h.airspeed, t_us));
+                }
+                if h.throttle <= 100 {
+                    self.throttle = Some((f32::from(h.throttle), t_us));
+                }
             }
             MavMessage::SYS_STATUS(s) => {
                 let bit = |f: u32| f & DIFF_PRESSURE != 0;

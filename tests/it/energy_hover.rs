@@ -14,7 +14,7 @@ use serde_json::Value;
 
 use crate::harness::{dronewatt, json_lines, monitor_udp, peer, Monitor, RunExt};
 
-/// The peer's quick flight (a 300 m hop after a 30 s hover) into `dir`; its JSON summary.
+/// The peer T18's quick flight (a 300 m hop after a 30 s hover) into `dir/t18`; its JSON summary.
 fn peer_flight(dir: &Path) -> Value {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let json = dir.join("peer.json");
@@ -22,6 +22,8 @@ fn peer_flight(dir: &Path) -> Value {
         .arg(root.join("scripts/peer-multirotor.py"))
         .args([
             "--quick",
+            "--airframe",
+            "t18",
             "--bin",
             env!("CARGO_BIN_EXE_dronewatt"),
             "--json",
@@ -36,7 +38,8 @@ fn peer_flight(dir: &Path) -> Value {
         "peer-multirotor.py: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap()
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    v["airframes"]["t18"].clone()
 }
 
 /// The stored vehicle's key and profile path (`dronewatt vehicles --json`).
@@ -93,7 +96,7 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
 
     // Live: the same flight from a pymavlink vehicle over UDP, in real time, up to 50 s
     // (the climb, the 30 s hover, the start of the first leg).
-    let spec = dir.path().join("flight0-spec.toml");
+    let spec = dir.path().join("t18/flight0-spec.toml");
     let store = dir.path().join("udp-store");
     let json = dir.path().join("udp.jsonl");
     let port = std::net::UdpSocket::bind("127.0.0.1:0")
@@ -112,7 +115,7 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
         port,
         false,
     );
-    let tlog = dir.path().join("flight0.tlog");
+    let tlog = dir.path().join("t18/flight0.tlog");
     let port_s = port.to_string();
     let sent = peer(
         "tlog_udp.py",
@@ -165,7 +168,7 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
     // The store kept it, and `plan --vehicle <key>` uses it.
     let (key, path) = stored(&store);
     assert!(path.ends_with("-hover.toml"), "{key}: {path}");
-    let plan = dir.path().join("flight0.waypoints");
+    let plan = dir.path().join("t18/flight0.waypoints");
     let out = dronewatt()
         .arg("plan")
         .arg(&plan)
@@ -247,4 +250,68 @@ fn a_vehicle_that_never_hovers_is_not_calibrated_and_says_so() {
         !text.contains("hover_calibration"),
         "calibrated without a hover"
     );
+}
+
+#[test]
+fn the_hover_throttle_and_the_packs_power_calibrate_before_a_full_hover() {
+    // The simulated X500 (ArduPilot's MOT_THST_HOVER 0.5; its VFR_HUD throttle 50 % in a
+    // hover) hovers 20 s: at the hover throttle for 10 s, before the still hover's 30 s.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("hover.tlog");
+    dronewatt()
+        .args([
+            "simulate",
+            "--vehicle",
+            "x500",
+            "--payload-g",
+            "0",
+            "--seed",
+            "5",
+        ])
+        .args(["--hover-s", "20", "--leg-m", "300", "--out"])
+        .arg(&log)
+        .ok();
+    let spec = dir.path().join("x500-spec.toml");
+    std::fs::write(
+        &spec,
+        "name = \"X500 spec\"\n[vehicle]\ntakeoff_kg = 2.0\nrotors = 4\nprop_diameter_m = 0.254\n\
+         [battery]\ncells = 4\ncapacity_mah = 5000\nchemistry = \"lipo\"\n",
+    )
+    .unwrap();
+    let out = dronewatt()
+        .env("RUST_LOG", "info")
+        .args([
+            "replay",
+            "--speed",
+            "max",
+            "--json",
+            "-",
+            "--data-dir",
+            "off",
+        ])
+        .arg("--vehicle")
+        .arg(&spec)
+        .arg(&log)
+        .ok();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("at the hover throttle (MOT_THST_HOVER 50 %)"),
+        "{stderr}"
+    );
+    let cal = crate::harness::json_lines_of(&out.stdout)
+        .into_iter()
+        .find_map(|v| {
+            v.get("hover_calibration")
+                .filter(|c| c.is_object())
+                .cloned()
+        })
+        .expect("a hover calibration");
+    assert_eq!(cal["source"], "MOT_THST_HOVER", "{cal}");
+    let (w, s) = (
+        cal["hover_w"].as_f64().unwrap(),
+        cal["hover_s"].as_f64().unwrap(),
+    );
+    assert!((10.0..12.0).contains(&s), "{cal}");
+    // the simulator's X500 hovers at 284 W (its book row), avionics included
+    assert!((w / 284.0 - 1.0).abs() < 0.1, "{cal}");
 }

@@ -1,9 +1,10 @@
 //! The spec-sheet vehicle against an independent electrical peer: the `multirotor` package's
-//! Tarot T18 (PyPI multirotor 0.5.0), flown by `scripts/peer-multirotor.py --quick` (one
-//! short plan with a 30 s hover, its motors' current from the package's motor model, a
-//! pymavlink .tlog as ArduPilot writes it). The T18 is held out: the spec sheet's
-//! hover-efficiency prior is fitted on the other airframes. Then the .tlog is replayed with
-//! the spec sheet as the vehicle.
+//! Tarot T18 (PyPI multirotor 0.5.0) and a DJI Mavic Pro built with its classes
+//! (`scripts/peer_airframes.py`), flown by `scripts/peer-multirotor.py --quick` (one short
+//! plan with a 30 s hover each, the motors' current from the package's motor model, a
+//! pymavlink .tlog as ArduPilot writes it). Each airframe is held out: the spec sheet's
+//! hover-efficiency prior is fitted on the other airframes. Then the T18's .tlog is replayed
+//! with the spec sheet as the vehicle.
 
 use std::path::Path;
 use std::process::Command;
@@ -34,7 +35,8 @@ fn the_spec_sheet_forecast_against_the_multirotor_peer() {
         String::from_utf8_lossy(&out.stderr)
     );
     let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
-    let f = &r["flights"][0];
+    the_mavic(&r["airframes"]["mavic"]);
+    let f = &r["airframes"]["t18"]["flights"][0];
     let truth = f["truth_wh"].as_f64().unwrap();
     let spec = &f["stages"][0];
     let hover = &f["stages"][1];
@@ -60,10 +62,10 @@ fn the_spec_sheet_forecast_against_the_multirotor_peer() {
         "{f}"
     );
     // The peer's .tlog, replayed with the spec sheet as the vehicle.
-    let spec_file = dir.path().join("flight0-spec.toml");
+    let spec_file = dir.path().join("t18/flight0-spec.toml");
     let out = dronewatt()
         .arg("replay")
-        .arg(dir.path().join("flight0.tlog"))
+        .arg(dir.path().join("t18/flight0.tlog"))
         .args(["--speed", "max", "-q", "--json", "-", "--vehicle"])
         .arg(&spec_file)
         .ok();
@@ -90,4 +92,24 @@ fn the_spec_sheet_forecast_against_the_multirotor_peer() {
         (used / truth - 1.0).abs() < 0.05,
         "{used} Wh against {truth} Wh"
     );
+}
+
+/// The Mavic Pro, held out: a 0.74 kg quad hovering at ~71 W. The spec sheet's P50 within
+/// 30 % and its P90 covering; after the first hover within 10 %.
+fn the_mavic(m: &serde_json::Value) {
+    let f = &m["flights"][0];
+    let truth = f["truth_wh"].as_f64().unwrap();
+    assert!((1.5..4.0).contains(&truth), "{f}");
+    let spec = &f["stages"][0];
+    assert_eq!(spec["stage"], "spec");
+    assert!(spec["p90"].as_f64().unwrap() >= truth, "{f}");
+    assert!(spec["err_pct"].as_f64().unwrap().abs() <= 30.0, "{f}");
+    let hover = &f["stages"][1];
+    assert_eq!(hover["stage"], "hover");
+    let eta = hover["eta"].as_f64().unwrap();
+    assert!(
+        (0.5..0.58).contains(&eta),
+        "the Mavic peer's own η_h (0.536): {f}"
+    );
+    assert!(hover["err_pct"].as_f64().unwrap().abs() <= 10.0, "{f}");
 }

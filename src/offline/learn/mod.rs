@@ -31,7 +31,7 @@ use crate::model::Ensemble;
 use crate::offline::args::{help, ConfigArg};
 use crate::offline::chain::Chain;
 use crate::offline::data::FlightWindows;
-use crate::offline::metrics::{in_flight, Scores, IN_FLIGHT_W};
+use crate::offline::metrics::{in_flight_above, in_flight_w_for, Scores};
 use crate::telemetry::Telemetry;
 
 /// Flight numbers given to logs (clear of the M100 data set's, whose test flights the
@@ -221,6 +221,7 @@ fn score(
     profile: &VehicleProfile,
     lstm: Option<&Path>,
     f: &FlightWindows,
+    in_flight_w: f64,
 ) -> Result<Vec<(String, Option<Scores>)>> {
     let mut models = physics::models(profile);
     let lstm = match lstm {
@@ -231,7 +232,8 @@ fn score(
         models.push(Box::new(m));
     }
     let mut chain = Chain::new(cfg, Ensemble::new(models))?;
-    let s = chain.run_flight(f)?;
+    let mut s = chain.run_flight(f)?;
+    s.in_flight_w = in_flight_w;
     Ok(s.names
         .iter()
         .map(|n| {
@@ -241,6 +243,15 @@ fn score(
         })
         .zip(s.scores(false))
         .collect())
+}
+
+/// A log's windows with a measured power above the vehicle's in-flight threshold.
+fn rotor_windows(f: &FlightWindows, in_flight_w: f64) -> usize {
+    let flying = |m: f32| in_flight_above(f64::from(m), in_flight_w);
+    f.windows
+        .iter()
+        .filter(|w| w.last().measured_w.is_some_and(flying))
+        .count()
 }
 
 /// Run `dronewatt learn`.
@@ -277,18 +288,16 @@ pub fn run(args: LearnArgs) -> Result<()> {
         );
     }
     let wing0 = base.fixed_wing.unwrap_or_default();
+    // in flight above the vehicle's threshold (100 W, or half its hover when that is lower)
+    let in_flight_w = in_flight_w_for(&base);
     let mut flights = Vec::with_capacity(logs.len());
     let mut wings = Vec::with_capacity(logs.len());
     for (i, p) in logs.iter().enumerate() {
         let (f, wing) = log_windows_by_lift(p, FIRST_LOG_NUMBER + i as u32, &cfg)?;
-        let n = f
-            .windows
-            .iter()
-            .filter(|w| w.last().measured_w.is_some_and(|m| in_flight(f64::from(m))))
-            .count();
+        let n = rotor_windows(&f, in_flight_w);
         let n_wing = wing_data(&wing0, &wing).len();
         if n == 0 && n_wing == 0 {
-            tracing::warn!("{}: no in-flight window with measured power (over {IN_FLIGHT_W} W on rotors, over {:.0} W on a wing): it teaches nothing", p.display(), 2.0 * wing0.offset_w);
+            tracing::warn!("{}: no in-flight window with measured power (over {in_flight_w:.0} W on rotors, over {:.0} W on a wing): it teaches nothing", p.display(), 2.0 * wing0.offset_w);
         }
         flights.push((p, f, n + n_wing));
         wings.push(wing);
@@ -315,12 +324,7 @@ pub fn run(args: LearnArgs) -> Result<()> {
         .iter()
         .enumerate()
         .filter(|(i, _)| !held.contains(i))
-        .map(|(_, (_, f, _))| {
-            f.windows
-                .iter()
-                .filter(|w| w.last().measured_w.is_some_and(|m| in_flight(f64::from(m))))
-                .count()
-        })
+        .map(|(_, (_, f, _))| rotor_windows(f, in_flight_w))
         .sum();
     let (learned, mut fit_report) = if rotor_windows > 0 {
         super::fit::fit(&train, &base, sums.join(","), args.max_windows)?
@@ -417,8 +421,14 @@ pub fn run(args: LearnArgs) -> Result<()> {
         let (p, f, n) = &flights[i];
         let mut rows = Vec::new();
         if !f.windows.is_empty() {
-            let before = score(&cfg, &base, None, f)?;
-            let after = score(&cfg, &learned, tuned.as_ref().map(|(p, _)| p.as_path()), f)?;
+            let before = score(&cfg, &base, None, f, in_flight_w)?;
+            let after = score(
+                &cfg,
+                &learned,
+                tuned.as_ref().map(|(p, _)| p.as_path()),
+                f,
+                in_flight_w,
+            )?;
             rows.extend(before.into_iter().map(|(name, b)| {
                 let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
                 (name, b, a)

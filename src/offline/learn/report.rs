@@ -33,7 +33,7 @@ pub(super) fn model_card(
     tuned: Option<&FineTuned>,
 ) -> String {
     let mut s = String::from("# Model card: physics models learned by `dronewatt learn`\n\n");
-    s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt-lab calibrate`) fitted by bounded least squares on the in-flight windows flown on rotors (measured power over {IN_FLIGHT_W} W) of the training logs; the fixed-wing model's four coefficients (C_D0, e, η, P_0 with the wing's geometry and mass kept) on the windows flown on a wing with the motor running and the airspeed 1.2 × the stall speed or more (`model::physics::fixed_wing::fit`).\n\n", base.name);
+    s += &format!("Started from the profile **{}**; the physics models' free parameters (see `dronewatt-lab calibrate`) fitted by bounded least squares on the in-flight windows flown on rotors (measured power over {:.0} W: 100 W, or half the hover the profile gives when that is lower) of the training logs; the fixed-wing model's four coefficients (C_D0, e, η, P_0 with the wing's geometry and mass kept) on the windows flown on a wing with the motor running and the airspeed 1.2 × the stall speed or more (`model::physics::fixed_wing::fit`).\n\n", base.name, crate::offline::metrics::in_flight_w_for(base));
     s += "## Learned from\n\n| log | in-flight windows | role |\n|---|---|---|\n";
     for (i, p) in logs.iter().enumerate() {
         s += &format!(

@@ -297,6 +297,7 @@ fn wing_sample(
         airspeed_sensor: true,
         wind_airspeed_m_s: Some(air.norm() as f32),
         temperature_c: None,
+        throttle_pct: None,
     };
     s.vehicle = kind;
     s
@@ -375,6 +376,7 @@ pub fn fly_plane(
                     airspeed_sensor: true,
                     wind_airspeed_m_s: Some(air),
                     temperature_c: None,
+                    throttle_pct: None,
                 };
                 if let (Piece::Transition { .. }, Some(w)) = (seg.piece, flight.transition_w) {
                     match given_w.last_mut() {

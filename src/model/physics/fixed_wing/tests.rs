@@ -76,6 +76,7 @@ fn airspeed_zero_in_forward_flight_is_a_counted_sensor_failure_not_a_stall() {
         airspeed_sensor: true,
         wind_airspeed_m_s: Some(14.0),
         temperature_c: None,
+        throttle_pct: None,
     };
     let s = sample(12.0, 0.0, 0.0, 0.0, broken);
     assert_eq!(airspeed(&s), (14.0, AirspeedFrom::Wind, true));
@@ -102,6 +103,7 @@ fn missing_airspeed_falls_back_in_order() {
         airspeed_sensor: false,
         wind_airspeed_m_s: Some(15.0),
         temperature_c: None,
+        throttle_pct: None,
     };
     assert_eq!(
         airspeed(&sample(12.0, 0.0, 0.0, 0.0, both)),
@@ -165,6 +167,7 @@ fn finite_and_never_below_the_offset_on_any_input() {
                                 airspeed_sensor: sensor,
                                 wind_airspeed_m_s: opt((ai + gi) % (edges.len() + 1)),
                                 temperature_c: opt((ai * 7 + gi) % (edges.len() + 1)),
+                                throttle_pct: None,
                             };
                             let p = m.predict_one(&sample(ground, alt, roll, vz, air));
                             assert!(
