@@ -20,6 +20,10 @@ pub struct PackHistory {
     pub heat: f64,
     /// Its resting voltage after landing, V.
     pub end_rest_v: Option<f64>,
+    /// The slope of its sag's growth as it empties, as that flight left it
+    /// ([`super::deep`]): a property of the pack, carried whenever the pack is known to be the
+    /// same (its identity, or [`PackHistory::same_pack`]), recharged or not.
+    pub deep_slope: Option<f64>,
 }
 
 /// The longest gap after which a pack still counts as the same warm pack, s (the data set's
@@ -83,6 +87,7 @@ mod tests {
             r_scale: Some(1.3),
             heat: 0.0,
             end_rest_v: Some(23.3),
+            deep_slope: None,
         }
     }
 

@@ -57,6 +57,7 @@ pub mod hover;
 mod hover_tracker;
 pub mod pack;
 pub mod select;
+pub mod steady;
 
 mod config;
 pub use config::EnergyConfig;
@@ -88,6 +89,10 @@ pub struct EnergyTracker {
     /// The measured power in flight, smoothed: what the pack's forecast flies when the
     /// forecast model's power is not this vehicle's ([`pack::pack_power`]).
     measured_avg: Ema,
+    /// In flight since when ([`steady`]): the averages restart at take-off.
+    airborne: steady::Airborne,
+    /// Remaining energy that does not rise under load ([`steady`]).
+    no_rise: steady::NoRise,
     mission: Option<crate::report::MissionStatus>,
     /// The mission's mean power over the whole plan (W), from its first status, with its
     /// item count: the pack's forecast flies on at it past the mission's end.
@@ -152,6 +157,8 @@ impl EnergyTracker {
             cruise: Ema::default(),
             hover: Ema::default(),
             measured_avg: Ema::default(),
+            airborne: steady::Airborne::default(),
+            no_rise: steady::NoRise::default(),
             mission: None,
             plan_mean_w: None,
             battery: crate::vehicle::battery_from_config(&cfg.battery()),
@@ -314,6 +321,18 @@ impl EnergyTracker {
             self.last = self.last.map(|(_, p0)| (t, p0));
         }
 
+        // The pack: voltage and current (discharge positive) from the measured power.
+        let volts = s
+            .voltage_v
+            .map(f64::from)
+            .filter(|v| v.is_finite() && *v > 0.5);
+        let amps = volts.zip(measured).map(|(v, p)| p / v);
+        let flying = amps.is_some_and(|i| i > pack::REST_CURRENT_A);
+        let aloft = flying || (amps.is_none() && s.home.is_some_and(|h| h.height_m > 2.0));
+        if self.airborne.update(aloft, dt) {
+            // take-off: the forecast's power from the phase now flown, not from ground idle
+            self.forecast = Ema::default();
+        }
         let tau = self.cfg.smoothing_s;
         let forecast_input = forecast_from.map(|(_, p)| p);
         let forecast = forecast_input.map(|p| self.forecast.update(p, dt, tau));
@@ -328,13 +347,6 @@ impl EnergyTracker {
             }
         }
 
-        // The pack: voltage and current (discharge positive) from the measured power.
-        let volts = s
-            .voltage_v
-            .map(f64::from)
-            .filter(|v| v.is_finite() && *v > 0.5);
-        let amps = volts.zip(measured).map(|(v, p)| p / v);
-        let flying = amps.is_some_and(|i| i > pack::REST_CURRENT_A);
         let measured_avg = match measured.filter(|_| flying) {
             Some(p) => Some(self.measured_avg.update(p, dt, tau)),
             None => self.measured_avg.0,
@@ -354,7 +366,12 @@ impl EnergyTracker {
                 })
             }
             _ => plan_w
-                .or(pack::pack_power(forecast, measured_avg))
+                .or(pack::pack_power(
+                    forecast,
+                    // until it is long enough, the forecast model's power for this phase
+                    measured_avg
+                        .filter(|_| forecast.is_none() || self.airborne.measured_long_enough(tau)),
+                ))
                 .map(pack::Load::constant),
         };
         let pk = self
@@ -414,6 +431,15 @@ impl EnergyTracker {
         };
         let (remaining, remaining_source) =
             self.pack_known(s, &power_source, reported_pct, remaining, remaining_source);
+        // never up under load without a stated reason (steady)
+        // held once the flight's first seconds have shown the pack under load
+        let held = flying && self.airborne.measured_long_enough(tau);
+        let (remaining, revised) =
+            self.no_rise
+                .update(t, remaining, remaining_source, self.used_wh, held);
+        if let Some(up) = revised {
+            self.say(format_args!("battery: remaining energy revised up by {up:.1} Wh in flight: the pack's sag as learned over the last {:.0} s", steady::REVISE_AFTER_S));
+        }
         if remaining_source == RemainingSource::AssumedFull
             && amps.is_some_and(|i| i >= pack::LOAD_CURRENT_A)
             && !self.warned_full
@@ -495,6 +521,7 @@ impl EnergyTracker {
                 pack_r_scale: pk.r_scale,
                 pack_carried_over: pk.carried,
                 heat_a2s: pk.heat,
+                deep_slope: pk.deep_slope,
                 curve_wh: pk.curve_wh,
             },
             battery: self.battery.clone(),

@@ -514,6 +514,14 @@ impl Pack {
             params.carried_over(k, crate::battery::PACK_SCALE_CARRY)
         });
         let heat0 = carry.map_or(0.0, |h| h.heat * (-h.gap_s / params.tau_heat_s).exp());
+        // The slope of its deeper sag is the pack's own, recharged or not: carried whenever it
+        // is known to be the same pack, for a chemistry whose sag grows (battery::deep).
+        let params = self
+            .history
+            .filter(|h| h.identified || h.same_pack(v0, facts.cell_count.value))
+            .and_then(|h| h.deep_slope)
+            .filter(|_| params.deep_slope > 0.0)
+            .map_or(params, |b| params.with_deep(b));
         if let Some(est) = Estimator::new(params, curve, v0, heat0) {
             self.est = Some(est);
             self.rest_v = Some(v0);

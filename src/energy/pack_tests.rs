@@ -106,6 +106,7 @@ fn the_same_pack_soon_after_carries_its_resistance_and_warmth() {
         r_scale: Some(1.4),
         heat: 100_000.0,
         end_rest_v: Some(23.3),
+        deep_slope: None,
     };
     let mut soon = Pack {
         history: Some(hist(300.0)),
@@ -201,4 +202,60 @@ fn a_cell_count_heard_after_the_rest_is_checked_even_on_a_bad_reading() {
     let now = p.update(t + 0.05, Some(0.0), Some(0.0), None, &facts);
     let (lo, hi) = (5.0 * Chemistry::LiPo.loaded_min_v(), 5.0 * 4.35);
     assert!(now.ocv_v.is_none_or(|v| (lo..=hi).contains(&v)), "{now:?}");
+}
+
+#[test]
+fn the_slope_of_a_packs_deeper_sag_is_carried_to_its_next_flight() {
+    let facts = |chem: &str| BatteryFacts {
+        cell_count: Sourced::new(4, Provenance::Config),
+        capacity_wh: Some(Sourced::new(40.0, Provenance::Config)),
+        chemistry: Sourced::new(chem.into(), Provenance::Config),
+        ..BatteryFacts::default()
+    };
+    // the pack, known by its identity, flew a day ago (recharged since) and showed a slope of 3
+    let hist = PackHistory {
+        identified: true,
+        gap_s: 86_400.0,
+        r_scale: None,
+        heat: 0.0,
+        end_rest_v: Some(14.8),
+        deep_slope: Some(3.0),
+    };
+    let fly = |history: Option<PackHistory>, chem: &str| {
+        let mut p = Pack {
+            history,
+            ..Pack::default()
+        };
+        let mut now = PackNow::default();
+        let mut t = 0.0;
+        while t < 20.0 {
+            let (v, i) = if t < 5.0 { (16.4, 0.1) } else { (15.6, 5.0) };
+            now = p.update(
+                t,
+                Some(v),
+                Some(i),
+                Some(Load::constant(v * i)),
+                &facts(chem),
+            );
+            t += 0.1;
+        }
+        now.deep_slope
+    };
+    let prior = crate::battery::deep::PRIOR_SLOPE;
+    let near = |x: Option<f64>, want: f64| x.is_some_and(|x| (x - want).abs() < 0.3);
+    assert!(near(fly(None, "liion"), prior));
+    // 15 s of flight hold next to no evidence of the slope: the carried one stands
+    assert!(
+        near(fly(Some(hist), "liion"), 3.0),
+        "{:?}",
+        fly(Some(hist), "liion")
+    );
+    // another pack (not identified, long ago): the prior
+    let other = PackHistory {
+        identified: false,
+        ..hist
+    };
+    assert!(near(fly(Some(other), "liion"), prior));
+    // a LiPo keeps one resistance (no growth prior): nothing carried into it
+    assert_eq!(fly(Some(hist), "lipo"), Some(0.0));
 }

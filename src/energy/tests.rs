@@ -245,10 +245,84 @@ fn the_usable_floor_does_not_leap_when_the_mission_ends() {
             .map_or(f64::NAN, |r| r.1)
     };
     let (before, after) = (at(69.9), at(79.9));
-    // 10 s at 438 W use 1.2 Wh; the rest of the change is the floor's.
+    // 10 s at 438 W use 1.2 Wh; the rest of the change is the floor's. Not down by a leap; up
+    // only by a revision, said (energy::steady: what is shown never rises under load unless
+    // the estimate stayed above it for 30 s), within the estimate's own drift.
     assert!(
-        (before - after - 1.2).abs() < 0.6,
+        before - after - 1.2 < 0.6 && after - before < 1.0,
         "remaining {before:.2} Wh before the mission's end, {after:.2} after"
     );
-    assert!(at(40.0) > before, "it falls as the flight goes on");
+    // (from 50 s: in the first 30 s under load the model learns this pack's sag, 3 -> 17 Wh
+    // here, and what is shown holds until that revision, said at 44 s)
+    let path: Vec<String> = (1..8)
+        .map(|k| format!("{:.2}", at(f64::from(k) * 10.0)))
+        .collect();
+    assert!(
+        at(50.0) > before,
+        "it falls as the flight goes on: {path:?}"
+    );
+}
+
+/// An estimate with its pack voltage: `v` (V).
+fn est_v(t_s: f64, v: f32, measured_w: f32, model_w: f32) -> Estimate {
+    let mut e = est(t_s, Some(measured_w), &[("lstm", model_w)]);
+    e.sample.voltage_v = Some(v);
+    e
+}
+
+#[test]
+fn the_first_second_of_flight_forecasts_the_phase_flown_not_ground_idle() {
+    let mut tr = tracker(m100());
+    // 30 s on the ground at idle (15 W, 0.6 A), then a hover at 400 W on a sagging pack
+    for k in 0..300 {
+        tr.update(&est_v(f64::from(k) * 0.1, 24.4, 15.0, 15.0));
+    }
+    let mut seen = Vec::new();
+    for k in 1..=600 {
+        let t = 30.0 + f64::from(k) * 0.1;
+        let v = 24.4 - 0.9 - 0.0005 * (t - 30.0);
+        let st = tr.update(&est_v(t, v as f32, 400.0, 400.0));
+        seen.push((st.forecast_w, st.time_to_empty_s));
+    }
+    // from the first second the forecast power is the hover's, not an average from ground
+    // idle (52 W a second after take-off with the average from idle: 7x too long a time)
+    for (k, (w, tte)) in seen.iter().enumerate().skip(9) {
+        assert!(w.is_some_and(|w| (w - 400.0).abs() < 1.0), "{k}: {w:?}");
+        assert!(tte.is_some_and(|t| t > 0.0), "{k}: {tte:?}");
+    }
+    let (first, settled) = (seen[9].1.unwrap_or(0.0), seen[599].1.unwrap_or(0.0));
+    assert!(
+        (first / settled - 1.0).abs() < 0.25,
+        "{first} s at 1 s vs {settled} s at 60 s"
+    );
+}
+
+#[test]
+fn remaining_energy_never_rises_in_flight() {
+    let mut tr = tracker(m100());
+    for k in 0..300 {
+        tr.update(&est_v(f64::from(k) * 0.1, 24.6, 10.0, 10.0));
+    }
+    // a climb at 700 W, then a hover at 250 W: the usable energy before the low voltage
+    // grows as the forecast power falls, but what is shown must not
+    // held from 10 s after take-off (the smoothing time: the first seconds show the sag)
+    let (mut last, mut last_rise): (Option<f64>, f64) = (None, 40.0);
+    for k in 1..=1200 {
+        let t = 30.0 + f64::from(k) * 0.1;
+        let w = if k < 200 { 700.0 } else { 250.0 };
+        let v = 24.2 - 0.0004 * (t - 30.0) - 0.05 * w / 23.0;
+        let st = tr.update(&est_v(t, v as f32, w as f32, w as f32));
+        // never up, but for a revision (said) after the estimate stayed above for 30 s
+        if let (Some(r), Some(l), true) = (st.remaining_wh, last, t >= 40.0) {
+            if r > l + 1e-9 {
+                assert!(
+                    t - last_rise >= steady::REVISE_AFTER_S - 0.2,
+                    "at {t:.1} s: {l} -> {r}"
+                );
+                last_rise = t;
+            }
+        }
+        last = st.remaining_wh.or(last);
+    }
+    assert!(last.is_some_and(|r| r > 0.0));
 }

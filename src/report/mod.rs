@@ -221,6 +221,10 @@ pub struct PackState {
     /// The heat proxy, A²·s (for the vehicle store).
     #[serde(skip)]
     pub heat_a2s: Option<f64>,
+    /// The slope of the sag's growth as the pack empties this flight showed
+    /// ([`crate::battery::deep`]; for the vehicle store, the next flight on this pack).
+    #[serde(skip)]
+    pub deep_slope: Option<f64>,
     /// The OCV curve's whole energy, Wh (for the vehicle store's pack health).
     #[serde(skip)]
     pub curve_wh: Option<f64>,

@@ -61,6 +61,10 @@ pub struct FlightSummary {
     pub r_scale: Option<f64>,
     pub internal_r_ohm: Option<f64>,
     pub heat_a2s: Option<f64>,
+    /// The slope of the sag's growth as the pack empties ([`crate::battery::deep`]), as this
+    /// flight left it: the next flight on the pack starts from it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub deep_slope: Option<f64>,
     /// Pack health: the energy the pack delivered between its two resting voltages over what
     /// its OCV curve holds between them, % (flights that used at least
     /// [`MIN_SOC_DROP_PCT`] of it).
@@ -254,6 +258,7 @@ impl FlightLog {
             r_scale: pk.pack_r_scale,
             internal_r_ohm: pk.internal_r_ohm,
             heat_a2s: pk.heat_a2s,
+            deep_slope: pk.deep_slope,
             pack_health_pct,
             ended_log_s: self
                 .log_origin_s

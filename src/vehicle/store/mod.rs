@@ -175,11 +175,12 @@ CREATE TABLE IF NOT EXISTS profiles (
 /// set, read as 0), 2 adds each flight's pack (resting voltages, resistance, heat, health),
 /// 3 the flight's end on the log's own clock (`ended_log_s`, a replay's), 4 the pack's
 /// identity (`pack_id`, BATTERY_INFO's serial; `NULL` when the vehicle sent none), 5 the
-/// pack each vehicle reported and why each flight was matched (`matching`).
-pub const SCHEMA_VERSION: i64 = 5;
+/// pack each vehicle reported and why each flight was matched (`matching`), 6 the slope of
+/// the pack's deeper sag as it empties (`deep_slope`, [`crate::battery::deep`]).
+pub const SCHEMA_VERSION: i64 = 6;
 
-/// The columns schemas 2 and 3 add to `flights` (all `REAL`).
-const ADDED_COLUMNS: [&str; 7] = [
+/// The columns schemas 2, 3 and 6 add to `flights` (all `REAL`).
+const ADDED_COLUMNS: [&str; 8] = [
     "rest_v_start",
     "rest_v_end",
     "r_scale",
@@ -187,6 +188,7 @@ const ADDED_COLUMNS: [&str; 7] = [
     "heat_a2s",
     "pack_health_pct",
     "ended_log_s",
+    "deep_slope",
 ];
 
 /// The `TEXT` columns schema 4 adds to `flights`.
@@ -319,24 +321,27 @@ impl Store {
         let row = self
             .conn
             .query_row(
-                "SELECT id, ended_at, r_scale, heat_a2s, rest_v_end, ended_log_s FROM flights WHERE vehicle = ?1 AND (?2 IS NULL OR pack_id = ?2) ORDER BY id DESC LIMIT 1",
+                "SELECT id, ended_at, r_scale, heat_a2s, rest_v_end, ended_log_s, deep_slope FROM flights WHERE vehicle = ?1 AND (?2 IS NULL OR pack_id = ?2) ORDER BY id DESC LIMIT 1",
                 params![key.key, pack_id],
-                |r| Ok((r.get::<_, i64>(1)?, r.get::<_, Option<f64>>(2)?, r.get::<_, Option<f64>>(3)?, r.get::<_, Option<f64>>(4)?, r.get::<_, Option<f64>>(5)?)),
+                |r| Ok(((r.get::<_, i64>(1)?, r.get::<_, Option<f64>>(2)?, r.get::<_, Option<f64>>(3)?, r.get::<_, Option<f64>>(4)?, r.get::<_, Option<f64>>(5)?), r.get::<_, Option<f64>>(6)?)),
             )
             .optional()?;
         Ok(row.map(
-            |(ended, r_scale, heat, end_rest_v, ended_log)| crate::battery::PackHistory {
-                identified: pack_id.is_some(),
-                gap_s: match (
-                    ended_log.and_then(unix_clock),
-                    now_log_s.and_then(unix_clock),
-                ) {
-                    (Some(end), Some(now)) => now - end,
-                    _ => (now_s() - ended) as f64,
-                },
-                r_scale,
-                heat: heat.filter(|h| h.is_finite() && *h >= 0.0).unwrap_or(0.0),
-                end_rest_v,
+            |((ended, r_scale, heat, end_rest_v, ended_log), deep_slope)| {
+                crate::battery::PackHistory {
+                    identified: pack_id.is_some(),
+                    gap_s: match (
+                        ended_log.and_then(unix_clock),
+                        now_log_s.and_then(unix_clock),
+                    ) {
+                        (Some(end), Some(now)) => now - end,
+                        _ => (now_s() - ended) as f64,
+                    },
+                    r_scale,
+                    heat: heat.filter(|h| h.is_finite() && *h >= 0.0).unwrap_or(0.0),
+                    end_rest_v,
+                    deep_slope,
+                }
             },
         ))
     }
@@ -399,8 +404,8 @@ impl Store {
         if let Some(f) = flight {
             tx.execute(
                 "INSERT INTO flights (vehicle, ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
-                                      rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s, pack_id)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)",
+                                      rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s, pack_id, deep_slope)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
                 params![
                     key.key,
                     now,
@@ -418,7 +423,8 @@ impl Store {
                     f.heat_a2s,
                     f.pack_health_pct,
                     f.ended_log_s,
-                    f.pack_id
+                    f.pack_id,
+                    f.deep_slope
                 ],
             )?;
         }
@@ -493,7 +499,7 @@ impl Store {
         let mut out = rows.collect::<rusqlite::Result<Vec<_>>>()?;
         let mut fl = self.conn.prepare(
             "SELECT ended_at, airborne_s, energy_wh, pct_start, pct_end, effective_capacity_wh, rated_capacity_wh, capacity_source,
-                    rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s, pack_id
+                    rest_v_start, rest_v_end, r_scale, internal_r_ohm, heat_a2s, pack_health_pct, ended_log_s, pack_id, deep_slope
              FROM flights WHERE vehicle = ?1 ORDER BY ended_at, id",
         )?;
         for v in &mut out {
@@ -517,6 +523,7 @@ impl Store {
                         pack_health_pct: r.get(13)?,
                         ended_log_s: r.get(14)?,
                         pack_id: r.get(15)?,
+                        deep_slope: r.get(16)?,
                     },
                 })
             })?;

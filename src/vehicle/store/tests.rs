@@ -297,6 +297,7 @@ fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
         internal_r_ohm: Some(0.045),
         heat_a2s: Some(90_000.0),
         pack_health_pct: Some(97.0),
+        deep_slope: Some(5.5),
         ..Default::default()
     };
     st.record(&id, None, Some(&pack)).unwrap();
@@ -305,8 +306,8 @@ fn an_old_store_migrates_and_the_pack_is_kept_and_carried() {
         .unwrap()
         .expect("a history");
     assert_eq!(
-        (h.r_scale, h.end_rest_v, h.heat),
-        (Some(1.2), Some(23.3), 90_000.0)
+        (h.r_scale, h.end_rest_v, h.heat, h.deep_slope),
+        (Some(1.2), Some(23.3), 90_000.0, Some(5.5))
     );
     assert!(h.gap_s >= 0.0 && h.gap_s < 60.0, "{h:?}");
     assert!(
@@ -423,7 +424,7 @@ fn a_schema_3_store_migrates_and_its_flights_count_for_the_vehicle() {
         .unwrap();
     }
     let mut st = Store::open(dir.path()).expect("a schema 3 store opens");
-    assert_eq!((user_version(&st), SCHEMA_VERSION), (5, 5));
+    assert_eq!((user_version(&st), SCHEMA_VERSION), (6, 6));
     let f = st.vehicles().unwrap()[0].flights[0].summary.clone();
     assert_eq!(
         (f.rest_v_end, f.r_scale, f.ended_log_s, f.pack_id),
