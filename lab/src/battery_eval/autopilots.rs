@@ -158,7 +158,9 @@ impl Px4Battery {
             self.soc = (1.0 - w) * self.soc + w * soc_v;
             self.soc = (self.soc - used / self.capacity_mah).max(0.0);
             let counted = (1.0 - self.discharged_mah / self.capacity_mah).max(0.0);
-            self.soc = self.soc.min(counted);
+            // A negative current (charging, or a sensor's offset) counts back up: the report
+            // stays in 0-1, as PX4's does.
+            self.soc = self.soc.min(counted).min(1.0);
         } else {
             self.soc = soc_v;
         }
@@ -332,6 +334,24 @@ mod tests {
                 let fired = ap.low_failsafe(k as f64 * 0.1, v, 10.5);
                 proptest::prop_assert!(fired.is_none_or(|t| t <= k as f64 * 0.1));
             }
+        }
+    }
+
+    /// The case proptest found: a negative current after a reading counts the charge back up,
+    /// and PX4's state of charge stayed over 1 (1.0005).
+    #[test]
+    fn a_negative_current_never_takes_px4_s_state_of_charge_over_1() {
+        let mut px4 = Px4Battery::new(0, 5000.0);
+        for (dt, v, i) in [
+            (0.0, 17.700_051_549_400_24, 0.0),
+            (
+                2.220_318_082_234_523_4,
+                4.036_537_779_354_386,
+                -4.027_342_950_747_197,
+            ),
+        ] {
+            px4.update(dt, v, i);
+            assert!((0.0..=1.0).contains(&px4.soc()), "{}", px4.soc());
         }
     }
 
