@@ -440,6 +440,12 @@ fn gemm(
 fn cell(isa: Isa, gates: &[f32], c: &mut [f32], h: &mut [f32]) {
     let hd = h.len();
     #[cfg(target_arch = "x86_64")]
+    if isa == Isa::Avx512 && hd.is_multiple_of(16) {
+        // SAFETY: AVX-512F was detected at run time.
+        unsafe { avx512::cell(gates, c, h) };
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
     if isa >= Isa::Avx2 && hd.is_multiple_of(8) {
         // SAFETY: AVX2 and FMA were detected at run time (every Isa above Avx2 has them).
         unsafe { avx::cell(gates, c, h) };
