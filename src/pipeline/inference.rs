@@ -29,7 +29,7 @@ pub struct Batching {
     /// The heavy models (the LSTM) run on every `heavy_every`-th window of each vehicle.
     pub heavy_every: u64,
     /// A recorded source played flat out: a batch waits for [`MAX_BATCH`] windows as long
-    /// as more keep coming ([`FLAT_IDLE`]). Never on a live link or a paced replay, where a
+    /// as more keep coming (`FLAT_IDLE`, 2 ms). Never on a live link or a paced replay, where a
     /// window waits for no other.
     pub flat: bool,
 }
