@@ -44,6 +44,12 @@
 # collide, 1..M on every link), so one process serves every link with one batched
 # inference (label live-…-1proc, instances 1). Its CPU and peak RSS are that process's.
 #
+# SENDER=1 (with LIVE=1 ONE_PROCESS=1): instead of K simulators, one light sender
+# (examples/fleet_send.rs, one thread) replays the K links' recorded fleets (TLOGS, recorded
+# first as the replay rows do) at real time into the one monitor (label live-…-1proc-sender):
+# the traffic of 3,000 vehicles without 12 simulators' CPU beside the monitor. The CPU window
+# (SECONDS) opens a second after the sender starts.
+#
 # Appends rows to OUT/fleet-load.csv (OUT default target/fleet-load; a new file gets the
 # header) and plots it (`cargo run --example fleet_load_plot`): fleet-load.png (CPU per
 # vehicle-second), fleet-load-rss.png (peak RSS per vehicle), fleet-load-latency.png (p99
@@ -52,6 +58,7 @@
 #
 # Usage: scripts/fleet-load.sh [SECONDS] [N ...]      (default: 30, 1 10 100 250)
 #        LIVE=1 ONE_PROCESS=1 LSTM_RATE=2 scripts/fleet-load.sh 30 1000   (4 links, one process)
+#        SENDER=1 LIVE=1 ONE_PROCESS=1 LSTM_RATE=2 scripts/fleet-load.sh 30 3000   (12 links, one process, one sender)
 #        LSTM_RATE=2 scripts/fleet-load.sh 30 1 10 100 250 1000
 #        LSTM_RATE=2 MQTT=1 scripts/fleet-load.sh 30 1000
 set -euo pipefail
@@ -64,6 +71,11 @@ OUT=${OUT:-target/fleet-load}
 PER_LINK=${PER_LINK:-250}
 TLOGS=${TLOGS:-$OUT/tlogs}
 [ -x "$BIN" ] || cargo build --locked
+SEND=${FLEET_SEND_BIN:-target/debug/examples/fleet_send}
+if [ "${SENDER:-0}" = 1 ]; then
+  [ -x "$SEND" ] || cargo build --locked --example fleet_send
+  [ "${ONE_PROCESS:-0}" = 1 ] && [ "${LIVE:-0}" = 1 ] || { echo "SENDER=1 needs LIVE=1 ONE_PROCESS=1" >&2; exit 2; }
+fi
 mkdir -p "$OUT" "$TLOGS"
 TMP=$(mktemp -d)
 PIDS=()
@@ -153,13 +165,34 @@ run_size() {  # $1 = N
       until grep -qs "listening on.*:${ports[$((i - 1))]}" "$TMP/paced1.err"; do sleep 0.1; done
     done
     local sims=()
-    for i in $(seq 1 "$k"); do
-      "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:${ports[$((i - 1))]}" --seed "$i" --leg-m 200 --hover-s 10 2> "$TMP/sim$i.err" &
+    if [ "${SENDER:-0}" = 1 ]; then
+      # One light sender replays every link's recorded fleet at real time (examples/fleet_send.rs).
+      local pairs=()
+      for i in $(seq 1 "$k"); do
+        local tlog="$TLOGS/fleet${m}-seed$i.tlog"
+        [ -f "$tlog" ] || "$BIN" simulate --vehicles "$m" --out "$tlog" --seed "$i" --leg-m 200 --hover-s 10 2> /dev/null
+        pairs+=("$tlog=127.0.0.1:${ports[$((i - 1))]}")
+      done
+      "$SEND" "${pairs[@]}" 2> "$TMP/send.err" &
       sims+=($!)
-    done
-    live_window "$k" "${pids[@]}"
-    for p in "${sims[@]}"; do kill -INT "$p" || true; wait "$p" || true; done
-    finish_size "$n" 1 "$LABEL-1proc" "$sub" "${pids[@]}" -- "${greps[@]}"
+      until grep -qs "^sending" "$TMP/send.err"; do sleep 0.1; done
+      sleep 1
+      local c0
+      c0=$(cpu_of "${pids[@]}")
+      sleep "$DUR"
+      WINDOW_CPU=$(awk -v a="$c0" -v b="$(cpu_of "${pids[@]}")" 'BEGIN {print b - a}')
+    else
+      for i in $(seq 1 "$k"); do
+        "$BIN" simulate --vehicles "$m" --udp "127.0.0.1:${ports[$((i - 1))]}" --seed "$i" --leg-m 200 --hover-s 10 2> "$TMP/sim$i.err" &
+        sims+=($!)
+      done
+      live_window "$k" "${pids[@]}"
+    fi
+    # The sender ignores SIGINT as a background job of a script does: TERM stops it.
+    for p in "${sims[@]}"; do kill -TERM "$p" || true; wait "$p" || true; done
+    local lab="$LABEL-1proc"
+    [ "${SENDER:-0}" = 1 ] && lab="$lab-sender"
+    finish_size "$n" 1 "$lab" "$sub" "${pids[@]}" -- "${greps[@]}"
     return
   fi
   for i in $(seq 1 "$k"); do

@@ -180,11 +180,13 @@ pub struct LstmModel {
     /// One network, or an ensemble's members (`card.members`), whose outputs are averaged.
     backends: Vec<Backend>,
     buf: Vec<f32>,
-    out: Vec<f32>,
     sum: Vec<f32>,
     warned: bool,
     /// The card's trees, when it blends them in.
     trees: Option<Blend>,
+    /// The raw inputs the trees read, and each member's outputs (scratch of the forward).
+    raw: Vec<f32>,
+    outs: Vec<Vec<f32>>,
 }
 
 /// Trees blended with the network (the card's `[trees]`), and their scratch.
@@ -199,6 +201,10 @@ struct Blend {
     /// Whether the log has said that the trees sat a window out (outside the training range).
     told: bool,
 }
+
+#[path = "lstm_forward.rs"]
+mod forward;
+pub use forward::PARALLEL_WINDOWS;
 
 /// The samples the card's trees read from one window's raw inputs (`push_inputs`: rows of
 /// 21, newest last): for each of `lags`, the row that many before the newest (the oldest
@@ -276,10 +282,11 @@ impl LstmModel {
             card,
             backends,
             buf: Vec::new(),
-            out: Vec::new(),
             sum: Vec::new(),
             warned: false,
             trees,
+            raw: Vec::new(),
+            outs: Vec::new(),
         })
     }
 
@@ -368,87 +375,6 @@ impl LstmModel {
     /// The card this model was loaded with.
     pub fn card(&self) -> &ModelCard {
         &self.card
-    }
-
-    /// Run the network on `windows` (one batch); rows of `[point, low, high]` in watts.
-    pub fn forward_w(&mut self, windows: &[Window]) -> anyhow::Result<Vec<[f32; 3]>> {
-        let t = self.card.window;
-        self.buf.clear();
-        if let Some(b) = &mut self.trees {
-            b.est.clear();
-        }
-        for w in windows {
-            let start = self.buf.len();
-            push_inputs(w, self.card.feature_set, t, &mut self.buf);
-            if let Some(b) = &mut self.trees {
-                let raw = &self.buf[start..];
-                // The newest sample as `in_training_range` reads it.
-                b.newest.clear();
-                push_inputs(w, self.card.feature_set, 1, &mut b.newest);
-                b.est.push(if within_training_range(&self.card, &b.newest) {
-                    b.row.clear();
-                    b.row.extend(tree_rows(raw, &b.lags).flatten().map(|v| f64::from(*v)));
-                    b.trees.predict(&b.row) as f32
-                } else {
-                    if !std::mem::replace(&mut b.told, true) {
-                        tracing::info!("lstm: inputs outside the training range: the network alone, without its trees, there");
-                    }
-                    f32::NAN
-                });
-            }
-            for (i, v) in self.buf[start..].iter_mut().enumerate() {
-                let f = i % N_FEATURES;
-                *v = (*v - self.card.feature_mean[f]) / self.card.feature_std[f];
-            }
-        }
-        let b = windows.len();
-        let mut cols = 0;
-        for (k, backend) in self.backends.iter_mut().enumerate() {
-            let c = backend.forward(&self.buf, b, t, &mut self.out)?;
-            if k == 0 {
-                cols = c;
-                std::mem::swap(&mut self.sum, &mut self.out);
-            } else {
-                anyhow::ensure!(
-                    c == cols,
-                    "ensemble member {k} gives {c} outputs a window, the first {cols}"
-                );
-                for (acc, v) in self.sum.iter_mut().zip(&self.out) {
-                    *acc += v;
-                }
-            }
-        }
-        let n = self.backends.len() as f32;
-        if n > 1.0 {
-            for v in &mut self.sum {
-                *v /= n;
-            }
-        }
-        let s = self.card.power_scale_w;
-        let mut rows: Vec<[f32; 3]> = self
-            .sum
-            .chunks(cols)
-            .map(|r| {
-                let p = r[0] * s;
-                if r.len() >= 3 {
-                    [p, (r[1] * s).min(p), (r[2] * s).max(p)]
-                } else {
-                    [p, p, p]
-                }
-            })
-            .collect();
-        if let Some(b) = &self.trees {
-            // w × network + (1 − w) × trees; the band moves with the estimate.
-            for (r, e) in rows.iter_mut().zip(&b.est) {
-                if e.is_finite() {
-                    let d = (1.0 - b.weight) * (e - r[0]);
-                    for v in r.iter_mut() {
-                        *v += d;
-                    }
-                }
-            }
-        }
-        Ok(rows)
     }
 }
 

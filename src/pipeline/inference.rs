@@ -28,6 +28,10 @@ pub struct Batching {
     pub wait: std::time::Duration,
     /// The heavy models (the LSTM) run on every `heavy_every`-th window of each vehicle.
     pub heavy_every: u64,
+    /// A recorded source played flat out: a batch waits for [`MAX_BATCH`] windows as long
+    /// as more keep coming (`FLAT_IDLE`, 2 ms). Never on a live link or a paced replay, where a
+    /// window waits for no other.
+    pub flat: bool,
 }
 
 impl Batching {
@@ -40,9 +44,20 @@ impl Batching {
         Self {
             wait: std::time::Duration::from_secs_f64(cfg.fleet.batch_wait_ms / 1e3),
             heavy_every: (every as u64).max(1),
+            flat: false,
         }
     }
+
+    /// Whether the source is played flat out ([`Batching::flat`]).
+    pub fn flat(self, flat: bool) -> Self {
+        Self { flat, ..self }
+    }
 }
+
+/// Flat out, the longest the inference stage waits for the next window before it runs the
+/// batch it holds: the producers' stall (a descheduled thread, the end of the input, a
+/// vehicle store lookup), never a wait on the clock the replay's own pace would have.
+pub const FLAT_IDLE: std::time::Duration = std::time::Duration::from_millis(2);
 
 /// The inference stage every vehicle's chain sends its windows to: one for the whole run,
 /// so the windows of all vehicles that queue up together run as one batch.
@@ -113,6 +128,8 @@ fn inference_stage(
     // Vehicles known whose fits are being looked up.
     let mut waiting = std::collections::BTreeSet::new();
     let mut vehicles = Vec::new();
+    // Batches run and windows in them (said at the end, at debug level).
+    let (mut batches, mut windows) = (0u64, 0u64);
     while let Some(j) = jobs.blocking_recv() {
         let deadline = tokio::time::Instant::now() + batching.wait;
         b.take(j, &mut seen, batching.heavy_every);
@@ -120,6 +137,14 @@ fn inference_stage(
         while b.windows.len() < MAX_BATCH {
             match jobs.try_recv() {
                 Ok(j) => b.take(j, &mut seen, batching.heavy_every),
+                // Flat out: the windows behind are coming, as fast as the stages before
+                // make them; the batch runs once full or once they pause.
+                Err(mpsc::error::TryRecvError::Empty) if batching.flat => {
+                    match rt.block_on(tokio::time::timeout(FLAT_IDLE, jobs.recv())) {
+                        Ok(Some(j)) => b.take(j, &mut seen, batching.heavy_every),
+                        _ => break,
+                    }
+                }
                 // Wait a little for the other vehicles' windows of this tick.
                 Err(mpsc::error::TryRecvError::Empty) if wait => {
                     match rt.block_on(tokio::time::timeout_at(deadline, jobs.recv())) {
@@ -148,6 +173,8 @@ fn inference_stage(
         }
         vehicles.clear();
         vehicles.extend(b.meta.iter().map(|(v, ..)| *v));
+        batches += 1;
+        windows += b.windows.len() as u64;
         let estimates = models.estimate_some(&b.windows, &b.heavy, &vehicles);
         for (mut e, (vehicle, full, reply)) in estimates.into_iter().zip(b.meta.drain(..)) {
             if let (true, Some((_, held))) = (batching.heavy_every > 1, seen.get_mut(&vehicle)) {
@@ -169,6 +196,12 @@ fn inference_stage(
         b.windows.clear();
         b.heavy.clear();
     }
+    tracing::debug!(
+        batches,
+        windows,
+        flat = batching.flat,
+        "inference: the run's batches"
+    );
     seen.keys()
         .filter_map(|&id| Some((id, models.adaptation(id)?.fits().to_vec())))
         .collect()

@@ -143,6 +143,7 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
     let live = p.source.is_live();
+    let flat = p.source.is_flat();
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(
         p.source,
@@ -154,7 +155,7 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     ));
     let inference = Inference::spawn(
         std::mem::replace(&mut chain.models, Ensemble::new(Vec::new())),
-        Batching::from_config(&p.config),
+        Batching::from_config(&p.config).flat(flat),
         live,
         status.stats.clone(),
     );

@@ -141,6 +141,27 @@ impl SourceSpec {
     pub fn is_live(&self) -> bool {
         matches!(self, Self::Link(_) | Self::Links { .. } | Self::Nats(_))
     }
+
+    /// A recorded source played flat out (`--speed max`): nothing waits on the clock, so
+    /// the pipeline may gather its windows into large batches.
+    pub fn is_flat(&self) -> bool {
+        matches!(
+            self,
+            Self::Tlog {
+                speed: Speed::Max,
+                ..
+            } | Self::AutopilotLog {
+                speed: Speed::Max,
+                ..
+            } | Self::Raw {
+                speed: Speed::Max,
+                ..
+            } | Self::Dataset {
+                speed: Speed::Max,
+                ..
+            }
+        )
+    }
 }
 
 /// A live link's signing set-up (`[link] signing_key_file`): the signer for what

@@ -52,6 +52,9 @@ const MC: usize = 96;
 /// Windows per pass through the whole network: bounds the scratch space (the gate
 /// pre-activations are `CHUNK_WINDOWS · T · 4H` floats, 2.5 MiB for the paper's network).
 const CHUNK_WINDOWS: usize = 128;
+/// From this many windows, the top layer's input projections with an instant readout run
+/// one product a step over every window instead of one a window (a full AVX-512 tile).
+const BY_STEP_WINDOWS: usize = 8;
 
 /// One direction of one LSTM layer.
 struct Direction {
@@ -279,26 +282,39 @@ impl CpuLstm {
                     _ => (0, t),
                 };
                 // Input projections of those steps of every window: pre = bias + X W_ihᵀ,
-                // all windows in one product when every step is walked.
+                // all windows in one product when every step is walked; else, for a batch
+                // of at least a tile of windows, one product a step over every window (its
+                // rows T apart, so the weights feed whole tiles of windows), and for fewer
+                // one product a window. Each output is the same sum in the same order
+                // whichever way.
                 let whole = steps == t;
-                for w in 0..if whole { 1 } else { b } {
-                    let (at, rows) = if whole {
-                        (0, b * t)
-                    } else {
-                        (w * t + first, steps)
-                    };
-                    for row in self.pre[at * g..(at + rows) * g].chunks_exact_mut(g) {
+                let by_step = !whole && b >= BY_STEP_WINDOWS;
+                for w in 0..b {
+                    let at = w * t + first;
+                    for row in self.pre[at * g..(at + steps) * g].chunks_exact_mut(g) {
                         row.copy_from_slice(&dir.bias);
                     }
+                }
+                let products = match (whole, by_step) {
+                    (true, _) => 1,
+                    (false, true) => steps,
+                    (false, false) => b,
+                };
+                for p in 0..products {
+                    let (at, rows, ld) = match (whole, by_step) {
+                        (true, _) => (0, b * t, 1),
+                        (false, true) => (first + p, b, t),
+                        (false, false) => (p * t + first, steps, 1),
+                    };
                     gemm(
                         isa,
                         &dir.w_ih,
                         dir.input,
                         &input[at * dir.input..],
-                        dir.input,
+                        ld * dir.input,
                         rows,
                         &mut self.pre[at * g..],
-                        g,
+                        ld * g,
                     );
                 }
                 self.h.iter_mut().for_each(|v| *v = 0.0);
@@ -439,6 +455,12 @@ fn gemm(
 /// h ← σ(o) tanh(c).
 fn cell(isa: Isa, gates: &[f32], c: &mut [f32], h: &mut [f32]) {
     let hd = h.len();
+    #[cfg(target_arch = "x86_64")]
+    if isa == Isa::Avx512 && hd.is_multiple_of(16) {
+        // SAFETY: AVX-512F was detected at run time.
+        unsafe { avx512::cell(gates, c, h) };
+        return;
+    }
     #[cfg(target_arch = "x86_64")]
     if isa >= Isa::Avx2 && hd.is_multiple_of(8) {
         // SAFETY: AVX2 and FMA were detected at run time (every Isa above Avx2 has them).

@@ -28,3 +28,29 @@ fn vector_exp_is_accurate() {
         }
     }
 }
+
+/// The 16-lane cell gives the 8-lane cell's bits (the replay's output is byte for byte the
+/// same whichever the CPU has), over the range the gates take and beyond (exp's clamps).
+#[test]
+fn avx512_cell_matches_avx2_bit_for_bit() {
+    if Isa::detect() < Isa::Avx512 {
+        return;
+    }
+    let hd = 64;
+    let xs: Vec<f32> = (0..4 * hd * 50)
+        .map(|i| ((i as f32) * 0.7311).sin() * (1.0 + (i % 97) as f32))
+        .collect();
+    for gates in xs.chunks_exact(4 * hd) {
+        let c0: Vec<f32> = gates[..hd].iter().map(|v| v * 0.37).collect();
+        let (mut c8, mut h8) = (c0.clone(), vec![0.0f32; hd]);
+        let (mut c16, mut h16) = (c0, vec![0.0f32; hd]);
+        // SAFETY: AVX-512F (and with it AVX2 and FMA on every CPU that has it) was detected.
+        unsafe {
+            avx::cell(gates, &mut c8, &mut h8);
+            avx512::cell(gates, &mut c16, &mut h16);
+        }
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&c8), bits(&c16));
+        assert_eq!(bits(&h8), bits(&h16));
+    }
+}
