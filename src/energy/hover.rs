@@ -38,7 +38,7 @@ pub const MIN_HOVER_S: f64 = 15.0;
 pub const SEARCH_S: f64 = 180.0;
 
 /// What the calibration needs of the vehicle profile.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HoverReference {
     /// Momentum theory's ideal hover power for the take-off mass on the rotors' disk, W.
     pub ideal_w: f64,
@@ -97,7 +97,7 @@ pub fn follows_momentum_theory(p: &VehicleProfile) -> bool {
 pub use crate::report::hover::HoverCalibration;
 
 /// Where the search stands.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum HoverState {
     /// Looking for the first hover.
     Searching,
@@ -115,7 +115,7 @@ pub enum HoverNews {
 }
 
 /// Finds the first hover and calibrates on it.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct HoverCalibrator {
     reference: Option<HoverReference>,
     /// Whether the forecast follows the momentum-theory member.

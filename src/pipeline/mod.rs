@@ -39,6 +39,7 @@
 //! sees its queue close, flushes and writes its summary. Nothing is lost on the way out.
 
 mod chain;
+pub mod checkpoint;
 mod fleet;
 mod inference;
 mod mission;
@@ -143,6 +144,13 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     let (fanout, sinks) = start_sinks(p.sinks, &status)?;
 
     let live = p.source.is_live();
+    // A fleet worker's chains hand their state over for its checkpoints.
+    if matches!(p.source, crate::source::SourceSpec::Nats(_)) {
+        crate::source::nats::checkpoint::set_card(
+            checkpoint::card(&p.config, &resolved.vehicle),
+            checkpoint::check,
+        );
+    }
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(
         p.source,

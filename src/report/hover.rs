@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 /// A first hover measured and what it set (in `--json`: `hover_calibration`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct HoverCalibration {
     /// Source time it was made at, s.
     pub t_s: f64,

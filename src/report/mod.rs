@@ -289,7 +289,7 @@ pub struct MissionUpdate {
 
 /// The live mission forecast at one moment: what the mission task
 /// (`crate::mission::live`) hands the energy stage, in source-time order.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct MissionStatus {
     /// Source time of the message it was computed on, s.
     pub t_s: f64,

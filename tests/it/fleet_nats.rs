@@ -242,6 +242,15 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
         eb.contains("took partition") && eb.contains("from worker"),
         "no takeover: {ctx}"
     );
+    // The vehicles came back from their checkpoints (energy, pack, alerts), and only the
+    // stream's last seconds were replayed.
+    assert!(
+        eb.contains("restored from the fleet's checkpoint")
+            && eb.contains("replaying from stream sequence")
+            && !eb.contains("does not read")
+            && !eb.contains("another card"),
+        "not restored from the checkpoints: {ctx}"
+    );
     let (mut worst_hole, mut worst_diff) = (0.0f64, 0.0f64);
     for sys in 1..=12u64 {
         let w = estimates(&workers, sys);
@@ -272,10 +281,12 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
         100.0 * worst_diff
     );
     eprintln!("worker a killed at {killed:?}");
-    for l in eb
-        .lines()
-        .filter(|l| l.contains("took partition") || l.contains("gave partition"))
-    {
+    for l in eb.lines().filter(|l| {
+        l.contains("took partition")
+            || l.contains("gave partition")
+            || l.contains("NATS: partition")
+            || l.contains("restored from")
+    }) {
         eprintln!("worker b: {l}");
     }
     // No alert raised twice for one cause: never more often than the one process raised it.
@@ -392,4 +403,79 @@ fn a_client_without_credentials_is_refused_and_a_stream_of_another_layout_named(
         err.contains("DRONEWATT_FRAMES") && err.contains("another layout"),
         "{err}"
     );
+}
+
+/// A worker whose chain differs from the checkpoint's (another `[energy]` table here)
+/// says so and rebuilds the vehicles from the stream, whose energy then still counts
+/// from the flight's start.
+#[test]
+fn a_checkpoint_of_another_card_is_said_and_rebuilt_from_the_stream() {
+    let Some(nats) = server(None) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let gw_port = free_udp_port();
+    let mut gateway = Monitor::spawn(
+        dronewatt()
+            .args([
+                "gateway",
+                &format!("udpin:127.0.0.1:{gw_port}"),
+                "--nats",
+                &nats.url,
+            ])
+            .env("RUST_LOG", "dronewatt=info"),
+    );
+    gateway.wait_listening(gw_port, false);
+    let (ja, jb) = (dir.path().join("a.jsonl"), dir.path().join("b.jsonl"));
+    let a = worker(&nats.url, &ja);
+    std::thread::sleep(Duration::from_secs(2));
+    let vehicles =
+        r#"[{"id": 1, "power_w": 300, "send_s": 16}, {"id": 2, "power_w": 500, "send_s": 16}]"#;
+    let fleet = python()
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
+        .args(["--to", &format!("udpout:127.0.0.1:{gw_port}")])
+        .args(["--vehicles", vehicles])
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("run .venv-py/bin/python (make setup creates it)");
+    std::thread::sleep(Duration::from_secs(8));
+    // Stopped cleanly: its checkpoints written, its leases released at once.
+    let (sa, ea) = a.stop();
+    assert!(sa.success(), "{ea}");
+    let cfg = dir.path().join("other.toml");
+    std::fs::write(&cfg, "[energy]\nreserve_pct = 25\n").unwrap();
+    let b = Monitor::spawn(
+        dronewatt()
+            .args(["monitor", "--nats", &nats.url, "--data-dir", "off", "-q"])
+            .arg("--config")
+            .arg(&cfg)
+            .arg("--json")
+            .arg(&jb)
+            .env("RUST_LOG", "dronewatt=info"),
+    );
+    assert!(fleet.wait_with_output().unwrap().status.success());
+    std::thread::sleep(Duration::from_secs(3));
+    let (sb, eb) = b.stop();
+    let _ = gateway.stop();
+    assert!(sb.success(), "{eb}");
+    assert!(
+        eb.contains("another card") && eb.contains("rebuilt from the stream"),
+        "{eb}"
+    );
+    assert!(!eb.contains("restored from the fleet's checkpoint"), "{eb}");
+    let (la, lb) = (lines(&ja), lines(&jb));
+    for sys in 1..=2u64 {
+        let (wa, wb) = (estimates(&la, sys), estimates(&lb, sys));
+        assert!(!wa.is_empty() && !wb.is_empty(), "vehicle {sys}: {eb}");
+        // Rebuilt from the first frame: b's energy goes on from a's, not from zero.
+        let (end_a, first_b) = (wa.last().unwrap(), wb[0]);
+        assert!(
+            first_b.0 > end_a.0 - 2.0,
+            "vehicle {sys}: b re-sent a's reports"
+        );
+        assert!(
+            first_b.1 >= end_a.1 * 0.95,
+            "vehicle {sys}: b starts at {:.3} Wh, a ended at {:.3} Wh",
+            first_b.1,
+            end_a.1
+        );
+    }
 }

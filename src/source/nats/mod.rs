@@ -39,6 +39,7 @@
 //!   credentials (user and password, or a `.creds` file, read as the signing key is: a
 //!   private file) and TLS.
 
+pub mod checkpoint;
 pub mod lease;
 pub mod wire;
 pub mod worker;

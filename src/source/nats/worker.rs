@@ -27,7 +27,7 @@ use futures_util::StreamExt;
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 
-use super::{lease, wire, NatsArgs, CHECKPOINTS, LEASES, LEASE_TTL, PARTITIONS, RENEW};
+use super::{checkpoint, lease, wire, NatsArgs, CHECKPOINTS, LEASES, LEASE_TTL, PARTITIONS, RENEW};
 use crate::report::status::{IngestStats, LinkHandle};
 use crate::source::links::link::LinkIo;
 use crate::source::TimedMessage;
@@ -38,20 +38,14 @@ use crate::source::TimedMessage;
 struct Progress {
     seq: AtomicU64,
     t_s: Mutex<f64>,
+    /// The sequences passed, by source time: where a replay before a time starts.
+    marks: Mutex<checkpoint::Marks>,
 }
 
 /// A partition this worker holds.
 struct Held {
     revision: u64,
     stop: CancellationToken,
-}
-
-/// A checkpoint as stored.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Checkpoint {
-    seq: u64,
-    t_s: f64,
-    worker: String,
 }
 
 /// Run the worker until `io.shutdown`.
@@ -152,7 +146,8 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
     Ok(())
 }
 
-/// Write partition `p`'s checkpoint (nothing before its first frame).
+/// Write partition `p`'s checkpoint (nothing before its first frame): its vehicles'
+/// states and how far its reading went ([`checkpoint::write`]).
 async fn checkpoint(ckpts: &Store, p: u32, me: &str, prog: Option<&Arc<Progress>>) {
     let Some(prog) = prog else { return };
     let seq = prog.seq.load(Relaxed);
@@ -160,44 +155,42 @@ async fn checkpoint(ckpts: &Store, p: u32, me: &str, prog: Option<&Arc<Progress>
         return;
     }
     let t_s = prog.t_s.lock().map_or(0.0, |t| *t);
-    let c = Checkpoint {
-        seq,
-        t_s,
-        worker: me.to_string(),
+    let Ok(marks) = prog.marks.lock().map(|m| m.clone()) else {
+        return;
     };
-    if let Ok(body) = serde_json::to_vec(&c) {
-        if let Err(e) = ckpts.put(format!("c{p}"), body.into()).await {
-            tracing::warn!("NATS: checkpoint of partition {p}: {e}");
-        }
-    }
+    checkpoint::write(ckpts, p, me, seq, t_s, &marks).await;
 }
 
 /// Where to start reading partition `p` just taken: after the last frame this worker
-/// handed on, or (new to it) from the stream's first, holding back reports up to the
-/// previous holder's checkpoint.
+/// handed on; or, new to it, from its previous holder's checkpoint (its vehicles'
+/// states restored: [`checkpoint::restore`]), else from the stream's first frame. Either
+/// way the reports up to where the previous holder's went out are held back.
 async fn start_of(ckpts: &Store, p: u32, me: &str, prog: &Progress) -> u64 {
     let ours = prog.seq.load(Relaxed);
     if ours > 0 {
         return ours + 1;
     }
-    let prev = match ckpts.entry(format!("c{p}")).await {
-        Ok(Some(e)) => serde_json::from_slice::<Checkpoint>(&e.value).ok(),
-        _ => None,
-    };
-    match prev {
+    match checkpoint::header(ckpts, p).await {
         Some(c) if c.worker != me => {
             super::set_quiet(p, c.t_s);
+            let from = checkpoint::restore(ckpts, p, &c).await;
             tracing::info!(
                 "NATS worker {me}: took partition {p} from worker {} (checkpoint: stream \
-                 sequence {}); rebuilding its vehicles from the stream, reports up to there \
-                 held back",
+                 sequence {}); {}, reports up to there held back",
                 c.worker,
-                c.seq
+                c.seq,
+                match from {
+                    Some(s) => format!("its vehicles restored, replaying from sequence {s}"),
+                    None => "rebuilding its vehicles from the stream".to_string(),
+                }
             );
+            from.unwrap_or(1)
         }
-        _ => tracing::info!("NATS worker {me}: took partition {p}"),
+        _ => {
+            tracing::info!("NATS worker {me}: took partition {p}");
+            1
+        }
     }
-    1
 }
 
 /// One partition's reading: from stream sequence `from`, on the clock that starts at
@@ -286,6 +279,9 @@ async fn consume(
         prog.seq.store(seq, Relaxed);
         if let Ok(mut t) = prog.t_s.lock() {
             *t = t_s;
+        }
+        if let Ok(mut m) = prog.marks.lock() {
+            m.passed(seq, t_s);
         }
     }
 }
