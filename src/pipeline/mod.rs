@@ -43,6 +43,7 @@ pub mod checkpoint;
 mod fleet;
 mod inference;
 mod mission;
+mod nats_out;
 mod shutdown;
 mod sinks;
 mod stages;
@@ -141,7 +142,10 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     };
 
     // Sinks start first so they see every report.
-    let (fanout, sinks) = start_sinks(p.sinks, &status)?;
+    let (mut fanout, sinks) = start_sinks(p.sinks, &status)?;
+    // A fleet worker's reports to NATS too.
+    let nats_out = matches!(p.source, crate::source::SourceSpec::Nats(_))
+        .then(|| tokio::spawn(nats_out::run(fanout.subscribe())));
 
     let live = p.source.is_live();
     // A fleet worker's chains hand their state over for its checkpoints.
@@ -183,6 +187,9 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     let source_result = source.await?;
     demux.await??;
     sinks.join().await?;
+    if let Some(t) = nats_out {
+        t.await?;
+    }
     source_result?;
     Ok(status.stats.snapshot())
 }

@@ -157,6 +157,40 @@ fn rogue_statustext(url: &str, sys: u8) {
     });
 }
 
+/// A NATS viewer: what is published on `subject` (a wildcard) until `stop` is set, as
+/// (subject, JSON) pairs.
+fn viewer(
+    url: &str,
+    subject: &str,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> std::thread::JoinHandle<Vec<(String, Value)>> {
+    let (url, subject) = (url.to_string(), subject.to_string());
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let h = std::thread::spawn(move || {
+        let rt = tokio::runtime::Runtime::new().unwrap();
+        rt.block_on(async {
+            use futures_util::StreamExt;
+            let c = async_nats::connect(url.as_str()).await.unwrap();
+            let mut sub = c.subscribe(subject).await.unwrap();
+            c.flush().await.unwrap();
+            ready_tx.send(()).unwrap();
+            let mut got = Vec::new();
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                if let Ok(Some(m)) =
+                    tokio::time::timeout(Duration::from_millis(200), sub.next()).await
+                {
+                    if let Ok(v) = serde_json::from_slice(&m.payload) {
+                        got.push((m.subject.to_string(), v));
+                    }
+                }
+            }
+            got
+        })
+    });
+    ready_rx.recv().unwrap();
+    h
+}
+
 fn worker(url: &str, json: &Path) -> Monitor {
     Monitor::spawn(
         dronewatt()
@@ -195,6 +229,8 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
         dir.path().join("b.jsonl"),
         dir.path().join("single.jsonl"),
     );
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let view = viewer(&nats.url, "dronewatt.*.>", stop.clone());
     let a = worker(&nats.url, &ja);
     std::thread::sleep(Duration::from_secs(2));
     let b = worker(&nats.url, &jb);
@@ -232,6 +268,8 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
     assert!(out.status.success(), "fleet.py failed");
     std::thread::sleep(Duration::from_secs(3));
     let (sb, eb) = b.stop();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let seen = view.join().unwrap();
     let (_, eg) = gateway.stop();
     let (ss, es) = single.stop();
     assert!(sb.success() && ss.success(), "worker: {eb}\nsingle: {es}");
@@ -289,6 +327,36 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
     }) {
         eprintln!("worker b: {l}");
     }
+    // The workers published their estimates and alerts on NATS too, each on its vehicle's
+    // partition's subject, as many as their files hold (the killed worker's last lines
+    // may not have gone out), and no alert twice.
+    let nats_lines: Vec<Value> = seen.iter().map(|(_, v)| v.clone()).collect();
+    for (subject, v) in &seen {
+        let sys = v["system_id"].as_u64().unwrap_or(0);
+        let part = (sys + 17 * v["network"].as_u64().unwrap_or(0)) % 16;
+        let kind = if v["type"] == "alert" {
+            "alerts"
+        } else {
+            "estimates"
+        };
+        assert_eq!(subject, &format!("dronewatt.{kind}.{part}.0.{sys}"), "{v}");
+    }
+    for sys in 1..=12u64 {
+        let (on_nats, in_files) = (
+            estimates(&nats_lines, sys).len(),
+            estimates(&workers, sys).len(),
+        );
+        assert!(
+            on_nats * 10 >= in_files * 9 && on_nats <= in_files,
+            "vehicle {sys}: {on_nats} estimates on NATS, {in_files} in the workers' files"
+        );
+    }
+    assert_eq!(
+        raised(&nats_lines),
+        raised(&workers),
+        "alerts on NATS and in the files"
+    );
+    eprintln!("on NATS: {} estimates and alerts", seen.len());
     // No alert raised twice for one cause: never more often than the one process raised it.
     let (rw, rs) = (raised(&workers), raised(&one));
     for (k, n) in &rw {

@@ -41,6 +41,7 @@
 
 pub mod checkpoint;
 pub mod lease;
+pub mod publish;
 pub mod wire;
 pub mod worker;
 

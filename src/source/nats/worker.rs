@@ -64,6 +64,7 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
     let me = format!("{}-{:08x}", std::process::id(), rand::random::<u32>());
     let held_set: Arc<Mutex<HashMap<u32, ()>>> = Arc::default();
     uplink(&client, &io.link, &me, held_set.clone());
+    super::publish::set(client.clone(), held_set.clone());
     tracing::info!(
         "NATS worker {me}: sharing {PARTITIONS} partitions of {}",
         super::STREAM
