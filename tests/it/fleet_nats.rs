@@ -20,7 +20,38 @@ use crate::link_common::{free_tcp_port, free_udp_port};
 struct Server {
     child: Child,
     url: String,
+    port: u16,
+    /// The command line it was started with (a restart runs it again on the same store).
+    cmd: Vec<std::ffi::OsString>,
     _dir: tempfile::TempDir,
+}
+
+impl Server {
+    /// Kill the server (SIGKILL: JetStream keeps what it had synced), and start it again on
+    /// the same port and store.
+    fn restart(&mut self, down: Duration) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        std::thread::sleep(down);
+        self.child = Command::new(&self.cmd[0])
+            .args(&self.cmd[1..])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        wait_port(self.port);
+    }
+}
+
+fn wait_port(port: u16) {
+    let start = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "nats-server never listened"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 impl Drop for Server {
@@ -55,30 +86,29 @@ fn server(config: Option<&str>) -> Option<Server> {
     };
     let dir = tempfile::tempdir().unwrap();
     let port = free_tcp_port();
-    let mut cmd = Command::new(bin);
-    cmd.args(["-js", "-a", "127.0.0.1", "-p", &port.to_string(), "-sd"])
-        .arg(dir.path().join("js"));
+    let mut cmd: Vec<std::ffi::OsString> = vec![bin.into()];
+    for a in ["-js", "-a", "127.0.0.1", "-p", &port.to_string(), "-sd"] {
+        cmd.push(a.into());
+    }
+    cmd.push(dir.path().join("js").into());
     if let Some(text) = config {
         let f = dir.path().join("nats.conf");
         std::fs::write(&f, text).unwrap();
-        cmd.arg("-c").arg(f);
+        cmd.push("-c".into());
+        cmd.push(f.into());
     }
-    let child = cmd
+    let child = Command::new(&cmd[0])
+        .args(&cmd[1..])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let start = Instant::now();
-    while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "nats-server never listened"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    wait_port(port);
     Some(Server {
         child,
         url: format!("nats://127.0.0.1:{port}"),
+        port,
+        cmd,
         _dir: dir,
     })
 }
@@ -546,4 +576,102 @@ fn a_checkpoint_of_another_card_is_said_and_rebuilt_from_the_stream() {
             end_a.1
         );
     }
+}
+
+/// The stream's (first, last) sequence and message count.
+fn stream_state(url: &str) -> (u64, u64, u64) {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let c = async_nats::connect(url).await.unwrap();
+        let js = async_nats::jetstream::new(c);
+        let mut s = js.get_stream("DRONEWATT_FRAMES").await.unwrap();
+        let st = s.info().await.unwrap().state.clone();
+        (st.first_sequence, st.last_sequence, st.messages)
+    })
+}
+
+/// The gateway restarted mid-flight, then nats-server (JetStream on disk): nothing the
+/// stream kept is lost, the worker says it lost the server and got it back, and goes on
+/// estimating every vehicle after each, with no alert raised twice.
+#[test]
+fn a_gateway_and_a_nats_server_restarted_mid_flight_lose_nothing_kept() {
+    let Some(mut nats) = server(None) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let gw_port = free_udp_port();
+    let gateway = || {
+        let mut g = Monitor::spawn(
+            dronewatt()
+                .args([
+                    "gateway",
+                    &format!("udpin:127.0.0.1:{gw_port}"),
+                    "--nats",
+                    &nats.url,
+                ])
+                .env("RUST_LOG", "dronewatt=info"),
+        );
+        g.wait_listening(gw_port, false);
+        g
+    };
+    let g1 = gateway();
+    let jw = dir.path().join("w.jsonl");
+    let w = worker(&nats.url, &jw);
+    std::thread::sleep(Duration::from_secs(2));
+    let vehicles =
+        r#"[{"id": 1, "power_w": 300, "send_s": 24}, {"id": 2, "power_w": 500, "send_s": 24}]"#;
+    let fleet = python()
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
+        .args(["--to", &format!("udpout:127.0.0.1:{gw_port}")])
+        .args(["--vehicles", vehicles])
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("run .venv-py/bin/python (make setup creates it)");
+    std::thread::sleep(Duration::from_secs(6));
+    // The gateway restarted: the frames sent while it is down are not heard by anyone.
+    let (_, e1) = g1.stop();
+    std::thread::sleep(Duration::from_secs(1));
+    let g2 = gateway();
+    std::thread::sleep(Duration::from_secs(5));
+    // nats-server killed and started again on its store.
+    let before = stream_state(&nats.url);
+    nats.restart(Duration::from_secs(2));
+    let after = stream_state(&nats.url);
+    assert_eq!(
+        before.0, after.0,
+        "first sequence: {before:?} then {after:?}"
+    );
+    assert!(
+        after.1 >= before.1 && after.2 >= before.2,
+        "frames lost by the restart: {before:?} then {after:?}"
+    );
+    assert!(fleet.wait_with_output().unwrap().status.success());
+    std::thread::sleep(Duration::from_secs(3));
+    let (sw, ew) = w.stop();
+    let (_, e2) = g2.stop();
+    let ctx = format!("worker: {ew}\ngateway 1: {e1}\ngateway 2: {e2}");
+    assert!(sw.success(), "{ctx}");
+    assert!(
+        ew.contains("NATS: disconnected; reconnecting") && ew.contains("NATS: reconnected"),
+        "the worker did not say it lost and found the server: {ctx}"
+    );
+    let end = stream_state(&nats.url);
+    assert!(end.1 > after.1, "nothing stored after the restart: {ctx}");
+    let lines = lines(&jw);
+    for sys in 1..=2u64 {
+        let est = estimates(&lines, sys);
+        let (t0, t1) = (est[0].0, est.last().unwrap().0);
+        // Estimated on past both restarts: the flight's last seconds are there.
+        assert!(
+            t1 - t0 > 18.0,
+            "vehicle {sys}: estimated {t0:.1}..{t1:.1} s: {ctx}"
+        );
+        // Energy goes on, never back.
+        assert!(
+            est.windows(2).all(|p| p[1].1 >= p[0].1 - 1e-9),
+            "vehicle {sys}: energy went back: {ctx}"
+        );
+    }
+    for (k, n) in raised(&lines) {
+        assert_eq!(n, 1, "{k:?} raised {n} times: {ctx}");
+    }
+    eprintln!("stream before the restart {before:?}, after {after:?}, at the end {end:?}");
 }

@@ -114,8 +114,8 @@ pub fn is_loopback(url: &str) -> bool {
 
 /// Connection attempts before giving up at start, the first delay, the longest.
 const CONNECT_TRIES: u32 = 5;
-const BACKOFF_MIN: Duration = Duration::from_millis(500);
-const BACKOFF_MAX: Duration = Duration::from_secs(4);
+pub(crate) const BACKOFF_MIN: Duration = Duration::from_millis(500);
+pub(crate) const BACKOFF_MAX: Duration = Duration::from_secs(4);
 
 /// Connect to `a.nats` as `name`: off loopback only with credentials and TLS; an
 /// unreachable server is retried with back-off (each retry logged) before the error.
@@ -176,7 +176,10 @@ fn options(a: &NatsArgs, name: &str, tls: bool) -> Result<async_nats::ConnectOpt
         .connection_timeout(Duration::from_secs(3))
         .event_callback(move |e| async move {
             match e {
-                async_nats::Event::Connected => tracing::info!("NATS: reconnected"),
+                async_nats::Event::Connected => {
+                    tracing::info!("NATS: reconnected");
+                    RECONNECTS.send_modify(|n| *n += 1);
+                }
                 async_nats::Event::Disconnected => {
                     tracing::warn!("NATS: disconnected; reconnecting")
                 }
@@ -203,6 +206,16 @@ fn options(a: &NatsArgs, name: &str, tls: bool) -> Result<async_nats::ConnectOpt
         opts = opts.require_tls(true);
     }
     Ok(opts)
+}
+
+/// Bumped each time the client (re)connects: a worker's readings make their consumers
+/// again (a server restarted loses them).
+static RECONNECTS: std::sync::LazyLock<tokio::sync::watch::Sender<u64>> =
+    std::sync::LazyLock::new(|| tokio::sync::watch::Sender::new(0));
+
+/// Told of each (re)connection from now on.
+pub fn reconnects() -> tokio::sync::watch::Receiver<u64> {
+    RECONNECTS.subscribe()
 }
 
 /// The partition of vehicle (`network`, `system_id`).

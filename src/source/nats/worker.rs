@@ -218,6 +218,98 @@ async fn consume(
         prog,
         stop,
     } = r;
+    // The next sequence to read; after the server came back, the consumer is made again
+    // from it (the server's restart loses the consumer, not the stream).
+    let mut next = from.max(1);
+    let mut reconnects = super::reconnects();
+    let mut delay = super::BACKOFF_MIN;
+    'open: loop {
+        let mut msgs = match open(&stream, p, next).await {
+            Ok(m) => m,
+            Err(e) => {
+                tracing::warn!(
+                    "NATS: partition {p}: cannot read the stream from sequence {next} ({e}); \
+                     retry in {:.1} s",
+                    delay.as_secs_f64()
+                );
+                tokio::select! {
+                    _ = stop.cancelled() => return,
+                    _ = tokio::time::sleep(delay) => {}
+                }
+                delay = (delay * 2).min(super::BACKOFF_MAX);
+                continue;
+            }
+        };
+        delay = super::BACKOFF_MIN;
+        loop {
+            let m = tokio::select! {
+                _ = stop.cancelled() => return,
+                _ = reconnects.changed() => {
+                    tracing::info!(
+                        "NATS: partition {p}: reading the stream again from sequence {next} \
+                         after the reconnection"
+                    );
+                    continue 'open;
+                }
+                m = msgs.next() => m,
+            };
+            let m = match m {
+                Some(Ok(m)) => m,
+                Some(Err(e)) => {
+                    tracing::warn!("NATS: partition {p}: {e}");
+                    continue;
+                }
+                None => {
+                    tracing::warn!(
+                        "NATS: partition {p}: the stream's consumer ended; reading again from \
+                         sequence {next}"
+                    );
+                    tokio::select! {
+                        _ = stop.cancelled() => return,
+                        _ = tokio::time::sleep(super::BACKOFF_MIN) => {}
+                    }
+                    continue 'open;
+                }
+            };
+            let seq = m.info().map_or(0, |i| i.stream_sequence);
+            next = next.max(seq + 1);
+            let f = match wire::decode(&m.payload) {
+                Ok(f) => f,
+                Err(e) => {
+                    IngestStats::add(&stats.frames_bad, 1);
+                    tracing::debug!("NATS: partition {p}, sequence {seq}: {e}");
+                    continue;
+                }
+            };
+            let t_s = f.arrived_unix_s - epoch;
+            let tm = TimedMessage {
+                t_s,
+                header: f.header,
+                msg: f.msg,
+                arrived: Instant::now(),
+                network: f.network,
+            };
+            IngestStats::add(&stats.frames_ok, 1);
+            let sent = tokio::select! {
+                _ = stop.cancelled() => false,
+                r = tx.send(tm) => r.is_ok(),
+            };
+            if !sent {
+                return;
+            }
+            prog.seq.store(seq, Relaxed);
+            if let Ok(mut t) = prog.t_s.lock() {
+                *t = t_s;
+            }
+            if let Ok(mut m) = prog.marks.lock() {
+                m.passed(seq, t_s);
+            }
+        }
+    }
+}
+
+/// An ordered consumer of partition `p` from stream sequence `from`.
+async fn open(stream: &Stream, p: u32, from: u64) -> Result<consumer::pull::Ordered> {
     let cfg = consumer::pull::OrderedConfig {
         filter_subject: format!("{}.{p}.>", super::FRAMES),
         deliver_policy: consumer::DeliverPolicy::ByStartSequence {
@@ -225,66 +317,11 @@ async fn consume(
         },
         ..Default::default()
     };
-    let msgs = match stream.create_consumer(cfg).await {
-        Ok(c) => c.messages().await,
-        Err(e) => {
-            tracing::error!("NATS: partition {p}: cannot read the stream: {e}");
-            return;
-        }
-    };
-    let mut msgs = match msgs {
-        Ok(m) => m,
-        Err(e) => {
-            tracing::error!("NATS: partition {p}: cannot read the stream: {e}");
-            return;
-        }
-    };
-    loop {
-        let m = tokio::select! {
-            _ = stop.cancelled() => return,
-            m = msgs.next() => m,
-        };
-        let m = match m {
-            Some(Ok(m)) => m,
-            Some(Err(e)) => {
-                tracing::warn!("NATS: partition {p}: {e}");
-                continue;
-            }
-            None => return,
-        };
-        let seq = m.info().map_or(0, |i| i.stream_sequence);
-        let f = match wire::decode(&m.payload) {
-            Ok(f) => f,
-            Err(e) => {
-                IngestStats::add(&stats.frames_bad, 1);
-                tracing::debug!("NATS: partition {p}, sequence {seq}: {e}");
-                continue;
-            }
-        };
-        let t_s = f.arrived_unix_s - epoch;
-        let tm = TimedMessage {
-            t_s,
-            header: f.header,
-            msg: f.msg,
-            arrived: Instant::now(),
-            network: f.network,
-        };
-        IngestStats::add(&stats.frames_ok, 1);
-        let sent = tokio::select! {
-            _ = stop.cancelled() => false,
-            r = tx.send(tm) => r.is_ok(),
-        };
-        if !sent {
-            return;
-        }
-        prog.seq.store(seq, Relaxed);
-        if let Ok(mut t) = prog.t_s.lock() {
-            *t = t_s;
-        }
-        if let Ok(mut m) = prog.marks.lock() {
-            m.passed(seq, t_s);
-        }
-    }
+    let c = stream
+        .create_consumer(cfg)
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    c.messages().await.map_err(|e| anyhow::anyhow!("{e}"))
 }
 
 /// The vehicle a frame of dronewatt's is for: the message's `target_system` when it names
