@@ -1,7 +1,7 @@
 //! A fleet worker's checkpoints on the pipeline's side ([`crate::source::nats::checkpoint`]
 //! keeps them in NATS): what one vehicle's chain state is ([`VehicleState`]), the card
 //! that says which chains may take it back ([`card`]), and the energy stage's part
-//! ([`Kept`]): the state restored at its first estimate, and handed over about once a
+//! (`Kept`): the state restored at its first estimate, and handed over about once a
 //! second of source time.
 
 use serde::{Deserialize, Serialize};

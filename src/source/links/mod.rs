@@ -220,7 +220,7 @@ impl Networks {
 }
 
 /// The merge's memory of what it handed on: per sender (network, system, component), the
-/// last frame handed on for each of the 256 sequence numbers ([`SenderMemory`]), and per link
+/// last frame handed on for each of the 256 sequence numbers (`SenderMemory`), and per link
 /// and sender the count that link last brought (how it unwraps its next number).
 #[derive(Default)]
 pub struct Dedup {

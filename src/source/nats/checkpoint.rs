@@ -60,7 +60,7 @@ pub struct Saved {
 pub struct PartitionCheckpoint {
     #[serde(default)]
     pub layout: u32,
-    /// The card of the chains that wrote it ([`card`]).
+    /// The card of the chains that wrote it (`crate::pipeline::checkpoint::card`).
     #[serde(default)]
     pub card: String,
     pub worker: String,

@@ -23,13 +23,19 @@
 //!   compare-and-set on the revision it holds; a lease not renewed expires and another
 //!   worker creates it. Workers register as `w.<id>` in the same bucket and take at most
 //!   their fair share (partitions ÷ live workers, rounded up), releasing what is over it.
-//! - **State on takeover.** A worker that takes a partition rebuilds each vehicle's chain
-//!   from the stream: it replays the partition from its first frame (the stream is the
-//!   checkpoint of record), so energy used, the pack's state and history, the mission's
-//!   progress and the alerts standing come back as the single-process chain had them. The
-//!   previous holder's checkpoint (`c<part>` in [`CHECKPOINTS`]: the stream sequence and
-//!   source time it had reached) says how far its reports went out; the new holder's
-//!   reports up to that time are not sent again ([`quiet`]), so no alert is raised twice.
+//! - **State on takeover** ([`checkpoint`]): each second a worker writes its partitions'
+//!   checkpoints: each vehicle's chain state (energy used, the pack's state and history,
+//!   the mission's progress, the alerts standing) with the stream sequence to replay from,
+//!   and the last sequence and source time it handed on. A worker that takes a partition
+//!   restores the vehicles and replays from there (a checkpoint of another chain card or
+//!   layout is said, and the partition rebuilt from the stream's first frame); its reports
+//!   up to the previous holder's last time are not sent again ([`quiet`]), so no alert is
+//!   raised twice.
+//! - **Reports out** ([`publish`]): each estimate and alert event, as `--json` writes it, on
+//!   `dronewatt.estimates.<part>.<net>.<sys>` and `dronewatt.alerts.<part>.<net>.<sys>`,
+//!   only for the partitions the worker holds.
+//! - **Restarts.** The client reconnects by itself (said in the log); each reconnection
+//!   ([`reconnects`]) makes the workers' consumers again from the next sequence.
 //! - **Back to the vehicles.** What a worker's chains send a vehicle (STATUSTEXT,
 //!   NAMED_VALUE_FLOAT, BATTERY_STATUS, parameter and stream requests) goes to
 //!   `dronewatt.to.<net>.<sys>` with the worker's id; the gateway sends it on that

@@ -9,7 +9,7 @@
 //! (core NATS, not the stream: a viewer subscribes to `dronewatt.estimates.>`, one
 //! partition's `dronewatt.*.<part>.>`, or one vehicle's). A worker publishes only for
 //! vehicles of the partitions it holds a lease for: [`publish`] checks the lease set the
-//! worker keeps ([`set`]), and a report of another vehicle is dropped and counted. The
+//! worker keeps (`set`), and a report of another vehicle is dropped and counted. The
 //! pipeline formats the lines (`src/pipeline/nats_out.rs`); this module owns the client.
 
 use std::collections::HashMap;

@@ -6,11 +6,13 @@
 //! Every [`super::RENEW`]: register, renew the leases held (a lease lost stops its
 //! partition), write each held partition's checkpoint (`c<part>`: the last stream sequence
 //! handed on and its source time), give up what is over the fair share, take free
-//! partitions up to it. A partition taken is read from the stream's first frame of it (its
-//! vehicles' chains rebuilt from the stream; see [`super`]), or, when this worker held it
-//! before, from the frame after the last it handed on; reports up to the previous holder's
-//! checkpoint are held back ([`super::set_quiet`]). On shutdown the worker writes its
-//! checkpoints and releases its leases, so another takes them at once.
+//! partitions up to it. A partition taken is read from its previous holder's checkpoint
+//! (its vehicles' states restored: [`checkpoint`]), else from the stream's first frame of
+//! it, or, when this worker held it before, from the frame after the last it handed on;
+//! reports up to the previous holder's checkpoint are held back ([`super::set_quiet`]).
+//! After the client reconnects, each partition is read again from its next sequence. On
+//! shutdown the worker writes its checkpoints and releases its leases, so another takes
+//! them at once.
 //!
 //! The source's clock (`t_s`) is the gateway's arrival time, in seconds since the stream was
 //! created: one clock for every worker, so a report's time is the same whichever worker
