@@ -183,8 +183,15 @@ fn options(a: &NatsArgs, name: &str, tls: bool) -> Result<async_nats::ConnectOpt
         .event_callback(move |e| async move {
             match e {
                 async_nats::Event::Connected => {
-                    tracing::info!("NATS: reconnected");
-                    RECONNECTS.send_modify(|n| *n += 1);
+                    // The first is the connection `connect` reports itself.
+                    let mut n = 0;
+                    RECONNECTS.send_modify(|c| {
+                        *c += 1;
+                        n = *c;
+                    });
+                    if n > 1 {
+                        tracing::info!("NATS: reconnected");
+                    }
                 }
                 async_nats::Event::Disconnected => {
                     tracing::warn!("NATS: disconnected; reconnecting")
