@@ -502,3 +502,33 @@ fn a_client_without_credentials_is_refused_and_a_stream_of_another_layout_named(
         "{err}"
     );
 }
+
+/// Off loopback, a worker and a gateway refuse to start without credentials and TLS, before
+/// any connection (no server needed: the address is never dialled).
+#[test]
+fn off_loopback_nats_needs_credentials_and_tls() {
+    for args in [
+        vec![
+            "monitor",
+            "--nats",
+            "nats://10.255.255.1:4222",
+            "-q",
+            "--data-dir",
+            "off",
+        ],
+        vec![
+            "gateway",
+            "udpin:127.0.0.1:0",
+            "--nats",
+            "nats://10.255.255.1:4222",
+        ],
+    ] {
+        let out = dronewatt().args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}: {err}");
+        assert!(
+            err.contains("needs credentials") && err.contains("TLS"),
+            "{args:?}: {err}"
+        );
+    }
+}
