@@ -137,8 +137,8 @@ fn value(rule: &AlertRule, est: &Estimate, en: &EnergyState) -> Option<f64> {
 }
 
 /// Where one rule stands.
-#[derive(Debug, Clone, Copy, Default)]
-struct RuleState {
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RuleState {
     /// Since when the raise condition has held (debounce), while not raised.
     pending_since: Option<f64>,
     /// Raised, and when it last said so.
@@ -162,6 +162,25 @@ impl AlertEngine {
             compiled.push((r.clone(), l, RuleState::default()));
         }
         Ok(Self { rules: compiled })
+    }
+
+    /// Where each rule stands (raised, pending), by rule name: what a fleet worker's
+    /// checkpoint keeps of the alerts.
+    pub fn standing(&self) -> Vec<(String, RuleState)> {
+        self.rules
+            .iter()
+            .map(|(r, _, st)| (r.name.clone(), *st))
+            .collect()
+    }
+
+    /// Take back where the rules stood ([`AlertEngine::standing`]): each rule of the same
+    /// name; a rule the standing does not name starts afresh.
+    pub fn restore(&mut self, standing: &[(String, RuleState)]) {
+        for (rule, _, st) in &mut self.rules {
+            if let Some((_, s)) = standing.iter().find(|(n, _)| *n == rule.name) {
+                *st = *s;
+            }
+        }
     }
 
     /// Events raised or cleared by this estimate.

@@ -11,7 +11,7 @@ use super::ocv::OcvCurve;
 use super::split::Split;
 
 /// Pack model parameters (pack volts/ohms). `Default` is the TB48D fit from fit.py.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CircuitParams {
     /// Cells in series.
     pub n_cells: u32,
@@ -129,7 +129,7 @@ const TH_LO: [f64; 3] = [0.0, 0.0, -1.0];
 const TH_HI: [f64; 3] = [0.5, 0.5, 1.0];
 
 /// Pack state plus online estimator. Cost per update: a few exp() and a 3×3 RLS.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Estimator {
     pub(crate) p: CircuitParams,
     pub(crate) curve: OcvCurve,

@@ -62,10 +62,29 @@ pub fn growth(a: f64, s0: f64, beta: f64, soc: f64) -> f64 {
 
 /// Per-band sums of the measured sag against the nominal one (Σ d·y, Σ d², d the nominal drop
 /// at g = 1, y the measured drop less the bias), over a flight's loaded samples.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DeepFit {
+    #[serde(with = "bins")]
     dy: [f64; BINS],
+    #[serde(with = "bins")]
     dd: [f64; BINS],
+}
+
+/// The per-band sums as a sequence (serde has no arrays this long); one of another length
+/// is an error.
+mod bins {
+    use super::BINS;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(a: &[f64; BINS], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(a.iter())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; BINS], D::Error> {
+        let v = Vec::<f64>::deserialize(d)?;
+        <[f64; BINS]>::try_from(v.as_slice())
+            .map_err(|_| serde::de::Error::invalid_length(v.len(), &"one sum per band"))
+    }
 }
 
 impl Default for DeepFit {

@@ -7,7 +7,7 @@
 
 /// What the last flight of a vehicle left of its pack: carried into the next flight when it
 /// starts soon after on what looks like the same pack.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PackHistory {
     /// That flight was of the pack flying now by its identity (BATTERY_INFO's serial), not
     /// just the vehicle's last flight: the gap rule does not apply.

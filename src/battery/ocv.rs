@@ -35,7 +35,7 @@ pub const TB48D_E_WH: [f64; 18] = [
 ];
 
 /// Strictly increasing table of (V/cell, energy above floor).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct OcvCurve {
     v: Vec<f64>,
     e: Vec<f64>,

@@ -38,7 +38,7 @@ const LO: [f64; 3] = [0.0, 0.0, -1.0];
 const HI: [f64; 3] = [5.0, 5.0, 1.0];
 
 /// Running sums of the fit and the two RC states.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Split {
     /// RC state driven by I (V/Ω, as the circuit's x1).
     pub(crate) xw: f64,

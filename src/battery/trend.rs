@@ -57,7 +57,7 @@ pub fn loaded_a(ah: Option<f64>) -> f64 {
 const RIDGE: f64 = 1e-3;
 
 /// The running fit of a flight's loaded voltage: sums of the weighted normal equations.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct VoltageTrend {
     /// Take-off (the first loaded sample), s.
     t_takeoff: Option<f64>,

@@ -52,7 +52,7 @@ pub const THROTTLE_GROUND_M_S: f64 = 3.0;
 pub const THROTTLE_S: f64 = 10.0;
 
 /// What the calibration needs of the vehicle profile.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HoverReference {
     /// Momentum theory's ideal hover power for the take-off mass on the rotors' disk, W.
     pub ideal_w: f64,
@@ -109,9 +109,10 @@ pub fn follows_momentum_theory(p: &VehicleProfile) -> bool {
 }
 
 pub use crate::report::hover::HoverCalibration;
+use crate::report::hover::HoverSource;
 
 /// Where the search stands.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum HoverState {
     /// Looking for the first hover.
     Searching,
@@ -129,7 +130,7 @@ pub enum HoverNews {
 }
 
 /// Finds the first hover and calibrates on it.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct HoverCalibrator {
     reference: Option<HoverReference>,
     /// Whether the forecast follows the momentum-theory member.
@@ -283,7 +284,7 @@ impl HoverCalibrator {
             return None;
         }
         let (w, s) = (self.thr_wj / self.thr_s, self.thr_s);
-        self.calibrate_on(r.clone(), t_s, w, s, "MOT_THST_HOVER")
+        self.calibrate_on(r.clone(), t_s, w, s, HoverSource::HoverThrottle)
     }
 
     /// A hover ended: calibrate when it was long enough, else start over.
@@ -298,7 +299,7 @@ impl HoverCalibrator {
 
     fn calibrate(&mut self, r: HoverReference, t_s: f64) -> Option<HoverNews> {
         let (w, s) = (self.sum_wj / self.sum_s, self.sum_s);
-        self.calibrate_on(r, t_s, w, s, "hover")
+        self.calibrate_on(r, t_s, w, s, HoverSource::Hover)
     }
 
     fn calibrate_on(
@@ -307,7 +308,7 @@ impl HoverCalibrator {
         t_s: f64,
         hover_w: f64,
         hover_s: f64,
-        source: &'static str,
+        source: HoverSource,
     ) -> Option<HoverNews> {
         let Some(eta) = r.eta_of(hover_w) else {
             let why = format!(

@@ -167,7 +167,7 @@ fn the_hover_throttle_with_the_packs_power_calibrates_without_a_still_hover() {
     let Some(HoverNews::Calibrated(cal)) = news.first() else {
         panic!("{news:?}")
     };
-    assert_eq!(cal.source, "MOT_THST_HOVER");
+    assert_eq!(cal.source, crate::report::hover::HoverSource::HoverThrottle);
     assert!((cal.hover_w - 258.0).abs() < 1.0, "{cal:?}");
     // η_h = 100 / (258 − 8) = 0.4
     assert!((cal.eta_h - 0.4).abs() < 0.002, "{cal:?}");

@@ -73,7 +73,7 @@ impl EnergyTracker {
                     } else {
                         "kept for the vehicle store; the forecast does not follow the momentum-theory member, so it is not rescaled".to_string()
                     };
-                    let at = if c.source == "hover" {
+                    let at = if c.source == crate::report::hover::HoverSource::Hover {
                         String::new()
                     } else {
                         format!(

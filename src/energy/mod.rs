@@ -63,7 +63,7 @@ mod config;
 pub use config::EnergyConfig;
 
 /// An exponential moving average over irregular time steps.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 struct Ema(Option<f64>);
 
 impl Ema {
@@ -77,7 +77,9 @@ impl Ema {
     }
 }
 
-/// Integrates power into energy and forecasts what is left.
+/// Integrates power into energy and forecasts what is left. Its whole state serialises
+/// (a fleet worker's checkpoint).
+#[derive(Clone, serde::Serialize, serde::Deserialize)]
 pub struct EnergyTracker {
     cfg: EnergyConfig,
     cruise_speed_m_s: f64,
@@ -207,6 +209,25 @@ impl EnergyTracker {
     /// into this flight when it starts soon after on the same pack.
     pub fn set_pack_history(&mut self, h: Option<crate::battery::PackHistory>) {
         self.pack.history = h;
+    }
+
+    /// The energy used so far, Wh.
+    pub fn used_wh(&self) -> f64 {
+        self.used_wh
+    }
+
+    /// Go on from `saved`, a state a fleet worker's checkpoint kept of this vehicle (made
+    /// with the same configuration: the card matched): this tracker's configuration stays
+    /// (with what is no TOML key, the pack's name), and the battery facts are derived again
+    /// (what their JSON does not carry, the autopilot's low voltages).
+    pub fn restore(&mut self, saved: EnergyTracker) {
+        let (cfg, quiet) = (self.cfg.clone(), self.quiet);
+        *self = Self {
+            cfg,
+            quiet,
+            ..saved
+        };
+        self.resolve_battery();
     }
 
     /// A tracker that warns of nothing: bookkeeping beside the live one (an offline

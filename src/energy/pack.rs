@@ -97,7 +97,7 @@ pub fn pack_power(model_w: Option<f64>, measured_w: Option<f64>) -> Option<f64> 
 }
 
 /// What the pack model says now (all absent until a resting voltage was read).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PackNow {
     /// The resting voltage the state started from, V.
     pub rest_v: Option<f64>,
@@ -136,18 +136,48 @@ pub struct PackNow {
     /// heat carried over).
     pub carried: bool,
     /// How the start state was read: a resting voltage, or load-compensated (V + I·R).
-    pub start: Option<&'static str>,
+    #[serde(deserialize_with = "said::deserialize")]
+    pub start: Said,
     /// The state of charge's band, ± points.
     pub soc_band_pct: Option<f64>,
     /// Why the modelled voltage, the voltage forecast and the time to the low voltage are
     /// null, when they are withheld.
-    pub withheld: Option<&'static str>,
+    #[serde(deserialize_with = "said::deserialize")]
+    pub withheld: Said,
+}
+
+/// One of the pack's fixed texts (named so that serde's derive asks no `'static` input).
+pub type Said = Option<&'static str>;
+
+/// [`PackNow`]'s fixed texts read back (a fleet worker's checkpoint): one of the texts
+/// this module says, or an error.
+mod said {
+    use serde::{Deserialize, Deserializer};
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<super::Said, D::Error> {
+        let Some(s) = Option::<String>::deserialize(d)? else {
+            return Ok(None);
+        };
+        [
+            super::FROM_REST,
+            super::FROM_LOAD,
+            super::NO_SAG,
+            super::SAG_PENDING,
+            super::OUT_OF_RANGE,
+        ]
+        .into_iter()
+        .find(|k| *k == s)
+        .map(Some)
+        .ok_or_else(|| serde::de::Error::custom(format!("not a text of the pack's: {s:?}")))
+    }
 }
 
 /// The reason the voltage figures are withheld for a pack that does not sag.
 pub const NO_SAG: &str = "the pack's voltage does not sag under load (a simulator's fixed battery, a stuck reading or a sensor behind a regulator): no voltage forecast, energy still counted";
 /// How a start state read off a resting voltage is said.
 pub const FROM_REST: &str = "resting voltage";
+/// How a load-compensated start state is said.
+pub const FROM_LOAD: &str = "load-compensated (V + I·R, prior R)";
 
 /// The median of some readings (None for none).
 fn median(xs: impl Iterator<Item = f64>) -> Option<f64> {
@@ -184,7 +214,7 @@ impl Load {
 }
 
 /// The pack's state across the estimates of one vehicle.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Pack {
     /// (t, V) of the current rest stretch, at most [`REST_SETTLE_S`] long.
     rest: std::collections::VecDeque<(f64, f64)>,
@@ -414,7 +444,7 @@ impl Pack {
                 facts.cell_count.value
             ));
         }
-        self.start(ocv, "load-compensated (V + I·R, prior R)", facts);
+        self.start(ocv, FROM_LOAD, facts);
         // Flying already: the start is not a rest before take-off.
         self.flown = i >= LOAD_CURRENT_A;
     }

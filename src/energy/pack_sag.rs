@@ -6,7 +6,7 @@
 /// than a quarter of the sag the prior resistance gives that swing (and at most
 /// [`SagCheck::MAX_SPREAD_V_CELL`] a cell). Any real pack sags by I·R, and discharging only
 /// adds to the voltage's spread.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct SagCheck {
     /// Seconds under load seen.
     pub loaded_s: f64,

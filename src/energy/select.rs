@@ -76,7 +76,7 @@ impl SelectConfig {
 }
 
 /// Why the forecast follows the model it follows.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Why {
     /// `[energy] model` names it.
     Config,
@@ -106,14 +106,14 @@ impl std::fmt::Display for Why {
 }
 
 /// The model the forecast follows, and why.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Choice {
     pub model: String,
     pub why: Why,
 }
 
 /// Online selection of the forecast model (module docs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Selector {
     cfg: SelectConfig,
     /// Whether the config fixed the model (no selection).

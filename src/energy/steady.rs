@@ -20,7 +20,7 @@ use crate::report::RemainingSource;
 pub const LANDED_S: f64 = 5.0;
 
 /// Whether the vehicle flies, and for how long it has.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct Airborne {
     flying: bool,
     /// Seconds in flight since take-off.
@@ -68,7 +68,7 @@ impl Airborne {
 pub const REVISE_AFTER_S: f64 = 30.0;
 
 /// Remaining energy that does not rise under load without a stated reason.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct NoRise {
     /// (shown Wh, energy used then Wh, its source).
     last: Option<(f64, f64, RemainingSource)>,

@@ -326,3 +326,38 @@ fn remaining_energy_never_rises_in_flight() {
     }
     assert!(last.is_some_and(|r| r > 0.0));
 }
+
+/// A tracker mid-flight (a rest, then a load that sags the pack) through a fleet worker's
+/// checkpoint (CBOR, as `source::nats::checkpoint` stores it) goes on exactly as the one
+/// that never stopped: the same energy, pack state, forecast and remaining.
+#[test]
+fn a_checkpointed_tracker_goes_on_as_the_one_that_never_stopped() {
+    let flight = |i: usize| {
+        let t = i as f64 * 0.1;
+        let (v, w) = if t < 20.0 {
+            (25.2, Some(5.0))
+        } else {
+            (
+                24.6 - 0.002 * (t - 20.0),
+                Some(420.0 + (t * 0.7).sin() as f32 * 30.0),
+            )
+        };
+        let mut e = est(t, w, &[("tseng", 410.0)]);
+        e.sample.voltage_v = Some(v as f32);
+        e
+    };
+    let mut live = tracker(m100());
+    for i in 0..900 {
+        live.update(&flight(i));
+    }
+    let mut bytes = Vec::new();
+    ciborium::into_writer(&live, &mut bytes).unwrap();
+    let saved: EnergyTracker = ciborium::from_reader(&bytes[..]).unwrap();
+    let mut back = tracker(m100());
+    back.restore(saved);
+    assert!(back.used_wh() > 5.0, "{}", back.used_wh());
+    for i in 900..1500 {
+        let (a, b) = (live.update(&flight(i)), back.update(&flight(i)));
+        assert_eq!(format!("{a:?}"), format!("{b:?}"), "at sample {i}");
+    }
+}

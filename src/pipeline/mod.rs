@@ -39,9 +39,11 @@
 //! sees its queue close, flushes and writes its summary. Nothing is lost on the way out.
 
 mod chain;
+pub mod checkpoint;
 mod fleet;
 mod inference;
 mod mission;
+mod nats_out;
 mod shutdown;
 mod sinks;
 mod stages;
@@ -140,10 +142,20 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     };
 
     // Sinks start first so they see every report.
-    let (fanout, sinks) = start_sinks(p.sinks, &status)?;
+    let (mut fanout, sinks) = start_sinks(p.sinks, &status)?;
+    // A fleet worker's reports to NATS too.
+    let nats_out = matches!(p.source, crate::source::SourceSpec::Nats(_))
+        .then(|| tokio::spawn(nats_out::run(fanout.subscribe())));
 
     let live = p.source.is_live();
     let flat = p.source.is_flat();
+    // A fleet worker's chains hand their state over for its checkpoints.
+    if matches!(p.source, crate::source::SourceSpec::Nats(_)) {
+        crate::source::nats::checkpoint::set_card(
+            checkpoint::card(&p.config, &resolved.vehicle),
+            checkpoint::check,
+        );
+    }
     let (msg_tx, msg_rx) = mpsc::channel::<TimedMessage>(CHANNEL_DEPTH);
     let source = tokio::spawn(crate::source::run(
         p.source,
@@ -176,6 +188,9 @@ pub async fn run(mut p: Pipeline, shutdown: CancellationToken) -> Result<StatsSn
     let source_result = source.await?;
     demux.await??;
     sinks.join().await?;
+    if let Some(t) = nats_out {
+        t.await?;
+    }
     source_result?;
     Ok(status.stats.snapshot())
 }

@@ -5,6 +5,7 @@
 use tokio::sync::mpsc;
 use tokio::time::Instant;
 
+use super::checkpoint::Kept;
 use super::mission::take_mission;
 use super::{HEALTH_EVERY, SILENT_TICK};
 use crate::alert::AlertEngine;
@@ -108,15 +109,18 @@ pub(super) async fn telemetry_stage(
 
 /// What the energy stage has taken of the vehicle's news ([`VehicleNews`]).
 #[derive(Default)]
-struct Taken {
+pub(super) struct Taken {
     /// The vehicle's last word taken (its identity goes to the store at the end).
-    params: VehicleParams,
+    pub(super) params: VehicleParams,
     /// The store's pack histories and the pack flying (BATTERY_INFO): the carry-over is
     /// picked again when either changes ([`crate::battery::PackHistories::pick`]).
     packs: crate::battery::PackHistories,
-    pack_id: Option<String>,
+    pub(super) pack_id: Option<String>,
     /// The news read and not yet due.
     next: Option<VehicleNews>,
+    /// `params` came from a fleet worker's checkpoint: what the vehicle says next is
+    /// taken over them ([`VehicleParams::over`]).
+    pub(super) restored: bool,
 }
 
 impl Taken {
@@ -144,6 +148,13 @@ impl Taken {
             }
             match self.next.take() {
                 Some(VehicleNews::Params(_, params)) => {
+                    // Over what a checkpoint restored: what the replay did not hear again
+                    // (parameters fetched at the start) stands.
+                    let params = if self.restored {
+                        params.over(&self.params)
+                    } else {
+                        params
+                    };
                     if params.pack_id.is_some() && params.pack_id != self.pack_id {
                         self.pack_id.clone_from(&params.pack_id);
                         flight.set_pack_id(self.pack_id.clone());
@@ -201,6 +212,7 @@ pub(super) async fn energy_stage(
     let mut last: Option<(Estimate, EnergyState, Instant)> = None;
     let mut next_mission: Option<MissionUpdate> = None;
     let mut taken = Taken::default();
+    let mut kept = Kept::default();
     loop {
         let next = if live {
             tokio::time::timeout(SILENT_TICK, estimates.recv()).await
@@ -209,12 +221,20 @@ pub(super) async fn energy_stage(
         };
         let report = match next {
             Ok(Some(est)) => {
+                // A fleet worker's takeover: the vehicle's state from its checkpoint, and
+                // the estimates it already reflects skipped.
+                kept.restore(vehicle_id(), &mut energy, &mut alerts, &mut taken);
+                if kept.reflects(est.t_s) {
+                    continue;
+                }
                 // What the vehicle said up to this estimate's time, and no later.
                 taken
                     .take(&mut news, Some(est.t_s), &mut energy, &mut flight)
                     .await;
                 take_mission(&mut energy, &mut mission, &mut next_mission, est.t_s);
+                let t_s = est.t_s;
                 let report = account(&mut energy, &mut alerts, est, vehicle_id());
+                kept.record(vehicle_id(), t_s, &energy, &alerts, &taken);
                 flight.observe(&report);
                 for m in stuck.observe(&report.estimate) {
                     tracing::warn!(vehicle = %report.vehicle, "{m}");

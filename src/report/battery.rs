@@ -50,6 +50,30 @@ impl Serialize for Provenance {
     }
 }
 
+/// Read back as [`Provenance`]'s `Display` writes it (a fleet worker's checkpoint); a text
+/// of no other form is a pack's name.
+impl<'de> serde::Deserialize<'de> for Provenance {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        let learned = s
+            .strip_prefix("learned over ")
+            .and_then(|r| r.strip_suffix(" flight(s)"))
+            .and_then(|n| n.parse().ok());
+        Ok(match s.as_str() {
+            "config" => Provenance::Config,
+            "first battery voltage" => Provenance::FirstVoltage,
+            "assumed (not known)" => Provenance::Default,
+            _ if learned.is_some() => Provenance::Learned {
+                flights: learned.unwrap_or(0),
+            },
+            _ => match s.strip_prefix("vehicle parameter ") {
+                Some(name) => Provenance::Parameter(name.to_string()),
+                None => Provenance::Named(s),
+            },
+        })
+    }
+}
+
 impl PartialEq<&str> for Provenance {
     #[allow(clippy::cmp_owned)] // the text is made by Display, as the JSON and the terminal say it
     fn eq(&self, other: &&str) -> bool {
@@ -58,7 +82,7 @@ impl PartialEq<&str> for Provenance {
 }
 
 /// A value and where it came from.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Sourced<T> {
     pub value: T,
     pub source: Provenance,
@@ -82,7 +106,7 @@ pub const CAPACITY_UNKNOWN: &str = "not known: no BATT_CAPACITY / BAT1_CAPACITY,
 
 /// The battery figures the energy stage works with, each with its provenance
 /// (resolved by `vehicle::resolve_battery`: config, vehicle parameter, default).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct BatteryFacts {
     /// Usable energy when full, Wh; None: not known ([`CAPACITY_UNKNOWN`]), and nothing
     /// that needs it (remaining Wh, time to empty) is made up.

@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 /// A first hover measured and what it set (in `--json`: `hover_calibration`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct HoverCalibration {
     /// Source time it was made at, s.
     pub t_s: f64,
@@ -23,7 +23,18 @@ pub struct HoverCalibration {
     pub applied: bool,
     /// What measured it: `hover` (a still hover flown) or `MOT_THST_HOVER` (the pack's V·I
     /// while the throttle was at ArduPilot's learned hover throttle).
-    pub source: &'static str,
+    pub source: HoverSource,
+}
+
+/// What measured a first hover (in `--json`: `hover_calibration.source`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
+pub enum HoverSource {
+    /// A still hover flown.
+    #[serde(rename = "hover")]
+    Hover,
+    /// The pack's V·I while the throttle was at ArduPilot's learned hover throttle.
+    #[serde(rename = "MOT_THST_HOVER")]
+    HoverThrottle,
 }
 
 impl HoverCalibration {

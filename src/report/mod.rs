@@ -126,7 +126,16 @@ impl PowerSource {
 
 /// Where `remaining_wh` comes from.
 #[derive(
-    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, strum::IntoStaticStr, strum::Display,
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    Eq,
+    Serialize,
+    serde::Deserialize,
+    strum::IntoStaticStr,
+    strum::Display,
 )]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
@@ -293,7 +302,7 @@ pub struct MissionUpdate {
 
 /// The live mission forecast at one moment: what the mission task
 /// (`crate::mission::live`) hands the energy stage, in source-time order.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct MissionStatus {
     /// Source time of the message it was computed on, s.
     pub t_s: f64,

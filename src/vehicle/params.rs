@@ -61,7 +61,9 @@ pub const MAX_TRIES: u32 = 3;
 const AUTOPILOT_VERSION_ID: f32 = 148.0;
 
 /// Which autopilot firmware: it decides how integer parameters are encoded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, strum::Display)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, strum::Display,
+)]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum Autopilot {
@@ -92,7 +94,7 @@ impl Autopilot {
 }
 
 /// Who the vehicle is.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Identity {
     /// MAVLink system id of the autopilot.
     pub system_id: u8,
@@ -105,7 +107,7 @@ pub struct Identity {
     pub uid: Option<u64>,
     /// The network it was heard on (`crate::report::VehicleId::network`; 0: the only one):
     /// with no uid, the vehicle store tells two fleets' system id 1 apart by it.
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(skip_serializing_if = "is_zero", default)]
     pub network: u8,
 }
 
@@ -148,7 +150,7 @@ pub fn decode(autopilot: Autopilot, raw: RawParam) -> f64 {
 }
 
 /// The vehicle's parameters that were read, decoded, by name.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct VehicleParams {
     /// The vehicle, once its heartbeat was heard.
     pub identity: Option<Identity>,
@@ -173,6 +175,23 @@ impl VehicleParams {
     pub fn get(&self, name: &str) -> Option<f64> {
         self.values.get(name).copied()
     }
+    /// These parameters over `earlier` ones: what these do not say (a value, the
+    /// identity, the pack) is taken from `earlier`. A fleet worker's replay after a
+    /// checkpoint hears only the stream's last seconds, not the parameters fetched at the
+    /// start.
+    pub fn over(mut self, earlier: &VehicleParams) -> Self {
+        for (k, v) in &earlier.values {
+            self.values.entry(k.clone()).or_insert(*v);
+        }
+        self.absent.retain(|a| !self.values.contains_key(a));
+        self.identity = self.identity.or_else(|| earlier.identity.clone());
+        self.battery_cells = self.battery_cells.or(earlier.battery_cells);
+        self.pack_id = self.pack_id.or_else(|| earlier.pack_id.clone());
+        self.battery_chemistry = self.battery_chemistry.or(earlier.battery_chemistry);
+        self.battery_info = self.battery_info.or(earlier.battery_info);
+        self
+    }
+
     /// Parameters from (name, value) pairs (tests, logs).
     pub fn from_pairs(pairs: &[(&str, f64)]) -> Self {
         Self {

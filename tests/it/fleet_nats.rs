@@ -17,10 +17,41 @@ use crate::harness::{dronewatt, Monitor};
 use crate::link_common::{free_tcp_port, free_udp_port};
 
 /// A nats-server run for one test, killed when dropped.
-struct Server {
+pub(crate) struct Server {
     child: Child,
-    url: String,
+    pub(crate) url: String,
+    port: u16,
+    /// The command line it was started with (a restart runs it again on the same store).
+    cmd: Vec<std::ffi::OsString>,
     _dir: tempfile::TempDir,
+}
+
+impl Server {
+    /// Kill the server (SIGKILL: JetStream keeps what it had synced), and start it again on
+    /// the same port and store.
+    pub(crate) fn restart(&mut self, down: Duration) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        std::thread::sleep(down);
+        self.child = Command::new(&self.cmd[0])
+            .args(&self.cmd[1..])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        wait_port(self.port);
+    }
+}
+
+fn wait_port(port: u16) {
+    let start = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "nats-server never listened"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 impl Drop for Server {
@@ -44,7 +75,7 @@ fn nats_server_bin() -> Option<PathBuf> {
 
 /// Start nats-server with JetStream (and `config`'s text as its config file, when given),
 /// or `None` (the test skips) without it, unless CI=true.
-fn server(config: Option<&str>) -> Option<Server> {
+pub(crate) fn server(config: Option<&str>) -> Option<Server> {
     let Some(bin) = nats_server_bin() else {
         assert!(
             std::env::var("CI").map_or(true, |v| v != "true"),
@@ -55,36 +86,35 @@ fn server(config: Option<&str>) -> Option<Server> {
     };
     let dir = tempfile::tempdir().unwrap();
     let port = free_tcp_port();
-    let mut cmd = Command::new(bin);
-    cmd.args(["-js", "-a", "127.0.0.1", "-p", &port.to_string(), "-sd"])
-        .arg(dir.path().join("js"));
+    let mut cmd: Vec<std::ffi::OsString> = vec![bin.into()];
+    for a in ["-js", "-a", "127.0.0.1", "-p", &port.to_string(), "-sd"] {
+        cmd.push(a.into());
+    }
+    cmd.push(dir.path().join("js").into());
     if let Some(text) = config {
         let f = dir.path().join("nats.conf");
         std::fs::write(&f, text).unwrap();
-        cmd.arg("-c").arg(f);
+        cmd.push("-c".into());
+        cmd.push(f.into());
     }
-    let child = cmd
+    let child = Command::new(&cmd[0])
+        .args(&cmd[1..])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let start = Instant::now();
-    while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "nats-server never listened"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    wait_port(port);
     Some(Server {
         child,
         url: format!("nats://127.0.0.1:{port}"),
+        port,
+        cmd,
         _dir: dir,
     })
 }
 
 /// Every JSON line of `path` that parses (a worker killed mid-write leaves half a line).
-fn lines(path: &Path) -> Vec<Value> {
+pub(crate) fn lines(path: &Path) -> Vec<Value> {
     std::fs::read_to_string(path)
         .unwrap_or_default()
         .lines()
@@ -93,7 +123,7 @@ fn lines(path: &Path) -> Vec<Value> {
 }
 
 /// Real estimates (with model output) of vehicle `sys` in `lines`: (t, energy used).
-fn estimates(lines: &[Value], sys: u64) -> Vec<(f64, f64)> {
+pub(crate) fn estimates(lines: &[Value], sys: u64) -> Vec<(f64, f64)> {
     let mut v: Vec<(f64, f64)> = lines
         .iter()
         .filter(|l| l["type"] == "estimate" && l["system_id"].as_u64() == Some(sys))
@@ -105,7 +135,7 @@ fn estimates(lines: &[Value], sys: u64) -> Vec<(f64, f64)> {
 }
 
 /// How many times each (vehicle, rule) alert was raised in `lines`.
-fn raised(lines: &[Value]) -> std::collections::BTreeMap<(u64, String), usize> {
+pub(crate) fn raised(lines: &[Value]) -> std::collections::BTreeMap<(u64, String), usize> {
     let mut m = std::collections::BTreeMap::new();
     for l in lines
         .iter()
@@ -120,7 +150,7 @@ fn raised(lines: &[Value]) -> std::collections::BTreeMap<(u64, String), usize> {
     m
 }
 
-fn python() -> Command {
+pub(crate) fn python() -> Command {
     Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.venv-py/bin/python"))
 }
 
@@ -157,7 +187,41 @@ fn rogue_statustext(url: &str, sys: u8) {
     });
 }
 
-fn worker(url: &str, json: &Path) -> Monitor {
+/// A NATS viewer: what is published on `subject` (a wildcard) until `stop` is set, as
+/// (subject, JSON) pairs.
+fn viewer(
+    url: &str,
+    subject: &str,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> std::thread::JoinHandle<Vec<(String, Value)>> {
+    let (url, subject) = (url.to_string(), subject.to_string());
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let h = std::thread::spawn(move || {
+        let rt = tokio::runtime::Runtime::new().unwrap();
+        rt.block_on(async {
+            use futures_util::StreamExt;
+            let c = async_nats::connect(url.as_str()).await.unwrap();
+            let mut sub = c.subscribe(subject).await.unwrap();
+            c.flush().await.unwrap();
+            ready_tx.send(()).unwrap();
+            let mut got = Vec::new();
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                if let Ok(Some(m)) =
+                    tokio::time::timeout(Duration::from_millis(200), sub.next()).await
+                {
+                    if let Ok(v) = serde_json::from_slice(&m.payload) {
+                        got.push((m.subject.to_string(), v));
+                    }
+                }
+            }
+            got
+        })
+    });
+    ready_rx.recv().unwrap();
+    h
+}
+
+pub(crate) fn worker(url: &str, json: &Path) -> Monitor {
     Monitor::spawn(
         dronewatt()
             .args([
@@ -195,6 +259,8 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
         dir.path().join("b.jsonl"),
         dir.path().join("single.jsonl"),
     );
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let view = viewer(&nats.url, "dronewatt.*.>", stop.clone());
     let a = worker(&nats.url, &ja);
     std::thread::sleep(Duration::from_secs(2));
     let b = worker(&nats.url, &jb);
@@ -232,6 +298,8 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
     assert!(out.status.success(), "fleet.py failed");
     std::thread::sleep(Duration::from_secs(3));
     let (sb, eb) = b.stop();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let seen = view.join().unwrap();
     let (_, eg) = gateway.stop();
     let (ss, es) = single.stop();
     assert!(sb.success() && ss.success(), "worker: {eb}\nsingle: {es}");
@@ -241,6 +309,15 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
     assert!(
         eb.contains("took partition") && eb.contains("from worker"),
         "no takeover: {ctx}"
+    );
+    // The vehicles came back from their checkpoints (energy, pack, alerts), and only the
+    // stream's last seconds were replayed.
+    assert!(
+        eb.contains("restored from the fleet's checkpoint")
+            && eb.contains("replaying from stream sequence")
+            && !eb.contains("does not read")
+            && !eb.contains("another card"),
+        "not restored from the checkpoints: {ctx}"
     );
     let (mut worst_hole, mut worst_diff) = (0.0f64, 0.0f64);
     for sys in 1..=12u64 {
@@ -272,12 +349,44 @@ fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
         100.0 * worst_diff
     );
     eprintln!("worker a killed at {killed:?}");
-    for l in eb
-        .lines()
-        .filter(|l| l.contains("took partition") || l.contains("gave partition"))
-    {
+    for l in eb.lines().filter(|l| {
+        l.contains("took partition")
+            || l.contains("gave partition")
+            || l.contains("NATS: partition")
+            || l.contains("restored from")
+    }) {
         eprintln!("worker b: {l}");
     }
+    // The workers published their estimates and alerts on NATS too, each on its vehicle's
+    // partition's subject, as many as their files hold (the killed worker's last lines
+    // may not have gone out), and no alert twice.
+    let nats_lines: Vec<Value> = seen.iter().map(|(_, v)| v.clone()).collect();
+    for (subject, v) in &seen {
+        let sys = v["system_id"].as_u64().unwrap_or(0);
+        let part = (sys + 17 * v["network"].as_u64().unwrap_or(0)) % 16;
+        let kind = if v["type"] == "alert" {
+            "alerts"
+        } else {
+            "estimates"
+        };
+        assert_eq!(subject, &format!("dronewatt.{kind}.{part}.0.{sys}"), "{v}");
+    }
+    for sys in 1..=12u64 {
+        let (on_nats, in_files) = (
+            estimates(&nats_lines, sys).len(),
+            estimates(&workers, sys).len(),
+        );
+        assert!(
+            on_nats * 10 >= in_files * 9 && on_nats <= in_files,
+            "vehicle {sys}: {on_nats} estimates on NATS, {in_files} in the workers' files"
+        );
+    }
+    assert_eq!(
+        raised(&nats_lines),
+        raised(&workers),
+        "alerts on NATS and in the files"
+    );
+    eprintln!("on NATS: {} estimates and alerts", seen.len());
     // No alert raised twice for one cause: never more often than the one process raised it.
     let (rw, rs) = (raised(&workers), raised(&one));
     for (k, n) in &rw {
@@ -392,4 +501,34 @@ fn a_client_without_credentials_is_refused_and_a_stream_of_another_layout_named(
         err.contains("DRONEWATT_FRAMES") && err.contains("another layout"),
         "{err}"
     );
+}
+
+/// Off loopback, a worker and a gateway refuse to start without credentials and TLS, before
+/// any connection (no server needed: the address is never dialled).
+#[test]
+fn off_loopback_nats_needs_credentials_and_tls() {
+    for args in [
+        vec![
+            "monitor",
+            "--nats",
+            "nats://10.255.255.1:4222",
+            "-q",
+            "--data-dir",
+            "off",
+        ],
+        vec![
+            "gateway",
+            "udpin:127.0.0.1:0",
+            "--nats",
+            "nats://10.255.255.1:4222",
+        ],
+    ] {
+        let out = dronewatt().args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}: {err}");
+        assert!(
+            err.contains("needs credentials") && err.contains("TLS"),
+            "{args:?}: {err}"
+        );
+    }
 }

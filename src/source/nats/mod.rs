@@ -23,13 +23,19 @@
 //!   compare-and-set on the revision it holds; a lease not renewed expires and another
 //!   worker creates it. Workers register as `w.<id>` in the same bucket and take at most
 //!   their fair share (partitions ÷ live workers, rounded up), releasing what is over it.
-//! - **State on takeover.** A worker that takes a partition rebuilds each vehicle's chain
-//!   from the stream: it replays the partition from its first frame (the stream is the
-//!   checkpoint of record), so energy used, the pack's state and history, the mission's
-//!   progress and the alerts standing come back as the single-process chain had them. The
-//!   previous holder's checkpoint (`c<part>` in [`CHECKPOINTS`]: the stream sequence and
-//!   source time it had reached) says how far its reports went out; the new holder's
-//!   reports up to that time are not sent again ([`quiet`]), so no alert is raised twice.
+//! - **State on takeover** ([`checkpoint`]): each second a worker writes its partitions'
+//!   checkpoints: each vehicle's chain state (energy used, the pack's state and history,
+//!   the mission's progress, the alerts standing) with the stream sequence to replay from,
+//!   and the last sequence and source time it handed on. A worker that takes a partition
+//!   restores the vehicles and replays from there (a checkpoint of another chain card or
+//!   layout is said, and the partition rebuilt from the stream's first frame); its reports
+//!   up to the previous holder's last time are not sent again ([`quiet`]), so no alert is
+//!   raised twice.
+//! - **Reports out** ([`publish`]): each estimate and alert event, as `--json` writes it, on
+//!   `dronewatt.estimates.<part>.<net>.<sys>` and `dronewatt.alerts.<part>.<net>.<sys>`,
+//!   only for the partitions the worker holds.
+//! - **Restarts.** The client reconnects by itself (said in the log); each reconnection
+//!   ([`reconnects`]) makes the workers' consumers again from the next sequence.
 //! - **Back to the vehicles.** What a worker's chains send a vehicle (STATUSTEXT,
 //!   NAMED_VALUE_FLOAT, BATTERY_STATUS, parameter and stream requests) goes to
 //!   `dronewatt.to.<net>.<sys>` with the worker's id; the gateway sends it on that
@@ -39,7 +45,9 @@
 //!   credentials (user and password, or a `.creds` file, read as the signing key is: a
 //!   private file) and TLS.
 
+pub mod checkpoint;
 pub mod lease;
+pub mod publish;
 pub mod wire;
 pub mod worker;
 
@@ -112,8 +120,8 @@ pub fn is_loopback(url: &str) -> bool {
 
 /// Connection attempts before giving up at start, the first delay, the longest.
 const CONNECT_TRIES: u32 = 5;
-const BACKOFF_MIN: Duration = Duration::from_millis(500);
-const BACKOFF_MAX: Duration = Duration::from_secs(4);
+pub(crate) const BACKOFF_MIN: Duration = Duration::from_millis(500);
+pub(crate) const BACKOFF_MAX: Duration = Duration::from_secs(4);
 
 /// Connect to `a.nats` as `name`: off loopback only with credentials and TLS; an
 /// unreachable server is retried with back-off (each retry logged) before the error.
@@ -174,7 +182,17 @@ fn options(a: &NatsArgs, name: &str, tls: bool) -> Result<async_nats::ConnectOpt
         .connection_timeout(Duration::from_secs(3))
         .event_callback(move |e| async move {
             match e {
-                async_nats::Event::Connected => tracing::info!("NATS: reconnected"),
+                async_nats::Event::Connected => {
+                    // The first is the connection `connect` reports itself.
+                    let mut n = 0;
+                    RECONNECTS.send_modify(|c| {
+                        *c += 1;
+                        n = *c;
+                    });
+                    if n > 1 {
+                        tracing::info!("NATS: reconnected");
+                    }
+                }
                 async_nats::Event::Disconnected => {
                     tracing::warn!("NATS: disconnected; reconnecting")
                 }
@@ -201,6 +219,16 @@ fn options(a: &NatsArgs, name: &str, tls: bool) -> Result<async_nats::ConnectOpt
         opts = opts.require_tls(true);
     }
     Ok(opts)
+}
+
+/// Bumped each time the client (re)connects: a worker's readings make their consumers
+/// again (a server restarted loses them).
+static RECONNECTS: std::sync::LazyLock<tokio::sync::watch::Sender<u64>> =
+    std::sync::LazyLock::new(|| tokio::sync::watch::Sender::new(0));
+
+/// Told of each (re)connection from now on.
+pub fn reconnects() -> tokio::sync::watch::Receiver<u64> {
+    RECONNECTS.subscribe()
 }
 
 /// The partition of vehicle (`network`, `system_id`).

@@ -6,11 +6,13 @@
 //! Every [`super::RENEW`]: register, renew the leases held (a lease lost stops its
 //! partition), write each held partition's checkpoint (`c<part>`: the last stream sequence
 //! handed on and its source time), give up what is over the fair share, take free
-//! partitions up to it. A partition taken is read from the stream's first frame of it (its
-//! vehicles' chains rebuilt from the stream; see [`super`]), or, when this worker held it
-//! before, from the frame after the last it handed on; reports up to the previous holder's
-//! checkpoint are held back ([`super::set_quiet`]). On shutdown the worker writes its
-//! checkpoints and releases its leases, so another takes them at once.
+//! partitions up to it. A partition taken is read from its previous holder's checkpoint
+//! (its vehicles' states restored: [`checkpoint`]), else from the stream's first frame of
+//! it, or, when this worker held it before, from the frame after the last it handed on;
+//! reports up to the previous holder's checkpoint are held back ([`super::set_quiet`]).
+//! After the client reconnects, each partition is read again from its next sequence. On
+//! shutdown the worker writes its checkpoints and releases its leases, so another takes
+//! them at once.
 //!
 //! The source's clock (`t_s`) is the gateway's arrival time, in seconds since the stream was
 //! created: one clock for every worker, so a report's time is the same whichever worker
@@ -27,7 +29,7 @@ use futures_util::StreamExt;
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 
-use super::{lease, wire, NatsArgs, CHECKPOINTS, LEASES, LEASE_TTL, PARTITIONS, RENEW};
+use super::{checkpoint, lease, wire, NatsArgs, CHECKPOINTS, LEASES, LEASE_TTL, PARTITIONS, RENEW};
 use crate::report::status::{IngestStats, LinkHandle};
 use crate::source::links::link::LinkIo;
 use crate::source::TimedMessage;
@@ -38,20 +40,14 @@ use crate::source::TimedMessage;
 struct Progress {
     seq: AtomicU64,
     t_s: Mutex<f64>,
+    /// The sequences passed, by source time: where a replay before a time starts.
+    marks: Mutex<checkpoint::Marks>,
 }
 
 /// A partition this worker holds.
 struct Held {
     revision: u64,
     stop: CancellationToken,
-}
-
-/// A checkpoint as stored.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Checkpoint {
-    seq: u64,
-    t_s: f64,
-    worker: String,
 }
 
 /// Run the worker until `io.shutdown`.
@@ -70,6 +66,7 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
     let me = format!("{}-{:08x}", std::process::id(), rand::random::<u32>());
     let held_set: Arc<Mutex<HashMap<u32, ()>>> = Arc::default();
     uplink(&client, &io.link, &me, held_set.clone());
+    super::publish::set(client.clone(), held_set.clone());
     tracing::info!(
         "NATS worker {me}: sharing {PARTITIONS} partitions of {}",
         super::STREAM
@@ -152,7 +149,8 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
     Ok(())
 }
 
-/// Write partition `p`'s checkpoint (nothing before its first frame).
+/// Write partition `p`'s checkpoint (nothing before its first frame): its vehicles'
+/// states and how far its reading went ([`checkpoint::write`]).
 async fn checkpoint(ckpts: &Store, p: u32, me: &str, prog: Option<&Arc<Progress>>) {
     let Some(prog) = prog else { return };
     let seq = prog.seq.load(Relaxed);
@@ -160,44 +158,42 @@ async fn checkpoint(ckpts: &Store, p: u32, me: &str, prog: Option<&Arc<Progress>
         return;
     }
     let t_s = prog.t_s.lock().map_or(0.0, |t| *t);
-    let c = Checkpoint {
-        seq,
-        t_s,
-        worker: me.to_string(),
+    let Ok(marks) = prog.marks.lock().map(|m| m.clone()) else {
+        return;
     };
-    if let Ok(body) = serde_json::to_vec(&c) {
-        if let Err(e) = ckpts.put(format!("c{p}"), body.into()).await {
-            tracing::warn!("NATS: checkpoint of partition {p}: {e}");
-        }
-    }
+    checkpoint::write(ckpts, p, me, seq, t_s, &marks).await;
 }
 
 /// Where to start reading partition `p` just taken: after the last frame this worker
-/// handed on, or (new to it) from the stream's first, holding back reports up to the
-/// previous holder's checkpoint.
+/// handed on; or, new to it, from its previous holder's checkpoint (its vehicles'
+/// states restored: [`checkpoint::restore`]), else from the stream's first frame. Either
+/// way the reports up to where the previous holder's went out are held back.
 async fn start_of(ckpts: &Store, p: u32, me: &str, prog: &Progress) -> u64 {
     let ours = prog.seq.load(Relaxed);
     if ours > 0 {
         return ours + 1;
     }
-    let prev = match ckpts.entry(format!("c{p}")).await {
-        Ok(Some(e)) => serde_json::from_slice::<Checkpoint>(&e.value).ok(),
-        _ => None,
-    };
-    match prev {
+    match checkpoint::header(ckpts, p).await {
         Some(c) if c.worker != me => {
             super::set_quiet(p, c.t_s);
+            let from = checkpoint::restore(ckpts, p, &c).await;
             tracing::info!(
                 "NATS worker {me}: took partition {p} from worker {} (checkpoint: stream \
-                 sequence {}); rebuilding its vehicles from the stream, reports up to there \
-                 held back",
+                 sequence {}); {}, reports up to there held back",
                 c.worker,
-                c.seq
+                c.seq,
+                match from {
+                    Some(s) => format!("its vehicles restored, replaying from sequence {s}"),
+                    None => "rebuilding its vehicles from the stream".to_string(),
+                }
             );
+            from.unwrap_or(1)
         }
-        _ => tracing::info!("NATS worker {me}: took partition {p}"),
+        _ => {
+            tracing::info!("NATS worker {me}: took partition {p}");
+            1
+        }
     }
-    1
 }
 
 /// One partition's reading: from stream sequence `from`, on the clock that starts at
@@ -224,6 +220,98 @@ async fn consume(
         prog,
         stop,
     } = r;
+    // The next sequence to read; after the server came back, the consumer is made again
+    // from it (the server's restart loses the consumer, not the stream).
+    let mut next = from.max(1);
+    let mut reconnects = super::reconnects();
+    let mut delay = super::BACKOFF_MIN;
+    'open: loop {
+        let mut msgs = match open(&stream, p, next).await {
+            Ok(m) => m,
+            Err(e) => {
+                tracing::warn!(
+                    "NATS: partition {p}: cannot read the stream from sequence {next} ({e}); \
+                     retry in {:.1} s",
+                    delay.as_secs_f64()
+                );
+                tokio::select! {
+                    _ = stop.cancelled() => return,
+                    _ = tokio::time::sleep(delay) => {}
+                }
+                delay = (delay * 2).min(super::BACKOFF_MAX);
+                continue;
+            }
+        };
+        delay = super::BACKOFF_MIN;
+        loop {
+            let m = tokio::select! {
+                _ = stop.cancelled() => return,
+                _ = reconnects.changed() => {
+                    tracing::info!(
+                        "NATS: partition {p}: reading the stream again from sequence {next} \
+                         after the reconnection"
+                    );
+                    continue 'open;
+                }
+                m = msgs.next() => m,
+            };
+            let m = match m {
+                Some(Ok(m)) => m,
+                Some(Err(e)) => {
+                    tracing::warn!("NATS: partition {p}: {e}");
+                    continue;
+                }
+                None => {
+                    tracing::warn!(
+                        "NATS: partition {p}: the stream's consumer ended; reading again from \
+                         sequence {next}"
+                    );
+                    tokio::select! {
+                        _ = stop.cancelled() => return,
+                        _ = tokio::time::sleep(super::BACKOFF_MIN) => {}
+                    }
+                    continue 'open;
+                }
+            };
+            let seq = m.info().map_or(0, |i| i.stream_sequence);
+            next = next.max(seq + 1);
+            let f = match wire::decode(&m.payload) {
+                Ok(f) => f,
+                Err(e) => {
+                    IngestStats::add(&stats.frames_bad, 1);
+                    tracing::debug!("NATS: partition {p}, sequence {seq}: {e}");
+                    continue;
+                }
+            };
+            let t_s = f.arrived_unix_s - epoch;
+            let tm = TimedMessage {
+                t_s,
+                header: f.header,
+                msg: f.msg,
+                arrived: Instant::now(),
+                network: f.network,
+            };
+            IngestStats::add(&stats.frames_ok, 1);
+            let sent = tokio::select! {
+                _ = stop.cancelled() => false,
+                r = tx.send(tm) => r.is_ok(),
+            };
+            if !sent {
+                return;
+            }
+            prog.seq.store(seq, Relaxed);
+            if let Ok(mut t) = prog.t_s.lock() {
+                *t = t_s;
+            }
+            if let Ok(mut m) = prog.marks.lock() {
+                m.passed(seq, t_s);
+            }
+        }
+    }
+}
+
+/// An ordered consumer of partition `p` from stream sequence `from`.
+async fn open(stream: &Stream, p: u32, from: u64) -> Result<consumer::pull::Ordered> {
     let cfg = consumer::pull::OrderedConfig {
         filter_subject: format!("{}.{p}.>", super::FRAMES),
         deliver_policy: consumer::DeliverPolicy::ByStartSequence {
@@ -231,63 +319,11 @@ async fn consume(
         },
         ..Default::default()
     };
-    let msgs = match stream.create_consumer(cfg).await {
-        Ok(c) => c.messages().await,
-        Err(e) => {
-            tracing::error!("NATS: partition {p}: cannot read the stream: {e}");
-            return;
-        }
-    };
-    let mut msgs = match msgs {
-        Ok(m) => m,
-        Err(e) => {
-            tracing::error!("NATS: partition {p}: cannot read the stream: {e}");
-            return;
-        }
-    };
-    loop {
-        let m = tokio::select! {
-            _ = stop.cancelled() => return,
-            m = msgs.next() => m,
-        };
-        let m = match m {
-            Some(Ok(m)) => m,
-            Some(Err(e)) => {
-                tracing::warn!("NATS: partition {p}: {e}");
-                continue;
-            }
-            None => return,
-        };
-        let seq = m.info().map_or(0, |i| i.stream_sequence);
-        let f = match wire::decode(&m.payload) {
-            Ok(f) => f,
-            Err(e) => {
-                IngestStats::add(&stats.frames_bad, 1);
-                tracing::debug!("NATS: partition {p}, sequence {seq}: {e}");
-                continue;
-            }
-        };
-        let t_s = f.arrived_unix_s - epoch;
-        let tm = TimedMessage {
-            t_s,
-            header: f.header,
-            msg: f.msg,
-            arrived: Instant::now(),
-            network: f.network,
-        };
-        IngestStats::add(&stats.frames_ok, 1);
-        let sent = tokio::select! {
-            _ = stop.cancelled() => false,
-            r = tx.send(tm) => r.is_ok(),
-        };
-        if !sent {
-            return;
-        }
-        prog.seq.store(seq, Relaxed);
-        if let Ok(mut t) = prog.t_s.lock() {
-            *t = t_s;
-        }
-    }
+    let c = stream
+        .create_consumer(cfg)
+        .await
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    c.messages().await.map_err(|e| anyhow::anyhow!("{e}"))
 }
 
 /// The vehicle a frame of dronewatt's is for: the message's `target_system` when it names
