@@ -238,22 +238,34 @@ pub(crate) fn worker(url: &str, json: &Path) -> Monitor {
     )
 }
 
+/// `dronewatt gateway udpin:127.0.0.1:PORT --nats URL`, once it listens.
+pub fn gateway(url: &str, port: u16) -> Monitor {
+    let mut g = Monitor::spawn(
+        dronewatt()
+            .args(["gateway", &format!("udpin:127.0.0.1:{port}"), "--nats", url])
+            .env("RUST_LOG", "dronewatt=info"),
+    );
+    g.wait_listening(port, false);
+    g
+}
+
+/// The pymavlink fleet (`tests/peers/fleet.py`) flying `vehicles` (its JSON list) at `port`.
+pub fn fly_fleet(port: u16, vehicles: &str) -> std::process::Child {
+    python()
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
+        .args(["--to", &format!("udpout:127.0.0.1:{port}")])
+        .args(["--vehicles", vehicles])
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("run .venv-py/bin/python (make setup creates it)")
+}
+
 #[test]
 fn a_worker_killed_mid_flight_hands_its_vehicles_over_with_their_energy() {
     let Some(nats) = server(None) else { return };
     let dir = tempfile::tempdir().unwrap();
     let (gw_port, single_port) = (free_udp_port(), free_udp_port());
-    let mut gateway = Monitor::spawn(
-        dronewatt()
-            .args([
-                "gateway",
-                &format!("udpin:127.0.0.1:{gw_port}"),
-                "--nats",
-                &nats.url,
-            ])
-            .env("RUST_LOG", "dronewatt=info"),
-    );
-    gateway.wait_listening(gw_port, false);
+    let gateway = gateway(&nats.url, gw_port);
     let (ja, jb, js) = (
         dir.path().join("a.jsonl"),
         dir.path().join("b.jsonl"),

@@ -2,10 +2,9 @@
 //! `fleet_nats`): a checkpoint of another chain card is said and rebuilt from the stream;
 //! the gateway and nats-server restarted mid-flight lose nothing the stream kept.
 
-use std::process::Stdio;
 use std::time::Duration;
 
-use crate::fleet_nats::{estimates, lines, python, raised, server, worker};
+use crate::fleet_nats::{estimates, fly_fleet, gateway, lines, raised, server, worker};
 use crate::harness::{dronewatt, Monitor};
 use crate::link_common::free_udp_port;
 
@@ -17,29 +16,13 @@ fn a_checkpoint_of_another_card_is_said_and_rebuilt_from_the_stream() {
     let Some(nats) = server(None) else { return };
     let dir = tempfile::tempdir().unwrap();
     let gw_port = free_udp_port();
-    let mut gateway = Monitor::spawn(
-        dronewatt()
-            .args([
-                "gateway",
-                &format!("udpin:127.0.0.1:{gw_port}"),
-                "--nats",
-                &nats.url,
-            ])
-            .env("RUST_LOG", "dronewatt=info"),
-    );
-    gateway.wait_listening(gw_port, false);
+    let gateway = gateway(&nats.url, gw_port);
     let (ja, jb) = (dir.path().join("a.jsonl"), dir.path().join("b.jsonl"));
     let a = worker(&nats.url, &ja);
     std::thread::sleep(Duration::from_secs(2));
     let vehicles =
         r#"[{"id": 1, "power_w": 300, "send_s": 16}, {"id": 2, "power_w": 500, "send_s": 16}]"#;
-    let fleet = python()
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
-        .args(["--to", &format!("udpout:127.0.0.1:{gw_port}")])
-        .args(["--vehicles", vehicles])
-        .stdout(Stdio::null())
-        .spawn()
-        .expect("run .venv-py/bin/python (make setup creates it)");
+    let fleet = fly_fleet(gw_port, vehicles);
     std::thread::sleep(Duration::from_secs(8));
     // Stopped cleanly: its checkpoints written, its leases released at once.
     let (sa, ea) = a.stop();
@@ -104,33 +87,15 @@ fn a_gateway_and_a_nats_server_restarted_mid_flight_lose_nothing_kept() {
     let Some(mut nats) = server(None) else { return };
     let dir = tempfile::tempdir().unwrap();
     let gw_port = free_udp_port();
-    let gateway = || {
-        let mut g = Monitor::spawn(
-            dronewatt()
-                .args([
-                    "gateway",
-                    &format!("udpin:127.0.0.1:{gw_port}"),
-                    "--nats",
-                    &nats.url,
-                ])
-                .env("RUST_LOG", "dronewatt=info"),
-        );
-        g.wait_listening(gw_port, false);
-        g
-    };
+    let url = nats.url.clone();
+    let gateway = || gateway(&url, gw_port);
     let g1 = gateway();
     let jw = dir.path().join("w.jsonl");
     let w = worker(&nats.url, &jw);
     std::thread::sleep(Duration::from_secs(2));
     let vehicles =
         r#"[{"id": 1, "power_w": 300, "send_s": 24}, {"id": 2, "power_w": 500, "send_s": 24}]"#;
-    let fleet = python()
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
-        .args(["--to", &format!("udpout:127.0.0.1:{gw_port}")])
-        .args(["--vehicles", vehicles])
-        .stdout(Stdio::null())
-        .spawn()
-        .expect("run .venv-py/bin/python (make setup creates it)");
+    let fleet = fly_fleet(gw_port, vehicles);
     std::thread::sleep(Duration::from_secs(6));
     // The gateway restarted: the frames sent while it is down are not heard by anyone.
     let (_, e1) = g1.stop();
