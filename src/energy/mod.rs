@@ -62,20 +62,7 @@ pub mod steady;
 mod config;
 pub use config::EnergyConfig;
 
-/// An exponential moving average over irregular time steps.
-#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
-struct Ema(Option<f64>);
-
-impl Ema {
-    fn update(&mut self, x: f64, dt_s: f64, tau_s: f64) -> f64 {
-        let v = match self.0 {
-            None => x,
-            Some(prev) => prev + (1.0 - (-dt_s / tau_s).exp()) * (x - prev),
-        };
-        self.0 = Some(v);
-        v
-    }
-}
+use steady::Ema;
 
 /// Integrates power into energy and forecasts what is left. Its whole state serialises
 /// (a fleet worker's checkpoint).

@@ -184,3 +184,22 @@ mod tests {
         assert_eq!(n.update(39.0, Some(5.0), lc, 10.0, true), (Some(0.0), None));
     }
 }
+
+/// An exponential moving average over irregular time steps.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct Ema(
+    /// The average so far (none before the first value).
+    pub Option<f64>,
+);
+
+impl Ema {
+    /// The average after `x` seen `dt_s` after the last value, with time constant `tau_s`.
+    pub fn update(&mut self, x: f64, dt_s: f64, tau_s: f64) -> f64 {
+        let v = match self.0 {
+            None => x,
+            Some(prev) => prev + (1.0 - (-dt_s / tau_s).exp()) * (x - prev),
+        };
+        self.0 = Some(v);
+        v
+    }
+}
