@@ -4,21 +4,15 @@
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dronewatt::model::adapt::{AdaptConfig, Adaptation};
+use dronewatt::model::physics::Kind;
 
 fn bench(c: &mut Criterion) {
-    let names: Vec<String> = [
-        "dandrea",
-        "dandrea_headwind",
-        "dorling",
-        "stolaroff",
-        "kirschstein",
-        "tseng",
-        "tseng_solo",
-        "lstm",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
+    // The seven physics models, then the LSTM.
+    let names: Vec<String> = Kind::ALL
+        .iter()
+        .map(|k| k.name().to_string())
+        .chain(["lstm".to_string()])
+        .collect();
     let mut ad = Adaptation::new(&AdaptConfig::default(), &names, 0.1, 127.0);
     let mut k = 0u32;
     c.bench_function(

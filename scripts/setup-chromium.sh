@@ -15,16 +15,9 @@ fail() {
 for c in chromium chromium-browser; do
   if command -v "$c" >/dev/null 2>&1; then exit 0; fi
 done
-SUDO=""
-if [ "$(id -u)" != 0 ]; then
-  if command -v sudo >/dev/null 2>&1; then SUDO="sudo -n"; else
-    fail "not root and no sudo: cannot install chromium (the web test will skip)"
-  fi
-fi
-export DEBIAN_FRONTEND=noninteractive
-if ! { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq --no-install-recommends chromium; } >&2; then
-  fail "apt-get install chromium failed (the web test will skip)"
-fi
+. "$(dirname "$0")/lib-apt.sh"
+apt_install setup-chromium "the web test will skip" chromium ||
+  fail "could not install chromium (the web test will skip)"
 for c in chromium chromium-browser; do
   if command -v "$c" >/dev/null 2>&1; then exit 0; fi
 done

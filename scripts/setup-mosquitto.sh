@@ -8,19 +8,6 @@ set -uo pipefail
 if command -v mosquitto >/dev/null 2>&1 || [ -x /usr/sbin/mosquitto ]; then
   if command -v mosquitto_sub >/dev/null 2>&1; then exit 0; fi
 fi
-SUDO=""
-if [ "$(id -u)" != 0 ]; then
-  if command -v sudo >/dev/null 2>&1; then SUDO="sudo -n"; else
-    echo "setup-mosquitto: not root and no sudo: cannot install mosquitto (the MQTT tests will skip)" >&2
-    exit 0
-  fi
-fi
-export DEBIAN_FRONTEND=noninteractive
-# Only refresh the package lists when the package is unknown (a fresh container).
-if ! apt-cache show mosquitto >/dev/null 2>&1; then
-  $SUDO apt-get update -qq >&2 || true
-fi
-if ! $SUDO apt-get install -y -qq --no-install-recommends mosquitto mosquitto-clients >&2; then
-  echo "setup-mosquitto: apt-get install mosquitto failed (the MQTT tests will skip)" >&2
-fi
+. "$(dirname "$0")/lib-apt.sh"
+apt_install setup-mosquitto "the MQTT tests will skip" mosquitto mosquitto-clients
 exit 0

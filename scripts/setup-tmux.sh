@@ -13,14 +13,7 @@ fail() {
   exit 0
 }
 if command -v tmux >/dev/null 2>&1; then exit 0; fi
-SUDO=""
-if [ "$(id -u)" != 0 ]; then
-  if command -v sudo >/dev/null 2>&1; then SUDO="sudo -n"; else
-    fail "not root and no sudo: cannot install tmux (the screen's size test will skip)"
-  fi
-fi
-export DEBIAN_FRONTEND=noninteractive
-if ! { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq --no-install-recommends tmux; } >&2; then
-  fail "apt-get install tmux failed (the screen's size test will skip)"
-fi
+. "$(dirname "$0")/lib-apt.sh"
+apt_install setup-tmux "the screen's size test will skip" tmux ||
+  fail "could not install tmux (the screen's size test will skip)"
 command -v tmux >/dev/null 2>&1 || fail "tmux installed but not on PATH (the screen's size test will skip)"

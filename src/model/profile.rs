@@ -112,17 +112,6 @@ pub struct VehicleProfile {
     pub does_not_transfer: Vec<String>,
 }
 
-/// The physics models a profile's `does_not_transfer` may name.
-pub const PHYSICS_MODELS: [&str; 7] = [
-    "dandrea",
-    "dandrea_headwind",
-    "dorling",
-    "stolaroff",
-    "kirschstein",
-    "tseng",
-    "tseng_solo",
-];
-
 /// `[forecast]`: which model the energy forecast starts from on this vehicle, unless the
 /// config's `[energy] model` says otherwise (online selection, `[energy.select]`, may still
 /// move it on the vehicle's own evidence).
@@ -468,14 +457,17 @@ impl VehicleProfile {
 
     /// Range checks serde cannot express; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
+        // The physics models a profile's `does_not_transfer` may name.
+        let physics = || super::physics::Kind::ALL.iter().map(|k| k.name());
         if let Some(n) = self
             .does_not_transfer
             .iter()
-            .find(|n| !PHYSICS_MODELS.contains(&n.as_str()))
+            .find(|n| !physics().any(|k| k == n.as_str()))
         {
+            let all: Vec<&str> = physics().collect();
             return Err(format!(
                 "does_not_transfer: '{n}' is not a physics model ({})",
-                PHYSICS_MODELS.join(", ")
+                all.join(", ")
             ));
         }
         use crate::validate::{above, in_range};

@@ -106,3 +106,17 @@ fn the_simulators_sections_are_optional_checked_and_the_tb48d_holds_its_rating()
         .unwrap_err()
         .contains("powertrain.efficiency"));
 }
+
+#[test]
+fn does_not_transfer_names_only_physics_models_and_lists_them() {
+    let mut p = VehicleProfile::m100();
+    p.does_not_transfer = vec!["tseng".into(), "tseng_solo".into()];
+    assert_eq!(p.validate(), Ok(()));
+    p.does_not_transfer = vec!["lstm".into()];
+    let e = p.validate().unwrap_err();
+    assert!(e.contains("does_not_transfer: 'lstm'"), "{e}");
+    assert!(
+        e.contains("dandrea, dandrea_headwind, dorling, stolaroff, kirschstein, tseng, tseng_solo"),
+        "{e}"
+    );
+}

@@ -290,35 +290,6 @@ fn raw_seeds() -> Vec<Vec<u8>> {
     ]
 }
 
-fn csv_header() -> String {
-    let sensors = [
-        "wind_speed",
-        "wind_angle",
-        "battery_voltage",
-        "battery_current",
-        "position_x",
-        "position_y",
-        "position_z",
-        "orientation_x",
-        "orientation_y",
-        "orientation_z",
-        "orientation_w",
-        "velocity_x",
-        "velocity_y",
-        "velocity_z",
-        "angular_x",
-        "angular_y",
-        "angular_z",
-        "linear_acceleration_x",
-        "linear_acceleration_y",
-        "linear_acceleration_z",
-    ];
-    format!(
-        "flight,time,{},speed,payload,altitude,date,time_day,route",
-        sensors.join(",")
-    )
-}
-
 /// A made-up row (not from the data set): hovering, a little wind.
 fn csv_row(flight: u32, t: f64, v: f64) -> String {
     format!(
@@ -327,7 +298,7 @@ fn csv_row(flight: u32, t: f64, v: f64) -> String {
 }
 
 fn csv_seeds() -> Vec<Vec<u8>> {
-    let h = csv_header();
+    let h = dronewatt::source::logs::dataset::csv_header();
     let rows = |f: u32, n: usize| {
         (0..n)
             .map(|i| csv_row(f, 0.1 * i as f64, 24.0 - 0.01 * i as f64))

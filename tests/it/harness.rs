@@ -129,6 +129,67 @@ pub fn simulate_x500(path: &Path, seed: u32, extra: &[&str]) {
         .ok();
 }
 
+/// `learn` on three simulated X500 flights written as `.EXT` (with `sim_args`) and again as
+/// `.tlog`: both must score the same flights alike (each model's learned MAPE within 0.5
+/// points, under 15 %), and `replay` of the third `.EXT` log must give over 500 in-flight
+/// estimates with measured power. The autopilot's own log is read as the radio's would be.
+pub fn learn_scores_as_on_tlog(ext: &str, sim_args: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut got = Vec::new();
+    for ext in [ext, "tlog"] {
+        let logs = dir.path().join(ext);
+        std::fs::create_dir_all(&logs).unwrap();
+        for seed in 1..=3 {
+            simulate_x500(&logs.join(format!("x500-{seed}.{ext}")), seed, sim_args);
+        }
+        let out = run(&[
+            "learn",
+            logs.to_str().unwrap(),
+            "--holdout-every",
+            "3",
+            "--out",
+            dir.path().join(format!("learned-{ext}")).to_str().unwrap(),
+            "--data-dir",
+            "off",
+        ]);
+        let said = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(said.contains(&format!("x500-3.{ext}")), "{said}");
+        got.push(learned_mape(&said));
+    }
+    let (log, tlog) = (&got[0], &got[1]);
+    assert!(
+        log.len() >= 5 && log.len() == tlog.len(),
+        "{log:?}\n{tlog:?}"
+    );
+    for ((nl, ml), (nt, mt)) in log.iter().zip(tlog) {
+        assert_eq!(nl, nt);
+        assert!(
+            (ml - mt).abs() <= 0.5 && *ml < 15.0,
+            "{nl}: .{ext} {ml} % vs .tlog {mt} %"
+        );
+    }
+
+    // replay FILE.EXT: the live pipeline on the autopilot's own log, with measured power.
+    let lines = replay_json(&dir.path().join(format!("{ext}/x500-3.{ext}")), &[]);
+    let measured = lines
+        .iter()
+        .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
+        .count();
+    assert!(measured > 500, "{measured} in-flight estimates");
+}
+
+/// The learned MAPE column of `learn`'s held-out table, by model (physics models only).
+fn learned_mape(stdout: &str) -> Vec<(String, f64)> {
+    stdout
+        .lines()
+        .filter_map(|l| {
+            let c: Vec<&str> = l.split('|').map(str::trim).collect();
+            let v = c.get(3)?.parse::<f64>().ok()?;
+            (c[1] != "lstm").then(|| (c[1].to_string(), v))
+        })
+        .collect()
+}
+
 /// Running a built command to its end.
 pub trait RunExt {
     /// Its output, whatever its exit status.

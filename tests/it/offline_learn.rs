@@ -173,41 +173,27 @@ fn learn_refuses_logs_it_cannot_read_and_a_single_log() {
     );
     let one = dir.path().join("one.tlog");
     simulate_x500(&one, 1, &[]);
-    // A .bin that is not DataFlash: an error naming it and what is wrong.
-    let bin = dir.path().join("00000012.BIN");
-    std::fs::write(&bin, b"not a log").unwrap();
-    let out = output(&[
-        "learn",
-        bin.to_str().unwrap(),
-        one.to_str().unwrap(),
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-        "--data-dir",
-        "off",
-    ]);
-    assert!(!out.status.success());
-    let said = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        said.contains("00000012.BIN") && said.contains("not an ArduPilot DataFlash log"),
-        "{said}"
-    );
-    let ulg = dir.path().join("log_3.ulg");
-    std::fs::write(&ulg, b"not a log").unwrap();
-    let out = output(&[
-        "learn",
-        ulg.to_str().unwrap(),
-        one.to_str().unwrap(),
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-        "--data-dir",
-        "off",
-    ]);
-    assert!(!out.status.success());
-    let said = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        said.contains("log_3.ulg") && said.contains("not a readable PX4 ULog"),
-        "{said}"
-    );
+    // A .bin that is not DataFlash, a .ulg that is not ULog: an error naming the file and
+    // what is wrong with it.
+    for (name, why) in [
+        ("00000012.BIN", "not an ArduPilot DataFlash log"),
+        ("log_3.ulg", "not a readable PX4 ULog"),
+    ] {
+        let bad = dir.path().join(name);
+        std::fs::write(&bad, b"not a log").unwrap();
+        let out = output(&[
+            "learn",
+            bad.to_str().unwrap(),
+            one.to_str().unwrap(),
+            "--out",
+            dir.path().join("o").to_str().unwrap(),
+            "--data-dir",
+            "off",
+        ]);
+        assert!(!out.status.success());
+        let said = String::from_utf8_lossy(&out.stderr);
+        assert!(said.contains(name) && said.contains(why), "{said}");
+    }
     let out = output(&[
         "learn",
         one.to_str().unwrap(),

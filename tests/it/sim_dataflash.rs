@@ -6,7 +6,7 @@
 //! parameters, an ArduPilot heartbeat); and `learn` on three `.bin` logs scores the same
 //! held-out MAPE as on the same flights as `.tlog`, and `replay FILE.bin` runs.
 
-use crate::harness::{replay_json, run, simulate_x500};
+use crate::harness::{learn_scores_as_on_tlog, simulate_x500};
 
 use dronewatt::MavMessage;
 use serde_json::Value;
@@ -143,61 +143,7 @@ fn pymavlink_reads_the_simulated_bin_as_the_tlog_says() {
     assert_eq!(stats.snapshot().clock_jumps, 0);
 }
 
-/// The learned MAPE column of `learn`'s held-out table, by model (physics models only).
-fn learned_mape(stdout: &str) -> Vec<(String, f64)> {
-    stdout
-        .lines()
-        .filter_map(|l| {
-            let c: Vec<&str> = l.split('|').map(str::trim).collect();
-            let v = c.get(3)?.parse::<f64>().ok()?;
-            (c[1] != "lstm").then(|| (c[1].to_string(), v))
-        })
-        .collect()
-}
-
 #[test]
 fn learn_on_bin_logs_scores_as_on_the_same_flights_as_tlog() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut got = Vec::new();
-    for ext in ["bin", "tlog"] {
-        let logs = dir.path().join(ext);
-        std::fs::create_dir_all(&logs).unwrap();
-        for seed in 1..=3 {
-            simulate_x500(&logs.join(format!("x500-{seed}.{ext}")), seed, &[]);
-        }
-        let out = run(&[
-            "learn",
-            logs.to_str().unwrap(),
-            "--holdout-every",
-            "3",
-            "--out",
-            dir.path().join(format!("learned-{ext}")).to_str().unwrap(),
-            "--data-dir",
-            "off",
-        ]);
-        let said = String::from_utf8_lossy(&out.stdout).into_owned();
-        assert!(said.contains(&format!("x500-3.{ext}")), "{said}");
-        got.push(learned_mape(&said));
-    }
-    let (bin, tlog) = (&got[0], &got[1]);
-    assert!(
-        bin.len() >= 5 && bin.len() == tlog.len(),
-        "{bin:?}\n{tlog:?}"
-    );
-    for ((nb, mb), (nt, mt)) in bin.iter().zip(tlog) {
-        assert_eq!(nb, nt);
-        assert!(
-            (mb - mt).abs() <= 0.5 && *mb < 15.0,
-            "{nb}: .bin {mb} % vs .tlog {mt} %"
-        );
-    }
-
-    // replay FILE.bin: the live pipeline on the autopilot's own log, with measured power.
-    let bin3 = dir.path().join("bin/x500-3.bin");
-    let lines = replay_json(&bin3, &[]);
-    let measured = lines
-        .iter()
-        .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
-        .count();
-    assert!(measured > 500, "{measured} in-flight estimates");
+    learn_scores_as_on_tlog("bin", &[]);
 }

@@ -6,7 +6,7 @@
 //! PX4-encoded parameters); `learn` on three `.ulg` logs scores the same held-out MAPE as
 //! on the same flights as `.tlog`; and `replay FILE.ulg` runs.
 
-use crate::harness::{dronewatt, replay_json, run, simulate_x500, RunExt};
+use crate::harness::{dronewatt, learn_scores_as_on_tlog, simulate_x500, RunExt};
 
 use dronewatt::MavMessage;
 use serde_json::Value;
@@ -126,65 +126,9 @@ fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
     assert_eq!(stats.snapshot().clock_jumps, 0);
 }
 
-fn learned_mape(stdout: &str) -> Vec<(String, f64)> {
-    stdout
-        .lines()
-        .filter_map(|l| {
-            let c: Vec<&str> = l.split('|').map(str::trim).collect();
-            let v = c.get(3)?.parse::<f64>().ok()?;
-            (c[1] != "lstm").then(|| (c[1].to_string(), v))
-        })
-        .collect()
-}
-
 #[test]
 fn learn_on_ulg_logs_scores_as_on_the_same_flights_as_tlog() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut got = Vec::new();
-    for ext in ["ulg", "tlog"] {
-        let logs = dir.path().join(ext);
-        std::fs::create_dir_all(&logs).unwrap();
-        for seed in 1..=3 {
-            simulate_x500(
-                &logs.join(format!("x500-{seed}.{ext}")),
-                seed,
-                &["--autopilot", "px4"],
-            );
-        }
-        let out = run(&[
-            "learn",
-            logs.to_str().unwrap(),
-            "--holdout-every",
-            "3",
-            "--out",
-            dir.path().join(format!("learned-{ext}")).to_str().unwrap(),
-            "--data-dir",
-            "off",
-        ]);
-        let said = String::from_utf8_lossy(&out.stdout).into_owned();
-        assert!(said.contains(&format!("x500-3.{ext}")), "{said}");
-        got.push(learned_mape(&said));
-    }
-    let (ulg, tlog) = (&got[0], &got[1]);
-    assert!(
-        ulg.len() >= 5 && ulg.len() == tlog.len(),
-        "{ulg:?}\n{tlog:?}"
-    );
-    for ((nu, mu), (nt, mt)) in ulg.iter().zip(tlog) {
-        assert_eq!(nu, nt);
-        assert!(
-            (mu - mt).abs() <= 0.5 && *mu < 15.0,
-            "{nu}: .ulg {mu} % vs .tlog {mt} %"
-        );
-    }
-
-    let ulg3 = dir.path().join("ulg/x500-3.ulg");
-    let lines = replay_json(&ulg3, &[]);
-    let measured = lines
-        .iter()
-        .filter(|l| l["type"] == "estimate" && l["measured_w"].as_f64().is_some_and(|m| m > 100.0))
-        .count();
-    assert!(measured > 500, "{measured} in-flight estimates");
+    learn_scores_as_on_tlog("ulg", &["--autopilot", "px4"]);
 }
 
 #[test]

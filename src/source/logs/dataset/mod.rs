@@ -72,6 +72,17 @@ const SENSOR_COLUMNS: [&str; 20] = [
 ];
 const META_COLUMNS: [&str; 6] = ["speed", "payload", "altitude", "date", "time_day", "route"];
 
+/// The data set's CSV header line as its files have it (without the newline): `flight,time`,
+/// the sensor columns, then the flight's metadata. Tests and tools that write a flight in the
+/// data set's own format start from it.
+pub fn csv_header() -> String {
+    format!(
+        "flight,time,{},{}",
+        SENSOR_COLUMNS.join(","),
+        META_COLUMNS.join(",")
+    )
+}
+
 /// One row of the data set, in its own units and frames (see SOURCE.md).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Row {
