@@ -37,6 +37,62 @@ pub(crate) fn build_item(
     let command = u16::try_from(raw.command)
         .map_err(|_| format!("command {} is out of range", raw.command))?;
     let p = raw.params;
+    let mut kind = item_kind(command, &p)?;
+    // Does this item carry a position? NAV commands (< 100) do, except RTL. TAKEOFF and
+    // LAND may leave latitude/longitude 0 or unset: "here".
+    let nav = command < 100 && command != 20;
+    let here_ok = matches!(
+        kind,
+        ItemKind::Takeoff { .. }
+            | ItemKind::Land
+            | ItemKind::VtolTakeoff { .. }
+            | ItemKind::VtolLand
+    );
+    // A loiter's radius (param3; its sign is the direction), when it gives one.
+    let loiter_radius_m = match command {
+        17..=19 if p[2].is_finite() && p[2] != 0.0 => Some(p[2].abs()),
+        _ => None,
+    };
+    let mut frame = AltFrame::None;
+    let mut position = None;
+    if nav {
+        let alt_above_home;
+        (frame, alt_above_home) = altitude(raw, home_amsl)?;
+        position = item_position(raw, here_ok, alt_above_home)?;
+        match kind {
+            ItemKind::Takeoff { .. } => {
+                kind = ItemKind::Takeoff {
+                    alt_m: alt_above_home,
+                }
+            }
+            ItemKind::VtolTakeoff { .. } => {
+                kind = ItemKind::VtolTakeoff {
+                    alt_m: alt_above_home,
+                }
+            }
+            _ => {}
+        }
+    }
+    if let ItemKind::NotModelled { command, .. } = kind {
+        kind = ItemKind::NotModelled {
+            command,
+            flown_through: position.is_some(),
+        };
+    }
+    Ok(Item {
+        index,
+        origin,
+        command,
+        kind,
+        position,
+        frame,
+        loiter_radius_m,
+    })
+}
+
+/// What a MAV_CMD does, from its parameters p1..p4, checked (a take-off's altitude is
+/// filled in from its position later).
+fn item_kind(command: u16, p: &[f64; 4]) -> Result<ItemKind, String> {
     let nonneg = |name: &str, v: f64| -> Result<f64, String> {
         if v.is_nan() {
             return Ok(0.0); // QGC writes null (NaN) for "unused"
@@ -46,7 +102,7 @@ pub(crate) fn build_item(
         }
         Ok(v)
     };
-    let mut kind = match command {
+    Ok(match command {
         22 => ItemKind::Takeoff { alt_m: 0.0 },
         16 | 82 => ItemKind::Waypoint {
             hold_s: nonneg("hold time (param1)", p[0])?,
@@ -83,99 +139,54 @@ pub(crate) fn build_item(
             command: c,
             flown_through: false,
         },
-    };
-    // Does this item carry a position? NAV commands (< 100) do, except RTL. TAKEOFF and
-    // LAND may leave latitude/longitude 0 or unset: "here".
-    let nav = command < 100 && command != 20;
-    let here_ok = matches!(
-        kind,
-        ItemKind::Takeoff { .. }
-            | ItemKind::Land
-            | ItemKind::VtolTakeoff { .. }
-            | ItemKind::VtolLand
-    );
-    // A loiter's radius (param3; its sign is the direction), when it gives one.
-    let loiter_radius_m = match command {
-        17..=19 if p[2].is_finite() && p[2] != 0.0 => Some(p[2].abs()),
-        _ => None,
-    };
-    let mut frame = AltFrame::None;
-    let mut position = None;
-    if nav {
-        if !raw.alt.is_finite() {
-            return Err(format!("altitude {} is not finite", raw.alt));
-        }
-        let alt_above_home = match raw.frame {
-            3 | 6 => {
-                frame = AltFrame::Relative;
-                raw.alt
-            }
-            0 | 5 => {
-                frame = AltFrame::Absolute;
-                let h = home_amsl.ok_or(
-                    "an absolute (AMSL) altitude needs a home altitude, and the plan gives none",
-                )?;
-                raw.alt - h
-            }
-            10 | 11 => {
-                frame = AltFrame::Terrain;
-                raw.alt
-            }
-            f => {
-                return Err(format!(
-                    "frame {f} is not a global frame (0, 3, 5, 6, 10, 11)"
-                ))
-            }
-        };
-        let here = (raw.lat == 0.0 && raw.lon == 0.0) || (raw.lat.is_nan() && raw.lon.is_nan());
-        if !(here && here_ok) {
-            if !raw.lat.is_finite() || !raw.lon.is_finite() {
-                return Err(format!("position ({}, {}) is not finite", raw.lat, raw.lon));
-            }
-            if here {
-                return Err("latitude and longitude are both 0: no position".to_string());
-            }
-            if !(-90.0..=90.0).contains(&raw.lat) {
-                return Err(format!("latitude {} is out of range [-90, 90]", raw.lat));
-            }
-            if !(-180.0..=180.0).contains(&raw.lon) {
-                return Err(format!("longitude {} is out of range [-180, 180]", raw.lon));
-            }
-            position = Some(GeoPoint {
-                lat_deg: raw.lat,
-                lon_deg: raw.lon,
-                alt_m: alt_above_home,
-            });
-        }
-        match kind {
-            ItemKind::Takeoff { .. } => {
-                kind = ItemKind::Takeoff {
-                    alt_m: alt_above_home,
-                }
-            }
-            ItemKind::VtolTakeoff { .. } => {
-                kind = ItemKind::VtolTakeoff {
-                    alt_m: alt_above_home,
-                }
-            }
-            _ => {}
-        }
-    }
-    if let ItemKind::NotModelled { command, .. } = kind {
-        kind = ItemKind::NotModelled {
-            command,
-            flown_through: position.is_some(),
-        };
-    }
-    Ok(Item {
-        index,
-        origin,
-        command,
-        kind,
-        position,
-        frame,
-        loiter_radius_m,
     })
+}
+
+/// A NAV item's altitude frame and its altitude above home (an absolute one converted with
+/// `home_amsl`).
+fn altitude(raw: &RawItem, home_amsl: Option<f64>) -> Result<(AltFrame, f64), String> {
+    if !raw.alt.is_finite() {
+        return Err(format!("altitude {} is not finite", raw.alt));
+    }
+    match raw.frame {
+        3 | 6 => Ok((AltFrame::Relative, raw.alt)),
+        0 | 5 => {
+            let h = home_amsl.ok_or(
+                "an absolute (AMSL) altitude needs a home altitude, and the plan gives none",
+            )?;
+            Ok((AltFrame::Absolute, raw.alt - h))
+        }
+        10 | 11 => Ok((AltFrame::Terrain, raw.alt)),
+        f => Err(format!(
+            "frame {f} is not a global frame (0, 3, 5, 6, 10, 11)"
+        )),
+    }
+}
+
+/// A NAV item's position, checked; none for a take-off or landing "here" (latitude and
+/// longitude 0 or unset) when `here_ok`.
+fn item_position(raw: &RawItem, here_ok: bool, alt_m: f64) -> Result<Option<GeoPoint>, String> {
+    let here = (raw.lat == 0.0 && raw.lon == 0.0) || (raw.lat.is_nan() && raw.lon.is_nan());
+    if here && here_ok {
+        return Ok(None);
+    }
+    if !raw.lat.is_finite() || !raw.lon.is_finite() {
+        return Err(format!("position ({}, {}) is not finite", raw.lat, raw.lon));
+    }
+    if here {
+        return Err("latitude and longitude are both 0: no position".to_string());
+    }
+    if !(-90.0..=90.0).contains(&raw.lat) {
+        return Err(format!("latitude {} is out of range [-90, 90]", raw.lat));
+    }
+    if !(-180.0..=180.0).contains(&raw.lon) {
+        return Err(format!("longitude {} is out of range [-180, 180]", raw.lon));
+    }
+    Ok(Some(GeoPoint {
+        lat_deg: raw.lat,
+        lon_deg: raw.lon,
+        alt_m,
+    }))
 }
 
 /// Parse `QGC WPL 110` text: a header line, then one tab-separated row per item: index,
@@ -331,34 +342,7 @@ pub fn parse_qgc_plan(text: &str, file: &str) -> Result<Plan, PlanError> {
     };
     let hover_speed_m_s = speed("hoverSpeed")?;
     let cruise_speed_m_s = speed("cruiseSpeed")?;
-    let home = match mission.get("plannedHomePosition") {
-        Some(Value::Array(a)) if a.len() >= 2 => {
-            let n = |i: usize| a.get(i).and_then(Value::as_f64);
-            let (lat, lon) = (n(0).unwrap_or(f64::NAN), n(1).unwrap_or(f64::NAN));
-            if !lat.is_finite()
-                || !lon.is_finite()
-                || !(-90.0..=90.0).contains(&lat)
-                || !(-180.0..=180.0).contains(&lon)
-            {
-                return Err(err(
-                    "mission.plannedHomePosition",
-                    format!("({lat}, {lon}) is not a valid latitude/longitude"),
-                ));
-            }
-            Some(GeoPoint {
-                lat_deg: lat,
-                lon_deg: lon,
-                alt_m: n(2).filter(|v| v.is_finite()).unwrap_or(0.0),
-            })
-        }
-        None | Some(Value::Null) => None,
-        Some(v) => {
-            return Err(err(
-                "mission.plannedHomePosition",
-                format!("{v}: expected [lat, lon, alt]"),
-            ))
-        }
-    };
+    let home = planned_home(mission).map_err(|why| err("mission.plannedHomePosition", why))?;
     let list = mission
         .get("items")
         .and_then(Value::as_array)
@@ -375,52 +359,7 @@ pub fn parse_qgc_plan(text: &str, file: &str) -> Result<Plan, PlanError> {
                 items.push(it);
             }
             Some("ComplexItem") => {
-                let kind = v
-                    .get("complexItemType")
-                    .and_then(Value::as_str)
-                    .unwrap_or("?");
-                let tsc = v.get("TransectStyleComplexItem").ok_or_else(|| err(&path, format!("complex item {kind:?} without TransectStyleComplexItem: cannot expand its waypoints")))?;
-                if let Some(sub) = tsc
-                    .get("Items")
-                    .and_then(Value::as_array)
-                    .filter(|s| !s.is_empty())
-                {
-                    for (j, s) in sub.iter().enumerate() {
-                        let sp = format!("{path}.TransectStyleComplexItem.Items[{j}]");
-                        let raw = simple_item(s).map_err(|why| err(&sp, why))?;
-                        let it = build_item(&raw, items.len(), sp.clone(), home_amsl)
-                            .map_err(|why| err(&format!("item {} ({sp})", items.len()), why))?;
-                        items.push(it);
-                    }
-                } else if let Some(pts) = tsc.get("VisualTransectPoints").and_then(Value::as_array)
-                {
-                    let alt = v
-                        .get("Altitude")
-                        .and_then(Value::as_f64)
-                        .or_else(|| tsc.get("CameraCalc").and_then(|c| c.get("DistanceToSurface")).and_then(Value::as_f64))
-                        .ok_or_else(|| err(&path, "VisualTransectPoints without Altitude or CameraCalc.DistanceToSurface: no altitude to fly them at".into()))?;
-                    for (j, p) in pts.iter().enumerate() {
-                        let sp =
-                            format!("{path}.TransectStyleComplexItem.VisualTransectPoints[{j}]");
-                        let ll = p
-                            .as_array()
-                            .filter(|a| a.len() >= 2)
-                            .ok_or_else(|| err(&sp, "expected [lat, lon]".into()))?;
-                        let raw = RawItem {
-                            command: 16,
-                            frame: 3,
-                            params: [0.0; 4],
-                            lat: ll[0].as_f64().unwrap_or(f64::NAN),
-                            lon: ll[1].as_f64().unwrap_or(f64::NAN),
-                            alt,
-                        };
-                        let it = build_item(&raw, items.len(), sp.clone(), home_amsl)
-                            .map_err(|why| err(&format!("item {} ({sp})", items.len()), why))?;
-                        items.push(it);
-                    }
-                } else {
-                    return Err(err(&path, format!("complex item {kind:?} has neither TransectStyleComplexItem.Items nor VisualTransectPoints")));
-                }
+                complex_item(v, &path, home_amsl, &mut items).map_err(|(at, why)| err(&at, why))?
             }
             other => {
                 return Err(err(
@@ -458,6 +397,91 @@ pub fn parse_qgc_plan(text: &str, file: &str) -> Result<Plan, PlanError> {
         hover_speed_m_s,
         cruise_speed_m_s,
     })
+}
+
+/// A `.plan`'s `mission.plannedHomePosition`: none when absent or null, else checked.
+fn planned_home(mission: &serde_json::Value) -> Result<Option<GeoPoint>, String> {
+    use serde_json::Value;
+    match mission.get("plannedHomePosition") {
+        Some(Value::Array(a)) if a.len() >= 2 => {
+            let n = |i: usize| a.get(i).and_then(Value::as_f64);
+            let (lat, lon) = (n(0).unwrap_or(f64::NAN), n(1).unwrap_or(f64::NAN));
+            if !lat.is_finite()
+                || !lon.is_finite()
+                || !(-90.0..=90.0).contains(&lat)
+                || !(-180.0..=180.0).contains(&lon)
+            {
+                return Err(format!("({lat}, {lon}) is not a valid latitude/longitude"));
+            }
+            Ok(Some(GeoPoint {
+                lat_deg: lat,
+                lon_deg: lon,
+                alt_m: n(2).filter(|v| v.is_finite()).unwrap_or(0.0),
+            }))
+        }
+        None | Some(Value::Null) => Ok(None),
+        Some(v) => Err(format!("{v}: expected [lat, lon, alt]")),
+    }
+}
+
+/// A `.plan`'s ComplexItem at `path` (a survey, corridor or structure scan), expanded into
+/// `items`: its own `Items` when QGC wrote them, else its `VisualTransectPoints` flown at its
+/// altitude. An error is (where, why).
+fn complex_item(
+    v: &serde_json::Value,
+    path: &str,
+    home_amsl: Option<f64>,
+    items: &mut Vec<Item>,
+) -> Result<(), (String, String)> {
+    use serde_json::Value;
+    let at = |p: &str, why: String| (p.to_string(), why);
+    let mut push = |raw: RawItem, sp: String| -> Result<(), (String, String)> {
+        let it = build_item(&raw, items.len(), sp.clone(), home_amsl)
+            .map_err(|why| (format!("item {} ({sp})", items.len()), why))?;
+        items.push(it);
+        Ok(())
+    };
+    let kind = v
+        .get("complexItemType")
+        .and_then(Value::as_str)
+        .unwrap_or("?");
+    let tsc = v.get("TransectStyleComplexItem").ok_or_else(|| at(path, format!("complex item {kind:?} without TransectStyleComplexItem: cannot expand its waypoints")))?;
+    if let Some(sub) = tsc
+        .get("Items")
+        .and_then(Value::as_array)
+        .filter(|s| !s.is_empty())
+    {
+        for (j, s) in sub.iter().enumerate() {
+            let sp = format!("{path}.TransectStyleComplexItem.Items[{j}]");
+            let raw = simple_item(s).map_err(|why| at(&sp, why))?;
+            push(raw, sp)?;
+        }
+    } else if let Some(pts) = tsc.get("VisualTransectPoints").and_then(Value::as_array) {
+        let alt = v
+            .get("Altitude")
+            .and_then(Value::as_f64)
+            .or_else(|| tsc.get("CameraCalc").and_then(|c| c.get("DistanceToSurface")).and_then(Value::as_f64))
+            .ok_or_else(|| at(path, "VisualTransectPoints without Altitude or CameraCalc.DistanceToSurface: no altitude to fly them at".into()))?;
+        for (j, p) in pts.iter().enumerate() {
+            let sp = format!("{path}.TransectStyleComplexItem.VisualTransectPoints[{j}]");
+            let ll = p
+                .as_array()
+                .filter(|a| a.len() >= 2)
+                .ok_or_else(|| at(&sp, "expected [lat, lon]".into()))?;
+            let raw = RawItem {
+                command: 16,
+                frame: 3,
+                params: [0.0; 4],
+                lat: ll[0].as_f64().unwrap_or(f64::NAN),
+                lon: ll[1].as_f64().unwrap_or(f64::NAN),
+                alt,
+            };
+            push(raw, sp)?;
+        }
+    } else {
+        return Err(at(path, format!("complex item {kind:?} has neither TransectStyleComplexItem.Items nor VisualTransectPoints")));
+    }
+    Ok(())
 }
 
 /// A `SimpleItem`'s command, frame and seven params (`null` → NaN, "unused").
