@@ -213,73 +213,8 @@ impl State {
                 };
                 self.syn.wind(u64::from(boot_ms) * 1000, n, e_, out);
             }
-            "GPS" if Self::first(e, "I") => {
-                let (Some(status), Some(lat), Some(lng)) =
-                    (self.f(e, "Status"), self.f(e, "Lat"), self.f(e, "Lng"))
-                else {
-                    return;
-                };
-                let alt = e.get_f64("Alt").unwrap_or(0.0);
-                let (spd, crs, vz) = (e.get_f64("Spd"), e.get_f64("GCrs"), e.get_f64("VZ"));
-                if let (Some(s), Some(c)) = (spd, crs) {
-                    let c = c.to_radians();
-                    self.gps_vel = Some([s * c.cos(), s * c.sin(), vz.unwrap_or(0.0)]);
-                }
-                let fix = match status as i64 {
-                    0 => d::GpsFixType::GPS_FIX_TYPE_NO_GPS,
-                    1 => d::GpsFixType::GPS_FIX_TYPE_NO_FIX,
-                    2 => d::GpsFixType::GPS_FIX_TYPE_2D_FIX,
-                    3 => d::GpsFixType::GPS_FIX_TYPE_3D_FIX,
-                    4 => d::GpsFixType::GPS_FIX_TYPE_DGPS,
-                    5 => d::GpsFixType::GPS_FIX_TYPE_RTK_FLOAT,
-                    _ => d::GpsFixType::GPS_FIX_TYPE_RTK_FIXED,
-                };
-                let m = d::GPS_RAW_INT_DATA {
-                    time_usec: u64::from(boot_ms) * 1000,
-                    fix_type: fix,
-                    lat: scaled(lat, 1.0).unwrap_or(0),
-                    lon: scaled(lng, 1.0).unwrap_or(0),
-                    alt: scaled(alt, 1000.0).unwrap_or(0),
-                    vel: spd
-                        .and_then(|s| scaled::<u16>(s.max(0.0), 100.0))
-                        .map_or(u16::MAX, |v| v.min(65_534)),
-                    cog: crs.and_then(centidegrees).unwrap_or(u16::MAX),
-                    satellites_visible: e
-                        .get_f64("NSats")
-                        .and_then(|n| scaled(n, 1.0))
-                        .unwrap_or(u8::MAX),
-                    eph: u16::MAX,
-                    epv: u16::MAX,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::GPS_RAW_INT(m), out);
-            }
-            "POS" => {
-                let (Some(lat), Some(lng), Some(alt)) =
-                    (self.f(e, "Lat"), self.f(e, "Lng"), self.f(e, "Alt"))
-                else {
-                    return;
-                };
-                // POS carries no velocity: the EKF's, else the GPS's (no velocity at all:
-                // none is offered from here).
-                let Some(v) = self.ekf_vel.or(self.gps_vel) else {
-                    return;
-                };
-                let [vx, vy, vz] = v.map(|x| scaled(x, 100.0).unwrap_or(0));
-                let rel = e.get_f64("RelHomeAlt").unwrap_or(0.0);
-                let m = d::GLOBAL_POSITION_INT_DATA {
-                    time_boot_ms: boot_ms,
-                    lat: scaled(lat, 1.0).unwrap_or(0),
-                    lon: scaled(lng, 1.0).unwrap_or(0),
-                    alt: scaled(alt, 1000.0).unwrap_or(0),
-                    relative_alt: scaled(rel, 1000.0).unwrap_or(0),
-                    vx,
-                    vy,
-                    vz,
-                    hdg: u16::MAX,
-                };
-                self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
-            }
+            "GPS" if Self::first(e, "I") => self.gps(e, out),
+            "POS" => self.pos(e, out),
             "BAT" if Self::first(e, "Inst") || Self::first(e, "Instance") => {
                 let Some(volt) = self.f(e, "Volt") else {
                     return;
@@ -310,6 +245,79 @@ impl State {
             }
             _ => {}
         }
+    }
+
+    /// GPS (instance 0): GPS_RAW_INT, and the GPS's velocity for POS when the EKF gives none.
+    fn gps(&mut self, e: &Entry, out: &mut Vec<TimedMessage>) {
+        let boot_ms = self.syn.boot_ms;
+        let (Some(status), Some(lat), Some(lng)) =
+            (self.f(e, "Status"), self.f(e, "Lat"), self.f(e, "Lng"))
+        else {
+            return;
+        };
+        let alt = e.get_f64("Alt").unwrap_or(0.0);
+        let (spd, crs, vz) = (e.get_f64("Spd"), e.get_f64("GCrs"), e.get_f64("VZ"));
+        if let (Some(s), Some(c)) = (spd, crs) {
+            let c = c.to_radians();
+            self.gps_vel = Some([s * c.cos(), s * c.sin(), vz.unwrap_or(0.0)]);
+        }
+        let fix = match status as i64 {
+            0 => d::GpsFixType::GPS_FIX_TYPE_NO_GPS,
+            1 => d::GpsFixType::GPS_FIX_TYPE_NO_FIX,
+            2 => d::GpsFixType::GPS_FIX_TYPE_2D_FIX,
+            3 => d::GpsFixType::GPS_FIX_TYPE_3D_FIX,
+            4 => d::GpsFixType::GPS_FIX_TYPE_DGPS,
+            5 => d::GpsFixType::GPS_FIX_TYPE_RTK_FLOAT,
+            _ => d::GpsFixType::GPS_FIX_TYPE_RTK_FIXED,
+        };
+        let m = d::GPS_RAW_INT_DATA {
+            time_usec: u64::from(boot_ms) * 1000,
+            fix_type: fix,
+            lat: scaled(lat, 1.0).unwrap_or(0),
+            lon: scaled(lng, 1.0).unwrap_or(0),
+            alt: scaled(alt, 1000.0).unwrap_or(0),
+            vel: spd
+                .and_then(|s| scaled::<u16>(s.max(0.0), 100.0))
+                .map_or(u16::MAX, |v| v.min(65_534)),
+            cog: crs.and_then(centidegrees).unwrap_or(u16::MAX),
+            satellites_visible: e
+                .get_f64("NSats")
+                .and_then(|n| scaled(n, 1.0))
+                .unwrap_or(u8::MAX),
+            eph: u16::MAX,
+            epv: u16::MAX,
+            ..Default::default()
+        };
+        self.syn.push(MavMessage::GPS_RAW_INT(m), out);
+    }
+
+    /// POS: GLOBAL_POSITION_INT, with the EKF's velocity, else the GPS's.
+    fn pos(&mut self, e: &Entry, out: &mut Vec<TimedMessage>) {
+        let boot_ms = self.syn.boot_ms;
+        let (Some(lat), Some(lng), Some(alt)) =
+            (self.f(e, "Lat"), self.f(e, "Lng"), self.f(e, "Alt"))
+        else {
+            return;
+        };
+        // POS carries no velocity: the EKF's, else the GPS's (no velocity at all:
+        // none is offered from here).
+        let Some(v) = self.ekf_vel.or(self.gps_vel) else {
+            return;
+        };
+        let [vx, vy, vz] = v.map(|x| scaled(x, 100.0).unwrap_or(0));
+        let rel = e.get_f64("RelHomeAlt").unwrap_or(0.0);
+        let m = d::GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: boot_ms,
+            lat: scaled(lat, 1.0).unwrap_or(0),
+            lon: scaled(lng, 1.0).unwrap_or(0),
+            alt: scaled(alt, 1000.0).unwrap_or(0),
+            relative_alt: scaled(rel, 1000.0).unwrap_or(0),
+            vx,
+            vy,
+            vz,
+            hdg: u16::MAX,
+        };
+        self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
     }
 }
 

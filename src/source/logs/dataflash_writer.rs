@@ -178,37 +178,7 @@ pub fn from_mavlink(records: &[(u64, &MavMessage)]) -> Vec<u8> {
                     ],
                 );
             }
-            MavMessage::GPS_RAW_INT(m) => {
-                let spd = if m.vel == u16::MAX {
-                    0.0
-                } else {
-                    f64::from(m.vel) * 0.01
-                };
-                let crs = if m.cog == u16::MAX {
-                    0.0
-                } else {
-                    f64::from(m.cog) * 0.01
-                };
-                let alt = f64::from(m.alt) * 1e-3;
-                w.write(
-                    &GPS,
-                    &[
-                        t,
-                        I(0),
-                        I(m.fix_type as i64),
-                        I(0),
-                        I(0),
-                        I(m.satellites_visible.into()),
-                        F(0.8),
-                        I(m.lat.into()),
-                        I(m.lon.into()),
-                        F(alt),
-                        F(spd),
-                        F(crs),
-                        F(vz),
-                    ],
-                );
-            }
+            MavMessage::GPS_RAW_INT(m) => gps(&mut w, t, m, vz),
             MavMessage::WIND(m) => {
                 // WIND's direction is where the wind comes from; XKF2's is its velocity.
                 let (s, dir) = (f64::from(m.speed), f64::from(m.direction).to_radians());
@@ -225,31 +195,7 @@ pub fn from_mavlink(records: &[(u64, &MavMessage)]) -> Vec<u8> {
                     ],
                 );
             }
-            MavMessage::BATTERY_STATUS(b) if b.id == 0 => {
-                let volt = if b.voltages[0] == u16::MAX {
-                    0.0
-                } else {
-                    f64::from(b.voltages[0]) * 1e-3
-                };
-                let curr = f64::from(b.current_battery) * 0.01;
-                w.write(
-                    &BAT,
-                    &[
-                        t,
-                        I(0),
-                        F(volt),
-                        F(volt),
-                        F(curr),
-                        F(b.current_consumed.into()),
-                        F(f64::from(b.energy_consumed) / 36.0),
-                        F(25.0),
-                        F(0.0),
-                        I(b.battery_remaining.into()),
-                        I(1),
-                        I(0),
-                    ],
-                );
-            }
+            MavMessage::BATTERY_STATUS(b) if b.id == 0 => bat(&mut w, t, b),
             MavMessage::NAMED_VALUE_FLOAT(n) => {
                 let name = crate::source::messages::name_text(&n.name);
                 w.write(&NVF, &[t, S(&name), F(n.value.into())]);
@@ -258,4 +204,66 @@ pub fn from_mavlink(records: &[(u64, &MavMessage)]) -> Vec<u8> {
         }
     }
     w.into_bytes()
+}
+
+/// GPS_RAW_INT as a GPS row (instance 0), with the last GLOBAL_POSITION_INT's vertical speed.
+fn gps(w: &mut Writer, t: Value, m: &d::GPS_RAW_INT_DATA, vz: f64) {
+    use Value::{Float as F, Int as I};
+    let spd = if m.vel == u16::MAX {
+        0.0
+    } else {
+        f64::from(m.vel) * 0.01
+    };
+    let crs = if m.cog == u16::MAX {
+        0.0
+    } else {
+        f64::from(m.cog) * 0.01
+    };
+    let alt = f64::from(m.alt) * 1e-3;
+    w.write(
+        &GPS,
+        &[
+            t,
+            I(0),
+            I(m.fix_type as i64),
+            I(0),
+            I(0),
+            I(m.satellites_visible.into()),
+            F(0.8),
+            I(m.lat.into()),
+            I(m.lon.into()),
+            F(alt),
+            F(spd),
+            F(crs),
+            F(vz),
+        ],
+    );
+}
+
+/// BATTERY_STATUS (the first pack) as a BAT row (instance 0).
+fn bat(w: &mut Writer, t: Value, b: &d::BATTERY_STATUS_DATA) {
+    use Value::{Float as F, Int as I};
+    let volt = if b.voltages[0] == u16::MAX {
+        0.0
+    } else {
+        f64::from(b.voltages[0]) * 1e-3
+    };
+    let curr = f64::from(b.current_battery) * 0.01;
+    w.write(
+        &BAT,
+        &[
+            t,
+            I(0),
+            F(volt),
+            F(volt),
+            F(curr),
+            F(b.current_consumed.into()),
+            F(f64::from(b.energy_consumed) / 36.0),
+            F(25.0),
+            F(0.0),
+            I(b.battery_remaining.into()),
+            I(1),
+            I(0),
+        ],
+    );
 }
