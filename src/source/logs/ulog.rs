@@ -168,28 +168,7 @@ impl State {
                     self.rates = r;
                 }
             }
-            "vehicle_attitude" => {
-                let Some(q) = nums(f, "q").filter(|q| q.len() == 4) else {
-                    return;
-                };
-                let [rollspeed, pitchspeed, yawspeed] = self.rates;
-                let yaw = (2.0 * (q[0] * q[3] + q[1] * q[2]))
-                    .atan2(1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
-                self.heading_deg = Some(yaw.to_degrees().rem_euclid(360.0));
-                let [q1, q2, q3, q4] = [q[0], q[1], q[2], q[3]].map(|x| x as f32);
-                let m = d::ATTITUDE_QUATERNION_DATA {
-                    time_boot_ms: boot_ms,
-                    q1,
-                    q2,
-                    q3,
-                    q4,
-                    rollspeed,
-                    pitchspeed,
-                    yawspeed,
-                    ..Default::default()
-                };
-                self.syn.push(MavMessage::ATTITUDE_QUATERNION(m), out);
-            }
+            "vehicle_attitude" => self.attitude(f, out),
             "sensor_combined" => {
                 let (Some(gyro), Some(acc)) = (vec3(f, "gyro_rad"), vec3(f, "accelerometer_m_s2"))
                 else {
@@ -207,31 +186,7 @@ impl State {
                 let p = ["x", "y", "z"].map(|k| num(f, k).unwrap_or(0.0) as f32);
                 self.syn.local_ned(p, v, out);
             }
-            "vehicle_global_position" => {
-                let (Some(lat), Some(lon), Some(alt)) =
-                    (num(f, "lat"), num(f, "lon"), num(f, "alt"))
-                else {
-                    return;
-                };
-                // NaN (no estimate yet) or (0, 0) is no fix: nothing to send on as a position.
-                if !crate::features::frames::is_fix(lat, lon) || !alt.is_finite() {
-                    return;
-                }
-                let Some(v) = self.vel else { return };
-                let [vx, vy, vz] = v.map(|x| scaled(f64::from(x), 100.0).unwrap_or(0));
-                let m = d::GLOBAL_POSITION_INT_DATA {
-                    time_boot_ms: boot_ms,
-                    lat: scaled(lat, 1e7).unwrap_or(0),
-                    lon: scaled(lon, 1e7).unwrap_or(0),
-                    alt: scaled(alt, 1000.0).unwrap_or(0),
-                    relative_alt: 0,
-                    vx,
-                    vy,
-                    vz,
-                    hdg: u16::MAX,
-                };
-                self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
-            }
+            "vehicle_global_position" => self.global_position(f, out),
             "wind" | "wind_estimate" => {
                 let (Some(n), Some(e)) = (num(f, "windspeed_north"), num(f, "windspeed_east"))
                 else {
@@ -276,6 +231,59 @@ impl State {
             }
             _ => {}
         }
+    }
+
+    /// vehicle_attitude: ATTITUDE_QUATERNION with the last angular rates; keeps the heading.
+    fn attitude(&mut self, f: &Format, out: &mut Vec<TimedMessage>) {
+        let boot_ms = self.syn.boot_ms;
+        let Some(q) = nums(f, "q").filter(|q| q.len() == 4) else {
+            return;
+        };
+        let [rollspeed, pitchspeed, yawspeed] = self.rates;
+        let yaw =
+            (2.0 * (q[0] * q[3] + q[1] * q[2])).atan2(1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
+        self.heading_deg = Some(yaw.to_degrees().rem_euclid(360.0));
+        let [q1, q2, q3, q4] = [q[0], q[1], q[2], q[3]].map(|x| x as f32);
+        let m = d::ATTITUDE_QUATERNION_DATA {
+            time_boot_ms: boot_ms,
+            q1,
+            q2,
+            q3,
+            q4,
+            rollspeed,
+            pitchspeed,
+            yawspeed,
+            ..Default::default()
+        };
+        self.syn.push(MavMessage::ATTITUDE_QUATERNION(m), out);
+    }
+
+    /// vehicle_global_position: GLOBAL_POSITION_INT with the last local velocity (none
+    /// before a fix or a velocity).
+    fn global_position(&mut self, f: &Format, out: &mut Vec<TimedMessage>) {
+        let boot_ms = self.syn.boot_ms;
+        let (Some(lat), Some(lon), Some(alt)) = (num(f, "lat"), num(f, "lon"), num(f, "alt"))
+        else {
+            return;
+        };
+        // NaN (no estimate yet) or (0, 0) is no fix: nothing to send on as a position.
+        if !crate::features::frames::is_fix(lat, lon) || !alt.is_finite() {
+            return;
+        }
+        let Some(v) = self.vel else { return };
+        let [vx, vy, vz] = v.map(|x| scaled(f64::from(x), 100.0).unwrap_or(0));
+        let m = d::GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: boot_ms,
+            lat: scaled(lat, 1e7).unwrap_or(0),
+            lon: scaled(lon, 1e7).unwrap_or(0),
+            alt: scaled(alt, 1000.0).unwrap_or(0),
+            relative_alt: 0,
+            vx,
+            vy,
+            vz,
+            hdg: u16::MAX,
+        };
+        self.syn.push(MavMessage::GLOBAL_POSITION_INT(m), out);
     }
 }
 
