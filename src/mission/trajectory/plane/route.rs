@@ -22,6 +22,55 @@ pub(super) struct Builder<'a> {
 }
 
 impl Builder<'_> {
+    /// A take-off to `alt_m` above home, at `target` when the vehicle is still on the ground,
+    /// heading for `next` (the plan's next position): a VTOL climbs on its rotors, a plane
+    /// climbs out at its airspeed. The leg's label.
+    fn takeoff(&mut self, target: Option<V3>, next: Option<V2>, alt_m: f64) -> &'static str {
+        if let (Some(t), false) = (target, self.airborne) {
+            self.pos = V3::new(t.x, t.y, 0.0);
+        }
+        if let Some(n) = next {
+            let to = n - self.pos.xy();
+            if to.norm() > 0.5 {
+                self.psi = to.y.atan2(to.x);
+            }
+        }
+        let climb = (alt_m - self.pos.z).max(0.0);
+        if self.vtol && self.on_rotors {
+            let from = self.pos;
+            self.push(
+                Piece::Vertical {
+                    from,
+                    z1: alt_m.max(from.z),
+                    heading: self.psi,
+                },
+                climb / self.f.vtol_climb_m_s,
+            );
+            self.pos.z += climb;
+            self.airborne = true;
+            "vtol takeoff"
+        } else {
+            self.airborne = true;
+            let d = unit(self.psi);
+            let vz = self.f.climb_m_s.min(self.airspeed * 0.9);
+            let v_h = (self.airspeed * self.airspeed - vz * vz).sqrt();
+            let g = v_h * d + self.wind;
+            let t = climb / vz;
+            self.push(
+                Piece::Straight {
+                    from: self.pos,
+                    vel: V3::new(g.x, g.y, vz),
+                    airspeed: self.airspeed,
+                    heading: self.psi,
+                },
+                t,
+            );
+            self.pos += V3::new(g.x * t, g.y * t, climb);
+            self.dist += g.norm() * t;
+            "takeoff"
+        }
+    }
+
     pub(super) fn push(&mut self, piece: Piece, duration_s: f64) {
         if duration_s > 0.0 && duration_s.is_finite() {
             self.segs.push(Seg {
@@ -304,49 +353,7 @@ pub(super) fn segments(
                 continue;
             }
             ItemKind::Takeoff { alt_m } | ItemKind::VtolTakeoff { alt_m } => {
-                if let (Some(t), false) = (target, b.airborne) {
-                    b.pos = V3::new(t.x, t.y, 0.0);
-                }
-                if let Some(n) = next_position(plan, i) {
-                    let to = n - b.pos.xy();
-                    if to.norm() > 0.5 {
-                        b.psi = to.y.atan2(to.x);
-                    }
-                }
-                let climb = (alt_m - b.pos.z).max(0.0);
-                if vtol && b.on_rotors {
-                    let from = b.pos;
-                    b.push(
-                        Piece::Vertical {
-                            from,
-                            z1: alt_m.max(from.z),
-                            heading: b.psi,
-                        },
-                        climb / f.vtol_climb_m_s,
-                    );
-                    b.pos.z += climb;
-                    b.airborne = true;
-                    "vtol takeoff".into()
-                } else {
-                    b.airborne = true;
-                    let d = unit(b.psi);
-                    let vz = f.climb_m_s.min(b.airspeed * 0.9);
-                    let v_h = (b.airspeed * b.airspeed - vz * vz).sqrt();
-                    let g = v_h * d + b.wind;
-                    let t = climb / vz;
-                    b.push(
-                        Piece::Straight {
-                            from: b.pos,
-                            vel: V3::new(g.x, g.y, vz),
-                            airspeed: b.airspeed,
-                            heading: b.psi,
-                        },
-                        t,
-                    );
-                    b.pos += V3::new(g.x * t, g.y * t, climb);
-                    b.dist += g.norm() * t;
-                    "takeoff".into()
-                }
+                b.takeoff(target, next_position(plan, i), alt_m).into()
             }
             ItemKind::Waypoint { .. }
             | ItemKind::NotModelled {
