@@ -106,39 +106,14 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         "loading flights from {} through the ingest path",
         data_path.display()
     );
-    anyhow::ensure!(
-        (0.0..=1.0).contains(&args.relative_loss),
-        "--relative-loss {}: must be between 0 (absolute loss) and 1 (relative)",
-        args.relative_loss
-    );
-    anyhow::ensure!(
-        args.plateau_decay > 0.0 && args.plateau_decay <= 1.0,
-        "--plateau-decay {}: must be in (0, 1] (1: a constant learning rate)",
-        args.plateau_decay
-    );
+    check_args(&args)?;
     tch::set_num_threads(args.threads);
     if let Some(members) = &args.ensemble {
         ensemble::assemble(members, &args.out)?;
         return score_model_dir(&args.out, &data_path, &cfg, args.band_from_cv.as_deref())
             .map(|_| ());
     }
-    // The chosen flights plus whichever test flights the file holds (273 is withheld from
-    // the shared copy, and a file may hold none of them).
-    let wanted: Option<Vec<u32>> = match &args.flights {
-        Some(k) => {
-            let held: Vec<u32> = dronewatt::offline::data::list_flights(&data_path)?
-                .iter()
-                .map(|f| f.flight)
-                .collect();
-            Some(
-                k.iter()
-                    .copied()
-                    .chain(TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)))
-                    .collect(),
-            )
-        }
-        None => None,
-    };
+    let wanted = wanted_flights(&args, &data_path)?;
     let mut flights = load_flights(&data_path, wanted.as_deref(), tcfg, &cfg.mission)
         .with_context(|| format!("{}: loading flights", data_path.display()))?;
     if let Some(keep) = &wanted {
@@ -219,14 +194,69 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         return Ok(());
     }
 
-    // Final run: seeded by-flight split of the pool into training and validation flights.
-    let (train_flights, val_flights) = split_by_flight(&pool, args.val_frac, args.seed);
+    final_fit(&args, &data_path, &cfg, &pool, &per_flight, chosen, device)
+}
+
+/// The flags clap cannot check alone.
+fn check_args(args: &TrainArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&args.relative_loss),
+        "--relative-loss {}: must be between 0 (absolute loss) and 1 (relative)",
+        args.relative_loss
+    );
+    anyhow::ensure!(
+        args.plateau_decay > 0.0 && args.plateau_decay <= 1.0,
+        "--plateau-decay {}: must be in (0, 1] (1: a constant learning rate)",
+        args.plateau_decay
+    );
+    Ok(())
+}
+
+/// The flights to load, `--flights` plus whichever test flights the file
+/// holds (273 is withheld from the shared copy, and a file may hold none of them); None for
+/// all.
+fn wanted_flights(
+    args: &TrainArgs,
+    data_path: &std::path::Path,
+) -> anyhow::Result<Option<Vec<u32>>> {
+    Ok(match &args.flights {
+        Some(k) => {
+            let held: Vec<u32> = dronewatt::offline::data::list_flights(data_path)?
+                .iter()
+                .map(|f| f.flight)
+                .collect();
+            Some(
+                k.iter()
+                    .copied()
+                    .chain(TEST_FLIGHTS.into_iter().filter(|t| held.contains(t)))
+                    .collect(),
+            )
+        }
+        None => None,
+    })
+}
+
+/// The final run on the chosen hyper-parameters: a seeded by-flight split of the pool into
+/// training and validation flights, the ensemble trained and saved with its model card, then
+/// scored on the test flights.
+fn final_fit(
+    args: &TrainArgs,
+    data_path: &std::path::Path,
+    cfg: &dronewatt::config::Config,
+    pool: &[u32],
+    per_flight: &BTreeMap<u32, FlightData>,
+    chosen: Hyper,
+    device: Device,
+) -> anyhow::Result<()> {
+    let t = cfg.telemetry.window;
+    let tcfg = &cfg.telemetry;
+    let (train_flights, val_flights) = split_by_flight(pool, args.val_frac, args.seed);
     let started = Instant::now();
     let (scaling, members, n_train) = ensemble::train_members(
-        &args,
+        args,
         &train_flights,
         &val_flights,
-        &per_flight,
+        per_flight,
         chosen,
         t,
         device,
@@ -251,18 +281,18 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         device,
     };
     let mut card = model_card(
-        &args,
+        args,
         tcfg,
         fit,
         &files[0],
         data_file,
-        sha256_file(&data_path)?,
+        sha256_file(data_path)?,
     );
-    ensemble::describe(&mut card, &args, &members, &files);
+    ensemble::describe(&mut card, args, &members, &files);
     let card_path = args.out.join("card.toml");
     card.save(&card_path)?;
 
-    score_model_dir(&args.out, &data_path, &cfg, args.band_from_cv.as_deref())?;
+    score_model_dir(&args.out, data_path, cfg, args.band_from_cv.as_deref())?;
     println!(
         "model written to {} (training took {:.0} s)",
         args.out.display(),
