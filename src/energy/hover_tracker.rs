@@ -57,6 +57,7 @@ impl EnergyTracker {
     /// mission held when it calibrates.
     pub(super) fn observe_hover(&mut self, s: &crate::features::Sample, measured: Option<f64>) {
         let f = |i: usize| f64::from(s.features[i]);
+        self.first_hover.set_payload_kg(f(idx::PAYLOAD) / 1000.0);
         let news = self.first_hover.observe(
             s.t_s,
             s.home.map(|h| f64::from(h.height_m)),
