@@ -119,6 +119,9 @@ def main():
     ap.add_argument("--json")
     ap.add_argument("--flights", choices=("test", "train"), default="test",
                     help="the test flights (the book's table), or the training set's route flights (for choices)")
+    ap.add_argument("--drag-area", type=float,
+                    help="a check: the spec sheet's [stolaroff] drag_area_m2 instead of the drag prior")
+    ap.add_argument("--every", type=int, default=1, help="a check: every Nth flight only")
     a = ap.parse_args()
     priors = importlib.import_module("spec-priors")
     rows = priors.airframes()
@@ -132,7 +135,9 @@ def main():
     spec = os.path.join(out, "m100.toml")
     with open(spec, "w") as f:
         f.write(SPEC.format(kg=TAKEOFF_KG, eta=eta, sd=sd))
-    for k, payload in sorted(payloads(a.flights).items()):
+        if a.drag_area is not None:
+            f.write(f"[stolaroff]\ndrag_area_m2 = {a.drag_area}\n")
+    for k, payload in sorted(payloads(a.flights).items())[::max(a.every, 1)]:
         r = score(a.bin, k, spec, p90_ratio, eta, eta_hover)
         if r:
             r["payload_kg"] = payload
