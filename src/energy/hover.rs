@@ -365,6 +365,7 @@ impl HoverCalibrator {
             eta_h: eta,
             prior_eta_h: r.prior_eta,
             avionics_w: r.avionics_w,
+            payload_kg: self.payload_kg,
             applied: self.applies,
             source,
         };

@@ -83,6 +83,7 @@ fn a_hover_flown_with_a_payload_is_the_loaded_mass_s_efficiency() {
         panic!("{news:?}")
     };
     assert!((cal.eta_h - 0.5).abs() < 1e-9, "{cal:?}");
+    assert!((cal.payload_kg - 0.5).abs() < 1e-12);
     // a checkpoint written before the mass was kept: the unloaded ideal, as then
     let old = HoverReference {
         mass_kg: 0.0,

@@ -82,6 +82,11 @@ impl EnergyTracker {
                             100.0 * self.first_hover.hover_throttle().unwrap_or(f64::NAN)
                         )
                     };
+                    let at = if c.payload_kg > 0.0 {
+                        format!("{at} with {:.2} kg of payload", c.payload_kg)
+                    } else {
+                        at
+                    };
                     tracing::info!(
                         "first hover: {:.0} W over {:.0} s{at} sets the hover efficiency η_h {:.3} (was {:.3}); {then}",
                         c.hover_w,
