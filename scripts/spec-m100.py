@@ -3,8 +3,12 @@
 replay` with a spec sheet of its five facts as the vehicle, the hover-efficiency prior
 fitted without the M100 (scripts/spec-priors.py's `held_out_prior`, passed as `[priors]`).
 
-For each test flight (src/offline/data.rs TEST_FLIGHTS; take-off mass the spec sheet's
-2.431 kg plus the flight's payload, as a user would write it):
+For each test flight (src/offline/data.rs TEST_FLIGHTS), or with `--flights train` each route
+flight of the training set with a payload of 0, 250 or 500 g (what a choice may look at): the
+spec sheet's take-off mass is the vehicle's, 2.431 kg, and the flight's payload is the
+mission's (the data set's `payload` column, which `replay` sends as the mission's payload and
+the members add to the take-off mass, as a user's mission config would). Before session 26 the
+take-off mass was written as 2.431 kg plus the payload, and the payload was counted twice.
 
 - `spec`: the energy the momentum-theory member gives along the flight's own path (its
   estimates' `models.stolaroff` power × the time to the next estimate, airborne: from the
@@ -14,14 +18,14 @@ For each test flight (src/offline/data.rs TEST_FLIGHTS; take-off mass the spec s
   hover of 15 s: the live calibration says so and calibrates nothing), so the hover is the
   vehicle's earlier one, the data set's hover flights (route H, no payload:
   scripts/spec-priors.py's `m100_hover_w`), as the vehicle store would keep it: η_h =
-  ideal / (P_hover − 8 W) at 2.431 kg, and the member's power × η_prior/η_h on its
-  non-avionics part.
+  ideal / (P_hover − 8 W) at 2.431 kg (the hover's mass), and the member's power (at the
+  flight's mass, payload included) × η_prior/η_h on its non-avionics part.
 
 The flight's own path, not a plan: the M100's error here is the power model's alone, where
 the peer's is the plan's (path, speeds, wind) as well. The M100's learned stage is the
 book's own (the shipped M100 profile, `plan-eval`).
 
-    .venv-py/bin/python scripts/spec-m100.py [--bin target/debug/dronewatt] [--json PATH]
+    .venv-py/bin/python scripts/spec-m100.py [--bin target/debug/dronewatt] [--json PATH] [--flights train]
 """
 import argparse
 import importlib
@@ -36,6 +40,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 DATA = os.path.join(HERE, "..", "..", "shared", "data", "m100", "flights.csv.gz")
 TEST_FLIGHTS = [268, 269, 270, 271, 272, 273, 276, 277, 278, 279]
+TAKEOFF_KG = 2.431  # the M100 with its TB48D (DJI), as config/vehicles/m100.toml
 AIRBORNE_W = 150.0
 AVIONICS_W = 8.0
 SPEC = """name = "DJI M100 (spec sheet)"
@@ -53,15 +58,23 @@ eta_h_log_sd = {sd:.4f}
 """
 
 
-def payloads():
+def payloads(which="test"):
+    """{flight: payload kg}: the test flights, or the training set's route flights with a
+    payload of 0, 250 or 500 g."""
     import csv
     import gzip
     out = {}
     with gzip.open(DATA, "rt") as f:
         for r in csv.DictReader(f):
             k = int(r["flight"])
-            if k in TEST_FLIGHTS and k not in out:
-                out[k] = float(r["payload"]) / 1000.0
+            if k in out:
+                continue
+            pay = float(r["payload"])
+            if which == "test" and k in TEST_FLIGHTS:
+                out[k] = pay / 1000.0
+            elif (which == "train" and k not in TEST_FLIGHTS and r["route"].startswith("R")
+                  and pay in (0.0, 250.0, 500.0)):
+                out[k] = pay / 1000.0
     return out
 
 
@@ -104,6 +117,11 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--bin", default=os.path.join(HERE, "..", "target", "debug", "dronewatt"))
     ap.add_argument("--json")
+    ap.add_argument("--flights", choices=("test", "train"), default="test",
+                    help="the test flights (the book's table), or the training set's route flights (for choices)")
+    ap.add_argument("--drag-area", type=float,
+                    help="a check: the spec sheet's [stolaroff] drag_area_m2 instead of the drag prior")
+    ap.add_argument("--every", type=int, default=1, help="a check: every Nth flight only")
     a = ap.parse_args()
     priors = importlib.import_module("spec-priors")
     rows = priors.airframes()
@@ -111,13 +129,15 @@ def main():
     eta = etas["DJI M100 (published)"]
     p90_ratio = math.exp(1.2816 * math.sqrt(sd ** 2 + (0.25 * 0.5) ** 2))
     hover_w, _ = priors.m100_hover_w()
-    eta_hover = priors.ideal_hover_w(2.431, 4, 0.3302) / (hover_w - AVIONICS_W)
+    eta_hover = priors.ideal_hover_w(TAKEOFF_KG, 4, 0.3302) / (hover_w - AVIONICS_W)
     out = tempfile.mkdtemp(prefix="spec-m100-")
     flights = []
-    for k, payload in sorted(payloads().items()):
-        spec = os.path.join(out, f"m100-{k}.toml")
-        with open(spec, "w") as f:
-            f.write(SPEC.format(kg=2.431 + payload, eta=eta, sd=sd))
+    spec = os.path.join(out, "m100.toml")
+    with open(spec, "w") as f:
+        f.write(SPEC.format(kg=TAKEOFF_KG, eta=eta, sd=sd))
+        if a.drag_area is not None:
+            f.write(f"[stolaroff]\ndrag_area_m2 = {a.drag_area}\n")
+    for k, payload in sorted(payloads(a.flights).items())[::max(a.every, 1)]:
         r = score(a.bin, k, spec, p90_ratio, eta, eta_hover)
         if r:
             r["payload_kg"] = payload
@@ -130,7 +150,13 @@ def main():
                p90_ratio=round(p90_ratio, 3), flights=flights,
                summary=dict(spec=dict(median_abs_err_pct=round(med(errs), 1), flights=len(errs),
                                       p90_cover_pct=round(100 * sum(r["p90_covers"] for r in flights) / len(flights), 1)),
-                            hover=dict(median_abs_err_pct=round(med(hov), 1), flights=len(hov)) if hov else None))
+                            hover=dict(median_abs_err_pct=round(med(hov), 1), flights=len(hov)) if hov else None),
+               by_payload={f"{int(1000 * p)} g": dict(
+                   flights=len(rs), spec_median_err_pct=round(med(sorted(r["spec_err_pct"] for r in rs)), 1),
+                   hover_median_err_pct=round(med(sorted(r["hover"]["err_pct"] for r in rs)), 1))
+                   for p in sorted({r["payload_kg"] for r in flights})
+                   for rs in [[r for r in flights if r["payload_kg"] == p]]},
+               flights_set=a.flights)
     text = json.dumps(res, indent=1)
     if a.json:
         with open(a.json, "w") as f:

@@ -9,7 +9,8 @@
 //! - **Calibrated** once [`HOVER_S`] of hover samples are in (the first 30 s), or a hover of
 //!   at least [`MIN_HOVER_S`] ends; the mean power `P_h` over them gives
 //!   `η_h = P_ideal / (P_h − P_avio)`, `P_ideal = T^1.5/√(2ρA)` for the profile's take-off
-//!   mass and rotor disk. From then on every power the member gives, and the energy of the
+//!   mass with the mission's payload on board ([`HoverCalibrator::set_payload_kg`]) and the
+//!   rotor disk. From then on every power the member gives, and the energy of the
 //!   rest of the mission, scale their non-avionics part by `k = η_prior / η_h`
 //!   ([`HoverCalibration::power_w`], [`HoverCalibration::energy_wh`]): exact for the
 //!   momentum-theory member, whose every term but the avionics is divided by η_h.
@@ -60,6 +61,10 @@ pub struct HoverReference {
     pub avionics_w: f64,
     /// The hover efficiency before the calibration (the member's `eta`).
     pub prior_eta: f64,
+    /// The take-off mass `ideal_w` is for, kg (no payload); 0: unknown, `ideal_w` used at
+    /// any payload (a checkpoint written before it was kept).
+    #[serde(default)]
+    pub mass_kg: f64,
 }
 
 impl HoverReference {
@@ -89,13 +94,37 @@ impl HoverReference {
             ideal_w,
             avionics_w: p.stolaroff.p_avio_w,
             prior_eta: p.stolaroff.eta,
+            mass_kg: p.mass_kg(0.0),
         })
     }
 
-    /// The hover efficiency a measured hover power gives; None when momentum theory cannot
-    /// give this mass on these rotors that power (η_h outside (0.05, 1)).
+    /// Momentum theory's ideal hover power with a payload on board, W: the thrust is the
+    /// take-off mass's and the payload's weight together (`ideal_w` × (m + payload)^1.5 / m^1.5).
+    pub fn ideal_at(&self, payload_kg: f64) -> f64 {
+        let payload = if payload_kg.is_finite() {
+            payload_kg.max(0.0)
+        } else {
+            0.0
+        };
+        if self.mass_kg > 0.0 {
+            self.ideal_w * ((self.mass_kg + payload) / self.mass_kg).powf(1.5)
+        } else {
+            self.ideal_w
+        }
+    }
+
+    /// The hover efficiency a measured hover power gives, hovering without payload; None
+    /// when momentum theory cannot give this mass on these rotors that power (η_h outside
+    /// (0.05, 1)).
     pub fn eta_of(&self, hover_w: f64) -> Option<f64> {
-        let eta = self.ideal_w / (hover_w - self.avionics_w);
+        self.eta_at(hover_w, 0.0)
+    }
+
+    /// The hover efficiency a hover power measured with `payload_kg` on board gives: the
+    /// ideal power is that of the loaded mass, so a hover flown with a payload does not read
+    /// as a poor efficiency (which every later forecast would then pay again for the payload).
+    pub fn eta_at(&self, hover_w: f64, payload_kg: f64) -> Option<f64> {
+        let eta = self.ideal_at(payload_kg) / (hover_w - self.avionics_w);
         (hover_w.is_finite() && eta > 0.05 && eta < 1.0).then_some(eta)
     }
 }
@@ -146,6 +175,9 @@ pub struct HoverCalibrator {
     hover_throttle: Option<f64>,
     thr_wj: f64,
     thr_s: f64,
+    /// The mission's payload, kg ([`HoverCalibrator::set_payload_kg`]): on board in the hover.
+    #[serde(default)]
+    payload_kg: f64,
 }
 
 impl HoverCalibrator {
@@ -168,7 +200,14 @@ impl HoverCalibrator {
             hover_throttle: None,
             thr_wj: 0.0,
             thr_s: 0.0,
+            payload_kg: 0.0,
         }
+    }
+
+    /// The mission's payload, kg (the `payload` feature): the hover is flown with it on
+    /// board, so its ideal power is the loaded mass's.
+    pub fn set_payload_kg(&mut self, kg: f64) {
+        self.payload_kg = if kg.is_finite() { kg.max(0.0) } else { 0.0 };
     }
 
     /// ArduPilot's `MOT_THST_HOVER` (0–1): the samples at that throttle are hover power too.
@@ -310,10 +349,11 @@ impl HoverCalibrator {
         hover_s: f64,
         source: HoverSource,
     ) -> Option<HoverNews> {
-        let Some(eta) = r.eta_of(hover_w) else {
+        let Some(eta) = r.eta_at(hover_w, self.payload_kg) else {
             let why = format!(
                 "a hover of {hover_w:.0} W is not one momentum theory gives this vehicle (at least {:.0} W ideal + {:.0} W avionics): no hover calibration",
-                r.ideal_w, r.avionics_w
+                r.ideal_at(self.payload_kg),
+                r.avionics_w
             );
             self.state = HoverState::None(why.clone());
             return Some(HoverNews::NoHover(why));
@@ -325,6 +365,7 @@ impl HoverCalibrator {
             eta_h: eta,
             prior_eta_h: r.prior_eta,
             avionics_w: r.avionics_w,
+            payload_kg: self.payload_kg,
             applied: self.applies,
             source,
         };

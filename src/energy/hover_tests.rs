@@ -5,6 +5,7 @@ fn reference() -> HoverReference {
         ideal_w: 100.0,
         avionics_w: 8.0,
         prior_eta: 0.4,
+        mass_kg: 2.0,
     }
 }
 
@@ -64,6 +65,31 @@ fn thirty_seconds_of_hover_set_the_efficiency() {
     assert!(c
         .observe(200.0, Some(30.0), 0.0, 0.0, None, Some(50.0))
         .is_none());
+}
+
+#[test]
+fn a_hover_flown_with_a_payload_is_the_loaded_mass_s_efficiency() {
+    // 2 kg with 0.5 kg on board: the ideal power is 100 W × 1.25^1.5 = 139.75 W, so a
+    // hover of 139.75 / 0.5 + 8 W is η_h 0.5 (the unloaded mass's ideal would read 0.358,
+    // and every forecast with the payload would pay for the payload twice)
+    let r = reference();
+    let ideal = 100.0 * 1.25_f64.powf(1.5);
+    assert!((r.ideal_at(0.5) - ideal).abs() < 1e-9);
+    assert!((r.ideal_at(f64::NAN) - 100.0).abs() < 1e-9);
+    let mut c = HoverCalibrator::new(Ok(r), true);
+    c.set_payload_kg(0.5);
+    let news = fly(&mut c, 60.0, ideal / 0.5 + 8.0, 10.0);
+    let [(_, HoverNews::Calibrated(cal))] = news.as_slice() else {
+        panic!("{news:?}")
+    };
+    assert!((cal.eta_h - 0.5).abs() < 1e-9, "{cal:?}");
+    assert!((cal.payload_kg - 0.5).abs() < 1e-12);
+    // a checkpoint written before the mass was kept: the unloaded ideal, as then
+    let old = HoverReference {
+        mass_kg: 0.0,
+        ..reference()
+    };
+    assert!((old.ideal_at(0.5) - 100.0).abs() < 1e-9);
 }
 
 #[test]

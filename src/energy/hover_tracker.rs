@@ -57,6 +57,7 @@ impl EnergyTracker {
     /// mission held when it calibrates.
     pub(super) fn observe_hover(&mut self, s: &crate::features::Sample, measured: Option<f64>) {
         let f = |i: usize| f64::from(s.features[i]);
+        self.first_hover.set_payload_kg(f(idx::PAYLOAD) / 1000.0);
         let news = self.first_hover.observe(
             s.t_s,
             s.home.map(|h| f64::from(h.height_m)),
@@ -80,6 +81,11 @@ impl EnergyTracker {
                             " at the hover throttle (MOT_THST_HOVER {:.0} %)",
                             100.0 * self.first_hover.hover_throttle().unwrap_or(f64::NAN)
                         )
+                    };
+                    let at = if c.payload_kg > 0.0 {
+                        format!("{at} with {:.2} kg of payload", c.payload_kg)
+                    } else {
+                        at
                     };
                     tracing::info!(
                         "first hover: {:.0} W over {:.0} s{at} sets the hover efficiency η_h {:.3} (was {:.3}); {then}",

@@ -18,6 +18,10 @@ pub struct HoverCalibration {
     pub prior_eta_h: f64,
     /// Avionics power, W (not scaled).
     pub avionics_w: f64,
+    /// The mission's payload on board during the hover, kg: the ideal power η_h is taken
+    /// against is the take-off mass's with it (0 in reports written before it was kept).
+    #[serde(default)]
+    pub payload_kg: f64,
     /// Whether the forecast follows the momentum-theory member, so that the live forecast
     /// and the mission's were rescaled (else the figure is only kept for the store).
     pub applied: bool,
