@@ -219,6 +219,8 @@ for line in open(f"{tmp}/gateway.err"):
     if m:
         notstored = int(m[2])
 total = cw + cg + cs
+print(f"lost: {drops} datagrams dropped by the kernel on the gateway's sockets, {notstored} frames "
+      f"not stored; {len(lat)} estimates in the steady window", file=sys.stderr)
 print(f"{label},{n},{w},{dur:.0f},{total / (n * dur) * 1e6:.1f},{cg / dur:.2f},{cw / dur:.2f},{cs / dur:.2f},"
       f"{sum(len(v) for v in times.values())},{missed},{gaps},{drops + notstored},{q(0.5):.1f},{q(0.99):.1f},"
       f"{wp99:.2f},{taken:.2f},{hole:.2f}")
