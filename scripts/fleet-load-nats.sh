@@ -23,10 +23,13 @@
 #                   across the kill (the takeover, then the replay of the stream)
 # At the end (sender stopped, survivors stopped by SIGINT):
 #   estimates       estimates the viewer received (all run)
-#   missed          the survivors' missed_reports + windows never reported
-#   gaps            breaks in a sender's sequence the survivors saw
+#   missed          reports the survivors' sinks missed (missed_reports)
+#   held_back       the survivors' windows not reported (windows − reports): the takeover's
+#                   replay of what the killed worker had already published, held back so
+#                   that nothing goes out twice (and any window never reported)
 #   lost            datagrams the kernel dropped on the gateway's sockets (/proc/net/udp)
-#                   + frames the gateway could not store in the stream
+#                   + frames the gateway could not store in the stream (the workers read
+#                   the stream, not the links: their summaries' `gaps` say nothing here)
 #
 # Appends to OUT/fleet-load-nats.csv (a new file gets the header).
 # Usage: NATS=2 LSTM_RATE=2 scripts/fleet-load.sh 30 300
@@ -64,7 +67,7 @@ free_port() {
   python3 -c "import socket; s=socket.socket(socket.AF_INET, socket.$1); s.bind(('127.0.0.1',0)); print(s.getsockname()[1])"
 }
 CSV="$OUT/fleet-load-nats.csv"
-HEAD="lstm,vehicles,workers,seconds,cpu_us_per_vs,gateway_cores,workers_cores,server_cores,estimates,missed,gaps,lost,p50_ms,p99_ms,worker_p99_ms,takeover_s,hole_s"
+HEAD="lstm,vehicles,workers,seconds,cpu_us_per_vs,gateway_cores,workers_cores,server_cores,estimates,missed,held_back,lost,p50_ms,p99_ms,worker_p99_ms,takeover_s,hole_s"
 [ -s "$CSV" ] || echo "$HEAD" > "$CSV"
 LABEL=nats-10hz
 : > "$TMP/base.toml"
@@ -200,11 +203,11 @@ for line in open(f"{tmp}/seen.txt"):
 lat.sort()
 q = lambda p: lat[min(len(lat) - 1, int(p * len(lat)))] if lat else float("nan")
 hole = max((b - a for ts in times.values() for a, b in zip(ts, ts[1:]) if b > killed - 1), default=0.0)
-missed = gaps = 0; wp99 = 0.0
+missed = held = 0; wp99 = 0.0
 for i in range(1, w):
     s = json.loads(open(f"{tmp}/summary{i}.json").read().strip().splitlines()[-1])
-    missed += s["missed_reports"] + max(0, s["windows"] - s["reports"])
-    gaps += s["gaps"]
+    missed += s["missed_reports"]
+    held += max(0, s["windows"] - s["reports"])
     wp99 = max(wp99, (s.get("latency") or {}).get("p99_ms", 0.0))
 taken = 0.0
 for i in range(1, w):
@@ -222,7 +225,7 @@ total = cw + cg + cs
 print(f"lost: {drops} datagrams dropped by the kernel on the gateway's sockets, {notstored} frames "
       f"not stored; {len(lat)} estimates in the steady window", file=sys.stderr)
 print(f"{label},{n},{w},{dur:.0f},{total / (n * dur) * 1e6:.1f},{cg / dur:.2f},{cw / dur:.2f},{cs / dur:.2f},"
-      f"{sum(len(v) for v in times.values())},{missed},{gaps},{drops + notstored},{q(0.5):.1f},{q(0.99):.1f},"
+      f"{sum(len(v) for v in times.values())},{missed},{held},{drops + notstored},{q(0.5):.1f},{q(0.99):.1f},"
       f"{wp99:.2f},{taken:.2f},{hole:.2f}")
 PY
   tail -1 "$CSV"
