@@ -61,8 +61,12 @@
 #        SENDER=1 LIVE=1 ONE_PROCESS=1 LSTM_RATE=2 scripts/fleet-load.sh 30 3000   (12 links, one process, one sender)
 #        LSTM_RATE=2 scripts/fleet-load.sh 30 1 10 100 250 1000
 #        LSTM_RATE=2 MQTT=1 scripts/fleet-load.sh 30 1000
+#        NATS=2 LSTM_RATE=2 scripts/fleet-load.sh 30 300   (gateway + 2 workers over NATS, one killed)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# NATS=W: the rows over NATS (one gateway, W workers, one of them killed), in their own
+# CSV: scripts/fleet-load-nats.sh says what they measure.
+if [ -n "${NATS:-}" ]; then exec scripts/fleet-load-nats.sh "$@"; fi
 DUR=${1:-30}
 shift || true
 SIZES=${*:-1 10 100 250}

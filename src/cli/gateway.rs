@@ -8,12 +8,17 @@
 //! holds the links back (their sockets buffer) rather than losing what it did not take.
 //! Several gateways (one per radio) can feed one stream.
 //!
-//! Downlink: a frame on `dronewatt.to.<net>.<sys>` is sent on network `net`'s links (signed
-//! with the link's key, which never leaves the gateway) only when the worker its
-//! [`crate::source::nats::WORKER_HEADER`] names holds the lease of that vehicle's partition; anything
-//! else is refused, counted and logged.
+//! Downlink: a frame on `dronewatt.to.<user>.<instance>.<net>.<sys>` is sent on network
+//! `net`'s links (signed with the link's key, which never leaves the gateway) only when
+//! worker `<user>.<instance>` holds the lease of that vehicle's partition at that moment;
+//! anything else is refused, counted and logged. The sender is the subject's, which the
+//! server's per-user publish permissions vouch for ([`crate::source::nats::identity`],
+//! `config/nats-server.conf`); the holder is the lease bucket's, followed by a watch
+//! ([`lease::Holders`]) and asked of the bucket itself when the watch does not show the
+//! sender holding it.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -22,7 +27,7 @@ use futures_util::StreamExt;
 use tokio::sync::mpsc;
 
 use crate::report::status::{FrameSigner, IngestStats, LinkHandle};
-use crate::source::nats::{self, lease, wire, NatsArgs};
+use crate::source::nats::{self, identity, lease, wire, NatsArgs};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
 
 /// Publishes in flight before the gateway waits for the oldest acknowledgement.
@@ -59,7 +64,8 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
         signing,
         shutdown.clone(),
     ));
-    let down = tokio::spawn(downlink(client.clone(), leases, link));
+    let count = Arc::new(Downlink::default());
+    let down = tokio::spawn(downlink(client.clone(), leases, link, count.clone()));
     let mut acks = VecDeque::with_capacity(ACK_WINDOW);
     let (mut published, mut failed) = (0u64, 0u64);
     let start = Instant::now();
@@ -89,8 +95,10 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
             }
             _ = report.tick() => {
                 tracing::info!(
-                    "gateway: {published} frames stored, {failed} not, {} in flight ({:.0} s)",
-                    acks.len(), start.elapsed().as_secs_f64()
+                    "gateway: {published} frames stored, {failed} not, {} in flight; to the \
+                     vehicles {} sent, {} refused ({:.0} s)",
+                    acks.len(), count.sent.load(Relaxed), count.refused.load(Relaxed),
+                    start.elapsed().as_secs_f64()
                 );
             }
         }
@@ -102,63 +110,73 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
         }
     }
     down.abort();
-    tracing::info!("gateway: stopped; {published} frames stored, {failed} not");
+    tracing::info!(
+        "gateway: stopped; {published} frames stored, {failed} not; to the vehicles {} sent, {} \
+         refused",
+        count.sent.load(Relaxed),
+        count.refused.load(Relaxed)
+    );
     src.await.context("the links' task")??;
     Ok(())
 }
 
-/// Send what workers address to vehicles, when the sender holds the vehicle's lease.
+/// What the downlink did: frames sent to vehicles, and refused.
+#[derive(Default)]
+struct Downlink {
+    sent: AtomicU64,
+    refused: AtomicU64,
+}
+
+/// Send what workers address to vehicles, when the sender holds the vehicle's lease now.
 async fn downlink(
     client: async_nats::Client,
     leases: async_nats::jetstream::kv::Store,
     link: LinkHandle,
+    count: Arc<Downlink>,
 ) -> Result<()> {
     let mut sub = client
         .subscribe(format!("{}.>", nats::TO))
         .await
         .map_err(|e| anyhow::anyhow!("NATS: subscribe {}.>: {e}", nats::TO))?;
-    // Who holds each partition, looked up at most once a second.
-    let mut holders: HashMap<u32, (Option<String>, Instant)> = HashMap::new();
-    let (mut sent, mut refused) = (0u64, 0u64);
+    let holders = lease::Holders::default();
+    let follow = tokio::spawn(holders.clone().follow(leases.clone()));
     while let Some(m) = sub.next().await {
-        let mut parts = m.subject.as_str().rsplit('.');
-        let sys = parts.next().and_then(|s| s.parse::<u8>().ok());
-        let net = parts.next().and_then(|s| s.parse::<u8>().ok());
-        let (Some(net), Some(sys)) = (net, sys) else {
-            refused += 1;
-            tracing::warn!("gateway: {}: not a vehicle's subject; refused", m.subject);
+        let Some((sender, net, sys)) = identity::parse_to(m.subject.as_str()) else {
+            refused(
+                &count,
+                format_args!("{}: not a worker's frame for a vehicle", m.subject),
+            );
             continue;
         };
-        let worker = m
-            .headers
-            .as_ref()
-            .and_then(|h| h.get(nats::WORKER_HEADER))
-            .map(|v| v.as_str().to_string());
         let part = nats::partition(net, sys);
-        let fresh = holders
-            .get(&part)
-            .is_some_and(|(_, at)| at.elapsed() < Duration::from_secs(1));
-        if !fresh {
-            let h = lease::holder(&leases, part).await;
-            holders.insert(part, (h, Instant::now()));
-        }
-        let holder = holders.get(&part).and_then(|(h, _)| h.clone());
-        if worker.is_none() || worker != holder {
-            refused += 1;
-            tracing::warn!(
-                "gateway: refused a frame for vehicle {net}:{sys} from worker {:?}: partition \
-                 {part} is held by {:?} ({refused} refused)",
-                worker,
-                holder
+        // The watched holder first; else (none seen, or another) the bucket itself.
+        let holder = match holders.live(part) {
+            Some(h) if h == sender => Some(h),
+            _ => lease::holder(&leases, part).await,
+        };
+        if holder.as_deref() != Some(sender.as_str()) {
+            refused(
+                &count,
+                format_args!(
+                    "a frame for vehicle {net}:{sys} from worker {sender}: partition {part} is \
+                     held by {}",
+                    holder.as_deref().unwrap_or("nobody")
+                ),
             );
             continue;
         }
         if link.network(net).try_send(m.payload.to_vec()) {
-            sent += 1;
-        }
-        if sent > 0 && sent.is_multiple_of(1000) {
-            tracing::debug!("gateway: {sent} frames sent to vehicles");
+            count.sent.fetch_add(1, Relaxed);
         }
     }
+    follow.abort();
     Ok(())
+}
+
+/// Count a refused downlink frame and say why: each of the first 20, then one in 1,000.
+fn refused(count: &Downlink, why: std::fmt::Arguments) {
+    let n = count.refused.fetch_add(1, Relaxed) + 1;
+    if n <= 20 || n.is_multiple_of(1000) {
+        tracing::warn!("gateway: refused {why} ({n} refused)");
+    }
 }

@@ -144,6 +144,13 @@ pub enum Command {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+        /// With --nats: the fleet as NATS shows it (each vehicle's latest estimate, from
+        /// whichever worker holds it), read as a viewer instead of the store.
+        #[command(flatten)]
+        nats: crate::source::nats::NatsArgs,
+        /// With --nats: how long to listen for the workers' estimates.
+        #[arg(long, value_name = "SECONDS", default_value_t = 3.0, requires = "nats")]
+        listen: f64,
     },
     /// Validate a configuration file and say what it sets up; with no file, what the
     /// defaults set up (the default alert rules, as TOML to copy).
@@ -295,7 +302,17 @@ pub fn run_command(command: Command) -> Result<()> {
         Command::Simulate(a) => simulate::simulate(a),
         Command::Learn(a) => crate::offline::learn::run(a),
         Command::Plan(a) => crate::offline::plan::run_plan(a),
-        Command::Vehicles { data_dir, json } => {
+        Command::Vehicles {
+            json, nats, listen, ..
+        } if nats.nats.is_some() => {
+            if !(listen.is_finite() && listen > 0.0 && listen <= 3600.0) {
+                anyhow::bail!("--listen {listen}: give seconds, more than 0 and at most 3600");
+            }
+            let listen = std::time::Duration::from_secs_f64(listen);
+            print!("{}", crate::source::nats::view::run(&nats, listen, json)?);
+            Ok(())
+        }
+        Command::Vehicles { data_dir, json, .. } => {
             let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref())
                 .context("the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR")?;
             print!("{}", crate::vehicle::store::list(&dir, json)?);

@@ -172,12 +172,9 @@ fn rogue_statustext(url: &str, sys: u8) {
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let c = async_nats::connect(url).await.unwrap();
-        let mut h = async_nats::HeaderMap::new();
-        h.insert("Dw-Worker", "rogue");
         for _ in 0..3 {
-            c.publish_with_headers(
-                format!("dronewatt.to.0.{sys}"),
-                h.clone(),
+            c.publish(
+                format!("dronewatt.to.anon.rogue.0.{sys}"),
                 frame.clone().into(),
             )
             .await

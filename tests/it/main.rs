@@ -26,6 +26,7 @@ mod energy_progpy;
 mod energy_select;
 mod features_units;
 mod fleet_nats;
+mod fleet_nats_auth;
 mod fleet_nats_restart;
 mod fuzz_props;
 mod mission_fleet;

@@ -7,6 +7,10 @@
 //! revision held (fails when it expired and another took it: the lease is lost, and the
 //! partition is stopped); releasing is `delete`.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
 use anyhow::Result;
 use async_nats::jetstream::kv::Store;
 use futures_util::StreamExt;
@@ -72,4 +76,59 @@ pub async fn live_workers(kv: &Store) -> usize {
 pub fn share(partitions: u32, workers: usize) -> usize {
     let w = workers.max(1);
     (partitions as usize).div_ceil(w)
+}
+
+/// The partitions' holders as a watch on the bucket shows them, each with the moment its
+/// lease runs out (its last write plus [`super::LEASE_TTL`]: the bucket expires entries
+/// silently, so the watch does not say it). The gateway's fast path; a holder not seen
+/// here is asked of the bucket itself.
+#[derive(Clone, Default)]
+pub struct Holders(Arc<Mutex<HashMap<u32, (String, Instant)>>>);
+
+impl Holders {
+    /// Who holds `part` with a lease that runs now, as last seen.
+    pub fn live(&self, part: u32) -> Option<String> {
+        let g = self.0.lock().ok()?;
+        g.get(&part)
+            .filter(|(_, until)| Instant::now() < *until)
+            .map(|(h, _)| h.clone())
+    }
+
+    /// Follow the bucket's lease entries (from their last values on) until dropped; a watch
+    /// that ends or fails is made again after a second.
+    pub async fn follow(self, kv: Store) {
+        loop {
+            match kv.watch_with_history(">").await {
+                Ok(mut w) => {
+                    while let Some(e) = w.next().await {
+                        match e {
+                            Ok(e) => self.seen(&e),
+                            Err(e) => {
+                                tracing::debug!("NATS: lease watch: {e}");
+                                break;
+                            }
+                        }
+                    }
+                }
+                Err(e) => tracing::warn!("NATS: cannot watch the leases ({e}); again in 1 s"),
+            }
+            tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+        }
+    }
+
+    fn seen(&self, e: &async_nats::jetstream::kv::Entry) {
+        let Some(part) = e.key.strip_prefix('p').and_then(|p| p.parse::<u32>().ok()) else {
+            return;
+        };
+        let Ok(mut g) = self.0.lock() else { return };
+        if matches!(e.operation, async_nats::jetstream::kv::Operation::Put) {
+            let age = super::wire::unix_now_s() - e.created.unix_timestamp_nanos() as f64 / 1e9;
+            let ttl = super::LEASE_TTL.as_secs_f64();
+            let left = std::time::Duration::from_secs_f64((ttl - age.max(0.0)).clamp(0.0, ttl));
+            let holder = String::from_utf8_lossy(&e.value).into_owned();
+            g.insert(part, (holder, Instant::now() + left));
+        } else {
+            g.remove(&part);
+        }
+    }
 }

@@ -10,7 +10,7 @@
 //!  links ─▶ gateway ─publish─▶ stream DRONEWATT_FRAMES          KV dronewatt_leases
 //!             ▲                 dronewatt.frames.<part>.<net>.<sys>   p<part> = worker
 //!             │                        │ ordered consumer per held partition
-//!  dronewatt.to.<net>.<sys> ◀── worker (monitor --nats): chains, sinks, checkpoints
+//!  dronewatt.to.<user>.<inst>.<net>.<sys> ◀── worker (monitor --nats): chains, sinks, checkpoints
 //! ```
 //!
 //! - **Partitions.** A vehicle (network, system id) belongs to partition
@@ -38,16 +38,22 @@
 //!   ([`reconnects`]) makes the workers' consumers again from the next sequence.
 //! - **Back to the vehicles.** What a worker's chains send a vehicle (STATUSTEXT,
 //!   NAMED_VALUE_FLOAT, BATTERY_STATUS, parameter and stream requests) goes to
-//!   `dronewatt.to.<net>.<sys>` with the worker's id; the gateway sends it on that
-//!   network's links only if that worker holds the vehicle's partition, and signs it there
-//!   (signing keys never leave the gateway).
+//!   `dronewatt.to.<user>.<instance>.<net>.<sys>` ([`identity`]: the NATS user is what the
+//!   server's permissions let that user publish on, so the gateway can trust it); the
+//!   gateway sends it on that network's links only if `<user>.<instance>` holds the
+//!   vehicle's partition at that moment, and signs it there (signing keys never leave the
+//!   gateway). The server-side permissions: `config/nats-server.conf`.
+//! - **Viewers** ([`view`]): `dronewatt vehicles --nats URL` lists each vehicle's latest
+//!   estimate heard on `dronewatt.estimates.>`.
 //! - **Security** ([`connect`]): off loopback, a gateway or worker refuses to start without
 //!   credentials (user and password, or a `.creds` file, read as the signing key is: a
 //!   private file) and TLS.
 
 pub mod checkpoint;
+pub mod identity;
 pub mod lease;
 pub mod publish;
+pub mod view;
 pub mod wire;
 pub mod worker;
 
@@ -64,7 +70,7 @@ use async_nats::ConnectErrorKind;
 pub const STREAM: &str = "DRONEWATT_FRAMES";
 /// Subject prefix of the frames: `dronewatt.frames.<part>.<net>.<sys>`.
 pub const FRAMES: &str = "dronewatt.frames";
-/// Subject prefix of what workers send vehicles: `dronewatt.to.<net>.<sys>`.
+/// Subject prefix of what workers send vehicles: `dronewatt.to.<user>.<instance>.<net>.<sys>`.
 pub const TO: &str = "dronewatt.to";
 /// The lease bucket.
 pub const LEASES: &str = "dronewatt_leases";
@@ -78,15 +84,14 @@ pub const LEASE_TTL: Duration = Duration::from_secs(6);
 pub const RENEW: Duration = Duration::from_secs(1);
 /// How long the stream keeps a frame.
 pub const STREAM_MAX_AGE: Duration = Duration::from_secs(24 * 3600);
-/// The header that names the worker sending to a vehicle.
-pub const WORKER_HEADER: &str = "Dw-Worker";
 
 /// How to reach NATS: the `--nats` flags `gateway` and `monitor` share.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct NatsArgs {
     /// NATS server (JetStream on): `nats://HOST:PORT`, or `tls://HOST:PORT`. With
     /// `monitor`, run as a fleet worker on the stream that `dronewatt gateway` feeds (no
-    /// link address then). Off loopback, credentials and TLS are required.
+    /// link address then). With `vehicles`, list the fleet's latest estimates as a viewer.
+    /// Off loopback, credentials and TLS are required.
     #[arg(long, value_name = "URL")]
     pub nats: Option<String>,
     /// A NATS `.creds` file (JWT and nkey seed), private to its owner as the signing key is.
@@ -196,6 +201,9 @@ fn options(a: &NatsArgs, name: &str, tls: bool) -> Result<async_nats::ConnectOpt
                 async_nats::Event::Disconnected => {
                     tracing::warn!("NATS: disconnected; reconnecting")
                 }
+                // A permissions violation among them: this client's user may not publish
+                // there (config/nats-server.conf), and the server dropped it.
+                async_nats::Event::ServerError(e) => tracing::warn!("NATS: the server says: {e}"),
                 other => tracing::debug!("NATS: {other}"),
             }
         });

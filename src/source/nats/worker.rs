@@ -52,6 +52,7 @@ struct Held {
 
 /// Run the worker until `io.shutdown`.
 pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
+    let principal = super::identity::principal(&args)?;
     let client = super::connect(&args, "dronewatt worker").await?;
     let js = jetstream::new(client.clone());
     let mut stream = super::frames_stream(&js).await?;
@@ -63,7 +64,7 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
         .map_err(|e| anyhow::anyhow!("NATS stream {}: {e}", super::STREAM))?;
     let leases = super::bucket(&js, LEASES, LEASE_TTL).await?;
     let ckpts = super::bucket(&js, CHECKPOINTS, std::time::Duration::ZERO).await?;
-    let me = format!("{}-{:08x}", std::process::id(), rand::random::<u32>());
+    let me = super::identity::worker_id(&principal);
     let held_set: Arc<Mutex<HashMap<u32, ()>>> = Arc::default();
     uplink(&client, &io.link, &me, held_set.clone());
     super::publish::set(client.clone(), held_set.clone());
@@ -358,7 +359,8 @@ fn target_of(frame: &[u8]) -> Option<u8> {
 }
 
 /// Attach writers to `link` (and one per network): each frame the chains send goes to
-/// `dronewatt.to.<net>.<sys>`, named as this worker's, when it holds the vehicle.
+/// `dronewatt.to.<user>.<instance>.<net>.<sys>` ([`super::identity`]), when this worker
+/// holds the vehicle (the gateway checks that again: this is only the worker's restraint).
 fn uplink(
     client: &async_nats::Client,
     link: &LinkHandle,
@@ -389,13 +391,8 @@ fn uplink(
                 if !mine {
                     continue;
                 }
-                let mut headers = async_nats::HeaderMap::new();
-                headers.insert(super::WORKER_HEADER, me.as_str());
-                let subject = format!("{}.{net}.{sys}", super::TO);
-                if let Err(e) = client
-                    .publish_with_headers(subject, headers, frame.into())
-                    .await
-                {
+                let subject = super::identity::to_subject(&me, net, sys);
+                if let Err(e) = client.publish(subject, frame.into()).await {
                     tracing::debug!("NATS: to vehicle {net}:{sys}: {e}");
                 }
             }

@@ -1,0 +1,395 @@
+//! Who may send what on the fleet's NATS, with real parts: nats-server run on the shipped
+//! `config/nats-server.conf` (on a free loopback port), a real `dronewatt gateway` with the
+//! gateway's credentials, a UDP socket as the vehicle, and raw NATS clients with the
+//! workers' and the viewer's credentials as the misbehaving parties; and a whole fleet on
+//! the shipped config, read back by `dronewatt vehicles --nats` as the viewer.
+
+use std::net::UdpSocket;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use async_nats::jetstream;
+
+use crate::fleet_nats::server;
+use crate::harness::{dronewatt, Monitor};
+use crate::link_common::free_udp_port;
+
+const CONFIG: &str = include_str!("../../config/nats-server.conf");
+
+/// A client logged in as `user` (the shipped config's password), and the server's errors
+/// it was told of (permissions violations).
+async fn login(url: &str, user: &str) -> (async_nats::Client, Arc<Mutex<Vec<String>>>) {
+    let errors = Arc::new(Mutex::new(Vec::new()));
+    let seen = errors.clone();
+    let c = async_nats::ConnectOptions::with_user_and_password(
+        user.into(),
+        format!("change-me-{user}"),
+    )
+    .event_callback(move |e| {
+        let seen = seen.clone();
+        async move {
+            if let async_nats::Event::ServerError(e) = e {
+                seen.lock().unwrap().push(e.to_string());
+            }
+        }
+    })
+    .connect(url)
+    .await
+    .unwrap_or_else(|e| panic!("{user}: {e}"));
+    (c, errors)
+}
+
+/// How many frames the frame stream holds.
+async fn frames_stored(js: &jetstream::Context) -> u64 {
+    let mut s = js.get_stream("DRONEWATT_FRAMES").await.unwrap();
+    s.info().await.unwrap().state.messages
+}
+
+#[test]
+fn the_shipped_server_config_refuses_strangers_and_keeps_each_role_to_its_subjects() {
+    let Some(nats) = server(Some(CONFIG)) else {
+        return;
+    };
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        // No credentials: refused at the door.
+        let e = async_nats::connect(nats.url.as_str()).await.unwrap_err();
+        assert_eq!(
+            e.kind(),
+            async_nats::ConnectErrorKind::AuthorizationViolation,
+            "{e}"
+        );
+        let (gw, _) = login(&nats.url, "gateway").await;
+        let gjs = jetstream::new(gw.clone());
+        gjs.create_stream(jetstream::stream::Config {
+            name: "DRONEWATT_FRAMES".into(),
+            subjects: vec!["dronewatt.frames.>".into()],
+            ..Default::default()
+        })
+        .await
+        .unwrap();
+        let mut downlink = gw.subscribe("dronewatt.to.>").await.unwrap();
+        gw.flush().await.unwrap();
+        // A worker's credentials: not onto the frame stream, not as another worker, not
+        // the stream's configuration; its own downlink subtree, yes.
+        let (w1, w1_errors) = login(&nats.url, "worker1").await;
+        w1.publish("dronewatt.frames.3.0.3", "forged frame".into())
+            .await
+            .unwrap();
+        w1.publish("dronewatt.to.worker2.i.0.3", "as worker2".into())
+            .await
+            .unwrap();
+        w1.publish("dronewatt.to.worker1.i.0.3", "as itself".into())
+            .await
+            .unwrap();
+        let update = tokio::time::timeout(
+            Duration::from_secs(1),
+            w1.request(
+                "$JS.API.STREAM.UPDATE.DRONEWATT_FRAMES",
+                r#"{"name":"DRONEWATT_FRAMES","subjects":["dronewatt.frames.>","dronewatt.to.>"]}"#
+                    .into(),
+            ),
+        )
+        .await;
+        assert!(
+            !matches!(update, Ok(Ok(_))),
+            "the JetStream API answered a worker's stream update"
+        );
+        w1.flush().await.unwrap();
+        let m = tokio::time::timeout(
+            Duration::from_secs(2),
+            futures_util::StreamExt::next(&mut downlink),
+        )
+        .await
+        .expect("the worker's own downlink frame never came")
+        .unwrap();
+        assert_eq!(m.subject.as_str(), "dronewatt.to.worker1.i.0.3");
+        // Nothing else came through: the frame as worker2 was dropped by the server.
+        let more = tokio::time::timeout(
+            Duration::from_millis(500),
+            futures_util::StreamExt::next(&mut downlink),
+        )
+        .await;
+        assert!(
+            more.is_err(),
+            "{:?}",
+            more.ok().flatten().map(|m| m.subject)
+        );
+        assert_eq!(frames_stored(&gjs).await, 0, "a worker's frame was stored");
+        let errors = w1_errors.lock().unwrap().join("\n");
+        assert!(
+            errors.contains("dronewatt.frames.3.0.3") && errors.contains("dronewatt.to.worker2"),
+            "the server did not tell the worker: {errors}"
+        );
+        // The gateway's credentials do store a frame (the count above means something).
+        gjs.publish("dronewatt.frames.3.0.3", "frame".into())
+            .await
+            .unwrap()
+            .await
+            .unwrap();
+        assert_eq!(frames_stored(&gjs).await, 1);
+        // A viewer reads the estimates and publishes nothing.
+        let (viewer, viewer_errors) = login(&nats.url, "viewer").await;
+        let mut est = viewer.subscribe("dronewatt.estimates.>").await.unwrap();
+        viewer.flush().await.unwrap();
+        w1.publish("dronewatt.estimates.3.0.3", "{}".into())
+            .await
+            .unwrap();
+        w1.flush().await.unwrap();
+        let got = tokio::time::timeout(
+            Duration::from_secs(2),
+            futures_util::StreamExt::next(&mut est),
+        )
+        .await;
+        assert!(got.is_ok_and(|m| m.is_some()), "the viewer saw no estimate");
+        viewer
+            .publish("dronewatt.estimates.3.0.3", "{}".into())
+            .await
+            .unwrap();
+        viewer.flush().await.unwrap();
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let errors = viewer_errors.lock().unwrap().join("\n");
+        assert!(
+            errors.to_lowercase().contains("permissions violation"),
+            "{errors}"
+        );
+    });
+    drop(nats);
+}
+
+/// A private file holding `text` (as the password files must be).
+fn private(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    std::fs::set_permissions(
+        &p,
+        <std::fs::Permissions as std::os::unix::fs::PermissionsExt>::from_mode(0o600),
+    )
+    .unwrap();
+    p
+}
+
+/// A STATUSTEXT frame saying `text`, for vehicle 3.
+fn statustext(text: &str) -> Vec<u8> {
+    let msg = dronewatt::MavMessage::STATUSTEXT(dronewatt::dialect::STATUSTEXT_DATA {
+        severity: dronewatt::dialect::MavSeverity::MAV_SEVERITY_CRITICAL,
+        text: text.into(),
+        id: 0,
+        chunk_seq: 0,
+    });
+    let header = mavlink::MavHeader {
+        system_id: 3,
+        component_id: 191,
+        sequence: 0,
+    };
+    let mut frame = Vec::new();
+    mavlink::write_versioned_msg(&mut frame, mavlink::MavlinkVersion::V2, header, &msg).unwrap();
+    frame
+}
+
+/// What vehicle `v` hears within `wait`, as text (its frames' bytes, lossy).
+fn heard(v: &UdpSocket, wait: Duration) -> String {
+    let mut all = String::new();
+    let end = Instant::now() + wait;
+    let mut buf = [0u8; 512];
+    while Instant::now() < end {
+        if let Ok(n) = v.recv(&mut buf) {
+            all.push_str(&String::from_utf8_lossy(&buf[..n]));
+        }
+    }
+    all
+}
+
+#[test]
+fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
+    let Some(nats) = server(Some(CONFIG)) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let pw = private(dir.path(), "gateway.pw", "change-me-gateway\n");
+    let port = free_udp_port();
+    let mut gateway = Monitor::spawn(
+        dronewatt()
+            .args([
+                "gateway",
+                &format!("udpin:127.0.0.1:{port}"),
+                "--nats",
+                &nats.url,
+            ])
+            .args(["--nats-user", "gateway", "--nats-password-file"])
+            .arg(&pw)
+            .env("RUST_LOG", "dronewatt=info"),
+    );
+    gateway.wait_listening(port, false);
+    // Vehicle 3 says hello, so the gateway knows where it is.
+    let vehicle = UdpSocket::bind("127.0.0.1:0").unwrap();
+    vehicle
+        .set_read_timeout(Some(Duration::from_millis(100)))
+        .unwrap();
+    let hb = dronewatt::MavMessage::HEARTBEAT(dronewatt::dialect::HEARTBEAT_DATA::default());
+    let mut frame = Vec::new();
+    let h = mavlink::MavHeader {
+        system_id: 3,
+        component_id: 1,
+        sequence: 0,
+    };
+    mavlink::write_versioned_msg(&mut frame, mavlink::MavlinkVersion::V2, h, &hb).unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let (w1, w2) = rt.block_on(async {
+        let (w1, _) = login(&nats.url, "worker1").await;
+        let (w2, _) = login(&nats.url, "worker2").await;
+        (w1, w2)
+    });
+    let send = |c: &async_nats::Client, subject: &str, text: &str| {
+        rt.block_on(async {
+            c.publish(subject.to_string(), statustext(text).into())
+                .await
+                .unwrap();
+            c.flush().await.unwrap();
+        })
+    };
+    // The gateway's subscription and lease watch are up once the bucket exists (it makes
+    // it at start); the vehicle's heartbeat gives the link its address.
+    std::thread::sleep(Duration::from_millis(500));
+    vehicle.send_to(&frame, ("127.0.0.1", port)).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    // Nobody holds partition 3: worker1's frame is refused.
+    send(&w1, "dronewatt.to.worker1.i1.0.3", "nobody-holds");
+    // worker2 takes partition 3's lease.
+    rt.block_on(async {
+        let kv = jetstream::new(w2.clone())
+            .get_key_value("dronewatt_leases")
+            .await
+            .unwrap();
+        kv.create("p3", "worker2.i2".into()).await.unwrap();
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    // worker1 still holds nothing; forging worker2's subject is the server's to drop.
+    send(&w1, "dronewatt.to.worker1.i1.0.3", "not-yours");
+    send(&w1, "dronewatt.to.worker2.i2.0.3", "forged");
+    // The holder's frame goes through.
+    send(&w2, "dronewatt.to.worker2.i2.0.3", "holder-says");
+    let got = heard(&vehicle, Duration::from_secs(2));
+    let (_, err) = gateway.stop();
+    drop(nats);
+    assert!(
+        got.contains("holder-says"),
+        "the holder's frame never came: {err}"
+    );
+    for bad in ["nobody-holds", "not-yours", "forged"] {
+        assert!(!got.contains(bad), "{bad} reached the vehicle: {err}");
+    }
+    assert!(
+        err.contains(
+            "refused a frame for vehicle 0:3 from worker worker1.i1: partition 3 is held by nobody"
+        ) && err.contains("from worker worker1.i1: partition 3 is held by worker2.i2"),
+        "{err}"
+    );
+    assert!(err.contains("to the vehicles 1 sent, 2 refused"), "{err}");
+}
+
+/// The shipped config runs a real fleet: a gateway, a worker and a viewer each with their
+/// own user. The worker's estimates reach the vehicles through the gateway (it holds
+/// their leases), and `dronewatt vehicles --nats` as the viewer lists each vehicle's
+/// latest estimate, as the worker wrote it.
+#[test]
+fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
+    let Some(nats) = server(Some(CONFIG)) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let pw = |u: &str| private(dir.path(), &format!("{u}.pw"), &format!("change-me-{u}\n"));
+    let (gpw, wpw, vpw) = (pw("gateway"), pw("worker1"), pw("viewer"));
+    let port = free_udp_port();
+    let mut gateway = Monitor::spawn(
+        dronewatt()
+            .args([
+                "gateway",
+                &format!("udpin:127.0.0.1:{port}"),
+                "--nats",
+                &nats.url,
+            ])
+            .args(["--nats-user", "gateway", "--nats-password-file"])
+            .arg(&gpw)
+            .env("RUST_LOG", "dronewatt=info"),
+    );
+    gateway.wait_listening(port, false);
+    let json = dir.path().join("w1.jsonl");
+    let worker = Monitor::spawn(
+        dronewatt()
+            .args(["monitor", "--nats", &nats.url, "--data-dir", "off", "-q"])
+            .args(["--nats-user", "worker1", "--nats-password-file"])
+            .arg(&wpw)
+            .arg("--json")
+            .arg(&json)
+            .env("RUST_LOG", "dronewatt=info"),
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    let fleet = crate::fleet_nats::python()
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
+        .args(["--to", &format!("udpout:127.0.0.1:{port}")])
+        .args([
+            "--vehicles",
+            r#"[{"id": 1, "power_w": 300, "send_s": 12}, {"id": 2, "power_w": 450, "send_s": 12}]"#,
+        ])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("run .venv-py/bin/python (make setup creates it)");
+    std::thread::sleep(Duration::from_secs(6));
+    let viewer = |json: bool| {
+        let mut c = dronewatt();
+        c.args(["vehicles", "--nats", &nats.url, "--listen", "2"])
+            .args(["--nats-user", "viewer", "--nats-password-file"])
+            .arg(&vpw);
+        if json {
+            c.arg("--json");
+        }
+        c.stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let (as_json, as_table) = (viewer(true), viewer(false));
+    let (as_json, as_table) = (
+        as_json.wait_with_output().unwrap(),
+        as_table.wait_with_output().unwrap(),
+    );
+    let out = fleet.wait_with_output().unwrap();
+    let (_, ew) = worker.stop();
+    let (_, eg) = gateway.stop();
+    let ctx = format!(
+        "viewer: {}\nworker: {ew}\ngateway: {eg}",
+        String::from_utf8_lossy(&as_json.stderr)
+    );
+    assert!(
+        as_json.status.success() && as_table.status.success(),
+        "{ctx}"
+    );
+    let listed: Vec<serde_json::Value> = serde_json::from_slice(&as_json.stdout).unwrap();
+    let written = crate::fleet_nats::lines(&json);
+    let ids: Vec<u64> = listed
+        .iter()
+        .filter_map(|v| v["system_id"].as_u64())
+        .collect();
+    assert_eq!(ids, [1, 2], "{ctx}");
+    for v in &listed {
+        assert_eq!(v["type"], "estimate");
+        assert!(written.contains(v), "not one the worker wrote: {v}\n{ctx}");
+    }
+    let table = String::from_utf8_lossy(&as_table.stdout);
+    assert!(
+        table.contains("\n0:1 ") && table.contains("\n0:2 ") && table.contains("2 vehicles heard"),
+        "{table}"
+    );
+    // What the worker sent the vehicles went through: it holds their leases.
+    let heard: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_default();
+    for s in 1..=2 {
+        assert!(
+            heard["heard"]
+                .as_object()
+                .is_some_and(|h| h.keys().any(|k| k.starts_with(&format!("{s},")))),
+            "vehicle {s} heard nothing back: {heard}\n{ctx}"
+        );
+    }
+    assert!(eg.contains(" sent, 0 refused"), "{eg}");
+}
