@@ -157,6 +157,20 @@ fn the_shipped_server_config_refuses_strangers_and_keeps_each_role_to_its_subjec
     drop(nats);
 }
 
+/// `dronewatt gateway udpin:127.0.0.1:PORT` on the NATS server at `url` as the shipped
+/// config's `gateway` user (its password in the file `pw`), listening.
+fn gateway_as_user(url: &str, port: u16, pw: &std::path::Path) -> Monitor {
+    let mut gateway = Monitor::spawn(
+        dronewatt()
+            .args(["gateway", &format!("udpin:127.0.0.1:{port}"), "--nats", url])
+            .args(["--nats-user", "gateway", "--nats-password-file"])
+            .arg(pw)
+            .env("RUST_LOG", "dronewatt=info"),
+    );
+    gateway.wait_listening(port, false);
+    gateway
+}
+
 /// A private file holding `text` (as the password files must be).
 fn private(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
     let p = dir.join(name);
@@ -208,19 +222,7 @@ fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
     let dir = tempfile::tempdir().unwrap();
     let pw = private(dir.path(), "gateway.pw", "change-me-gateway\n");
     let port = free_udp_port();
-    let mut gateway = Monitor::spawn(
-        dronewatt()
-            .args([
-                "gateway",
-                &format!("udpin:127.0.0.1:{port}"),
-                "--nats",
-                &nats.url,
-            ])
-            .args(["--nats-user", "gateway", "--nats-password-file"])
-            .arg(&pw)
-            .env("RUST_LOG", "dronewatt=info"),
-    );
-    gateway.wait_listening(port, false);
+    let mut gateway = gateway_as_user(&nats.url, port, &pw);
     // Vehicle 3 says hello, so the gateway knows where it is.
     let vehicle = UdpSocket::bind("127.0.0.1:0").unwrap();
     vehicle
@@ -301,19 +303,7 @@ fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
     let pw = |u: &str| private(dir.path(), &format!("{u}.pw"), &format!("change-me-{u}\n"));
     let (gpw, wpw, vpw) = (pw("gateway"), pw("worker1"), pw("viewer"));
     let port = free_udp_port();
-    let mut gateway = Monitor::spawn(
-        dronewatt()
-            .args([
-                "gateway",
-                &format!("udpin:127.0.0.1:{port}"),
-                "--nats",
-                &nats.url,
-            ])
-            .args(["--nats-user", "gateway", "--nats-password-file"])
-            .arg(&gpw)
-            .env("RUST_LOG", "dronewatt=info"),
-    );
-    gateway.wait_listening(port, false);
+    let mut gateway = gateway_as_user(&nats.url, port, &gpw);
     let json = dir.path().join("w1.jsonl");
     let worker = Monitor::spawn(
         dronewatt()
