@@ -222,7 +222,7 @@ fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
     let dir = tempfile::tempdir().unwrap();
     let pw = private(dir.path(), "gateway.pw", "change-me-gateway\n");
     let port = free_udp_port();
-    let mut gateway = gateway_as_user(&nats.url, port, &pw);
+    let gateway = gateway_as_user(&nats.url, port, &pw);
     // Vehicle 3 says hello, so the gateway knows where it is.
     let vehicle = UdpSocket::bind("127.0.0.1:0").unwrap();
     vehicle
