@@ -11,6 +11,10 @@
 #   paced  --speed 1 (messages at the recorded rate, as a live link delivers them) for
 #          SECONDS, stopped by SIGINT (the clean shutdown path: every sink drains):
 #            cpu_us_per_vs   CPU time of all instances (user+sys, /proc) / (N × SECONDS)
+#            cpu_us_per_vs_handled  the instances' whole CPU (start to exit, the drain
+#                            included) / (estimates / 10): the cost of a vehicle-second
+#                            handled, also when the instances fall behind (then the
+#                            column before counts only the share of the cores they got)
 #            rss_mib         peak resident memory (VmHWM), summed over the instances
 #            rss_kib_per_vehicle  rss_mib × 1024 / N
 #            estimates       reports made (JSON summary `reports`, summed)
@@ -85,6 +89,8 @@ TMP=$(mktemp -d)
 PIDS=()
 cleanup() {
   for p in "${PIDS[@]}"; do kill "$p" 2> /dev/null || true; done
+  # The last run's monitor log (its size and its warnings are part of the cost).
+  cp "$TMP"/paced1.err "$OUT/monitor.err" 2> /dev/null || true
   rm -rf "$TMP"
 }
 trap cleanup EXIT
@@ -108,7 +114,7 @@ live_window() {
 }
 WINDOW_CPU=
 CSV="$OUT/fleet-load.csv"
-HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,estimates,missed,gaps,p50_ms,p99_ms,max_ms,flat_windows_per_s,max_vehicles_10hz,mqtt_published,mqtt_dropped,mqtt_received,mqtt_estimates_received"
+HEAD="lstm,vehicles,instances,seconds,cpu_us_per_vs,rss_mib,rss_kib_per_vehicle,estimates,missed,gaps,p50_ms,p99_ms,max_ms,flat_windows_per_s,max_vehicles_10hz,mqtt_published,mqtt_dropped,mqtt_received,mqtt_estimates_received,cpu_us_per_vs_handled"
 [ -s "$CSV" ] || echo "$HEAD" > "$CSV"
 
 LABEL=10hz
@@ -256,6 +262,15 @@ finish_size() {
     hwm=$(awk -v h="$hwm" '/^VmHWM/ {print h + $2}' "/proc/$p/status")
   done
   for p in "${pids[@]}"; do kill -INT "$p" || true; done
+  # Their whole CPU (start and drain included), read until they exit: over the estimates
+  # made, what a vehicle-second handled cost (10 estimates a vehicle-second), whether or
+  # not the instances kept up with the traffic.
+  local total=0 last
+  for p in "${pids[@]}"; do
+    last=$(cpu_of "$p")
+    while [ -e "/proc/$p/stat" ] && c=$(cpu_of "$p" 2> /dev/null); do last=$c; sleep 0.1; done
+    total=$(awk -v a="$total" -v b="$last" 'BEGIN {print a + b}')
+  done
   for p in "${pids[@]}"; do wait "$p" || echo "instance $p exited $?" >&2; done
   for p in "${greps[@]}"; do wait "$p" || true; done
   rm -f "$TMP"/json*
@@ -280,9 +295,9 @@ finish_size() {
     for p in "${pids[@]}"; do wait "$p"; done
     t1=$(date +%s.%N)
   fi
-  python3 - "$TMP" "$n" "$k" "$DUR" "$cpu" "$hwm" "$t0" "$t1" "$label" "$received" >> "$CSV" <<'PY'
+  python3 - "$TMP" "$n" "$k" "$DUR" "$cpu" "$hwm" "$t0" "$t1" "$label" "$received" "$total" >> "$CSV" <<'PY'
 import json, re, sys, glob, os
-tmp, n, k, dur, cpu, hwm, t0, t1, label, received = sys.argv[1:]
+tmp, n, k, dur, cpu, hwm, t0, t1, label, received, total = sys.argv[1:]
 n, k, dur, cpu, hwm = int(n), int(k), float(dur), float(cpu), int(hwm)
 est = missed = gaps = 0
 lat = {"p50_ms": 0.0, "p99_ms": 0.0, "max_ms": 0.0}
@@ -305,7 +320,8 @@ if float(t1) > 0:
     vmax = f"{float(wps) / 10:.0f}"
 mq = f"{pub},{drop},{received}" if received else ",,,"
 print(f"{label},{n},{k},{dur},{cpu / (n * dur) * 1e6:.1f},{hwm / 1024:.1f},{hwm / n:.1f},{est},{missed},{gaps},"
-      f"{lat['p50_ms']:.2f},{lat['p99_ms']:.2f},{lat['max_ms']:.2f},{wps},{vmax},{mq}")
+      f"{lat['p50_ms']:.2f},{lat['p99_ms']:.2f},{lat['max_ms']:.2f},{wps},{vmax},{mq},"
+      f"{float(total) / max(est / 10, 1) * 1e6:.1f}")
 PY
   tail -1 "$CSV"
   rm -f "$TMP"/flat*.json

@@ -71,7 +71,6 @@ pub(super) struct StoreNews {
 /// The running stages of one [`VehicleChain`].
 pub struct ChainTasks {
     telemetry: JoinHandle<()>,
-    windows: JoinHandle<()>,
     energy: JoinHandle<(FlightLog, Option<Identity>, crate::vehicle::store::PackSig)>,
     relay: JoinHandle<()>,
 }
@@ -91,7 +90,6 @@ impl ChainTasks {
     /// Wait for every stage to drain and end (after its input closed).
     pub async fn join(self) -> Result<ChainEnd> {
         self.telemetry.await?;
-        self.windows.await?;
         let (flight, identity, pack) = self.energy.await?;
         self.relay.await?;
         Ok(ChainEnd {
@@ -212,29 +210,32 @@ impl VehicleChain {
         }
     }
 
-    /// Run the stages: messages in from `msgs`, windows to `inference` (the run's shared
+    /// Run the stages: messages in from `msgs` (in batches, each in order), windows to `inference` (the run's shared
     /// stage; this chain's own `models` are not used), reports out through `fanout`. `live`
     /// turns on the silent-link tick. The returned sender tells the chain's relay that the
     /// vehicle was lost or dropped.
     pub fn spawn(
         self,
-        msgs: mpsc::Receiver<TimedMessage>,
+        msgs: mpsc::Receiver<Vec<TimedMessage>>,
         inference: &Inference,
         fanout: Fanout,
         status: &ChainStatus,
         live: bool,
     ) -> (mpsc::UnboundedSender<FleetEvent>, ChainTasks) {
-        let (win_tx, mut win_rx) = mpsc::channel::<Window>(CHANNEL_DEPTH);
         let (est_tx, est_rx) = mpsc::channel::<Estimate>(CHANNEL_DEPTH);
         let (ev_tx, ev_rx) = mpsc::unbounded_channel();
-        let jobs = inference.jobs.clone();
         let system_id = status.system_id.load(std::sync::atomic::Ordering::Relaxed);
         let vehicle = VehicleId {
             network: status.network,
             system_id,
         };
         let mut own = Fanout::default().gauged(status.stats.clone());
-        let stats = status.stats.clone();
+        // The windows go straight to the shared inference stage, with the way back.
+        let windows = WindowsOut {
+            jobs: inference.jobs.clone(),
+            vehicle,
+            reply: est_tx,
+        };
         let reports = own.subscribe();
         // On a live link the reader asks (and asks for the streams); replaying, or told
         // to listen only, it listens to what comes (a log's logged fetch).
@@ -274,27 +275,11 @@ impl VehicleChain {
                 driver,
                 mission,
                 msgs,
-                win_tx,
+                windows,
                 news_tx,
                 memory,
                 status.clone(),
             )),
-            windows: tokio::spawn(async move {
-                while let Some(window) = win_rx.recv().await {
-                    if jobs
-                        .send(Job {
-                            window,
-                            vehicle,
-                            reply: est_tx.clone(),
-                        })
-                        .await
-                        .is_err()
-                    {
-                        return;
-                    }
-                    stats.queues.observe(&jobs);
-                }
-            }),
             energy: tokio::spawn(energy_stage(
                 self.energy,
                 self.alerts,
@@ -308,6 +293,26 @@ impl VehicleChain {
             relay: tokio::spawn(relay(reports, ev_rx, fanout, status.latency.clone())),
         };
         (ev_tx, tasks)
+    }
+}
+
+/// Where a chain's windows go: the shared inference stage's queue, each as a [`Job`] with
+/// the vehicle and the channel its estimate comes back on (no task of its own between).
+pub(super) struct WindowsOut {
+    pub(super) jobs: mpsc::Sender<Job>,
+    pub(super) vehicle: VehicleId,
+    pub(super) reply: mpsc::Sender<Estimate>,
+}
+
+impl WindowsOut {
+    /// Queue `window`; false when the inference stage is gone (the run is over).
+    pub(super) async fn send(&self, window: Window) -> bool {
+        let job = Job {
+            window,
+            vehicle: self.vehicle,
+            reply: self.reply.clone(),
+        };
+        self.jobs.send(job).await.is_ok()
     }
 }
 

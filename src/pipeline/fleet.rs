@@ -57,81 +57,73 @@ pub(super) struct Fleet {
     pub(super) data_dir: Option<std::path::PathBuf>,
 }
 
+/// Most messages the demultiplexer takes off its queue at once before it hands each
+/// vehicle its share as one batch (one channel send and one wake-up of the vehicle's chain
+/// per burst, not per message). Only what is already queued is taken: nothing waits.
+const BURST: usize = 512;
+
 /// One vehicle's running chain, as the demultiplexer holds it.
 struct Vehicle {
-    msgs: mpsc::Sender<TimedMessage>,
+    msgs: mpsc::Sender<Vec<TimedMessage>>,
     events: mpsc::UnboundedSender<FleetEvent>,
     tasks: ChainTasks,
+    /// Its messages of the burst being routed, in order, not yet handed over.
+    pending: Vec<TimedMessage>,
 }
+
+impl Vehicle {
+    /// Hand the chain what the burst had for it.
+    async fn flush(&mut self, status: &ChainStatus) {
+        if self.pending.is_empty() {
+            return;
+        }
+        // A chain that ended early (it cannot) would only lose these messages.
+        let _ = self.msgs.send(std::mem::take(&mut self.pending)).await;
+        status.stats.queues.observe(&self.msgs);
+    }
+}
+
+type Chains = std::collections::HashMap<VehicleId, Vehicle>;
 
 impl Fleet {
     /// Route every message to its vehicle's chain (starting one for a vehicle newly heard),
     /// report vehicles gone silent, and end dropped vehicles' chains. Ends when the source
     /// does, after every chain and the inference stage have drained.
     pub(super) async fn run(mut self, mut msgs: mpsc::Receiver<TimedMessage>) -> Result<()> {
-        let mut chains: std::collections::HashMap<VehicleId, Vehicle> = Default::default();
+        let mut chains = Chains::default();
         let mut ended = Vec::new();
         let mut events = Vec::new();
         // The source's clock: its newest time, and (live) the wall-clock instant it came.
         let mut clock: Option<(f64, Instant)> = None;
         let mut tick = tokio::time::interval(SILENT_TICK);
+        let (mut burst, mut touched) = (Vec::with_capacity(BURST), Vec::new());
         loop {
             tokio::select! {
-                m = msgs.recv() => {
-                    let Some(m) = m else { break };
-                    if m.t_s.is_finite() && clock.is_none_or(|(t, _)| m.t_s >= t) {
-                        clock = Some((m.t_s, Instant::now()));
-                    }
-                    if let Route::Vehicle { id, new, back } = self.demux.route(&m) {
-                        if new {
-                            match self.start(id) {
-                                Ok(v) => { chains.insert(id, v); }
-                                Err(e) => tracing::error!(vehicle = %id, "cannot start a chain for this vehicle: {e:#}"),
-                            }
+                n = msgs.recv_many(&mut burst, BURST) => {
+                    if n == 0 { break }
+                    for m in burst.drain(..) {
+                        if m.t_s.is_finite() && clock.is_none_or(|(t, _)| m.t_s >= t) {
+                            clock = Some((m.t_s, Instant::now()));
                         }
-                        if let Some(v) = chains.get(&id) {
-                            if back {
-                                tracing::info!(vehicle = %id, "vehicle heard again");
-                                let _ = v.events.send(FleetEvent::Back { id, t_s: m.t_s });
-                            }
-                            // A chain that ended early (it cannot) would only lose this message.
-                            let _ = v.msgs.send(m).await;
-                            self.status.stats.queues.observe(&v.msgs);
+                        if let Some(id) = self.take(m, &mut chains) {
+                            touched.push(id);
+                        }
+                        if !self.live {
+                            if let Some((t, _)) = clock { self.demux.advance(t, &mut events); }
+                            Self::on_events(&self.status, &mut events, &mut chains, &mut ended).await;
                         }
                     }
-                    if !self.live {
-                        if let Some((t, _)) = clock { self.demux.advance(t, &mut events); }
+                    for id in touched.drain(..) {
+                        if let Some(v) = chains.get_mut(&id) {
+                            v.flush(&self.status).await;
+                        }
                     }
                 }
                 _ = tick.tick(), if self.live => {
                     if let Some((t, at)) = clock { self.demux.advance(t + at.elapsed().as_secs_f64(), &mut events); }
                 }
             }
-            for ev in events.drain(..) {
-                match ev {
-                    FleetEvent::Lost { id, silent_s, .. } => {
-                        tracing::warn!(
-                            vehicle = %id,
-                            "vehicle lost: nothing heard for {silent_s:.1} s"
-                        );
-                        if let Some(v) = chains.get(&id) {
-                            let _ = v.events.send(ev);
-                        }
-                    }
-                    FleetEvent::Back { .. } => {}
-                    FleetEvent::Dropped { id, silent_s, .. } => {
-                        tracing::warn!(
-                            vehicle = %id,
-                            "vehicle dropped: nothing heard for {silent_s:.1} s"
-                        );
-                        if let Some(v) = chains.remove(&id) {
-                            let _ = v.events.send(ev);
-                            // Its input closes: the chain drains, the relay says it was dropped.
-                            ended.push((id, v.tasks));
-                        }
-                    }
-                }
-            }
+            Self::on_events(&self.status, &mut events, &mut chains, &mut ended).await;
         }
         let filtered = self.demux.filtered();
         if filtered > 0 {
@@ -172,6 +164,61 @@ impl Fleet {
         Ok(())
     }
 
+    /// Route message `m`: onto its vehicle's pending batch (a chain started first for a
+    /// vehicle newly heard). The vehicle it went to.
+    fn take(&mut self, m: TimedMessage, chains: &mut Chains) -> Option<VehicleId> {
+        let Route::Vehicle { id, new, back } = self.demux.route(&m) else {
+            return None;
+        };
+        if new {
+            match self.start(id) {
+                Ok(v) => {
+                    chains.insert(id, v);
+                }
+                Err(e) => {
+                    tracing::error!(vehicle = %id, "cannot start a chain for this vehicle: {e:#}")
+                }
+            }
+        }
+        let v = chains.get_mut(&id)?;
+        if back {
+            tracing::info!(vehicle = %id, "vehicle heard again");
+            let _ = v.events.send(FleetEvent::Back { id, t_s: m.t_s });
+        }
+        v.pending.push(m);
+        // The first message of this burst for it: the caller hands the batch over.
+        (v.pending.len() == 1).then_some(id)
+    }
+
+    /// Tell the chains what the demultiplexer noticed; a dropped vehicle's chain gets what
+    /// it still had pending, then its input closes (it drains, its relay says it was dropped).
+    async fn on_events(
+        status: &ChainStatus,
+        events: &mut Vec<FleetEvent>,
+        chains: &mut Chains,
+        ended: &mut Vec<(VehicleId, ChainTasks)>,
+    ) {
+        for ev in events.drain(..) {
+            match ev {
+                FleetEvent::Lost { id, silent_s, .. } => {
+                    tracing::warn!(vehicle = %id, "vehicle lost: nothing heard for {silent_s:.1} s");
+                    if let Some(v) = chains.get(&id) {
+                        let _ = v.events.send(ev);
+                    }
+                }
+                FleetEvent::Back { .. } => {}
+                FleetEvent::Dropped { id, silent_s, .. } => {
+                    tracing::warn!(vehicle = %id, "vehicle dropped: nothing heard for {silent_s:.1} s");
+                    if let Some(mut v) = chains.remove(&id) {
+                        v.flush(status).await;
+                        let _ = v.events.send(ev);
+                        ended.push((id, v.tasks));
+                    }
+                }
+            }
+        }
+    }
+
     /// Start vehicle `id`'s chain: the chain built before the run for the first vehicle
     /// (it reports the signal health the terminal shows), a fresh one for the others. It
     /// sends on its own network's links.
@@ -205,6 +252,7 @@ impl Fleet {
             msgs: tx,
             events,
             tasks,
+            pending: Vec::new(),
         })
     }
 }

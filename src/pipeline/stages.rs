@@ -15,12 +15,11 @@ use crate::report::status::{ChainStatus, IngestStats};
 use crate::report::{EnergyState, Estimate, MissionUpdate, Report, VehicleId};
 use crate::sink::Fanout;
 use crate::source::TimedMessage;
-use crate::telemetry::window::Window;
 use crate::telemetry::Telemetry;
 use crate::vehicle::params::{Driver, Identity, VehicleParams};
 use crate::vehicle::store::FlightLog;
 
-use super::chain::{look_up, Memory, VehicleNews};
+use super::chain::{look_up, Memory, VehicleNews, WindowsOut};
 /// Messages → fixed-rate samples → windows; refreshes the signal health about once a second.
 /// Reads the vehicle beside ([`Driver`]: asks on a live link) and publishes what it learns;
 /// runs the vehicle's mission forecast ([`MissionStep`]) on the same messages, first.
@@ -29,8 +28,8 @@ pub(super) async fn telemetry_stage(
     mut telemetry: Telemetry,
     mut vehicle: Driver,
     mut mission: Option<MissionStep>,
-    mut msgs: mpsc::Receiver<TimedMessage>,
-    windows: mpsc::Sender<Window>,
+    mut msgs: mpsc::Receiver<Vec<TimedMessage>>,
+    windows: WindowsOut,
     news: mpsc::UnboundedSender<VehicleNews>,
     mut memory: Option<Memory>,
     status: ChainStatus,
@@ -54,30 +53,36 @@ pub(super) async fn telemetry_stage(
                 }
                 continue;
             }
-            Some(Some(m)) => {
-                if let Some(step) = mission.as_mut() {
-                    step.on_message(&m);
-                }
-                if let Some(params) = vehicle.on_message(&m) {
-                    if let (Some(mem), true) = (&mut memory, params.identity.is_some()) {
-                        let first = mem.heard.as_ref().map_or(m.t_s, |h| h.0);
-                        mem.heard = Some((first, params.clone()));
+            // The messages the demultiplexer had for this vehicle at once, in order.
+            Some(Some(batch)) => {
+                for m in &batch {
+                    if let Some(step) = mission.as_mut() {
+                        step.on_message(m);
                     }
-                    // Only the energy stage listens; it gone (shutting down) is no error.
-                    let _ = news.send(VehicleNews::Params(m.t_s, params));
-                }
-                // The vehicle and its pack known: look up what earlier flights taught.
-                if let Some(mem) = &mut memory {
-                    let (asks, settled) = (vehicle.reader().asks(), vehicle.reader().settled());
-                    let heard = mem.heard.as_ref().filter(|_| !mem.looked_up);
-                    let due = crate::vehicle::store::lookup_due(heard, m.t_s, asks, settled);
-                    if let Some(who) = due {
-                        look_up(mem, who, m.t_s, &status, &news);
+                    if let Some(params) = vehicle.on_message(m) {
+                        if let (Some(mem), true) = (&mut memory, params.identity.is_some()) {
+                            let first = mem.heard.as_ref().map_or(m.t_s, |h| h.0);
+                            mem.heard = Some((first, params.clone()));
+                        }
+                        // Only the energy stage listens; it gone (shutting down) is no error.
+                        let _ = news.send(VehicleNews::Params(m.t_s, params));
                     }
+                    // The vehicle and its pack known: look up what earlier flights taught.
+                    if let Some(mem) = &mut memory {
+                        let (asks, settled) = (vehicle.reader().asks(), vehicle.reader().settled());
+                        let heard = mem.heard.as_ref().filter(|_| !mem.looked_up);
+                        let due = crate::vehicle::store::lookup_due(heard, m.t_s, asks, settled);
+                        if let Some(who) = due {
+                            look_up(mem, who, m.t_s, &status, &news);
+                        }
+                    }
+                    let made = out.len();
+                    telemetry.push(m, &mut out);
+                    // The windows this message completes: it is the newest that went in.
+                    out[made..]
+                        .iter_mut()
+                        .for_each(|w| w.arrived = Some(m.arrived));
                 }
-                telemetry.push(&m, &mut out);
-                // The windows this message completes: it is the newest that went in.
-                out.iter_mut().for_each(|w| w.arrived = Some(m.arrived));
                 if let Some(id) = telemetry.system_id() {
                     status
                         .system_id
@@ -99,10 +104,10 @@ pub(super) async fn telemetry_stage(
         }
         for w in out.drain(..) {
             IngestStats::add(&status.stats.windows, 1);
-            if windows.send(w).await.is_err() {
+            if !windows.send(w).await {
                 return;
             }
-            status.stats.queues.observe(&windows);
+            status.stats.queues.observe(&windows.jobs);
         }
     }
 }

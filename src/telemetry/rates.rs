@@ -6,7 +6,10 @@
 //!   the models see it interpolated between updates" under [`SLOW_HZ`], and "position at
 //!   0.3 Hz: too slow to follow, held between updates" under [`TOO_SLOW_HZ`];
 //! - **a signal that stops**: "position silent for 3.1 s: held and marked stale" when it
-//!   goes past its own stale limit, and "position back after 9.4 s" when it returns;
+//!   goes past its own stale limit, and "position back after 9.4 s" when it returns; at most
+//!   once a [`REPEAT_S`] per signal (of the link's clock): the silences in between are
+//!   counted and the next line said gives their number (a flapping link, or a fleet of
+//!   thousands on a busy machine, would otherwise write a line per vehicle per second);
 //! - **a signal never heard**, once, [`NEVER_AFTER_S`] into the stream: which features the
 //!   models will not have, and that the measured power (when it comes) still counts.
 //!
@@ -25,6 +28,8 @@ pub const TOO_SLOW_HZ: f64 = 0.4;
 pub const NEVER_AFTER_S: f64 = 5.0;
 /// A silence this long is said even before the signal's period is known, s.
 const MAX_SILENT_UNSAID_S: f64 = 5.0;
+/// A signal's silence is said at most once this often, s (module docs).
+pub const REPEAT_S: f64 = 60.0;
 /// Intervals a period needs before its rate is judged.
 const JUDGED_AFTER: usize = 8;
 
@@ -33,6 +38,11 @@ struct Said {
     rate: bool,
     /// Quiet since (µs) while it is.
     quiet_since: Option<i64>,
+    /// When a silence was last said (µs), whether the one now was, and how many were
+    /// not said since.
+    said_at: Option<i64>,
+    quiet_said: bool,
+    unsaid: u32,
 }
 
 /// The per-signal notes made so far (see the module docs).
@@ -68,15 +78,30 @@ impl RateWatch {
             match (r.is_quiet(sig) && known, said.quiet_since) {
                 (true, None) => {
                     said.quiet_since = Some(now_us);
+                    let due = said
+                        .said_at
+                        .is_none_or(|t| (now_us - t) as f64 / 1e6 >= REPEAT_S);
+                    said.quiet_said = due;
+                    if !due {
+                        said.unsaid += 1;
+                        continue;
+                    }
+                    said.said_at = Some(now_us);
+                    let more = match std::mem::take(&mut said.unsaid) {
+                        0 => String::new(),
+                        n => format!(" ({n} shorter silences since the last said)"),
+                    };
                     tracing::warn!(
-                        "{} silent for {age:.1} s (last from {from}): held and marked stale, the estimate degrades",
+                        "{} silent for {age:.1} s (last from {from}): held and marked stale, the estimate degrades{more}",
                         sig.name()
                     );
                 }
                 (false, Some(since)) if !r.is_quiet(sig) => {
                     said.quiet_since = None;
                     let gap = (now_us - since) as f64 / 1e6 + r.stale_limit_s(sig);
-                    tracing::info!("{} back after {gap:.1} s ({from})", sig.name());
+                    if std::mem::take(&mut said.quiet_said) {
+                        tracing::info!("{} back after {gap:.1} s ({from})", sig.name());
+                    }
                 }
                 _ => {}
             }
@@ -119,4 +144,36 @@ fn say_never_heard(r: &Resampler) {
         "no {} heard in {NEVER_AFTER_S:.0} s: the models see those features held at a neutral value and marked stale; {power}",
         never.join(", ")
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Position stops for 2 s every 5 s (attitude keeps the clock going); returns the
+    /// watch after `secs` seconds.
+    fn flapping(w: &mut RateWatch, r: &mut Resampler, from_s: i64, secs: i64) {
+        for k in from_s * 10..(from_s + secs) * 10 {
+            let t = k * 100_000;
+            r.update(Signal::Attitude, t, &[1.0, 0.0, 0.0, 0.0]);
+            if (k / 10) % 5 < 3 {
+                r.update(Signal::Position, t, &[8.5, 47.4, 400.0]);
+            }
+            w.check(r, t, |_| Some("TEST"));
+        }
+    }
+
+    #[test]
+    fn a_flapping_signal_is_said_once_a_repeat_and_the_rest_counted() {
+        let (mut w, mut r) = (RateWatch::default(), Resampler::new(10.0, 0.5, 10.0));
+        let pos = Signal::Position as usize;
+        flapping(&mut w, &mut r, 0, 50);
+        // ten silences in 50 s: the first said, nine counted
+        assert_eq!(w.said[pos].said_at, Some(3_500_000));
+        assert_eq!(w.said[pos].unsaid, 9);
+        flapping(&mut w, &mut r, 50, 20);
+        // the first silence past 60 s after the one said is said, with the count
+        assert_eq!(w.said[pos].said_at, Some(63_500_000));
+        assert_eq!(w.said[pos].unsaid, 1, "the one at 68.5 s is counted anew");
+    }
 }

@@ -280,13 +280,15 @@ async fn udp(
             None,
         )
     };
+    let rcvbuf = super::rcvbuf::grow_receive_buffer(&sock);
     info!(
-        "{label}: {}",
+        "{label}: {} (receive buffer {} KiB)",
         if out {
             format!("sending to {there}")
         } else {
             format!("listening on {there}")
-        }
+        },
+        rcvbuf / 1024
     );
     let mut reader = ctx.reader();
     let mut buf = vec![0u8; 65_536];
@@ -301,6 +303,11 @@ async fn udp(
                         peer = Some(from);
                     }
                     reader.push(&buf[..n]);
+                    // What else the socket holds, read now: one wake-up for a burst.
+                    let newest = super::rcvbuf::drain(&sock, &mut buf, &mut reader, &label);
+                    if !out && newest.is_some() {
+                        peer = newest;
+                    }
                     if !ctx.deliver(&mut reader).await {
                         return Ok(());
                     }

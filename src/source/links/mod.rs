@@ -38,6 +38,7 @@
 
 pub mod address;
 pub mod link;
+mod rcvbuf;
 pub mod signing;
 
 use std::collections::HashMap;
