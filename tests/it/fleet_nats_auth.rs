@@ -303,7 +303,7 @@ fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
     let pw = |u: &str| private(dir.path(), &format!("{u}.pw"), &format!("change-me-{u}\n"));
     let (gpw, wpw, vpw) = (pw("gateway"), pw("worker1"), pw("viewer"));
     let port = free_udp_port();
-    let mut gateway = gateway_as_user(&nats.url, port, &gpw);
+    let gateway = gateway_as_user(&nats.url, port, &gpw);
     let json = dir.path().join("w1.jsonl");
     let worker = Monitor::spawn(
         dronewatt()
