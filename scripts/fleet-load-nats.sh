@@ -57,15 +57,7 @@ cleanup() {
   rm -rf "$TMP"
 }
 trap cleanup EXIT
-TICK=$(getconf CLK_TCK)
-cpu_of() {
-  local c=0 p
-  for p in "$@"; do c=$(awk -v t="$TICK" -v c="$c" '{print c + ($14 + $15) / t}' "/proc/$p/stat"); done
-  echo "$c"
-}
-free_port() {
-  python3 -c "import socket; s=socket.socket(socket.AF_INET, socket.$1); s.bind(('127.0.0.1',0)); print(s.getsockname()[1])"
-}
+. scripts/lib-load.sh
 CSV="$OUT/fleet-load-nats.csv"
 HEAD="lstm,vehicles,workers,seconds,cpu_us_per_vs,gateway_cores,workers_cores,server_cores,estimates,missed,held_back,lost,p50_ms,p99_ms,worker_p99_ms,takeover_s,hole_s"
 [ -s "$CSV" ] || echo "$HEAD" > "$CSV"

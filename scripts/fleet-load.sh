@@ -94,13 +94,7 @@ cleanup() {
   rm -rf "$TMP"
 }
 trap cleanup EXIT
-TICK=$(getconf CLK_TCK)
-# CPU seconds (user+sys) of these processes so far.
-cpu_of() {
-  local c=0 p
-  for p in "$@"; do c=$(awk -v t="$TICK" -v c="$c" '{print c + ($14 + $15) / t}' "/proc/$p/stat"); done
-  echo "$c"
-}
+. scripts/lib-load.sh
 # Live: wait until simulators 1..$1 have their flights ready (they send from then on), then
 # measure the monitors ($2…) over DUR seconds into WINDOW_CPU.
 live_window() {
@@ -156,7 +150,7 @@ run_size() {  # $1 = N
     fi
     local ports=()
     for i in $(seq 1 "$k"); do
-      ports+=("$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')")
+      ports+=("$(free_port SOCK_DGRAM)")
       printf '[[links]]\naddress = "udpin:127.0.0.1:%s"\nnetwork = "link%s"\n' "${ports[$((i - 1))]}" "$i" >> "$TMP/one.toml"
     done
     rm -rf "$TMP/summary1.json"
@@ -227,7 +221,7 @@ run_size() {  # $1 = N
     grep -F '"type":"summary"' < "$TMP/json$i" > "$TMP/summary$i.json" &
     greps+=($!)
     if [ "${LIVE:-0}" = 1 ]; then
-      port=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+      port=$(free_port SOCK_DGRAM)
       RUST_LOG=dronewatt=info "$BIN" monitor "udpin:127.0.0.1:$port" -q --config "$TMP/link$i.toml" \
         --data-dir "${STORE:-off}" --json "$TMP/json$i" 2> "$TMP/paced$i.err" &
       pids+=($!)
