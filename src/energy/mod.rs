@@ -449,7 +449,7 @@ impl EnergyTracker {
             self.say(format_args!("battery: remaining energy revised up by {up:.1} Wh in flight: the pack's sag as learned over the last {:.0} s", steady::REVISE_AFTER_S));
         }
         if remaining_source == RemainingSource::AssumedFull
-            && amps.is_some_and(|i| i >= pack::LOAD_CURRENT_A)
+            && amps.is_some_and(|i| i >= pack::load_current_a(&self.battery))
             && !self.warned_full
         {
             self.warned_full = true;

@@ -4,7 +4,7 @@
 //!
 //! - **Rest.** While the current stays under [`REST_CURRENT_A`] and the voltage has moved
 //!   less than [`REST_SPREAD_V`] over [`REST_SETTLE_S`], the median of those seconds is the
-//!   resting voltage. Before the first take-off (current over [`LOAD_CURRENT_A`]) each new
+//!   resting voltage. Before the first take-off (current over [`load_current_a`]) each new
 //!   resting voltage restarts the pack's state from it: energy to the floor through the OCV
 //!   curve (the TB48D's fitted one for the M100's pack, else the chemistry's default shape
 //!   scaled to the capacity). After a flight, a resting voltage more than
@@ -55,8 +55,10 @@ pub const REST_CURRENT_A: f64 = 1.0;
 pub const REST_SETTLE_S: f64 = 2.0;
 /// The most the resting voltage may move over [`REST_SETTLE_S`] to count as settled, V.
 pub const REST_SPREAD_V: f64 = 0.05;
-/// Current over which the vehicle counts as flying (the start state is then kept), A.
+/// Current over which the M100's pack counts as loaded (flying: the start state is then kept;
+/// the sag check's seconds under load), A; other packs: [`load_current_a`].
 pub const LOAD_CURRENT_A: f64 = 3.0;
+
 /// A resting voltage this far above the model's OCV after a flight is a new pack, V a cell.
 pub const SWAP_RISE_V_CELL: f64 = 0.05;
 /// How often the voltage forecast is recomputed, s of source time.
@@ -285,6 +287,7 @@ impl Pack {
         let cells = facts.cell_count.value.max(1);
         // V + I·R with the prior resistance: the open-circuit voltage under any load.
         let r = prior_r_ohm(cells, pack_ah(facts, chem));
+        let load_a = load_current_a(facts);
         self.loaded.push_back((t, v + i.max(0.0) * r));
         while self
             .loaded
@@ -307,14 +310,14 @@ impl Pack {
             }
         } else {
             self.rest.clear();
-            if i >= LOAD_CURRENT_A && self.rest_v.is_some() {
+            if i >= load_a && self.rest_v.is_some() {
                 self.flown = true;
             }
         }
         if i >= crate::battery::trend::loaded_a(pack_ah(facts, chem)) {
             self.trend.add(t, v, i);
         }
-        if i >= LOAD_CURRENT_A {
+        if i >= load_a {
             if let Some(dt) = dt {
                 self.sag.update(dt, v, i, cells, r);
             }
@@ -446,7 +449,7 @@ impl Pack {
         }
         self.start(ocv, FROM_LOAD, facts);
         // Flying already: the start is not a rest before take-off.
-        self.flown = i >= LOAD_CURRENT_A;
+        self.flown = i >= load_current_a(facts);
     }
 
     /// Whether the start state may still come from a resting voltage: the pack is resting
@@ -573,8 +576,8 @@ mod forecast;
 mod priors;
 #[path = "pack_sag.rs"]
 mod sag;
+pub use priors::{load_current_a, pack_model, prior_r_ohm};
 use priors::{low_v, pack_ah};
-pub use priors::{pack_model, prior_r_ohm};
 pub use sag::SagCheck;
 
 #[cfg(test)]

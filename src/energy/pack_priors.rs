@@ -30,6 +30,18 @@ pub(super) fn pack_ah(facts: &BatteryFacts, chem: Chemistry) -> Option<f64> {
         .map(|wh| wh / (f64::from(facts.cell_count.value.max(1)) * chem.nominal_v()))
 }
 
+/// The current over which this pack counts as loaded, A: take-off (flown), the sag check's
+/// seconds under load (the load-compensated start's 10 s hold on the voltage forecast), the
+/// "assumed full" warning. The resistance fit's threshold ([`crate::battery::trend::loaded_a`]):
+/// [`LOAD_CURRENT_A`] on the M100's pack, less on a smaller one in proportion to its charge (a
+/// 3S1P 2.5 Ah pack hovering at 2 A is loaded), never under [`REST_CURRENT_A`] (a current the
+/// rest rule calls rest is not a take-off). With the capacity not known: [`LOAD_CURRENT_A`]
+/// (a rule from the currents seen would let a busy ground idle count as a take-off).
+pub fn load_current_a(facts: &BatteryFacts) -> f64 {
+    let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+    crate::battery::trend::loaded_a(pack_ah(facts, chem)).max(REST_CURRENT_A)
+}
+
 /// The OCV curve and circuit for these battery facts: the TB48D's own fit for the M100's
 /// 6S LiHV pack, else the chemistry's default shape scaled to the capacity, with the
 /// TB48D's resistances scaled by cells and capacity.

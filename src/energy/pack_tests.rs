@@ -259,3 +259,65 @@ fn the_slope_of_a_packs_deeper_sag_is_carried_to_its_next_flight() {
     // a LiPo keeps one resistance (no growth prior): nothing carried into it
     assert_eq!(fly(Some(hist), "lipo"), Some(0.0));
 }
+
+/// A 3S1P 2.5 Ah Li-ion pack (27 Wh; BATT_LOW_VOLT 10.5 V) flown at 2 A, under the M100's
+/// 3 A: from `rest_s` of rest at 11.4 V (0: attached in flight), its loaded voltage falling
+/// 2 mV/s from 11.2 V for `fly_s`, then 5 s landed at 11.3 V.
+fn small_pack(rest_s: f64, fly_s: f64) -> (Pack, PackNow, PackNow) {
+    let facts = BatteryFacts {
+        cell_count: Sourced::new(3, Provenance::Config),
+        capacity_wh: Some(Sourced::new(27.0, Provenance::Config)),
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        low_voltage_v: Some(Sourced::new(10.5, Provenance::Config)),
+        ..BatteryFacts::default()
+    };
+    let mut p = Pack::default();
+    let (mut flying, mut landed) = (PackNow::default(), PackNow::default());
+    let mut t = 0.0;
+    while t < rest_s + fly_s + 5.0 {
+        let (v, i) = if t < rest_s {
+            (11.4, 0.1)
+        } else if t < rest_s + fly_s {
+            (11.2 - 0.002 * (t - rest_s), 2.0)
+        } else {
+            (11.3, 0.1)
+        };
+        let now = p.update(t, Some(v), Some(i), Some(Load::constant(v * i)), &facts);
+        if t < rest_s + fly_s {
+            flying = now;
+        } else {
+            landed = now;
+        }
+        t += 0.1;
+    }
+    (p, flying, landed)
+}
+
+#[test]
+fn a_small_pack_under_3_a_is_loaded_by_its_own_threshold() {
+    // the pack's own threshold: 3 A scaled by its charge (2.5 of the TB48D's 4.5 Ah); the
+    // M100's stays 3 A exactly, and 3 A with the capacity not known
+    let mut facts = BatteryFacts {
+        cell_count: Sourced::new(3, Provenance::Config),
+        capacity_wh: Some(Sourced::new(27.0, Provenance::Config)),
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        ..BatteryFacts::default()
+    };
+    let a = load_current_a(&facts);
+    assert!(a > 1.5 && a < 1.8, "{a}");
+    assert_eq!(load_current_a(&tb48d()), LOAD_CURRENT_A);
+    facts.capacity_wh = None;
+    assert_eq!(load_current_a(&facts), LOAD_CURRENT_A);
+    // rested, flown at 2 A, landed: counted as flown (the landing's rest is the flight's
+    // end, not a new start), and a time to the low voltage in flight
+    let (p, flying, landed) = small_pack(5.0, 60.0);
+    assert!(p.flown, "{landed:?}");
+    assert!(landed.end_rest_v.is_some(), "{landed:?}");
+    assert!(flying.time_to_low_v_s.is_some(), "{flying:?}");
+    // attached in flight at 2 A: started load-compensated, the forecast's 10 s hold under
+    // load passes and a time to the low voltage is given
+    let (_, flying, _) = small_pack(0.0, 60.0);
+    assert_eq!(flying.start, Some(FROM_LOAD), "{flying:?}");
+    assert_eq!(flying.withheld, None, "{flying:?}");
+    assert!(flying.time_to_low_v_s.is_some(), "{flying:?}");
+}
