@@ -47,9 +47,7 @@
 //!   ([`crate::mission::live`], set with [`EnergyTracker::set_mission`]).
 
 use crate::features::idx;
-use crate::report::{
-    BatteryFacts, Estimate, ModelEstimate, PackState, Provenance, Sourced, BATTERY_PCT_AGREE,
-};
+use crate::report::{BatteryFacts, Estimate, ModelEstimate, Provenance, Sourced};
 use crate::report::{EnergyState, PowerSource, RemainingSource};
 use crate::vehicle::params::VehicleParams;
 
@@ -57,6 +55,8 @@ pub mod hover;
 mod hover_tracker;
 pub mod pack;
 pub mod select;
+mod state;
+use state::PowerNow;
 pub mod steady;
 
 mod config;
@@ -287,47 +287,19 @@ impl EnergyTracker {
                 self.resolve_battery();
             }
         }
-        let watts = |m: &ModelEstimate| Some(f64::from(m.power_w)).filter(|p| p.is_finite());
-        // The forecast model's prediction adapted to measured power, where adaptation runs.
-        let adapted = |m: &ModelEstimate| m.adapted_w.map(f64::from).filter(|p| p.is_finite());
         // the first hover's search ([`hover`]; [`EnergyTracker::calibrated`] applies it)
         self.observe_hover(s, s.measured_w.map(f64::from).filter(|p| p.is_finite()));
-        let preferred = self
-            .forecast_model(est)
-            .and_then(|m| Some((m, adapted(m).or(watts(m))?)));
-        let forecast_adapted = self
-            .forecast_model(est)
-            .is_some_and(|m| adapted(m).is_some());
-        let first = est.models.iter().find_map(|m| Some((m, watts(m)?)));
-        let measured = s.measured_w.map(f64::from).filter(|p| p.is_finite());
-        let (power, power_source) = match (measured, preferred.or(first)) {
-            (Some(p), _) => (Some(p), PowerSource::Measured),
-            (None, Some((m, p))) => (Some(p), PowerSource::Model(m.name.clone())),
-            (None, None) => (None, PowerSource::None),
-        };
-        // Forecast from: the preferred model, else measured power, else the first model.
-        let forecast_from = match (preferred, measured) {
-            (Some((m, p)), _) => Some((Some(m), p)),
-            (None, Some(p)) => Some((None, p)),
-            (None, None) => first.map(|(m, p)| (Some(m), p)),
-        };
+        let PowerNow {
+            measured,
+            power,
+            power_source,
+            forecast_from,
+            preferred,
+            forecast_adapted,
+        } = self.power_now(est);
 
-        // Step length: capped on gaps, nothing on a backwards jump or the first estimate.
         let t = est.t_s;
-        let dt = match self.last {
-            Some((t0, _)) if t.is_finite() && t > t0 => (t - t0).min(self.cfg.max_dt_s),
-            _ => 0.0,
-        };
-        if let Some(p) = power {
-            let p0 = self.last.map_or(p, |(_, p0)| p0);
-            self.used_wh += 0.5 * (p0 + p) * dt / 3600.0;
-            if t.is_finite() {
-                self.last = Some((t, p));
-            }
-        } else if t.is_finite() {
-            // Nothing to integrate: keep the previous power, move the clock on.
-            self.last = self.last.map(|(_, p0)| (t, p0));
-        }
+        let dt = self.integrate(t, power);
 
         // The pack: voltage and current (discharge positive) from the measured power.
         let volts = s
@@ -345,43 +317,14 @@ impl EnergyTracker {
         let forecast_input = forecast_from.map(|(_, p)| p);
         let forecast = forecast_input.map(|p| self.forecast.update(p, dt, tau));
         if let Some(p) = forecast_input {
-            let vx = f64::from(s.features[idx::VX]);
-            let vy = f64::from(s.features[idx::VY]);
-            let ground_speed = vx.hypot(vy);
-            if ground_speed.is_finite() && ground_speed >= 0.5 * self.cruise_speed_m_s {
-                self.cruise.update(p, dt, tau);
-            } else if s.home.is_some_and(|h| h.height_m > 2.0) {
-                self.hover.update(p, dt, tau);
-            }
+            self.observe_phase(s, p, dt, tau);
         }
 
         let measured_avg = match measured.filter(|_| flying) {
             Some(p) => Some(self.measured_avg.update(p, dt, tau)),
             None => self.measured_avg.0,
         };
-        // The voltage forecast flies the rest of the mission at its mean power, then on at the
-        // plan's mean power (so that the usable floor does not leap when the mission's last,
-        // light descent ends; a mission flown to its end flies on at it too); with no
-        // mission, the forecast power throughout.
-        let plan_w = self.plan_mean_w.map(|(_, w)| w);
-        let rest_of_flight = match self.mission.as_ref() {
-            Some(m) if m.time_left_s > 1.0 && m.energy_p50_wh > 0.0 => {
-                let first_w = 3600.0 * m.energy_p50_wh / m.time_left_s;
-                Some(pack::Load {
-                    first_w,
-                    first_s: Some(m.time_left_s),
-                    then_w: plan_w.unwrap_or(first_w),
-                })
-            }
-            _ => plan_w
-                .or(pack::pack_power(
-                    forecast,
-                    // until it is long enough, the forecast model's power for this phase
-                    measured_avg
-                        .filter(|_| forecast.is_none() || self.airborne.measured_long_enough(tau)),
-                ))
-                .map(pack::Load::constant),
-        };
+        let rest_of_flight = self.rest_of_flight(forecast, measured_avg, tau);
         let pk = self
             .pack
             .update(t, volts, amps, rest_of_flight, &self.battery);
@@ -389,54 +332,10 @@ impl EnergyTracker {
             self.say(format_args!("{n}"));
         }
         let reported_pct = battery_pct.filter(|p| (0.0..=100.0).contains(p));
-        let disagreement = reported_pct
-            .zip(pk.soc_pct)
-            .map(|(b, soc)| b - soc)
-            .filter(|d| d.abs() > BATTERY_PCT_AGREE);
-        if let (Some(d), false) = (disagreement, self.warned_pct) {
-            self.warned_pct = true;
-            self.say(format_args!(
-                "battery: the vehicle reports {:.0} %, the resting voltage {:.2} V says {:.0} %: using the resting voltage (an autopilot that counts from 'full at boot' reads a half pack as full)",
-                reported_pct.unwrap_or(f64::NAN),
-                pk.rest_v.unwrap_or(f64::NAN),
-                reported_pct.unwrap_or(f64::NAN) - d
-            ));
-        }
+        let disagreement = self.pct_disagreement(reported_pct, &pk);
         let cap = self.battery.capacity();
-        let (remaining, remaining_source, full_wh) = match (
-            pk.usable_wh.or(pk.energy_wh),
-            reported_pct.filter(|_| self.cfg.use_battery_pct),
-            cap,
-        ) {
-            (Some(e), _, _) if pk.start == Some(pack::FROM_REST) => (
-                Some(e),
-                RemainingSource::RestingVoltage,
-                pk.curve_wh.or(cap),
-            ),
-            // No capacity: nothing in Wh (never another vehicle's pack).
-            (_, _, None) => (None, RemainingSource::UnknownPack, None),
-            // The autopilot's % before a load-compensated start (the wider band).
-            (_, Some(pct), Some(cap)) => {
-                (Some(cap * pct / 100.0), RemainingSource::Battery, Some(cap))
-            }
-            // Started load-compensated some seconds in: no more than the capacity less all
-            // the energy used since the monitor began (what came before the start is not
-            // in the pack's own count).
-            (Some(e), None, Some(c)) => (
-                Some(e.min((c - self.used_wh).max(0.0))),
-                RemainingSource::LoadCompensated,
-                pk.curve_wh.or(cap),
-            ),
-            // The pack rests and its voltage is settling: not known yet (a moment), not full.
-            (None, None, Some(cap)) if self.pack.pending() => {
-                (None, RemainingSource::AssumedFull, Some(cap))
-            }
-            (None, None, Some(cap)) => (
-                Some((cap - self.used_wh).max(0.0)),
-                RemainingSource::AssumedFull,
-                Some(cap),
-            ),
-        };
+        let (remaining, remaining_source, full_wh) =
+            self.remaining(&pk, reported_pct.filter(|_| self.cfg.use_battery_pct), cap);
         let (remaining, remaining_source) =
             self.pack_known(s, &power_source, reported_pct, remaining, remaining_source);
         // never up under load without a stated reason (steady)
@@ -464,16 +363,7 @@ impl EnergyTracker {
                 .zip(forecast.filter(|p| *p > 1.0))
                 .map(|(e, p)| 3600.0 * e / p),
         };
-        let home_energy_wh = s.home.and_then(|h| {
-            let p_cruise = self.cruise.0.or(forecast)?;
-            let p_hover = self.hover.0.unwrap_or(p_cruise);
-            let d = f64::from(h.distance_m).max(0.0);
-            let height = f64::from(h.height_m).max(0.0);
-            let flight_s = d / self.cruise_speed_m_s;
-            let down_s = height / self.cfg.descent_speed_m_s + self.cfg.landing_s;
-            let wh = (p_cruise * flight_s + p_hover * down_s) / 3600.0;
-            wh.is_finite().then_some(wh)
-        });
+        let home_energy_wh = self.home_energy_wh(s, forecast);
         let reserve = full_wh.map(|f| f * self.cfg.reserve_pct / 100.0);
         // Without a capacity, the share left is the state of charge the voltage says, else
         // the vehicle's own %.
@@ -490,7 +380,7 @@ impl EnergyTracker {
             remaining_source,
             forecast_w: forecast,
             forecast_model: forecast_from.and_then(|(m, _)| m).map(|m| m.name.clone()),
-            forecast_why: preferred.map(|_| self.selector.current().why.to_string()),
+            forecast_why: preferred.then(|| self.selector.current().why.to_string()),
             time_to_empty_s,
             home_energy_wh,
             home_margin_wh: remaining
@@ -509,29 +399,7 @@ impl EnergyTracker {
                 .map(|((r, m), res)| r - m.energy_p50_wh - res),
             mission: self.mission.clone(),
             forecast_adapted: forecast_adapted && forecast_from.is_some_and(|(m, _)| m.is_some()),
-            pack: PackState {
-                battery_v: volts,
-                battery_v_model: pk.v_model,
-                battery_ocv_v: pk.ocv_v,
-                battery_rest_v: pk.rest_v,
-                soc_pct: pk.soc_pct,
-                soc_band_pct: pk.soc_band_pct,
-                pack_start: pk.start,
-                pack_withheld: pk.withheld,
-                internal_r_ohm: pk.internal_r_ohm,
-                v_min_forecast_v: pk.v_min_forecast.map(|(v, _)| v),
-                v_min_forecast_at_s: pk.v_min_forecast.map(|(_, t)| t),
-                time_to_low_v_s: pk.time_to_low_v_s,
-                low_threshold_v: pk.low_v,
-                battery_pct_disagreement: disagreement,
-                battery_end_rest_v: pk.end_rest_v,
-                end_rest_soc_pct: pk.end_rest_soc_pct,
-                pack_r_scale: pk.r_scale,
-                pack_carried_over: pk.carried,
-                heat_a2s: pk.heat,
-                deep_slope: pk.deep_slope,
-                curve_wh: pk.curve_wh,
-            },
+            pack: state::pack_state(volts, &pk, disagreement),
             battery: self.battery.clone(),
             hover_calibration: self.first_hover.calibration().copied(),
         }
