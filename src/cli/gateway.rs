@@ -55,6 +55,17 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
     let link = LinkHandle::with_signer(signer);
     let stats = Arc::new(IngestStats::default());
     let shutdown = crate::pipeline::shutdown_on_signal();
+    // The workers' downlink is subscribed (and the server has it) before any link opens: a
+    // frame a worker sends once a vehicle is heard is never lost to a subscription not yet
+    // made.
+    let sub = client
+        .subscribe(format!("{}.>", nats::TO))
+        .await
+        .map_err(|e| anyhow::anyhow!("NATS: subscribe {}.>: {e}", nats::TO))?;
+    client
+        .flush()
+        .await
+        .map_err(|e| anyhow::anyhow!("NATS: {e}"))?;
     let (tx, mut rx) = mpsc::channel::<TimedMessage>(crate::pipeline::CHANNEL_DEPTH);
     let src = tokio::spawn(crate::source::run(
         source,
@@ -65,7 +76,7 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
         shutdown.clone(),
     ));
     let count = Arc::new(Downlink::default());
-    let down = tokio::spawn(downlink(client.clone(), leases, link, count.clone()));
+    let down = tokio::spawn(downlink(sub, leases, link, count.clone()));
     let mut acks = VecDeque::with_capacity(ACK_WINDOW);
     let (mut published, mut failed) = (0u64, 0u64);
     let start = Instant::now();
@@ -129,15 +140,11 @@ struct Downlink {
 
 /// Send what workers address to vehicles, when the sender holds the vehicle's lease now.
 async fn downlink(
-    client: async_nats::Client,
+    mut sub: async_nats::Subscriber,
     leases: async_nats::jetstream::kv::Store,
     link: LinkHandle,
     count: Arc<Downlink>,
 ) -> Result<()> {
-    let mut sub = client
-        .subscribe(format!("{}.>", nats::TO))
-        .await
-        .map_err(|e| anyhow::anyhow!("NATS: subscribe {}.>: {e}", nats::TO))?;
     let holders = lease::Holders::default();
     let follow = tokio::spawn(holders.clone().follow(leases.clone()));
     while let Some(m) = sub.next().await {
