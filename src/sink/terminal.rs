@@ -216,107 +216,135 @@ pub fn detail_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
     match r {
         None => s.push_str("waiting for the first window  "),
         Some(r) => {
-            let e = &r.estimate;
-            s.push_str(&format!("t {} s  ", num(e.t_s, 1)));
-            // The class (which models apply): "fixed_wing", "vtol (fw)", "other: SUBMARINE (12)".
-            s.push_str(&format!("{}  ", e.sample.vehicle.describe()));
-            match e.sample.measured_w {
-                Some(w) => s.push_str(&format!("measured {} W  ", num(w as f64, 1))),
-                None => s.push_str("measured — W  "),
-            }
-            for m in &e.models {
-                s.push_str(&format!("{} {}", m.name, num(m.power_w as f64, 1)));
-                // Adapted to measured power: "lstm 312.0~348.5".
-                if let Some(a) = m.adapted_w {
-                    s.push_str(&format!("~{}", num(a as f64, 1)));
-                }
-                s.push_str("  ");
-            }
-            let en = &r.energy;
-            if en.energy_used_wh != 0.0 || en.remaining_wh.is_some() {
-                s.push_str(&format!("used {} Wh  ", num(en.energy_used_wh, 2)));
-            }
-            if let Some(left) = en.remaining_wh {
-                let b = &en.battery;
-                // The one percentage (the state of charge every view shows) and its source;
-                // the capacity apart, as the % is of the usable pack, not of it.
-                s.push_str(&format!(
-                    "left {} Wh {} % [{}; capacity {} Wh: {}]",
-                    num(left, 1),
-                    en.remaining_pct.map_or("?".into(), |p| num(p, 0)),
-                    super::pilot::charge_source(en),
-                    b.capacity().map_or("?".into(), |c| num(c, 1)),
-                    b.capacity_source(),
-                ));
-                if let Some(t) = en.time_to_empty_s {
-                    s.push_str(&format!(" ({} min", num(t / 60.0, 0)));
-                    // Which model the forecast follows: "(12 min on lstm~)".
-                    if let Some(m) = &en.forecast_model {
-                        s.push_str(&format!(
-                            " on {m}{}",
-                            if en.forecast_adapted { "~" } else { "" }
-                        ));
-                    }
-                    s.push(')');
-                }
-                s.push_str("  ");
-            } else if en.battery.capacity_wh.is_none() {
-                // Never another vehicle's pack: said, with what is known without it.
-                s.push_str("capacity not known  ");
-            }
-            if let Some(why) = en.pack.pack_withheld {
-                if why.contains("does not sag") {
-                    s.push_str("pack does not sag: no voltage forecast  ");
-                }
-            }
-            // The pack: voltage measured ~ modelled, state of charge, and the forecast's low.
-            let pk = &en.pack;
-            if let Some(v) = pk.battery_v {
-                s.push_str(&format!("pack {} V", num(v, 2)));
-                if let Some(m) = pk.battery_v_model {
-                    s.push_str(&format!("~{}", num(m, 2)));
-                }
-                if let Some(soc) = pk.soc_pct {
-                    // The pack model's open-circuit figure, named apart from the state of
-                    // charge (it counts the energy under the low-voltage floor too).
-                    s.push_str(&format!(" OCV {}%", num(soc, 0)));
-                }
-                if let (Some(lo), Some(low)) = (pk.v_min_forecast_v, pk.low_threshold_v) {
-                    let txt = format!(" min {} V", num(lo, 2));
-                    s.push_str(&if colour && lo < low {
-                        txt.red().to_string()
-                    } else {
-                        txt
-                    });
-                }
-                s.push_str("  ");
-            }
-            if let Some(h) = en.home_margin_wh {
-                let txt = format!("home {}{} Wh  ", if h >= 0.0 { "+" } else { "" }, num(h, 1));
-                s.push_str(&if colour && h < 0.0 {
-                    txt.red().to_string()
-                } else {
-                    txt
-                });
-            }
-            if let (Some(m), Some(mm)) = (&en.mission, en.mission_margin_wh) {
-                let txt = format!(
-                    "mission item {}/{} {}% needs {} Wh margin {}{} Wh  ",
-                    m.current_seq,
-                    m.items,
-                    num(m.progress_pct, 0),
-                    num(m.energy_p50_wh, 1),
-                    if mm >= 0.0 { "+" } else { "" },
-                    num(mm, 1)
-                );
-                s.push_str(&if colour && mm < 0.0 {
-                    txt.red().to_string()
-                } else {
-                    txt
-                });
-            }
+            models_part(&mut s, &r.estimate);
+            energy_part(&mut s, &r.energy);
+            pack_part(&mut s, &r.energy.pack, colour);
+            margins_part(&mut s, &r.energy, colour);
         }
     }
+    link_part(&mut s, stats, rate, colour);
+    if let Some(r) = r {
+        let stale = crate::features::stale_names(r.estimate.sample.stale_mask);
+        if !stale.is_empty() {
+            let txt = format!("  stale: {}", stale.join(","));
+            s.push_str(&if colour {
+                txt.yellow().to_string()
+            } else {
+                txt
+            });
+        }
+    }
+    s
+}
+
+/// `txt` in red where `colour` and `red`, else as it is.
+fn red_if(txt: String, colour: bool, red: bool) -> String {
+    if colour && red {
+        txt.red().to_string()
+    } else {
+        txt
+    }
+}
+
+/// The time, the class, the measured power and every model's raw~adapted estimate.
+fn models_part(s: &mut String, e: &crate::report::Estimate) {
+    s.push_str(&format!("t {} s  ", num(e.t_s, 1)));
+    // The class (which models apply): "fixed_wing", "vtol (fw)", "other: SUBMARINE (12)".
+    s.push_str(&format!("{}  ", e.sample.vehicle.describe()));
+    match e.sample.measured_w {
+        Some(w) => s.push_str(&format!("measured {} W  ", num(w as f64, 1))),
+        None => s.push_str("measured — W  "),
+    }
+    for m in &e.models {
+        s.push_str(&format!("{} {}", m.name, num(m.power_w as f64, 1)));
+        // Adapted to measured power: "lstm 312.0~348.5".
+        if let Some(a) = m.adapted_w {
+            s.push_str(&format!("~{}", num(a as f64, 1)));
+        }
+        s.push_str("  ");
+    }
+}
+
+/// The energy's bookkeeping: used, left (the one percentage and its source), time to empty.
+fn energy_part(s: &mut String, en: &crate::report::EnergyState) {
+    if en.energy_used_wh != 0.0 || en.remaining_wh.is_some() {
+        s.push_str(&format!("used {} Wh  ", num(en.energy_used_wh, 2)));
+    }
+    if let Some(left) = en.remaining_wh {
+        let b = &en.battery;
+        // The one percentage (the state of charge every view shows) and its source;
+        // the capacity apart, as the % is of the usable pack, not of it.
+        s.push_str(&format!(
+            "left {} Wh {} % [{}; capacity {} Wh: {}]",
+            num(left, 1),
+            en.remaining_pct.map_or("?".into(), |p| num(p, 0)),
+            super::pilot::charge_source(en),
+            b.capacity().map_or("?".into(), |c| num(c, 1)),
+            b.capacity_source(),
+        ));
+        if let Some(t) = en.time_to_empty_s {
+            s.push_str(&format!(" ({} min", num(t / 60.0, 0)));
+            // Which model the forecast follows: "(12 min on lstm~)".
+            if let Some(m) = &en.forecast_model {
+                s.push_str(&format!(
+                    " on {m}{}",
+                    if en.forecast_adapted { "~" } else { "" }
+                ));
+            }
+            s.push(')');
+        }
+        s.push_str("  ");
+    } else if en.battery.capacity_wh.is_none() {
+        // Never another vehicle's pack: said, with what is known without it.
+        s.push_str("capacity not known  ");
+    }
+    if let Some(why) = en.pack.pack_withheld {
+        if why.contains("does not sag") {
+            s.push_str("pack does not sag: no voltage forecast  ");
+        }
+    }
+}
+
+/// The pack: voltage measured ~ modelled, state of charge, and the forecast's low.
+fn pack_part(s: &mut String, pk: &crate::report::PackState, colour: bool) {
+    let Some(v) = pk.battery_v else { return };
+    s.push_str(&format!("pack {} V", num(v, 2)));
+    if let Some(m) = pk.battery_v_model {
+        s.push_str(&format!("~{}", num(m, 2)));
+    }
+    if let Some(soc) = pk.soc_pct {
+        // The pack model's open-circuit figure, named apart from the state of
+        // charge (it counts the energy under the low-voltage floor too).
+        s.push_str(&format!(" OCV {}%", num(soc, 0)));
+    }
+    if let (Some(lo), Some(low)) = (pk.v_min_forecast_v, pk.low_threshold_v) {
+        s.push_str(&red_if(format!(" min {} V", num(lo, 2)), colour, lo < low));
+    }
+    s.push_str("  ");
+}
+
+/// The margins: home, and the mission's item, progress, need and margin.
+fn margins_part(s: &mut String, en: &crate::report::EnergyState, colour: bool) {
+    if let Some(h) = en.home_margin_wh {
+        let txt = format!("home {}{} Wh  ", if h >= 0.0 { "+" } else { "" }, num(h, 1));
+        s.push_str(&red_if(txt, colour, h < 0.0));
+    }
+    if let (Some(m), Some(mm)) = (&en.mission, en.mission_margin_wh) {
+        let txt = format!(
+            "mission item {}/{} {}% needs {} Wh margin {}{} Wh  ",
+            m.current_seq,
+            m.items,
+            num(m.progress_pct, 0),
+            num(m.energy_p50_wh, 1),
+            if mm >= 0.0 { "+" } else { "" },
+            num(mm, 1)
+        );
+        s.push_str(&red_if(txt, colour, mm < 0.0));
+    }
+}
+
+/// The link's counters, per-link lines, and SILENT when nothing valid came for 5 s.
+fn link_part(s: &mut String, stats: &IngestStats, rate: f64, colour: bool) {
     let n = stats.snapshot();
     s.push_str(&format!(
         "link {} msg/s ok {} bad {} unk {} gaps {}",
@@ -335,18 +363,6 @@ pub fn detail_line(r: Option<&Report>, stats: &IngestStats, rate: f64, colour: b
             txt.to_string()
         });
     }
-    if let Some(r) = r {
-        let stale = crate::features::stale_names(r.estimate.sample.stale_mask);
-        if !stale.is_empty() {
-            let txt = format!("  stale: {}", stale.join(","));
-            s.push_str(&if colour {
-                txt.yellow().to_string()
-            } else {
-                txt
-            });
-        }
-    }
-    s
 }
 
 /// The fleet view: the link's line, then one row per vehicle (see the module docs).

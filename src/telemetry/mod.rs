@@ -402,7 +402,6 @@ impl Telemetry {
     }
 
     fn ingest(&mut self, t: i64, msg: &MavMessage) {
-        use crate::dialect::{HighresImuUpdatedFlags as F, MavFrame};
         match msg {
             MavMessage::ATTITUDE_QUATERNION(a) => {
                 let q = [a.q1, a.q2, a.q3, a.q4].map(f64::from);
@@ -412,37 +411,7 @@ impl Telemetry {
                 let q = frames::quat_from_euler(a.roll as f64, a.pitch as f64, a.yaw as f64);
                 self.attitude(1, t, q, [a.rollspeed, a.pitchspeed, a.yawspeed]);
             }
-            MavMessage::HIGHRES_IMU(m) => {
-                let f = m.fields_updated;
-                if f.is_empty()
-                    || f.contains(
-                        F::HIGHRES_IMU_UPDATED_XGYRO
-                            | F::HIGHRES_IMU_UPDATED_YGYRO
-                            | F::HIGHRES_IMU_UPDATED_ZGYRO,
-                    )
-                {
-                    self.offer(
-                        Signal::Rates,
-                        2,
-                        t,
-                        &[m.xgyro, m.ygyro, m.zgyro].map(f64::from),
-                    );
-                }
-                if f.is_empty()
-                    || f.contains(
-                        F::HIGHRES_IMU_UPDATED_XACC
-                            | F::HIGHRES_IMU_UPDATED_YACC
-                            | F::HIGHRES_IMU_UPDATED_ZACC,
-                    )
-                {
-                    self.offer(
-                        Signal::Accel,
-                        0,
-                        t,
-                        &[m.xacc, m.yacc, m.zacc].map(f64::from),
-                    );
-                }
-            }
+            MavMessage::HIGHRES_IMU(m) => self.highres_imu(t, m),
             MavMessage::SCALED_IMU(m) => self.milli_imu(
                 (3, 1),
                 t,
@@ -458,17 +427,7 @@ impl Telemetry {
             MavMessage::LOCAL_POSITION_NED(m) => {
                 self.velocity(0, t, [m.vx, m.vy, m.vz].map(f64::from))
             }
-            MavMessage::ODOMETRY(m) => {
-                let v = [m.vx, m.vy, m.vz].map(f64::from);
-                let q = m.q.map(f64::from);
-                match m.child_frame_id {
-                    MavFrame::MAV_FRAME_LOCAL_NED => self.velocity(1, t, v),
-                    MavFrame::MAV_FRAME_BODY_FRD if q.iter().any(|&x| x != 0.0) => {
-                        self.velocity(1, t, frames::rotate(q, v))
-                    }
-                    _ => {}
-                }
-            }
+            MavMessage::ODOMETRY(m) => self.odometry(t, m),
             MavMessage::GLOBAL_POSITION_INT(m) => {
                 self.velocity(2, t, [m.vx, m.vy, m.vz].map(|x| x as f64 * 0.01));
                 self.position(0, t, m.lat, m.lon, m.alt);
@@ -488,22 +447,12 @@ impl Telemetry {
                     h.altitude as f64 * 1e-3,
                 ]);
             }
-            MavMessage::WIND(w) => {
-                let v = frames::wind_from_to_vec(w.speed as f64, w.direction as f64);
-                if v.iter().all(|x| x.is_finite()) {
-                    self.true_wind(0, t, v);
-                } else {
-                    self.nonfinite += 1;
-                }
-            }
-            MavMessage::WIND_COV(w) => {
-                let v = [w.wind_x as f64, w.wind_y as f64];
-                if v.iter().all(|x| x.is_finite()) {
-                    self.true_wind(1, t, v);
-                } else {
-                    self.nonfinite += 1;
-                }
-            }
+            MavMessage::WIND(w) => self.finite_wind(
+                0,
+                t,
+                frames::wind_from_to_vec(w.speed as f64, w.direction as f64),
+            ),
+            MavMessage::WIND_COV(w) => self.finite_wind(1, t, [w.wind_x as f64, w.wind_y as f64]),
             MavMessage::VFR_HUD(h) => {
                 let heading = (h.heading as f64).rem_euclid(360.0);
                 self.offer(Signal::Wind, 2, t, &[h.airspeed as f64, heading]);
@@ -516,22 +465,78 @@ impl Telemetry {
                 self.battery_remaining(s.battery_remaining);
                 self.power(t, msg);
             }
-            MavMessage::NAMED_VALUE_FLOAT(n) => {
-                let name = n.name.to_str().unwrap_or("").trim_end_matches('\0');
-                let i = match name {
-                    "cmd_speed" => 0,
-                    "payload_g" => 1,
-                    "cmd_alt" => 2,
-                    _ => return,
-                };
-                if n.value.is_finite() {
-                    self.mission_msg[i] = Some(n.value);
-                    self.refresh_mission();
-                } else {
-                    self.nonfinite += 1;
-                }
+            MavMessage::NAMED_VALUE_FLOAT(n) => self.named_value(n),
+            _ => {}
+        }
+    }
+
+    /// HIGHRES_IMU: its rates and its accelerations, each where its flags say it was updated
+    /// (no flags: both).
+    fn highres_imu(&mut self, t: i64, m: &crate::dialect::HIGHRES_IMU_DATA) {
+        use crate::dialect::HighresImuUpdatedFlags as F;
+        let f = m.fields_updated;
+        let gyro = F::HIGHRES_IMU_UPDATED_XGYRO
+            | F::HIGHRES_IMU_UPDATED_YGYRO
+            | F::HIGHRES_IMU_UPDATED_ZGYRO;
+        if f.is_empty() || f.contains(gyro) {
+            self.offer(
+                Signal::Rates,
+                2,
+                t,
+                &[m.xgyro, m.ygyro, m.zgyro].map(f64::from),
+            );
+        }
+        let acc =
+            F::HIGHRES_IMU_UPDATED_XACC | F::HIGHRES_IMU_UPDATED_YACC | F::HIGHRES_IMU_UPDATED_ZACC;
+        if f.is_empty() || f.contains(acc) {
+            self.offer(
+                Signal::Accel,
+                0,
+                t,
+                &[m.xacc, m.yacc, m.zacc].map(f64::from),
+            );
+        }
+    }
+
+    /// ODOMETRY's velocity: in the local NED frame as it is, in the body frame rotated by
+    /// its attitude (none given: not used).
+    fn odometry(&mut self, t: i64, m: &crate::dialect::ODOMETRY_DATA) {
+        use crate::dialect::MavFrame;
+        let v = [m.vx, m.vy, m.vz].map(f64::from);
+        let q = m.q.map(f64::from);
+        match m.child_frame_id {
+            MavFrame::MAV_FRAME_LOCAL_NED => self.velocity(1, t, v),
+            MavFrame::MAV_FRAME_BODY_FRD if q.iter().any(|&x| x != 0.0) => {
+                self.velocity(1, t, frames::rotate(q, v))
             }
             _ => {}
+        }
+    }
+
+    /// A wind vector of rank `rank`, counted as non-finite instead where it is.
+    fn finite_wind(&mut self, rank: usize, t: i64, v: [f64; 2]) {
+        if v.iter().all(|x| x.is_finite()) {
+            self.true_wind(rank, t, v);
+        } else {
+            self.nonfinite += 1;
+        }
+    }
+
+    /// The data set's mission values sent as NAMED_VALUE_FLOAT (`cmd_speed`, `payload_g`,
+    /// `cmd_alt`); any other name is not ours.
+    fn named_value(&mut self, n: &crate::dialect::NAMED_VALUE_FLOAT_DATA) {
+        let name = n.name.to_str().unwrap_or("").trim_end_matches('\0');
+        let i = match name {
+            "cmd_speed" => 0,
+            "payload_g" => 1,
+            "cmd_alt" => 2,
+            _ => return,
+        };
+        if n.value.is_finite() {
+            self.mission_msg[i] = Some(n.value);
+            self.refresh_mission();
+        } else {
+            self.nonfinite += 1;
         }
     }
 

@@ -1,6 +1,6 @@
 //! Who the vehicle is: its identity and the autopilot parameters that size its battery
 //! ([`params`]), and the battery facts the energy stage uses, each with where it came from
-//! ([`BatteryFacts`], [`Provenance`]).
+//! ([`crate::report::BatteryFacts`], [`crate::report::Provenance`]).
 //!
 //! No vehicle gets another vehicle's pack: the DJI Matrice 100's TB48D (6 cells, 129.96 Wh)
 //! is the pack of the M100 data set and of the M100's vehicle profile only. Elsewhere the
@@ -20,21 +20,21 @@
 //! empty) and says so in a warning, never silently. No float `ceil`: in floating point
 //! 12.6 / 4.2 is 3.0000000000000004, which `ceil` made 4 cells.
 //!
-//! and [`Provenance`] says which, all the way to the terminal, the JSON lines and the
+//! and [`crate::report::Provenance`] says which, all the way to the terminal, the JSON lines and the
 //! dashboard. A parameter that is absent or out of range falls back to the next column
 //! with one warning, never an error: the vehicle's word is a better default, not a
 //! requirement.
 
 pub mod pack_spec;
 pub mod params;
+mod resolve;
 pub mod store;
 pub mod streams;
 
-use crate::battery::{cell_candidates, Chemistry};
-use crate::report::{
-    BatteryFacts, Provenance, Sourced, DEFAULT_CELL_COUNT, M100_CAPACITY_WH, M100_CELL_COUNT,
-    M100_PACK,
-};
+use crate::battery::Chemistry;
+use crate::report::{M100_CAPACITY_WH, M100_CELL_COUNT, M100_PACK};
+pub(crate) use resolve::cells_from;
+pub use resolve::{battery_from_config, resolve_battery};
 
 /// What the configuration says about the battery (the `[energy]` keys that may be left
 /// to the vehicle).
@@ -66,198 +66,6 @@ impl BatteryConfig {
     }
 }
 
-/// The cell count a pack voltage parameter gives when it is `cells × per_cell` within
-/// ±`tol` V a cell (integer arithmetic on the rounded count: no `ceil`).
-pub(crate) fn cells_from(v: f64, per_cell: f64, tol: f64) -> Option<u32> {
-    let n = (v / per_cell).round();
-    ((1.0..=24.0).contains(&n) && (v - n * per_cell).abs() <= tol * n).then_some(n as u32)
-}
-
-/// Resolve each figure, best first (module docs), from the config, the vehicle's
-/// parameters and the first battery voltage seen (V, whole pack). Out-of-range
-/// parameters are skipped, and each skip is returned as a message for a warning.
-pub fn resolve_battery(
-    cfg: &BatteryConfig,
-    p: &params::VehicleParams,
-    first_voltage_v: Option<f64>,
-) -> (BatteryFacts, Vec<String>) {
-    let mut notes = Vec::new();
-    let mut checked = |name: &str, lo: f64, hi: f64, unit: &str| -> Option<f64> {
-        let v = p.get(name)?;
-        if v.is_finite() && v >= lo && v <= hi {
-            Some(v)
-        } else {
-            notes.push(format!("vehicle parameter {name} = {v}: outside {lo}..={hi} {unit}, ignored: using the config or the default instead"));
-            None
-        }
-    };
-    let cells_param = checked("BAT1_N_CELLS", 1.0, 24.0, "cells").map(|v| v.round() as u32);
-    let cap_param = ["BATT_CAPACITY", "BAT1_CAPACITY"]
-        .into_iter()
-        .find_map(|n| {
-            // PX4's BAT1_CAPACITY is −1 when unset: "absent", not an error.
-            if p.get(n).is_some_and(|v| v == -1.0) {
-                return None;
-            }
-            // 1 Ah to 1,000 Ah: 0 is ArduPilot's "not set", and a number past that is a typo
-            // (1,000,000 mAh), neither a pack.
-            checked(n, 50.0, 999_999.0, "mAh").map(|v| (n, v))
-        });
-    let low = checked("BATT_LOW_VOLT", 0.1, 100.0, "V")
-        .map(|v| Sourced::new(v, Provenance::Parameter("BATT_LOW_VOLT".into())));
-    let crt = checked("BATT_CRT_VOLT", 0.1, 100.0, "V")
-        .map(|v| Sourced::new(v, Provenance::Parameter("BATT_CRT_VOLT".into())));
-    let v_empty = checked("BAT1_V_EMPTY", 2.0, 4.5, "V per cell");
-    // ArduCopter's thrust-scaling voltages: 0 (the default) means off, not a pack.
-    let volt_param = |name: &str| p.get(name).filter(|v| v.is_finite() && *v > 0.0);
-    let max_cells = volt_param("MOT_BAT_VOLT_MAX").and_then(|v| {
-        cells_from(v, 4.2, 0.03)
-            .map(|n| (n, Chemistry::LiPo))
-            .or_else(|| cells_from(v, 4.35, 0.03).map(|n| (n, Chemistry::LiHv)))
-    });
-    let min_cells = volt_param("MOT_BAT_VOLT_MIN").and_then(|v| cells_from(v, 3.3, 0.1));
-
-    let configured = || {
-        cfg.named
-            .clone()
-            .map_or(Provenance::Config, Provenance::Named)
-    };
-    let typed = p.battery_chemistry;
-    let by_type = |c| Sourced::new(c, Provenance::Parameter("BATTERY_STATUS type".into()));
-    let chemistry = match (cfg.chemistry, max_cells) {
-        (Some(c), _) => Sourced::new(c, configured()),
-        // Li-ion and LiFePO4 by the battery's type: MOT_BAT_VOLT_MAX (× 4.2) cannot tell
-        // Li-ion from LiPo; MAVLink's type has no LiHV, so a "LiPo" at 4.35 a cell is one.
-        (None, _) if matches!(typed, Some(Chemistry::LiIon | Chemistry::LiFePo4)) => {
-            by_type(typed.unwrap_or(Chemistry::LiPo))
-        }
-        (None, Some((_, c))) => Sourced::new(c, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
-        (None, None) if typed.is_some() => by_type(typed.unwrap_or(Chemistry::LiPo)),
-        // Nothing says: a LiPo, said as assumed (the band is widened for it).
-        (None, None) => Sourced::new(Chemistry::LiPo, Provenance::Default),
-    };
-    // The first voltage's candidates; what they leave open is said only where the voltage
-    // is what decides the count (below), not beside a count the config or vehicle gave.
-    let voltage_fits = first_voltage_v
-        .filter(|v| v.is_finite() && *v > 1.0)
-        .map(|v| {
-            // An assumed chemistry: the counts a LiPo or a LiHV pack at this voltage could
-            // have (a full 6S LiHV at 26.1 V is also a 7S LiPo at 3.73 V: said, not picked
-            // silently).
-            let mut fits = cell_candidates(chemistry.value, v);
-            if chemistry.source == Provenance::Default {
-                fits.extend(cell_candidates(Chemistry::LiHv, v));
-                fits.sort_unstable();
-                fits.dedup();
-            }
-            (v, fits)
-        });
-    let from_voltage = voltage_fits
-        .as_ref()
-        .and_then(|(_, fits)| fits.first().copied());
-    let info_cells = p.battery_info.and_then(|(_, n)| n);
-    let monitor_cells = p
-        .battery_cells
-        .filter(|n| (2..=24).contains(n))
-        .or(info_cells);
-    let cell_count = match (
-        cfg.cell_count,
-        cells_param.or(monitor_cells),
-        max_cells,
-        min_cells,
-        from_voltage,
-    ) {
-        (Some(n), ..) => Sourced::new(n, configured()),
-        (None, Some(n), ..) if cells_param.is_some() => {
-            Sourced::new(n, Provenance::Parameter("BAT1_N_CELLS".into()))
-        }
-        (None, Some(n), ..) if p.battery_cells.is_some_and(|c| c == n) => Sourced::new(
-            n,
-            Provenance::Parameter("BATTERY_STATUS cell voltages".into()),
-        ),
-        (None, Some(n), ..) => Sourced::new(n, Provenance::Parameter("BATTERY_INFO".into())),
-        (None, None, Some((n, _)), ..) => {
-            Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MAX".into()))
-        }
-        (None, None, None, Some(n), _) => {
-            Sourced::new(n, Provenance::Parameter("MOT_BAT_VOLT_MIN".into()))
-        }
-        (None, None, None, None, Some(n)) => Sourced::new(n, Provenance::FirstVoltage),
-        (None, None, None, None, None) => Sourced::new(DEFAULT_CELL_COUNT, Provenance::Default),
-    };
-    if let (Some((v, fits)), Provenance::FirstVoltage | Provenance::Default) =
-        (&voltage_fits, &cell_count.source)
-    {
-        let name = chemistry.value.name();
-        if fits.len() > 1 {
-            let list = fits
-                .iter()
-                .map(u32::to_string)
-                .collect::<Vec<_>>()
-                .join(" or ");
-            notes.push(format!(
-                "battery voltage {v:.2} V fits {list} {name} cells; taking {} (a pack flies full more often than nearly empty) — set [energy] cell_count to be sure",
-                fits[0]
-            ));
-        } else if fits.is_empty() {
-            notes.push(format!(
-                "battery voltage {v:.2} V fits no {name} pack of 1-16 cells"
-            ));
-        }
-    }
-    let nominal_cell_v = cfg.nominal_cell_v.unwrap_or(chemistry.value.nominal_v());
-    let capacity_wh = match (cfg.capacity_wh, cap_param) {
-        (Some(wh), _) => Some(Sourced::new(wh, configured())),
-        // mAh × cells × nominal is only a capacity when the cells are known, not assumed.
-        (None, Some((name, mah))) if cell_count.source != Provenance::Default => {
-            Some(Sourced::new(
-                mah / 1000.0 * f64::from(cell_count.value) * nominal_cell_v,
-                Provenance::Parameter(name.into()),
-            ))
-        }
-        (None, Some((name, _))) => {
-            notes.push(format!("vehicle parameter {name} gives the charge but nothing gives the cells (no battery voltage that fits a pack yet): capacity not known"));
-            None
-        }
-        // A smart battery's own word (BATTERY_INFO), with the cells known.
-        (None, None) => p
-            .battery_info
-            .and_then(|(ah, _)| ah)
-            .filter(|_| cell_count.source != Provenance::Default)
-            .map(|ah| {
-                Sourced::new(
-                    ah * f64::from(cell_count.value) * nominal_cell_v,
-                    Provenance::Parameter("BATTERY_INFO".into()),
-                )
-            }),
-    };
-    let critical_voltage_v = crt.or_else(|| {
-        v_empty.map(|v| {
-            Sourced::new(
-                v * f64::from(cell_count.value),
-                Provenance::Parameter("BAT1_V_EMPTY".into()),
-            )
-        })
-    });
-    let chemistry = Sourced::new(chemistry.value.name().to_string(), chemistry.source);
-    (
-        BatteryFacts {
-            capacity_wh,
-            cell_count,
-            chemistry,
-            low_voltage_v: low,
-            critical_voltage_v,
-            rated_capacity_wh: None,
-        },
-        notes,
-    )
-}
-
-/// The facts with nothing from the vehicle: config, else defaults.
-pub fn battery_from_config(cfg: &BatteryConfig) -> BatteryFacts {
-    resolve_battery(cfg, &params::VehicleParams::default(), None).0
-}
-
 /// The pack's identity from BATTERY_INFO: its `serial_number` (ASCII, 0-terminated),
 /// trimmed of blanks. Empty, all zeros, blanks or not text is no identity: such a monitor
 /// does not tell its packs apart (BATTERY_INFO and BATTERY_STATUS `id` only says which of
@@ -275,6 +83,7 @@ pub fn pack_identity(b: &crate::dialect::BATTERY_INFO_DATA) -> Option<String> {
 mod tests {
     use super::params::VehicleParams;
     use super::*;
+    use crate::report::{BatteryFacts, Provenance, Sourced};
 
     #[test]
     fn a_pack_is_told_by_its_serial_and_a_blank_one_is_no_pack() {

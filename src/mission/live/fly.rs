@@ -40,57 +40,7 @@ impl LiveMission {
             tracing::warn!("{source}: the mission flies nowhere (no take-off, no waypoint); no mission forecast");
             return None;
         }
-        // Each fitted correction belongs to its model: the members that do not run are left
-        // out; with none of them, no correction (the P90 ratio, the by-flight spread, still
-        // applies). Only the members' models run: live, nothing reads the others.
-        let fitted = &self.setup.forecast.calibration;
-        let runs = |name: &str| self.setup.models.iter().any(|m| m.name() == name);
-        let missing: Vec<&str> = fitted
-            .members
-            .iter()
-            .map(|m| m.model.as_str())
-            .filter(|n| !runs(n))
-            .collect();
-        let mut cal = if missing.len() < fitted.members.len() {
-            if !missing.is_empty() {
-                tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile?); the P50 is the mean of the others");
-            }
-            crate::mission::forecast::Calibration {
-                members: fitted
-                    .members
-                    .iter()
-                    .filter(|m| runs(&m.model))
-                    .cloned()
-                    .collect(),
-                ..fitted.clone()
-            }
-        } else {
-            let first = self
-                .setup
-                .models
-                .first()
-                .map(|m| m.name().to_string())
-                .unwrap_or_default();
-            tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected");
-            crate::mission::forecast::Calibration {
-                p90_ratio: fitted.p90_ratio,
-                ..crate::mission::forecast::Calibration::uncorrected(&first)
-            }
-        };
-        // A plane's wing-borne samples: the fixed-wing model, uncorrected (the fitted
-        // correction and spread are the M100's); a plane has nothing else.
-        if matches!(class, VehicleClass::FixedWing | VehicleClass::Vtol) && runs("fixed_wing") {
-            if class == VehicleClass::FixedWing {
-                cal.members.clear();
-            }
-            cal.members
-                .push(crate::mission::forecast::Member::of("fixed_wing"));
-            cal.p90_ratio = cal
-                .p90_ratio
-                .max(crate::mission::forecast::UNCALIBRATED_P90);
-            // the live weight was fitted with the multirotor's members
-            cal.live_weight = 0.0;
-        }
+        let cal = self.live_calibration(class);
         let live_weight = cal.live_weight;
         // only the members run (the slice `forecast` is given); the models' order is restored after
         let (ran, rest): (Vec<_>, Vec<_>) = std::mem::take(&mut self.setup.models)
@@ -142,6 +92,62 @@ impl LiveMission {
             route_stride,
             live_weight,
         })
+    }
+    /// The forecast's calibration for the models that run live: each fitted correction
+    /// belongs to its model, so the members that do not run are left out.
+    fn live_calibration(&self, class: VehicleClass) -> crate::mission::forecast::Calibration {
+        // Each fitted correction belongs to its model: the members that do not run are left
+        // out; with none of them, no correction (the P90 ratio, the by-flight spread, still
+        // applies). Only the members' models run: live, nothing reads the others.
+        let fitted = &self.setup.forecast.calibration;
+        let runs = |name: &str| self.setup.models.iter().any(|m| m.name() == name);
+        let missing: Vec<&str> = fitted
+            .members
+            .iter()
+            .map(|m| m.model.as_str())
+            .filter(|n| !runs(n))
+            .collect();
+        let mut cal = if missing.len() < fitted.members.len() {
+            if !missing.is_empty() {
+                tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile?); the P50 is the mean of the others");
+            }
+            crate::mission::forecast::Calibration {
+                members: fitted
+                    .members
+                    .iter()
+                    .filter(|m| runs(&m.model))
+                    .cloned()
+                    .collect(),
+                ..fitted.clone()
+            }
+        } else {
+            let first = self
+                .setup
+                .models
+                .first()
+                .map(|m| m.name().to_string())
+                .unwrap_or_default();
+            tracing::warn!("mission forecast: {missing:?} do not run (no [forecast.live] calibrated_profile); the P50 follows {first:?} uncorrected");
+            crate::mission::forecast::Calibration {
+                p90_ratio: fitted.p90_ratio,
+                ..crate::mission::forecast::Calibration::uncorrected(&first)
+            }
+        };
+        // A plane's wing-borne samples: the fixed-wing model, uncorrected (the fitted
+        // correction and spread are the M100's); a plane has nothing else.
+        if matches!(class, VehicleClass::FixedWing | VehicleClass::Vtol) && runs("fixed_wing") {
+            if class == VehicleClass::FixedWing {
+                cal.members.clear();
+            }
+            cal.members
+                .push(crate::mission::forecast::Member::of("fixed_wing"));
+            cal.p90_ratio = cal
+                .p90_ratio
+                .max(crate::mission::forecast::UNCALIBRATED_P90);
+            // the live weight was fitted with the multirotor's members
+            cal.live_weight = 0.0;
+        }
+        cal
     }
 }
 

@@ -303,6 +303,91 @@ impl Builder<'_> {
     }
 }
 
+impl Builder<'_> {
+    /// Fly item `i` (at `target`, loitering at `radius`): its label, or None for an item
+    /// that flies nothing (a speed change, a transition already made, an item not modelled).
+    fn fly_item(
+        &mut self,
+        plan: &Plan,
+        i: usize,
+        target: Option<V3>,
+        radius: f64,
+    ) -> Option<String> {
+        let item = &plan.items[i];
+        let vtol = self.vtol;
+        Some(match item.kind {
+            ItemKind::ChangeSpeed { speed_m_s } => {
+                if speed_m_s > 0.0 {
+                    self.airspeed = speed_m_s;
+                }
+                return None;
+            }
+            ItemKind::Takeoff { alt_m } | ItemKind::VtolTakeoff { alt_m } => {
+                self.takeoff(target, next_position(plan, i), alt_m).into()
+            }
+            ItemKind::Waypoint { .. }
+            | ItemKind::NotModelled {
+                flown_through: true,
+                ..
+            }
+            | ItemKind::LoiterUnlimited => match target {
+                Some(t) => {
+                    self.onto_wing(t.xy());
+                    self.turn_toward(t.xy());
+                    self.straight_to(t);
+                    match item.kind {
+                        ItemKind::NotModelled { command, .. } => format!("not modelled {command}"),
+                        ItemKind::LoiterUnlimited => "loiter unlimited (flown through)".into(),
+                        _ => "waypoint".into(),
+                    }
+                }
+                None => return None,
+            },
+            ItemKind::LoiterTime { time_s } => {
+                let c0 = target.unwrap_or(self.pos);
+                self.onto_wing(c0.xy());
+                self.loiter(c0, radius, None, time_s);
+                "loiter".into()
+            }
+            ItemKind::LoiterTurns { turns } => {
+                let c0 = target.unwrap_or(self.pos);
+                self.onto_wing(c0.xy());
+                self.loiter(c0, radius, Some(turns), 0.0);
+                "loiter turns".into()
+            }
+            ItemKind::VtolTransition { to_fw } => {
+                if !vtol || !self.airborne || to_fw != self.on_rotors {
+                    return None;
+                }
+                self.transition(to_fw);
+                if to_fw {
+                    "transition to fw"
+                } else {
+                    "transition to mc"
+                }
+                .into()
+            }
+            ItemKind::Land | ItemKind::VtolLand | ItemKind::ReturnToLaunch => {
+                let at = match item.kind {
+                    ItemKind::ReturnToLaunch => Some(V2::zeros()),
+                    _ => target.map(|t| t.xy()),
+                };
+                // a VTOL lands on its rotors after VTOL_LAND and RTL (ArduPlane's
+                // Q_RTL_MODE), a plane glides in
+                let on_rotors = !matches!(item.kind, ItemKind::Land);
+                self.land(at, on_rotors);
+                match item.kind {
+                    ItemKind::ReturnToLaunch => "rtl",
+                    ItemKind::VtolLand => "vtol land",
+                    _ => "land",
+                }
+                .into()
+            }
+            ItemKind::NotModelled { .. } => return None,
+        })
+    }
+}
+
 /// The next position after item `i` (for the take-off's heading).
 fn next_position(plan: &Plan, i: usize) -> Option<V2> {
     plan.items[i + 1..].iter().find_map(|it| {
@@ -345,75 +430,8 @@ pub(super) fn segments(
         b.dist = 0.0;
         let first = b.segs.len();
         let radius = item.loiter_radius_m.unwrap_or(f.loiter_radius_m);
-        let label: String = match item.kind {
-            ItemKind::ChangeSpeed { speed_m_s } => {
-                if speed_m_s > 0.0 {
-                    b.airspeed = speed_m_s;
-                }
-                continue;
-            }
-            ItemKind::Takeoff { alt_m } | ItemKind::VtolTakeoff { alt_m } => {
-                b.takeoff(target, next_position(plan, i), alt_m).into()
-            }
-            ItemKind::Waypoint { .. }
-            | ItemKind::NotModelled {
-                flown_through: true,
-                ..
-            }
-            | ItemKind::LoiterUnlimited => match target {
-                Some(t) => {
-                    b.onto_wing(t.xy());
-                    b.turn_toward(t.xy());
-                    b.straight_to(t);
-                    match item.kind {
-                        ItemKind::NotModelled { command, .. } => format!("not modelled {command}"),
-                        ItemKind::LoiterUnlimited => "loiter unlimited (flown through)".into(),
-                        _ => "waypoint".into(),
-                    }
-                }
-                None => continue,
-            },
-            ItemKind::LoiterTime { time_s } => {
-                let c0 = target.unwrap_or(b.pos);
-                b.onto_wing(c0.xy());
-                b.loiter(c0, radius, None, time_s);
-                "loiter".into()
-            }
-            ItemKind::LoiterTurns { turns } => {
-                let c0 = target.unwrap_or(b.pos);
-                b.onto_wing(c0.xy());
-                b.loiter(c0, radius, Some(turns), 0.0);
-                "loiter turns".into()
-            }
-            ItemKind::VtolTransition { to_fw } => {
-                if !vtol || !b.airborne || to_fw != b.on_rotors {
-                    continue;
-                }
-                b.transition(to_fw);
-                if to_fw {
-                    "transition to fw"
-                } else {
-                    "transition to mc"
-                }
-                .into()
-            }
-            ItemKind::Land | ItemKind::VtolLand | ItemKind::ReturnToLaunch => {
-                let at = match item.kind {
-                    ItemKind::ReturnToLaunch => Some(V2::zeros()),
-                    _ => target.map(|t| t.xy()),
-                };
-                // a VTOL lands on its rotors after VTOL_LAND and RTL (ArduPlane's
-                // Q_RTL_MODE), a plane glides in
-                let on_rotors = !matches!(item.kind, ItemKind::Land);
-                b.land(at, on_rotors);
-                match item.kind {
-                    ItemKind::ReturnToLaunch => "rtl",
-                    ItemKind::VtolLand => "vtol land",
-                    _ => "land",
-                }
-                .into()
-            }
-            ItemKind::NotModelled { .. } => continue,
+        let Some(label) = b.fly_item(plan, i, target, radius) else {
+            continue;
         };
         if b.segs.len() > first || b.dist > 0.0 {
             legs.push(Leg {

@@ -238,6 +238,89 @@ pub fn read_flights(path: &Path, want: Option<&[u32]>) -> Result<DataSet> {
     parse_flights(&bytes, &path.display().to_string(), want)
 }
 
+/// The header's columns that [`parse_flights`] reads, by position.
+struct Columns {
+    n: usize,
+    flight: usize,
+    time: usize,
+    sensor: Vec<usize>,
+    meta: Vec<usize>,
+}
+
+impl Columns {
+    /// Every column this reader needs, or the first missing one named.
+    fn of(header: &str, path: &Path) -> Result<Self> {
+        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let col = |name: &str| -> Result<usize> {
+            names.iter().position(|n| *n == name).with_context(|| {
+                format!(
+                    "{}: line 1: no '{name}' column in the header (is this the M100 flights.csv?)",
+                    path.display()
+                )
+            })
+        };
+        Ok(Self {
+            n: names.len(),
+            flight: col("flight")?,
+            time: col("time")?,
+            sensor: SENSOR_COLUMNS
+                .iter()
+                .map(|n| col(n))
+                .collect::<Result<_>>()?,
+            meta: META_COLUMNS.iter().map(|n| col(n)).collect::<Result<_>>()?,
+        })
+    }
+}
+
+/// Field `c` (column `name`) as a finite number, else why not.
+fn field_num(fields: &[&str], c: usize, name: &str) -> std::result::Result<f64, String> {
+    match fields[c].trim().parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(format!(
+            "column '{name}': '{}' is not a finite number",
+            fields[c]
+        )),
+    }
+}
+
+/// The row's 20 sensor values, else why the row is skipped.
+fn sensor_values(fields: &[&str], cols: &Columns) -> std::result::Result<[f64; 20], String> {
+    let mut v = [0f64; 20];
+    for (k, &c) in cols.sensor.iter().enumerate() {
+        v[k] = field_num(fields, c, SENSOR_COLUMNS[k])?;
+    }
+    Ok(v)
+}
+
+/// A flight's metadata from its first row (no rows yet), else why the row is skipped.
+fn new_flight(fields: &[&str], cols: &Columns, flight: u32) -> std::result::Result<Flight, String> {
+    let c_meta = &cols.meta;
+    let (speed, payload) = match (
+        field_num(fields, c_meta[0], "speed"),
+        field_num(fields, c_meta[1], "payload"),
+    ) {
+        (Ok(s), Ok(p)) => (s, p),
+        (Err(e), _) | (_, Err(e)) => return Err(e),
+    };
+    let alt_text = fields[c_meta[2]].trim();
+    let Some(altitude) = parse_altitude(alt_text) else {
+        return Err(format!(
+            "column 'altitude': '{alt_text}' is not an altitude"
+        ));
+    };
+    Ok(Flight {
+        flight,
+        route: fields[c_meta[5]].trim().to_string(),
+        speed_m_s: speed,
+        payload_g: payload,
+        altitude_m: altitude,
+        altitude_text: alt_text.to_string(),
+        date: fields[c_meta[3]].trim().to_string(),
+        time_day: fields[c_meta[4]].trim().to_string(),
+        rows: Vec::new(),
+    })
+}
+
 /// [`read_flights`] on the file's (decompressed) bytes; `origin` names the file in errors
 /// and warnings. Separate so the fuzz targets can feed it bytes without a file.
 pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result<DataSet> {
@@ -245,28 +328,12 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
     let text = std::str::from_utf8(bytes)
         .with_context(|| format!("{}: not UTF-8 text", path.display()))?;
     let mut lines = text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
-    let header = lines.next().unwrap_or("");
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
-    let col = |name: &str| -> Result<usize> {
-        names.iter().position(|n| *n == name).with_context(|| {
-            format!(
-                "{}: line 1: no '{name}' column in the header (is this the M100 flights.csv?)",
-                path.display()
-            )
-        })
-    };
-    let c_flight = col("flight")?;
-    let c_time = col("time")?;
-    let c_sensor: Vec<usize> = SENSOR_COLUMNS
-        .iter()
-        .map(|n| col(n))
-        .collect::<Result<_>>()?;
-    let c_meta: Vec<usize> = META_COLUMNS.iter().map(|n| col(n)).collect::<Result<_>>()?;
+    let cols = Columns::of(lines.next().unwrap_or(""), path)?;
 
     let mut flights: std::collections::BTreeMap<u32, Flight> = Default::default();
     let mut skipped = Vec::new();
     let mut all: Vec<u32> = Vec::new();
-    let mut fields: Vec<&str> = Vec::with_capacity(names.len());
+    let mut fields: Vec<&str> = Vec::with_capacity(cols.n);
     for (i, line) in lines.enumerate() {
         let lineno = i + 2;
         if line.trim().is_empty() {
@@ -280,18 +347,18 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
                 reason,
             })
         };
-        if fields.len() != names.len() {
+        if fields.len() != cols.n {
             skip(format!(
                 "{} fields, the header has {}",
                 fields.len(),
-                names.len()
+                cols.n
             ));
             continue;
         }
-        let Ok(flight) = fields[c_flight].trim().parse::<u32>() else {
+        let Ok(flight) = fields[cols.flight].trim().parse::<u32>() else {
             skip(format!(
                 "column 'flight': '{}' is not a flight number",
-                fields[c_flight]
+                fields[cols.flight]
             ));
             continue;
         };
@@ -301,65 +368,25 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
         if want.is_some_and(|w| !w.contains(&flight)) {
             continue;
         }
-        let num = |c: usize, name: &str| -> std::result::Result<f64, String> {
-            match fields[c].trim().parse::<f64>() {
-                Ok(x) if x.is_finite() => Ok(x),
-                _ => Err(format!(
-                    "column '{name}': '{}' is not a finite number",
-                    fields[c]
-                )),
-            }
-        };
-        let time = match num(c_time, "time") {
-            Ok(t) => t,
+        let (time, v) = match field_num(&fields, cols.time, "time")
+            .and_then(|t| Ok((t, sensor_values(&fields, &cols)?)))
+        {
+            Ok(tv) => tv,
             Err(e) => {
                 skip(e);
                 continue;
             }
         };
-        let mut v = [0f64; 20];
-        let mut bad = None;
-        for (k, &c) in c_sensor.iter().enumerate() {
-            match num(c, SENSOR_COLUMNS[k]) {
-                Ok(x) => v[k] = x,
-                Err(e) => {
-                    bad = Some(e);
-                    break;
-                }
-            }
-        }
-        if let Some(e) = bad {
-            skip(e);
-            continue;
-        }
         let f = match flights.entry(flight) {
             std::collections::btree_map::Entry::Occupied(o) => o.into_mut(),
             std::collections::btree_map::Entry::Vacant(e) => {
-                let (speed, payload) = match (num(c_meta[0], "speed"), num(c_meta[1], "payload")) {
-                    (Ok(s), Ok(p)) => (s, p),
-                    (Err(e), _) | (_, Err(e)) => {
-                        skip(e);
+                match new_flight(&fields, &cols, flight) {
+                    Ok(f) => e.insert(f),
+                    Err(why) => {
+                        skip(why);
                         continue;
                     }
-                };
-                let alt_text = fields[c_meta[2]].trim();
-                let Some(altitude) = parse_altitude(alt_text) else {
-                    skip(format!(
-                        "column 'altitude': '{alt_text}' is not an altitude"
-                    ));
-                    continue;
-                };
-                e.insert(Flight {
-                    flight,
-                    route: fields[c_meta[5]].trim().to_string(),
-                    speed_m_s: speed,
-                    payload_g: payload,
-                    altitude_m: altitude,
-                    altitude_text: alt_text.to_string(),
-                    date: fields[c_meta[3]].trim().to_string(),
-                    time_day: fields[c_meta[4]].trim().to_string(),
-                    rows: Vec::new(),
-                })
+                }
             }
         };
         if f.rows.last().is_some_and(|r| r.time_s >= time) {
@@ -370,6 +397,18 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
         }
         f.rows.push(Row::from_values(time, &v));
     }
+    warn_skipped(path, &skipped);
+    all.sort_unstable();
+    all.dedup();
+    Ok(DataSet {
+        flights: flights.into_values().collect(),
+        skipped,
+        all_flights: all,
+    })
+}
+
+/// The first five skipped rows, each with its reason, then how many in all.
+fn warn_skipped(path: &Path, skipped: &[SkippedRow]) {
     for s in skipped.iter().take(5) {
         tracing::warn!(
             "{}: line {}: row skipped: {}",
@@ -381,13 +420,6 @@ pub fn parse_flights(bytes: &[u8], origin: &str, want: Option<&[u32]>) -> Result
     if skipped.len() > 5 {
         tracing::warn!("{}: {} rows skipped in all", path.display(), skipped.len());
     }
-    all.sort_unstable();
-    all.dedup();
-    Ok(DataSet {
-        flights: flights.into_values().collect(),
-        skipped,
-        all_flights: all,
-    })
 }
 
 /// One flight of the official `flights.csv[.gz]` encoded as an in-memory `.tlog`: every row
