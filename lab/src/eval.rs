@@ -102,41 +102,9 @@ pub const PAPER_TABLE2: [(&str, f64, f64); 7] = [
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let data = args.data.path();
     let cfg = args.config.load()?;
-    let cal = {
-        let p = args.calibrated.profile()?;
-        if p.calibration.is_none() {
-            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt-lab calibrate`", args.calibrated.describe());
-        }
-        Some(p)
-    };
-    let mut ensemble = Ensemble::new(eval_models(&cfg, cal.as_ref())?);
-    if args.adapt {
-        let payload = args.payload_g.or(cfg.mission.payload_g);
-        let ad = dronewatt::model::build_adaptation(
-            &cfg.models.adapt,
-            cfg.vehicle.as_deref(),
-            &cfg.telemetry,
-            payload,
-            &ensemble.names(),
-        )?;
-        ensemble = ensemble.with_adaptation(ad);
-    }
-    let mut chain = Chain::new(&cfg, ensemble)?;
+    let mut chain = build_chain(&args, &cfg)?;
     let names = chain.names().to_vec();
-    let wanted: Option<Vec<u32>> = match (args.flight, args.split) {
-        (Some(n), _) => Some(vec![n]),
-        (None, Some(Split::Cvar)) => {
-            let present = list_flights(&data)?;
-            let t: Vec<u32> = TEST_FLIGHTS
-                .iter()
-                .copied()
-                .filter(|n| present.iter().any(|f| f.flight == *n))
-                .collect();
-            tracing::info!(flights = ?t, "cvar split: the test flights present in the file");
-            Some(t)
-        }
-        (None, None) => None,
-    };
+    let wanted = wanted_flights(&args, &data)?;
     let mut flights = load_flights(&data, wanted.as_deref(), &cfg.telemetry, &cfg.mission)
         .with_context(|| format!("{}: cannot load flights", data.display()))?;
     if let Some(g) = args.payload_g {
@@ -170,41 +138,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     }
     bar.finish_and_clear();
     if let Some(dir) = &args.plot {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create plot folder", dir.display()))?;
-        for s in &series {
-            // Published parameters (and any non-physics model) on top, calibrated below.
-            let lines = |cal: bool| {
-                names
-                    .iter()
-                    .zip(&s.pred_w)
-                    .filter(|(n, _)| n.ends_with("_cal") == cal)
-                    .map(|(n, p)| plot::Series {
-                        label: n,
-                        power_w: p,
-                    })
-                    .collect()
-            };
-            let mut panels = vec![plot::Panel {
-                caption: "as published".into(),
-                series: lines(false),
-            }];
-            if cal.is_some() {
-                panels.push(plot::Panel {
-                    caption: "calibrated on training flights".into(),
-                    series: lines(true),
-                });
-            }
-            let path = dir.join(format!("flight-{}.png", s.flight));
-            plot::power_over_flight(
-                &path,
-                &format!("Flight {}: models vs measured power", s.flight),
-                &s.t_s,
-                &s.measured_w,
-                &panels,
-            )?;
-            eprintln!("wrote {}", path.display());
-        }
+        plot_flights(dir, &names, &series)?;
     }
     let per_flight: Vec<Vec<Option<Scores>>> =
         series.iter().map(|s| s.scores(args.all_windows)).collect();
@@ -274,6 +208,93 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if args.paper_scales {
         println!();
         print!("{}", paper_scales(&names, &series));
+    }
+    Ok(())
+}
+
+/// The evaluation chain: every model (the calibrated ones beside), adapted when asked.
+fn build_chain(args: &EvalArgs, cfg: &dronewatt::config::Config) -> anyhow::Result<Chain> {
+    let cal = {
+        let p = args.calibrated.profile()?;
+        if p.calibration.is_none() {
+            anyhow::bail!("{}: not a calibrated profile (no [calibration] table); write one with `dronewatt-lab calibrate`", args.calibrated.describe());
+        }
+        Some(p)
+    };
+    let mut ensemble = Ensemble::new(eval_models(cfg, cal.as_ref())?);
+    if args.adapt {
+        let payload = args.payload_g.or(cfg.mission.payload_g);
+        let ad = dronewatt::model::build_adaptation(
+            &cfg.models.adapt,
+            cfg.vehicle.as_deref(),
+            &cfg.telemetry,
+            payload,
+            &ensemble.names(),
+        )?;
+        ensemble = ensemble.with_adaptation(ad);
+    }
+    Chain::new(cfg, ensemble)
+}
+
+/// The flights asked for: one, the test split's present in the file, or all (None).
+fn wanted_flights(args: &EvalArgs, data: &std::path::Path) -> anyhow::Result<Option<Vec<u32>>> {
+    Ok(match (args.flight, args.split) {
+        (Some(n), _) => Some(vec![n]),
+        (None, Some(Split::Cvar)) => {
+            let present = list_flights(data)?;
+            let t: Vec<u32> = TEST_FLIGHTS
+                .iter()
+                .copied()
+                .filter(|n| present.iter().any(|f| f.flight == *n))
+                .collect();
+            tracing::info!(flights = ?t, "cvar split: the test flights present in the file");
+            Some(t)
+        }
+        (None, None) => None,
+    })
+}
+
+/// A plot of each flight: the models as published on top, the calibrated ones below.
+fn plot_flights(
+    dir: &std::path::Path,
+    names: &[String],
+    series: &[FlightSeries],
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create plot folder", dir.display()))?;
+    for s in series {
+        // Published parameters (and any non-physics model) on top, calibrated below.
+        let lines = |cal: bool| {
+            names
+                .iter()
+                .zip(&s.pred_w)
+                .filter(|(n, _)| n.ends_with("_cal") == cal)
+                .map(|(n, p)| plot::Series {
+                    label: n,
+                    power_w: p,
+                })
+                .collect()
+        };
+        // (`eval` requires a calibrated profile: both panels are there.)
+        let panels = vec![
+            plot::Panel {
+                caption: "as published".into(),
+                series: lines(false),
+            },
+            plot::Panel {
+                caption: "calibrated on training flights".into(),
+                series: lines(true),
+            },
+        ];
+        let path = dir.join(format!("flight-{}.png", s.flight));
+        plot::power_over_flight(
+            &path,
+            &format!("Flight {}: models vs measured power", s.flight),
+            &s.t_s,
+            &s.measured_w,
+            &panels,
+        )?;
+        eprintln!("wrote {}", path.display());
     }
     Ok(())
 }
