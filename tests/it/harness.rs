@@ -349,3 +349,52 @@ impl Drop for Monitor {
         }
     }
 }
+
+/// A JSON array of arrays of numbers (a peer's dump) as rows.
+pub fn json_rows(v: &Value) -> Vec<Vec<f64>> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            r.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect()
+}
+
+/// A log reader's SYS_STATUS, one for each of the log's battery rows (`bat`: time µs,
+/// volts, amps, as the peer dumped them): at the row's time from the first, with its volts
+/// and amps to the message's resolution.
+pub fn assert_sys_status_is_the_logs_battery(
+    msgs: &[dronewatt::source::TimedMessage],
+    bat: &[Vec<f64>],
+) {
+    let power: Vec<(f64, f64, f64)> = msgs
+        .iter()
+        .filter_map(|m| {
+            if let dronewatt::MavMessage::SYS_STATUS(s) = &m.msg {
+                Some((
+                    m.t_s,
+                    s.voltage_battery as f64 * 1e-3,
+                    s.current_battery as f64 * 0.01,
+                ))
+            } else {
+                None
+            }
+        })
+        .collect();
+    assert_eq!(power.len(), bat.len());
+    for (p, r) in power.iter().zip(bat) {
+        assert!(
+            (p.0 - (r[0] - bat[0][0]) * 1e-6 - power[0].0).abs() < 1e-6,
+            "{p:?} vs {r:?}"
+        );
+        assert!(
+            (p.1 - r[1]).abs() < 1e-3 && (p.2 - r[2]).abs() < 1e-2,
+            "{p:?} vs {r:?}"
+        );
+    }
+}

@@ -6,24 +6,13 @@
 //! PX4-encoded parameters); `learn` on three `.ulg` logs scores the same held-out MAPE as
 //! on the same flights as `.tlog`; and `replay FILE.ulg` runs.
 
-use crate::harness::{dronewatt, learn_scores_as_on_tlog, simulate_x500, RunExt};
+use crate::harness::{
+    assert_sys_status_is_the_logs_battery, dronewatt, json_rows as rows, learn_scores_as_on_tlog,
+    simulate_x500, RunExt,
+};
 
 use dronewatt::MavMessage;
 use serde_json::Value;
-
-fn rows(v: &Value) -> Vec<Vec<f64>> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|r| {
-            r.as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        })
-        .collect()
-}
 
 #[test]
 fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
@@ -82,32 +71,7 @@ fn pyulog_reads_the_simulated_ulg_as_the_tlog_says() {
             dronewatt::dialect::MavType::MAV_TYPE_QUADROTOR
         )
     );
-    let power: Vec<(f64, f64, f64)> = msgs
-        .iter()
-        .filter_map(|m| {
-            if let MavMessage::SYS_STATUS(s) = &m.msg {
-                Some((
-                    m.t_s,
-                    s.voltage_battery as f64 * 1e-3,
-                    s.current_battery as f64 * 0.01,
-                ))
-            } else {
-                None
-            }
-        })
-        .collect();
-    let bat = rows(&u["bat"]);
-    assert_eq!(power.len(), bat.len());
-    for (p, r) in power.iter().zip(&bat) {
-        assert!(
-            (p.0 - (r[0] - bat[0][0]) * 1e-6 - power[0].0).abs() < 1e-6,
-            "{p:?} vs {r:?}"
-        );
-        assert!(
-            (p.1 - r[1]).abs() < 1e-3 && (p.2 - r[2]).abs() < 1e-2,
-            "{p:?} vs {r:?}"
-        );
-    }
+    assert_sys_status_is_the_logs_battery(&msgs, &rows(&u["bat"]));
     let cells = msgs.iter().find_map(|m| match &m.msg {
         MavMessage::PARAM_VALUE(p)
             if p.param_id
