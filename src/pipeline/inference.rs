@@ -32,7 +32,7 @@ pub struct Batching {
     /// as more keep coming (`FLAT_IDLE`, 2 ms). Never on a live link or a paced replay, where a
     /// window waits for no other.
     pub flat: bool,
-    /// Most windows a batch holds: [`MAX_BATCH`], or what [`MAX_BATCH_ENV`] says (a test's
+    /// Most windows a batch holds: [`MAX_BATCH`], or what `DRONEWATT_MAX_BATCH` says (a test's
     /// knob: 1 runs every window alone, the unbatched path a batched replay must equal).
     pub max: usize,
 }
