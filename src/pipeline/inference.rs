@@ -28,10 +28,32 @@ pub struct Batching {
     pub wait: std::time::Duration,
     /// The heavy models (the LSTM) run on every `heavy_every`-th window of each vehicle.
     pub heavy_every: u64,
-    /// A recorded source played flat out: a batch waits for [`MAX_BATCH`] windows as long
+    /// A recorded source played flat out: a batch waits for [`Batching::max`] windows as long
     /// as more keep coming (`FLAT_IDLE`, 2 ms). Never on a live link or a paced replay, where a
     /// window waits for no other.
     pub flat: bool,
+    /// Most windows a batch holds: [`MAX_BATCH`], or what `DRONEWATT_MAX_BATCH` says (a test's
+    /// knob: 1 runs every window alone, the unbatched path a batched replay must equal).
+    pub max: usize,
+}
+
+/// The environment variable that caps a batch (1..=[`MAX_BATCH`]; anything else is
+/// ignored with a warning). For tests and benchmarks only: the figures do not depend on it,
+/// only the speed does.
+pub const MAX_BATCH_ENV: &str = "DRONEWATT_MAX_BATCH";
+
+/// The batch cap: [`MAX_BATCH`] unless [`MAX_BATCH_ENV`] names a smaller one.
+fn max_batch() -> usize {
+    let Ok(v) = std::env::var(MAX_BATCH_ENV) else {
+        return MAX_BATCH;
+    };
+    match v.trim().parse::<usize>() {
+        Ok(n) if (1..=MAX_BATCH).contains(&n) => n,
+        _ => {
+            tracing::warn!("{MAX_BATCH_ENV}={v:?}: not a batch size 1..={MAX_BATCH}; batches of up to {MAX_BATCH}");
+            MAX_BATCH
+        }
+    }
 }
 
 impl Batching {
@@ -45,6 +67,7 @@ impl Batching {
             wait: std::time::Duration::from_secs_f64(cfg.fleet.batch_wait_ms / 1e3),
             heavy_every: (every as u64).max(1),
             flat: false,
+            max: max_batch(),
         }
     }
 
@@ -134,7 +157,7 @@ fn inference_stage(
         let deadline = tokio::time::Instant::now() + batching.wait;
         b.take(j, &mut seen, batching.heavy_every);
         let wait = seen.len() > 1 && !batching.wait.is_zero();
-        while b.windows.len() < MAX_BATCH {
+        while b.windows.len() < batching.max {
             match jobs.try_recv() {
                 Ok(j) => b.take(j, &mut seen, batching.heavy_every),
                 // Flat out: the windows behind are coming, as fast as the stages before

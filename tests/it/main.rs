@@ -43,6 +43,7 @@ mod pack_any;
 mod peer_multirotor;
 mod pipeline_fleet;
 mod readme_first_command;
+mod replay_batches;
 mod security;
 mod sim_airframes;
 mod sim_dataflash;
