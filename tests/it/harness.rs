@@ -398,3 +398,24 @@ pub fn assert_sys_status_is_the_logs_battery(
         );
     }
 }
+
+/// The JSON lines with the summary's wall-clock fields (its latency and queue peaks) taken
+/// out: everything else must be the same bytes run after run.
+pub fn without_wall_clock(stdout: &str) -> String {
+    stdout
+        .lines()
+        .map(|l| {
+            if !l.contains("\"type\":\"summary\"") {
+                return l.to_string();
+            }
+            let mut v: Value = serde_json::from_str(l).expect("summary JSON");
+            if let Some(o) = v.as_object_mut() {
+                for k in ["latency", "queue_peak", "queue_peak_at_s"] {
+                    o.remove(k);
+                }
+            }
+            v.to_string()
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}

@@ -11,7 +11,7 @@
 //! - an ArduCopter SITL-like pack that never sags (12.6 V at any current): no impossible
 //!   voltage, and it says the pack does not sag, once.
 
-use crate::harness::{dronewatt, json_lines_of, RunExt};
+use crate::harness::{dronewatt, json_lines_of, without_wall_clock, RunExt};
 use dronewatt::sim::guidance::Triangle;
 use dronewatt::sim::{simulate, SimFlight, SimOptions};
 use dronewatt::MavMessage;
@@ -59,27 +59,6 @@ fn estimates(stdout: &str) -> Vec<Value> {
         .into_iter()
         .filter(|l| l["type"] == "estimate")
         .collect()
-}
-
-/// The JSON lines with the summary's wall-clock fields (its latency and queue peaks) taken
-/// out: everything else must be the same bytes run after run.
-fn without_wall_clock(stdout: &str) -> String {
-    stdout
-        .lines()
-        .map(|l| {
-            if !l.contains("\"type\":\"summary\"") {
-                return l.to_string();
-            }
-            let mut v: Value = serde_json::from_str(l).expect("summary JSON");
-            if let Some(o) = v.as_object_mut() {
-                for k in ["latency", "queue_peak", "queue_peak_at_s"] {
-                    o.remove(k);
-                }
-            }
-            v.to_string()
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
 }
 
 #[test]

@@ -10,7 +10,7 @@
 //! run, batched or not). Each run's own count of batches (the inference stage's debug line) shows the two paths
 //! really differ: one batch a window unbatched, far fewer batched.
 
-use crate::harness::{dronewatt, output, RunExt};
+use crate::harness::{dronewatt, output, without_wall_clock, RunExt};
 use serde_json::Value;
 use std::path::Path;
 
@@ -67,26 +67,6 @@ fn field(line: &str, key: &str) -> u64 {
         .next()
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("a number after {key} in {line}"))
-}
-
-/// The JSON lines with the summary's wall-clock fields (latency, queue peaks) taken out.
-fn without_wall_clock(stdout: &str) -> String {
-    stdout
-        .lines()
-        .map(|l| {
-            if !l.contains("\"type\":\"summary\"") {
-                return l.to_string();
-            }
-            let mut v: Value = serde_json::from_str(l).expect("summary JSON");
-            if let Some(o) = v.as_object_mut() {
-                for k in ["latency", "queue_peak", "queue_peak_at_s"] {
-                    o.remove(k);
-                }
-            }
-            v.to_string()
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
 }
 
 /// The lines vehicle by vehicle (by their `system_id`; lines without one, such as the
