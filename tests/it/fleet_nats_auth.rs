@@ -487,17 +487,27 @@ fn a_worker_cannot_take_a_lease_that_has_not_run_out() {
         })
     };
     rt.block_on(async { kv2.create("p3", "worker2.i2".into()).await.unwrap() });
-    send(&w2, "dronewatt.to.worker2.i2.0.3", "w2-holds");
+    // The gateway takes the downlink's frames in order, each judged against the holder at
+    // that moment: a frame from worker2 heard by the vehicle says every frame before it was
+    // judged (and the next step may go on).
+    let mut got = String::new();
+    let mut heard = |tag: &str| {
+        send(&w2, "dronewatt.to.worker2.i2.0.3", tag);
+        got.push_str(&heard_until(&vehicle, tag));
+    };
+    heard("w2-holds");
     // Out of turn, three ways, each right after the holder's write.
     w2_writes();
     rt.block_on(async { kv1.put("p3", "worker1.i1".into()).await.unwrap() });
     send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-overwrote");
+    heard("w2-after-overwrite");
     w2_writes();
     rt.block_on(async {
         kv1.delete("p3").await.unwrap();
         kv1.create("p3", "worker1.i1".into()).await.unwrap();
     });
     send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-recreated");
+    heard("w2-after-recreate");
     // The forged release marker: published, and dropped by the server (not worker1's
     // subtree; a core publish, as no acknowledgement comes).
     rt.block_on(async {
@@ -514,7 +524,7 @@ fn a_worker_cannot_take_a_lease_that_has_not_run_out() {
     send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-forged-release");
     // The holder writes its lease back, and is still heard.
     w2_writes();
-    send(&w2, "dronewatt.to.worker2.i2.0.3", "w2-still");
+    heard("w2-still");
     // Its own release: the marker, the deletion; worker1 takes it and is heard.
     rt.block_on(async {
         kv2.put("r.worker2.i2.p3", "".into()).await.unwrap();
@@ -522,10 +532,16 @@ fn a_worker_cannot_take_a_lease_that_has_not_run_out() {
         kv1.create("p3", "worker1.i1".into()).await.unwrap();
     });
     send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-after-release");
-    let got = heard_until(&vehicle, "w1-after-release");
+    got.push_str(&heard_until(&vehicle, "w1-after-release"));
     let (_, err) = gateway.stop();
     drop(nats);
-    for good in ["w2-holds", "w2-still", "w1-after-release"] {
+    for good in [
+        "w2-holds",
+        "w2-after-overwrite",
+        "w2-after-recreate",
+        "w2-still",
+        "w1-after-release",
+    ] {
         assert!(got.contains(good), "{good} never came: {err}");
     }
     for bad in ["w1-overwrote", "w1-recreated", "w1-forged-release"] {
@@ -540,7 +556,7 @@ fn a_worker_cannot_take_a_lease_that_has_not_run_out() {
         "{err}"
     );
     assert!(
-        err.contains("to the vehicles 3 sent, 3 refused; 3 lease takeovers out of turn refused"),
+        err.contains("to the vehicles 5 sent, 3 refused; 3 lease takeovers out of turn refused"),
         "{err}"
     );
     // The server's answer comes back asynchronously: wait for it (10 s at most).
