@@ -90,9 +90,10 @@ fn the_dashboard_reads_the_fleet_from_nats_and_follows_a_takeover() {
         web,
         true,
     );
+    // 30 s of flight at most: the test stops the fleet once it has seen the takeover.
     let fleet = crate::fleet_nats::fly_fleet(
         port,
-        r#"[{"id": 1, "power_w": 300, "send_s": 14}, {"id": 2, "power_w": 450, "send_s": 14}]"#,
+        r#"[{"id": 1, "power_w": 300, "send_s": 30}, {"id": 2, "power_w": 450, "send_s": 30}]"#,
     );
     // Both vehicles, with estimates, in the fleet table (the fleet's packs are not known to
     // dronewatt, so no remaining energy: the measured power and the energy used are there).
