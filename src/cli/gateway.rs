@@ -27,8 +27,12 @@ use futures_util::StreamExt;
 use tokio::sync::mpsc;
 
 use crate::report::status::{FrameSigner, IngestStats, LinkHandle};
-use crate::source::nats::{self, identity, lease, wire, NatsArgs};
+use crate::source::nats::{self, holders::Holders, identity, lease, wire, NatsArgs};
 use crate::source::{LinkSigning, SourceSpec, TimedMessage};
+
+/// Longest wait for the lease watch to judge the bucket's writes before a frame from a
+/// worker not seen holding its vehicle's partition is refused.
+const CATCH_UP: Duration = Duration::from_secs(1);
 
 /// Publishes in flight before the gateway waits for the oldest acknowledgement.
 pub const ACK_WINDOW: usize = 512;
@@ -45,7 +49,7 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
     let client = nats::connect(&nats, "dronewatt gateway").await?;
     let js = async_nats::jetstream::new(client.clone());
     nats::frames_stream(&js).await?;
-    let leases = nats::bucket(&js, nats::LEASES, nats::LEASE_TTL).await?;
+    let leases = nats::bucket(&js, nats::LEASES, nats::LEASE_TTL, lease::HISTORY).await?;
     let signing = config
         .link
         .load()
@@ -76,7 +80,8 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
         shutdown.clone(),
     ));
     let count = Arc::new(Downlink::default());
-    let down = tokio::spawn(downlink(sub, leases, link, count.clone()));
+    let holders = Holders::default();
+    let down = tokio::spawn(downlink(sub, leases, link, count.clone(), holders.clone()));
     let mut acks = VecDeque::with_capacity(ACK_WINDOW);
     let (mut published, mut failed) = (0u64, 0u64);
     let start = Instant::now();
@@ -107,8 +112,9 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
             _ = report.tick() => {
                 tracing::info!(
                     "gateway: {published} frames stored, {failed} not, {} in flight; to the \
-                     vehicles {} sent, {} refused ({:.0} s)",
+                     vehicles {} sent, {} refused; {} lease takeovers out of turn refused ({:.0} s)",
                     acks.len(), count.sent.load(Relaxed), count.refused.load(Relaxed),
+                    holders.refused(),
                     start.elapsed().as_secs_f64()
                 );
             }
@@ -123,9 +129,10 @@ async fn serve(source: SourceSpec, config: crate::config::Config, nats: NatsArgs
     down.abort();
     tracing::info!(
         "gateway: stopped; {published} frames stored, {failed} not; to the vehicles {} sent, {} \
-         refused",
+         refused; {} lease takeovers out of turn refused",
         count.sent.load(Relaxed),
-        count.refused.load(Relaxed)
+        count.refused.load(Relaxed),
+        holders.refused()
     );
     src.await.context("the links' task")??;
     Ok(())
@@ -144,8 +151,8 @@ async fn downlink(
     leases: async_nats::jetstream::kv::Store,
     link: LinkHandle,
     count: Arc<Downlink>,
+    holders: Holders,
 ) -> Result<()> {
-    let holders = lease::Holders::default();
     let follow = tokio::spawn(holders.clone().follow(leases.clone()));
     while let Some(m) = sub.next().await {
         let Some((sender, net, sys)) = identity::parse_to(m.subject.as_str()) else {
@@ -156,10 +163,14 @@ async fn downlink(
             continue;
         };
         let part = nats::partition(net, sys);
-        // The watched holder first; else (none seen, or another) the bucket itself.
+        // The holder judged from the watch; when it is not the sender, once every write the
+        // bucket holds now is judged (a lease taken just before the frame counts).
         let holder = match holders.live(part) {
             Some(h) if h == sender => Some(h),
-            _ => lease::holder(&leases, part).await,
+            _ => {
+                holders.catch_up(&leases, CATCH_UP).await;
+                holders.live(part)
+            }
         };
         if holder.as_deref() != Some(sender.as_str()) {
             refused(

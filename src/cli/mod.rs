@@ -152,6 +152,21 @@ pub enum Command {
         #[arg(long, value_name = "SECONDS", default_value_t = 3.0, requires = "nats")]
         listen: f64,
     },
+    /// Serve the web dashboard of the whole fleet on NATS, read as a viewer: every
+    /// vehicle's estimates and alerts, whichever worker (`monitor --nats`) holds it.
+    Dashboard {
+        #[command(flatten)]
+        nats: crate::source::nats::NatsArgs,
+        /// Address to serve the dashboard on (overrides the config's `[sinks.web] bind`;
+        /// default 127.0.0.1:8787). Beyond loopback it needs an access token, as
+        /// `[sinks.web]` does.
+        #[arg(long, value_name = "IP:PORT")]
+        bind: Option<String>,
+        /// The dashboard's settings: the config's `[sinks.web]` table (its `enabled` is not
+        /// needed here).
+        #[command(flatten)]
+        config: ConfigArg,
+    },
     /// Validate a configuration file and say what it sets up; with no file, what the
     /// defaults set up (the default alert rules, as TOML to copy).
     CheckConfig {
@@ -311,6 +326,16 @@ pub fn run_command(command: Command) -> Result<()> {
             let listen = std::time::Duration::from_secs_f64(listen);
             print!("{}", crate::source::nats::view::run(&nats, listen, json)?);
             Ok(())
+        }
+        Command::Dashboard { nats, bind, config } => {
+            if nats.nats.is_none() {
+                anyhow::bail!("dashboard: give --nats URL (the fleet's NATS server)");
+            }
+            let mut web = config.load()?.sinks.web;
+            if let Some(b) = bind {
+                web.bind = b;
+            }
+            crate::source::nats::dashboard::run(&nats, web)
         }
         Command::Vehicles { data_dir, json, .. } => {
             let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref())

@@ -9,6 +9,7 @@
 //! counts them ([`ReportRx::missed`]) and says so, never silently.
 
 pub mod jsonl;
+pub mod jsonl_read;
 pub mod pilot;
 pub mod screen;
 pub mod terminal;

@@ -14,11 +14,11 @@ use crate::fleet_nats::server;
 use crate::harness::{dronewatt, Monitor};
 use crate::link_common::free_udp_port;
 
-const CONFIG: &str = include_str!("../../config/nats-server.conf");
+pub(crate) const CONFIG: &str = include_str!("../../config/nats-server.conf");
 
 /// A client logged in as `user` (the shipped config's password), and the server's errors
 /// it was told of (permissions violations).
-async fn login(url: &str, user: &str) -> (async_nats::Client, Arc<Mutex<Vec<String>>>) {
+pub(crate) async fn login(url: &str, user: &str) -> (async_nats::Client, Arc<Mutex<Vec<String>>>) {
     let errors = Arc::new(Mutex::new(Vec::new()));
     let seen = errors.clone();
     let c = async_nats::ConnectOptions::with_user_and_password(
@@ -164,7 +164,7 @@ fn the_shipped_server_config_refuses_strangers_and_keeps_each_role_to_its_subjec
 
 /// `dronewatt gateway udpin:127.0.0.1:PORT` on the NATS server at `url` as the shipped
 /// config's `gateway` user (its password in the file `pw`), listening.
-fn gateway_as_user(url: &str, port: u16, pw: &std::path::Path) -> Monitor {
+pub(crate) fn gateway_as_user(url: &str, port: u16, pw: &std::path::Path) -> Monitor {
     let mut gateway = Monitor::spawn(
         dronewatt()
             .args(["gateway", &format!("udpin:127.0.0.1:{port}"), "--nats", url])
@@ -177,7 +177,7 @@ fn gateway_as_user(url: &str, port: u16, pw: &std::path::Path) -> Monitor {
 }
 
 /// A private file holding `text` (as the password files must be).
-fn private(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
+pub(crate) fn private(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     std::fs::set_permissions(
@@ -204,6 +204,44 @@ fn statustext(text: &str) -> Vec<u8> {
     let mut frame = Vec::new();
     mavlink::write_versioned_msg(&mut frame, mavlink::MavlinkVersion::V2, header, &msg).unwrap();
     frame
+}
+
+/// Vehicle 3's HEARTBEAT frame.
+fn heartbeat() -> Vec<u8> {
+    let hb = dronewatt::MavMessage::HEARTBEAT(dronewatt::dialect::HEARTBEAT_DATA::default());
+    let mut frame = Vec::new();
+    let h = mavlink::MavHeader {
+        system_id: 3,
+        component_id: 1,
+        sequence: 0,
+    };
+    mavlink::write_versioned_msg(&mut frame, mavlink::MavlinkVersion::V2, h, &hb).unwrap();
+    frame
+}
+
+/// Send the vehicle's `frame` to the gateway's `port` (again every second) until the frame
+/// stream holds one (read with `c`'s credentials): the gateway's link has its address then.
+fn hello(
+    rt: &tokio::runtime::Runtime,
+    c: &async_nats::Client,
+    vehicle: &UdpSocket,
+    frame: &[u8],
+    port: u16,
+) {
+    let js = rt.block_on(async { jetstream::new(c.clone()) });
+    let end = Instant::now() + Duration::from_secs(20);
+    let mut next = Instant::now();
+    while rt.block_on(frames_stored(&js)) == 0 {
+        assert!(
+            Instant::now() < end,
+            "the gateway never stored the vehicle's frame"
+        );
+        if Instant::now() >= next {
+            vehicle.send_to(frame, ("127.0.0.1", port)).unwrap();
+            next = Instant::now() + Duration::from_secs(1);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
 
 /// What vehicle `v` hears, as text (its frames' bytes, lossy): until `last` has come and
@@ -238,14 +276,7 @@ fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
     vehicle
         .set_read_timeout(Some(Duration::from_millis(100)))
         .unwrap();
-    let hb = dronewatt::MavMessage::HEARTBEAT(dronewatt::dialect::HEARTBEAT_DATA::default());
-    let mut frame = Vec::new();
-    let h = mavlink::MavHeader {
-        system_id: 3,
-        component_id: 1,
-        sequence: 0,
-    };
-    mavlink::write_versioned_msg(&mut frame, mavlink::MavlinkVersion::V2, h, &hb).unwrap();
+    let frame = heartbeat();
     let rt = tokio::runtime::Runtime::new().unwrap();
     let (w1, w2) = rt.block_on(async {
         let (w1, _) = login(&nats.url, "worker1").await;
@@ -261,9 +292,8 @@ fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
         })
     };
     // The gateway subscribed to the workers' downlink before it listened; the vehicle's
-    // heartbeat gives the link its address (a second to take it in, under load).
-    vehicle.send_to(&frame, ("127.0.0.1", port)).unwrap();
-    std::thread::sleep(Duration::from_secs(1));
+    // heartbeat gives the link its address (taken in once the gateway has stored it).
+    hello(&rt, &w2, &vehicle, &frame, port);
     // Nobody holds partition 3: worker1's frame is refused.
     send(&w1, "dronewatt.to.worker1.i1.0.3", "nobody-holds");
     // worker2 takes partition 3's lease.
@@ -274,7 +304,8 @@ fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
             .unwrap();
         kv.create("p3", "worker2.i2".into()).await.unwrap();
     });
-    std::thread::sleep(Duration::from_millis(300));
+    // No wait: a frame from a worker the gateway does not see holding the partition waits
+    // there until the gateway has judged every lease write the bucket holds.
     // worker1 still holds nothing; forging worker2's subject is the server's to drop.
     send(&w1, "dronewatt.to.worker1.i1.0.3", "not-yours");
     send(&w1, "dronewatt.to.worker2.i2.0.3", "forged");
@@ -328,7 +359,6 @@ fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
             .arg(&json)
             .env("RUST_LOG", "dronewatt=info"),
     );
-    std::thread::sleep(Duration::from_secs(2));
     let fleet = crate::fleet_nats::python()
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
         .args(["--to", &format!("udpout:127.0.0.1:{port}")])
@@ -339,10 +369,17 @@ fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
         .stdout(std::process::Stdio::piped())
         .spawn()
         .expect("run .venv-py/bin/python (make setup creates it)");
-    std::thread::sleep(Duration::from_secs(6));
+    // The viewers listen once the worker estimates both vehicles (the fleet sends 12 s).
+    let end = Instant::now() + Duration::from_secs(30);
+    while !(1..=2)
+        .all(|v| !crate::fleet_nats::estimates(&crate::fleet_nats::lines(&json), v).is_empty())
+        && Instant::now() < end
+    {
+        std::thread::sleep(Duration::from_millis(100));
+    }
     let viewer = |json: bool| {
         let mut c = dronewatt();
-        c.args(["vehicles", "--nats", &nats.url, "--listen", "2"])
+        c.args(["vehicles", "--nats", &nats.url, "--listen", "3"])
             .args(["--nats-user", "viewer", "--nats-password-file"])
             .arg(&vpw);
         if json {
@@ -396,4 +433,141 @@ fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
         );
     }
     assert!(eg.contains(" sent, 0 refused"), "{eg}");
+}
+
+/// A worker cannot take a lease that has not run out: overwriting it, or deleting it (even
+/// with a forged release marker, which the server drops) then creating it, leaves the
+/// holder the holder in the gateway's eyes, and the usurper's frames are refused; the
+/// holder's own release hands the partition over at once.
+#[test]
+fn a_worker_cannot_take_a_lease_that_has_not_run_out() {
+    let Some(nats) = server(Some(CONFIG)) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let pw = private(dir.path(), "gateway.pw", "change-me-gateway\n");
+    let port = free_udp_port();
+    let gateway = gateway_as_user(&nats.url, port, &pw);
+    let vehicle = UdpSocket::bind("127.0.0.1:0").unwrap();
+    vehicle
+        .set_read_timeout(Some(Duration::from_millis(100)))
+        .unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let ((w1, w1_errors), (w2, _)) = rt.block_on(async {
+        (
+            login(&nats.url, "worker1").await,
+            login(&nats.url, "worker2").await,
+        )
+    });
+    hello(&rt, &w2, &vehicle, &heartbeat(), port);
+    let kv = |c: &async_nats::Client| {
+        let c = c.clone();
+        rt.block_on(async move {
+            jetstream::new(c)
+                .get_key_value("dronewatt_leases")
+                .await
+                .unwrap()
+        })
+    };
+    let (kv1, kv2) = (kv(&w1), kv(&w2));
+    let send = |c: &async_nats::Client, subject: &str, text: &str| {
+        rt.block_on(async {
+            c.publish(subject.to_string(), statustext(text).into())
+                .await
+                .unwrap();
+            c.flush().await.unwrap();
+        })
+    };
+    // worker2 (re)writes its lease over whatever is there: what a holder does each second,
+    // and what it does when its renewal is refused while the lease still runs.
+    let w2_writes = || {
+        rt.block_on(async {
+            let rev = kv2.entry("p3").await.unwrap().map_or(0, |e| e.revision);
+            kv2.update("p3", "worker2.i2".into(), rev).await.unwrap();
+        })
+    };
+    rt.block_on(async { kv2.create("p3", "worker2.i2".into()).await.unwrap() });
+    // The gateway takes the downlink's frames in order, each judged against the holder at
+    // that moment: a frame from worker2 heard by the vehicle says every frame before it was
+    // judged (and the next step may go on).
+    let mut got = String::new();
+    let mut heard = |tag: &str| {
+        send(&w2, "dronewatt.to.worker2.i2.0.3", tag);
+        got.push_str(&heard_until(&vehicle, tag));
+    };
+    heard("w2-holds");
+    // Out of turn, three ways, each right after the holder's write.
+    w2_writes();
+    rt.block_on(async { kv1.put("p3", "worker1.i1".into()).await.unwrap() });
+    send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-overwrote");
+    heard("w2-after-overwrite");
+    w2_writes();
+    rt.block_on(async {
+        kv1.delete("p3").await.unwrap();
+        kv1.create("p3", "worker1.i1".into()).await.unwrap();
+    });
+    send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-recreated");
+    heard("w2-after-recreate");
+    // The forged release marker: published, and dropped by the server (not worker1's
+    // subtree; a core publish, as no acknowledgement comes).
+    rt.block_on(async {
+        w1.publish("$KV.dronewatt_leases.r.worker2.i2.p3", "".into())
+            .await
+            .unwrap();
+        w1.flush().await.unwrap();
+    });
+    w2_writes();
+    rt.block_on(async {
+        kv1.delete("p3").await.unwrap();
+        kv1.create("p3", "worker1.i1".into()).await.unwrap();
+    });
+    send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-forged-release");
+    // The holder writes its lease back, and is still heard.
+    w2_writes();
+    heard("w2-still");
+    // Its own release: the marker, the deletion; worker1 takes it and is heard.
+    rt.block_on(async {
+        kv2.put("r.worker2.i2.p3", "".into()).await.unwrap();
+        kv2.delete("p3").await.unwrap();
+        kv1.create("p3", "worker1.i1".into()).await.unwrap();
+    });
+    send(&w1, "dronewatt.to.worker1.i1.0.3", "w1-after-release");
+    got.push_str(&heard_until(&vehicle, "w1-after-release"));
+    let (_, err) = gateway.stop();
+    drop(nats);
+    for good in [
+        "w2-holds",
+        "w2-after-overwrite",
+        "w2-after-recreate",
+        "w2-still",
+        "w1-after-release",
+    ] {
+        assert!(got.contains(good), "{good} never came: {err}");
+    }
+    for bad in ["w1-overwrote", "w1-recreated", "w1-forged-release"] {
+        assert!(!got.contains(bad), "{bad} reached the vehicle: {err}");
+    }
+    assert_eq!(
+        err.matches(
+            "refused a takeover of partition 3 by worker1.i1: worker2.i2's lease still ran"
+        )
+        .count(),
+        3,
+        "{err}"
+    );
+    assert!(
+        err.contains("to the vehicles 5 sent, 3 refused; 3 lease takeovers out of turn refused"),
+        "{err}"
+    );
+    // The server's answer comes back asynchronously: wait for it (10 s at most).
+    let said = || w1_errors.lock().unwrap().join("\n");
+    let end = Instant::now() + Duration::from_secs(10);
+    while !said().contains("dronewatt_leases.r.worker2") && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let errors = said();
+    assert!(
+        errors.contains("dronewatt_leases.r.worker2"),
+        "the server did not refuse the forged release marker: {errors}"
+    );
 }

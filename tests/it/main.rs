@@ -27,6 +27,7 @@ mod energy_select;
 mod features_units;
 mod fleet_nats;
 mod fleet_nats_auth;
+mod fleet_nats_dashboard;
 mod fleet_nats_restart;
 mod fuzz_props;
 mod mission_fleet;

@@ -57,6 +57,7 @@ use axum::routing::get;
 use axum::{Json, Router};
 use tokio_util::sync::CancellationToken;
 
+pub mod feed;
 pub mod guard;
 
 use crate::report::AlertEvent;
@@ -297,25 +298,35 @@ struct RouteView {
 const MAX_ALERTS: usize = 500;
 
 impl Dash {
+    /// Log an alert event and keep the alerts standing.
+    fn record(&mut self, a: &AlertEvent) {
+        if self.alerts.len() == MAX_ALERTS {
+            self.alerts.pop_front();
+        }
+        self.alerts.push_back(a.clone());
+        match a.state {
+            crate::report::AlertState::Raised => {
+                self.active.insert(a.rule.clone(), a.severity);
+                self.messages
+                    .insert(a.rule.clone(), (a.message.clone(), a.t));
+            }
+            crate::report::AlertState::Cleared => {
+                self.active.remove(&a.rule);
+                self.messages.remove(&a.rule);
+            }
+        };
+    }
+
+    /// The most severe alert standing, for the banner.
+    fn worst(&self) -> Option<super::pilot::WorstAlert> {
+        super::pilot::worst_of(&self.active, |rule| self.messages.get(rule).cloned())
+    }
+
     fn add(&mut self, r: &Report, cfg: &WebSinkConfig) {
         for a in &r.alerts {
-            if self.alerts.len() == MAX_ALERTS {
-                self.alerts.pop_front();
-            }
-            self.alerts.push_back(a.clone());
-            match a.state {
-                crate::report::AlertState::Raised => {
-                    self.active.insert(a.rule.clone(), a.severity);
-                    self.messages
-                        .insert(a.rule.clone(), (a.message.clone(), a.t));
-                }
-                crate::report::AlertState::Cleared => {
-                    self.active.remove(&a.rule);
-                    self.messages.remove(&a.rule);
-                }
-            };
+            self.record(a);
         }
-        let worst = super::pilot::worst_of(&self.active, |rule| self.messages.get(rule).cloned());
+        let worst = self.worst();
         let est = &r.estimate;
         self.latest = Some(Latest {
             t: est.t_s,
@@ -474,6 +485,32 @@ pub async fn serve_with_links(
     shutdown: CancellationToken,
     stats: Option<Arc<crate::report::status::IngestStats>>,
 ) -> Result<()> {
+    let fed = cfg.clone();
+    serve_fed(
+        cfg,
+        listener,
+        shutdown,
+        stats,
+        move |dash: Shared| async move {
+            while let Some(r) = rx.next().await {
+                if let Ok(mut d) = dash.lock() {
+                    d.add(&r, &fed);
+                }
+            }
+        },
+    )
+    .await
+}
+
+/// Serve the dashboard on `listener` while `feed` fills it, then `linger_s` more (or until
+/// `shutdown`).
+async fn serve_fed<F: std::future::Future<Output = ()>>(
+    cfg: WebSinkConfig,
+    listener: tokio::net::TcpListener,
+    shutdown: CancellationToken,
+    stats: Option<Arc<crate::report::status::IngestStats>>,
+    feed: impl FnOnce(Shared) -> F,
+) -> Result<()> {
     let token = cfg.token().map_err(anyhow::Error::msg)?;
     let dash: Shared = Arc::default();
     let rules = Arc::new(guard::Rules::new(
@@ -497,11 +534,7 @@ pub async fn serve_with_links(
             .with_graceful_shutdown(async move { stop.cancelled().await })
             .await
     });
-    while let Some(r) = rx.next().await {
-        if let Ok(mut d) = dash.lock() {
-            d.add(&r, &cfg);
-        }
-    }
+    feed(dash).await;
     if cfg.linger_s > 0.0 {
         tracing::info!(
             "web dashboard: source ended; serving {} s more (Ctrl-C ends it)",

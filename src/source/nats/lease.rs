@@ -1,37 +1,94 @@
 //! Leases on partitions in the JetStream key-value bucket [`super::LEASES`]: `p<part>` holds
-//! the worker's id; `w.<id>` registers a live worker. Every entry expires
-//! [`super::LEASE_TTL`] after its last write (the bucket's `max_age`), so a worker that
-//! stops renewing (killed, cut off) loses its leases and its registration by itself.
+//! the worker's id; `w.<id>` registers a live worker; `r.<id>.p<part>` says that worker
+//! released the partition. Every entry expires [`super::LEASE_TTL`] after its last write
+//! (the bucket's `max_age`), so a worker that stops renewing (killed, cut off) loses its
+//! leases and its registration by itself. The bucket keeps [`HISTORY`] values a key.
 //!
 //! Taking a lease is `create` (fails while another holds it); renewing is `update` on the
 //! revision held (fails when it expired and another took it: the lease is lost, and the
-//! partition is stopped); releasing is `delete`.
+//! partition is stopped); releasing is the marker `r.<id>.p<part>` then `delete`.
+//!
+//! **A lease is not taken from a live holder.** The server lets every worker write every
+//! `p<part>` (NATS 2.9 has no per-key permissions that follow the leases), so the rules are
+//! kept by the workers and checked by the gateway ([`super::holders`]):
+//! - the release marker's key carries the releasing worker's NATS user, which the server's
+//!   permissions vouch for (`$KV.dronewatt_leases.r.<user>.>`): a worker cannot release
+//!   another's lease;
+//! - an honest worker takes a deleted `p<part>` only when its previous holder wrote the
+//!   marker, or that holder's lease has run out ([`free`]);
+//! - a holder whose renewal is refused while its lease still runs (someone wrote its key
+//!   before it expired) writes it back ([`reclaim`]) instead of giving the partition up.
 
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::Duration;
 
 use anyhow::Result;
-use async_nats::jetstream::kv::Store;
+use async_nats::jetstream::kv::{Entry, Operation, Store};
 use futures_util::StreamExt;
+
+/// Values kept per key: a deleted lease's previous holder stays readable.
+pub const HISTORY: i64 = 2;
 
 /// The key of partition `part`'s lease.
 pub fn key(part: u32) -> String {
     format!("p{part}")
 }
 
-/// Who holds partition `part` now (`None`: nobody, or the bucket cannot be read).
-pub async fn holder(kv: &Store, part: u32) -> Option<String> {
-    match kv.entry(key(part)).await {
-        Ok(Some(e)) if matches!(e.operation, async_nats::jetstream::kv::Operation::Put) => {
-            Some(String::from_utf8_lossy(&e.value).into_owned())
-        }
-        _ => None,
+/// The key of worker `id`'s release marker for `part`.
+pub fn released_key(id: &str, part: u32) -> String {
+    format!("r.{id}.p{part}")
+}
+
+/// An entry's write time, unix seconds (the server's clock, not the writer's word).
+pub fn written_s(e: &Entry) -> f64 {
+    e.created.unix_timestamp_nanos() as f64 / 1e9
+}
+
+/// Whether an honest worker may take `part` now: nobody's lease is there, or the last was
+/// deleted by its holder's own release (its marker written after its last renewal), or
+/// that holder's lease has run out. A deletion by anyone else (the server cannot tell
+/// who deleted) does not free a lease that still runs.
+pub async fn free(kv: &Store, part: u32) -> bool {
+    let Ok(Some(last)) = kv.entry(key(part)).await else {
+        return true;
+    };
+    if matches!(last.operation, Operation::Put) {
+        return false;
     }
+    let Some(prev) = previous_put(kv, part, last.revision).await else {
+        return true;
+    };
+    if super::wire::unix_now_s() >= written_s(&prev) + super::LEASE_TTL.as_secs_f64() {
+        return true;
+    }
+    let holder = String::from_utf8_lossy(&prev.value).into_owned();
+    matches!(
+        kv.entry(released_key(&holder, part)).await,
+        Ok(Some(m)) if matches!(m.operation, Operation::Put)
+            && m.revision > prev.revision && m.revision < last.revision
+    )
+}
+
+/// The last `Put` of `part`'s lease before revision `before`.
+async fn previous_put(kv: &Store, part: u32, before: u64) -> Option<Entry> {
+    let mut h = kv.history(key(part)).await.ok()?;
+    let mut prev = None;
+    let end = tokio::time::Instant::now() + Duration::from_secs(2);
+    while let Ok(Some(Ok(e))) = tokio::time::timeout_at(end, h.next()).await {
+        if e.revision < before && matches!(e.operation, Operation::Put) {
+            prev = Some(e.clone());
+        }
+        if e.delta == 0 {
+            break;
+        }
+    }
+    prev
 }
 
 /// Take partition `part` for `me`: its lease's revision, or `None` when another holds it.
 pub async fn take(kv: &Store, part: u32, me: &str) -> Option<u64> {
+    if !free(kv, part).await {
+        return None;
+    }
     kv.create(key(part), me.to_string().into()).await.ok()
 }
 
@@ -43,8 +100,37 @@ pub async fn renew(kv: &Store, part: u32, me: &str, revision: u64) -> Option<u64
         .ok()
 }
 
-/// Give `part` up (another worker may take it at once).
-pub async fn release(kv: &Store, part: u32) {
+/// `me`'s renewal of `part` was refused while its lease still ran (so nobody could take it
+/// by the rules): whoever wrote the key did so out of turn. Write it back over that entry
+/// (its revision) and say so: the new revision, or `None` when that fails too.
+pub async fn reclaim(kv: &Store, part: u32, me: &str) -> Option<u64> {
+    let e = kv.entry(key(part)).await.ok()??;
+    let by = match e.operation {
+        Operation::Put => String::from_utf8_lossy(&e.value).into_owned(),
+        _ => "a deletion".into(),
+    };
+    if by == me {
+        return Some(e.revision);
+    }
+    let r = kv
+        .update(key(part), me.to_string().into(), e.revision)
+        .await
+        .ok()?;
+    tracing::warn!(
+        "NATS worker {me}: partition {part}'s lease was overwritten ({by}) before it ran out; \
+         written back"
+    );
+    Some(r)
+}
+
+/// Give `part` up (another worker may take it at once): the marker, then the deletion.
+pub async fn release(kv: &Store, part: u32, me: &str) {
+    if let Err(e) = kv
+        .put(released_key(me, part), Vec::<u8>::new().into())
+        .await
+    {
+        tracing::debug!("NATS: release marker of partition {part}: {e}");
+    }
     if let Err(e) = kv.delete(key(part)).await {
         tracing::debug!("NATS: release partition {part}: {e}");
     }
@@ -56,6 +142,14 @@ pub async fn register(kv: &Store, me: &str) -> Result<()> {
         .await
         .map_err(|e| anyhow::anyhow!("NATS: register worker {me}: {e}"))?;
     Ok(())
+}
+
+/// Say `me` is gone (its shutdown): the others' fair share grows at their next renewal,
+/// not when the registration expires.
+pub async fn unregister(kv: &Store, me: &str) {
+    if let Err(e) = kv.delete(format!("w.{me}")).await {
+        tracing::debug!("NATS: unregister worker {me}: {e}");
+    }
 }
 
 /// How many workers are live (registered within the TTL), at least 1.
@@ -76,59 +170,4 @@ pub async fn live_workers(kv: &Store) -> usize {
 pub fn share(partitions: u32, workers: usize) -> usize {
     let w = workers.max(1);
     (partitions as usize).div_ceil(w)
-}
-
-/// The partitions' holders as a watch on the bucket shows them, each with the moment its
-/// lease runs out (its last write plus [`super::LEASE_TTL`]: the bucket expires entries
-/// silently, so the watch does not say it). The gateway's fast path; a holder not seen
-/// here is asked of the bucket itself.
-#[derive(Clone, Default)]
-pub struct Holders(Arc<Mutex<HashMap<u32, (String, Instant)>>>);
-
-impl Holders {
-    /// Who holds `part` with a lease that runs now, as last seen.
-    pub fn live(&self, part: u32) -> Option<String> {
-        let g = self.0.lock().ok()?;
-        g.get(&part)
-            .filter(|(_, until)| Instant::now() < *until)
-            .map(|(h, _)| h.clone())
-    }
-
-    /// Follow the bucket's lease entries (from their last values on) until dropped; a watch
-    /// that ends or fails is made again after a second.
-    pub async fn follow(self, kv: Store) {
-        loop {
-            match kv.watch_with_history(">").await {
-                Ok(mut w) => {
-                    while let Some(e) = w.next().await {
-                        match e {
-                            Ok(e) => self.seen(&e),
-                            Err(e) => {
-                                tracing::debug!("NATS: lease watch: {e}");
-                                break;
-                            }
-                        }
-                    }
-                }
-                Err(e) => tracing::warn!("NATS: cannot watch the leases ({e}); again in 1 s"),
-            }
-            tokio::time::sleep(std::time::Duration::from_secs(1)).await;
-        }
-    }
-
-    fn seen(&self, e: &async_nats::jetstream::kv::Entry) {
-        let Some(part) = e.key.strip_prefix('p').and_then(|p| p.parse::<u32>().ok()) else {
-            return;
-        };
-        let Ok(mut g) = self.0.lock() else { return };
-        if matches!(e.operation, async_nats::jetstream::kv::Operation::Put) {
-            let age = super::wire::unix_now_s() - e.created.unix_timestamp_nanos() as f64 / 1e9;
-            let ttl = super::LEASE_TTL.as_secs_f64();
-            let left = std::time::Duration::from_secs_f64((ttl - age.max(0.0)).clamp(0.0, ttl));
-            let holder = String::from_utf8_lossy(&e.value).into_owned();
-            g.insert(part, (holder, Instant::now() + left));
-        } else {
-            g.remove(&part);
-        }
-    }
 }

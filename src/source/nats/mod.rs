@@ -22,7 +22,10 @@
 //!   [`LEASE_TTL`] after their last write. A worker renews its leases every [`RENEW`] with a
 //!   compare-and-set on the revision it holds; a lease not renewed expires and another
 //!   worker creates it. Workers register as `w.<id>` in the same bucket and take at most
-//!   their fair share (partitions ÷ live workers, rounded up), releasing what is over it.
+//!   their fair share (partitions ÷ live workers, rounded up), releasing what is over it
+//!   (the marker `r.<id>.p<part>`, whose user the server vouches for, then the deletion).
+//!   A lease is not taken while it runs: the gateway judges every lease write
+//!   ([`holders`]) and refuses the frames of a worker that took one out of turn.
 //! - **State on takeover** ([`checkpoint`]): each second a worker writes its partitions'
 //!   checkpoints: each vehicle's chain state (energy used, the pack's state and history,
 //!   the mission's progress, the alerts standing) with the stream sequence to replay from,
@@ -44,12 +47,15 @@
 //!   vehicle's partition at that moment, and signs it there (signing keys never leave the
 //!   gateway). The server-side permissions: `config/nats-server.conf`.
 //! - **Viewers** ([`view`]): `dronewatt vehicles --nats URL` lists each vehicle's latest
-//!   estimate heard on `dronewatt.estimates.>`.
+//!   estimate heard on `dronewatt.estimates.>`; `dronewatt dashboard --nats URL`
+//!   ([`dashboard`]) serves the web dashboard of the whole fleet from the same subjects.
 //! - **Security** ([`connect`]): off loopback, a gateway or worker refuses to start without
 //!   credentials (user and password, or a `.creds` file, read as the signing key is: a
 //!   private file) and TLS.
 
 pub mod checkpoint;
+pub mod dashboard;
+pub mod holders;
 pub mod identity;
 pub mod lease;
 pub mod publish;
@@ -90,7 +96,8 @@ pub const STREAM_MAX_AGE: Duration = Duration::from_secs(24 * 3600);
 pub struct NatsArgs {
     /// NATS server (JetStream on): `nats://HOST:PORT`, or `tls://HOST:PORT`. With
     /// `monitor`, run as a fleet worker on the stream that `dronewatt gateway` feeds (no
-    /// link address then). With `vehicles`, list the fleet's latest estimates as a viewer.
+    /// link address then). With `vehicles`, list the fleet's latest estimates as a viewer;
+    /// with `dashboard`, serve the fleet's web dashboard as a viewer.
     /// Off loopback, credentials and TLS are required.
     #[arg(long, value_name = "URL")]
     pub nats: Option<String>,
@@ -283,12 +290,13 @@ pub async fn frames_stream(js: &jetstream::Context) -> Result<stream::Stream> {
     Ok(s)
 }
 
-/// A key-value bucket, created if absent (history 1, entries expire after `ttl`, none
-/// with `ZERO`); one whose stream has another layout is refused, by name.
+/// A key-value bucket, created if absent (`history` values a key, entries expire after
+/// `ttl`, none with `ZERO`); one whose stream has another layout is refused, by name.
 pub async fn bucket(
     js: &jetstream::Context,
     name: &str,
     ttl: Duration,
+    history: i64,
 ) -> Result<jetstream::kv::Store> {
     // The bucket's stream is made here as the key-value layout has it (async-nats's
     // create_key_value first asks for the account's info, whose reply a 2.9 server words
@@ -296,7 +304,7 @@ pub async fn bucket(
     let config = stream::Config {
         name: format!("KV_{name}"),
         subjects: vec![format!("$KV.{name}.>")],
-        max_messages_per_subject: 1,
+        max_messages_per_subject: history,
         max_age: ttl,
         storage: stream::StorageType::File,
         allow_rollup: true,
@@ -322,10 +330,10 @@ pub async fn bucket(
         .await
         .map_err(|e| anyhow::anyhow!("NATS bucket {name}: {e}"))?
         .config;
-    if have.max_age != ttl || have.max_messages_per_subject != 1 {
+    if have.max_age != ttl || have.max_messages_per_subject != history {
         bail!(
             "NATS bucket {name} has another layout (entries expire after {:?}, history {}; \
-             dronewatt needs {ttl:?}, 1): refusing it (delete it, or use another server)",
+             dronewatt needs {ttl:?}, {history}): refusing it (delete it, or use another server)",
             have.max_age,
             have.max_messages_per_subject
         );

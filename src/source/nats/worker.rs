@@ -47,8 +47,14 @@ struct Progress {
 /// A partition this worker holds.
 struct Held {
     revision: u64,
+    /// When it was last written (taken or renewed), by this machine's clock.
+    renewed: Instant,
     stop: CancellationToken,
 }
+
+/// A refused renewal is answered by writing the lease back ([`lease::reclaim`]) only while
+/// this much at least of the lease is left (clocks and a slow answer aside).
+const RECLAIM_MARGIN: std::time::Duration = std::time::Duration::from_millis(1500);
 
 /// Run the worker until `io.shutdown`.
 pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
@@ -62,8 +68,8 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
         .await
         .map(|i| i.created.unix_timestamp_nanos() as f64 / 1e9)
         .map_err(|e| anyhow::anyhow!("NATS stream {}: {e}", super::STREAM))?;
-    let leases = super::bucket(&js, LEASES, LEASE_TTL).await?;
-    let ckpts = super::bucket(&js, CHECKPOINTS, std::time::Duration::ZERO).await?;
+    let leases = super::bucket(&js, LEASES, LEASE_TTL, lease::HISTORY).await?;
+    let ckpts = super::bucket(&js, CHECKPOINTS, std::time::Duration::ZERO, 1).await?;
     let me = super::identity::worker_id(&principal);
     let held_set: Arc<Mutex<HashMap<u32, ()>>> = Arc::default();
     uplink(&client, &io.link, &me, held_set.clone());
@@ -85,8 +91,19 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
         }
         let mut lost = Vec::new();
         for (p, h) in held.iter_mut() {
-            match lease::renew(&leases, *p, &me, h.revision).await {
-                Some(r) => h.revision = r,
+            let renewed = match lease::renew(&leases, *p, &me, h.revision).await {
+                Some(r) => Some(r),
+                // Refused while the lease still ran: written out of turn; write it back.
+                None if h.renewed.elapsed() + RECLAIM_MARGIN < LEASE_TTL => {
+                    lease::reclaim(&leases, *p, &me).await
+                }
+                None => None,
+            };
+            match renewed {
+                Some(r) => {
+                    h.revision = r;
+                    h.renewed = Instant::now();
+                }
                 None => lost.push(*p),
             }
         }
@@ -105,7 +122,7 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
             if let Some(h) = held.remove(&p) {
                 h.stop.cancel();
                 checkpoint(&ckpts, p, &me, progress.get(&p)).await;
-                lease::release(&leases, p).await;
+                lease::release(&leases, p, &me).await;
                 tracing::info!("NATS worker {me}: gave partition {p} up (share {share})");
             }
         }
@@ -135,16 +152,24 @@ pub async fn run(args: NatsArgs, io: LinkIo) -> Result<()> {
                 io.tx.clone(),
                 io.stats.clone(),
             ));
-            held.insert(p, Held { revision, stop });
+            held.insert(
+                p,
+                Held {
+                    revision,
+                    renewed: Instant::now(),
+                    stop,
+                },
+            );
         }
         if let Ok(mut g) = held_set.lock() {
             *g = held.keys().map(|p| (*p, ())).collect();
         }
     }
+    lease::unregister(&leases, &me).await;
     for (p, h) in held.drain() {
         h.stop.cancel();
         checkpoint(&ckpts, p, &me, progress.get(&p)).await;
-        lease::release(&leases, p).await;
+        lease::release(&leases, p, &me).await;
     }
     tracing::info!("NATS worker {me}: stopped; leases released");
     Ok(())
