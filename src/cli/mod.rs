@@ -8,6 +8,7 @@
 //! with [`NeedsLibtorch`] and is handed, whole, to `dronewatt-torch` beside this executable
 //! (`handoff`), which runs this same command line with the libtorch parts registered.
 
+mod dashboard;
 mod describe;
 mod gateway;
 pub mod simulate;
@@ -335,7 +336,7 @@ pub fn run_command(command: Command) -> Result<()> {
             if let Some(b) = bind {
                 web.bind = b;
             }
-            crate::source::nats::dashboard::run(&nats, web)
+            dashboard::run(&nats, web)
         }
         Command::Vehicles { data_dir, json, .. } => {
             let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref())

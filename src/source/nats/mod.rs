@@ -48,13 +48,12 @@
 //!   gateway). The server-side permissions: `config/nats-server.conf`.
 //! - **Viewers** ([`view`]): `dronewatt vehicles --nats URL` lists each vehicle's latest
 //!   estimate heard on `dronewatt.estimates.>`; `dronewatt dashboard --nats URL`
-//!   ([`dashboard`]) serves the web dashboard of the whole fleet from the same subjects.
+//!   (`cli::dashboard`, above both this source and the web sink) serves the web dashboard of the whole fleet from the same subjects.
 //! - **Security** ([`connect`]): off loopback, a gateway or worker refuses to start without
 //!   credentials (user and password, or a `.creds` file, read as the signing key is: a
 //!   private file) and TLS.
 
 pub mod checkpoint;
-pub mod dashboard;
 pub mod holders;
 pub mod identity;
 pub mod lease;

@@ -14,11 +14,11 @@ use anyhow::{Context as _, Result};
 use futures_util::StreamExt;
 use tokio::sync::mpsc;
 
-use super::publish::{ALERTS, ESTIMATES};
-use super::NatsArgs;
 use crate::sink::jsonl_read::{self, Line};
 use crate::sink::web::feed::Feed;
 use crate::sink::web::WebSinkConfig;
+use crate::source::nats::publish::{ALERTS, ESTIMATES};
+use crate::source::nats::NatsArgs;
 
 /// Lines that did not read (counted, the first few said).
 static BAD: AtomicU64 = AtomicU64::new(0);
@@ -40,7 +40,7 @@ async fn serve(a: &NatsArgs, cfg: WebSinkConfig) -> Result<()> {
     let listener = tokio::net::TcpListener::bind(&cfg.bind)
         .await
         .with_context(bind_err)?;
-    let client = super::connect(a, "dronewatt dashboard").await?;
+    let client = crate::source::nats::connect(a, "dronewatt dashboard").await?;
     let mut subs = Vec::new();
     for kind in [ESTIMATES, ALERTS] {
         let subject = format!("{kind}.>");
