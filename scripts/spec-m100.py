@@ -25,7 +25,7 @@ The flight's own path, not a plan: the M100's error here is the power model's al
 the peer's is the plan's (path, speeds, wind) as well. The M100's learned stage is the
 book's own (the shipped M100 profile, `plan-eval`).
 
-    .venv-py/bin/python scripts/spec-m100.py [--bin target/debug/dronewatt] [--json PATH] [--flights train]
+    .venv-py/bin/python scripts/spec-m100.py [--bin target/debug/dronewatt] [--json PATH] [--plot PNG] [--flights train]
 """
 import argparse
 import importlib
@@ -55,6 +55,8 @@ chemistry = "lipo"
 [priors]
 eta_h = {eta:.4f}
 eta_h_log_sd = {sd:.4f}
+drag_per_kg23 = {drag:.5f}
+eta_h_per_ln_dl = {slope:.4f}
 """
 
 
@@ -122,11 +124,14 @@ def main():
     ap.add_argument("--drag-area", type=float,
                     help="a check: the spec sheet's [stolaroff] drag_area_m2 instead of the drag prior")
     ap.add_argument("--every", type=int, default=1, help="a check: every Nth flight only")
+    ap.add_argument("--plot", help="draw each flight's measured energy, the spec sheet's P50 and P90 and the after-hover P50 here")
     a = ap.parse_args()
     priors = importlib.import_module("spec-priors")
     rows = priors.airframes()
     etas, sd, form, inner = priors.held_out_prior(rows, "m100")
     eta = etas["DJI M100 (published)"]
+    drag, _ = priors.drag_prior("m100")
+    slope = priors.dl_slope(rows, "m100")
     p90_ratio = math.exp(1.2816 * math.sqrt(sd ** 2 + (0.25 * 0.5) ** 2))
     hover_w, _ = priors.m100_hover_w()
     eta_hover = priors.ideal_hover_w(TAKEOFF_KG, 4, 0.3302) / (hover_w - AVIONICS_W)
@@ -134,7 +139,7 @@ def main():
     flights = []
     spec = os.path.join(out, "m100.toml")
     with open(spec, "w") as f:
-        f.write(SPEC.format(kg=TAKEOFF_KG, eta=eta, sd=sd))
+        f.write(SPEC.format(kg=TAKEOFF_KG, eta=eta, sd=sd, drag=drag, slope=slope))
         if a.drag_area is not None:
             f.write(f"[stolaroff]\ndrag_area_m2 = {a.drag_area}\n")
     for k, payload in sorted(payloads(a.flights).items())[::max(a.every, 1)]:
@@ -146,7 +151,9 @@ def main():
     errs = sorted(abs(r["spec_err_pct"]) for r in flights)
     hov = sorted(abs(r["hover"]["err_pct"]) for r in flights if r["hover"])
     med = lambda v: v[len(v) // 2] if len(v) % 2 else (v[len(v) // 2 - 1] + v[len(v) // 2]) / 2
-    res = dict(hover=dict(hover_w=round(hover_w, 1), eta_h=round(eta_hover, 4)), prior_held_out=dict(eta_h=round(eta, 4), log_sd=round(sd, 4), form=form, inner_err=inner),
+    res = dict(hover=dict(hover_w=round(hover_w, 1), eta_h=round(eta_hover, 4)), prior_held_out=dict(
+        eta_h=round(eta, 4), log_sd=round(sd, 4), form=form, inner_err=inner, drag_per_kg23=round(drag, 4),
+        eta_h_per_ln_dl=round(slope, 4)),
                p90_ratio=round(p90_ratio, 3), flights=flights,
                summary=dict(spec=dict(median_abs_err_pct=round(med(errs), 1), flights=len(errs),
                                       p90_cover_pct=round(100 * sum(r["p90_covers"] for r in flights) / len(flights), 1)),
@@ -158,10 +165,34 @@ def main():
                    for rs in [[r for r in flights if r["payload_kg"] == p]]},
                flights_set=a.flights)
     text = json.dumps(res, indent=1)
+    if a.plot:
+        plot(res, a.plot)
     if a.json:
         with open(a.json, "w") as f:
             f.write(text)
     print(text)
+
+
+def plot(res, path):
+    """Each flight: the measured energy, the spec sheet's P50 (its P90 a tick) and the P50
+    after the hover, the M100 held out."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fl = res["flights"]
+    fig, ax = plt.subplots(figsize=(10, 3.6))
+    for k, r in enumerate(fl):
+        ax.bar(k - 0.2, r["spec_wh"], 0.4, color="tab:orange", label="spec P50" if k == 0 else None)
+        ax.bar(k + 0.2, r["hover"]["wh"], 0.4, color="tab:blue", label="after the hover P50" if k == 0 else None)
+        ax.plot([k - 0.38, k - 0.02], [r["spec_wh"] * res["p90_ratio"]] * 2, color="k",
+                label="spec P90" if k == 0 else None)
+        ax.plot(k, r["truth_wh"], "r*", markersize=12, label="measured" if k == 0 else None)
+    ax.set_xticks(range(len(fl)), [f"flight {r['flight']}\n{int(1000 * r['payload_kg'])} g" for r in fl], fontsize=8)
+    ax.set_ylabel("energy along its path, Wh")
+    ax.set_title("DJI M100 (data set) held out: spec sheet and after the hover, each test flight")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":

@@ -110,6 +110,38 @@ def airframes():
     return out
 
 
+# Body drag areas C_D·A, m², of the airframes that have one: (group, airframe, take-off kg,
+# C_D·A, source). The prior is their geometric mean per kg^(2/3) (frontal area grows as
+# mass^(2/3)); src/model/spec.rs DRAG_PER_KG23.
+DRAGS = [
+    ("x500", "Holybro X500 (simulator here)", 2.0, 0.025, "config/vehicles/x500.toml (ASSUMPTION-built)"),
+    ("quad3s", "3S quad (simulator here)", 1.0, 0.020, "config/vehicles/quad-3s.toml (ASSUMPTION-built)"),
+    ("m100", "DJI M100", 2.431, 0.055, "config/vehicles/m100.toml's published-model value"),
+    ("mavic", "DJI Mavic Pro", 0.743, 0.0197, "souhaiel1's model, the source multirotor cites (C_D 1.0 on 0.0197 m²)"),
+    ("t18", "Tarot T18 (multirotor peer)", 10.66, 0.20, "the peer harness's ASSUMPTION (the package models no body drag)"),
+]
+
+
+def drag_prior(without=None):
+    """(C_D·A per kg^(2/3), its leave-one-out predictive log-sd) from the airframes of DRAGS
+    but `without`'s group: the geometric mean, and the RMS of each one's leave-one-out
+    residual × t₀.₉(n − 1 df) / 1.2816 (as `predictive_sd`)."""
+    pts = [(g, math.log(cda / kg ** (2 / 3))) for g, _, kg, cda, _ in DRAGS if g != without]
+    mu = statistics.mean(v for _, v in pts)
+    res = [v - statistics.mean(w for h, w in pts if h != g) for g, v in pts]
+    rms = math.sqrt(sum(e * e for e in res) / len(res))
+    return math.exp(mu), rms * T90.get(len(pts) - 1, Z90) / Z90
+
+
+def dl_slope(rows, without=None):
+    """d ln η_h / d ln(disk loading) across the airframes but `without`'s group (the disk
+    loading's line): how η_h grows with the mass a vehicle flies (src/model/spec.rs
+    ETA_H_PER_LN_DL, `[priors] eta_h_per_ln_dl`)."""
+    import numpy as np
+    rest = [r for r in rows if r["group"] != without]
+    return float(np.polyfit([feature(r, "disk_loading") for r in rest], [math.log(r["eta_h"]) for r in rest], 1)[0])
+
+
 def prior(etas):
     logs = [math.log(e) for e in etas]
     return math.exp(statistics.mean(logs)), statistics.stdev(logs)
@@ -137,6 +169,29 @@ def fit_form(rows, form):
     return (lambda r: math.exp(icpt + slope * feature(r, form))), sd
 
 
+# The t distribution's 90th percentile by degrees of freedom (a new airframe's spread about a
+# line fitted on few airframes is wider than the normal's 1.2816 sd).
+T90 = {1: 3.078, 2: 1.886, 3: 1.638, 4: 1.533, 5: 1.476, 6: 1.440, 7: 1.415, 8: 1.397, 9: 1.383,
+       10: 1.372, 11: 1.363, 12: 1.356, 13: 1.350, 14: 1.345, 15: 1.341}
+Z90 = 1.2816
+
+
+def predictive_sd(rows, form):
+    """The log-spread a new airframe meets about `form` fitted on `rows`: the RMS of each
+    group's leave-one-group-out residual of ln η_h (the error an airframe the fit never saw
+    actually had, not the fit's own residual), × the t distribution's 90th percentile over
+    the normal's for as few groups (df = groups − the form's parameters): the P90, which
+    `exp(1.2816 · sd)` makes of it, is then the t's. Returns (sd, the residuals)."""
+    groups = sorted({r["group"] for r in rows})
+    res = []
+    for g in groups:
+        pred, _ = fit_form([r for r in rows if r["group"] != g], form)
+        res += [math.log(r["eta_h"] / pred(r)) for r in rows if r["group"] == g]
+    rms = math.sqrt(sum(e * e for e in res) / len(res))
+    df = len(groups) - (1 if form == "constant" else 2)
+    return rms * T90.get(df, Z90 if df > 15 else T90[1]) / Z90, res
+
+
 def loao_err(rows, form):
     """Median |ln error| of η_h, each airframe group left out in turn, the form fitted on the rest."""
     errs = []
@@ -150,11 +205,13 @@ def loao_err(rows, form):
 def held_out_prior(rows, group):
     """The prior for an airframe group the fit never sees: the form chosen on the other
     groups alone (their own leave-one-group-out error), fitted on them. Returns
-    (η_h for each of the group's rows, log-sd, the form, each form's inner error)."""
+    (η_h for each of the group's rows, its predictive log-sd on the other groups
+    (`predictive_sd`), the form, each form's inner error)."""
     rest = [r for r in rows if r["group"] != group]
     inner = {form: round(loao_err(rest, form), 3) for form in FORMS}
     form = min(FORMS, key=lambda k: inner[k])
-    pred, sd = fit_form(rest, form)
+    pred, _ = fit_form(rest, form)
+    sd, _ = predictive_sd(rest, form)
     return {r["airframe"]: pred(r) for r in rows if r["group"] == group}, sd, form, inner
 
 
@@ -162,6 +219,19 @@ def form_table(rows):
     """Each form's leave-one-airframe-group-out median |ln error| of η_h over all groups (what
     the book shows; each held-out row's own prior chooses its form without its group)."""
     return {form: round(loao_err(rows, form), 3) for form in FORMS}
+
+
+def shipped(rows, form):
+    """What src/model/spec.rs ships: `form` fitted on every airframe (ln η_h = ln0 + per ·
+    ln(disk loading) for the disk loading's line) and its predictive log-spread."""
+    import numpy as np
+    sd, res = predictive_sd(rows, form)
+    out = dict(form=form, eta_h_log_sd=round(sd, 4),
+               loao_residual_rms=round(math.sqrt(sum(e * e for e in res) / len(res)), 4))
+    if form != "constant":
+        slope, icpt = np.polyfit([feature(r, form) for r in rows], [math.log(r["eta_h"]) for r in rows], 1)
+        out.update(ln0=round(float(icpt), 4), per_ln=round(float(slope), 4))
+    return out
 
 
 def safe_peer_rows():
@@ -194,8 +264,14 @@ def main():
             r["loao_p90_covers"] = bool(fc * math.exp(1.2816 * sd) >= r["hover_w"])
     med, sd = prior([r["eta_h"] for r in rows])
     forms = form_table(rows)
+    form_all = min(FORMS, key=lambda k: forms[k])
+    drag, drag_sd = drag_prior()
     result = dict(eta_h_median=round(med, 4), eta_h_log_sd=round(sd, 4), avionics_w=AVIONICS_W,
-                  airframes=rows, forms=forms, form_all=min(FORMS, key=lambda k: forms[k]),
+                  airframes=rows, forms=forms, form_all=form_all, shipped=shipped(rows, form_all),
+                  drag=dict(per_kg23=round(drag, 4), log_sd=round(drag_sd, 3),
+                            airframes=[dict(group=g, airframe=n, kg=kg, cda_m2=c, per_kg23=round(c / kg ** (2 / 3), 4),
+                                            held_out_prior=round(drag_prior(g)[0], 4), source=src)
+                                       for g, n, kg, c, src in DRAGS]),
                   peers=[dict(airframe=r[0], **r[8]) for r in safe_peer_rows()],
                   loao_median_abs_err_pct=round(statistics.median(abs(r["loao_err_pct"]) for r in rows), 1),
                   loao_p90_cover_pct=round(100 * sum(r["loao_p90_covers"] for r in rows) / len(rows), 1))

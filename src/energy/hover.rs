@@ -65,6 +65,10 @@ pub struct HoverReference {
     /// any payload (a checkpoint written before it was kept).
     #[serde(default)]
     pub mass_kg: f64,
+    /// How the member's η grows with the mass flown (`[stolaroff] eta_per_ln_mass`): a
+    /// hover flown loaded gives η at the loaded mass, `eta_at` the take-off mass's.
+    #[serde(default)]
+    pub eta_per_ln_mass: f64,
 }
 
 impl HoverReference {
@@ -95,6 +99,7 @@ impl HoverReference {
             avionics_w: p.stolaroff.p_avio_w,
             prior_eta: p.stolaroff.eta,
             mass_kg: p.mass_kg(0.0),
+            eta_per_ln_mass: p.stolaroff.eta_per_ln_mass,
         })
     }
 
@@ -120,11 +125,20 @@ impl HoverReference {
         self.eta_at(hover_w, 0.0)
     }
 
-    /// The hover efficiency a hover power measured with `payload_kg` on board gives: the
-    /// ideal power is that of the loaded mass, so a hover flown with a payload does not read
-    /// as a poor efficiency (which every later forecast would then pay again for the payload).
+    /// The hover efficiency a hover power measured with `payload_kg` on board gives, at the
+    /// take-off mass: the ideal power is that of the loaded mass, so a hover flown with a
+    /// payload does not read as a poor efficiency (which every later forecast would then pay
+    /// again for the payload), and η at the loaded mass is brought to the take-off mass's by
+    /// the member's growth with the mass (`eta_per_ln_mass`, 0 but for a spec sheet).
     pub fn eta_at(&self, hover_w: f64, payload_kg: f64) -> Option<f64> {
-        let eta = self.ideal_at(payload_kg) / (hover_w - self.avionics_w);
+        let grown = if self.mass_kg > 0.0 && payload_kg.is_finite() && payload_kg > 0.0 {
+            ((self.mass_kg + payload_kg) / self.mass_kg)
+                .clamp(0.5, 2.0)
+                .powf(self.eta_per_ln_mass)
+        } else {
+            1.0
+        };
+        let eta = self.ideal_at(payload_kg) / (hover_w - self.avionics_w) / grown;
         (hover_w.is_finite() && eta > 0.05 && eta < 1.0).then_some(eta)
     }
 }

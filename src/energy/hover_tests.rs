@@ -6,6 +6,7 @@ fn reference() -> HoverReference {
         avionics_w: 8.0,
         prior_eta: 0.4,
         mass_kg: 2.0,
+        eta_per_ln_mass: 0.0,
     }
 }
 
@@ -84,6 +85,15 @@ fn a_hover_flown_with_a_payload_is_the_loaded_mass_s_efficiency() {
     };
     assert!((cal.eta_h - 0.5).abs() < 1e-9, "{cal:?}");
     assert!((cal.payload_kg - 0.5).abs() < 1e-12);
+    // a member whose η grows with the mass (a spec sheet's, d ln η / d ln m 0.25): the
+    // same hover is η 0.5 at the loaded 2.5 kg, 0.5 / 1.25^0.25 = 0.4729 at the take-off 2 kg
+    let grows = HoverReference {
+        eta_per_ln_mass: 0.25,
+        ..reference()
+    };
+    let eta = grows.eta_at(ideal / 0.5 + 8.0, 0.5).unwrap();
+    assert!((eta - 0.5 / 1.25f64.powf(0.25)).abs() < 1e-9, "{eta}");
+    assert!((grows.eta_at(208.0, 0.0).unwrap() - 0.5).abs() < 1e-9);
     // a checkpoint written before the mass was kept: the unloaded ideal, as then
     let old = HoverReference {
         mass_kg: 0.0,
@@ -222,4 +232,21 @@ fn a_throttle_away_from_the_hover_throttle_or_an_unlearned_one_calibrates_nothin
         .filter_map(|i| c.observe(f64::from(i) * 0.1, Some(20.0), 2.0, 0.1, None, Some(258.0)))
         .collect();
     assert!(none.is_empty());
+}
+
+#[test]
+fn plan_hover_w_and_the_live_first_hover_give_a_loaded_hover_the_same_efficiency() {
+    // `plan --hover-w` (model::spec::calibrate_hover) and the live first hover take a hover
+    // flown with 300 g alike, η growing with the mass or not.
+    let mut p = VehicleProfile::named_or_file("x500").unwrap();
+    for slope in [0.0, 0.2572] {
+        p.stolaroff.eta_per_ln_mass = slope;
+        let live = HoverReference::of(&p).unwrap().eta_at(330.0, 0.3).unwrap();
+        let plan = crate::model::spec::calibrate_hover(p.clone(), 330.0, 0.3).unwrap();
+        assert!(
+            (plan.stolaroff.eta - live).abs() < 1e-9,
+            "slope {slope}: plan {} live {live}",
+            plan.stolaroff.eta
+        );
+    }
 }

@@ -34,9 +34,9 @@ fn five_facts_make_a_vehicle_flying_momentum_theory_with_the_priors() {
     let f = p.forecast.as_ref().unwrap();
     assert_eq!(f.model, "stolaroff");
     assert!(f.why.contains("tseng (the M100's regression)"), "{}", f.why);
-    // P90 = exp(1.2816·√(0.288² + (0.25·0.5)²)) = 1.495
+    // P90 = exp(1.2816·√(0.318² + (0.25·0.5)²)) = 1.549
     assert!(
-        (f.p90_ratio.unwrap() - 1.495).abs() < 0.002,
+        (f.p90_ratio.unwrap() - 1.549).abs() < 0.002,
         "{:?}",
         f.p90_ratio
     );
@@ -51,6 +51,12 @@ fn five_facts_make_a_vehicle_flying_momentum_theory_with_the_priors() {
     let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), &p);
     let w = stolaroff::power_w(&k, &p, &p.stolaroff);
     assert!((w - 162.9).abs() < 0.3, "{w}");
+    // Drag: 0.0249 m²/kg^(2/3) × 1.3^(2/3) = 0.0297 m²; `[priors] drag_per_kg23` replaces it
+    // (the leave-one-airframe-out scoring's).
+    assert!((p.stolaroff.drag_area_m2 - 0.0297).abs() < 1e-4);
+    let q = load(&format!("{FIVE}[priors]\ndrag_per_kg23 = 0.02\n")).unwrap();
+    assert!((q.stolaroff.drag_area_m2 - 0.02 * 1.3f64.powf(2.0 / 3.0)).abs() < 1e-9);
+    assert!(err(&format!("{FIVE}[priors]\ndrag_per_kg23 = -1\n")).contains("priors.drag_per_kg23"));
 }
 
 #[test]
@@ -118,7 +124,7 @@ fn an_impossible_spec_names_its_key() {
 fn a_measured_hover_sets_the_efficiency_and_tightens_the_band() {
     let p = load(FIVE).unwrap();
     // 150 W measured: η_h = 64.63 / (150 − 8) = 0.4551; the stolaroff hover is then 150 W.
-    let c = calibrate_hover(p.clone(), 150.0).unwrap();
+    let c = calibrate_hover(p.clone(), 150.0, 0.0).unwrap();
     assert!(
         (c.stolaroff.eta - 0.4551).abs() < 5e-4,
         "{}",
@@ -134,13 +140,40 @@ fn a_measured_hover_sets_the_efficiency_and_tightens_the_band() {
     );
     assert!((f.p90_ratio.unwrap() - 1.174).abs() < 0.001);
     // Less than momentum theory's ideal power, or not a number: not a hover of this vehicle.
-    let e = calibrate_hover(p.clone(), 60.0).unwrap_err();
+    let e = calibrate_hover(p.clone(), 60.0, 0.0).unwrap_err();
     assert!(e.contains("not a hover") && e.contains("65 W"), "{e}");
-    assert!(calibrate_hover(p, f64::NAN).is_err());
+    assert!(calibrate_hover(p, f64::NAN, 0.0).is_err());
     // A plane does not hover: no calibration, said.
     let plane = VehicleProfile::named_or_file("plane").unwrap();
-    let e = calibrate_hover(plane, 150.0).unwrap_err();
+    let e = calibrate_hover(plane, 150.0, 0.0).unwrap_err();
     assert!(e.contains("does not hover"), "{e}");
+}
+
+#[test]
+fn a_hover_measured_with_a_payload_is_the_loaded_mass() {
+    let p = load(FIVE).unwrap();
+    // 180 W measured with 300 g on board: the ideal power is the 1.6 kg's, 64.63 ×
+    // (1.6/1.3)^1.5 = 88.25 W, so η_h = 88.25 / (180 − 8) = 0.5131 at 1.6 kg, where taking
+    // the hover as the empty 1.3 kg's would read 64.63 / 172 = 0.376 (a poor efficiency the
+    // loaded plan would pay for again). At the take-off mass (η_h grows with the disk
+    // loading, d ln η / d ln m 0.2572): 0.5131 / (1.6/1.3)^0.2572 = 0.4864.
+    assert!((p.stolaroff.eta_per_ln_mass - 0.2572).abs() < 1e-9);
+    let c = calibrate_hover(p.clone(), 180.0, 0.3).unwrap();
+    assert!(
+        (c.stolaroff.eta - 0.4864).abs() < 5e-4,
+        "{}",
+        c.stolaroff.eta
+    );
+    // (the live first hover's the same: energy::hover's tests)
+    // The calibrated vehicle hovers at the measured 180 W with that payload on board.
+    let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 300.0, 0.0), &c);
+    let w = stolaroff::power_w(&k, &c, &c.stolaroff);
+    assert!((w - 180.0).abs() < 0.01, "{w}");
+    let why = c.forecast.unwrap().why;
+    assert!(why.contains("with 0.30 kg of payload"), "{why}");
+    assert!(calibrate_hover(p, 180.0, -0.1)
+        .unwrap_err()
+        .contains("payload"));
 }
 
 proptest::proptest! {

@@ -62,9 +62,14 @@ pub struct PlanArgs {
     pub speed: Option<f64>,
     /// The vehicle's measured hover power, W: the mean of the pack's V × I over its first
     /// ~30 s of hover. It sets the hover efficiency of the momentum-theory forecast, whose
-    /// P90 then keeps only the drag's spread (a multirotor only; refused for a plane).
+    /// P90 then keeps only the drag's spread (a multirotor only; refused for a plane). The
+    /// hover is taken as flown with the plan's payload (`--payload-g`) unless
+    /// `--hover-payload-g` says otherwise.
     #[arg(long, value_name = "W")]
     pub hover_w: Option<f64>,
+    /// The payload on board when `--hover-w` was measured, g. Default: the plan's payload.
+    #[arg(long, value_name = "G", requires = "hover_w")]
+    pub hover_payload_g: Option<f64>,
     #[command(flatten)]
     pub forecast: ForecastArgs,
     /// Write a PNG of cumulative energy along the route (P50, P90 band, reserve line).
@@ -180,11 +185,6 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if let Some(p) = &profile_path {
         cfg.vehicle = Some(p.clone());
     }
-    let profile = match a.hover_w {
-        Some(w) => crate::model::spec::calibrate_hover(profile, w)
-            .map_err(|e| anyhow::anyhow!("--hover-w {w}: {e}"))?,
-        None => profile,
-    };
     let is_m100 = a.hover_w.is_none() && profile.name == VehicleProfile::m100().name;
     let plan = Plan::load(&a.file)?;
     let payload_g = a
@@ -194,6 +194,17 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     if !(payload_g.is_finite() && payload_g >= 0.0) {
         anyhow::bail!("--payload-g {payload_g}: must be ≥ 0");
     }
+    let profile = match a.hover_w {
+        Some(w) => {
+            let hover_g = a.hover_payload_g.unwrap_or(payload_g);
+            if !(hover_g.is_finite() && hover_g >= 0.0) {
+                anyhow::bail!("--hover-payload-g {hover_g}: must be ≥ 0");
+            }
+            crate::model::spec::calibrate_hover(profile, w, hover_g / 1000.0)
+                .map_err(|e| anyhow::anyhow!("--hover-w {w}: {e}"))?
+        }
+        None => profile,
+    };
     if let Some(s) = a.speed {
         if !(s.is_finite() && s > 0.0) {
             anyhow::bail!("--speed {s}: must be > 0 m/s");

@@ -315,3 +315,51 @@ fn the_hover_throttle_and_the_packs_power_calibrate_before_a_full_hover() {
     // the simulator's X500 hovers at 284 W (its book row), avionics included
     assert!((w / 284.0 - 1.0).abs() < 0.1, "{cal}");
 }
+
+#[test]
+fn a_hover_measured_with_a_payload_calibrates_plan_as_the_live_first_hover_does() {
+    // The five facts' quad (1.3 kg on four 10-inch propellers). One vehicle, η_h 0.45 at its
+    // take-off mass, seen twice: hovering empty at P0 and with 500 g on board at P1
+    // (momentum theory: ideal power × (m/1.3)^1.5 / η + 8 W avionics, η growing with the
+    // disk loading as the spec sheet's prior says, × (m/1.3)^0.2572). `plan --hover-w P1 --payload-g 500`
+    // (the hover flown with the plan's payload) and `--hover-w P0 --hover-payload-g 0` must
+    // find the same vehicle: before, `--hover-w` took any hover as the empty mass's and read
+    // P1 as a poorer efficiency, forecasting the loaded plan ~48 % high.
+    let dir = tempfile::tempdir().unwrap();
+    let spec = dir.path().join("spec.toml");
+    std::fs::write(
+        &spec,
+        "name = \"Spec quad\"\n[vehicle]\ntakeoff_kg = 1.3\nrotors = 4\nprop_diameter_m = 0.254\n\
+         [battery]\ncells = 3\ncapacity_mah = 5100\nchemistry = \"lipo\"\n",
+    )
+    .unwrap();
+    let area = 4.0 * std::f64::consts::PI * 0.127f64.powi(2);
+    let eta = |kg: f64| 0.45 * (kg / 1.3f64).powf(0.2572);
+    let hover = |kg: f64| (kg * 9.81f64).powf(1.5) / (2.0 * 1.225 * area).sqrt() / eta(kg) + 8.0;
+    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("replay/demo.plan");
+    let p50 = |hover_w: f64, hover_payload_g: &str| -> (f64, String) {
+        let out = dronewatt()
+            .arg("plan")
+            .arg(&plan)
+            .arg("--vehicle")
+            .arg(&spec)
+            .args(["--payload-g", "500", "--speed", "8", "--json", "-"])
+            .args(["--hover-w", &format!("{hover_w:.3}")])
+            .args(["--hover-payload-g", hover_payload_g, "--data-dir", "off"])
+            .ok();
+        let p: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let wh = p["forecast"]["energy_p50_wh"].as_f64().unwrap();
+        (wh, p.to_string())
+    };
+    let (loaded, said) = p50(hover(1.8), "500");
+    let (empty, _) = p50(hover(1.3), "0");
+    assert!(
+        (loaded / empty - 1.0).abs() < 0.005,
+        "a hover at 1.8 kg {loaded} Wh, the same vehicle's at 1.3 kg {empty} Wh"
+    );
+    assert!(said.contains("with 0.50 kg of payload"), "{said}");
+    // The empty hover's power taken as a loaded one is not this vehicle: a poorer P50 is not
+    // what it is, the loaded hover 48 % more power than the empty one.
+    let (misread, _) = p50(hover(1.3), "500");
+    assert!(misread < 0.8 * loaded, "{misread} Wh against {loaded} Wh");
+}

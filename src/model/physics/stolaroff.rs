@@ -15,7 +15,7 @@
 //! | A | total rotor disk area n·π(D/2)² | m² |
 //! | T | thrust | N |
 //! | v_i | induced velocity | m/s |
-//! | η | power transfer efficiency | 1 |
+//! | η | power transfer efficiency: `eta` × (m / take-off mass)^`eta_per_ln_mass` (0 but for a spec sheet) | 1 |
 //! | p_avio | constant draw (0 in Stolaroff's equation, free in calibration) | W |
 //! | P | electrical power | W |
 //!
@@ -44,6 +44,31 @@ pub struct Params {
     pub drag_area_m2: f64,
     /// Constant draw, W.
     pub p_avio_w: f64,
+    /// How η grows with the mass flown, d ln η / d ln m (0: η the same at any mass). A
+    /// spec sheet sets the hover-efficiency prior's slope in the disk loading (a rotor's
+    /// figure of merit grows with its disk loading, which is the weight's over the same
+    /// disk): η at a mass m (payload on board) is `eta` × (m / take-off mass)^this, `eta`
+    /// the take-off mass's.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub eta_per_ln_mass: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+impl Params {
+    /// η at `mass_kg` for a vehicle whose take-off mass is `takeoff_kg`; the mass ratio held
+    /// to 0.5–2 (the payloads a vehicle flies, not an extrapolation of the slope).
+    pub fn eta_at(&self, mass_kg: f64, takeoff_kg: f64) -> f64 {
+        if self.eta_per_ln_mass == 0.0 || !(mass_kg > 0.0 && takeoff_kg > 0.0) {
+            return self.eta;
+        }
+        self.eta
+            * (mass_kg / takeoff_kg)
+                .clamp(0.5, 2.0)
+                .powf(self.eta_per_ln_mass)
+    }
 }
 
 /// Electrical power, W.
@@ -52,7 +77,7 @@ pub fn power_w(k: &Kinematics, p: &VehicleProfile, m: &Params) -> f64 {
     let v_n = k.air_m_s.dot(&k.thrust_axis);
     let v_t = (k.air_m_s - v_n * k.thrust_axis).norm();
     let vi = induced_velocity(t, p.air.rho_kg_m3, p.disk_area_m2(), v_t, v_n);
-    (t * (v_n + vi)).max(0.0) / m.eta + m.p_avio_w
+    (t * (v_n + vi)).max(0.0) / m.eta_at(k.mass_kg, p.mass_kg(0.0)) + m.p_avio_w
 }
 
 #[cfg(test)]
@@ -74,5 +99,26 @@ mod tests {
         let k = kinematics(sample(1.0, [0.0, 0.0, 2.0], 0.0, 0.0, 0.0, 0.0), &p);
         let w = power_w(&k, &p, &p.stolaroff);
         assert!((w - 310.83).abs() < 0.05, "{w}");
+    }
+
+    #[test]
+    fn eta_grows_with_the_mass_flown_when_the_profile_says_so() {
+        let mut p = VehicleProfile::m100();
+        // The M100's own member: η the same at any payload.
+        assert_eq!(p.stolaroff.eta_per_ln_mass, 0.0);
+        let loaded = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 500.0, 0.0), &p);
+        let w0 = power_w(&loaded, &p, &p.stolaroff);
+        // d ln η / d ln m = 0.25: with 500 g on 2.431 kg, η × (2.931/2.431)^0.25 = 1.0478 η.
+        p.stolaroff.eta_per_ln_mass = 0.25;
+        let w1 = power_w(&loaded, &p, &p.stolaroff);
+        let k = (2.931f64 / 2.431).powf(0.25);
+        assert!((w1 - w0 / k).abs() < 1e-6, "{w0} {w1}");
+        // At the take-off mass nothing changes; beyond twice it, no further growth.
+        let empty = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), &p);
+        assert!((power_w(&empty, &p, &p.stolaroff) - 254.26).abs() < 0.05);
+        assert_eq!(
+            p.stolaroff.eta_at(10.0, 2.431),
+            p.stolaroff.eta * 2f64.powf(0.25)
+        );
     }
 }

@@ -54,8 +54,9 @@ pub fn keep_hover(
             ));
         }
     }
-    let calibrated = crate::model::spec::calibrate_hover(profile.clone(), cal.hover_w)
-        .map_err(anyhow::Error::msg)?;
+    let calibrated =
+        crate::model::spec::calibrate_hover(profile.clone(), cal.hover_w, cal.payload_kg)
+            .map_err(anyhow::Error::msg)?;
     let path = hover_profile_path(store.path().parent().unwrap_or(dir), &key.key);
     if let Some(parent) = path.parent() {
         std::fs::create_dir_all(parent)
