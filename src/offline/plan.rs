@@ -175,36 +175,8 @@ fn resolve_vehicle(
 /// `dronewatt plan FILE`.
 pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
     let mut cfg = a.forecast.config.load()?;
-    let (profile, profile_path) = match &a.vehicle {
-        Some(v) => resolve_vehicle(v, a.data_dir.as_deref())?,
-        None => match &cfg.vehicle {
-            Some(p) => (VehicleProfile::load(p)?, Some(p.clone())),
-            None => (VehicleProfile::m100(), None),
-        },
-    };
-    if let Some(p) = &profile_path {
-        cfg.vehicle = Some(p.clone());
-    }
-    let is_m100 = a.hover_w.is_none() && profile.name == VehicleProfile::m100().name;
+    let (profile, profile_path, is_m100, payload_g) = plan_vehicle(&a, &mut cfg)?;
     let plan = Plan::load(&a.file)?;
-    let payload_g = a
-        .payload_g
-        .or(cfg.mission.payload_g.map(f64::from))
-        .unwrap_or(0.0);
-    if !(payload_g.is_finite() && payload_g >= 0.0) {
-        anyhow::bail!("--payload-g {payload_g}: must be ≥ 0");
-    }
-    let profile = match a.hover_w {
-        Some(w) => {
-            let hover_g = a.hover_payload_g.unwrap_or(payload_g);
-            if !(hover_g.is_finite() && hover_g >= 0.0) {
-                anyhow::bail!("--hover-payload-g {hover_g}: must be ≥ 0");
-            }
-            crate::model::spec::calibrate_hover(profile, w, hover_g / 1000.0)
-                .map_err(|e| anyhow::anyhow!("--hover-w {w}: {e}"))?
-        }
-        None => profile,
-    };
     if let Some(s) = a.speed {
         if !(s.is_finite() && s > 0.0) {
             anyhow::bail!("--speed {s}: must be > 0 m/s");
@@ -231,123 +203,8 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             a.file.display()
         );
     }
-    // The forecast is the vehicle's own: the M100 with its calibrated models and fitted
-    // correction; another vehicle with its learned forecast model, else the mean of its own
-    // physics models uncorrected, the P90 widened (the M100's correction is not its).
-    let (mut models, calibration, mut forecast_from) = if is_m100 {
-        (
-            models_for(&cfg, &a.forecast.calibrated)?,
-            cfg.forecast.calibration.clone(),
-            "the M100's calibrated models and fitted correction".to_string(),
-        )
-    } else {
-        // a measured hover changed the profile in memory: its physics models, not the file's
-        let mut models = match profile_path.as_ref().filter(|_| a.hover_w.is_none()) {
-            Some(p) => crate::model::build_models(&cfg.models, Some(p), &cfg.telemetry)?,
-            None => crate::model::physics::models(&profile),
-        };
-        let wing = !matches!(class, VehicleClass::Multirotor | VehicleClass::Other);
-        if wing {
-            let params = profile.fixed_wing.unwrap_or_default();
-            params.validate().map_err(anyhow::Error::msg)?;
-            models.push(Box::new(crate::model::physics::fixed_wing::FixedWing::new(
-                params,
-            )));
-        }
-        match profile
-            .forecast
-            .as_ref()
-            .filter(|f| models.iter().any(|m| m.name() == f.model))
-        {
-            Some(fd) => {
-                // its own forecast model, the others its profile scales (a VTOL's rotor
-                // model) and the fixed-wing model on the wing, each with its fitted scale
-                let mut names = vec![fd.model.clone()];
-                let wing_model = wing.then(|| "fixed_wing".to_string());
-                for n in fd.scale.keys().chain(wing_model.iter()) {
-                    if !names.contains(n) && models.iter().any(|m| m.name() == n) {
-                        names.push(n.clone());
-                    }
-                }
-                let p90 = fd.p90_ratio.unwrap_or(OWN_MODEL_P90);
-                let members: Vec<_> = names
-                    .iter()
-                    .map(|n| crate::mission::forecast::Member {
-                        scale: fd.scale.get(n).copied().unwrap_or(1.0),
-                        ..crate::mission::forecast::Member::of(n)
-                    })
-                    .collect();
-                let how = members
-                    .iter()
-                    .map(|m| format!("{} × {}", m.model, m.scale))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                let c = crate::mission::forecast::Calibration {
-                    members,
-                    p90_ratio: p90,
-                    ..crate::mission::forecast::Calibration::uncorrected(&fd.model)
-                };
-                c.validate().map_err(anyhow::Error::msg)?;
-                (
-                    models,
-                    c,
-                    format!(
-                        "{}'s forecast model{} {how} (P90 = {p90} × P50){}",
-                        profile.name,
-                        if names.len() > 1 { "s" } else { "" },
-                        if fd.why.is_empty() {
-                            String::new()
-                        } else {
-                            format!(": {}", fd.why)
-                        }
-                    ),
-                )
-            }
-            None => {
-                // a plane: the fixed-wing model alone; a VTOL: the rotor models on its
-                // rotor-borne samples, the fixed-wing model on the rest
-                let applies = |n: &String| {
-                    (class != VehicleClass::FixedWing && PUBLISHED.contains(&n.as_str()))
-                        || (wing && n == "fixed_wing")
-                };
-                let (names, left): (Vec<String>, Vec<String>) = models
-                    .iter()
-                    .map(|m| m.name().to_string())
-                    .filter(applies)
-                    .partition(|n| !profile.does_not_transfer.contains(n));
-                if names.is_empty() {
-                    anyhow::bail!("{}: every model that applies to it is in its profile's does_not_transfer: nothing left to forecast with", profile.name);
-                }
-                let left = if left.is_empty() {
-                    String::new()
-                } else {
-                    tracing::warn!(
-                        "{}: {} left out of the forecast: the vehicle's profile says they do not transfer to it",
-                        profile.name,
-                        left.join(", ")
-                    );
-                    format!(
-                        "; left out, as its profile says they do not transfer: {}",
-                        left.join(", ")
-                    )
-                };
-                tracing::warn!(
-                    "only the M100's forecast calibration exists; {} ({class}) flies on its own published models, uncorrected, with the P90 widened to {UNCALIBRATED_P90} × P50",
-                    profile.name
-                );
-                let c = crate::mission::forecast::Calibration {
-                    members: names
-                        .iter()
-                        .map(|n| crate::mission::forecast::Member::of(n))
-                        .collect(),
-                    p90_ratio: UNCALIBRATED_P90,
-                    live_weight: 0.0,
-                    vehicle_kg: profile.vehicle.airframe_kg + profile.vehicle.battery_kg,
-                };
-                (models, c, format!("the mean of {}'s published models that apply ({class}: {}) (uncorrected: only the M100 is calibrated; P90 = {UNCALIBRATED_P90} × P50){left}", profile.name, names.join(", ")))
-            }
-        }
-    };
+    let (mut models, calibration, mut forecast_from) =
+        forecast_models(&a, &cfg, &profile, profile_path.as_deref(), class, is_m100)?;
     let f = forecast(
         &tr,
         &mut models,
@@ -367,35 +224,7 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             f.model
         );
     }
-    // Offline no vehicle answers: the configured pack, else the profile's, else the default.
-    let mut battery_cfg = cfg.energy.battery();
-    if is_m100 {
-        // The M100's own pack, only for the M100.
-        let mut e = cfg.energy.clone();
-        e.fill_pack(&crate::vehicle::BatteryConfig::m100());
-        battery_cfg = e.battery();
-    }
-    if let (false, Some(b)) = (is_m100, profile.battery.as_ref()) {
-        battery_cfg.cell_count = battery_cfg.cell_count.or(Some(b.cells));
-        if battery_cfg.capacity_wh.is_none() {
-            battery_cfg.capacity_wh = Some(
-                b.capacity_mah / 1000.0
-                    * f64::from(b.cells)
-                    * battery_cfg
-                        .chemistry
-                        .unwrap_or(crate::battery::Chemistry::LiPo)
-                        .nominal_v(),
-            );
-        }
-    }
-    let mut battery = crate::vehicle::battery_from_config(&battery_cfg);
-    if let (Some(c), true) = (
-        battery.capacity_wh.as_mut(),
-        !is_m100 && cfg.energy.capacity_wh.is_none() && profile.battery.is_some(),
-    ) {
-        c.source =
-            crate::report::Provenance::Parameter(format!("{} profile [battery]", profile.name));
-    }
+    let battery = plan_battery(&cfg, &profile, is_m100);
     let capacity_wh = battery.capacity().with_context(|| {
         format!("the pack's capacity is not known: set [energy] capacity_wh, or give the vehicle profile ({}) a [battery]", profile.name)
     })?;
@@ -472,6 +301,227 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         plot_plan(png, &plan.source, &tr, &f, report.usable_wh, &label)?;
     }
     a.forecast.json.publish(&report, || plan_table(&report))
+}
+
+/// The vehicle that flies the plan (the config's vehicle set to its file), whether it is
+/// the M100, and the payload, g; a measured hover (`--hover-w`) calibrates its profile.
+fn plan_vehicle(
+    a: &PlanArgs,
+    cfg: &mut Config,
+) -> anyhow::Result<(VehicleProfile, Option<PathBuf>, bool, f64)> {
+    let (profile, profile_path) = match &a.vehicle {
+        Some(v) => resolve_vehicle(v, a.data_dir.as_deref())?,
+        None => match &cfg.vehicle {
+            Some(p) => (VehicleProfile::load(p)?, Some(p.clone())),
+            None => (VehicleProfile::m100(), None),
+        },
+    };
+    if let Some(p) = &profile_path {
+        cfg.vehicle = Some(p.clone());
+    }
+    let is_m100 = a.hover_w.is_none() && profile.name == VehicleProfile::m100().name;
+    let payload_g = a
+        .payload_g
+        .or(cfg.mission.payload_g.map(f64::from))
+        .unwrap_or(0.0);
+    if !(payload_g.is_finite() && payload_g >= 0.0) {
+        anyhow::bail!("--payload-g {payload_g}: must be ≥ 0");
+    }
+    let profile = match a.hover_w {
+        Some(w) => {
+            let hover_g = a.hover_payload_g.unwrap_or(payload_g);
+            if !(hover_g.is_finite() && hover_g >= 0.0) {
+                anyhow::bail!("--hover-payload-g {hover_g}: must be ≥ 0");
+            }
+            crate::model::spec::calibrate_hover(profile, w, hover_g / 1000.0)
+                .map_err(|e| anyhow::anyhow!("--hover-w {w}: {e}"))?
+        }
+        None => profile,
+    };
+    Ok((profile, profile_path, is_m100, payload_g))
+}
+
+/// The models, the calibration and the forecast's header: the M100 with its calibrated
+/// models and fitted correction; another vehicle with its learned forecast model, else the
+/// mean of its own physics models uncorrected, the P90 widened (the M100's correction is
+/// not its).
+fn forecast_models(
+    a: &PlanArgs,
+    cfg: &Config,
+    profile: &VehicleProfile,
+    profile_path: Option<&Path>,
+    class: VehicleClass,
+    is_m100: bool,
+) -> anyhow::Result<(
+    Vec<Box<dyn PowerModel>>,
+    crate::mission::forecast::Calibration,
+    String,
+)> {
+    if is_m100 {
+        return Ok((
+            models_for(cfg, &a.forecast.calibrated)?,
+            cfg.forecast.calibration.clone(),
+            "the M100's calibrated models and fitted correction".to_string(),
+        ));
+    }
+    // a measured hover changed the profile in memory: its physics models, not the file's
+    let mut models = match profile_path.filter(|_| a.hover_w.is_none()) {
+        Some(p) => crate::model::build_models(&cfg.models, Some(p), &cfg.telemetry)?,
+        None => crate::model::physics::models(profile),
+    };
+    let wing = !matches!(class, VehicleClass::Multirotor | VehicleClass::Other);
+    if wing {
+        let params = profile.fixed_wing.unwrap_or_default();
+        params.validate().map_err(anyhow::Error::msg)?;
+        models.push(Box::new(crate::model::physics::fixed_wing::FixedWing::new(
+            params,
+        )));
+    }
+    Ok(
+        match profile
+            .forecast
+            .as_ref()
+            .filter(|f| models.iter().any(|m| m.name() == f.model))
+        {
+            Some(fd) => {
+                let (c, header) = own_forecast(fd, &models, wing, &profile.name)?;
+                (models, c, header)
+            }
+            None => {
+                // a plane: the fixed-wing model alone; a VTOL: the rotor models on its
+                // rotor-borne samples, the fixed-wing model on the rest
+                let applies = |n: &String| {
+                    (class != VehicleClass::FixedWing && PUBLISHED.contains(&n.as_str()))
+                        || (wing && n == "fixed_wing")
+                };
+                let (names, left): (Vec<String>, Vec<String>) = models
+                    .iter()
+                    .map(|m| m.name().to_string())
+                    .filter(applies)
+                    .partition(|n| !profile.does_not_transfer.contains(n));
+                if names.is_empty() {
+                    anyhow::bail!("{}: every model that applies to it is in its profile's does_not_transfer: nothing left to forecast with", profile.name);
+                }
+                let left = if left.is_empty() {
+                    String::new()
+                } else {
+                    tracing::warn!(
+                    "{}: {} left out of the forecast: the vehicle's profile says they do not transfer to it",
+                    profile.name,
+                    left.join(", ")
+                );
+                    format!(
+                        "; left out, as its profile says they do not transfer: {}",
+                        left.join(", ")
+                    )
+                };
+                tracing::warn!(
+                "only the M100's forecast calibration exists; {} ({class}) flies on its own published models, uncorrected, with the P90 widened to {UNCALIBRATED_P90} × P50",
+                profile.name
+            );
+                let c = crate::mission::forecast::Calibration {
+                    members: names
+                        .iter()
+                        .map(|n| crate::mission::forecast::Member::of(n))
+                        .collect(),
+                    p90_ratio: UNCALIBRATED_P90,
+                    live_weight: 0.0,
+                    vehicle_kg: profile.vehicle.airframe_kg + profile.vehicle.battery_kg,
+                };
+                (models, c, format!("the mean of {}'s published models that apply ({class}: {}) (uncorrected: only the M100 is calibrated; P90 = {UNCALIBRATED_P90} × P50){left}", profile.name, names.join(", ")))
+            }
+        },
+    )
+}
+
+/// A vehicle's own learned forecast model: it, the others its profile scales (a VTOL's
+/// rotor model) and the fixed-wing model on the wing, each with its fitted scale; the
+/// calibration and the forecast's header.
+fn own_forecast(
+    fd: &crate::model::profile::ForecastDefault,
+    models: &[Box<dyn PowerModel>],
+    wing: bool,
+    vehicle: &str,
+) -> anyhow::Result<(crate::mission::forecast::Calibration, String)> {
+    // its own forecast model, the others its profile scales (a VTOL's rotor
+    // model) and the fixed-wing model on the wing, each with its fitted scale
+    let mut names = vec![fd.model.clone()];
+    let wing_model = wing.then(|| "fixed_wing".to_string());
+    for n in fd.scale.keys().chain(wing_model.iter()) {
+        if !names.contains(n) && models.iter().any(|m| m.name() == n) {
+            names.push(n.clone());
+        }
+    }
+    let p90 = fd.p90_ratio.unwrap_or(OWN_MODEL_P90);
+    let members: Vec<_> = names
+        .iter()
+        .map(|n| crate::mission::forecast::Member {
+            scale: fd.scale.get(n).copied().unwrap_or(1.0),
+            ..crate::mission::forecast::Member::of(n)
+        })
+        .collect();
+    let how = members
+        .iter()
+        .map(|m| format!("{} × {}", m.model, m.scale))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let c = crate::mission::forecast::Calibration {
+        members,
+        p90_ratio: p90,
+        ..crate::mission::forecast::Calibration::uncorrected(&fd.model)
+    };
+    c.validate().map_err(anyhow::Error::msg)?;
+    Ok((
+        c,
+        format!(
+            "{}'s forecast model{} {how} (P90 = {p90} × P50){}",
+            vehicle,
+            if names.len() > 1 { "s" } else { "" },
+            if fd.why.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", fd.why)
+            }
+        ),
+    ))
+}
+
+/// The pack the plan flies: offline no vehicle answers, so the configured pack, else the
+/// profile's, else the default; the M100's own pack only for the M100.
+fn plan_battery(
+    cfg: &Config,
+    profile: &VehicleProfile,
+    is_m100: bool,
+) -> crate::report::BatteryFacts {
+    let mut battery_cfg = cfg.energy.battery();
+    if is_m100 {
+        // The M100's own pack, only for the M100.
+        let mut e = cfg.energy.clone();
+        e.fill_pack(&crate::vehicle::BatteryConfig::m100());
+        battery_cfg = e.battery();
+    }
+    if let (false, Some(b)) = (is_m100, profile.battery.as_ref()) {
+        battery_cfg.cell_count = battery_cfg.cell_count.or(Some(b.cells));
+        if battery_cfg.capacity_wh.is_none() {
+            battery_cfg.capacity_wh = Some(
+                b.capacity_mah / 1000.0
+                    * f64::from(b.cells)
+                    * battery_cfg
+                        .chemistry
+                        .unwrap_or(crate::battery::Chemistry::LiPo)
+                        .nominal_v(),
+            );
+        }
+    }
+    let mut battery = crate::vehicle::battery_from_config(&battery_cfg);
+    if let (Some(c), true) = (
+        battery.capacity_wh.as_mut(),
+        !is_m100 && cfg.energy.capacity_wh.is_none() && profile.battery.is_some(),
+    ) {
+        c.source =
+            crate::report::Provenance::Parameter(format!("{} profile [battery]", profile.name));
+    }
+    battery
 }
 
 /// P90 ratio of a vehicle flown on its learned forecast model, which has no fitted spread.
