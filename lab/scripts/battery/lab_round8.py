@@ -268,7 +268,9 @@ def candidates(fl):
     for z in (1.0, 2.0, 4.0):
         for taud in (240.0, 900.0):
             x, span = run(fl, lambda n: TrendSE(240.0, taud, z))
-            c[f"trend, slope - {z:g} SE, dip {taud:g} s (else shipped)"] = comb(x, sh, lambda a, b: a)
+            key = f"trend, slope - {z:g} SE, dip {taud:g} s"
+            c[f"{key} (else shipped)"] = comb(x, sh, lambda a, b: a)
+            c[f"{key}, capped at 4x shipped"] = comb(x, sh, lambda a, b: min(a, 4 * (1 + b) - 1))
     for taud in (480.0, 1e9):
         bases[f"shape 480 s, dip {taud:g} s"] = run(fl, lambda n: ShapeQ(n, 480.0, taud=taud))
     for key, (x, span) in bases.items():
