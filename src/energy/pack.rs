@@ -2,7 +2,8 @@
 //! the equivalent circuit ([`crate::battery`]) tracked on the measured voltage and current,
 //! and the loaded-voltage forecast at the forecast power.
 //!
-//! - **Rest.** While the current stays under [`REST_CURRENT_A`] and the voltage has moved
+//! - **Rest.** While the current stays under [`rest_current_a`] (1 A; less on a pack under
+//!   about 3 Ah) and the voltage has moved
 //!   less than [`REST_SPREAD_V`] over [`REST_SETTLE_S`], the median of those seconds is the
 //!   resting voltage. Before the first take-off (current over [`load_current_a`]) each new
 //!   resting voltage restarts the pack's state from it: energy to the floor through the OCV
@@ -49,7 +50,7 @@ use crate::battery::forecast::{
 use crate::battery::{Chemistry, CircuitParams, Estimator, OcvCurve, PackHistory};
 use crate::report::{BatteryFacts, Provenance};
 
-/// Current under which the pack counts as resting, A.
+/// Current under which the pack counts as resting, A ([`rest_current_a`]: less on a small pack).
 pub const REST_CURRENT_A: f64 = 1.0;
 /// How long the voltage must hold still at rest before it is read, s.
 pub const REST_SETTLE_S: f64 = 2.0;
@@ -296,7 +297,7 @@ impl Pack {
         {
             self.loaded.pop_front();
         }
-        if i.abs() < REST_CURRENT_A {
+        if i.abs() < rest_current_a(facts) {
             self.rest.push_back((t, v));
             while self
                 .rest
@@ -576,7 +577,7 @@ mod forecast;
 mod priors;
 #[path = "pack_sag.rs"]
 mod sag;
-pub use priors::{load_current_a, pack_model, prior_r_ohm};
+pub use priors::{load_current_a, pack_model, prior_r_ohm, rest_current_a};
 use priors::{low_v, pack_ah};
 pub use sag::SagCheck;
 
