@@ -52,6 +52,10 @@ use crate::report::{BatteryFacts, Provenance};
 
 /// Current under which the pack counts as resting, A ([`rest_current_a`]: less on a small pack).
 pub const REST_CURRENT_A: f64 = 1.0;
+/// The least rest current, A ([`rest_current_a`]): what a flight controller, receiver and
+/// video transmitter draw idling on the ground, whatever the pack (a 4 Wh 3S pack idling at
+/// 2 W, 0.18 A, rests).
+pub const REST_FLOOR_A: f64 = 0.3;
 /// How long the voltage must hold still at rest before it is read, s.
 pub const REST_SETTLE_S: f64 = 2.0;
 /// The most the resting voltage may move over [`REST_SETTLE_S`] to count as settled, V.

@@ -46,10 +46,11 @@ pub fn load_current_a(facts: &BatteryFacts) -> f64 {
 /// whose loaded current ([`crate::battery::trend::loaded_a`]) is under twice that (under
 /// about 3 Ah), half its loaded current, so that a small pack's hover is never read as a rest
 /// (a 1 Ah pack hovering at 0.8 A had its loaded voltage read as a resting one, and never
-/// took off). With the capacity not known: [`REST_CURRENT_A`].
+/// took off); never under [`REST_FLOOR_A`]. With the capacity not known: [`REST_CURRENT_A`].
 pub fn rest_current_a(facts: &BatteryFacts) -> f64 {
     let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
-    (0.5 * crate::battery::trend::loaded_a(pack_ah(facts, chem))).min(REST_CURRENT_A)
+    (0.5 * crate::battery::trend::loaded_a(pack_ah(facts, chem)))
+        .clamp(REST_FLOOR_A, REST_CURRENT_A)
 }
 
 /// The OCV curve and circuit for these battery facts: the TB48D's own fit for the M100's

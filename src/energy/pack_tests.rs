@@ -343,6 +343,13 @@ fn a_micro_packs_hover_under_1_a_is_flight_not_rest() {
         ..facts.clone()
     };
     assert_eq!(rest_current_a(&unknown), REST_CURRENT_A);
+    // a 3S 4 Wh pack: its ground idle (2 W, 0.18 A) is still a rest
+    let tiny = BatteryFacts {
+        cell_count: Sourced::new(3, Provenance::Config),
+        capacity_wh: Some(Sourced::new(4.0, Provenance::Config)),
+        ..facts.clone()
+    };
+    assert_eq!(rest_current_a(&tiny), REST_FLOOR_A);
     let mut p = Pack::default();
     let mut flying = PackNow::default();
     let mut t = 0.0;
