@@ -319,7 +319,12 @@ impl Pack {
                 self.flown = true;
             }
         }
-        if i >= crate::battery::trend::loaded_a(pack_ah(facts, chem)) {
+        // the trend's loaded samples; with the capacity not known, any current over the rest
+        // current (a micro pack hovering under 3 A still gets its time to the low voltage)
+        let trend_a = pack_ah(facts, chem).map_or(REST_CURRENT_A, |ah| {
+            crate::battery::trend::loaded_a(Some(ah))
+        });
+        if i >= trend_a {
             self.trend.add(t, v, i);
         }
         if i >= load_a {

@@ -367,3 +367,32 @@ fn a_micro_packs_hover_under_1_a_is_flight_not_rest() {
     assert_eq!(flying.start, Some(FROM_REST), "{flying:?}");
     assert!(flying.time_to_low_v_s.is_some(), "{flying:?}");
 }
+
+#[test]
+fn a_micro_pack_with_no_capacity_gets_a_time_to_the_low_voltage_under_3_a() {
+    // 3S Li-ion, capacity not known (no circuit: the trend alone), rested, then hovering at
+    // 2 A with its loaded voltage falling 2 mV/s from 11.2 V: the trend takes it (it needed
+    // the M100's 3 A before), and the time is where its line crosses 10.5 V
+    let facts = BatteryFacts {
+        cell_count: Sourced::new(3, Provenance::Config),
+        capacity_wh: None,
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        low_voltage_v: Some(Sourced::new(10.5, Provenance::Config)),
+        ..BatteryFacts::default()
+    };
+    let mut p = Pack::default();
+    let mut flying = PackNow::default();
+    let mut t = 0.0;
+    while t < 65.0 {
+        let (v, i) = if t < 5.0 {
+            (11.4, 0.1)
+        } else {
+            (11.2 - 0.002 * (t - 5.0), 2.0)
+        };
+        flying = p.update(t, Some(v), Some(i), Some(Load::constant(v * i)), &facts);
+        t += 0.1;
+    }
+    // at 65 s: 11.08 V, falling 2 mV/s: about 290 s to 10.5 V
+    let ttl = flying.time_to_low_v_s.expect("a time to the low voltage");
+    assert!((250.0..320.0).contains(&ttl), "{flying:?}");
+}
