@@ -307,7 +307,7 @@ impl EnergyTracker {
             .map(f64::from)
             .filter(|v| v.is_finite() && *v > 0.5);
         let amps = volts.zip(measured).map(|(v, p)| p / v);
-        let flying = amps.is_some_and(|i| i > pack::REST_CURRENT_A);
+        let flying = amps.is_some_and(|i| i > pack::rest_current_a(&self.battery));
         let aloft = flying || (amps.is_none() && s.home.is_some_and(|h| h.height_m > 2.0));
         if self.airborne.update(aloft, dt) {
             // take-off: the forecast's power from the phase now flown, not from ground idle

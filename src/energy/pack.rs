@@ -2,7 +2,8 @@
 //! the equivalent circuit ([`crate::battery`]) tracked on the measured voltage and current,
 //! and the loaded-voltage forecast at the forecast power.
 //!
-//! - **Rest.** While the current stays under [`REST_CURRENT_A`] and the voltage has moved
+//! - **Rest.** While the current stays under [`rest_current_a`] (1 A; less on a pack under
+//!   about 3 Ah) and the voltage has moved
 //!   less than [`REST_SPREAD_V`] over [`REST_SETTLE_S`], the median of those seconds is the
 //!   resting voltage. Before the first take-off (current over [`load_current_a`]) each new
 //!   resting voltage restarts the pack's state from it: energy to the floor through the OCV
@@ -49,8 +50,12 @@ use crate::battery::forecast::{
 use crate::battery::{Chemistry, CircuitParams, Estimator, OcvCurve, PackHistory};
 use crate::report::{BatteryFacts, Provenance};
 
-/// Current under which the pack counts as resting, A.
+/// Current under which the pack counts as resting, A ([`rest_current_a`]: less on a small pack).
 pub const REST_CURRENT_A: f64 = 1.0;
+/// The least rest current, A ([`rest_current_a`]): what a flight controller, receiver and
+/// video transmitter draw idling on the ground, whatever the pack (a 4 Wh 3S pack idling at
+/// 2 W, 0.18 A, rests).
+pub const REST_FLOOR_A: f64 = 0.3;
 /// How long the voltage must hold still at rest before it is read, s.
 pub const REST_SETTLE_S: f64 = 2.0;
 /// The most the resting voltage may move over [`REST_SETTLE_S`] to count as settled, V.
@@ -296,7 +301,7 @@ impl Pack {
         {
             self.loaded.pop_front();
         }
-        if i.abs() < REST_CURRENT_A {
+        if i.abs() < rest_current_a(facts) {
             self.rest.push_back((t, v));
             while self
                 .rest
@@ -314,7 +319,12 @@ impl Pack {
                 self.flown = true;
             }
         }
-        if i >= crate::battery::trend::loaded_a(pack_ah(facts, chem)) {
+        // the trend's loaded samples; with the capacity not known, any current over the rest
+        // current (a micro pack hovering under 3 A still gets its time to the low voltage)
+        let trend_a = pack_ah(facts, chem).map_or(REST_CURRENT_A, |ah| {
+            crate::battery::trend::loaded_a(Some(ah))
+        });
+        if i >= trend_a {
             self.trend.add(t, v, i);
         }
         if i >= load_a {
@@ -576,7 +586,7 @@ mod forecast;
 mod priors;
 #[path = "pack_sag.rs"]
 mod sag;
-pub use priors::{load_current_a, pack_model, prior_r_ohm};
+pub use priors::{load_current_a, pack_model, prior_r_ohm, rest_current_a};
 use priors::{low_v, pack_ah};
 pub use sag::SagCheck;
 

@@ -34,12 +34,23 @@ pub(super) fn pack_ah(facts: &BatteryFacts, chem: Chemistry) -> Option<f64> {
 /// seconds under load (the load-compensated start's 10 s hold on the voltage forecast), the
 /// "assumed full" warning. The resistance fit's threshold ([`crate::battery::trend::loaded_a`]):
 /// [`LOAD_CURRENT_A`] on the M100's pack, less on a smaller one in proportion to its charge (a
-/// 3S1P 2.5 Ah pack hovering at 2 A is loaded), never under [`REST_CURRENT_A`] (a current the
+/// 3S1P 2.5 Ah pack hovering at 2 A is loaded), never under [`rest_current_a`] (a current the
 /// rest rule calls rest is not a take-off). With the capacity not known: [`LOAD_CURRENT_A`]
 /// (a rule from the currents seen would let a busy ground idle count as a take-off).
 pub fn load_current_a(facts: &BatteryFacts) -> f64 {
     let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
-    crate::battery::trend::loaded_a(pack_ah(facts, chem)).max(REST_CURRENT_A)
+    crate::battery::trend::loaded_a(pack_ah(facts, chem)).max(rest_current_a(facts))
+}
+
+/// The current under which this pack counts as resting, A: [`REST_CURRENT_A`], and on a pack
+/// whose loaded current ([`crate::battery::trend::loaded_a`]) is under twice that (under
+/// about 3 Ah), half its loaded current, so that a small pack's hover is never read as a rest
+/// (a 1 Ah pack hovering at 0.8 A had its loaded voltage read as a resting one, and never
+/// took off); never under [`REST_FLOOR_A`]. With the capacity not known: [`REST_CURRENT_A`].
+pub fn rest_current_a(facts: &BatteryFacts) -> f64 {
+    let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
+    (0.5 * crate::battery::trend::loaded_a(pack_ah(facts, chem)))
+        .clamp(REST_FLOOR_A, REST_CURRENT_A)
 }
 
 /// The OCV curve and circuit for these battery facts: the TB48D's own fit for the M100's

@@ -321,3 +321,78 @@ fn a_small_pack_under_3_a_is_loaded_by_its_own_threshold() {
     assert_eq!(flying.withheld, None, "{flying:?}");
     assert!(flying.time_to_low_v_s.is_some(), "{flying:?}");
 }
+
+#[test]
+fn a_micro_packs_hover_under_1_a_is_flight_not_rest() {
+    // 2S 1.0 Ah Li-ion (7.2 Wh): loaded from 0.66 A, resting under 0.33 A (the M100's 1 A
+    // and 3 A unchanged, and 1 A with the capacity not known). Rested at 8.1 V, then hovering
+    // at 0.8 A with its voltage falling 2 mV/s from 7.9 V (still enough to pass as "settled"):
+    // a flight, not a new resting voltage read off the loaded pack.
+    let facts = BatteryFacts {
+        cell_count: Sourced::new(2, Provenance::Config),
+        capacity_wh: Some(Sourced::new(7.2, Provenance::Config)),
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        low_voltage_v: Some(Sourced::new(7.0, Provenance::Config)),
+        ..BatteryFacts::default()
+    };
+    let (rest, load) = (rest_current_a(&facts), load_current_a(&facts));
+    assert!(rest < 0.8 && load < 0.8 && rest < load, "{rest} {load}");
+    assert_eq!(rest_current_a(&tb48d()), REST_CURRENT_A);
+    let unknown = BatteryFacts {
+        capacity_wh: None,
+        ..facts.clone()
+    };
+    assert_eq!(rest_current_a(&unknown), REST_CURRENT_A);
+    // a 3S 4 Wh pack: its ground idle (2 W, 0.18 A) is still a rest
+    let tiny = BatteryFacts {
+        cell_count: Sourced::new(3, Provenance::Config),
+        capacity_wh: Some(Sourced::new(4.0, Provenance::Config)),
+        ..facts.clone()
+    };
+    assert_eq!(rest_current_a(&tiny), REST_FLOOR_A);
+    let mut p = Pack::default();
+    let mut flying = PackNow::default();
+    let mut t = 0.0;
+    while t < 65.0 {
+        let (v, i) = if t < 5.0 {
+            (8.1, 0.1)
+        } else {
+            (7.9 - 0.002 * (t - 5.0), 0.8)
+        };
+        flying = p.update(t, Some(v), Some(i), Some(Load::constant(v * i)), &facts);
+        t += 0.1;
+    }
+    assert!(p.flown, "{flying:?}");
+    assert_eq!(flying.rest_v, Some(8.1), "{flying:?}");
+    assert_eq!(flying.start, Some(FROM_REST), "{flying:?}");
+    assert!(flying.time_to_low_v_s.is_some(), "{flying:?}");
+}
+
+#[test]
+fn a_micro_pack_with_no_capacity_gets_a_time_to_the_low_voltage_under_3_a() {
+    // 3S Li-ion, capacity not known (no circuit: the trend alone), rested, then hovering at
+    // 2 A with its loaded voltage falling 2 mV/s from 11.2 V: the trend takes it (it needed
+    // the M100's 3 A before), and the time is where its line crosses 10.5 V
+    let facts = BatteryFacts {
+        cell_count: Sourced::new(3, Provenance::Config),
+        capacity_wh: None,
+        chemistry: Sourced::new("liion".into(), Provenance::Config),
+        low_voltage_v: Some(Sourced::new(10.5, Provenance::Config)),
+        ..BatteryFacts::default()
+    };
+    let mut p = Pack::default();
+    let mut flying = PackNow::default();
+    let mut t = 0.0;
+    while t < 65.0 {
+        let (v, i) = if t < 5.0 {
+            (11.4, 0.1)
+        } else {
+            (11.2 - 0.002 * (t - 5.0), 2.0)
+        };
+        flying = p.update(t, Some(v), Some(i), Some(Load::constant(v * i)), &facts);
+        t += 0.1;
+    }
+    // at 65 s: 11.08 V, falling 2 mV/s: about 290 s to 10.5 V
+    let ttl = flying.time_to_low_v_s.expect("a time to the low voltage");
+    assert!((250.0..320.0).contains(&ttl), "{flying:?}");
+}
