@@ -97,6 +97,9 @@ pub fn steps(
     let [kw, kc, b] = s.split_fit();
     let deepen = deepening(&s);
     let mut t = 0.0;
+    // The open-circuit voltage depends on the energy alone: the one after a step is the next
+    // step's before (one table look-up a step instead of two; the forecast's hot spot).
+    let mut ocv = s.ocv();
     profile
         .into_iter()
         .filter(|(dt, _)| dt.is_finite() && *dt > 0.0)
@@ -109,7 +112,7 @@ pub fn steps(
             let e1 = (-dt / p.tau1_s).exp();
             // the sag deepens as the pack empties (battery::deep): 1 for the TB48D
             let g = deepen(s.soc());
-            let c = s.ocv() - b - g * p.r1 * (kw * s.split.xw + kc * s.split.xc) * e1;
+            let c = ocv - b - g * p.r1 * (kw * s.split.xw + kc * s.split.xc) * e1;
             let re = ((p.r0 + p.r1 * (1.0 - e1)) * k * g).max(1e-6);
             let disc = c * c - 4.0 * re * pw;
             let (i, power_limited) = if disc >= 0.0 {
@@ -121,13 +124,14 @@ pub fn steps(
             s.heat += i * i * p.tau_heat_s * (1.0 - eh);
             s.split.propagate(e1, i, cold);
             s.energy = (s.energy - v * i * dt / 3600.0).max(0.0);
+            ocv = s.ocv();
             t += dt;
             Step {
                 t_s: t,
                 v,
                 energy: s.energy,
                 power_limited,
-                ocv: s.ocv(),
+                ocv,
             }
         })
 }

@@ -83,7 +83,8 @@ impl Vehicle {
     }
 }
 
-type Chains = std::collections::HashMap<VehicleId, Vehicle>;
+/// foldhash, not std's SipHash: one look-up per message, and the keys are bounded (no flood).
+type Chains = std::collections::HashMap<VehicleId, Vehicle, foldhash::fast::RandomState>;
 
 impl Fleet {
     /// Route every message to its vehicle's chain (starting one for a vehicle newly heard),
