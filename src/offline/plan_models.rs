@@ -9,6 +9,13 @@ use crate::features::VehicleClass;
 use crate::model::profile::VehicleProfile;
 use crate::model::PowerModel;
 
+/// The models that fly the plan, their calibration, and the forecast's header.
+pub(super) type PlanModels = (
+    Vec<Box<dyn PowerModel>>,
+    crate::mission::forecast::Calibration,
+    String,
+);
+
 /// The models, the calibration and the forecast's header: the M100 with its calibrated
 /// models and fitted correction; another vehicle with its learned forecast model, else the
 /// mean of its own physics models uncorrected, the P90 widened (the M100's correction is
@@ -20,11 +27,7 @@ pub(super) fn forecast_models(
     profile_path: Option<&Path>,
     class: VehicleClass,
     is_m100: bool,
-) -> anyhow::Result<(
-    Vec<Box<dyn PowerModel>>,
-    crate::mission::forecast::Calibration,
-    String,
-)> {
+) -> anyhow::Result<PlanModels> {
     if is_m100 {
         return Ok((
             models_for(cfg, &a.forecast.calibrated)?,

@@ -339,151 +339,42 @@ pub fn run(args: LearnArgs) -> Result<()> {
         .filter(|(i, _)| !held.contains(i))
         .flat_map(|(_, w)| wing_data(&wing0, w))
         .collect();
-    let wing_fit = crate::model::physics::fixed_wing::fit(&wing0, &wing_train);
     let mut learned = learned;
-    if let Some(f) = &wing_fit {
-        learned.fixed_wing = Some(f.params);
-        fit_report.push(super::fit::FitReport {
-            model: "fixed_wing",
-            rmse_before_w: f.rmse_before_w,
-            rmse_after_w: f.rmse_after_w,
-        });
-        tracing::info!(
-            windows = f.windows,
-            "fixed_wing fitted: C_D0 {:.4} → {:.4}, e {:.2} → {:.2}, η {:.2} → {:.2}, P_0 {:.1} → {:.1} W{}",
-            wing0.cd0,
-            f.params.cd0,
-            wing0.oswald_e,
-            f.params.oswald_e,
-            wing0.eta,
-            f.params.eta,
-            wing0.offset_w,
-            f.params.offset_w,
-            if f.clamped.is_empty() {
-                String::new()
-            } else {
-                format!(" (held at the edge of its range: {})", f.clamped.join(", "))
-            }
-        );
-    } else if !wing_train.is_empty() {
-        tracing::warn!("{} training windows flown on a wing: too few to fit the fixed-wing model (20 at least)", wing_train.len());
-    }
+    fit_wing(&wing0, &wing_train, &mut learned, &mut fit_report);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
 
     // The LSTM fine-tuned from M100 weights, early-stopping on the held-out logs.
-    let mut tuned = None;
-    if let Some(fine_tune) = fine_tuner {
-        use crate::model::lstm::{find_model_dir, resolve_model_path, PAPER_MODEL_DIR};
-        let shipped = args
-            .ft_from
-            .clone()
-            .or_else(|| cfg.models.lstm.path.clone())
-            .or_else(|| find_model_dir(PAPER_MODEL_DIR))
-            .or_else(|| resolve_model_path(None))
-            .context("no LSTM model to fine-tune from (give --ft-from)")?;
-        let held_windows: Vec<FlightWindows> = held.iter().map(|&i| flights[i].1.clone()).collect();
-        let out = args.out.join("lstm");
-        std::fs::create_dir_all(&out)
-            .with_context(|| format!("{}: cannot create", out.display()))?;
-        let train_logs = flights
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| !held.contains(i))
-            .map(|(_, (p, _, _))| p.display().to_string())
-            .collect();
-        let job = FineTuneJob {
-            base: &shipped,
-            train: &train,
-            held_out: &held_windows,
-            out: &out,
-            epochs: args.ft_epochs,
-            max_steps: args.ft_max_steps,
-            lr: args.ft_lr,
-            patience: args.ft_patience,
-            dropout: args.ft_dropout,
-            logs: train_logs,
-        };
-        let done = fine_tune(&job)?;
-        tracing::info!(
-            "LSTM fine-tuned: {} epoch(s), kept epoch {}, held-out MAE {:.1} → {:.1} W",
-            done.epochs_run,
-            done.best_epoch,
-            done.held_out_mae_w.0,
-            done.held_out_mae_w.1
-        );
+    let tuned = match fine_tuner {
+        Some(f) => Some(fine_tune_lstm(f, &args, &cfg, &flights, &held, &train)?),
+        None => None,
+    };
+    if tuned.is_some() {
         learned.lstm = Some(PathBuf::from("lstm"));
-        tuned = Some((out, done));
     }
 
-    let mut scores = Vec::new();
-    for &i in &held {
-        let (p, f, n) = &flights[i];
-        let mut rows = Vec::new();
-        if !f.windows.is_empty() {
-            let before = score(&cfg, &base, None, f, in_flight_w)?;
-            let after = score(
-                &cfg,
-                &learned,
-                tuned.as_ref().map(|(p, _)| p.as_path()),
-                f,
-                in_flight_w,
-            )?;
-            rows.extend(before.into_iter().map(|(name, b)| {
-                let a = after.iter().find(|(n, _)| *n == name).and_then(|(_, a)| *a);
-                (name, b, a)
-            }));
-        }
-        let wing = &wings[i];
-        let mask = 2.0 * wing0.offset_w;
-        if let Some(b) = wing_score(&wing0, mask, wing) {
-            let a = wing_score(&learned.fixed_wing.unwrap_or(wing0), mask, wing);
-            rows.push(("fixed_wing".into(), Some(b), a));
-        }
-        scores.push(LogScore {
-            log: p.display().to_string(),
-            in_flight_windows: *n,
-            rows,
-        });
-    }
+    let tuned_dir = tuned.as_ref().map(|(p, _)| p.as_path());
+    let held_out = HeldOut {
+        flights: &flights,
+        wings: &wings,
+        held: &held,
+        wing0,
+        in_flight_w,
+    };
+    let scores = score_held(&cfg, &base, &learned, tuned_dir, &held_out)?;
 
     // The forecast model: the lowest mean held-out MAPE of the learned models.
-    let pick = pick_forecast(&scores);
-    if let Some((name, mape)) = &pick {
-        let model = match (name.as_str(), &tuned) {
-            ("lstm", Some(_)) => "lstm_ft".to_string(),
-            ("lstm" | "fixed_wing", _) => name.clone(),
-            _ => format!("{name}{}", learned.name_suffix()),
-        };
-        learned.forecast = Some(crate::model::profile::ForecastDefault {
-            model,
-            why: format!(
-                "lowest held-out MAPE of `dronewatt learn`, {mape:.1} % over {} log(s)",
-                held.len()
-            ),
-            scale: Default::default(),
-            p90_ratio: None,
-        });
-    }
+    set_forecast(&mut learned, &scores, tuned.is_some(), held.len());
 
     let profile_path = args.out.join("profile.toml");
-    let mut text = format!(
+    let header = format!(
         "# Written by `dronewatt learn` from {} log(s) ({} trained, {} held out), starting from {}.\n",
         logs.len(),
         train.len(),
         held.len(),
         base.name
     );
-    text.push_str("# Training RMSE, W (published → learned):\n");
-    for r in &fit_report {
-        text.push_str(&format!(
-            "#   {:<18} {:>8.1} → {:>6.1}\n",
-            r.model, r.rmse_before_w, r.rmse_after_w
-        ));
-    }
-    text.push_str(&toml::to_string(&learned).context("cannot serialise the learned profile")?);
-    std::fs::write(&profile_path, text)
-        .with_context(|| format!("{}: cannot write", profile_path.display()))?;
+    write_profile(&profile_path, header, &fit_report, &learned)?;
     let card_path = args.out.join("model-card.md");
     let mut card = model_card(
         &base,
@@ -588,9 +479,11 @@ fn remember_profile(dir: &Path, logs: &[PathBuf], profile: &Path, forecast_model
 mod dedup;
 mod logs;
 mod report;
+mod steps;
 use logs::collect_logs;
 pub use logs::{log_windows, log_windows_by_lift};
 use report::*;
+use steps::{fine_tune_lstm, fit_wing, score_held, set_forecast, write_profile, HeldOut};
 
 #[cfg(test)]
 mod tests;
