@@ -328,76 +328,10 @@ pub async fn run(
         );
     }
     let (merged_tx, mut merged_rx) = mpsc::channel::<(usize, TimedMessage)>(1024);
-    let mut tallies = Vec::new();
-    let mut tasks = tokio::task::JoinSet::new();
-    for (i, addr) in addrs.into_iter().enumerate() {
-        let network = nets.of_link.get(i).copied().unwrap_or(0);
-        let (ltx, mut lrx) = mpsc::channel::<TimedMessage>(256);
-        let own = Arc::new(IngestStats::default());
-        let out = LinkHandle::with_signer(io.link.signer());
-        tallies.push(Tally {
-            name: addr.to_string(),
-            network,
-            frames: 0,
-            duplicates: 0,
-            got: 0,
-            delay_s: 0.0,
-            last_heard: None,
-            stats: own.clone(),
-            out: out.clone(),
-            health: LinkHealth::default(),
-        });
-        let fwd = merged_tx.clone();
-        tokio::spawn(async move {
-            while let Some(mut m) = lrx.recv().await {
-                m.network = network;
-                if fwd.send((i, m)).await.is_err() {
-                    break;
-                }
-            }
-        });
-        let own_io = LinkIo {
-            tx: ltx,
-            stats: own,
-            link: out,
-            verifier: io.verifier.clone(),
-            shutdown: io.shutdown.clone(),
-        };
-        tasks.spawn(link::run(addr, own_io));
-    }
+    let (mut tallies, mut tasks) = spawn_links(addrs, &nets, &io, &merged_tx);
     drop(merged_tx);
-    // What the chain sends goes to the best live link (of each network: the main handle's
-    // own frames, with separate networks, go to every network's best link).
     let count = nets.names.len();
-    let best: Arc<Vec<AtomicUsize>> = Arc::new(
-        (0..=count)
-            .map(|n| AtomicUsize::new(first_of(&tallies, n as u8).unwrap_or(0)))
-            .collect(),
-    );
-    let outs: Vec<(u8, LinkHandle)> = tallies.iter().map(|t| (t.network, t.out.clone())).collect();
-    let writer = |net: Option<u8>, handle: &LinkHandle| {
-        let (wtx, mut wrx) = mpsc::channel::<Vec<u8>>(256);
-        handle.attach(wtx);
-        let (outs, best) = (outs.clone(), best.clone());
-        tokio::spawn(async move {
-            while let Some(frame) = wrx.recv().await {
-                // Already numbered and signed by the chain's writer: sent as it is.
-                route(&outs, &best, net, every_link, frame);
-            }
-        });
-    };
-    if count == 0 {
-        writer(Some(0), &io.link);
-    } else {
-        writer(None, &io.link);
-        let mut handles = vec![io.link.clone()];
-        for n in 1..=count {
-            let h = LinkHandle::with_signer(io.link.signer());
-            writer(u8::try_from(n).ok(), &h);
-            handles.push(h);
-        }
-        io.link.set_networks(handles);
-    }
+    let best = attach_writers(&io, &tallies, count, every_link);
 
     let mut dedup = Dedup::default();
     let mut tick = tokio::time::interval(Duration::from_secs(1));
@@ -458,6 +392,95 @@ pub async fn run(
     publish(&mut tallies, &nets, &unique, &io.stats, &best);
     tasks.shutdown().await;
     Ok(())
+}
+
+/// Start each link's task, and a forwarder stamping its messages with the link's network
+/// into the merge; each link's tally (its counters and its handle).
+fn spawn_links(
+    addrs: Vec<LinkAddress>,
+    nets: &Networks,
+    io: &LinkIo,
+    merged_tx: &mpsc::Sender<(usize, TimedMessage)>,
+) -> (Vec<Tally>, tokio::task::JoinSet<Result<()>>) {
+    let mut tallies = Vec::new();
+    let mut tasks = tokio::task::JoinSet::new();
+    for (i, addr) in addrs.into_iter().enumerate() {
+        let network = nets.of_link.get(i).copied().unwrap_or(0);
+        let (ltx, mut lrx) = mpsc::channel::<TimedMessage>(256);
+        let own = Arc::new(IngestStats::default());
+        let out = LinkHandle::with_signer(io.link.signer());
+        tallies.push(Tally {
+            name: addr.to_string(),
+            network,
+            frames: 0,
+            duplicates: 0,
+            got: 0,
+            delay_s: 0.0,
+            last_heard: None,
+            stats: own.clone(),
+            out: out.clone(),
+            health: LinkHealth::default(),
+        });
+        let fwd = merged_tx.clone();
+        tokio::spawn(async move {
+            while let Some(mut m) = lrx.recv().await {
+                m.network = network;
+                if fwd.send((i, m)).await.is_err() {
+                    break;
+                }
+            }
+        });
+        let own_io = LinkIo {
+            tx: ltx,
+            stats: own,
+            link: out,
+            verifier: io.verifier.clone(),
+            shutdown: io.shutdown.clone(),
+        };
+        tasks.spawn(link::run(addr, own_io));
+    }
+    (tallies, tasks)
+}
+
+/// What the chain sends goes to the best live link (of each network: the main handle's
+/// own frames, with separate networks, go to every network's best link): a writer task per
+/// handle; the best link of each network, as the merge will keep it.
+fn attach_writers(
+    io: &LinkIo,
+    tallies: &[Tally],
+    count: usize,
+    every_link: bool,
+) -> Arc<Vec<AtomicUsize>> {
+    let best: Arc<Vec<AtomicUsize>> = Arc::new(
+        (0..=count)
+            .map(|n| AtomicUsize::new(first_of(tallies, n as u8).unwrap_or(0)))
+            .collect(),
+    );
+    let outs: Vec<(u8, LinkHandle)> = tallies.iter().map(|t| (t.network, t.out.clone())).collect();
+    let writer = |net: Option<u8>, handle: &LinkHandle| {
+        let (wtx, mut wrx) = mpsc::channel::<Vec<u8>>(256);
+        handle.attach(wtx);
+        let (outs, best) = (outs.clone(), best.clone());
+        tokio::spawn(async move {
+            while let Some(frame) = wrx.recv().await {
+                // Already numbered and signed by the chain's writer: sent as it is.
+                route(&outs, &best, net, every_link, frame);
+            }
+        });
+    };
+    if count == 0 {
+        writer(Some(0), &io.link);
+    } else {
+        writer(None, &io.link);
+        let mut handles = vec![io.link.clone()];
+        for n in 1..=count {
+            let h = LinkHandle::with_signer(io.link.signer());
+            writer(u8::try_from(n).ok(), &h);
+            handles.push(h);
+        }
+        io.link.set_networks(handles);
+    }
+    best
 }
 
 /// The first link of network `net`.

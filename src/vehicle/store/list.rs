@@ -25,23 +25,7 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
     let store = Store::open(dir)?;
     let vehicles = store.vehicles()?;
     if json {
-        // each vehicle with its pack's capacity and resistance and their uncertainty
-        #[derive(serde::Serialize)]
-        struct WithPack<'a> {
-            #[serde(flatten)]
-            v: &'a super::VehicleRecord,
-            capacity_wh: Option<Interval>,
-            internal_r_ohm: Option<Interval>,
-        }
-        let out: Vec<WithPack> = vehicles
-            .iter()
-            .map(|v| WithPack {
-                v,
-                capacity_wh: capacity(&v.flights),
-                internal_r_ohm: resistance(&v.flights),
-            })
-            .collect();
-        return Ok(serde_json::to_string_pretty(&out)? + "\n");
+        return list_json(&vehicles);
     }
     let mut s = String::new();
     let _ = writeln!(
@@ -101,44 +85,7 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
                 }
             );
         }
-        // One row per pack the vehicle identified (BATTERY_INFO's serial), in the order
-        // first flown; the flights with no pack id heard in one row for the vehicle.
-        let mut packs: Vec<Option<&str>> = Vec::new();
-        for f in &v.flights {
-            let id = f.summary.pack_id.as_deref();
-            if !packs.contains(&id) {
-                packs.push(id);
-            }
-        }
-        for id in packs {
-            let flights: Vec<_> = v
-                .flights
-                .iter()
-                .filter(|f| f.summary.pack_id.as_deref() == id)
-                .cloned()
-                .collect();
-            let mut pack = pack_trend(&flights);
-            for (name, i, scale, unit) in [
-                ("learned capacity", capacity(&flights), 1.0, "Wh"),
-                ("learned R", resistance(&flights), 1000.0, "mΩ"),
-            ] {
-                if let Some(i) = i {
-                    let sep = if pack.is_empty() { "" } else { "; " };
-                    pack = format!(
-                        "{pack}{sep}{name} {}",
-                        super::posterior::text(&i, scale, unit)
-                    );
-                }
-            }
-            let who = match id {
-                Some(id) => format!("pack {id} ({} flight(s))", flights.len()),
-                None => "pack (per vehicle: no pack id heard)".to_string(),
-            };
-            if !pack.is_empty() || id.is_some() {
-                let pack = if pack.is_empty() { "—".into() } else { pack };
-                let _ = writeln!(s, "{:<34} {who}, by flight: {pack}", "");
-            }
-        }
+        pack_rows(&mut s, v);
         if let Some(p) = &v.profile {
             let _ = writeln!(
                 s,
@@ -150,6 +97,70 @@ pub fn list(dir: &Path, json: bool) -> Result<String> {
         }
     }
     Ok(s)
+}
+
+/// `vehicles --json`: each vehicle with its pack's capacity and resistance and their
+/// uncertainty.
+fn list_json(vehicles: &[super::VehicleRecord]) -> Result<String> {
+    // each vehicle with its pack's capacity and resistance and their uncertainty
+    #[derive(serde::Serialize)]
+    struct WithPack<'a> {
+        #[serde(flatten)]
+        v: &'a super::VehicleRecord,
+        capacity_wh: Option<Interval>,
+        internal_r_ohm: Option<Interval>,
+    }
+    let out: Vec<WithPack> = vehicles
+        .iter()
+        .map(|v| WithPack {
+            v,
+            capacity_wh: capacity(&v.flights),
+            internal_r_ohm: resistance(&v.flights),
+        })
+        .collect();
+    Ok(serde_json::to_string_pretty(&out)? + "\n")
+}
+
+/// One row per pack the vehicle identified (BATTERY_INFO's serial), in the order first
+/// flown; the flights with no pack id heard in one row for the vehicle.
+fn pack_rows(s: &mut String, v: &super::VehicleRecord) {
+    use std::fmt::Write;
+    let mut packs: Vec<Option<&str>> = Vec::new();
+    for f in &v.flights {
+        let id = f.summary.pack_id.as_deref();
+        if !packs.contains(&id) {
+            packs.push(id);
+        }
+    }
+    for id in packs {
+        let flights: Vec<_> = v
+            .flights
+            .iter()
+            .filter(|f| f.summary.pack_id.as_deref() == id)
+            .cloned()
+            .collect();
+        let mut pack = pack_trend(&flights);
+        for (name, i, scale, unit) in [
+            ("learned capacity", capacity(&flights), 1.0, "Wh"),
+            ("learned R", resistance(&flights), 1000.0, "mΩ"),
+        ] {
+            if let Some(i) = i {
+                let sep = if pack.is_empty() { "" } else { "; " };
+                pack = format!(
+                    "{pack}{sep}{name} {}",
+                    super::posterior::text(&i, scale, unit)
+                );
+            }
+        }
+        let who = match id {
+            Some(id) => format!("pack {id} ({} flight(s))", flights.len()),
+            None => "pack (per vehicle: no pack id heard)".to_string(),
+        };
+        if !pack.is_empty() || id.is_some() {
+            let pack = if pack.is_empty() { "—".into() } else { pack };
+            let _ = writeln!(s, "{:<34} {who}, by flight: {pack}", "");
+        }
+    }
 }
 
 /// The capacity's posterior over the last [`super::CAPACITY_FLIGHTS`] of `flights` (oldest
