@@ -26,11 +26,13 @@ fn the_readme_first_command_from_slash_on_a_1_hz_vehicle_gives_estimates_and_ale
         port,
         false,
     );
-    // 3 s at rest, then 24 s at 50 W, every message at 1 Hz.
+    // 5 s at rest, then 24 s at 50 W, every message at 1 Hz. (The resting voltage needs
+    // 2 s of rest, three samples at 1 Hz: with 3 s at rest a sample late under load left
+    // none, and the pack started load-compensated, read as full.)
     let f = fly_small_pack_to_low(
         dw,
         port,
-        r#"[{"send_s": 3, "ground": true, "rate_hz": 1}, {"send_s": 24, "rate_hz": 1}]"#,
+        r#"[{"send_s": 5, "ground": true, "rate_hz": 1}, {"send_s": 24, "rate_hz": 1}]"#,
         &json,
     );
     let (lines, peer, stderr, crossed_at) = (&f.lines, &f.peer, &f.stderr, f.crossed_at);
