@@ -19,11 +19,11 @@ Each flight writes:
                    landing times and the first time the loaded voltage fell under
                    BATT_LOW_VOLT, each in seconds from the first frame.
 
-  progpy_flights.py --out DIR [--set fit|score|score2|all] [--quick]
+  progpy_flights.py --out DIR [--set fit|score|score2|score3|all] [--quick]
 
 `--quick` writes one small, fast-emptying pack (a test's flight). The flight list is fixed
 (a seeded generator): the fit set chooses the model, the score set is scored once; score2 is
-a second held-out set of new packs and seeds (round 8), not part of `all`.
+a second held-out set of new packs and seeds (round 8), score3 a third (round 9); neither is part of `all`.
 """
 import argparse
 import json
@@ -253,13 +253,17 @@ SCORE_PACKS = [("electrochem", 2, 1), ("electrochem", 4, 3), ("electrochem", 6, 
 # before any round-8 choice and scored once, at the end (docs/src/pack.md, "Round 8").
 SCORE2_PACKS = [("electrochem", 2, 2), ("electrochem", 3, 3), ("electrochem", 7, 1), ("electrochem", 10, 2),
                 ("circuit", 2, 1), ("circuit", 4, 3), ("circuit", 8, 1), ("circuit", 12, 4)]
+# The third held-out set (round 9, issue 44; score2 was seen by round 8): sizes no set above has, new seeds;
+# defined before any round-9 experiment and scored once, at the end.
+SCORE3_PACKS = [("electrochem", 3, 2), ("electrochem", 5, 3), ("electrochem", 8, 1), ("electrochem", 11, 2),
+                ("circuit", 3, 1), ("circuit", 5, 2), ("circuit", 7, 3), ("circuit", 9, 1)]
 
 
 def flights(which):
     out = []
     for set_name, packs, seed0 in (("fit", FIT_PACKS, 1000), ("score", SCORE_PACKS, 2000),
-                                   ("score2", SCORE2_PACKS, 3000)):
-        if which not in (set_name, "all") or (set_name == "score2" and which != "score2"):
+                                   ("score2", SCORE2_PACKS, 3000), ("score3", SCORE3_PACKS, 4000)):
+        if which not in (set_name, "all") or (set_name in ("score2", "score3") and which != set_name):
             continue
         for j, (cell, s, p) in enumerate(packs):
             for r in range(3):
@@ -293,7 +297,7 @@ def quick():
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", required=True)
-    ap.add_argument("--set", default="all", choices=["fit", "score", "score2", "all"])
+    ap.add_argument("--set", default="all", choices=["fit", "score", "score2", "score3", "all"])
     ap.add_argument("--quick", action="store_true")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
