@@ -191,31 +191,16 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
     );
 }
 
-#[test]
-fn a_vehicle_that_never_hovers_is_not_calibrated_and_says_so() {
-    // The simulated X500 climbs and flies straight off (no hover item): no 15 s of still
-    // hover in its first 180 s airborne.
+/// The simulated X500 (`simulate --vehicle x500 --payload-g 0 SIM_ARGS`) replayed with
+/// `--vehicle` its five-fact spec sheet (2 kg, four 10-inch propellers, 4S 5 Ah LiPo),
+/// logging at info: the replay's output.
+fn x500_from_its_spec_sheet(sim_args: &[&str]) -> std::process::Output {
     let dir = tempfile::tempdir().unwrap();
-    let log = dir.path().join("cruise.tlog");
+    let log = dir.path().join("x500.tlog");
     dronewatt()
-        .args([
-            "simulate",
-            "--vehicle",
-            "x500",
-            "--payload-g",
-            "0",
-            "--seed",
-            "3",
-        ])
-        .args([
-            "--wind-mps",
-            "4",
-            "--hover-s",
-            "0",
-            "--leg-m",
-            "1500",
-            "--out",
-        ])
+        .args(["simulate", "--vehicle", "x500", "--payload-g", "0"])
+        .args(sim_args)
+        .arg("--out")
         .arg(&log)
         .ok();
     let spec = dir.path().join("x500-spec.toml");
@@ -225,7 +210,7 @@ fn a_vehicle_that_never_hovers_is_not_calibrated_and_says_so() {
          [battery]\ncells = 4\ncapacity_mah = 5000\nchemistry = \"lipo\"\n",
     )
     .unwrap();
-    let out = dronewatt()
+    dronewatt()
         .env("RUST_LOG", "info")
         .args([
             "replay",
@@ -235,11 +220,27 @@ fn a_vehicle_that_never_hovers_is_not_calibrated_and_says_so() {
             "-",
             "--data-dir",
             "off",
-            "--vehicle",
         ])
+        .arg("--vehicle")
         .arg(&spec)
         .arg(&log)
-        .ok();
+        .ok()
+}
+
+#[test]
+fn a_vehicle_that_never_hovers_is_not_calibrated_and_says_so() {
+    // The simulated X500 climbs and flies straight off (no hover item): no 15 s of still
+    // hover in its first 180 s airborne.
+    let out = x500_from_its_spec_sheet(&[
+        "--seed",
+        "3",
+        "--wind-mps",
+        "4",
+        "--hover-s",
+        "0",
+        "--leg-m",
+        "1500",
+    ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         stderr.contains("first hover: no hover of 15 s in the first 180 s airborne"),
@@ -256,43 +257,7 @@ fn a_vehicle_that_never_hovers_is_not_calibrated_and_says_so() {
 fn the_hover_throttle_and_the_packs_power_calibrate_before_a_full_hover() {
     // The simulated X500 (ArduPilot's MOT_THST_HOVER 0.5; its VFR_HUD throttle 50 % in a
     // hover) hovers 20 s: at the hover throttle for 10 s, before the still hover's 30 s.
-    let dir = tempfile::tempdir().unwrap();
-    let log = dir.path().join("hover.tlog");
-    dronewatt()
-        .args([
-            "simulate",
-            "--vehicle",
-            "x500",
-            "--payload-g",
-            "0",
-            "--seed",
-            "5",
-        ])
-        .args(["--hover-s", "20", "--leg-m", "300", "--out"])
-        .arg(&log)
-        .ok();
-    let spec = dir.path().join("x500-spec.toml");
-    std::fs::write(
-        &spec,
-        "name = \"X500 spec\"\n[vehicle]\ntakeoff_kg = 2.0\nrotors = 4\nprop_diameter_m = 0.254\n\
-         [battery]\ncells = 4\ncapacity_mah = 5000\nchemistry = \"lipo\"\n",
-    )
-    .unwrap();
-    let out = dronewatt()
-        .env("RUST_LOG", "info")
-        .args([
-            "replay",
-            "--speed",
-            "max",
-            "--json",
-            "-",
-            "--data-dir",
-            "off",
-        ])
-        .arg("--vehicle")
-        .arg(&spec)
-        .arg(&log)
-        .ok();
+    let out = x500_from_its_spec_sheet(&["--seed", "5", "--hover-s", "20", "--leg-m", "300"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         stderr.contains("at the hover throttle (MOT_THST_HOVER 50 %)"),

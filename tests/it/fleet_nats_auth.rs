@@ -5,39 +5,13 @@
 //! the shipped config, read back by `dronewatt vehicles --nats` as the viewer.
 
 use std::net::UdpSocket;
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use async_nats::jetstream;
 
 use crate::fleet_nats::server;
-use crate::harness::{dronewatt, Monitor};
-use crate::link_common::free_udp_port;
-
-pub(crate) const CONFIG: &str = include_str!("../../config/nats-server.conf");
-
-/// A client logged in as `user` (the shipped config's password), and the server's errors
-/// it was told of (permissions violations).
-pub(crate) async fn login(url: &str, user: &str) -> (async_nats::Client, Arc<Mutex<Vec<String>>>) {
-    let errors = Arc::new(Mutex::new(Vec::new()));
-    let seen = errors.clone();
-    let c = async_nats::ConnectOptions::with_user_and_password(
-        user.into(),
-        format!("change-me-{user}"),
-    )
-    .event_callback(move |e| {
-        let seen = seen.clone();
-        async move {
-            if let async_nats::Event::ServerError(e) = e {
-                seen.lock().unwrap().push(e.to_string());
-            }
-        }
-    })
-    .connect(url)
-    .await
-    .unwrap_or_else(|e| panic!("{user}: {e}"));
-    (c, errors)
-}
+use crate::fleet_nats_secured::{login, vehicle_socket, SecuredGateway, CONFIG};
+use crate::harness::dronewatt;
 
 /// How many frames the frame stream holds.
 async fn frames_stored(js: &jetstream::Context) -> u64 {
@@ -162,32 +136,6 @@ fn the_shipped_server_config_refuses_strangers_and_keeps_each_role_to_its_subjec
     drop(nats);
 }
 
-/// `dronewatt gateway udpin:127.0.0.1:PORT` on the NATS server at `url` as the shipped
-/// config's `gateway` user (its password in the file `pw`), listening.
-pub(crate) fn gateway_as_user(url: &str, port: u16, pw: &std::path::Path) -> Monitor {
-    let mut gateway = Monitor::spawn(
-        dronewatt()
-            .args(["gateway", &format!("udpin:127.0.0.1:{port}"), "--nats", url])
-            .args(["--nats-user", "gateway", "--nats-password-file"])
-            .arg(pw)
-            .env("RUST_LOG", "dronewatt=info"),
-    );
-    gateway.wait_listening(port, false);
-    gateway
-}
-
-/// A private file holding `text` (as the password files must be).
-pub(crate) fn private(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    std::fs::set_permissions(
-        &p,
-        <std::fs::Permissions as std::os::unix::fs::PermissionsExt>::from_mode(0o600),
-    )
-    .unwrap();
-    p
-}
-
 /// A STATUSTEXT frame saying `text`, for vehicle 3.
 fn statustext(text: &str) -> Vec<u8> {
     let msg = dronewatt::MavMessage::STATUSTEXT(dronewatt::dialect::STATUSTEXT_DATA {
@@ -264,18 +212,17 @@ fn heard_until(v: &UdpSocket, last: &str) -> String {
 
 #[test]
 fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
-    let Some(nats) = server(Some(CONFIG)) else {
+    let Some(SecuredGateway {
+        gateway,
+        port,
+        nats,
+        ..
+    }) = SecuredGateway::start()
+    else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    let pw = private(dir.path(), "gateway.pw", "change-me-gateway\n");
-    let port = free_udp_port();
-    let gateway = gateway_as_user(&nats.url, port, &pw);
     // Vehicle 3 says hello, so the gateway knows where it is.
-    let vehicle = UdpSocket::bind("127.0.0.1:0").unwrap();
-    vehicle
-        .set_read_timeout(Some(Duration::from_millis(100)))
-        .unwrap();
+    let vehicle = vehicle_socket();
     let frame = heartbeat();
     let rt = tokio::runtime::Runtime::new().unwrap();
     let (w1, w2) = rt.block_on(async {
@@ -341,24 +288,13 @@ fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
 /// latest estimate, as the worker wrote it.
 #[test]
 fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
-    let Some(nats) = server(Some(CONFIG)) else {
+    let Some(fleet_start) = SecuredGateway::start() else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    let pw = |u: &str| private(dir.path(), &format!("{u}.pw"), &format!("change-me-{u}\n"));
-    let (gpw, wpw, vpw) = (pw("gateway"), pw("worker1"), pw("viewer"));
-    let port = free_udp_port();
-    let gateway = gateway_as_user(&nats.url, port, &gpw);
-    let json = dir.path().join("w1.jsonl");
-    let worker = Monitor::spawn(
-        dronewatt()
-            .args(["monitor", "--nats", &nats.url, "--data-dir", "off", "-q"])
-            .args(["--nats-user", "worker1", "--nats-password-file"])
-            .arg(&wpw)
-            .arg("--json")
-            .arg(&json)
-            .env("RUST_LOG", "dronewatt=info"),
-    );
+    let (nats, port) = (&fleet_start.nats, fleet_start.port);
+    let vpw = fleet_start.password("viewer");
+    let json = fleet_start.dir.path().join("worker1.jsonl");
+    let worker = fleet_start.worker("worker1");
     let fleet = crate::fleet_nats::python()
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/fleet.py"))
         .args(["--to", &format!("udpout:127.0.0.1:{port}")])
@@ -397,7 +333,7 @@ fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
     );
     let out = fleet.wait_with_output().unwrap();
     let (_, ew) = worker.stop();
-    let (_, eg) = gateway.stop();
+    let (_, eg) = fleet_start.gateway.stop();
     let ctx = format!(
         "viewer: {}\nworker: {ew}\ngateway: {eg}",
         String::from_utf8_lossy(&as_json.stderr)
@@ -441,17 +377,16 @@ fn vehicles_reads_the_fleet_from_nats_as_a_viewer() {
 /// holder's own release hands the partition over at once.
 #[test]
 fn a_worker_cannot_take_a_lease_that_has_not_run_out() {
-    let Some(nats) = server(Some(CONFIG)) else {
+    let Some(SecuredGateway {
+        gateway,
+        port,
+        nats,
+        ..
+    }) = SecuredGateway::start()
+    else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    let pw = private(dir.path(), "gateway.pw", "change-me-gateway\n");
-    let port = free_udp_port();
-    let gateway = gateway_as_user(&nats.url, port, &pw);
-    let vehicle = UdpSocket::bind("127.0.0.1:0").unwrap();
-    vehicle
-        .set_read_timeout(Some(Duration::from_millis(100)))
-        .unwrap();
+    let vehicle = vehicle_socket();
     let rt = tokio::runtime::Runtime::new().unwrap();
     let ((w1, w1_errors), (w2, _)) = rt.block_on(async {
         (

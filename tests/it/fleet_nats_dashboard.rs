@@ -3,15 +3,14 @@
 //! gateway and two workers each with their own user, a pymavlink fleet over UDP, and the
 //! dashboard's own HTTP endpoint read over TCP.
 
-use std::path::Path;
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-use crate::fleet_nats::{lines, server};
-use crate::fleet_nats_auth::{gateway_as_user, private, CONFIG};
+use crate::fleet_nats::lines;
+use crate::fleet_nats_secured::SecuredGateway;
 use crate::harness::{dronewatt, Monitor};
-use crate::link_common::{free_tcp_port, free_udp_port};
+use crate::link_common::free_tcp_port;
 
 /// `GET path` on 127.0.0.1:`port`: the body as JSON (`Null` when it cannot be had).
 fn get_json(port: u16, path: &str) -> Value {
@@ -51,34 +50,17 @@ fn row(state: &Value, sys: u64) -> Option<&Value> {
         .find(|r| r["system_id"].as_u64() == Some(sys))
 }
 
-/// A worker as `user` (its password in a private file under `dir`), writing `--json`.
-fn worker_as(url: &str, user: &str, dir: &Path) -> Monitor {
-    let pw = private(dir, &format!("{user}.pw"), &format!("change-me-{user}\n"));
-    Monitor::spawn(
-        dronewatt()
-            .args(["monitor", "--nats", url, "--data-dir", "off", "-q"])
-            .args(["--nats-user", user, "--nats-password-file"])
-            .arg(pw)
-            .arg("--json")
-            .arg(dir.join(format!("{user}.jsonl")))
-            .env("RUST_LOG", "dronewatt=info"),
-    )
-}
-
 /// The dashboard lists every vehicle with the estimates its worker wrote; when that worker
 /// stops and another takes its partitions over, the same rows go on with the new holder's
 /// estimates.
 #[test]
 fn the_dashboard_reads_the_fleet_from_nats_and_follows_a_takeover() {
-    let Some(nats) = server(Some(CONFIG)) else {
+    let Some(fleet_start) = SecuredGateway::start() else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    let gpw = private(dir.path(), "gateway.pw", "change-me-gateway\n");
-    let vpw = private(dir.path(), "viewer.pw", "change-me-viewer\n");
-    let port = free_udp_port();
-    let gateway = gateway_as_user(&nats.url, port, &gpw);
-    let worker1 = worker_as(&nats.url, "worker1", dir.path());
+    let (nats, port, dir) = (&fleet_start.nats, fleet_start.port, &fleet_start.dir);
+    let vpw = fleet_start.password("viewer");
+    let worker1 = fleet_start.worker("worker1");
     let web = free_tcp_port();
     let dashboard = Monitor::listening(
         dronewatt()
@@ -126,7 +108,7 @@ fn the_dashboard_reads_the_fleet_from_nats_and_follows_a_takeover() {
         "{two}"
     );
     // worker2 joins; worker1 stops (releasing its leases): worker2 takes them over.
-    let worker2 = worker_as(&nats.url, "worker2", dir.path());
+    let worker2 = fleet_start.worker("worker2");
     let (_, e1) = worker1.stop();
     let w1 = lines(&dir.path().join("worker1.jsonl"));
     let last_t = |v: u64, lines: &[Value]| {
@@ -145,8 +127,7 @@ fn the_dashboard_reads_the_fleet_from_nats_and_follows_a_takeover() {
     let _ = fleet.wait();
     let (_, e2) = worker2.stop();
     let (_, ed) = dashboard.stop();
-    let (_, eg) = gateway.stop();
-    drop(nats);
+    let (_, eg) = fleet_start.gateway.stop();
     let w2 = lines(&dir.path().join("worker2.jsonl"));
     let ctx = format!(
         "{}\nworker1: {e1}\nworker2: {e2}\ndashboard: {ed}\ngateway: {eg}",

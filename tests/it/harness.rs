@@ -104,14 +104,18 @@ pub fn output(args: &[&str]) -> Output {
     dronewatt().args(args).out()
 }
 
+/// `dronewatt replay --speed max -q --json - ARGS LOG`, not yet run (to set its environment).
+pub fn replay_max(log: &Path, args: &[&str]) -> Command {
+    let mut c = dronewatt();
+    c.args(["replay", "--speed", "max", "-q", "--json", "-"])
+        .args(args)
+        .arg(log);
+    c
+}
+
 /// `dronewatt replay --speed max -q --json - ARGS LOG`: every JSON line of the replay.
 pub fn replay_json(log: &Path, args: &[&str]) -> Vec<Value> {
-    let out = dronewatt()
-        .args(["replay", "--speed", "max", "-q", "--json", "-"])
-        .args(args)
-        .arg(log)
-        .ok();
-    json_lines_of(&out.stdout)
+    json_lines_of(&replay_max(log, args).ok().stdout)
 }
 
 /// `dronewatt simulate` of the short X500 delivery the learning tests fly (no payload,

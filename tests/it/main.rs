@@ -29,6 +29,7 @@ mod fleet_nats;
 mod fleet_nats_auth;
 mod fleet_nats_dashboard;
 mod fleet_nats_restart;
+mod fleet_nats_secured;
 mod fuzz_props;
 mod mission_fleet;
 mod mission_margin;

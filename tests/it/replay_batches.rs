@@ -10,7 +10,7 @@
 //! run, batched or not). Each run's own count of batches (the inference stage's debug line) shows the two paths
 //! really differ: one batch a window unbatched, far fewer batched.
 
-use crate::harness::{dronewatt, output, without_wall_clock, RunExt};
+use crate::harness::{output, replay_max, without_wall_clock, RunExt};
 use serde_json::Value;
 use std::path::Path;
 
@@ -26,7 +26,7 @@ fn simulate(log: &Path, args: &[&str]) {
 /// default): the JSON lines without the summary's wall-clock fields, and the run's
 /// (batches, windows) as the inference stage counted them.
 fn replay(log: &Path, max: Option<usize>) -> (String, (u64, u64)) {
-    let mut c = dronewatt();
+    let mut c = replay_max(log, &["--data-dir", "off"]);
     c.env(
         "RUST_LOG",
         "dronewatt=info,dronewatt::pipeline::inference=debug,warn",
@@ -34,19 +34,7 @@ fn replay(log: &Path, max: Option<usize>) -> (String, (u64, u64)) {
     if let Some(m) = max {
         c.env("DRONEWATT_MAX_BATCH", m.to_string());
     }
-    let out = c
-        .args([
-            "replay",
-            "--speed",
-            "max",
-            "-q",
-            "--data-dir",
-            "off",
-            "--json",
-            "-",
-        ])
-        .arg(log)
-        .ok();
+    let out = c.ok();
     let stderr = String::from_utf8_lossy(&out.stderr);
     let counts = stderr
         .lines()
