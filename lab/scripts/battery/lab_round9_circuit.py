@@ -13,16 +13,16 @@ Candidates, each the shipped combination (sooner of circuit and trend) with the 
   (`battery::forecast::dip`, the fraction the lowest-voltage forecast uses in flight, 0.32, or
   half of it), so that a cruise's climbs cross before the mean does.
 
-The knobs are read from the environment by a scratch build with `round9-lab.patch` applied
+The knobs are read from the environment by a scratch build with `round9-circuit-lab.patch` applied
 (`DW_OCV=chen`, `DW_PRIOR_SLOPE`, `DW_PBINS`, `DW_CDIP`; unset, it is the shipped model). The rule, fixed
 before any row was chosen (rounds 7-8's): a forecast costs |e| early, 3*min(e, 3) late, 1 when
 there is none; the mean. By-pack leave-one-out CV on the 6 fit packs, choosing by that loss; a
 candidate ships only if its CV loss beats the shipped model's and it is more than 25 % late in no
 more fit forecasts than shipped; then `score3` is scored once, shipped against it.
 
-  lab_round9.py --ocv-table
-  lab_round9.py --dir DIR --bin SHIPPED --lab LAB_BIN [--set fit] [--json OUT]
-  lab_round9.py --dir DIR --bin SHIPPED --lab LAB_BIN --set score3 --only "ROW"   # held out: once
+  lab_round9_circuit.py --ocv-table
+  lab_round9_circuit.py --dir DIR --bin SHIPPED --lab LAB_BIN [--set fit] [--json OUT]
+  lab_round9_circuit.py --dir DIR --bin SHIPPED --lab LAB_BIN --set score3 --only "ROW"   # held out: once
 """
 import argparse
 import json
@@ -108,7 +108,7 @@ def main():
     ap.add_argument("--ocv-table", action="store_true", help="print the Chen 2020 Li-ion OCV knots")
     ap.add_argument("--dir")
     ap.add_argument("--bin", help="the shipped dronewatt")
-    ap.add_argument("--lab", help="a scratch build with round9-lab.patch")
+    ap.add_argument("--lab", help="a scratch build with round9-circuit-lab.patch")
     ap.add_argument("--set", default="fit")
     ap.add_argument("--json", default=None)
     ap.add_argument("--only", default=None, help="a held-out set: the shipped model and this row, no CV")
