@@ -36,7 +36,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from progpy_score import CONFIG, FRACS, readings, replay  # noqa: E402
-from lab_shape import Shape, loss, shipped, summ  # noqa: E402
+from lab_shape import Shape, by_pack_cv, loss, shipped, summ  # noqa: E402
 
 TB48D_AH = 103.37364527025169 / 22.8
 
@@ -310,15 +310,7 @@ def main():
             with open(a.json, "w") as f:
                 json.dump({"rows": rows, "per_flight": cands}, f, indent=1)
         return
-    pack = lambda n: n.rsplit("-", 1)[0]  # noqa: E731
-    packs = sorted({pack(n) for n in cands["shipped"]})
-    out = {}
-    for p in packs:
-        others = [q for q in packs if q != p]
-        best = min(cands, key=lambda k: loss({n: v for n, v in cands[k].items() if pack(n) in others}))
-        out.update({n: v for n, v in cands[best].items() if pack(n) == p})
-        print("held out", p, "chose", best)
-    cv = {"model": "by-pack CV", **summ(out)}
+    cv = {"model": "by-pack CV", **summ(by_pack_cv(cands))}
     print(json.dumps(cv))
     if a.json:
         with open(a.json, "w") as f:

@@ -44,7 +44,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import lab_round8  # noqa: E402
 from lab_round8 import TB48D_AH, TrendSE, comb, load, run  # noqa: E402
-from lab_shape import loss, shipped, summ  # noqa: E402
+from lab_shape import by_pack_cv, loss, shipped, summ  # noqa: E402
 
 REST_A = 1.0  # dronewatt's REST_CURRENT_A (rest_current_a: half the loaded current, at most 1 A)
 SETTLE_S, SETTLE_V_CELL = 5.0, 0.010
@@ -133,28 +133,6 @@ def candidates(fl):
                     c[f"{key}, {ck}, rest not rising (else shipped)"] = {
                         n: (cx[n] if not_rising[n] else sh[n]) for n in cx}
     return c, {n: (round(rest[n], 1), None if rise[n] is None else round(1000 * rise[n], 1)) for n in rest}
-
-
-def by_pack_cv(cands, tie):
-    """Leave one pack out, choose the row with the lowest loss on the others. Rows that tie on
-    the others (the packs left in cannot tell them apart) go to the first listed, or to the one
-    that moves the fewest forecasts off the shipped time, on all packs (the status quo: a change
-    needs the fit packs' evidence; it reads the held-out pack's forecasts, not its truth)."""
-    pack = lambda n: n.rsplit("-", 1)[0]  # noqa: E731
-    sh, out = cands["shipped"], {}
-    packs = sorted({pack(n) for n in sh})
-    for p in packs:
-        def key(k):
-            o = {n: v for n, v in cands[k].items() if pack(n) != p}
-            # the forecasts it moves off the shipped time, on every pack: the held-out pack's
-            # forecasts are compared with the shipped model's, never with its truth (an error
-            # that differs is a forecast that differs)
-            moved = sum(a != b for n in sh for a, b in zip(cands[k][n], sh[n]))
-            return (round(loss(o), 9), moved if tie == "nearest shipped" else 0)
-        best = min(cands, key=key)
-        out.update({n: v for n, v in cands[best].items() if pack(n) == p})
-        print(f"ties {tie}: held out {p} chose {best}")
-    return out
 
 
 # The simulator's LiPo flights (`dronewatt simulate`): a check on a pack that is not ProgPy's,

@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from lab_round8 import load  # noqa: E402
-from lab_shape import loss, shipped, summ  # noqa: E402
+from lab_shape import by_pack_cv, loss, shipped, summ  # noqa: E402
 
 
 def chen2020_table(floor_v=2.90, step_v=0.05):
@@ -127,15 +127,7 @@ def main():
         print(json.dumps(r))
     out = {"rows": rows, "per_flight": cands}
     if not a.only:
-        pack = lambda n: n.rsplit("-", 1)[0]  # noqa: E731
-        packs = sorted({pack(n) for n in cands["shipped"]})
-        cv = {}
-        for p in packs:
-            others = [q for q in packs if q != p]
-            best = min(cands, key=lambda k: loss({n: v for n, v in cands[k].items() if pack(n) in others}))
-            cv.update({n: v for n, v in cands[best].items() if pack(n) == p})
-            print("held out", p, "chose", best)
-        out["cv"] = {"model": "by-pack CV", **summ(cv)}
+        out["cv"] = {"model": "by-pack CV", **summ(by_pack_cv(cands))}
         print(json.dumps(out["cv"]))
     if a.json:
         with open(a.json, "w") as f:
