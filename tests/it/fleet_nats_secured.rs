@@ -61,6 +61,12 @@ impl SecuredGateway {
         })
     }
 
+    /// The gateway, its UDP port and the server (the password files' folder goes: for a
+    /// test that logs in with raw clients only).
+    pub(crate) fn parts(self) -> (Monitor, u16, crate::fleet_nats::Server) {
+        (self.gateway, self.port, self.nats)
+    }
+
     /// `user`'s password file, as the shipped config sets it (`change-me-USER`).
     pub(crate) fn password(&self, user: &str) -> std::path::PathBuf {
         private(

@@ -283,28 +283,43 @@ def candidates(fl):
     return c
 
 
-def main():
+def arg_parser():
+    """The arguments every round's lab script takes."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--dir", required=True)
     ap.add_argument("--bin", required=True, help="the shipped dronewatt: its soc, capacity and time")
     ap.add_argument("--set", default="fit")
     ap.add_argument("--json", default=None)
     ap.add_argument("--only", default=None, help="a held-out set: print only the shipped model and this row, no CV")
-    a = ap.parse_args()
-    cache = os.path.join(a.dir, f"lab_round8-{a.set}.cache.json")
+    return ap
+
+
+def cached_load(a, script):
+    """load() of DIR's flights of the set, kept in DIR/SCRIPT-SET.cache.json for the next run."""
+    cache = os.path.join(a.dir, f"{script}-{a.set}.cache.json")
     if os.path.exists(cache):
-        fl = json.load(open(cache))
-    else:
-        fl = load(a.dir, a.set, a.bin)
-        with open(cache, "w") as f:
-            json.dump(fl, f)
-    cands = candidates(fl)
-    if a.only:
-        cands = {k: cands[k] for k in ("shipped", a.only)}
+        return json.load(open(cache))
+    fl = load(a.dir, a.set, a.bin)
+    with open(cache, "w") as f:
+        json.dump(fl, f)
+    return fl
+
+
+def rows_by_loss(cands, only):
+    """Each candidate's summary, lowest loss first, printed (only the shipped model and ONLY's
+    row when a held-out set is scored)."""
+    if only:
+        cands = {k: cands[k] for k in ("shipped", only)}
     rows = []
     for k, r in sorted(cands.items(), key=lambda kv: loss(kv[1])):
         rows.append({"model": k, **summ(r)})
         print(json.dumps(rows[-1]))
+    return cands, rows
+
+
+def main():
+    a = arg_parser().parse_args()
+    cands, rows = rows_by_loss(candidates(cached_load(a, "lab_round8")), a.only)
     if a.only:
         if a.json:
             with open(a.json, "w") as f:

@@ -33,7 +33,6 @@ dip 240 s, fit 0 s, else shipped, rest not rising (else shipped)" (0.626, 1 late
 and 1 late with ties broken toward the shipped time, 0.791 and 3 late by listing order), was
 late 7 times on score3 where the shipped model is late twice: not shipped.
 """
-import argparse
 import csv
 import json
 import os
@@ -43,8 +42,8 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import lab_round8  # noqa: E402
-from lab_round8 import TB48D_AH, TrendSE, comb, load, run  # noqa: E402
-from lab_shape import by_pack_cv, loss, shipped, summ  # noqa: E402
+from lab_round8 import TB48D_AH, TrendSE, comb, run  # noqa: E402
+from lab_shape import by_pack_cv, shipped, summ  # noqa: E402
 
 REST_A = 1.0  # dronewatt's REST_CURRENT_A (rest_current_a: half the loaded current, at most 1 A)
 SETTLE_S, SETTLE_V_CELL = 5.0, 0.010
@@ -192,12 +191,7 @@ _readings = lab_round8.readings
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--dir", required=True)
-    ap.add_argument("--bin", required=True, help="the shipped dronewatt: its soc, capacity and time")
-    ap.add_argument("--set", default="fit")
-    ap.add_argument("--json", default=None)
-    ap.add_argument("--only", default=None, help="a held-out set: print only the shipped model and this row, no CV")
+    ap = lab_round8.arg_parser()
     ap.add_argument("--chemistry", default=None, help="the replay config's chemistry (default liion)")
     ap.add_argument("--make-sim", action="store_true", help="fly the simulator's flights into DIR (--set sim)")
     a = ap.parse_args()
@@ -208,21 +202,9 @@ def main():
         lab_round8.readings = readings_from_first_frame
     if a.chemistry:
         lab_round8.CONFIG = f'[energy]\nchemistry = "{a.chemistry}"\n'
-    cache = os.path.join(a.dir, f"lab_round9-{a.set}.cache.json")
-    if os.path.exists(cache):
-        fl = json.load(open(cache))
-    else:
-        fl = load(a.dir, a.set, a.bin)
-        with open(cache, "w") as f:
-            json.dump(fl, f)
-    cands, rest = candidates(fl)
+    cands, rest = candidates(lab_round8.cached_load(a, "lab_round9"))
     print(json.dumps({"rest_before_takeoff_s, rise_mv_cell": rest}))
-    if a.only:
-        cands = {k: cands[k] for k in ("shipped", a.only)}
-    rows = []
-    for k, r in sorted(cands.items(), key=lambda kv: loss(kv[1])):
-        rows.append({"model": k, **summ(r)})
-        print(json.dumps(rows[-1]))
+    cands, rows = lab_round8.rows_by_loss(cands, a.only)
     out, cv = {}, None
     if not a.only:
         cv = {}
