@@ -161,7 +161,10 @@ def fly(peer, path, wind_speed, wind_from_deg, seed, tlog_path, items=()):
             lat = lat0 + p[1] / 111_320.0
             lon = lon0 + p[0] / (111_320.0 * math.cos(math.radians(lat0)))
             if k % 10 == 0:
-                put(mavlink.MAVLink_heartbeat_message(14, 3, 81 if airborne else 1, 3, 4, 3))
+                # MAV_TYPE by the rotor count (QUADROTOR 2, HEXAROTOR 13, OCTOROTOR 14): until
+                # 2026-11-29 every airframe said OCTOROTOR, the Mavic too
+                put(mavlink.MAVLink_heartbeat_message({4: 2, 6: 13, 8: 14}.get(peer.n, 14), 3,
+                                                      81 if airborne else 1, 3, 4, 3))
             if k == 10:  # after the vehicle is heard
                 for i, (pid, val, typ) in enumerate(params):
                     put(mavlink.MAVLink_param_value_message(pid.encode(), float(val), typ, len(params), i))

@@ -68,6 +68,28 @@ class Airframe:
         return self.k_drag * omega ** 3 / (self.hover_w() / self.n)
 
 
+def t18_layout():
+    """The package's T18 as laid out (its VehicleParams): whether the octocopter's disks are
+    coaxial or overlap (which would make the spec sheet's disk area, rotors × πD²/4, too
+    large and the peer's η_h look too good), and its propellers' torque per thrust, m (the
+    package's k_drag / k_thrust; C_P·D / (2π·C_T) in the (n, D) convention), against what a
+    figure of merit of 0.65 gives at its hover's thrust coefficient."""
+    import numpy as np
+    from multirotor.models.tarott18 import VP, PP
+    xy = np.array([[r * math.cos(t), r * math.sin(t)] for r, t in zip(VP.distances, VP.angles)])
+    gaps = [float(np.linalg.norm(xy[i] - xy[(i + 1) % len(xy)])) for i in range(len(xy))]
+    d = 0.4572
+    t = VP.mass * G / len(VP.propellers)
+    n = math.sqrt(t / PP.k_thrust) / (2 * math.pi)
+    ct = t / (RHO * n * n * d ** 4)
+    # in the (n, D) convention the figure of merit is C_T^1.5 / (√(π/2)·C_P)
+    cp_at_065 = ct ** 1.5 / (math.sqrt(math.pi / 2) * 0.65)
+    return dict(arms=len(VP.propellers), arm_m=float(VP.distances[0]), coaxial=False,
+                motor_spacing_m=round(min(gaps), 3), disk_gap_m=round(min(gaps) - d, 3),
+                torque_per_thrust_m=round(PP.k_drag / PP.k_thrust, 4),
+                torque_per_thrust_at_fm_065_m=round(cp_at_065 * d / (2 * math.pi * ct), 4))
+
+
 def t18():
     from multirotor.models.tarott18 import MP, PP, VP, BP, SP
     return Airframe("t18", "Tarot T18 (multirotor peer)", VP.mass, len(VP.propellers), 0.4572, MP, PP.k_thrust,

@@ -67,7 +67,8 @@ def peer_rows():
         src = ("multirotor 0.5.0 models/tarott18.py: k_thrust, k_drag, motor R, k_emf (its Motor)" if key == "t18" else
                "built with multirotor's classes from the source its empty djimavicpro.py cites (scripts/peer_airframes.py)")
         out.append((a.name, a.mass, a.n, a.prop_m, a.hover_w() + AVIONICS_W, "peer", src, key,
-                    dict(figure_of_merit=round(a.figure_of_merit(), 3), motor_eff=round(a.motor_efficiency(), 3))))
+                    dict(figure_of_merit=round(a.figure_of_merit(), 3), motor_eff=round(a.motor_efficiency(), 3),
+                         **({"layout": peer_airframes.t18_layout()} if key == "t18" else {}))))
     return out
 
 
@@ -147,12 +148,24 @@ def prior(etas):
     return math.exp(statistics.mean(logs)), statistics.stdev(logs)
 
 
-FORMS = ("constant", "prop_m", "disk_loading")
+# The forms tried for ln η_h, each a physical reading of how the hover efficiency scales:
+# - `constant`: it does not (one η_h for every airframe);
+# - `prop_m`: the propeller's size (a larger blade works at a higher Reynolds number);
+# - `disk_loading`: the thrust per disk area (a loaded blade works nearer its best lift
+#   coefficient: the figure of merit grows with it);
+# - `rotor_thrust`: the thrust per rotor, m·g/N (2026-11-29). At a given thrust coefficient
+#   the tip speed is √(T/(C_T ρ))/D·π and the chord ∝ D, so the blade's Reynolds number goes
+#   as √T whatever the diameter; and the motor's size (its copper and iron, hence its
+#   efficiency) grows with the torque it must give, ∝ T at a fixed C_P/C_T·D. Both of the
+#   size effects the spec sheet could carry (the figure of merit's Reynolds scaling and the
+#   motors' efficiency with size) are this one number.
+FORMS = ("constant", "prop_m", "disk_loading", "rotor_thrust")
 
 
 def feature(r, name):
     t = r["kg"] * G / r["rotors"]
-    return math.log({"prop_m": r["prop_m"], "disk_loading": t / (math.pi * r["prop_m"] ** 2 / 4)}[name])
+    return math.log({"prop_m": r["prop_m"], "disk_loading": t / (math.pi * r["prop_m"] ** 2 / 4),
+                     "rotor_thrust": t}[name])
 
 
 def fit_form(rows, form):
@@ -262,6 +275,9 @@ def main():
             r["loao_hover_w"] = round(fc, 1)
             r["loao_err_pct"] = round(100 * (fc / r["hover_w"] - 1), 1)
             r["loao_p90_covers"] = bool(fc * math.exp(1.2816 * sd) >= r["hover_w"])
+            # each form fitted without the group, whichever the inner choice: what it says of η_h
+            rest = [q for q in rows if q["group"] != g]
+            r["loao_eta_by_form"] = {form: round(fit_form(rest, form)[0](r), 4) for form in FORMS}
     med, sd = prior([r["eta_h"] for r in rows])
     forms = form_table(rows)
     form_all = min(FORMS, key=lambda k: forms[k])
