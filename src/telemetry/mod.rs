@@ -66,9 +66,13 @@ use crate::telemetry::window::{Window, WindowRing};
 use crate::MavMessage;
 use resample::{Resampler, Signal, N_SIGNALS, SIGNALS};
 
+/// The wind's last source: no air data heard, the air taken as still (the airspeed is the
+/// ground velocity), until any WIND, WIND_COV or VFR_HUD comes, for good.
+const STILL_AIR: usize = 3;
+
 /// Source names per signal, best first (index = rank).
 const SOURCES: [&[&str]; N_SIGNALS] = [
-    &["WIND", "WIND_COV", "VFR_HUD"],
+    &["WIND", "WIND_COV", "VFR_HUD", "still air (no air data)"],
     &["GLOBAL_POSITION_INT", "GPS_RAW_INT"],
     &["ATTITUDE_QUATERNION", "ATTITUDE"],
     &["LOCAL_POSITION_NED", "ODOMETRY", "GLOBAL_POSITION_INT"],
@@ -94,6 +98,9 @@ pub struct Telemetry {
     /// Latest raw attitude (FRD→NED) and ground velocity (NED), for conversions.
     q_ned: Option<frames::Quat>,
     vel_ned: Option<[f64; 3]>,
+    /// Air data (WIND, WIND_COV or VFR_HUD) was heard: until it is, the air is taken as
+    /// still ([`STILL_AIR`]).
+    air_data: bool,
     /// Home was set (by HOME_POSITION or the first fix).
     home_known: bool,
     /// Mission: values from NAMED_VALUE_FLOAT, the config, and the defaults.
@@ -124,6 +131,7 @@ impl Telemetry {
             sysid: None,
             q_ned: None,
             vel_ned: None,
+            air_data: false,
             home_known: false,
             mission_msg: [None; 3],
             mission_cfg: [mission.speed_m_s, mission.payload_g, mission.altitude_m],
@@ -351,6 +359,15 @@ impl Telemetry {
             return;
         }
         self.vel_ned = Some(v_ned);
+        if !self.air_data {
+            // No air data heard: the air is taken as still, the airspeed the ground
+            // velocity (not 0: a member would fly every cruise at hover power).
+            if self.active[Signal::Wind as usize].is_none() {
+                tracing::info!("no air data (WIND, WIND_COV, VFR_HUD) heard yet: the air is taken as still, the airspeed as the ground speed");
+            }
+            let w = frames::apparent_wind([0.0, 0.0], [v_ned[0], v_ned[1]]);
+            self.offer(Signal::Wind, STILL_AIR, t_us, &w);
+        }
         // Body velocities need the heading: wait for the first attitude.
         if let Some(q) = self.q_ned {
             let v = frames::ned_to_body_vel(v_ned, frames::yaw_ned(q));
@@ -446,6 +463,13 @@ impl Telemetry {
                     h.longitude as f64 * 1e-7,
                     h.altitude as f64 * 1e-3,
                 ]);
+            }
+            MavMessage::WIND(_) | MavMessage::WIND_COV(_) | MavMessage::VFR_HUD(_)
+                if !self.air_data =>
+            {
+                // Air data from now on, for good: the still air's guess stops.
+                self.air_data = true;
+                self.ingest(t, msg);
             }
             MavMessage::WIND(w) => self.finite_wind(
                 0,

@@ -400,3 +400,45 @@ fn a_position_without_a_fix_is_never_used_as_a_position_or_home() {
     // of (0, 0) is ignored too).
     assert_eq!(tel.no_fix(), 1 + 8 + 4 + 1);
 }
+
+#[test]
+fn a_vehicle_without_air_data_flies_in_still_air_until_air_data_comes() {
+    // A PX4 mix flying north at 8 m/s, its VFR_HUD (airspeed 5 m/s) only from 6 s: before,
+    // no WIND, WIND_COV or VFR_HUD at all. The air is then taken as still (the airspeed is
+    // the ground speed, from the nose), not as no airspeed (a cruise at hover power).
+    let f = Flight {
+        v_ned: [8.0, 0.0, 0.0],
+        heading_deg: 0.0,
+    };
+    let mut mix = px4(f, 0.0, 12.0);
+    mix.msgs
+        .retain(|(t, _, m)| !(matches!(m, MavMessage::VFR_HUD(_)) && *t < 6.0));
+    let mut seen_still = false;
+    let cfg = TelemetryConfig::default();
+    let (tel, out) = mix.run(&cfg, &MissionConfig::default());
+    for w in &out {
+        let s = w.last();
+        // the mix's clock starts at 1000 s
+        let t = s.t_s - 1000.0;
+        let (speed, angle) = (s.features[idx::WIND_SPEED], s.features[idx::WIND_ANGLE]);
+        if t < 5.5 {
+            assert!(close(speed, 8.0, 1e-3), "t={}: {speed} m/s", s.t_s);
+            assert!(
+                close(angle, 0.0, 1e-3) || close(angle, 360.0, 1e-3),
+                "{angle}"
+            );
+            seen_still = true;
+        } else if t > 7.0 {
+            // the air data, once heard, for good
+            assert!(close(speed, 5.0, 1e-3), "t={}: {speed} m/s", s.t_s);
+        }
+    }
+    assert!(seen_still);
+    assert_eq!(source(&tel, "wind"), Some("VFR_HUD"));
+    // A vehicle that never sends air data says so in its health.
+    let mut mix = px4(f, 0.0, 5.0);
+    mix.msgs
+        .retain(|(_, _, m)| !matches!(m, MavMessage::VFR_HUD(_)));
+    let (tel, _) = mix.run(&cfg, &MissionConfig::default());
+    assert_eq!(source(&tel, "wind"), Some("still air (no air data)"));
+}
