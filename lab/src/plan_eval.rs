@@ -255,38 +255,15 @@ pub fn plan_eval(
         .iter()
         .filter(|f| is_route(f) && !TEST_FLIGHTS.contains(&f.flight))
         .collect();
-    let bar = indicatif::ProgressBar::new((train.len() + test_ids.len()) as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "forecasting flights {bar:30} {pos}/{len} [{elapsed}<{eta}]",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    let mut prepared_train = Vec::new();
-    for f in &train {
-        match prepare(f, geometry_for(f, &all_train), opt.ground_wind, cfg, models) {
-            Ok(p) => prepared_train.push(p),
-            Err(e) => tracing::warn!("training flight {} skipped: {e:#}", f.flight),
-        }
-        bar.inc(1);
-    }
-    let mut prepared_test = Vec::new();
-    for t in &test_ids {
-        let f = ds
-            .flights
-            .iter()
-            .find(|f| f.flight == *t)
-            .with_context(|| format!("flight {t} missing"))?;
-        prepared_test.push(prepare(
-            f,
-            geometry_for(f, &all_train),
-            opt.ground_wind,
-            cfg,
-            models,
-        )?);
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
+    let (prepared_train, prepared_test) = prepare_sets(
+        &ds.flights,
+        &train,
+        &test_ids,
+        &all_train,
+        opt.ground_wind,
+        cfg,
+        models,
+    )?;
     let Fitted {
         cal,
         basis,
@@ -353,6 +330,52 @@ pub fn plan_eval(
         training_scores: train_scores,
         ground_wind: opt.ground_wind,
     })
+}
+
+/// Prepare the training flights (a flight that fails is skipped, with a warning) and the
+/// test flights (one that fails fails the run), each planned along the track
+/// [`geometry_for`] lends it, with a progress bar.
+fn prepare_sets(
+    flights: &[Flight],
+    train: &[&Flight],
+    test_ids: &[u32],
+    all_train: &[&Flight],
+    ground_wind: bool,
+    cfg: &Config,
+    models: &mut [Box<dyn PowerModel>],
+) -> anyhow::Result<(Vec<Prepared>, Vec<Prepared>)> {
+    let bar = indicatif::ProgressBar::new((train.len() + test_ids.len()) as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "forecasting flights {bar:30} {pos}/{len} [{elapsed}<{eta}]",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut prepared_train = Vec::new();
+    for f in train {
+        match prepare(f, geometry_for(f, all_train), ground_wind, cfg, models) {
+            Ok(p) => prepared_train.push(p),
+            Err(e) => tracing::warn!("training flight {} skipped: {e:#}", f.flight),
+        }
+        bar.inc(1);
+    }
+    let mut prepared_test = Vec::new();
+    for t in test_ids {
+        let f = flights
+            .iter()
+            .find(|f| f.flight == *t)
+            .with_context(|| format!("flight {t} missing"))?;
+        prepared_test.push(prepare(
+            f,
+            geometry_for(f, all_train),
+            ground_wind,
+            cfg,
+            models,
+        )?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok((prepared_train, prepared_test))
 }
 
 /// The table `plan-eval` prints.

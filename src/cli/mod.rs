@@ -236,7 +236,7 @@ fn handoff() {
     tracing::warn!("{}: cannot run: {err}", torch.display());
 }
 
-/// Run one of the operator's commands.
+/// Run one of the operator's commands: the match only dispatches, one function per family.
 pub fn run_command(command: Command) -> Result<()> {
     match command {
         Command::Replay {
@@ -245,124 +245,160 @@ pub fn run_command(command: Command) -> Result<()> {
             flight,
             raw,
             run,
-        } => {
-            if !file.exists() {
-                anyhow::bail!("{}: no such file", file.display());
-            }
-            let name = file.to_string_lossy().to_ascii_lowercase();
-            let source = if name.ends_with(".csv") || name.ends_with(".csv.gz") {
-                let flight = flight
-                    .context("a data-set CSV holds many flights: pick one with --flight N")?;
-                SourceSpec::Dataset {
-                    path: file,
-                    flight,
-                    speed,
-                }
-            } else if !raw
-                && (name.ends_with(".ulg")
-                    || name.ends_with(".bin")
-                        && crate::source::logs::dataflash::starts_as_dataflash(&file))
-            {
-                SourceSpec::AutopilotLog { path: file, speed }
-            } else if raw || !name.ends_with(".tlog") {
-                SourceSpec::Raw { path: file, speed }
-            } else {
-                SourceSpec::Tlog { path: file, speed }
-            };
-            run_pipeline(source, run)
-        }
-        Command::Monitor { address, nats, run } if nats.nats.is_some() => {
-            if !address.is_empty() {
-                anyhow::bail!("monitor --nats is a fleet worker: it reads the NATS stream, no link address (the gateway reads the links)");
-            }
-            run_pipeline(SourceSpec::Nats(nats), run)
-        }
+        } => replay(file, speed, flight, raw, run),
+        Command::Monitor { address, nats, run } => monitor(address, nats, run),
         Command::Gateway {
             address,
             nats,
             config,
-        } => {
-            let config_file = config.load()?;
-            let source = link_source(address, &config_file)?;
-            if nats.nats.is_none() {
-                anyhow::bail!("gateway: give --nats URL");
-            }
-            gateway::run(source, config_file, nats)
-        }
-        Command::Monitor { address, run, .. } => {
-            let mut address = address;
-            // Addresses on the command line are one network; the config's may name several.
-            let mut networks = vec![String::new(); address.len()];
-            if address.is_empty() {
-                let config = run.config.load()?;
-                address = config.links.iter().map(|l| l.address.clone()).collect();
-                networks = config.links.iter().map(|l| l.network.clone()).collect();
-            }
-            // A malformed address fails here, before anything starts, with one line.
-            for a in &address {
-                a.parse::<crate::source::links::address::LinkAddress>()?;
-            }
-            let source = match <[String; 1]>::try_from(address) {
-                Ok([one]) => SourceSpec::Link(one),
-                Err(many) if many.is_empty() => {
-                    anyhow::bail!("monitor: give a link address (or [[links]] in the config)")
-                }
-                Err(many) => SourceSpec::Links {
-                    addresses: many,
-                    networks,
-                    every_link: false,
-                },
-            };
-            run_pipeline(source, run)
-        }
+        } => run_gateway(address, nats, config),
         Command::Simulate(a) => simulate::simulate(a),
         Command::Learn(a) => crate::offline::learn::run(a),
         Command::Plan(a) => crate::offline::plan::run_plan(a),
         Command::Vehicles {
-            json, nats, listen, ..
-        } if nats.nats.is_some() => {
-            if !(listen.is_finite() && listen > 0.0 && listen <= 3600.0) {
-                anyhow::bail!("--listen {listen}: give seconds, more than 0 and at most 3600");
-            }
-            let listen = std::time::Duration::from_secs_f64(listen);
-            print!("{}", crate::source::nats::view::run(&nats, listen, json)?);
-            Ok(())
-        }
-        Command::Dashboard { nats, bind, config } => {
-            if nats.nats.is_none() {
-                anyhow::bail!("dashboard: give --nats URL (the fleet's NATS server)");
-            }
-            let mut web = config.load()?.sinks.web;
-            if let Some(b) = bind {
-                web.bind = b;
-            }
-            dashboard::run(&nats, web)
-        }
-        Command::Vehicles { data_dir, json, .. } => {
-            let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref())
-                .context("the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR")?;
-            print!("{}", crate::vehicle::store::list(&dir, json)?);
-            Ok(())
-        }
-        Command::CheckConfig { file: None } => {
-            let cfg = Config::load_or_default(None)?;
-            print!("{}", describe_config(None, &cfg));
-            println!("\n# The default alert rules (put edited copies in a config to override):");
-            print!("{}", crate::alert::defaults::toml(cfg.energy.reserve_pct));
-            Ok(())
-        }
-        Command::CheckConfig { file: Some(file) } => {
-            let cfg = Config::load(&file)?;
-            // The secrets' files too: missing, unreadable or readable by others fails here.
-            let err = |e: String| anyhow::anyhow!("{}: {e}", file.display());
-            cfg.link.load().map_err(err)?;
-            if cfg.sinks.web.enabled {
-                cfg.sinks.web.token().map_err(err)?;
-            }
-            print!("{}", describe_config(Some(&file), &cfg));
-            Ok(())
-        }
+            data_dir,
+            json,
+            nats,
+            listen,
+        } => vehicles(data_dir, json, nats, listen),
+        Command::Dashboard { nats, bind, config } => run_dashboard(nats, bind, config),
+        Command::CheckConfig { file } => check_config(file),
     }
+}
+
+/// `replay`: the source the file's name (and `--raw`, `--flight`) says, through the pipeline.
+fn replay(file: PathBuf, speed: Speed, flight: Option<u32>, raw: bool, run: RunArgs) -> Result<()> {
+    if !file.exists() {
+        anyhow::bail!("{}: no such file", file.display());
+    }
+    let name = file.to_string_lossy().to_ascii_lowercase();
+    let source = if name.ends_with(".csv") || name.ends_with(".csv.gz") {
+        let flight =
+            flight.context("a data-set CSV holds many flights: pick one with --flight N")?;
+        SourceSpec::Dataset {
+            path: file,
+            flight,
+            speed,
+        }
+    } else if !raw
+        && (name.ends_with(".ulg")
+            || name.ends_with(".bin") && crate::source::logs::dataflash::starts_as_dataflash(&file))
+    {
+        SourceSpec::AutopilotLog { path: file, speed }
+    } else if raw || !name.ends_with(".tlog") {
+        SourceSpec::Raw { path: file, speed }
+    } else {
+        SourceSpec::Tlog { path: file, speed }
+    };
+    run_pipeline(source, run)
+}
+
+/// `monitor`: with `--nats` a fleet worker on the NATS stream, else the links given (or the
+/// config's `[[links]]`).
+fn monitor(address: Vec<String>, nats: crate::source::nats::NatsArgs, run: RunArgs) -> Result<()> {
+    if nats.nats.is_some() {
+        if !address.is_empty() {
+            anyhow::bail!("monitor --nats is a fleet worker: it reads the NATS stream, no link address (the gateway reads the links)");
+        }
+        return run_pipeline(SourceSpec::Nats(nats), run);
+    }
+    let mut address = address;
+    // Addresses on the command line are one network; the config's may name several.
+    let mut networks = vec![String::new(); address.len()];
+    if address.is_empty() {
+        let config = run.config.load()?;
+        address = config.links.iter().map(|l| l.address.clone()).collect();
+        networks = config.links.iter().map(|l| l.network.clone()).collect();
+    }
+    // A malformed address fails here, before anything starts, with one line.
+    for a in &address {
+        a.parse::<crate::source::links::address::LinkAddress>()?;
+    }
+    let source = match <[String; 1]>::try_from(address) {
+        Ok([one]) => SourceSpec::Link(one),
+        Err(many) if many.is_empty() => {
+            anyhow::bail!("monitor: give a link address (or [[links]] in the config)")
+        }
+        Err(many) => SourceSpec::Links {
+            addresses: many,
+            networks,
+            every_link: false,
+        },
+    };
+    run_pipeline(source, run)
+}
+
+/// `gateway`: the links (given, or the config's) into the NATS stream.
+fn run_gateway(
+    address: Vec<String>,
+    nats: crate::source::nats::NatsArgs,
+    config: ConfigArg,
+) -> Result<()> {
+    let config_file = config.load()?;
+    let source = link_source(address, &config_file)?;
+    if nats.nats.is_none() {
+        anyhow::bail!("gateway: give --nats URL");
+    }
+    gateway::run(source, config_file, nats)
+}
+
+/// `vehicles`: with `--nats` the fleet as NATS shows it, else the vehicle store's list.
+fn vehicles(
+    data_dir: Option<PathBuf>,
+    json: bool,
+    nats: crate::source::nats::NatsArgs,
+    listen: f64,
+) -> Result<()> {
+    if nats.nats.is_some() {
+        if !(listen.is_finite() && listen > 0.0 && listen <= 3600.0) {
+            anyhow::bail!("--listen {listen}: give seconds, more than 0 and at most 3600");
+        }
+        let listen = std::time::Duration::from_secs_f64(listen);
+        print!("{}", crate::source::nats::view::run(&nats, listen, json)?);
+        return Ok(());
+    }
+    let dir = crate::vehicle::store::data_dir_from_env(data_dir.as_deref()).context(
+        "the vehicle store is off (DRONEWATT_HOME=off or no home directory): give --data-dir DIR",
+    )?;
+    print!("{}", crate::vehicle::store::list(&dir, json)?);
+    Ok(())
+}
+
+/// `dashboard`: the fleet's web dashboard, read from NATS.
+fn run_dashboard(
+    nats: crate::source::nats::NatsArgs,
+    bind: Option<String>,
+    config: ConfigArg,
+) -> Result<()> {
+    if nats.nats.is_none() {
+        anyhow::bail!("dashboard: give --nats URL (the fleet's NATS server)");
+    }
+    let mut web = config.load()?.sinks.web;
+    if let Some(b) = bind {
+        web.bind = b;
+    }
+    dashboard::run(&nats, web)
+}
+
+/// `check-config`: a file's settings (and its secrets' files), or the defaults' with the
+/// default alert rules.
+fn check_config(file: Option<PathBuf>) -> Result<()> {
+    let Some(file) = file else {
+        let cfg = Config::load_or_default(None)?;
+        print!("{}", describe_config(None, &cfg));
+        println!("\n# The default alert rules (put edited copies in a config to override):");
+        print!("{}", crate::alert::defaults::toml(cfg.energy.reserve_pct));
+        return Ok(());
+    };
+    let cfg = Config::load(&file)?;
+    // The secrets' files too: missing, unreadable or readable by others fails here.
+    let err = |e: String| anyhow::anyhow!("{}: {e}", file.display());
+    cfg.link.load().map_err(err)?;
+    if cfg.sinks.web.enabled {
+        cfg.sinks.web.token().map_err(err)?;
+    }
+    print!("{}", describe_config(Some(&file), &cfg));
+    Ok(())
 }
 
 /// The source of `gateway`'s addresses (else the config's `[[links]]`), as `monitor` makes it.

@@ -181,6 +181,35 @@ pub fn score_flight(
     curve: &OcvCurve,
     plan: Option<&PlanPower>,
 ) -> (FlightFigures, Traces) {
+    let mut o = unscored(p, heat0);
+    let mut tr = Traces::default();
+    if p.rest_ok() {
+        rest_figures(p, curve, &mut o);
+    }
+    let Some((i_on, i_off)) = p.on else {
+        return (o, tr);
+    };
+    if !p.ecm_ok() || p.tg.is_empty() {
+        return (o, tr);
+    }
+    let Some(est0) = Estimator::new(params, curve.clone(), p.v_start, heat0) else {
+        return (o, tr);
+    };
+    let m: Vec<bool> = p.ig.iter().map(|&i| i > IN_FLIGHT_A).collect();
+    tr.open_loop_v = open_loop(p, &est0, &m, &mut o);
+    let (prof, below) = preflight(p, &est0, &m, plan, &mut o);
+    if let Some(mid) = online(p, &est0, i_on, i_off, &mut o) {
+        tr.mid = Some(halftime(p, mid, &m, &prof, below, plan, &mut o));
+    }
+    let (px4, ap) = autopilots(p, i_on, i_off, &mut o);
+    if p.v_end_rest.is_finite() {
+        landing(p, curve, &est0, i_off, &px4, &ap, &mut o);
+    }
+    (o, tr)
+}
+
+/// The flight's own figures, every other f64 NaN until computed.
+fn unscored(p: &Prepared, heat0: f64) -> FlightFigures {
     let nan = f64::NAN;
     let mut o = FlightFigures {
         flight: p.flight,
@@ -236,33 +265,34 @@ pub fn score_flight(
     ] {
         *x = nan;
     }
-    let mut tr = Traces::default();
-    if p.rest_ok() {
-        rest_figures(p, curve, &mut o);
-    }
-    let Some((i_on, i_off)) = p.on else {
-        return (o, tr);
-    };
-    if !p.ecm_ok() || p.tg.is_empty() {
-        return (o, tr);
-    }
-    let Some(est0) = Estimator::new(params, curve.clone(), p.v_start, heat0) else {
-        return (o, tr);
-    };
-    let new_est = || est0.clone();
-    let (tg, ig, vg) = (&p.tg, &p.ig, &p.vg);
-    let m: Vec<bool> = ig.iter().map(|&i| i > IN_FLIGHT_A).collect();
+    o
+}
 
-    // open loop on the grid
-    let mut s = new_est();
-    tr.open_loop_v = ig.iter().map(|&i| s.step_open_loop(DT, i)).collect();
+/// Open loop on the grid: the modelled loaded voltage (returned) and its RMSE over the rows
+/// in flight (`m`).
+fn open_loop(p: &Prepared, est0: &Estimator, m: &[bool], o: &mut FlightFigures) -> Vec<f64> {
+    let (tg, ig, vg) = (&p.tg, &p.ig, &p.vg);
+    let mut s = est0.clone();
+    let open_loop_v: Vec<f64> = ig.iter().map(|&i| s.step_open_loop(DT, i)).collect();
     let err: Vec<f64> = (0..tg.len())
         .filter(|&k| m[k])
-        .map(|k| tr.open_loop_v[k] - vg[k])
+        .map(|k| open_loop_v[k] - vg[k])
         .collect();
     o.ecm_rmse_v = rmse(&err);
+    open_loop_v
+}
 
-    // pre-flight forecasts over the measured power profile
+/// Pre-flight forecasts over the measured power profile (and the plan's): returns that
+/// profile on the grid and the first grid row in flight under 3.5 V/cell.
+fn preflight(
+    p: &Prepared,
+    est0: &Estimator,
+    m: &[bool],
+    plan: Option<&PlanPower>,
+    o: &mut FlightFigures,
+) -> (Vec<(f64, f64)>, Option<usize>) {
+    let nan = f64::NAN;
+    let (tg, ig, vg) = (&p.tg, &p.ig, &p.vg);
     let meas_min = (0..tg.len())
         .filter(|&k| m[k])
         .map(|k| vg[k])
@@ -270,7 +300,7 @@ pub fn score_flight(
     o.measured_min_v = if meas_min.is_finite() { meas_min } else { nan };
     let pw: Vec<f64> = vg.iter().zip(ig).map(|(v, i)| v * i).collect();
     let prof: Vec<(f64, f64)> = pw.iter().map(|&w| (DT, w)).collect();
-    let s0 = new_est();
+    let s0 = est0.clone();
     let fc = forecast(&s0, &prof, &[THR_V]);
     o.preflight_min_v_err = fc.v_min - o.measured_min_v;
     o.preflight_sag_v = lowest(&s0, prof.iter().copied()).1;
@@ -298,11 +328,22 @@ pub fn score_flight(
             None => o.cross35_preflight_missed = true,
         }
     }
+    (prof, below)
+}
 
-    // online estimator on the raw rows: one-step a-priori and 10-s-ahead errors
+/// The online estimator on the raw rows: one-step a-priori and 10-s-ahead errors; returns
+/// its state at half the airborne time and the raw row index there.
+fn online(
+    p: &Prepared,
+    est0: &Estimator,
+    i_on: usize,
+    i_off: usize,
+    o: &mut FlightFigures,
+) -> Option<(Estimator, usize)> {
+    let nan = f64::NAN;
     let (t, i, v) = (&p.t, &p.i, &p.v);
     let tmid = 0.5 * (t[i_on] + t[i_off]);
-    let mut s = new_est();
+    let mut s = est0.clone();
     let (mut e1, mut e10) = (Vec::new(), Vec::new());
     let mut mid: Option<(Estimator, usize)> = None;
     for k in 1..t.len() {
@@ -327,53 +368,74 @@ pub fn score_flight(
     }
     o.online_onestep_rmse_v = rmse(&e1);
     o.online_10s_rmse_v = rmse(&e10);
+    mid
+}
 
-    // half-time forecast: estimator state at half the airborne time, measured power after
-    if let Some((sm, k)) = mid {
-        let tk = t[k - 1];
-        let j = tg.partition_point(|&x| x < tk);
-        o.halftime_s = tk;
-        let fcm = forecast(&sm, &prof[j..], &[THR_V]);
-        o.halftime_sag_v = lowest(&sm, prof[j..].iter().copied()).1;
-        let rest_min_v = (j..tg.len())
-            .filter(|&n| m[n])
-            .map(|n| vg[n])
-            .fold(f64::INFINITY, f64::min);
-        o.halftime_measured_min_v = rest_min_v;
-        if let Some(pl) = plan {
-            let rest = || {
-                pl.power_w
-                    .iter()
-                    .skip(pl.live_k + 1)
-                    .map(|&w| (pl.dt_s, w * pl.live_scale))
-            };
-            let (v, sag) = lowest(&sm, rest());
-            o.halftime_plan_v_min_smooth = v;
-            o.halftime_plan_sag_v = sag;
-            if let Some((_, v)) = lowest_dip(&sm, rest(), SAG_IN_FLIGHT) {
-                o.halftime_plan_min_v_err = v - rest_min_v;
-            }
+/// Half-time forecast: the estimator state at half the airborne time (`mid`), the measured
+/// power after (`prof`'s rest) and the plan's rest; returns the state and the grid index the
+/// forecast starts at.
+fn halftime(
+    p: &Prepared,
+    (sm, k): (Estimator, usize),
+    m: &[bool],
+    prof: &[(f64, f64)],
+    below: Option<usize>,
+    plan: Option<&PlanPower>,
+    o: &mut FlightFigures,
+) -> (Estimator, usize) {
+    let (t, tg, vg) = (&p.t, &p.tg, &p.vg);
+    let tk = t[k - 1];
+    let j = tg.partition_point(|&x| x < tk);
+    o.halftime_s = tk;
+    let fcm = forecast(&sm, &prof[j..], &[THR_V]);
+    o.halftime_sag_v = lowest(&sm, prof[j..].iter().copied()).1;
+    let rest_min_v = (j..tg.len())
+        .filter(|&n| m[n])
+        .map(|n| vg[n])
+        .fold(f64::INFINITY, f64::min);
+    o.halftime_measured_min_v = rest_min_v;
+    if let Some(pl) = plan {
+        let rest = || {
+            pl.power_w
+                .iter()
+                .skip(pl.live_k + 1)
+                .map(|&w| (pl.dt_s, w * pl.live_scale))
+        };
+        let (v, sag) = lowest(&sm, rest());
+        o.halftime_plan_v_min_smooth = v;
+        o.halftime_plan_sag_v = sag;
+        if let Some((_, v)) = lowest_dip(&sm, rest(), SAG_IN_FLIGHT) {
+            o.halftime_plan_min_v_err = v - rest_min_v;
         }
-        let rest_min = (j..tg.len())
-            .filter(|&n| m[n])
-            .map(|n| vg[n])
-            .fold(f64::INFINITY, f64::min);
-        if rest_min.is_finite() {
-            o.halftime_min_v_err = fcm.v_min - rest_min;
-        }
-        if let Some(b) = below.filter(|&b| b >= j) {
-            match fcm.crossings.first().copied().flatten() {
-                Some(c) => o.cross35_halftime_err_s = c + tk - tg[b],
-                None => o.cross35_halftime_missed = true,
-            }
-        }
-        tr.mid = Some((sm, j));
     }
+    let rest_min = (j..tg.len())
+        .filter(|&n| m[n])
+        .map(|n| vg[n])
+        .fold(f64::INFINITY, f64::min);
+    if rest_min.is_finite() {
+        o.halftime_min_v_err = fcm.v_min - rest_min;
+    }
+    if let Some(b) = below.filter(|&b| b >= j) {
+        match fcm.crossings.first().copied().flatten() {
+            Some(c) => o.cross35_halftime_err_s = c + tk - tg[b],
+            None => o.cross35_halftime_missed = true,
+        }
+    }
+    (sm, j)
+}
 
-    // The autopilots as they run: their monitors see every row from the recording's start
-    // (the pack at rest on the ground), so PX4 settles on the resting voltage. In flight,
-    // PX4's low warning (SoC under BAT_LOW_THR) and ArduPilot's raw-voltage failsafe (under
-    // 3.5 V a cell for BATT_LOW_TIMER) against the first measured 3.5 V/cell crossing.
+/// The autopilots as they run: their monitors see every row from the recording's start
+/// (the pack at rest on the ground), so PX4 settles on the resting voltage. In flight,
+/// PX4's low warning (SoC under BAT_LOW_THR) and ArduPilot's raw-voltage failsafe (under
+/// 3.5 V a cell for BATT_LOW_TIMER) against the first measured 3.5 V/cell crossing.
+/// Returns both monitors as they stand at the last in-flight sample.
+fn autopilots(
+    p: &Prepared,
+    i_on: usize,
+    i_off: usize,
+    o: &mut FlightFigures,
+) -> (Px4Battery, ArduBattery) {
+    let (t, i, v) = (&p.t, &p.i, &p.v);
     let (mut px4, mut ap) = (
         Px4Battery::new(NC as u32, RATED_AH * 1e3),
         ArduBattery::new(RATED_AH * 1e3),
@@ -401,27 +463,37 @@ pub fn score_flight(
             None => o.cross35_ardupilot_fs_missed = true,
         }
     }
+    (px4, ap)
+}
 
-    // resting voltage read at the last in-flight sample vs the relaxed end rest voltage
-    if p.v_end_rest.is_finite() {
-        let mut s = new_est();
-        for k in 1..=i_off {
-            s.update(t[k] - t[k - 1], i[k], v[k]);
-        }
-        o.rest_under_load_ours_v = NC * curve.v_cell_at_energy(s.energy_wh()) - p.v_end_rest;
-        o.rest_under_load_px4_v = px4.compensated_v() - p.v_end_rest;
-        o.rest_under_load_ardupilot_v = ap.resting_v(v[i_off], i[i_off]) - p.v_end_rest;
-        // Energy left at the last in-flight sample against our curve at the end rest
-        // voltage (model-based, as the start rows): ours, PX4's SoC and ArduPilot's
-        // remaining charge × the rated 129.96 Wh, and "full at take-off" − the energy used.
-        let truth = curve.energy(p.v_end_rest / NC);
-        let used_wh = measured_wh(t, v, i, i_off + 1);
-        o.landing_energy_ours_err_wh = s.energy_wh() - truth;
-        o.landing_energy_px4_err_wh = px4.soc() * RATED_WH - truth;
-        o.landing_energy_ardupilot_err_wh = ap.remaining() * RATED_WH - truth;
-        o.landing_energy_full_pack_err_wh = RATED_WH - used_wh - truth;
+/// Resting voltage read at the last in-flight sample vs the relaxed end rest voltage, and
+/// the energy left there (flights with an end rest voltage).
+fn landing(
+    p: &Prepared,
+    curve: &OcvCurve,
+    est0: &Estimator,
+    i_off: usize,
+    px4: &Px4Battery,
+    ap: &ArduBattery,
+    o: &mut FlightFigures,
+) {
+    let (t, i, v) = (&p.t, &p.i, &p.v);
+    let mut s = est0.clone();
+    for k in 1..=i_off {
+        s.update(t[k] - t[k - 1], i[k], v[k]);
     }
-    (o, tr)
+    o.rest_under_load_ours_v = NC * curve.v_cell_at_energy(s.energy_wh()) - p.v_end_rest;
+    o.rest_under_load_px4_v = px4.compensated_v() - p.v_end_rest;
+    o.rest_under_load_ardupilot_v = ap.resting_v(v[i_off], i[i_off]) - p.v_end_rest;
+    // Energy left at the last in-flight sample against our curve at the end rest
+    // voltage (model-based, as the start rows): ours, PX4's SoC and ArduPilot's
+    // remaining charge × the rated 129.96 Wh, and "full at take-off" − the energy used.
+    let truth = curve.energy(p.v_end_rest / NC);
+    let used_wh = measured_wh(t, v, i, i_off + 1);
+    o.landing_energy_ours_err_wh = s.energy_wh() - truth;
+    o.landing_energy_px4_err_wh = px4.soc() * RATED_WH - truth;
+    o.landing_energy_ardupilot_err_wh = ap.remaining() * RATED_WH - truth;
+    o.landing_energy_full_pack_err_wh = RATED_WH - used_wh - truth;
 }
 
 #[cfg(test)]
