@@ -18,10 +18,13 @@ pub(super) type Batch = Vec<TimedMessage>;
 /// demultiplexer's hands, one or two in flight in steady state).
 const KEEP: usize = 4;
 /// A batch that grew past this many messages (a one-vehicle flat-out replay's burst) is
-/// freed rather than kept: what a vehicle holds idle stays small at 3,000 vehicles.
-const KEEP_CAPACITY: usize = 256;
-/// A new batch's room: a live vehicle's burst share is a few messages.
-const FIRST_CAPACITY: usize = 16;
+/// freed rather than kept: what a vehicle holds idle, and what a queued batch of one
+/// message holds, stays small at 3,000 vehicles.
+const KEEP_CAPACITY: usize = 64;
+/// A new batch's room: a live vehicle's burst share is a message or two (as `Vec`'s own
+/// first growth: more room here showed as peak RSS while a live monitor fell behind, its
+/// queues holding many batches of one message each).
+const FIRST_CAPACITY: usize = 4;
 
 /// The empty batches one vehicle's chain handed back (its demultiplexer entry and its
 /// telemetry stage share it; an uncontended lock, twice a burst).
