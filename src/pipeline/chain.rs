@@ -216,7 +216,7 @@ impl VehicleChain {
     /// vehicle was lost or dropped.
     pub fn spawn(
         self,
-        msgs: mpsc::Receiver<Vec<TimedMessage>>,
+        msgs: super::BatchRx,
         inference: &Inference,
         fanout: Fanout,
         status: &ChainStatus,

@@ -38,6 +38,7 @@
 //! drops its sender, each stage drains what it holds and drops its own, and every sink
 //! sees its queue close, flushes and writes its summary. Nothing is lost on the way out.
 
+mod batches;
 mod chain;
 pub mod checkpoint;
 mod fleet;
@@ -48,6 +49,7 @@ mod shutdown;
 mod sinks;
 mod stages;
 
+pub use batches::BatchRx;
 pub use chain::{ChainEnd, ChainTasks, Rebuild, VehicleChain};
 use fleet::Fleet;
 pub use fleet::{Demux, FleetEvent, Route};

@@ -2,6 +2,8 @@
 //! the mission forecast) and energy (estimates → energy, pack, alerts), and the per-vehicle
 //! accounting of what each report cost.
 
+use std::sync::Arc;
+
 use tokio::sync::mpsc;
 use tokio::time::Instant;
 
@@ -12,9 +14,8 @@ use crate::alert::AlertEngine;
 use crate::energy::EnergyTracker;
 use crate::mission::live::MissionStep;
 use crate::report::status::{ChainStatus, IngestStats};
-use crate::report::{EnergyState, Estimate, MissionUpdate, Report, VehicleId};
+use crate::report::{Estimate, MissionUpdate, Report, VehicleId};
 use crate::sink::Fanout;
-use crate::source::TimedMessage;
 use crate::telemetry::Telemetry;
 use crate::vehicle::params::{Driver, Identity, VehicleParams};
 use crate::vehicle::store::FlightLog;
@@ -28,7 +29,7 @@ pub(super) async fn telemetry_stage(
     mut telemetry: Telemetry,
     mut vehicle: Driver,
     mut mission: Option<MissionStep>,
-    mut msgs: mpsc::Receiver<Vec<TimedMessage>>,
+    mut msgs: super::BatchRx,
     windows: WindowsOut,
     news: mpsc::UnboundedSender<VehicleNews>,
     mut memory: Option<Memory>,
@@ -83,6 +84,8 @@ pub(super) async fn telemetry_stage(
                         .iter_mut()
                         .for_each(|w| w.arrived = Some(m.arrived));
                 }
+                // Read: back to the demultiplexer, to be filled again.
+                msgs.give(batch);
                 if let Some(id) = telemetry.system_id() {
                     status
                         .system_id
@@ -213,8 +216,9 @@ pub(super) async fn energy_stage(
             id => id,
         },
     };
-    // The last real estimate, its energy, and when it came: the base of a silent tick.
-    let mut last: Option<(Estimate, EnergyState, Instant)> = None;
+    // The last real report (its estimate and energy) and when it came: the base of a silent
+    // tick. Shared with the sinks, not copied (a live estimate's clone was an allocation each).
+    let mut last: Option<(Arc<Report>, Instant)> = None;
     let mut next_mission: Option<MissionUpdate> = None;
     let mut taken = Taken::default();
     let mut kept = Kept::default();
@@ -244,34 +248,33 @@ pub(super) async fn energy_stage(
                 for m in stuck.observe(&report.estimate) {
                     tracing::warn!(vehicle = %report.vehicle, "{m}");
                 }
+                let report = Arc::new(report);
                 if live {
-                    last = Some((
-                        report.estimate.clone(),
-                        report.energy.clone(),
-                        Instant::now(),
-                    ));
+                    last = Some((report.clone(), Instant::now()));
                 }
                 report
             }
             Ok(None) => break,
             Err(_silence) => {
-                let Some((est, state, at)) = &last else {
+                let Some((r, at)) = &last else {
                     continue;
                 };
-                let quiet = est.silent(est.t_s + at.elapsed().as_secs_f64());
-                let events = alerts.evaluate(&quiet, state);
+                let quiet = r
+                    .estimate
+                    .silent(r.estimate.t_s + at.elapsed().as_secs_f64());
+                let events = alerts.evaluate(&quiet, &r.energy);
                 if events.is_empty() {
                     continue;
                 }
-                Report {
+                Arc::new(Report {
                     estimate: quiet,
-                    energy: state.clone(),
+                    energy: r.energy.clone(),
                     alerts: events,
                     vehicle: vehicle_id(),
-                }
+                })
             }
         };
-        fanout.send(report).await;
+        fanout.send_shared(report).await;
     }
     // The rest of the news (the vehicle's identity and the store's clock for the flight
     // log), the input being over.
