@@ -156,7 +156,7 @@ pub struct BatteryEvalReport {
     pub relax: RelaxCheck,
     pub heat_carry_over: String,
     pub power_profile: String,
-    pub targets: HashMap<String, f64>,
+    pub targets: std::collections::BTreeMap<String, f64>,
     pub train: SetSummary,
     pub test: SetSummary,
     pub test_flights: Vec<u32>,
