@@ -307,7 +307,8 @@ impl EnergyTracker {
             .map(f64::from)
             .filter(|v| v.is_finite() && *v > 0.5);
         let amps = volts.zip(measured).map(|(v, p)| p / v);
-        let flying = amps.is_some_and(|i| i > pack::rest_current_a(&self.battery));
+        let (rest_a, load_a) = pack::currents(&self.battery);
+        let flying = amps.is_some_and(|i| i > rest_a);
         let aloft = flying || (amps.is_none() && s.home.is_some_and(|h| h.height_m > 2.0));
         if self.airborne.update(aloft, dt) {
             // take-off: the forecast's power from the phase now flown, not from ground idle
@@ -348,7 +349,7 @@ impl EnergyTracker {
             self.say(format_args!("battery: remaining energy revised up by {up:.1} Wh in flight: the pack's sag as learned over the last {:.0} s", steady::REVISE_AFTER_S));
         }
         if remaining_source == RemainingSource::AssumedFull
-            && amps.is_some_and(|i| i >= pack::load_current_a(&self.battery))
+            && amps.is_some_and(|i| i >= load_a)
             && !self.warned_full
         {
             self.warned_full = true;

@@ -291,8 +291,9 @@ impl Pack {
         let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
         let cells = facts.cell_count.value.max(1);
         // V + I·R with the prior resistance: the open-circuit voltage under any load.
-        let r = prior_r_ohm(cells, pack_ah(facts, chem));
-        let load_a = load_current_a(facts);
+        let ah = pack_ah(facts, chem);
+        let r = prior_r_ohm(cells, ah);
+        let (rest_a, load_a) = priors::currents_of(ah);
         self.loaded.push_back((t, v + i.max(0.0) * r));
         while self
             .loaded
@@ -301,7 +302,7 @@ impl Pack {
         {
             self.loaded.pop_front();
         }
-        if i.abs() < rest_current_a(facts) {
+        if i.abs() < rest_a {
             self.rest.push_back((t, v));
             while self
                 .rest
@@ -321,7 +322,7 @@ impl Pack {
         }
         // the trend's loaded samples; with the capacity not known, any current over the rest
         // current (a micro pack hovering under 3 A still gets its time to the low voltage)
-        let trend_a = pack_ah(facts, chem).map_or(REST_CURRENT_A, |ah| {
+        let trend_a = ah.map_or(REST_CURRENT_A, |ah| {
             crate::battery::trend::loaded_a(Some(ah))
         });
         if i >= trend_a {
@@ -332,7 +333,7 @@ impl Pack {
                 self.sag.update(dt, v, i, cells, r);
             }
         }
-        self.maybe_start_loaded(t, i, r, facts);
+        self.maybe_start_loaded(t, i, r, load_a, facts);
         if self.rest_v.is_some() && self.est.is_none() && !self.sag.flat {
             // No capacity: the state of charge from the load-compensated voltage.
             if let Some(ocv) = median(self.loaded.iter().map(|(_, x)| *x)) {
@@ -431,7 +432,7 @@ impl Pack {
 
     /// No resting voltage after [`LOAD_START_S`] of readings (and none settling now, or
     /// three times that long): start from the load-compensated voltage, said once.
-    fn maybe_start_loaded(&mut self, t: f64, i: f64, r: f64, facts: &BatteryFacts) {
+    fn maybe_start_loaded(&mut self, t: f64, i: f64, r: f64, load_a: f64, facts: &BatteryFacts) {
         if self.rest_v.is_some() {
             self.since = None;
             return;
@@ -459,7 +460,7 @@ impl Pack {
         }
         self.start(ocv, FROM_LOAD, facts);
         // Flying already: the start is not a rest before take-off.
-        self.flown = i >= load_current_a(facts);
+        self.flown = i >= load_a;
     }
 
     /// Whether the start state may still come from a resting voltage: the pack is resting
@@ -586,7 +587,7 @@ mod forecast;
 mod priors;
 #[path = "pack_sag.rs"]
 mod sag;
-pub use priors::{load_current_a, pack_model, prior_r_ohm, rest_current_a};
+pub use priors::{currents, load_current_a, pack_model, prior_r_ohm, rest_current_a};
 use priors::{low_v, pack_ah};
 pub use sag::SagCheck;
 

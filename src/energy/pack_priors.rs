@@ -38,8 +38,7 @@ pub(super) fn pack_ah(facts: &BatteryFacts, chem: Chemistry) -> Option<f64> {
 /// rest rule calls rest is not a take-off). With the capacity not known: [`LOAD_CURRENT_A`]
 /// (a rule from the currents seen would let a busy ground idle count as a take-off).
 pub fn load_current_a(facts: &BatteryFacts) -> f64 {
-    let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
-    crate::battery::trend::loaded_a(pack_ah(facts, chem)).max(rest_current_a(facts))
+    currents(facts).1
 }
 
 /// The current under which this pack counts as resting, A: [`REST_CURRENT_A`], and on a pack
@@ -48,9 +47,20 @@ pub fn load_current_a(facts: &BatteryFacts) -> f64 {
 /// (a 1 Ah pack hovering at 0.8 A had its loaded voltage read as a resting one, and never
 /// took off); never under [`REST_FLOOR_A`]. With the capacity not known: [`REST_CURRENT_A`].
 pub fn rest_current_a(facts: &BatteryFacts) -> f64 {
+    currents(facts).0
+}
+
+/// ([`rest_current_a`], [`load_current_a`]) of these facts, the chemistry read once.
+pub fn currents(facts: &BatteryFacts) -> (f64, f64) {
     let chem = Chemistry::from_name(&facts.chemistry.value).unwrap_or(Chemistry::LiPo);
-    (0.5 * crate::battery::trend::loaded_a(pack_ah(facts, chem)))
-        .clamp(REST_FLOOR_A, REST_CURRENT_A)
+    currents_of(pack_ah(facts, chem))
+}
+
+/// ([`rest_current_a`], [`load_current_a`]) of a pack of this charge (Ah; `None`: not known).
+pub(super) fn currents_of(ah: Option<f64>) -> (f64, f64) {
+    let loaded = crate::battery::trend::loaded_a(ah);
+    let rest = (0.5 * loaded).clamp(REST_FLOOR_A, REST_CURRENT_A);
+    (rest, loaded.max(rest))
 }
 
 /// The OCV curve and circuit for these battery facts: the TB48D's own fit for the M100's

@@ -191,6 +191,21 @@ fn the_first_hover_calibrates_the_live_forecast_and_the_store_keeps_it() {
     );
 }
 
+/// A spec sheet of the five facts in `dir` (`NAME.toml`): four 10-inch propellers and a LiPo
+/// of `cells` cells and `mah` mAh on a vehicle of `kg` at take-off.
+fn five_facts(dir: &Path, name: &str, kg: f64, cells: u32, mah: u32) -> std::path::PathBuf {
+    let spec = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &spec,
+        format!(
+            "name = \"{name}\"\n[vehicle]\ntakeoff_kg = {kg:?}\nrotors = 4\nprop_diameter_m = 0.254\n\
+             [battery]\ncells = {cells}\ncapacity_mah = {mah}\nchemistry = \"lipo\"\n"
+        ),
+    )
+    .unwrap();
+    spec
+}
+
 /// The simulated X500 (`simulate --vehicle x500 --payload-g 0 SIM_ARGS`) replayed with
 /// `--vehicle` its five-fact spec sheet (2 kg, four 10-inch propellers, 4S 5 Ah LiPo),
 /// logging at info: the replay's output.
@@ -203,13 +218,7 @@ fn x500_from_its_spec_sheet(sim_args: &[&str]) -> std::process::Output {
         .arg("--out")
         .arg(&log)
         .ok();
-    let spec = dir.path().join("x500-spec.toml");
-    std::fs::write(
-        &spec,
-        "name = \"X500 spec\"\n[vehicle]\ntakeoff_kg = 2.0\nrotors = 4\nprop_diameter_m = 0.254\n\
-         [battery]\ncells = 4\ncapacity_mah = 5000\nchemistry = \"lipo\"\n",
-    )
-    .unwrap();
+    let spec = five_facts(dir.path(), "X500 spec", 2.0, 4, 5000);
     dronewatt()
         .env("RUST_LOG", "info")
         .args([
@@ -291,13 +300,7 @@ fn a_hover_measured_with_a_payload_calibrates_plan_as_the_live_first_hover_does(
     // find the same vehicle: before, `--hover-w` took any hover as the empty mass's and read
     // P1 as a poorer efficiency, forecasting the loaded plan ~48 % high.
     let dir = tempfile::tempdir().unwrap();
-    let spec = dir.path().join("spec.toml");
-    std::fs::write(
-        &spec,
-        "name = \"Spec quad\"\n[vehicle]\ntakeoff_kg = 1.3\nrotors = 4\nprop_diameter_m = 0.254\n\
-         [battery]\ncells = 3\ncapacity_mah = 5100\nchemistry = \"lipo\"\n",
-    )
-    .unwrap();
+    let spec = five_facts(dir.path(), "Spec quad", 1.3, 3, 5100);
     let area = 4.0 * std::f64::consts::PI * 0.127f64.powi(2);
     let eta = |kg: f64| 0.45 * (kg / 1.3f64).powf(0.2572);
     let hover = |kg: f64| (kg * 9.81f64).powf(1.5) / (2.0 * 1.225 * area).sqrt() / eta(kg) + 8.0;

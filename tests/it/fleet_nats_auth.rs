@@ -154,6 +154,16 @@ fn statustext(text: &str) -> Vec<u8> {
     frame
 }
 
+/// Publish a STATUSTEXT saying `text` on `subject` as client `c`, flushed.
+fn send(rt: &tokio::runtime::Runtime, c: &async_nats::Client, subject: &str, text: &str) {
+    rt.block_on(async {
+        c.publish(subject.to_string(), statustext(text).into())
+            .await
+            .unwrap();
+        c.flush().await.unwrap();
+    })
+}
+
 /// Vehicle 3's HEARTBEAT frame.
 fn heartbeat() -> Vec<u8> {
     let hb = dronewatt::MavMessage::HEARTBEAT(dronewatt::dialect::HEARTBEAT_DATA::default());
@@ -224,14 +234,7 @@ fn a_worker_cannot_send_to_a_vehicle_it_does_not_hold() {
         let (w2, _) = login(&nats.url, "worker2").await;
         (w1, w2)
     });
-    let send = |c: &async_nats::Client, subject: &str, text: &str| {
-        rt.block_on(async {
-            c.publish(subject.to_string(), statustext(text).into())
-                .await
-                .unwrap();
-            c.flush().await.unwrap();
-        })
-    };
+    let send = |c: &async_nats::Client, subject: &str, text: &str| send(&rt, c, subject, text);
     // The gateway subscribed to the workers' downlink before it listened; the vehicle's
     // heartbeat gives the link its address (taken in once the gateway has stored it).
     hello(&rt, &w2, &vehicle, &frame, port);
@@ -393,14 +396,7 @@ fn a_worker_cannot_take_a_lease_that_has_not_run_out() {
         })
     };
     let (kv1, kv2) = (kv(&w1), kv(&w2));
-    let send = |c: &async_nats::Client, subject: &str, text: &str| {
-        rt.block_on(async {
-            c.publish(subject.to_string(), statustext(text).into())
-                .await
-                .unwrap();
-            c.flush().await.unwrap();
-        })
-    };
+    let send = |c: &async_nats::Client, subject: &str, text: &str| send(&rt, c, subject, text);
     // worker2 (re)writes its lease over whatever is there: what a holder does each second,
     // and what it does when its renewal is refused while the lease still runs.
     let w2_writes = || {
