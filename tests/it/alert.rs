@@ -55,6 +55,11 @@ fn load_err(toml_text: &str) -> String {
     }
 }
 
+/// The alert engine of a config's `[[alerts]]`.
+fn engine(toml_text: &str) -> AlertEngine {
+    AlertEngine::new(&parse(toml_text).alerts).unwrap()
+}
+
 /// Feed `(t, remaining_wh)` pairs; collect the events.
 fn run(engine: &mut AlertEngine, seq: &[(f64, f64)]) -> Vec<AlertEvent> {
     seq.iter()
@@ -64,7 +69,7 @@ fn run(engine: &mut AlertEngine, seq: &[(f64, f64)]) -> Vec<AlertEvent> {
 
 #[test]
 fn hysteresis_raises_once_on_a_noisy_crossing() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "low"
@@ -73,7 +78,6 @@ fn hysteresis_raises_once_on_a_noisy_crossing() {
         clear_wh = 33
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     // Remaining falls through 30 Wh with ±1.5 Wh noise: it crosses 30 many times.
     let seq: Vec<(f64, f64)> = (0..200)
         .map(|i| {
@@ -106,8 +110,7 @@ fn hysteresis_raises_once_on_a_noisy_crossing() {
 #[test]
 fn without_hysteresis_the_same_crossing_flaps() {
     // The control for the test above: the clear level at the raise level flaps on noise.
-    let cfg = parse("[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\n");
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let mut eng = engine("[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\n");
     let seq: Vec<(f64, f64)> = (0..40)
         .map(|i| (i as f64 * 0.1, if i % 2 == 0 { 31.0 } else { 29.0 }))
         .collect();
@@ -118,7 +121,7 @@ fn without_hysteresis_the_same_crossing_flaps() {
 
 #[test]
 fn debounce_needs_the_condition_to_hold_for_for_s() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "spike"
@@ -129,7 +132,6 @@ fn debounce_needs_the_condition_to_hold_for_for_s() {
         severity = "MAV_SEVERITY_CRITICAL"
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let e0 = EnergyState::default();
     // A 1.5 s spike (t 1.0..=2.5) does not raise.
     let mut ev = Vec::new();
@@ -157,7 +159,7 @@ fn debounce_needs_the_condition_to_hold_for_for_s() {
 
 #[test]
 fn repeat_says_it_again_while_raised() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "low"
@@ -167,7 +169,6 @@ fn repeat_says_it_again_while_raised() {
         message = "Battery low"
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let seq: Vec<(f64, f64)> = (0..=350).map(|i| (i as f64 * 0.1, 10.0)).collect();
     let ev = run(&mut eng, &seq);
     let ts: Vec<f64> = ev.iter().map(|e| e.t).collect();
@@ -181,7 +182,7 @@ fn repeat_says_it_again_while_raised() {
 
 #[test]
 fn every_kind_watches_its_own_value() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [energy]
         cell_count = 6
@@ -214,7 +215,6 @@ fn every_kind_watches_its_own_value() {
         for_s = 1
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let calm = EnergyState {
         time_to_empty_s: Some(900.0),
         home_margin_wh: Some(20.0),
@@ -266,7 +266,7 @@ fn bad_rules_name_the_file_the_key_and_why() {
 
 #[test]
 fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "mission_margin"
@@ -278,7 +278,6 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
         message = "mission cannot finish with reserve - return now"
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let state = |m: Option<f64>| EnergyState {
         remaining_wh: Some(80.0),
         mission_margin_wh: m,
@@ -335,7 +334,7 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
 #[test]
 fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
     use dronewatt::report::{BatteryFacts, Provenance, Sourced};
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "pack_low"
@@ -345,7 +344,6 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
         clear_margin_v = 0.4
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let at = |t: f64, v: f32| {
         let mut e = est(t, Some(300.0), &[]);
         e.sample.voltage_v = Some(v);
@@ -384,7 +382,7 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
 #[test]
 fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() {
     use dronewatt::report::PackState;
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "sag"
@@ -392,7 +390,6 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
         clear_margin_v = 0.2
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let en = |v_min: Option<f64>, low: Option<f64>| EnergyState {
         pack: PackState {
             v_min_forecast_v: v_min,
@@ -436,9 +433,8 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
         AlertState::Cleared
     );
     // An explicit level in volts, and a bad one named.
-    let cfg =
-        parse("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let mut eng =
+        engine("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
     assert_eq!(
         eng.evaluate(&est(0.0, Some(300.0), &[]), &en(Some(21.9), None))
             .len(),
