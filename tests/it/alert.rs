@@ -30,6 +30,11 @@ fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
     }
 }
 
+/// An estimate at `t_s` of a vehicle flying at a measured 300 W, with no model.
+fn flying(t_s: f64) -> Estimate {
+    est(t_s, Some(300.0), &[])
+}
+
 fn energy(remaining_wh: f64) -> EnergyState {
     EnergyState {
         remaining_wh: Some(remaining_wh),
@@ -63,7 +68,7 @@ fn engine(toml_text: &str) -> AlertEngine {
 /// Feed `(t, remaining_wh)` pairs; collect the events.
 fn run(engine: &mut AlertEngine, seq: &[(f64, f64)]) -> Vec<AlertEvent> {
     seq.iter()
-        .flat_map(|&(t, wh)| engine.evaluate(&est(t, Some(300.0), &[]), &energy(wh)))
+        .flat_map(|&(t, wh)| engine.evaluate(&flying(t), &energy(wh)))
         .collect()
 }
 
@@ -285,19 +290,16 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
     };
     // No mission known: nothing, however long.
     let none: Vec<_> = (0..50)
-        .flat_map(|i| eng.evaluate(&est(i as f64 * 0.1, Some(300.0), &[]), &state(None)))
+        .flat_map(|i| eng.evaluate(&flying(i as f64 * 0.1), &state(None)))
         .collect();
     assert!(none.is_empty(), "{none:?}");
     // The margin dips under 0 for 1 s (debounce: no alert); then under 0 for 3 s (raised
     // once, after 2 s) and ±1.5 Wh for 17 s: never cleared (it must come back above 3 Wh).
     let mut events = Vec::new();
     for i in 0..10 {
-        events.extend(eng.evaluate(
-            &est(5.0 + i as f64 * 0.1, Some(300.0), &[]),
-            &state(Some(-1.0)),
-        ));
+        events.extend(eng.evaluate(&flying(5.0 + i as f64 * 0.1), &state(Some(-1.0))));
     }
-    events.extend(eng.evaluate(&est(6.0, Some(300.0), &[]), &state(Some(5.0))));
+    events.extend(eng.evaluate(&flying(6.0), &state(Some(5.0))));
     assert!(events.is_empty(), "a 1 s dip is debounced: {events:?}");
     for i in 0..200 {
         let m = if i < 30 {
@@ -307,10 +309,7 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
         } else {
             1.5
         };
-        events.extend(eng.evaluate(
-            &est(7.0 + i as f64 * 0.1, Some(300.0), &[]),
-            &state(Some(m)),
-        ));
+        events.extend(eng.evaluate(&flying(7.0 + i as f64 * 0.1), &state(Some(m))));
     }
     assert_eq!(events.len(), 1, "{events:?}");
     assert_eq!(events[0].state, AlertState::Raised);
@@ -326,7 +325,7 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
         "{}",
         events[0].message
     );
-    let cleared: Vec<_> = eng.evaluate(&est(30.0, Some(300.0), &[]), &state(Some(3.5)));
+    let cleared: Vec<_> = eng.evaluate(&flying(30.0), &state(Some(3.5)));
     assert_eq!(cleared.len(), 1);
     assert_eq!(cleared[0].state, AlertState::Cleared);
 }
@@ -345,7 +344,7 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
         "#,
     );
     let at = |t: f64, v: f32| {
-        let mut e = est(t, Some(300.0), &[]);
+        let mut e = flying(t);
         e.sample.voltage_v = Some(v);
         e
     };
@@ -400,17 +399,13 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
         ..Default::default()
     };
     // No forecast yet, or no threshold: quiet.
+    assert!(eng.evaluate(&flying(0.0), &en(None, Some(21.0))).is_empty());
+    assert!(eng.evaluate(&flying(1.0), &en(Some(20.0), None)).is_empty());
     assert!(eng
-        .evaluate(&est(0.0, Some(300.0), &[]), &en(None, Some(21.0)))
-        .is_empty());
-    assert!(eng
-        .evaluate(&est(1.0, Some(300.0), &[]), &en(Some(20.0), None))
-        .is_empty());
-    assert!(eng
-        .evaluate(&est(2.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))
+        .evaluate(&flying(2.0), &en(Some(21.3), Some(21.0)))
         .is_empty());
     // The final climb sags to 20.6 V, under the 21.0 V low threshold, in 3 min 5 s.
-    let raised = eng.evaluate(&est(3.0, Some(300.0), &[]), &en(Some(20.6), Some(21.0)));
+    let raised = eng.evaluate(&flying(3.0), &en(Some(20.6), Some(21.0)));
     assert_eq!(raised.len(), 1);
     assert_eq!(raised[0].state, AlertState::Raised);
     assert!(
@@ -424,22 +419,18 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
         raised[0].message
     );
     assert!(
-        eng.evaluate(&est(4.0, Some(300.0), &[]), &en(Some(21.1), Some(21.0)))
+        eng.evaluate(&flying(4.0), &en(Some(21.1), Some(21.0)))
             .is_empty(),
         "hysteresis"
     );
     assert_eq!(
-        eng.evaluate(&est(5.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))[0].state,
+        eng.evaluate(&flying(5.0), &en(Some(21.3), Some(21.0)))[0].state,
         AlertState::Cleared
     );
     // An explicit level in volts, and a bad one named.
     let mut eng =
         engine("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
-    assert_eq!(
-        eng.evaluate(&est(0.0, Some(300.0), &[]), &en(Some(21.9), None))
-            .len(),
-        1
-    );
+    assert_eq!(eng.evaluate(&flying(0.0), &en(Some(21.9), None)).len(), 1);
     let err =
         load_err("[[alerts]]\nname = \"x\"\nkind = \"voltage_forecast_below\"\nbelow_v = -1\n");
     assert!(err.contains("below_v"), "{err}");
