@@ -277,16 +277,7 @@ impl EnergyTracker {
     pub fn update_with_battery(&mut self, est: &Estimate, battery_pct: Option<f64>) -> EnergyState {
         let s = &est.sample;
         self.selector.update(est.t_s, &est.models);
-        if self.first_voltage_v.is_none() {
-            if let Some(v) = s
-                .voltage_v
-                .map(f64::from)
-                .filter(|v| v.is_finite() && *v > 1.0)
-            {
-                self.first_voltage_v = Some(v);
-                self.resolve_battery();
-            }
-        }
+        self.note_first_voltage(s);
         // the first hover's search ([`hover`]; [`EnergyTracker::calibrated`] applies it)
         self.observe_hover(s, s.measured_w.map(f64::from).filter(|p| p.is_finite()));
         let PowerNow {
@@ -300,79 +291,19 @@ impl EnergyTracker {
 
         let t = est.t_s;
         let dt = self.integrate(t, power);
-
-        // The pack: voltage and current (discharge positive) from the measured power.
-        let volts = s
-            .voltage_v
-            .map(f64::from)
-            .filter(|v| v.is_finite() && *v > 0.5);
-        let amps = volts.zip(measured).map(|(v, p)| p / v);
-        let (rest_a, load_a) = pack::currents(&self.battery);
-        let flying = amps.is_some_and(|i| i > rest_a);
-        let aloft = flying || (amps.is_none() && s.home.is_some_and(|h| h.height_m > 2.0));
-        if self.airborne.update(aloft, dt) {
-            // take-off: the forecast's power from the phase now flown, not from ground idle
-            self.forecast = Ema::default();
-        }
-        let tau = self.cfg.smoothing_s;
+        let load = self.pack_load(s, measured, dt);
         let forecast_input = forecast_from.map(|(_, p)| p);
-        let forecast = forecast_input.map(|p| self.forecast.update(p, dt, tau));
-        if let Some(p) = forecast_input {
-            self.observe_phase(s, p, dt, tau);
-        }
-
-        let measured_avg = match measured.filter(|_| flying) {
-            Some(p) => Some(self.measured_avg.update(p, dt, tau)),
-            None => self.measured_avg.0,
-        };
-        let rest_of_flight = self.rest_of_flight(forecast, measured_avg, tau);
-        let pk = self
-            .pack
-            .update(t, volts, amps, rest_of_flight, &self.battery);
-        for n in std::mem::take(&mut self.pack.notes) {
-            self.say(format_args!("{n}"));
-        }
+        let (forecast, pk) = self.forecast_and_pack(est, dt, forecast_input, measured, &load);
         let reported_pct = battery_pct.filter(|p| (0.0..=100.0).contains(p));
         let disagreement = self.pct_disagreement(reported_pct, &pk);
         let cap = self.battery.capacity();
         let (remaining, remaining_source, full_wh) =
-            self.remaining(&pk, reported_pct.filter(|_| self.cfg.use_battery_pct), cap);
-        let (remaining, remaining_source) =
-            self.pack_known(s, &power_source, reported_pct, remaining, remaining_source);
-        // never up under load without a stated reason (steady)
-        // held once the flight's first seconds have shown the pack under load
-        let held = flying && self.airborne.measured_long_enough(tau);
-        let (remaining, revised) =
-            self.no_rise
-                .update(t, remaining, remaining_source, self.used_wh, held);
-        if let Some(up) = revised {
-            self.say(format_args!("battery: remaining energy revised up by {up:.1} Wh in flight: the pack's sag as learned over the last {:.0} s", steady::REVISE_AFTER_S));
-        }
-        if remaining_source == RemainingSource::AssumedFull
-            && amps.is_some_and(|i| i >= load_a)
-            && !self.warned_full
-        {
-            self.warned_full = true;
-            self.say(format_args!("battery: no resting voltage was read before take-off and the vehicle sends no battery %: remaining energy assumes the pack started full"));
-        }
-        // To the voltage failsafe when the pack model forecasts one; else to the floor.
-        let time_to_empty_s = match (remaining_source, pk.time_to_low_v_s) {
-            (RemainingSource::RestingVoltage | RemainingSource::LoadCompensated, Some(t_low)) => {
-                Some(t_low)
-            }
-            _ => remaining
-                .zip(forecast.filter(|p| *p > 1.0))
-                .map(|(e, p)| 3600.0 * e / p),
-        };
+            self.remaining_now(est, &pk, &power_source, reported_pct, &load, cap);
+        let time_to_empty_s =
+            state::time_to_empty(remaining_source, pk.time_to_low_v_s, remaining, forecast);
         let home_energy_wh = self.home_energy_wh(s, forecast);
         let reserve = full_wh.map(|f| f * self.cfg.reserve_pct / 100.0);
-        // Without a capacity, the share left is the state of charge the voltage says, else
-        // the vehicle's own %.
-        let remaining_pct = match (remaining, full_wh) {
-            (Some(r), Some(f)) if f > 0.0 => Some((100.0 * r / f).clamp(0.0, 100.0)),
-            _ if cap.is_none() => pk.soc_pct.or(reported_pct),
-            _ => None,
-        };
+        let remaining_pct = state::remaining_pct(remaining, full_wh, cap, &pk, reported_pct);
         EnergyState {
             energy_used_wh: self.used_wh,
             power_source,
@@ -400,7 +331,7 @@ impl EnergyTracker {
                 .map(|((r, m), res)| r - m.energy_p50_wh - res),
             mission: self.mission.clone(),
             forecast_adapted: forecast_adapted && forecast_from.is_some_and(|(m, _)| m.is_some()),
-            pack: state::pack_state(volts, &pk, disagreement),
+            pack: state::pack_state(load.volts, &pk, disagreement),
             battery: self.battery.clone(),
             hover_calibration: self.first_hover.calibration().copied(),
         }

@@ -1,8 +1,9 @@
-//! The energy state's parts that are computed from the step's facts, apart from
-//! [`EnergyTracker::update_with_battery`]'s flow: the power the pack model flies the rest of
-//! the flight at, the remaining energy and its source, the energy home, and the pack's
-//! report.
+//! The energy state's parts that are computed from the step's facts, and the steps of
+//! [`EnergyTracker::update_with_battery`]'s flow: the pack's load, the forecast and the pack
+//! model's step, the power the pack model flies the rest of the flight at, the remaining
+//! energy and its source, the time to empty, the energy home, and the pack's report.
 
+use super::steady::{self, Ema};
 use super::{pack, EnergyTracker, RemainingSource};
 use crate::features::{idx, Sample};
 use crate::report::BATTERY_PCT_AGREE;
@@ -239,5 +240,160 @@ impl EnergyTracker {
             ));
         }
         disagreement
+    }
+}
+
+/// The pack's load this sample: its voltage and current (discharge positive, from the
+/// measured power), whether it is flying (drawing more than its rest current), and the
+/// current that counts as under load.
+pub(super) struct PackLoad {
+    pub volts: Option<f64>,
+    pub amps: Option<f64>,
+    pub flying: bool,
+    pub load_a: f64,
+}
+
+impl EnergyTracker {
+    /// The first plausible pack voltage, once: the battery is resolved from it.
+    pub(super) fn note_first_voltage(&mut self, s: &Sample) {
+        if self.first_voltage_v.is_none() {
+            if let Some(v) = s
+                .voltage_v
+                .map(f64::from)
+                .filter(|v| v.is_finite() && *v > 1.0)
+            {
+                self.first_voltage_v = Some(v);
+                self.resolve_battery();
+            }
+        }
+    }
+
+    /// The pack's load now, and whether the vehicle is airborne (at take-off the forecast
+    /// starts again).
+    pub(super) fn pack_load(&mut self, s: &Sample, measured: Option<f64>, dt: f64) -> PackLoad {
+        // The pack: voltage and current (discharge positive) from the measured power.
+        let volts = s
+            .voltage_v
+            .map(f64::from)
+            .filter(|v| v.is_finite() && *v > 0.5);
+        let amps = volts.zip(measured).map(|(v, p)| p / v);
+        let (rest_a, load_a) = pack::currents(&self.battery);
+        let flying = amps.is_some_and(|i| i > rest_a);
+        let aloft = flying || (amps.is_none() && s.home.is_some_and(|h| h.height_m > 2.0));
+        if self.airborne.update(aloft, dt) {
+            // take-off: the forecast's power from the phase now flown, not from ground idle
+            self.forecast = Ema::default();
+        }
+        PackLoad {
+            volts,
+            amps,
+            flying,
+            load_a,
+        }
+    }
+
+    /// The forecast power (smoothed from `forecast_input`) and the pack model's step, which
+    /// flies the rest of the flight on it; the pack's notes said.
+    pub(super) fn forecast_and_pack(
+        &mut self,
+        est: &Estimate,
+        dt: f64,
+        forecast_input: Option<f64>,
+        measured: Option<f64>,
+        load: &PackLoad,
+    ) -> (Option<f64>, pack::PackNow) {
+        let s = &est.sample;
+        let tau = self.cfg.smoothing_s;
+        let forecast = forecast_input.map(|p| self.forecast.update(p, dt, tau));
+        if let Some(p) = forecast_input {
+            self.observe_phase(s, p, dt, tau);
+        }
+
+        let measured_avg = match measured.filter(|_| load.flying) {
+            Some(p) => Some(self.measured_avg.update(p, dt, tau)),
+            None => self.measured_avg.0,
+        };
+        let rest_of_flight = self.rest_of_flight(forecast, measured_avg, tau);
+        let pk = self.pack.update(
+            est.t_s,
+            load.volts,
+            load.amps,
+            rest_of_flight,
+            &self.battery,
+        );
+        for n in std::mem::take(&mut self.pack.notes) {
+            self.say(format_args!("{n}"));
+        }
+        (forecast, pk)
+    }
+
+    /// Remaining energy, its source and the pack's full energy ([`Self::remaining`], where
+    /// the pack is known), never up under load without a stated reason (steady); the
+    /// assumption of a full pack said once.
+    pub(super) fn remaining_now(
+        &mut self,
+        est: &Estimate,
+        pk: &pack::PackNow,
+        power_source: &PowerSource,
+        reported_pct: Option<f64>,
+        load: &PackLoad,
+        cap: Option<f64>,
+    ) -> (Option<f64>, RemainingSource, Option<f64>) {
+        let s = &est.sample;
+        let (remaining, remaining_source, full_wh) =
+            self.remaining(pk, reported_pct.filter(|_| self.cfg.use_battery_pct), cap);
+        let (remaining, remaining_source) =
+            self.pack_known(s, power_source, reported_pct, remaining, remaining_source);
+        // never up under load without a stated reason (steady)
+        // held once the flight's first seconds have shown the pack under load
+        let held = load.flying && self.airborne.measured_long_enough(self.cfg.smoothing_s);
+        let (remaining, revised) =
+            self.no_rise
+                .update(est.t_s, remaining, remaining_source, self.used_wh, held);
+        if let Some(up) = revised {
+            self.say(format_args!("battery: remaining energy revised up by {up:.1} Wh in flight: the pack's sag as learned over the last {:.0} s", steady::REVISE_AFTER_S));
+        }
+        if remaining_source == RemainingSource::AssumedFull
+            && load.amps.is_some_and(|i| i >= load.load_a)
+            && !self.warned_full
+        {
+            self.warned_full = true;
+            self.say(format_args!("battery: no resting voltage was read before take-off and the vehicle sends no battery %: remaining energy assumes the pack started full"));
+        }
+        (remaining, remaining_source, full_wh)
+    }
+}
+
+/// Time to empty, s: to the voltage failsafe when the pack model forecasts one
+/// (`time_to_low_v_s`); else to the floor at the forecast power.
+pub(super) fn time_to_empty(
+    remaining_source: RemainingSource,
+    time_to_low_v_s: Option<f64>,
+    remaining: Option<f64>,
+    forecast: Option<f64>,
+) -> Option<f64> {
+    match (remaining_source, time_to_low_v_s) {
+        (RemainingSource::RestingVoltage | RemainingSource::LoadCompensated, Some(t_low)) => {
+            Some(t_low)
+        }
+        _ => remaining
+            .zip(forecast.filter(|p| *p > 1.0))
+            .map(|(e, p)| 3600.0 * e / p),
+    }
+}
+
+/// The share of the pack left, %: of its full energy; without a capacity, the state of
+/// charge the voltage says, else the vehicle's own %.
+pub(super) fn remaining_pct(
+    remaining: Option<f64>,
+    full_wh: Option<f64>,
+    cap: Option<f64>,
+    pk: &pack::PackNow,
+    reported_pct: Option<f64>,
+) -> Option<f64> {
+    match (remaining, full_wh) {
+        (Some(r), Some(f)) if f > 0.0 => Some((100.0 * r / f).clamp(0.0, 100.0)),
+        _ if cap.is_none() => pk.soc_pct.or(reported_pct),
+        _ => None,
     }
 }

@@ -6,7 +6,7 @@ use anyhow::Context;
 
 use crate::config::Config;
 use crate::features::VehicleClass;
-use crate::mission::forecast::{forecast, MissionForecast};
+use crate::mission::forecast::MissionForecast;
 use crate::mission::plan::Plan;
 use crate::mission::trajectory::{fly_as, Conditions, Trajectory, Wind};
 use crate::model::profile::VehicleProfile;
@@ -203,70 +203,25 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
             a.file.display()
         );
     }
-    let (mut models, calibration, mut forecast_from) =
-        forecast_models(&a, &cfg, &profile, profile_path.as_deref(), class, is_m100)?;
-    let f = forecast(
-        &tr,
-        &mut models,
-        &calibration,
-        cfg.telemetry.window,
-        crate::mission::MODEL_STRIDE,
-    );
-    let wanted = calibration.name();
-    if f.model != wanted {
-        tracing::warn!(
-            "forecast models {wanted:?} did not all run; the P50 follows {:?}",
-            f.model
-        );
-        // the header says what ran, never the calibration that did not
-        forecast_from = format!(
-            "{:?} (the forecast's models {wanted:?} did not all run)",
-            f.model
-        );
-    }
-    let battery = plan_battery(&cfg, &profile, is_m100);
-    let capacity_wh = battery.capacity().with_context(|| {
-        format!("the pack's capacity is not known: set [energy] capacity_wh, or give the vehicle profile ({}) a [battery]", profile.name)
-    })?;
-    if battery
-        .capacity_wh
-        .as_ref()
-        .is_some_and(|c| c.source != crate::report::Provenance::Config)
-    {
-        tracing::info!(
-            "capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack",
-            battery.capacity_source()
-        );
-    }
+    let vehicle = PlanVehicle {
+        profile: &profile,
+        profile_path: profile_path.as_deref(),
+        class,
+        is_m100,
+    };
+    let (f, forecast_from) = plan_forecast(&a, &cfg, &vehicle, &tr)?;
+    let (battery, capacity_wh) = plan_capacity(&cfg, &profile, is_m100)?;
     let pack = match a.battery_v {
         Some(v) => Some(pack_forecast(v, &battery, &f, &tr)?),
         None => None,
     };
-    // With a start state, the margins are over what the pack holds now.
-    let (start_wh, reserve_of) = match &pack {
-        Some(p) => {
-            let full = crate::energy::pack::pack_model(&battery)
-                .map_or(capacity_wh, |(c, _)| c.capacity());
-            (p.start_wh, full)
-        }
-        None => (capacity_wh, capacity_wh),
-    };
-    let reserve_wh = reserve_of * cfg.energy.reserve_pct / 100.0;
+    let (start_wh, reserve_wh) =
+        start_and_reserve(pack.as_ref(), &battery, capacity_wh, cfg.energy.reserve_pct);
     let (m50, m90) = (
         start_wh - f.energy_p50_wh - reserve_wh,
         start_wh - f.energy_p90_wh - reserve_wh,
     );
-    let speed_m_s = match class {
-        // a plane's cruise airspeed
-        VehicleClass::FixedWing | VehicleClass::Vtol => a
-            .speed
-            .or(plan.cruise_speed_m_s)
-            .unwrap_or(flight.cruise_m_s),
-        _ => a
-            .speed
-            .or(plan.hover_speed_m_s)
-            .unwrap_or(cfg.forecast.kinematics.default_speed_m_s),
-    };
+    let speed_m_s = plan_speed(class, a.speed, &plan, &flight, &cfg);
     let report = PlanReport {
         plan: &plan.source,
         vehicle: profile.name.clone(),
@@ -290,17 +245,72 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         forecast: &f,
     };
     if let Some(png) = &a.plot {
-        let what = match &report.pack {
-            Some(p) => format!("pack at {:.0} %", p.soc_pct),
-            None => "full pack".into(),
-        };
-        let label = format!(
-            "{what} − {:.0} % reserve: {:.1} Wh",
-            cfg.energy.reserve_pct, report.usable_wh
-        );
-        plot_plan(png, &plan.source, &tr, &f, report.usable_wh, &label)?;
+        plot_report(png, &report, &tr)?;
     }
     a.forecast.json.publish(&report, || plan_table(&report))
+}
+
+/// The speed the plan is flown at until it changes it, m/s: `--speed`, else the plan's,
+/// else the vehicle's (a plane's cruise airspeed) or the configured default.
+fn plan_speed(
+    class: VehicleClass,
+    speed: Option<f64>,
+    plan: &Plan,
+    flight: &crate::model::physics::fixed_wing::Flight,
+    cfg: &Config,
+) -> f64 {
+    match class {
+        // a plane's cruise airspeed
+        VehicleClass::FixedWing | VehicleClass::Vtol => {
+            speed.or(plan.cruise_speed_m_s).unwrap_or(flight.cruise_m_s)
+        }
+        _ => speed
+            .or(plan.hover_speed_m_s)
+            .unwrap_or(cfg.forecast.kinematics.default_speed_m_s),
+    }
+}
+
+/// The pack the plan flies and its capacity, Wh (an error when it is not known); where the
+/// capacity is not the config's, where it comes from is said.
+fn plan_capacity(
+    cfg: &Config,
+    profile: &VehicleProfile,
+    is_m100: bool,
+) -> anyhow::Result<(crate::report::BatteryFacts, f64)> {
+    let battery = plan_battery(cfg, profile, is_m100);
+    let capacity_wh = battery.capacity().with_context(|| {
+        format!("the pack's capacity is not known: set [energy] capacity_wh, or give the vehicle profile ({}) a [battery]", profile.name)
+    })?;
+    if battery
+        .capacity_wh
+        .as_ref()
+        .is_some_and(|c| c.source != crate::report::Provenance::Config)
+    {
+        tracing::info!(
+            "capacity {capacity_wh:.2} Wh ({}): set [energy] capacity_wh for your own pack",
+            battery.capacity_source()
+        );
+    }
+    Ok((battery, capacity_wh))
+}
+
+/// The energy the plan starts with and the reserve, Wh: with a start state (`pack`), the
+/// margins are over what the pack holds now, the reserve a share of the full pack's.
+fn start_and_reserve(
+    pack: Option<&PackForecast>,
+    battery: &crate::report::BatteryFacts,
+    capacity_wh: f64,
+    reserve_pct: f64,
+) -> (f64, f64) {
+    let (start_wh, reserve_of) = match pack {
+        Some(p) => {
+            let full =
+                crate::energy::pack::pack_model(battery).map_or(capacity_wh, |(c, _)| c.capacity());
+            (p.start_wh, full)
+        }
+        None => (capacity_wh, capacity_wh),
+    };
+    (start_wh, reserve_of * reserve_pct / 100.0)
 }
 
 /// The vehicle that flies the plan (the config's vehicle set to its file), whether it is
@@ -464,7 +474,7 @@ fn pack_forecast(
 
 #[path = "plan_render.rs"]
 mod render;
-use render::{plan_table, plot_plan};
+use render::{plan_table, plot_report};
 #[path = "plan_models.rs"]
 mod models;
-use models::forecast_models;
+use models::{plan_forecast, PlanVehicle};

@@ -1,11 +1,14 @@
-//! The models a plan is forecast with, and the forecast's header: the M100's calibrated
-//! ones, a vehicle's own learned forecast model, else its published physics models.
+//! The models a plan is forecast with (the M100's calibrated ones, a vehicle's own learned
+//! forecast model, else its published physics models), the forecast's header, and the forecast
+//! along the flown trajectory.
 
 use std::path::Path;
 
 use super::{models_for, PlanArgs, OWN_MODEL_P90, PUBLISHED, UNCALIBRATED_P90};
 use crate::config::Config;
 use crate::features::VehicleClass;
+use crate::mission::forecast::{forecast, MissionForecast};
+use crate::mission::trajectory::Trajectory;
 use crate::model::profile::VehicleProfile;
 use crate::model::PowerModel;
 
@@ -155,4 +158,44 @@ fn own_forecast(
             }
         ),
     ))
+}
+
+/// The vehicle that flies the plan, as [`plan_forecast`] needs it.
+pub(super) struct PlanVehicle<'a> {
+    pub profile: &'a VehicleProfile,
+    pub profile_path: Option<&'a Path>,
+    pub class: VehicleClass,
+    pub is_m100: bool,
+}
+
+/// The plan's forecast along the flown trajectory, and what it was forecast from (said
+/// as what ran when the calibration's models did not all run).
+pub(super) fn plan_forecast(
+    a: &PlanArgs,
+    cfg: &Config,
+    v: &PlanVehicle,
+    tr: &Trajectory,
+) -> anyhow::Result<(MissionForecast, String)> {
+    let (mut models, calibration, mut forecast_from) =
+        forecast_models(a, cfg, v.profile, v.profile_path, v.class, v.is_m100)?;
+    let f = forecast(
+        tr,
+        &mut models,
+        &calibration,
+        cfg.telemetry.window,
+        crate::mission::MODEL_STRIDE,
+    );
+    let wanted = calibration.name();
+    if f.model != wanted {
+        tracing::warn!(
+            "forecast models {wanted:?} did not all run; the P50 follows {:?}",
+            f.model
+        );
+        // the header says what ran, never the calibration that did not
+        forecast_from = format!(
+            "{:?} (the forecast's models {wanted:?} did not all run)",
+            f.model
+        );
+    }
+    Ok((f, forecast_from))
 }

@@ -181,3 +181,24 @@ pub(super) fn plot_plan(
         .map_err(|e| anyhow::anyhow!("{e}"))
         .with_context(|| format!("{}: cannot write plot", path.display()))
 }
+
+/// The plan's plot (`--plot PNG`): the forecast against the usable energy, labelled with
+/// the pack it starts from and the reserve.
+pub(super) fn plot_report(png: &Path, report: &PlanReport, tr: &Trajectory) -> anyhow::Result<()> {
+    let what = match &report.pack {
+        Some(p) => format!("pack at {:.0} %", p.soc_pct),
+        None => "full pack".into(),
+    };
+    let label = format!(
+        "{what} − {:.0} % reserve: {:.1} Wh",
+        report.reserve_pct, report.usable_wh
+    );
+    plot_plan(
+        png,
+        report.plan,
+        tr,
+        report.forecast,
+        report.usable_wh,
+        &label,
+    )
+}

@@ -30,6 +30,11 @@ fn est(t_s: f64, measured_w: Option<f32>, models: &[(&str, f32)]) -> Estimate {
     }
 }
 
+/// An estimate at `t_s` of a vehicle flying at a measured 300 W, with no model.
+fn flying(t_s: f64) -> Estimate {
+    est(t_s, Some(300.0), &[])
+}
+
 fn energy(remaining_wh: f64) -> EnergyState {
     EnergyState {
         remaining_wh: Some(remaining_wh),
@@ -55,16 +60,21 @@ fn load_err(toml_text: &str) -> String {
     }
 }
 
+/// The alert engine of a config's `[[alerts]]`.
+fn engine(toml_text: &str) -> AlertEngine {
+    AlertEngine::new(&parse(toml_text).alerts).unwrap()
+}
+
 /// Feed `(t, remaining_wh)` pairs; collect the events.
 fn run(engine: &mut AlertEngine, seq: &[(f64, f64)]) -> Vec<AlertEvent> {
     seq.iter()
-        .flat_map(|&(t, wh)| engine.evaluate(&est(t, Some(300.0), &[]), &energy(wh)))
+        .flat_map(|&(t, wh)| engine.evaluate(&flying(t), &energy(wh)))
         .collect()
 }
 
 #[test]
 fn hysteresis_raises_once_on_a_noisy_crossing() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "low"
@@ -73,7 +83,6 @@ fn hysteresis_raises_once_on_a_noisy_crossing() {
         clear_wh = 33
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     // Remaining falls through 30 Wh with ±1.5 Wh noise: it crosses 30 many times.
     let seq: Vec<(f64, f64)> = (0..200)
         .map(|i| {
@@ -106,8 +115,7 @@ fn hysteresis_raises_once_on_a_noisy_crossing() {
 #[test]
 fn without_hysteresis_the_same_crossing_flaps() {
     // The control for the test above: the clear level at the raise level flaps on noise.
-    let cfg = parse("[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\n");
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
+    let mut eng = engine("[[alerts]]\nname = \"low\"\nkind = \"remaining_below\"\nbelow_wh = 30\n");
     let seq: Vec<(f64, f64)> = (0..40)
         .map(|i| (i as f64 * 0.1, if i % 2 == 0 { 31.0 } else { 29.0 }))
         .collect();
@@ -118,7 +126,7 @@ fn without_hysteresis_the_same_crossing_flaps() {
 
 #[test]
 fn debounce_needs_the_condition_to_hold_for_for_s() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "spike"
@@ -129,7 +137,6 @@ fn debounce_needs_the_condition_to_hold_for_for_s() {
         severity = "MAV_SEVERITY_CRITICAL"
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let e0 = EnergyState::default();
     // A 1.5 s spike (t 1.0..=2.5) does not raise.
     let mut ev = Vec::new();
@@ -157,7 +164,7 @@ fn debounce_needs_the_condition_to_hold_for_for_s() {
 
 #[test]
 fn repeat_says_it_again_while_raised() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "low"
@@ -167,7 +174,6 @@ fn repeat_says_it_again_while_raised() {
         message = "Battery low"
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let seq: Vec<(f64, f64)> = (0..=350).map(|i| (i as f64 * 0.1, 10.0)).collect();
     let ev = run(&mut eng, &seq);
     let ts: Vec<f64> = ev.iter().map(|e| e.t).collect();
@@ -181,7 +187,7 @@ fn repeat_says_it_again_while_raised() {
 
 #[test]
 fn every_kind_watches_its_own_value() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [energy]
         cell_count = 6
@@ -214,7 +220,6 @@ fn every_kind_watches_its_own_value() {
         for_s = 1
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let calm = EnergyState {
         time_to_empty_s: Some(900.0),
         home_margin_wh: Some(20.0),
@@ -266,7 +271,7 @@ fn bad_rules_name_the_file_the_key_and_why() {
 
 #[test]
 fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() {
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "mission_margin"
@@ -278,7 +283,6 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
         message = "mission cannot finish with reserve - return now"
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let state = |m: Option<f64>| EnergyState {
         remaining_wh: Some(80.0),
         mission_margin_wh: m,
@@ -286,19 +290,16 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
     };
     // No mission known: nothing, however long.
     let none: Vec<_> = (0..50)
-        .flat_map(|i| eng.evaluate(&est(i as f64 * 0.1, Some(300.0), &[]), &state(None)))
+        .flat_map(|i| eng.evaluate(&flying(i as f64 * 0.1), &state(None)))
         .collect();
     assert!(none.is_empty(), "{none:?}");
     // The margin dips under 0 for 1 s (debounce: no alert); then under 0 for 3 s (raised
     // once, after 2 s) and ±1.5 Wh for 17 s: never cleared (it must come back above 3 Wh).
     let mut events = Vec::new();
     for i in 0..10 {
-        events.extend(eng.evaluate(
-            &est(5.0 + i as f64 * 0.1, Some(300.0), &[]),
-            &state(Some(-1.0)),
-        ));
+        events.extend(eng.evaluate(&flying(5.0 + i as f64 * 0.1), &state(Some(-1.0))));
     }
-    events.extend(eng.evaluate(&est(6.0, Some(300.0), &[]), &state(Some(5.0))));
+    events.extend(eng.evaluate(&flying(6.0), &state(Some(5.0))));
     assert!(events.is_empty(), "a 1 s dip is debounced: {events:?}");
     for i in 0..200 {
         let m = if i < 30 {
@@ -308,10 +309,7 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
         } else {
             1.5
         };
-        events.extend(eng.evaluate(
-            &est(7.0 + i as f64 * 0.1, Some(300.0), &[]),
-            &state(Some(m)),
-        ));
+        events.extend(eng.evaluate(&flying(7.0 + i as f64 * 0.1), &state(Some(m))));
     }
     assert_eq!(events.len(), 1, "{events:?}");
     assert_eq!(events[0].state, AlertState::Raised);
@@ -327,7 +325,7 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
         "{}",
         events[0].message
     );
-    let cleared: Vec<_> = eng.evaluate(&est(30.0, Some(300.0), &[]), &state(Some(3.5)));
+    let cleared: Vec<_> = eng.evaluate(&flying(30.0), &state(Some(3.5)));
     assert_eq!(cleared.len(), 1);
     assert_eq!(cleared[0].state, AlertState::Cleared);
 }
@@ -335,7 +333,7 @@ fn mission_margin_below_debounces_holds_through_noise_and_waits_for_a_mission() 
 #[test]
 fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
     use dronewatt::report::{BatteryFacts, Provenance, Sourced};
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "pack_low"
@@ -345,9 +343,8 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
         clear_margin_v = 0.4
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let at = |t: f64, v: f32| {
-        let mut e = est(t, Some(300.0), &[]);
+        let mut e = flying(t);
         e.sample.voltage_v = Some(v);
         e
     };
@@ -384,7 +381,7 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
 #[test]
 fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() {
     use dronewatt::report::PackState;
-    let cfg = parse(
+    let mut eng = engine(
         r#"
         [[alerts]]
         name = "sag"
@@ -392,7 +389,6 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
         clear_margin_v = 0.2
         "#,
     );
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
     let en = |v_min: Option<f64>, low: Option<f64>| EnergyState {
         pack: PackState {
             v_min_forecast_v: v_min,
@@ -403,17 +399,13 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
         ..Default::default()
     };
     // No forecast yet, or no threshold: quiet.
+    assert!(eng.evaluate(&flying(0.0), &en(None, Some(21.0))).is_empty());
+    assert!(eng.evaluate(&flying(1.0), &en(Some(20.0), None)).is_empty());
     assert!(eng
-        .evaluate(&est(0.0, Some(300.0), &[]), &en(None, Some(21.0)))
-        .is_empty());
-    assert!(eng
-        .evaluate(&est(1.0, Some(300.0), &[]), &en(Some(20.0), None))
-        .is_empty());
-    assert!(eng
-        .evaluate(&est(2.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))
+        .evaluate(&flying(2.0), &en(Some(21.3), Some(21.0)))
         .is_empty());
     // The final climb sags to 20.6 V, under the 21.0 V low threshold, in 3 min 5 s.
-    let raised = eng.evaluate(&est(3.0, Some(300.0), &[]), &en(Some(20.6), Some(21.0)));
+    let raised = eng.evaluate(&flying(3.0), &en(Some(20.6), Some(21.0)));
     assert_eq!(raised.len(), 1);
     assert_eq!(raised[0].state, AlertState::Raised);
     assert!(
@@ -427,23 +419,18 @@ fn voltage_forecast_below_warns_before_the_sag_with_what_when_and_by_how_much() 
         raised[0].message
     );
     assert!(
-        eng.evaluate(&est(4.0, Some(300.0), &[]), &en(Some(21.1), Some(21.0)))
+        eng.evaluate(&flying(4.0), &en(Some(21.1), Some(21.0)))
             .is_empty(),
         "hysteresis"
     );
     assert_eq!(
-        eng.evaluate(&est(5.0, Some(300.0), &[]), &en(Some(21.3), Some(21.0)))[0].state,
+        eng.evaluate(&flying(5.0), &en(Some(21.3), Some(21.0)))[0].state,
         AlertState::Cleared
     );
     // An explicit level in volts, and a bad one named.
-    let cfg =
-        parse("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
-    let mut eng = AlertEngine::new(&cfg.alerts).unwrap();
-    assert_eq!(
-        eng.evaluate(&est(0.0, Some(300.0), &[]), &en(Some(21.9), None))
-            .len(),
-        1
-    );
+    let mut eng =
+        engine("[[alerts]]\nname = \"s\"\nkind = \"voltage_forecast_below\"\nbelow_v = 22.0\n");
+    assert_eq!(eng.evaluate(&flying(0.0), &en(Some(21.9), None)).len(), 1);
     let err =
         load_err("[[alerts]]\nname = \"x\"\nkind = \"voltage_forecast_below\"\nbelow_v = -1\n");
     assert!(err.contains("below_v"), "{err}");

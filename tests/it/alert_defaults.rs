@@ -3,7 +3,7 @@
 //! and a pack flown down to its low voltage with no config at all warns the ground station
 //! (pymavlink, `tests/peers/vehicle.py --pack`) before the voltage gets there.
 
-use crate::harness::{dronewatt, run, Monitor};
+use crate::harness::{monitor_udp, run, Monitor};
 use crate::link_common::{fly_small_pack_to_low, free_udp_port};
 
 const DEFAULTS: [&str; 5] = [
@@ -42,18 +42,7 @@ fn with_no_config_a_pack_flown_to_its_low_voltage_warns_before_the_crossing() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
-    let dw = Monitor::listening(
-        dronewatt()
-            .args([
-                "monitor",
-                &format!("udpin:127.0.0.1:{port}"),
-                "-q",
-                "--json",
-            ])
-            .arg(&json),
-        port,
-        false,
-    );
+    let dw = Monitor::listening(monitor_udp(port).arg("--json").arg(&json), port, false);
     // 3 s at rest, then 20 s at 50 W: the loaded voltage crosses the vehicle's BATT_LOW_VOLT
     // (10.5 V) about 12 s after take-off.
     let f = fly_small_pack_to_low(

@@ -23,21 +23,26 @@ fn damaged_tlog(n: usize) -> Vec<u8> {
     bytes
 }
 
+/// `dronewatt replay PATH --speed max --json -` with warnings only on stderr, not yet run.
+fn replay_max_speed(path: &std::path::Path) -> Command {
+    let mut c = quiet();
+    c.args([
+        "replay",
+        path.to_str().unwrap(),
+        "--speed",
+        "max",
+        "--json",
+        "-",
+    ]);
+    c
+}
+
 #[test]
 fn replay_max_speed_ends_with_the_exact_summary_line() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("flight.tlog");
     std::fs::write(&path, damaged_tlog(400)).unwrap();
-    let out = quiet()
-        .args([
-            "replay",
-            path.to_str().unwrap(),
-            "--speed",
-            "max",
-            "--json",
-            "-",
-        ])
-        .ok();
+    let out = replay_max_speed(&path).ok();
     let lines = json_lines_of(&out.stdout);
     let summary = lines.last().expect("a summary line");
     assert_eq!(summary["type"], "summary");
@@ -247,16 +252,7 @@ fn a_file_with_no_mavlink_says_so_and_names_the_format_it_expected() {
     ] {
         let path = dir.path().join(name);
         std::fs::write(&path, noise(200_000)).unwrap();
-        let out = quiet()
-            .args([
-                "replay",
-                path.to_str().unwrap(),
-                "--speed",
-                "max",
-                "--json",
-                "-",
-            ])
-            .out();
+        let out = replay_max_speed(&path).out();
         // The summary still written (the counters are the evidence), then a failure: nothing
         // was replayed…
         assert!(

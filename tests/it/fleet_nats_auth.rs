@@ -5,6 +5,7 @@
 //! the shipped config, read back by `dronewatt vehicles --nats` as the viewer.
 
 use std::net::UdpSocket;
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use async_nats::jetstream;
@@ -17,6 +18,18 @@ use crate::harness::dronewatt;
 async fn frames_stored(js: &jetstream::Context) -> u64 {
     let mut s = js.get_stream("DRONEWATT_FRAMES").await.unwrap();
     s.info().await.unwrap().state.messages
+}
+
+/// What the server has said to a client (its errors, one a line), once `done` holds of it or
+/// 10 s have passed: the server's answer to a refused publish comes back asynchronously, late
+/// on a loaded machine.
+async fn server_said(errors: &Mutex<Vec<String>>, done: impl Fn(&str) -> bool) -> String {
+    let said = || errors.lock().unwrap().join("\n");
+    let end = Instant::now() + Duration::from_secs(10);
+    while !done(&said()) && Instant::now() < end {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    said()
 }
 
 #[test]
@@ -90,9 +103,12 @@ fn the_shipped_server_config_refuses_strangers_and_keeps_each_role_to_its_subjec
             more.ok().flatten().map(|m| m.subject)
         );
         assert_eq!(frames_stored(&gjs).await, 0, "a worker's frame was stored");
-        let errors = w1_errors.lock().unwrap().join("\n");
+        // The server's answers come back asynchronously: wait for both (10 s at most).
+        let told_w1 =
+            |e: &str| e.contains("dronewatt.frames.3.0.3") && e.contains("dronewatt.to.worker2");
+        let errors = server_said(&w1_errors, told_w1).await;
         assert!(
-            errors.contains("dronewatt.frames.3.0.3") && errors.contains("dronewatt.to.worker2"),
+            told_w1(&errors),
             "the server did not tell the worker: {errors}"
         );
         // The gateway's credentials do store a frame (the count above means something).
@@ -122,12 +138,10 @@ fn the_shipped_server_config_refuses_strangers_and_keeps_each_role_to_its_subjec
             .unwrap();
         viewer.flush().await.unwrap();
         // The server's answer comes back asynchronously: wait for it (10 s at most).
-        let said = || viewer_errors.lock().unwrap().join("\n");
-        let end = Instant::now() + Duration::from_secs(10);
-        while !said().to_lowercase().contains("permissions violation") && Instant::now() < end {
-            tokio::time::sleep(Duration::from_millis(50)).await;
-        }
-        let errors = said();
+        let errors = server_said(&viewer_errors, |e| {
+            e.to_lowercase().contains("permissions violation")
+        })
+        .await;
         assert!(
             errors.to_lowercase().contains("permissions violation"),
             "{errors}"

@@ -248,6 +248,14 @@ pub fn json_lines(path: &Path) -> Vec<Value> {
     json_lines_of(&text)
 }
 
+/// The last `estimate` line of a `--json` output's text.
+pub fn last_estimate(text: &str) -> Value {
+    text.lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .rfind(|v| v["type"] == "estimate")
+        .unwrap()
+}
+
 /// Wait (60 s at most) until a `--json FILE` holds the summary line, which a replay writes
 /// once every report reached the sinks; the file's text.
 pub fn summary_written(json: &Path) -> String {

@@ -4,7 +4,7 @@
 //! `BATT_LOW_VOLT`: estimates through the flight, and a default alert before the crossing,
 //! in `--json` and as a STATUSTEXT on the ground station.
 
-use crate::harness::{dronewatt, Monitor};
+use crate::harness::{monitor_udp, Monitor};
 use crate::link_common::{fly_small_pack_to_low, free_udp_port};
 
 #[test]
@@ -13,15 +13,10 @@ fn the_readme_first_command_from_slash_on_a_1_hz_vehicle_gives_estimates_and_ale
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
     let dw = Monitor::listening(
-        dronewatt()
+        monitor_udp(port)
             .current_dir("/")
             .env("XDG_CACHE_HOME", dir.path().join("cache"))
-            .args([
-                "monitor",
-                &format!("udpin:127.0.0.1:{port}"),
-                "-q",
-                "--json",
-            ])
+            .arg("--json")
             .arg(&json),
         port,
         false,

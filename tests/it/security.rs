@@ -57,11 +57,7 @@ fn a_vehicle_signing_with_the_right_key_is_heard_and_verifies_our_replies() {
         ),
         (0, 0, 0)
     );
-    assert!(
-        expected_estimates(4.0, 1).contains(&r.estimates.len()),
-        "{} estimates",
-        r.estimates.len()
-    );
+    r.assert_estimates(4.0, 1);
     // pymavlink with a key drops unsigned or badly signed frames: it heard our estimates,
     // and every frame of ours it checked was good.
     let sig = &r.peer["signing"];
@@ -416,18 +412,9 @@ fn beyond_loopback_the_dashboard_needs_a_token_from_the_environment() {
     assert_eq!(auth.0, 200, "{}", auth.2);
 }
 
-fn chromium() -> Option<&'static str> {
-    ["chromium", "chromium-browser"].into_iter().find(|c| {
-        Command::new(c)
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn chromium_shows_the_guarded_dashboard_with_its_token_and_asks_without() {
-    let Some(browser) = chromium() else {
+    let Some(browser) = crate::sink_web::chromium() else {
         assert!(
             std::env::var("CI").as_deref() != Ok("true"),
             "CI=true: chromium is required (scripts/setup-chromium.sh)"

@@ -24,7 +24,33 @@ pub(crate) fn chromium() -> Option<&'static str> {
     })
 }
 
+/// The browser, else None and the test skips, loudly; under CI a missing browser fails: a
+/// green run must mean the dashboard was tested.
+pub(crate) fn chromium_or_skip() -> Option<&'static str> {
+    let browser = chromium();
+    if browser.is_none() {
+        assert!(
+            std::env::var("CI").map_or(true, |v| v != "true" && v != "1"),
+            "CI={}: no chromium on this machine, and CI must test the web dashboard (run scripts/setup-chromium.sh)",
+            std::env::var("CI").unwrap_or_default()
+        );
+        eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine (scripts/setup-chromium.sh could not install it); the web dashboard is NOT tested !!!!!!!!\n");
+    }
+    browser
+}
+
 pub(crate) fn headless(browser: &str, url: &str, extra: &[&str]) -> std::process::Output {
+    headless_at(browser, "1280,1100", url, extra)
+}
+
+/// Headless Chromium on `url` in a window of `size` (`W,H`), with `extra` arguments (what
+/// to dump or where to screenshot), given 4 s of virtual time.
+pub(crate) fn headless_at(
+    browser: &str,
+    size: &str,
+    url: &str,
+    extra: &[&str],
+) -> std::process::Output {
     Command::new(browser)
         .args([
             "--headless",
@@ -33,7 +59,10 @@ pub(crate) fn headless(browser: &str, url: &str, extra: &[&str]) -> std::process
             "--disable-dev-shm-usage",
             "--hide-scrollbars",
         ])
-        .args(["--window-size=1280,1100", "--virtual-time-budget=4000"])
+        .args([
+            format!("--window-size={size}").as_str(),
+            "--virtual-time-budget=4000",
+        ])
         .args(extra)
         .arg(url)
         .output()
@@ -42,14 +71,7 @@ pub(crate) fn headless(browser: &str, url: &str, extra: &[&str]) -> std::process
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn dashboard_shows_estimates_and_alerts_in_chromium() {
-    let Some(browser) = chromium() else {
-        // Under CI a missing browser fails: a green run must mean the dashboard was tested.
-        assert!(
-            std::env::var("CI").map_or(true, |v| v != "true" && v != "1"),
-            "CI={}: no chromium on this machine, and CI must test the web dashboard (run scripts/setup-chromium.sh)",
-            std::env::var("CI").unwrap_or_default()
-        );
-        eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine (scripts/setup-chromium.sh could not install it); the web dashboard is NOT tested !!!!!!!!\n");
+    let Some(browser) = chromium_or_skip() else {
         return;
     };
     let cfg: Config = toml::from_str(

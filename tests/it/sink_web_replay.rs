@@ -5,30 +5,14 @@
 //! (its points and the vehicle's place), the mission tiles and the pack's tiles with
 //! numbers. Skips loudly without chromium.
 
-use crate::harness::{dronewatt, summary_written, Monitor, RunExt};
+use crate::harness::{dronewatt, last_estimate, summary_written, Monitor, RunExt};
+use crate::sink_web::{chromium, chromium_or_skip, headless, headless_at};
 use std::path::Path;
-use std::process::Command;
 use std::time::{Duration, Instant};
-
-fn chromium() -> Option<&'static str> {
-    ["chromium", "chromium-browser"].into_iter().find(|c| {
-        Command::new(c)
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
 
 #[test]
 fn dashboard_of_the_demo_replay_in_chromium() {
-    let Some(browser) = chromium() else {
-        // Under CI a missing browser fails: a green run must mean the dashboard was tested.
-        assert!(
-            std::env::var("CI").map_or(true, |v| v != "true" && v != "1"),
-            "CI={}: no chromium on this machine, and CI must test the web dashboard (run scripts/setup-chromium.sh)",
-            std::env::var("CI").unwrap_or_default()
-        );
-        eprintln!("\n!!!!!!!! SKIPPED: no chromium on this machine (scripts/setup-chromium.sh could not install it); the web dashboard is NOT tested !!!!!!!!\n");
+    let Some(browser) = chromium_or_skip() else {
         return;
     };
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -57,11 +41,7 @@ fn dashboard_of_the_demo_replay_in_chromium() {
     // The JSON summary line means the replay is over and every report reached the sinks.
     let start = Instant::now();
     let text = summary_written(&json);
-    let last = text
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .rfind(|v| v["type"] == "estimate")
-        .unwrap();
+    let last = last_estimate(&text);
     let measured = format!("{:.0} W", last["measured_w"].as_f64().unwrap());
     let volts = format!(
         "{:.2} V",
@@ -72,23 +52,7 @@ fn dashboard_of_the_demo_replay_in_chromium() {
 
     let url = format!("http://127.0.0.1:{port}/");
     let shot = dir.path().join("web_replay.png");
-    let run = |extra: &str| {
-        Command::new(browser)
-            .args([
-                "--headless",
-                "--no-sandbox",
-                "--disable-gpu",
-                "--disable-dev-shm-usage",
-                "--hide-scrollbars",
-            ])
-            .args([
-                "--window-size=1280,1800",
-                "--virtual-time-budget=4000",
-                extra,
-                &url,
-            ])
-            .out()
-    };
+    let run = |extra: &str| headless_at(browser, "1280,1800", &url, &[extra]);
     let dom = run("--dump-dom");
     let shot_out = run(&format!("--screenshot={}", shot.display()));
     let (status, _) = dw.stop();
@@ -312,21 +276,7 @@ fn dashboard_of_a_fleet_lists_every_vehicle_and_shows_the_one_asked_for() {
 
     // The page: the fleet table shown, one clickable row per vehicle, the first selected.
     let url = format!("http://127.0.0.1:{port}/");
-    let dom = Command::new(browser)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-dev-shm-usage",
-            "--hide-scrollbars",
-        ])
-        .args([
-            "--window-size=1280,1100",
-            "--virtual-time-budget=4000",
-            "--dump-dom",
-            &url,
-        ])
-        .out();
+    let dom = headless(browser, &url, &["--dump-dom"]);
     let (status, _) = dw.stop();
     let html = String::from_utf8_lossy(&dom.stdout);
     assert!(

@@ -17,15 +17,21 @@ const LOST_RULE: &str =
 /// one step, `[energy] max_dt_s` = 1 s, at 540 W).
 const ONE_STEP_WH: f64 = 540.0 / 3600.0;
 
+/// A flight over the link as `plan` says ([`fly`], no extra peer arguments), checked for
+/// lost reports and invented estimates ([`check_consistent`]).
+fn fly_checked(config: &str, tcp: bool, plan: &str) -> Run {
+    let r = fly(config, tcp, plan, &[]);
+    check_consistent(&r);
+    r
+}
+
 #[test]
 fn a_ten_second_silence_is_one_alert_raised_and_cleared_and_no_energy_jump() {
-    let r = fly(
+    let r = fly_checked(
         LOST_RULE,
         false,
         r#"[{"send_s": 6}, {"quiet_s": 10}, {"send_s": 6}]"#,
-        &[],
     );
-    check_consistent(&r);
     let holes = r.holes_over(1.0);
     assert_eq!(
         holes.len(),
@@ -85,23 +91,17 @@ fn a_ten_second_silence_is_one_alert_raised_and_cleared_and_no_energy_jump() {
 fn a_reboot_restarts_sequence_and_boot_time_and_moves_home() {
     // Phase 2 starts from a new home 1 km north, boot time and sequence at 0, right away.
     // The vehicle sends no capacity: the config gives its pack (none is assumed).
-    let r = fly(
+    let r = fly_checked(
         "[energy]\ncapacity_wh = 130.0\n",
         false,
         r#"[{"send_s": 6}, {"send_s": 6, "reboot": true}]"#,
-        &[],
     );
-    check_consistent(&r);
     assert!(
         r.holes_over(0.5).is_empty(),
         "a reboot on a live link loses no estimate: {:?}",
         r.holes_over(0.5)
     );
-    assert!(
-        expected_estimates(12.0, 1).contains(&r.estimates.len()),
-        "{} estimates",
-        r.estimates.len()
-    );
+    r.assert_estimates(12.0, 1);
     assert_eq!(
         r.count("gaps"),
         1,
@@ -144,20 +144,14 @@ fn a_reboot_restarts_sequence_and_boot_time_and_moves_home() {
 
 #[test]
 fn a_tcp_peer_that_closes_and_reconnects_is_heard_and_answered_again() {
-    let r = fly(
+    let r = fly_checked(
         "",
         true,
         r#"[{"send_s": 5}, {"quiet_s": 1.5}, {"send_s": 5, "reconnect": true}]"#,
-        &[],
     );
-    check_consistent(&r);
     let holes = r.holes_over(1.0);
     assert_eq!(holes.len(), 1, "{holes:?}");
-    assert!(
-        expected_estimates(10.0, 2).contains(&r.estimates.len()),
-        "{} estimates",
-        r.estimates.len()
-    );
+    r.assert_estimates(10.0, 2);
     let phases = r.peer["phases"].as_array().unwrap();
     assert!(
         phases[2]["heard"].as_u64().unwrap() >= 5,
@@ -169,42 +163,29 @@ fn a_tcp_peer_that_closes_and_reconnects_is_heard_and_answered_again() {
 
 #[test]
 fn a_udp_peer_on_a_new_port_is_followed() {
-    let r = fly(
+    let r = fly_checked(
         "",
         false,
         r#"[{"send_s": 5}, {"send_s": 5, "reconnect": true}]"#,
-        &[],
     );
-    check_consistent(&r);
     assert!(r.holes_over(0.5).is_empty(), "{:?}", r.holes_over(0.5));
-    assert!(
-        expected_estimates(10.0, 1).contains(&r.estimates.len()),
-        "{} estimates",
-        r.estimates.len()
-    );
+    r.assert_estimates(10.0, 1);
     let phases = r.peer["phases"].as_array().unwrap();
     assert!(
         phases[1]["heard"].as_u64().unwrap() >= 5,
         "dronewatt answers the new port: {}",
         r.peer
     );
-    assert_eq!(
-        r.count("frames_ok"),
-        r.peer["frames"].as_u64().unwrap(),
-        "{}",
-        r.summary
-    );
+    r.assert_every_frame_read();
 }
 
 #[test]
 fn a_burst_at_ten_times_the_rate_loses_nothing_and_adds_no_estimates() {
-    let r = fly(
+    let r = fly_checked(
         "",
         false,
         r#"[{"send_s": 2}, {"send_s": 4, "rate_hz": 100}]"#,
-        &[],
     );
-    check_consistent(&r);
     assert_eq!(
         r.count("frames_ok"),
         r.peer["frames"].as_u64().unwrap(),
@@ -213,48 +194,32 @@ fn a_burst_at_ten_times_the_rate_loses_nothing_and_adds_no_estimates() {
     );
     assert_eq!(r.count("gaps"), 0, "{}", r.summary);
     // Resampled to 10 Hz whatever the input rate: ~60 estimates, not ~420.
-    assert!(
-        expected_estimates(6.0, 1).contains(&r.estimates.len()),
-        "{} estimates",
-        r.estimates.len()
-    );
+    r.assert_estimates(6.0, 1);
 }
 
 #[test]
 fn mavlink_1_and_2_interleaved_are_one_stream() {
-    let r = fly("", false, r#"[{"send_s": 6, "v1": true}]"#, &[]);
-    check_consistent(&r);
-    assert_eq!(
-        r.count("frames_ok"),
-        r.peer["frames"].as_u64().unwrap(),
-        "{}",
-        r.summary
-    );
+    let r = fly_checked("", false, r#"[{"send_s": 6, "v1": true}]"#);
+    r.assert_every_frame_read();
     assert_eq!(
         (r.count("frames_bad"), r.count("gaps")),
         (0, 0),
         "one sequence across both versions: {}",
         r.summary
     );
-    assert!(
-        expected_estimates(6.0, 1).contains(&r.estimates.len()),
-        "{} estimates",
-        r.estimates.len()
-    );
+    r.assert_estimates(6.0, 1);
 }
 
 #[test]
 fn a_second_vehicles_stray_messages_are_counted_and_ignored() {
     // A second vehicle gets a chain of its own (tests/it/pipeline_fleet.rs); an instance told to
     // watch vehicle 1 only reads every frame and estimates nothing from the other's.
-    let r = fly(
+    // check_consistent asserts no measured power near the stray vehicle's 2000 W.
+    let r = fly_checked(
         "[fleet]\nvehicles = \"1\"\n",
         false,
         r#"[{"send_s": 6, "stray": true}]"#,
-        &[],
     );
-    // check_consistent asserts no measured power near the stray vehicle's 2000 W.
-    check_consistent(&r);
     let sent = r.peer["frames"].as_u64().unwrap() + r.peer["stray_frames"].as_u64().unwrap();
     assert_eq!(r.count("frames_ok"), sent, "{}", r.summary);
     assert_eq!(
@@ -263,9 +228,5 @@ fn a_second_vehicles_stray_messages_are_counted_and_ignored() {
         "each sender's sequence is its own: {}",
         r.summary
     );
-    assert!(
-        expected_estimates(6.0, 1).contains(&r.estimates.len()),
-        "{} estimates",
-        r.estimates.len()
-    );
+    r.assert_estimates(6.0, 1);
 }

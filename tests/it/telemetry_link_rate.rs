@@ -4,7 +4,7 @@
 //! that sends only HEARTBEAT and SYS_STATUS is told what it cannot have; and the vehicle is
 //! asked for the streams the estimate needs (granted, or refused and asked the ArduPilot way).
 
-use crate::harness::{dronewatt, peer, replay_json, Monitor, RunExt};
+use crate::harness::{dronewatt, monitor_udp, peer, replay_json, Monitor, RunExt};
 use crate::link_common::{free_udp_port, peer_then_stop};
 use serde_json::Value;
 
@@ -202,13 +202,8 @@ fn listen_only_asks_nothing_and_a_live_1_hz_link_gets_estimates() {
     let json = dir.path().join("out.jsonl");
     let port = free_udp_port();
     let dw = Monitor::listening(
-        dronewatt()
-            .args([
-                "monitor",
-                &format!("udpin:127.0.0.1:{port}"),
-                "-q",
-                "--listen-only",
-            ])
+        monitor_udp(port)
+            .arg("--listen-only")
             .arg("--json")
             .arg(&json),
         port,

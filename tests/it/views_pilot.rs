@@ -14,7 +14,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use crate::harness::{bin, dronewatt, json_lines, root, summary_written, Monitor, RunExt};
+use crate::harness::{
+    bin, dronewatt, json_lines, last_estimate, root, summary_written, Monitor, RunExt,
+};
 use crate::link_common::{free_tcp_port, free_udp_port, peer_then_stop};
 
 /// The plain line's most characters.
@@ -387,28 +389,10 @@ fn the_dashboard_at_1280x800_leads_with_the_critical_alert() {
             .arg(root().join("replay/demo.tlog")),
     );
     let text = summary_written(&json);
-    let last = text
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .rfind(|v| v["type"] == "estimate")
-        .unwrap();
+    let last = last_estimate(&text);
     let url = format!("http://127.0.0.1:{port}/");
     let shot = dir.path().join("dashboard.png");
-    let run = |extra: &str| {
-        Command::new(browser)
-            .args([
-                "--headless",
-                "--no-sandbox",
-                "--disable-gpu",
-                "--disable-dev-shm-usage",
-                "--hide-scrollbars",
-                "--window-size=1280,800",
-                "--virtual-time-budget=4000",
-                extra,
-                &url,
-            ])
-            .out()
-    };
+    let run = |extra: &str| crate::sink_web::headless_at(browser, "1280,800", &url, &[extra]);
     let dom = run("--dump-dom");
     let shot_out = run(&format!("--screenshot={}", shot.display()));
     let (status, _) = dw.stop();

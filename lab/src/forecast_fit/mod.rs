@@ -89,6 +89,49 @@ pub(crate) struct Prepared {
     pub(crate) flight_mean_w: f64,
 }
 
+/// Measured energy, cumulative by row, Wh (rectangle rule to the next row).
+fn measured_cum_wh(rows: &[dataset::Row]) -> Vec<f64> {
+    let mut cum = vec![0.0f64; rows.len()];
+    for i in 1..rows.len() {
+        let dt = (rows[i].time_s - rows[i - 1].time_s).max(0.0);
+        cum[i] = cum[i - 1] + rows[i - 1].voltage_v * rows[i - 1].current_a * dt / 3600.0;
+    }
+    cum
+}
+
+/// One model's forecast along the trajectory split at sample `k` (the live point) into what
+/// the calibration weighs, before and after it, with each sample's energy.
+fn model_raw(
+    fc: &dronewatt::mission::forecast::MissionForecast,
+    traj: &Trajectory,
+    k: usize,
+    vehicle_kg: f64,
+) -> ModelRaw {
+    let (mut first_wh, mut rest_wh) = ([0.0; 5], [0.0; 5]);
+    let mut prev = 0.0;
+    let mut sample_wh = Vec::with_capacity(fc.cum_p50_wh.len());
+    for (j, &c) in fc.cum_p50_wh.iter().enumerate() {
+        let e = c - prev;
+        prev = c;
+        sample_wh.push(e);
+        let ph = phase_of(&traj.samples[j]);
+        let x = if j <= k { &mut first_wh } else { &mut rest_wh };
+        x[ph] += e;
+        let [up, down] =
+            dronewatt::mission::forecast::vertical_work_w(&traj.samples[j], vehicle_kg);
+        x[3] += up * traj.dt_s / 3600.0;
+        x[4] += down * traj.dt_s / 3600.0;
+    }
+    ModelRaw {
+        name: fc.model.clone(),
+        total_wh: fc.energy_p50_wh,
+        first_wh,
+        rest_wh,
+        planned_left_s: fc.remaining_from(k, None, 0.0).time_s,
+        sample_wh,
+    }
+}
+
 pub(crate) fn prepare(
     f: &Flight,
     geometry: &Flight,
@@ -120,13 +163,8 @@ pub(crate) fn prepare(
             dronewatt::mission::MODEL_STRIDE,
         ));
     }
-    // measured energy, cumulative by row (rectangle rule to the next row)
     let rows = &f.rows;
-    let mut cum = vec![0.0f64; rows.len()];
-    for i in 1..rows.len() {
-        let dt = (rows[i].time_s - rows[i - 1].time_s).max(0.0);
-        cum[i] = cum[i - 1] + rows[i - 1].voltage_v * rows[i - 1].current_a * dt / 3600.0;
-    }
+    let cum = measured_cum_wh(rows);
     let measured_wh = cum.last().copied().unwrap_or(0.0);
     let on = |r: &dataset::Row| r.voltage_v * r.current_a > AIRBORNE_W;
     let i0 = rows
@@ -151,31 +189,7 @@ pub(crate) fn prepare(
     let vehicle_kg = VehicleProfile::m100().mass_kg(0.0);
     let raw = fcs
         .into_iter()
-        .map(|fc| {
-            let (mut first_wh, mut rest_wh) = ([0.0; 5], [0.0; 5]);
-            let mut prev = 0.0;
-            let mut sample_wh = Vec::with_capacity(fc.cum_p50_wh.len());
-            for (j, &c) in fc.cum_p50_wh.iter().enumerate() {
-                let e = c - prev;
-                prev = c;
-                sample_wh.push(e);
-                let ph = phase_of(&traj.samples[j]);
-                let x = if j <= k { &mut first_wh } else { &mut rest_wh };
-                x[ph] += e;
-                let [up, down] =
-                    dronewatt::mission::forecast::vertical_work_w(&traj.samples[j], vehicle_kg);
-                x[3] += up * traj.dt_s / 3600.0;
-                x[4] += down * traj.dt_s / 3600.0;
-            }
-            ModelRaw {
-                name: fc.model.clone(),
-                total_wh: fc.energy_p50_wh,
-                first_wh,
-                rest_wh,
-                planned_left_s: fc.remaining_from(k, None, 0.0).time_s,
-                sample_wh,
-            }
-        })
+        .map(|fc| model_raw(&fc, &traj, k, vehicle_kg))
         .collect();
     let gcs_left = gcs_left_s(&traj, k, f.speed_m_s, &cfg.forecast.kinematics);
     let span = rows[ih].time_s - rows[i0].time_s;

@@ -257,23 +257,10 @@ fn rotor_windows(f: &FlightWindows, in_flight_w: f64) -> usize {
 /// Run `dronewatt learn`.
 pub fn run(args: LearnArgs) -> Result<()> {
     let cfg = args.config.load()?;
-    let base = match (&args.vehicle, &cfg.vehicle) {
-        (Some(v), _) => VehicleProfile::named_or_file(v)?,
-        (None, Some(p)) => VehicleProfile::load(p)?,
-        (None, None) => VehicleProfile::m100(),
-    };
+    let base = base_profile(&args, &cfg)?;
     // Fine-tuning needs libtorch: ask before anything is written (the command is handed
     // to `dronewatt-torch` whole).
-    let fine_tuner = match (args.fine_tune, FINE_TUNER.get()) {
-        (false, _) => None,
-        (true, Some(f)) => Some(*f),
-        (true, None) => {
-            return Err(crate::model::NeedsLibtorch {
-                what: "fine-tuning the LSTM (learn --fine-tune)".into(),
-            }
-            .into())
-        }
-    };
+    let fine_tuner = fine_tuner_for(args.fine_tune)?;
     if args.holdout_every < 2 {
         bail!(
             "--holdout-every {}: must be at least 2 (one log in N is held out)",
@@ -290,24 +277,8 @@ pub fn run(args: LearnArgs) -> Result<()> {
     let wing0 = base.fixed_wing.unwrap_or_default();
     // in flight above the vehicle's threshold (100 W, or half its hover when that is lower)
     let in_flight_w = in_flight_w_for(&base);
-    let mut flights = Vec::with_capacity(logs.len());
-    let mut wings = Vec::with_capacity(logs.len());
-    for (i, p) in logs.iter().enumerate() {
-        let (f, wing) = log_windows_by_lift(p, FIRST_LOG_NUMBER + i as u32, &cfg)?;
-        let n = rotor_windows(&f, in_flight_w);
-        let n_wing = wing_data(&wing0, &wing).len();
-        if n == 0 && n_wing == 0 {
-            tracing::warn!("{}: no in-flight window with measured power (over {in_flight_w:.0} W on rotors, over {:.0} W on a wing): it teaches nothing", p.display(), 2.0 * wing0.offset_w);
-        }
-        flights.push((p, f, n + n_wing));
-        wings.push(wing);
-    }
-    let mut held: Vec<usize> = (0..flights.len())
-        .filter(|i| (i + 1) % args.holdout_every == 0)
-        .collect();
-    if held.is_empty() {
-        held.push(flights.len() - 1);
-    }
+    let (flights, wings) = read_logs(&logs, &cfg, &wing0, in_flight_w)?;
+    let held = held_out_logs(flights.len(), args.holdout_every);
     let train: Vec<FlightWindows> = flights
         .iter()
         .enumerate()
@@ -318,29 +289,15 @@ pub fn run(args: LearnArgs) -> Result<()> {
         .iter()
         .map(|p| crate::offline::data::sha256_file(p))
         .collect::<Result<_>>()?;
-    // The multirotor models on the windows flown on rotors, where there are any (a plane's
-    // logs have none: its profile's multirotor sections are kept as they are).
-    let rotor_windows: usize = flights
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| !held.contains(i))
-        .map(|(_, (_, f, _))| rotor_windows(f, in_flight_w))
-        .sum();
-    let (learned, mut fit_report) = if rotor_windows > 0 {
-        super::fit::fit(&train, &base, sums.join(","), args.max_windows)?
-    } else {
-        tracing::info!("no training window flown on rotors: the multirotor models are not fitted");
-        (base.clone(), Vec::new())
+    let held_out = HeldOut {
+        flights: &flights,
+        wings: &wings,
+        held: &held,
+        wing0,
+        in_flight_w,
     };
-    // The fixed-wing model on the windows flown on a wing.
-    let wing_train: Vec<([f64; 4], f64)> = wings
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| !held.contains(i))
-        .flat_map(|(_, w)| wing_data(&wing0, w))
-        .collect();
-    let mut learned = learned;
-    fit_wing(&wing0, &wing_train, &mut learned, &mut fit_report);
+    let (mut learned, fit_report) =
+        fit_profile(&base, &train, &held_out, sums.join(","), args.max_windows)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
 
@@ -354,19 +311,11 @@ pub fn run(args: LearnArgs) -> Result<()> {
     }
 
     let tuned_dir = tuned.as_ref().map(|(p, _)| p.as_path());
-    let held_out = HeldOut {
-        flights: &flights,
-        wings: &wings,
-        held: &held,
-        wing0,
-        in_flight_w,
-    };
     let scores = score_held(&cfg, &base, &learned, tuned_dir, &held_out)?;
 
     // The forecast model: the lowest mean held-out MAPE of the learned models.
     set_forecast(&mut learned, &scores, tuned.is_some(), held.len());
 
-    let profile_path = args.out.join("profile.toml");
     let header = format!(
         "# Written by `dronewatt learn` from {} log(s) ({} trained, {} held out), starting from {}.\n",
         logs.len(),
@@ -374,39 +323,111 @@ pub fn run(args: LearnArgs) -> Result<()> {
         held.len(),
         base.name
     );
-    write_profile(&profile_path, header, &fit_report, &learned)?;
-    let card_path = args.out.join("model-card.md");
-    let mut card = model_card(
-        &base,
-        &logs,
-        &flights.iter().map(|(_, _, n)| *n).collect::<Vec<_>>(),
-        &held,
-        &scores,
-        tuned.as_ref().map(|(_, t)| t),
-    );
-    if let Some(f) = &learned.forecast {
-        card += &format!("\n## Forecast model\n\n`{}`: {} (written to the profile's `[forecast]`; `[energy] model` in the config overrides it, and online selection may still move it on the vehicle's own evidence).\n", f.model, f.why);
+    let written = Learned {
+        base: &base,
+        logs: &logs,
+        held_out: &held_out,
+        scores: &scores,
+        tuned: tuned.as_ref().map(|(_, t)| t),
+        fit_report: &fit_report,
+        learned: &learned,
+    };
+    write_learned(&args, header, &written)
+}
+
+/// The profile to start from: `--vehicle`, else the config's `vehicle`, else the M100.
+fn base_profile(args: &LearnArgs, cfg: &Config) -> Result<VehicleProfile> {
+    Ok(match (&args.vehicle, &cfg.vehicle) {
+        (Some(v), _) => VehicleProfile::named_or_file(v)?,
+        (None, Some(p)) => VehicleProfile::load(p)?,
+        (None, None) => VehicleProfile::m100(),
+    })
+}
+
+/// The registered fine-tuner when `--fine-tune` asks for one; an error naming libtorch
+/// when none is registered.
+fn fine_tuner_for(fine_tune: bool) -> Result<Option<FineTuner>> {
+    Ok(match (fine_tune, FINE_TUNER.get()) {
+        (false, _) => None,
+        (true, Some(f)) => Some(*f),
+        (true, None) => {
+            return Err(crate::model::NeedsLibtorch {
+                what: "fine-tuning the LSTM (learn --fine-tune)".into(),
+            }
+            .into())
+        }
+    })
+}
+
+/// A log read: its path, its windows, and its in-flight windows on rotors and on a wing.
+type LogRead<'a> = (&'a PathBuf, FlightWindows, usize);
+
+/// Each log read through the live ingest path: (its path, its windows, its in-flight
+/// windows on rotors and on a wing), and its wing windows.
+fn read_logs<'a>(
+    logs: &'a [PathBuf],
+    cfg: &Config,
+    wing0: &physics::fixed_wing::Params,
+    in_flight_w: f64,
+) -> Result<(Vec<LogRead<'a>>, Vec<FlightWindows>)> {
+    let mut flights = Vec::with_capacity(logs.len());
+    let mut wings = Vec::with_capacity(logs.len());
+    for (i, p) in logs.iter().enumerate() {
+        let (f, wing) = log_windows_by_lift(p, FIRST_LOG_NUMBER + i as u32, cfg)?;
+        let n = rotor_windows(&f, in_flight_w);
+        let n_wing = wing_data(wing0, &wing).len();
+        if n == 0 && n_wing == 0 {
+            tracing::warn!("{}: no in-flight window with measured power (over {in_flight_w:.0} W on rotors, over {:.0} W on a wing): it teaches nothing", p.display(), 2.0 * wing0.offset_w);
+        }
+        flights.push((p, f, n + n_wing));
+        wings.push(wing);
     }
-    std::fs::write(&card_path, &card)
-        .with_context(|| format!("{}: cannot write", card_path.display()))?;
-    print!("{}", held_out_table(&scores));
-    if let Some(f) = &learned.forecast {
-        println!("forecast model: {} ({})", f.model, f.why);
+    Ok((flights, wings))
+}
+
+/// The held-out logs' indices among `n`: every `every`-th, else the last.
+fn held_out_logs(n: usize, every: usize) -> Vec<usize> {
+    let mut held: Vec<usize> = (0..n).filter(|i| (i + 1) % every == 0).collect();
+    if held.is_empty() {
+        held.push(n - 1);
     }
-    println!(
-        "wrote {} and {}",
-        profile_path.display(),
-        card_path.display()
-    );
-    if let Some(dir) = crate::vehicle::store::data_dir_from_env(args.data_dir.as_deref()) {
-        remember_profile(
-            &dir,
-            &logs,
-            &profile_path,
-            learned.forecast.as_ref().map(|f| f.model.as_str()),
-        );
-    }
-    Ok(())
+    held
+}
+
+/// The learned profile and the fit's report: the multirotor models fitted on the training
+/// windows flown on rotors, the fixed-wing model on those flown on a wing.
+fn fit_profile(
+    base: &VehicleProfile,
+    train: &[FlightWindows],
+    h: &HeldOut,
+    sums: String,
+    max_windows: usize,
+) -> Result<(VehicleProfile, Vec<crate::offline::fit::FitReport>)> {
+    // The multirotor models on the windows flown on rotors, where there are any (a plane's
+    // logs have none: its profile's multirotor sections are kept as they are).
+    let rotor_windows: usize = h
+        .flights
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !h.held.contains(i))
+        .map(|(_, (_, f, _))| rotor_windows(f, h.in_flight_w))
+        .sum();
+    let (mut learned, mut fit_report) = if rotor_windows > 0 {
+        super::fit::fit(train, base, sums, max_windows)?
+    } else {
+        tracing::info!("no training window flown on rotors: the multirotor models are not fitted");
+        (base.clone(), Vec::new())
+    };
+    // The fixed-wing model on the windows flown on a wing.
+    let wing_train: Vec<([f64; 4], f64)> = h
+        .wings
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !h.held.contains(i))
+        .flat_map(|(_, w)| wing_data(&h.wing0, w))
+        .collect();
+    fit_wing(&h.wing0, &wing_train, &mut learned, &mut fit_report);
+    Ok((learned, fit_report))
 }
 
 /// The model with the lowest mean held-out MAPE over the held-out logs (learned scores; a
@@ -483,7 +504,7 @@ mod steps;
 use logs::collect_logs;
 pub use logs::{log_windows, log_windows_by_lift};
 use report::*;
-use steps::{fine_tune_lstm, fit_wing, score_held, set_forecast, write_profile, HeldOut};
+use steps::{fine_tune_lstm, fit_wing, score_held, set_forecast, write_learned, HeldOut, Learned};
 
 #[cfg(test)]
 mod tests;

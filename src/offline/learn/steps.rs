@@ -195,3 +195,66 @@ pub(super) fn write_profile(
         .with_context(|| format!("{}: cannot write", profile_path.display()))?;
     Ok(())
 }
+
+/// What `learn` learned, for the profile and the model card.
+pub(super) struct Learned<'a> {
+    pub(super) base: &'a VehicleProfile,
+    pub(super) logs: &'a [PathBuf],
+    pub(super) held_out: &'a HeldOut<'a>,
+    pub(super) scores: &'a [LogScore],
+    pub(super) tuned: Option<&'a FineTuned>,
+    pub(super) fit_report: &'a [crate::offline::fit::FitReport],
+    pub(super) learned: &'a VehicleProfile,
+}
+
+/// The profile (under `header`) and the model card written into `--out`, the held-out
+/// table printed, and the profile kept in the vehicle store.
+pub(super) fn write_learned(args: &LearnArgs, header: String, l: &Learned) -> Result<()> {
+    let Learned {
+        base,
+        logs,
+        held_out,
+        scores,
+        tuned,
+        fit_report,
+        learned,
+    } = l;
+    let profile_path = args.out.join("profile.toml");
+    write_profile(&profile_path, header, fit_report, learned)?;
+    let card_path = args.out.join("model-card.md");
+    let mut card = model_card(
+        base,
+        logs,
+        &held_out
+            .flights
+            .iter()
+            .map(|(_, _, n)| *n)
+            .collect::<Vec<_>>(),
+        held_out.held,
+        scores,
+        *tuned,
+    );
+    if let Some(f) = &learned.forecast {
+        card += &format!("\n## Forecast model\n\n`{}`: {} (written to the profile's `[forecast]`; `[energy] model` in the config overrides it, and online selection may still move it on the vehicle's own evidence).\n", f.model, f.why);
+    }
+    std::fs::write(&card_path, &card)
+        .with_context(|| format!("{}: cannot write", card_path.display()))?;
+    print!("{}", held_out_table(scores));
+    if let Some(f) = &learned.forecast {
+        println!("forecast model: {} ({})", f.model, f.why);
+    }
+    println!(
+        "wrote {} and {}",
+        profile_path.display(),
+        card_path.display()
+    );
+    if let Some(dir) = crate::vehicle::store::data_dir_from_env(args.data_dir.as_deref()) {
+        remember_profile(
+            &dir,
+            logs,
+            &profile_path,
+            learned.forecast.as_ref().map(|f| f.model.as_str()),
+        );
+    }
+    Ok(())
+}

@@ -2,6 +2,10 @@
 
 use super::*;
 
+/// Heard first (handed on), the sender's sequence unbroken or broken before it.
+const FIRST: Heard = Heard::First { gap: false };
+const FIRST_AFTER_GAP: Heard = Heard::First { gap: true };
+
 fn h(sys: u32, comp: u8, seq: u8) -> mavlink::MavHeader {
     mavlink::MavHeader {
         system_id: sys,
@@ -13,44 +17,23 @@ fn h(sys: u32, comp: u8, seq: u8) -> mavlink::MavHeader {
 #[test]
 fn a_copy_within_the_window_is_a_duplicate_and_nothing_else_is() {
     let mut d = Dedup::default();
-    assert_eq!(
-        d.hear(0.0, 0, 0, &h(1, 1, 7), 0, 0),
-        Heard::First { gap: false }
-    );
+    assert_eq!(d.hear(0.0, 0, 0, &h(1, 1, 7), 0, 0), FIRST);
     // The same frame from the other radio, 40 ms later.
     assert_eq!(d.hear(0.04, 1, 0, &h(1, 1, 7), 0, 0), Heard::Duplicate);
     // Another message with the same numbers (another sender's stream): not a copy.
-    assert_eq!(
-        d.hear(0.05, 0, 0, &h(1, 1, 7), 33, 0),
-        Heard::First { gap: true }
-    );
-    assert_eq!(
-        d.hear(0.05, 0, 0, &h(1, 2, 7), 0, 0),
-        Heard::First { gap: false }
-    );
+    assert_eq!(d.hear(0.05, 0, 0, &h(1, 1, 7), 33, 0), FIRST_AFTER_GAP);
+    assert_eq!(d.hear(0.05, 0, 0, &h(1, 2, 7), 0, 0), FIRST);
     // The next frame; then one after a lost one.
-    assert_eq!(
-        d.hear(0.1, 0, 0, &h(1, 1, 8), 30, 0),
-        Heard::First { gap: false }
-    );
-    assert_eq!(
-        d.hear(0.2, 0, 0, &h(1, 1, 10), 30, 0),
-        Heard::First { gap: true }
-    );
+    assert_eq!(d.hear(0.1, 0, 0, &h(1, 1, 8), 30, 0), FIRST);
+    assert_eq!(d.hear(0.2, 0, 0, &h(1, 1, 10), 30, 0), FIRST_AFTER_GAP);
     // The sequence wrapped and the number came round again: new, not a copy.
     assert_eq!(
         d.hear(0.04 + DEDUP_WINDOW_S, 0, 0, &h(1, 1, 7), 0, 0),
-        Heard::First { gap: true }
+        FIRST_AFTER_GAP
     );
     // The same numbers on another network: another vehicle, never a copy.
-    assert_eq!(
-        d.hear(1.1, 0, 0, &h(1, 1, 9), 0, 0),
-        Heard::First { gap: true }
-    );
-    assert_eq!(
-        d.hear(1.1, 0, 2, &h(1, 1, 9), 0, 0),
-        Heard::First { gap: false }
-    );
+    assert_eq!(d.hear(1.1, 0, 0, &h(1, 1, 9), 0, 0), FIRST_AFTER_GAP);
+    assert_eq!(d.hear(1.1, 0, 2, &h(1, 1, 9), 0, 0), FIRST);
 }
 
 /// A PX4 on USB: 2,200 frames/s from one component, so each sequence number comes round
@@ -111,14 +94,8 @@ fn at_a_fast_link_s_rate_the_merge_hands_on_exactly_the_union() {
 #[test]
 fn a_frame_with_the_same_numbers_and_other_bytes_is_not_a_copy() {
     let mut d = Dedup::default();
-    assert_eq!(
-        d.hear(0.0, 0, 0, &h(1, 1, 7), 30, 1),
-        Heard::First { gap: false }
-    );
-    assert_eq!(
-        d.hear(0.01, 0, 0, &h(1, 1, 7), 30, 2),
-        Heard::First { gap: true }
-    );
+    assert_eq!(d.hear(0.0, 0, 0, &h(1, 1, 7), 30, 1), FIRST);
+    assert_eq!(d.hear(0.01, 0, 0, &h(1, 1, 7), 30, 2), FIRST_AFTER_GAP);
     assert_eq!(d.hear(0.02, 1, 0, &h(1, 1, 7), 30, 2), Heard::Duplicate);
     use crate::dialect::{MavMessage, HEARTBEAT_DATA, SYS_STATUS_DATA};
     let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());

@@ -43,6 +43,26 @@ impl Run {
             .as_u64()
             .unwrap_or_else(|| panic!("no {key} in the summary {}", self.summary))
     }
+    /// The run made as many estimates as `seconds` of sending in `segments` make
+    /// ([`expected_estimates`]).
+    #[track_caller]
+    pub fn assert_estimates(&self, seconds: f64, segments: usize) {
+        assert!(
+            expected_estimates(seconds, segments).contains(&self.estimates.len()),
+            "{} estimates",
+            self.estimates.len()
+        );
+    }
+    /// dronewatt read every frame the peer sent.
+    #[track_caller]
+    pub fn assert_every_frame_read(&self) {
+        assert_eq!(
+            self.count("frames_ok"),
+            self.peer["frames"].as_u64().unwrap(),
+            "{}",
+            self.summary
+        );
+    }
     /// Gaps between consecutive real estimates longer than `s`.
     pub fn holes_over(&self, s: f64) -> Vec<(f64, f64)> {
         self.times()

@@ -4,7 +4,7 @@ scripts/spec-m100.py and scripts/peer-cruise-check.py (moved out of docs-tables.
 grown past 600 lines)."""
 import json
 
-from docs_tables_common import OUT, ROOT, f, header, note, table
+from .common import OUT, ROOT, f, header, note, table
 
 
 # `scripts/spec-priors.py --json` (the hover-efficiency prior across airframes, leave one out)

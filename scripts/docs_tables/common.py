@@ -1,9 +1,9 @@
-"""What scripts/docs-tables.py and its spec-sheet tables (scripts/docs_tables_spec.py) share:
-where the tables go and how a cell and a table are written."""
+"""What the tables of scripts/docs-tables.py (the modules of scripts/docs_tables/) share: where
+the tables go and how a cell and a table are written."""
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parent.parent.parent
 OUT = ROOT / "docs" / "src" / "generated"
 
 
