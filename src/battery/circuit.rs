@@ -45,8 +45,8 @@ pub struct CircuitParams {
     /// cells' resistance at a flight's current leaves the pack too (5-33 %, median 9 %, of
     /// the energy drawn on ProgPy's 18650 packs). Wrong for a curve fitted on terminal
     /// energy at the flight's own rate (the TB48D's: ∫V·I dt between resting voltages,
-    /// [`super::ocv`]). Off for every pack today: alone it unmasks the start state's errors
-    /// (docs/src/pack.md, "Energy at landing on score3").
+    /// [`super::ocv`]). On for Li-ion's table, with its resting voltage read through the
+    /// ground idle's I·R (`energy::pack::ocv_table`; docs/src/pack.md, "Energy at landing").
     #[serde(default)]
     pub ocv_count: bool,
 }
@@ -331,6 +331,19 @@ impl Estimator {
     pub fn energy_wh(&self) -> f64 {
         self.energy
     }
+    /// Restate the start: move the energy left by what the curve holds between the resting
+    /// (pack) voltages `v_from` and `v_to`, a start read off the one now known to be the other;
+    /// kept in 0..the curve's capacity. Returns the energy moved (Wh; 0 for non-finite input).
+    pub fn restate(&mut self, v_from: f64, v_to: f64) -> f64 {
+        let n = f64::from(self.p.n_cells.max(1));
+        let d = self.curve.energy(v_to / n) - self.curve.energy(v_from / n);
+        if !d.is_finite() {
+            return 0.0;
+        }
+        let before = self.energy;
+        self.energy = (self.energy + d).clamp(0.0, self.curve.capacity());
+        self.energy - before
+    }
     /// This flight's pack resistance scale k (least squares over samples with I > 3 A of
     /// measured = nominal model with R0, R1 scaled by k; `None` before any such sample).
     /// Carry it to the next flight on the same pack with [`CircuitParams::carried_over`].
@@ -497,5 +510,30 @@ mod tests {
         assert!((over - heat_wh).abs() < 0.02, "{over} vs {heat_wh}");
         // the TB48D's curve was fitted on terminal energy: its circuit counts there
         assert!(!CircuitParams::default().ocv_count);
+    }
+
+    /// A start restated by a resting voltage now known to be higher moves the energy by
+    /// what the curve holds between the two, never past full or under empty; garbage moves
+    /// nothing.
+    #[test]
+    fn restate_moves_the_energy_between_two_resting_voltages() {
+        let curve = crate::battery::Chemistry::LiIon
+            .default_curve()
+            .scaled(24.0)
+            .expect("a capacity");
+        let p = CircuitParams {
+            n_cells: 3,
+            ..CircuitParams::default()
+        };
+        let mut e = Estimator::new(p, curve.clone(), 11.2, 0.0).expect("valid");
+        let e0 = e.energy_wh();
+        let want = curve.energy(11.3 / 3.0) - curve.energy(11.2 / 3.0);
+        assert!((e.restate(11.2, 11.3) - want).abs() < 1e-9);
+        assert!((e.energy_wh() - e0 - want).abs() < 1e-9);
+        assert_eq!(e.restate(11.2, f64::NAN), 0.0);
+        e.restate(9.0, 12.6);
+        assert!((e.energy_wh() - 24.0).abs() < 1e-9, "{}", e.energy_wh());
+        e.restate(12.6, 8.0);
+        assert_eq!(e.energy_wh(), 0.0);
     }
 }

@@ -249,6 +249,9 @@ pub struct Pack {
     trend: crate::battery::trend::VoltageTrend,
     /// Messages for a warning, taken by the caller.
     pub notes: Vec<String>,
+    /// The ground idle's currents and its I·R ([`rest`]).
+    #[serde(default)]
+    idle: rest::Idle,
 }
 
 impl Pack {
@@ -303,19 +306,12 @@ impl Pack {
             self.loaded.pop_front();
         }
         if i.abs() < rest_a {
-            self.rest.push_back((t, v));
-            while self
-                .rest
-                .front()
-                .is_some_and(|(t0, _)| t - t0 > REST_SETTLE_S)
-            {
-                self.rest.pop_front();
-            }
+            self.rest_sample(t, v, i, r, chem);
             if let Some(rest_v) = self.settled(t) {
                 self.at_rest(rest_v, facts);
             }
         } else {
-            self.rest.clear();
+            self.rest_clear();
             if i >= load_a && self.rest_v.is_some() {
                 self.flown = true;
             }
@@ -363,6 +359,7 @@ impl Pack {
             self.now.heat = Some(est.heat());
             self.now.deep_slope = Some(est.deep_learned());
         }
+        self.learn_idle_r(v, i, load_a, cells);
         if self.flown && !self.rest.is_empty() {
             // Landed: no rest of the flight to forecast.
             (self.now.v_min_forecast, self.now.time_to_low_v_s) = (None, None);
@@ -535,6 +532,7 @@ impl Pack {
         } else {
             0.0
         };
+        self.idle_at_start(v0, how, prior_r_ohm(cells, pack_ah(facts, chem)), chem);
         let Some((curve, params)) = pack_model(facts) else {
             // No capacity (or no pack the model can take): the state of charge alone.
             self.est = None;
@@ -585,9 +583,13 @@ impl Pack {
 mod forecast;
 #[path = "pack_priors.rs"]
 mod priors;
+#[path = "pack_rest.rs"]
+mod rest;
 #[path = "pack_sag.rs"]
 mod sag;
-pub use priors::{currents, load_current_a, pack_model, prior_r_ohm, rest_current_a};
+pub use priors::{
+    currents, load_current_a, ocv_table, pack_model, prior_r_ohm, rest_current_a, rest_ocv,
+};
 use priors::{low_v, pack_ah};
 pub use sag::SagCheck;
 

@@ -99,11 +99,30 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
             } else {
                 0.0
             },
-            // Not yet: counting at the OCV removes the flight's +1.7-point drift at landing on
-            // ProgPy's packs, but alone it unmasks the start's errors (docs/src/pack.md,
-            // "Energy at landing on score3"); on with the start read under load.
-            ocv_count: false,
+            // Li-ion's curve is a resting-voltage table (∫OCV dq): the heat in the cells'
+            // resistance leaves the pack too (docs/src/pack.md, "Energy at landing").
+            ocv_count: ocv_table(chem),
             ..base
         },
     ))
+}
+
+/// Whether the chemistry's default curve is a resting-voltage table whose energies are
+/// ∫OCV dq (Li-ion's, [`Chemistry::default_curve`]): its packs count energy at the
+/// open-circuit voltage and read their resting voltage corrected for the ground idle's I·R
+/// ([`rest_ocv`]). The TB48D's (and the LiHV shape from it) was fitted on terminal energy
+/// between voltages read at ground idle; LiPo and LiFePO4 are not yet measured on a peer.
+pub fn ocv_table(chem: Chemistry) -> bool {
+    chem == Chemistry::LiIon
+}
+
+/// The open-circuit voltage a reading at a small discharge current stands for, V: `v + i·r`,
+/// `r` the pack's resistance (Ω) where it is known. A current of 0 or under (a sensor's offset
+/// at rest; charging is not a rest) and a resistance not known (`None`, not finite, under 0)
+/// leave the reading as it is.
+pub fn rest_ocv(v: f64, i: f64, r_ohm: Option<f64>) -> f64 {
+    match r_ohm.filter(|r| r.is_finite() && *r >= 0.0) {
+        Some(r) if i.is_finite() && i > 0.0 => v + i * r,
+        _ => v,
+    }
 }
