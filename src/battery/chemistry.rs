@@ -15,8 +15,14 @@ pub enum Chemistry {
     LiPo,
     /// High-voltage LiPo (e.g. DJI TB48D), 4.35 V full.
     LiHv,
-    /// Li-ion (NMC 18650/21700 class), 4.20 V full, usable down to ~3.0 V.
+    /// Li-ion when the cathode is not named (MAV_BATTERY_TYPE_LION, `li-ion`): the measured
+    /// LiCoO2 18650's curve, 4.20 V full, usable down to ~3.0 V.
     LiIon,
+    /// Li-ion with a nickel cathode (NMC or NCA 18650/21700, most drone Li-ion packs), named
+    /// by the config or the flag (`nmc`, `nca`): the same window, the NMC811 cell's curve.
+    #[strum(serialize = "nmc")]
+    #[serde(rename = "nmc")]
+    LiIonNmc,
     /// Lithium iron phosphate, 3.65 V full, a flat plateau near 3.3 V.
     #[strum(serialize = "lifepo4")]
     #[serde(rename = "lifepo4")]
@@ -52,7 +58,8 @@ const LIPO: [(f64, f64); 14] = [
 /// ([`crate::battery::CircuitParams::ocv_count`]). Not fitted to ProgPy, the peer it is scored
 /// against. It replaced a generic NMC datasheet table (3.70 V at 40 %; ProgPy's 18650s rest at
 /// 3.79-3.80 V there): an NMC or NCA cell rests lower in mid-charge than this LiCoO2 one, so
-/// such a pack reads up to ~10 points high at 30-60 % (docs/src/pack.md, "Energy at landing").
+/// such a pack declared `liion` reads low at 30-60 % (3.70 V: 17 % here, 40 % on [`LIION_NMC`]);
+/// `nmc` names its cathode (docs/src/pack.md, "Energy at landing").
 const LIION: [(f64, f64); 53] = [
     (2.90, 0.0),
     (2.92, 0.0005),
@@ -109,6 +116,44 @@ const LIION: [(f64, f64); 53] = [
     (4.20, 1.0),
 ];
 
+/// Li-ion NMC: the open-circuit voltage of the LG M50 21700 (NMC811 / graphite-SiOx) of
+/// C.-H. Chen, F. Brosa Planella, K. O'Regan, D. Gastol, W. D. Widanage, E. Kendrick,
+/// "Development of Experimental Techniques for Parameterization of Multi-scale Lithium-ion
+/// Battery Models", J. Electrochem. Soc. 167 (2020) 080534: the electrodes' measured
+/// potentials composed into the full cell with PyBaMM's `Chen2020` set, as energy fractions
+/// above 2.90 V (`lab/scripts/battery/lab_round9_circuit.py --ocv-table` prints it). A nickel
+/// cathode rests lower in mid-charge than LiCoO2 (3.70 V is 40 % here, 17 % on [`LIION`]); an
+/// NCA cell is nearer this curve than that one.
+const LIION_NMC: [(f64, f64); 27] = [
+    (2.90, 0.0),
+    (2.95, 0.0038),
+    (3.00, 0.0083),
+    (3.05, 0.0139),
+    (3.10, 0.0209),
+    (3.15, 0.03),
+    (3.20, 0.0416),
+    (3.25, 0.0547),
+    (3.30, 0.0679),
+    (3.35, 0.0813),
+    (3.40, 0.0974),
+    (3.45, 0.1246),
+    (3.50, 0.1791),
+    (3.55, 0.2302),
+    (3.60, 0.2769),
+    (3.65, 0.3359),
+    (3.70, 0.4036),
+    (3.75, 0.4609),
+    (3.80, 0.516),
+    (3.85, 0.5788),
+    (3.90, 0.6294),
+    (3.95, 0.6769),
+    (4.00, 0.7362),
+    (4.05, 0.7947),
+    (4.10, 0.9126),
+    (4.15, 0.9784),
+    (4.20, 1.0),
+];
+
 /// LiFePO4 default: the low-rate OCV of an LFP cell (3.65 V full, 2.5 V empty; the long
 /// plateau at 3.25-3.35 V) as LFP datasheets and the published OCV tests show it
 /// (e.g. A123 ANR26650M1-B datasheet; Plett, *Battery Management Systems* vol. 1, 2015,
@@ -129,15 +174,16 @@ const LIFEPO4: [(f64, f64); 10] = [
 
 impl Chemistry {
     /// Every chemistry known.
-    pub const ALL: [Chemistry; 4] = [
+    pub const ALL: [Chemistry; 5] = [
         Chemistry::LiPo,
         Chemistry::LiHv,
         Chemistry::LiIon,
+        Chemistry::LiIonNmc,
         Chemistry::LiFePo4,
     ];
 
     /// The chemistry a name gives as users and the flag write it (`lipo`, `lihv`,
-    /// `li-ion`, `liion`, `lion`, `lifepo4`, `lfp`; any case).
+    /// `li-ion`, `liion`, `lion`, `nmc`, `nca`, `lifepo4`, `lfp`; any case).
     pub fn parse_loose(name: &str) -> Option<Self> {
         match name
             .to_ascii_lowercase()
@@ -146,7 +192,8 @@ impl Chemistry {
         {
             "lipo" => Some(Chemistry::LiPo),
             "lihv" | "lipohv" => Some(Chemistry::LiHv),
-            "liion" | "lion" | "nmc" => Some(Chemistry::LiIon),
+            "liion" | "lion" | "lco" => Some(Chemistry::LiIon),
+            "nmc" | "nca" | "liionnmc" | "liionnca" => Some(Chemistry::LiIonNmc),
             "lifepo4" | "lfp" | "life" => Some(Chemistry::LiFePo4),
             _ => None,
         }
@@ -163,6 +210,11 @@ impl Chemistry {
         }
     }
 
+    /// Li-ion of either cathode (`liion`, `nmc`): one window, one circuit's priors.
+    pub fn is_li_ion(self) -> bool {
+        matches!(self, Chemistry::LiIon | Chemistry::LiIonNmc)
+    }
+
     /// The lowest loaded voltage a cell of this chemistry can show, V: a modelled voltage
     /// under it is not a voltage (Li-ion cells are specified to 2.5 V under load, LiFePO4
     /// to 2.0 V).
@@ -173,7 +225,7 @@ impl Chemistry {
         }
     }
 
-    /// As the config writes it: `lipo`, `lihv`, `liion`.
+    /// As the config writes it: `lipo`, `lihv`, `liion`, `nmc`, `lifepo4`.
     pub fn name(self) -> &'static str {
         self.into()
     }
@@ -184,7 +236,7 @@ impl Chemistry {
     /// Full-charge resting voltage per cell.
     pub fn full_v(self) -> f64 {
         match self {
-            Chemistry::LiPo | Chemistry::LiIon => 4.20,
+            Chemistry::LiPo | Chemistry::LiIon | Chemistry::LiIonNmc => 4.20,
             Chemistry::LiHv => 4.35,
             Chemistry::LiFePo4 => 3.65,
         }
@@ -194,7 +246,7 @@ impl Chemistry {
         match self {
             Chemistry::LiPo => 3.70,
             Chemistry::LiHv => 3.80,
-            Chemistry::LiIon => 3.60,
+            Chemistry::LiIon | Chemistry::LiIonNmc => 3.60,
             Chemistry::LiFePo4 => 3.20,
         }
     }
@@ -203,18 +255,19 @@ impl Chemistry {
         match self {
             Chemistry::LiPo => 3.27,
             Chemistry::LiHv => 3.30,
-            Chemistry::LiIon => 2.90,
+            Chemistry::LiIon | Chemistry::LiIonNmc => 2.90,
             Chemistry::LiFePo4 => 2.50,
         }
     }
     /// Default normalised OCV curve (SoC 0..1 vs V/cell) and its source: LiPo the hobby
     /// table (below), LiHV the TB48D shape fitted on the M100 data set (Rodrigues et al.
-    /// 2021), Li-ion the Sony US-18650's measured OCV (Ramadass et al. 2004), LiFePO4 the LFP
-    /// table (below).
+    /// 2021), Li-ion the Sony US-18650's measured OCV (Ramadass et al. 2004), NMC the LG M50's
+    /// (Chen et al. 2020), LiFePO4 the LFP table (below).
     pub fn default_curve(self) -> OcvCurve {
         match self {
             Chemistry::LiPo => OcvCurve::from_soc_pairs(&LIPO),
             Chemistry::LiIon => OcvCurve::from_soc_pairs(&LIION),
+            Chemistry::LiIonNmc => OcvCurve::from_soc_pairs(&LIION_NMC),
             Chemistry::LiHv => OcvCurve::tb48d().normalized(),
             Chemistry::LiFePo4 => OcvCurve::from_soc_pairs(&LIFEPO4),
         }
@@ -244,6 +297,22 @@ pub fn cell_candidates(chem: Chemistry, v_rest: f64) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cathode matters in mid-charge: a nickel cell resting at 3.70 V is 40 % full, a
+    /// LiCoO2 one 17 %; the ends agree (the same 4.20 V / 2.90 V window).
+    #[test]
+    fn an_nmc_pack_reads_its_own_curve_not_the_lco_one() {
+        let (lco, nmc) = (
+            Chemistry::LiIon.default_curve(),
+            Chemistry::LiIonNmc.default_curve(),
+        );
+        assert!((nmc.soc(3.70) - 0.40).abs() < 0.01, "{}", nmc.soc(3.70));
+        assert!((lco.soc(3.70) - 0.17).abs() < 0.01, "{}", lco.soc(3.70));
+        for v in [2.9, 4.2] {
+            assert!((nmc.soc(v) - lco.soc(v)).abs() < 1e-9);
+        }
+        assert_eq!(Chemistry::LiIonNmc.full_v(), Chemistry::LiIon.full_v());
+    }
 
     #[test]
     fn full_3s_lipo_is_three_cells() {
@@ -301,6 +370,7 @@ mod tests {
             (Chemistry::LiPo, "lipo"),
             (Chemistry::LiHv, "lihv"),
             (Chemistry::LiIon, "liion"),
+            (Chemistry::LiIonNmc, "nmc"),
             (Chemistry::LiFePo4, "lifepo4"),
         ] {
             assert_eq!(Chemistry::parse_loose(name), Some(c));
@@ -311,6 +381,11 @@ mod tests {
         assert_eq!(Chemistry::from_name("nimh"), None);
         assert_eq!(Chemistry::parse_loose("Li-ion"), Some(Chemistry::LiIon));
         assert_eq!(Chemistry::parse_loose("LFP"), Some(Chemistry::LiFePo4));
+        assert_eq!(Chemistry::parse_loose("NCA"), Some(Chemistry::LiIonNmc));
+        assert_eq!(
+            Chemistry::parse_loose("Li-ion_NMC"),
+            Some(Chemistry::LiIonNmc)
+        );
         assert_eq!(Chemistry::parse_loose("nimh"), None);
     }
 }

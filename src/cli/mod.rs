@@ -76,7 +76,7 @@ pub struct RunArgs {
     data_dir: Option<PathBuf>,
     /// The vehicle's pack, when nothing else says: `<cells>S[<n>P]:<capacity>[:<chemistry>]`,
     /// e.g. `4S2P:5000mAh:li-ion` (capacity of the whole pack in mAh, Ah or Wh; chemistry
-    /// lipo, lihv, li-ion or lifepo4). Overrides the config's `[energy]` pack keys.
+    /// lipo, lihv, li-ion, nmc or lifepo4). Overrides the config's `[energy]` pack keys.
     #[arg(long, value_name = "SPEC")]
     pack: Option<String>,
     /// Ask the vehicle nothing (no parameter reads, no stream-rate requests): only listen.

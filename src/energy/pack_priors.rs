@@ -94,7 +94,7 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
             bias_v: 0.0,
             deep_a: crate::battery::deep::PRIOR_A,
             // chosen on ProgPy's 18650 packs: Li-ion's; a LiPo's curve keeps one resistance
-            deep_slope: if chem == Chemistry::LiIon {
+            deep_slope: if chem.is_li_ion() {
                 crate::battery::deep::PRIOR_SLOPE
             } else {
                 0.0
@@ -108,12 +108,12 @@ pub fn pack_model(facts: &BatteryFacts) -> Option<(OcvCurve, CircuitParams)> {
 }
 
 /// Whether the chemistry's default curve is a resting-voltage table whose energies are
-/// ∫OCV dq (Li-ion's, [`Chemistry::default_curve`]): its packs count energy at the
+/// ∫OCV dq (Li-ion's of either cathode, [`Chemistry::default_curve`]): its packs count energy at the
 /// open-circuit voltage and read their resting voltage corrected for the ground idle's I·R
 /// ([`rest_ocv`]). The TB48D's (and the LiHV shape from it) was fitted on terminal energy
 /// between voltages read at ground idle; LiPo and LiFePO4 are not yet measured on a peer.
 pub fn ocv_table(chem: Chemistry) -> bool {
-    chem == Chemistry::LiIon
+    chem.is_li_ion()
 }
 
 /// The open-circuit voltage a reading at a small discharge current stands for, V: `v + i·r`,

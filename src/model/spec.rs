@@ -81,7 +81,7 @@ fn pack_wh_per_kg(c: Chemistry) -> f64 {
     match c {
         Chemistry::LiPo => 150.0,
         Chemistry::LiHv => 160.0,
-        Chemistry::LiIon => 200.0,
+        Chemistry::LiIon | Chemistry::LiIonNmc => 200.0,
         // LiFePO4 packs: heavier cells, about 100-120 Wh/kg as packs.
         Chemistry::LiFePo4 => 110.0,
     }

@@ -90,7 +90,12 @@ fn chemistry_of(
         (Some(c), _) => Sourced::new(c, configured(cfg)),
         // Li-ion and LiFePO4 by the battery's type: MOT_BAT_VOLT_MAX (× 4.2) cannot tell
         // Li-ion from LiPo; MAVLink's type has no LiHV, so a "LiPo" at 4.35 a cell is one.
-        (None, _) if matches!(typed, Some(Chemistry::LiIon | Chemistry::LiFePo4)) => {
+        (None, _)
+            if matches!(
+                typed,
+                Some(Chemistry::LiIon | Chemistry::LiIonNmc | Chemistry::LiFePo4)
+            ) =>
+        {
             by_type(typed.unwrap_or(Chemistry::LiPo))
         }
         (None, Some((_, c))) => Sourced::new(c, Provenance::Parameter("MOT_BAT_VOLT_MAX".into())),
