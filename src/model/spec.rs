@@ -74,6 +74,11 @@ pub const DRAG_PER_KG23: f64 = 0.0249;
 pub const DRAG_LOG_SD: f64 = 0.5;
 /// Share of a plan's energy the drag term's error reaches at cruise (its weight in the spread).
 const DRAG_SHARE: f64 = 0.25;
+/// The share of the rotors' hover power that is the blades' profile power, 1 − the figure
+/// of merit (`[stolaroff] profile_share`, what the translational lift does not relieve and
+/// the parasite power does not pay): PLACEHOLDER, fitted leave-one-airframe-out on the
+/// airframes' cruise after their hover (`scripts/spec-priors.py`'s `profile_share_prior`).
+pub const PROFILE_SHARE: f64 = 0.0;
 /// Avionics (flight controller, GNSS, radios), W.
 pub const AVIONICS_W: f64 = 8.0;
 /// Pack specific energy, Wh/kg, by chemistry (typical published drone packs).
@@ -328,6 +333,7 @@ fn from_priors(f: &Facts, name: String, pr: &Priors, battery_kg: f64) -> Vehicle
             drag_area_m2: drag,
             p_avio_w: AVIONICS_W,
             eta_per_ln_mass: pr.eta_h_per_ln_dl,
+            profile_share: pr.profile_share,
         },
         ..m100
     };
@@ -543,14 +549,22 @@ struct Priors {
     drag_per_kg23: f64,
     /// d ln η_h / d ln(disk loading): how η grows with the mass flown (payload on board).
     eta_h_per_ln_dl: f64,
+    /// 1 − the figure of merit: the profile share of the hover power.
+    profile_share: f64,
 }
 
-/// `[priors] eta_h, eta_h_log_sd, drag_per_kg23, eta_h_per_ln_dl`, else the shipped ones (η_h
+/// `[priors] eta_h, eta_h_log_sd, drag_per_kg23, eta_h_per_ln_dl, profile_share`, else the shipped ones (η_h
 /// from the disk loading, which also sets how η_h grows with a payload): what the leave-one-airframe-out scoring passes, each fitted without the
 /// airframe scored.
 fn priors(t: &Table, f: &Facts) -> Result<Priors, String> {
     use crate::validate::{above_to, in_range};
-    const KEYS: [&str; 4] = ["eta_h", "eta_h_log_sd", "drag_per_kg23", "eta_h_per_ln_dl"];
+    const KEYS: [&str; 5] = [
+        "eta_h",
+        "eta_h_log_sd",
+        "drag_per_kg23",
+        "eta_h_per_ln_dl",
+        "profile_share",
+    ];
     if let Some(p) = t.get("priors").and_then(Value::as_table) {
         if let Some(k) = p.keys().find(|k| !KEYS.contains(&k.as_str())) {
             return Err(format!("priors.{k}: unknown ({})", KEYS.join(", ")));
@@ -565,11 +579,14 @@ fn priors(t: &Table, f: &Facts) -> Result<Priors, String> {
     in_range("priors.drag_per_kg23", drag, 0.0..=1.0, "m²/kg^(2/3)")?;
     let slope = num(t, "priors", "eta_h_per_ln_dl")?.unwrap_or(ETA_H_PER_LN_DL);
     in_range("priors.eta_h_per_ln_dl", slope, 0.0..=1.0, "")?;
+    let share = num(t, "priors", "profile_share")?.unwrap_or(PROFILE_SHARE);
+    in_range("priors.profile_share", share, 0.0..=0.9, "")?;
     Ok(Priors {
         eta_h: eta,
         eta_h_log_sd: sd,
         drag_per_kg23: drag,
         eta_h_per_ln_dl: slope,
+        profile_share: share,
     })
 }
 
