@@ -74,11 +74,11 @@ pub const DRAG_PER_KG23: f64 = 0.0249;
 pub const DRAG_LOG_SD: f64 = 0.5;
 /// Share of a plan's energy the drag term's error reaches at cruise (its weight in the spread).
 const DRAG_SHARE: f64 = 0.25;
-/// The share of the rotors' hover power that is the blades' profile power, 1 − the figure
-/// of merit (`[stolaroff] profile_share`, what the translational lift does not relieve and
-/// the parasite power does not pay): PLACEHOLDER, fitted leave-one-airframe-out on the
-/// airframes' cruise after their hover (`scripts/spec-priors.py`'s `profile_share_prior`).
-pub const PROFILE_SHARE: f64 = 0.0;
+/// The profile share of the hover power, 1 − the figure of merit (`[stolaroff]
+/// profile_share`: what translational lift does not relieve). 0.6, the bound of the grid
+/// 0–0.6 (a figure of merit of 0.4) that `scripts/profile-share-fit.py` chose, leave one
+/// airframe out, on every airframe: the peers' cruise and the M100's training flights.
+pub const PROFILE_SHARE: f64 = 0.6;
 /// Avionics (flight controller, GNSS, radios), W.
 pub const AVIONICS_W: f64 = 8.0;
 /// Pack specific energy, Wh/kg, by chemistry (typical published drone packs).
@@ -412,6 +412,9 @@ pub fn profile(mut t: Table, origin: &str) -> anyhow::Result<VehicleProfile> {
             "C_D·A {:.3} m²",
             pr.drag_per_kg23 * f.takeoff_kg.powf(2.0 / 3.0)
         ));
+    }
+    if !has(&t, "stolaroff", "profile_share") {
+        priors_used.push(format!("profile share {:.2}", pr.profile_share));
     }
     if !has(&t, "stolaroff", "p_avio_w") {
         priors_used.push(format!("avionics {AVIONICS_W} W"));
