@@ -20,8 +20,8 @@
 //! full profile (`[stolaroff] eta`, `[vehicle] diagonal_m`, `[battery]
 //! internal_resistance_ohm`, …) may be added and wins over the prior; a prior it replaces
 //! no longer widens the P90. `[vehicle] frame` (`tri`, `quad`, `hexa`, `octo`, `y6`, `x8`)
-//! is checked against `rotors`; `[priors] eta_h`, `eta_h_log_sd`, `drag_per_kg23` replace
-//! the hover efficiency and drag priors (what the leave-one-airframe-out scoring uses). The priors and their
+//! is checked against `rotors`; `[priors] eta_h`, `eta_h_log_sd`, `drag_per_kg23`,
+//! `eta_h_per_ln_dl`, `profile_share` replace the priors (what the leave-one-airframe-out scoring uses). The priors and their
 //! sources are the book's "Spec sheets" table (`scripts/spec-priors.py` fits η_h).
 
 use anyhow::Context;
