@@ -287,12 +287,14 @@ def main():
         eta0 = etas[peer.name]
         drag0, _ = priors.drag_prior(key)
         slope0 = priors.dl_slope(rows, key)
+        share0 = priors.profile_share_prior(key)
         sub = os.path.join(out, key)
         os.makedirs(sub, exist_ok=True)
-        r = fly_airframe(a, peer, (eta0, sd0, drag0, slope0), priors, sub)
+        r = fly_airframe(a, peer, (eta0, sd0, drag0, slope0, share0), priors, sub)
         r.update(airframe=peer.name, prior_held_out=dict(eta_h=round(eta0, 4), log_sd=round(sd0, 4), form=form,
                                                          inner_err=inner, drag_per_kg23=round(drag0, 4),
-                                                         eta_h_per_ln_dl=round(slope0, 4)),
+                                                         eta_h_per_ln_dl=round(slope0, 4),
+                                                         profile_share=round(share0, 3)),
                  figure_of_merit=round(peer.figure_of_merit(), 3), motor_eff=round(peer.motor_efficiency(), 3),
                  body_cda_m2=peer.cda, body_cda_source=peer.cda_source)
         res["airframes"][key] = r
@@ -314,7 +316,7 @@ def fly_airframe(a, peer, held_out, priors, out):
     """Fly the plans with one airframe; score each stage; the flights and their summary.
     `held_out`: the η_h prior, its log-sd, the drag per kg^(2/3) and η_h's slope in the disk
     loading, each fitted without it."""
-    eta0, sd0, drag0, slope0 = held_out
+    eta0, sd0, drag0, slope0, share0 = held_out
     results = []
     flights = FLIGHTS[-1:] if a.quick else FLIGHTS
     FLIGHTS_BY_INDEX.clear()
@@ -331,7 +333,7 @@ def fly_airframe(a, peer, held_out, priors, out):
                             chem=peer.chemistry)
         with open(spec, "w") as f:
             f.write(facts + f"[priors]\neta_h = {eta0:.4f}\neta_h_log_sd = {sd0:.4f}\ndrag_per_kg23 = {drag0:.5f}\n"
-                    f"eta_h_per_ln_dl = {slope0:.4f}\n")
+                    f"eta_h_per_ln_dl = {slope0:.4f}\nprofile_share = {share0:.3f}\n")
         p50, p90 = forecast(a.bin, plan, spec, speed, wind)
         stage = [dict(stage="spec", p50=p50, p90=p90)]
         hw = first_hover_w(rows_t)

@@ -57,6 +57,7 @@ eta_h = {eta:.4f}
 eta_h_log_sd = {sd:.4f}
 drag_per_kg23 = {drag:.5f}
 eta_h_per_ln_dl = {slope:.4f}
+profile_share = {share:.3f}
 """
 
 
@@ -123,6 +124,9 @@ def main():
                     help="the test flights (the book's table), or the training set's route flights (for choices)")
     ap.add_argument("--drag-area", type=float,
                     help="a check: the spec sheet's [stolaroff] drag_area_m2 instead of the drag prior")
+    ap.add_argument("--profile-share", type=float,
+                    help="the spec sheet's [priors] profile_share instead of the one fitted without the M100 "
+                         "(scripts/profile-share-fit.py's grid)")
     ap.add_argument("--every", type=int, default=1, help="a check: every Nth flight only")
     ap.add_argument("--plot", help="draw each flight's measured energy, the spec sheet's P50 and P90 and the after-hover P50 here")
     a = ap.parse_args()
@@ -132,6 +136,7 @@ def main():
     eta = etas["DJI M100 (published)"]
     drag, _ = priors.drag_prior("m100")
     slope = priors.dl_slope(rows, "m100")
+    share = a.profile_share if a.profile_share is not None else priors.profile_share_prior("m100")
     p90_ratio = math.exp(1.2816 * math.sqrt(sd ** 2 + (0.25 * 0.5) ** 2))
     hover_w, _ = priors.m100_hover_w()
     eta_hover = priors.ideal_hover_w(TAKEOFF_KG, 4, 0.3302) / (hover_w - AVIONICS_W)
@@ -139,7 +144,7 @@ def main():
     flights = []
     spec = os.path.join(out, "m100.toml")
     with open(spec, "w") as f:
-        f.write(SPEC.format(kg=TAKEOFF_KG, eta=eta, sd=sd, drag=drag, slope=slope))
+        f.write(SPEC.format(kg=TAKEOFF_KG, eta=eta, sd=sd, drag=drag, slope=slope, share=share))
         if a.drag_area is not None:
             f.write(f"[stolaroff]\ndrag_area_m2 = {a.drag_area}\n")
     for k, payload in sorted(payloads(a.flights).items())[::max(a.every, 1)]:
@@ -153,7 +158,7 @@ def main():
     med = lambda v: v[len(v) // 2] if len(v) % 2 else (v[len(v) // 2 - 1] + v[len(v) // 2]) / 2
     res = dict(hover=dict(hover_w=round(hover_w, 1), eta_h=round(eta_hover, 4)), prior_held_out=dict(
         eta_h=round(eta, 4), log_sd=round(sd, 4), form=form, inner_err=inner, drag_per_kg23=round(drag, 4),
-        eta_h_per_ln_dl=round(slope, 4)),
+        eta_h_per_ln_dl=round(slope, 4), profile_share=round(share, 3)),
                p90_ratio=round(p90_ratio, 3), flights=flights,
                summary=dict(spec=dict(median_abs_err_pct=round(med(errs), 1), flights=len(errs),
                                       p90_cover_pct=round(100 * sum(r["p90_covers"] for r in flights) / len(flights), 1)),

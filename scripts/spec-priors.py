@@ -134,6 +134,24 @@ def drag_prior(without=None):
     return math.exp(mu), rms * T90.get(len(pts) - 1, Z90) / Z90
 
 
+PROFILE_SHARE_JSON = os.path.join(HERE, "..", "docs", "src", "generated", "profile-share.json")
+
+
+def profile_share_prior(without=None):
+    """The profile share s (1 − the figure of merit, `[priors] profile_share`) fitted without
+    `without`'s airframe: scripts/profile-share-fit.py's grid, its rule (the s minimizing the
+    other airframes' mean after-hover median |error|); all three when `without` is None (the
+    shipped src/model/spec.rs PROFILE_SHARE). 0 (the form before the split) when the grid
+    was never run."""
+    if not os.path.exists(PROFILE_SHARE_JSON):
+        return 0.0
+    with open(PROFILE_SHARE_JSON) as f:
+        j = json.load(f)
+    if without is None:
+        return j["shipped"]["profile_share"]
+    return j["held_out"][without]["profile_share"]
+
+
 def dl_slope(rows, without=None):
     """d ln η_h / d ln(disk loading) across the airframes but `without`'s group (the disk
     loading's line): how η_h grows with the mass a vehicle flies (src/model/spec.rs

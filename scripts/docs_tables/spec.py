@@ -129,11 +129,33 @@ def peer_cruise(r):
     return out
 
 
+SHARE_JSON = OUT / "profile-share.json"
+SHARE_NAMES = {"t18": "Tarot T18 (peer)", "mavic": "DJI Mavic Pro (peer)", "m100": "DJI M100 (training flights, every 3rd)"}
+
+
+def profile_share(r):
+    """`scripts/profile-share-fit.py --json`: each airframe's plan error at each profile share,
+    and the share each held-out airframe gets (fitted on the others)."""
+    out = header("scripts/profile-share-fit.py --json").replace("dronewatt-lab scripts/", "scripts/")
+    keys = list(SHARE_NAMES)
+    rows = []
+    for s, by in r["grid"].items():
+        rows.append([s] + [f"{f(by[k]['spec']['median_abs_err_pct'], 1)} % / {f(by[k]['hover']['median_abs_err_pct'], 1)} %"
+                           for k in keys])
+    out += table(["profile share s"] + [f"{SHARE_NAMES[k]}: spec / after hover" for k in keys], rows)
+    out += "\n" + table(["held out", "s fitted on the other two", "their mean after-hover error"],
+                        [[SHARE_NAMES[k], f(v["profile_share"], 2), f"{f(v['mean_fitting_hover_err_pct'], 2)} %"]
+                         for k, v in r["held_out"].items()]
+                        + [["none (shipped)", f(r["shipped"]["profile_share"], 2),
+                            f"{f(r['shipped']['mean_hover_err_pct'], 2)} %"]])
+    return out
+
+
 def spec_tables(check=False):
     """Write the spec-sheet tables from their committed JSON (with `check`: the stale ones)."""
     stale = []
     jobs = [(SPEC_JSON, "spec-priors.md", spec_priors), (PEER_JSON, "peer-multirotor.md", peer_multirotor),
-            (CRUISE_JSON, "peer-cruise.md", peer_cruise)]
+            (CRUISE_JSON, "peer-cruise.md", peer_cruise), (SHARE_JSON, "profile-share.md", profile_share)]
     if PEER_JSON.exists():
         m100 = json.loads(M100_JSON.read_text()) if M100_JSON.exists() else None
         jobs.append((PEER_JSON, "spec-stages.md", lambda r: spec_stages(r, m100)))

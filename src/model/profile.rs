@@ -487,6 +487,12 @@ impl VehicleProfile {
         )?;
         pos("dorling.eta", self.dorling.eta)?;
         pos("stolaroff.eta", self.stolaroff.eta)?;
+        in_range(
+            "stolaroff.profile_share",
+            self.stolaroff.profile_share,
+            0.0..=0.9,
+            "",
+        )?;
         pos("kirschstein.eta", self.kirschstein.eta)?;
         pos("kirschstein.eta_c", self.kirschstein.eta_c)?;
         let fin = |k: &str, v: f64| in_range(k, v, .., "");

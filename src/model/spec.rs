@@ -20,8 +20,8 @@
 //! full profile (`[stolaroff] eta`, `[vehicle] diagonal_m`, `[battery]
 //! internal_resistance_ohm`, …) may be added and wins over the prior; a prior it replaces
 //! no longer widens the P90. `[vehicle] frame` (`tri`, `quad`, `hexa`, `octo`, `y6`, `x8`)
-//! is checked against `rotors`; `[priors] eta_h`, `eta_h_log_sd`, `drag_per_kg23` replace
-//! the hover efficiency and drag priors (what the leave-one-airframe-out scoring uses). The priors and their
+//! is checked against `rotors`; `[priors] eta_h`, `eta_h_log_sd`, `drag_per_kg23`,
+//! `eta_h_per_ln_dl`, `profile_share` replace the priors (what the leave-one-airframe-out scoring uses). The priors and their
 //! sources are the book's "Spec sheets" table (`scripts/spec-priors.py` fits η_h).
 
 use anyhow::Context;
@@ -74,6 +74,11 @@ pub const DRAG_PER_KG23: f64 = 0.0249;
 pub const DRAG_LOG_SD: f64 = 0.5;
 /// Share of a plan's energy the drag term's error reaches at cruise (its weight in the spread).
 const DRAG_SHARE: f64 = 0.25;
+/// The profile share of the hover power, 1 − the figure of merit (`[stolaroff]
+/// profile_share`: what translational lift does not relieve). 0.6, the bound of the grid
+/// 0–0.6 (a figure of merit of 0.4) that `scripts/profile-share-fit.py` chose, leave one
+/// airframe out, on every airframe: the peers' cruise and the M100's training flights.
+pub const PROFILE_SHARE: f64 = 0.6;
 /// Avionics (flight controller, GNSS, radios), W.
 pub const AVIONICS_W: f64 = 8.0;
 /// Pack specific energy, Wh/kg, by chemistry (typical published drone packs).
@@ -328,6 +333,7 @@ fn from_priors(f: &Facts, name: String, pr: &Priors, battery_kg: f64) -> Vehicle
             drag_area_m2: drag,
             p_avio_w: AVIONICS_W,
             eta_per_ln_mass: pr.eta_h_per_ln_dl,
+            profile_share: pr.profile_share,
         },
         ..m100
     };
@@ -406,6 +412,9 @@ pub fn profile(mut t: Table, origin: &str) -> anyhow::Result<VehicleProfile> {
             "C_D·A {:.3} m²",
             pr.drag_per_kg23 * f.takeoff_kg.powf(2.0 / 3.0)
         ));
+    }
+    if !has(&t, "stolaroff", "profile_share") {
+        priors_used.push(format!("profile share {:.2}", pr.profile_share));
     }
     if !has(&t, "stolaroff", "p_avio_w") {
         priors_used.push(format!("avionics {AVIONICS_W} W"));
@@ -543,14 +552,22 @@ struct Priors {
     drag_per_kg23: f64,
     /// d ln η_h / d ln(disk loading): how η grows with the mass flown (payload on board).
     eta_h_per_ln_dl: f64,
+    /// 1 − the figure of merit: the profile share of the hover power.
+    profile_share: f64,
 }
 
-/// `[priors] eta_h, eta_h_log_sd, drag_per_kg23, eta_h_per_ln_dl`, else the shipped ones (η_h
+/// `[priors] eta_h, eta_h_log_sd, drag_per_kg23, eta_h_per_ln_dl, profile_share`, else the shipped ones (η_h
 /// from the disk loading, which also sets how η_h grows with a payload): what the leave-one-airframe-out scoring passes, each fitted without the
 /// airframe scored.
 fn priors(t: &Table, f: &Facts) -> Result<Priors, String> {
     use crate::validate::{above_to, in_range};
-    const KEYS: [&str; 4] = ["eta_h", "eta_h_log_sd", "drag_per_kg23", "eta_h_per_ln_dl"];
+    const KEYS: [&str; 5] = [
+        "eta_h",
+        "eta_h_log_sd",
+        "drag_per_kg23",
+        "eta_h_per_ln_dl",
+        "profile_share",
+    ];
     if let Some(p) = t.get("priors").and_then(Value::as_table) {
         if let Some(k) = p.keys().find(|k| !KEYS.contains(&k.as_str())) {
             return Err(format!("priors.{k}: unknown ({})", KEYS.join(", ")));
@@ -565,11 +582,14 @@ fn priors(t: &Table, f: &Facts) -> Result<Priors, String> {
     in_range("priors.drag_per_kg23", drag, 0.0..=1.0, "m²/kg^(2/3)")?;
     let slope = num(t, "priors", "eta_h_per_ln_dl")?.unwrap_or(ETA_H_PER_LN_DL);
     in_range("priors.eta_h_per_ln_dl", slope, 0.0..=1.0, "")?;
+    let share = num(t, "priors", "profile_share")?.unwrap_or(PROFILE_SHARE);
+    in_range("priors.profile_share", share, 0.0..=0.9, "")?;
     Ok(Priors {
         eta_h: eta,
         eta_h_log_sd: sd,
         drag_per_kg23: drag,
         eta_h_per_ln_dl: slope,
+        profile_share: share,
     })
 }
 

@@ -215,3 +215,28 @@ fn the_hover_efficiency_prior_follows_the_disk_loading_within_the_fitted_range()
         p.stolaroff.eta
     );
 }
+
+#[test]
+fn the_profile_share_is_a_prior_a_file_may_replace_and_a_hover_calibrates_around_it() {
+    let p = load(FIVE).unwrap();
+    assert_eq!(p.stolaroff.profile_share, PROFILE_SHARE);
+    // the leave-one-airframe-out scoring passes its own; a profile's key wins over the prior
+    let held = load(&format!("{FIVE}[priors]\nprofile_share = 0.2\n")).unwrap();
+    assert_eq!(held.stolaroff.profile_share, 0.2);
+    let own = load(&format!("{FIVE}[stolaroff]\nprofile_share = 0.1\n")).unwrap();
+    assert_eq!(own.stolaroff.profile_share, 0.1);
+    let e = err(&format!("{FIVE}[priors]\nprofile_share = 0.95\n"));
+    assert!(e.contains("priors.profile_share"), "{e}");
+    let e = err(&format!("{FIVE}[stolaroff]\nprofile_share = -0.1\n"));
+    assert!(e.contains("stolaroff.profile_share"), "{e}");
+    // A measured hover of 180 W: the calibrated vehicle hovers at 180 W whatever the share
+    // (the split leaves T·v_h/η in a hover), and its η_h is the same at any share.
+    let hover = |c: &VehicleProfile| {
+        let k = kinematics(sample(1.0, [0.0; 3], 0.0, 0.0, 0.0, 0.0), c);
+        stolaroff::power_w(&k, c, &c.stolaroff)
+    };
+    let a = calibrate_hover(held, 180.0, 0.0).unwrap();
+    let b = calibrate_hover(own, 180.0, 0.0).unwrap();
+    assert!((hover(&a) - 180.0).abs() < 0.01 && (hover(&b) - 180.0).abs() < 0.01);
+    assert!((a.stolaroff.eta - b.stolaroff.eta).abs() < 1e-12);
+}

@@ -196,7 +196,13 @@ pub fn run_plan(a: PlanArgs) -> anyhow::Result<()> {
         profile.vehicle.class.unwrap_or_default()
     };
     let flight = profile.fixed_wing_flight.unwrap_or_default();
-    let tr = fly_as(class, &plan, &cfg.forecast.kinematics, &flight, &cond);
+    // a vehicle whose forecast is momentum theory with its own drag flies at its own tilt
+    let kinematics = if crate::energy::hover::follows_momentum_theory(&profile) {
+        cfg.forecast.kinematics.tilted_as(&profile, payload_g)
+    } else {
+        cfg.forecast.kinematics.clone()
+    };
+    let tr = fly_as(class, &plan, &kinematics, &flight, &cond);
     if tr.samples.is_empty() {
         anyhow::bail!(
             "{}: the plan flies nowhere (no take-off, no waypoint)",

@@ -142,6 +142,10 @@ fn own_forecast(
         .as_ref()
         .filter(|f| crate::energy::hover::follows_momentum_theory(vehicle) && runs(&f.model));
     if let Some(fd) = fd {
+        // its plans flown at its own tilt, as `plan` flies them
+        forecast.kinematics = forecast
+            .kinematics
+            .tilted_as(vehicle, cfg.mission.payload_g.map_or(0.0, f64::from));
         if !forecast.calibration.members.iter().any(|m| runs(&m.model)) {
             forecast.calibration = crate::mission::forecast::Calibration {
                 p90_ratio: fd.p90_ratio.unwrap_or(forecast.calibration.p90_ratio),

@@ -70,6 +70,39 @@ impl KinematicsConfig {
     }
 }
 
+impl KinematicsConfig {
+    /// The same kinematics with the thrust tilted as a body of drag area `drag_area_m2` (m²)
+    /// and mass `mass_kg` tilts it: tan θ = D / W = ½ρ·C_D·A·u² / (m·g), so
+    /// `tilt_per_airspeed2` = ρ·C_D·A / (2·m·g). The default (0.0016, 9° at 10 m/s) is the
+    /// M100's, as its data set shows; a vehicle whose forecast is momentum theory with its
+    /// own drag (a spec sheet's) flies its plans at its own tilt, so the member's parasite
+    /// power (thrust × the airspeed along the tilted thrust axis) is its own drag × airspeed,
+    /// not the M100's (a 10.7 kg octocopter at 0.0006 paid 2.6 × its drag's parasite power
+    /// at the M100's tilt). A value the configuration sets (another than the default) is
+    /// kept, and so is the default when the drag or the mass is not a number it can use.
+    pub fn with_tilt_of(mut self, drag_area_m2: f64, mass_kg: f64, rho: f64, g: f64) -> Self {
+        let own = rho * drag_area_m2 / (2.0 * mass_kg * g);
+        let unset = self.tilt_per_airspeed2 == Self::default().tilt_per_airspeed2;
+        if unset && own.is_finite() && own >= 0.0 && mass_kg > 0.0 {
+            self.tilt_per_airspeed2 = own;
+        }
+        self
+    }
+
+    /// [`Self::with_tilt_of`] the momentum-theory member's drag (`[stolaroff] drag_area_m2`)
+    /// and the profile's mass with `payload_g` on board: how `plan` and the live mission
+    /// forecast fly a vehicle whose forecast is that member (a spec sheet's, or the store's
+    /// hover-calibrated one).
+    pub fn tilted_as(&self, p: &crate::model::profile::VehicleProfile, payload_g: f64) -> Self {
+        self.clone().with_tilt_of(
+            p.stolaroff.drag_area_m2,
+            p.mass_kg(payload_g / 1000.0),
+            p.air.rho_kg_m3,
+            p.air.g_m_s2,
+        )
+    }
+}
+
 /// Ambient wind: speed and the bearing it blows from (meteorological convention).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct Wind {
@@ -126,4 +159,74 @@ pub struct Conditions {
     pub speed_m_s: Option<f64>,
     /// Sample rate, Hz (the models' rate).
     pub rate_hz: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::KinematicsConfig;
+
+    #[test]
+    fn the_tilt_is_the_vehicles_own_drag_over_its_weight() {
+        let k = KinematicsConfig::default().with_tilt_of(0.106, 10.66, 1.225, 9.81);
+        let c = 1.225 * 0.106 / (2.0 * 10.66 * 9.81);
+        assert!(
+            (k.tilt_per_airspeed2 - c).abs() < 1e-12,
+            "{}",
+            k.tilt_per_airspeed2
+        );
+        // at 10 m/s: tan θ = D / W
+        let d = 0.5 * 1.225 * 0.106 * 100.0;
+        assert!((k.tilt_per_airspeed2 * 100.0 - d / (10.66 * 9.81)).abs() < 1e-12);
+        // the rest of the kinematics is untouched
+        assert_eq!(
+            KinematicsConfig {
+                tilt_per_airspeed2: 0.0016,
+                ..k.clone()
+            },
+            KinematicsConfig::default()
+        );
+    }
+
+    #[test]
+    fn a_spec_sheet_flies_at_the_tilt_of_its_own_drag_and_loaded_mass() {
+        let p = crate::model::profile::VehicleProfile::from_toml(
+            "name = \"Spec quad\"\n[vehicle]\ntakeoff_kg = 1.3\nrotors = 4\nprop_diameter_m = 0.254\n\
+             [battery]\ncells = 3\ncapacity_mah = 5100\nchemistry = \"lipo\"\n",
+            "spec.toml",
+        )
+        .unwrap();
+        let (rho, g) = (p.air.rho_kg_m3, p.air.g_m_s2);
+        let cda = p.stolaroff.drag_area_m2;
+        assert!(
+            (cda - 0.0249 * 1.3f64.powf(2.0 / 3.0)).abs() < 1e-9,
+            "{cda}"
+        );
+        let k = KinematicsConfig::default().tilted_as(&p, 0.0);
+        let c = rho * cda / (2.0 * 1.3 * g);
+        assert!(
+            (k.tilt_per_airspeed2 - c).abs() < 1e-9,
+            "{}",
+            k.tilt_per_airspeed2
+        );
+        // 500 g on board: the same drag over a heavier weight tilts it less
+        let loaded = KinematicsConfig::default().tilted_as(&p, 500.0);
+        assert!((loaded.tilt_per_airspeed2 - c * 1.3 / 1.8).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_configured_tilt_or_an_unusable_drag_keeps_the_tilt() {
+        let set = KinematicsConfig {
+            tilt_per_airspeed2: 0.003,
+            ..KinematicsConfig::default()
+        };
+        assert_eq!(set.clone().with_tilt_of(0.1, 2.0, 1.225, 9.81), set);
+        let d = KinematicsConfig::default();
+        for (cda, kg) in [(f64::NAN, 2.0), (-0.1, 2.0), (0.1, 0.0), (0.1, f64::NAN)] {
+            assert_eq!(
+                d.clone().with_tilt_of(cda, kg, 1.225, 9.81),
+                d,
+                "{cda} {kg}"
+            );
+        }
+    }
 }
