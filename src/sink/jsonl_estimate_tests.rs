@@ -220,7 +220,7 @@ fn provenance(i: usize, text: &str) -> Provenance {
 }
 
 fn figure(v: &[f64], i: usize) -> Option<f64> {
-    (i % 3 != 0 || v[i].is_nan()).then_some(v[i])
+    (!i.is_multiple_of(3) || v[i].is_nan()).then_some(v[i])
 }
 
 /// A report from the drawn figures (`v`: f64s, `g`: f32s, `on`: which parts are there).
