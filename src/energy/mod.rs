@@ -86,8 +86,9 @@ pub struct EnergyTracker {
     /// The mission's mean power over the whole plan (W), from its first status, with its
     /// item count: the pack's forecast flies on at it past the mission's end.
     plan_mean_w: Option<(u16, f64)>,
-    /// Capacity and cells, with where they came from.
-    battery: BatteryFacts,
+    /// Capacity and cells, with where they came from (shared with each estimate's state).
+    #[serde(with = "crate::report::battery::shared")]
+    battery: std::sync::Arc<BatteryFacts>,
     /// What the vehicle said about itself, when it did.
     vehicle: VehicleParams,
     /// The first battery voltage seen, V (the cell count when nothing better says).
@@ -150,7 +151,7 @@ impl EnergyTracker {
             no_rise: steady::NoRise::default(),
             mission: None,
             plan_mean_w: None,
-            battery: crate::vehicle::battery_from_config(&cfg.battery()),
+            battery: crate::vehicle::battery_from_config(&cfg.battery()).into(),
             vehicle: VehicleParams::default(),
             first_voltage_v: None,
             learned_capacity: None,
@@ -263,7 +264,7 @@ impl EnergyTracker {
                 facts.cell_count.source
             );
         }
-        self.battery = facts;
+        self.battery = facts.into();
     }
 
     /// Account for one estimate.

@@ -162,6 +162,7 @@ fn learned_capacity_beats_the_vehicle_but_not_the_config() {
     let rated = st
         .battery
         .rated_capacity_wh
+        .clone()
         .expect("the rated capacity is kept beside");
     assert_eq!(rated.source.to_string(), "vehicle parameter BATT_CAPACITY");
     // Nonsense learned is ignored; the config always wins.

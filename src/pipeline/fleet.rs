@@ -328,7 +328,17 @@ pub struct Demux {
     vehicles: BTreeMap<VehicleId, Seen>,
     not_vehicles: std::collections::HashSet<VehicleId>,
     filtered: u64,
+    /// No vehicle can go lost or be dropped before this time (a bound a little early, see
+    /// [`Demux::advance`]): until then `advance` looks at no vehicle. A replay calls it on
+    /// every message, and a walk over every vehicle a message was ~3 % of a flat-out
+    /// 250-vehicle replay's CPU.
+    next_due_s: f64,
 }
+
+/// How much earlier than its exact time a vehicle's next deadline is kept: `now - last >=
+/// after` is checked by the walk itself, so a bound this far early cannot skip a walk that
+/// would have reported something (rounding in `last + after` is far below it).
+const DUE_SLACK_S: f64 = 1e-3;
 
 impl Demux {
     /// A demultiplexer for this configuration (checked: [`FleetConfig::validate`]);
@@ -347,6 +357,7 @@ impl Demux {
             vehicles: BTreeMap::new(),
             not_vehicles: Default::default(),
             filtered: 0,
+            next_due_s: f64::INFINITY,
         })
     }
 
@@ -387,6 +398,12 @@ impl Demux {
         if let Some(v) = self.vehicles.get_mut(&id) {
             v.last_t = v.last_t.max(m.t_s);
             let back = std::mem::take(&mut v.lost);
+            if back {
+                // Lost, its next deadline was the drop; now it is the loss again.
+                self.next_due_s = self
+                    .next_due_s
+                    .min(v.last_t + self.lost_after_s - DUE_SLACK_S);
+            }
             return Route::Vehicle {
                 id,
                 new: false,
@@ -411,6 +428,7 @@ impl Demux {
                 lost: false,
             },
         );
+        self.next_due_s = self.next_due_s.min(m.t_s + self.lost_after_s - DUE_SLACK_S);
         Route::Vehicle {
             id,
             new: true,
@@ -420,8 +438,16 @@ impl Demux {
 
     /// Time is now `now_s` (the source's clock): push the vehicles that went lost or must be
     /// dropped onto `out`. A dropped vehicle is forgotten.
+    ///
+    /// Each vehicle's next deadline (lost, or dropped once lost) only moves later as it is
+    /// heard, so the earliest of them, noted at each walk and lowered when a vehicle is new
+    /// or back, is a bound: before it, nothing can happen and no vehicle is looked at.
     pub fn advance(&mut self, now_s: f64, out: &mut Vec<FleetEvent>) {
+        if now_s < self.next_due_s {
+            return;
+        }
         let (lost_after, drop_after) = (self.lost_after_s, self.drop_after_s);
+        let mut next_due = f64::INFINITY;
         self.vehicles.retain(|&id, v| {
             let silent_s = now_s - v.last_t;
             if silent_s >= drop_after {
@@ -440,8 +466,11 @@ impl Demux {
                     silent_s,
                 });
             }
+            let after = if v.lost { drop_after } else { lost_after };
+            next_due = next_due.min(v.last_t + after - DUE_SLACK_S);
             true
         });
+        self.next_due_s = next_due;
     }
 
     /// The vehicles present now, by network and system id.

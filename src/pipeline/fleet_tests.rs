@@ -243,3 +243,30 @@ fn the_same_system_id_on_two_networks_is_two_vehicles() {
     assert_eq!((a.to_string(), b.to_string()), ("1:1".into(), "2:1".into()));
     assert_eq!(ONE.to_string(), "1", "on the only network, as always");
 }
+
+proptest::proptest! {
+    /// The bound that lets `advance` skip its walk changes nothing: the same messages and
+    /// clock give the same lost, back and dropped events, in the same order, as a walk over
+    /// every vehicle at every step (the bound forced off), gaps around both thresholds.
+    #[test]
+    fn advance_with_its_bound_says_what_a_walk_every_time_says(
+        steps in proptest::collection::vec((1u32..5, 0.0f64..25.0, proptest::bool::ANY), 1..120),
+    ) {
+        let cfg = FleetConfig::default();
+        let (mut fast, mut walk) = (Demux::new(&cfg, None).unwrap(), Demux::new(&cfg, None).unwrap());
+        let quad = hb(MavType::MAV_TYPE_QUADROTOR, MavAutopilot::MAV_AUTOPILOT_PX4);
+        let (mut t, mut said_fast, mut said_walk) = (0.0, Vec::new(), Vec::new());
+        for (sys, dt, send) in steps {
+            t += dt;
+            if send {
+                let m = msg(sys, t, quad.clone());
+                proptest::prop_assert_eq!(fast.route(&m), walk.route(&m));
+            }
+            fast.advance(t, &mut said_fast);
+            walk.next_due_s = f64::NEG_INFINITY;
+            walk.advance(t, &mut said_walk);
+            proptest::prop_assert_eq!(&said_fast, &said_walk);
+        }
+        proptest::prop_assert_eq!(fast.vehicles().collect::<Vec<_>>(), walk.vehicles().collect::<Vec<_>>());
+    }
+}

@@ -166,3 +166,23 @@ impl BatteryFacts {
 
 /// How the M100's pack is named where it is the pack ([`BatteryFacts::m100`]).
 pub const M100_PACK: &str = "the M100's pack (DJI TB48D)";
+
+/// Serde for facts shared behind an `Arc` (the energy tracker's, each estimate's state):
+/// written and read as the facts themselves (serde's `rc` feature is not on).
+pub(crate) mod shared {
+    use super::BatteryFacts;
+    use std::sync::Arc;
+
+    pub(crate) fn serialize<S: serde::Serializer>(
+        b: &Arc<BatteryFacts>,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(b.as_ref(), s)
+    }
+
+    pub(crate) fn deserialize<'de, D: serde::Deserializer<'de>>(
+        d: D,
+    ) -> Result<Arc<BatteryFacts>, D::Error> {
+        <BatteryFacts as serde::Deserialize>::deserialize(d).map(Arc::new)
+    }
+}

@@ -53,14 +53,12 @@
 use std::io::Write;
 
 use anyhow::Context;
-use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 use tokio::task::JoinHandle;
 
 use super::{JsonTarget, ReportRx};
-use crate::features::FEATURE_NAMES;
 use crate::report::status::{ChainStatus, LatencySummary, StatsSnapshot};
-use crate::report::{Provenance, Report};
+use crate::report::Report;
 
 /// Open the target now (so a bad path fails before the run) and write on a blocking thread.
 pub fn spawn(
@@ -82,12 +80,18 @@ pub fn spawn(
         let mut w = std::io::BufWriter::new(out);
         let mut reports = 0u64;
         let mut kinds: Vec<String> = Vec::new();
+        // The kinds already described: a report of one of them allocates nothing.
+        let mut seen: Vec<crate::features::VehicleKind> = Vec::new();
         let run = (|| -> std::io::Result<()> {
             while let Some(r) = rx.blocking_next() {
                 reports += 1;
-                let kind = r.estimate.sample.vehicle.describe();
-                if !kinds.contains(&kind) {
-                    kinds.push(kind);
+                let kind = r.estimate.sample.vehicle;
+                if !seen.contains(&kind) {
+                    seen.push(kind);
+                    let said = kind.describe();
+                    if !kinds.contains(&said) {
+                        kinds.push(said);
+                    }
                 }
                 write_report(&mut w, &r)?;
                 if rx.is_empty() {
@@ -107,17 +111,7 @@ pub fn spawn(
 
 /// Write the lines for one report.
 pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
-    let e = &r.estimate;
-    let s = &e.sample;
-    write_line(
-        w,
-        &WindowLine {
-            head: Head::new("window", r.vehicle),
-            t: e.t_s,
-            measured_w: s.measured_w,
-            features: Features(&s.features),
-        },
-    )?;
+    super::jsonl_window::write_window(w, r)?;
     write_estimate(w, r)?;
     for a in &r.alerts {
         write_alert(w, r.vehicle, a)?;
@@ -125,59 +119,9 @@ pub fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Write a report's `estimate` line.
+/// Write a report's `estimate` line (written by hand in `sink/jsonl_estimate.rs`; the module docs' shape).
 pub fn write_estimate(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
-    let e = &r.estimate;
-    let b = &r.energy.battery;
-    let s = &e.sample;
-    write_line(
-        w,
-        &EstimateLine {
-            head: Head::new("estimate", r.vehicle),
-            t: e.t_s,
-            vehicle_class: s.vehicle.class,
-            mav_type: s.vehicle.mav_type,
-            vtol_state: (s.vehicle.class == crate::features::VehicleClass::Vtol)
-                .then(|| s.vehicle.vtol_state.as_str()),
-            measured_w: s.measured_w,
-            models: PerModel {
-                models: &e.models,
-                figure: |m| Some(m.power_w),
-            },
-            bands: PerModel {
-                models: &e.models,
-                figure: |m| m.band_w.map(|(lo, hi)| [lo, hi]),
-            },
-            energy_used_wh: r.energy.energy_used_wh,
-            remaining_wh: r.energy.remaining_wh,
-            remaining_pct: r.energy.remaining_pct,
-            remaining_source: r.energy.remaining_source,
-            time_to_empty_s: r.energy.time_to_empty_s,
-            home_margin_wh: r.energy.home_margin_wh,
-            mission_energy_wh: r.energy.mission_energy_wh,
-            mission_margin_wh: r.energy.mission_margin_wh,
-            adapted: PerModel {
-                models: &e.models,
-                figure: |m| m.adapted_w,
-            },
-            forecast_adapted: r.energy.forecast_adapted,
-            forecast_model: r.energy.forecast_model.as_deref(),
-            forecast_why: r.energy.forecast_why.as_deref(),
-            hover_calibration: r.energy.hover_calibration.as_ref(),
-            // Not known: null, and the source says why (never another vehicle's pack).
-            capacity_wh: b.capacity(),
-            capacity_source: b.capacity_source(),
-            cell_count: b.cell_count.value,
-            cell_count_source: &b.cell_count.source,
-            chemistry: &b.chemistry.value,
-            chemistry_source: &b.chemistry.source,
-            pack: &r.energy.pack,
-            low_voltage_v: b.low_voltage_v.as_ref().map(|v| v.value),
-            low_voltage_source: b.low_voltage_v.as_ref().map(|v| &v.source),
-            critical_voltage_v: b.critical_voltage_v.as_ref().map(|v| v.value),
-            critical_voltage_source: b.critical_voltage_v.as_ref().map(|v| &v.source),
-        },
-    )
+    super::jsonl_estimate::write_estimate(w, r)
 }
 
 /// Write one `alert` line about `vehicle`.
@@ -243,129 +187,6 @@ impl Head {
             system_id: vehicle.system_id,
             network: vehicle.network_field(),
         }
-    }
-}
-
-#[derive(Serialize)]
-struct WindowLine<'a> {
-    #[serde(flatten)]
-    head: Head,
-    t: f64,
-    measured_w: Option<f32>,
-    features: Features<'a>,
-}
-
-/// The feature vector as a name → value object.
-struct Features<'a>(&'a [f32; crate::features::N_FEATURES]);
-
-impl Serialize for Features<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut m = s.serialize_map(Some(FEATURE_NAMES.len()))?;
-        for (name, v) in FEATURE_NAMES.iter().zip(self.0) {
-            m.serialize_entry(name, v)?;
-        }
-        m.end()
-    }
-}
-
-#[derive(Serialize)]
-struct EstimateLine<'a> {
-    #[serde(flatten)]
-    head: Head,
-    t: f64,
-    /// The vehicle class (`features::class`): which models apply.
-    vehicle_class: crate::features::VehicleClass,
-    /// The HEARTBEAT's MAV_TYPE number; absent before one is heard.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    mav_type: Option<u8>,
-    /// A VTOL's state (`mc`, `fw`, `transition_to_fw`, `transition_to_mc`, `undefined`);
-    /// absent for other classes.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    vtol_state: Option<&'static str>,
-    measured_w: Option<f32>,
-    models: PerModel<'a, f32>,
-    /// `{"<name>": [low_w, high_w]}` for the models that give an uncertainty band (the LSTM's
-    /// 5 %/95 % quantiles); absent when none does.
-    #[serde(skip_serializing_if = "PerModel::is_empty")]
-    bands: PerModel<'a, [f32; 2]>,
-    energy_used_wh: f64,
-    /// Energy left to the usable floor, Wh, and where the start state came from
-    /// (`resting voltage`, `battery`: the autopilot's %, `assumed full`).
-    remaining_wh: Option<f64>,
-    /// The state of charge every view shows (`sink::pilot`): `remaining_wh` as a share of
-    /// the usable pack, %.
-    remaining_pct: Option<f64>,
-    remaining_source: crate::report::RemainingSource,
-    time_to_empty_s: Option<f64>,
-    home_margin_wh: Option<f64>,
-    /// While a mission is known (`crate::mission::live`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    mission_energy_wh: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    mission_margin_wh: Option<f64>,
-    /// `{"<name>": watts}`: each model adapted to measured power (`model::adapt`); absent
-    /// when adaptation is off.
-    #[serde(skip_serializing_if = "PerModel::is_empty")]
-    adapted: PerModel<'a, f32>,
-    /// Whether the forecast follows the forecast model adapted to measured power.
-    forecast_adapted: bool,
-    /// The model the forecast follows (null: measured power), and why (`energy::select`).
-    forecast_model: Option<&'a str>,
-    forecast_why: Option<&'a str>,
-    /// The first hover's measured power and the hover efficiency it set
-    /// (`energy::hover`), once measured; absent before.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    hover_calibration: Option<&'a crate::report::hover::HoverCalibration>,
-    /// Battery capacity the energy figures use, Wh, and where it came from (`config`,
-    /// `vehicle parameter BATT_CAPACITY`, `--pack …` …); null when it is not known, the
-    /// source then saying why (`remaining_source` `capacity not known`).
-    capacity_wh: Option<f64>,
-    capacity_source: String,
-    /// Cells in series, and where that came from.
-    cell_count: u32,
-    cell_count_source: &'a Provenance,
-    /// Cell chemistry (`lipo`, `lihv`, `liion`), and where that came from.
-    chemistry: &'a str,
-    chemistry_source: &'a Provenance,
-    /// The pack model: `battery_v`, `battery_v_model`, `battery_ocv_v`, `battery_rest_v`,
-    /// `soc_pct`, `internal_r_ohm`, `v_min_forecast_v`, `v_min_forecast_at_s`,
-    /// `time_to_low_v_s`, `low_threshold_v`, [`battery_pct_disagreement`].
-    #[serde(flatten)]
-    pack: &'a crate::report::PackState,
-    /// The autopilot's low and critical pack voltages, V, and where they came from; absent
-    /// when the vehicle did not say.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    low_voltage_v: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    low_voltage_source: Option<&'a Provenance>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    critical_voltage_v: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    critical_voltage_source: Option<&'a Provenance>,
-}
-
-/// One figure of each model as a name → value object (`models`: watts; `adapted`: the
-/// adapted watts; `bands`: [low, high] watts), leaving out the models that lack it.
-struct PerModel<'a, T> {
-    models: &'a [crate::report::ModelEstimate],
-    figure: fn(&crate::report::ModelEstimate) -> Option<T>,
-}
-
-impl<T> PerModel<'_, T> {
-    fn is_empty(&self) -> bool {
-        self.models.iter().all(|m| (self.figure)(m).is_none())
-    }
-}
-
-impl<T: Serialize> Serialize for PerModel<'_, T> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut m = s.serialize_map(None)?;
-        for e in self.models {
-            if let Some(v) = (self.figure)(e) {
-                m.serialize_entry(&e.name, &v)?;
-            }
-        }
-        m.end()
     }
 }
 

@@ -230,7 +230,7 @@ impl EstimateIn {
             mission_margin_wh: self.mission_margin_wh,
             forecast_adapted: self.forecast_adapted,
             pack,
-            battery,
+            battery: battery.into(),
             hover_calibration: self.hover_calibration,
             ..EnergyState::default()
         };
@@ -392,7 +392,7 @@ mod tests {
                 mission_margin_wh: Some(90.0),
                 forecast_adapted: true,
                 pack,
-                battery,
+                battery: battery.into(),
                 ..EnergyState::default()
             },
             alerts: Vec::new(),
@@ -414,7 +414,7 @@ mod tests {
         for r in [full(), {
             let mut r = full();
             r.vehicle = VehicleId::single(1);
-            r.energy.battery = BatteryFacts::default();
+            r.energy.battery = BatteryFacts::default().into();
             r.energy.remaining_wh = None;
             r.estimate.sample.vehicle = VehicleKind::default();
             r

@@ -9,7 +9,9 @@
 //! counts them ([`ReportRx::missed`]) and says so, never silently.
 
 pub mod jsonl;
+mod jsonl_estimate;
 pub mod jsonl_read;
+mod jsonl_window;
 pub mod pilot;
 pub mod screen;
 pub mod terminal;

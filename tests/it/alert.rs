@@ -358,7 +358,8 @@ fn vehicle_voltage_below_follows_the_autopilots_own_threshold() {
         battery: BatteryFacts {
             low_voltage_v: Some(low),
             ..Default::default()
-        },
+        }
+        .into(),
         ..Default::default()
     };
     assert!(eng.evaluate(&at(1.0, 14.7), &en).is_empty());

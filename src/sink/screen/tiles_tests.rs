@@ -35,7 +35,7 @@ fn report() -> Arc<Report> {
             route_en_m: Default::default(),
             route_at: 0,
         }),
-        battery: BatteryFacts::m100(),
+        battery: BatteryFacts::m100().into(),
         ..Default::default()
     };
     e.pack.battery_v = Some(50.42);
