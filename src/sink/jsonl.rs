@@ -172,7 +172,7 @@ fn write_line(w: &mut impl Write, v: &impl Serialize) -> std::io::Result<()> {
 /// What every line about one vehicle begins with: its type, the vehicle's system id, and
 /// its network where the links are separate networks.
 #[derive(Serialize)]
-struct Head {
+pub(super) struct Head {
     #[serde(rename = "type")]
     kind: &'static str,
     system_id: u8,
@@ -181,7 +181,7 @@ struct Head {
 }
 
 impl Head {
-    fn new(kind: &'static str, vehicle: crate::report::VehicleId) -> Self {
+    pub(super) fn new(kind: &'static str, vehicle: crate::report::VehicleId) -> Self {
         Head {
             kind,
             system_id: vehicle.system_id,

@@ -13,25 +13,8 @@ use proptest::prelude::*;
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 
-/// What every line about one vehicle began with (as `sink::jsonl::Head`).
-#[derive(Serialize)]
-struct Head {
-    #[serde(rename = "type")]
-    kind: &'static str,
-    system_id: u8,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    network: Option<u8>,
-}
-
-impl Head {
-    fn new(kind: &'static str, vehicle: VehicleId) -> Self {
-        Head {
-            kind,
-            system_id: vehicle.system_id,
-            network: vehicle.network_field(),
-        }
-    }
-}
+/// What every line about one vehicle begins with (the derived head the other lines still use).
+use crate::sink::jsonl::Head;
 
 /// The `estimate` line as serde wrote it before (the reference).
 fn by_serde(w: &mut Vec<u8>, r: &Report) -> std::io::Result<()> {

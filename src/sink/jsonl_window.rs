@@ -83,16 +83,9 @@ mod tests {
     use serde::ser::{SerializeMap, Serializer};
     use serde::Serialize;
 
-    /// The derived line the hand-written one replaced, as it was.
-    #[derive(Serialize)]
-    struct Head {
-        #[serde(rename = "type")]
-        kind: &'static str,
-        system_id: u8,
-        #[serde(skip_serializing_if = "Option::is_none")]
-        network: Option<u8>,
-    }
+    use crate::sink::jsonl::Head;
 
+    /// The derived line the hand-written one replaced, as it was.
     #[derive(Serialize)]
     struct WindowLine<'a> {
         #[serde(flatten)]
@@ -117,11 +110,7 @@ mod tests {
     fn by_serde(r: &Report) -> Vec<u8> {
         let e = &r.estimate;
         let mut out = serde_json::to_vec(&WindowLine {
-            head: Head {
-                kind: "window",
-                system_id: r.vehicle.system_id,
-                network: r.vehicle.network_field(),
-            },
+            head: Head::new("window", r.vehicle),
             t: e.t_s,
             measured_w: e.sample.measured_w,
             features: Features(&e.sample.features),

@@ -76,23 +76,11 @@ class TrendPeak(TrendSE):
 
     def ttl(s, low, cap_wh):
         """TrendSE.ttl (its steepened slope, its level at now) at P = max(peak, recent)."""
-        if s.n < 10 or s.coef is None or s.pw <= 0:
+        k = None if s.pw <= 0 else s.steepened()
+        if k is None:
             return None
-        neff = s.w1 * s.w1 / max(s.w2, 1e-12)
-        S = s.S.copy()
-        S[2, 2] += 1e-3 * S[0, 0]
-        ssr = max(s.vv - 2 * s.coef @ s.r + s.coef @ S @ s.coef, 0.0)
-        var = ssr / max(s.w1, 1e-12) * neff / max(neff - 3.0, 1.0)
-        try:
-            se_b = math.sqrt(max(var * np.linalg.inv(S)[1, 1] * s.w1 / neff, 0.0))
-        except np.linalg.LinAlgError:
-            return None
-        a, b, c = s.coef
-        b -= s.z * se_b
+        a, b, c = k
         p = max(s.peak, s.pw)
-        c = min(c, 0.0)
-        if b >= -1e-12:
-            return None
         return max((a + b * s.x + c * p / low - s.dip - low) / (-b * p / s.pw), 0.0)
 
 

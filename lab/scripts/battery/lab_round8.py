@@ -158,7 +158,9 @@ class TrendSE(Trend):
         s.vv, s.w1, s.w2 = s.vv + v * v, s.w1 + 1.0, s.w2 + 1.0
         Trend.add(s, t, v, i, soc, q)
 
-    def ttl(s, low, cap_wh):
+    def steepened(s):
+        """The fit's (a, b, c) with the slope b steepened by z standard errors and the power
+        term c floored at 0, or None (too few samples, a singular fit, a slope not falling)."""
         if s.n < 10 or s.coef is None:
             return None
         neff = s.w1 * s.w1 / max(s.w2, 1e-12)
@@ -172,10 +174,14 @@ class TrendSE(Trend):
             return None
         a, b, c = s.coef
         b -= s.z * se_b
-        c, p = min(c, 0.0), s.pw
-        if b >= -1e-12:
+        return None if b >= -1e-12 else (a, b, min(c, 0.0))
+
+    def ttl(s, low, cap_wh):
+        k = s.steepened()
+        if k is None:
             return None
-        return max((a + b * s.x + c * p / low - s.dip - low) / -b, 0.0)
+        a, b, c = k
+        return max((a + b * s.x + c * s.pw / low - s.dip - low) / -b, 0.0)
 
 
 class ShapeQ(Shape):
