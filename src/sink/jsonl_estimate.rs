@@ -107,41 +107,42 @@ pub(super) fn write_estimate(w: &mut impl Write, r: &Report) -> io::Result<()> {
 
 /// The pack model's fields, flat in the line (`PackState`'s own serde order and skips).
 fn pack(w: &mut impl Write, p: &PackState) -> io::Result<()> {
-    let figures: [(&[u8], Option<f64>); 6] = [
-        (b",\"battery_v\":", p.battery_v),
-        (b",\"battery_v_model\":", p.battery_v_model),
-        (b",\"battery_ocv_v\":", p.battery_ocv_v),
-        (b",\"battery_rest_v\":", p.battery_rest_v),
-        (b",\"soc_pct\":", p.soc_pct),
-        (b",\"soc_band_pct\":", p.soc_band_pct),
-    ];
-    for (key, v) in figures {
-        w.write_all(key)?;
-        opt_f64(w, v)?;
-    }
+    opt_figures(
+        w,
+        &[
+            (b",\"battery_v\":", p.battery_v),
+            (b",\"battery_v_model\":", p.battery_v_model),
+            (b",\"battery_ocv_v\":", p.battery_ocv_v),
+            (b",\"battery_rest_v\":", p.battery_rest_v),
+            (b",\"soc_pct\":", p.soc_pct),
+            (b",\"soc_band_pct\":", p.soc_band_pct),
+        ],
+    )?;
     w.write_all(b",\"pack_start\":")?;
     opt_text(w, p.pack_start)?;
     w.write_all(b",\"pack_withheld\":")?;
     opt_text(w, p.pack_withheld)?;
-    let figures: [(&[u8], Option<f64>); 5] = [
-        (b",\"internal_r_ohm\":", p.internal_r_ohm),
-        (b",\"v_min_forecast_v\":", p.v_min_forecast_v),
-        (b",\"v_min_forecast_at_s\":", p.v_min_forecast_at_s),
-        (b",\"time_to_low_v_s\":", p.time_to_low_v_s),
-        (b",\"low_threshold_v\":", p.low_threshold_v),
-    ];
-    for (key, v) in figures {
-        w.write_all(key)?;
-        opt_f64(w, v)?;
-    }
+    opt_figures(
+        w,
+        &[
+            (b",\"internal_r_ohm\":", p.internal_r_ohm),
+            (b",\"v_min_forecast_v\":", p.v_min_forecast_v),
+            (b",\"v_min_forecast_at_s\":", p.v_min_forecast_at_s),
+            (b",\"time_to_low_v_s\":", p.time_to_low_v_s),
+            (b",\"low_threshold_v\":", p.low_threshold_v),
+        ],
+    )?;
     if let Some(v) = p.battery_pct_disagreement {
         w.write_all(b",\"battery_pct_disagreement\":")?;
         f64_or_null(w, v)?;
     }
-    w.write_all(b",\"battery_end_rest_v\":")?;
-    opt_f64(w, p.battery_end_rest_v)?;
-    w.write_all(b",\"pack_r_scale\":")?;
-    opt_f64(w, p.pack_r_scale)?;
+    opt_figures(
+        w,
+        &[
+            (b",\"battery_end_rest_v\":", p.battery_end_rest_v),
+            (b",\"pack_r_scale\":", p.pack_r_scale),
+        ],
+    )?;
     w.write_all(b",\"pack_carried_over\":")?;
     CompactFormatter.write_bool(w, p.pack_carried_over)
 }
@@ -189,6 +190,15 @@ fn opt_f64(w: &mut impl Write, v: Option<f64>) -> io::Result<()> {
         Some(v) => f64_or_null(w, v),
         None => w.write_all(b"null"),
     }
+}
+
+/// Each `(key, figure)` in turn: the key's bytes (`,"name":`), then the figure or `null`.
+fn opt_figures(w: &mut impl Write, figures: &[(&[u8], Option<f64>)]) -> io::Result<()> {
+    for (key, v) in figures {
+        w.write_all(key)?;
+        opt_f64(w, *v)?;
+    }
+    Ok(())
 }
 
 fn opt_text(w: &mut impl Write, s: Option<&str>) -> io::Result<()> {

@@ -84,22 +84,13 @@ class TrendPeak(TrendSE):
         return max((a + b * s.x + c * p / low - s.dip - low) / (-b * p / s.pw), 0.0)
 
 
-class ShapeAged(ShapeQ):
+class ShapeAged(lab_round9.FitAged, ShapeQ):
     """The knee (round 7's shape) silent until its fit has run min_fit_s (round 9's age rule for
     the line: a 1 Hz flight has few samples before it)."""
 
     def __init__(s, n, tau, beta, taud, min_fit_s):
         ShapeQ.__init__(s, n, tau, beta, taud=taud)
         s.min_fit_s, s.t_fit0 = min_fit_s, None
-
-    def add(s, t, v, i, soc, q):
-        s.t_fit0 = t if s.t_fit0 is None else s.t_fit0
-        ShapeQ.add(s, t, v, i, soc, q)
-
-    def ttl(s, low, cap_wh):
-        if s.t_fit0 is None or s.t - s.t_fit0 < s.min_fit_s:
-            return None
-        return ShapeQ.ttl(s, low, cap_wh)
 
 
 def rest_gate(fl):

@@ -26,7 +26,6 @@ where shipped is late once: it FAILS the rule. Nothing ships; score4 is not flow
 (it stays unseen). For the record, not scored: the full-fit choice under the same limit is the
 fit-60-s knee above (loss10 0.927, late 1, median 40 %).
 """
-import argparse
 import json
 import math
 import os
@@ -51,14 +50,7 @@ def chosen_on_all_limited(cands):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--dir", required=True)
-    ap.add_argument("--bin", required=True, help="the shipped dronewatt: its soc, capacity and time")
-    ap.add_argument("--set", default="fit")
-    ap.add_argument("--json", default=None)
-    ap.add_argument("--only", action="append", default=None,
-                    help="a held-out set: print only the shipped model and these rows, no CV")
-    a = ap.parse_args()
+    a = lab_round8.arg_parser(only_many=True).parse_args()
     # round 10's cache of the same set and binary (the flights replayed once)
     fl = lab_round8.cached_load(a, "lab_round10")
     sh = shipped(fl)

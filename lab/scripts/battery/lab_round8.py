@@ -289,14 +289,18 @@ def candidates(fl):
     return c
 
 
-def arg_parser():
-    """The arguments every round's lab script takes."""
+def arg_parser(only_many=False):
+    """The arguments every round's lab script takes (`only_many`: --only may be repeated)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--dir", required=True)
     ap.add_argument("--bin", required=True, help="the shipped dronewatt: its soc, capacity and time")
     ap.add_argument("--set", default="fit")
     ap.add_argument("--json", default=None)
-    ap.add_argument("--only", default=None, help="a held-out set: print only the shipped model and this row, no CV")
+    if only_many:
+        ap.add_argument("--only", action="append", default=None,
+                        help="a held-out set: print only the shipped model and these rows, no CV")
+    else:
+        ap.add_argument("--only", default=None, help="a held-out set: print only the shipped model and this row, no CV")
     return ap
 
 

@@ -51,21 +51,26 @@ REST_WINDOW_S = 30.0  # the rest stretch's last seconds that are read
 RISE_V_CELL = 0.002  # a rest voltage rising more than this a cell: still recovering from a discharge
 
 
-class TrendAged(TrendSE):
+class FitAged:
+    """A fit (listed after this in the bases) silent until it has run min_fit_s: set
+    `s.min_fit_s` and `s.t_fit0 = None` in __init__."""
+
+    def add(s, t, v, i, soc, q):
+        s.t_fit0 = t if s.t_fit0 is None else s.t_fit0
+        super().add(t, v, i, soc, q)
+
+    def ttl(s, low, cap_wh):
+        if s.t_fit0 is None or s.t - s.t_fit0 < s.min_fit_s:
+            return None
+        return super().ttl(low, cap_wh)
+
+
+class TrendAged(FitAged, TrendSE):
     """TrendSE (z = 0: the shipped trend) silent until its fit has run min_fit_s."""
 
     def __init__(s, tau=240.0, taud=240.0, z=0.0, min_fit_s=0.0):
         TrendSE.__init__(s, tau, taud, z)
         s.min_fit_s, s.t_fit0 = min_fit_s, None
-
-    def add(s, t, v, i, soc, q):
-        s.t_fit0 = t if s.t_fit0 is None else s.t_fit0
-        TrendSE.add(s, t, v, i, soc, q)
-
-    def ttl(s, low, cap_wh):
-        if s.t_fit0 is None or s.t - s.t_fit0 < s.min_fit_s:
-            return None
-        return TrendSE.ttl(s, low, cap_wh)
 
 
 def rest_stretch(tr, rows):
